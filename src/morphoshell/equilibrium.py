@@ -1,0 +1,413 @@
+"""Equilibria of morphoelastic shells by direct energy minimisation.
+
+:class:`DirectSolver` builds the NLP of :mod:`morphoshell.discretisation`
+once for a (structure, mesh) and re-solves it with Ipopt for new parameter
+values, warm-started from a previous :class:`Equilibrium`: continuation and
+fitting call it thousands of times.  :func:`solve` is the one-call interface
+(solvers are cached), which also dispatches to the boundary-value reference.
+
+Nothing unconverged is returned: an Ipopt failure raises :class:`SolverError`
+naming Ipopt's status, a converged stationary point that is not a local
+minimum (a saddle, which interior-point methods can report as success) raises
+:class:`NotAMinimumError`; both carry the last iterate.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, fields
+from typing import Any, Mapping
+
+import casadi as ca
+import numpy as np
+
+from .discretisation import Discretisation, boundary_layer_width, graded_mesh
+from .geometry import get_geometry
+from ._buffered import Buffered
+from .problem import Problem, Structure
+
+__all__ = ["Equilibrium", "SolverStats", "SolverError", "NotAMinimumError", "DirectSolver",
+           "solve", "FIELDS"]
+
+#: Nodal arrays of an :class:`Equilibrium`, in order.
+FIELDS = ("s", "r", "z", "psi", "f_s", "f_phi", "kappa_s", "kappa_phi",
+          "E_s", "E_phi", "K_s", "K_phi", "N_s", "N_phi", "M_s", "M_phi", "eta")
+
+
+@dataclass(frozen=True)
+class SolverStats:
+    """How an equilibrium was obtained."""
+
+    method: str
+    iterations: int
+    seconds: float
+    status: str
+    nodes: int
+    build_seconds: float = 0.0
+    details: Mapping[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return {"method": self.method, "iterations": self.iterations, "seconds": self.seconds,
+                "status": self.status, "nodes": self.nodes, "build_seconds": self.build_seconds,
+                **{k: v for k, v in self.details.items() if np.isscalar(v)}}
+
+
+@dataclass(frozen=True, eq=False)
+class Equilibrium:
+    """An equilibrium shape and its mechanics, all on the nodes ``s`` (increasing).
+
+    Attributes
+    ----------
+    problem : Problem
+    s, r, z, psi : ndarray
+        Undeformed arclength, deformed distance from the axis, height and
+        tangent angle.  z is fixed by z(s[0]) = z₀(s[0]) (the undeformed height).
+    f_s, f_phi, kappa_s, kappa_phi : ndarray
+        Stretches and curvatures (paper, Eq. 5).
+    E_s, E_phi, K_s, K_phi : ndarray
+        Strains (paper, Eq. 6).
+    N_s, N_phi, M_s, M_phi : ndarray
+        Resultants ∂e/∂E_a and ∂e/∂K_a (units of C).
+    eta : ndarray
+        Large-bending parameter η(s).
+    energy : float
+        Total elastic energy 𝓔 (units of C R²).
+    solver : SolverStats
+    converged : bool
+        True for every returned result; False only on the ``last_iterate`` of
+        a :class:`SolverError`.
+    """
+
+    problem: Problem
+    s: np.ndarray
+    r: np.ndarray
+    z: np.ndarray
+    psi: np.ndarray
+    f_s: np.ndarray
+    f_phi: np.ndarray
+    kappa_s: np.ndarray
+    kappa_phi: np.ndarray
+    E_s: np.ndarray
+    E_phi: np.ndarray
+    K_s: np.ndarray
+    K_phi: np.ndarray
+    N_s: np.ndarray
+    N_phi: np.ndarray
+    M_s: np.ndarray
+    M_phi: np.ndarray
+    eta: np.ndarray
+    energy: float
+    solver: SolverStats
+    converged: bool = True
+    x: np.ndarray | None = field(default=None, repr=False)
+    lam_g: np.ndarray | None = field(default=None, repr=False)
+
+    def __repr__(self) -> str:
+        return (f"Equilibrium({self.problem.name or self.problem.family!r}, "
+                f"energy={self.energy:.10g}, nodes={len(self.s)}, method={self.solver.method!r}, "
+                f"converged={self.converged})")
+
+    def edge(self, which: str = "start") -> dict[str, float]:
+        """Values at the first (``"start"``) or last (``"end"``) node."""
+        i = 0 if which == "start" else -1
+        return {k: float(getattr(self, k)[i]) for k in FIELDS}
+
+    def at(self, s: float) -> dict[str, float]:
+        """Fields interpolated (cubic) at the undeformed arclength ``s``."""
+        from scipy.interpolate import CubicSpline
+
+        if not self.s[0] <= s <= self.s[-1]:
+            raise ValueError(f"s = {s} lies outside the shell [{self.s[0]}, {self.s[-1]}]")
+        return {k: float(CubicSpline(self.s, getattr(self, k))(s)) for k in FIELDS}
+
+    def to_dict(self, arrays: bool = True) -> dict:
+        """JSON-ready: problem, energy, solver and (optionally) the nodal arrays."""
+        out = {"problem": self.problem.describe(), "converged": self.converged,
+               "energy": self.energy, "solver": self.solver.to_dict(),
+               "edge_start": self.edge("start"), "edge_end": self.edge("end")}
+        if arrays:
+            out.update({k: getattr(self, k).tolist() for k in FIELDS})
+        return out
+
+
+class SolverError(RuntimeError):
+    """The solver did not deliver a (stable) equilibrium.
+
+    Attributes
+    ----------
+    status : str
+        Ipopt's return status (or the BVP solver's message).
+    last_iterate : Equilibrium or None
+        The last iterate, with ``converged=False``, for inspection.
+    """
+
+    def __init__(self, message: str, status: str, last_iterate: Equilibrium | None = None):
+        super().__init__(message)
+        self.status = status
+        self.last_iterate = last_iterate
+
+
+class NotAMinimumError(SolverError):
+    """Ipopt converged to a stationary point whose reduced Hessian is not positive definite."""
+
+
+def _to_nodes(s_c: np.ndarray, v: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Cell-centre values to nodes: linear interpolation, linear extrapolation at the ends."""
+    out = np.interp(s, s_c, v)
+    for i, (j, k) in ((0, (0, 1)), (-1, (-1, -2))):
+        out[i] = v[j] + (v[j] - v[k]) * (s[i] - s_c[j]) / (s_c[j] - s_c[k])
+    return out
+
+
+_IPOPT_DEFAULTS = {
+    "print_level": 0, "sb": "yes", "print_timing_statistics": "no",
+    "hessian_approximation": "exact",
+    # Warm starts hand over the multipliers of the previous solution; for a
+    # purely equality-constrained problem a cold start with lam_g = 0 is a
+    # plain Newton start, so one setting serves both.
+    "warm_start_init_point": "yes",
+    # MUMPS' automatic (permuting) scaling dominated the run time on fine
+    # meshes (1.5 s instead of 0.2 s per solve at N = 12800) and the NLP is
+    # scaled already; AMD ordering suits the banded KKT matrix.
+    "mumps_scaling": 0, "mumps_permuting_scaling": 0, "mumps_pivot_order": 0,
+}
+
+
+class DirectSolver:
+    """Direct energy minimisation for one structure and mesh, built once.
+
+    Parameters
+    ----------
+    structure : Structure
+        Geometry, profile family, theory and end types (``Problem.structure``).
+    nodes : int
+        Number of mesh nodes N (N − 1 cells).
+    grading_width : float
+        Boundary-layer width used to grade the mesh toward free edges
+        (default: δ of ``h = 0.1``).  The mesh stays valid for any h.
+    domain_length : float
+        Typical shell length L − P − Σ for the grading (default: whole meridian).
+    linear_solver : str
+        Ipopt's linear solver: ``"mumps"`` (bundled) or an HSL solver such as
+        ``"ma27"`` if the user provides ``libhsl.so``.
+    tol : float
+        Ipopt's convergence tolerance (on the scaled KKT error) at N = 800;
+        it grows like N² on finer meshes, as does the round-off floor of the
+        discrete gradient (measured: 2e-12 at N = 800, 2e-9 at N = 12800).
+        Ipopt's ``Search_Direction_Becomes_Too_Small`` (Newton steps at
+        machine precision) counts as converged when the final scaled primal
+        and dual infeasibilities are below 1e-9 and 1e-6.
+    stability : {"auto", "exact", "off"}
+        How to verify that a solution is a local minimum.  ``"exact"``
+        counts the inertia of the KKT matrix at the solution (sparse LDLᵀ).
+        ``"auto"`` accepts Ipopt's own certificate when its last Newton step
+        needed no inertia correction (MUMPS then found the KKT inertia
+        correct) and falls back to ``"exact"`` otherwise.
+    ipopt_options : mapping
+        Extra Ipopt options.
+    """
+
+    def __init__(self, structure: Structure, nodes: int = 800, *, grading_width: float | None = None,
+                 domain_length: float | None = None, linear_solver: str = "mumps",
+                 tol: float = 1e-10, max_iter: int = 500, stability: str = "auto",
+                 ipopt_options: Mapping[str, Any] | None = None):
+        if isinstance(nodes, bool) or int(nodes) != nodes or nodes < 5:
+            raise ValueError(f"nodes = {nodes!r} must be an integer >= 5")
+        if stability not in ("auto", "exact", "off"):
+            raise ValueError(f"stability = {stability!r} must be 'auto', 'exact' or 'off'")
+        t0 = time.perf_counter()
+        self.structure = structure
+        self.nodes = int(nodes)
+        geo = get_geometry(structure.geometry)
+        width = boundary_layer_width(0.1) if grading_width is None else float(grading_width)
+        length = geo.length if domain_length is None else float(domain_length)
+        self.t = graded_mesh(self.nodes - 1, length, structure.start, structure.end, width)
+        self.disc = d = Discretisation(structure, self.t)
+        self.tol = float(tol) * max(1.0, (self.nodes / 800) ** 2)
+        opts = dict(_IPOPT_DEFAULTS, tol=self.tol, max_iter=max_iter, linear_solver=linear_solver)
+        opts.update(ipopt_options or {})
+        nlp = {"x": d.x, "p": d.D, "f": d.objective, "g": d.g}
+        self.nlpsol = ca.nlpsol("shell", "ipopt", nlp, {
+            "ipopt": opts, "print_time": False, "error_on_fail": False,
+            "grad_f": d.grad_f, "jac_g": d.jac_g, "hess_lag": d.hess_lag,
+            # Multipliers of bounds and parameters are not needed (there are
+            # no bounds; parametric derivatives come from the KKT system).
+            "calc_lam_p": False, "calc_lam_x": False, "bound_consistency": False,
+            "calc_f": False, "calc_g": False})
+        self.stability = stability
+        x, D, lam = d.x, d.D, ca.MX.sym("lam", d.g.shape[0])
+        Ht = d.hess_lag(x, D, 1, lam)
+        J = d.jac_g(x, D)[1]
+        kkt = ca.blockcat([[Ht + Ht.T - ca.diag(ca.diag(Ht)), J.T],
+                           [J, ca.MX(J.shape[0], J.shape[0])]])
+        self._kkt = ca.Function("kkt", [x, D, lam], [kkt])
+        self._ldl = None
+        self._solve = Buffered(self.nlpsol)
+        self._pre = Buffered(d.pre)
+        n, m = d.layout.size, d.g.shape[0]
+        self._bounds = (np.full(n, -np.inf), np.full(n, np.inf), np.zeros(m), np.zeros(m), np.zeros(n))
+        self.build_seconds = time.perf_counter() - t0
+
+    # ------------------------------------------------------------------
+    def _check(self, problem: Problem) -> None:
+        if problem.structure != self.structure:
+            raise ValueError(f"this solver is built for {self.structure}, "
+                             f"not for {problem.structure}")
+
+    def negative_curvature_count(self, x: np.ndarray, D, lam_g: np.ndarray) -> int:
+        """Non-positive directions of the reduced Hessian at (x, λ).
+
+        By Sylvester's law of inertia, the KKT matrix [[∇²ℒ, Jᵀ], [J, 0]]
+        has exactly m negative eigenvalues (m constraints) iff the Hessian
+        of the Lagrangian is positive definite on the tangent space of the
+        constraints; every further negative eigenvalue is a direction of
+        descent.  Counted with CasADi's sparse LDLᵀ.
+        """
+        K = self._kkt(x, D, lam_g)
+        if self._ldl is None:
+            self._ldl = ca.Linsol("kkt_ldl", "ldl", self._kkt.sparsity_out(0))
+            self._ldl.sfact(K)
+        self._ldl.nfact(K)
+        return int(self._ldl.neig(K)) - self.disc.g.shape[0]
+
+    def solve(self, problem: Problem, warm_start: Equilibrium | None = None,
+              x0: np.ndarray | None = None, lam_g0: np.ndarray | None = None) -> Equilibrium:
+        """Equilibrium of ``problem``, optionally warm-started.
+
+        Parameters
+        ----------
+        problem : Problem
+            Must have this solver's structure; any parameter values.
+        warm_start : Equilibrium, optional
+            A previous solution on this solver (continuation, fitting).
+        x0, lam_g0 : ndarray, optional
+            Raw initial iterate and multipliers (override ``warm_start``).
+
+        Raises
+        ------
+        SolverError
+            Ipopt did not converge; ``.status`` is Ipopt's return status.
+        NotAMinimumError
+            Ipopt converged to a saddle.
+        """
+        self._check(problem)
+        p = problem.parameter_vector()
+        if warm_start is not None and x0 is None:
+            if warm_start.x is None or len(warm_start.x) != self.disc.layout.size:
+                raise ValueError("warm_start must be a direct solution on a solver of this mesh")
+            x0, lam_g0 = warm_start.x, warm_start.lam_g
+        if x0 is None:
+            x0 = self.disc.initial_guess(p)
+        if lam_g0 is None:
+            lam_g0 = np.zeros(self.disc.g.shape[0])
+        D = self._pre(p)[0]
+        lbx, ubx, lbg, ubg, lam_x0 = self._bounds
+        t0 = time.perf_counter()
+        x, _, _, _, lam, _ = self._solve(x0, D, lbx, ubx, lbg, ubg, lam_x0, lam_g0)
+        seconds = time.perf_counter() - t0
+        st = self._solve.stats()
+        status = st.get("return_status", "unknown")
+        iters = int(st.get("iter_count", -1))
+        ok = _converged(status, st)
+        details: dict[str, Any] = {}
+        if ok and self.stability != "off":
+            reg = st.get("iterations", {}).get("regularization_size", [])
+            if self.stability == "auto" and iters >= 1 and len(reg) and reg[-1] == 0:
+                details["stability"] = "ipopt_inertia"
+                details["negative_curvature"] = 0
+            else:
+                details["stability"] = "kkt_ldl"
+                details["negative_curvature"] = self.negative_curvature_count(x, D, lam)
+        stats = SolverStats("direct", iters, seconds, status, self.nodes, self.build_seconds, details)
+        eq = self._equilibrium(problem, x, lam, p, D, stats, converged=ok)
+        if not ok:
+            raise SolverError(
+                f"Ipopt failed on {problem.name or problem.family!r} with status {status!r} "
+                f"after {iters} iterations; the last iterate is attached (.last_iterate)",
+                status, eq)
+        if details.get("negative_curvature", 0) != 0:
+            raise NotAMinimumError(
+                f"Ipopt converged ({status}) to a stationary point that is not a minimum: the "
+                f"reduced Hessian has {details['negative_curvature']} non-positive "
+                f"eigenvalue(s); perturb the start or continue from a stable solution. "
+                f"The saddle is attached (.last_iterate)", "Not_A_Minimum",
+                _replace_converged(eq))
+        return eq
+
+    def _equilibrium(self, problem, x, lam, p, D, stats, converged) -> Equilibrium:
+        cf = self.disc.cell_fields(x, D)
+        s = self.disc.nodes(p)
+        r, psi, _ = self.disc.layout.split(x)
+        z = self._z_start(p) + np.concatenate(
+            [[0.0], np.cumsum(cf["ds"] * cf["f_s"] * np.sin(cf["psi_c"]))])
+        derived = {
+            "f_phi": cf["r_c"] / cf["rho"],
+            "kappa_s": cf["dpsi"] / cf["f_s"],
+            "kappa_phi": np.sin(cf["psi_c"]) / cf["r_c"],
+        }
+        nodal = {k: _to_nodes(cf["s_c"], derived[k] if k in derived else cf[k], s)
+                 for k in FIELDS if k not in ("s", "r", "z", "psi")}
+        energy = float(np.dot(cf["L"], cf["ds"]))
+        return Equilibrium(problem=problem, s=s, r=r, z=z, psi=psi, **nodal, energy=energy,
+                           solver=stats, converged=converged, x=x, lam_g=lam)
+
+    def _z_start(self, p) -> float:
+        if not hasattr(self, "_z0"):
+            s = ca.SX.sym("s")
+            self._z0 = ca.Function("z0", [s], [self.disc.geometry.z0(s)])
+        return float(self._z0(p[1]))
+
+
+def _converged(status: str, stats: Mapping[str, Any]) -> bool:
+    """Whether Ipopt's result is a solution (see ``DirectSolver``, ``tol``)."""
+    if status == "Solve_Succeeded":
+        return True
+    if status == "Search_Direction_Becomes_Too_Small":
+        it = stats.get("iterations", {})
+        if it.get("inf_pr") and it.get("inf_du"):
+            return it["inf_pr"][-1] < 1e-9 and it["inf_du"][-1] < 1e-6
+    return False
+
+
+def _replace_converged(eq: Equilibrium) -> Equilibrium:
+    kw = {f.name: getattr(eq, f.name) for f in fields(eq)}
+    kw["converged"] = False
+    return Equilibrium(**kw)
+
+
+_SOLVERS: dict[tuple, DirectSolver] = {}
+
+
+def direct_solver(problem: Problem, nodes: int = 800, **options) -> DirectSolver:
+    """A cached :class:`DirectSolver` suited to ``problem`` (grading from its h)."""
+    width = round(boundary_layer_width(problem.h), 3)
+    length = round(problem.end - problem.cut, 2)
+    key = (problem.structure, int(nodes), width, length, tuple(sorted(options.items())))
+    if key not in _SOLVERS:
+        _SOLVERS[key] = DirectSolver(problem.structure, nodes, grading_width=width,
+                                     domain_length=length, **options)
+    return _SOLVERS[key]
+
+
+def solve(problem: Problem, nodes: int = 800, method: str = "direct",
+          warm_start: Equilibrium | None = None, **options) -> Equilibrium:
+    """Equilibrium of ``problem``.
+
+    Parameters
+    ----------
+    problem : Problem
+    nodes : int
+        Mesh nodes (direct) or initial mesh nodes (bvp).
+    method : {"direct", "bvp"}
+        Direct energy minimisation (default) or the boundary-value reference
+        of :mod:`morphoshell.reference`.
+    warm_start : Equilibrium, optional
+        A previous solution (same method and mesh) to start from.
+    **options
+        Passed to :class:`DirectSolver` or :func:`morphoshell.reference.solve_bvp`.
+    """
+    if method == "direct":
+        return direct_solver(problem, nodes, **options).solve(problem, warm_start=warm_start)
+    if method == "bvp":
+        from .reference import solve_bvp
+        return solve_bvp(problem, nodes=nodes, guess=warm_start, **options)
+    raise ValueError(f"unknown method {method!r}; choose 'direct' or 'bvp'")

@@ -1,0 +1,72 @@
+"""Undeformed meridians of shells of revolution.
+
+Lengths are scaled by the undeformed radius R (paper, Materials and Methods).
+The undeformed meridian is parametrised by arclength s; ρ(s) is its distance
+from the axis, z₀(s) its height and ψ₀(s) its tangent angle, so that
+ρ' = cos ψ₀ and z₀' = sin ψ₀.  A *pole* is a point where ρ = 0: the shell is
+regular there (r = 0, ψ = 0 at the start, ψ = π at the end of a closed
+meridian).
+
+All callables accept CasADi expressions as well as floats.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import casadi as ca
+import numpy as np
+
+__all__ = ["Geometry", "SPHERE", "DISC", "GEOMETRIES", "get_geometry"]
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """Undeformed meridian s ↦ (ρ(s), z₀(s)), s ∈ [0, length].
+
+    Attributes
+    ----------
+    name : str
+    length : float
+        Arclength of the whole meridian (π for the unit sphere).
+    closed : bool
+        Whether ρ(length) = 0, i.e. the meridian ends on the axis (a second
+        pole) rather than at a rim.
+    rho, z0, psi0 : callable
+        Distance from the axis, height and tangent angle.
+    """
+
+    name: str
+    length: float
+    closed: bool
+    rho: Callable
+    z0: Callable
+    psi0: Callable
+
+    def numeric(self, s) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(ρ, z₀, ψ₀) at the points ``s`` as NumPy arrays."""
+        s = np.asarray(s, dtype=float)
+        sym = ca.SX.sym("s")
+        f = ca.Function("geometry", [sym], [self.rho(sym), self.z0(sym), self.psi0(sym)])
+        out = f(s.reshape(1, -1))
+        return tuple(np.asarray(v).reshape(s.shape) for v in out)
+
+
+#: The unit sphere of the paper, s measured from the pole at s = 0.
+SPHERE = Geometry("sphere", float(np.pi), True,
+                  rho=lambda s: ca.sin(s), z0=lambda s: 1 - ca.cos(s), psi0=lambda s: s)
+
+#: A flat disc of unit radius (ρ = s), whose mirror symmetry makes every flat
+#: state a stationary point: useful for checking stability detection.
+DISC = Geometry("disc", 1.0, False,
+                rho=lambda s: s, z0=lambda s: 0 * s, psi0=lambda s: 0 * s)
+
+GEOMETRIES: dict[str, Geometry] = {g.name: g for g in (SPHERE, DISC)}
+
+
+def get_geometry(name: str) -> Geometry:
+    try:
+        return GEOMETRIES[name]
+    except KeyError:
+        raise ValueError(
+            f"unknown geometry {name!r}; choose one of {sorted(GEOMETRIES)}") from None

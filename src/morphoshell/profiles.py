@@ -1,0 +1,200 @@
+"""Intrinsic stretches and curvatures f_s⁰, f_φ⁰, κ_s⁰, κ_φ⁰ of s.
+
+A *profile family* turns named parameters into the four intrinsic profiles as
+CasADi expressions of the undeformed arclength s (and, where the family needs
+it, of the shell's ends: the cut Σ at the start and the end s_end = L − P).
+Families are looked up by name in :data:`FAMILIES`; :func:`register_family`
+adds another.
+
+Families of the paper (Materials and Methods, "Numerical solution of the toy
+problems"; Supplementary, last section, and ``volvox_model.md``):
+
+``uniform``            f⁰ = 1, κ_s⁰ = κ_φ⁰ = k (toy problems 1 and 2)
+``anisotropic``        f_s⁰ = 1 + f0 = 1/f_φ⁰, κ⁰ = 1 (toy problem 3)
+``local_relaxation``   f⁰ = 1 + F0 (Σ + s0 − s)/s0 on [Σ, Σ + s0], else 1;
+                       κ⁰ = 1 (fast active relaxation near the cut)
+``volvox``             the 13-parameter inversion model, smoothing width σ
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Mapping, NamedTuple
+
+import casadi as ca
+
+__all__ = ["Profiles", "ProfileFamily", "FAMILIES", "register_family", "get_family"]
+
+
+class Profiles(NamedTuple):
+    f_s0: object
+    f_phi0: object
+    kappa_s0: object
+    kappa_phi0: object
+
+
+@dataclass(frozen=True)
+class ProfileFamily:
+    """A named family of intrinsic profiles.
+
+    Attributes
+    ----------
+    name : str
+    parameters : tuple of str
+        Parameter names, in the order of the NLP parameter vector.
+    defaults : mapping
+        Default value of every parameter.
+    build : callable
+        ``build(s, p, cut, end) -> Profiles`` with ``p`` a dict of CasADi
+        symbols keyed by parameter name.
+    validate : callable
+        ``validate(values, cut, end)`` raises ``ValueError`` naming the
+        offending value; called before any work starts.
+    neutral : mapping
+        Parameter values for which the undeformed sphere is stress free
+        (f⁰ = 1, κ⁰ = 1); continuation starts there.
+    """
+
+    name: str
+    parameters: tuple[str, ...]
+    defaults: Mapping[str, float]
+    build: Callable[..., Profiles]
+    validate: Callable[[Mapping[str, float], float, float], None] = lambda v, cut, end: None
+    description: str = ""
+    neutral: Mapping[str, float] = field(default_factory=dict)
+    _function: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def function(self, points: int | None = None) -> ca.Function:
+        """CasADi Function ``(s, p, cut, end) -> (f_s0, f_phi0, kappa_s0, kappa_phi0)``.
+
+        With ``points``, the same mapped over that many values of s (a row).
+        """
+        if "f" not in self._function:
+            s, cut, end = ca.SX.sym("s"), ca.SX.sym("cut"), ca.SX.sym("end")
+            p = ca.SX.sym("p", len(self.parameters))
+            named = {n: p[i] for i, n in enumerate(self.parameters)}
+            prof = self.build(s, named, cut, end)
+            self._function["f"] = ca.Function(
+                f"profiles_{self.name}", [s, p, cut, end], list(prof),
+                ["s", "p", "cut", "end"], list(Profiles._fields))
+        if points is None:
+            return self._function["f"]
+        # An explicit map: calling with a row of points would build one each time.
+        if points not in self._function:
+            self._function[points] = self._function["f"].map(points)
+        return self._function[points]
+
+
+def _positive(values, *names):
+    for n in names:
+        if not values[n] > 0:
+            raise ValueError(f"parameter {n} = {values[n]!r} must be positive")
+
+
+def _uniform(s, p, cut, end):
+    one = 1 + 0 * s
+    return Profiles(one, one, p["k"] * one, p["k"] * one)
+
+
+def _anisotropic(s, p, cut, end):
+    one = 1 + 0 * s
+    return Profiles((1 + p["f0"]) * one, one / (1 + p["f0"]), one, one)
+
+
+def _validate_anisotropic(v, cut, end):
+    if not 1 + v["f0"] > 0:
+        raise ValueError(f"parameter f0 = {v['f0']!r} must exceed -1 (f_s0 = 1 + f0 > 0)")
+
+
+def _local_relaxation(s, p, cut, end):
+    # Piecewise linear as printed in the paper; the kink at Σ + s0 is in the
+    # data, not in the unknowns, so Ipopt's derivatives stay exact.
+    f = 1 + p["F0"] * ca.fmax(0, 1 - (s - cut) / p["s0"])
+    one = 1 + 0 * s
+    return Profiles(f, f, one, one)
+
+
+def _validate_local_relaxation(v, cut, end):
+    _positive(v, "s0")
+    if not 1 + v["F0"] > 0:
+        raise ValueError(f"parameter F0 = {v['F0']!r} must exceed -1 (f0 = 1 + F0 > 0 at the cut)")
+
+
+def _softplus(x):
+    return ca.fmax(x, 0) + ca.log1p(ca.exp(-ca.fabs(x)))
+
+
+def _volvox(s, p, cut, end):
+    sig = p["sigma"]
+
+    def step(si):  # H(s − s_i) of volvox_model.md
+        return (1 + ca.tanh((s - si) / sig)) / 2
+
+    ramp = sig * (_softplus((s - p["s3"]) / sig) - _softplus((s - p["s4"]) / sig)) / (p["s4"] - p["s3"])
+    k1, k2, k3, k4 = (p[f"kappa{i}"] for i in range(1, 5))
+    f1, f2, f3, f4, f5 = (p[f"f{i}"] for i in range(1, 6))
+    return Profiles(
+        f_s0=f1 + (f2 - f1) * step(p["s2"]) + (f3 - f2) * ramp,
+        f_phi0=f1 + (f4 - f1) * step(p["s2"]) + (f5 - f4) * ramp,
+        kappa_s0=k1 + (k2 - k1) * step(p["s1"]) + (k3 - k2) * step(p["s2"]),
+        kappa_phi0=k1 + (k4 - k1) * step(p["s2"]),
+    )
+
+
+def _validate_volvox(v, cut, end):
+    _positive(v, "f1", "f2", "f3", "f4", "f5", "sigma")
+    bps = [("s1", v["s1"]), ("s2", v["s2"]), ("s3", v["s3"]), ("s4", v["s4"])]
+    if not bps[0][1] > 0:
+        raise ValueError(f"breakpoint s1 = {v['s1']!r} must be positive")
+    for (na, a), (nb, b) in zip(bps, bps[1:]):
+        if not a < b:
+            raise ValueError(f"breakpoints must satisfy 0 < s1 < s2 < s3 < s4 < pi - P; "
+                             f"got {na} = {a!r} >= {nb} = {b!r}")
+    if not v["s4"] < end:
+        raise ValueError(f"breakpoint s4 = {v['s4']!r} must lie before the shell's end "
+                         f"s = {end:.6g} (pi - P)")
+
+
+FAMILIES: dict[str, ProfileFamily] = {}
+
+
+def register_family(family: ProfileFamily) -> ProfileFamily:
+    """Add ``family`` to :data:`FAMILIES` (replacing one of the same name)."""
+    missing = set(family.parameters) - set(family.defaults)
+    if missing:
+        raise ValueError(f"family {family.name!r} lacks defaults for {sorted(missing)}")
+    FAMILIES[family.name] = family
+    return family
+
+
+def get_family(name: str) -> ProfileFamily:
+    try:
+        return FAMILIES[name]
+    except KeyError:
+        raise ValueError(
+            f"unknown profile family {name!r}; choose one of {sorted(FAMILIES)}") from None
+
+
+register_family(ProfileFamily(
+    "uniform", ("k",), {"k": 0.0}, _uniform,
+    description="f0 = 1, kappa_s0 = kappa_phi0 = k (toy problems 1 and 2)", neutral={"k": 1.0}))
+register_family(ProfileFamily(
+    "anisotropic", ("f0",), {"f0": 0.1}, _anisotropic, _validate_anisotropic,
+    description="f_s0 = 1 + f0 = 1/f_phi0, kappa0 = 1 (toy problem 3)", neutral={"f0": 0.0}))
+register_family(ProfileFamily(
+    "local_relaxation", ("F0", "s0"), {"F0": 0.35, "s0": 0.2}, _local_relaxation,
+    _validate_local_relaxation,
+    description="f0 = 1 + F0 (cut + s0 - s)/s0 near the cut, kappa0 = 1 (fast relaxation)",
+    neutral={"F0": 0.0}))
+register_family(ProfileFamily(
+    "volvox",
+    ("f1", "f2", "f3", "f4", "f5", "kappa1", "kappa2", "kappa3", "kappa4",
+     "s1", "s2", "s3", "s4", "sigma"),
+    # Illustrative early-invagination values (not a fit): contracted posterior,
+    # strongly curved wedge cells in the bend region (eta about -0.8 at h = 0.15).
+    {"f1": 0.9, "f2": 1.0, "f3": 1.1, "f4": 1.0, "f5": 1.15,
+     "kappa1": 1 / 0.9, "kappa2": -9.0, "kappa3": 1.0, "kappa4": 1.0,
+     "s1": 1.3, "s2": 1.6, "s3": 1.9, "s4": 2.3, "sigma": 0.05},
+    _volvox, _validate_volvox,
+    description="13-parameter Volvox inversion model (volvox_model.md), smoothing width sigma",
+    neutral={**{f"f{i}": 1.0 for i in range(1, 6)}, **{f"kappa{i}": 1.0 for i in range(1, 5)}}))
+

@@ -1,0 +1,423 @@
+"""Boundary-value reference: the Euler–Lagrange equations solved with ``solve_bvp``.
+
+This is the verification route of the paper (Materials and Methods: the
+authors solved the shell equations with MATLAB's ``bvp4c``).  The equations
+are *derived*, not typed: Pontryagin's principle is applied to the optimal
+control form of the same energy (:func:`morphoshell.energy.local_function`),
+
+    minimise ∫ L(s, r, ψ, f_s, ψ') ds,  L = 2πρe,  subject to r' = f_s cos ψ,
+
+with states (r, ψ), controls (f_s, u = ψ') and costates (λ_r, λ_ψ):
+
+    H = L + λ_r f_s cos ψ + λ_ψ u,    ∂H/∂(f_s, u) = 0,
+    r' = f_s cos ψ,  ψ' = u,  λ_r' = −∂H/∂r,  λ_ψ' = −∂H/∂ψ.
+
+H is quadratic in the controls, so they follow from a 2×2 linear solve.  λ_r
+is 2π times the radial force per radian and λ_ψ = −∂L/∂ψ' is 2π times minus the
+bending moment (``large_bending_theory.md`` section 5).  z' = f_s sin ψ and
+the energy density are integrated alongside.
+
+Boundary conditions
+-------------------
+Free edge: λ_r = λ_ψ = 0 (no force, no torque; transversality).
+Pole: the equations are singular at ρ = 0, so the solution starts a distance
+ε from it on the local solution.  Near a pole the strains are affine in
+w = (r', r/s, ψ', ψ/s) up to O(s²), so the energy is locally the quadratic
+form ½ εᵀQε of an Euler-type problem.  Its bounded solutions are
+
+    (r, ψ) = c_p s + C₁ c₁ s^β₁ + C₂ c₂ s^β₂,
+
+where β₁, β₂ > 0 are the positive roots of det M(β) = 0 with
+M(β) = (βP̃ − R̃)ᵀ Q (βP̃ + R̃) and c_p solves M(1) c_p = −(P̃ − R̃)ᵀ Q ε₀.
+The exponents are 1 only for an isotropic quadratic form: with anisotropic
+intrinsic stretch (toy problem 3, β = (1 + f0)² classically) or with η ≠ 0
+in the large-bending theory the pole is weakly singular, and the naive
+expansion r = Aρ, ψ = Bs would be wrong at O(ε^β).  C₁, C₂ are unknowns of
+the boundary-value problem; the costates follow from ∂H/∂(f_s, u) = 0.  Q,
+P̃, R̃ and ε₀ are obtained by differentiating the same energy density.
+"""
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import casadi as ca
+import numpy as np
+import scipy.integrate
+
+from .discretisation import boundary_layer_width, graded_mesh
+from .energy import LOCAL_OUTPUTS, intrinsic_function, local_function
+from .equilibrium import FIELDS, Equilibrium, SolverError, SolverStats
+from .geometry import get_geometry
+from .problem import Problem, Structure
+
+__all__ = ["solve_bvp", "pontryagin_functions"]
+
+_CACHE: dict[Structure, dict[str, ca.Function]] = {}
+
+
+def pontryagin_functions(structure: Structure) -> dict[str, ca.Function]:
+    """CasADi functions of the Pontryagin system for ``structure``.
+
+    Returns
+    -------
+    dict with
+      ``rhs(s, y, p) -> y'`` and ``jac(s, y, p) -> ∂y'/∂y`` for
+      y = (r, ψ, λ_r, λ_ψ, z, 𝓔); ``controls(s, y, p) -> (f_s, ψ')``;
+      ``costates(s, r, psi, f_s, dpsi, p) -> (λ_r, λ_ψ)``;
+      ``local`` the pointwise energy.
+    """
+    if structure in _CACHE:
+        return _CACHE[structure]
+    local = local_function(structure)
+    n_p = local.size1_in(5)
+    s = ca.SX.sym("s")
+    p = ca.SX.sym("p", n_p)
+    r, psi, lr, lpsi, z, E = (ca.SX.sym(n) for n in ("r", "psi", "lam_r", "lam_psi", "z", "E"))
+    y = ca.vertcat(r, psi, lr, lpsi, z, E)
+    f, u = ca.SX.sym("f_s"), ca.SX.sym("dpsi")
+    L = local(s, r, psi, f, u, p)[0]
+    H = L + lr * f * ca.cos(psi) + lpsi * u
+    w = ca.vertcat(f, u)
+    Hw = ca.gradient(H, w)
+    A = ca.jacobian(Hw, w)  # independent of (f, u): H is quadratic in them
+    b = ca.substitute(Hw, w, ca.DM.zeros(2))
+    det = A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
+    wstar = -ca.vertcat(A[1, 1] * b[0] - A[0, 1] * b[1], A[0, 0] * b[1] - A[1, 0] * b[0]) / det
+    dH = ca.vertcat(ca.gradient(H, r), ca.gradient(H, psi))
+    rhs = ca.vertcat(f * ca.cos(psi), u, -dH[0], -dH[1], f * ca.sin(psi), L)
+    rhs = ca.substitute(rhs, w, wstar)
+    # Costates that make (f, u) optimal: ∂H/∂(f, u) = 0 solved for (λ_r, λ_ψ).
+    Lw = ca.gradient(L, w)
+    costates = ca.vertcat(-Lw[0] / ca.cos(psi), -Lw[1])
+    out = {
+        "rhs": ca.Function("rhs", [s, y, p], [rhs]),
+        "jac": ca.Function("rhs_jac", [s, y, p], [ca.jacobian(rhs, y)]),
+        "controls": ca.Function("controls", [s, y, p], [wstar]),
+        "costates": ca.Function("costates", [s, r, psi, f, u, p], [costates]),
+        "local": local,
+    }
+    _CACHE[structure] = out
+    return out
+
+
+def _pole_function(structure: Structure) -> ca.Function:
+    """``(I, h) -> (Q, G, eps0)`` at a pole from the intrinsic data I.
+
+    ε = G w + eps0 with w = (r', r/s, ψ', ψ/s) and e = ½ εᵀ Q ε.
+    """
+    key = ("pole", structure)
+    if key not in _CACHE:
+        from .coefficients import Coefficients
+        from .energy import INTRINSIC, Strains, density, strains
+        from .profiles import Profiles
+        I, h = ca.SX.sym("I", len(INTRINSIC)), ca.SX.sym("h")
+        prof = Profiles(*[I[1 + i] for i in range(4)])
+        coeffs = Coefficients(*[I[6 + i] for i in range(10)])
+        w = ca.SX.sym("w", 4)
+        # ρ = 1 with r = r/s, and sin ψ ≈ ψ/s: the strains at the pole, exactly affine in w.
+        E = ca.vertcat(*strains(1, w[1], w[3], w[0], w[2], prof))
+        G = ca.substitute(ca.jacobian(E, w), w, ca.DM.zeros(4))
+        eps0 = ca.substitute(E, w, ca.DM.zeros(4))
+        Es = ca.SX.sym("E", 4)
+        Q = ca.hessian(density(Strains(*ca.vertsplit(Es)), h, coeffs), Es)[0]
+        _CACHE[key] = ca.Function("pole_data", [I, h], [Q, G, eps0])
+    return _CACHE[key]
+
+
+class _PoleSolution:
+    """Bounded local solution of the linearised problem at a pole (see module doc)."""
+
+    def __init__(self, Q: np.ndarray, G: np.ndarray, eps0: np.ndarray):
+        P = G[:, [0, 2]]   # coefficients of (r', ψ')
+        R = G[:, [1, 3]]   # coefficients of (r/s, ψ/s)
+        A, B, C = P.T @ Q @ P, P.T @ Q @ R - R.T @ Q @ P, R.T @ Q @ R
+
+        def M(beta):
+            return beta**2 * A + beta * B - C
+
+        # det M(β) as a quartic: exact coefficients from five samples.
+        x = np.arange(-2.0, 3.0)
+        roots = np.roots(np.polyfit(x, [np.linalg.det(M(v)) for v in x], 4))
+        pos = sorted(roots[roots.real > 1e-9], key=lambda z: (z.real, z.imag))
+        if len(pos) != 2:
+            raise SolverError(f"pole analysis found {len(pos)} admissible exponents "
+                              f"({roots}); the pole is not regular", "Pole_Analysis_Failed")
+        b1, b2 = pos
+        if abs(b1 - b2) < 1e-6 * max(1.0, abs(b1)):
+            # Double root (isotropic quadratic form): M(β) vanishes on a plane.
+            beta = float(np.real(b1 + b2) / 2)
+            _, _, vh = np.linalg.svd(M(beta))
+            modes = [(beta, vh[-1], "re"), (beta, vh[-2], "re")]
+        elif abs(b1.imag) > 1e-9:   # complex pair: real and imaginary parts of one mode
+            c = _null_vector(M(b1))
+            modes = [(b1, c, "re"), (b1, c, "im")]
+        else:
+            modes = [(float(b.real), _null_vector(M(float(b.real))).real, "re") for b in pos]
+        self.modes = modes
+        self.exponents = [complex(m[0]) for m in modes]
+        rhs = -(P - R).T @ Q @ eps0
+        self.c_p = np.linalg.lstsq(M(1.0), rhs, rcond=1e-12)[0]
+
+    def fit(self, s: float, r: float, psi: float) -> np.ndarray:
+        """Mode amplitudes C that reproduce (r, ψ) at distance s from the pole."""
+        basis = np.column_stack([self.evaluate(s, e)[0] - self.c_p * s for e in np.eye(2)])
+        return np.linalg.lstsq(basis, np.array([r, psi]) - self.c_p * s, rcond=None)[0]
+
+    def evaluate(self, s: float, C) -> tuple[np.ndarray, np.ndarray]:
+        """(r, ψ) and their derivatives at distance s from the pole."""
+        v = self.c_p * s
+        dv = self.c_p.copy()
+        for Cj, (beta, c, part) in zip(C, self.modes):
+            term = c * s**beta
+            dterm = c * beta * s ** (beta - 1)
+            v = v + Cj * (term.real if part == "re" else term.imag)
+            dv = dv + Cj * (dterm.real if part == "re" else dterm.imag)
+        return np.real(v), np.real(dv)
+
+
+def _null_vector(M: np.ndarray) -> np.ndarray:
+    u, sv, vh = np.linalg.svd(M)
+    c = vh[-1].conj()
+    return c / np.linalg.norm(c)
+
+
+class _Vectorised:
+    """Evaluate a pointwise CasADi function on many points (maps cached by size)."""
+
+    def __init__(self, f: ca.Function):
+        self.f = f
+        self.maps: dict[int, ca.Function] = {}
+
+    def __call__(self, s, y, p):
+        m = len(s)
+        if m not in self.maps:
+            self.maps[m] = self.f.map(m)
+        return np.asarray(self.maps[m](s.reshape(1, -1), y, p))
+
+
+def _neutral_start(problem: Problem, steps: int) -> list[Problem]:
+    """Homotopy from the family's stress-free parameters to the problem's."""
+    fam = problem.family_obj
+    if steps <= 1 or not fam.neutral:
+        return [problem]
+    seq = []
+    for tau in np.linspace(0, 1, steps + 1)[1:]:
+        params = {n: fam.neutral.get(n, v) + tau * (v - fam.neutral.get(n, v))
+                  for n, v in problem.params.items()}
+        seq.append(problem.with_updates(**params))
+    return seq
+
+
+def solve_bvp(problem: Problem, nodes: int = 400, *, tol: float = 1e-8, bc_tol: float | None = None,
+              guess: Equilibrium | None = None, pole_offset: float = 1e-4,
+              max_nodes: int = 400000, homotopy_steps: int = 1) -> Equilibrium:
+    """Equilibrium of ``problem`` from the boundary-value reference.
+
+    Parameters
+    ----------
+    problem : Problem
+    nodes : int
+        Initial mesh nodes (``solve_bvp`` refines adaptively).
+    tol, bc_tol : float
+        ``scipy.integrate.solve_bvp`` tolerances (relative collocation
+        residual, boundary residual; ``bc_tol`` defaults to ``tol``).
+    guess : Equilibrium, optional
+        Initial guess (any method).  Default: the undeformed shell, reached
+        through ``homotopy_steps`` solves from the family's stress-free
+        parameters (each warm-started from the previous one).
+    pole_offset : float
+        ε, the distance from a pole at which the solution starts.
+    max_nodes : int
+        Passed to ``solve_bvp``.
+
+    Raises
+    ------
+    SolverError
+        ``solve_bvp`` did not converge; ``.status`` is its message.
+    """
+    t0 = time.perf_counter()
+    steps = 1 if guess is not None else max(1, int(homotopy_steps))
+    current = guess
+    total_iters = 0
+    for sub in _neutral_start(problem, steps):
+        current, iters = _solve_one(sub, nodes, tol, bc_tol if bc_tol is not None else tol,
+                                    current, pole_offset, max_nodes)
+        total_iters += iters
+    seconds = time.perf_counter() - t0
+    st = current.solver
+    stats = SolverStats("bvp", total_iters, seconds, st.status, len(current.s), 0.0, st.details)
+    return Equilibrium(**{**{k: getattr(current, k) for k in FIELDS}, "problem": problem,
+                          "energy": current.energy, "solver": stats, "converged": True})
+
+
+def _solve_one(problem: Problem, nodes: int, tol: float, bc_tol: float,
+               guess: Equilibrium | None, eps: float, max_nodes: int) -> tuple[Equilibrium, int]:
+    st = problem.structure
+    F = pontryagin_functions(st)
+    geo = get_geometry(problem.geometry)
+    p = problem.parameter_vector()
+    start_pole, end_pole = st.start == "pole", st.end == "pole"
+    a = problem.cut + (eps if start_pole else 0.0)
+    b = problem.end - (eps if end_pole else 0.0)
+    rhs, jac, controls = _Vectorised(F["rhs"]), _Vectorised(F["jac"]), _Vectorised(F["controls"])
+    costates, local = F["costates"], F["local"]
+    geo_f = _geometry_function(geo)
+
+    # Initial mesh: graded toward free edges as for the direct solver, and
+    # geometric toward poles, where the solution varies on the scale s.
+    t = graded_mesh(max(nodes, 10) - 1, b - a, st.start, st.end, boundary_layer_width(problem.h))
+    s = _refine_near_poles(a + (b - a) * t, problem.cut if start_pole else None,
+                           problem.end if end_pole else None, eps)
+
+    y0 = _initial_guess(s, problem, geo_f, guess, costates, p)
+    n_unknown = 2 * (start_pole + end_pole)
+
+    def fun(x, y, q):
+        return rhs(x, y, p)
+
+    def fun_jac(x, y, q):
+        J = jac(x, y, p).reshape(6, len(x), 6)   # (rows, points, cols): column-major blocks
+        dfdy = np.transpose(J, (0, 2, 1))
+        return dfdy, np.zeros((6, n_unknown, len(x)))
+
+    z_start = float(geo_f(problem.cut)[1])
+    poles = {}
+    for where, flag, s_pole in (("start", start_pole, problem.cut), ("end", end_pole, problem.end)):
+        if flag:
+            I = intrinsic_function(st)(s_pole, p)
+            Q, G, eps0 = (np.asarray(v) for v in _pole_function(st)(I, p[0]))
+            poles[where] = _PoleSolution(Q, G, eps0.ravel())
+
+    def pole_state(where, C):
+        """(r, ψ, f_s, ψ') at distance ε from a pole; the end pole is mirrored."""
+        v, dv = poles[where].evaluate(eps, C)
+        if where == "start":
+            return v[0], v[1], dv[0] / np.cos(v[1]), dv[1]
+        return v[0], np.pi - v[1], dv[0] / np.cos(v[1]), dv[1]
+
+    def pole_residual(yv, s_e, C):
+        r_e, psi_e, f_e, u_e = pole_state("start" if s_e == a else "end", C)
+        lam = np.asarray(costates(s_e, r_e, psi_e, f_e, u_e, p)).ravel()
+        return [yv[0] - r_e, yv[1] - psi_e, yv[2] - lam[0], yv[3] - lam[1]], (r_e, psi_e, f_e, u_e)
+
+    gauss_u, gauss_w = np.polynomial.legendre.leggauss(16)
+    gauss_u, gauss_w = (gauss_u + 1) / 2, gauss_w / 2
+
+    def pole_integrals(where, C):
+        """∫ L ds and ∫ f sin ψ ds over the ε next to a pole, on the local solution (s = εu²)."""
+        d = eps * gauss_u**2
+        jac = 2 * eps * gauss_u * gauss_w
+        L = dz = 0.0
+        for dk, wk in zip(d, jac):
+            v, dv = poles[where].evaluate(dk, C)
+            psi_k = v[1] if where == "start" else np.pi - v[1]
+            f_k = dv[0] / np.cos(v[1])
+            s_k = problem.cut + dk if where == "start" else problem.end - dk
+            L += wk * float(local(s_k, v[0], psi_k, f_k, dv[1], p)[0])
+            dz += wk * f_k * np.sin(psi_k)
+        return L, dz
+
+    def bc(ya, yb, q):
+        res = []
+        k = 0
+        if start_pole:
+            k = 2
+            r4, _ = pole_residual(ya, a, q[:2])
+            L0, dz0 = pole_integrals("start", q[:2])
+            res += r4 + [ya[4] - (z_start + dz0), ya[5] - L0]
+        else:
+            res += [ya[2], ya[3], ya[4] - z_start, ya[5]]
+        if end_pole:
+            r4, _ = pole_residual(yb, b, q[k:k + 2])
+            res += r4
+        else:
+            res += [yb[2], yb[3]]
+        return np.array(res, dtype=float)
+
+    q0 = []
+    if start_pole:
+        q0 += list(poles["start"].fit(eps, y0[0, 0], y0[1, 0]))
+    if end_pole:
+        q0 += list(poles["end"].fit(eps, y0[0, -1], np.pi - y0[1, -1]))
+    t0 = time.perf_counter()
+    sol = scipy.integrate.solve_bvp(fun, bc, s, y0, p=np.array(q0) if q0 else None,
+                                    fun_jac=fun_jac, tol=tol, bc_tol=bc_tol, max_nodes=max_nodes)
+    seconds = time.perf_counter() - t0
+    details = {"max_rms_residual": float(np.max(sol.rms_residuals)) if sol.rms_residuals.size else 0.0,
+               "pole_offset": eps}
+    end_energy = pole_integrals("end", sol.p[-2:])[0] if end_pole else 0.0
+    eq = _to_equilibrium(problem, sol.x, sol.y, p, controls, local, geo_f, end_energy,
+                         SolverStats("bvp", int(sol.niter), seconds, sol.message, len(sol.x), 0.0,
+                                     details), sol.status == 0)
+    if sol.status != 0:
+        raise SolverError(f"solve_bvp failed on {problem.name or problem.family!r}: {sol.message} "
+                          f"(status {sol.status}); the last iterate is attached (.last_iterate)",
+                          sol.message, eq)
+    return eq, int(sol.niter)
+
+
+def _geometry_function(geo):
+    s = ca.SX.sym("s")
+    f = ca.Function("geo", [s], [geo.rho(s), geo.z0(s), geo.psi0(s)])
+
+    def call(x):
+        out = f(x)
+        return tuple(float(v) for v in out)
+    call.vector = lambda x: tuple(np.asarray(v).ravel() for v in f(np.reshape(x, (1, -1))))
+    return call
+
+
+def _refine_near_poles(s, start_pole: float | None, end_pole: float | None, eps: float):
+    """Add points at distances ε·1.6^k from poles, where the solution varies on the scale s."""
+    extra = []
+    if start_pole is not None:
+        d = eps * 1.6 ** np.arange(1, 80)
+        extra.append(start_pole + d[start_pole + d < s[1]])
+    if end_pole is not None:
+        d = eps * 1.6 ** np.arange(1, 80)
+        extra.append(end_pole - d[end_pole - d > s[-2]])
+    return np.unique(np.concatenate([s, *extra])) if extra else s
+
+
+def _initial_guess(s, problem, geo_f, guess, costates, p):
+    m = len(s)
+    if guess is not None:
+        r = np.interp(s, guess.s, guess.r)
+        psi = np.interp(s, guess.s, guess.psi)
+        z = np.interp(s, guess.s, guess.z)
+        f = np.interp(s, guess.s, guess.f_s)
+        u = np.interp(s, guess.s, guess.kappa_s * guess.f_s)
+    else:
+        rho, z, psi = geo_f.vector(s)
+        r, f, u = rho.copy(), np.ones(m), np.gradient(psi, s)
+    lam = np.asarray(costates.map(m)(s.reshape(1, -1), r.reshape(1, -1), psi.reshape(1, -1),
+                                      f.reshape(1, -1), u.reshape(1, -1), p))
+    # λ_r = −L_f / cos ψ is singular where the meridian is vertical: bridge
+    # those points by interpolation (the BVP iterations correct the rest).
+    good = np.abs(np.cos(psi)) > 0.3
+    if guess is None:
+        lam[:] = 0.0
+    elif good.sum() >= 2 and not good.all():
+        lam[0] = np.interp(s, s[good], lam[0][good])
+    E = np.zeros(m)
+    return np.vstack([r, psi, lam[0], lam[1], z, E])
+
+
+def _to_equilibrium(problem, s, Y, p, controls, local, geo_f, end_energy, stats,
+                    converged) -> Equilibrium:
+    W = controls(s, Y, p)
+    f, u = W[0], W[1]
+    r, psi, z = Y[0], Y[1], Y[4]
+    m = len(s)
+    out = local.map(m)(s.reshape(1, -1), r.reshape(1, -1), psi.reshape(1, -1),
+                       f.reshape(1, -1), u.reshape(1, -1), p)
+    vals = {k: np.asarray(v).ravel() for k, v in zip(LOCAL_OUTPUTS, out)}
+    rho = vals["rho"]
+    fields = {
+        "s": s, "r": r, "z": z, "psi": psi, "f_s": f, "f_phi": r / rho, "kappa_s": u / f,
+        "kappa_phi": np.sin(psi) / r, **{k: vals[k] for k in ("E_s", "E_phi", "K_s", "K_phi",
+                                                                 "N_s", "N_phi", "M_s", "M_phi", "eta")},
+    }
+    return Equilibrium(problem=problem, **fields, energy=float(Y[5, -1]) + end_energy, solver=stats,
+                       converged=converged)
