@@ -201,7 +201,11 @@ class DirectSolver:
         counts the inertia of the KKT matrix at the solution (sparse LDLᵀ).
         ``"auto"`` accepts Ipopt's own certificate when its last Newton step
         needed no inertia correction (MUMPS then found the KKT inertia
-        correct) and falls back to ``"exact"`` otherwise.
+        correct) *and* was negligible (‖d‖ < 1e-6), so that the factorised
+        iterate is the solution; otherwise it falls back to ``"exact"``.
+        (A one-step convergence from a stress-free start is factorised only
+        where the compressive stress has not built up yet, and can end on a
+        saddle: the exact check catches it.)
     ipopt_options : mapping
         Extra Ipopt options.
     """
@@ -310,8 +314,12 @@ class DirectSolver:
         ok = _converged(status, st)
         details: dict[str, Any] = {}
         if ok and self.stability != "off":
-            reg = st.get("iterations", {}).get("regularization_size", [])
-            if self.stability == "auto" and iters >= 1 and len(reg) and reg[-1] == 0:
+            it = st.get("iterations", {})
+            reg, step = it.get("regularization_size", []), it.get("d_norm", [])
+            # Ipopt's last factorisation was at the previous iterate: it
+            # certifies the solution only if the last step was negligible.
+            if (self.stability == "auto" and iters >= 2 and len(reg) and reg[-1] == 0
+                    and step[-1] < 1e-6):
                 details["stability"] = "ipopt_inertia"
                 details["negative_curvature"] = 0
             else:
@@ -346,9 +354,24 @@ class DirectSolver:
         }
         nodal = {k: _to_nodes(cf["s_c"], derived[k] if k in derived else cf[k], s)
                  for k in FIELDS if k not in ("s", "r", "z", "psi")}
+        # Exact nodal values off the axis (interpolation is only needed at a pole).
+        rho = self._rho(s)
+        off = rho > 0
+        nodal["f_phi"][off] = r[off] / rho[off]
+        nodal["kappa_phi"][off] = np.sin(psi[off]) / r[off]
+        nodal["eta"] = problem.profiles(s)["eta"]   # parameter-only: exact at the nodes
         energy = float(np.dot(cf["L"], cf["ds"]))
         return Equilibrium(problem=problem, s=s, r=r, z=z, psi=psi, **nodal, energy=energy,
                            solver=stats, converged=converged, x=x, lam_g=lam)
+
+    def _rho(self, s: np.ndarray) -> np.ndarray:
+        if not hasattr(self, "_rho_f"):
+            sym = ca.SX.sym("s")
+            self._rho_f = Buffered(ca.Function("rho", [sym], [self.disc.geometry.rho(sym)]).map(len(s)))
+        rho = self._rho_f(s)[0]
+        rho[[0, -1]] = np.where([self.disc.layout.start_pole, self.disc.layout.end_pole], 0.0,
+                                rho[[0, -1]])
+        return rho
 
     def _z_start(self, p) -> float:
         if not hasattr(self, "_z0"):

@@ -273,13 +273,14 @@ def _solve_one(problem: Problem, nodes: int, tol: float, bc_tol: float,
     y0 = _initial_guess(s, problem, geo_f, guess, costates, p)
     n_unknown = 2 * (start_pole + end_pole)
 
-    def fun(x, y, q):
+    # solve_bvp passes the unknowns q only when there are some (poles).
+    def fun(x, y, *q):
         return rhs(x, y, p)
 
-    def fun_jac(x, y, q):
+    def fun_jac(x, y, *q):
         J = jac(x, y, p).reshape(6, len(x), 6)   # (rows, points, cols): column-major blocks
         dfdy = np.transpose(J, (0, 2, 1))
-        return dfdy, np.zeros((6, n_unknown, len(x)))
+        return (dfdy, np.zeros((6, n_unknown, len(x)))) if q else dfdy
 
     z_start = float(geo_f(problem.cut)[1])
     poles = {}
@@ -318,7 +319,7 @@ def _solve_one(problem: Problem, nodes: int, tol: float, bc_tol: float,
             dz += wk * f_k * np.sin(psi_k)
         return L, dz
 
-    def bc(ya, yb, q):
+    def bc(ya, yb, q=()):
         res = []
         k = 0
         if start_pole:

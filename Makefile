@@ -1,0 +1,28 @@
+# morphoshell: `make run` and `make test` do all the set-up on a fresh machine.
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+
+.PHONY: run test bench figures clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+## run: solve every problem in problems/, write plots, JSON and out/summary.json
+run: $(STAMP)
+	$(BIN)/python scripts/main_job.py --out out
+
+## test: the whole test suite
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+## bench: timing tables (scripts/bench_*.py)
+bench: $(STAMP)
+	$(BIN)/python scripts/bench_equilibrium.py
+
+clean:
+	rm -rf out .pytest_cache build src/*.egg-info

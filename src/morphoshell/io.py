@@ -1,0 +1,200 @@
+"""Problem files (TOML), ``KEY=VALUE`` overrides and JSON output.
+
+A problem file has a ``[problem]`` table, a ``[parameters]`` table with the
+profile family's parameters and an optional ``[solver]`` table::
+
+    [problem]
+    family = "uniform"          # uniform | anisotropic | local_relaxation | volvox
+    theory = "large_bending"    # or "classical"
+    h = 0.3                     # relative thickness H/R
+    cut = 0.3                   # Sigma: ablation around the pole s = 0 (0: closed pole)
+    opening = 0.0               # P: opening around s = pi (0: closed pole)
+
+    [parameters]
+    k = 0.0
+
+    [solver]
+    nodes = 800
+    method = "direct"           # or "bvp"
+
+Unknown tables or keys, wrong types and bad values are errors that name
+the file and the offending entry; nothing is silently ignored.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import math
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Iterable, Mapping
+
+import numpy as np
+
+from .problem import BASE_KEYS, Problem
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - exercised on Python 3.10 only
+    import tomli as tomllib
+
+__all__ = ["ProblemFileError", "Settings", "load_problem", "parse_overrides", "apply_overrides",
+           "to_jsonable", "write_json", "METHODS"]
+
+METHODS = ("direct", "bvp")
+_PROBLEM_KEYS = {"family", "theory", "h", "cut", "opening", "geometry", "name"}
+_SOLVER_KEYS = {"nodes", "method"}
+
+
+class ProblemFileError(ValueError):
+    """A problem file or override that cannot be used (names file and entry)."""
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Solver settings from a problem file (defaults when absent)."""
+
+    nodes: int = 800
+    method: str = "direct"
+
+
+def load_problem(path: str | Path) -> tuple[Problem, Settings]:
+    """Read a problem file.
+
+    Returns
+    -------
+    problem : Problem
+    settings : Settings
+
+    Raises
+    ------
+    ProblemFileError
+        Missing file, TOML syntax error, unknown or missing entries, or a
+        value that :class:`~morphoshell.problem.Problem` rejects.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ProblemFileError(f"{path}: cannot read problem file ({exc.strerror})") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ProblemFileError(f"{path}: not valid TOML: {exc}") from None
+    unknown = sorted(set(data) - {"problem", "parameters", "solver"})
+    if unknown:
+        raise ProblemFileError(f"{path}: unknown table(s) {unknown}; "
+                               f"expected [problem], [parameters], [solver]")
+    for table in ("problem", "parameters", "solver"):
+        if table in data and not isinstance(data[table], dict):
+            raise ProblemFileError(f"{path}: '{table}' must be a table ([{table}])")
+    if "problem" not in data:
+        raise ProblemFileError(f"{path}: missing the [problem] table")
+    prob = dict(data["problem"])
+    unknown = sorted(set(prob) - _PROBLEM_KEYS)
+    if unknown:
+        raise ProblemFileError(f"{path}: unknown key(s) {unknown} in [problem]; "
+                               f"valid: {sorted(_PROBLEM_KEYS)}")
+    for key in ("family", "h"):
+        if key not in prob:
+            raise ProblemFileError(f"{path}: [problem] needs '{key}'")
+    for key in ("family", "theory", "geometry", "name"):
+        if key in prob and not isinstance(prob[key], str):
+            raise ProblemFileError(f"{path}: [problem] {key} = {prob[key]!r} must be a string")
+    solver = dict(data.get("solver", {}))
+    unknown = sorted(set(solver) - _SOLVER_KEYS)
+    if unknown:
+        raise ProblemFileError(f"{path}: unknown key(s) {unknown} in [solver]; "
+                               f"valid: {sorted(_SOLVER_KEYS)}")
+    try:
+        settings = Settings(nodes=_nodes(solver.get("nodes", Settings.nodes)),
+                            method=_method(solver.get("method", Settings.method)))
+        problem = Problem(params=dict(data.get("parameters", {})),
+                          **{"name": path.stem, **prob})
+    except ValueError as exc:
+        raise ProblemFileError(f"{path}: {exc}") from None
+    return problem, settings
+
+
+def _nodes(value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < 5:
+        raise ValueError(f"nodes = {value!r} must be an integer >= 5")
+    return value
+
+
+def _method(value: Any) -> str:
+    if value not in METHODS:
+        raise ValueError(f"method = {value!r} must be one of {list(METHODS)}")
+    return value
+
+
+def parse_overrides(items: Iterable[str]) -> dict[str, Any]:
+    """``["k=0.5", "theory=classical"]`` → ``{"k": 0.5, "theory": "classical"}``."""
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        key, value = key.strip(), value.strip()
+        if not sep or not key or not value:
+            raise ProblemFileError(f"--set {item!r}: expected KEY=VALUE")
+        if key == "theory":
+            out[key] = value
+            continue
+        try:
+            number = float(value)
+        except ValueError:
+            raise ProblemFileError(f"--set {item!r}: {key} needs a number, got {value!r}") from None
+        if not math.isfinite(number):
+            raise ProblemFileError(f"--set {item!r}: {key} = {value} must be finite")
+        out[key] = number
+    return out
+
+
+def apply_overrides(problem: Problem, overrides: Mapping[str, Any]) -> Problem:
+    """Problem with ``--set`` overrides applied; unknown keys name the valid ones."""
+    valid = set(BASE_KEYS) | set(problem.family_obj.parameters)
+    unknown = sorted(set(overrides) - valid)
+    if unknown:
+        raise ProblemFileError(f"--set: unknown key(s) {unknown} for family {problem.family!r}; "
+                               f"valid: {sorted(valid)}")
+    try:
+        return problem.with_updates(**overrides)
+    except ValueError as exc:
+        raise ProblemFileError(f"--set: {exc}") from None
+
+
+def to_jsonable(obj: Any) -> Any:
+    """NumPy arrays and scalars to lists and floats (non-finite → None)."""
+    if isinstance(obj, Mapping):
+        return {str(k): to_jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [to_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return to_jsonable(obj.tolist())
+    if isinstance(obj, (np.floating, float)):
+        return float(obj) if math.isfinite(obj) else None
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    return obj
+
+
+def provenance() -> dict[str, str]:
+    """Versions and time, for reproducibility of written results."""
+    import casadi
+    import scipy
+
+    from . import __version__
+    return {"morphoshell": __version__, "casadi": casadi.__version__, "numpy": np.__version__,
+            "scipy": scipy.__version__, "python": sys.version.split()[0],
+            "written": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")}
+
+
+def write_json(path: str | Path, data: Mapping[str, Any]) -> Path:
+    """Write ``data`` (plus ``provenance``) as JSON, creating parent folders."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    payload = {**to_jsonable(data), "provenance": provenance()}
+    path.write_text(json.dumps(payload, indent=1) + "\n")
+    return path

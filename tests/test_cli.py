@@ -1,0 +1,74 @@
+"""The command line, as scripts and users call it."""
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from morphoshell.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+TOY2 = ROOT / "problems" / "toy2_ablation.toml"
+
+
+def test_solve_writes_json_and_plot(tmp_path, capsys):
+    out, png = tmp_path / "r.json", tmp_path / "r.png"
+    assert main(["solve", str(TOY2), "--set", "k=0.5", "--nodes", "400",
+                 "--json", str(out), "--plot", str(png)]) == 0
+    data = json.loads(out.read_text())
+    assert data["converged"] is True
+    assert data["problem"]["params"] == {"k": 0.5}
+    assert set(data["solver"]) >= {"method", "iterations", "seconds"}
+    assert data["solver"]["method"] == "direct" and data["solver"]["iterations"] > 0
+    s = np.array(data["s"])
+    assert len(s) == 400 and np.all(np.diff(s) > 0) and abs(s[0] - 0.3) < 1e-12
+    for key in ("r", "z", "psi"):
+        assert len(data[key]) == len(s)
+    assert np.isfinite(data["energy"]) and data["energy"] > 0
+    assert png.stat().st_size > 10_000
+    assert "energy" in capsys.readouterr().out
+
+
+def test_bvp_method_from_the_command_line(tmp_path):
+    out = tmp_path / "b.json"
+    assert main(["solve", str(TOY2), "--method", "bvp", "--json", str(out)]) == 0
+    direct = tmp_path / "d.json"
+    assert main(["solve", str(TOY2), "--nodes", "3200", "--json", str(direct)]) == 0
+    b, d = json.loads(out.read_text()), json.loads(direct.read_text())
+    assert b["solver"]["method"] == "bvp"
+    # same problem by two routes: 3200 nodes give ~2e-7 relative (order 2)
+    assert abs(b["energy"] / d["energy"] - 1) < 1e-6
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--set", "kappa=1"], "unknown key(s) ['kappa']"),
+    (["--set", "k=abc"], "k needs a number, got 'abc'"),
+    (["--set", "h=-0.2"], "thickness h = -0.2"),
+    (["--set", "cut=4"], "cut (Sigma) = 4.0 is larger than the shell"),
+    (["--nodes", "2"], "--nodes 2: need at least 5 nodes"),
+])
+def test_bad_arguments_exit_nonzero_naming_them(args, message, capsys):
+    assert main(["solve", str(TOY2), *args]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_missing_file_exits_2(tmp_path, capsys):
+    assert main(["solve", str(tmp_path / "none.toml")]) == 2
+    assert "cannot read problem file" in capsys.readouterr().err
+
+
+def test_help_documents_every_option():
+    proc = subprocess.run([sys.executable, "-m", "morphoshell.cli", "solve", "--help"],
+                          capture_output=True, text=True, check=True)
+    for option in ("--set", "--nodes", "--method", "--json", "--plot", "KEY=VALUE", "direct", "bvp"):
+        assert option in proc.stdout
+
+
+def test_console_script_runs(tmp_path):
+    exe = Path(sys.executable).with_name("morphoshell")
+    proc = subprocess.run([str(exe), "solve", str(TOY2), "--nodes", "200"],
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert "Solve_Succeeded" in proc.stdout

@@ -1,0 +1,119 @@
+"""Solver behaviour: warm starts, parametric re-solves, failures, saddles."""
+import casadi as ca
+import numpy as np
+import pytest
+
+from morphoshell import DirectSolver, NotAMinimumError, Problem, SolverError, solve
+from morphoshell.profiles import FAMILIES, ProfileFamily, Profiles, register_family
+
+
+@pytest.fixture(scope="module")
+def toy3():
+    problem = Problem("anisotropic", {"f0": 0.1}, h=0.3, cut=0.3)
+    return problem, DirectSolver(problem.structure, 800)
+
+
+def test_warm_start_reproduces_cold_solution_in_fewer_iterations(toy3):
+    problem, solver = toy3
+    base = solver.solve(problem)
+    target = problem.with_updates(f0=0.102)
+    cold = solver.solve(target)
+    warm = solver.solve(target, warm_start=base)
+    # same NLP solution: agreement to the Newton convergence level
+    assert np.max(np.abs(warm.x - cold.x)) < 1e-9
+    assert warm.solver.iterations < cold.solver.iterations
+
+
+def test_cut_and_thickness_are_parameters_of_one_nlp(toy3):
+    # Sigma and h change the mesh and the energy, not the NLP: re-solving on
+    # the solver built for Sigma = 0.3 equals a solver built for Sigma = 0.5.
+    problem, solver = toy3
+    moved = problem.with_updates(cut=0.5, h=0.2)
+    a = solver.solve(moved)
+    b = DirectSolver(moved.structure, 800).solve(moved)
+    assert abs(a.s[0] - 0.5) < 1e-15
+    assert np.max(np.abs(a.x - b.x)) < 1e-9
+
+
+def test_continuation_in_the_cut_stays_on_its_branch(toy3):
+    problem, solver = toy3
+    eq = solver.solve(problem)
+    energies = []
+    for cut in np.linspace(0.3, 0.8, 6)[1:]:
+        eq = solver.solve(problem.with_updates(cut=cut), warm_start=eq)
+        energies.append(eq.energy)
+        assert eq.solver.iterations <= 6
+    # cutting more of the stressed pole region releases energy monotonically
+    assert np.all(np.diff(energies) < 0)
+
+
+def test_ipopt_failure_raises_with_status_and_last_iterate():
+    problem = Problem("uniform", {"k": 0.0}, h=0.3, cut=0.3)
+    solver = DirectSolver(problem.structure, 200, max_iter=1)
+    with pytest.raises(SolverError) as exc:
+        solver.solve(problem)
+    assert exc.value.status == "Maximum_Iterations_Exceeded"
+    assert "Maximum_Iterations_Exceeded" in str(exc.value)
+    last = exc.value.last_iterate
+    assert last is not None and last.converged is False and len(last.r) == 200
+
+
+def test_bvp_failure_raises_with_message():
+    problem = Problem("uniform", {"k": 0.0}, h=0.3, cut=0.3)
+    with pytest.raises(SolverError) as exc:
+        solve(problem, method="bvp", max_nodes=50)
+    assert "maximum number of mesh nodes" in exc.value.status
+    assert exc.value.last_iterate.converged is False
+
+
+def _central_growth(s, p, cut, end):
+    f = 1 + p["G"] * ca.exp(-(s / 0.3) ** 2)
+    zero = 0 * s
+    return Profiles(f, f, zero, zero)
+
+
+@pytest.fixture(scope="module")
+def blister():
+    """A flat disc grown in its centre: the flat state is stationary by mirror
+    symmetry but buckles; the stable state is a dome (a blister)."""
+    if "central_growth" not in FAMILIES:
+        register_family(ProfileFamily("central_growth", ("G",), {"G": 0.2}, _central_growth,
+                                      neutral={"G": 0.0}))
+    return Problem("central_growth", {"G": 0.2}, h=0.02, geometry="disc")
+
+
+@pytest.mark.parametrize("stability", ["auto", "exact"])
+def test_saddle_reported_as_success_is_rejected(blister, stability):
+    solver = DirectSolver(blister.structure, 200, stability=stability)
+    with pytest.raises(NotAMinimumError) as exc:
+        solver.solve(blister)   # the flat start keeps psi = 0: Ipopt converges to the saddle
+    saddle = exc.value.last_iterate
+    assert saddle.converged is False and np.max(np.abs(saddle.psi)) == 0.0
+    assert saddle.solver.status == "Solve_Succeeded"       # Ipopt itself was satisfied
+    assert saddle.solver.details["negative_curvature"] > 0
+
+    x0 = solver.disc.initial_guess(blister.parameter_vector())
+    n = solver.disc.layout.free_nodes
+    x0[n:2 * n] = 0.1 * solver.disc.nodes(blister.parameter_vector())[1:]   # tilt it
+    dome = solver.solve(blister, x0=x0)
+    assert dome.solver.details["negative_curvature"] == 0
+    assert dome.energy < saddle.energy / 10 and dome.z[-1] - dome.z[0] > 0.1
+
+
+def test_equilibrium_fields_are_consistent():
+    eq = solve(Problem("volvox", h=0.15, opening=0.3), nodes=1600)
+    # nodal f_phi = r / rho exactly; the strains, interpolated from the cell
+    # centres, agree with them to the O(ds^2) interpolation error away from
+    # the (weakly singular) pole
+    prof = eq.problem.profiles(eq.s)
+    assert np.max(np.abs(eq.f_phi[1:] - eq.r[1:] / np.sin(eq.s[1:]))) < 1e-14
+    away = eq.s > 0.2
+    E_phi = (eq.f_phi - prof["f_phi0"]) / prof["f_phi0"]
+    assert np.max(np.abs(eq.E_phi[away] - E_phi[away])) < 1e-4
+    # the pole value is the limit f_phi = f_s (l'Hopital), to the mesh resolution
+    assert abs(eq.f_phi[0] - eq.f_s[0]) < 1e-2
+    # eta from the profiles
+    assert np.max(np.abs(eq.eta - prof["eta"])) < 1e-12
+    # the phialopore rim is free: no force, no torque -> N_s = M_s = 0 there
+    assert abs(eq.N_s[-1]) < 1e-4 * np.max(np.abs(eq.N_s))
+    assert abs(eq.M_s[-1]) < 1e-3 * np.max(np.abs(eq.M_s))
