@@ -1,0 +1,436 @@
+"""Asymptotic predictions of the paper's toy problems 1 and 2.
+
+Every function cites the equation (LaTeX label of the paper source) or the
+Supplementary section it implements, validates its input (ValueError naming
+the offending value) and accepts NumPy arrays wherever the formula is
+elementwise; scalar input gives a Python float.
+
+Conventions
+-----------
+* Lengths are scaled by the undeformed radius R, h = H/R.
+* Toy problem 2: ε = h/√12 and δ = √ε (Supplementary, "Asymptotic
+  solution"); Σ ∈ (0, π) is the half-angle of the ablation and σ = Σ/δ its
+  size on the scale of the inner region; ς = 3^{1/4}σ/√2.
+* Signs follow the paper: the opening o and rotation ϱ are positive when the
+  rim curls outwards (k < 1); the displacement d is a magnitude.
+* Kelvin functions follow Abramowitz & Stegun / DLMF §10.61, which is the
+  convention of the paper's derivation ("Approximate solution for small
+  ablations"): ker_ν(x) + i kei_ν(x) = e^{−iνπ/2} K_ν(x e^{iπ/4}).
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from scipy import special
+from scipy.optimize import brentq
+
+__all__ = [
+    "f_shell_exact", "f_shell_asymptotic", "f_bulk_asymptotic", "k_star",
+    "delta", "opening", "rotation", "displacement", "b_inner", "kelvin_k",
+    "rotation_small_cut", "displacement_small_cut", "energy_released",
+    "recoil_velocity", "predictions", "ENERGY_UNITS",
+]
+
+#: Accepted ``units`` of :func:`energy_released`.
+ENERGY_UNITS = ("morphoshell", "paper")
+
+_SQRT2 = math.sqrt(2.0)
+
+
+# --------------------------------------------------------------------------
+# input validation
+# --------------------------------------------------------------------------
+
+def _array(name: str, value: Any) -> np.ndarray:
+    if isinstance(value, (bool, np.bool_)) or (
+            isinstance(value, np.ndarray) and value.dtype == bool):
+        raise ValueError(f"{name} = {value!r} must be a real number")
+    if np.iscomplexobj(value):
+        raise ValueError(f"{name} = {value!r} must be a real number")
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} = {value!r} must be a real number") from None
+
+
+def _first_bad(arr: np.ndarray, bad: np.ndarray) -> float:
+    return float(arr[bad].flat[0]) if arr.ndim else float(arr)
+
+
+def _finite(name: str, value: Any) -> np.ndarray:
+    arr = _array(name, value)
+    bad = ~np.isfinite(arr)
+    if np.any(bad):
+        raise ValueError(f"{name} = {_first_bad(arr, bad)!r} must be finite")
+    return arr
+
+
+def _positive(name: str, value: Any) -> np.ndarray:
+    arr = _finite(name, value)
+    bad = arr <= 0
+    if np.any(bad):
+        raise ValueError(f"{name} = {_first_bad(arr, bad)!r} must be positive")
+    return arr
+
+
+def _angle(name: str, value: Any) -> np.ndarray:
+    arr = _finite(name, value)
+    bad = (arr <= 0) | (arr >= math.pi)
+    if np.any(bad):
+        raise ValueError(f"{name} = {_first_bad(arr, bad)!r} must lie in (0, pi)")
+    return arr
+
+
+def _out(value):
+    """Python float for 0-d results, ndarray otherwise."""
+    value = np.asarray(value)
+    return float(value) if value.ndim == 0 else value
+
+
+def _material(c10: Any, c01: Any) -> tuple[float, float]:
+    c10 = float(_finite("c10", c10))
+    c01 = float(_finite("c01", c01))
+    if c10 + c01 <= 0:
+        # Supplementary, toy problem 1: a positive bulk modulus needs
+        # C₁₀ + C₀₁ > 0, and eq:f divides by it.
+        raise ValueError(f"c10 + c01 = {c10 + c01!r} must be positive")
+    return c10, c01
+
+
+# --------------------------------------------------------------------------
+# toy problem 1
+# --------------------------------------------------------------------------
+
+def _f_shell_exact_scalar(h: float, k: float) -> float:
+    c = h * h / 12
+    # Stationarity of (f − 1)² + c(1/f − k)², multiplied by f³/2 and written
+    # for F = f − 1 so that F = O(h²) keeps full relative precision.
+    def g(F):
+        return F * (1 + F) ** 3 - c * (1 - k - k * F)
+
+    F0 = -c * (k - 1)
+    width = abs(F0) + c
+    for _ in range(200):
+        lo, hi = max(F0 - width, -1 + 1e-12), F0 + width
+        if g(lo) <= 0 <= g(hi):
+            break
+        width *= 2
+    else:  # pragma: no cover - g(−1) < 0 < g(∞) always brackets
+        raise ValueError(f"no stationary radius for h = {h!r}, k = {k!r}")
+    F = brentq(g, lo, hi, xtol=1e-20 * c, rtol=4 * np.finfo(float).eps, maxiter=500) \
+        if g(lo) != 0 and g(hi) != 0 else (lo if g(lo) == 0 else hi)
+    f = 1 + F
+    curvature = 2 + (h * h / 6) * (1 / f**4 + 2 * (1 / f - k) / f**3)
+    if curvature <= 0:
+        raise ValueError(
+            f"the stationary radius f = {f!r} for h = {h!r}, k = {k!r} is not a minimum")
+    return f
+
+
+def f_shell_exact(h, k):
+    """Exact minimiser of the shell energy of toy problem 1 (``eq:shellenergy``).
+
+    Minimises (f − 1)² + (h²/12)(1/f − k)² over the deformed radius f.  The
+    stationarity condition f³(f − 1) = (h²/12)(1 − kf) is solved for f − 1
+    with Brent's method to relative precision 4·eps, on the branch that
+    continues f = 1 from h = 0 (the only one for h ≪ 1).
+
+    Parameters
+    ----------
+    h : float or array_like
+        Relative thickness, positive.
+    k : float or array_like
+        Intrinsic curvature (broadcast against h).
+
+    Returns
+    -------
+    float or ndarray
+        The deformed radius f.
+
+    Raises
+    ------
+    ValueError
+        If h ≤ 0 or any value is not finite, or if the stationary point is
+        not a minimum (only possible for h = O(1)).
+    """
+    h = _positive("h", h)
+    k = _finite("k", k)
+    hb, kb = np.broadcast_arrays(h, k)
+    out = np.array([_f_shell_exact_scalar(float(a), float(b))
+                    for a, b in zip(hb.ravel(), kb.ravel())]).reshape(hb.shape)
+    return _out(out)
+
+
+def f_shell_asymptotic(h, k):
+    """Shell-theory prediction f ~ 1 − h²(k − 1)/12 (``eq:toy1res``)."""
+    h = _positive("h", h)
+    k = _finite("k", k)
+    return _out(1 - h * h * (k - 1) / 12)
+
+
+def f_bulk_asymptotic(h, k, c10, c01):
+    """Bulk-elasticity prediction for the deformed radius (``eq:f``).
+
+    f = 1 − (h²/12)(k − 1)[(11C₁₀ + 7C₀₁) − (5C₁₀ + C₀₁)k] / (2(C₁₀ + C₀₁)).
+    The remainder is printed as O(h³); it is in fact O(h⁴) because f is
+    even in h (see :mod:`morphoshell.bulk`).
+
+    Parameters
+    ----------
+    h : float or array_like
+        Relative thickness, positive.
+    k : float or array_like
+        Intrinsic curvature.
+    c10, c01 : float
+        Mooney–Rivlin coefficients C₁₀, C₀₁ with C₁₀ + C₀₁ > 0.
+    """
+    h = _positive("h", h)
+    k = _finite("k", k)
+    c10, c01 = _material(c10, c01)
+    bracket = (11 * c10 + 7 * c01) - (5 * c10 + c01) * k
+    return _out(1 - (h * h / 12) * (k - 1) * bracket / (2 * (c10 + c01)))
+
+
+def k_star(c10, c01) -> float:
+    """Second zero k* = (11C₁₀ + 7C₀₁)/(5C₁₀ + C₀₁) of the correction in ``eq:f``.
+
+    Supplementary, "Surprising mechanical behaviour":
+    k* = 1 + 6(C₁₀ + C₀₁)/(5C₁₀ + C₀₁), so k* > 1 iff 5C₁₀ + C₀₁ > 0.
+
+    Raises
+    ------
+    ValueError
+        If C₁₀ + C₀₁ ≤ 0, or if 5C₁₀ + C₀₁ = 0 (the correction then vanishes
+        only at k = 1 and k* does not exist).
+    """
+    c10, c01 = _material(c10, c01)
+    denominator = 5 * c10 + c01
+    if denominator == 0:
+        raise ValueError(
+            f"5*c10 + c01 = 0 (c10 = {c10!r}, c01 = {c01!r}): eq:f is then "
+            "linear in k and has no second zero k*")
+    return (11 * c10 + 7 * c01) / denominator
+
+
+# --------------------------------------------------------------------------
+# toy problem 2, Σ = O(1)
+# --------------------------------------------------------------------------
+
+def delta(h):
+    """Width δ = √ε = (h/√12)^{1/2} of the inner region (Supplementary,
+    "Asymptotic solution", toy problem 2)."""
+    h = _positive("h", h)
+    return _out(np.sqrt(h / math.sqrt(12)))
+
+
+def opening(h, k, Sigma):
+    """Cut opening o ~ h(1 − k) sin Σ (``eq:Usol``; main text, toy problem 2).
+
+    Twice the radial displacement of the rim across the inner region;
+    positive when the rim curls outwards (k < 1).
+    """
+    h = _positive("h", h)
+    k = _finite("k", k)
+    Sigma = _angle("Sigma", Sigma)
+    return _out(h * (1 - k) * np.sin(Sigma))
+
+
+def rotation(h, k):
+    """Leading-order cut rotation ϱ ~ δ b(0) = √(3h/2)(1 − k) (``eq:cutr``).
+
+    Independent of Σ; valid for δ ≪ Σ (see :func:`rotation_small_cut`).
+    """
+    h = _positive("h", h)
+    k = _finite("k", k)
+    return _out(np.sqrt(1.5 * h) * (1 - k))
+
+
+def displacement(h, k):
+    """Leading-order cut displacement d ~ (h/2)|1 − k| (``eq:cutd``).
+
+    Independent of Σ; valid for δ ≪ Σ (see :func:`displacement_small_cut`).
+    """
+    h = _positive("h", h)
+    k = _finite("k", k)
+    return _out(0.5 * h * np.abs(1 - k))
+
+
+def b_inner(xi, k):
+    """Leading-order inner solution b(ξ) (``eq:bsol``).
+
+    b(ξ) = −3^{3/4}(k − 1) e^{−3^{1/4}ξ/2} cos(3^{1/4}ξ/2), the solution of
+    4b'''' + 3b = 0 with 2b'(0) = 3(k − 1), b''(0) = 0, b → 0 as ξ → ∞; the
+    tangent angle is ψ = s + δ b + O(δ²) with s = Σ + δξ.  The shell occupies
+    ξ ≥ 0, but the expression is evaluated for any finite ξ.
+    """
+    xi = _finite("xi", xi)
+    k = _finite("k", k)
+    q = 3**0.25 * xi / 2
+    return _out(-(3**0.75) * (k - 1) * np.exp(-q) * np.cos(q))
+
+
+# --------------------------------------------------------------------------
+# toy problem 2, Σ = O(δ): Kelvin-function approximation
+# --------------------------------------------------------------------------
+
+def _kelvin_scaled(x: np.ndarray):
+    """(ker₀ + i kei₀, ker₁ + i kei₁) at x > 0, both times e^{x e^{iπ/4}}.
+
+    The common complex factor cancels in every ratio used below (they are
+    built from |K₁|² and K₁ conj(K₀)) and avoids underflow for large x,
+    where ker, kei ~ e^{−x/√2}.
+    """
+    z = x * np.exp(0.25j * math.pi)
+    return special.kve(0, z), -1j * special.kve(1, z)
+
+
+def kelvin_k(order: int, x):
+    """Kelvin functions (ker_ν x, kei_ν x) of order ν = 0 or 1, x > 0.
+
+    ker_ν(x) + i kei_ν(x) = e^{−iνπ/2} K_ν(x e^{iπ/4}) (DLMF 10.61.2),
+    evaluated with :func:`scipy.special.kv` at complex argument; scipy has
+    ker/kei only for ν = 0.  For ν = 0 this agrees with
+    :func:`scipy.special.ker`, :func:`scipy.special.kei`; for ν = 1 it
+    satisfies ker₁ = (ker₀' − kei₀')/√2 and kei₁ = (ker₀' + kei₀')/√2
+    (DLMF 10.63.1 for K-type functions).
+    """
+    if order not in (0, 1):
+        raise ValueError(f"order = {order!r} must be 0 or 1")
+    x = _positive("x", x)
+    value = np.exp(-0.5j * order * math.pi) * special.kv(order, x * np.exp(0.25j * math.pi))
+    return _out(value.real), _out(value.imag)
+
+
+def _small_cut_parts(varsigma: np.ndarray):
+    """ς|K₁|², the denominator D and the displacement numerator ςN.
+
+    With K_ν = ker_ν ς + i kei_ν ς (Supplementary, "Approximate solution for
+    small ablations")::
+
+        D  = ker₁² + kei₁² + √2 ς [ker₁(ker₀ + kei₀) + kei₁(kei₀ − ker₀)],
+        N  = ker₁(kei₀ − ker₀) − kei₁(kei₀ + ker₀).
+
+    All three are quadratic in the Kelvin functions, so the common factor of
+    :func:`_kelvin_scaled` cancels in the ratios.
+    """
+    K0, K1 = _kelvin_scaled(varsigma)
+    ker0, kei0, ker1, kei1 = K0.real, K0.imag, K1.real, K1.imag
+    P = ker1**2 + kei1**2
+    D = P + _SQRT2 * varsigma * (ker1 * (ker0 + kei0) + kei1 * (kei0 - ker0))
+    N = ker1 * (kei0 - ker0) - kei1 * (kei0 + ker0)
+    return varsigma * P, D, varsigma * N
+
+
+def _varsigma(h: np.ndarray, Sigma: np.ndarray) -> np.ndarray:
+    sigma = Sigma / np.sqrt(h / math.sqrt(12))
+    return 3**0.25 * sigma / _SQRT2
+
+
+def rotation_small_cut(h, k, Sigma):
+    """Cut rotation for small ablations Σ = O(δ) (Supplementary, "Approximate
+    solution for small ablations")::
+
+        ϱ ~ δ b(σ) = √3 ς (ker₁²ς + kei₁²ς) / D(ς) · √h (1 − k),
+
+    with σ = Σ/δ, ς = 3^{1/4}σ/√2 and D as in :func:`_small_cut_parts`.  It
+    tends to 0 as σ → 0 and to :func:`rotation` as σ → ∞.
+    """
+    h = _positive("h", h)
+    k = _finite("k", k)
+    Sigma = _angle("Sigma", Sigma)
+    sP, D, _ = _small_cut_parts(_varsigma(h, Sigma))
+    return _out(math.sqrt(3) * sP / D * np.sqrt(h) * (1 - k))
+
+
+def displacement_small_cut(h, k, Sigma):
+    """Cut displacement for small ablations Σ = O(δ) (Supplementary,
+    "Approximate solution for small ablations")::
+
+        d = ς [ker₁(kei₀ − ker₀) − kei₁(kei₀ + ker₀)] / (√2 D(ς)) · h |1 − k|,
+
+    all Kelvin functions at ς = 3^{1/4}σ/√2.  It tends to 0 as σ → 0 and to
+    :func:`displacement` as σ → ∞.
+    """
+    h = _positive("h", h)
+    k = _finite("k", k)
+    Sigma = _angle("Sigma", Sigma)
+    _, D, sN = _small_cut_parts(_varsigma(h, Sigma))
+    return _out(sN / (_SQRT2 * D) * h * np.abs(1 - k))
+
+
+def energy_released(h, k, Sigma, units: str = "morphoshell"):
+    """Energy change on ablation ΔE (Supplementary, "Recoil velocity: scaling
+    argument"), deformed minus undeformed, so ≤ 0.
+
+    The paper's ΔE = −3^{7/4} π δ⁵ (k − 1)² sin Σ is for the energy density
+    E_s² + E_sE_φ + E_φ² + ε²(K_s² + K_sK_φ + K_φ²).  morphoshell's classical
+    density is (h/2) times that (C = 1, see
+    :func:`morphoshell.coefficients.classical`).
+
+    Parameters
+    ----------
+    h, k, Sigma : float or array_like
+        Thickness (> 0), intrinsic curvature, cut half-angle Σ ∈ (0, π).
+    units : {"morphoshell", "paper"}
+        ``"morphoshell"`` returns (h/2)·ΔE_paper, ``"paper"`` ΔE_paper.
+    """
+    if units not in ENERGY_UNITS:
+        raise ValueError(f"units = {units!r} must be one of {ENERGY_UNITS}")
+    h = _positive("h", h)
+    k = _finite("k", k)
+    Sigma = _angle("Sigma", Sigma)
+    d = np.sqrt(h / math.sqrt(12))
+    paper = -(3**1.75) * math.pi * d**5 * (k - 1) ** 2 * np.sin(Sigma)
+    return _out(paper if units == "paper" else 0.5 * h * paper)
+
+
+def recoil_velocity(E_over_mu, H, R, k):
+    """Scaling of the initial recoil velocity V ~ (E/μ) H^{5/2} R^{−3/2} |1 − k|.
+
+    Main text and Supplementary, "Recoil velocity: scaling argument".  This
+    is dimensional and a scaling (prefactor 1): with E/μ in s⁻¹ and H, R in
+    the same length unit L, V is in L/s.
+
+    Parameters
+    ----------
+    E_over_mu : float or array_like
+        Elastic modulus over effective viscosity, positive (s⁻¹).
+    H, R : float or array_like
+        Dimensional sheet thickness and radius, positive, same unit.
+    k : float or array_like
+        Intrinsic curvature (dimensionless, in units of 1/R).
+    """
+    E_over_mu = _positive("E_over_mu", E_over_mu)
+    H = _positive("H", H)
+    R = _positive("R", R)
+    k = _finite("k", k)
+    return _out(E_over_mu * H**2.5 / R**1.5 * np.abs(1 - k))
+
+
+def predictions(h, k, Sigma) -> dict:
+    """All toy-problem-2 predictions for one ablation.
+
+    Returns
+    -------
+    dict
+        ``opening``, ``rotation``, ``displacement`` (leading order, Σ = O(1)),
+        ``rotation_small_cut``, ``displacement_small_cut`` (Kelvin forms),
+        ``energy_released`` (morphoshell units), ``delta`` = δ and
+        ``sigma`` = Σ/δ.
+    """
+    h_arr = _positive("h", h)
+    _finite("k", k)
+    Sigma_arr = _angle("Sigma", Sigma)
+    d = delta(h)
+    return {
+        "opening": opening(h, k, Sigma),
+        "rotation": rotation(h, k),
+        "displacement": displacement(h, k),
+        "rotation_small_cut": rotation_small_cut(h, k, Sigma),
+        "displacement_small_cut": displacement_small_cut(h, k, Sigma),
+        "energy_released": energy_released(h, k, Sigma, units="morphoshell"),
+        "delta": d,
+        "sigma": _out(Sigma_arr / np.sqrt(h_arr / math.sqrt(12))),
+    }
