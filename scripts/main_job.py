@@ -27,7 +27,8 @@ def main(argv=None) -> int:
     summary = {}
     for path in sorted(Path(args.problems).glob("*.toml")):
         problem, settings = load_problem(path)
-        eq = solve(problem, nodes=settings.nodes, method=settings.method)
+        extra = {"stages": settings.stages} if settings.method == "direct" else {}
+        eq = solve(problem, nodes=settings.nodes, method=settings.method, **extra)
         write_json(out / f"{path.stem}.json", eq.to_dict())
         save(plot_cross_section([eq], title=f"{path.stem} ({settings.method}, {settings.nodes} nodes)"),
              out / f"{path.stem}.png")

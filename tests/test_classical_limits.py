@@ -16,7 +16,7 @@ SIGMA = 0.5
 def _relative_errors(k):
     out = []
     for h in HS:
-        eq = solve(Problem("uniform", {"k": k}, h=h, cut=SIGMA, theory="classical"), nodes=3200)
+        eq = solve(Problem("uniform", {"k": k}, h=h, cut=SIGMA, theory="classical"), nodes=800)
         opening = 2 * (eq.r[0] - np.sin(SIGMA))
         rotation = eq.psi[0] - SIGMA
         out.append((opening / (h * (1 - k) * np.sin(SIGMA)) - 1,

@@ -24,7 +24,10 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help=_SET_HELP)
     p.add_argument("--nodes", type=int, default=None, metavar="N",
-                   help="mesh nodes (default: the file's [solver] nodes, else 800)")
+                   help="mesh nodes (default: the file's [solver] nodes, else 200)")
+    p.add_argument("--stages", type=int, choices=(1, 2, 3), default=None, metavar="S",
+                   help="Gauss points per cell of the direct solver: order 2S (default: the "
+                        "file's [solver] stages, else 2)")
     p.add_argument("--json", metavar="OUT.json", help="write results as JSON")
     p.add_argument("--plot", metavar="OUT.png", help="write a cross-section plot")
 
@@ -54,18 +57,19 @@ def _load(args):
     nodes = settings.nodes if args.nodes is None else args.nodes
     if nodes < 5:
         raise ProblemFileError(f"--nodes {nodes}: need at least 5 nodes")
-    return problem, settings, nodes
+    stages = settings.stages if args.stages is None else args.stages
+    return problem, settings, nodes, stages
 
 
 def _solve(args) -> int:
     from .equilibrium import solve
 
-    problem, settings, nodes = _load(args)
+    problem, settings, nodes, stages = _load(args)
     method = args.method or settings.method
-    eq = solve(problem, nodes=nodes, method=method)
+    eq = solve(problem, nodes=nodes, method=method, **({"stages": stages} if method == "direct" else {}))
     edge = "start" if problem.structure.start == "free" else "end"
     e = eq.edge(edge)
-    print(f"{problem.name or problem.family}: {method} solution, {len(eq.s)} nodes, "
+    print(f"{problem.name or problem.family}: {method} solution, {len(eq.s)} points, "
           f"{eq.solver.iterations} iterations, {eq.solver.seconds * 1e3:.1f} ms "
           f"({eq.solver.status})")
     print(f"  energy          = {eq.energy:.12g}  (units of C R^2)")

@@ -20,7 +20,7 @@ from typing import Any, Mapping
 import casadi as ca
 import numpy as np
 
-from .discretisation import Discretisation, boundary_layer_width, graded_mesh
+from .discretisation import Discretisation, boundary_layer_width, graded_mesh, pole_exponent
 from .geometry import get_geometry
 from ._buffered import Buffered
 from .problem import Problem, Structure
@@ -53,7 +53,11 @@ class SolverStats:
 
 @dataclass(frozen=True, eq=False)
 class Equilibrium:
-    """An equilibrium shape and its mechanics, all on the nodes ``s`` (increasing).
+    """An equilibrium shape and its mechanics, all on the points ``s`` (increasing).
+
+    For the direct solver the points are the mesh nodes and the interior
+    interpolation points of each cell (``stages − 1`` per cell); for the
+    boundary-value reference they are the collocation mesh.
 
     Attributes
     ----------
@@ -103,7 +107,7 @@ class Equilibrium:
 
     def __repr__(self) -> str:
         return (f"Equilibrium({self.problem.name or self.problem.family!r}, "
-                f"energy={self.energy:.10g}, nodes={len(self.s)}, method={self.solver.method!r}, "
+                f"energy={self.energy:.10g}, points={len(self.s)}, method={self.solver.method!r}, "
                 f"converged={self.converged})")
 
     def edge(self, which: str = "start") -> dict[str, float]:
@@ -150,8 +154,8 @@ class NotAMinimumError(SolverError):
     """Ipopt converged to a stationary point whose reduced Hessian is not positive definite."""
 
 
-def _to_nodes(s_c: np.ndarray, v: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """Cell-centre values to nodes: linear interpolation, linear extrapolation at the ends."""
+def _to_points(s_c: np.ndarray, v: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Gauss-point values to points: linear interpolation, linear extrapolation at the ends."""
     out = np.interp(s, s_c, v)
     for i, (j, k) in ((0, (0, 1)), (-1, (-1, -2))):
         out[i] = v[j] + (v[j] - v[k]) * (s[i] - s_c[j]) / (s_c[j] - s_c[k])
@@ -181,6 +185,10 @@ class DirectSolver:
         Geometry, profile family, theory and end types (``Problem.structure``).
     nodes : int
         Number of mesh nodes N (N − 1 cells).
+    stages : int
+        Gauss points per cell S: the scheme has order 2S (see
+        :mod:`morphoshell.discretisation`).  1 is the staggered midpoint
+        scheme (second order); 2 (default) is fourth order.
     grading_width : float
         Boundary-layer width used to grade the mesh toward free edges
         (default: δ of ``h = 0.1``).  The mesh stays valid for any h.
@@ -191,14 +199,16 @@ class DirectSolver:
         ``"ma27"`` if the user provides ``libhsl.so``.
     tol : float
         Ipopt's convergence tolerance (on the scaled KKT error) at N = 800;
-        it grows like N² on finer meshes, as does the round-off floor of the
-        discrete gradient (measured: 2e-12 at N = 800, 2e-9 at N = 12800).
+        it grows like the square of the number of points on finer meshes, as
+        does the round-off floor of the discrete gradient (measured: 2e-12
+        with 800 points, 2e-9 with 12800).
         Ipopt's ``Search_Direction_Becomes_Too_Small`` (Newton steps at
         machine precision) counts as converged when the final scaled primal
         and dual infeasibilities are below 1e-9 and 1e-6.
     stability : {"auto", "exact", "off"}
         How to verify that a solution is a local minimum.  ``"exact"``
-        counts the inertia of the KKT matrix at the solution (sparse LDLᵀ).
+        refactorises the KKT matrix at the solution and checks its inertia
+        (see :meth:`inertia_correction`).
         ``"auto"`` accepts Ipopt's own certificate when its last Newton step
         needed no inertia correction (MUMPS then found the KKT inertia
         correct) *and* was negligible (‖d‖ < 1e-6), so that the factorised
@@ -210,7 +220,8 @@ class DirectSolver:
         Extra Ipopt options.
     """
 
-    def __init__(self, structure: Structure, nodes: int = 800, *, grading_width: float | None = None,
+    def __init__(self, structure: Structure, nodes: int = 200, *, stages: int = 2,
+                 grading_width: float | None = None,
                  domain_length: float | None = None, linear_solver: str = "mumps",
                  tol: float = 1e-10, max_iter: int = 500, stability: str = "auto",
                  ipopt_options: Mapping[str, Any] | None = None):
@@ -224,9 +235,10 @@ class DirectSolver:
         geo = get_geometry(structure.geometry)
         width = boundary_layer_width(0.1) if grading_width is None else float(grading_width)
         length = geo.length if domain_length is None else float(domain_length)
-        self.t = graded_mesh(self.nodes - 1, length, structure.start, structure.end, width)
-        self.disc = d = Discretisation(structure, self.t)
-        self.tol = float(tol) * max(1.0, (self.nodes / 800) ** 2)
+        self.t = graded_mesh(self.nodes - 1, length, structure.start, structure.end, width,
+                             q=pole_exponent(stages))
+        self.disc = d = Discretisation(structure, self.t, stages)
+        self.tol = float(tol) * max(1.0, (d.layout.points / 800) ** 2)
         opts = dict(_IPOPT_DEFAULTS, tol=self.tol, max_iter=max_iter, linear_solver=linear_solver)
         opts.update(ipopt_options or {})
         nlp = {"x": d.x, "p": d.D, "f": d.objective, "g": d.g}
@@ -238,13 +250,9 @@ class DirectSolver:
             "calc_lam_p": False, "calc_lam_x": False, "bound_consistency": False,
             "calc_f": False, "calc_g": False})
         self.stability = stability
-        x, D, lam = d.x, d.D, ca.MX.sym("lam", d.g.shape[0])
-        Ht = d.hess_lag(x, D, 1, lam)
-        J = d.jac_g(x, D)[1]
-        kkt = ca.blockcat([[Ht + Ht.T - ca.diag(ca.diag(Ht)), J.T],
-                           [J, ca.MX(J.shape[0], J.shape[0])]])
-        self._kkt = ca.Function("kkt", [x, D, lam], [kkt])
-        self._ldl = None
+        self._nlp_options = {"ipopt": opts, "grad_f": d.grad_f, "jac_g": d.jac_g,
+                             "hess_lag": d.hess_lag}
+        self._refactor = None
         self._solve = Buffered(self.nlpsol)
         self._pre = Buffered(d.pre)
         n, m = d.layout.size, d.g.shape[0]
@@ -257,21 +265,34 @@ class DirectSolver:
             raise ValueError(f"this solver is built for {self.structure}, "
                              f"not for {problem.structure}")
 
-    def negative_curvature_count(self, x: np.ndarray, D, lam_g: np.ndarray) -> int:
-        """Non-positive directions of the reduced Hessian at (x, λ).
+    def inertia_correction(self, x: np.ndarray, D: np.ndarray, lam_g: np.ndarray) -> float:
+        """Hessian regularisation δ_w that Ipopt needs at (x, λ); 0 iff it is a strict minimum.
 
-        By Sylvester's law of inertia, the KKT matrix [[∇²ℒ, Jᵀ], [J, 0]]
-        has exactly m negative eigenvalues (m constraints) iff the Hessian
-        of the Lagrangian is positive definite on the tangent space of the
-        constraints; every further negative eigenvalue is a direction of
-        descent.  Counted with CasADi's sparse LDLᵀ.
+        By Sylvester's law of inertia the KKT matrix [[∇²ℒ, Jᵀ], [J, 0]] has
+        exactly m negative eigenvalues (m constraints) and none zero iff the
+        Hessian of the Lagrangian is positive definite on the tangent space of
+        the constraints.  Ipopt factorises it with MUMPS (symmetric indefinite
+        LDLᵀ with pivoting, which reports the inertia) and adds δ_w I to the
+        Hessian until the inertia is right.  Restarting Ipopt at (x, λ) for
+        one iteration, with a tolerance it cannot meet so that it does not stop
+        before factorising, therefore tells whether (x, λ) is a minimum.
         """
-        K = self._kkt(x, D, lam_g)
-        if self._ldl is None:
-            self._ldl = ca.Linsol("kkt_ldl", "ldl", self._kkt.sparsity_out(0))
-            self._ldl.sfact(K)
-        self._ldl.nfact(K)
-        return int(self._ldl.neig(K)) - self.disc.g.shape[0]
+        if self._refactor is None:
+            opts = dict(self._nlp_options)
+            opts["ipopt"] = dict(opts["ipopt"], tol=1e-300, max_iter=1, acceptable_iter=0)
+            d = self.disc
+            self._refactor = Buffered(ca.nlpsol(
+                "shell_inertia", "ipopt", {"x": d.x, "p": d.D, "f": d.objective, "g": d.g},
+                {**opts, "print_time": False, "error_on_fail": False, "calc_lam_p": False,
+                 "calc_lam_x": False, "bound_consistency": False, "calc_f": False,
+                 "calc_g": False}))
+        lbx, ubx, lbg, ubg, lam_x0 = self._bounds
+        self._refactor(x, D, lbx, ubx, lbg, ubg, lam_x0, lam_g)
+        reg = self._refactor.stats().get("iterations", {}).get("regularization_size", [])
+        if len(reg) < 2:
+            raise SolverError("stability check: Ipopt did not factorise the KKT matrix",
+                              "Stability_Check_Failed")
+        return float(reg[1])
 
     def solve(self, problem: Problem, warm_start: Equilibrium | None = None,
               x0: np.ndarray | None = None, lam_g0: np.ndarray | None = None) -> Equilibrium:
@@ -320,11 +341,11 @@ class DirectSolver:
             # certifies the solution only if the last step was negligible.
             if (self.stability == "auto" and iters >= 2 and len(reg) and reg[-1] == 0
                     and step[-1] < 1e-6):
-                details["stability"] = "ipopt_inertia"
-                details["negative_curvature"] = 0
+                details["stability"] = "ipopt_last_step"
+                details["inertia_correction"] = 0.0
             else:
-                details["stability"] = "kkt_ldl"
-                details["negative_curvature"] = self.negative_curvature_count(x, D, lam)
+                details["stability"] = "ipopt_refactorisation"
+                details["inertia_correction"] = self.inertia_correction(x, D, lam)
         stats = SolverStats("direct", iters, seconds, status, self.nodes, self.build_seconds, details)
         eq = self._equilibrium(problem, x, lam, p, D, stats, converged=ok)
         if not ok:
@@ -332,36 +353,34 @@ class DirectSolver:
                 f"Ipopt failed on {problem.name or problem.family!r} with status {status!r} "
                 f"after {iters} iterations; the last iterate is attached (.last_iterate)",
                 status, eq)
-        if details.get("negative_curvature", 0) != 0:
+        if details.get("inertia_correction", 0.0) > 0:
             raise NotAMinimumError(
-                f"Ipopt converged ({status}) to a stationary point that is not a minimum: the "
-                f"reduced Hessian has {details['negative_curvature']} non-positive "
-                f"eigenvalue(s); perturb the start or continue from a stable solution. "
-                f"The saddle is attached (.last_iterate)", "Not_A_Minimum",
-                _replace_converged(eq))
+                f"Ipopt converged ({status}) to a stationary point that is not a strict minimum: "
+                f"the reduced Hessian is not positive definite (Ipopt needs an inertia "
+                f"correction {details['inertia_correction']:.3g} there); perturb the start or "
+                f"continue from a stable solution. The saddle is attached (.last_iterate)",
+                "Not_A_Minimum", _replace_converged(eq))
         return eq
 
     def _equilibrium(self, problem, x, lam, p, D, stats, converged) -> Equilibrium:
-        cf = self.disc.cell_fields(x, D)
-        s = self.disc.nodes(p)
-        r, psi, _ = self.disc.layout.split(x)
-        z = self._z_start(p) + np.concatenate(
-            [[0.0], np.cumsum(cf["ds"] * cf["f_s"] * np.sin(cf["psi_c"]))])
-        derived = {
-            "f_phi": cf["r_c"] / cf["rho"],
-            "kappa_s": cf["dpsi"] / cf["f_s"],
-            "kappa_phi": np.sin(cf["psi_c"]) / cf["r_c"],
-        }
-        nodal = {k: _to_nodes(cf["s_c"], derived[k] if k in derived else cf[k], s)
-                 for k in FIELDS if k not in ("s", "r", "z", "psi")}
-        # Exact nodal values off the axis (interpolation is only needed at a pole).
+        d = self.disc
+        gf = d.gauss_fields(x, D)
+        s = d.points(p)
+        r, psi, _ = d.layout.split(x)
+        length = problem.end - problem.cut
+        z = self._z_start(p) + length * d.integrate_to_points(gf["f_s"] * np.sin(gf["psi"]))
+        derived = {"f_phi": gf["r"] / gf["rho"], "kappa_s": gf["dpsi"] / gf["f_s"],
+                   "kappa_phi": np.sin(gf["psi"]) / gf["r"]}
+        fields = {k: _to_points(gf["s"], derived[k] if k in derived else gf[k], s)
+                  for k in FIELDS if k not in ("s", "r", "z", "psi")}
+        # Exact values off the axis (interpolation is only needed at a pole).
         rho = self._rho(s)
         off = rho > 0
-        nodal["f_phi"][off] = r[off] / rho[off]
-        nodal["kappa_phi"][off] = np.sin(psi[off]) / r[off]
-        nodal["eta"] = problem.profiles(s)["eta"]   # parameter-only: exact at the nodes
-        energy = float(np.dot(cf["L"], cf["ds"]))
-        return Equilibrium(problem=problem, s=s, r=r, z=z, psi=psi, **nodal, energy=energy,
+        fields["f_phi"][off] = r[off] / rho[off]
+        fields["kappa_phi"][off] = np.sin(psi[off]) / r[off]
+        fields["eta"] = problem.profiles(s)["eta"]   # parameter-only: exact at the points
+        energy = float(np.sum(gf["weight"] * gf["ds"] * gf["L"]))
+        return Equilibrium(problem=problem, s=s, r=r, z=z, psi=psi, **fields, energy=energy,
                            solver=stats, converged=converged, x=x, lam_g=lam)
 
     def _rho(self, s: np.ndarray) -> np.ndarray:
@@ -400,7 +419,7 @@ def _replace_converged(eq: Equilibrium) -> Equilibrium:
 _SOLVERS: dict[tuple, DirectSolver] = {}
 
 
-def direct_solver(problem: Problem, nodes: int = 800, **options) -> DirectSolver:
+def direct_solver(problem: Problem, nodes: int = 200, **options) -> DirectSolver:
     """A cached :class:`DirectSolver` suited to ``problem`` (grading from its h)."""
     width = round(boundary_layer_width(problem.h), 3)
     length = round(problem.end - problem.cut, 2)
@@ -411,7 +430,7 @@ def direct_solver(problem: Problem, nodes: int = 800, **options) -> DirectSolver
     return _SOLVERS[key]
 
 
-def solve(problem: Problem, nodes: int = 800, method: str = "direct",
+def solve(problem: Problem, nodes: int = 200, method: str = "direct",
           warm_start: Equilibrium | None = None, **options) -> Equilibrium:
     """Equilibrium of ``problem``.
 

@@ -14,7 +14,8 @@ profile family's parameters and an optional ``[solver]`` table::
     k = 0.0
 
     [solver]
-    nodes = 800
+    nodes = 200                 # mesh nodes
+    stages = 2                  # Gauss points per cell: order 2 * stages
     method = "direct"           # or "bvp"
 
 Unknown tables or keys, wrong types and bad values are errors that name
@@ -44,7 +45,7 @@ __all__ = ["ProblemFileError", "Settings", "load_problem", "parse_overrides", "a
 
 METHODS = ("direct", "bvp")
 _PROBLEM_KEYS = {"family", "theory", "h", "cut", "opening", "geometry", "name"}
-_SOLVER_KEYS = {"nodes", "method"}
+_SOLVER_KEYS = {"nodes", "method", "stages"}
 
 
 class ProblemFileError(ValueError):
@@ -55,8 +56,9 @@ class ProblemFileError(ValueError):
 class Settings:
     """Solver settings from a problem file (defaults when absent)."""
 
-    nodes: int = 800
+    nodes: int = 200
     method: str = "direct"
+    stages: int = 2
 
 
 def load_problem(path: str | Path) -> tuple[Problem, Settings]:
@@ -109,7 +111,8 @@ def load_problem(path: str | Path) -> tuple[Problem, Settings]:
                                f"valid: {sorted(_SOLVER_KEYS)}")
     try:
         settings = Settings(nodes=_nodes(solver.get("nodes", Settings.nodes)),
-                            method=_method(solver.get("method", Settings.method)))
+                            method=_method(solver.get("method", Settings.method)),
+                            stages=_stages(solver.get("stages", Settings.stages)))
         problem = Problem(params=dict(data.get("parameters", {})),
                           **{"name": path.stem, **prob})
     except ValueError as exc:
@@ -121,6 +124,12 @@ def _nodes(value: Any) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < 5:
         raise ValueError(f"nodes = {value!r} must be an integer >= 5")
     return value
+
+
+def _stages(value: Any) -> int:
+    if isinstance(value, bool) or value not in (1, 2, 3):
+        raise ValueError(f"stages = {value!r} must be 1, 2 or 3 (order 2, 4 or 6)")
+    return int(value)
 
 
 def _method(value: Any) -> str:

@@ -218,7 +218,8 @@ def solve_bvp(problem: Problem, nodes: int = 400, *, tol: float = 1e-8, bc_tol: 
     ----------
     problem : Problem
     nodes : int
-        Initial mesh nodes (``solve_bvp`` refines adaptively).
+        Initial mesh nodes (``solve_bvp`` refines adaptively); with a
+        ``guess``, its points are the initial mesh instead.
     tol, bc_tol : float
         ``scipy.integrate.solve_bvp`` tolerances (relative collocation
         residual, boundary residual; ``bc_tol`` defaults to ``tol``).
@@ -266,8 +267,15 @@ def _solve_one(problem: Problem, nodes: int, tol: float, bc_tol: float,
 
     # Initial mesh: graded toward free edges as for the direct solver, and
     # geometric toward poles, where the solution varies on the scale s.
-    t = graded_mesh(max(nodes, 10) - 1, b - a, st.start, st.end, boundary_layer_width(problem.h))
-    s = _refine_near_poles(a + (b - a) * t, problem.cut if start_pole else None,
+    if guess is not None and len(guess.s) > 10:
+        # Continuation: start from the guess's own mesh, as bvp4c users do.
+        inner = guess.s[(guess.s > a) & (guess.s < b)]
+        inner = inner[::max(1, len(inner) // 2000)]
+        s = np.unique(np.concatenate([[a], inner, [b]]))
+    else:
+        t = graded_mesh(max(nodes, 10) - 1, b - a, st.start, st.end, boundary_layer_width(problem.h))
+        s = a + (b - a) * t
+    s = _refine_near_poles(s, problem.cut if start_pole else None,
                            problem.end if end_pole else None, eps)
 
     y0 = _initial_guess(s, problem, geo_f, guess, costates, p)
