@@ -72,6 +72,8 @@ from typing import Any, Mapping
 import numpy as np
 from scipy.optimize import brentq
 
+from ._validate import real
+
 __all__ = [
     "UndeformedGeometry", "DeformedGeometry", "undeformed_geometry",
     "deformed_geometry", "zeta_of_Z", "zeta_tilde_of_zeta", "stretch",
@@ -83,17 +85,8 @@ __all__ = [
 DEFAULT_NODES = 24
 
 
-def _real(name: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ValueError(f"{name} = {value!r} must be a real number")
-    value = float(value)
-    if not math.isfinite(value):
-        raise ValueError(f"{name} = {value!r} must be finite")
-    return value
-
-
 def _thickness(h: Any) -> float:
-    h = _real("h", h)
+    h = real("h", h)
     # The inner face sits at 1 − h/2, so h ≥ 2 is not a shell at all.
     if not 0 < h < 2:
         raise ValueError(f"h = {h!r} must satisfy 0 < h < 2")
@@ -102,9 +95,9 @@ def _thickness(h: Any) -> float:
 
 def _material(c10, c01, c20=0.0, c11=0.0, c02=0.0) -> dict[tuple[int, int], float]:
     """Nonzero coefficients C_mn of the energy density, keyed by (m, n)."""
-    values = {(1, 0): _real("c10", c10), (0, 1): _real("c01", c01),
-              (2, 0): _real("c20", c20), (1, 1): _real("c11", c11),
-              (0, 2): _real("c02", c02)}
+    values = {(1, 0): real("c10", c10), (0, 1): real("c01", c01),
+              (2, 0): real("c20", c20), (1, 1): real("c11", c11),
+              (0, 2): real("c02", c02)}
     if values[(1, 0)] + values[(0, 1)] <= 0:
         # Supplementary, "Elasticity of the deformed shell": positive bulk
         # modulus; otherwise the sphere f = 1 + O(h²) is not a minimum.
@@ -181,7 +174,7 @@ def undeformed_geometry(h: float, k: float) -> UndeformedGeometry:
         degenerates (1 ± kh⁰/2 ≤ 0).
     """
     h = _thickness(h)
-    k = _real("k", k)
+    k = real("k", k)
     volume = 3 * h + h**3 / 4
 
     def a_of(u):
@@ -216,7 +209,7 @@ def deformed_geometry(geom: UndeformedGeometry, f_minus_1: float) -> DeformedGeo
     t − h = −3h(f² − 1)/(3f² + (t² + th + h²)/4) (a contraction with factor
     O(h²)).  Then ã³ − a³ = r̃₊³ − r₊³ (``eq:cond1`` at the outer face).
     """
-    F = _real("f - 1", f_minus_1)
+    F = real("f - 1", f_minus_1)
     if F <= -1:
         raise ValueError(f"f - 1 = {F!r} must exceed -1")
     h, a = geom.h, geom.a
@@ -354,7 +347,7 @@ def energy(f: float, h: float, k: float, c10: float, c01: float, c20: float = 0.
         Number of Gauss–Legendre nodes.
     """
     geom, material = _setup(h, k, c10, c01, c20, c11, c02)
-    deformed = deformed_geometry(geom, _real("f", f) - 1)
+    deformed = deformed_geometry(geom, real("f", f) - 1)
     Z, w = _nodes(geom, nodes)
     lam_minus_1, _ = stretch(geom, deformed, Z)
     integrand = energy_density(lam_minus_1, material) * (1 + k * Z) ** 2
@@ -378,7 +371,7 @@ def stationarity(f_minus_1: float, h: float, k: float, c10: float, c01: float,
     """
     geom, material = _setup(h, k, c10, c01, c20, c11, c02)
     Z, w = _nodes(geom, nodes)
-    return _stationarity(geom, material, Z, w, _real("f - 1", f_minus_1))[0]
+    return _stationarity(geom, material, Z, w, real("f - 1", f_minus_1))[0]
 
 
 def energy_derivative(f: float, h: float, k: float, c10: float, c01: float,
@@ -391,7 +384,7 @@ def energy_derivative(f: float, h: float, k: float, c10: float, c01: float,
     """
     geom, material = _setup(h, k, c10, c01, c20, c11, c02)
     Z, w = _nodes(geom, nodes)
-    S, deformed = _stationarity(geom, material, Z, w, _real("f", f) - 1)
+    S, deformed = _stationarity(geom, material, Z, w, real("f", f) - 1)
     f_, t = deformed.f, deformed.t
     drt = (2 * f_ - t) ** 2 / (4 * f_ * f_ + t * t)
     return 4 * math.pi * geom.a * (f_ + t / 2) ** 2 * drt * S

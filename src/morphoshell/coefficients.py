@@ -26,6 +26,8 @@ from typing import Callable, NamedTuple
 import casadi as ca
 import numpy as np
 
+from ._validate import lookup
+
 __all__ = [
     "Coefficients", "large_bending", "classical", "THEORIES", "register_theory",
     "get_theory", "evaluate", "SERIES_SWITCH",
@@ -138,11 +140,7 @@ def register_theory(name: str, coefficients: Callable) -> None:
 
 
 def get_theory(name: str) -> Callable:
-    try:
-        return THEORIES[name]
-    except KeyError:
-        raise ValueError(
-            f"unknown theory {name!r}; choose one of {sorted(THEORIES)}") from None
+    return lookup(THEORIES, name, "theory")
 
 
 _eta = ca.SX.sym("eta")

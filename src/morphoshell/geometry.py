@@ -17,6 +17,8 @@ from typing import Callable
 import casadi as ca
 import numpy as np
 
+from ._validate import lookup
+
 __all__ = ["Geometry", "SPHERE", "DISC", "GEOMETRIES", "get_geometry"]
 
 
@@ -65,8 +67,4 @@ GEOMETRIES: dict[str, Geometry] = {g.name: g for g in (SPHERE, DISC)}
 
 
 def get_geometry(name: str) -> Geometry:
-    try:
-        return GEOMETRIES[name]
-    except KeyError:
-        raise ValueError(
-            f"unknown geometry {name!r}; choose one of {sorted(GEOMETRIES)}") from None
+    return lookup(GEOMETRIES, name, "geometry")

@@ -16,13 +16,13 @@ with a message naming it before any work starts.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
-from typing import Any, Mapping
+from typing import Mapping
 
 import numpy as np
 
-from .coefficients import THEORIES
+from ._validate import real
+from .coefficients import get_theory
 from .geometry import get_geometry, Geometry
 from .profiles import get_family, ProfileFamily, Profiles
 
@@ -41,15 +41,6 @@ class Structure:
     theory: str
     start: str  # "pole" or "free"
     end: str    # "pole" or "free"
-
-
-def _real(name: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ValueError(f"{name} = {value!r} must be a real number")
-    value = float(value)
-    if not math.isfinite(value):
-        raise ValueError(f"{name} = {value!r} must be finite")
-    return value
 
 
 @dataclass(frozen=True)
@@ -88,13 +79,12 @@ class Problem:
     def __post_init__(self):
         fam = get_family(self.family)
         geo = get_geometry(self.geometry)
-        if self.theory not in THEORIES:
-            raise ValueError(f"unknown theory {self.theory!r}; choose one of {sorted(THEORIES)}")
-        h = _real("thickness h", self.h)
+        get_theory(self.theory)
+        h = real("thickness h", self.h)
         if not 0 < h < 1:
             raise ValueError(f"thickness h = {h!r} must lie in (0, 1) (relative to the radius)")
-        cut = _real("cut (Sigma)", self.cut)
-        opening = _real("opening (P)", self.opening)
+        cut = real("cut (Sigma)", self.cut)
+        opening = real("opening (P)", self.opening)
         if cut < 0:
             raise ValueError(f"cut (Sigma) = {cut!r} must be non-negative")
         if opening < 0:
@@ -110,7 +100,7 @@ class Problem:
         if unknown:
             raise ValueError(f"unknown parameter(s) {unknown} for family {fam.name!r}; "
                              f"valid: {list(fam.parameters)}")
-        values = {n: _real(f"parameter {n}", self.params.get(n, fam.defaults[n]))
+        values = {n: real(f"parameter {n}", self.params.get(n, fam.defaults[n]))
                   for n in fam.parameters}
         fam.validate(values, cut, end)
         for k, v in (("h", h), ("cut", cut), ("opening", opening), ("params", values)):

@@ -22,6 +22,8 @@ from typing import Callable, Mapping, NamedTuple
 
 import casadi as ca
 
+from ._validate import lookup
+
 __all__ = ["Profiles", "ProfileFamily", "FAMILIES", "register_family", "get_family"]
 
 
@@ -167,11 +169,7 @@ def register_family(family: ProfileFamily) -> ProfileFamily:
 
 
 def get_family(name: str) -> ProfileFamily:
-    try:
-        return FAMILIES[name]
-    except KeyError:
-        raise ValueError(
-            f"unknown profile family {name!r}; choose one of {sorted(FAMILIES)}") from None
+    return lookup(FAMILIES, name, "profile family")
 
 
 register_family(ProfileFamily(

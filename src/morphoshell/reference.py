@@ -39,7 +39,6 @@ P̃, R̃ and ε₀ are obtained by differentiating the same energy density.
 from __future__ import annotations
 
 import time
-from typing import Any
 
 import casadi as ca
 import numpy as np
