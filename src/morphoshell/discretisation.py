@@ -115,6 +115,9 @@ def graded_mesh(cells: int, length: float, start: str, end: str, width: float,
     return t
 
 
+_CELL_CACHE: dict[tuple, dict[str, ca.Function]] = {}
+
+
 @dataclass(frozen=True)
 class Layout:
     """Where the unknowns sit in the NLP vector x = [r_free, ψ_free, f_s].
@@ -312,7 +315,17 @@ class Discretisation:
         return ca.Function("pre", [tk, dt, wk, p], [ca.vertcat(s_k, (b - a) * dt, wk, scale, p[0], I)])
 
     def _cell_functions(self, n_D: int) -> dict[str, ca.Function]:
-        """Values, gradients and the Lagrangian's triu Hessian of one cell (SX)."""
+        """Values, gradients and the Lagrangian's triu Hessian of one cell (SX).
+
+        They depend on the structure and the number of stages only, so meshes
+        of one structure share them.
+        """
+        key = (self.structure, self.stages)
+        if key not in _CELL_CACHE:
+            _CELL_CACHE[key] = self._build_cell_functions(n_D)
+        return _CELL_CACHE[key]
+
+    def _build_cell_functions(self, n_D: int) -> dict[str, ca.Function]:
         S = self.stages
         z, D = ca.SX.sym("z", 3 * S + 2), ca.SX.sym("D", n_D * S)
         sigma, lam = ca.SX.sym("sigma"), ca.SX.sym("lam", S)
