@@ -72,3 +72,50 @@ def test_console_script_runs(tmp_path):
                           capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     assert "Solve_Succeeded" in proc.stdout
+
+
+def test_ablate_reports_observables(tmp_path, capsys):
+    out = tmp_path / "a.json"
+    assert main(["ablate", str(TOY2), "--json", str(out)]) == 0
+    data = json.loads(out.read_text())
+    for key in ("opening", "rotation", "displacement", "energy_released"):
+        assert np.isfinite(data[key])
+    # k = 0: the rim curls outward and the cut releases energy
+    assert data["opening"] > 0 and data["rotation"] > 0 and data["energy_released"] < 0
+    assert data["pre"]["problem"]["cut"] == 0.0 and data["post"]["problem"]["cut"] == 0.3
+    assert len(data["pre"]["s"]) > 0 and len(data["post"]["r"]) == len(data["post"]["s"])
+    assert "rotation" in capsys.readouterr().out
+
+
+def test_ablate_needs_a_cut(capsys):
+    assert main(["ablate", str(TOY2), "--set", "cut=0"]) == 2
+    assert "an ablation needs a cut > 0" in capsys.readouterr().err
+
+
+def test_asymptotics_command(tmp_path):
+    from morphoshell import asymptotics as A
+
+    out = tmp_path / "p.json"
+    assert main(["asymptotics", "--h", "0.01", "--k", "0.5", "--cut-angle", "0.4",
+                 "--json", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert set(data) >= {"opening", "rotation", "displacement", "rotation_small_cut",
+                         "displacement_small_cut", "energy_released"}
+    assert data["opening"] == pytest.approx(0.01 * 0.5 * np.sin(0.4), rel=1e-14)
+    assert data["rotation"] == pytest.approx(A.rotation(0.01, 0.5), rel=1e-14)
+
+
+def test_asymptotics_rejects_bad_values(capsys):
+    assert main(["asymptotics", "--h", "0.01", "--k", "0", "--cut-angle", "4"]) == 2
+    assert "Sigma = 4.0 must lie in (0, pi)" in capsys.readouterr().err
+
+
+def test_sphere_command(tmp_path):
+    out = tmp_path / "s.json"
+    assert main(["sphere", "--h", "0.01", "--k", "0", "--c10", "1", "--c01", "0.5",
+                 "--json", str(out)]) == 0
+    data = json.loads(out.read_text())
+    # f_bulk - f_asymptotic = O(h^4) (measured coefficient ~0.5), f_shell likewise
+    assert abs(data["f_bulk"] - data["f_asymptotic"]) < 1e-7
+    assert abs(data["f_shell"] - data["f_shell_asymptotic"]) < 1e-8
+    assert data["k_star"] == pytest.approx((11 + 3.5) / (5 + 0.5), rel=1e-14)

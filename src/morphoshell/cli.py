@@ -48,6 +48,39 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--method", choices=METHODS, default=None,
                    help="direct energy minimisation (default) or the boundary-value reference")
     p.set_defaults(run=_solve)
+
+    p = sub.add_parser("ablate", help="laser ablation: pre- and post-ablation equilibria",
+                       description="Solve PROBLEM.toml before (cut = 0) and after the cut "
+                                   "Sigma = cut > 0 and report the recoil observables opening, "
+                                   "rotation, displacement and energy_released (Supplementary, "
+                                   "toy problem 2; see morphoshell.observables).")
+    _common(p)
+    p.add_argument("--method", choices=METHODS, default=None,
+                   help="direct energy minimisation (default) or the boundary-value reference")
+    p.set_defaults(run=_ablate)
+
+    p = sub.add_parser("asymptotics", help="the paper's asymptotic predictions for toy problem 2",
+                       description="Leading-order and small-cut (Kelvin function) predictions "
+                                   "of the Supplementary for a cut of half-angle SIGMA in a "
+                                   "sphere of thickness H and intrinsic curvature K.")
+    p.add_argument("--h", type=float, required=True, metavar="H", help="relative thickness h")
+    p.add_argument("--k", type=float, required=True, metavar="K", help="intrinsic curvature k")
+    p.add_argument("--cut-angle", type=float, required=True, metavar="SIGMA",
+                   help="Sigma, half-angle of the ablation (radians, 0 < Sigma < pi)")
+    p.add_argument("--json", metavar="OUT.json", help="write the predictions as JSON")
+    p.set_defaults(run=_asymptotics)
+
+    p = sub.add_parser("sphere", help="toy problem 1: radius of a sphere with intrinsic curvature",
+                       description="Toy problem 1: deformed radius f of a complete sphere with "
+                                   "intrinsic curvature K: the minimiser of the main text's shell "
+                                   "energy, the exact bulk-elasticity minimiser (Mooney-Rivlin "
+                                   "C10, C01) and the Supplementary's asymptotic formula.")
+    p.add_argument("--h", type=float, required=True, metavar="H", help="relative thickness h")
+    p.add_argument("--k", type=float, required=True, metavar="K", help="intrinsic curvature k")
+    p.add_argument("--c10", type=float, default=1.0, metavar="A", help="C10 (default 1)")
+    p.add_argument("--c01", type=float, default=0.0, metavar="B", help="C01 (default 0)")
+    p.add_argument("--json", metavar="OUT.json", help="write the results as JSON")
+    p.set_defaults(run=_sphere)
     return parser
 
 
@@ -84,6 +117,63 @@ def _solve(args) -> int:
         ax = plot_cross_section([eq], title=f"{problem.name or problem.family} ({method})")
         save(ax, args.plot)
         print(f"  wrote {args.plot}")
+    return 0
+
+
+def _ablate(args) -> int:
+    from .observables import ablate
+
+    problem, settings, nodes, stages = _load(args)
+    method = args.method or settings.method
+    ab = ablate(problem, nodes=nodes, method=method,
+                **({"stages": stages} if method == "direct" else {}))
+    print(f"{problem.name or problem.family}: ablation of Sigma = {problem.cut:g} "
+          f"({method}, {len(ab.post.s)} points)")
+    for key, value in ab.observables().items():
+        print(f"  {key:20s} = {value:.10g}")
+    if args.json:
+        write_json(args.json, ab.to_dict())
+        print(f"  wrote {args.json}")
+    if args.plot:
+        from .plotting import plot_ablation, save
+        save(plot_ablation(ab, title=f"{problem.name or problem.family}: cut {problem.cut:g}"),
+             args.plot)
+        print(f"  wrote {args.plot}")
+    return 0
+
+
+def _asymptotics(args) -> int:
+    from .asymptotics import predictions
+
+    out = predictions(args.h, args.k, args.cut_angle)
+    print(f"toy problem 2 asymptotics, h = {args.h:g}, k = {args.k:g}, Sigma = {args.cut_angle:g}")
+    for key, value in out.items():
+        print(f"  {key:22s} = {value:.10g}")
+    if args.json:
+        write_json(args.json, {"h": args.h, "k": args.k, "cut_angle": args.cut_angle, **out})
+        print(f"  wrote {args.json}")
+    return 0
+
+
+def _sphere(args) -> int:
+    from .asymptotics import f_bulk_asymptotic, f_shell_asymptotic, f_shell_exact, k_star
+    from .bulk import f_bulk
+
+    out = {"f_shell": f_shell_exact(args.h, args.k),
+           "f_shell_asymptotic": f_shell_asymptotic(args.h, args.k),
+           "f_bulk": f_bulk(args.h, args.k, args.c10, args.c01),
+           "f_asymptotic": f_bulk_asymptotic(args.h, args.k, args.c10, args.c01)}
+    try:
+        out["k_star"] = k_star(args.c10, args.c01)
+    except ValueError as exc:   # 5 C10 + C01 = 0: no second sign change
+        out["k_star"] = None
+        print(f"  (k_star: {exc})")
+    print(f"toy problem 1, h = {args.h:g}, k = {args.k:g}, C10 = {args.c10:g}, C01 = {args.c01:g}")
+    for key, value in out.items():
+        print(f"  {key:18s} = {value if value is None else format(value, '.15g')}")
+    if args.json:
+        write_json(args.json, {"h": args.h, "k": args.k, "c10": args.c10, "c01": args.c01, **out})
+        print(f"  wrote {args.json}")
     return 0
 
 

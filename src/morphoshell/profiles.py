@@ -54,6 +54,9 @@ class ProfileFamily:
     neutral : mapping
         Parameter values for which the undeformed sphere is stress free
         (f⁰ = 1, κ⁰ = 1); continuation starts there.
+    pre_ablation : mapping
+        Parameter values of the intact shell when they differ from the cut
+        one (a response triggered by the cut, such as ``local_relaxation``).
     """
 
     name: str
@@ -63,6 +66,7 @@ class ProfileFamily:
     validate: Callable[[Mapping[str, float], float, float], None] = lambda v, cut, end: None
     description: str = ""
     neutral: Mapping[str, float] = field(default_factory=dict)
+    pre_ablation: Mapping[str, float] = field(default_factory=dict)
     _function: dict = field(default_factory=dict, repr=False, compare=False)
 
     def function(self, points: int | None = None) -> ca.Function:
@@ -182,7 +186,8 @@ register_family(ProfileFamily(
     "local_relaxation", ("F0", "s0"), {"F0": 0.35, "s0": 0.2}, _local_relaxation,
     _validate_local_relaxation,
     description="f0 = 1 + F0 (cut + s0 - s)/s0 near the cut, kappa0 = 1 (fast relaxation)",
-    neutral={"F0": 0.0}))
+    # The relaxation is an active response to the cut: the intact shell has none.
+    neutral={"F0": 0.0}, pre_ablation={"F0": 0.0}))
 register_family(ProfileFamily(
     "volvox",
     ("f1", "f2", "f3", "f4", "f5", "kappa1", "kappa2", "kappa3", "kappa4",

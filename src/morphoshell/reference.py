@@ -425,7 +425,8 @@ def _to_equilibrium(problem, s, Y, p, controls, local, geo_f, end_energy, stats,
     fields = {
         "s": s, "r": r, "z": z, "psi": psi, "f_s": f, "f_phi": r / rho, "kappa_s": u / f,
         "kappa_phi": np.sin(psi) / r, **{k: vals[k] for k in ("E_s", "E_phi", "K_s", "K_phi",
-                                                                 "N_s", "N_phi", "M_s", "M_phi", "eta")},
+                                                                 "N_s", "N_phi", "M_s", "M_phi", "eta",
+                                                                 "e")},
     }
     return Equilibrium(problem=problem, **fields, energy=float(Y[5, -1]) + end_energy, solver=stats,
                        converged=converged)
