@@ -12,9 +12,10 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
-## run: solve every problem in problems/, write plots, JSON and out/summary.json
+## run: solve every problem in problems/ (plots, JSON, out/summary.json) and draw Fig. 2 D-I
 run: $(STAMP)
 	$(BIN)/python scripts/main_job.py --out out
+	$(BIN)/python scripts/fig2_toy_problems.py --out out/figures
 
 ## test: the whole test suite
 test: $(STAMP)

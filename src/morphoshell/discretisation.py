@@ -67,18 +67,24 @@ def pole_exponent(stages: int) -> float:
 
 
 def graded_mesh(cells: int, length: float, start: str, end: str, width: float,
-                ratio: float = 6.0, pole_width: float = 0.05, q: float = 2.0) -> np.ndarray:
+                ratio: float = 6.0, pole_width: float = 0.05, q: float = 2.0,
+                edge_scale: float | None = None) -> np.ndarray:
     """Nodes t_0 = 0 < … < t_N = 1 of a smoothly graded mesh.
 
     The node density (per unit of t) is
 
         1 + (ratio − 1) exp(−d/ℓ)              near a free edge, ℓ = 3 width/length,
+        + B ℓ_c [1/(d + ℓ_c) − 1/(d + ℓ)]      near a free edge, if ℓ_c < ℓ/3,
         + (d/ℓ_p)^(1/q − 1) exp(−d/ℓ_p)        near a pole, ℓ_p = pole_width,
 
     with d the distance to that end, so free edges get ``ratio`` times finer
     cells across their boundary layer and near a pole the nodes follow
-    s ∝ t^q.  The map t ↦ s is fixed and smooth, so refinement keeps the order
-    of the scheme.
+    s ∝ t^q.  A free edge closer to the axis than the boundary-layer width
+    (a cut Σ smaller than δ: ``edge_scale`` ℓ_c = Σ/length) also varies on
+    the scale Σ, like log s between Σ and δ (the (σ + ξ) terms of the
+    Supplementary's small-cut equations): the second term spends B ℓ_c = 5 %
+    of the density per e-fold of d there.  The map t ↦ s is fixed and smooth,
+    so refinement keeps the order of the scheme.
 
     Parameters
     ----------
@@ -94,11 +100,16 @@ def graded_mesh(cells: int, length: float, start: str, end: str, width: float,
     if cells < 2:
         raise ValueError(f"need at least 2 cells, got {cells}")
     ell = 3 * width / length
+    ell_c = None if edge_scale is None else edge_scale / length
+    small_edge = ell_c is not None and ell_c < ell / 3
 
     def cumulative(d, kind):
         # ∫₀^d of the extra density of an end of this kind
         if kind == "free":
-            return (ratio - 1) * ell * -np.expm1(-d / ell)
+            out = (ratio - 1) * ell * -np.expm1(-d / ell)
+            if small_edge:
+                out = out + 0.05 * (np.log1p(d / ell_c) - np.log1p(d / ell))
+            return out
         return pole_width * gamma(1 / q) * gammainc(1 / q, d / pole_width)
 
     def W(x):

@@ -228,6 +228,9 @@ class DirectSolver:
         (default: δ of ``h = 0.1``).  The mesh stays valid for any h.
     domain_length : float
         Typical shell length L − P − Σ for the grading (default: whole meridian).
+    edge_scale : float, optional
+        Distance of a free edge from the axis when it is below the
+        boundary-layer width (a small cut): adds logarithmic grading there.
     linear_solver : str
         Ipopt's linear solver: ``"mumps"`` (bundled) or an HSL solver such as
         ``"ma27"`` if the user provides ``libhsl.so``.
@@ -260,7 +263,8 @@ class DirectSolver:
 
     def __init__(self, structure: Structure, nodes: int = 200, *, stages: int = 2,
                  grading_width: float | None = None,
-                 domain_length: float | None = None, linear_solver: str = "mumps",
+                 domain_length: float | None = None, edge_scale: float | None = None,
+                 linear_solver: str = "mumps",
                  tol: float = 1e-10, max_iter: int = 500, stability: str = "auto",
                  ipopt_options: Mapping[str, Any] | None = None):
         if isinstance(nodes, bool) or int(nodes) != nodes or nodes < 5:
@@ -274,7 +278,7 @@ class DirectSolver:
         width = boundary_layer_width(0.1) if grading_width is None else float(grading_width)
         length = geo.length if domain_length is None else float(domain_length)
         self.t = graded_mesh(self.nodes - 1, length, structure.start, structure.end, width,
-                             q=pole_exponent(stages))
+                             q=pole_exponent(stages), edge_scale=edge_scale)
         self.disc = d = Discretisation(structure, self.t, stages)
         self.tol = float(tol) * max(1.0, (d.layout.points / 800) ** 2)
         # Newton converges quadratically: once within 1e-6 the next step lands
@@ -466,12 +470,17 @@ _SOLVERS: dict[tuple, DirectSolver] = {}
 
 def direct_solver(problem: Problem, nodes: int = 200, **options) -> DirectSolver:
     """A cached :class:`DirectSolver` suited to ``problem`` (grading from its h)."""
-    width = round(boundary_layer_width(problem.h), 3)
+    width = float(f"{boundary_layer_width(problem.h):.3g}")
+    # A free edge near the axis also varies on the scale of its distance from it.
+    edges = [v for v in (problem.cut, problem.opening) if v > 0]
+    scale = float(f"{min(edges):.2g}") if edges else None
+    if scale is not None and scale >= width:
+        scale = None
     length = round(problem.end - problem.cut, 2)
-    key = (problem.structure, int(nodes), width, length, tuple(sorted(options.items())))
+    key = (problem.structure, int(nodes), width, scale, length, tuple(sorted(options.items())))
     if key not in _SOLVERS:
         _SOLVERS[key] = DirectSolver(problem.structure, nodes, grading_width=width,
-                                     domain_length=length, **options)
+                                     domain_length=length, edge_scale=scale, **options)
     return _SOLVERS[key]
 
 

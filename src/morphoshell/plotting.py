@@ -14,11 +14,19 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.colors import to_rgb  # noqa: E402
 import numpy as np  # noqa: E402
 
 from .equilibrium import Equilibrium  # noqa: E402
 
-__all__ = ["sheet_outline", "plot_cross_section", "save"]
+__all__ = ["sheet_outline", "plot_cross_section", "plot_ablation", "save"]
+
+#: Colours of :func:`plot_ablation`, as in the paper (Fig. 2G–I, Fig. 3):
+#: pre-ablation light red, post-ablation dark cyan.  ``fill`` is the opacity
+#: of the band, blended with white (opaque, so that the mirrored halves, which
+#: meet at the poles, show no seam); the pre-ablation midline is drawn on top.
+ABLATION_STYLE = {"pre": {"color": "tab:red", "fill": 0.3, "line": "--"},
+                  "post": {"color": "darkcyan", "fill": 0.85, "line": "-"}}
 
 
 def sheet_outline(eq: Equilibrium) -> tuple[np.ndarray, np.ndarray]:
@@ -49,6 +57,74 @@ def plot_cross_section(eqs: Sequence[Equilibrium], labels: Sequence[str] | None 
         for sign in (1, -1):
             ax.fill(sign * pr, pz, color=color, alpha=alpha, lw=0)
             ax.plot(sign * eq.r, eq.z, color=color, lw=1.0, label=label if sign == 1 else None)
+    ax.set_aspect("equal")
+    ax.set_xlabel(r"$r/R$")
+    ax.set_ylabel(r"$z/R$")
+    ax.legend(loc="best", fontsize="small", frameon=False)
+    if title:
+        ax.set_title(title, fontsize="medium")
+    return ax
+
+
+def _far_end_shift(eq: Equilibrium) -> float:
+    """z shift that puts ``eq`` in the gauge of the ablation observables.
+
+    :func:`morphoshell.observables.edge_state` keeps the far end of the shell
+    at its undeformed height; its z at the first point minus the solver's
+    z there is that shift (exact: the first point is not interpolated).
+    """
+    from .observables import edge_state
+
+    return edge_state(eq, float(eq.s[0]))["z"] - float(eq.z[0])
+
+
+def plot_ablation(ablation, ax=None, title: str | None = None, mark_rim: bool = True):
+    """Draw the pre- (light) and post-ablation (dark) cross-sections of an ablation.
+
+    Both shells are drawn in the gauge of the observables (far end at its
+    undeformed position, see :func:`morphoshell.observables.edge_state`), so
+    the recoil seen is the one measured by ``ablation.displacement``.  The
+    whole intact shell is drawn, cap included; with ``mark_rim`` the material
+    point s = Σ (the rim of the cut) is marked in both states.
+
+    Parameters
+    ----------
+    ablation : morphoshell.observables.Ablation
+    ax : matplotlib axes, optional
+        Drawn into a new figure if not given.
+    title : str, optional
+    mark_rim : bool
+        Mark the rim s = Σ before and after the cut.
+
+    Returns the Matplotlib axes.
+    """
+    from .observables import edge_state
+
+    if ax is None:
+        _, ax = plt.subplots(figsize=(4.8, 4.8))
+    sigma = float(ablation.problem.cut)
+    states = (("pre", ablation.pre, "pre-ablation"), ("post", ablation.post, "post-ablation"))
+    for z_order, (key, eq, label) in enumerate(states):
+        style = ABLATION_STYLE[key]
+        rgb = np.array(to_rgb(style["color"]))
+        face = 1 - style["fill"] * (1 - rgb)          # the colour at that opacity on white
+        shift = _far_end_shift(eq)
+        pr, pz = sheet_outline(eq)
+        for sign in (1, -1):
+            # an edge of the face colour hides the anti-aliasing seam at r = 0
+            ax.fill(sign * pr, pz + shift, facecolor=face, edgecolor=face, lw=0.5,
+                    zorder=1 + z_order, label=label if sign == 1 else None)
+    # midlines above both bands, so that the pre-ablation shape stays visible
+    for key, eq, _ in states:
+        style = ABLATION_STYLE[key]
+        shift = _far_end_shift(eq)
+        for sign in (1, -1):
+            ax.plot(sign * eq.r, eq.z + shift, color=style["color"], ls=style["line"], lw=0.8,
+                    zorder=3)
+        if mark_rim:
+            rim = edge_state(eq, sigma)
+            ax.plot([rim["r"], -rim["r"]], [rim["z"]] * 2, ls="none", marker="o", ms=3.5,
+                    color=style["color"], zorder=4)
     ax.set_aspect("equal")
     ax.set_xlabel(r"$r/R$")
     ax.set_ylabel(r"$z/R$")

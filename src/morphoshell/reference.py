@@ -96,6 +96,8 @@ def pontryagin_functions(structure: Structure) -> dict[str, ca.Function]:
         "costates": ca.Function("costates", [s, r, psi, f, u, p], [costates]),
         "local": local,
     }
+    # Pointwise functions evaluated on whole meshes, their maps cached by size.
+    out.update({f"{k}_vec": _Vectorised(out[k]) for k in ("rhs", "jac", "controls")})
     _CACHE[structure] = out
     return out
 
@@ -260,7 +262,7 @@ def _solve_one(problem: Problem, nodes: int, tol: float, bc_tol: float,
     start_pole, end_pole = st.start == "pole", st.end == "pole"
     a = problem.cut + (eps if start_pole else 0.0)
     b = problem.end - (eps if end_pole else 0.0)
-    rhs, jac, controls = _Vectorised(F["rhs"]), _Vectorised(F["jac"]), _Vectorised(F["controls"])
+    rhs, jac, controls = F["rhs_vec"], F["jac_vec"], F["controls_vec"]
     costates, local = F["costates"], F["local"]
     geo_f = _geometry_function(geo)
 
