@@ -62,7 +62,8 @@ def test_missing_file_exits_2(tmp_path, capsys):
 def test_help_documents_every_option():
     proc = subprocess.run([sys.executable, "-m", "morphoshell.cli", "solve", "--help"],
                           capture_output=True, text=True, check=True)
-    for option in ("--set", "--nodes", "--method", "--json", "--plot", "KEY=VALUE", "direct", "bvp"):
+    for option in ("--set", "--nodes", "--stages", "--method", "--linear-solver", "--json",
+                   "--plot", "KEY=VALUE", "direct", "bvp", "mumps"):
         assert option in proc.stdout
 
 
@@ -119,3 +120,10 @@ def test_sphere_command(tmp_path):
     assert abs(data["f_bulk"] - data["f_asymptotic"]) < 1e-7
     assert abs(data["f_shell"] - data["f_shell_asymptotic"]) < 1e-8
     assert data["k_star"] == pytest.approx((11 + 3.5) / (5 + 0.5), rel=1e-14)
+
+
+def test_missing_hsl_solver_is_explained(capsys):
+    # the PyPI wheel has no HSL library: the failure must say why
+    assert main(["solve", str(TOY2), "--linear-solver", "ma27"]) == 3
+    err = capsys.readouterr().err
+    assert "Invalid_Option" in err and "libhsl.so" in err

@@ -28,6 +28,9 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--stages", type=int, choices=(1, 2, 3), default=None, metavar="S",
                    help="Gauss points per cell of the direct solver: order 2S (default: the "
                         "file's [solver] stages, else 2)")
+    p.add_argument("--linear-solver", default="mumps", metavar="NAME",
+                   help="Ipopt's linear solver for the direct method: mumps (default, bundled) "
+                        "or an HSL solver such as ma27/ma57 if libhsl.so is installed")
     p.add_argument("--json", metavar="OUT.json", help="write results as JSON")
     p.add_argument("--plot", metavar="OUT.png", help="write a cross-section plot")
 
@@ -94,12 +97,18 @@ def _load(args):
     return problem, settings, nodes, stages
 
 
+def _direct_options(args, method: str, stages: int) -> dict:
+    if method != "direct":
+        return {}
+    return {"stages": stages, "linear_solver": args.linear_solver}
+
+
 def _solve(args) -> int:
     from .equilibrium import solve
 
     problem, settings, nodes, stages = _load(args)
     method = args.method or settings.method
-    eq = solve(problem, nodes=nodes, method=method, **({"stages": stages} if method == "direct" else {}))
+    eq = solve(problem, nodes=nodes, method=method, **_direct_options(args, method, stages))
     edge = "start" if problem.structure.start == "free" else "end"
     e = eq.edge(edge)
     print(f"{problem.name or problem.family}: {method} solution, {len(eq.s)} points, "
@@ -125,8 +134,7 @@ def _ablate(args) -> int:
 
     problem, settings, nodes, stages = _load(args)
     method = args.method or settings.method
-    ab = ablate(problem, nodes=nodes, method=method,
-                **({"stages": stages} if method == "direct" else {}))
+    ab = ablate(problem, nodes=nodes, method=method, **_direct_options(args, method, stages))
     print(f"{problem.name or problem.family}: ablation of Sigma = {problem.cut:g} "
           f"({method}, {len(ab.post.s)} points)")
     for key, value in ab.observables().items():

@@ -274,6 +274,7 @@ class DirectSolver:
         t0 = time.perf_counter()
         self.structure = structure
         self.nodes = int(nodes)
+        self.linear_solver = linear_solver
         geo = get_geometry(structure.geometry)
         width = boundary_layer_width(0.1) if grading_width is None else float(grading_width)
         length = geo.length if domain_length is None else float(domain_length)
@@ -397,6 +398,12 @@ class DirectSolver:
         stats = SolverStats("direct", iters, seconds, status, self.nodes, self.build_seconds, details)
         eq = self._equilibrium(problem, x, lam, p, D, stats, converged=ok)
         if not ok:
+            if status == "Invalid_Option":
+                raise SolverError(
+                    f"Ipopt rejected its options (status 'Invalid_Option'): with linear_solver = "
+                    f"{self.linear_solver!r}, note that the HSL solvers (ma27, ma57, ...) load "
+                    f"only if libhsl.so is on the library path; 'mumps' is bundled",
+                    status, eq)
             raise SolverError(
                 f"Ipopt failed on {problem.name or problem.family!r} with status {status!r} "
                 f"after {iters} iterations; the last iterate is attached (.last_iterate)",
