@@ -26,7 +26,7 @@ from ._buffered import Buffered
 from .problem import Problem, Structure
 
 __all__ = ["Equilibrium", "SolverStats", "SolverError", "NotAMinimumError", "DirectSolver",
-           "solve", "FIELDS"]
+           "Sensitivities", "solve", "FIELDS"]
 
 #: Nodal arrays of an :class:`Equilibrium`, in order.
 FIELDS = ("s", "r", "z", "psi", "f_s", "f_phi", "kappa_s", "kappa_phi",
@@ -343,6 +343,54 @@ class DirectSolver:
                               "Stability_Check_Failed")
         return float(reg[1])
 
+    def sensitivities(self, eq: Equilibrium) -> "Sensitivities":
+        """Exact derivatives of the solution with respect to the parameters.
+
+        The solution (x, λ) of the equality-constrained NLP satisfies
+        F = [∇ₓℒ(x, λ; p), g(x; p)] = 0, so by the implicit function theorem
+        d(x, λ)/dp = −K⁻¹ ∂F/∂p with the KKT matrix K = ∂F/∂(x, λ), nonsingular
+        at a strict minimum.  p is the physical parameter vector
+        [h, Σ, P, family...] (``Problem.parameter_vector``); the derivative goes
+        through the cell data D(p) and the parametric mesh, so ∂/∂Σ moves the
+        material points with the cut.
+
+        Returns
+        -------
+        Sensitivities
+        """
+        import scipy.sparse.linalg
+
+        self._check(eq.problem)
+        if eq.x is None or eq.lam_g is None or len(eq.x) != self.disc.layout.size:
+            raise ValueError("eq must be a direct solution on a solver of this mesh")
+        d = self.disc
+        if not hasattr(self, "_sens"):
+            x, p, lam = d.x, d.p, ca.MX.sym("lam", d.g.shape[0])
+            D = d.pre(p)
+            F = ca.vertcat(d.grad_f(x, D)[1] + ca.mtimes(d.jac_g(x, D)[1].T, lam), d.jac_g(x, D)[0])
+            Ht = d.hess_lag(x, D, 1, lam)
+            J = d.jac_g(x, D)[1]
+            K = ca.blockcat([[Ht + Ht.T - ca.diag(ca.diag(Ht)), J.T],
+                             [J, ca.MX(J.shape[0], J.shape[0])]])
+            energy = ca.Function("energy", [d.x, d.D], [d.energy])(x, D)
+            self._sens = ca.Function("sens", [x, p, lam],
+                                     [K, ca.jacobian(F, p), ca.jacobian(energy, p),
+                                      ca.gradient(energy, x)])
+        p = eq.problem.parameter_vector()
+        K, Fp, Ep, Ex = self._sens(eq.x, p, eq.lam_g)
+        rhs = -np.asarray(ca.densify(Fp))
+        sol = scipy.sparse.linalg.splu(K.sparse().tocsc()).solve(rhs)
+        n = d.layout.size
+        dx = sol[:n]
+        dE = np.asarray(ca.densify(Ep)).ravel() + np.asarray(Ex).ravel() @ dx
+        dr, dpsi, _ = (np.stack(v) for v in zip(*[d.layout.split(c) for c in dx.T]))
+        # points move with the parametric mesh: s = Σ + (L − P − Σ) t
+        ds = np.zeros((len(p), len(eq.s)))
+        ds[1] = 1 - d.t_points
+        ds[2] = -d.t_points
+        names = ("h", "cut", "opening", *eq.problem.family_obj.parameters)
+        return Sensitivities(names=names, dx=dx, dr=dr.T, dpsi=dpsi.T, ds=ds.T, denergy=dE)
+
     def solve(self, problem: Problem, warm_start: Equilibrium | None = None,
               x0: np.ndarray | None = None, lam_g0: np.ndarray | None = None) -> Equilibrium:
         """Equilibrium of ``problem``, optionally warm-started.
@@ -453,6 +501,41 @@ class DirectSolver:
             s = ca.SX.sym("s")
             self._z0 = ca.Function("z0", [s], [self.disc.geometry.z0(s)])
         return float(self._z0(p[1]))
+
+
+@dataclass(frozen=True, eq=False)
+class Sensitivities:
+    """Derivatives of a direct solution with respect to the parameters.
+
+    Columns follow ``names`` = (h, cut, opening, family parameters...).
+
+    Attributes
+    ----------
+    dx : ndarray (unknowns, parameters)
+        Of the NLP vector x.
+    dr, dpsi : ndarray (points, parameters)
+        Of r and ψ at the *material* points (whose s moves with Σ and P, see
+        ``ds``); the pole values are fixed (zero derivative).
+    ds : ndarray (points, parameters)
+        Of the points' arclength s.
+    denergy : ndarray (parameters,)
+        Of the total energy 𝓔 (units of C R²).
+    """
+
+    names: tuple[str, ...]
+    dx: np.ndarray
+    dr: np.ndarray
+    dpsi: np.ndarray
+    ds: np.ndarray
+    denergy: np.ndarray
+
+    def column(self, name: str) -> dict[str, np.ndarray]:
+        """Derivatives with respect to one parameter, by name."""
+        if name not in self.names:
+            raise ValueError(f"unknown parameter {name!r}; valid: {list(self.names)}")
+        j = self.names.index(name)
+        return {"r": self.dr[:, j], "psi": self.dpsi[:, j], "s": self.ds[:, j],
+                "energy": float(self.denergy[j])}
 
 
 def _converged(status: str, stats: Mapping[str, Any]) -> bool:
