@@ -154,10 +154,15 @@ class Layout:
     def size(self) -> int:
         return 2 * self.free_points + self.cells * self.stages
 
-    def split(self, x: np.ndarray):
-        """Full r, ψ at the points and f_s at the Gauss points, from x."""
+    def split(self, x: np.ndarray, derivative: bool = False):
+        """Full r, ψ at the points and f_s at the Gauss points, from x.
+
+        With ``derivative``, x is a derivative of the unknowns and the fixed
+        pole values contribute zeros.
+        """
         n = self.free_points
-        return self._pad(x[:n], 0.0), self._pad(x[n:2 * n], np.pi), x[2 * n:]
+        return (self._pad(x[:n], 0.0), self._pad(x[n:2 * n], 0.0 if derivative else np.pi),
+                x[2 * n:])
 
     def _pad(self, v, end_value):
         parts = ([np.zeros(1)] if self.start_pole else []) + [v] + \

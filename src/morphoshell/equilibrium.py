@@ -383,7 +383,8 @@ class DirectSolver:
         n = d.layout.size
         dx = sol[:n]
         dE = np.asarray(ca.densify(Ep)).ravel() + np.asarray(Ex).ravel() @ dx
-        dr, dpsi, _ = (np.stack(v) for v in zip(*[d.layout.split(c) for c in dx.T]))
+        dr, dpsi, _ = (np.stack(v) for v in zip(*[d.layout.split(c, derivative=True)
+                                                   for c in dx.T]))
         # points move with the parametric mesh: s = Σ + (L − P − Σ) t
         ds = np.zeros((len(p), len(eq.s)))
         ds[1] = 1 - d.t_points
