@@ -76,8 +76,9 @@ def test_console_script_runs(tmp_path):
 
 
 def test_ablate_reports_observables(tmp_path, capsys):
-    out = tmp_path / "a.json"
-    assert main(["ablate", str(TOY2), "--json", str(out)]) == 0
+    out, png = tmp_path / "a.json", tmp_path / "a.png"
+    assert main(["ablate", str(TOY2), "--json", str(out), "--plot", str(png)]) == 0
+    assert png.stat().st_size > 10_000      # the pre/post cross-section pair
     data = json.loads(out.read_text())
     for key in ("opening", "rotation", "displacement", "energy_released"):
         assert np.isfinite(data[key])

@@ -23,6 +23,8 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("problem", metavar="PROBLEM.toml", help="problem file (see problems/)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help=_SET_HELP)
+    p.add_argument("--method", choices=METHODS, default=None,
+                   help="direct energy minimisation (default) or the boundary-value reference")
     p.add_argument("--nodes", type=int, default=None, metavar="N",
                    help="mesh nodes (default: the file's [solver] nodes, else 200)")
     p.add_argument("--stages", type=int, choices=(1, 2, 3), default=None, metavar="S",
@@ -48,8 +50,6 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Solve for the equilibrium shape of PROBLEM.toml and print a "
                                    "summary (energy, edge values, solver statistics).")
     _common(p)
-    p.add_argument("--method", choices=METHODS, default=None,
-                   help="direct energy minimisation (default) or the boundary-value reference")
     p.set_defaults(run=_solve)
 
     p = sub.add_parser("ablate", help="laser ablation: pre- and post-ablation equilibria",
@@ -58,8 +58,6 @@ def build_parser() -> argparse.ArgumentParser:
                                    "rotation, displacement and energy_released (Supplementary, "
                                    "toy problem 2; see morphoshell.observables).")
     _common(p)
-    p.add_argument("--method", choices=METHODS, default=None,
-                   help="direct energy minimisation (default) or the boundary-value reference")
     p.set_defaults(run=_ablate)
 
     p = sub.add_parser("asymptotics", help="the paper's asymptotic predictions for toy problem 2",

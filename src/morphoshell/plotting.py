@@ -57,6 +57,11 @@ def plot_cross_section(eqs: Sequence[Equilibrium], labels: Sequence[str] | None 
         for sign in (1, -1):
             ax.fill(sign * pr, pz, color=color, alpha=alpha, lw=0)
             ax.plot(sign * eq.r, eq.z, color=color, lw=1.0, label=label if sign == 1 else None)
+    return _finish(ax, title)
+
+
+def _finish(ax, title: str | None):
+    """Cross-section axes: equal aspect, lengths in units of R, legend, title."""
     ax.set_aspect("equal")
     ax.set_xlabel(r"$r/R$")
     ax.set_ylabel(r"$z/R$")
@@ -125,13 +130,7 @@ def plot_ablation(ablation, ax=None, title: str | None = None, mark_rim: bool = 
             rim = edge_state(eq, sigma)
             ax.plot([rim["r"], -rim["r"]], [rim["z"]] * 2, ls="none", marker="o", ms=3.5,
                     color=style["color"], zorder=4)
-    ax.set_aspect("equal")
-    ax.set_xlabel(r"$r/R$")
-    ax.set_ylabel(r"$z/R$")
-    ax.legend(loc="best", fontsize="small", frameon=False)
-    if title:
-        ax.set_title(title, fontsize="medium")
-    return ax
+    return _finish(ax, title)
 
 
 def save(fig_or_ax, path: str | Path, formats: Sequence[str] | None = None) -> list[Path]:
