@@ -472,13 +472,15 @@ class DirectSolver:
         s = d.points(p)
         r, psi, _ = d.layout.split(x)
         length = problem.end - problem.cut
-        z = self._z_start(p) + length * d.integrate_to_points(gf["f_s"] * np.sin(gf["psi"]))
+        rho, z_start, _ = d.geometry.numeric(s)
+        z = z_start[0] + length * d.integrate_to_points(gf["f_s"] * np.sin(gf["psi"]))
         derived = {"f_phi": gf["r"] / gf["rho"], "kappa_s": gf["dpsi"] / gf["f_s"],
                    "kappa_phi": np.sin(gf["psi"]) / gf["r"]}
         fields = {k: _to_points(gf["s"], derived[k] if k in derived else gf[k], s)
                   for k in FIELDS if k not in ("s", "r", "z", "psi")}
         # Exact values off the axis (interpolation is only needed at a pole).
-        rho = self._rho(s)
+        # a pole is on the axis exactly, whatever sin(pi) rounds to
+        rho[[0, -1]] = np.where([d.layout.start_pole, d.layout.end_pole], 0.0, rho[[0, -1]])
         off = rho > 0
         fields["f_phi"][off] = r[off] / rho[off]
         fields["kappa_phi"][off] = np.sin(psi[off]) / r[off]
@@ -487,22 +489,6 @@ class DirectSolver:
         return Equilibrium(problem=problem, s=s, r=r, z=z, psi=psi, **fields, energy=energy,
                            solver=stats, converged=converged, x=x, lam_g=lam,
                            quadrature=(gf["s"], gf["weight"] * gf["ds"], gf["L"], d.stages))
-
-    def _rho(self, s: np.ndarray) -> np.ndarray:
-        if not hasattr(self, "_rho_f"):
-            sym = ca.SX.sym("s")
-            self._rho_f = Buffered(ca.Function("rho", [sym], [self.disc.geometry.rho(sym)]).map(len(s)))
-        rho = self._rho_f(s)[0]
-        rho[[0, -1]] = np.where([self.disc.layout.start_pole, self.disc.layout.end_pole], 0.0,
-                                rho[[0, -1]])
-        return rho
-
-    def _z_start(self, p) -> float:
-        if not hasattr(self, "_z0"):
-            s = ca.SX.sym("s")
-            self._z0 = ca.Function("z0", [s], [self.disc.geometry.z0(s)])
-        return float(self._z0(p[1]))
-
 
 @dataclass(frozen=True, eq=False)
 class Sensitivities:

@@ -22,6 +22,9 @@ from ._validate import lookup
 __all__ = ["Geometry", "SPHERE", "DISC", "GEOMETRIES", "get_geometry"]
 
 
+_NUMERIC: dict[str, ca.Function] = {}
+
+
 @dataclass(frozen=True)
 class Geometry:
     """Undeformed meridian s ↦ (ρ(s), z₀(s)), s ∈ [0, length].
@@ -46,12 +49,14 @@ class Geometry:
     psi0: Callable
 
     def numeric(self, s) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(ρ, z₀, ψ₀) at the points ``s`` as NumPy arrays."""
+        """(ρ, z₀, ψ₀) at the points ``s`` (scalar or array) as NumPy arrays."""
         s = np.asarray(s, dtype=float)
-        sym = ca.SX.sym("s")
-        f = ca.Function("geometry", [sym], [self.rho(sym), self.z0(sym), self.psi0(sym)])
-        out = f(s.reshape(1, -1))
-        return tuple(np.asarray(v).reshape(s.shape) for v in out)
+        if self.name not in _NUMERIC:
+            sym = ca.SX.sym("s")
+            _NUMERIC[self.name] = ca.Function(
+                "geometry", [sym], [ca.vertcat(self.rho(sym), self.z0(sym), self.psi0(sym))])
+        out = np.asarray(_NUMERIC[self.name](s.reshape(1, -1)))
+        return tuple(row.reshape(s.shape) for row in out)
 
 
 #: The unit sphere of the paper, s measured from the pole at s = 0.

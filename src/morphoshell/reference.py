@@ -264,7 +264,6 @@ def _solve_one(problem: Problem, nodes: int, tol: float, bc_tol: float,
     b = problem.end - (eps if end_pole else 0.0)
     rhs, jac, controls = F["rhs_vec"], F["jac_vec"], F["controls_vec"]
     costates, local = F["costates"], F["local"]
-    geo_f = _geometry_function(geo)
 
     # Initial mesh: graded toward free edges as for the direct solver, and
     # geometric toward poles, where the solution varies on the scale s.
@@ -279,7 +278,7 @@ def _solve_one(problem: Problem, nodes: int, tol: float, bc_tol: float,
     s = _refine_near_poles(s, problem.cut if start_pole else None,
                            problem.end if end_pole else None, eps)
 
-    y0 = _initial_guess(s, problem, geo_f, guess, costates, p)
+    y0 = _initial_guess(s, geo, guess, costates, p)
     n_unknown = 2 * (start_pole + end_pole)
 
     # solve_bvp passes the unknowns q only when there are some (poles).
@@ -291,7 +290,7 @@ def _solve_one(problem: Problem, nodes: int, tol: float, bc_tol: float,
         dfdy = np.transpose(J, (0, 2, 1))
         return (dfdy, np.zeros((6, n_unknown, len(x)))) if q else dfdy
 
-    z_start = float(geo_f(problem.cut)[1])
+    z_start = float(geo.numeric(problem.cut)[1])
     poles = {}
     for where, flag, s_pole in (("start", start_pole, problem.cut), ("end", end_pole, problem.end)):
         if flag:
@@ -357,7 +356,7 @@ def _solve_one(problem: Problem, nodes: int, tol: float, bc_tol: float,
     details = {"max_rms_residual": float(np.max(sol.rms_residuals)) if sol.rms_residuals.size else 0.0,
                "pole_offset": eps}
     end_energy = pole_integrals("end", sol.p[-2:])[0] if end_pole else 0.0
-    eq = _to_equilibrium(problem, sol.x, sol.y, p, controls, local, geo_f, end_energy,
+    eq = _to_equilibrium(problem, sol.x, sol.y, p, controls, local, end_energy,
                          SolverStats("bvp", int(sol.niter), seconds, sol.message, len(sol.x), 0.0,
                                      details), sol.status == 0)
     if sol.status != 0:
@@ -365,17 +364,6 @@ def _solve_one(problem: Problem, nodes: int, tol: float, bc_tol: float,
                           f"(status {sol.status}); the last iterate is attached (.last_iterate)",
                           sol.message, eq)
     return eq, int(sol.niter)
-
-
-def _geometry_function(geo):
-    s = ca.SX.sym("s")
-    f = ca.Function("geo", [s], [geo.rho(s), geo.z0(s), geo.psi0(s)])
-
-    def call(x):
-        out = f(x)
-        return tuple(float(v) for v in out)
-    call.vector = lambda x: tuple(np.asarray(v).ravel() for v in f(np.reshape(x, (1, -1))))
-    return call
 
 
 def _refine_near_poles(s, start_pole: float | None, end_pole: float | None, eps: float):
@@ -390,7 +378,7 @@ def _refine_near_poles(s, start_pole: float | None, end_pole: float | None, eps:
     return np.unique(np.concatenate([s, *extra])) if extra else s
 
 
-def _initial_guess(s, problem, geo_f, guess, costates, p):
+def _initial_guess(s, geo, guess, costates, p):
     m = len(s)
     if guess is not None:
         r = np.interp(s, guess.s, guess.r)
@@ -399,7 +387,7 @@ def _initial_guess(s, problem, geo_f, guess, costates, p):
         f = np.interp(s, guess.s, guess.f_s)
         u = np.interp(s, guess.s, guess.kappa_s * guess.f_s)
     else:
-        rho, z, psi = geo_f.vector(s)
+        rho, z, psi = geo.numeric(s)
         r, f, u = rho.copy(), np.ones(m), np.gradient(psi, s)
     lam = np.asarray(costates.map(m)(s.reshape(1, -1), r.reshape(1, -1), psi.reshape(1, -1),
                                       f.reshape(1, -1), u.reshape(1, -1), p))
@@ -414,7 +402,7 @@ def _initial_guess(s, problem, geo_f, guess, costates, p):
     return np.vstack([r, psi, lam[0], lam[1], z, E])
 
 
-def _to_equilibrium(problem, s, Y, p, controls, local, geo_f, end_energy, stats,
+def _to_equilibrium(problem, s, Y, p, controls, local, end_energy, stats,
                     converged) -> Equilibrium:
     W = controls(s, Y, p)
     f, u = W[0], W[1]
