@@ -39,7 +39,7 @@ from scipy.integrate import solve_bvp
 from morphoshell import asymptotics
 from morphoshell.equilibrium import solve
 from morphoshell.io import load_problem, write_json
-from morphoshell.observables import ablate, edge_state
+from morphoshell.ablation import ablate, edge_state
 from morphoshell.plotting import plot_ablation, plt, sheet_outline
 from morphoshell.problem import Problem
 

@@ -13,8 +13,11 @@ Quick start::
 __version__ = "0.1.0"
 
 from .problem import Problem, Structure  # noqa: E402
-from .equilibrium import (DirectSolver, Equilibrium, NotAMinimumError, SolverError,  # noqa: E402
-                          solve)
+from .results import Equilibrium, NotAMinimumError, SolverError  # noqa: E402
+from .direct import DirectSolver  # noqa: E402
+from .equilibrium import solve  # noqa: E402
+from .parametric import Parametric  # noqa: E402
+from .ablation import Ablation, ablate  # noqa: E402
 
 __all__ = ["Problem", "Structure", "DirectSolver", "Equilibrium", "SolverError",
-           "NotAMinimumError", "solve", "__version__"]
+           "NotAMinimumError", "solve", "Parametric", "Ablation", "ablate", "__version__"]

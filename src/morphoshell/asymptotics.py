@@ -26,6 +26,8 @@ import numpy as np
 from scipy import special
 from scipy.optimize import brentq
 
+from .energy import boundary_layer_width
+
 __all__ = [
     "f_shell_exact", "f_shell_asymptotic", "f_bulk_asymptotic", "k_star",
     "delta", "opening", "rotation", "displacement", "b_inner", "kelvin_k",
@@ -222,7 +224,7 @@ def delta(h):
     """Width δ = √ε = (h/√12)^{1/2} of the inner region (Supplementary,
     "Asymptotic solution", toy problem 2)."""
     h = _positive("h", h)
-    return _out(np.sqrt(h / math.sqrt(12)))
+    return _out(boundary_layer_width(h))
 
 
 def opening(h, k, Sigma):
@@ -324,7 +326,7 @@ def _small_cut_parts(varsigma: np.ndarray):
 
 
 def _varsigma(h: np.ndarray, Sigma: np.ndarray) -> np.ndarray:
-    sigma = Sigma / np.sqrt(h / math.sqrt(12))
+    sigma = Sigma / boundary_layer_width(h)
     return 3**0.25 * sigma / _SQRT2
 
 
@@ -381,7 +383,7 @@ def energy_released(h, k, Sigma, units: str = "morphoshell"):
     h = _positive("h", h)
     k = _finite("k", k)
     Sigma = _angle("Sigma", Sigma)
-    d = np.sqrt(h / math.sqrt(12))
+    d = boundary_layer_width(h)
     paper = -(3**1.75) * math.pi * d**5 * (k - 1) ** 2 * np.sin(Sigma)
     return _out(paper if units == "paper" else 0.5 * h * paper)
 
@@ -432,5 +434,5 @@ def predictions(h, k, Sigma) -> dict:
         "displacement_small_cut": displacement_small_cut(h, k, Sigma),
         "energy_released": energy_released(h, k, Sigma, units="morphoshell"),
         "delta": d,
-        "sigma": _out(Sigma_arr / np.sqrt(h_arr / math.sqrt(12))),
+        "sigma": _out(Sigma_arr / boundary_layer_width(h_arr)),
     }

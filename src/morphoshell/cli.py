@@ -128,7 +128,7 @@ def _solve(args) -> int:
 
 
 def _ablate(args) -> int:
-    from .observables import ablate
+    from .ablation import ablate
 
     problem, settings, nodes, stages = _load(args)
     method = args.method or settings.method
@@ -186,7 +186,7 @@ def _sphere(args) -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    from .equilibrium import SolverError
+    from .results import SolverError
 
     try:
         return args.run(args)

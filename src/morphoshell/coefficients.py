@@ -9,7 +9,7 @@ through-thickness check is :func:`morphoshell.thickness.exact_density`).  They
 are the project's definition.
 
 A *theory* is a function ``eta -> Coefficients`` that works on CasADi
-expressions; :data:`THEORIES` maps theory names to such functions and
+expressions; :data:`THEORIES` maps theory names to :class:`Theory` objects and
 :func:`register_theory` adds another set without touching the rest of the code.
 
 Conventions
@@ -20,6 +20,7 @@ Conventions
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Callable, NamedTuple
 
@@ -29,7 +30,7 @@ import numpy as np
 from ._validate import lookup
 
 __all__ = [
-    "Coefficients", "large_bending", "classical", "THEORIES", "register_theory",
+    "Coefficients", "Theory", "large_bending", "classical", "THEORIES", "register_theory",
     "get_theory", "evaluate", "SERIES_SWITCH",
 ]
 
@@ -129,32 +130,64 @@ def classical(eta) -> Coefficients:
     )
 
 
-THEORIES: dict[str, Callable] = {"large_bending": large_bending, "classical": classical}
+@dataclass(frozen=True, eq=False)
+class Theory:
+    """A named coefficient set ``eta -> Coefficients``.
+
+    Compared and hashed by identity: compiled functions are cached on the
+    object, so registering another theory under an existing name (re-running
+    a notebook cell) can never reuse the old one's functions.
+    """
+
+    name: str
+    coefficients: Callable = field(repr=False)
+    description: str = ""
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    def __call__(self, eta) -> Coefficients:
+        return self.coefficients(eta)
+
+    def evaluate(self, eta) -> Coefficients:
+        """Numerical values at ``eta`` (scalar or array, abs(eta) < 1)."""
+        eta = np.asarray(eta, dtype=float)
+        if np.any(np.abs(eta) >= 1) or not np.all(np.isfinite(eta)):
+            raise ValueError(f"eta must be finite with abs(eta) < 1, got {eta}")
+        if "f" not in self._cache:
+            sym = ca.SX.sym("eta")
+            self._cache["f"] = ca.Function(f"coefficients_{self.name}", [sym], list(self(sym)))
+        out = self._cache["f"](eta.reshape(1, -1))
+        return Coefficients(*[np.asarray(v).reshape(eta.shape) for v in out])
 
 
-def register_theory(name: str, coefficients: Callable) -> None:
-    """Add a coefficient set ``eta -> Coefficients`` under ``name``."""
+THEORIES: dict[str, Theory] = {
+    "large_bending": Theory("large_bending", large_bending,
+                            "re-derived large-bending coefficients alpha, beta, gamma(eta)"),
+    "classical": Theory("classical", classical, "eta -> 0: classical incompressible shell"),
+}
+
+
+def register_theory(name: str, coefficients: Callable, description: str = "") -> Theory:
+    """Add (or replace) the coefficient set ``eta -> Coefficients`` under ``name``.
+
+    Problems created afterwards use the new set; problems created before keep
+    the one they were created with (:class:`Theory` objects are compared by
+    identity, so no cached function of the old set is reused).
+    """
     if not name or not isinstance(name, str):
         raise ValueError(f"theory name must be a non-empty string, got {name!r}")
-    THEORIES[name] = coefficients
+    if not callable(coefficients):
+        raise ValueError(f"theory {name!r}: coefficients must be callable eta -> Coefficients")
+    THEORIES[name] = theory = Theory(name, coefficients, description)
+    return theory
 
 
-def get_theory(name: str) -> Callable:
+def get_theory(name: "str | Theory") -> Theory:
+    """The registered :class:`Theory` called ``name`` (a Theory is returned as is)."""
+    if isinstance(name, Theory):
+        return name
     return lookup(THEORIES, name, "theory")
 
 
-_eta = ca.SX.sym("eta")
-_FUNCS: dict[str, ca.Function] = {}
-
-
-def evaluate(eta, theory: str = "large_bending") -> Coefficients:
+def evaluate(eta, theory: "str | Theory" = "large_bending") -> Coefficients:
     """Numerical values of the coefficients at ``eta`` (scalar or array)."""
-    if theory not in _FUNCS:
-        _FUNCS[theory] = ca.Function(
-            f"coefficients_{theory}", [_eta], list(get_theory(theory)(_eta)))
-    eta = np.asarray(eta, dtype=float)
-    if np.any(np.abs(eta) >= 1) or not np.all(np.isfinite(eta)):
-        raise ValueError(f"eta must be finite with abs(eta) < 1, got {eta}")
-    flat = eta.reshape(1, -1)
-    out = _FUNCS[theory](flat)
-    return Coefficients(*[np.asarray(v).reshape(eta.shape) for v in out])
+    return get_theory(theory).evaluate(eta)

@@ -28,105 +28,34 @@ free edges need nothing: the no-force, no-torque conditions are natural.
 
 Parametric mesh
 ---------------
-The nodes are s_i = Σ + (L − P − Σ) t_i with a fixed graded mesh t_i in
-[0, 1], so Σ and P are NLP parameters like h and the profile parameters.  The
-grading concentrates nodes near free edges, whose boundary layers have width
-δ = (h/√12)^(1/2) (Supplementary, toy problem 2), and near poles, where the
-solution behaves like s^β with β not an integer (see
-:mod:`morphoshell.reference`).
+The nodes are material points s_i = Σ + (L − P − Σ) t_i of a fixed graded mesh
+t_i (:mod:`morphoshell.mesh`), so Σ and P are NLP parameters like h and the
+profile parameters.
+
+Symbolic fields
+---------------
+Besides the NLP, a :class:`Discretisation` gives the shape as CasADi
+expressions of the unknowns x and the physical parameters p: r and ψ at the
+points, z and the deformed arclength by exact integration of z' = f_s sin ψ
+and S' = f_s, and (r, z, ψ) anywhere inside a cell by its polynomials.  The
+observables of :mod:`morphoshell.observables` are built from these, so that
+forward evaluation, parametric derivatives and fits share one definition.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import casadi as ca
 import numpy as np
-from scipy.special import gamma, gammainc
 
 from ._buffered import Buffered
-from .energy import LOCAL_OUTPUTS, intrinsic_function, local_function, pointwise
-from .geometry import get_geometry
+from .energy import LOCAL_OUTPUTS, intrinsic_function, pointwise
+from .layouts import CELL_DATA, INTRINSIC
+from .mesh import check_monotone, shell_points
 from .problem import Structure
 
-__all__ = ["graded_mesh", "boundary_layer_width", "pole_exponent", "Discretisation", "Layout"]
-
-
-def boundary_layer_width(h: float) -> float:
-    """δ = √ε, ε = h/√12: the width of the edge boundary layer (Supplementary)."""
-    return float(np.sqrt(h / np.sqrt(12)))
-
-
-def pole_exponent(stages: int) -> float:
-    """Grading exponent q (s ∝ t^q) at poles that keeps order 2S.
-
-    With a local solution ~ s^β the first cells cost O(N^(−2qβ)) and the
-    others sum to O(N^(−2S)) if qβ > S; β ≥ 0.7 in the problems of the paper
-    (measured, see ``reference._PoleSolution``), so q = 2S leaves a margin.
-    """
-    return 2.0 * stages
-
-
-def graded_mesh(cells: int, length: float, start: str, end: str, width: float,
-                ratio: float = 6.0, pole_width: float = 0.05, q: float = 2.0,
-                edge_scale: float | None = None) -> np.ndarray:
-    """Nodes t_0 = 0 < … < t_N = 1 of a smoothly graded mesh.
-
-    The node density (per unit of t) is
-
-        1 + (ratio − 1) exp(−d/ℓ)              near a free edge, ℓ = 3 width/length,
-        + B ℓ_c [1/(d + ℓ_c) − 1/(d + ℓ)]      near a free edge, if ℓ_c < ℓ/3,
-        + (d/ℓ_p)^(1/q − 1) exp(−d/ℓ_p)        near a pole, ℓ_p = pole_width,
-
-    with d the distance to that end, so free edges get ``ratio`` times finer
-    cells across their boundary layer and near a pole the nodes follow
-    s ∝ t^q.  A free edge closer to the axis than the boundary-layer width
-    (a cut Σ smaller than δ: ``edge_scale`` ℓ_c = Σ/length) also varies on
-    the scale Σ, like log s between Σ and δ (the (σ + ξ) terms of the
-    Supplementary's small-cut equations): the second term spends B ℓ_c = 5 %
-    of the density per e-fold of d there.  The map t ↦ s is fixed and smooth,
-    so refinement keeps the order of the scheme.
-
-    Parameters
-    ----------
-    cells : int
-    length : float
-        Length of the shell in s (sets the free-edge grading in t).
-    start, end : {"pole", "free"}
-    width : float
-        Boundary-layer width in s (see :func:`boundary_layer_width`).
-    q : float
-        Pole grading exponent (see :func:`pole_exponent`).
-    """
-    if cells < 2:
-        raise ValueError(f"need at least 2 cells, got {cells}")
-    ell = 3 * width / length
-    ell_c = None if edge_scale is None else edge_scale / length
-    small_edge = ell_c is not None and ell_c < ell / 3
-
-    def cumulative(d, kind):
-        # ∫₀^d of the extra density of an end of this kind
-        if kind == "free":
-            out = (ratio - 1) * ell * -np.expm1(-d / ell)
-            if small_edge:
-                out = out + 0.05 * (np.log1p(d / ell_c) - np.log1p(d / ell))
-            return out
-        return pole_width * gamma(1 / q) * gammainc(1 / q, d / pole_width)
-
-    def W(x):
-        return x + cumulative(x, start) + cumulative(1.0, end) - cumulative(1 - x, end)
-
-    target = np.linspace(0.0, W(1.0), cells + 1)
-    lo, hi = np.zeros_like(target), np.ones_like(target)
-    for _ in range(60):   # bisection: W is increasing
-        mid = (lo + hi) / 2
-        below = W(mid) < target
-        lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
-    t = (lo + hi) / 2
-    t[0], t[-1] = 0.0, 1.0
-    return t
-
-
-_CELL_CACHE: dict[tuple, dict[str, ca.Function]] = {}
+__all__ = ["Discretisation", "Layout", "SymbolicShape", "collocation", "within_cells"]
 
 
 @dataclass(frozen=True)
@@ -174,13 +103,18 @@ class Layout:
         return np.concatenate([np.asarray(r)[sl], np.asarray(psi)[sl], np.asarray(f)])
 
 
-def _collocation(stages: int):
-    """Lagrange basis on τ = 0, 1/S, …, 1 at the Gauss points, and Gauss data.
+@lru_cache(maxsize=8)
+def collocation(stages: int):
+    """Lagrange bases of one cell for ``stages`` S (cached per S).
 
-    Returns (tau_gauss, weights, values, derivatives, integrals) where
-    values[k, l] = ℓ_l(τ_k), derivatives[k, l] = ℓ_l'(τ_k) and
-    integrals[l, k] = ∫₀^{l/S} λ_k(τ) dτ for the Lagrange basis λ_k on the
-    Gauss points (to integrate z' = f_s sin ψ to the interpolation points).
+    Returns (tau, w, values, derivatives, integrals, antiderivatives):
+
+    * tau, w: the S Gauss–Legendre points and weights on [0, 1];
+    * values[k, l] = ℓ_l(τ_k), derivatives[k, l] = ℓ_l'(τ_k) for the Lagrange
+      basis ℓ_l on τ = 0, 1/S, …, 1 (the cell's interpolation points);
+    * integrals[l, k] = ∫₀^{l/S} λ_k(τ) dτ for the Lagrange basis λ_k on the
+      Gauss points (to integrate z' = f_s sin ψ to the interpolation points);
+    * antiderivatives[k]: coefficients (lowest first) of ∫₀^τ λ_k.
     """
     xg, wg = np.polynomial.legendre.leggauss(stages)
     tau, w = (xg + 1) / 2, wg / 2
@@ -188,16 +122,46 @@ def _collocation(stages: int):
     values = np.zeros((stages, stages + 1))
     derivs = np.zeros((stages, stages + 1))
     for l in range(stages + 1):
-        others = np.delete(nodes, l)
-        poly = np.poly1d(others, r=True) / np.prod(nodes[l] - others)
-        values[:, l], derivs[:, l] = poly(tau), poly.deriv()(tau)
+        basis = _lagrange(nodes, l)
+        values[:, l], derivs[:, l] = basis(tau), basis.deriv()(tau)
     integrals = np.zeros((stages + 1, stages))
+    anti = []
     for k in range(stages):
-        others = np.delete(tau, k)
-        poly = np.poly1d(others, r=True) / np.prod(tau[k] - others) if stages > 1 else np.poly1d([1.0])
-        antideriv = poly.integ()
-        integrals[:, k] = antideriv(nodes) - antideriv(0.0)
-    return tau, w, values, derivs, integrals
+        antideriv = _lagrange(tau, k).integ()
+        integrals[:, k] = antideriv(nodes)
+        anti.append(antideriv.coef)
+    return tau, w, values, derivs, integrals, anti
+
+
+def within_cells(nodes, fractions, last: bool = True):
+    """Points at ``fractions`` of every cell (cell by cell), and the last node if ``last``.
+
+    ``nodes`` is a NumPy array or a CasADi column of the N + 1 node positions.
+    """
+    fractions = np.asarray(fractions, dtype=float)
+    if isinstance(nodes, (ca.SX, ca.MX)):
+        n = nodes.shape[0]
+        lo, hi = nodes[:n - 1], nodes[1:]
+        inner = ca.vec(ca.horzcat(*[lo + (hi - lo) * f for f in fractions]).T)
+        return ca.vertcat(inner, nodes[n - 1]) if last else inner
+    inner = (nodes[:-1, None] + np.diff(nodes)[:, None] * fractions[None, :]).ravel()
+    return np.append(inner, nodes[-1]) if last else inner
+
+
+def _lagrange(points: np.ndarray, l: int) -> np.polynomial.Polynomial:
+    """The l-th Lagrange basis polynomial on ``points``."""
+    others = np.delete(points, l)
+    if not len(others):
+        return np.polynomial.Polynomial([1.0])
+    return np.polynomial.Polynomial.fromroots(others) / np.prod(points[l] - others)
+
+
+def _poly(coefficients, x):
+    """Horner evaluation (works on CasADi expressions)."""
+    out = 0 * x + coefficients[-1]
+    for c in coefficients[-2::-1]:
+        out = out * x + c
+    return out
 
 
 class Discretisation:
@@ -205,31 +169,36 @@ class Discretisation:
 
     Each cell's energy terms and constraints depend on its 3S + 2 local
     unknowns z_c = (r at its S + 1 points, ψ at them, f_s at its S Gauss
-    points) and on parameter-only *data* at its Gauss points,
-    D = [s, Δs, weight, objective scale, h, ρ, profiles, η, α, β, γ].  Small SX
-    functions give a cell's values, gradients and Hessian; they are mapped over
-    the cells and scattered into the global gradient, Jacobian and Hessian by
-    constant sparse matrices, so building the NLP costs about the same for any
-    mesh.  The data are computed once per solve (:meth:`cell_data`) and are the
-    NLP's parameter vector, so Ipopt's callbacks never re-evaluate profiles or
-    coefficients.
+    points) and on parameter-only *data* at its Gauss points, laid out as
+    :data:`~morphoshell.layouts.CELL_DATA`.  Small SX functions give a cell's
+    values, gradients and Hessian; they are mapped over the cells and
+    scattered into the global gradient, Jacobian and Hessian by constant
+    sparse matrices, so building the NLP costs about the same for any mesh.
+    The data are computed once per solve (:meth:`cell_data`) and are the
+    NLP's parameter vector, so Ipopt's callbacks never re-evaluate profiles
+    or coefficients.
 
     Parameters
     ----------
     structure : Structure
     t : ndarray
-        Nodes in [0, 1] (see :func:`graded_mesh`).
+        Nodes in [0, 1] (see :func:`morphoshell.mesh.graded_mesh`).
     stages : int
         Gauss points per cell S (order 2S).
+    knots : tuple of float
+        Values of t (nodes of ``t``) that sit at the anchors q: material
+        points given with every solve (see :func:`morphoshell.mesh.shell_points`).
 
     Attributes
     ----------
     x : casadi.MX
-        Unknowns [r_free, ψ_free, f_s].
+        Unknowns [r_free, ψ_free, f_s] (:class:`Layout`).
     D : casadi.MX
         NLP parameters: the Gauss-point data, column-major (n_D × cells S).
     p : casadi.MX
-        Physical parameters [h, Σ, P, family...]; ``pre(p)`` gives ``D``.
+        Physical parameters (``structure.parameters``); ``pre(p, q)`` gives ``D``.
+    q : casadi.MX
+        Positions of the anchors (one per knot; empty without knots).
     energy, objective : casadi.MX
         Total energy 𝓔(x, D) and the scaled objective handed to Ipopt.
     g : casadi.MX
@@ -238,46 +207,50 @@ class Discretisation:
         Exact derivatives in the signatures of ``nlpsol``'s options.
     """
 
-    def __init__(self, structure: Structure, t: np.ndarray, stages: int = 2):
+    def __init__(self, structure: Structure, t: np.ndarray, stages: int = 2,
+                 knots: tuple[float, ...] = ()):
         if stages not in (1, 2, 3):
             raise ValueError(f"stages = {stages!r} must be 1, 2 or 3")
         self.structure = structure
-        self.geometry = get_geometry(structure.geometry)
+        self.geometry = structure.geometry
         self.t = np.asarray(t, dtype=float)
+        self.knots = tuple(float(k) for k in knots)
+        missing = [k for k in self.knots if not np.any(self.t == k)]
+        if missing:
+            raise ValueError(f"mesh knots {missing} are not nodes of the mesh")
         self.stages = S = stages
         cells = len(self.t) - 1
         self.layout = lay = Layout(cells, S, structure.start == "pole", structure.end == "pole")
-        self.local = local_function(structure)
-        tau, w, self._values, self._derivs, self._integrals = _collocation(S)
+        tau, w, self._values, self._derivs, self._integrals, self._anti = collocation(S)
         self.tau, self.weights = tau, w
-        n_p = self.local.size1_in(5)
+        n_p = len(structure.parameters)
         n = lay.size
-        # Points in t: nodes and interior interpolation points; Gauss points.
-        self.t_points = np.concatenate(
-            [self.t[:-1, None] + np.diff(self.t)[:, None] * np.arange(S)[None, :] / S]
-            + [], axis=None) if S > 1 else self.t[:-1].copy()
-        self.t_points = np.append(self.t_points.ravel(), 1.0)
-        t_gauss = (self.t[:-1, None] + np.diff(self.t)[:, None] * tau[None, :]).ravel()
-        dt_gauss = np.repeat(np.diff(self.t), S)
-        w_gauss = np.tile(w, cells)
+        m = cells * S
 
         self.p = ca.MX.sym("p", n_p)
-        pre = self._pre_function(n_p, cells)
-        m = cells * S
-        self.pre = ca.Function("cell_data", [self.p],
-                               [ca.vec(pre.map(m)(ca.DM(t_gauss).T, ca.DM(dt_gauss).T,
-                                                  ca.DM(w_gauss).T, self.p))], ["p"], ["D"])
-        n_D = pre.size1_out(0)
+        self.q = ca.MX.sym("q", len(self.knots))
+        a, b = self.shell_ends(self.p)
+        s_nodes = self.nodes(self.p, self.q)
+        ds = (s_nodes[1:] - s_nodes[:-1])[np.repeat(np.arange(cells), S).tolist()]
+        # Energies range over decades with h (bending ~ h³): dividing by h³
+        # and by the mean cell size keeps Ipopt's gradients O(1).
+        scale = cells / (2 * ca.pi * self.structure.parameters.unpack(self.p)["h"] ** 3 * (b - a))
+        pre = self._pre_function(n_p)
+        self.pre = ca.Function(
+            "cell_data", [self.p, self.q],
+            [ca.vec(pre.map(m)(within_cells(s_nodes, tau, last=False).T, ds.T,
+                               ca.DM(np.tile(w, cells)).T, scale, self.p))], ["p", "q"], ["D"])
+        n_D = len(CELL_DATA)
         self.x = ca.MX.sym("x", n)
         self.D = ca.MX.sym("D", n_D * m)
         Dc = ca.reshape(self.D, n_D * S, cells)   # one column per cell
 
         idx = self._cell_indices()
         n_loc = idx.shape[0]
+        self._idx = idx
         # Gather the local unknowns of every cell (constants appended to x).
-        xfull = ca.vertcat(self.x, ca.DM([0.0, 0.0, np.pi]))
-        Z = ca.reshape(xfull[idx.ravel(order="F").tolist()], n_loc, cells)
-        cell = self._cell_functions(n_D)
+        Z = self.cell_unknowns(self.x)
+        cell = _cell_functions(S)
         sigma, lam = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", m)
         self.objective = ca.sum2(cell["f"].map(cells)(Z, Dc))
         self.energy = ca.sum2(cell["energy"].map(cells)(Z, Dc))
@@ -318,61 +291,30 @@ class Discretisation:
         self._field_names = ("s", "ds", "weight", "r", "psi", "f_s", "dpsi", *LOCAL_OUTPUTS)
         self._fields = ca.Function("fields", [self.x, self.D],
                                    [cell["fields"].map(cells)(Z, Dc)])
+        # z and S at the points are linear in the Gauss values of z' and S'
+        # (per unit of t): the same operators serve numbers and expressions.
+        self._integration = self._integration_operators()
 
-    def _pre_function(self, n_p: int, cells: int) -> ca.Function:
-        """``(t_k, Δt_c, w_k, p) -> D_k``: parameter-only data at one Gauss point."""
-        tk, dt, wk, p = ca.SX.sym("tk"), ca.SX.sym("dt"), ca.SX.sym("wk"), ca.SX.sym("p", n_p)
-        a, b = p[1], self.geometry.length - p[2]
-        s_k = a + (b - a) * tk
-        # Energies range over decades with h (bending ~ h³): dividing by h³
-        # and by the mean cell size keeps Ipopt's gradients O(1).
-        scale = cells / (2 * ca.pi * p[0] ** 3 * (b - a))
-        I = intrinsic_function(self.structure)(s_k, p)
-        return ca.Function("pre", [tk, dt, wk, p], [ca.vertcat(s_k, (b - a) * dt, wk, scale, p[0], I)])
+    # -- construction helpers ------------------------------------------------
+    def nodes(self, p, q):
+        """Material points s of the mesh nodes (the parametric map of :mod:`morphoshell.mesh`).
 
-    def _cell_functions(self, n_D: int) -> dict[str, ca.Function]:
-        """Values, gradients and the Lagrangian's triu Hessian of one cell (SX).
-
-        They depend on the structure and the number of stages only, so meshes
-        of one structure share them.
+        Each cell is affine in s between its nodes: Gauss and interpolation
+        points sit at fixed fractions of it.
         """
-        key = (self.structure, self.stages)
-        if key not in _CELL_CACHE:
-            _CELL_CACHE[key] = self._build_cell_functions(n_D)
-        return _CELL_CACHE[key]
+        a, b = self.shell_ends(p)
+        return shell_points(self.t, a, b, self.knots, q)
 
-    def _build_cell_functions(self, n_D: int) -> dict[str, ca.Function]:
-        S = self.stages
-        z, D = ca.SX.sym("z", 3 * S + 2), ca.SX.sym("D", n_D * S)
-        sigma, lam = ca.SX.sym("sigma"), ca.SX.sym("lam", S)
-        zr, zp, zf = z[:S + 1], z[S + 1:2 * S + 2], z[2 * S + 2:]
-        V, Dv = ca.DM(self._values), ca.DM(self._derivs)
-        energy, g, fields = 0, [], []
-        for k in range(S):
-            Dk = D[k * n_D:(k + 1) * n_D]
-            s_k, ds, wk, scale, h, I = Dk[0], Dk[1], Dk[2], Dk[3], Dk[4], Dk[5:]
-            r_k, psi_k = ca.dot(V[k, :].T, zr), ca.dot(V[k, :].T, zp)
-            dr_k, dpsi_k = ca.dot(Dv[k, :].T, zr) / ds, ca.dot(Dv[k, :].T, zp) / ds
-            point = pointwise(r_k, psi_k, zf[k], dpsi_k, I, h)
-            energy += wk * ds * point["L"]
-            g.append(dr_k - zf[k] * ca.cos(psi_k))
-            fields.append(ca.vertcat(s_k, ds, wk, r_k, psi_k, zf[k], dpsi_k,
-                                     *[point[name] for name in LOCAL_OUTPUTS[:10]], I))
-        scale = D[3]
-        ell = energy * scale
-        g = ca.vertcat(*g)
-        H = ca.hessian(sigma * ell + ca.dot(lam, g), z)[0]
-        ku, lu = np.triu_indices(3 * S + 2)
-        return {
-            "f": ca.Function("cell_f", [z, D], [ell]),
-            "energy": ca.Function("cell_energy", [z, D], [energy]),
-            "g": ca.Function("cell_g", [z, D], [g]),
-            "grad": ca.Function("cell_grad", [z, D], [ell, ca.gradient(ell, z)]),
-            "jac": ca.Function("cell_jac", [z, D], [g, ca.vec(ca.jacobian(g, z))]),
-            "hess": ca.Function("cell_hess", [z, D, sigma, lam],
-                                [ca.vertcat(*[H[int(i), int(j)] for i, j in zip(ku, lu)])]),
-            "fields": ca.Function("cell_fields", [z, D], [ca.horzcat(*fields)]),
-        }
+    def _pre_function(self, n_p: int) -> ca.Function:
+        """``(s_k, Δs_c, w_k, scale, p) -> D_k``: parameter-only data at one Gauss point."""
+        s_k, ds, wk, scale, p = (ca.SX.sym("s"), ca.SX.sym("ds"), ca.SX.sym("wk"),
+                                 ca.SX.sym("scale"), ca.SX.sym("p", n_p))
+        I = intrinsic_function(self.structure)(s_k, p)
+        data = {"s": s_k, "ds": ds, "weight": wk, "scale": scale,
+                "h": self.structure.parameters.unpack(p)["h"]}
+        off = CELL_DATA.after(INTRINSIC)
+        return ca.Function("pre", [s_k, ds, wk, scale, p],
+                           [ca.vertcat(*[data[n] for n in CELL_DATA.names[:off]], I)])
 
     def _cell_indices(self) -> np.ndarray:
         """(3S + 2, cells) positions of each cell's local unknowns in [x, constants]."""
@@ -400,21 +342,71 @@ class Discretisation:
         sp = ca.Sparsity.triplet(n_rows, n_cols, (uniq % n_rows).tolist(), (uniq // n_rows).tolist())
         return ca.MX(sp, ca.mtimes(B, values))
 
-    def points(self, p: np.ndarray) -> np.ndarray:
-        """Arclength s of the points (nodes and interior points) for parameters ``p``."""
-        a, b = p[1], self.geometry.length - p[2]
-        return a + (b - a) * self.t_points
+    def _integration_operators(self):
+        """Sparse operators of ∫ from the first node to every point (Gauss interpolant per cell).
 
-    def initial_guess(self, p: np.ndarray) -> np.ndarray:
+        For values v and widths Δs at the Gauss points (cell by cell), the
+        integral to point j = c S + l is the sum of the whole cells before c
+        (``B`` holds each cell's Gauss weights) plus the part of cell c (``P``);
+        the sum over earlier cells is a cumulative sum, so the cost is linear
+        in the mesh size.
+        """
+        S, cells = self.stages, self.layout.cells
+        j = np.arange(self.layout.points)
+        c = np.minimum(j // S, cells - 1)
+        l = j - c * S
+        cols = (c[:, None] * S + np.arange(S)[None, :]).ravel()
+        # (DM.triplet takes values in triplet order; DM(sparsity, values) would
+        # read them in compressed-column order)
+        P = ca.DM.triplet(np.repeat(j, S).tolist(), cols.tolist(), self._integrals[l].ravel(),
+                          len(j), cells * S)
+        B = ca.DM.triplet(np.repeat(np.arange(cells), S).tolist(), np.arange(cells * S).tolist(),
+                          np.tile(self.weights, cells), cells, cells * S)
+        return P, B, c
+
+    def _integrate(self, values, ds):
+        """∫ from the first node to every point, of Gauss-point ``values`` (CasADi or NumPy).
+
+        ``ds`` holds the cell widths in s at the Gauss points (cell by cell).
+        """
+        P, B, c = self._integration
+        if isinstance(values, (ca.MX, ca.SX)) or isinstance(ds, (ca.MX, ca.SX)):
+            v = values * ds
+            starts = ca.vertcat(0, ca.cumsum(ca.mtimes(B, v)))
+            return starts[c.tolist()] + ca.mtimes(P, v)
+        v = np.asarray(values, dtype=float) * ds
+        starts = np.concatenate([[0.0], np.cumsum(B.sparse() @ v)])
+        return starts[c] + P.sparse() @ v
+
+    # -- numerical interface -------------------------------------------------
+    def points(self, p: np.ndarray, q=()) -> np.ndarray:
+        """Arclength s of the points (nodes and interior points) for parameters ``p``."""
+        return within_cells(self.nodes(np.asarray(p, dtype=float), q),
+                            np.arange(self.stages) / self.stages)
+
+    def initial_guess(self, p: np.ndarray, q=()) -> np.ndarray:
         """The undeformed shell: r = ρ, ψ = ψ₀, f_s = 1."""
-        rho, _, psi0 = self.geometry.numeric(self.points(p))
+        rho, _, psi0 = self.geometry.numeric(self.points(p, q))
         return self.layout.pack(rho, psi0, np.ones(self.layout.cells * self.stages))
 
-    def cell_data(self, p: np.ndarray) -> np.ndarray:
-        """The NLP parameter vector D for physical parameters ``p``."""
+    def check_anchors(self, p: np.ndarray, q) -> np.ndarray:
+        """``q`` as an array, or ValueError unless it holds increasing points inside the shell."""
+        q = np.asarray(q, dtype=float).ravel()
+        if len(q) != len(self.knots):
+            raise ValueError(f"this mesh has {len(self.knots)} anchor(s), got {len(q)}")
+        a, b = self.shell_ends(np.asarray(p, dtype=float))
+        if len(q) and not np.all(np.diff(np.concatenate([[a], q, [b]])) > 0):
+            raise ValueError(f"anchors {q.tolist()} must be increasing and lie inside the "
+                             f"shell ({a:.6g}, {b:.6g})")
+        if len(q):
+            check_monotone(self.nodes(np.asarray(p, dtype=float), q))
+        return q
+
+    def cell_data(self, p: np.ndarray, q=()) -> np.ndarray:
+        """The NLP parameter vector D for physical parameters ``p`` and anchors ``q``."""
         if not hasattr(self, "_pre_buffered"):
             self._pre_buffered = Buffered(self.pre)
-        return self._pre_buffered(p)[0]
+        return self._pre_buffered(p, np.asarray(q, dtype=float))[0]
 
     def gauss_fields(self, x: np.ndarray, D: np.ndarray) -> dict[str, np.ndarray]:
         """Every pointwise quantity at the Gauss points, given the data ``D``."""
@@ -423,15 +415,200 @@ class Discretisation:
         out = self._fields_buffered(x, D)[0].reshape(-1, len(self._field_names)).T
         return dict(zip(self._field_names, out))
 
-    def integrate_to_points(self, values: np.ndarray) -> np.ndarray:
-        """∫ from the start to every point of a function known at the Gauss points.
+    def integrate_to_points(self, values: np.ndarray, p: np.ndarray, q=()) -> np.ndarray:
+        """∫ ds from the first node to every point, of a function known at the Gauss points.
 
-        Exact for the degree S − 1 interpolant of ``values`` (z' = f_s sin ψ).
+        Exact for the degree S − 1 interpolant of ``values`` through the Gauss
+        points of each cell.
         """
-        S, cells = self.stages, self.layout.cells
-        ds = np.diff(self.t)  # in t; the caller scales by the shell length
-        v = values.reshape(cells, S)
-        partial = ds[:, None] * (v @ self._integrals.T)      # (cells, S + 1): to each point
-        start = np.concatenate([[0.0], np.cumsum(partial[:, -1])])
-        out = (start[:-1, None] + partial[:, :-1]).ravel()
-        return np.append(out, start[-1])
+        nodes = self.nodes(np.asarray(p, dtype=float), q)
+        return self._integrate(values, np.repeat(np.diff(nodes), self.stages))
+
+    # -- symbolic interface (for observables) --------------------------------
+    def cell_unknowns(self, x) -> ca.MX:
+        """(3S + 2, cells): each cell's r, ψ at its points and f_s at its Gauss points."""
+        n_loc, cells = self._idx.shape
+        xfull = ca.vertcat(x, ca.DM([0.0, 0.0, np.pi]))   # pole values r = 0, ψ = 0, ψ = π
+        return ca.reshape(xfull[self._idx.ravel(order="F").tolist()], n_loc, cells)
+
+    def shell_ends(self, p):
+        """(Σ, L − P) from the parameter vector (CasADi or NumPy)."""
+        named = self.structure.parameters.unpack(p)
+        return named["cut"], self.geometry.length - named["opening"]
+
+    def gauss_values(self, Z) -> tuple:
+        """f_s and ψ at the Gauss points (vectors, cell by cell) from ``cell_unknowns``."""
+        S = self.stages
+        psi_g = ca.mtimes(ca.DM(self._values), Z[S + 1:2 * S + 2, :])
+        return ca.vec(Z[2 * S + 2:, :]), ca.vec(psi_g)
+
+    def shape(self, x, p, q) -> "SymbolicShape":
+        """The discrete shape as CasADi expressions of the unknowns x, parameters p, anchors q."""
+        return SymbolicShape(self, x, p, q)
+
+    def symbolic_points(self, x, p, q) -> dict:
+        """s, r, ψ, z and the deformed arclength S at the points (see :class:`SymbolicShape`)."""
+        return self.shape(x, p, q).points
+
+    def state_at(self, x: np.ndarray, p: np.ndarray, q, z_points: np.ndarray,
+                 s_star: float) -> dict:
+        """(r, ψ, z) at the material point ``s_star`` of a solution, numerically.
+
+        The same cell polynomials as :meth:`SymbolicShape.at`; ``z_points`` are
+        the solution's z at the points (any gauge: the result is in the same).
+        At a node (an anchor) the values are the nodal ones.
+        """
+        cell = self.cell_of(p, q, s_star)
+        s0, s1 = (float(v) for v in self.nodes(np.asarray(p, dtype=float), q)[[cell, cell + 1]])
+        Zc = np.append(x, [0.0, 0.0, np.pi])[self._idx[:, cell]]
+        out = _cell_state(self.stages)(Zc, s1 - s0, z_points[cell * self.stages], 0.0,
+                                       (s_star - s0) / (s1 - s0))
+        return {k: float(v) for k, v in zip(("r", "psi", "z"), out)}
+
+    def cell_of(self, p: np.ndarray, q, s_star: float) -> int:
+        """Index of the cell that contains the material point ``s_star``."""
+        nodes = self.nodes(np.asarray(p, dtype=float), q)
+        return int(np.clip(np.searchsorted(nodes, s_star, side="right") - 1, 0,
+                           self.layout.cells - 1))
+
+
+@lru_cache(maxsize=8)
+def _cell_functions(stages: int) -> dict[str, ca.Function]:
+    """Values, gradients and the Lagrangian's triu Hessian of one cell (SX).
+
+    The family and the theory enter only through the cell data D (profiles,
+    η and coefficients are evaluated by the structure's ``pre`` function), so
+    these depend on the number of stages alone and every structure shares them.
+    """
+    S = stages
+    _, _, values, derivs, _, _ = collocation(S)
+    n_D = len(CELL_DATA)
+    off = CELL_DATA.after(INTRINSIC)
+    z, D = ca.SX.sym("z", 3 * S + 2), ca.SX.sym("D", n_D * S)
+    sigma, lam = ca.SX.sym("sigma"), ca.SX.sym("lam", S)
+    zr, zp, zf = z[:S + 1], z[S + 1:2 * S + 2], z[2 * S + 2:]
+    V, Dv = ca.DM(values), ca.DM(derivs)
+    energy, g, fields = 0, [], []
+    for k in range(S):
+        Dk = D[k * n_D:(k + 1) * n_D]
+        d = CELL_DATA.unpack(Dk)
+        I = Dk[off:]
+        r_k, psi_k = ca.dot(V[k, :].T, zr), ca.dot(V[k, :].T, zp)
+        dr_k, dpsi_k = ca.dot(Dv[k, :].T, zr) / d["ds"], ca.dot(Dv[k, :].T, zp) / d["ds"]
+        point = pointwise(r_k, psi_k, zf[k], dpsi_k, I, d["h"])
+        energy += d["weight"] * d["ds"] * point["L"]
+        g.append(dr_k - zf[k] * ca.cos(psi_k))
+        n_shape = len(LOCAL_OUTPUTS) - len(INTRINSIC)
+        fields.append(ca.vertcat(d["s"], d["ds"], d["weight"], r_k, psi_k, zf[k], dpsi_k,
+                                 *[point[name] for name in LOCAL_OUTPUTS[:n_shape]], I))
+    ell = energy * CELL_DATA.unpack(D[:n_D])["scale"]
+    g = ca.vertcat(*g)
+    H = ca.hessian(sigma * ell + ca.dot(lam, g), z)[0]
+    ku, lu = np.triu_indices(3 * S + 2)
+    return {
+        "f": ca.Function("cell_f", [z, D], [ell]),
+        "energy": ca.Function("cell_energy", [z, D], [energy]),
+        "g": ca.Function("cell_g", [z, D], [g]),
+        "grad": ca.Function("cell_grad", [z, D], [ell, ca.gradient(ell, z)]),
+        "jac": ca.Function("cell_jac", [z, D], [g, ca.vec(ca.jacobian(g, z))]),
+        "hess": ca.Function("cell_hess", [z, D, sigma, lam],
+                            [ca.vertcat(*[H[int(i), int(j)] for i, j in zip(ku, lu)])]),
+        "fields": ca.Function("cell_fields", [z, D], [ca.horzcat(*fields)]),
+    }
+
+
+class SymbolicShape:
+    """The shape of a :class:`Discretisation` as expressions of (x, p).
+
+    ``points`` holds s, r, ψ, z and the deformed arclength S at all points
+    (nodes and interior interpolation points); z is fixed by z(s_0) = z₀(s_0)
+    (the undeformed height) and S(s_0) = 0.  :meth:`at` evaluates the cell
+    polynomials anywhere, :meth:`at_arclength` finds the material point at a
+    given deformed arclength.
+    """
+
+    def __init__(self, disc: Discretisation, x, p, q):
+        self.disc = d = disc
+        S = d.stages
+        self.Z = Z = d.cell_unknowns(x)
+        self.p, self.q = p, q
+        self.a, self.b = a, b = d.shell_ends(p)
+        self.s_nodes = d.nodes(p, q)
+        self.f_g, self.psi_g = d.gauss_values(Z)
+        ds = (self.s_nodes[1:] - self.s_nodes[:-1])[np.repeat(np.arange(d.layout.cells),
+                                                                S).tolist()]
+        self.points = {
+            "s": within_cells(self.s_nodes, np.arange(S) / S),
+            "r": ca.vertcat(ca.vec(Z[:S, :]), Z[S, -1]),
+            "psi": ca.vertcat(ca.vec(Z[S + 1:2 * S + 1, :]), Z[2 * S + 1, -1]),
+            "z": d.geometry.z0(a) + d._integrate(self.f_g * ca.sin(self.psi_g), ds),
+            "S": d._integrate(self.f_g, ds),
+        }
+
+    def cell_bounds(self, cell: int):
+        """(s at the cell's first node, its width in s)."""
+        return self.s_nodes[cell], self.s_nodes[cell + 1] - self.s_nodes[cell]
+
+    def _in_cell(self, cell: int, tau) -> dict:
+        _, ds = self.cell_bounds(cell)
+        first = cell * self.disc.stages
+        out = _cell_state(self.disc.stages)(self.Z[:, cell], ds, self.points["z"][first],
+                                            self.points["S"][first], tau)
+        return dict(zip(("r", "psi", "z", "S"), out))
+
+    def at(self, cell: int, s_star) -> dict:
+        """(r, ψ, z, S) at the material point ``s_star`` by the polynomials of ``cell``.
+
+        ``s_star`` may be an expression of p.  The cell should contain it; a
+        point just outside is extrapolated smoothly.
+        """
+        s0, ds = self.cell_bounds(cell)
+        tau = (s_star - s0) / ds
+        return {**self._in_cell(cell, tau), "s": s_star}
+
+    def at_arclength(self, cell: int, target, newton_steps: int = 6) -> dict:
+        """(s, r, ψ, z) where the deformed arclength S equals ``target``, in ``cell``.
+
+        S is a polynomial of degree S in the cell's local coordinate τ with
+        S' = f_s Δs > 0; Newton's method from the linear interpolant, unrolled
+        symbolically, converges to machine precision in a few steps because a
+        cell's stretch varies little, and differentiating the converged
+        iteration gives the implicit-function derivative.
+        """
+        S = self.disc.stages
+        first = cell * S
+        S0, S1 = self.points["S"][first], self.points["S"][first + S]
+        tau = (target - S0) / (S1 - S0)
+        f = self.Z[2 * S + 2:, cell]
+        s0, ds = self.cell_bounds(cell)
+        lam = [_lagrange(self.disc.tau, k) for k in range(S)]
+        for _ in range(newton_steps if S > 1 else 0):   # S linear in τ for S = 1
+            value = self._in_cell(cell, tau)["S"] - target
+            slope = ds * sum(_poly(lam[k].coef, tau) * f[k] for k in range(S))
+            tau = tau - value / slope
+        return {**self._in_cell(cell, tau), "s": s0 + ds * tau, "tau": tau}
+
+
+@lru_cache(maxsize=8)
+def _cell_state(stages: int) -> ca.Function:
+    """``(z_c, Δs, z_first, S_first, τ) -> (r, ψ, z, S)`` inside one cell.
+
+    r and ψ by the cell's Lagrange polynomials, z and the deformed arclength
+    S by exact integration of the Gauss interpolants of f_s sin ψ and f_s
+    from the cell's first node (where they are ``z_first``, ``S_first``).
+    """
+    S = stages
+    tau_g, _, values, _, _, anti = collocation(S)
+    nodes = np.linspace(0.0, 1.0, S + 1)
+    zc, ds, z0, S0, tau = (ca.SX.sym("z_c", 3 * S + 2), ca.SX.sym("ds"), ca.SX.sym("z0"),
+                           ca.SX.sym("S0"), ca.SX.sym("tau"))
+    ell = [_poly(_lagrange(nodes, l).coef, tau) for l in range(S + 1)]
+    Lam = [_poly(c, tau) for c in anti]   # ∫₀^τ of the Gauss-point basis
+    f = zc[2 * S + 2:]
+    psi_g = ca.mtimes(ca.DM(values), zc[S + 1:2 * S + 2])
+    r = sum(ell[l] * zc[l] for l in range(S + 1))
+    psi = sum(ell[l] * zc[S + 1 + l] for l in range(S + 1))
+    z = z0 + ds * sum(Lam[k] * f[k] * ca.sin(psi_g[k]) for k in range(S))
+    arclength = S0 + ds * sum(Lam[k] * f[k] for k in range(S))
+    return ca.Function("cell_state", [zc, ds, z0, S0, tau], [r, psi, z, arclength],
+                       ["z_c", "ds", "z_first", "S_first", "tau"], ["r", "psi", "z", "S"])

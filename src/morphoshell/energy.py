@@ -11,21 +11,43 @@ Paper, Materials and Methods, Eqs. (5)–(7), with the coefficients of
 
 Both the direct solver (:mod:`morphoshell.discretisation`) and the
 boundary-value reference (:mod:`morphoshell.reference`) evaluate the energy
-through :func:`local_function`, so they minimise the same functional.
+through :func:`local_function`, so they minimise the same functional.  The
+shape-independent data at a point are packed as
+:data:`morphoshell.layouts.INTRINSIC`.
 """
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import NamedTuple
 
 import casadi as ca
+import numpy as np
 
-from .coefficients import Coefficients, get_theory
-from .geometry import get_geometry
+from .coefficients import Coefficients
+from .layouts import INTRINSIC
 from .problem import Structure
-from .profiles import Profiles, get_family
+from .profiles import Profiles
 
-__all__ = ["Strains", "strains", "eta", "density", "pointwise", "intrinsic_function",
-           "local_function", "LOCAL_OUTPUTS", "INTRINSIC", "parameter_symbols"]
+__all__ = ["Strains", "strains", "kinematics", "density", "pointwise", "intrinsic_function",
+           "local_function", "LOCAL_OUTPUTS", "parameter_symbols", "boundary_layer_width",
+           "unpack_intrinsic", "CACHE_SIZE"]
+
+#: Compiled functions kept per structure (least recently used are dropped).
+CACHE_SIZE = 32
+
+
+def _sin(x):
+    return ca.sin(x) if isinstance(x, (ca.SX, ca.MX, ca.DM)) else np.sin(x)
+
+
+def boundary_layer_width(h):
+    """δ = √ε, ε = h/√12: width of the bending boundary layer at a free edge.
+
+    Supplementary, toy problem 2, "Asymptotic solution": the ratio of bending
+    to stretching stiffness sets ε; a free edge relaxes over s − Σ = O(δ).
+    Works on floats, arrays and CasADi expressions.
+    """
+    return (h / np.sqrt(12)) ** 0.5
 
 
 class Strains(NamedTuple):
@@ -35,23 +57,26 @@ class Strains(NamedTuple):
     K_phi: object
 
 
+def kinematics(rho, r, psi, f_s, dpsi) -> dict:
+    """Stretches and curvatures of the deformed meridian (paper, Eq. 5).
+
+    f_φ = r/ρ, κ_s = ψ'/f_s, κ_φ = sin ψ / r; floats, arrays or CasADi.
+    """
+    return {"f_phi": r / rho, "kappa_s": dpsi / f_s, "kappa_phi": _sin(psi) / r}
+
+
 def strains(rho, r, psi, f_s, dpsi, prof: Profiles) -> Strains:
     """Stretching and bending strains (paper, Eq. 6).
 
     Uses f_s κ_s = ψ' and f_φ κ_φ = sin ψ / ρ, so nothing is divided by r.
     """
-    f_phi = r / rho
+    f_phi = kinematics(rho, r, psi, f_s, dpsi)["f_phi"]
     return Strains(
         E_s=(f_s - prof.f_s0) / prof.f_s0,
         E_phi=(f_phi - prof.f_phi0) / prof.f_phi0,
         K_s=(dpsi - prof.f_s0 * prof.kappa_s0) / (prof.f_s0**2 * prof.f_phi0),
-        K_phi=(ca.sin(psi) / rho - prof.f_phi0 * prof.kappa_phi0) / (prof.f_s0 * prof.f_phi0**2),
+        K_phi=(_sin(psi) / rho - prof.f_phi0 * prof.kappa_phi0) / (prof.f_s0 * prof.f_phi0**2),
     )
-
-
-def eta(h, prof: Profiles):
-    """Large-bending parameter η = κ_s⁰ h / (2 f_s⁰ f_φ⁰)."""
-    return prof.kappa_s0 * h / (2 * prof.f_s0 * prof.f_phi0)
 
 
 def density(E: Strains, h, c: Coefficients, C=1.0):
@@ -64,51 +89,47 @@ def density(E: Strains, h, c: Coefficients, C=1.0):
     return C / 2 * (h * stretching + 2 * h**2 * coupling + h**3 * bending)
 
 
-#: Parameter-only quantities at a point, in order (see :func:`intrinsic_function`).
-INTRINSIC = ("rho", "f_s0", "f_phi0", "kappa_s0", "kappa_phi0", "eta", *Coefficients._fields)
-
 #: Outputs of :func:`local_function`, in order.
 LOCAL_OUTPUTS = ("L", "e", "E_s", "E_phi", "K_s", "K_phi", "N_s", "N_phi", "M_s", "M_phi",
-                 *INTRINSIC)
+                 "f_phi", "kappa_s", "kappa_phi", *INTRINSIC.names)
+
+
+def unpack_intrinsic(I) -> tuple:
+    """(ρ, Profiles, η, Coefficients) from an ``INTRINSIC`` vector."""
+    v = INTRINSIC.unpack(I)
+    return (v["rho"], Profiles(*[v[n] for n in Profiles._fields]), v["eta"],
+            Coefficients(*[v[n] for n in Coefficients._fields]))
 
 
 def parameter_symbols(structure: Structure) -> tuple[ca.SX, dict]:
-    """Symbolic NLP parameter vector [h, Σ, P, family...] and its named entries."""
-    fam = get_family(structure.family)
-    p = ca.SX.sym("p", 3 + len(fam.parameters))
-    named = {"h": p[0], "cut": p[1], "opening": p[2]}
-    named.update({n: p[3 + i] for i, n in enumerate(fam.parameters)})
-    return p, named
+    """Symbolic parameter vector p (``structure.parameters``) and its named entries."""
+    layout = structure.parameters
+    p = ca.SX.sym("p", len(layout))
+    return p, layout.unpack(p)
 
 
-_CACHE: dict[tuple, ca.Function] = {}
-
-
+@lru_cache(maxsize=CACHE_SIZE)
 def intrinsic_function(structure: Structure) -> ca.Function:
-    """``(s, p) -> INTRINSIC``: everything at s that does not depend on the shape.
+    """``(s, p) -> I``: everything at s that does not depend on the shape (``INTRINSIC``).
 
     ρ(s), the intrinsic profiles, η and the coefficients α, β, γ(η) depend
     only on s and the parameters; the direct solver evaluates them once per
     solve rather than in every Ipopt callback.
     """
-    key = ("intrinsic", structure)
-    if key not in _CACHE:
-        geo = get_geometry(structure.geometry)
-        fam = get_family(structure.family)
-        s = ca.SX.sym("s")
-        p, named = parameter_symbols(structure)
-        prof = fam.build(s, {n: named[n] for n in fam.parameters}, named["cut"],
-                         geo.length - named["opening"])
-        eta_ = eta(named["h"], prof)
-        coeffs = get_theory(structure.theory)(eta_)
-        _CACHE[key] = ca.Function("intrinsic", [s, p], [ca.vertcat(geo.rho(s), *prof, eta_, *coeffs)],
-                                  ["s", "p"], ["I"])
-    return _CACHE[key]
+    geo, fam = structure.geometry, structure.family
+    s = ca.SX.sym("s")
+    p, named = parameter_symbols(structure)
+    prof = fam.build(s, {n: named[n] for n in fam.parameters}, named["cut"],
+                     geo.length - named["opening"])
+    eta = prof.eta(named["h"])
+    return ca.Function("intrinsic", [s, p], [ca.vertcat(geo.rho(s), *prof, eta,
+                                                        *structure.theory(eta))],
+                       ["s", "p"], ["I"])
 
 
 def pointwise(r, psi, f_s, dpsi, I, h) -> dict:
-    """Energy integrand L = 2πρe, e, strains and resultants from the intrinsic data I."""
-    rho, prof, coeffs = I[0], Profiles(*[I[1 + i] for i in range(4)]), Coefficients(*[I[6 + i] for i in range(10)])
+    """Energy integrand L = 2πρe, e, strains, resultants and kinematics from ``I``."""
+    rho, prof, _, coeffs = unpack_intrinsic(I)
     E = strains(rho, r, psi, f_s, dpsi, prof)
     # Resultants from the same density, differentiated with respect to the strains.
     Esym = Strains(*(ca.SX.sym(n) for n in Strains._fields))
@@ -116,9 +137,11 @@ def pointwise(r, psi, f_s, dpsi, I, h) -> dict:
     grads = ca.substitute(grads, ca.vertcat(*Esym), ca.vertcat(*E))
     e = density(E, h, coeffs)
     return {"L": 2 * ca.pi * rho * e, "e": e, **E._asdict(),
-            **dict(zip(("N_s", "N_phi", "M_s", "M_phi"), ca.vertsplit(grads)))}
+            **dict(zip(("N_s", "N_phi", "M_s", "M_phi"), ca.vertsplit(grads))),
+            **kinematics(rho, r, psi, f_s, dpsi)}
 
 
+@lru_cache(maxsize=CACHE_SIZE)
 def local_function(structure: Structure) -> ca.Function:
     """Pointwise energy ``(s, r, psi, f_s, dpsi, p) -> LOCAL_OUTPUTS``.
 
@@ -127,14 +150,12 @@ def local_function(structure: Structure) -> ca.Function:
     paper's bending strains K).  Calling it with row vectors evaluates it at
     many points at once.
     """
-    key = ("local", structure)
-    if key not in _CACHE:
-        s, r, psi, f_s, dpsi = (ca.SX.sym(n) for n in ("s", "r", "psi", "f_s", "dpsi"))
-        p, _ = parameter_symbols(structure)
-        I = intrinsic_function(structure)(s, p)
-        out = pointwise(r, psi, f_s, dpsi, I, p[0])
-        outs = [out[k] for k in LOCAL_OUTPUTS[:10]] + ca.vertsplit(I)
-        _CACHE[key] = ca.Function(f"local_{structure.family}_{structure.theory}",
-                                  [s, r, psi, f_s, dpsi, p], outs,
-                                  ["s", "r", "psi", "f_s", "dpsi", "p"], list(LOCAL_OUTPUTS))
-    return _CACHE[key]
+    s, r, psi, f_s, dpsi = (ca.SX.sym(n) for n in ("s", "r", "psi", "f_s", "dpsi"))
+    p, named = parameter_symbols(structure)
+    I = intrinsic_function(structure)(s, p)
+    out = pointwise(r, psi, f_s, dpsi, I, named["h"])
+    n_shape = len(LOCAL_OUTPUTS) - len(INTRINSIC)
+    outs = [out[k] for k in LOCAL_OUTPUTS[:n_shape]] + ca.vertsplit(I)
+    return ca.Function(f"local_{structure.family.name}_{structure.theory.name}",
+                       [s, r, psi, f_s, dpsi, p], outs,
+                       ["s", "r", "psi", "f_s", "dpsi", "p"], list(LOCAL_OUTPUTS))

@@ -11,7 +11,7 @@ All callables accept CasADi expressions as well as floats.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable
 
 import casadi as ca
@@ -22,10 +22,7 @@ from ._validate import lookup
 __all__ = ["Geometry", "SPHERE", "DISC", "GEOMETRIES", "get_geometry"]
 
 
-_NUMERIC: dict[str, ca.Function] = {}
-
-
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Geometry:
     """Undeformed meridian s ↦ (ρ(s), z₀(s)), s ∈ [0, length].
 
@@ -44,18 +41,20 @@ class Geometry:
     name: str
     length: float
     closed: bool
-    rho: Callable
-    z0: Callable
-    psi0: Callable
+    rho: Callable = field(repr=False)
+    z0: Callable = field(repr=False)
+    psi0: Callable = field(repr=False)
+    # compiled evaluator, owned by this object (compared by identity)
+    _cache: dict = field(default_factory=dict, repr=False)
 
     def numeric(self, s) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(ρ, z₀, ψ₀) at the points ``s`` (scalar or array) as NumPy arrays."""
         s = np.asarray(s, dtype=float)
-        if self.name not in _NUMERIC:
+        if "f" not in self._cache:
             sym = ca.SX.sym("s")
-            _NUMERIC[self.name] = ca.Function(
+            self._cache["f"] = ca.Function(
                 "geometry", [sym], [ca.vertcat(self.rho(sym), self.z0(sym), self.psi0(sym))])
-        out = np.asarray(_NUMERIC[self.name](s.reshape(1, -1)))
+        out = np.asarray(self._cache["f"](s.reshape(1, -1)))
         return tuple(row.reshape(s.shape) for row in out)
 
 
@@ -71,5 +70,8 @@ DISC = Geometry("disc", 1.0, False,
 GEOMETRIES: dict[str, Geometry] = {g.name: g for g in (SPHERE, DISC)}
 
 
-def get_geometry(name: str) -> Geometry:
+def get_geometry(name: "str | Geometry") -> Geometry:
+    """The geometry called ``name`` (a Geometry is returned as is)."""
+    if isinstance(name, Geometry):
+        return name
     return lookup(GEOMETRIES, name, "geometry")

@@ -1,118 +1,188 @@
-"""Ablation observables: what a laser cut does to a shell.
+"""Observables of direct solutions, as CasADi functions of the NLP's (x, p).
 
-Supplementary, toy problem 2 ("Cut opening", "Cut rotation and cut
-displacement") and main text, Fig. 2B: a circular cut of angle 2Σ removes the
-cap s < Σ of an intact shell (the *pre-ablation* state, the same problem with
-Σ = 0) and the shell recoils into its *post-ablation* equilibrium.  All
-observables compare the two states at the material point s = Σ:
+An observable is defined once, symbolically, on a
+:class:`~morphoshell.discretisation.Discretisation`: the unknowns x and the
+physical parameters p go in, the measured quantities come out.  The same
+definition serves forward evaluation, exact parametric derivatives
+(:mod:`morphoshell.parametric`), nested gradient fits and fits posed as one
+NLP with the equilibrium conditions as constraints.
 
-``opening``       o = 2 [r_post(Σ) − r_pre(Σ)], the change of the hole's diameter
-                  (paper eq:Usol: o = 2[u(0) − u(∞)] across the boundary layer);
-``rotation``      ϱ = ψ_post(Σ) − ψ_pre(Σ), positive when the rim curls outward;
-``displacement``  d, the distance the rim moves, with the gauge of the
-                  Supplementary: the far end of the shell (the pole opposite
-                  the cut, or the opening's rim) keeps its undeformed position;
-``energy_released``  ΔE = 𝓔_post − 𝓔_pre|[Σ, end]: the post-ablation energy
-                  minus the pre-ablation energy of the part that remains
-                  (≤ 0 for a passive shell: the paper's ΔE of "Recoil velocity:
-                  scaling argument"; an active response to the cut, such as
-                  ``local_relaxation``, whose intact shell has F0 = 0, can
-                  change the energy either way).
-                  ``energy_removed`` is the pre-ablation energy of the cap.
+Observables
+-----------
+``shape_points``  s, r, z, ψ at every point of the mesh (z in the solver's gauge
+                  z(s_0) = z₀(s_0));
+``energy``        the total elastic energy 𝓔 (units of C R²);
+``state_at``      (r, z, ψ) at a material point s* by the cell polynomials, z in a
+                  chosen gauge;
+``midline``       (r_i, z_i) at N points equally spaced in the *deformed*
+                  arclength, posterior end first, z measured from the first point
+                  (the gauge of traced midlines, ``volvox_model.md``);
+``recoil``        the ablation observables from the states of the rim before and
+                  after a cut (:func:`recoil`, used by :mod:`morphoshell.ablation`).
 
-Lengths in units of R, energies in units of C R² (see :mod:`morphoshell.problem`).
+Gauges of z
+-----------
+The energy does not fix rigid translations along the axis.  ``"solver"``:
+z(s_0) = z₀(s_0), the undeformed height of the first point; ``"far_end"``:
+the last point keeps its undeformed height (the gauge of the Supplementary's
+cut displacement); ``"start"``: z = 0 at the first point.
+
+Lengths in units of R.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import casadi as ca
 import numpy as np
-from scipy.interpolate import CubicSpline
 
-from .equilibrium import Equilibrium, solve
-from .problem import Problem
+from ._buffered import Buffered
+from .discretisation import Discretisation, SymbolicShape
 
-__all__ = ["Ablation", "ablate", "edge_state"]
+__all__ = ["Observable", "GAUGES", "shape_points", "energy", "state_at", "midline",
+           "midline_cells", "recoil", "RECOIL"]
+
+#: Accepted gauges of z (see the module docstring).
+GAUGES = ("solver", "far_end", "start")
+
+#: Names of the outputs of :func:`recoil`, in order.
+RECOIL = ("opening", "rotation", "displacement", "radial_displacement", "axial_displacement")
 
 
 @dataclass(frozen=True, eq=False)
-class Ablation:
-    """Pre- and post-ablation equilibria and the observables of the cut."""
+class Observable:
+    """A named vector-valued function y(x, p) of a direct solution.
 
-    problem: Problem
-    pre: Equilibrium
-    post: Equilibrium
-    opening: float
-    rotation: float
-    displacement: float
-    radial_displacement: float
-    axial_displacement: float
-    energy_released: float
-    energy_removed: float
-
-    def __repr__(self) -> str:
-        return (f"Ablation(cut={self.problem.cut:g}, opening={self.opening:.6g}, "
-                f"rotation={self.rotation:.6g}, displacement={self.displacement:.6g}, "
-                f"energy_released={self.energy_released:.6g})")
-
-    def observables(self) -> dict[str, float]:
-        return {k: getattr(self, k) for k in (
-            "opening", "rotation", "displacement", "radial_displacement",
-            "axial_displacement", "energy_released", "energy_removed")}
-
-    def to_dict(self, arrays: bool = True) -> dict:
-        return {"problem": self.problem.describe(), **self.observables(),
-                "pre": self.pre.to_dict(arrays), "post": self.post.to_dict(arrays)}
-
-
-def edge_state(eq: Equilibrium, s: float) -> dict[str, float]:
-    """(r, z, ψ) at the material point ``s``, in the far-end gauge.
-
-    z is shifted so that the far end (the last point) sits at its undeformed
-    height; r needs no gauge (the axis is fixed).
+    Attributes
+    ----------
+    name : str
+    labels : tuple of str
+        Name of every output entry.
+    function : casadi.Function
+        ``(x, p, q) -> y`` with y a column of ``len(labels)`` entries (q: the
+        positions of the mesh's anchors, empty for meshes without).
     """
-    z0_end = float(eq.problem.geometry_obj.numeric(eq.s[-1:])[1][0])
-    shift = z0_end - eq.z[-1]
-    if s == eq.s[0]:
-        r, z, psi = eq.r[0], eq.z[0], eq.psi[0]
-    else:
-        r, z, psi = (float(CubicSpline(eq.s, v)(s)) for v in (eq.r, eq.z, eq.psi))
-    return {"r": float(r), "z": float(z + shift), "psi": float(psi)}
+
+    name: str
+    labels: tuple[str, ...]
+    function: ca.Function
+
+    def __call__(self, x: np.ndarray, p: np.ndarray, q=()) -> np.ndarray:
+        if not hasattr(self, "_buffered"):
+            object.__setattr__(self, "_buffered", Buffered(self.function))
+        return self._buffered(x, p, np.asarray(q, dtype=float))[0]
+
+    def at(self, eq) -> np.ndarray:
+        """The value at a direct solution ``eq`` (of the discretisation it was built on)."""
+        return self(eq.x, eq.problem.parameter_vector(), eq.anchors)
+
+    def __len__(self) -> int:
+        return len(self.labels)
 
 
-def ablate(problem: Problem, nodes: int = 200, method: str = "direct",
-           pre: Equilibrium | None = None, **options) -> Ablation:
-    """Solve the pre- and post-ablation shells and measure the recoil.
+def _gauge(z, shape: SymbolicShape, gauge: str):
+    if gauge == "solver":
+        return z
+    pts = shape.points["z"]
+    if gauge == "far_end":
+        return z - pts[pts.shape[0] - 1] + shape.disc.geometry.z0(shape.b)
+    if gauge == "start":
+        return z - pts[0]
+    raise ValueError(f"gauge = {gauge!r} must be one of {GAUGES}")
+
+
+def _observable(disc: Discretisation, name: str, labels, build) -> Observable:
+    shape = disc.shape(disc.x, disc.p, disc.q)
+    y = build(shape)
+    return Observable(name, tuple(labels), ca.Function(name, [disc.x, disc.p, disc.q], [y],
+                                                       ["x", "p", "q"], ["y"]))
+
+
+def shape_points(disc: Discretisation) -> Observable:
+    """s, r, z, ψ at all points, stacked in that order (z in the solver's gauge)."""
+    n = disc.layout.points
+    labels = [f"{k}[{i}]" for k in ("s", "r", "z", "psi") for i in range(n)]
+    return _observable(disc, "shape_points", labels,
+                       lambda sh: ca.vertcat(*[sh.points[k] for k in ("s", "r", "z", "psi")]))
+
+
+def energy(disc: Discretisation) -> Observable:
+    """The total elastic energy 𝓔(x, D(p)) (units of C R²)."""
+    f = ca.Function("energy", [disc.x, disc.D], [disc.energy])
+    return Observable("energy", ("energy",),
+                      ca.Function("energy", [disc.x, disc.p, disc.q],
+                                  [f(disc.x, disc.pre(disc.p, disc.q))], ["x", "p", "q"], ["y"]))
+
+
+def state_at(disc: Discretisation, s_star, cell: int, gauge: str = "solver") -> Observable:
+    """(r, z, ψ) at the material point ``s_star`` inside ``cell``.
 
     Parameters
     ----------
-    problem : Problem
-        The shell *after* ablation: ``problem.cut`` = Σ > 0 is the cut.
-    nodes, method, **options
-        Passed to :func:`morphoshell.equilibrium.solve` for both states.
-    pre : Equilibrium, optional
-        The pre-ablation equilibrium (``problem`` with cut = 0 and the
-        family's ``pre_ablation`` parameters), to reuse it across cuts.
-
-    Returns
-    -------
-    Ablation
+    disc : Discretisation
+    s_star : float or callable
+        The material point, or a function of the named parameters (a dict of
+        CasADi symbols, e.g. ``lambda q: q["cut"]``) so that it moves with them.
+    cell : int
+        The cell that contains it (:meth:`Discretisation.cell_of`).
+    gauge : {"solver", "far_end", "start"}
     """
-    if not problem.cut > 0:
-        raise ValueError(f"cut (Sigma) = {problem.cut!r}: an ablation needs a cut > 0")
-    intact = problem.with_updates(cut=0.0, **problem.family_obj.pre_ablation)
-    if pre is None:
-        pre = solve(intact, nodes=nodes, method=method, **options)
-    elif pre.problem.describe() | {"name": ""} != intact.describe() | {"name": ""}:
-        raise ValueError("pre must be the equilibrium of the same problem with cut = 0")
-    post = solve(problem, nodes=nodes, method=method, **options)
-    sigma = problem.cut
-    a, b = edge_state(pre, sigma), edge_state(post, sigma)
-    dr, dz = b["r"] - a["r"], b["z"] - a["z"]
-    removed = pre.energy_between(pre.s[0], sigma)
-    return Ablation(problem=problem, pre=pre, post=post,
-                    opening=2 * dr, rotation=b["psi"] - a["psi"],
-                    displacement=float(np.hypot(dr, dz)), radial_displacement=dr,
-                    axial_displacement=dz,
-                    energy_released=post.energy - (pre.energy - removed),
-                    energy_removed=removed)
+    def build(sh: SymbolicShape):
+        point = s_star(disc.structure.parameters.unpack(disc.p)) if callable(s_star) else s_star
+        st = sh.at(cell, point)
+        return ca.vertcat(st["r"], _gauge(st["z"], sh, gauge), st["psi"])
+    return _observable(disc, "state_at", ("r", "z", "psi"), build)
+
+
+def midline_cells(disc: Discretisation, x: np.ndarray, p: np.ndarray, n: int,
+                  q=()) -> tuple[int, ...]:
+    """Cells that contain the n points equally spaced in deformed arclength."""
+    if not hasattr(disc, "_arclength"):
+        disc._arclength = ca.Function("S", [disc.x, disc.p, disc.q],
+                                      [disc.symbolic_points(disc.x, disc.p, disc.q)["S"]])
+    S = np.asarray(disc._arclength(x, p, np.asarray(q, dtype=float))).ravel()
+    nodes = S[::disc.stages]
+    targets = np.linspace(0.0, 1.0, n) * nodes[-1]
+    cells = np.searchsorted(nodes, targets, side="right") - 1
+    return tuple(int(c) for c in np.clip(cells, 0, disc.layout.cells - 1))
+
+
+def midline(disc: Discretisation, cells: tuple[int, ...], gauge: str = "start") -> Observable:
+    """(r_1 … r_N, z_1 … z_N) at N = len(cells) points equally spaced in deformed arclength.
+
+    Point i sits at the deformed arclength S_i = (i − 1)/(N − 1) S_total from
+    the first end of the shell; ``cells`` says which cell holds each
+    (:func:`midline_cells`; when parameters change, recompute them and
+    rebuild if they moved).  z is in ``gauge`` (default: 0 at the first point).
+    """
+    n = len(cells)
+
+    def build(sh: SymbolicShape):
+        S_total = sh.points["S"][sh.points["S"].shape[0] - 1]
+        r, z = [], []
+        for i, c in enumerate(cells):
+            pt = sh.at_arclength(c, S_total * (i / (n - 1)))
+            r.append(pt["r"])
+            z.append(_gauge(pt["z"], sh, gauge))
+        return ca.vertcat(*r, *z)
+    labels = [f"r[{i}]" for i in range(n)] + [f"z[{i}]" for i in range(n)]
+    return _observable(disc, "midline", labels, build)
+
+
+def recoil(pre: dict, post: dict) -> dict:
+    """Ablation observables from the rim's (r, z, ψ) before and after the cut.
+
+    Supplementary, toy problem 2 ("Cut opening", "Cut rotation and cut
+    displacement"), with both states at the material point s = Σ and z in
+    the far-end gauge:
+
+    * opening o = 2 [r_post − r_pre] (change of the hole's diameter);
+    * rotation ϱ = ψ_post − ψ_pre (positive when the rim curls outward);
+    * displacement d = |(Δr, Δz)|, and its radial and axial parts.
+
+    Works on floats and CasADi expressions.
+    """
+    dr, dz = post["r"] - pre["r"], post["z"] - pre["z"]
+    hypot = ca.sqrt(dr**2 + dz**2) if isinstance(dr, (ca.SX, ca.MX)) else float(np.hypot(dr, dz))
+    return {"opening": 2 * dr, "rotation": post["psi"] - pre["psi"], "displacement": hypot,
+            "radial_displacement": dr, "axial_displacement": dz}

@@ -17,7 +17,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.colors import to_rgb  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .equilibrium import Equilibrium  # noqa: E402
+from .results import Equilibrium  # noqa: E402
 
 __all__ = ["sheet_outline", "plot_cross_section", "plot_ablation", "save"]
 
@@ -78,7 +78,7 @@ def _far_end_shift(eq: Equilibrium) -> float:
     at its undeformed height; its z at the first point minus the solver's
     z there is that shift (exact: the first point is not interpolated).
     """
-    from .observables import edge_state
+    from .ablation import edge_state
 
     return edge_state(eq, float(eq.s[0]))["z"] - float(eq.z[0])
 
@@ -103,7 +103,7 @@ def plot_ablation(ablation, ax=None, title: str | None = None, mark_rim: bool = 
 
     Returns the Matplotlib axes.
     """
-    from .observables import edge_state
+    from .ablation import edge_state
 
     if ax is None:
         _, ax = plt.subplots(figsize=(4.8, 4.8))

@@ -22,9 +22,10 @@ from typing import Mapping
 import numpy as np
 
 from ._validate import real
-from .coefficients import get_theory
-from .geometry import get_geometry, Geometry
-from .profiles import get_family, ProfileFamily, Profiles
+from .coefficients import Theory, get_theory
+from .geometry import Geometry, get_geometry
+from .layouts import VectorLayout, parameter_layout
+from .profiles import ProfileFamily, Profiles, get_family
 
 __all__ = ["Problem", "Structure", "BASE_KEYS"]
 
@@ -34,13 +35,27 @@ BASE_KEYS = ("h", "theory", "cut", "opening")
 
 @dataclass(frozen=True)
 class Structure:
-    """What an NLP is built for: everything except the parameter values."""
+    """What an NLP is built for: everything except the parameter values.
 
-    geometry: str
-    family: str
-    theory: str
+    Holds the geometry, family and theory *objects* (compared by identity),
+    so a solver or compiled function cached for one structure can never be
+    reused for a family or theory registered later under the same name.
+    """
+
+    geometry: Geometry
+    family: ProfileFamily
+    theory: Theory
     start: str  # "pole" or "free"
     end: str    # "pole" or "free"
+
+    def __repr__(self) -> str:
+        return (f"Structure(geometry={self.geometry.name!r}, family={self.family.name!r}, "
+                f"theory={self.theory.name!r}, start={self.start!r}, end={self.end!r})")
+
+    @property
+    def parameters(self) -> VectorLayout:
+        """Layout of the parameter vector p (see :mod:`morphoshell.layouts`)."""
+        return parameter_layout(self.family)
 
 
 @dataclass(frozen=True)
@@ -49,8 +64,11 @@ class Problem:
 
     Parameters
     ----------
-    family : str
-        Profile family (see :mod:`morphoshell.profiles`).
+    family : str or ProfileFamily
+        Profile family (see :mod:`morphoshell.profiles`).  A name is looked
+        up when the problem is created and the family object is kept
+        (``family_obj``): re-registering the name later does not change this
+        problem.
     params : mapping
         Values of the family's parameters; missing ones take the defaults.
     h : float
@@ -59,9 +77,10 @@ class Problem:
         Σ ≥ 0, arclength of the ablation around the pole s = 0.
     opening : float
         P ≥ 0, arclength of the opening at the far end.
-    theory : str
-        ``"large_bending"`` (default) or ``"classical"`` (η → 0 coefficients).
-    geometry : str
+    theory : str or Theory
+        ``"large_bending"`` (default) or ``"classical"`` (η → 0 coefficients);
+        bound at creation like the family.
+    geometry : str or Geometry
         Undeformed meridian, ``"sphere"`` by default.
     name : str
         Label used in outputs.
@@ -75,11 +94,17 @@ class Problem:
     theory: str = "large_bending"
     geometry: str = "sphere"
     name: str = ""
+    family_obj: ProfileFamily = field(init=False, repr=False)
+    theory_obj: Theory = field(init=False, repr=False)
+    geometry_obj: Geometry = field(init=False, repr=False)
 
     def __post_init__(self):
         fam = get_family(self.family)
         geo = get_geometry(self.geometry)
-        get_theory(self.theory)
+        theory = get_theory(self.theory)
+        for k, v in (("family", fam.name), ("theory", theory.name), ("geometry", geo.name),
+                     ("family_obj", fam), ("theory_obj", theory), ("geometry_obj", geo)):
+            object.__setattr__(self, k, v)
         h = real("thickness h", self.h)
         if not 0 < h < 1:
             raise ValueError(f"thickness h = {h!r} must lie in (0, 1) (relative to the radius)")
@@ -114,33 +139,36 @@ class Problem:
         return self.geometry_obj.length - self.opening
 
     @property
-    def geometry_obj(self) -> Geometry:
-        return get_geometry(self.geometry)
-
-    @property
-    def family_obj(self) -> ProfileFamily:
-        return get_family(self.family)
-
-    @property
     def structure(self) -> Structure:
         geo = self.geometry_obj
         return Structure(
-            self.geometry, self.family, self.theory,
+            geo, self.family_obj, self.theory_obj,
             "pole" if self.cut == 0 else "free",
             "pole" if (self.opening == 0 and geo.closed) else "free")
 
+    @property
+    def parameter_layout(self) -> VectorLayout:
+        return parameter_layout(self.family_obj)
+
     def parameter_vector(self) -> np.ndarray:
-        """NLP parameters [h, Σ, P, family parameters in declaration order]."""
-        fam = self.family_obj
-        return np.array([self.h, self.cut, self.opening] + [self.params[n] for n in fam.parameters])
+        """NLP parameters p = [h, Σ, P, family parameters] (:func:`~morphoshell.layouts.parameter_layout`)."""
+        return self.parameter_layout.pack({"h": self.h, "cut": self.cut, "opening": self.opening,
+                                           **self.params})
 
     def with_updates(self, **changes) -> "Problem":
-        """A copy with ``h``, ``theory``, ``cut``, ``opening`` or family parameters changed."""
+        """A copy with ``h``, ``theory``, ``cut``, ``opening`` or family parameters changed.
+
+        The copy keeps this problem's family, theory and geometry objects
+        unless their names are changed.
+        """
         base = {k: changes.pop(k) for k in list(changes)
                 if k in BASE_KEYS or k in ("family", "geometry", "name")}
         params = dict(self.params)
-        if "family" in base and base["family"] != self.family:
-            params = {}
+        for key in ("family", "theory", "geometry"):
+            if key not in base or base[key] == getattr(self, key):
+                base[key] = getattr(self, f"{key}_obj")
+            elif key == "family":
+                params = {}
         params.update(changes)
         return replace(self, params=params, **base)
 
@@ -150,9 +178,8 @@ class Problem:
         fam = self.family_obj
         p = [self.params[n] for n in fam.parameters]
         out = fam.function(s.size)(s.reshape(1, -1), p, self.cut, self.end)
-        prof = {k: np.asarray(v).reshape(s.shape) for k, v in zip(Profiles._fields, out)}
-        prof["eta"] = prof["kappa_s0"] * self.h / (2 * prof["f_s0"] * prof["f_phi0"])
-        return prof
+        prof = Profiles(*[np.asarray(v).reshape(s.shape) for v in out])
+        return {**prof._asdict(), "eta": prof.eta(self.h)}
 
     def _check_intrinsic(self, fam: ProfileFamily, geo: Geometry) -> None:
         s = np.linspace(self.cut, self.end, 2001)

@@ -28,15 +28,27 @@ __all__ = ["Profiles", "ProfileFamily", "FAMILIES", "register_family", "get_fami
 
 
 class Profiles(NamedTuple):
+    """Intrinsic stretches and curvatures at a point (floats, arrays or CasADi)."""
+
     f_s0: object
     f_phi0: object
     kappa_s0: object
     kappa_phi0: object
 
+    def eta(self, h):
+        """Large-bending parameter η = κ_s⁰ h / (2 f_s⁰ f_φ⁰) (paper, Materials and
+        Methods; the intrinsic thickness is h⁰ = h/(f_s⁰ f_φ⁰), so η = κ_s⁰ h⁰/2)."""
+        return self.kappa_s0 * h / (2 * self.f_s0 * self.f_phi0)
 
-@dataclass(frozen=True)
+
+@dataclass(frozen=True, eq=False)
 class ProfileFamily:
     """A named family of intrinsic profiles.
+
+    Families are compared and hashed by identity: every compiled function of
+    a family (here and in the solvers' caches) belongs to that object, so a
+    family registered again under the same name (a re-run notebook cell) is
+    a new family and nothing built for the old one is reused.
 
     Attributes
     ----------
@@ -164,7 +176,13 @@ FAMILIES: dict[str, ProfileFamily] = {}
 
 
 def register_family(family: ProfileFamily) -> ProfileFamily:
-    """Add ``family`` to :data:`FAMILIES` (replacing one of the same name)."""
+    """Add ``family`` to :data:`FAMILIES` (replacing one of the same name).
+
+    Problems created afterwards use the new family; problems created before
+    keep the family they were created with.
+    """
+    if not isinstance(family, ProfileFamily):
+        raise ValueError(f"register_family needs a ProfileFamily, got {family!r}")
     missing = set(family.parameters) - set(family.defaults)
     if missing:
         raise ValueError(f"family {family.name!r} lacks defaults for {sorted(missing)}")
@@ -172,7 +190,10 @@ def register_family(family: ProfileFamily) -> ProfileFamily:
     return family
 
 
-def get_family(name: str) -> ProfileFamily:
+def get_family(name: "str | ProfileFamily") -> ProfileFamily:
+    """The registered family called ``name`` (a ProfileFamily is returned as is)."""
+    if isinstance(name, ProfileFamily):
+        return name
     return lookup(FAMILIES, name, "profile family")
 
 

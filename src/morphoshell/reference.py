@@ -39,22 +39,25 @@ P̃, R̃ and ε₀ are obtained by differentiating the same energy density.
 from __future__ import annotations
 
 import time
+from functools import lru_cache
 
 import casadi as ca
 import numpy as np
 import scipy.integrate
 
-from .discretisation import boundary_layer_width, graded_mesh
-from .energy import LOCAL_OUTPUTS, intrinsic_function, local_function
-from .equilibrium import FIELDS, Equilibrium, SolverError, SolverStats
-from .geometry import get_geometry
+from .energy import (CACHE_SIZE, LOCAL_OUTPUTS, Strains, boundary_layer_width, density,
+                     intrinsic_function, local_function, strains, unpack_intrinsic)
+from .layouts import BVP_STATE, INTRINSIC
+from .mesh import graded_mesh
 from .problem import Problem, Structure
+from .results import FIELDS, Equilibrium, SolverError, SolverStats
 
-__all__ = ["solve_bvp", "pontryagin_functions"]
+__all__ = ["solve_bvp", "pontryagin_functions", "pole_solutions"]
 
-_CACHE: dict[Structure, dict[str, ca.Function]] = {}
+_Y = {n: i for i, n in enumerate(BVP_STATE.names)}
 
 
+@lru_cache(maxsize=CACHE_SIZE)
 def pontryagin_functions(structure: Structure) -> dict[str, ca.Function]:
     """CasADi functions of the Pontryagin system for ``structure``.
 
@@ -62,20 +65,18 @@ def pontryagin_functions(structure: Structure) -> dict[str, ca.Function]:
     -------
     dict with
       ``rhs(s, y, p) -> y'`` and ``jac(s, y, p) -> ∂y'/∂y`` for
-      y = (r, ψ, λ_r, λ_ψ, z, 𝓔); ``controls(s, y, p) -> (f_s, ψ')``;
+      y = (r, ψ, λ_r, λ_ψ, z, 𝓔) (:data:`~morphoshell.layouts.BVP_STATE`);
+      ``controls(s, y, p) -> (f_s, ψ')``;
       ``costates(s, r, psi, f_s, dpsi, p) -> (λ_r, λ_ψ)``;
       ``local`` the pointwise energy.
     """
-    if structure in _CACHE:
-        return _CACHE[structure]
     local = local_function(structure)
-    n_p = local.size1_in(5)
     s = ca.SX.sym("s")
-    p = ca.SX.sym("p", n_p)
-    r, psi, lr, lpsi, z, E = (ca.SX.sym(n) for n in ("r", "psi", "lam_r", "lam_psi", "z", "E"))
-    y = ca.vertcat(r, psi, lr, lpsi, z, E)
+    p = ca.SX.sym("p", len(structure.parameters))
+    y = ca.SX.sym("y", len(BVP_STATE))
+    r, psi, lr, lpsi = (y[_Y[n]] for n in ("r", "psi", "lam_r", "lam_psi"))
     f, u = ca.SX.sym("f_s"), ca.SX.sym("dpsi")
-    L = local(s, r, psi, f, u, p)[0]
+    L = local(s, r, psi, f, u, p)[LOCAL_OUTPUTS.index("L")]
     H = L + lr * f * ca.cos(psi) + lpsi * u
     w = ca.vertcat(f, u)
     Hw = ca.gradient(H, w)
@@ -84,8 +85,9 @@ def pontryagin_functions(structure: Structure) -> dict[str, ca.Function]:
     det = A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
     wstar = -ca.vertcat(A[1, 1] * b[0] - A[0, 1] * b[1], A[0, 0] * b[1] - A[1, 0] * b[0]) / det
     dH = ca.vertcat(ca.gradient(H, r), ca.gradient(H, psi))
-    rhs = ca.vertcat(f * ca.cos(psi), u, -dH[0], -dH[1], f * ca.sin(psi), L)
-    rhs = ca.substitute(rhs, w, wstar)
+    derivative = {"r": f * ca.cos(psi), "psi": u, "lam_r": -dH[0], "lam_psi": -dH[1],
+                  "z": f * ca.sin(psi), "energy": L}
+    rhs = ca.substitute(ca.vertcat(*[derivative[n] for n in BVP_STATE.names]), w, wstar)
     # Costates that make (f, u) optimal: ∂H/∂(f, u) = 0 solved for (λ_r, λ_ψ).
     Lw = ca.gradient(L, w)
     costates = ca.vertcat(-Lw[0] / ca.cos(psi), -Lw[1])
@@ -98,32 +100,39 @@ def pontryagin_functions(structure: Structure) -> dict[str, ca.Function]:
     }
     # Pointwise functions evaluated on whole meshes, their maps cached by size.
     out.update({f"{k}_vec": _Vectorised(out[k]) for k in ("rhs", "jac", "controls")})
-    _CACHE[structure] = out
     return out
 
 
-def _pole_function(structure: Structure) -> ca.Function:
+@lru_cache(maxsize=1)
+def _pole_function() -> ca.Function:
     """``(I, h) -> (Q, G, eps0)`` at a pole from the intrinsic data I.
 
-    ε = G w + eps0 with w = (r', r/s, ψ', ψ/s) and e = ½ εᵀ Q ε.
+    ε = G w + eps0 with w = (r', r/s, ψ', ψ/s) and e = ½ εᵀ Q ε.  Family and
+    theory enter through I only, so one function serves every structure.
     """
-    key = ("pole", structure)
-    if key not in _CACHE:
-        from .coefficients import Coefficients
-        from .energy import INTRINSIC, Strains, density, strains
-        from .profiles import Profiles
-        I, h = ca.SX.sym("I", len(INTRINSIC)), ca.SX.sym("h")
-        prof = Profiles(*[I[1 + i] for i in range(4)])
-        coeffs = Coefficients(*[I[6 + i] for i in range(10)])
-        w = ca.SX.sym("w", 4)
-        # ρ = 1 with r = r/s, and sin ψ ≈ ψ/s: the strains at the pole, exactly affine in w.
-        E = ca.vertcat(*strains(1, w[1], w[3], w[0], w[2], prof))
-        G = ca.substitute(ca.jacobian(E, w), w, ca.DM.zeros(4))
-        eps0 = ca.substitute(E, w, ca.DM.zeros(4))
-        Es = ca.SX.sym("E", 4)
-        Q = ca.hessian(density(Strains(*ca.vertsplit(Es)), h, coeffs), Es)[0]
-        _CACHE[key] = ca.Function("pole_data", [I, h], [Q, G, eps0])
-    return _CACHE[key]
+    I, h = ca.SX.sym("I", len(INTRINSIC)), ca.SX.sym("h")
+    _, prof, _, coeffs = unpack_intrinsic(I)
+    w = ca.SX.sym("w", 4)
+    # ρ = 1 with r = r/s, and sin ψ ≈ ψ/s: the strains at the pole, exactly affine in w.
+    E = ca.vertcat(*strains(1, w[1], w[3], w[0], w[2], prof))
+    G = ca.substitute(ca.jacobian(E, w), w, ca.DM.zeros(4))
+    eps0 = ca.substitute(E, w, ca.DM.zeros(4))
+    Es = ca.SX.sym("E", 4)
+    Q = ca.hessian(density(Strains(*ca.vertsplit(Es)), h, coeffs), Es)[0]
+    return ca.Function("pole_data", [I, h], [Q, G, eps0])
+
+
+def pole_solutions(problem: Problem) -> dict:
+    """The local solutions at the poles of ``problem`` (keys "start" and/or "end")."""
+    st = problem.structure
+    p = problem.parameter_vector()
+    out = {}
+    for where, s_pole in (("start", problem.cut), ("end", problem.end)):
+        if getattr(st, where) == "pole":
+            I = intrinsic_function(st)(s_pole, p)
+            Q, G, eps0 = (np.asarray(v) for v in _pole_function()(I, problem.h))
+            out[where] = _PoleSolution(Q, G, eps0.ravel())
+    return out
 
 
 class _PoleSolution:
@@ -257,7 +266,7 @@ def _solve_one(problem: Problem, nodes: int, tol: float, bc_tol: float,
                guess: Equilibrium | None, eps: float, max_nodes: int) -> tuple[Equilibrium, int]:
     st = problem.structure
     F = pontryagin_functions(st)
-    geo = get_geometry(problem.geometry)
+    geo = problem.geometry_obj
     p = problem.parameter_vector()
     start_pole, end_pole = st.start == "pole", st.end == "pole"
     a = problem.cut + (eps if start_pole else 0.0)
@@ -291,12 +300,7 @@ def _solve_one(problem: Problem, nodes: int, tol: float, bc_tol: float,
         return (dfdy, np.zeros((6, n_unknown, len(x)))) if q else dfdy
 
     z_start = float(geo.numeric(problem.cut)[1])
-    poles = {}
-    for where, flag, s_pole in (("start", start_pole, problem.cut), ("end", end_pole, problem.end)):
-        if flag:
-            I = intrinsic_function(st)(s_pole, p)
-            Q, G, eps0 = (np.asarray(v) for v in _pole_function(st)(I, p[0]))
-            poles[where] = _PoleSolution(Q, G, eps0.ravel())
+    poles = pole_solutions(problem)
 
     def pole_state(where, C):
         """(r, ψ, f_s, ψ') at distance ε from a pole; the end pole is mirrored."""
@@ -308,7 +312,8 @@ def _solve_one(problem: Problem, nodes: int, tol: float, bc_tol: float,
     def pole_residual(yv, s_e, C):
         r_e, psi_e, f_e, u_e = pole_state("start" if s_e == a else "end", C)
         lam = np.asarray(costates(s_e, r_e, psi_e, f_e, u_e, p)).ravel()
-        return [yv[0] - r_e, yv[1] - psi_e, yv[2] - lam[0], yv[3] - lam[1]], (r_e, psi_e, f_e, u_e)
+        return ([yv[_Y["r"]] - r_e, yv[_Y["psi"]] - psi_e, yv[_Y["lam_r"]] - lam[0],
+                 yv[_Y["lam_psi"]] - lam[1]], (r_e, psi_e, f_e, u_e))
 
     gauss_u, gauss_w = np.polynomial.legendre.leggauss(16)
     gauss_u, gauss_w = (gauss_u + 1) / 2, gauss_w / 2
@@ -323,9 +328,11 @@ def _solve_one(problem: Problem, nodes: int, tol: float, bc_tol: float,
             psi_k = v[1] if where == "start" else np.pi - v[1]
             f_k = dv[0] / np.cos(v[1])
             s_k = problem.cut + dk if where == "start" else problem.end - dk
-            L += wk * float(local(s_k, v[0], psi_k, f_k, dv[1], p)[0])
+            L += wk * float(local(s_k, v[0], psi_k, f_k, dv[1], p)[LOCAL_OUTPUTS.index("L")])
             dz += wk * f_k * np.sin(psi_k)
         return L, dz
+
+    iz, iE, free = _Y["z"], _Y["energy"], [_Y["lam_r"], _Y["lam_psi"]]
 
     def bc(ya, yb, q=()):
         res = []
@@ -334,21 +341,22 @@ def _solve_one(problem: Problem, nodes: int, tol: float, bc_tol: float,
             k = 2
             r4, _ = pole_residual(ya, a, q[:2])
             L0, dz0 = pole_integrals("start", q[:2])
-            res += r4 + [ya[4] - (z_start + dz0), ya[5] - L0]
-        else:
-            res += [ya[2], ya[3], ya[4] - z_start, ya[5]]
+            res += r4 + [ya[iz] - (z_start + dz0), ya[iE] - L0]
+        else:   # free edge: no force, no torque; gauge of z; energy from 0
+            res += [ya[free[0]], ya[free[1]], ya[iz] - z_start, ya[iE]]
         if end_pole:
             r4, _ = pole_residual(yb, b, q[k:k + 2])
             res += r4
         else:
-            res += [yb[2], yb[3]]
+            res += [yb[free[0]], yb[free[1]]]
         return np.array(res, dtype=float)
 
     q0 = []
+    ir, ip = _Y["r"], _Y["psi"]
     if start_pole:
-        q0 += list(poles["start"].fit(eps, y0[0, 0], y0[1, 0]))
+        q0 += list(poles["start"].fit(eps, y0[ir, 0], y0[ip, 0]))
     if end_pole:
-        q0 += list(poles["end"].fit(eps, y0[0, -1], np.pi - y0[1, -1]))
+        q0 += list(poles["end"].fit(eps, y0[ir, -1], np.pi - y0[ip, -1]))
     t0 = time.perf_counter()
     sol = scipy.integrate.solve_bvp(fun, bc, s, y0, p=np.array(q0) if q0 else None,
                                     fun_jac=fun_jac, tol=tol, bc_tol=bc_tol, max_nodes=max_nodes)
@@ -398,25 +406,20 @@ def _initial_guess(s, geo, guess, costates, p):
         lam[:] = 0.0
     elif good.sum() >= 2 and not good.all():
         lam[0] = np.interp(s, s[good], lam[0][good])
-    E = np.zeros(m)
-    return np.vstack([r, psi, lam[0], lam[1], z, E])
+    y = {"r": r, "psi": psi, "lam_r": lam[0], "lam_psi": lam[1], "z": z, "energy": np.zeros(m)}
+    return np.vstack([y[n] for n in BVP_STATE.names])
 
 
 def _to_equilibrium(problem, s, Y, p, controls, local, end_energy, stats,
                     converged) -> Equilibrium:
     W = controls(s, Y, p)
     f, u = W[0], W[1]
-    r, psi, z = Y[0], Y[1], Y[4]
+    y = BVP_STATE.unpack(Y)
     m = len(s)
-    out = local.map(m)(s.reshape(1, -1), r.reshape(1, -1), psi.reshape(1, -1),
+    out = local.map(m)(s.reshape(1, -1), y["r"].reshape(1, -1), y["psi"].reshape(1, -1),
                        f.reshape(1, -1), u.reshape(1, -1), p)
     vals = {k: np.asarray(v).ravel() for k, v in zip(LOCAL_OUTPUTS, out)}
-    rho = vals["rho"]
-    fields = {
-        "s": s, "r": r, "z": z, "psi": psi, "f_s": f, "f_phi": r / rho, "kappa_s": u / f,
-        "kappa_phi": np.sin(psi) / r, **{k: vals[k] for k in ("E_s", "E_phi", "K_s", "K_phi",
-                                                                 "N_s", "N_phi", "M_s", "M_phi", "eta",
-                                                                 "e")},
-    }
-    return Equilibrium(problem=problem, **fields, energy=float(Y[5, -1]) + end_energy, solver=stats,
-                       converged=converged)
+    fields = {"s": s, "r": y["r"], "z": y["z"], "psi": y["psi"], "f_s": f,
+              **{k: vals[k] for k in FIELDS if k not in ("s", "r", "z", "psi", "f_s")}}
+    return Equilibrium(problem=problem, **fields, energy=float(y["energy"][-1]) + end_energy,
+                       solver=stats, converged=converged)

@@ -211,7 +211,7 @@ def shell_density(f_s0: float, f_phi0: float, kappa_s0: float, h: float, d: Defo
         raise ValueError("rho * f_phi * kappa_phi must lie in [-1, 1]; choose a smaller rho")
     E = _energy.strains(rho, d.f_phi * rho, float(np.arcsin(s)), d.f_s, d.f_s * d.kappa_s, prof)
     E = _energy.Strains(*(float(v) for v in E))
-    eta = float(_energy.eta(h, prof))
+    eta = float(prof.eta(h))
     coeffs = _coefficients.evaluate(eta, theory)
     e = float(_energy.density(E, h, coeffs, C=C_PER_MU * mu))
     return (e, E) if return_strains else e

@@ -1,0 +1,132 @@
+"""Laser ablation: what a circular cut does to a shell.
+
+Supplementary, toy problem 2 ("Cut opening", "Cut rotation and cut
+displacement") and main text, Fig. 2B: a circular cut of angle 2Σ removes the
+cap s < Σ of an intact shell (the *pre-ablation* state, the same problem with
+Σ = 0) and the shell recoils into its *post-ablation* equilibrium.  All
+observables compare the two states at the material point s = Σ
+(:func:`morphoshell.observables.recoil`):
+
+``opening``       o = 2 [r_post(Σ) − r_pre(Σ)], the change of the hole's diameter
+                  (paper eq:Usol: o = 2[u(0) − u(∞)] across the boundary layer);
+``rotation``      ϱ = ψ_post(Σ) − ψ_pre(Σ), positive when the rim curls outward
+                  (radians);
+``displacement``  d, the distance the rim moves, with the gauge of the
+                  Supplementary: the far end of the shell (the pole opposite
+                  the cut, or the opening's rim) keeps its undeformed position;
+``energy_released``  ΔE = 𝓔_post − 𝓔_pre|[Σ, end]: the post-ablation energy
+                  minus the pre-ablation energy of the part that remains
+                  (≤ 0 for a passive shell: the paper's ΔE of "Recoil velocity:
+                  scaling argument"; an active response to the cut, such as
+                  ``local_relaxation``, whose intact shell has F0 = 0, can
+                  change the energy either way).
+                  ``energy_removed`` is the pre-ablation energy of the cap.
+
+Lengths in units of R, energies in units of C R² (see :mod:`morphoshell.problem`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from scipy.interpolate import CubicSpline
+
+from .direct import solver_of
+from .equilibrium import solve
+from .observables import RECOIL, recoil
+from .problem import Problem
+from .results import Equilibrium
+
+__all__ = ["Ablation", "ablate", "edge_state", "intact_problem"]
+
+
+@dataclass(frozen=True, eq=False)
+class Ablation:
+    """Pre- and post-ablation equilibria and the observables of the cut."""
+
+    problem: Problem
+    pre: Equilibrium
+    post: Equilibrium
+    opening: float
+    rotation: float
+    displacement: float
+    radial_displacement: float
+    axial_displacement: float
+    energy_released: float
+    energy_removed: float
+
+    def __repr__(self) -> str:
+        return (f"Ablation(cut={self.problem.cut:g}, opening={self.opening:.6g}, "
+                f"rotation={self.rotation:.6g}, displacement={self.displacement:.6g}, "
+                f"energy_released={self.energy_released:.6g})")
+
+    def observables(self) -> dict[str, float]:
+        return {k: getattr(self, k) for k in (*RECOIL, "energy_released", "energy_removed")}
+
+    def to_dict(self, arrays: bool = True) -> dict:
+        return {"problem": self.problem.describe(), **self.observables(),
+                "pre": self.pre.to_dict(arrays), "post": self.post.to_dict(arrays)}
+
+
+def edge_state(eq: Equilibrium, s: float) -> dict[str, float]:
+    """(r, z, ψ) at the material point ``s``, in the far-end gauge.
+
+    z is shifted so that the far end (the last point) sits at its undeformed
+    height; r needs no gauge (the axis is fixed).  Direct solutions are
+    evaluated exactly by their cell polynomials (the definition of
+    :func:`morphoshell.observables.state_at`); other routes by a cubic spline
+    through their points.
+    """
+    z0_end = float(eq.problem.geometry_obj.numeric(eq.s[-1:])[1][0])
+    shift = z0_end - eq.z[-1]
+    solver = solver_of(eq)
+    if s == eq.s[0]:
+        r, z, psi = eq.r[0], eq.z[0], eq.psi[0]
+    elif solver is not None:
+        st = solver.disc.state_at(eq.x, eq.problem.parameter_vector(), eq.anchors, eq.z, s)
+        r, z, psi = st["r"], st["z"], st["psi"]
+    else:
+        r, z, psi = (float(CubicSpline(eq.s, v)(s)) for v in (eq.r, eq.z, eq.psi))
+    return {"r": float(r), "z": float(z + shift), "psi": float(psi)}
+
+
+def intact_problem(problem: Problem) -> Problem:
+    """The pre-ablation shell: ``problem`` with Σ = 0 and the family's ``pre_ablation`` values."""
+    return problem.with_updates(cut=0.0, **problem.family_obj.pre_ablation)
+
+
+def ablate(problem: Problem, nodes: int = 200, method: str = "direct",
+           pre: Equilibrium | None = None, **options) -> Ablation:
+    """Solve the pre- and post-ablation shells and measure the recoil.
+
+    Parameters
+    ----------
+    problem : Problem
+        The shell *after* ablation: ``problem.cut`` = Σ > 0 is the cut.
+    nodes, method, **options
+        Passed to :func:`morphoshell.equilibrium.solve` for both states.
+    pre : Equilibrium, optional
+        The pre-ablation equilibrium (:func:`intact_problem`).  By default it
+        is solved on a mesh with a node at s = Σ (an anchor), where its state
+        is compared with the rim's; a ``pre`` given here is evaluated there by
+        its cell polynomials (less accurate between nodes).
+
+    Returns
+    -------
+    Ablation
+    """
+    if not problem.cut > 0:
+        raise ValueError(f"cut (Sigma) = {problem.cut!r}: an ablation needs a cut > 0")
+    intact = intact_problem(problem)
+    sigma = problem.cut
+    if pre is None:
+        # a node at the rim's material point, where the intact shell is compared
+        anchors = {"anchors": (sigma,)} if method == "direct" else {}
+        pre = solve(intact, nodes=nodes, method=method, **anchors, **options)
+    elif pre.problem.describe() | {"name": ""} != intact.describe() | {"name": ""}:
+        raise ValueError("pre must be the equilibrium of the same problem with cut = 0")
+    post = solve(problem, nodes=nodes, method=method, **options)
+    obs = recoil(edge_state(pre, sigma), edge_state(post, sigma))
+    removed = pre.energy_between(pre.s[0], sigma)
+    return Ablation(problem=problem, pre=pre, post=post, **{k: float(obs[k]) for k in RECOIL},
+                    energy_released=post.energy - (pre.energy - removed),
+                    energy_removed=removed)

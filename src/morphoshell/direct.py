@@ -1,0 +1,220 @@
+"""The direct route: minimise the discretised energy with Ipopt.
+
+:class:`DirectSolver` joins a transcription (:mod:`morphoshell.discretisation`,
+on a mesh of :mod:`morphoshell.mesh`) and a back end (:mod:`morphoshell.ipopt`)
+for one structure and mesh, built once, and re-solves it for new parameter
+values, warm-started from a previous :class:`~morphoshell.results.Equilibrium`:
+continuation and fitting call it thousands of times.
+
+Nothing unconverged is returned: an Ipopt failure raises
+:class:`~morphoshell.results.SolverError` naming Ipopt's status, a converged
+stationary point that is not a local minimum (a saddle, which interior-point
+methods can report as success) raises
+:class:`~morphoshell.results.NotAMinimumError`; both carry the last iterate.
+"""
+from __future__ import annotations
+
+import time
+import weakref
+from typing import Any, Mapping
+
+import casadi as ca
+import numpy as np
+
+from ._buffered import Buffered
+from .discretisation import Discretisation
+from .energy import boundary_layer_width, kinematics
+from .ipopt import IpoptBackend
+from .mesh import MeshSpec, pole_exponent
+from .problem import Problem, Structure
+from .results import FIELDS, Equilibrium, NotAMinimumError, SolverError, SolverStats, unconverged
+
+__all__ = ["DirectSolver", "default_mesh", "solver_of"]
+
+#: Counts every DirectSolver built in this process (see ``morphoshell.equilibrium.cache_info``).
+BUILDS = {"count": 0}
+
+
+def default_mesh(structure: Structure, nodes: int, stages: int = 2,
+                 grading_width: float | None = None, domain_length: float | None = None,
+                 edge_scale: float | None = None) -> MeshSpec:
+    """Mesh of a solver built without a problem at hand.
+
+    Grading for the boundary layer of ``grading_width`` (default δ of
+    h = 0.1) on a shell of ``domain_length`` (default the whole meridian);
+    ``edge_scale``, a free edge's distance from the axis, adds logarithmic
+    grading there when below the width.
+    """
+    width = boundary_layer_width(0.1) if grading_width is None else float(grading_width)
+    length = structure.geometry.length if domain_length is None else float(domain_length)
+    return MeshSpec(int(nodes), structure.start, structure.end, width / length,
+                    None if edge_scale is None else float(edge_scale) / length,
+                    pole_exponent(stages))
+
+
+def _to_points(s_c: np.ndarray, v: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Gauss-point values to points: linear interpolation, linear extrapolation at the ends."""
+    out = np.interp(s, s_c, v)
+    for i, (j, k) in ((0, (0, 1)), (-1, (-1, -2))):
+        out[i] = v[j] + (v[j] - v[k]) * (s[i] - s_c[j]) / (s_c[j] - s_c[k])
+    return out
+
+
+class DirectSolver:
+    """Direct energy minimisation for one structure and mesh, built once.
+
+    Parameters
+    ----------
+    structure : Structure
+        Geometry, profile family, theory and end types (``Problem.structure``).
+    nodes : int
+        Number of mesh nodes N (N − 1 cells).
+    stages : int
+        Gauss points per cell S: the scheme has order 2S (see
+        :mod:`morphoshell.discretisation`).  1 is the staggered midpoint
+        scheme (second order); 2 (default) is fourth order; 3 sixth order.
+    mesh : MeshSpec, optional
+        The mesh (see :func:`morphoshell.mesh.mesh_spec`); overrides ``nodes``
+        and the grading arguments.
+    grading_width, domain_length, edge_scale : float, optional
+        Grading when no ``mesh`` is given (see :func:`default_mesh`).  The
+        mesh stays valid for any h, Σ and P: they are NLP parameters.
+    linear_solver, max_iter, stability, ipopt_options
+        Passed to :class:`morphoshell.ipopt.IpoptBackend`.
+    tol : float
+        Ipopt's convergence tolerance (on the scaled KKT error) at N = 800;
+        it grows like the square of the number of points on finer meshes, as
+        does the round-off floor of the discrete gradient (measured: 2e-12
+        with 800 points, 2e-9 with 12800).  The status is kept in
+        ``Equilibrium.solver.status``.
+    """
+
+    def __init__(self, structure: Structure, nodes: int = 200, *, stages: int = 2,
+                 mesh: MeshSpec | None = None, grading_width: float | None = None,
+                 domain_length: float | None = None, edge_scale: float | None = None,
+                 linear_solver: str = "mumps", tol: float = 1e-10, max_iter: int = 500,
+                 stability: str = "auto", ipopt_options: Mapping[str, Any] | None = None):
+        if mesh is None:
+            if isinstance(nodes, bool) or int(nodes) != nodes or nodes < 5:
+                raise ValueError(f"nodes = {nodes!r} must be an integer >= 5")
+            mesh = default_mesh(structure, int(nodes), stages, grading_width, domain_length,
+                                edge_scale)
+        if isinstance(stages, bool) or stages not in (1, 2, 3):
+            raise ValueError(f"stages = {stages!r} must be 1, 2 or 3")
+        t0 = time.perf_counter()
+        self.structure = structure
+        self.mesh = mesh
+        self.nodes = mesh.nodes
+        self.stages = int(stages)
+        self.linear_solver = linear_solver
+        self.t = mesh.nodes_t()
+        self.disc = d = Discretisation(structure, self.t, self.stages, mesh.knots)
+        self.backend = IpoptBackend(
+            d, tol=float(tol) * max(1.0, (d.layout.points / 800) ** 2), max_iter=max_iter,
+            linear_solver=linear_solver, stability=stability, ipopt_options=ipopt_options)
+        self.tol = self.backend.tol
+        self.stability = stability
+        self._pre = Buffered(d.pre)
+        pts = d.symbolic_points(d.x, d.p, d.q)
+        self._points = Buffered(ca.Function("points", [d.x, d.p, d.q],
+                                            [pts["s"], pts["z"]], ["x", "p", "q"], ["s", "z"]))
+        self.build_seconds = time.perf_counter() - t0
+        BUILDS["count"] += 1
+
+    # ------------------------------------------------------------------
+    def check(self, problem: Problem) -> None:
+        """Raise ValueError unless ``problem`` has this solver's structure."""
+        if problem.structure != self.structure:
+            raise ValueError(f"this solver is built for {self.structure}, "
+                             f"not for {problem.structure}")
+
+    def solve(self, problem: Problem, warm_start: Equilibrium | None = None,
+              x0: np.ndarray | None = None, lam_g0: np.ndarray | None = None,
+              anchors=()) -> Equilibrium:
+        """Equilibrium of ``problem``, optionally warm-started.
+
+        Parameters
+        ----------
+        problem : Problem
+            Must have this solver's structure; any parameter values.
+        warm_start : Equilibrium, optional
+            A previous solution on this solver (continuation, fitting).
+        x0, lam_g0 : ndarray, optional
+            Raw initial iterate and multipliers (override ``warm_start``).
+        anchors : sequence of float
+            Material points of the mesh's knots (``mesh.knots``), increasing.
+
+        Raises
+        ------
+        SolverError
+            Ipopt did not converge; ``.status`` is Ipopt's return status.
+        NotAMinimumError
+            Ipopt converged to a saddle.
+        """
+        self.check(problem)
+        p = problem.parameter_vector()
+        q = self.disc.check_anchors(p, anchors)
+        if warm_start is not None and x0 is None:
+            if warm_start.x is None or len(warm_start.x) != self.disc.layout.size:
+                raise ValueError("warm_start must be a direct solution on a solver of this mesh")
+            x0, lam_g0 = warm_start.x, warm_start.lam_g
+        if x0 is None:
+            x0 = self.disc.initial_guess(p, q)
+        if lam_g0 is None:
+            lam_g0 = np.zeros(self.disc.g.shape[0])
+        D = self._pre(p, q)[0]
+        res = self.backend.solve(x0, D, lam_g0)
+        stats = SolverStats("direct", res.iterations, res.seconds, res.status, self.nodes,
+                            self.build_seconds, res.details)
+        eq = self.equilibrium(problem, res.x, res.lam_g, p, q, D, stats, converged=res.converged)
+        if not res.converged:
+            raise SolverError(self.backend.failure_message(problem.name or problem.family, res),
+                              res.status, eq)
+        if not res.is_minimum:
+            raise NotAMinimumError(
+                f"Ipopt converged ({res.status}) to a stationary point that is not a strict "
+                f"minimum: the reduced Hessian is not positive definite (Ipopt needs an inertia "
+                f"correction {res.details['inertia_correction']:.3g} there); perturb the start "
+                f"or continue from a stable solution. The saddle is attached (.last_iterate)",
+                "Not_A_Minimum", unconverged(eq))
+        return eq
+
+    def equilibrium(self, problem: Problem, x: np.ndarray, lam: np.ndarray, p: np.ndarray,
+                    q: np.ndarray, D: np.ndarray, stats: SolverStats,
+                    converged: bool) -> Equilibrium:
+        """The :class:`Equilibrium` of the NLP point (x, λ) at parameters p, anchors q (data D)."""
+        d = self.disc
+        gf = d.gauss_fields(x, D)
+        s, z = self._points(x, p, q)
+        r, psi, _ = d.layout.split(x)
+        fields = {k: _to_points(gf["s"], gf[k], s)
+                  for k in FIELDS if k not in ("s", "r", "z", "psi")}
+        # Exact values off the axis (interpolation is only needed at a pole).
+        rho = d.geometry.numeric(s)[0]
+        # a pole is on the axis exactly, whatever sin(pi) rounds to
+        rho[[0, -1]] = np.where([d.layout.start_pole, d.layout.end_pole], 0.0, rho[[0, -1]])
+        off = rho > 0
+        exact = kinematics(rho[off], r[off], psi[off], fields["f_s"][off],
+                           fields["kappa_s"][off] * fields["f_s"][off])
+        fields["f_phi"][off], fields["kappa_phi"][off] = exact["f_phi"], exact["kappa_phi"]
+        fields["eta"] = problem.profiles(s)["eta"]   # parameter-only: exact at the points
+        energy = float(np.sum(gf["weight"] * gf["ds"] * gf["L"]))
+        return Equilibrium(problem=problem, s=s, r=r, z=z, psi=psi, **fields, energy=energy,
+                           solver=stats, converged=converged, x=x, lam_g=lam,
+                           quadrature=(gf["s"], gf["weight"] * gf["ds"], gf["L"], d.stages),
+                           anchors=tuple(float(v) for v in q), source=(weakref.ref(self), self.mesh, self.stages))
+
+
+def solver_of(eq: Equilibrium) -> DirectSolver | None:
+    """The :class:`DirectSolver` (or an equivalent one) that produced ``eq``; None for other routes.
+
+    Results hold only a weak reference to their solver; if it is gone, a
+    solver of the same structure and mesh is built (its discretisation, and so
+    every observable of ``eq``, is the same).
+    """
+    if eq.source is None:
+        return None
+    ref, mesh, stages = eq.source
+    solver = ref()
+    return solver if solver is not None else DirectSolver(eq.problem.structure, mesh=mesh,
+                                                          stages=stages)

@@ -1,0 +1,229 @@
+"""Meshes of the shell: grading toward edges and poles, and the parametric map to s.
+
+Both solution routes use these meshes: the direct solver's cells and the
+boundary-value reference's initial collocation mesh.
+
+A mesh is a fixed, graded set of nodes t_0 = 0 < … < t_N = 1 and the
+*parametric map* s = Σ + (L − P − Σ) t (:func:`shell_points`), so that the cut
+Σ and the opening P are parameters of one NLP: the nodes are material points
+that move with them.  The grading concentrates nodes near free edges, whose
+boundary layers have width δ = (h/√12)^(1/2)
+(:func:`morphoshell.energy.boundary_layer_width`), and near poles, where the
+solution behaves like s^β with β not an integer (see
+:mod:`morphoshell.reference`).
+
+:func:`mesh_spec` chooses the grading of a problem so that solvers can be
+shared: δ relative to the shell's length, and a small cut relative to it, are
+rounded to the nearest power of two, so a sweep over h and Σ re-meshes only
+when one of them moves to another octave (a change by more than a factor 2;
+the grading in use is never more than a factor √2 from the exact one).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+from scipy.special import gamma, gammainc
+
+from .energy import boundary_layer_width
+
+__all__ = ["boundary_layer_width", "pole_exponent", "graded_mesh", "shell_points", "MeshSpec",
+           "mesh_spec", "knot_for"]
+
+
+def shell_points(t, cut, end, knots: tuple[float, ...] = (), anchors=()):
+    """The parametric map from mesh coordinates t ∈ [0, 1] to material points s.
+
+    s = Σ + (L − P − Σ) t (``end`` = L − P), or, with interior ``knots``
+    t_1 < … < t_m that must land on the material points ``anchors``,
+
+        s = Σ + (L − P − Σ) t + t (1 − t) Π(t),
+
+    Π the polynomial of degree m − 1 through the offsets that put each knot
+    on its anchor.  The map stays smooth (a kink in the cell sizes would cost
+    the scheme its superconvergence at that node) and is affine in Σ, P and
+    the anchors.  t is numeric (a float or an array); Σ, L − P and the
+    anchors may be floats or CasADi expressions, so derivatives with respect
+    to them come from automatic differentiation.
+    """
+    anchors = [anchors[i] for i in range(len(knots))]
+    symbolic = any(isinstance(v, (ca.SX, ca.MX)) for v in (cut, end, *anchors))
+    t_arr = np.asarray(t, dtype=float)
+    T = ca.DM(np.atleast_1d(t_arr)) if symbolic else t_arr
+    s = cut + (end - cut) * T
+    k = np.asarray(knots, dtype=float)
+    for j in range(len(k)):
+        others = np.delete(k, j)
+        basis = np.prod([(t_arr - o) / (k[j] - o) for o in others], axis=0) if len(others) \
+            else np.ones_like(t_arr)
+        bump = t_arr * (1 - t_arr) * basis
+        offset = (anchors[j] - cut - (end - cut) * k[j]) / (k[j] * (1 - k[j]))
+        s = s + (ca.DM(np.atleast_1d(bump)) if symbolic else bump) * offset
+    return s
+
+
+def check_monotone(s: np.ndarray) -> None:
+    """ValueError unless the material points ``s`` of a mesh increase."""
+    if not np.all(np.diff(s) > 0):
+        raise ValueError("the mesh's anchors are too far from its knots: the map to s is not "
+                         "monotone; build a solver for these anchors")
+
+
+def pole_exponent(stages: int) -> float:
+    """Grading exponent q (s ∝ t^q) at poles that keeps order 2S.
+
+    With a local solution ~ s^β the first cells cost O(N^(−2qβ)) and the
+    others sum to O(N^(−2S)) if qβ > S; β ≥ 0.7 in the problems of the paper
+    (measured, see ``reference._PoleSolution``), so q = 2S leaves a margin.
+    """
+    return 2.0 * stages
+
+
+def graded_mesh(cells: int, length: float, start: str, end: str, width: float,
+                ratio: float = 6.0, pole_width: float = 0.05, q: float = 2.0,
+                edge_scale: float | None = None, knots: tuple[float, ...] = ()) -> np.ndarray:
+    """Nodes t_0 = 0 < … < t_N = 1 of a smoothly graded mesh.
+
+    The node density (per unit of t) is
+
+        1 + (ratio − 1) exp(−d/ℓ)              near a free edge, ℓ = 3 width/length,
+        + B ℓ_c [1/(d + ℓ_c) − 1/(d + ℓ)]      near a free edge, if ℓ_c < ℓ/3,
+        + (d/ℓ_p)^(1/q − 1) exp(−d/ℓ_p)        near a pole, ℓ_p = pole_width,
+
+    with d the distance to that end, so free edges get ``ratio`` times finer
+    cells across their boundary layer and near a pole the nodes follow
+    s ∝ t^q.  A free edge closer to the axis than the boundary-layer width
+    (a cut Σ smaller than δ: ``edge_scale`` ℓ_c = Σ/length) also varies on
+    the scale Σ, like log s between Σ and δ (the (σ + ξ) terms of the
+    Supplementary's small-cut equations): the second term spends B ℓ_c = 5 %
+    of the density per e-fold of d there.  The map t ↦ s is fixed and smooth,
+    so refinement keeps the order of the scheme.
+
+    Parameters
+    ----------
+    cells : int
+    length : float
+        Length of the shell in s (sets the free-edge grading in t).
+    start, end : {"pole", "free"}
+    width : float
+        Boundary-layer width in s (see :func:`boundary_layer_width`).
+    q : float
+        Pole grading exponent (see :func:`pole_exponent`).
+    knots : tuple of float
+        Interior values of t that must be nodes (anchors of the parametric
+        map, see :func:`shell_points`); each segment between them gets its
+        share of the cells by the same density.
+    """
+    if cells < 2:
+        raise ValueError(f"need at least 2 cells, got {cells}")
+    ell = 3 * width / length
+    ell_c = None if edge_scale is None else edge_scale / length
+    small_edge = ell_c is not None and ell_c < ell / 3
+
+    def cumulative(d, kind):
+        # ∫₀^d of the extra density of an end of this kind
+        if kind == "free":
+            out = (ratio - 1) * ell * -np.expm1(-d / ell)
+            if small_edge:
+                out = out + 0.05 * (np.log1p(d / ell_c) - np.log1p(d / ell))
+            return out
+        return pole_width * gamma(1 / q) * gammainc(1 / q, d / pole_width)
+
+    def W(x):
+        return x + cumulative(x, start) + cumulative(1.0, end) - cumulative(1 - x, end)
+
+    bounds = np.concatenate([[0.0], np.sort(np.asarray(knots, dtype=float)), [1.0]])
+    if np.any(np.diff(bounds) <= 0):
+        raise ValueError(f"mesh knots {knots} must lie strictly inside (0, 1) and differ")
+    Wb = W(bounds)
+    # cells per segment in proportion to its share of the density, at least one each
+    share = np.diff(Wb) / Wb[-1] * cells
+    n = np.maximum(1, np.floor(share).astype(int))
+    while n.sum() < cells:
+        n[np.argmax(share - n)] += 1
+    if n.sum() > cells:
+        raise ValueError(f"{cells} cells cannot hold {len(knots)} mesh knots")
+    target = np.concatenate([np.linspace(Wb[j], Wb[j + 1], n[j] + 1)[:-1] for j in range(len(n))]
+                            + [[Wb[-1]]])
+    lo, hi = np.zeros_like(target), np.ones_like(target)
+    for _ in range(60):   # bisection: W is increasing
+        mid = (lo + hi) / 2
+        below = W(mid) < target
+        lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
+    t = (lo + hi) / 2
+    t[np.concatenate([[0], np.cumsum(n)])] = bounds
+    return t
+
+
+@dataclass(frozen=True)
+class MeshSpec:
+    """Everything that fixes a direct solver's mesh t (hashable: a cache key).
+
+    Attributes
+    ----------
+    nodes : int
+        Mesh nodes N (N − 1 cells).
+    start, end : {"pole", "free"}
+    width : float
+        Boundary-layer width relative to the shell's length, δ/(L − P − Σ).
+    edge_scale : float or None
+        A free edge's distance from the axis relative to the length, when
+        below the boundary-layer width (small cuts), else None.
+    q : float
+        Pole grading exponent (:func:`pole_exponent`).
+    knots : tuple of float
+        Mesh coordinates t of the anchors: nodes that sit at given material
+        points (for example the rim s = Σ of a later cut, in the intact shell),
+        whose positions are passed with every solve.
+    """
+
+    nodes: int
+    start: str
+    end: str
+    width: float
+    edge_scale: float | None
+    q: float
+    knots: tuple[float, ...] = ()
+
+    def nodes_t(self) -> np.ndarray:
+        """The mesh t_0 = 0 < … < t_N = 1."""
+        return graded_mesh(self.nodes - 1, 1.0, self.start, self.end, self.width, q=self.q,
+                           edge_scale=self.edge_scale, knots=self.knots)
+
+
+def _octave(x: float) -> float:
+    """x rounded to the nearest power of two (in the logarithm)."""
+    return 2.0 ** round(math.log2(x))
+
+
+def knot_for(fraction: float) -> float:
+    """A mesh knot near ``fraction`` of the shell, rounded so that solvers can be shared.
+
+    The odds t/(1 − t) are rounded to half octaves: knots are dense near the
+    ends, where anchors next to a pole or edge must not be stretched far.
+    """
+    if not 0 < fraction < 1:
+        raise ValueError(f"an anchor must lie inside the shell, got the fraction {fraction!r}")
+    odds = 2.0 ** (round(2 * math.log2(fraction / (1 - fraction))) / 2)
+    return odds / (1 + odds)
+
+
+def mesh_spec(problem, nodes: int, stages: int, anchors: tuple[float, ...] = ()) -> MeshSpec:
+    """The mesh a direct solver uses for ``problem`` (grading rounded to octaves).
+
+    ``anchors`` are material points s that must be nodes (see :class:`MeshSpec`).
+    """
+    st = problem.structure
+    length = problem.end - problem.cut
+    width = _octave(boundary_layer_width(problem.h) / length)
+    # A free edge near the axis also varies on the scale of its distance from it.
+    edges = [v for v in (problem.cut, problem.opening) if v > 0]
+    edge = min(edges) / length if edges else None
+    # graded_mesh grades for it only below a third of the boundary layer
+    edge = _octave(edge) if edge is not None and _octave(edge) < width / 3 else None
+    knots = tuple(knot_for((s - problem.cut) / length) for s in anchors)
+    if len(set(knots)) != len(knots) or list(knots) != sorted(knots):
+        raise ValueError(f"anchors {anchors} must be increasing and well separated")
+    return MeshSpec(int(nodes), st.start, st.end, width, edge, pole_exponent(stages), knots)

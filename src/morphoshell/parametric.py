@@ -1,0 +1,169 @@
+"""The parametric solve as a differentiable map: exact derivatives of direct solutions.
+
+A direct solution (x, λ) of the equality-constrained NLP satisfies the KKT
+conditions
+
+    F(x, λ; p) = [∇ₓℒ(x, λ; p), g(x; p)] = 0,     ℒ = f + λᵀg,
+
+so by the implicit function theorem d(x, λ)/dp = −K⁻¹ ∂F/∂p with the KKT
+matrix K = ∂F/∂(x, λ), nonsingular at a strict minimum (which every returned
+solution is).  p is the physical parameter vector (``Problem.parameter_layout``:
+h, Σ, P, the family's parameters); derivatives go through the cell data D(p)
+and the parametric mesh, so ∂/∂Σ moves the material points with the cut.
+
+For an observable y(x, p) (:mod:`morphoshell.observables`)
+
+    dy/dp = ∂y/∂p + ∂y/∂x · dx/dp.
+
+:attr:`Parametric.kkt_residual` exposes F as a CasADi Function, so a caller
+can pose the equilibrium as constraints of a larger NLP (a fit in one NLP).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import casadi as ca
+import numpy as np
+import scipy.sparse.linalg
+
+from .direct import DirectSolver
+from .observables import Observable, energy, shape_points
+from .results import Equilibrium
+
+__all__ = ["Parametric", "Sensitivities", "SolutionDerivative"]
+
+
+@dataclass(frozen=True, eq=False)
+class SolutionDerivative:
+    """dx/dp of one solution, for the parameters ``names`` (columns)."""
+
+    names: tuple[str, ...]
+    columns: tuple[int, ...]
+    dx: np.ndarray      # (unknowns, len(names))
+
+
+@dataclass(frozen=True, eq=False)
+class Sensitivities:
+    """Derivatives of a direct solution with respect to the parameters.
+
+    Columns follow ``names`` = (h, cut, opening, family parameters...).
+
+    Attributes
+    ----------
+    dx : ndarray (unknowns, parameters)
+        Of the NLP vector x.
+    dr, dz, dpsi : ndarray (points, parameters)
+        Of r, z (solver gauge) and ψ at the *material* points (whose s moves
+        with Σ and P, see ``ds``); the pole values are fixed (zero derivative).
+    ds : ndarray (points, parameters)
+        Of the points' arclength s.
+    denergy : ndarray (parameters,)
+        Of the total energy 𝓔 (units of C R²).
+    """
+
+    names: tuple[str, ...]
+    dx: np.ndarray
+    dr: np.ndarray
+    dz: np.ndarray
+    dpsi: np.ndarray
+    ds: np.ndarray
+    denergy: np.ndarray
+
+    def column(self, name: str) -> dict[str, np.ndarray]:
+        """Derivatives with respect to one parameter, by name."""
+        if name not in self.names:
+            raise ValueError(f"unknown parameter {name!r}; valid: {list(self.names)}")
+        j = self.names.index(name)
+        return {"r": self.dr[:, j], "z": self.dz[:, j], "psi": self.dpsi[:, j],
+                "s": self.ds[:, j], "energy": float(self.denergy[j])}
+
+
+class Parametric:
+    """Exact parametric derivatives of the solutions of one :class:`DirectSolver`.
+
+    Parameters
+    ----------
+    solver : DirectSolver
+
+    Attributes
+    ----------
+    kkt_residual : casadi.Function
+        ``(x, lam, p, q) -> F``: the KKT residual of the solver's NLP
+        (stationarity of the scaled objective, then the constraints) at
+        parameters p and mesh anchors q; zero at every solution.  Anchors are
+        held fixed by every derivative here (they place nodes, they are not
+        parameters of the physics).
+    """
+
+    def __init__(self, solver: DirectSolver):
+        self.solver = solver
+        d = solver.disc
+        x, p, q = d.x, d.p, d.q
+        lam = ca.MX.sym("lam", d.g.shape[0])
+        D = d.pre(p, q)
+        g, J = d.jac_g(x, D)
+        F = ca.vertcat(d.grad_f(x, D)[1] + ca.mtimes(J.T, lam), g)
+        self.kkt_residual = ca.Function("kkt_residual", [x, lam, p, q], [F],
+                                        ["x", "lam", "p", "q"], ["F"])
+        Ht = d.hess_lag(x, D, 1, lam)
+        K = ca.blockcat([[Ht + Ht.T - ca.diag(ca.diag(Ht)), J.T],
+                         [J, ca.MX(J.shape[0], J.shape[0])]])
+        self._kkt = ca.Function("kkt", [x, lam, p, q], [K, ca.jacobian(F, p)])
+        self._jacobians: dict[int, ca.Function] = {}
+        self._last: tuple | None = None
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return self.solver.structure.parameters.names
+
+    def _columns(self, wrt: Sequence[str] | None) -> tuple[tuple[str, ...], tuple[int, ...]]:
+        names = self.names if wrt is None else tuple(wrt)
+        return names, tuple(self.solver.structure.parameters.indices(names))
+
+    def derivative(self, eq: Equilibrium, wrt: Sequence[str] | None = None) -> SolutionDerivative:
+        """dx/dp of the solution ``eq`` (one sparse LU of the KKT matrix, cached per eq)."""
+        self.solver.check(eq.problem)
+        if eq.x is None or eq.lam_g is None or len(eq.x) != self.solver.disc.layout.size:
+            raise ValueError("eq must be a direct solution on a solver of this mesh")
+        names, cols = self._columns(wrt)
+        if self._last is None or self._last[0] is not eq:
+            K, Fp = self._kkt(eq.x, eq.lam_g, eq.problem.parameter_vector(), eq.anchors)
+            self._last = (eq, scipy.sparse.linalg.splu(K.sparse().tocsc()),
+                          np.asarray(ca.densify(Fp)))
+        _, lu, Fp = self._last
+        sol = lu.solve(-Fp[:, list(cols)])
+        return SolutionDerivative(names, cols, sol[:self.solver.disc.layout.size])
+
+    def jacobian(self, eq: Equilibrium, observable: Observable,
+                 wrt: Sequence[str] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Value and exact Jacobian dy/dp of ``observable`` at the solution ``eq``.
+
+        Returns
+        -------
+        y : ndarray (len(observable),)
+        J : ndarray (len(observable), len(wrt))
+            Columns follow ``wrt`` (default: every parameter, in layout order).
+        """
+        key = id(observable.function)
+        if key not in self._jacobians:
+            d = self.solver.disc
+            y = observable.function(d.x, d.p, d.q)
+            self._jacobians[key] = ca.Function("obs_jac", [d.x, d.p, d.q],
+                                               [y, ca.jacobian(y, d.x), ca.jacobian(y, d.p)])
+        dxdp = self.derivative(eq, wrt)
+        y, yx, yp = self._jacobians[key](eq.x, eq.problem.parameter_vector(), eq.anchors)
+        J = np.asarray(ca.densify(yp))[:, list(dxdp.columns)] + yx.sparse() @ dxdp.dx
+        return np.asarray(y).ravel(), J
+
+    def sensitivities(self, eq: Equilibrium) -> Sensitivities:
+        """Derivatives of r, z, ψ, s at every point and of the energy, for every parameter."""
+        d = self.solver.disc
+        if not hasattr(self, "_shape"):
+            self._shape, self._energy = shape_points(d), energy(d)
+        _, J = self.jacobian(eq, self._shape)
+        _, dE = self.jacobian(eq, self._energy)
+        n = d.layout.points
+        ds, dr, dz, dpsi = (J[i * n:(i + 1) * n] for i in range(4))
+        return Sensitivities(names=self.names, dx=self.derivative(eq).dx, dr=dr, dz=dz,
+                             dpsi=dpsi, ds=ds, denergy=dE.ravel())
