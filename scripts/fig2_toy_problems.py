@@ -253,7 +253,7 @@ def _common_limits(ablations, margin: float = 0.06):
     """Axis limits holding every cross-section, so that all panels share one scale.
 
     Bands as drawn by :func:`plot_ablation`: z in the far-end gauge of
-    :func:`morphoshell.observables.edge_state`.
+    :func:`morphoshell.ablation.edge_state`.
     """
     r_max, z_lo, z_hi = 0.0, np.inf, -np.inf
     for ab in ablations:

@@ -44,8 +44,16 @@ def test_f_shell_exact_matches_asymptotic_to_fourth_order(k):
 
 
 def test_f_shell_exact_k_equal_one_is_undeformed():
-    # k = 1: the undeformed sphere is stress-free, f = 1 exactly.
-    assert A.f_shell_exact(0.2, 1.0) == 1.0
+    # k = 1: the undeformed sphere is stress-free, f = 1 exactly; and the
+    # radius turns there with slope df/dk = -c/(1 + c), c = h²/12 (from
+    # differentiating f³(f − 1) = c(1 − kf) at f = k = 1), which a wrong
+    # root or branch would miss.
+    h = 0.2
+    c = h * h / 12
+    assert A.f_shell_exact(h, 1.0) == 1.0
+    eps = 1e-4
+    slope = (A.f_shell_exact(h, 1 + eps) - A.f_shell_exact(h, 1 - eps)) / (2 * eps)
+    assert slope == pytest.approx(-c / (1 + c), rel=1e-7)
 
 
 def test_f_shell_vectorised():
@@ -131,10 +139,9 @@ def test_opening_rotation_from_inner_solution(h, k, Sigma):
     assert A.opening(h, k, Sigma) == pytest.approx(o, rel=1e-11)
     # eq:cutr: ϱ = δ b(0), exact algebra up to rounding.
     assert A.rotation(h, k) == pytest.approx(d * A.b_inner(0.0, k), rel=1e-14)
-    # eq:cutd: radial and axial rim displacements −(h/2)(k−1)(sinΣ, cosΣ).
-    assert A.displacement(h, k) == pytest.approx(
-        math.hypot(*(0.5 * h * (k - 1) * np.array([math.sin(Sigma), math.cos(Sigma)]))),
-        rel=1e-14)
+    # eq:cutd: the rim moves along the undeformed normal by δ² ∫₀^∞ b dξ
+    # (dv/dξ = δ²b, eq:uv), whatever Σ: d = δ² |∫ b dξ| by quadrature.
+    assert A.displacement(h, k) == pytest.approx(d**2 * abs(integral), rel=1e-11)
 
 
 @pytest.mark.parametrize("h, k, Sigma", [(1e-3, 0.3, 0.7), (0.01, 2.0, 2.5), (1e-4, 0.0, 0.05)])

@@ -27,16 +27,21 @@ Lengths in units of R, energies in units of C R² (see :mod:`morphoshell.problem
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
+from typing import Sequence
 
+import casadi as ca
+import numpy as np
 from scipy.interpolate import CubicSpline
 
 from .direct import solver_of
 from .equilibrium import solve
-from .observables import RECOIL, recoil
+from .observables import RECOIL, recoil, state_at
+from .parametric import parametric
 from .problem import Problem
 from .results import Equilibrium
 
-__all__ = ["Ablation", "ablate", "edge_state", "intact_problem"]
+__all__ = ["Ablation", "ablate", "edge_state", "intact_problem", "recoil_jacobian"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -130,3 +135,60 @@ def ablate(problem: Problem, nodes: int = 200, method: str = "direct",
     return Ablation(problem=problem, pre=pre, post=post, **{k: float(obs[k]) for k in RECOIL},
                     energy_released=post.energy - (pre.energy - removed),
                     energy_removed=removed)
+
+
+@lru_cache(maxsize=1)
+def _recoil_function() -> ca.Function:
+    """(pre r, z, ψ; post r, z, ψ) -> RECOIL and its Jacobian, from :func:`recoil`."""
+    pre, post = ca.SX.sym("pre", 3), ca.SX.sym("post", 3)
+    out = recoil(dict(zip(("r", "z", "psi"), ca.vertsplit(pre))),
+                 dict(zip(("r", "z", "psi"), ca.vertsplit(post))))
+    y = ca.vertcat(*[out[k] for k in RECOIL])
+    return ca.Function("recoil", [pre, post], [y, ca.jacobian(y, ca.vertcat(pre, post))])
+
+
+def recoil_jacobian(ablation: Ablation, wrt: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Exact derivatives of the recoil observables of a direct ablation.
+
+    Both equilibria depend on the parameters (through the implicit function
+    theorem, :mod:`morphoshell.parametric`); the pre-ablation shell does not
+    depend on its family's ``pre_ablation`` parameters (their columns get no
+    contribution from it).  The rim is the material point s = Σ in both
+    states (a node of each mesh), z in the far-end gauge.
+
+    Parameters
+    ----------
+    ablation : Ablation
+        From :func:`ablate` with the direct method.
+    wrt : sequence of str
+        Parameter names (h, opening or the family's); not ``cut``, which moves
+        the compared material point itself.
+
+    Returns
+    -------
+    values : ndarray (5,)
+        :data:`~morphoshell.observables.RECOIL` in order.
+    jacobian : ndarray (5, len(wrt))
+    """
+    wrt = tuple(wrt)
+    if "cut" in wrt:
+        raise ValueError("recoil_jacobian: derivatives with respect to the cut are not "
+                         "available (the compared material point moves with it)")
+    states, jacs = [], []
+    for eq, key in ((ablation.pre, "pre"), (ablation.post, "post")):
+        solver = solver_of(eq)
+        if solver is None:
+            raise ValueError("recoil_jacobian needs an ablation solved by the direct method")
+        d = solver.disc
+        p = eq.problem.parameter_vector()
+        sigma = ablation.problem.cut
+        obs = state_at(d, sigma, d.cell_of(p, eq.anchors, sigma), gauge="far_end")
+        fixed = set(eq.problem.family_obj.pre_ablation) if key == "pre" else set()
+        names = [n for n in wrt if n not in fixed]
+        value, J = parametric(solver).jacobian(eq, obs, names)
+        full = np.zeros((3, len(wrt)))
+        full[:, [wrt.index(n) for n in names]] = J
+        states.append(value)
+        jacs.append(full)
+    y, dy = _recoil_function()(*states)
+    return np.asarray(y).ravel(), np.asarray(dy) @ np.vstack(jacs)

@@ -223,6 +223,10 @@ def mesh_spec(problem, nodes: int, stages: int, anchors: tuple[float, ...] = ())
     edge = min(edges) / length if edges else None
     # graded_mesh grades for it only below a third of the boundary layer
     edge = _octave(edge) if edge is not None and _octave(edge) < width / 3 else None
+    for s in anchors:
+        if not problem.cut < s < problem.end:
+            raise ValueError(f"anchor s = {s!r} must lie inside the shell "
+                             f"({problem.cut:.6g}, {problem.end:.6g})")
     knots = tuple(knot_for((s - problem.cut) / length) for s in anchors)
     if len(set(knots)) != len(knots) or list(knots) != sorted(knots):
         raise ValueError(f"anchors {anchors} must be increasing and well separated")

@@ -31,7 +31,14 @@ from .direct import DirectSolver
 from .observables import Observable, energy, shape_points
 from .results import Equilibrium
 
-__all__ = ["Parametric", "Sensitivities", "SolutionDerivative"]
+__all__ = ["Parametric", "Sensitivities", "SolutionDerivative", "parametric"]
+
+
+def parametric(solver: DirectSolver) -> "Parametric":
+    """The :class:`Parametric` of ``solver``, built once and kept with it."""
+    if getattr(solver, "_parametric", None) is None:
+        solver._parametric = Parametric(solver)
+    return solver._parametric
 
 
 @dataclass(frozen=True, eq=False)

@@ -74,7 +74,7 @@ def _finish(ax, title: str | None):
 def _far_end_shift(eq: Equilibrium) -> float:
     """z shift that puts ``eq`` in the gauge of the ablation observables.
 
-    :func:`morphoshell.observables.edge_state` keeps the far end of the shell
+    :func:`morphoshell.ablation.edge_state` keeps the far end of the shell
     at its undeformed height; its z at the first point minus the solver's
     z there is that shift (exact: the first point is not interpolated).
     """
@@ -87,7 +87,7 @@ def plot_ablation(ablation, ax=None, title: str | None = None, mark_rim: bool = 
     """Draw the pre- (light) and post-ablation (dark) cross-sections of an ablation.
 
     Both shells are drawn in the gauge of the observables (far end at its
-    undeformed position, see :func:`morphoshell.observables.edge_state`), so
+    undeformed position, see :func:`morphoshell.ablation.edge_state`), so
     the recoil seen is the one measured by ``ablation.displacement``.  The
     whole intact shell is drawn, cap included; with ``mark_rim`` the material
     point s = Σ (the rim of the cut) is marked in both states.

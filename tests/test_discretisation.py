@@ -1,0 +1,83 @@
+"""The transcription: quadrature, integration to the points, cell polynomials, order 6."""
+import numpy as np
+import pytest
+
+from morphoshell import Problem, solve
+from morphoshell.ablation import edge_state
+from morphoshell.direct import DirectSolver
+from morphoshell.discretisation import Discretisation, collocation
+
+
+@pytest.fixture(scope="module", params=[1, 2, 3])
+def disc(request):
+    problem = Problem("uniform", h=0.1, cut=0.3)
+    t = np.linspace(0, 1, 12) ** 1.3
+    return problem, Discretisation(problem.structure, t, request.param)
+
+
+def test_gauss_rule_and_integration_are_exact(disc):
+    problem, d = disc
+    S, p = d.stages, problem.parameter_vector()
+    s_pts = d.points(p)
+    nodes = s_pts[::S]
+    s_g = (nodes[:-1, None] + np.diff(nodes)[:, None] * d.tau[None, :]).ravel()
+    # cell totals are Gauss rules: exact for degree 2S - 1 at the nodes
+    c = np.arange(1, 2 * S + 1)
+    poly = np.polynomial.Polynomial(c)
+    integral = d.integrate_to_points(poly(s_g), p)
+    exact = poly.integ()(s_pts) - poly.integ()(s_pts[0])
+    assert np.max(np.abs(integral[::S] - exact[::S])) < 1e-12 * np.max(np.abs(exact))
+    # between nodes the Gauss interpolant (degree S - 1) is integrated exactly
+    low = np.polynomial.Polynomial(c[:S])
+    integral = d.integrate_to_points(low(s_g), p)
+    assert np.allclose(integral, low.integ()(s_pts) - low.integ()(s_pts[0]), rtol=0, atol=1e-12)
+    # and a degree-2S integrand is not exact: the test can fail
+    high = np.polynomial.Polynomial(np.arange(1, 2 * S + 2))
+    err = d.integrate_to_points(high(s_g), p)[-1] - (high.integ()(s_pts[-1]) - high.integ()(s_pts[0]))
+    assert abs(err) > 1e-9
+
+
+def test_collocation_bases(disc):
+    _, d = disc
+    tau, w, values, derivs, integrals, anti = collocation(d.stages)
+    assert w.sum() == pytest.approx(1.0) and np.allclose(values.sum(axis=1), 1.0)
+    assert np.allclose(derivs.sum(axis=1), 0.0, atol=1e-12)
+    assert np.allclose(integrals[-1], w)   # ∫₀¹ of the Gauss basis = the weights
+    assert np.allclose([np.polynomial.Polynomial(a)(1.0) for a in anti], w)
+
+
+def test_energy_is_the_quadrature_and_edge_state_the_polynomial():
+    problem = Problem("anisotropic", {"f0": 0.1}, h=0.3, cut=0.3)
+    eq = solve(problem, nodes=100)
+    assert eq.energy_between(eq.s[0], eq.s[-1]) == pytest.approx(eq.energy, rel=1e-13)
+    # at a point (a node or an interior point) the cell polynomial is the value
+    for i in (0, 7, 8, 51):
+        st = edge_state(eq, eq.s[i])
+        shift = st["z"] - eq.z[i]
+        assert abs(st["r"] - eq.r[i]) < 1e-13 and abs(st["psi"] - eq.psi[i]) < 1e-13
+        assert abs(shift - (eq.problem.geometry_obj.numeric(eq.s[-1])[1] - eq.z[-1])) < 1e-13
+    # between points it agrees with a spline through them to interpolation accuracy
+    s = 0.5 * (eq.s[20] + eq.s[21])
+    assert abs(edge_state(eq, s)["r"] - eq.at(s)["r"]) < 1e-6
+
+
+def test_stages_3_is_sixth_order():
+    # self-convergence of the edge values and energy on 25..200 nodes:
+    # measured orders 6.05-6.5
+    problem = Problem("anisotropic", {"f0": 0.1}, h=0.3, cut=0.3)
+    V = np.array([[eq.r[0], eq.psi[0], eq.energy] for eq in
+                  (solve(problem, nodes=n, stages=3) for n in (25, 50, 100))])
+    order = np.log2(np.abs(V[0] - V[1]) / np.abs(V[1] - V[2]))
+    assert np.all(np.abs(order - 6) < 0.6), order
+
+
+def test_anchored_solution_equals_the_unanchored_one_to_the_mesh_error():
+    problem = Problem("uniform", {"k": 0.5}, h=0.3)
+    plain = DirectSolver(problem.structure, 400).solve(problem)
+    eq = solve(problem, nodes=400, anchors=(0.7,))
+    assert 0.7 in eq.s
+    i = int(np.flatnonzero(eq.s == 0.7)[0])
+    assert abs(eq.r[i] - plain.at(0.7)["r"]) < 1e-8
+    assert eq.energy == pytest.approx(plain.energy, rel=1e-9)
+    with pytest.raises(ValueError, match=r"anchor s = 4.0 must lie inside the shell \(0, 3.14159\)"):
+        solve(problem, nodes=400, anchors=(4.0,))

@@ -1,0 +1,89 @@
+"""Meshes: grading toward edges and poles, knots, octave rounding, the parametric map."""
+import casadi as ca
+import numpy as np
+import pytest
+
+from morphoshell import Problem
+from morphoshell.energy import boundary_layer_width
+from morphoshell.mesh import (MeshSpec, graded_mesh, knot_for, mesh_spec, pole_exponent,
+                              shell_points)
+
+
+def test_pole_grading_follows_the_power_law():
+    q = pole_exponent(2)
+    t = graded_mesh(400, 1.0, "pole", "free", 0.1, q=q)
+    # near the pole the nodes follow t ~ j^q: log-log slope q over the first nodes
+    j = np.arange(1, 6)
+    slope = np.polyfit(np.log(j), np.log(t[1:6]), 1)[0]
+    assert abs(slope - q) < 0.15, slope
+    assert np.all(np.diff(t) > 0) and t[0] == 0 and t[-1] == 1
+
+
+def test_free_edges_are_refined_by_the_ratio():
+    t = graded_mesh(400, 1.0, "free", "free", 0.02, ratio=6.0)
+    dt = np.diff(t)
+    # density 1 + 5 exp(-d/l): six times finer at each edge than in the middle
+    assert dt[len(dt) // 2] / dt[0] == pytest.approx(6.0, rel=0.02)
+    assert dt[len(dt) // 2] / dt[-1] == pytest.approx(6.0, rel=0.02)
+    # symmetric ends give a symmetric mesh
+    assert np.max(np.abs(t + t[::-1] - 1)) < 1e-12
+
+
+def test_knots_are_nodes_and_keep_the_grading():
+    plain = graded_mesh(200, 1.0, "pole", "pole", 0.1, q=4.0)
+    knotted = graded_mesh(200, 1.0, "pole", "pole", 0.1, q=4.0, knots=(0.15, 0.6))
+    assert 0.15 in knotted and 0.6 in knotted and len(knotted) == len(plain)
+    # the same density: no node moves by more than a cell
+    assert np.max(np.abs(knotted - plain)) < np.max(np.diff(plain))
+    with pytest.raises(ValueError, match="strictly inside"):
+        graded_mesh(200, 1.0, "pole", "pole", 0.1, knots=(1.0,))
+
+
+def test_mesh_spec_rounds_the_boundary_layer_to_octaves():
+    base = Problem("uniform", h=0.1, cut=0.3)
+    spec = mesh_spec(base, 200, 2)
+    exact = boundary_layer_width(0.1) / (np.pi - 0.3)
+    assert 2**-0.5 <= spec.width / exact <= 2**0.5
+    # h within the octave: the same mesh (a shared solver); 4x h: delta doubles
+    assert mesh_spec(base.with_updates(h=0.11), 200, 2) == spec
+    assert mesh_spec(base.with_updates(h=0.4), 200, 2).width == 2 * spec.width
+    # small cuts get logarithmic grading, others not
+    assert spec.edge_scale is None
+    assert mesh_spec(base.with_updates(h=0.1, cut=0.01), 200, 2).edge_scale is not None
+
+
+def test_knot_for_rounds_the_odds_to_half_octaves():
+    for f in (0.003, 0.1, 0.5, 0.77, 0.999):
+        k = knot_for(f)
+        odds = (k / (1 - k)) / (f / (1 - f))
+        assert 2**-0.25 - 1e-12 <= odds <= 2**0.25 + 1e-12
+    assert knot_for(0.5) == 0.5
+    with pytest.raises(ValueError, match="inside the shell"):
+        knot_for(1.2)
+
+
+def test_shell_points_hit_the_anchors_smoothly_and_are_affine_in_them():
+    t = graded_mesh(100, 1.0, "pole", "pole", 0.1, q=4.0, knots=(0.2, 0.7))
+    s = shell_points(t, 0.1, 3.0, (0.2, 0.7), (0.6, 2.2))
+    assert s[0] == pytest.approx(0.1) and s[-1] == pytest.approx(3.0)
+    assert s[t == 0.2][0] == pytest.approx(0.6, abs=1e-14)
+    assert s[t == 0.7][0] == pytest.approx(2.2, abs=1e-14)
+    assert np.all(np.diff(s) > 0)
+    # no kink: the map's slope is smooth, so neighbouring cells differ
+    # smoothly in size (ratio of neighbours within that of the plain mesh + 1%)
+    plain = shell_points(t, 0.1, 3.0)
+    worst = np.max(np.abs(np.diff(np.log(np.diff(s)))))
+    assert worst < np.max(np.abs(np.diff(np.log(np.diff(plain))))) + 0.01
+    # the same map on CasADi symbols: its derivative in an anchor by AD equals
+    # the (exact, affine) difference quotient
+    q = ca.SX.sym("q", 2)
+    ds_dq = ca.Function("d", [q], [ca.jacobian(shell_points(t, 0.1, 3.0, (0.2, 0.7), q), q)])
+    num = (shell_points(t, 0.1, 3.0, (0.2, 0.7), (0.6 + 1e-3, 2.2))
+           - shell_points(t, 0.1, 3.0, (0.2, 0.7), (0.6, 2.2))) / 1e-3
+    assert np.max(np.abs(np.asarray(ds_dq([0.6, 2.2]))[:, 0] - num)) < 1e-9
+
+
+def test_a_mesh_spec_is_a_cache_key():
+    a = MeshSpec(100, "pole", "free", 0.1, None, 4.0)
+    assert hash(a) == hash(MeshSpec(100, "pole", "free", 0.1, None, 4.0))
+    assert a != MeshSpec(100, "pole", "free", 0.1, None, 4.0, (0.5,))
