@@ -1,0 +1,39 @@
+"""The package's layers import downward only (README, Architecture)."""
+import ast
+from pathlib import Path
+
+import morphoshell
+
+#: Layers, bottom first; a module may import from its own layer or below.
+LAYERS = [
+    {"_validate", "_buffered"},
+    {"geometry", "coefficients", "profiles", "layouts", "problem"},
+    {"energy"},
+    {"mesh", "results"},
+    {"discretisation"},
+    {"ipopt"},
+    {"direct", "reference"},
+    {"observables", "parametric"},
+    {"equilibrium"},
+    {"ablation", "asymptotics", "bulk", "thickness"},
+    {"io", "plotting", "cli"},
+]
+
+
+def _layer(name):
+    for i, layer in enumerate(LAYERS):
+        if name in layer:
+            return i
+    raise AssertionError(f"module {name!r} is in no layer: add it to the README and here")
+
+
+def test_imports_point_down():
+    root = Path(morphoshell.__file__).parent
+    for path in root.glob("*.py"):
+        if path.stem == "__init__":
+            continue
+        mine = _layer(path.stem)
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.level == 1 and node.module:
+                target = node.module.split(".")[0]
+                assert _layer(target) <= mine, f"{path.stem} imports {target} from a higher layer"
