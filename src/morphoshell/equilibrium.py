@@ -18,7 +18,7 @@ from __future__ import annotations
 from collections import OrderedDict
 from typing import Any, Mapping
 
-from .direct import BUILDS, DirectSolver
+from .direct import BUILDS, DirectSolver, check_nodes
 from .mesh import mesh_spec
 from .problem import Problem
 from .results import Equilibrium, NotAMinimumError, SolverError, SolverStats
@@ -61,10 +61,8 @@ def _check_options(method: str, options: Mapping[str, Any]) -> None:
 def direct_solver(problem: Problem, nodes: int = 200, anchors=(), **options) -> DirectSolver:
     """A cached :class:`DirectSolver` suited to ``problem`` (mesh from :func:`mesh_spec`)."""
     _check_options("direct", options)
-    if isinstance(nodes, bool) or int(nodes) != nodes or nodes < 5:
-        raise ValueError(f"nodes = {nodes!r} must be an integer >= 5")
     stages = options.get("stages", 2)
-    spec = mesh_spec(problem, int(nodes), stages, tuple(anchors))
+    spec = mesh_spec(problem, check_nodes(nodes), stages, tuple(anchors))
     key = (problem.structure, spec, _frozen(options))
     if key in _SOLVERS:
         _SOLVERS.move_to_end(key)

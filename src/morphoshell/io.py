@@ -33,6 +33,7 @@ from typing import Any, Iterable, Mapping
 
 import numpy as np
 
+from .direct import check_nodes
 from .problem import BASE_KEYS, Problem
 
 if sys.version_info >= (3, 11):
@@ -41,11 +42,16 @@ else:  # pragma: no cover - exercised on Python 3.10 only
     import tomli as tomllib
 
 __all__ = ["ProblemFileError", "Settings", "load_problem", "parse_overrides", "apply_overrides",
-           "to_jsonable", "write_json", "METHODS"]
+           "split_overrides", "settings_from", "to_jsonable", "write_json", "write_csv", "METHODS",
+           "SOLVER_KEYS"]
 
 METHODS = ("direct", "bvp")
 _PROBLEM_KEYS = {"family", "theory", "h", "cut", "opening", "geometry", "name"}
-_SOLVER_KEYS = {"nodes", "method", "stages"}
+#: Keys of the [solver] table (also accepted by ``--set``).
+SOLVER_KEYS = ("nodes", "method", "stages")
+#: ``--set`` keys whose values are words, not numbers.
+_WORDS = ("theory", "family", "geometry", "name", "method")
+_INTEGERS = ("nodes", "stages")
 
 
 class ProblemFileError(ValueError):
@@ -77,7 +83,11 @@ def load_problem(path: str | Path) -> tuple[Problem, Settings]:
     """
     path = Path(path)
     try:
-        text = path.read_text()
+        # utf-8-sig: a byte-order mark, as some Windows editors write, is not an error
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ProblemFileError(f"{path}: not a text file in UTF-8 (byte {exc.start}: "
+                               f"{exc.reason})") from None
     except OSError as exc:
         raise ProblemFileError(f"{path}: cannot read problem file ({exc.strerror})") from None
     try:
@@ -105,14 +115,12 @@ def load_problem(path: str | Path) -> tuple[Problem, Settings]:
         if key in prob and not isinstance(prob[key], str):
             raise ProblemFileError(f"{path}: [problem] {key} = {prob[key]!r} must be a string")
     solver = dict(data.get("solver", {}))
-    unknown = sorted(set(solver) - _SOLVER_KEYS)
+    unknown = sorted(set(solver) - set(SOLVER_KEYS))
     if unknown:
         raise ProblemFileError(f"{path}: unknown key(s) {unknown} in [solver]; "
-                               f"valid: {sorted(_SOLVER_KEYS)}")
+                               f"valid: {sorted(SOLVER_KEYS)}")
     try:
-        settings = Settings(nodes=_nodes(solver.get("nodes", Settings.nodes)),
-                            method=_method(solver.get("method", Settings.method)),
-                            stages=_stages(solver.get("stages", Settings.stages)))
+        settings = settings_from(solver)
         problem = Problem(params=dict(data.get("parameters", {})),
                           **{"name": path.stem, **prob})
     except ValueError as exc:
@@ -120,16 +128,19 @@ def load_problem(path: str | Path) -> tuple[Problem, Settings]:
     return problem, settings
 
 
-def _nodes(value: Any) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < 5:
-        raise ValueError(f"nodes = {value!r} must be an integer >= 5")
-    return value
+def settings_from(values: Mapping[str, Any], base: Settings = Settings()) -> Settings:
+    """``base`` with the [solver] ``values`` applied and checked (ValueError naming the key)."""
+    def get(key):
+        return values.get(key, getattr(base, key))
+    return Settings(nodes=check_nodes(get("nodes")), method=_method(get("method")),
+                    stages=_stages(get("stages")))
 
 
 def _stages(value: Any) -> int:
-    if isinstance(value, bool) or value not in (1, 2, 3):
-        raise ValueError(f"stages = {value!r} must be 1, 2 or 3 (order 2, 4 or 6)")
-    return int(value)
+    # only integers, like nodes: 2.0 is as wrong as 200.0
+    if isinstance(value, bool) or not isinstance(value, int) or value not in (1, 2, 3):
+        raise ValueError(f"stages = {value!r} must be the integer 1, 2 or 3 (order 2, 4 or 6)")
+    return value
 
 
 def _method(value: Any) -> str:
@@ -139,15 +150,26 @@ def _method(value: Any) -> str:
 
 
 def parse_overrides(items: Iterable[str]) -> dict[str, Any]:
-    """``["k=0.5", "theory=classical"]`` → ``{"k": 0.5, "theory": "classical"}``."""
+    """``["k=0.5", "theory=classical"]`` → ``{"k": 0.5, "theory": "classical"}``.
+
+    theory, family, geometry, name and method take words, nodes and stages
+    integers, everything else numbers.
+    """
     out: dict[str, Any] = {}
     for item in items:
         key, sep, value = item.partition("=")
         key, value = key.strip(), value.strip()
         if not sep or not key or not value:
             raise ProblemFileError(f"--set {item!r}: expected KEY=VALUE")
-        if key == "theory":
+        if key in _WORDS:
             out[key] = value
+            continue
+        if key in _INTEGERS:
+            try:
+                out[key] = int(value)
+            except ValueError:
+                raise ProblemFileError(f"--set {item!r}: {key} needs an integer, "
+                                       f"got {value!r}") from None
             continue
         try:
             number = float(value)
@@ -159,12 +181,28 @@ def parse_overrides(items: Iterable[str]) -> dict[str, Any]:
     return out
 
 
+def split_overrides(overrides: Mapping[str, Any]) -> tuple[dict, dict]:
+    """(problem overrides, [solver] overrides)."""
+    solver = {k: v for k, v in overrides.items() if k in SOLVER_KEYS}
+    return {k: v for k, v in overrides.items() if k not in SOLVER_KEYS}, solver
+
+
 def apply_overrides(problem: Problem, overrides: Mapping[str, Any]) -> Problem:
-    """Problem with ``--set`` overrides applied; unknown keys name the valid ones."""
-    valid = set(BASE_KEYS) | set(problem.family_obj.parameters)
+    """Problem with ``--set`` overrides applied; unknown keys name the valid ones.
+
+    A new ``family`` starts from its defaults; the other overrides may then
+    set its parameters.
+    """
+    from .profiles import get_family
+
+    try:
+        family = get_family(overrides.get("family", problem.family))
+    except ValueError as exc:
+        raise ProblemFileError(f"--set: {exc}") from None
+    valid = set(BASE_KEYS) | {"family", "geometry", "name"} | set(family.parameters)
     unknown = sorted(set(overrides) - valid)
     if unknown:
-        raise ProblemFileError(f"--set: unknown key(s) {unknown} for family {problem.family!r}; "
+        raise ProblemFileError(f"--set: unknown key(s) {unknown} for family {family.name!r}; "
                                f"valid: {sorted(valid)}")
     try:
         return problem.with_updates(**overrides)
@@ -207,3 +245,30 @@ def write_json(path: str | Path, data: Mapping[str, Any]) -> Path:
     payload = {**to_jsonable(data), "provenance": provenance()}
     path.write_text(json.dumps(payload, indent=1) + "\n")
     return path
+
+
+def write_csv(path: str | Path, columns: Mapping[str, Any]) -> Path:
+    """Write equal-length columns (scalars repeat) as CSV with a header row.
+
+    Non-finite values are written as empty cells.
+    """
+    import csv
+
+    path = Path(path)
+    arrays = {k: np.atleast_1d(np.asarray(v)) for k, v in columns.items()}
+    n = max(len(a) for a in arrays.values())
+    for k, a in arrays.items():
+        if len(a) not in (1, n):
+            raise ValueError(f"column {k!r} has {len(a)} rows, expected {n}")
+    with path.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(list(arrays))
+        for i in range(n):
+            w.writerow([_cell(a[i] if len(a) == n else a[0]) for a in arrays.values()])
+    return path
+
+
+def _cell(v: Any) -> Any:
+    if isinstance(v, (float, np.floating)):
+        return repr(float(v)) if math.isfinite(v) else ""
+    return v

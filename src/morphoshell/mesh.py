@@ -33,6 +33,10 @@ __all__ = ["boundary_layer_width", "pole_exponent", "graded_mesh", "shell_points
            "mesh_spec", "knot_for"]
 
 
+#: Smallest cell (in t) next to a pole; see :func:`graded_mesh`.
+MIN_POLE_CELL = 1e-10
+
+
 def shell_points(t, cut, end, knots: tuple[float, ...] = (), anchors=()):
     """The parametric map from mesh coordinates t ∈ [0, 1] to material points s.
 
@@ -118,6 +122,15 @@ def graded_mesh(cells: int, length: float, start: str, end: str, width: float,
     """
     if cells < 2:
         raise ValueError(f"need at least 2 cells, got {cells}")
+    bounds = np.concatenate([[0.0], np.sort(np.asarray(knots, dtype=float)), [1.0]])
+    if np.any(np.diff(bounds) <= 0):
+        raise ValueError(f"mesh knots {knots} must lie strictly inside (0, 1) and differ")
+    return _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge_scale,
+                           bounds)
+
+
+def _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge_scale, bounds):
+    """Nodes equidistributing the density of :func:`graded_mesh`, with nodes at ``bounds``."""
     ell = 3 * width / length
     ell_c = None if edge_scale is None else edge_scale / length
     small_edge = ell_c is not None and ell_c < ell / 3
@@ -134,9 +147,15 @@ def graded_mesh(cells: int, length: float, start: str, end: str, width: float,
     def W(x):
         return x + cumulative(x, start) + cumulative(1.0, end) - cumulative(1 - x, end)
 
-    bounds = np.concatenate([[0.0], np.sort(np.asarray(knots, dtype=float)), [1.0]])
-    if np.any(np.diff(bounds) <= 0):
-        raise ValueError(f"mesh knots {knots} must lie strictly inside (0, 1) and differ")
+    # Nodes within ~1e-16 of the far end are not representable (s ≈ π there,
+    # and sin s loses its digits): with q = 2S the cells at a pole reach 1e-15
+    # at N = 12800.  Near a pole the cumulative density is q ℓ_p (t/ℓ_p)^(1/q)
+    # to leading order, so the first cell is t_1 ≈ ℓ_p (W(1)/(N q ℓ_p))^q:
+    # lower q until it is at least MIN_POLE_CELL.  Meshes fine enough to need
+    # this have pole-cell errors far below round-off anyway.
+    while "pole" in (start, end) and q > 1 and \
+            pole_width * (W(1.0) / (cells * q * pole_width)) ** q < MIN_POLE_CELL:
+        q = max(1.0, q - 0.5)
     Wb = W(bounds)
     # cells per segment in proportion to its share of the density, at least one each
     share = np.diff(Wb) / Wb[-1] * cells
@@ -144,7 +163,7 @@ def graded_mesh(cells: int, length: float, start: str, end: str, width: float,
     while n.sum() < cells:
         n[np.argmax(share - n)] += 1
     if n.sum() > cells:
-        raise ValueError(f"{cells} cells cannot hold {len(knots)} mesh knots")
+        raise ValueError(f"{cells} cells cannot hold {len(bounds) - 2} mesh knots")
     target = np.concatenate([np.linspace(Wb[j], Wb[j + 1], n[j] + 1)[:-1] for j in range(len(n))]
                             + [[Wb[-1]]])
     lo, hi = np.zeros_like(target), np.ones_like(target)

@@ -27,7 +27,11 @@ from .geometry import Geometry, get_geometry
 from .layouts import VectorLayout, parameter_layout
 from .profiles import ProfileFamily, Profiles, get_family
 
-__all__ = ["Problem", "Structure", "BASE_KEYS"]
+__all__ = ["Problem", "Structure", "BASE_KEYS", "MIN_SHELL_LENGTH"]
+
+#: Shortest shell L − P − Σ accepted (units of R): below it the energy scale
+#: reaches the solver's round-off floor (measured: Ipopt fails at 1e-4).
+MIN_SHELL_LENGTH = 1e-3
 
 #: Keys of a problem other than the family's parameters (``--set`` names).
 BASE_KEYS = ("h", "theory", "cut", "opening")
@@ -119,6 +123,10 @@ class Problem:
             raise ValueError(
                 f"cut (Sigma) = {cut!r} is larger than the shell: with opening P = {opening!r} "
                 f"the {geo.name} ends at s = {end:.6g}")
+        if end - cut < MIN_SHELL_LENGTH:
+            raise ValueError(
+                f"the shell s in [cut, L - opening] = [{cut!r}, {end:.6g}] is shorter than "
+                f"{MIN_SHELL_LENGTH:g} (units of R): that is a ring, not a shell")
         if not isinstance(self.params, Mapping):
             raise ValueError(f"params must be a mapping of names to numbers, got {self.params!r}")
         unknown = sorted(set(self.params) - set(fam.parameters))

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from typing import Callable, Mapping, NamedTuple
 
 import casadi as ca
+import numpy as np
 
 from ._validate import lookup
 
@@ -108,6 +109,19 @@ def _positive(values, *names):
             raise ValueError(f"parameter {n} = {values[n]!r} must be positive")
 
 
+def _within(values, lo, hi, *names, why=""):
+    """ValueError naming the first parameter outside [lo, hi] (``why`` says what the range means)."""
+    for n in names:
+        if not lo <= values[n] <= hi:
+            raise ValueError(f"parameter {n} = {values[n]!r} must lie in [{lo:g}, {hi:g}]{why}")
+
+
+#: Plausible ranges, so that absurd values are named before any solve starts:
+#: intrinsic stretches between 1/10 and 10, intrinsic curvatures at most 1000/R.
+STRETCH_RANGE = (0.1, 10.0)
+MAX_CURVATURE = 1e3
+
+
 def _uniform(s, p, cut, end):
     one = 1 + 0 * s
     return Profiles(one, one, p["k"] * one, p["k"] * one)
@@ -118,9 +132,15 @@ def _anisotropic(s, p, cut, end):
     return Profiles((1 + p["f0"]) * one, one / (1 + p["f0"]), one, one)
 
 
+def _validate_uniform(v, cut, end):
+    _within(v, -MAX_CURVATURE, MAX_CURVATURE, "k", why=" (intrinsic curvature in units of 1/R)")
+
+
 def _validate_anisotropic(v, cut, end):
     if not 1 + v["f0"] > 0:
         raise ValueError(f"parameter f0 = {v['f0']!r} must exceed -1 (f_s0 = 1 + f0 > 0)")
+    lo, hi = STRETCH_RANGE
+    _within(v, lo - 1, hi - 1, "f0", why=" (intrinsic stretch 1 + f0 between 1/10 and 10)")
 
 
 def _local_relaxation(s, p, cut, end):
@@ -135,6 +155,9 @@ def _validate_local_relaxation(v, cut, end):
     _positive(v, "s0")
     if not 1 + v["F0"] > 0:
         raise ValueError(f"parameter F0 = {v['F0']!r} must exceed -1 (f0 = 1 + F0 > 0 at the cut)")
+    lo, hi = STRETCH_RANGE
+    _within(v, lo - 1, hi - 1, "F0", why=" (intrinsic stretch 1 + F0 between 1/10 and 10)")
+    _within(v, 0, 2 * np.pi, "s0", why=" (width of the relaxed region, in units of R)")
 
 
 def _softplus(x):
@@ -160,6 +183,10 @@ def _volvox(s, p, cut, end):
 
 def _validate_volvox(v, cut, end):
     _positive(v, "f1", "f2", "f3", "f4", "f5", "sigma")
+    _within(v, *STRETCH_RANGE, "f1", "f2", "f3", "f4", "f5", why=" (intrinsic stretches)")
+    _within(v, -MAX_CURVATURE, MAX_CURVATURE, "kappa1", "kappa2", "kappa3", "kappa4",
+            why=" (intrinsic curvatures in units of 1/R)")
+    _within(v, 1e-3, 0.5, "sigma", why=" (smoothing width of the steps, in units of R)")
     bps = [("s1", v["s1"]), ("s2", v["s2"]), ("s3", v["s3"]), ("s4", v["s4"])]
     if not bps[0][1] > 0:
         raise ValueError(f"breakpoint s1 = {v['s1']!r} must be positive")
@@ -198,7 +225,7 @@ def get_family(name: "str | ProfileFamily") -> ProfileFamily:
 
 
 register_family(ProfileFamily(
-    "uniform", ("k",), {"k": 0.0}, _uniform,
+    "uniform", ("k",), {"k": 0.0}, _uniform, _validate_uniform,
     description="f0 = 1, kappa_s0 = kappa_phi0 = k (toy problems 1 and 2)", neutral={"k": 1.0}))
 register_family(ProfileFamily(
     "anisotropic", ("f0",), {"f0": 0.1}, _anisotropic, _validate_anisotropic,

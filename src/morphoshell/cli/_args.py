@@ -1,0 +1,57 @@
+"""Argument types and options shared by the commands (checked at parse time)."""
+from __future__ import annotations
+
+import argparse
+import math
+from typing import Callable
+
+from ._outputs import output_path
+
+__all__ = ["integer", "real", "add_outputs", "LINEAR_SOLVERS"]
+
+#: Ipopt's linear solvers: MUMPS is bundled with CasADi; the HSL ones (ma27 …)
+#: load only from the user's libhsl.so, SPRAL and Pardiso from their libraries.
+LINEAR_SOLVERS = ("mumps", "ma27", "ma57", "ma77", "ma86", "ma97", "spral", "pardisomkl")
+
+
+def integer(lo: int, hi: int) -> Callable[[str], int]:
+    """An integer in [lo, hi]."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        if not lo <= value <= hi:
+            raise argparse.ArgumentTypeError(f"{value} must lie in [{lo}, {hi}]")
+        return value
+    parse.__name__ = "integer"
+    return parse
+
+
+def real(lo: float = -math.inf, hi: float = math.inf, *, open_lo: bool = False,
+         open_hi: bool = False, unit: str = "") -> Callable[[str], float]:
+    """A finite real number in [lo, hi] (bounds excluded where ``open_*``)."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        low_ok = value > lo if open_lo else value >= lo
+        high_ok = value < hi if open_hi else value <= hi
+        if not math.isfinite(value) or not (low_ok and high_ok):
+            interval = f"{'(' if open_lo else '['}{lo:g}, {hi:g}{')' if open_hi else ']'}"
+            raise argparse.ArgumentTypeError(f"{text} must be a finite number in {interval}{unit}")
+        return value
+    parse.__name__ = "number"
+    return parse
+
+
+def add_outputs(p: argparse.ArgumentParser, json: str, csv: str | None = None,
+                plot: str | None = None) -> None:
+    """--json / --csv / --plot, each validated before any work (see ``_outputs``)."""
+    p.add_argument("--json", type=output_path("json"), metavar="OUT.json", help=json)
+    if csv:
+        p.add_argument("--csv", type=output_path("csv"), metavar="OUT.csv", help=csv)
+    if plot:
+        p.add_argument("--plot", type=output_path("plot"), metavar="OUT.png",
+                       help=plot + " (.png, .pdf or .svg)")

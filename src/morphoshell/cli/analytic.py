@@ -1,0 +1,94 @@
+"""``morphoshell asymptotics`` and ``morphoshell sphere``: the paper's closed forms."""
+from __future__ import annotations
+
+import math
+
+from ._args import add_outputs, real
+from ._outputs import Outputs
+
+__all__ = ["register"]
+
+_H = real(0, 1, open_lo=True, open_hi=True, unit=" (thickness relative to the radius)")
+_K = real(-1e3, 1e3, unit=" (intrinsic curvature in units of 1/R)")
+
+
+def register(sub) -> None:
+    p = sub.add_parser("asymptotics", help="the paper's asymptotic predictions for toy problem 2",
+                       description="Leading-order and small-cut (Kelvin function) predictions "
+                                   "of the Supplementary for a cut of half-angle SIGMA in a "
+                                   "sphere of thickness H and intrinsic curvature K. Lengths in "
+                                   "units of R, angles in radians, energies in C R^2.")
+    p.add_argument("--h", type=_H, required=True, metavar="H", help="relative thickness h, 0 < h < 1")
+    p.add_argument("--k", type=_K, required=True, metavar="K", help="intrinsic curvature k (1/R)")
+    p.add_argument("--cut-angle", type=real(0, math.pi, open_lo=True, open_hi=True, unit=" rad"),
+                   required=True, metavar="SIGMA",
+                   help="Sigma, half-angle of the ablation (radians, 0 < Sigma < pi)")
+    add_outputs(p, json="write the predictions as JSON", csv="write the predictions as a one-row CSV")
+    p.set_defaults(run=_asymptotics)
+
+    p = sub.add_parser("sphere", help="toy problem 1: radius of a sphere with intrinsic curvature",
+                       description="Toy problem 1: deformed radius f (units of R) of a complete "
+                                   "sphere with intrinsic curvature K: the minimiser of the main "
+                                   "text's shell energy, the exact bulk-elasticity minimiser "
+                                   "(Mooney-Rivlin C10, C01) and the Supplementary's asymptotic "
+                                   "formula.")
+    p.add_argument("--h", type=_H, required=True, metavar="H", help="relative thickness h, 0 < h < 1")
+    p.add_argument("--k", type=_K, required=True, metavar="K", help="intrinsic curvature k (1/R)")
+    # only the ratio C01/C10 matters; bounded so that energies cannot overflow
+    modulus = real(-1e6, 1e6, unit=" (Mooney-Rivlin coefficient; only ratios matter)")
+    p.add_argument("--c10", type=modulus, default=1.0, metavar="A", help="C10 (default 1)")
+    p.add_argument("--c01", type=modulus, default=0.0, metavar="B", help="C01 (default 0)")
+    add_outputs(p, json="write the results as JSON", csv="write the results as a one-row CSV")
+    p.set_defaults(run=_sphere)
+
+
+def _write(args, data: dict) -> None:
+    from ..io import write_csv, write_json
+
+    out = Outputs()
+    out.add(args.json, lambda path: write_json(path, data))
+    out.add(args.csv, lambda path: write_csv(
+        path, {k: (math.nan if v is None else v) for k, v in data.items()}))
+    for path in out.commit():
+        print(f"  wrote {path}")
+
+
+_UNITS = {"opening": "R", "rotation": "rad", "displacement": "R", "rotation_small_cut": "rad",
+          "displacement_small_cut": "R", "energy_released": "C R^2", "delta": "R", "sigma": ""}
+
+
+def _asymptotics(args) -> int:
+    from ..asymptotics import predictions
+
+    out = predictions(args.h, args.k, args.cut_angle)
+    print(f"toy problem 2 asymptotics, h = {args.h:g}, k = {args.k:g} / R, "
+          f"Sigma = {args.cut_angle:g} rad")
+    for key, value in out.items():
+        print(f"  {key:22s} = {value:.10g} {_UNITS.get(key, '')}".rstrip())
+    _write(args, {"h": args.h, "k": args.k, "cut_angle": args.cut_angle, **out})
+    return 0
+
+
+def _sphere(args) -> int:
+    from ..asymptotics import f_bulk_asymptotic, f_shell_asymptotic, f_shell_exact, k_star
+    from ..bulk import f_bulk
+
+    if not args.c10 + args.c01 > 0:
+        raise ValueError(f"--c10 + --c01 = {args.c10 + args.c01:g} must be positive "
+                         f"(a positive bulk modulus)")
+    out = {"f_shell": f_shell_exact(args.h, args.k),
+           "f_shell_asymptotic": f_shell_asymptotic(args.h, args.k),
+           "f_bulk": f_bulk(args.h, args.k, args.c10, args.c01),
+           "f_asymptotic": f_bulk_asymptotic(args.h, args.k, args.c10, args.c01)}
+    try:
+        out["k_star"] = k_star(args.c10, args.c01)
+    except ValueError as exc:   # 5 C10 + C01 = 0: no second sign change
+        out["k_star"] = None
+        print(f"  (k_star: {exc})")
+    print(f"toy problem 1, h = {args.h:g}, k = {args.k:g} / R, C10 = {args.c10:g}, "
+          f"C01 = {args.c01:g}")
+    for key, value in out.items():
+        unit = " / R" if key == "k_star" else " R"
+        print(f"  {key:18s} = {'none' if value is None else format(value, '.15g') + unit}")
+    _write(args, {"h": args.h, "k": args.k, "c10": args.c10, "c01": args.c01, **out})
+    return 0

@@ -1,0 +1,144 @@
+"""``morphoshell solve`` and ``morphoshell ablate``: equilibria of problem files."""
+from __future__ import annotations
+
+import argparse
+
+from ..io import METHODS
+from ._args import LINEAR_SOLVERS, add_outputs, integer
+from ._outputs import Outputs
+
+__all__ = ["register"]
+
+_SET_HELP = ("override a problem or solver entry, repeatable: h, theory, family, cut (Sigma), "
+             "opening (P), nodes, stages, method, or a parameter of the problem's family "
+             "(uniform: k; anisotropic: f0; local_relaxation: F0, s0; volvox: f1..f5, "
+             "kappa1..kappa4, s1..s4, sigma)")
+
+
+def _common(p: argparse.ArgumentParser) -> None:
+    from ..direct import MAX_NODES
+
+    p.add_argument("problem", metavar="PROBLEM.toml", help="problem file (see problems/)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help=_SET_HELP)
+    p.add_argument("--method", choices=METHODS, default=None,
+                   help="direct energy minimisation (default) or the boundary-value reference")
+    p.add_argument("--nodes", type=integer(5, MAX_NODES), default=None, metavar="N",
+                   help=f"mesh nodes, 5..{MAX_NODES} (default: the file's [solver] nodes, "
+                        f"else 200); the direct solver's points are the nodes and S - 1 "
+                        f"interior points per cell")
+    p.add_argument("--stages", type=int, choices=(1, 2, 3), default=None, metavar="S",
+                   help="Gauss points per cell of the direct solver: order 2S (default: the "
+                        "file's [solver] stages, else 2)")
+    p.add_argument("--linear-solver", default="mumps", choices=LINEAR_SOLVERS, metavar="NAME",
+                   help="Ipopt's linear solver for the direct method: mumps (default, bundled) "
+                        "or an HSL solver such as ma27/ma57 if libhsl.so is installed")
+
+
+def register(sub) -> None:
+    p = sub.add_parser("solve", help="equilibrium of a problem file",
+                       description="Solve for the equilibrium shape of PROBLEM.toml and print a "
+                                   "summary (energy, edge values, solver statistics). z is in "
+                                   "the solver's gauge: z(first point) = its undeformed height.")
+    _common(p)
+    add_outputs(p, json="write the equilibrium as JSON",
+                csv="write the nodal arrays (s, r, z, psi, strains, ...) as CSV",
+                plot="write a cross-section plot")
+    p.set_defaults(run=_solve)
+
+    p = sub.add_parser("ablate", help="laser ablation: pre- and post-ablation equilibria",
+                       description="Solve PROBLEM.toml before (cut = 0) and after the cut "
+                                   "Sigma = cut > 0 and report the recoil observables opening, "
+                                   "rotation, displacement and energy_released (Supplementary, "
+                                   "toy problem 2): post- minus pre-ablation state at the "
+                                   "material point s = Sigma, z in the far-end gauge (the far "
+                                   "end keeps its undeformed height).")
+    _common(p)
+    add_outputs(p, json="write both equilibria and the observables as JSON",
+                csv="write the observables as a one-row CSV",
+                plot="write the pre/post cross-section plot")
+    p.set_defaults(run=_ablate)
+
+
+def _load(args):
+    """Problem, method and solver options from the file, --set and the options; all checked."""
+    from ..io import (ProblemFileError, apply_overrides, load_problem, parse_overrides,
+                      settings_from, split_overrides)
+
+    problem, settings = load_problem(args.problem)
+    problem_over, solver_over = split_overrides(parse_overrides(args.overrides))
+    problem = apply_overrides(problem, problem_over)
+    try:
+        settings = settings_from(solver_over, settings)
+    except ValueError as exc:
+        raise ProblemFileError(f"--set: {exc}") from None
+    nodes = settings.nodes if args.nodes is None else args.nodes
+    stages = settings.stages if args.stages is None else args.stages
+    method = args.method or settings.method
+    options = {"stages": stages, "linear_solver": args.linear_solver} if method == "direct" else {}
+    return problem, method, nodes, options
+
+
+def _label(problem) -> str:
+    return problem.name or problem.family
+
+
+def _solve(args) -> int:
+    from ..equilibrium import solve
+    from ..io import write_csv, write_json
+    from ..results import FIELDS
+
+    problem, method, nodes, options = _load(args)
+    eq = solve(problem, nodes=nodes, method=method, **options)
+    edge = "start" if problem.structure.start == "free" else "end"
+    e = eq.edge(edge)
+    it = eq.solver.iterations
+    points = (f"{nodes} nodes, {len(eq.s)} points" if method == "direct"
+              else f"{len(eq.s)} collocation points")
+    print(f"{_label(problem)}: {method} solution, {points}, {it} iteration{'s' * (it != 1)}, "
+          f"{eq.solver.seconds * 1e3:.1f} ms ({eq.solver.status})")
+    print(f"  energy          = {eq.energy:.12g} C R^2")
+    print(f"  {edge} edge s = {e['s']:.6g} R: r = {e['r']:.10g} R, z = {e['z']:.10g} R, "
+          f"psi = {e['psi']:.10g} rad")
+    print(f"  max |eta|       = {abs(eq.eta).max():.4g}")
+    out = Outputs()
+    out.add(args.json, lambda path: write_json(path, eq.to_dict()))
+    out.add(args.csv, lambda path: write_csv(path, {k: getattr(eq, k) for k in FIELDS}))
+    if args.plot:
+        from ..plotting import plot_cross_section, save
+        ax = plot_cross_section([eq], title=f"{_label(problem)} ({method})")
+        out.add(args.plot, lambda path: save(ax, path))
+    for path in out.commit():
+        print(f"  wrote {path}")
+    return 0
+
+
+_UNITS = {"opening": "R", "rotation": "rad", "displacement": "R", "radial_displacement": "R",
+          "axial_displacement": "R", "energy_released": "C R^2", "energy_removed": "C R^2"}
+
+
+def _ablate(args) -> int:
+    from ..ablation import ablate
+    from ..io import write_csv, write_json
+
+    problem, method, nodes, options = _load(args)
+    if not problem.cut > 0:
+        raise ValueError(f"cut (Sigma) = {problem.cut!r}: an ablation needs a cut > 0")
+    ab = ablate(problem, nodes=nodes, method=method, **options)
+    print(f"{_label(problem)}: ablation of Sigma = {problem.cut:g} rad "
+          f"({method}, {len(ab.post.s)} points)")
+    for key, value in ab.observables().items():
+        print(f"  {key:20s} = {value:.10g} {_UNITS[key]}")
+    out = Outputs()
+    out.add(args.json, lambda path: write_json(path, ab.to_dict()))
+    out.add(args.csv, lambda path: write_csv(path, {**problem.describe()["params"],
+                                                    "h": problem.h, "cut": problem.cut,
+                                                    "opening": problem.opening,
+                                                    **ab.observables()}))
+    if args.plot:
+        from ..plotting import plot_ablation, save
+        ax = plot_ablation(ab, title=f"{_label(problem)}: cut {problem.cut:g}")
+        out.add(args.plot, lambda path: save(ax, path))
+    for path in out.commit():
+        print(f"  wrote {path}")
+    return 0
