@@ -14,6 +14,7 @@ LAYERS = [
     {"ipopt"},
     {"direct", "reference"},
     {"observables", "parametric"},
+    {"continuation", "refinement"},
     {"equilibrium"},
     {"ablation", "asymptotics", "bulk", "thickness"},
     {"io", "plotting", "cli"},

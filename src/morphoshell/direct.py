@@ -27,7 +27,8 @@ from .energy import boundary_layer_width, kinematics
 from .ipopt import IpoptBackend
 from .mesh import MeshSpec, pole_exponent
 from .problem import Problem, Structure
-from .results import FIELDS, Equilibrium, NotAMinimumError, SolverError, SolverStats, unconverged
+from .results import (FIELDS, Equilibrium, NotAMinimumError, Quadrature, SolverError, SolverStats,
+                      unconverged)
 
 __all__ = ["DirectSolver", "default_mesh", "solver_of", "check_nodes", "MAX_NODES"]
 
@@ -181,6 +182,14 @@ class DirectSolver:
         if not res.converged:
             raise SolverError(self.backend.failure_message(problem.name or problem.family, res),
                               res.status, eq)
+        crossing = self._axis_crossing(eq)
+        if crossing is not None:
+            raise SolverError(
+                f"Ipopt converged ({res.status}) to a meridian that crosses the axis "
+                f"(r = {crossing[0]:.3g} at s = {crossing[1]:.6g}): not an equilibrium of the "
+                f"shell; continue from the stress-free parameters (solve(..., "
+                f"continuation=True)) or refine the mesh. The iterate is attached "
+                f"(.last_iterate)", "Meridian_Crosses_Axis", unconverged(eq))
         if not res.is_minimum:
             raise NotAMinimumError(
                 f"Ipopt converged ({res.status}) to a stationary point that is not a strict "
@@ -189,6 +198,20 @@ class DirectSolver:
                 f"or continue from a stable solution. The saddle is attached (.last_iterate)",
                 "Not_A_Minimum", unconverged(eq))
         return eq
+
+    @staticmethod
+    def _axis_crossing(eq: Equilibrium) -> tuple[float, float] | None:
+        """(r, s) of the most negative r at the points or Gauss points, if any is negative.
+
+        r < 0 puts material on the far side of the axis: the discrete energy,
+        which sees r only through f_φ = r/ρ, does not forbid it, but the shell
+        cannot do it.
+        """
+        s_g, r_g = eq.quadrature_points()
+        s = np.concatenate([eq.s, s_g])
+        r = np.concatenate([eq.r, r_g])
+        i = int(np.argmin(r))
+        return (float(r[i]), float(s[i])) if r[i] < 0 else None
 
     def equilibrium(self, problem: Problem, x: np.ndarray, lam: np.ndarray, p: np.ndarray,
                     q: np.ndarray, D: np.ndarray, stats: SolverStats,
@@ -212,7 +235,8 @@ class DirectSolver:
         energy = float(np.sum(gf["weight"] * gf["ds"] * gf["L"]))
         return Equilibrium(problem=problem, s=s, r=r, z=z, psi=psi, **fields, energy=energy,
                            solver=stats, converged=converged, x=x, lam_g=lam,
-                           quadrature=(gf["s"], gf["weight"] * gf["ds"], gf["L"], d.stages),
+                           quadrature=Quadrature(gf["s"], gf["weight"] * gf["ds"], gf["L"],
+                                                 d.stages, gf["r"]),
                            anchors=tuple(float(v) for v in q), source=(weakref.ref(self), self.mesh, self.stages))
 
 

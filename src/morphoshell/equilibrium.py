@@ -18,9 +18,13 @@ from __future__ import annotations
 from collections import OrderedDict
 from typing import Any, Mapping
 
+from dataclasses import replace
+
+from .continuation import continue_to
 from .direct import BUILDS, DirectSolver, check_nodes
 from .mesh import mesh_spec
 from .problem import Problem
+from .refinement import refine
 from .results import Equilibrium, NotAMinimumError, SolverError, SolverStats
 
 __all__ = ["solve", "direct_solver", "cache_info", "clear_cache", "SOLVER_CACHE_SIZE",
@@ -33,7 +37,7 @@ METHODS = ("direct", "bvp")
 
 #: Keyword options of :func:`solve` for each route.
 DIRECT_OPTIONS = ("stages", "linear_solver", "tol", "max_iter", "stability", "ipopt_options")
-BVP_OPTIONS = ("tol", "bc_tol", "pole_offset", "max_nodes", "homotopy_steps")
+BVP_OPTIONS = ("tol", "bc_tol", "pole_offset", "max_nodes", "homotopy_steps", "max_seconds")
 
 #: Direct solvers kept by :func:`solve` (least recently used dropped first).
 #: A solver of 400 nodes holds about 5 MB.
@@ -85,14 +89,16 @@ def clear_cache() -> None:
 
 
 def solve(problem: Problem, nodes: int = 200, method: str = "direct",
-          warm_start: Equilibrium | None = None, anchors=(), **options) -> Equilibrium:
+          warm_start: Equilibrium | None = None, anchors=(), *, continuation: bool = True,
+          rtol: float | None = None, **options) -> Equilibrium:
     """Equilibrium of ``problem``.
 
     Parameters
     ----------
     problem : Problem
     nodes : int
-        Mesh nodes (direct) or initial mesh nodes (bvp).
+        Mesh nodes (direct; the first mesh when ``rtol`` refines) or initial
+        mesh nodes (bvp).
     method : {"direct", "bvp"}
         Direct energy minimisation (default) or the boundary-value reference
         of :mod:`morphoshell.reference`.
@@ -101,11 +107,31 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
     anchors : sequence of float
         direct only: material points s that must be mesh nodes (where the
         solution is to be evaluated exactly), increasing, inside the shell.
+    continuation : bool
+        direct only, without ``warm_start``: reach the problem by continuation
+        from its family's stress-free parameters (default; see
+        :mod:`morphoshell.continuation`) rather than by one cold solve from the
+        undeformed shell, which can land on a spurious local minimum.  The
+        result says which (``solver.details["path"]``).
+    rtol : float, optional
+        direct only: refine the mesh (doubling the cells) until the error
+        estimate meets this relative tolerance (energy relative to itself,
+        edge values in units of R and radians), or raise.  Every direct
+        result carries its estimate (``Equilibrium.error``), from the mesh with
+        half the cells.
     **options
         direct: ``stages``, ``linear_solver``, ``tol``, ``max_iter``,
         ``stability``, ``ipopt_options`` (see :class:`DirectSolver`);
         bvp: ``tol``, ``bc_tol``, ``pole_offset``, ``max_nodes``,
-        ``homotopy_steps`` (see :func:`morphoshell.reference.solve_bvp`).
+        ``homotopy_steps``, ``max_seconds`` (see
+        :func:`morphoshell.reference.solve_bvp`).
+
+    Raises
+    ------
+    SolverError
+        No converged, stable, physical answer (Ipopt's or solve_bvp's status;
+        ``"Meridian_Crosses_Axis"``, ``"Continuation_Failed"``,
+        ``"Tolerance_Not_Met"``), with the last iterate attached.
 
     Examples
     --------
@@ -117,10 +143,21 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; choose one of {list(METHODS)}")
     _check_options(method, options)
-    if method == "direct":
-        return direct_solver(problem, nodes, anchors, **options).solve(
-            problem, warm_start=warm_start, anchors=anchors)
-    if len(anchors):
-        raise ValueError("anchors are an option of the direct method only")
-    from .reference import solve_bvp
-    return solve_bvp(problem, nodes=nodes, guess=warm_start, **options)
+    if method != "direct":
+        if len(anchors) or rtol is not None:
+            raise ValueError("anchors and rtol are options of the direct method only")
+        from .reference import solve_bvp
+        return solve_bvp(problem, nodes=nodes, guess=warm_start, **options)
+    if rtol is not None and not (isinstance(rtol, (int, float)) and 0 < rtol < 1):
+        raise ValueError(f"rtol = {rtol!r} must be a number in (0, 1)")
+    solver = direct_solver(problem, nodes, anchors, **options)
+    if warm_start is not None:
+        eq = solver.solve(problem, warm_start=warm_start, anchors=anchors)
+        eq = replace(eq, solver=replace(eq.solver, details={**eq.solver.details,
+                                                            "path": "warm start"}))
+    elif continuation:
+        eq = continue_to(solver, problem, anchors)
+    else:
+        eq = solver.solve(problem, anchors=anchors)
+        eq = replace(eq, solver=replace(eq.solver, details={**eq.solver.details, "path": "cold"}))
+    return refine(eq, lambda n: direct_solver(problem, n, anchors, **options), rtol, anchors)

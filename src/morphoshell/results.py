@@ -9,18 +9,92 @@ every route can depend on it.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Any, Mapping
+from typing import Any, Mapping, NamedTuple
 
 import numpy as np
 
 from .problem import Problem
 
-__all__ = ["Equilibrium", "SolverStats", "SolverError", "NotAMinimumError", "FIELDS", "unconverged"]
+__all__ = ["Equilibrium", "SolverStats", "SolverError", "NotAMinimumError", "FIELDS", "unconverged",
+           "Quadrature", "ErrorEstimate", "ESTIMATED", "ENERGY_FLOOR"]
 
 
 #: Nodal arrays of an :class:`Equilibrium`, in order.
 FIELDS = ("s", "r", "z", "psi", "f_s", "f_phi", "kappa_s", "kappa_phi",
           "E_s", "E_phi", "K_s", "K_phi", "N_s", "N_phi", "M_s", "M_phi", "eta", "e")
+
+
+class Quadrature(NamedTuple):
+    """The Gauss rule of a direct solution: points, weights (Δs w_k), integrand L = 2πρe, r there."""
+
+    s: np.ndarray
+    weights: np.ndarray
+    integrand: np.ndarray
+    stages: int
+    r: np.ndarray
+
+
+#: Floor of the energy scale in relative comparisons (C R²): stress-free
+#: shells have energies at round-off.
+ENERGY_FLOOR = 1e-12
+
+#: Quantities an :class:`ErrorEstimate` covers: the energy (C R²) and the edge
+#: values r, ψ at both ends and z at the far end (units of R and radians).
+ESTIMATED = ("energy", "r_start", "psi_start", "r_end", "psi_end", "z_end")
+
+
+@dataclass(frozen=True)
+class ErrorEstimate:
+    """Estimated discretisation error of a direct solution.
+
+    From the same problem on the mesh with half the cells, solved from this
+    solution (so on its branch): for a scheme of order p the error of the
+    finer solution is about |fine − coarse| / (2^p − 1) (Richardson), times
+    ``safety``.  A coarse mesh that lands elsewhere (a spurious minimum, an
+    unresolved boundary layer) shows up as a large estimate.
+
+    Attributes
+    ----------
+    errors : mapping
+        Estimated absolute error of each of :data:`ESTIMATED`.
+    values : mapping
+        The estimated quantities themselves.
+    nodes, reference_nodes : int
+        Nodes of this mesh and of the half mesh compared with.
+    order : int
+        Order p of the scheme (2 × stages).
+    note : str
+        Why there is no estimate, if there is none (errors are then NaN).
+    """
+
+    errors: Mapping[str, float]
+    values: Mapping[str, float]
+    nodes: int
+    reference_nodes: int
+    order: int
+    safety: float = 2.0
+    note: str = ""
+
+    def relative(self) -> dict[str, float]:
+        """Errors relative to their scale: the energy to max(|𝓔|, ENERGY_FLOOR), edge values
+        absolutely (lengths in units of R and angles in radians are O(1))."""
+        out = dict(self.errors)
+        out["energy"] = self.errors["energy"] / max(abs(self.values["energy"]), ENERGY_FLOOR)
+        return out
+
+    def worst(self) -> tuple[str, float]:
+        """The quantity with the largest relative error, and that error."""
+        rel = self.relative()
+        key = max(rel, key=lambda k: rel[k] if np.isfinite(rel[k]) else np.inf)
+        return key, rel[key]
+
+    def meets(self, rtol: float) -> bool:
+        return all(np.isfinite(v) and v <= rtol for v in self.relative().values())
+
+    def to_dict(self) -> dict:
+        return {"errors": dict(self.errors), "relative": self.relative(), "nodes": self.nodes,
+                "reference_nodes": self.reference_nodes, "order": self.order,
+                "safety": self.safety, "note": self.note}
 
 
 @dataclass(frozen=True)
@@ -97,7 +171,9 @@ class Equilibrium:
     converged: bool = True
     x: np.ndarray | None = field(default=None, repr=False)
     lam_g: np.ndarray | None = field(default=None, repr=False)
-    quadrature: tuple | None = field(default=None, repr=False)
+    quadrature: Quadrature | None = field(default=None, repr=False)
+    #: Estimated discretisation error (direct solutions from ``solve()``).
+    error: ErrorEstimate | None = None
     #: Positions of the mesh's anchors (material points that are nodes), if any.
     anchors: tuple = ()
     #: The direct solver that produced it (a weak reference: results do not
@@ -108,6 +184,12 @@ class Equilibrium:
         return (f"Equilibrium({self.problem.name or self.problem.family!r}, "
                 f"energy={self.energy:.10g}, points={len(self.s)}, method={self.solver.method!r}, "
                 f"converged={self.converged})")
+
+    def estimated_values(self) -> dict[str, float]:
+        """The quantities an :class:`ErrorEstimate` covers (:data:`ESTIMATED`)."""
+        return {"energy": self.energy, "r_start": float(self.r[0]), "psi_start": float(self.psi[0]),
+                "r_end": float(self.r[-1]), "psi_end": float(self.psi[-1]),
+                "z_end": float(self.z[-1] - self.z[0])}
 
     def edge(self, which: str = "start") -> dict[str, float]:
         """Values at the first (``"start"``) or last (``"end"``) node."""
@@ -121,6 +203,12 @@ class Equilibrium:
         if not self.s[0] <= s <= self.s[-1]:
             raise ValueError(f"s = {s} lies outside the shell [{self.s[0]}, {self.s[-1]}]")
         return {k: float(CubicSpline(self.s, getattr(self, k))(s)) for k in FIELDS}
+
+    def quadrature_points(self) -> tuple[np.ndarray, np.ndarray]:
+        """(s, r) at the Gauss points of a direct solution (empty for other routes)."""
+        if self.quadrature is None:
+            return np.zeros(0), np.zeros(0)
+        return self.quadrature.s, self.quadrature.r
 
     def energy_between(self, a: float, b: float) -> float:
         """2π ∫_a^b e ρ ds: the energy of the part a ≤ s ≤ b of the shell.
@@ -137,7 +225,7 @@ class Equilibrium:
         if self.quadrature is None:
             rho = self.problem.geometry_obj.numeric(self.s)[0]
             return float(CubicSpline(self.s, 2 * np.pi * rho * self.e).integrate(a, b))
-        sk, wk, Lk, stages = self.quadrature
+        sk, wk, Lk, stages = self.quadrature[:4]   # the cell's Gauss points, weights, L
         nodes = self.s[::stages]
         total = 0.0
         for c in range(len(nodes) - 1):
@@ -156,6 +244,7 @@ class Equilibrium:
         """JSON-ready: problem, energy, solver and (optionally) the nodal arrays."""
         out = {"problem": self.problem.describe(), "converged": self.converged,
                "energy": self.energy, "solver": self.solver.to_dict(),
+               "error_estimate": None if self.error is None else self.error.to_dict(),
                "edge_start": self.edge("start"), "edge_end": self.edge("end")}
         if arrays:
             out.update({k: getattr(self, k).tolist() for k in FIELDS})

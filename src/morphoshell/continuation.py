@@ -1,0 +1,145 @@
+"""Parameter continuation: reach a problem along its physical branch.
+
+A cold solve starts Ipopt from the undeformed shell and lets it find *a*
+minimum; for thin anisotropic or Volvox shells that can be a spurious local
+minimum with several times the energy (found in about 2 % of such problems,
+edge values sometimes right to 3e-7 so that edge checks miss it).  The
+physical branch is the one that grows continuously out of the stress-free
+shell.  :func:`continue_to` follows it: it solves the problem at the family's
+*neutral* parameters (the undeformed sphere is the exact solution there) and
+moves the parameters linearly to the target, each step warm-started from the
+previous solution, with adaptive step sizes:
+
+* a step that fails, needs many Newton iterations, or moves the solution far
+  more than the previous steps (a jump to another branch) is retried at a
+  quarter of its size;
+* easy steps double the next one.
+
+Parameters that the family does not list in ``neutral`` (the thickness, the
+cut, the opening and, for Volvox, the breakpoints) keep their target values
+throughout: the undeformed shell is stress-free for any of them.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .direct import DirectSolver
+from .problem import Problem
+from .results import Equilibrium, SolverError
+
+__all__ = ["continue_to", "Path", "neutral_problem"]
+
+#: A step that needs more Newton iterations than this is retried smaller.
+HARD_STEP = 15
+#: ... and one that needs at most this many lets the next step grow.
+EASY_STEP = 5
+#: A step whose solution moves more than this many times the previous rate
+#: (change per unit of the path parameter) is taken for a branch jump.
+JUMP_FACTOR = 8.0
+#: Smallest step of the path parameter τ ∈ [0, 1] before giving up.
+MIN_STEP = 1e-4
+
+
+@dataclass(frozen=True)
+class Path:
+    """How a solution was reached (``Equilibrium.solver.details["path"]``)."""
+
+    kind: str            # "continuation", "cold" or "warm start"
+    steps: int = 1
+    rejected: int = 0
+    iterations: int = 0
+
+    def describe(self) -> str:
+        if self.kind != "continuation":
+            return self.kind
+        return (f"continuation from the stress-free parameters in {self.steps} steps "
+                f"({self.rejected} retried, {self.iterations} Newton iterations)")
+
+
+def neutral_problem(problem: Problem) -> Problem | None:
+    """``problem`` at its family's stress-free parameters, or None if it has none to move."""
+    neutral = {n: v for n, v in problem.family_obj.neutral.items() if n in problem.params}
+    if not neutral or all(problem.params[n] == v for n, v in neutral.items()):
+        return None
+    return problem.with_updates(**neutral)
+
+
+def continue_to(solver: DirectSolver, problem: Problem, anchors=(), *, first_step: float = 0.25,
+                max_steps: int = 200) -> Equilibrium:
+    """Solve ``problem`` by continuation from its family's neutral parameters.
+
+    Parameters
+    ----------
+    solver : DirectSolver
+        Built for ``problem.structure``.
+    problem : Problem
+    anchors : sequence of float
+        Mesh anchors, as for :meth:`DirectSolver.solve`.
+    first_step : float
+        First step of the path parameter τ ∈ (0, 1].
+    max_steps : int
+        Accepted and rejected steps together.
+
+    Returns
+    -------
+    Equilibrium
+        With ``solver.details["path"]`` the :class:`Path` taken and
+        ``solver.iterations`` the Newton iterations of all steps.
+
+    Raises
+    ------
+    SolverError
+        Status ``"Continuation_Failed"`` when the step falls below
+        :data:`MIN_STEP` or the steps run out; the last solution reached is
+        attached.
+    """
+    t0 = time.perf_counter()
+    start = neutral_problem(problem)
+    if start is None:
+        eq = solver.solve(problem, anchors=anchors)
+        return _with_path(eq, Path("cold", 1, 0, eq.solver.iterations), t0)
+    names = [n for n in problem.family_obj.neutral if n in problem.params]
+    a = np.array([start.params[n] for n in names])
+    b = np.array([problem.params[n] for n in names])
+
+    def at(tau: float) -> Problem:
+        return problem if tau == 1 else problem.with_updates(**dict(zip(names, a + tau * (b - a))))
+
+    eq = solver.solve(start, anchors=anchors)
+    tau, step, rate = 0.0, float(first_step), None
+    steps = rejected = 0
+    iterations = eq.solver.iterations
+    while tau < 1:
+        if steps + rejected >= max_steps or step < MIN_STEP:
+            raise SolverError(
+                f"continuation from the stress-free parameters stopped at {tau:.4g} of the way "
+                f"to {problem.name or problem.family!r} ({steps} steps, {rejected} retried, step "
+                f"{step:.2g}); the last solution reached is attached", "Continuation_Failed", eq)
+        trial = min(1.0, tau + step)
+        try:
+            new = solver.solve(at(trial), warm_start=eq, anchors=anchors)
+        except SolverError:
+            new = None
+        change = None if new is None else np.max(np.abs(new.x - eq.x)) / (trial - tau)
+        jumped = change is not None and rate is not None and change > JUMP_FACTOR * rate
+        if new is None or new.solver.iterations > HARD_STEP or jumped:
+            rejected += 1
+            step /= 4
+            continue
+        steps += 1
+        iterations += new.solver.iterations
+        rate = change if rate is None else max(rate, change)
+        tau, eq = trial, new
+        if new.solver.iterations <= EASY_STEP:
+            step *= 2
+    return _with_path(eq, Path("continuation", steps, rejected, iterations), t0)
+
+
+def _with_path(eq: Equilibrium, path: Path, t0: float) -> Equilibrium:
+    stats = replace(eq.solver, iterations=path.iterations, seconds=time.perf_counter() - t0,
+                    details={**eq.solver.details, "path": path.describe(),
+                             "continuation_steps": path.steps})
+    return replace(eq, solver=stats)

@@ -1,0 +1,109 @@
+"""Error estimates of direct solutions and mesh refinement to a tolerance.
+
+:func:`estimate` compares a direct solution with the same problem on the
+mesh with half the cells, solved from it (:func:`solve_from`, so the coarse
+solution stays on the fine one's branch), and returns an
+:class:`~morphoshell.results.ErrorEstimate` (Richardson: |fine − coarse| /
+(2^p − 1) for order p, times a safety factor).  :func:`refine` doubles the
+cells until the estimate meets a relative tolerance, as ``solve_bvp``'s
+``tol`` does, reusing each level as the next one's reference.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Callable
+
+import numpy as np
+
+from .direct import MAX_NODES, DirectSolver
+from .problem import Problem
+from .results import ESTIMATED, Equilibrium, ErrorEstimate, SolverError
+
+__all__ = ["solve_from", "estimate", "refine", "half_mesh", "SAFETY"]
+
+#: Factor on the Richardson estimate: pre-asymptotic meshes (boundary layers
+#: resolved by a few cells) converge more slowly than the design order.
+SAFETY = 2.0
+
+
+def half_mesh(nodes: int) -> int:
+    """Nodes of the mesh with half the cells."""
+    return (nodes - 1) // 2 + 1
+
+
+def solve_from(solver: DirectSolver, problem: Problem, eq: Equilibrium, anchors=()) -> Equilibrium:
+    """``problem`` on ``solver``'s mesh, started from a solution ``eq`` on another mesh.
+
+    r, ψ and f_s are interpolated (linearly) from ``eq``'s points; the
+    multipliers start at zero.  Newton then converges in a few iterations on
+    ``eq``'s branch.
+    """
+    d = solver.disc
+    p = problem.parameter_vector()
+    s = d.points(p, anchors)
+    nodes = s[::d.stages]
+    s_g = (nodes[:-1, None] + np.diff(nodes)[:, None] * d.tau[None, :]).ravel()
+    x0 = d.layout.pack(np.interp(s, eq.s, eq.r), np.interp(s, eq.s, eq.psi),
+                       np.interp(s_g, eq.s, eq.f_s))
+    return solver.solve(problem, x0=x0, anchors=anchors)
+
+
+def estimate(fine: Equilibrium, coarse: Equilibrium | None, order: int,
+             note: str = "") -> ErrorEstimate:
+    """Error estimate of ``fine`` from the half-mesh solution ``coarse`` (None: unavailable)."""
+    values = fine.estimated_values()
+    if coarse is None:
+        errors = {k: float("nan") for k in ESTIMATED}
+        ref = 0
+    else:
+        other = coarse.estimated_values()
+        errors = {k: SAFETY * abs(values[k] - other[k]) / (2**order - 1) for k in ESTIMATED}
+        ref = coarse.solver.nodes
+    return ErrorEstimate(errors, values, fine.solver.nodes, ref, order, SAFETY, note)
+
+
+def refine(eq: Equilibrium, solver_for: Callable[[int], DirectSolver], rtol: float | None,
+           anchors=()) -> Equilibrium:
+    """``eq`` with its error estimate, refined until it meets ``rtol`` (if given).
+
+    Parameters
+    ----------
+    eq : Equilibrium
+        A direct solution.
+    solver_for : callable
+        ``nodes -> DirectSolver`` for the same structure and options.
+    rtol : float or None
+        Relative tolerance (see :meth:`ErrorEstimate.meets`: the energy
+        relative to itself, edge values absolutely, in units of R and
+        radians); None only estimates.
+
+    Raises
+    ------
+    SolverError
+        Status ``"Tolerance_Not_Met"`` when ``rtol`` needs more than
+        :data:`~morphoshell.direct.MAX_NODES` nodes; the finest solution is
+        attached.
+    """
+    problem, nodes = eq.problem, eq.solver.nodes
+    order = 2 * solver_for(nodes).stages
+    reference, note = None, ""
+    if half_mesh(nodes) >= 5:
+        try:
+            reference = solve_from(solver_for(half_mesh(nodes)), problem, eq, anchors)
+        except SolverError as exc:
+            note = f"the half mesh ({half_mesh(nodes)} nodes) did not converge ({exc.status})"
+    else:
+        note = "too few nodes to halve"
+    est = estimate(eq, reference, order, note)
+    while rtol is not None and not est.meets(rtol):
+        finer_nodes = 2 * (nodes - 1) + 1
+        if finer_nodes > MAX_NODES:
+            key, err = est.worst()
+            raise SolverError(
+                f"the error estimate {err:.3g} of {key} (at {nodes} nodes) does not meet "
+                f"rtol = {rtol:g} within {MAX_NODES} nodes; the finest solution is attached",
+                "Tolerance_Not_Met", replace(eq, error=est))
+        finer = solve_from(solver_for(finer_nodes), problem, eq, anchors)
+        est = estimate(finer, eq, order)
+        eq, nodes = finer, finer_nodes
+    return replace(eq, error=est)
