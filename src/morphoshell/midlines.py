@@ -727,11 +727,10 @@ def _whole(curve: _Curve, n_points: int, flip: bool):
     s_pole = _crossing(curve, normal, c)
     pole = curve(s_pole)
     fraction = np.linspace(0.0, 1.0, max(1024, 2 * n_points))
-    right = curve(s_pole + fraction * (length - s_pole)) - pole
-    left = curve(s_pole - fraction * s_pole) - pole
-    e_r = normal if np.mean(right @ normal) >= 0 else -normal
-    e_z = _anterior(np.array([-normal[1], normal[0]]), np.zeros(2), [right[-1], left[-1]], flip)
-    right, left = right @ np.column_stack([e_r, e_z]), left @ np.column_stack([-e_r, e_z])
+    right, left = curve(s_pole + fraction * (length - s_pole)), curve(s_pole - fraction * s_pole)
+    e_r = normal if np.mean((right - pole) @ normal) >= 0 else -normal
+    e_z = _anterior(np.array([-normal[1], normal[0]]), pole, [right[-1], left[-1]], flip)
+    right, left = _gauge(right, pole, e_r, e_z), _gauge(left, pole, -e_r, e_z)    # left mirrored
     asymmetry = float(np.sqrt(np.mean(np.sum((right - left) ** 2, axis=1)))) / 2
     return pole, e_r, e_z, (right + left) / 2, asymmetry
 
