@@ -9,7 +9,7 @@ LAYERS = [
     {"_validate", "_buffered"},
     {"geometry", "coefficients", "profiles", "layouts", "problem"},
     {"energy"},
-    {"mesh", "results"},
+    {"mesh", "results", "midlines"},
     {"discretisation"},
     {"ipopt"},
     {"direct", "reference"},
