@@ -82,9 +82,13 @@ def test_observed_order(runs):
     # Self-convergence (no reference needed) on the three coarsest meshes,
     # whose differences stay far above round-off and the BVP tolerance.
     p_self = np.log2(np.abs(V[0] - V[1]) / np.abs(V[1] - V[2]))
-    # +-0.3 around the design order: the measured orders are 2.00 and
-    # 3.9-4.1 (higher-order terms still visible at 200 nodes).
-    assert np.all(np.abs(p_self - order) < 0.3), p_self
+    # At least the design order (-0.3 for higher-order terms at 200 nodes):
+    # measured 2.00 (midpoint) and 3.9-4.1 (gauss2), except the Volvox shell
+    # with a cut, whose steps of width sigma are nodes of the mesh, refined:
+    # its edge values converge pre-asymptotically faster (8.7, 6.7, 4.2
+    # between 200, 400, 800 nodes) down to 3e-13.  A kink or step left between
+    # nodes would show order 2 here.
+    assert np.all(p_self > order - 0.3), p_self
     if order == 2:
         # and convergence to the BVP solution itself, at the same rate
         err = np.abs(V - _edge_values(bvp))

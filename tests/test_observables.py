@@ -118,3 +118,17 @@ def test_kkt_residual_vanishes_at_solutions_only():
     assert at_solution < 1e-8
     moved = problem.with_updates(f0=0.12).parameter_vector()
     assert np.max(np.abs(np.asarray(F(eq.x, eq.lam_g, moved, [])))) > 1e3 * at_solution
+
+
+def test_derivatives_move_the_mesh_with_the_breakpoints():
+    # on a mesh whose nodes follow s1..s4, d/ds2 includes the nodes' motion,
+    # like the re-solves, which move them too
+    from morphoshell.mesh import mesh_spec
+    problem = Problem("volvox", h=0.15, opening=0.3)
+    solver = DirectSolver(problem.structure, mesh=mesh_spec(problem, 200, 2))
+    eq = solver.solve(problem)
+    p = problem.parameter_vector()
+    obs = state_at(solver.disc, 2.6, solver.disc.cell_of(p, (), 2.6))
+    _, J = parametric(solver).jacobian(eq, obs, ("s2", "s4", "sigma"))
+    _check_columns(problem, ("s2", "s4", "sigma"), J,
+                   lambda sub: obs.at(solver.solve(sub, warm_start=eq)))

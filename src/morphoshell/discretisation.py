@@ -52,7 +52,7 @@ import numpy as np
 from ._buffered import Buffered
 from .energy import LOCAL_OUTPUTS, intrinsic_function, pointwise
 from .layouts import CELL_DATA, INTRINSIC
-from .mesh import check_monotone, shell_points
+from .mesh import Knot, check_monotone, shell_points
 from .problem import Structure
 
 __all__ = ["Discretisation", "Layout", "SymbolicShape", "collocation", "within_cells"]
@@ -185,9 +185,11 @@ class Discretisation:
         Nodes in [0, 1] (see :func:`morphoshell.mesh.graded_mesh`).
     stages : int
         Gauss points per cell S (order 2S).
-    knots : tuple of float
-        Values of t (nodes of ``t``) that sit at the anchors q: material
-        points given with every solve (see :func:`morphoshell.mesh.shell_points`).
+    knots : tuple of Knot (or float)
+        Nodes of ``t`` that sit at given material points: the anchors q
+        passed with every solve, or the family's breakpoints, which move with
+        the parameters (see :class:`morphoshell.mesh.Knot`; a float is an
+        anchor).
 
     Attributes
     ----------
@@ -198,7 +200,7 @@ class Discretisation:
     p : casadi.MX
         Physical parameters (``structure.parameters``); ``pre(p, q)`` gives ``D``.
     q : casadi.MX
-        Positions of the anchors (one per knot; empty without knots).
+        Positions of the anchors (one per anchor knot; empty without).
     energy, objective : casadi.MX
         Total energy 𝓔(x, D) and the scaled objective handed to Ipopt.
     g : casadi.MX
@@ -208,13 +210,16 @@ class Discretisation:
     """
 
     def __init__(self, structure: Structure, t: np.ndarray, stages: int = 2,
-                 knots: tuple[float, ...] = ()):
+                 knots: tuple = ()):
         if stages not in (1, 2, 3):
             raise ValueError(f"stages = {stages!r} must be 1, 2 or 3")
         self.structure = structure
         self.geometry = structure.geometry
         self.t = np.asarray(t, dtype=float)
-        self.knots = tuple(float(k) for k in knots)
+        self.knot_list = tuple(k if isinstance(k, Knot) else Knot(float(k), "anchor", i)
+                               for i, k in enumerate(knots))
+        self.knots = tuple(k.t for k in self.knot_list)
+        self.anchors = sum(k.source == "anchor" for k in self.knot_list)
         missing = [k for k in self.knots if not np.any(self.t == k)]
         if missing:
             raise ValueError(f"mesh knots {missing} are not nodes of the mesh")
@@ -228,7 +233,7 @@ class Discretisation:
         m = cells * S
 
         self.p = ca.MX.sym("p", n_p)
-        self.q = ca.MX.sym("q", len(self.knots))
+        self.q = ca.MX.sym("q", self.anchors)
         a, b = self.shell_ends(self.p)
         s_nodes = self.nodes(self.p, self.q)
         ds = (s_nodes[1:] - s_nodes[:-1])[np.repeat(np.arange(cells), S).tolist()]
@@ -303,7 +308,18 @@ class Discretisation:
         points sit at fixed fractions of it.
         """
         a, b = self.shell_ends(p)
-        return shell_points(self.t, a, b, self.knots, q)
+        return shell_points(self.t, a, b, self.knots, self.knot_positions(p, q))
+
+    def knot_positions(self, p, q) -> list:
+        """Material points of the knots: anchors from q, breakpoints from the parameters."""
+        if not self.knot_list:
+            return []
+        fam = self.structure.family
+        named = self.structure.parameters.unpack(p)
+        a, b = self.shell_ends(p)
+        bps = fam.breakpoints({n: named[n] for n in fam.parameters}, a, b) \
+            if any(k.source == "breakpoint" for k in self.knot_list) else []
+        return [q[k.index] if k.source == "anchor" else bps[k.index][0] for k in self.knot_list]
 
     def _pre_function(self, n_p: int) -> ca.Function:
         """``(s_k, Δs_c, w_k, scale, p) -> D_k``: parameter-only data at one Gauss point."""
@@ -392,14 +408,20 @@ class Discretisation:
     def check_anchors(self, p: np.ndarray, q) -> np.ndarray:
         """``q`` as an array, or ValueError unless it holds increasing points inside the shell."""
         q = np.asarray(q, dtype=float).ravel()
-        if len(q) != len(self.knots):
-            raise ValueError(f"this mesh has {len(self.knots)} anchor(s), got {len(q)}")
-        a, b = self.shell_ends(np.asarray(p, dtype=float))
-        if len(q) and not np.all(np.diff(np.concatenate([[a], q, [b]])) > 0):
-            raise ValueError(f"anchors {q.tolist()} must be increasing and lie inside the "
-                             f"shell ({a:.6g}, {b:.6g})")
-        if len(q):
-            check_monotone(self.nodes(np.asarray(p, dtype=float), q))
+        if len(q) != self.anchors:
+            raise ValueError(f"this mesh has {self.anchors} anchor(s), got {len(q)}")
+        p = np.asarray(p, dtype=float)
+        a, b = self.shell_ends(p)
+        where = [float(v) for v in self.knot_positions(p, q)]
+        if where and not np.all(np.diff(np.concatenate([[a], where, [b]])) > 0):
+            names = [f"{k.source} {k.index}" for k in self.knot_list]
+            raise ValueError(
+                f"this mesh puts nodes at {dict(zip(names, where))}, which must be increasing and "
+                f"lie inside the shell ({a:.6g}, {b:.6g}): a breakpoint of the family moved past "
+                f"another or out of the shell; solve with solve() (which picks a suitable mesh) "
+                f"or build a DirectSolver with mesh_spec for this problem")
+        if where:
+            check_monotone(self.nodes(p, q))
         return q
 
     def cell_data(self, p: np.ndarray, q=()) -> np.ndarray:

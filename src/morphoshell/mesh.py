@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -30,11 +31,13 @@ from scipy.special import gamma, gammainc
 from .energy import boundary_layer_width
 
 __all__ = ["boundary_layer_width", "pole_exponent", "graded_mesh", "shell_points", "MeshSpec",
-           "mesh_spec", "knot_for"]
+           "mesh_spec", "knot_for", "Knot", "breakpoints"]
 
 
 #: Smallest cell (in t) next to a pole; see :func:`graded_mesh`.
 MIN_POLE_CELL = 1e-10
+#: Extra node density at a refined knot (3 times finer cells there).
+KNOT_REFINEMENT = 2.0
 
 
 def shell_points(t, cut, end, knots: tuple[float, ...] = (), anchors=()):
@@ -43,29 +46,38 @@ def shell_points(t, cut, end, knots: tuple[float, ...] = (), anchors=()):
     s = Σ + (L − P − Σ) t (``end`` = L − P), or, with interior ``knots``
     t_1 < … < t_m that must land on the material points ``anchors``,
 
-        s = Σ + (L − P − Σ) t + t (1 − t) Π(t),
+        s = Σ + (L − P − Σ) t + Σ_j c_j B((t − t_j)/w_j),
 
-    Π the polynomial of degree m − 1 through the offsets that put each knot
-    on its anchor.  The map stays smooth (a kink in the cell sizes would cost
-    the scheme its superconvergence at that node) and is affine in Σ, P and
-    the anchors.  t is numeric (a float or an array); Σ, L − P and the
-    anchors may be floats or CasADi expressions, so derivatives with respect
-    to them come from automatic differentiation.
+    B(x) = exp(1 − 1/(1 − x²)) a smooth (C^∞) bump with B(0) = 1 that vanishes
+    for |x| ≥ 1, w_j the distance from t_j to its nearest neighbour among
+    0, the knots and 1 (so each bump is 0 at every other knot), and c_j the
+    offset that puts knot j on its anchor.  The map stays smooth (a kink in
+    the cell sizes costs the scheme its superconvergence there) and is affine
+    in Σ, P and the anchors.  t is numeric (a float or an array); Σ, L − P
+    and the anchors may be floats or CasADi expressions, so derivatives with
+    respect to them come from automatic differentiation.
     """
     anchors = [anchors[i] for i in range(len(knots))]
     symbolic = any(isinstance(v, (ca.SX, ca.MX)) for v in (cut, end, *anchors))
     t_arr = np.asarray(t, dtype=float)
     T = ca.DM(np.atleast_1d(t_arr)) if symbolic else t_arr
     s = cut + (end - cut) * T
-    k = np.asarray(knots, dtype=float)
-    for j in range(len(k)):
-        others = np.delete(k, j)
-        basis = np.prod([(t_arr - o) / (k[j] - o) for o in others], axis=0) if len(others) \
-            else np.ones_like(t_arr)
-        bump = t_arr * (1 - t_arr) * basis
-        offset = (anchors[j] - cut - (end - cut) * k[j]) / (k[j] * (1 - k[j]))
+    k = np.concatenate([[0.0], np.asarray(knots, dtype=float), [1.0]])
+    for j in range(1, len(k) - 1):
+        w = min(k[j] - k[j - 1], k[j + 1] - k[j])
+        bump = _bump((t_arr - k[j]) / w)
+        offset = anchors[j - 1] - cut - (end - cut) * k[j]
         s = s + (ca.DM(np.atleast_1d(bump)) if symbolic else bump) * offset
     return s
+
+
+def _bump(x: np.ndarray) -> np.ndarray:
+    """exp(1 − 1/(1 − x²)) for |x| < 1, else 0 (smooth, 1 at 0)."""
+    x = np.asarray(x, dtype=float)
+    inside = np.abs(x) < 1
+    out = np.zeros_like(x)
+    out[inside] = np.exp(1 - 1 / (1 - x[inside] ** 2))
+    return out
 
 
 def check_monotone(s: np.ndarray) -> None:
@@ -87,7 +99,8 @@ def pole_exponent(stages: int) -> float:
 
 def graded_mesh(cells: int, length: float, start: str, end: str, width: float,
                 ratio: float = 6.0, pole_width: float = 0.05, q: float = 2.0,
-                edge_scale: float | None = None, knots: tuple[float, ...] = ()) -> np.ndarray:
+                edge_scale: float | None = None, knots: tuple[float, ...] = (),
+                knot_widths: tuple[float | None, ...] = ()) -> np.ndarray:
     """Nodes t_0 = 0 < … < t_N = 1 of a smoothly graded mesh.
 
     The node density (per unit of t) is
@@ -119,17 +132,25 @@ def graded_mesh(cells: int, length: float, start: str, end: str, width: float,
         Interior values of t that must be nodes (anchors of the parametric
         map, see :func:`shell_points`); each segment between them gets its
         share of the cells by the same density.
+    knot_widths : tuple of float or None
+        Per knot (in units of the length): refine around it on this scale,
+        adding KNOT_REFINEMENT exp(−|t − t_j|/w_j) to the density (the
+        steps of width σ of the Volvox profiles); None adds nothing (a kink
+        needs only the node).
     """
     if cells < 2:
         raise ValueError(f"need at least 2 cells, got {cells}")
     bounds = np.concatenate([[0.0], np.sort(np.asarray(knots, dtype=float)), [1.0]])
     if np.any(np.diff(bounds) <= 0):
         raise ValueError(f"mesh knots {knots} must lie strictly inside (0, 1) and differ")
+    widths = dict(zip(knots, knot_widths))
+    bumps = tuple((k, widths[k] / length) for k in bounds[1:-1] if widths.get(k) is not None)
     return _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge_scale,
-                           bounds)
+                           bounds, bumps)
 
 
-def _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge_scale, bounds):
+def _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge_scale, bounds,
+                    bumps=()):
     """Nodes equidistributing the density of :func:`graded_mesh`, with nodes at ``bounds``."""
     ell = 3 * width / length
     ell_c = None if edge_scale is None else edge_scale / length
@@ -144,8 +165,16 @@ def _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge
             return out
         return pole_width * gamma(1 / q) * gammainc(1 / q, d / pole_width)
 
+    def bump(x, c, w):
+        # ∫₀^x KNOT_REFINEMENT exp(−|u − c|/w) du
+        return KNOT_REFINEMENT * w * (np.sign(x - c) * -np.expm1(-np.abs(x - c) / w)
+                                      - np.expm1(-c / w))
+
     def W(x):
-        return x + cumulative(x, start) + cumulative(1.0, end) - cumulative(1 - x, end)
+        out = x + cumulative(x, start) + cumulative(1.0, end) - cumulative(1 - x, end)
+        for c, w in bumps:
+            out = out + bump(x, c, w)
+        return out
 
     # Nodes within ~1e-16 of the far end are not representable (s ≈ π there,
     # and sin s loses its digits): with q = 2S the cells at a pole reach 1e-15
@@ -176,6 +205,21 @@ def _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge
     return t
 
 
+class Knot(NamedTuple):
+    """A node of the mesh that sits at a given material point.
+
+    ``source`` is ``"anchor"`` (the ``index``-th anchor passed with each
+    solve) or ``"breakpoint"`` (the family's ``index``-th breakpoint, an
+    expression of the parameters); ``width`` is the refinement scale relative
+    to the shell's length, or None.
+    """
+
+    t: float
+    source: str
+    index: int
+    width: float | None = None
+
+
 @dataclass(frozen=True)
 class MeshSpec:
     """Everything that fixes a direct solver's mesh t (hashable: a cache key).
@@ -192,10 +236,10 @@ class MeshSpec:
         below the boundary-layer width (small cuts), else None.
     q : float
         Pole grading exponent (:func:`pole_exponent`).
-    knots : tuple of float
-        Mesh coordinates t of the anchors: nodes that sit at given material
-        points (for example the rim s = Σ of a later cut, in the intact shell),
-        whose positions are passed with every solve.
+    knots : tuple of Knot
+        Nodes that sit at given material points: anchors passed with every
+        solve (for example the rim s = Σ of a later cut, in the intact shell)
+        and the family's breakpoints (kinks and steps of the profiles).
     """
 
     nodes: int
@@ -204,12 +248,13 @@ class MeshSpec:
     width: float
     edge_scale: float | None
     q: float
-    knots: tuple[float, ...] = ()
+    knots: tuple[Knot, ...] = ()
 
     def nodes_t(self) -> np.ndarray:
         """The mesh t_0 = 0 < … < t_N = 1."""
         return graded_mesh(self.nodes - 1, 1.0, self.start, self.end, self.width, q=self.q,
-                           edge_scale=self.edge_scale, knots=self.knots)
+                           edge_scale=self.edge_scale, knots=tuple(k.t for k in self.knots),
+                           knot_widths=tuple(k.width for k in self.knots))
 
 
 def _octave(x: float) -> float:
@@ -217,22 +262,29 @@ def _octave(x: float) -> float:
     return 2.0 ** round(math.log2(x))
 
 
-def knot_for(fraction: float) -> float:
+def knot_for(fraction: float, resolution: int = 2) -> float:
     """A mesh knot near ``fraction`` of the shell, rounded so that solvers can be shared.
 
-    The odds t/(1 − t) are rounded to half octaves: knots are dense near the
-    ends, where anchors next to a pole or edge must not be stretched far.
+    The odds t/(1 − t) are rounded to 1/``resolution`` octaves (half octaves
+    by default): knots are dense near the ends, where anchors next to a pole
+    or edge must not be stretched far.
     """
     if not 0 < fraction < 1:
         raise ValueError(f"an anchor must lie inside the shell, got the fraction {fraction!r}")
-    odds = 2.0 ** (round(2 * math.log2(fraction / (1 - fraction))) / 2)
+    odds = 2.0 ** (round(resolution * math.log2(fraction / (1 - fraction))) / resolution)
     return odds / (1 + odds)
+
+
+#: Breakpoints closer than this (relative to the shell's length) to an end are
+#: not given a node: the segment between would be a sliver.
+END_MARGIN = 1e-3
 
 
 def mesh_spec(problem, nodes: int, stages: int, anchors: tuple[float, ...] = ()) -> MeshSpec:
     """The mesh a direct solver uses for ``problem`` (grading rounded to octaves).
 
-    ``anchors`` are material points s that must be nodes (see :class:`MeshSpec`).
+    ``anchors`` are material points s that must be nodes (see :class:`MeshSpec`);
+    the family's breakpoints inside the shell become nodes too.
     """
     st = problem.structure
     length = problem.end - problem.cut
@@ -242,11 +294,37 @@ def mesh_spec(problem, nodes: int, stages: int, anchors: tuple[float, ...] = ())
     edge = min(edges) / length if edges else None
     # graded_mesh grades for it only below a third of the boundary layer
     edge = _octave(edge) if edge is not None and _octave(edge) < width / 3 else None
-    for s in anchors:
+    points = []
+    for i, s in enumerate(anchors):
         if not problem.cut < s < problem.end:
             raise ValueError(f"anchor s = {s!r} must lie inside the shell "
                              f"({problem.cut:.6g}, {problem.end:.6g})")
-    knots = tuple(knot_for((s - problem.cut) / length) for s in anchors)
-    if len(set(knots)) != len(knots) or list(knots) != sorted(knots):
-        raise ValueError(f"anchors {anchors} must be increasing and well separated")
+        points.append((s, "anchor", i, None))
+    for j, (s, w) in enumerate(breakpoints(problem)):
+        if END_MARGIN < (s - problem.cut) / length < 1 - END_MARGIN:
+            points.append((s, "breakpoint", j, None if w is None else _octave(w / length)))
+    points.sort()
+    fractions = [(s - problem.cut) / length for s, *_ in points]
+    probe = np.linspace(0, 1, 2001)
+    for resolution in (2, 4, 8, 16, 64, 256):
+        ts = [knot_for(f, resolution) for f in fractions]
+        # the coarsest rounding whose map is monotone with a margin (slope at
+        # least half the plain one), so that the anchors may still move
+        if len(set(ts)) == len(ts) and np.all(np.diff(ts) > 0) and \
+                np.min(np.diff(shell_points(probe, 0.0, 1.0, tuple(ts), fractions))) > \
+                0.5 * (probe[1] - probe[0]):
+            break
+    else:
+        raise ValueError(f"anchors and breakpoints at {[p[0] for p in points]} are too close "
+                         f"together to be mesh nodes")
+    knots = tuple(Knot(t, src, i, w) for t, (_, src, i, w) in zip(ts, points))
     return MeshSpec(int(nodes), st.start, st.end, width, edge, pole_exponent(stages), knots)
+
+
+def breakpoints(problem) -> list[tuple[float, float | None]]:
+    """The family's breakpoints of ``problem`` as numbers: [(s, width or None), ...]."""
+    fam = problem.family_obj
+    if fam.breakpoints is None:
+        return []
+    return [(float(s), None if w is None else float(w))
+            for s, w in fam.breakpoints(dict(problem.params), problem.cut, problem.end)]

@@ -70,6 +70,13 @@ class ProfileFamily:
     pre_ablation : mapping
         Parameter values of the intact shell when they differ from the cut
         one (a response triggered by the cut, such as ``local_relaxation``).
+    breakpoints : callable, optional
+        ``breakpoints(p, cut, end) -> [(position, width), ...]``: material
+        points where the profiles kink or change fast, as expressions of the
+        named parameters ``p`` (floats or CasADi symbols), with the width of
+        the change (None for a kink).  The direct solver's mesh puts a node
+        at each (and refines on the width's scale), following them as the
+        parameters change, so the scheme keeps its order.
     """
 
     name: str
@@ -80,6 +87,7 @@ class ProfileFamily:
     description: str = ""
     neutral: Mapping[str, float] = field(default_factory=dict)
     pre_ablation: Mapping[str, float] = field(default_factory=dict)
+    breakpoints: Callable | None = None
     _function: dict = field(default_factory=dict, repr=False, compare=False)
 
     def function(self, points: int | None = None) -> ca.Function:
@@ -160,6 +168,14 @@ def _validate_local_relaxation(v, cut, end):
     _within(v, 0, 2 * np.pi, "s0", why=" (width of the relaxed region, in units of R)")
 
 
+def _local_relaxation_breakpoints(p, cut, end):
+    return [(cut + p["s0"], None)]       # the kink of the ramp
+
+
+def _volvox_breakpoints(p, cut, end):
+    return [(p[f"s{i}"], p["sigma"]) for i in range(1, 5)]    # steps of width sigma
+
+
 def _softplus(x):
     return ca.fmax(x, 0) + ca.log1p(ca.exp(-ca.fabs(x)))
 
@@ -235,7 +251,7 @@ register_family(ProfileFamily(
     _validate_local_relaxation,
     description="f0 = 1 + F0 (cut + s0 - s)/s0 near the cut, kappa0 = 1 (fast relaxation)",
     # The relaxation is an active response to the cut: the intact shell has none.
-    neutral={"F0": 0.0}, pre_ablation={"F0": 0.0}))
+    neutral={"F0": 0.0}, pre_ablation={"F0": 0.0}, breakpoints=_local_relaxation_breakpoints))
 register_family(ProfileFamily(
     "volvox",
     ("f1", "f2", "f3", "f4", "f5", "kappa1", "kappa2", "kappa3", "kappa4",
@@ -247,5 +263,6 @@ register_family(ProfileFamily(
      "s1": 1.3, "s2": 1.6, "s3": 1.9, "s4": 2.3, "sigma": 0.05},
     _volvox, _validate_volvox,
     description="13-parameter Volvox inversion model (volvox_model.md), smoothing width sigma",
-    neutral={**{f"f{i}": 1.0 for i in range(1, 6)}, **{f"kappa{i}": 1.0 for i in range(1, 5)}}))
+    neutral={**{f"f{i}": 1.0 for i in range(1, 6)}, **{f"kappa{i}": 1.0 for i in range(1, 5)}},
+    breakpoints=_volvox_breakpoints))
 
