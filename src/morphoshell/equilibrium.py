@@ -21,7 +21,7 @@ from typing import Any, Mapping
 from dataclasses import replace
 
 from .continuation import continue_to
-from .direct import BUILDS, DirectSolver, check_nodes
+from .direct import BUILDS, MAX_NODES, DirectSolver, check_nodes
 from .mesh import mesh_spec
 from .problem import Problem
 from .refinement import refine
@@ -36,7 +36,8 @@ __all__ = ["solve", "direct_solver", "cache_info", "clear_cache", "SOLVER_CACHE_
 METHODS = ("direct", "bvp")
 
 #: Keyword options of :func:`solve` for each route.
-DIRECT_OPTIONS = ("stages", "linear_solver", "tol", "max_iter", "stability", "ipopt_options")
+DIRECT_OPTIONS = ("stages", "linear_solver", "tol", "max_iter", "stability", "ipopt_options",
+                  "max_nodes")
 BVP_OPTIONS = ("tol", "bc_tol", "pole_offset", "max_nodes", "homotopy_steps", "max_seconds")
 
 #: Direct solvers kept by :func:`solve` (least recently used dropped first).
@@ -121,7 +122,8 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
         half the cells.
     **options
         direct: ``stages``, ``linear_solver``, ``tol``, ``max_iter``,
-        ``stability``, ``ipopt_options`` (see :class:`DirectSolver`);
+        ``stability``, ``ipopt_options`` (see :class:`DirectSolver`), and
+        ``max_nodes``, the finest mesh ``rtol`` may refine to;
         bvp: ``tol``, ``bc_tol``, ``pole_offset``, ``max_nodes``,
         ``homotopy_steps``, ``max_seconds`` (see
         :func:`morphoshell.reference.solve_bvp`).
@@ -150,6 +152,7 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
         return solve_bvp(problem, nodes=nodes, guess=warm_start, **options)
     if rtol is not None and not (isinstance(rtol, (int, float)) and 0 < rtol < 1):
         raise ValueError(f"rtol = {rtol!r} must be a number in (0, 1)")
+    max_nodes = check_nodes(options.pop("max_nodes", MAX_NODES))
     solver = direct_solver(problem, nodes, anchors, **options)
     if warm_start is not None:
         eq = solver.solve(problem, warm_start=warm_start, anchors=anchors)
@@ -160,4 +163,5 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
     else:
         eq = solver.solve(problem, anchors=anchors)
         eq = replace(eq, solver=replace(eq.solver, details={**eq.solver.details, "path": "cold"}))
-    return refine(eq, lambda n: direct_solver(problem, n, anchors, **options), rtol, anchors)
+    return refine(eq, lambda n: direct_solver(problem, n, anchors, **options), rtol, anchors,
+                  max_nodes)

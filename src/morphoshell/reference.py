@@ -219,9 +219,18 @@ def _neutral_start(problem: Problem, steps: int) -> list[Problem]:
     return seq
 
 
+#: Default wall-clock budget of :func:`solve_bvp` (seconds).
+MAX_SECONDS = 30.0
+
+
+class _OutOfTime(Exception):
+    pass
+
+
 def solve_bvp(problem: Problem, nodes: int = 400, *, tol: float = 1e-8, bc_tol: float | None = None,
               guess: Equilibrium | None = None, pole_offset: float = 1e-4,
-              max_nodes: int = 400000, homotopy_steps: int = 1) -> Equilibrium:
+              max_nodes: int = 100000, homotopy_steps: int = 1,
+              max_seconds: float = MAX_SECONDS) -> Equilibrium:
     """Equilibrium of ``problem`` from the boundary-value reference.
 
     Parameters
@@ -241,19 +250,33 @@ def solve_bvp(problem: Problem, nodes: int = 400, *, tol: float = 1e-8, bc_tol: 
         ε, the distance from a pole at which the solution starts.
     max_nodes : int
         Passed to ``solve_bvp``.
+    max_seconds : float
+        Wall-clock budget: ``solve_bvp`` refines its mesh without bound on a
+        problem it cannot resolve (thin shells, profile kinks), measured at
+        90 s before it gave up; past the budget it stops with status
+        ``"Time_Limit_Exceeded"``.
 
     Raises
     ------
     SolverError
-        ``solve_bvp`` did not converge; ``.status`` is its message.
+        ``solve_bvp`` did not converge (``.status`` is its message) or ran
+        out of time.
     """
     t0 = time.perf_counter()
     steps = 1 if guess is not None else max(1, int(homotopy_steps))
     current = guess
     total_iters = 0
+    deadline = t0 + float(max_seconds)
     for sub in _neutral_start(problem, steps):
-        current, iters = _solve_one(sub, nodes, tol, bc_tol if bc_tol is not None else tol,
-                                    current, pole_offset, max_nodes)
+        try:
+            current, iters = _solve_one(sub, nodes, tol, bc_tol if bc_tol is not None else tol,
+                                        current, pole_offset, max_nodes, deadline)
+        except _OutOfTime:
+            raise SolverError(
+                f"solve_bvp on {problem.name or problem.family!r} ran out of its time budget "
+                f"({max_seconds:g} s; max_seconds=...): it keeps refining a solution it cannot "
+                f"resolve (a thin boundary layer or a kink of the profiles?); the direct method "
+                f"handles both", "Time_Limit_Exceeded") from None
         total_iters += iters
     seconds = time.perf_counter() - t0
     st = current.solver
@@ -263,7 +286,8 @@ def solve_bvp(problem: Problem, nodes: int = 400, *, tol: float = 1e-8, bc_tol: 
 
 
 def _solve_one(problem: Problem, nodes: int, tol: float, bc_tol: float,
-               guess: Equilibrium | None, eps: float, max_nodes: int) -> tuple[Equilibrium, int]:
+               guess: Equilibrium | None, eps: float, max_nodes: int,
+               deadline: float = np.inf) -> tuple[Equilibrium, int]:
     st = problem.structure
     F = pontryagin_functions(st)
     geo = problem.geometry_obj
@@ -292,6 +316,8 @@ def _solve_one(problem: Problem, nodes: int, tol: float, bc_tol: float,
 
     # solve_bvp passes the unknowns q only when there are some (poles).
     def fun(x, y, *q):
+        if time.perf_counter() > deadline:
+            raise _OutOfTime
         return rhs(x, y, p)
 
     def fun_jac(x, y, *q):

@@ -63,7 +63,7 @@ def estimate(fine: Equilibrium, coarse: Equilibrium | None, order: int,
 
 
 def refine(eq: Equilibrium, solver_for: Callable[[int], DirectSolver], rtol: float | None,
-           anchors=()) -> Equilibrium:
+           anchors=(), max_nodes: int = MAX_NODES) -> Equilibrium:
     """``eq`` with its error estimate, refined until it meets ``rtol`` (if given).
 
     Parameters
@@ -76,13 +76,14 @@ def refine(eq: Equilibrium, solver_for: Callable[[int], DirectSolver], rtol: flo
         Relative tolerance (see :meth:`ErrorEstimate.meets`: the energy
         relative to itself, edge values absolutely, in units of R and
         radians); None only estimates.
+    max_nodes : int
+        Finest mesh allowed (at most :data:`~morphoshell.direct.MAX_NODES`).
 
     Raises
     ------
     SolverError
         Status ``"Tolerance_Not_Met"`` when ``rtol`` needs more than
-        :data:`~morphoshell.direct.MAX_NODES` nodes; the finest solution is
-        attached.
+        ``max_nodes`` nodes; the finest solution is attached.
     """
     problem, nodes = eq.problem, eq.solver.nodes
     order = 2 * solver_for(nodes).stages
@@ -95,15 +96,22 @@ def refine(eq: Equilibrium, solver_for: Callable[[int], DirectSolver], rtol: flo
     else:
         note = "too few nodes to halve"
     est = estimate(eq, reference, order, note)
+    path = eq.solver.details.get("path", "")
+    first = nodes
     while rtol is not None and not est.meets(rtol):
         finer_nodes = 2 * (nodes - 1) + 1
-        if finer_nodes > MAX_NODES:
+        if finer_nodes > min(max_nodes, MAX_NODES):
             key, err = est.worst()
             raise SolverError(
                 f"the error estimate {err:.3g} of {key} (at {nodes} nodes) does not meet "
-                f"rtol = {rtol:g} within {MAX_NODES} nodes; the finest solution is attached",
+                f"rtol = {rtol:g} within {min(max_nodes, MAX_NODES)} nodes; the finest "
+                f"solution is attached",
                 "Tolerance_Not_Met", replace(eq, error=est))
         finer = solve_from(solver_for(finer_nodes), problem, eq, anchors)
         est = estimate(finer, eq, order)
         eq, nodes = finer, finer_nodes
+    if nodes != first:
+        details = {**eq.solver.details, "path": f"{path}, then refined from {first} to {nodes} "
+                                               f"nodes for rtol = {rtol:g}"}
+        eq = replace(eq, solver=replace(eq.solver, details=details))
     return replace(eq, error=est)

@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 
 from ..io import METHODS
-from ._args import LINEAR_SOLVERS, add_outputs, integer
+from ._args import LINEAR_SOLVERS, add_outputs, integer, real
 from ._outputs import Outputs
 
 __all__ = ["register"]
@@ -33,6 +33,16 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--linear-solver", default="mumps", choices=LINEAR_SOLVERS, metavar="NAME",
                    help="Ipopt's linear solver for the direct method: mumps (default, bundled) "
                         "or an HSL solver such as ma27/ma57 if libhsl.so is installed")
+    p.add_argument("--rtol", type=real(0, 1, open_lo=True, open_hi=True), default=None,
+                   metavar="RTOL",
+                   help="direct method: refine the mesh (doubling the cells) until the error "
+                        "estimate meets RTOL (energy relative to itself, edge values in units "
+                        "of R and radians), or fail with exit status 3; without it the "
+                        "estimate is only reported")
+    p.add_argument("--no-continuation", dest="continuation", action="store_false",
+                   help="direct method: one cold solve from the undeformed shell instead of "
+                        "continuation from the family's stress-free parameters (faster, but "
+                        "may land on a spurious local minimum)")
 
 
 def register(sub) -> None:
@@ -75,12 +85,32 @@ def _load(args):
     nodes = settings.nodes if args.nodes is None else args.nodes
     stages = settings.stages if args.stages is None else args.stages
     method = args.method or settings.method
-    options = {"stages": stages, "linear_solver": args.linear_solver} if method == "direct" else {}
+    if method == "direct":
+        options = {"stages": stages, "linear_solver": args.linear_solver, "rtol": args.rtol,
+                   "continuation": args.continuation}
+    else:
+        if args.rtol is not None or not args.continuation:
+            raise ValueError("--rtol and --no-continuation are options of the direct method")
+        options = {}
     return problem, method, nodes, options
 
 
 def _label(problem) -> str:
     return problem.name or problem.family
+
+
+def _report_quality(eq) -> None:
+    """How the solution was reached and its estimated error (direct method)."""
+    if "path" in eq.solver.details:
+        print(f"  reached by      {eq.solver.details['path']}")
+    if eq.error is not None:
+        if eq.error.note:
+            print(f"  error estimate  unavailable: {eq.error.note}")
+        else:
+            rel = eq.error.relative()
+            edge = max(v for k, v in rel.items() if k != "energy")
+            print(f"  error estimate  {rel['energy']:.2g} of the energy, {edge:.2g} R or rad at "
+                  f"the edges (vs {eq.error.reference_nodes} nodes, order {eq.error.order})")
 
 
 def _solve(args) -> int:
@@ -93,7 +123,7 @@ def _solve(args) -> int:
     edge = "start" if problem.structure.start == "free" else "end"
     e = eq.edge(edge)
     it = eq.solver.iterations
-    points = (f"{nodes} nodes, {len(eq.s)} points" if method == "direct"
+    points = (f"{eq.solver.nodes} nodes, {len(eq.s)} points" if method == "direct"
               else f"{len(eq.s)} collocation points")
     print(f"{_label(problem)}: {method} solution, {points}, {it} iteration{'s' * (it != 1)}, "
           f"{eq.solver.seconds * 1e3:.1f} ms ({eq.solver.status})")
@@ -101,6 +131,7 @@ def _solve(args) -> int:
     print(f"  {edge} edge s = {e['s']:.6g} R: r = {e['r']:.10g} R, z = {e['z']:.10g} R, "
           f"psi = {e['psi']:.10g} rad")
     print(f"  max |eta|       = {abs(eq.eta).max():.4g}")
+    _report_quality(eq)
     out = Outputs()
     out.add(args.json, lambda path: write_json(path, eq.to_dict()))
     out.add(args.csv, lambda path: write_csv(path, {k: getattr(eq, k) for k in FIELDS}))
@@ -127,6 +158,9 @@ def _ablate(args) -> int:
     ab = ablate(problem, nodes=nodes, method=method, **options)
     print(f"{_label(problem)}: ablation of Sigma = {problem.cut:g} rad "
           f"({method}, {len(ab.post.s)} points)")
+    for label, eq in (("pre-ablation", ab.pre), ("post-ablation", ab.post)):
+        print(f"  {label}:")
+        _report_quality(eq)
     for key, value in ab.observables().items():
         print(f"  {key:20s} = {value:.10g} {_UNITS[key]}")
     out = Outputs()
