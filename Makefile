@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: run test bench figures clean
+.PHONY: run test fuzz bench figures clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -20,6 +20,11 @@ run: $(STAMP)
 ## test: the whole test suite
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+
+## fuzz: property-based fuzzing, >= 1000 random problems and bad command lines; prints
+## the counts (maintainers, before a release: about half an hour on 2 cores)
+fuzz: $(STAMP)
+	MORPHOSHELL_FUZZ=fuzz $(BIN)/python -m pytest -q -s -p no:cacheprovider tests/test_fuzz.py
 
 ## bench: timing tables (scripts/bench_*.py)
 bench: $(STAMP)

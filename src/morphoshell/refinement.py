@@ -3,8 +3,8 @@
 :func:`estimate` compares a direct solution with the same problem on the
 mesh with half the cells, solved from it (:func:`solve_from`, so the coarse
 solution stays on the fine one's branch), and returns an
-:class:`~morphoshell.results.ErrorEstimate` (Richardson: |fine − coarse| /
-(2^p − 1) for order p, times a safety factor).  :func:`refine` doubles the
+:class:`~morphoshell.results.ErrorEstimate`: the difference, a bound for
+any order of convergence.  :func:`refine` doubles the
 cells until the estimate meets a relative tolerance, as ``solve_bvp``'s
 ``tol`` does, reusing each level as the next one's reference.
 """
@@ -19,11 +19,7 @@ from .direct import MAX_NODES, DirectSolver
 from .problem import Problem
 from .results import ESTIMATED, Equilibrium, ErrorEstimate, SolverError
 
-__all__ = ["solve_from", "estimate", "refine", "half_mesh", "SAFETY"]
-
-#: Factor on the Richardson estimate: pre-asymptotic meshes (boundary layers
-#: resolved by a few cells) converge more slowly than the design order.
-SAFETY = 2.0
+__all__ = ["solve_from", "estimate", "refine", "half_mesh"]
 
 
 def half_mesh(nodes: int) -> int:
@@ -57,9 +53,9 @@ def estimate(fine: Equilibrium, coarse: Equilibrium | None, order: int,
         ref = 0
     else:
         other = coarse.estimated_values()
-        errors = {k: SAFETY * abs(values[k] - other[k]) / (2**order - 1) for k in ESTIMATED}
+        errors = {k: abs(values[k] - other[k]) for k in ESTIMATED}
         ref = coarse.solver.nodes
-    return ErrorEstimate(errors, values, fine.solver.nodes, ref, order, SAFETY, note)
+    return ErrorEstimate(errors, values, fine.solver.nodes, ref, order, note)
 
 
 def refine(eq: Equilibrium, solver_for: Callable[[int], DirectSolver], rtol: float | None,

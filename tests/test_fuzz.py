@@ -1,0 +1,209 @@
+"""Property-based fuzzing: random valid problems and random bad command lines.
+
+Properties (issue "The right minimum or an error"):
+
+* a returned equilibrium agrees with the solution on a mesh with twice the
+  cells within its own error estimate;
+* r ≥ 0 everywhere on a returned equilibrium;
+* the default solve (continuation) equals a reference continuation with many
+  small steps on the finer mesh: no wrong-branch result;
+* bad command-line input exits 2 with one line naming the item, no
+  traceback, no file left behind.
+
+A problem may also be refused with a SolverError naming its status ("the right
+minimum or an error"); that is counted, not failed.  ``make test`` runs a small
+derandomised budget (profile "ci"); ``make fuzz`` runs at least 1000 random
+problems (profile "fuzz") and prints the counts.
+"""
+import collections
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st
+
+from morphoshell import Problem, SolverError, solve
+from morphoshell.cli import main
+from morphoshell.direct import DirectSolver
+from morphoshell.mesh import mesh_spec
+
+settings.register_profile("ci", max_examples=8, deadline=None, derandomize=True,
+                          suppress_health_check=[HealthCheck.too_slow], database=None)
+settings.register_profile("fuzz", max_examples=1000, deadline=None,
+                          suppress_health_check=[HealthCheck.too_slow])
+settings.load_profile(os.environ.get("MORPHOSHELL_FUZZ", "ci"))
+
+ROOT = Path(__file__).resolve().parents[1]
+TOY2 = str(ROOT / "problems" / "toy2_ablation.toml")
+COUNTS: collections.Counter = collections.Counter()
+
+
+@pytest.fixture(scope="module", autouse=True)
+def report():
+    yield
+    print("\nfuzz counts: " + ", ".join(f"{k} {v}" for k, v in sorted(COUNTS.items())))
+
+
+# --------------------------------------------------------------------------
+# random valid problems
+# --------------------------------------------------------------------------
+
+def _params(family: str, draw) -> dict:
+    if family == "uniform":
+        return {"k": draw(st.floats(-2.0, 3.0))}
+    if family == "anisotropic":
+        return {"f0": draw(st.floats(-0.3, 0.3))}
+    if family == "local_relaxation":
+        return {"F0": draw(st.floats(-0.3, 0.5)), "s0": draw(st.floats(0.05, 0.5))}
+    scale = draw(st.floats(0.85, 1.0))     # volvox: the illustrative profile, perturbed
+    return {"f1": draw(st.floats(0.8, 1.0)), "f2": draw(st.floats(0.9, 1.1)),
+            "f3": draw(st.floats(1.0, 1.2)), "f5": draw(st.floats(1.0, 1.2)),
+            "kappa1": draw(st.floats(0.0, 1.2)), "kappa2": draw(st.floats(-9.0, -2.0)),
+            "s1": 1.3 * scale, "s2": 1.6 * scale, "s3": 1.9 * scale, "s4": 2.3 * scale}
+
+
+@st.composite
+def problems(draw):
+    family = draw(st.sampled_from(["uniform", "anisotropic", "local_relaxation", "volvox"]))
+    theory = draw(st.sampled_from(["large_bending", "classical"]))
+    h = 10 ** draw(st.floats(-3.0, math.log10(0.3)))
+    cut = draw(st.one_of(st.just(0.0), st.floats(0.02, 1.2)))
+    opening = 0.3 if family == "volvox" else draw(st.one_of(st.just(0.0), st.floats(0.05, 1.0)))
+    if family == "local_relaxation" and cut == 0:
+        cut = 0.3                                  # the relaxation is at a cut
+    try:
+        return Problem(family, _params(family, draw), h=h, cut=cut, opening=opening,
+                       theory=theory)
+    except ValueError:
+        assume(False)
+
+
+def _solve_or_count(problem, **kwargs):
+    try:
+        return solve(problem, **kwargs)
+    except SolverError as exc:
+        COUNTS[f"refused ({exc.status})"] += 1
+        return None
+
+
+@given(problems())
+def test_solutions_agree_with_the_refined_mesh_within_their_estimate(problem):
+    eq = _solve_or_count(problem, nodes=200)
+    if eq is None:
+        return
+    COUNTS["solved"] += 1
+    assert eq.r.min() >= 0 and eq.quadrature_points()[1].min() >= 0, "r < 0"
+    if eq.error.note:
+        COUNTS["no estimate"] += 1
+        return
+    # the reference: continuation with fixed small steps on twice the cells
+    # (a different path and mesh from the solution's), from the stress-free
+    # parameters
+    reference = _reference(problem, 399)
+    if reference is None:
+        return
+    values, ref = eq.estimated_values(), reference.estimated_values()
+    for key, err in eq.error.errors.items():
+        # the finer mesh's own error, ~1/16 of this one's, and round-off on top
+        allowed = 1.1 * err + 1e-10 * max(1.0, abs(values[key]))
+        if abs(values[key] - ref[key]) > allowed:
+            COUNTS["wrong branch or estimate"] += 1
+            pytest.fail(f"{problem}: {key} = {values[key]!r} but the refined continuation gives "
+                        f"{ref[key]!r} (estimated error {err:.3g})")
+
+
+def _reference(problem, nodes: int, steps: int = 16):
+    solver = DirectSolver(problem.structure, mesh=mesh_spec(problem, nodes, 2))
+    fam = problem.family_obj
+    names = [n for n in fam.neutral if n in problem.params]
+    eq = None
+    try:
+        for tau in np.linspace(0, 1, steps + 1):
+            sub = problem.with_updates(**{n: fam.neutral[n] + tau * (problem.params[n]
+                                                                      - fam.neutral[n])
+                                          for n in names})
+            eq = solver.solve(sub, warm_start=eq)
+    except (SolverError, ValueError):
+        COUNTS["reference refused"] += 1
+        return None
+    return eq
+
+
+# --------------------------------------------------------------------------
+# random bad command lines
+# --------------------------------------------------------------------------
+
+_NOT_INT = st.sampled_from(["abc", "1.5", "1e3", "", " ", "nan", "-", "0x10", "5.0"])
+_BAD_SET = st.one_of(
+    st.tuples(st.sampled_from(["kappa", "hh", "cutt", "x", "K"]), st.just("1")),
+    st.tuples(st.sampled_from(["k", "h", "cut", "opening"]),
+              st.sampled_from(["abc", "nan", "inf", "-inf", "1e400", ""])),
+    st.tuples(st.just("h"), st.sampled_from(["0", "-1", "1", "2", "1e308"])),
+    st.tuples(st.just("k"), st.sampled_from(["1e4", "-1e308", "5000"])),
+    st.tuples(st.just("cut"), st.sampled_from(["-0.1", "3.1413", "4", "1e9"])),
+    st.tuples(st.sampled_from(["nodes", "stages"]), st.sampled_from(["0", "2.5", "x", "1e9"])),
+    st.tuples(st.sampled_from(["method", "theory", "family"]), st.sampled_from(["x", "42", "shoot"])),
+)
+
+
+@st.composite
+def bad_command_lines(draw, tmp):
+    kind = draw(st.sampled_from(["nodes", "set", "stages", "method", "solver", "rtol", "output",
+                                 "file", "command"]))
+    base = ["solve", TOY2]
+    if kind == "nodes":
+        return base + ["--nodes", draw(st.one_of(_NOT_INT, st.integers(-10**12, 4).map(str),
+                                                 st.integers(102401, 10**15).map(str)))], "--nodes"
+    if kind == "set":
+        key, value = draw(_BAD_SET)
+        return base + ["--set", f"{key}={value}"], key
+    if kind == "stages":
+        return base + ["--stages", draw(st.sampled_from(["0", "4", "2.0", "x"]))], "--stages"
+    if kind == "method":
+        return base + ["--method", draw(st.sampled_from(["x", "BVP", ""]))], "--method"
+    if kind == "solver":
+        return base + ["--linear-solver", draw(st.sampled_from(["x", "MUMPS", "ma2"]))], \
+            "--linear-solver"
+    if kind == "rtol":
+        return base + ["--rtol", draw(st.sampled_from(["0", "1", "-1e-6", "nan", "x"]))], "--rtol"
+    if kind == "output":
+        option = draw(st.sampled_from(["--json", "--csv", "--plot"]))
+        path = draw(st.sampled_from([f"{tmp}/no/such/dir/out", f"{tmp}/out.txt", str(tmp), "",
+                                     f"{tmp}/file.txt/out"]))
+        suffix = {"--json": ".json", "--csv": ".csv", "--plot": ".png"}[option]
+        if path.endswith("/out"):
+            path += suffix
+        return base + [option, path], option
+    if kind == "file":
+        name = draw(st.sampled_from(["missing.toml", "binary.toml", "garbage.toml"]))
+        return ["solve", f"{tmp}/{name}"], name
+    return [draw(st.sampled_from(["slove", "", "--bogus", "solve --x"]))], "morphoshell"
+
+
+def test_bad_command_lines_exit_2_naming_the_item(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("bad_cli")
+    (tmp / "file.txt").write_text("x")
+    (tmp / "binary.toml").write_bytes(bytes(range(256)))
+    (tmp / "garbage.toml").write_text("[[[problem")
+
+    @given(bad_command_lines(tmp))
+    def check(case):
+        argv, named = case
+        before = set(tmp.rglob("*"))
+        import contextlib
+        import io
+        err = io.StringIO()
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+            status = main(argv)
+        text = err.getvalue()
+        COUNTS["bad command lines"] += 1
+        if "Traceback" in text:
+            COUNTS["tracebacks"] += 1
+        assert status == 2, (argv, status, text)
+        assert "Traceback" not in text and len(text.strip().splitlines()) == 1, (argv, text)
+        assert named in text, (argv, named, text)
+        assert set(tmp.rglob("*")) == before, (argv, "left a file")
+    check()
