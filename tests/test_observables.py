@@ -12,7 +12,7 @@ import pytest
 
 from morphoshell import DirectSolver, Problem, ablate
 from morphoshell.ablation import recoil_jacobian
-from morphoshell.observables import midline, midline_cells, state_at
+from morphoshell.observables import midline, state_at
 from morphoshell.parametric import parametric
 
 
@@ -58,8 +58,7 @@ def test_midline_points():
     solver = DirectSolver(problem.structure, 200)
     eq = solver.solve(problem)
     p = problem.parameter_vector()
-    cells = midline_cells(solver.disc, eq.x, p, 25)
-    obs = midline(solver.disc, cells)
+    obs = midline(solver.disc, 25)
     names = ("kappa2", "s1", "f4", "opening")
     value, J = parametric(solver).jacobian(eq, obs, names)
     r, z = value[:25], value[25:]
@@ -68,7 +67,6 @@ def test_midline_points():
     assert abs(r[-1] - eq.r[-1]) < 1e-12 and abs(z[-1] - (eq.z[-1] - eq.z[0])) < 1e-12
     chords = np.hypot(np.diff(r), np.diff(z))
     assert np.ptp(chords) < 0.05 * chords.mean()   # chords of equal arcs of a smooth curve
-    # (the same cells: the points move by O(eps), well inside them)
     _check_columns(problem, names, J, lambda sub: obs.at(solver.solve(sub, warm_start=eq)))
 
 

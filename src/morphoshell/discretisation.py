@@ -588,27 +588,21 @@ class SymbolicShape:
         tau = (s_star - s0) / ds
         return {**self._in_cell(cell, tau), "s": s_star}
 
-    def at_arclength(self, cell: int, target, newton_steps: int = 6) -> dict:
-        """(s, r, ψ, z) where the deformed arclength S equals ``target``, in ``cell``.
-
-        S is a polynomial of degree S in the cell's local coordinate τ with
-        S' = f_s Δs > 0; Newton's method from the linear interpolant, unrolled
-        symbolically, converges to machine precision in a few steps because a
-        cell's stretch varies little, and differentiating the converged
-        iteration gives the implicit-function derivative.
-        """
+    def at_arclength_selected(self, select, targets) -> dict:
+        """(s, r, ψ, z) at deformed arclengths ``targets`` (a row), each in the cell
+        chosen by the corresponding column of the one-hot matrix ``select``
+        (cells × points).  Vectorised :meth:`at_arclength`."""
         S = self.disc.stages
-        first = cell * S
-        S0, S1 = self.points["S"][first], self.points["S"][first + S]
-        tau = (target - S0) / (S1 - S0)
-        f = self.Z[2 * S + 2:, cell]
-        s0, ds = self.cell_bounds(cell)
-        lam = [_lagrange(self.disc.tau, k) for k in range(S)]
-        for _ in range(newton_steps if S > 1 else 0):   # S linear in τ for S = 1
-            value = self._in_cell(cell, tau)["S"] - target
-            slope = ds * sum(_poly(lam[k].coef, tau) * f[k] for k in range(S))
-            tau = tau - value / slope
-        return {**self._in_cell(cell, tau), "s": s0 + ds * tau, "tau": tau}
+        n = targets.shape[1]
+        cells = self.disc.layout.cells
+        first = (np.arange(cells) * S).tolist()
+        lo, hi = self.s_nodes[:cells], self.s_nodes[1:]
+        starts = ca.horzcat(lo, hi - lo, self.points["z"][first], self.points["S"][first])
+        chosen = ca.mtimes(select.T, starts)                    # (points, 4)
+        Zc = ca.mtimes(self.Z, select)                          # (3S + 2, points)
+        out = _arclength_point(S).map(n)(Zc, chosen[:, 0].T, chosen[:, 1].T, chosen[:, 2].T,
+                                         chosen[:, 3].T, targets)
+        return dict(zip(("s", "r", "psi", "z"), out))
 
 
 @lru_cache(maxsize=8)
@@ -634,3 +628,30 @@ def _cell_state(stages: int) -> ca.Function:
     arclength = S0 + ds * sum(Lam[k] * f[k] for k in range(S))
     return ca.Function("cell_state", [zc, ds, z0, S0, tau], [r, psi, z, arclength],
                        ["z_c", "ds", "z_first", "S_first", "tau"], ["r", "psi", "z", "S"])
+
+
+@lru_cache(maxsize=8)
+def _arclength_point(stages: int, newton_steps: int = 6) -> ca.Function:
+    """``(z_c, s_first, Δs, z_first, S_first, S*) -> (s, r, ψ, z)`` where S = S* in a cell.
+
+    Newton's method on the cell's deformed arclength S(τ) (degree S, S' = f_s
+    Δs > 0) from the linear interpolant, unrolled: a cell's stretch varies
+    little, so a few steps reach machine precision, and differentiating the
+    converged iteration gives the implicit-function derivative.
+    """
+    S = stages
+    tau_g = collocation(S)[0]
+    zc, s0, ds, z0, S0, target = (ca.SX.sym("z_c", 3 * S + 2), ca.SX.sym("s0"), ca.SX.sym("ds"),
+                                  ca.SX.sym("z0"), ca.SX.sym("S0"), ca.SX.sym("target"))
+    state = _cell_state(S)
+    f = zc[2 * S + 2:]
+    S1 = state(zc, ds, z0, S0, 1)[3]
+    tau = (target - S0) / (S1 - S0)
+    basis = [_lagrange(tau_g, k).coef for k in range(S)]
+    for _ in range(newton_steps if S > 1 else 0):   # S is linear in τ for S = 1
+        value = state(zc, ds, z0, S0, tau)[3] - target
+        slope = ds * sum(_poly(basis[k], tau) * f[k] for k in range(S))
+        tau = tau - value / slope
+    r, psi, z, _ = state(zc, ds, z0, S0, tau)
+    return ca.Function("arclength_point", [zc, s0, ds, z0, S0, target],
+                       [s0 + ds * tau, r, psi, z])

@@ -32,6 +32,7 @@ Lengths in units of R.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import casadi as ca
 import numpy as np
@@ -59,18 +60,29 @@ class Observable:
     labels : tuple of str
         Name of every output entry.
     function : casadi.Function
-        ``(x, p, q) -> y`` with y a column of ``len(labels)`` entries (q: the
-        positions of the mesh's anchors, empty for meshes without).
+        ``(x, p, q, *extra) -> y`` with y a column of ``len(labels)`` entries
+        (q: the positions of the mesh's anchors, empty for meshes without).
+    extra : callable, optional
+        ``extra(x, p, q) -> list of arrays``: numerical inputs that select
+        *where* the observable is evaluated (which cell holds each point of a
+        midline) but are not differentiated; computed from the solution at
+        every evaluation, so the function and its derivatives are built once.
     """
 
     name: str
     labels: tuple[str, ...]
     function: ca.Function
+    extra: Callable | None = None
+
+    def inputs(self, x: np.ndarray, p: np.ndarray, q=()) -> list:
+        """All inputs of ``function`` at (x, p, q), the extra ones computed."""
+        q = np.asarray(q, dtype=float)
+        return [x, p, q, *(self.extra(x, p, q) if self.extra else [])]
 
     def __call__(self, x: np.ndarray, p: np.ndarray, q=()) -> np.ndarray:
         if not hasattr(self, "_buffered"):
             object.__setattr__(self, "_buffered", Buffered(self.function))
-        return self._buffered(x, p, np.asarray(q, dtype=float))[0]
+        return self._buffered(*self.inputs(x, p, q))[0]
 
     def at(self, eq) -> np.ndarray:
         """The value at a direct solution ``eq`` (of the discretisation it was built on)."""
@@ -92,8 +104,7 @@ def _gauge(z, shape: SymbolicShape, gauge: str):
 
 
 def _observable(disc: Discretisation, name: str, labels, build) -> Observable:
-    shape = disc.shape(disc.x, disc.p, disc.q)
-    y = build(shape)
+    y = build(disc.shape(disc.x, disc.p, disc.q))
     return Observable(name, tuple(labels), ca.Function(name, [disc.x, disc.p, disc.q], [y],
                                                        ["x", "p", "q"], ["y"]))
 
@@ -138,35 +149,45 @@ def midline_cells(disc: Discretisation, x: np.ndarray, p: np.ndarray, n: int,
                   q=()) -> tuple[int, ...]:
     """Cells that contain the n points equally spaced in deformed arclength."""
     if not hasattr(disc, "_arclength"):
-        disc._arclength = ca.Function("S", [disc.x, disc.p, disc.q],
-                                      [disc.symbolic_points(disc.x, disc.p, disc.q)["S"]])
-    S = np.asarray(disc._arclength(x, p, np.asarray(q, dtype=float))).ravel()
+        disc._arclength = Buffered(ca.Function(
+            "S", [disc.x, disc.p, disc.q], [disc.symbolic_points(disc.x, disc.p, disc.q)["S"]]))
+    S = disc._arclength(x, p, np.asarray(q, dtype=float))[0]
     nodes = S[::disc.stages]
     targets = np.linspace(0.0, 1.0, n) * nodes[-1]
     cells = np.searchsorted(nodes, targets, side="right") - 1
     return tuple(int(c) for c in np.clip(cells, 0, disc.layout.cells - 1))
 
 
-def midline(disc: Discretisation, cells: tuple[int, ...], gauge: str = "start") -> Observable:
-    """(r_1 … r_N, z_1 … z_N) at N = len(cells) points equally spaced in deformed arclength.
+def midline(disc: Discretisation, n: int, gauge: str = "start") -> Observable:
+    """(r_1 … r_N, z_1 … z_N) at N = n points equally spaced in deformed arclength.
 
     Point i sits at the deformed arclength S_i = (i − 1)/(N − 1) S_total from
-    the first end of the shell; ``cells`` says which cell holds each
-    (:func:`midline_cells`; when parameters change, recompute them and
-    rebuild if they moved).  z is in ``gauge`` (default: 0 at the first point).
+    the first end of the shell, found by Newton's method on the cell
+    polynomials (:meth:`SymbolicShape.at_arclength`).  Which cell holds each
+    point is a numerical input (a one-hot matrix, recomputed from every
+    solution by :func:`midline_cells`), so the observable and its
+    derivatives are built once.  z is in ``gauge`` (default: 0 at the first
+    point).
     """
-    n = len(cells)
+    cells = disc.layout.cells
+    select = ca.MX.sym("cells", cells, n)
 
     def build(sh: SymbolicShape):
         S_total = sh.points["S"][sh.points["S"].shape[0] - 1]
-        r, z = [], []
-        for i, c in enumerate(cells):
-            pt = sh.at_arclength(c, S_total * (i / (n - 1)))
-            r.append(pt["r"])
-            z.append(_gauge(pt["z"], sh, gauge))
-        return ca.vertcat(*r, *z)
+        at = sh.at_arclength_selected(select, S_total * ca.DM(np.linspace(0, 1, n)).T)
+        return ca.vertcat(at["r"].T, _gauge(at["z"], sh, gauge).T)
+
+    shape = disc.shape(disc.x, disc.p, disc.q)
+    y = build(shape)
+    function = ca.Function("midline", [disc.x, disc.p, disc.q, select], [y],
+                           ["x", "p", "q", "cells"], ["y"])
+
+    def one_hot(x, p, q):
+        out = np.zeros((cells, n))
+        out[list(midline_cells(disc, x, p, n, q)), np.arange(n)] = 1.0
+        return [out]
     labels = [f"r[{i}]" for i in range(n)] + [f"z[{i}]" for i in range(n)]
-    return _observable(disc, "midline", labels, build)
+    return Observable("midline", tuple(labels), function, one_hot)
 
 
 def recoil(pre: dict, post: dict) -> dict:

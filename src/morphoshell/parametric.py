@@ -154,12 +154,16 @@ class Parametric:
         """
         key = id(observable.function)
         if key not in self._jacobians:
-            d = self.solver.disc
-            y = observable.function(d.x, d.p, d.q)
-            self._jacobians[key] = ca.Function("obs_jac", [d.x, d.p, d.q],
-                                               [y, ca.jacobian(y, d.x), ca.jacobian(y, d.p)])
+            f = observable.function
+            args = [f.mx_in(i) for i in range(f.n_in())]
+            y = f(*args)
+            self._jacobians[key] = ca.Function(
+                "obs_jac", args, [y, ca.jacobian(y, args[0]), ca.jacobian(y, args[1])])
+            if len(self._jacobians) > 32:         # bounded: observables are rebuilt rarely
+                self._jacobians.pop(next(iter(self._jacobians)))
         dxdp = self.derivative(eq, wrt)
-        y, yx, yp = self._jacobians[key](eq.x, eq.problem.parameter_vector(), eq.anchors)
+        y, yx, yp = self._jacobians[key](*observable.inputs(eq.x, eq.problem.parameter_vector(),
+                                                            eq.anchors))
         J = np.asarray(ca.densify(yp))[:, list(dxdp.columns)] + yx.sparse() @ dxdp.dx
         return np.asarray(y).ravel(), J
 

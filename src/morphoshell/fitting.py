@@ -1,0 +1,587 @@
+"""Fits of the morphoelastic model to traced midlines: a bilevel problem, three ways.
+
+The paper (Supplementary, "Fitting of the morphoelastic theory to the average
+cell sheet midlines of Volvox inversion") fits the 13-parameter Volvox model
+(``volvox_model.md``) to the average midline of an inversion stage by
+minimising the fit energy
+
+    E_fit = { Σᵢ [(rᵢ − Rᵢ)² + (zᵢ − Zᵢ)²] }^½,   i = 1 … N_fit = 100,
+
+over points equally spaced in arclength along the data (Rᵢ, Zᵢ) and along the
+model's midline (rᵢ, zᵢ), posterior pole at the origin, axis along z.  The
+model midline is an *equilibrium*: the outer least-squares problem has the
+inner energy minimisation as a constraint.  Three methods, one interface:
+
+``nelder-mead``  the paper's baseline: ``fminsearch``-like adaptive Nelder–Mead
+                 (scipy, Gao & Han coefficients) around warm-started inner solves;
+``gradient``     bounded least squares (``scipy.optimize.least_squares``, trust
+                 region) with the exact Jacobian of the residuals through the
+                 parametric inner solve (implicit function theorem,
+                 :mod:`morphoshell.parametric`);
+``kkt``          one NLP in (parameters, shape, multipliers): minimise ½E_fit²
+                 subject to the inner KKT conditions F(x, λ; p) = 0
+                 (:attr:`Parametric.kkt_residual`), parameter bounds, the
+                 ordering of the breakpoints and |η| < 1 as constraints.  The
+                 KKT conditions hold at saddles too: the fitted state is then
+                 checked to be a minimum of the inner energy (the inertia of
+                 its KKT matrix) and rejected otherwise.
+
+The Gauss–Newton covariance of the fitted parameters comes from the exact
+Jacobian: σ² (JᵀJ)⁻¹ with σ² = E_fit²/(2N − n).  The residuals of a traced
+midline are correlated along it (one tracing, one smooth curve), so these
+standard errors are *lower bounds*.  Small singular values of the Jacobian
+scaled by the parameters' magnitudes flag poorly identified directions.
+
+Variants of the Volvox fit (the paper's four hypotheses on the posterior
+intrinsic curvature κ₁): ``flat`` κ₁ = 0, ``undeformed`` κ₁ = 1,
+``unstressed`` κ₁ = 1/f₁ (the contracted posterior is stress-free; a relation
+between parameters, not a value), ``free`` κ₁ fitted.  σ, h and P are never
+fitted; any other parameter can be held (``hold``).
+
+Lengths in units of R; E_fit in units of R.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+from typing import Callable, Mapping, Sequence
+
+import casadi as ca
+import numpy as np
+
+from .continuation import continue_to
+from .direct import DirectSolver
+from .mesh import mesh_spec
+from .observables import midline
+from .parametric import parametric
+from .problem import Problem
+from .refinement import solve_from
+from .results import Equilibrium, SolverError
+
+__all__ = ["FitSpec", "FitResult", "FitError", "fit", "volvox_spec", "model_midline",
+           "METHODS", "VARIANTS", "N_FIT", "BOUNDS"]
+
+#: Fit methods (see the module docstring).
+METHODS = ("nelder-mead", "gradient", "kkt")
+#: Hypotheses on the posterior intrinsic curvature κ₁ (see the module docstring).
+VARIANTS = ("flat", "undeformed", "unstressed", "free")
+#: Points of the fit energy (volvox_model.md).
+N_FIT = 100
+#: Bounds of fitted Volvox parameters: stretches, curvatures (1/R).  Breakpoints
+#: are bounded by the shell and kept apart by at least the smoothing width σ.
+BOUNDS = {"f": (0.5, 2.0), "kappa": (-15.0, 15.0)}
+#: |η| stays below this in the KKT fit (the theory needs |η| < 1).
+ETA_MAX = 0.98
+
+
+class FitError(SolverError):
+    """A fit that did not deliver (status names why; the last state is attached)."""
+
+
+# --------------------------------------------------------------------------
+# what is fitted
+# --------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class FitSpec:
+    """The fitted parameters of a problem and how the others follow.
+
+    Attributes
+    ----------
+    base : Problem
+        Everything not fitted (h, Σ, P, theory, held parameters) and the start
+        values of the fitted ones.
+    fitted : tuple of str
+        Family parameters varied by the fit, in the order of θ.
+    tied : mapping
+        Parameters given by a function of the others,
+        ``{name: (function, derivative)}`` with ``function(params) -> value`` and
+        ``derivative(params) -> {other: d value/d other}`` (the ``unstressed``
+        variant: κ₁ = 1/f₁).
+    bounds : mapping
+        (low, high) for every fitted parameter.
+    variant : str
+        A label (the Volvox hypothesis, or ``"custom"``).
+    """
+
+    base: Problem
+    fitted: tuple[str, ...]
+    tied: Mapping[str, tuple[Callable, Callable]] = field(default_factory=dict)
+    bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    variant: str = "custom"
+
+    def __post_init__(self):
+        unknown = [n for n in self.fitted if n not in self.base.params]
+        if unknown:
+            raise ValueError(f"cannot fit {unknown}: not parameters of family "
+                             f"{self.base.family!r} ({list(self.base.params)})")
+        for n in self.fitted:
+            lo, hi = self.bounds.get(n, (-np.inf, np.inf))
+            if not lo < self.base.params[n] < hi:
+                raise ValueError(f"the start {n} = {self.base.params[n]!r} lies outside its "
+                                 f"bounds ({lo:g}, {hi:g})")
+
+    @property
+    def theta0(self) -> np.ndarray:
+        return np.array([self.base.params[n] for n in self.fitted])
+
+    def params(self, theta) -> dict:
+        """All family parameters at θ (numbers or CasADi expressions)."""
+        out = dict(self.base.params)
+        out.update(zip(self.fitted, [theta[i] for i in range(len(self.fitted))]))
+        for name, (function, _) in self.tied.items():
+            out[name] = function(out)
+        return out
+
+    def problem(self, theta) -> Problem:
+        """The problem at θ (validated: a ValueError names an infeasible value)."""
+        return self.base.with_updates(**{k: float(v) for k, v in self.params(theta).items()})
+
+    def chain(self, theta, names: Sequence[str]) -> np.ndarray:
+        """d(params ``names``)/dθ, with the tied parameters' dependence."""
+        values = self.params(theta)
+        out = np.zeros((len(names), len(self.fitted)))
+        for i, n in enumerate(names):
+            if n in self.fitted:
+                out[i, self.fitted.index(n)] = 1.0
+            elif n in self.tied:
+                for other, d in self.tied[n][1](values).items():
+                    if other in self.fitted:
+                        out[i, self.fitted.index(other)] += d
+        return out
+
+    def box(self) -> tuple[np.ndarray, np.ndarray]:
+        lo = np.array([self.bounds.get(n, (-np.inf, np.inf))[0] for n in self.fitted])
+        hi = np.array([self.bounds.get(n, (-np.inf, np.inf))[1] for n in self.fitted])
+        return lo, hi
+
+
+def volvox_spec(variant: str, start: Problem | None = None, hold: Mapping[str, float] = (),
+                breakpoint_boxes: bool = True) -> FitSpec:
+    """The fit of the Volvox model for one of :data:`VARIANTS`.
+
+    Parameters
+    ----------
+    variant : {"flat", "undeformed", "unstressed", "free"}
+    start : Problem, optional
+        A ``volvox`` problem with the start values (default: the family's
+        illustrative defaults, h = 0.15, P = 0.3: ``volvox_model.md``).
+    hold : mapping
+        Parameters held at the given values (not fitted).
+    breakpoint_boxes : bool
+        Bound each breakpoint to a disjoint interval around its start (half
+        the distance to its neighbours), so that methods without constraints
+        keep them ordered; the ``kkt`` method imposes the ordering as
+        constraints instead and does not need them.
+    """
+    if variant not in VARIANTS:
+        raise ValueError(f"variant = {variant!r} must be one of {list(VARIANTS)}")
+    start = start or Problem("volvox", h=0.15, opening=0.3)
+    if start.family != "volvox":
+        raise ValueError(f"the Volvox fit needs a 'volvox' problem, got {start.family!r}")
+    hold = dict(hold)
+    tied: dict = {}
+    if variant == "flat":
+        hold.setdefault("kappa1", 0.0)
+    elif variant == "undeformed":
+        hold.setdefault("kappa1", 1.0)
+    elif variant == "unstressed":
+        if "kappa1" in hold:
+            raise ValueError("the unstressed variant ties kappa1 = 1/f1: it cannot be held")
+        tied["kappa1"] = (lambda p: 1 / p["f1"], lambda p: {"f1": -1 / p["f1"] ** 2})
+    params = {**start.params, **hold}
+    if variant == "unstressed":
+        params["kappa1"] = 1 / params["f1"]
+    base = start.with_updates(**params)
+    fitted = tuple(n for n in base.family_obj.parameters
+                   if n not in hold and n not in tied and n != "sigma")
+    bounds = {}
+    for n in fitted:
+        if n.startswith("f"):
+            bounds[n] = BOUNDS["f"]
+        elif n.startswith("kappa"):
+            bounds[n] = BOUNDS["kappa"]
+    s = [base.params[f"s{i}"] for i in range(1, 5)]
+    edges = [0.0, *s, base.end]
+    for i in range(1, 5):
+        name = f"s{i}"
+        if name not in fitted:
+            continue
+        if breakpoint_boxes:
+            bounds[name] = ((edges[i - 1] + s[i - 1]) / 2 if i > 1 else s[0] / 2,
+                            (s[i - 1] + edges[i + 1]) / 2)
+        else:
+            bounds[name] = (base.params["sigma"], base.end - base.params["sigma"])
+    return FitSpec(base, fitted, tied, bounds, variant)
+
+
+# --------------------------------------------------------------------------
+# the model's midline and the inner solves
+# --------------------------------------------------------------------------
+
+def model_midline(eq: Equilibrium, n: int = N_FIT) -> np.ndarray:
+    """(n, 2) points (r, z) of a direct solution, equally spaced in deformed arclength.
+
+    z is measured from the first point (the posterior pole): the gauge of
+    traced midlines.
+    """
+    from .direct import solver_of
+    solver = solver_of(eq)
+    if solver is None:
+        raise ValueError("model_midline needs a direct solution")
+    y = midline(solver.disc, n).at(eq)
+    return np.column_stack([y[:n], y[n:]])
+
+
+class _Inner:
+    """The inner problem of a fit: warm-started solves, residuals and their Jacobian."""
+
+    def __init__(self, spec: FitSpec, data: np.ndarray, nodes: int):
+        self.spec, self.data, self.nodes = spec, np.asarray(data, dtype=float), nodes
+        self.n = len(self.data)
+        self.solves = 0
+        self._build(spec.base)
+        self.eq = continue_to(self.solver, spec.base)
+        self.solves += 1
+        self._cache: dict = {}
+
+    def _build(self, problem: Problem) -> None:
+        self.solver = DirectSolver(problem.structure, mesh=mesh_spec(problem, self.nodes, 2))
+        self.midline = midline(self.solver.disc, self.n)
+
+    def solve(self, theta) -> Equilibrium:
+        key = tuple(np.asarray(theta, dtype=float))
+        if key in self._cache:
+            return self._cache[key]
+        problem = self.spec.problem(theta)
+        try:
+            eq = self.solver.solve(problem, warm_start=self.eq)
+        except ValueError:           # the mesh's breakpoints moved too far: a new mesh
+            old = self.eq
+            self._build(problem)
+            eq = solve_from(self.solver, problem, old)
+        except SolverError:          # a far step: back to the branch from the last state
+            eq = continue_to(self.solver, problem)
+        self.solves += 1
+        self.eq = eq
+        self._cache = {key: eq}
+        return eq
+
+    def residuals(self, eq: Equilibrium) -> np.ndarray:
+        y = self.midline.at(eq)
+        return np.concatenate([y[:self.n] - self.data[:, 0], y[self.n:] - self.data[:, 1]])
+
+    def jacobian(self, eq: Equilibrium, theta) -> np.ndarray:
+        """d residuals / dθ, exact (implicit function theorem)."""
+        names = tuple(self.spec.fitted) + tuple(self.spec.tied)
+        _, J = parametric(self.solver).jacobian(eq, self.midline, names)
+        return J @ self.spec.chain(theta, names)
+
+
+# --------------------------------------------------------------------------
+# results
+# --------------------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class FitResult:
+    """A fitted equilibrium and how it was found.
+
+    Attributes
+    ----------
+    parameters : dict
+        Every family parameter by name, plus ``h``, ``cut``, ``opening``.
+    standard_errors : dict
+        Gauss–Newton standard errors of the fitted parameters (lower bounds:
+        the residuals of a traced midline are correlated).
+    correlation : ndarray (n, n)
+        Their correlation matrix, in the order of ``fitted``.
+    poorly_identified : list of dict
+        Directions of θ (scaled by the parameters' magnitudes) with singular
+        values below 1e-3 of the largest: ``{"singular_value", "direction"}``.
+    E_fit : float
+        The fit energy (units of R).
+    residuals : ndarray (2N,)
+        r − R then z − Z at the N points.
+    equilibrium : Equilibrium
+        The fitted shape.
+    data, model : ndarray (N, 2)
+        The data midline and the fitted midline (r, z).
+    """
+
+    method: str
+    variant: str
+    fitted: tuple[str, ...]
+    parameters: dict
+    standard_errors: dict
+    correlation: np.ndarray
+    poorly_identified: list
+    E_fit: float
+    residuals: np.ndarray
+    equilibrium: Equilibrium
+    data: np.ndarray
+    model: np.ndarray
+    outer_iterations: int
+    inner_solves: int
+    seconds: float
+    converged: bool
+    message: str = ""
+
+    def __repr__(self) -> str:
+        return (f"FitResult({self.method}, {self.variant}, E_fit={self.E_fit:.6g} R, "
+                f"{len(self.fitted)} parameters, {self.outer_iterations} iterations, "
+                f"{self.inner_solves} inner solves, {self.seconds:.2f} s, "
+                f"converged={self.converged})")
+
+    def summary(self) -> str:
+        lines = [repr(self)]
+        for n in self.fitted:
+            lines.append(f"  {n:8s} = {self.parameters[n]: .6g} ± {self.standard_errors[n]:.2g}")
+        for d in self.poorly_identified:
+            lines.append(f"  poorly identified: {d['direction']} (singular value "
+                         f"{d['singular_value']:.2g})")
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict:
+        p = self.equilibrium.problem
+        return {"problem": p.describe(), "parameters": dict(self.parameters),
+                "fitted": list(self.fitted), "standard_errors": dict(self.standard_errors),
+                "correlation": self.correlation.tolist(),
+                "poorly_identified": self.poorly_identified, "E_fit": self.E_fit,
+                "E_fit_units": "R", "method": self.method, "variant": self.variant,
+                "converged": self.converged, "message": self.message, "seconds": self.seconds,
+                "outer_iterations": self.outer_iterations, "inner_solves": self.inner_solves,
+                "data_midline": {"r": self.data[:, 0].tolist(), "z": self.data[:, 1].tolist()},
+                "fitted_midline": {"r": self.model[:, 0].tolist(), "z": self.model[:, 1].tolist()},
+                "note": "standard errors are Gauss-Newton lower bounds: the residuals of a "
+                        "traced midline are correlated"}
+
+
+def _result(method, spec, inner, theta, iterations, seconds, converged, message) -> FitResult:
+    eq = inner.solve(theta)
+    res = inner.residuals(eq)
+    J = inner.jacobian(eq, theta)
+    n, k = len(res), len(theta)
+    sigma2 = float(res @ res) / max(n - k, 1)
+    JTJ = J.T @ J
+    cov = sigma2 * np.linalg.pinv(JTJ)
+    se = np.sqrt(np.maximum(np.diag(cov), 0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(se, se)
+    scale = np.maximum(np.abs(theta), 1e-2)
+    _, sv, vt = np.linalg.svd(J * scale, full_matrices=False)
+    poor = [{"singular_value": float(s / sv[0]),
+             "direction": {spec.fitted[j]: round(float(v[j]), 3) for j in np.argsort(-np.abs(v))[:3]}}
+            for s, v in zip(sv, vt) if s < 1e-3 * sv[0]]
+    params = {**eq.problem.params, "h": eq.problem.h, "cut": eq.problem.cut,
+              "opening": eq.problem.opening}
+    return FitResult(method, spec.variant, spec.fitted, params,
+                     dict(zip(spec.fitted, se.tolist())), corr, poor, float(np.sqrt(res @ res)),
+                     res, eq, inner.data, inner.data + np.column_stack([res[:inner.n],
+                                                                        res[inner.n:]]),
+                     iterations, inner.solves, seconds, converged, message)
+
+
+# --------------------------------------------------------------------------
+# the three methods
+# --------------------------------------------------------------------------
+
+def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
+        tol: float = 1e-10, max_iterations: int | None = None) -> FitResult:
+    """Fit ``spec`` to a midline.
+
+    Parameters
+    ----------
+    spec : FitSpec
+        What is fitted (:func:`volvox_spec` for the paper's variants).
+    data : array_like (N, 2) or Midline
+        The target midline (r, z) in the model gauge, N points equally spaced
+        in arclength (:func:`morphoshell.midlines.resample`); N = 100 in the
+        paper.
+    method : {"nelder-mead", "gradient", "kkt"}
+    nodes : int
+        Mesh nodes of the inner solves.
+    tol : float
+        Relative tolerance on E_fit² of the outer iteration.
+    max_iterations : int, optional
+        Outer iterations (function evaluations for Nelder–Mead).
+
+    Returns
+    -------
+    FitResult
+
+    Raises
+    ------
+    FitError
+        Status ``"Fit_Saddle"`` when the KKT fit ends on a state that is not a
+        minimum of the inner energy; ``"Fit_Failed"`` when the outer solver
+        fails.
+    """
+    if method not in METHODS:
+        raise ValueError(f"method = {method!r} must be one of {list(METHODS)}")
+    data = _points(data)
+    t0 = time.perf_counter()
+    inner = _Inner(spec, data, nodes)
+    if method == "nelder-mead":
+        theta, its, ok, msg = _nelder_mead(spec, inner, tol, max_iterations)
+    elif method == "gradient":
+        theta, its, ok, msg = _gradient(spec, inner, tol, max_iterations)
+    else:
+        theta, its, ok, msg = _kkt(spec, inner, tol, max_iterations)
+    return _result(method, spec, inner, theta, its, time.perf_counter() - t0, ok, msg)
+
+
+def _points(data) -> np.ndarray:
+    if hasattr(data, "r") and hasattr(data, "z"):
+        data = np.column_stack([data.r, data.z])
+    data = np.asarray(data, dtype=float)
+    if data.ndim != 2 or data.shape[1] != 2 or len(data) < 3 or not np.all(np.isfinite(data)):
+        raise ValueError(f"the data must be N >= 3 finite points (r, z), got shape {data.shape}")
+    return data
+
+
+def _feasible(spec, theta) -> bool:
+    lo, hi = spec.box()
+    if np.any(theta <= lo) or np.any(theta >= hi):
+        return False
+    try:
+        spec.problem(theta)
+    except ValueError:
+        return False
+    return True
+
+
+def _nelder_mead(spec, inner, tol, max_iterations):
+    from scipy.optimize import minimize
+
+    worst = [1.0]
+
+    def E(theta):
+        if not _feasible(spec, theta):
+            return 10 * worst[0]
+        try:
+            res = inner.residuals(inner.solve(theta))
+        except SolverError:
+            return 10 * worst[0]
+        value = float(np.sqrt(res @ res))
+        worst[0] = max(worst[0], value)
+        return value
+
+    lo, hi = spec.box()
+    out = minimize(E, spec.theta0, method="Nelder-Mead",
+                   bounds=list(zip(np.where(np.isfinite(lo), lo, None),
+                                   np.where(np.isfinite(hi), hi, None))),
+                   options={"adaptive": True, "xatol": 1e-8, "fatol": tol * max(E(spec.theta0), 1e-12),
+                            "maxfev": max_iterations or 20000})
+    return out.x, int(out.nfev), bool(out.success), str(out.message)
+
+
+def _gradient(spec, inner, tol, max_iterations):
+    from scipy.optimize import least_squares
+
+    def fun(theta):
+        return inner.residuals(inner.solve(theta))
+
+    def jac(theta):
+        return inner.jacobian(inner.solve(theta), theta)
+
+    lo, hi = spec.box()
+    out = least_squares(fun, spec.theta0, jac=jac, bounds=(lo, hi), method="trf",
+                        x_scale="jac", ftol=tol, xtol=1e-12, gtol=1e-12,
+                        max_nfev=max_iterations or 200)
+    return out.x, int(out.nfev), bool(out.status > 0), str(out.message)
+
+
+def _kkt(spec, inner, tol, max_iterations):
+    """One NLP in (θ, x, λ) with the inner KKT conditions as constraints."""
+    nlp = _KKTProblem(spec, inner, tol, max_iterations)
+    theta, eq = spec.theta0, inner.solve(spec.theta0)
+    x, lam = eq.x, eq.lam_g
+    iterations = 0
+    for _ in range(8):     # re-solve while the midline's points change cells
+        select = inner.midline.extra(x, spec.problem(theta).parameter_vector(), np.zeros(0))[0]
+        theta, x, lam, its, status = nlp.solve(theta, x, lam, select)
+        iterations += its
+        problem = spec.problem(theta)
+        p = problem.parameter_vector()
+        if np.array_equal(inner.midline.extra(x, p, np.zeros(0))[0], select):
+            break
+    d = inner.solver.disc
+    D = d.cell_data(p)
+    fitted = inner.solver.equilibrium(problem, x, lam, p, np.zeros(0), D, eq.solver, True)
+    if inner.solver.backend.inertia_correction(x, D, lam) > 0:
+        raise FitError(
+            "the KKT fit ended on a stationary state of the inner energy that is not a "
+            "minimum (a saddle: the reduced Hessian is not positive definite); start from "
+            "another point or use the gradient method", "Fit_Saddle", fitted)
+    # the fitted state must be what the inner problem gives there: re-solve from it
+    check = inner.solver.solve(problem, warm_start=fitted)
+    inner.solves += 1
+    if np.max(np.abs(check.x - x)) > 1e-6:
+        raise FitError("the KKT fit's state is not reproduced by the inner solve at the fitted "
+                       "parameters", "Fit_Not_Reproduced", fitted)
+    inner.eq = check
+    inner._cache = {tuple(theta): check}
+    return theta, iterations, True, status
+
+
+class _KKTProblem:
+    """The fit as one NLP: min ½‖res(x, p(θ))‖² s.t. F(x, λ; p(θ)) = 0 and bounds.
+
+    Built once; the midline's cell selection is an NLP parameter, so moving
+    points to other cells needs no rebuild.
+    """
+
+    def __init__(self, spec, inner, tol, max_iterations):
+        from .layouts import CELL_DATA
+
+        solver = inner.solver
+        d = solver.disc
+        self.spec, self.inner, self.k = spec, inner, len(spec.fitted)
+        th = ca.MX.sym("theta", self.k)
+        x = ca.MX.sym("x", d.layout.size)
+        lam = ca.MX.sym("lam", d.g.shape[0])
+        select = ca.MX.sym("cells", d.layout.cells, inner.n)
+        values = spec.params(th)
+        layout = spec.base.parameter_layout
+        base = spec.base.parameter_vector()
+        p = ca.vertcat(*[values[n] if n in values else float(base[i])
+                         for i, n in enumerate(layout.names)])
+        q = ca.DM.zeros(0, 1)
+        F = parametric(solver).kkt_residual(x, lam, p, q)
+        y = inner.midline.function(x, p, q, select)
+        n = inner.n
+        res = ca.vertcat(y[:n] - inner.data[:, 0], y[n:] - inner.data[:, 1])
+        # inequalities: breakpoints ordered, apart by sigma, inside the shell; |eta| < 1
+        ineq, lo, hi = [], [], []
+        if spec.base.family == "volvox":
+            named = layout.unpack(p)
+            s = [named[f"s{i}"] for i in range(1, 5)]
+            for a, b in zip([0.0, *s], [*s, spec.base.end]):
+                ineq.append(b - a)
+                lo.append(float(spec.base.params["sigma"])), hi.append(np.inf)
+        eta = ca.reshape(d.pre(p, q), len(CELL_DATA), -1)[CELL_DATA.index("eta"), :].T
+        g = ca.vertcat(F, *ineq, eta)
+        self.lbg = np.concatenate([np.zeros(F.shape[0]), lo, -ETA_MAX * np.ones(eta.shape[0])])
+        self.ubg = np.concatenate([np.zeros(F.shape[0]), hi, ETA_MAX * np.ones(eta.shape[0])])
+        box_lo, box_hi = spec.box()
+        free = np.inf * np.ones(d.layout.size + lam.shape[0])
+        self.lbw, self.ubw = np.concatenate([box_lo, -free]), np.concatenate([box_hi, free])
+        self.nx = d.layout.size
+        self.nlp = ca.nlpsol("kkt_fit", "ipopt", {"x": ca.vertcat(th, x, lam), "p": ca.vec(select),
+                                                  "f": 0.5 * ca.sumsqr(res), "g": g}, {
+            "ipopt": {"print_level": 0, "sb": "yes", "tol": tol,
+                      "max_iter": max_iterations or 300, "mumps_scaling": 0,
+                      "mumps_permuting_scaling": 0, "mumps_pivot_order": 0},
+            "print_time": False, "error_on_fail": False})
+
+    def solve(self, theta, x, lam, select):
+        sol = self.nlp(x0=np.concatenate([theta, x, lam]), p=select.ravel(order="F"),
+                       lbx=self.lbw, ubx=self.ubw, lbg=self.lbg, ubg=self.ubg)
+        stats = self.nlp.stats()
+        status = stats.get("return_status", "unknown")
+        if status not in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
+            raise FitError(f"the KKT fit's NLP failed with Ipopt status {status!r} after "
+                           f"{stats.get('iter_count')} iterations", status, self.inner.eq)
+        w = np.asarray(sol["x"]).ravel()
+        k, nx = self.k, self.nx
+        return w[:k], w[k:k + nx], w[k + nx:], int(stats.get("iter_count", 0)), status
