@@ -53,7 +53,7 @@ from .problem import Problem, Structure
 from .results import FIELDS, Equilibrium, SolverError, SolverStats
 
 __all__ = ["solve_bvp", "pontryagin_functions", "pole_solutions", "pole_state",
-           "pole_costates", "pole_caps", "initial_state", "to_equilibrium"]
+           "pole_costates", "pole_caps", "initial_state", "to_equilibrium", "neutral_path"]
 
 _Y = {n: i for i, n in enumerate(BVP_STATE.names)}
 
@@ -210,7 +210,8 @@ _GAUSS_U, _GAUSS_W = np.polynomial.legendre.leggauss(16)
 _GAUSS_U, _GAUSS_W = (_GAUSS_U + 1) / 2, _GAUSS_W / 2
 
 
-def pole_caps(problem: Problem, pole: _PoleSolution, where: str, C, eps: float) -> tuple[float, float]:
+def pole_caps(problem: Problem, pole: _PoleSolution, where: str, C,
+              eps: float) -> tuple[float, float]:
     """∫ L ds and ∫ f sin ψ ds over the ``eps`` next to a pole, on the local solution.
 
     The energy and the rise in z of the cap the integration leaves out
@@ -249,7 +250,7 @@ class _Vectorised:
         return np.asarray(self.maps[m](s.reshape(1, -1), y, p))
 
 
-def _neutral_start(problem: Problem, steps: int) -> list[Problem]:
+def neutral_path(problem: Problem, steps: int) -> list[Problem]:
     """Homotopy from the family's stress-free parameters to the problem's."""
     fam = problem.family_obj
     if steps <= 1 or not fam.neutral:
@@ -294,7 +295,7 @@ def solve_bvp(problem: Problem, nodes: int = 400, *, tol: float = 1e-8, bc_tol: 
     steps = 1 if guess is not None else max(1, int(homotopy_steps))
     current = guess
     total_iters = 0
-    for sub in _neutral_start(problem, steps):
+    for sub in neutral_path(problem, steps):
         current, iters = _solve_one(sub, nodes, tol, bc_tol if bc_tol is not None else tol,
                                     current, pole_offset, max_nodes)
         total_iters += iters
