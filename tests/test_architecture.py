@@ -12,7 +12,7 @@ LAYERS = [
     {"mesh", "results"},
     {"discretisation"},
     {"ipopt"},
-    {"direct", "reference"},
+    {"direct", "reference", "shooting"},
     {"observables", "parametric"},
     {"equilibrium"},
     {"ablation", "asymptotics", "bulk", "thickness"},
