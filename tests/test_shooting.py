@@ -143,7 +143,7 @@ def test_shooting_jacobian_matches_finite_differences(case):
     # are accurate to ~1e-5; measured agreement 2e-7 and 9e-7.
     problem = CASES[case]
     sh = shooting._Shooting(problem, shooting._Settings(
-        segments=4, method="LSODA", rtol=1e-11, atol=1e-13, tol=1e-9, eps=1e-4,
+        segments=4, integrator="LSODA", rtol=1e-11, atol=1e-13, tol=1e-9, eps=1e-4,
         max_evaluations=50, max_condition=1e8, points=200))
     u = sh.initial(solve(problem, nodes=40))
     _, J, _ = sh.shoot(u)

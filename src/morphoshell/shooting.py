@@ -45,8 +45,8 @@ smooth and non-stiff.  LSODA switches between Adams (order ≤ 12) and BDF
 with the exact Jacobian where it detects stiffness.  Measured on a segment
 of toy problem 2 at rtol = 1e-10: LSODA 86 steps, 173 evaluations, 7 ms;
 Radau (L-stable, order 5) 389 steps, 2739 evaluations, 310 ms; BDF 220
-steps, 120 ms; all with the same end state to 3e-13.  ``method="Radau"``
-remains available.
+steps, 120 ms; all with the same end state to 3e-13.
+``integrator="Radau"`` remains available.
 
 Conditioning
 ------------
@@ -144,7 +144,7 @@ _STALL_WINDOW = 10
 @dataclass(frozen=True)
 class _Settings:
     segments: int
-    method: str
+    integrator: str
     rtol: float
     atol: float
     tol: float
@@ -154,7 +154,7 @@ class _Settings:
     points: int
 
 
-def solve_shooting(problem: Problem, *, segments: int | None = None, method: str = "LSODA",
+def solve_shooting(problem: Problem, *, segments: int | None = None, integrator: str = "LSODA",
                    rtol: float = 1e-10, atol: float = 1e-12, tol: float = 1e-9,
                    pole_offset: float = 1e-4, guess: Equilibrium | None = None,
                    homotopy_steps: int | None = None, max_evaluations: int = 50,
@@ -170,8 +170,9 @@ def solve_shooting(problem: Problem, *, segments: int | None = None, method: str
         the smallest M ≥ 8 whose growth exp(Δs/δ) per segment is at most
         ``max_growth``, i.e. M ≥ (b − a)/(δ ln ``max_growth``).  At least 2
         when the far end is a pole (one segment is shot from each end).
-    method : {"LSODA", "Radau", "BDF"}
-        ``solve_ivp`` method (stiff-capable; see the module doc).
+    integrator : {"LSODA", "Radau", "BDF"}
+        The ``solve_ivp`` method (stiff-capable; see the module doc).  Not
+        called ``method``, which names the route in :func:`morphoshell.solve`.
     rtol, atol : float
         ``solve_ivp`` tolerances on the states and sensitivities.
     tol : float
@@ -257,7 +258,7 @@ def solve_shooting(problem: Problem, *, segments: int | None = None, method: str
             f"{growth:.3g} over a segment (Δs = {(b - a) / segments:.4g}, δ = {delta:.4g}), "
             f"above max_growth = {max_growth:g}; use segments >= {need}, or the direct or bvp "
             f"route", ILL_CONDITIONED)
-    opts = _Settings(int(segments), method, rtol, atol, tol, float(pole_offset),
+    opts = _Settings(int(segments), integrator, rtol, atol, tol, float(pole_offset),
                      int(max_evaluations), max_condition, int(points))
 
     if guess is not None:
@@ -415,7 +416,7 @@ class _Shooting:
         y0[_C] = x0
         X0 = np.concatenate([y0, np.eye(_NC).ravel(order="F")])
         o = self.opts
-        sol = scipy.integrate.solve_ivp(self._fun, (s0, s1), X0, method=o.method,
+        sol = scipy.integrate.solve_ivp(self._fun, (s0, s1), X0, method=o.integrator,
                                         jac=self._jac, rtol=o.rtol, atol=o.atol,
                                         max_step=max_step)
         if sol.status != 0 or not np.all(np.isfinite(sol.y[:, -1])):
