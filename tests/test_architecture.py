@@ -12,7 +12,7 @@ LAYERS = [
     {"mesh", "results", "midlines"},
     {"discretisation"},
     {"ipopt"},
-    {"direct", "reference"},
+    {"direct", "reference", "shooting"},
     {"observables", "parametric"},
     {"continuation", "refinement"},
     {"equilibrium"},

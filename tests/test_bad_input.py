@@ -63,8 +63,8 @@ def test_solver_arguments_are_checked():
     problem = Problem("uniform", h=0.1)
     with pytest.raises(ValueError, match=r"nodes = 3 must be an integer in \[5, 102400\]"):
         DirectSolver(problem.structure, nodes=3)
-    with pytest.raises(ValueError, match=r"unknown method 'shooting'"):
-        solve(problem, method="shooting")
+    with pytest.raises(ValueError, match=r"unknown method 'shoot'"):
+        solve(problem, method="shoot")
     solver = DirectSolver(problem.structure, nodes=50)
     with pytest.raises(ValueError, match=r"this solver is built for"):
         solver.solve(Problem("uniform", h=0.1, cut=0.2))

@@ -28,17 +28,19 @@ from .refinement import refine
 from .results import Equilibrium, NotAMinimumError, SolverError, SolverStats
 
 __all__ = ["solve", "direct_solver", "cache_info", "clear_cache", "SOLVER_CACHE_SIZE",
-           "METHODS", "DIRECT_OPTIONS", "BVP_OPTIONS",
+           "METHODS", "DIRECT_OPTIONS", "BVP_OPTIONS", "SHOOTING_OPTIONS",
            # re-exported for convenience
            "DirectSolver", "Equilibrium", "SolverError", "NotAMinimumError", "SolverStats"]
 
 #: Routes of :func:`solve`.
-METHODS = ("direct", "bvp")
+METHODS = ("direct", "bvp", "shooting")
 
 #: Keyword options of :func:`solve` for each route.
 DIRECT_OPTIONS = ("stages", "linear_solver", "tol", "max_iter", "stability", "ipopt_options",
                   "max_nodes")
 BVP_OPTIONS = ("tol", "bc_tol", "pole_offset", "max_nodes", "homotopy_steps", "max_seconds")
+SHOOTING_OPTIONS = ("segments", "integrator", "atol", "tol", "pole_offset", "homotopy_steps",
+                    "max_evaluations", "max_growth", "max_segments", "max_condition", "points")
 
 #: Direct solvers kept by :func:`solve` (least recently used dropped first).
 #: A solver of 400 nodes holds about 5 MB.
@@ -57,7 +59,7 @@ def _frozen(value: Any):
 
 
 def _check_options(method: str, options: Mapping[str, Any]) -> None:
-    valid = DIRECT_OPTIONS if method == "direct" else BVP_OPTIONS
+    valid = {"direct": DIRECT_OPTIONS, "bvp": BVP_OPTIONS, "shooting": SHOOTING_OPTIONS}[method]
     unknown = sorted(set(options) - set(valid))
     if unknown:
         raise ValueError(f"unknown option(s) {unknown} for method {method!r}; valid: {list(valid)}")
@@ -100,9 +102,11 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
     nodes : int
         Mesh nodes (direct; the first mesh when ``rtol`` refines) or initial
         mesh nodes (bvp).
-    method : {"direct", "bvp"}
-        Direct energy minimisation (default) or the boundary-value reference
-        of :mod:`morphoshell.reference`.
+    method : {"direct", "bvp", "shooting"}
+        Direct energy minimisation (default), the boundary-value reference of
+        :mod:`morphoshell.reference` (collocation, ``solve_bvp``), or the
+        multiple-shooting reference of :mod:`morphoshell.shooting`, which
+        refuses thin shells (``Shooting_Ill_Conditioned``).
     warm_start : Equilibrium, optional
         A previous solution (same method and mesh) to start from.
     anchors : sequence of float
@@ -126,7 +130,9 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
         ``max_nodes``, the finest mesh ``rtol`` may refine to;
         bvp: ``tol``, ``bc_tol``, ``pole_offset``, ``max_nodes``,
         ``homotopy_steps``, ``max_seconds`` (see
-        :func:`morphoshell.reference.solve_bvp`).
+        :func:`morphoshell.reference.solve_bvp`); shooting: the options of
+        :func:`morphoshell.shooting.solve_shooting` but its integrator's
+        ``rtol``.
 
     Raises
     ------
@@ -148,6 +154,9 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
     if method != "direct":
         if len(anchors) or rtol is not None:
             raise ValueError("anchors and rtol are options of the direct method only")
+        if method == "shooting":
+            from .shooting import solve_shooting
+            return solve_shooting(problem, guess=warm_start, **options)
         from .reference import solve_bvp
         return solve_bvp(problem, nodes=nodes, guess=warm_start, **options)
     if rtol is not None and not (isinstance(rtol, (int, float)) and 0 < rtol < 1):

@@ -45,7 +45,7 @@ __all__ = ["ProblemFileError", "Settings", "load_problem", "parse_overrides", "a
            "split_overrides", "settings_from", "to_jsonable", "write_json", "write_csv", "METHODS",
            "SOLVER_KEYS"]
 
-METHODS = ("direct", "bvp")
+METHODS = ("direct", "bvp", "shooting")
 _PROBLEM_KEYS = {"family", "theory", "h", "cut", "opening", "geometry", "name"}
 #: Keys of the [solver] table (also accepted by ``--set``).
 SOLVER_KEYS = ("nodes", "method", "stages")

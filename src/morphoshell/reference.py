@@ -52,7 +52,8 @@ from .mesh import graded_mesh
 from .problem import Problem, Structure
 from .results import FIELDS, Equilibrium, SolverError, SolverStats
 
-__all__ = ["solve_bvp", "pontryagin_functions", "pole_solutions"]
+__all__ = ["solve_bvp", "pontryagin_functions", "pole_solutions", "pole_state",
+           "pole_costates", "pole_caps", "initial_state", "to_equilibrium", "neutral_path"]
 
 _Y = {n: i for i, n in enumerate(BVP_STATE.names)}
 
@@ -186,6 +187,49 @@ class _PoleSolution:
         return np.real(v), np.real(dv)
 
 
+def pole_state(pole: _PoleSolution, where: str, C, eps: float) -> tuple[float, float, float, float]:
+    """(r, ψ, f_s, ψ') at distance ``eps`` from a pole on its local solution.
+
+    ``where`` is "start" or "end"; the end pole is mirrored (ψ → π − ψ, the
+    local solution being written in the distance from the pole).
+    """
+    v, dv = pole.evaluate(eps, C)
+    psi = v[1] if where == "start" else np.pi - v[1]
+    return v[0], psi, dv[0] / np.cos(v[1]), dv[1]
+
+
+def pole_costates(problem: Problem, pole: _PoleSolution, where: str, C, eps: float) -> np.ndarray:
+    """(λ_r, λ_ψ) that make the local solution's (f_s, ψ') optimal, at ``eps`` from the pole."""
+    s_e = problem.cut + eps if where == "start" else problem.end - eps
+    costates = pontryagin_functions(problem.structure)["costates"]
+    return np.asarray(costates(s_e, *pole_state(pole, where, C, eps),
+                               problem.parameter_vector())).ravel()
+
+
+_GAUSS_U, _GAUSS_W = np.polynomial.legendre.leggauss(16)
+_GAUSS_U, _GAUSS_W = (_GAUSS_U + 1) / 2, _GAUSS_W / 2
+
+
+def pole_caps(problem: Problem, pole: _PoleSolution, where: str, C,
+              eps: float) -> tuple[float, float]:
+    """∫ L ds and ∫ f sin ψ ds over the ``eps`` next to a pole, on the local solution.
+
+    The energy and the rise in z of the cap the integration leaves out
+    (16-point Gauss rule in u, s = εu², which absorbs the s^β behaviour).
+    """
+    local = pontryagin_functions(problem.structure)["local"]
+    p = problem.parameter_vector()
+    d = eps * _GAUSS_U**2
+    jac = 2 * eps * _GAUSS_U * _GAUSS_W
+    L = dz = 0.0
+    for dk, wk in zip(d, jac):
+        r_k, psi_k, f_k, u_k = pole_state(pole, where, C, dk)
+        s_k = problem.cut + dk if where == "start" else problem.end - dk
+        L += wk * float(local(s_k, r_k, psi_k, f_k, u_k, p)[LOCAL_OUTPUTS.index("L")])
+        dz += wk * f_k * np.sin(psi_k)
+    return L, dz
+
+
 def _null_vector(M: np.ndarray) -> np.ndarray:
     u, sv, vh = np.linalg.svd(M)
     c = vh[-1].conj()
@@ -206,7 +250,7 @@ class _Vectorised:
         return np.asarray(self.maps[m](s.reshape(1, -1), y, p))
 
 
-def _neutral_start(problem: Problem, steps: int) -> list[Problem]:
+def neutral_path(problem: Problem, steps: int) -> list[Problem]:
     """Homotopy from the family's stress-free parameters to the problem's."""
     fam = problem.family_obj
     if steps <= 1 or not fam.neutral:
@@ -267,7 +311,7 @@ def solve_bvp(problem: Problem, nodes: int = 400, *, tol: float = 1e-8, bc_tol: 
     current = guess
     total_iters = 0
     deadline = t0 + float(max_seconds)
-    for sub in _neutral_start(problem, steps):
+    for sub in neutral_path(problem, steps):
         try:
             current, iters = _solve_one(sub, nodes, tol, bc_tol if bc_tol is not None else tol,
                                         current, pole_offset, max_nodes, deadline)
@@ -311,7 +355,7 @@ def _solve_one(problem: Problem, nodes: int, tol: float, bc_tol: float,
     s = _refine_near_poles(s, problem.cut if start_pole else None,
                            problem.end if end_pole else None, eps)
 
-    y0 = _initial_guess(s, geo, guess, costates, p)
+    y0 = initial_state(s, geo, guess, costates, p)
     n_unknown = 2 * (start_pole + end_pole)
 
     # solve_bvp passes the unknowns q only when there are some (poles).
@@ -328,35 +372,15 @@ def _solve_one(problem: Problem, nodes: int, tol: float, bc_tol: float,
     z_start = float(geo.numeric(problem.cut)[1])
     poles = pole_solutions(problem)
 
-    def pole_state(where, C):
-        """(r, ψ, f_s, ψ') at distance ε from a pole; the end pole is mirrored."""
-        v, dv = poles[where].evaluate(eps, C)
-        if where == "start":
-            return v[0], v[1], dv[0] / np.cos(v[1]), dv[1]
-        return v[0], np.pi - v[1], dv[0] / np.cos(v[1]), dv[1]
-
     def pole_residual(yv, s_e, C):
-        r_e, psi_e, f_e, u_e = pole_state("start" if s_e == a else "end", C)
-        lam = np.asarray(costates(s_e, r_e, psi_e, f_e, u_e, p)).ravel()
-        return ([yv[_Y["r"]] - r_e, yv[_Y["psi"]] - psi_e, yv[_Y["lam_r"]] - lam[0],
-                 yv[_Y["lam_psi"]] - lam[1]], (r_e, psi_e, f_e, u_e))
-
-    gauss_u, gauss_w = np.polynomial.legendre.leggauss(16)
-    gauss_u, gauss_w = (gauss_u + 1) / 2, gauss_w / 2
+        where = "start" if s_e == a else "end"
+        lam = pole_costates(problem, poles[where], where, C, eps)
+        r_e, psi_e = pole_state(poles[where], where, C, eps)[:2]
+        return [yv[_Y["r"]] - r_e, yv[_Y["psi"]] - psi_e, yv[_Y["lam_r"]] - lam[0],
+                yv[_Y["lam_psi"]] - lam[1]]
 
     def pole_integrals(where, C):
-        """∫ L ds and ∫ f sin ψ ds over the ε next to a pole, on the local solution (s = εu²)."""
-        d = eps * gauss_u**2
-        jac = 2 * eps * gauss_u * gauss_w
-        L = dz = 0.0
-        for dk, wk in zip(d, jac):
-            v, dv = poles[where].evaluate(dk, C)
-            psi_k = v[1] if where == "start" else np.pi - v[1]
-            f_k = dv[0] / np.cos(v[1])
-            s_k = problem.cut + dk if where == "start" else problem.end - dk
-            L += wk * float(local(s_k, v[0], psi_k, f_k, dv[1], p)[LOCAL_OUTPUTS.index("L")])
-            dz += wk * f_k * np.sin(psi_k)
-        return L, dz
+        return pole_caps(problem, poles[where], where, C, eps)
 
     iz, iE, free = _Y["z"], _Y["energy"], [_Y["lam_r"], _Y["lam_psi"]]
 
@@ -365,13 +389,13 @@ def _solve_one(problem: Problem, nodes: int, tol: float, bc_tol: float,
         k = 0
         if start_pole:
             k = 2
-            r4, _ = pole_residual(ya, a, q[:2])
+            r4 = pole_residual(ya, a, q[:2])
             L0, dz0 = pole_integrals("start", q[:2])
             res += r4 + [ya[iz] - (z_start + dz0), ya[iE] - L0]
         else:   # free edge: no force, no torque; gauge of z; energy from 0
             res += [ya[free[0]], ya[free[1]], ya[iz] - z_start, ya[iE]]
         if end_pole:
-            r4, _ = pole_residual(yb, b, q[k:k + 2])
+            r4 = pole_residual(yb, b, q[k:k + 2])
             res += r4
         else:
             res += [yb[free[0]], yb[free[1]]]
@@ -390,7 +414,7 @@ def _solve_one(problem: Problem, nodes: int, tol: float, bc_tol: float,
     details = {"max_rms_residual": float(np.max(sol.rms_residuals)) if sol.rms_residuals.size else 0.0,
                "pole_offset": eps}
     end_energy = pole_integrals("end", sol.p[-2:])[0] if end_pole else 0.0
-    eq = _to_equilibrium(problem, sol.x, sol.y, p, controls, local, end_energy,
+    eq = to_equilibrium(problem, sol.x, sol.y, p, controls, local, end_energy,
                          SolverStats("bvp", int(sol.niter), seconds, sol.message, len(sol.x), 0.0,
                                      details), sol.status == 0)
     if sol.status != 0:
@@ -412,7 +436,12 @@ def _refine_near_poles(s, start_pole: float | None, end_pole: float | None, eps:
     return np.unique(np.concatenate([s, *extra])) if extra else s
 
 
-def _initial_guess(s, geo, guess, costates, p):
+def initial_state(s, geo, guess, costates, p):
+    """BVP states (6 × len(s)) at ``s`` from a ``guess`` Equilibrium, or the undeformed shell.
+
+    The costates of a guess follow from its controls (``costates``); the
+    undeformed shell starts with zero costates.
+    """
     m = len(s)
     if guess is not None:
         r = np.interp(s, guess.s, guess.r)
@@ -436,8 +465,12 @@ def _initial_guess(s, geo, guess, costates, p):
     return np.vstack([y[n] for n in BVP_STATE.names])
 
 
-def _to_equilibrium(problem, s, Y, p, controls, local, end_energy, stats,
+def to_equilibrium(problem, s, Y, p, controls, local, end_energy, stats,
                     converged) -> Equilibrium:
+    """The :class:`Equilibrium` of the BVP states ``Y`` (6 × len(s)) on the points ``s``.
+
+    ``end_energy`` is added to the accumulated energy (the cap next to an end pole).
+    """
     W = controls(s, Y, p)
     f, u = W[0], W[1]
     y = BVP_STATE.unpack(Y)

@@ -59,7 +59,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"morphoshell: error: {exc}", file=sys.stderr)
         return 2
     except SolverError as exc:
-        print(f"morphoshell: solver failed: {exc}", file=sys.stderr)
+        status = f" (status {exc.status})" if exc.status and exc.status not in str(exc) else ""
+        print(f"morphoshell: solver failed{status}: {exc}", file=sys.stderr)
         return 3
     except KeyboardInterrupt:
         print("morphoshell: interrupted", file=sys.stderr)

@@ -22,7 +22,9 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help=_SET_HELP)
     p.add_argument("--method", choices=METHODS, default=None,
-                   help="direct energy minimisation (default) or the boundary-value reference")
+                   help="direct energy minimisation (default), or a reference route: bvp "
+                        "(collocation of the Euler-Lagrange equations) or shooting (multiple "
+                        "shooting of the same equations; refuses thin shells)")
     p.add_argument("--nodes", type=integer(5, MAX_NODES), default=None, metavar="N",
                    help=f"mesh nodes, 5..{MAX_NODES} (default: the file's [solver] nodes, "
                         f"else 200); the direct solver's points are the nodes and S - 1 "
@@ -123,8 +125,8 @@ def _solve(args) -> int:
     edge = "start" if problem.structure.start == "free" else "end"
     e = eq.edge(edge)
     it = eq.solver.iterations
-    points = (f"{eq.solver.nodes} nodes, {len(eq.s)} points" if method == "direct"
-              else f"{len(eq.s)} collocation points")
+    points = {"direct": f"{eq.solver.nodes} nodes, {len(eq.s)} points",
+              "bvp": f"{len(eq.s)} collocation points"}.get(method, f"{len(eq.s)} points")
     print(f"{_label(problem)}: {method} solution, {points}, {it} iteration{'s' * (it != 1)}, "
           f"{eq.solver.seconds * 1e3:.1f} ms ({eq.solver.status})")
     print(f"  energy          = {eq.energy:.12g} C R^2")
