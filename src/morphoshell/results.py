@@ -48,13 +48,16 @@ class ErrorEstimate:
     """Estimated discretisation error of a direct solution.
 
     The difference from the same problem on the mesh with half the cells,
-    solved from this solution (so on its branch).  It bounds the error of the
-    finer solution for any order of convergence ≥ 1, also on pre-asymptotic
-    meshes (a thin boundary layer or a step resolved by a few cells), where a
-    Richardson estimate |fine − coarse|/(2^p − 1) fell short by 1.4× in
-    fuzzing; on a well-resolved mesh of order p it is 2^p − 1 times (15× at
-    order 4) pessimistic.  A coarse mesh that lands elsewhere (a spurious
-    minimum, an unresolved layer) shows up as a large estimate.
+    solved from this solution (so on its branch), or, if larger, the
+    difference between the half and the quarter mesh reduced by the design
+    order (:func:`morphoshell.refinement.estimate`: two levels can agree by
+    luck).  It bounds the error of the finer solution for any order of
+    convergence ≥ 1, also on pre-asymptotic meshes (a thin boundary layer or a
+    step resolved by a few cells), where a Richardson estimate
+    |fine − coarse|/(2^p − 1) fell short by 1.4× in fuzzing; on a
+    well-resolved mesh of order p it is 2^p − 1 times (15× at order 4)
+    pessimistic.  A coarse mesh that lands elsewhere (a spurious minimum, an
+    unresolved layer) shows up as a large estimate.
 
     Attributes
     ----------
