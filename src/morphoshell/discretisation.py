@@ -567,6 +567,15 @@ class SymbolicShape:
             "S": d._integrate(self.f_g, ds),
         }
 
+    def increments(self) -> tuple:
+        """(Δz, ΔS) over every cell: ∫ f_s sin ψ ds and ∫ f_s ds by the Gauss rule (columns)."""
+        S, cells = self.disc.stages, self.disc.layout.cells
+        ds = self.s_nodes[1:] - self.s_nodes[:cells]
+        f = self.Z[2 * S + 2:, :]
+        psi_g = ca.mtimes(ca.DM(self.disc._values), self.Z[S + 1:2 * S + 2, :])
+        w = ca.DM(self.disc.weights).T
+        return (ds * ca.mtimes(w, f * ca.sin(psi_g)).T, ds * ca.mtimes(w, f).T)
+
     def cell_bounds(self, cell: int):
         """(s at the cell's first node, its width in s)."""
         return self.s_nodes[cell], self.s_nodes[cell + 1] - self.s_nodes[cell]
@@ -645,7 +654,7 @@ def _arclength_point(stages: int, newton_steps: int = 6) -> ca.Function:
                                   ca.SX.sym("z0"), ca.SX.sym("S0"), ca.SX.sym("target"))
     state = _cell_state(S)
     f = zc[2 * S + 2:]
-    S1 = state(zc, ds, z0, S0, 1)[3]
+    S1 = S0 + ds * ca.dot(ca.DM(collocation(S)[1]), f)
     tau = (target - S0) / (S1 - S0)
     basis = [_lagrange(tau_g, k).coef for k in range(S)]
     for _ in range(newton_steps if S > 1 else 0):   # S is linear in τ for S = 1
