@@ -142,24 +142,25 @@ def _band_path(eq: Equilibrium, shift: float) -> MplPath:
 
 
 def _draw_shell(ax: Axes, eq: Equilibrium, band: str | None, line: dict, *,
-                face=None, shift: float = 0.0, band_zorder: float = 1.0) -> Line2D:
+                face=None, shift: float = 0.0, band_zorder: float = 1.0
+                ) -> tuple[Line2D, PathPatch | None]:
     """Midline of ``eq`` in the style ``line``, and its band: "fill", "outline" or None.
 
     ``line`` holds Line2D properties by their full names (``normalize_kwargs``).
 
     ``face`` is the band's fill colour (default: the line's colour at
-    :data:`BAND_ALPHA`).  Returns the midline (the legend's handle).
+    :data:`BAND_ALPHA`).  Returns the midline and the filled band (or None).
     """
-    color = line["color"]
+    color, patch = line["color"], None
     if band == "fill":
         fc = face if face is not None else mpl.colors.to_rgba(color, BAND_ALPHA)
-        ax.add_patch(PathPatch(_band_path(eq, shift), facecolor=fc, edgecolor="none",
-                               zorder=band_zorder))
+        patch = ax.add_patch(PathPatch(_band_path(eq, shift), facecolor=fc, edgecolor="none",
+                                       zorder=band_zorder))
     elif band == "outline":
         for r, z in _band_edges(eq):
             ax.plot(*_mirrored(eq, r, z + shift), color=color, lw=0.5 * line.get("linewidth", 1.0),
                     alpha=0.8, zorder=band_zorder)
-    return ax.plot(*_mirrored(eq, eq.r, eq.z + shift), **line)[0]
+    return ax.plot(*_mirrored(eq, eq.r, eq.z + shift), **line)[0], patch
 
 
 # --------------------------------------------------------------------------
@@ -405,8 +406,11 @@ def plot_ablation(ablation, ax: Axes | None = None, *, title: str | None = "auto
         # midlines above both bands, so that the pre-ablation shape stays visible
         line = {"color": color, "linestyle": spec["ls"], "linewidth": 0.8, "zorder": 3.0,
                 "label": spec["label"], **style}
-        _draw_shell(ax, eq, None if midline_only else "fill", line, face=face, shift=shift,
-                    band_zorder=1.0 + i)
+        midline, patch = _draw_shell(ax, eq, None if midline_only else "fill", line, face=face,
+                                     shift=shift, band_zorder=1.0 + i)
+        if patch is not None:   # the legend shows the band's colour
+            patch.set_label(midline.get_label())
+            midline.set_label("_nolegend_")
         if mark_rim:
             rim = edge_state(eq, sigma)
             ax.plot([rim["r"], -rim["r"]], [rim["z"]] * 2, ls="none", marker="o", ms=3.5,
