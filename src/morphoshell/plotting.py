@@ -157,9 +157,10 @@ def _draw_shell(ax: Axes, eq: Equilibrium, band: str | None, line: dict, *,
         patch = ax.add_patch(PathPatch(_band_path(eq, shift), facecolor=fc, edgecolor="none",
                                        zorder=band_zorder))
     elif band == "outline":
+        lw = 0.5 * line.get("linewidth", 1.0)
         for r, z in _band_edges(eq):
-            ax.plot(*_mirrored(eq, r, z + shift), color=color, lw=0.5 * line.get("linewidth", 1.0),
-                    alpha=0.8, zorder=band_zorder)
+            ax.plot(*_mirrored(eq, r, z + shift), color=color, lw=lw, alpha=0.8,
+                    zorder=band_zorder)
     return ax.plot(*_mirrored(eq, eq.r, eq.z + shift), **line)[0], patch
 
 
