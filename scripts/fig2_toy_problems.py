@@ -20,7 +20,8 @@ H  the same for toy problem 3 (problems/toy3_anisotropic.toml) with
 I  the same for a fast active relaxation at the cut
    (problems/fast_relaxation.toml: F0 = 0.35, s0 = 0.2).
 
-Writes fig2_D.png … fig2_I.png, the combined fig2_D-I.png (each also as PDF)
+Writes fig2_D.png … fig2_I.png (single-column width, 3.4 in), the combined
+fig2_D-I.png (double-column width, 7 in), each at 300 dpi and also as PDF,
 and fig2_points.json (the numerical points plotted) to ``--out``.
 
 Usage: python scripts/fig2_toy_problems.py [--out out/figures] [--quick]
@@ -30,17 +31,22 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+import textwrap
 import time
 from pathlib import Path
 
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 from scipy.integrate import solve_bvp
 
 from morphoshell import asymptotics
 from morphoshell.equilibrium import solve
 from morphoshell.io import load_problem, write_json
-from morphoshell.ablation import ablate, edge_state
-from morphoshell.plotting import plot_ablation, plt, sheet_outline
+from morphoshell.ablation import ablate
+from morphoshell.plotting import (DOUBLE_COLUMN, MIN_FONT_SIZE, SINGLE_COLUMN, far_end_shift,
+                                  label_panel, paper_style, plot_ablation, save, sheet_outline)
 from morphoshell.problem import Problem
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -55,9 +61,18 @@ K = 0.0
 SIGMA_MAX = 1.4
 #: Range of c/√h in E and F.
 X_RANGE = (0.1, 100.0)
-MARKERS = ("o", "s", "^", "D")
-DPI = 130
+#: Markers of the thicknesses in H_VALUES: nested (large open circle, open
+#: square, small filled triangle), so that coinciding points all stay visible.
+MARKERS = ({"marker": "o", "ms": 6.0, "mfc": "none", "mew": 0.9},
+           {"marker": "s", "ms": 3.9, "mfc": "none", "mew": 0.9},
+           {"marker": "^", "ms": 3.0, "mew": 0.0})
 FORMATS = ("png", "pdf")
+#: Caption note of panel H (also in docs/gallery.md): the spikes look like a
+#: drawing error but are in the solution (Supplementary, toy problem 3).
+POLE_NOTE = (r"The spikes at the poles are physical: a pole forces equal stretches "
+             r"$f_s=f_\phi$, which the anisotropic contraction $f_s^0=1/f_\phi^0\neq1$ "
+             r"cannot match; the stretches, and with them the thickness $h/(f_sf_\phi)$, "
+             r"are weakly singular there (Supplementary, toy problem 3).")
 
 
 # --------------------------------------------------------------------------
@@ -135,32 +150,42 @@ def _h_label(h: float) -> str:
     return rf"$h = 10^{{{round(math.log10(h))}}}$"
 
 
-def panel_D(ax, data):
+def _points(ax, x, y, i: int, **kw):
+    """The numerical points of the i-th thickness, thickest on top (its marker is largest)."""
+    ax.plot(x, y, ls="none", color=f"C{i}", zorder=3 + len(H_VALUES) - i, **MARKERS[i], **kw)
+
+
+def _legend(ax, what: set[str], **kw):
+    """Legend of the curves ("curves": lines) and/or the points ("points": markers)."""
+    handles, labels = ax.get_legend_handles_labels()
+    keep = [(h, lab) for h, lab in zip(handles, labels)
+            if ("points" if h.get_linestyle() == "None" else "curves") in what]
+    if keep:
+        ax.legend(*zip(*keep), **kw)
+
+
+def panel_D(ax, data, legend=("curves", "points")):
     c = np.linspace(0, 2 * math.sin(SIGMA_MAX), 100)
-    ax.plot(c, c / 2, color="k", lw=1.2, label=r"$\sin\Sigma = c/2$ (asymptotic)", zorder=1)
+    ax.plot(c, c / 2, color="k", label=r"$\sin\Sigma = c/2$ (asymptotic)", zorder=1)
     for i, (h, pts) in enumerate(data.items()):
-        y = np.array(pts["opening"]) / (h * (1 - K))
-        ax.plot(pts["c"], y, ls="none", marker=MARKERS[i], ms=5, mfc="none", mew=1.1,
-                color=f"C{i}", label=_h_label(h))
+        _points(ax, pts["c"], np.array(pts["opening"]) / (h * (1 - K)), i, label=_h_label(h))
     ax.set_xlabel(r"cut radius $c = 2\sin\Sigma$")
     ax.set_ylabel(r"opening $o/[h(1-k)]$")
     ax.set_xlim(0, None)
     ax.set_ylim(0, None)
-    ax.legend(loc="upper left", fontsize="small", frameon=False)
-    # inset: ratio to the asymptote, where the approach as h → 0 is visible
-    ins = ax.inset_axes([0.56, 0.1, 0.41, 0.36])
-    ins.axhline(1.0, color="k", lw=1.0)
+    _legend(ax, set(legend), loc="upper left")
+    # inset (below the line): ratio to the asymptote, where the approach as h → 0 is visible
+    ins = ax.inset_axes([0.6, 0.12, 0.37, 0.24])
+    ins.axhline(1.0, color="k", lw=0.8)
     for i, (h, pts) in enumerate(data.items()):
         ratio = np.array(pts["opening"]) / (h * (1 - K) * np.sin(pts["Sigma"]))
-        ins.plot(pts["c"], ratio, marker=MARKERS[i], ms=3.5, mfc="none", mew=0.9, lw=0.6,
-                 color=f"C{i}")
-    ins.set_xscale("log")
-    ins.set_ylabel(r"$o/[h(1-k)\sin\Sigma]$", fontsize="x-small")
-    ins.set_xlabel(r"$c$", fontsize="x-small", labelpad=1)
-    ins.tick_params(labelsize="x-small")
+        ins.plot(pts["c"], ratio, color=f"C{i}", lw=0.5, zorder=2 + len(H_VALUES) - i,
+                 **{**MARKERS[i], "ms": 0.7 * MARKERS[i]["ms"]})
+    ins.set_xscale("log")   # x: c, as in the main axes
+    ins.set_title(r"$o/[h(1-k)\sin\Sigma]$", pad=2, loc="right", fontsize=MIN_FONT_SIZE)
 
 
-def _small_cut_panel(ax, data, inner, key: str):
+def _small_cut_panel(ax, data, inner, key: str, legend):
     x = np.geomspace(*X_RANGE, 300)
     h_ref = 1e-12            # Σ ≪ 1, so the Kelvin curve is a function of c/√h
     sig = np.arcsin(x * math.sqrt(h_ref) / 2)
@@ -172,52 +197,74 @@ def _small_cut_panel(ax, data, inner, key: str):
         const, const_label = 0.5, r"$1/2$ (leading order)"
         kelvin = asymptotics.displacement_small_cut(h_ref, K, sig) / (h_ref * abs(1 - K))
         scale = lambda h: h * abs(1 - K)  # noqa: E731
-    ax.axhline(const, color="k", lw=1.0, ls="--", label=const_label, zorder=1)
-    ax.plot(x, kelvin, color="k", lw=1.2, label="Kelvin approximation", zorder=1)
+    ax.axhline(const, color="k", lw=0.8, ls="--", label=const_label, zorder=1)
+    ax.plot(x, kelvin, color="k", label="Kelvin approximation", zorder=1)
     x_inner = inner["sigma"] * 2 / 12**0.25
-    ax.plot(x_inner, inner[key] / (1 - K), color="0.55", lw=2.4, alpha=0.6, zorder=0,
+    ax.plot(x_inner, inner[key] / (1 - K), color="0.55", lw=2.2, alpha=0.6, zorder=0,
             label="nonlinear inner problem")
     for i, (h, pts) in enumerate(data.items()):
-        xs = np.array(pts["c"]) / math.sqrt(h)
-        ax.plot(xs, np.array(pts[key]) / scale(h), ls="none", marker=MARKERS[i], ms=5,
-                mfc="none", mew=1.1, color=f"C{i}", label=_h_label(h))
+        _points(ax, np.array(pts["c"]) / math.sqrt(h), np.array(pts[key]) / scale(h), i,
+                label=_h_label(h))
     ax.set_xscale("log")
     ax.set_xlim(*X_RANGE)
     ax.set_ylim(0, const * 1.12)
     ax.set_xlabel(r"$c/\sqrt{h}$")
-    ax.legend(loc="lower right", fontsize="x-small", frameon=False, ncol=1)
+    _legend(ax, set(legend), loc="lower right")
 
 
-def panel_E(ax, data, inner):
-    _small_cut_panel(ax, data, inner, "rotation")
+def panel_E(ax, data, inner, legend=("curves", "points")):
+    _small_cut_panel(ax, data, inner, "rotation", legend)
     ax.set_ylabel(r"rotation $\varrho/[\sqrt{h}\,(1-k)]$")
 
 
-def panel_F(ax, data, inner):
-    _small_cut_panel(ax, data, inner, "displacement")
+def panel_F(ax, data, inner, legend=("curves", "points")):
+    _small_cut_panel(ax, data, inner, "displacement", legend)
     ax.set_ylabel(r"displacement $d/[h\,|1-k|]$")
 
 
-def _cross_section(ax, ab, title, limits=None):
-    plot_ablation(ab, ax=ax, title=title)
-    if limits is not None:
-        ax.set_xlim(*limits[0])
-        ax.set_ylim(*limits[1])
-    ax.legend(loc="center", fontsize="x-small", frameon=False)
-    # the corner is outside the (near-spherical) shells
-    ax.text(0.03, 0.03, rf"$o = {ab.opening:.3f}$" "\n" rf"$\varrho = {ab.rotation:.3f}$" "\n"
-            rf"$d = {ab.displacement:.3f}$", transform=ax.transAxes, ha="left", va="bottom",
-            fontsize="x-small")
+def _cross_section(ax, ab, limits, y_axis: bool = True):
+    """Pre/post cross-sections on the common scale; the observables below the axes.
+
+    Without ``y_axis`` the z labels are left to the panel on the left (same scale).
+    """
+    plot_ablation(ab, ax=ax, title=None, legend=False)
+    ax.set_aspect("equal", adjustable="box")   # the common limits are kept
+    ax.set_xlim(*limits[0])
+    ax.set_ylim(*limits[1])
+    if not y_axis:
+        ax.set_ylabel("")
+        ax.tick_params(labelleft=False)
+    ax.annotate(rf"$o = {ab.opening:.3f}$" "\n" rf"$\varrho = {ab.rotation:.3f}$" "\n"
+                rf"$d = {ab.displacement:.3f}$", xy=(0.5, 0.0), xycoords=ax.xaxis.label,
+                xytext=(0, -1), textcoords="offset points", ha="center", va="top")
+
+
+def _text_row(fig, spec, *, note: str | None = None, chars: int = 60, legend_from=None,
+              ncol: int = 1):
+    """An axes without frame under the cross-sections, for the shared legend or a note.
+
+    The note is broken into lines of about ``chars`` characters (TeX source:
+    write its formulas without spaces, which mathtext spaces itself).
+    """
+    ax = fig.add_subplot(spec)
+    ax.axis("off")
+    if legend_from is not None:
+        ax.legend(*legend_from.get_legend_handles_labels(), ncol=ncol, borderaxespad=0.0,
+                  loc="upper left" if ncol == 1 else "upper center")
+    if note is not None:
+        ax.text(0.0, 1.0, textwrap.fill(note, chars), transform=ax.transAxes, ha="left",
+                va="top")
+    return ax
 
 
 PANEL_TITLES = {
-    "D": "D  toy problem 2: cut opening",
-    "E": "E  toy problem 2: cut rotation",
-    "F": "F  toy problem 2: cut displacement",
-    "G": "G  toy problem 2, $k = 0$",
-    "H+": "H  toy problem 3, $f_0 = +0.1$",
-    "H-": "H  toy problem 3, $f_0 = -0.1$",
-    "I": "I  fast relaxation",
+    "D": "toy problem 2: cut opening",
+    "E": "toy problem 2: cut rotation",
+    "F": "toy problem 2: cut displacement",
+    "G": "toy problem 2\n$k = 0$",
+    "H+": "toy problem 3\n$f_0 = +0.1$",
+    "H-": "toy problem 3\n$f_0 = -0.1$",
+    "I": "fast relaxation\n$F_0 = 0.35$, $s_0 = 0.2$",
 }
 
 
@@ -252,65 +299,97 @@ def compute(quick: bool) -> dict:
 def _common_limits(ablations, margin: float = 0.06):
     """Axis limits holding every cross-section, so that all panels share one scale.
 
-    Bands as drawn by :func:`plot_ablation`: z in the far-end gauge of
-    :func:`morphoshell.ablation.edge_state`.
+    Bands as drawn by :func:`plot_ablation`: z in the far-end gauge
+    (:func:`morphoshell.plotting.far_end_shift`).
     """
     r_max, z_lo, z_hi = 0.0, np.inf, -np.inf
     for ab in ablations:
         for eq in (ab.pre, ab.post):
-            shift = edge_state(eq, float(eq.s[0]))["z"] - float(eq.z[0])
+            shift = far_end_shift(eq)
             pr, pz = sheet_outline(eq)
             r_max = max(r_max, float(np.max(np.abs(pr))))
             z_lo, z_hi = min(z_lo, float(np.min(pz)) + shift), max(z_hi, float(np.max(pz)) + shift)
     return (-r_max - margin, r_max + margin), (z_lo - margin, z_hi + margin)
 
 
-def draw(res: dict, out: Path) -> list[Path]:
-    written: list[Path] = []
+#: Heights (inches) of the single-panel files; the width is SINGLE_COLUMN.
+HEIGHT_CURVES, HEIGHT_SECTION = 2.6, 3.3
+
+
+def _figure(width: float, height: float) -> Figure:
+    return plt.figure(figsize=(width, height), layout="constrained")
+
+
+def figures(res: dict) -> dict[str, Figure]:
+    """Every figure of the script, keyed by file stem ("D" … "I", "D-I").
+
+    Draw inside :func:`morphoshell.plotting.paper_style` (fonts ≥ 7 pt).
+    """
+    figs: dict[str, Figure] = {}
     limits = _common_limits(res["cross"].values())
-
-    def single(key, fn, *args, size=(4.4, 3.8)):
-        fig, ax = plt.subplots(figsize=size, constrained_layout=True)
-        fn(ax, *args)
-        ax.set_title(PANEL_TITLES[key][3:], fontsize="medium")
-        written.extend(_save(fig, out / f"fig2_{key}"))
-
-    single("D", panel_D, res["D"])
-    single("E", panel_E, res["EF"], res["inner"])
-    single("F", panel_F, res["EF"], res["inner"])
+    for key, panel, args in (("D", panel_D, (res["D"],)),
+                             ("E", panel_E, (res["EF"], res["inner"])),
+                             ("F", panel_F, (res["EF"], res["inner"]))):
+        figs[key] = fig = _figure(SINGLE_COLUMN, HEIGHT_CURVES)
+        ax = fig.add_subplot()
+        panel(ax, *args)
+        ax.set_title(PANEL_TITLES[key])
     for key in ("G", "I"):
-        single(key, _cross_section, res["cross"][key], None, limits, size=(4.0, 4.6))
-    fig, axes = plt.subplots(1, 2, figsize=(7.6, 4.6), constrained_layout=True)
-    for ax, key in zip(axes, ("H+", "H-")):
-        _cross_section(ax, res["cross"][key], None, limits)
-        ax.set_title(PANEL_TITLES[key][3:], fontsize="medium")
-    written.extend(_save(fig, out / "fig2_H"))
-
-    fig = plt.figure(figsize=(13.5, 8.4), constrained_layout=True)
-    grid = fig.add_gridspec(2, 12)
-    top = [fig.add_subplot(grid[0, 4 * i:4 * i + 4]) for i in range(3)]
-    bottom = [fig.add_subplot(grid[1, 3 * i:3 * i + 3]) for i in range(4)]
-    panel_D(top[0], res["D"])
-    panel_E(top[1], res["EF"], res["inner"])
-    panel_F(top[2], res["EF"], res["inner"])
-    for ax, key in zip(top, "DEF"):
-        ax.set_title(PANEL_TITLES[key], fontsize="medium", loc="left")
-    for ax, key in zip(bottom, ("G", "H+", "H-", "I")):
-        _cross_section(ax, res["cross"][key], None, limits)
-        ax.set_title(PANEL_TITLES[key], fontsize="medium", loc="left")
-    written.extend(_save(fig, out / "fig2_D-I"))
-    return written
+        figs[key] = fig = _figure(SINGLE_COLUMN, HEIGHT_SECTION)
+        grid = fig.add_gridspec(2, 1, height_ratios=(1, 0.06))
+        ax = fig.add_subplot(grid[0])
+        _cross_section(ax, res["cross"][key], limits)
+        ax.set_title(PANEL_TITLES[key])
+        _text_row(fig, grid[1], legend_from=ax, ncol=2)
+    figs["H"] = fig = _figure(SINGLE_COLUMN, HEIGHT_SECTION + 0.8)
+    grid = fig.add_gridspec(3, 2, height_ratios=(1, 0.06, 0.4))
+    for col, key in enumerate(("H+", "H-")):
+        ax = fig.add_subplot(grid[0, col])
+        _cross_section(ax, res["cross"][key], limits, y_axis=col == 0)
+        ax.set_title(PANEL_TITLES[key])
+    _text_row(fig, grid[1, :], legend_from=ax, ncol=2)
+    _text_row(fig, grid[2, :], note=POLE_NOTE, chars=54)
+    figs["D-I"] = combined(res, limits)
+    return figs
 
 
-def _save(fig, stem: Path) -> list[Path]:
-    stem.parent.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for fmt in FORMATS:
-        path = stem.with_suffix("." + fmt)
-        fig.savefig(path, dpi=DPI)
-        paths.append(path)
-    plt.close(fig)
-    return paths
+def combined(res: dict, limits) -> Figure:
+    """Panels D–I at double-column width: D–F above, the cross-sections G–I below."""
+    fig = _figure(DOUBLE_COLUMN, 5.3)
+    top, bottom = fig.subfigures(2, 1, height_ratios=(1, 1.25))
+    axes = top.subplots(1, 3)
+    panel_D(axes[0], res["D"])
+    panel_E(axes[1], res["EF"], res["inner"], legend=("curves",))   # the points: as in D
+    panel_F(axes[2], res["EF"], res["inner"], legend=())              # the curves: as in E
+    for ax, key in zip(axes, "DEF"):
+        ax.set_title(PANEL_TITLES[key])
+        label_panel(ax, key)
+    grid = bottom.add_gridspec(2, 4, height_ratios=(1, 0.12))
+    for col, key in enumerate(("G", "H+", "H-", "I")):
+        ax = bottom.add_subplot(grid[0, col])
+        _cross_section(ax, res["cross"][key], limits, y_axis=col == 0)
+        ax.set_title(PANEL_TITLES[key])
+        if key != "H-":
+            label_panel(ax, key[0])
+        if key == "G":
+            legend_from = ax
+    _text_row(bottom, grid[1, 0], legend_from=legend_from)
+    _text_row(bottom, grid[1, 1:], note="H: " + POLE_NOTE, chars=100)
+    return fig
+
+
+def write(res: dict, out: Path, quick: bool) -> tuple[list[Path], dict[str, Figure]]:
+    """Draw (paper style) and save every figure, 300 dpi PNG and PDF, and the points' JSON.
+
+    Returns the paths written and the figures (closed, for inspection).
+    """
+    written: list[Path] = []
+    with paper_style():   # saved inside too: the PDF's font type is read on saving
+        figs = figures(res)
+        for key, fig in figs.items():
+            written.extend(save(fig, out / f"fig2_{key}", formats=FORMATS, close=True))
+    written.append(write_json(out / "fig2_points.json", points_json(res, quick)))
+    return written, figs
 
 
 def points_json(res: dict, quick: bool) -> dict:
@@ -349,12 +428,11 @@ def main(argv=None) -> int:
     parser.add_argument("--out", default="out/figures", help="output folder (default: out/figures)")
     parser.add_argument("--quick", action="store_true", help="fewer points and a coarser mesh")
     args = parser.parse_args(argv)
-    out = Path(args.out)
+    matplotlib.use("Agg")   # files only: runs without a display
     t0 = time.perf_counter()
     res = compute(args.quick)
     t1 = time.perf_counter()
-    written = draw(res, out)
-    written.append(write_json(out / "fig2_points.json", points_json(res, args.quick)))
+    written, _ = write(res, Path(args.out), args.quick)
     for path in written:
         print(f"wrote {path}")
     print(f"{SCRIPT}: solved in {t1 - t0:.1f} s, plotted in {time.perf_counter() - t1:.1f} s")

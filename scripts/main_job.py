@@ -11,9 +11,11 @@ import argparse
 import sys
 from pathlib import Path
 
+import matplotlib
+
 from morphoshell.equilibrium import solve
 from morphoshell.io import load_problem, write_json
-from morphoshell.plotting import plot_cross_section, save
+from morphoshell.plotting import plot_cross_section, problem_label, save
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -23,6 +25,7 @@ def main(argv=None) -> int:
     parser.add_argument("--out", default="out", help="output folder (default: out)")
     parser.add_argument("--problems", default=str(ROOT / "problems"), help="problem folder")
     args = parser.parse_args(argv)
+    matplotlib.use("Agg")   # files only: no display needed
     out = Path(args.out)
     summary = {}
     for path in sorted(Path(args.problems).glob("*.toml")):
@@ -30,8 +33,8 @@ def main(argv=None) -> int:
         extra = {"stages": settings.stages} if settings.method == "direct" else {}
         eq = solve(problem, nodes=settings.nodes, method=settings.method, **extra)
         write_json(out / f"{path.stem}.json", eq.to_dict())
-        save(plot_cross_section([eq], title=f"{path.stem} ({settings.method}, {settings.nodes} nodes)"),
-             out / f"{path.stem}.png")
+        title = f"{problem_label(problem)}\n({settings.method}, {settings.nodes} nodes)"
+        save(plot_cross_section(eq, title=title), out / f"{path.stem}.png", close=True)
         summary[path.stem] = eq.to_dict(arrays=False)
         print(f"{path.stem:20s} energy {eq.energy:.10g}  {eq.solver.iterations} iterations  "
               f"{eq.solver.seconds * 1e3:7.1f} ms")

@@ -1,7 +1,8 @@
 """Smoke and content test of scripts/fig2_toy_problems.py (paper Fig. 2 D–I).
 
-Runs the script's ``main(["--quick", ...])`` once (about 10 s) and checks
-the files and the physics of the numerical points it plotted.
+Runs the script's ``--quick`` computation and drawing once (about 10 s) and
+checks the files, the figures' sizes and fonts, and the physics of the
+numerical points it plotted.
 """
 import importlib.util
 import json
@@ -10,8 +11,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from matplotlib.axes import Axes
+from matplotlib.text import Text
+from PIL import Image
 
 from morphoshell import asymptotics
+from morphoshell.plotting import DOUBLE_COLUMN, MIN_FONT_SIZE, SINGLE_COLUMN
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "scripts" / "fig2_toy_problems.py"
@@ -27,10 +32,22 @@ def _load_script():
 
 
 @pytest.fixture(scope="module")
-def run(tmp_path_factory):
+def script():
+    return _load_script()
+
+
+@pytest.fixture(scope="module")
+def run(script, tmp_path_factory):
+    """Output folder, the points' JSON and the figures (as main() draws them)."""
     out = tmp_path_factory.mktemp("fig2")
-    assert _load_script().main(["--quick", "--out", str(out)]) == 0
-    return out, json.loads((out / "fig2_points.json").read_text())
+    _, figures = script.write(script.compute(quick=True), out, quick=True)
+    return out, json.loads((out / "fig2_points.json").read_text()), figures
+
+
+def test_main_parses_its_options(script, capsys):
+    with pytest.raises(SystemExit) as exc:
+        script.main(["--help"])
+    assert exc.value.code == 0 and "--quick" in capsys.readouterr().out
 
 
 def _series(data, panel):
@@ -39,7 +56,7 @@ def _series(data, panel):
 
 
 def test_files_written_and_non_trivial(run):
-    out, data = run
+    out, data, _ = run
     for panel in PANELS:
         png, pdf = out / f"fig2_{panel}.png", out / f"fig2_{panel}.pdf"
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -54,7 +71,7 @@ def test_files_written_and_non_trivial(run):
 
 
 def test_D_opening_approaches_the_line_as_h_decreases(run):
-    _, data = run
+    _, data, _ = run
     series = _series(data, "D")
     # worst relative deviation from o/[h(1-k)] = c/2, thickest shell first
     worst = [float(np.max(np.abs(y / (x / 2) - 1))) for _, (x, y) in sorted(series.items(),
@@ -68,7 +85,7 @@ def test_D_opening_approaches_the_line_as_h_decreases(run):
 
 
 def test_E_F_small_and_large_cuts(run):
-    _, data = run
+    _, data, _ = run
     for panel, small_cut, constant in (("E", asymptotics.rotation_small_cut, math.sqrt(1.5)),
                                        ("F", asymptotics.displacement_small_cut, 0.5)):
         for h, (x, y) in _series(data, panel).items():
@@ -88,7 +105,7 @@ def test_E_F_small_and_large_cuts(run):
 
 
 def test_cross_sections_recoil_as_in_the_paper(run):
-    _, data = run
+    _, data, _ = run
     cs = data["cross_sections"]
     # G: an intrinsically flat sheet (k = 0 < 1) curls outward: the cut opens
     assert cs["G"]["opening"] > 0 and cs["G"]["rotation"] > 0
@@ -99,3 +116,45 @@ def test_cross_sections_recoil_as_in_the_paper(run):
     assert cs["H+"]["problem"]["params"]["f0"] == -cs["H-"]["problem"]["params"]["f0"] == 0.1
     # I: the fast relaxation also opens the cut outward (qualitatively like G)
     assert cs["I"]["opening"] > 0 and cs["I"]["rotation"] > 0
+
+
+def _texts(fig):
+    """Every visible, non-empty text of a figure (titles, labels, ticks, legends, notes)."""
+    return [t for t in fig.findobj(Text) if t.get_visible() and t.get_text().strip()]
+
+
+def test_paper_sizes_and_fonts(run):
+    out, _, figures = run
+    for key, fig in figures.items():
+        width = DOUBLE_COLUMN if key == "D-I" else SINGLE_COLUMN
+        assert fig.get_size_inches()[0] == pytest.approx(width), key
+        # saved at that size (no cropping) and 300 dpi
+        assert Image.open(out / f"fig2_{key}.png").size[0] == round(300 * width), key
+        small = [(t.get_text(), t.get_fontsize()) for t in _texts(fig)
+                 if t.get_fontsize() < MIN_FONT_SIZE]
+        assert not small, (key, small)
+    # the panel letters are bold, outside the titles
+    letters = [t for t in _texts(figures["D-I"]) if t.get_text() in set("DEFGHI")]
+    assert sorted(t.get_text() for t in letters) == list("DEFGHI")
+    assert all(t.get_fontweight() == "bold" for t in letters)
+    assert not any(ax.get_title()[:2].strip() in set("DEFGHI")
+                   for ax in figures["D-I"].findobj(Axes))
+
+
+def test_thickest_points_stay_visible(script, run):
+    _, _, figures = run
+    ax = figures["D"].axes[0]
+    points = {line.get_label(): line for line in ax.get_lines() if line.get_linestyle() == "None"}
+    by_h = [points[script._h_label(h)] for h in script.H_VALUES]   # thickest first
+    # h = 1e-2 first: the largest, open marker, drawn on top of the others
+    sizes = [line.get_markersize() for line in by_h]
+    assert sizes == sorted(sizes, reverse=True) and len(set(sizes)) == 3
+    assert by_h[0].get_markerfacecolor() == "none"
+    assert by_h[0].get_zorder() > max(line.get_zorder() for line in by_h[1:])
+
+
+def test_pole_spikes_explained_on_panel_H(run):
+    _, _, figures = run
+    for key in ("H", "D-I"):
+        notes = [t.get_text() for t in _texts(figures[key]) if "physical" in t.get_text()]
+        assert len(notes) == 1 and "pole" in notes[0] and "toy problem 3" in notes[0], key

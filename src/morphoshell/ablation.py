@@ -39,7 +39,7 @@ from .equilibrium import solve
 from .observables import RECOIL, recoil, state_at
 from .parametric import parametric
 from .problem import Problem
-from .results import Equilibrium
+from .results import Equilibrium, _html_table, _problem_rows
 
 __all__ = ["Ablation", "ablate", "edge_state", "intact_problem", "recoil_jacobian"]
 
@@ -63,6 +63,20 @@ class Ablation:
         return (f"Ablation(cut={self.problem.cut:g}, opening={self.opening:.6g}, "
                 f"rotation={self.rotation:.6g}, displacement={self.displacement:.6g}, "
                 f"energy_released={self.energy_released:.6g})")
+
+    def _repr_html_(self) -> str:
+        """Jupyter's view: the problem, the observables with units, both states' solves."""
+        names = {"opening": ("cut opening o", "R"), "rotation": ("rotation ϱ", "rad"),
+                 "displacement": ("displacement d", "R"),
+                 "radial_displacement": ("radial displacement", "R"),
+                 "axial_displacement": ("axial displacement", "R"),
+                 "energy_released": ("energy released ΔE", "C R²"),
+                 "energy_removed": ("energy removed (cap)", "C R²")}
+        rows = _problem_rows(self.problem) + [
+            (names[k][0], f"{v:.6g} {names[k][1]}") for k, v in self.observables().items()]
+        for label, eq in (("pre-ablation", self.pre), ("post-ablation", self.post)):
+            rows += [(f"{label} {k}", v) for k, v in eq._repr_rows(edges=False)]
+        return _html_table(rows, "Ablation")
 
     def observables(self) -> dict[str, float]:
         return {k: getattr(self, k) for k in (*RECOIL, "energy_released", "energy_removed")}

@@ -190,6 +190,32 @@ class Equilibrium:
                 f"energy={self.energy:.10g}, points={len(self.s)}, method={self.solver.method!r}, "
                 f"converged={self.converged})")
 
+    def _repr_rows(self, edges: bool = True) -> list[tuple[str, str]]:
+        """Energy, solver, error estimate and (``edges``) the first and last points, as rows."""
+        st, err = self.solver, self.error
+        rows = [("energy", f"{self.energy:.10g} C R²"),
+                ("solver", f"{st.method}, {st.nodes} nodes ({len(self.s)} points), "
+                           f"{st.iterations} iterations, {st.seconds:.3g} s: {st.status}")]
+        if not self.converged:
+            rows.append(("converged", "no: the last iterate of a failed solve"))
+        if "path" in st.details:
+            rows.append(("reached by", str(st.details["path"])))
+        if err is not None:
+            rel = err.relative()
+            rows.append(("error estimate", f"unavailable: {err.note}" if err.note else
+                         f"{rel['energy']:.2g} of the energy, "
+                         f"{max(v for k, v in rel.items() if k != 'energy'):.2g} R or rad at "
+                         f"the edges (vs {err.reference_nodes} nodes, order {err.order})"))
+        if edges:
+            rows += [(f"{which} point, s = {e['s']:.6g} R",
+                      f"r = {e['r']:.6g} R, z = {e['z']:.6g} R, ψ = {e['psi']:.6g} rad")
+                     for which, e in (("first", self.edge("start")), ("last", self.edge("end")))]
+        return rows
+
+    def _repr_html_(self) -> str:
+        """Jupyter's view: the problem, energy, solver and edge values, with units."""
+        return _html_table(_problem_rows(self.problem) + self._repr_rows(), "Equilibrium")
+
     def estimated_values(self) -> dict[str, float]:
         """The quantities an :class:`ErrorEstimate` covers (:data:`ESTIMATED`)."""
         return {"energy": self.energy, "r_start": float(self.r[0]), "psi_start": float(self.psi[0]),
@@ -254,6 +280,27 @@ class Equilibrium:
         if arrays:
             out.update({k: getattr(self, k).tolist() for k in FIELDS})
         return out
+
+
+def _problem_rows(problem: Problem) -> list[tuple[str, str]]:
+    """A problem as (name, value) rows for :func:`_html_table` (lengths in units of R)."""
+    what = f"{problem.family} family, {problem.theory.replace('_', '-')} theory, {problem.geometry}"
+    rows = [("problem", f"{problem.name}: {what}" if problem.name else what),
+            ("thickness h", f"{problem.h:g} R"), ("cut Σ", f"{problem.cut:g} R"),
+            ("far-end opening P", f"{problem.opening:g} R")]
+    if problem.params:
+        rows.append(("parameters", ", ".join(f"{k} = {v:g}" for k, v in problem.params.items())))
+    return rows
+
+
+def _html_table(rows: list[tuple[str, str]], caption: str) -> str:
+    """A small HTML table of (name, value) rows: the Jupyter view of results."""
+    from html import escape
+
+    body = "".join(f"<tr><th style='text-align:left'>{escape(k)}</th>"
+                   f"<td style='text-align:left'>{escape(v)}</td></tr>" for k, v in rows)
+    head = f"<caption style='text-align:left'><b>{escape(caption)}</b></caption>"
+    return f"<table>{head}{body}</table>"
 
 
 class SolverError(RuntimeError):

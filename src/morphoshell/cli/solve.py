@@ -138,8 +138,10 @@ def _solve(args) -> int:
     out.add(args.json, lambda path: write_json(path, eq.to_dict()))
     out.add(args.csv, lambda path: write_csv(path, {k: getattr(eq, k) for k in FIELDS}))
     if args.plot:
-        from ..plotting import plot_cross_section, save
-        ax = plot_cross_section([eq], title=f"{_label(problem)} ({method})")
+        from ..plotting import new_axes, plot_cross_section, problem_label, save
+        # a figure outside pyplot: no backend or display needed, none left open
+        ax = plot_cross_section(eq, new_axes(pyplot=False),
+                                title=f"{problem_label(problem)} ({method})")
         out.add(args.plot, lambda path: save(ax, path))
     for path in out.commit():
         print(f"  wrote {path}")
@@ -172,8 +174,8 @@ def _ablate(args) -> int:
                                                     "opening": problem.opening,
                                                     **ab.observables()}))
     if args.plot:
-        from ..plotting import plot_ablation, save
-        ax = plot_ablation(ab, title=f"{_label(problem)}: cut {problem.cut:g}")
+        from ..plotting import new_axes, plot_ablation, save
+        ax = plot_ablation(ab, new_axes(legend=True, pyplot=False))
         out.add(args.plot, lambda path: save(ax, path))
     for path in out.commit():
         print(f"  wrote {path}")

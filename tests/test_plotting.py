@@ -1,0 +1,180 @@
+"""Plotting in notebooks and scripts: backend, API, titles, saving, Jupyter views.
+
+Equilibria on coarse meshes (50 nodes): the drawing is under test, not the solution.
+"""
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import matplotlib.pyplot as plt
+import pytest
+from matplotlib.colors import to_rgba
+from PIL import Image
+
+from morphoshell.ablation import ablate
+from morphoshell.equilibrium import solve
+from morphoshell.plotting import (new_axes, plot_ablation, plot_cross_section, problem_label,
+                                  save)
+from morphoshell.problem import Problem
+
+ROOT = Path(__file__).resolve().parents[1]
+NODES = 50
+
+
+@pytest.fixture(scope="module")
+def eqs():
+    """Two shells that differ in k only (uniform family, h = 0.1; k = 0 is the default)."""
+    return [solve(Problem("uniform", {"k": k}, h=0.1, name="demo"), nodes=NODES)
+            for k in (0.0, 0.5)]
+
+
+@pytest.fixture(scope="module")
+def ablation():
+    return ablate(Problem("uniform", {"k": 0.0}, h=0.3, cut=0.3, name="toy2"), nodes=NODES)
+
+
+@pytest.fixture(autouse=True)
+def _close_figures():
+    yield
+    plt.close("all")
+
+
+def _headless_env(**extra) -> dict:
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "MPLBACKEND")}
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT / "src"), env.get("PYTHONPATH", "")])
+    return {**env, **extra}
+
+
+@pytest.mark.parametrize("backend", ["svg", "pdf"])
+def test_import_keeps_the_backend(backend):
+    # A Jupyter kernel sets its inline backend this way (MPLBACKEND); importing
+    # the module switched it to Agg, and plots stopped showing inline.
+    code = ("import matplotlib; before = matplotlib.get_backend(); "
+            "import morphoshell.plotting; print(before, matplotlib.get_backend())")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         env=_headless_env(MPLBACKEND=backend), check=True).stdout.split()
+    assert out == [backend, backend]
+
+
+def test_cli_plots_without_display_or_backend(tmp_path):
+    png = tmp_path / "shell.png"
+    subprocess.run([sys.executable, "-m", "morphoshell.cli", "solve",
+                    str(ROOT / "problems" / "toy1_sphere.toml"), "--nodes", "20",
+                    "--plot", str(png)], capture_output=True, text=True, env=_headless_env(),
+                   check=True)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_cli_leaves_no_pyplot_figure(tmp_path, capsys):
+    from morphoshell.cli import main
+
+    assert main(["ablate", str(ROOT / "problems" / "toy2_ablation.toml"), "--nodes", "30",
+                 "--plot", str(tmp_path / "a.png")]) == 0
+    assert plt.get_fignums() == []
+    assert (tmp_path / "a.png").stat().st_size > 10_000
+
+
+def test_one_result_or_several(eqs):
+    one = plot_cross_section(eqs[0])
+    assert len(one.get_lines()) == 1 and len(one.patches) == 1   # midline and band
+    assert one.get_legend() is None                              # nothing to tell apart
+    several = plot_cross_section(eqs)
+    assert len(several.get_lines()) == 2 and len(several.patches) == 0   # midlines only
+    assert plot_cross_section(tuple(eqs), band="fill").patches.__len__() == 2
+
+
+def test_draws_into_the_given_axes_and_leaves_the_figure_open(eqs, ablation):
+    fig, (left, right) = plt.subplots(1, 2)
+    assert plot_cross_section(eqs[0], left) is left
+    assert plot_ablation(ablation, ax=right) is right
+    assert left.get_lines() and right.get_lines()
+    assert plt.fignum_exists(fig.number)
+
+
+def test_style_reaches_the_artists(eqs):
+    ax = plot_cross_section(eqs[0], color="k", lw=2.5, ls="--", alpha=0.7)
+    line = ax.get_lines()[0]
+    assert to_rgba(line.get_color()) == to_rgba("k")
+    assert (line.get_linewidth(), line.get_linestyle(), line.get_alpha()) == (2.5, "--", 0.7)
+    assert to_rgba(ax.patches[0].get_facecolor())[:3] == to_rgba("k")[:3]   # band: same colour
+    # a list gives one value per result
+    ax = plot_cross_section(eqs, color=["k", "tab:red"], linewidth=[1.0, 2.0])
+    assert [to_rgba(l.get_color()) for l in ax.get_lines()] == [to_rgba("k"), to_rgba("tab:red")]
+    assert [l.get_linewidth() for l in ax.get_lines()] == [1.0, 2.0]
+
+
+def test_ablation_style(ablation):
+    ax = plot_ablation(ablation, lw=2.0, colors=("k", "tab:blue"))
+    midlines = [l for l in ax.get_lines() if l.get_linestyle() != "None"]
+    assert [l.get_linewidth() for l in midlines] == [2.0, 2.0]
+    assert [to_rgba(l.get_color()) for l in midlines] == [to_rgba("k"), to_rgba("tab:blue")]
+
+
+def test_midline_only_draws_no_band(eqs, ablation):
+    for ax in (plot_cross_section(eqs[0], midline_only=True),
+               plot_cross_section(eqs[0], band=False),
+               plot_cross_section(eqs, band="outline"),
+               plot_ablation(ablation, midline_only=True)):
+        assert len(ax.patches) == 0 and len(ax.collections) == 0
+    # the outline: both edges of each band as lines beside the midline
+    assert len(plot_cross_section(eqs, band="outline").get_lines()) == 6
+
+
+def test_save_writes_300_dpi_png_and_pdf_and_keeps_the_figure(eqs, tmp_path):
+    ax = plot_cross_section(eqs[0], new_axes((3.0, 2.0)))
+    paths = save(ax, tmp_path / "shell", formats=("png", "pdf"))
+    assert [p.suffix for p in paths] == [".png", ".pdf"]
+    # a laid-out figure keeps its size (a journal's width): 3 × 2 in at 300 dpi
+    assert Image.open(paths[0]).size == (900, 600)
+    assert paths[1].read_bytes()[:5] == b"%PDF-"
+    assert plt.fignum_exists(ax.figure.number)
+    save(ax, tmp_path / "again.png", close=True)
+    assert not plt.fignum_exists(ax.figure.number)
+
+
+def test_titles_and_legends_say_what_was_solved(eqs, ablation):
+    changed = Problem("uniform", {"k": 0.5}, h=0.2, cut=0.3, opening=0.4,
+                      theory="classical", name="demo")
+    label = problem_label(changed)
+    for part in ("demo", "uniform", "classical", "h = 0.2", "cut Σ = 0.3", "opening P = 0.4",
+                 "k = 0.5"):
+        assert part in label, part
+    assert "cut" not in problem_label(eqs[0].problem)   # no cut, no opening: not mentioned
+    assert "k = 0.5" in plot_cross_section(eqs[1]).get_title()
+    # several: the title says what they share, the entries what sets them apart
+    ax = plot_cross_section(eqs)
+    assert "h = 0.1" in ax.get_title() and "k =" not in ax.get_title()
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["k = 0", "k = 0.5"]
+    # the legend is beside the axes, not over the shells
+    ax.figure.canvas.draw()
+    assert (ax.get_legend().get_window_extent().x0
+            >= ax.get_window_extent().x1 - 1e-6)
+    assert "cut Σ = 0.3" in plot_ablation(ablation).get_title()
+    assert plot_cross_section(eqs[0], title=None).get_title() == ""
+
+
+def test_large_families_name_only_the_changed_parameters():
+    from morphoshell.profiles import FAMILIES
+
+    f1 = FAMILIES["volvox"].defaults["f1"] * 1.01
+    label = problem_label(Problem("volvox", {"f1": f1}, h=0.15, opening=0.3))
+    assert f"f1 = {f1:g}" in label and "f2" not in label and "kappa" not in label
+
+
+def test_html_views_show_energy_and_units(eqs, ablation):
+    eq = eqs[1]
+    html = eq._repr_html_()
+    assert f"{eq.energy:.10g} C R²" in html
+    assert "k = 0.5" in html and "rad" in html and "continuation" in html   # path
+    assert "error estimate" in html
+    text = repr(eq)
+    assert "\n" not in text and len(text) < 120
+    html = ablation._repr_html_()
+    assert f"{ablation.rotation:.6g} rad" in html and f"{ablation.opening:.6g} R" in html
+    assert "pre-ablation energy" in html and "post-ablation energy" in html
+
+
+def test_html_view_escapes_names():
+    eq = solve(Problem("uniform", name="<b>x</b>"), nodes=20)
+    assert "<b>x</b>" not in eq._repr_html_() and "&lt;b&gt;x&lt;/b&gt;" in eq._repr_html_()
