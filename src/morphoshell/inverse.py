@@ -665,17 +665,16 @@ class Estimate:
     evaluations: int = 0
 
 
-def _newton_error(curve: _Curve, pt: _Point, i: int, step: float) -> float:
-    """Estimated error |m''/(2m')| s² of the Newton update k + s from ``pt``.
+def _newton_update(curve: _Curve, pt: _Point, i: int, step: float) -> tuple[float, float]:
+    """(estimated error |m''/(2m')| s², slope m' at k + s) of the Newton update from ``pt``.
 
     m'' is the difference quotient of the exact derivatives at ``pt`` and its
-    nearest other sample; the estimate is trusted only for |s| ≤ 1e-2 (else inf).
+    nearest other sample; the error is trusted only for |s| ≤ 1e-2 (else inf).
     """
-    if abs(step) > 1e-2:
-        return math.inf
     q = min((p for p in curve.points if p is not pt), key=lambda p: abs(p.k - pt.k))
     curvature = (pt.derivative[i] - q.derivative[i]) / (pt.k - q.k)
-    return abs(curvature / (2 * pt.derivative[i])) * step**2
+    error = abs(curvature / (2 * pt.derivative[i])) * step**2 if abs(step) <= 1e-2 else math.inf
+    return error, pt.derivative[i] + curvature * step
 
 
 def _targets(measure: str, value: float, k_range) -> list[tuple[float, float, float]]:
@@ -737,10 +736,12 @@ def _invert(curve: _Curve, measure: str, method: str, value: float, error: float
                 b = k
             step = -r / g
         new = k + step
-        if step == 0 or (a <= new <= b and _newton_error(curve, pt, i, step) <= K_TOL):
-            return Estimate(measure, method, float(new),
-                            None if error is None else float(error / abs(g)), slope=float(g),
-                            evaluations=curve.evaluations - before)
+        accuracy, slope = _newton_update(curve, pt, i, step) if step else (0.0, g)
+        # a root at a sample may sit a round-off outside the bracket found for it
+        if accuracy <= K_TOL and lo - 1e-9 <= new <= hi + 1e-9:
+            return Estimate(measure, method, float(min(max(new, lo), hi)),
+                            None if error is None else float(error / abs(slope)),
+                            slope=float(slope), evaluations=curve.evaluations - before)
         k = new if a < new < b else 0.5 * (a + b)
     return Estimate(measure, method, None, status="failed", evaluations=curve.evaluations - before,
                     note=f"no convergence in {MAX_STEPS} Newton steps (last k = {k:.6g})")
@@ -777,7 +778,7 @@ class EmbryoEstimate:
     def notes(self) -> list[str]:
         """Why estimates are missing (``measure, method: reason``)."""
         out = [f"{m}, {meth}: {e.note}" for (m, meth), e in self.estimates.items()
-               if e.note and meth != "asymptotic"]
+               if e.note and meth != "asymptotic" and e.note != "method not requested"]
         return out + ([f"combined: {self.combined.note}"] if self.combined.note else [])
 
     def to_dict(self) -> dict:
@@ -1063,12 +1064,13 @@ class InverseResult:
                          f"{c.weighted_error:.4f}")
         if self.velocity is not None:
             lines.append(f"recoil velocities: {self.velocity}")
-        notes = [(e.measurement.embryo, n) for e in self.embryos for n in e.notes
-                 if "method not requested" not in n and "not measured" not in n
-                 and "no small-cut closed form" not in n]
+        notes = [f"  {e.measurement.embryo}: {m}, {meth}: {est.note}" for e in self.embryos
+                 for (m, meth), est in e.estimates.items()
+                 if meth != "asymptotic" and est.status in ("outside_range", "not_monotonic",
+                                                            "failed")]
         if notes:
-            lines.append("no estimate:")
-            lines += [f"  {emb}: {n}" for emb, n in notes]
+            lines += ["no estimate (measures that no k in the range produces, or failures):",
+                      *notes]
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
