@@ -127,6 +127,18 @@ def test_error_propagation_uses_the_exact_slope(model):
     assert e.combined.k == pytest.approx(0.05, abs=1e-8)
 
 
+def test_estimates_do_not_depend_on_the_workers():
+    # each embryo starts from k = 1 on its own: rows can be shared between
+    # processes (forked, inheriting the solvers) without changing a digit
+    rows = I.read_measurements(TABLE)[:2]
+    one, two = (I.estimate(rows, methods=("numerical",), bootstrap=100, workers=w)
+                for w in (1, 2))
+    for a, b in zip(one.embryos, two.embryos):
+        for measure in I.MEASURES:
+            assert a.k(measure) == b.k(measure)
+    assert one.summary["combined"] == two.summary["combined"]
+
+
 # --------------------------------------------------------------------------
 # honest "no estimate"
 # --------------------------------------------------------------------------

@@ -64,6 +64,8 @@ from __future__ import annotations
 
 import csv
 import math
+import multiprocessing
+import os
 import time
 import weakref
 from dataclasses import dataclass, field
@@ -818,7 +820,8 @@ def estimate_embryo(m: Measurement, model: RecoilModel | None = None,
                     k_range: tuple[float, float] = DEFAULT_K_RANGE,
                     methods: Sequence[str] = METHODS) -> EmbryoEstimate:
     """Estimates of k for one embryo by every method and measure (see :func:`estimate`)."""
-    model = model or RecoilModel()
+    if model is None and "numerical" in methods:
+        model = RecoilModel()
     k_range = _check_k_range(k_range)
     h, Sigma = m.h, m.Sigma
     out: dict[tuple[str, str], Estimate] = {}
@@ -1100,10 +1103,30 @@ class InverseResult:
         return cols
 
 
+#: What forked workers of :func:`estimate` inherit.
+_WORKER: dict = {}
+
+
+def _estimate_in_worker(m: Measurement) -> EmbryoEstimate:
+    return estimate_embryo(m, _WORKER["model"], _WORKER["k_range"], _WORKER["methods"])
+
+
+def _check_workers(workers, n: int) -> int:
+    """Worker processes: default one per core (at most one per embryo); fork only (POSIX)."""
+    if workers is None:
+        workers = os.cpu_count() or 1
+    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
+        raise ValueError(f"workers = {workers!r} must be a positive integer")
+    if "fork" not in multiprocessing.get_all_start_methods():
+        return 1
+    return int(min(workers, n))
+
+
 def estimate(measurements: str | Path | Iterable[Measurement], *,
              theory: str = "large_bending", k_range: tuple[float, float] = DEFAULT_K_RANGE,
              mu_min: float = MU_MIN, bootstrap: int = BOOTSTRAP, seed: int = SEED,
-             nodes: int = NODES, methods: Sequence[str] = METHODS) -> InverseResult:
+             nodes: int = NODES, methods: Sequence[str] = METHODS,
+             workers: int | None = None) -> InverseResult:
     """Estimate k for every embryo and measure, summarise, and fit E/μ.
 
     Parameters
@@ -1124,6 +1147,9 @@ def estimate(measurements: str | Path | Iterable[Measurement], *,
         Mesh nodes of the numerical model.
     methods : sequence of str
         Subset of :data:`METHODS` to compute (the others are null).
+    workers : int, optional
+        Processes sharing the embryos (default: one per core; 1: this one).
+        The estimates do not depend on it.
 
     Returns
     -------
@@ -1145,9 +1171,22 @@ def estimate(measurements: str | Path | Iterable[Measurement], *,
     if isinstance(bootstrap, bool) or not isinstance(bootstrap, (int, np.integer)) \
             or bootstrap < 0:
         raise ValueError(f"bootstrap = {bootstrap!r} must be a non-negative integer")
-    model = RecoilModel(theory, nodes, mesh_for=(float(np.median([m.h for m in data])),
-                                                  float(np.median([m.Sigma for m in data]))))
-    embryos = tuple(estimate_embryo(m, model, k_range, methods) for m in data)
+    model = None
+    if "numerical" in methods:
+        model = RecoilModel(theory, nodes, mesh_for=(float(np.median([m.h for m in data])),
+                                                      float(np.median([m.Sigma for m in data]))))
+    workers = _check_workers(workers, len(data))
+    if workers == 1:
+        embryos = tuple(estimate_embryo(m, model, k_range, methods) for m in data)
+    else:
+        # Embryos are independent (each starts from k = 1), so the result does not
+        # depend on how they are shared.  Forked workers inherit the built solvers.
+        _WORKER.update(model=model, k_range=k_range, methods=tuple(methods))
+        try:
+            with multiprocessing.get_context("fork").Pool(workers) as pool:
+                embryos = tuple(pool.map(_estimate_in_worker, data, chunksize=1))
+        finally:
+            _WORKER.clear()
     t1 = time.perf_counter()
     keys = _keys()
     summary: dict[str, Spread] = {}
@@ -1174,9 +1213,11 @@ def estimate(measurements: str | Path | Iterable[Measurement], *,
     per_method = {f"{meth}_seconds": sum(e.seconds.get(meth, 0.0) for e in embryos)
                   for meth in METHODS}
     timing = {"total": time.perf_counter() - t0, "estimates": t1 - t0, **per_method,
-              "numerical_solver_builds": model.builds}
+              "numerical_solver_builds": 0 if model is None else model.builds,
+              "workers": workers}
     settings = {"theory": theory, "k_range": list(k_range), "mu_min_Pa_s": mu_min,
                 "bootstrap": bootstrap, "seed": seed, "nodes": nodes, "methods": list(methods),
+                "workers": workers,
                 "grid_step": GRID_STEP, "k_tol": K_TOL,
                 "asymptotic": dict(ASYMPTOTIC)}
     if isinstance(measurements, (str, Path)):

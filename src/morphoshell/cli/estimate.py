@@ -69,6 +69,9 @@ def register(sub) -> None:
                    help="seed of the bootstrap (default 0)")
     p.add_argument("--nodes", type=integer(20, 3200), default=100, metavar="N",
                    help="mesh nodes of the numerical model (default 100)")
+    p.add_argument("--workers", type=integer(1, 256), default=None, metavar="N",
+                   help="processes sharing the embryos (default: one per core); the "
+                        "estimates do not depend on it")
     add_outputs(p, json="write every estimate, the summary and the E/mu fit as JSON",
                 csv="write the per-embryo estimates as CSV",
                 plot="write Fig. 2 J (and K with velocities)")
@@ -84,7 +87,8 @@ def _estimate(args) -> int:
         raise ValueError(f"--k-range {lo:g} {hi:g}: LO must be smaller than HI")
     data = read_measurements(args.measurements)
     result = estimate(data, theory=args.theory, k_range=(lo, hi), mu_min=args.mu_min,
-                      bootstrap=args.bootstrap, seed=args.seed, nodes=args.nodes)
+                      bootstrap=args.bootstrap, seed=args.seed, nodes=args.nodes,
+                      workers=args.workers)
     print(f"{args.measurements}: {result}")
     print(f"  ({result.timing['total']:.1f} s; numerical estimates "
           f"{result.timing['numerical_seconds']:.1f} s)")

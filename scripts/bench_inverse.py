@@ -1,0 +1,85 @@
+#!/usr/bin/env python3
+"""Timing of the inverse estimates (morphoshell.inverse) on the synthetic ablation table.
+
+Target of the issue: numerical estimates of k for 14 embryos x 3 measures,
+bootstrap included, in under 5 s on 2 cores.  Each row is the median of
+--repeats runs of :func:`morphoshell.inverse.estimate` in one process (the
+first, which also imports and JIT-builds CasADi's functions, is reported
+separately as "first run"); every run builds its own pair of solvers.  The
+load average is printed: the machine may be shared.
+
+Usage: python scripts/bench_inverse.py [--table data/synthetic_ablations.csv] [--repeats 5]
+                                       [--json out/bench_inverse.json]
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+
+from morphoshell import inverse as I
+from morphoshell.io import write_json
+
+ROOT = Path(__file__).resolve().parents[1]
+
+CASES = (("numerical (target < 5 s)", ("numerical",)),
+         ("inner problem", ("inner",)),
+         ("leading order + Kelvin", ("leading_order", "kelvin")),
+         ("all methods (the CLI)", I.METHODS))
+
+
+def run(table, methods) -> dict:
+    t0 = time.perf_counter()
+    result = I.estimate(table, methods=methods)
+    seconds = time.perf_counter() - t0
+    evals = sum(e.estimates[(m, meth)].evaluations for e in result.embryos
+                for m in I.MEASURES for meth in methods)
+    estimates = sum(e.estimates[(m, meth)].k is not None for e in result.embryos
+                    for m in I.MEASURES for meth in methods)
+    return {"seconds": seconds, "builds": result.timing["numerical_solver_builds"],
+            "estimates": estimates, "refinement_solves": evals,
+            "embryos": len(result.embryos)}
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--table", default=str(ROOT / "data" / "synthetic_ablations.csv"))
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--json", default=None, help="also write the timings as JSON")
+    args = parser.parse_args(argv)
+    table = Path(args.table)
+    t0 = time.perf_counter()
+    first = run(table, ("numerical",))
+    first_seconds = time.perf_counter() - t0
+    rows = []
+    for label, methods in CASES:
+        runs = [run(table, methods) for _ in range(args.repeats)]
+        times = [r["seconds"] for r in runs]
+        rows.append({"case": label, "methods": list(methods), "median_s": statistics.median(times),
+                     "min_s": min(times), "max_s": max(times), **{k: runs[0][k] for k in (
+                         "builds", "estimates", "refinement_solves", "embryos")}})
+    load = os.getloadavg()
+    print(f"table {table.name}: {first['embryos']} embryos x 3 measures; "
+          f"load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} on {os.cpu_count()} cores; "
+          f"median of {args.repeats}")
+    print("| methods | median | min | max | estimates | solver builds | Newton solves "
+          "beyond the grid |")
+    print("|---|---|---|---|---|---|---|")
+    for r in rows:
+        print(f"| {r['case']} | {r['median_s']:.2f} s | {r['min_s']:.2f} s | {r['max_s']:.2f} s "
+              f"| {r['estimates']} | {r['builds']} | {r['refinement_solves']} |")
+    print(f"first run in a fresh process (numerical, imports included): {first_seconds:.2f} s")
+    target = rows[0]["median_s"] < 5.0
+    print(f"target (numerical < 5 s): {'met' if target else 'NOT met'} "
+          f"({rows[0]['median_s']:.2f} s)")
+    if args.json:
+        write_json(args.json, {"table": str(table), "repeats": args.repeats, "load_average": load,
+                               "rows": rows, "first_run_s": first_seconds, "target_met": target})
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
