@@ -63,7 +63,8 @@ def _save(fig, stem: Path) -> list[Path]:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--input", default=str(DEFAULT_INPUT),
-                        help="measurement table (default: the synthetic data/synthetic_ablations.csv)")
+                        help="measurement table (default: the SYNTHETIC "
+                             "data/synthetic_ablations.csv)")
     parser.add_argument("--out", default="out/figures", help="output folder (default out/figures)")
     args = parser.parse_args(argv)
     table, out = Path(args.input), Path(args.out)
@@ -80,8 +81,9 @@ def main(argv=None) -> int:
         written += _save(fig, out / f"fig2_{name}")
     written += _save(figure_JK(result, truth), out / "fig2_JK")
     written.append(write_json(out / "fig2jk_estimates.json",
-                              {"script": SCRIPT, "input": str(table), "synthetic": truth is not None,
-                               "true_k": truth, **result.to_dict()}))
+                              {"script": SCRIPT, "input": str(table),
+                               "synthetic": truth is not None, "true_k": truth,
+                               **result.to_dict()}))
     written.append(write_csv(out / "fig2jk_estimates.csv", result.table()))
     for path in written:
         print(f"wrote {path}")

@@ -211,21 +211,44 @@ def test_synthetic_numerical_estimates_recover_k_within_the_noise(synthetic):
     # (P > 0.98) and mean z^2 ~ chi2_38/38 = 1 +- 0.23 (measured 1.09, max |z| 2.4)
     assert z.size == 38
     assert np.max(np.abs(z)) < 3.5 and 0.5 < np.mean(z**2) < 1.7
-    # the numerical estimates are closer to the truth than the paper's asymptotic
-    # ones, measure by measure (RMS measured 0.25/0.34, 0.12/0.14, 0.13/0.16) ...
-    for measure in I.MEASURES:
+    # Against the truth, with this noise (sigma_o = 0.3 um, sigma_rho = 2 deg,
+    # sigma_d = 0.2 um), numerical beats the paper's asymptotic estimates in RMS
+    # error for o and d (measured 0.25 vs 0.34, 0.13 vs 0.16; in 98 % and 97 % of
+    # noise draws for these shells, linearised Monte Carlo); for rho only in 84 %
+    # (Kelvin's rotation is within 2-5 % here), so it is not asserted.  The
+    # spread over embryos is smaller for d (99.9 % of draws; measured 0.164 vs
+    # 0.189); for o the leading-order formula, which overestimates the recoil
+    # 2-4 times, shrinks the noise and spreads *less* in 85 % of draws (the
+    # shipped table is one of the other 15 %): its error is a bias, see the
+    # noiseless test below.
+    for measure in ("opening", "displacement"):
         rms = {}
         for method in ("numerical", "asymptotic"):
             d = [e.k(measure, method) - k_true[e.measurement.embryo] for e in result.embryos
                  if e.k(measure, method) is not None]
             rms[method] = math.sqrt(np.mean(np.square(d)))
         assert rms["numerical"] < rms["asymptotic"], (measure, rms)
-    # ... and spread less over embryos, as the paper reports (Fig. 2 J); measured
-    # std 0.139/0.148 (o), 0.141/0.143 (rho), 0.164/0.189 (d): see the README for
-    # how much of this is noise
-    for measure in I.MEASURES:
-        s = result.summary
-        assert s[f"{measure}_numerical"].std < s[f"{measure}_asymptotic"].std, measure
+    s = result.summary
+    assert s["displacement_numerical"].std < s["displacement_asymptotic"].std
+
+
+def test_noiseless_synthetic_shells_show_the_asymptotic_bias():
+    # The synthetic table's noiseless recoils (sidecar; 400 mesh nodes) of four
+    # of its shells: numerical inversion (100 nodes) returns the true k to the
+    # discretisation error (measured 3e-6), the paper's asymptotic formulas are
+    # off by 0.37-0.72 (o, leading order), 0.023-0.050 (rho, Kelvin) and
+    # 0.034-0.090 (d, Kelvin) for these thick sheets (h = 0.23-0.34).
+    truth = json.loads(TABLE.with_suffix(".json").read_text())["ground_truth"]["embryos"]
+    rows = {m.embryo: m for m in I.read_measurements(TABLE)}
+    picked = [truth[i] for i in (0, 6, 9, 12)]   # h and Sigma at the ends of the sample
+    clean = [I.Measurement(g["embryo"], rows[g["embryo"]].R_um, rows[g["embryo"]].H_um,
+                           rows[g["embryo"]].hole_diameter_um, g["opening_um"],
+                           g["rotation_deg"], g["displacement_um"]) for g in picked]
+    result = I.estimate(clean, methods=("leading_order", "kelvin", "numerical"), bootstrap=0)
+    for e, g in zip(result.embryos, picked):
+        for measure, floor in (("opening", 0.3), ("rotation", 0.02), ("displacement", 0.03)):
+            assert abs(e.k(measure) - g["k"]) < 1e-5
+            assert abs(e.k(measure, "asymptotic") - g["k"]) > floor
 
 
 def test_synthetic_combined_k_and_E_over_mu(synthetic):
@@ -355,7 +378,8 @@ def test_table_reading_units_and_extras(tmp_path):
 
 
 @pytest.mark.parametrize("row, named", [
-    ("A,40,-11,8,0.5,15,1.5,,,", "row 1 (line 2, embryo 'A'), column 'H_um': -11.0 must be positive"),
+    ("A,40,-11,8,0.5,15,1.5,,,",
+     "row 1 (line 2, embryo 'A'), column 'H_um': -11.0 must be positive"),
     ("A,40,11,8,nan,15,1.5,,,", "column 'opening_um': nan must be a finite number"),
     ("A,40,11,8,0.5,190,1.5,,,", "column 'rotation_deg': 190.0 must lie in (-180, 180)"),
     ("A,40,11,81,0.5,15,1.5,,,", "column 'hole_diameter_um': the hole (81.0 um) is larger"),

@@ -48,9 +48,10 @@ range containing k = 1 in its interior gives two k for every small d.
 The k-range defaults to [−1, 1] (:data:`DEFAULT_K_RANGE`): k = 1 is the
 stress-free curvature (no recoil) and every embryo at early invagination
 unfurls outwards (ϱ > 0, k < 1); on this side all three maps are monotonic
-(certified on the grid: one sign of the exact derivative at every node, and
-monotone Hermite intervals).  k = −1, an intrinsic curvature reversed relative
-to the sphere, bounds what toy problem 2 is asked to explain.
+(for the synthetic table's shells, one sign of the exact derivative at every
+sample).  k = −1, an intrinsic curvature reversed relative to the sphere,
+bounds what toy problem 2 is asked to explain.  Every Newton iterate checks
+the sign of dm/dk against its bracket ("not monotonic" otherwise).
 
 Measurement errors (optional, per row) are propagated to first order with the
 exact derivative: σ_k = σ_m / |dm/dk|.
@@ -619,19 +620,6 @@ def _hermite_roots(p: _Point, q: _Point, i: int, target: float) -> list[float]:
     return [p.k + dk * min(max(v, 0.0), 1.0) for v in t]
 
 
-def _monotone(p: _Point, q: _Point, i: int) -> bool:
-    """Is the Hermite interpolant of measure i monotone on [p.k, q.k] (Fritsch & Carlson 1980)?"""
-    secant = (q.values[i] - p.values[i]) / (q.k - p.k)
-    if secant == 0:
-        return p.derivative[i] == q.derivative[i] == 0
-    a, b = p.derivative[i] / secant, q.derivative[i] / secant
-    if a < 0 or b < 0:
-        return False
-    if a + b - 2 <= 0 or 2 * a + b - 3 <= 0 or a + 2 * b - 3 <= 0:
-        return True
-    return a - (2 * a + b - 3) ** 2 / (3 * (a + b - 2)) >= 0
-
-
 @dataclass(frozen=True)
 class Estimate:
     """The estimate of k from one measure by one method.
@@ -786,7 +774,7 @@ class EmbryoEstimate:
     def to_dict(self) -> dict:
         """The JSON object of the embryo (keys ``k_<measure>_<method>`` …, ``notes``)."""
         m = self.measurement
-        out: dict = {"embryo": m.embryo, "row": m.row, "h": m.h, "Sigma": m.Sigma,
+        out: dict = {"embryo": m.embryo, "row": m.row, "h": m.h, "Sigma_rad": m.Sigma,
                      "sigma_inner": m.Sigma / asymptotics.delta(m.h)}
         for (measure, method), e in self.estimates.items():
             out[f"k_{measure}_{method}"] = e.k
@@ -801,7 +789,7 @@ class EmbryoEstimate:
 
 
 def _fmt_k(k: float | None) -> str:
-    return "null" if k is None else f"{k:.4g}"
+    return "null" if k is None else f"{k:+.3f}"
 
 
 def _combine(estimates: Sequence[Estimate]) -> Estimate:
@@ -1046,12 +1034,13 @@ class InverseResult:
         s = self.settings
         lines = [f"{len(self.embryos)} embryos; toy problem 2, {s['theory']} theory, "
                  f"k in [{s['k_range'][0]:g}, {s['k_range'][1]:g}]",
-                 "k per embryo (numerical; asymptotic in parentheses: leading order for o, "
-                 "Kelvin for rho and d):",
+                 "k per embryo, in units of 1/R (numerical; asymptotic in parentheses: "
+                 "leading order for o, Kelvin for rho and d):",
                  f"  {'embryo':10s} {'h':>6s} {'Sigma':>6s} "
-                 + " ".join(f"{'k_' + SYMBOL[m]:>17s}" for m in MEASURES) + f" {'k_combined':>11s}"]
+                 + " ".join(f"{'k_' + SYMBOL[m]:>16s}" for m in MEASURES) + f" {'k_combined':>11s}"]
+        lines.append(f"  {'':10s} {'H/R':>6s} {'rad':>6s}")
         for e in self.embryos:
-            cells = [f"{_fmt_k(e.k(m)):>7s} ({_fmt_k(e.k(m, 'asymptotic')):>7s})"
+            cells = [f"{_fmt_k(e.k(m)):>6s} ({_fmt_k(e.k(m, 'asymptotic')):>6s})"
                      for m in MEASURES]
             lines.append(f"  {e.measurement.embryo:10s} {e.measurement.h:6.3f} "
                          f"{e.measurement.Sigma:6.3f} " + " ".join(cells)
@@ -1081,6 +1070,9 @@ class InverseResult:
         out = {"description": "Inverse estimates of the intrinsic curvature k from laser-"
                               "ablation recoils (toy problem 2) and of E/mu from recoil "
                               "velocities: paper Fig. 2 J-K",
+               "units": {"k": "1/R (each embryo's own R)", "h": "H/R", "Sigma_rad": "rad",
+                         "sigma_inner": "Sigma/delta", "E_over_mu": "1/s",
+                         "E_lower_bound_Pa": "Pa", "bending_modulus_lower_bound_J": "J"},
                "settings": dict(self.settings),
                "embryos": [e.to_dict() for e in self.embryos],
                "summary": {k: v.to_dict() for k, v in self.summary.items()}}

@@ -160,7 +160,8 @@ def panel_J(ax, result, truth=None, ylim=None):
     ax.set_xlabel(f"embryos (N = {n}), grouped by measure; large markers: mean ± std")
     ax.set_ylabel(r"intrinsic curvature $k$ (units of $1/R$)")
     ax.plot([], [], "o", color="0.3", mfc="white", label="asymptotic (paper's formulas)")
-    ax.plot([], [], "o", color="0.3", label=f"numerical (toy problem 2, {result.settings['theory']})")
+    ax.plot([], [], "o", color="0.3",
+            label=f"numerical (toy problem 2, {result.settings['theory']})")
     if truth is not None:
         ax.plot([], [], "-", color="0.5", label="true k (synthetic data)")
     ax.legend(loc="lower left", fontsize="x-small", frameon=False)
