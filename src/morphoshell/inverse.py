@@ -837,18 +837,18 @@ def estimate_embryo(m: Measurement, model: RecoilModel | None = None,
                     note="no small-cut closed form for the opening (eq:uv is not integrable "
                          "in closed form; the inner method solves it)")
                 continue
-            fmt = _formatter(measure, m.R_um)
-            try:
-                if failure is None and not curve.points:
-                    curve.sample(k_range)
-                if failure is not None:
-                    raise failure
-                out[(measure, method)] = _invert(curve, measure, method, value,
-                                                 m.error(measure), k_range, fmt)
-            except (SolverError, RuntimeError) as exc:
-                failure = exc
-                out[(measure, method)] = Estimate(measure, method, None, status="failed",
-                                                  note=f"solver failed: {exc}")
+            if failure is None:
+                try:
+                    if not curve.points:
+                        curve.sample(k_range)
+                    out[(measure, method)] = _invert(curve, measure, method, value,
+                                                     m.error(measure), k_range,
+                                                     _formatter(measure, m.R_um))
+                    continue
+                except (RuntimeError, ValueError) as exc:   # SolverError, solve_bvp, a shell
+                    failure = exc                             # the k-range makes invalid
+            out[(measure, method)] = Estimate(measure, method, None, status="failed",
+                                              note=f"solver failed: {failure}")
         seconds[method] = time.perf_counter() - t0
     for measure in MEASURES:
         out[(measure, "asymptotic")] = out[(measure, ASYMPTOTIC[measure])]
