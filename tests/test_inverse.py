@@ -234,8 +234,8 @@ def test_synthetic_numerical_estimates_recover_k_within_the_noise(synthetic):
 
 def test_noiseless_synthetic_shells_show_the_asymptotic_bias():
     # The synthetic table's noiseless recoils (sidecar; 400 mesh nodes) of four
-    # of its shells: numerical inversion (100 nodes) returns the true k to the
-    # discretisation error (measured 3e-6), the paper's asymptotic formulas are
+    # of its shells: numerical inversion (60 nodes) returns the true k to the
+    # discretisation error (measured 2.5e-5), the paper's asymptotic formulas are
     # off by 0.37-0.72 (o, leading order), 0.023-0.050 (rho, Kelvin) and
     # 0.034-0.090 (d, Kelvin) for these thick sheets (h = 0.23-0.34).
     truth = json.loads(TABLE.with_suffix(".json").read_text())["ground_truth"]["embryos"]
@@ -247,7 +247,7 @@ def test_noiseless_synthetic_shells_show_the_asymptotic_bias():
     result = I.estimate(clean, methods=("leading_order", "kelvin", "numerical"), bootstrap=0)
     for e, g in zip(result.embryos, picked):
         for measure, floor in (("opening", 0.3), ("rotation", 0.02), ("displacement", 0.03)):
-            assert abs(e.k(measure) - g["k"]) < 1e-5
+            assert abs(e.k(measure) - g["k"]) < 1e-4
             assert abs(e.k(measure, "asymptotic") - g["k"]) > floor
 
 

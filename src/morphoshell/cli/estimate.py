@@ -67,8 +67,8 @@ def register(sub) -> None:
                    help="bootstrap resamples of the 95%% intervals (default 2000; 0: none)")
     p.add_argument("--seed", type=integer(0, 2**32 - 1), default=0, metavar="S",
                    help="seed of the bootstrap (default 0)")
-    p.add_argument("--nodes", type=integer(20, 3200), default=100, metavar="N",
-                   help="mesh nodes of the numerical model (default 100)")
+    p.add_argument("--nodes", type=integer(20, 3200), default=60, metavar="N",
+                   help="mesh nodes of the numerical model (default 60: k to ~4e-5)")
     p.add_argument("--workers", type=integer(1, 256), default=None, metavar="N",
                    help="processes sharing the embryos (default: one per core); the "
                         "estimates do not depend on it")
