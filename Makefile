@@ -12,10 +12,12 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
-## run: solve every problem in problems/ (plots, JSON, out/summary.json) and draw Fig. 2 D-I
+## run: solve every problem in problems/ (plots, JSON, out/summary.json), draw Fig. 2 D-I and
+## Fig. 2 J-K (estimates from the synthetic ablation table data/synthetic_ablations.csv)
 run: $(STAMP)
 	$(BIN)/python scripts/main_job.py --out out
 	$(BIN)/python scripts/fig2_toy_problems.py --out out/figures
+	$(BIN)/python scripts/fig2jk_estimates.py --out out/figures
 
 ## test: the whole test suite
 test: $(STAMP)
@@ -29,6 +31,7 @@ fuzz: $(STAMP)
 ## bench: timing tables (scripts/bench_*.py)
 bench: $(STAMP)
 	$(BIN)/python scripts/bench_equilibrium.py
+	$(BIN)/python scripts/bench_inverse.py
 
 clean:
 	rm -rf out .pytest_cache build src/*.egg-info

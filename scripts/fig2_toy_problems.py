@@ -9,8 +9,8 @@ D  cut opening o/[h(1−k)] against the cut radius c = 2 sin Σ: asymptotic line
    (classical theory, uniform family, k = 0) for h = 1e-2, 1e-3, 1e-4;
 E  cut rotation ϱ/[√h(1−k)] against c/√h: leading order √(3/2) (eq:cutr), the
    Kelvin-function approximation for small cuts Σ = O(δ), the numerical
-   solution of the nonlinear inner problem (eq:prob) it approximates, and
-   numerical ablations;
+   solution of the nonlinear inner problem (eq:prob) it approximates
+   (:func:`morphoshell.asymptotics.inner_problem`), and numerical ablations;
 F  cut displacement d/[h(1−k)] against c/√h: leading order 1/2 (eq:cutd),
    Kelvin approximation, inner problem, numerical ablations;
 G  cross-sections before and after the ablation of toy problem 2
@@ -39,7 +39,6 @@ import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
-from scipy.integrate import solve_bvp
 
 from morphoshell import asymptotics
 from morphoshell.equilibrium import solve
@@ -98,43 +97,6 @@ def sweep(h: float, sigmas, nodes: int) -> dict[str, list[float]]:
         out["displacement"].append(ab.displacement)
         out["iterations"].append(ab.post.solver.iterations)
     return out
-
-
-def inner_problem(sigmas, k: float = K, length: float = 40.0) -> dict[str, np.ndarray]:
-    """Numerical solution of the nonlinear small-cut inner problem (Supplementary, eq:prob).
-
-    4x²n'' = −12xn' − 6xb − 3b², 2x²b'' = −2xb' + 2b + x³n + x²bn on
-    x = σ + ξ ≥ σ, with n(σ) = 0, 2b'(σ) + b(σ)/σ = 3(k − 1), b, n → 0
-    (truncated at ξ = ``length``: b decays like exp(−3^{1/4}ξ/2)).
-    The Kelvin-function formulas linearise it for large x.  With ψ = s + δb,
-    dv/dξ = δ²b (eq:uv):
-
-        ϱ/√h = (δ/√h) b(σ) = 12^{−1/4} b(σ),   d/h = 12^{−1/2} |∫ b dξ|.
-
-    Continuation from the largest σ down.  Returns σ, ϱ/√h and d/h.
-    """
-    sigmas = np.sort(np.asarray(sigmas, dtype=float))[::-1]
-    xi = np.linspace(0.0, length, 400)
-    rot, disp, prev = [], [], None
-    for sigma in sigmas:
-        def rhs(x, y):
-            b, db, n, dn, _ = y
-            return np.vstack([db, (-2 * x * db + 2 * b + x**3 * n + x**2 * b * n) / (2 * x**2),
-                              dn, (-12 * x * dn - 6 * x * b - 3 * b**2) / (4 * x**2), b])
-
-        def bc(ya, yb, sigma=sigma):
-            return np.array([ya[2], 2 * ya[1] + ya[0] / sigma - 3 * (k - 1), yb[0], yb[2], ya[4]])
-
-        guess = np.zeros((5, xi.size)) if prev is None else prev.sol(prev.x[0] + xi)
-        sol = solve_bvp(rhs, bc, sigma + xi, guess, tol=1e-7, max_nodes=100000)
-        if sol.status != 0:
-            raise RuntimeError(f"inner problem: solve_bvp failed at sigma = {sigma:g}: "
-                               f"{sol.message}")
-        prev = sol
-        rot.append(12**-0.25 * sol.y[0, 0])
-        disp.append(12**-0.5 * abs(sol.y[4, -1]))
-    return {"sigma": sigmas[::-1], "rotation": np.array(rot[::-1]),
-            "displacement": np.array(disp[::-1])}
 
 
 def x_to_sigma(x):
@@ -283,7 +245,7 @@ def compute(quick: bool) -> dict:
         x = np.geomspace(*X_RANGE, n_ef)
         sig = np.arcsin(np.clip(x * math.sqrt(h) / 2, 0, 1))
         fig_ef[h] = sweep(h, sig[sig <= SIGMA_MAX], nodes)
-    inner = inner_problem(x_to_sigma(np.geomspace(*X_RANGE, 25 if quick else 60)))
+    inner = asymptotics.inner_problem(x_to_sigma(np.geomspace(*X_RANGE, 25 if quick else 60)), K)
     cross = {}
     for key, name, over in (("G", "toy2_ablation", {}),
                             ("H+", "toy3_anisotropic", {"f0": 0.1}),

@@ -16,7 +16,7 @@ LAYERS = [
     {"observables", "parametric"},
     {"continuation", "refinement"},
     {"equilibrium"},
-    {"ablation", "asymptotics", "bulk", "thickness"},
+    {"ablation", "asymptotics", "bulk", "thickness", "inverse"},
     {"io", "plotting", "cli"},
 ]
 
