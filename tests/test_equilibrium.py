@@ -74,10 +74,10 @@ def test_sweep_over_h_and_cut_reuses_solvers():
             peak = max(peak, _rss_mb() - rss0)
     builds = front.cache_info()["builds"] - builds0
     # h over 15x and the cut over 28x cross 3 octaves of the boundary layer
-    # relative to the shell, and small cuts add their own grading: 7 meshes
-    # (counted by test_mesh_spec...), each with its half mesh for the error
-    # estimate (the coarse twins of neighbouring octaves coincide: 11 builds)
-    assert builds <= 14, builds
+    # relative to the shell, and small cuts add their own grading: 7 meshes,
+    # each with its half and quarter mesh for the error estimate (some of
+    # these coarse twins coincide: 18 builds measured)
+    assert builds <= 3 * 7, builds
     assert peak < 150, peak
     assert front.cache_info()["solvers"] <= front.SOLVER_CACHE_SIZE
     # the same answers as solvers built for each problem alone

@@ -664,3 +664,15 @@ def _arclength_point(stages: int, newton_steps: int = 6) -> ca.Function:
     r, psi, z, _ = state(zc, ds, z0, S0, tau)
     return ca.Function("arclength_point", [zc, s0, ds, z0, S0, target],
                        [s0 + ds * tau, r, psi, z])
+
+
+@lru_cache(maxsize=8)
+def _increments(stages: int) -> ca.Function:
+    """``(z_c, Δs) -> (Δz, ΔS)``: ∫ f_s sin ψ ds and ∫ f_s ds over one cell (Gauss rule)."""
+    S = stages
+    _, w, values, _, _, _ = collocation(S)
+    zc, ds = ca.SX.sym("z_c", 3 * S + 2), ca.SX.sym("ds")
+    f = zc[2 * S + 2:]
+    psi_g = ca.mtimes(ca.DM(values), zc[S + 1:2 * S + 2])
+    return ca.Function("increments", [zc, ds], [ds * ca.dot(ca.DM(w), f * ca.sin(psi_g)),
+                                                ds * ca.dot(ca.DM(w), f)])

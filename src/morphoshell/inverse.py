@@ -406,7 +406,7 @@ def _rim(solver: DirectSolver) -> Observable:
         if solver.structure.start == "free":
             obs = state_at(d, lambda prm: prm["cut"], 0, gauge="far_end")
         else:
-            node = int(np.argmin(np.abs(solver.t - solver.mesh.knots[0])))
+            node = int(np.argmin(np.abs(solver.t - solver.mesh.knots[0].t)))
             obs = state_at(d, lambda prm: d.q[0], min(node, d.layout.cells - 1),
                            gauge="far_end")
         _RIM[solver] = obs

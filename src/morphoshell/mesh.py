@@ -46,28 +46,34 @@ def shell_points(t, cut, end, knots: tuple[float, ...] = (), anchors=()):
     s = Σ + (L − P − Σ) t (``end`` = L − P), or, with interior ``knots``
     t_1 < … < t_m that must land on the material points ``anchors``,
 
-        s = Σ + (L − P − Σ) t + Σ_j c_j B((t − t_j)/w_j),
+        s = Σ + (L − P − Σ) t + Σ_j c_j [t(1 − t)/(t_j(1 − t_j))] B((t − t_j)/w_j),
 
-    B(x) = exp(1 − 1/(1 − x²)) a smooth (C^∞) bump with B(0) = 1 that vanishes
-    for |x| ≥ 1, w_j the distance from t_j to its nearest neighbour among
-    0, the knots and 1 (so each bump is 0 at every other knot), and c_j the
-    offset that puts knot j on its anchor.  The map stays smooth (a kink in
-    the cell sizes costs the scheme its superconvergence there) and is affine
-    in Σ, P and the anchors.  t is numeric (a float or an array); Σ, L − P
-    and the anchors may be floats or CasADi expressions, so derivatives with
-    respect to them come from automatic differentiation.
+    B(x) = exp(1 − 1/(1 − x²)) a smooth (C^∞) bump with B(0) = 1 that
+    vanishes for |x| ≥ 1, w_j the distance from t_j to its nearest other knot
+    (B ≡ 1 for a single knot), and c_j the offset that puts knot j on its
+    anchor.  The factor t(1 − t) keeps the ends in place and the bump the
+    other knots; each correction spreads over as much of the mesh as it may,
+    so that anchors can move far from their knots before the map folds (a
+    bump that also had to vanish at the ends folded for an anchor near a pole
+    moving by 70 %).  The map stays smooth (a kink in the cell sizes costs the
+    scheme its superconvergence there) and is affine in Σ, P and the anchors.
+    t is numeric (a float or an array); Σ, L − P and the anchors may be
+    floats or CasADi expressions, so derivatives with respect to them come
+    from automatic differentiation.
     """
     anchors = [anchors[i] for i in range(len(knots))]
     symbolic = any(isinstance(v, (ca.SX, ca.MX)) for v in (cut, end, *anchors))
     t_arr = np.asarray(t, dtype=float)
     T = ca.DM(np.atleast_1d(t_arr)) if symbolic else t_arr
     s = cut + (end - cut) * T
-    k = np.concatenate([[0.0], np.asarray(knots, dtype=float), [1.0]])
-    for j in range(1, len(k) - 1):
-        w = min(k[j] - k[j - 1], k[j + 1] - k[j])
-        bump = _bump((t_arr - k[j]) / w)
-        offset = anchors[j - 1] - cut - (end - cut) * k[j]
-        s = s + (ca.DM(np.atleast_1d(bump)) if symbolic else bump) * offset
+    k = np.asarray(knots, dtype=float)
+    for j in range(len(k)):
+        others = np.delete(k, j)
+        shape = t_arr * (1 - t_arr) / (k[j] * (1 - k[j]))
+        if len(others):
+            shape = shape * _bump((t_arr - k[j]) / np.min(np.abs(others - k[j])))
+        offset = anchors[j] - cut - (end - cut) * k[j]
+        s = s + (ca.DM(np.atleast_1d(shape)) if symbolic else shape) * offset
     return s
 
 

@@ -184,9 +184,8 @@ class Problem:
         """Intrinsic profiles and η at the points ``s`` (NumPy arrays)."""
         s = np.asarray(s, dtype=float)
         fam = self.family_obj
-        p = [self.params[n] for n in fam.parameters]
-        out = fam.function(s.size)(s.reshape(1, -1), p, self.cut, self.end)
-        prof = Profiles(*[np.asarray(v).reshape(s.shape) for v in out])
+        out = fam.evaluate(s.ravel(), [self.params[n] for n in fam.parameters], self.cut, self.end)
+        prof = Profiles(*[v.reshape(s.shape) for v in out])
         return {**prof._asdict(), "eta": prof.eta(self.h)}
 
     def _check_intrinsic(self, fam: ProfileFamily, geo: Geometry) -> None:

@@ -23,6 +23,7 @@ from typing import Callable, Mapping, NamedTuple
 import casadi as ca
 import numpy as np
 
+from ._buffered import Buffered
 from ._validate import lookup
 
 __all__ = ["Profiles", "ProfileFamily", "FAMILIES", "register_family", "get_family"]
@@ -106,9 +107,20 @@ class ProfileFamily:
         if points is None:
             return self._function["f"]
         # An explicit map: calling with a row of points would build one each time.
-        if points not in self._function:
-            self._function[points] = self._function["f"].map(points)
-        return self._function[points]
+        maps = self._function.setdefault("maps", {})
+        if points not in maps:
+            if len(maps) >= 8:                    # a few sizes recur; keep the cache small
+                maps.pop(next(iter(maps)))
+            maps[points] = Buffered(self._function["f"].map(points))
+        return maps[points].function
+
+    def evaluate(self, s: np.ndarray, values, cut: float, end: float) -> Profiles:
+        """Numerical profiles at the points ``s`` (1-d) for parameter ``values`` in order."""
+        self.function(s.size)
+        n = s.size     # a mapped Function takes every input once per point
+        out = self._function["maps"][n](s, np.tile(np.asarray(values, dtype=float), n),
+                                        np.full(n, cut), np.full(n, end))
+        return Profiles(*out)
 
 
 def _positive(values, *names):
