@@ -241,10 +241,12 @@ class Discretisation:
         # and by the mean cell size keeps Ipopt's gradients O(1).
         scale = cells / (2 * ca.pi * self.structure.parameters.unpack(self.p)["h"] ** 3 * (b - a))
         pre = self._pre_function(n_p)
+        s_gauss = within_cells(s_nodes, tau, last=False)
+        weights = ca.DM(np.tile(w, cells)).T
         self.pre = ca.Function(
             "cell_data", [self.p, self.q],
-            [ca.vec(pre.map(m)(within_cells(s_nodes, tau, last=False).T, ds.T,
-                               ca.DM(np.tile(w, cells)).T, scale, self.p))], ["p", "q"], ["D"])
+            [ca.vec(pre.map(m)(s_gauss.T, ds.T, weights, scale, self.p))], ["p", "q"], ["D"])
+        self._pre_parts = (pre, s_gauss, ds, weights, scale, m)
         n_D = len(CELL_DATA)
         self.x = ca.MX.sym("x", n)
         self.D = ca.MX.sym("D", n_D * m)
@@ -320,6 +322,41 @@ class Discretisation:
         bps = fam.breakpoints({n: named[n] for n in fam.parameters}, a, b) \
             if any(k.source == "breakpoint" for k in self.knot_list) else []
         return [q[k.index] if k.source == "anchor" else bps[k.index][0] for k in self.knot_list]
+
+    @property
+    def pre_jacobian(self) -> ca.Function:
+        """``(p, q) -> dD/dp`` (dense, n_D·cells·S × n_p), built on first use."""
+        if not hasattr(self, "_pre_jacobian"):
+            self._pre_jacobian = ca.Function(
+                "cell_data_jacobian", [self.p, self.q], [self._chain_pre(*self._pre_parts)],
+                ["p", "q"], ["dD_dp"])
+        return self._pre_jacobian
+
+    def _chain_pre(self, pre, s_gauss, ds, weights, scale, m: int) -> ca.MX:
+        """dD/dp by the chain rule through one Gauss point's Jacobian.
+
+        D_k = pre(s_k, Δs_k, w_k, scale, p) with s_k, Δs_k and the scale
+        functions of p (the parametric mesh): the per-point Jacobian is a
+        small SX function mapped over the points, the mesh's derivatives are
+        small; differentiating the mapped graph as a whole cost 24 ms at 200
+        nodes (measured).
+        """
+        args = [pre.sx_in(i) for i in range(pre.n_in())]
+        s, dsk, _, sc, p = args
+        D = pre(*args)
+        local = ca.Function("pre_local", args, [ca.densify(ca.jacobian(D, ca.vertcat(s, dsk, sc, p)))])
+        n_p, n_D = p.shape[0], D.shape[0]
+        width = 3 + n_p
+        JM = local.map(m)(s_gauss.T, ds.T, weights, scale, self.p)     # n_D × width·m
+        block = [JM[:, list(range(j, width * m, width))] for j in range(width)]   # n_D × m each
+        dS, dDS = ca.jacobian(s_gauss, self.p), ca.jacobian(ds, self.p)
+        dSC = ca.jacobian(scale, self.p)
+        columns = []
+        for l in range(n_p):
+            col = (block[3 + l] + block[0] * ca.repmat(dS[:, l].T, n_D, 1)
+                   + block[1] * ca.repmat(dDS[:, l].T, n_D, 1) + block[2] * dSC[0, l])
+            columns.append(ca.vec(col))
+        return ca.horzcat(*columns)
 
     def _pre_function(self, n_p: int) -> ca.Function:
         """``(s_k, Δs_c, w_k, scale, p) -> D_k``: parameter-only data at one Gauss point."""

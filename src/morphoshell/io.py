@@ -82,6 +82,8 @@ def load_problem(path: str | Path) -> tuple[Problem, Settings]:
         value that :class:`~morphoshell.problem.Problem` rejects.
     """
     path = Path(path)
+    if path.suffix.lower() == ".json":
+        return _problem_from_json(path), Settings()
     try:
         # utf-8-sig: a byte-order mark, as some Windows editors write, is not an error
         text = path.read_text(encoding="utf-8-sig")
@@ -126,6 +128,25 @@ def load_problem(path: str | Path) -> tuple[Problem, Settings]:
     except ValueError as exc:
         raise ProblemFileError(f"{path}: {exc}") from None
     return problem, settings
+
+
+def _problem_from_json(path: Path) -> Problem:
+    """The problem of a result JSON (``solve --json``, ``fit --json``): its "problem" entry."""
+    try:
+        data = json.loads(path.read_text(encoding="utf-8-sig"))
+    except OSError as exc:
+        raise ProblemFileError(f"{path}: cannot read the file ({exc.strerror})") from None
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ProblemFileError(f"{path}: not valid JSON ({exc})") from None
+    desc = data.get("problem") if isinstance(data, dict) else None
+    if not isinstance(desc, dict):
+        raise ProblemFileError(f"{path}: no 'problem' entry: expected the JSON written by "
+                               f"morphoshell solve/ablate/fit --json")
+    keys = {"family", "params", "h", "cut", "opening", "theory", "geometry", "name"}
+    try:
+        return Problem(**{k: v for k, v in desc.items() if k in keys})
+    except (TypeError, ValueError) as exc:
+        raise ProblemFileError(f"{path}: {exc}") from None
 
 
 def settings_from(values: Mapping[str, Any], base: Settings = Settings()) -> Settings:

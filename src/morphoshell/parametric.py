@@ -138,7 +138,7 @@ class Parametric:
         self._hess = _Sparse(ca.Function("H", [x, D, lam], [d.hess_lag(x, D, 1, lam)]))
         self._jac = _Sparse(ca.Function("J", [x, D], [J]))
         self._F_D = _Sparse(ca.Function("F_D", [x, D, lam], [ca.jacobian(F_of_D, D)]))
-        self._D_p = _Sparse(ca.Function("D_p", [p, q], [ca.jacobian(d.pre(p, q), p)]))
+        self._D_p = _Sparse(d.pre_jacobian)
         self._jacobians: dict[int, ca.Function] = {}
         self._last: tuple | None = None
 

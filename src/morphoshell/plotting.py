@@ -38,7 +38,7 @@ from matplotlib.transforms import ScaledTranslation
 from .problem import Problem
 from .results import Equilibrium
 
-__all__ = ["sheet_outline", "far_end_shift", "problem_label", "new_axes", "plot_cross_section",
+__all__ = ["plot_fit", "sheet_outline", "far_end_shift", "problem_label", "new_axes", "plot_cross_section",
            "plot_ablation", "save", "paper_style", "label_panel", "SINGLE_COLUMN",
            "DOUBLE_COLUMN", "MIN_FONT_SIZE", "PAPER_RC", "ABLATION_STYLE"]
 
@@ -357,6 +357,33 @@ def plot_cross_section(eqs: Equilibrium | Sequence[Equilibrium], ax: Axes | None
                 **_per_result(style, i)}
         _draw_shell(ax, eq, band, line)
     return _finish(ax, auto_title if title == "auto" else title, legend)
+
+
+def plot_fit(result, ax: Axes | None = None, *, title: str | None = "auto", **style) -> Axes:
+    """A fitted shell (midline and thickness band) over the data midline it was fitted to.
+
+    Parameters
+    ----------
+    result : morphoshell.fitting.FitResult
+    ax : matplotlib Axes, optional
+    title : str or None
+        "auto": method, variant and E_fit (units of R).
+    **style
+        Line properties of the fitted midline.
+
+    Returns
+    -------
+    Axes
+    """
+    ax = plot_cross_section(result.equilibrium, ax, title=None, legend=False,
+                            label="fit", **style)
+    r, z = result.data[:, 0], result.data[:, 1]
+    ax.plot(np.concatenate([-r[::-1], r]), np.concatenate([z[::-1], z]), ls="none",
+            marker="o", ms=2.5, mfc="none", color="k", label="data", zorder=3)
+    if title == "auto":
+        title = (f"{result.method} fit, {result.variant}: E_fit = {result.E_fit:.3g} R "
+                 f"({len(result.fitted)} parameters)")
+    return _finish(ax, title, True)
 
 
 def plot_ablation(ablation, ax: Axes | None = None, *, title: str | None = "auto",

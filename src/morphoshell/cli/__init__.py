@@ -30,7 +30,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from . import analytic, estimate, solve
+    from . import analytic, estimate, fit, solve
 
     parser = _Parser(
         prog="morphoshell",
@@ -40,7 +40,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"morphoshell {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND",
                                 parser_class=_Parser)
-    for module in (solve, analytic, estimate):
+    for module in (solve, analytic, estimate, fit):
         module.register(sub)
     return parser
 
