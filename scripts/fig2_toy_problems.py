@@ -5,14 +5,18 @@ Panels (paper, main text "Mechanical toy problems", Fig. 2 caption, Materials
 and Methods "Numerical solution of the toy problems"):
 
 D  cut opening o/[h(1−k)] against the cut radius c = 2 sin Σ: asymptotic line
-   o/[h(1−k)] = sin Σ = c/2 (eq:Usol) and numerical ablations of toy problem 2
-   (classical theory, uniform family, k = 0) for h = 1e-2, 1e-3, 1e-4;
-E  cut rotation ϱ/[√h(1−k)] against c/√h: leading order √(3/2) (eq:cutr), the
-   Kelvin-function approximation for small cuts Σ = O(δ), the numerical
-   solution of the nonlinear inner problem (eq:prob) it approximates
-   (:func:`morphoshell.asymptotics.inner_problem`), and numerical ablations;
-F  cut displacement d/[h(1−k)] against c/√h: leading order 1/2 (eq:cutd),
-   Kelvin approximation, inner problem, numerical ablations;
+   o/[h(1−k)] = sin Σ = c/2 (Supplementary, toy problem 2, "Cut opening") and
+   numerical ablations of toy problem 2 (classical theory, uniform family,
+   k = 0) for h = 1e-2, 1e-3, 1e-4;
+E  cut rotation ϱ/[√h(1−k)] against c/√h: leading order √(3/2) (Supplementary,
+   "Cut rotation and cut displacement"), the Kelvin-function approximation for
+   small cuts Σ = O(δ), the numerical solution of the nonlinear inner problem
+   (Supplementary, "Asymptotic governing equations for small ablations") it
+   approximates (:func:`morphoshell.asymptotics.inner_problem`), and numerical
+   ablations;
+F  cut displacement d/[h(1−k)] against c/√h: leading order 1/2 (Supplementary,
+   "Cut rotation and cut displacement"), Kelvin approximation, inner problem,
+   numerical ablations;
 G  cross-sections before and after the ablation of toy problem 2
    (problems/toy2_ablation.toml: large-bending theory, h = Σ = 0.3, k = 0);
 H  the same for toy problem 3 (problems/toy3_anisotropic.toml) with

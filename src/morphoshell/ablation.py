@@ -8,7 +8,8 @@ observables compare the two states at the material point s = Σ
 (:func:`morphoshell.observables.recoil`):
 
 ``opening``       o = 2 [r_post(Σ) − r_pre(Σ)], the change of the hole's diameter
-                  (paper eq:Usol: o = 2[u(0) − u(∞)] across the boundary layer);
+                  (Supplementary, toy problem 2, "Cut opening": o = 2[u(0) − u(∞)]
+                  across the boundary layer);
 ``rotation``      ϱ = ψ_post(Σ) − ψ_pre(Σ), positive when the rim curls outward
                   (radians);
 ``displacement``  d, the distance the rim moves, with the gauge of the

@@ -16,13 +16,15 @@ diameter.
 
 Methods
 -------
-``leading_order``  Σ = O(1): o = h(1 − k) sin Σ (eq:Usol), ϱ = √(3h/2)(1 − k)
-                   (eq:cutr), d = (h/2)|1 − k| (eq:cutd);
+``leading_order``  Σ = O(1): o = h(1 − k) sin Σ, ϱ = √(3h/2)(1 − k),
+                   d = (h/2)|1 − k| (Supplementary, toy problem 2, "Cut
+                   opening", "Cut rotation and cut displacement");
 ``kelvin``         Σ = O(δ): the Kelvin-function forms of ϱ and d
                    (Supplementary, "Approximate solution for small ablations");
                    there is none for o;
-``inner``          the nonlinear inner problem eq:prob that the Kelvin forms
-                   linearise, with o from eq:uv
+``inner``          the nonlinear inner problem that the Kelvin forms linearise
+                   ("Asymptotic governing equations for small ablations"), with
+                   o from its equation for u ("Approximate solution for small ablations")
                    (:func:`morphoshell.asymptotics.inner_solution`);
 ``numerical``      toy problem 2 in the large-bending (or classical) shell
                    theory at the embryo's h and Σ (:class:`RecoilModel`);
@@ -835,7 +837,7 @@ def estimate_embryo(m: Measurement, model: RecoilModel | None = None,
             if method == "kelvin" and measure == "opening":
                 out[(measure, method)] = Estimate(
                     measure, method, None, status="no_formula",
-                    note="no small-cut closed form for the opening (eq:uv is not integrable "
+                    note="no small-cut closed form for the opening (the equation for u is not integrable "
                          "in closed form; the inner method solves it)")
                 continue
             if failure is None:
