@@ -88,6 +88,7 @@ class Ablation:
         return _html_table(rows, "Ablation")
 
     def observables(self) -> dict[str, float]:
+        """The recoil observables by name (units: :data:`UNITS`; lengths in R, rotation in rad)."""
         return {k: getattr(self, k) for k in (*RECOIL, "energy_released", "energy_removed")}
 
     def to_dict(self, arrays: bool = True) -> dict:

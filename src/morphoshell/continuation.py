@@ -56,6 +56,7 @@ class Path:
     iterations: int = 0
 
     def describe(self) -> str:
+        """One line saying how the solution was reached (stored in ``solver.details["path"]``)."""
         if self.kind != "continuation":
             return self.kind
         return (f"continuation from the stress-free parameters in {self.steps} steps "

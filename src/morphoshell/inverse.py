@@ -14,8 +14,8 @@ material point s = Σ, z in the far-end gauge; ϱ > 0 when the edge unfurls
 outwards (k < 1), d ≥ 0 a distance, o the signed change of the hole's
 diameter.
 
-Methods
--------
+Estimation methods
+------------------
 ``leading_order``  Σ = O(1): o = h(1 − k) sin Σ, ϱ = √(3h/2)(1 − k),
                    d = (h/2)|1 − k| (Supplementary, toy problem 2, "Cut
                    opening", "Cut rotation and cut displacement");
@@ -449,7 +449,10 @@ class RecoilModel:
         (:func:`morphoshell.equilibrium.direct_solver`, meshes quantised in
         h and Σ), so that a table needs a few builds.
 
-    ``builds`` counts the solvers this model built.
+    Attributes
+    ----------
+    builds : int
+        The number of direct solvers this model built.
     """
 
     def __init__(self, theory: str = "large_bending", nodes: int = NODES, stages: int = 2,
@@ -781,6 +784,7 @@ class EmbryoEstimate:
                 f"combined={_fmt_k(self.combined.k)})")
 
     def k(self, measure: str, method: str = "numerical") -> float | None:
+        """The estimate of k (units of 1/R) from ``measure`` by ``method``; None if there is none."""
         return self.estimates[(measure, method)].k
 
     @property
@@ -920,6 +924,7 @@ class Spread:
         return f"{self.mean:.3f}{std}{iv} (n = {self.n})"
 
     def to_dict(self) -> dict:
+        """JSON-ready: n, mean, std and the 95 % interval (units of the estimates)."""
         out = {"n": self.n, "mean": self.mean, "std": self.std,
                "interval_95": None if self.interval is None else list(self.interval)}
         if self.weighted_mean is not None:
@@ -990,6 +995,7 @@ class VelocityFit:
                 f"(H = {self.H_mean_um:.3g} um)")
 
     def to_dict(self) -> dict:
+        """JSON-ready: E/μ (1/s) with its error and interval, the bounds on E (Pa) and E H³ (J)."""
         return {"E_over_mu": self.E_over_mu, "E_over_mu_standard_error": self.standard_error,
                 "E_over_mu_interval_95": None if self.interval is None else list(self.interval),
                 "E_lower_bound_Pa": self.E_lower_bound_Pa,

@@ -30,6 +30,7 @@ from typing import Callable, Mapping, NamedTuple
 import casadi as ca
 import numpy as np
 
+from ._validate import lookup
 
 __all__ = ["Profiles", "ProfileFamily", "FAMILIES", "register_family", "get_family",
            "available_families", "ENTRY_POINT_GROUP"]
@@ -265,8 +266,8 @@ def get_family(name: "str | ProfileFamily") -> ProfileFamily:
         _load_plugin(name)
     if isinstance(name, str) and name in FAMILIES:
         return FAMILIES[name]
-    raise ValueError(f"unknown profile family {name!r}; choose one of "
-                     f"{sorted(available_families())}")
+    # not registered and no plugin of that name: ValueError listing the available names
+    return lookup(available_families(), name, "profile family")
 
 
 def _entry_points() -> dict:

@@ -64,12 +64,12 @@ def pontryagin_functions(structure: Structure) -> dict[str, ca.Function]:
 
     Returns
     -------
-    dict with
-      ``rhs(s, y, p) -> y'`` and ``jac(s, y, p) -> ∂y'/∂y`` for
-      y = (r, ψ, λ_r, λ_ψ, z, 𝓔) (:data:`~morphoshell.layouts.BVP_STATE`);
-      ``controls(s, y, p) -> (f_s, ψ')``;
-      ``costates(s, r, psi, f_s, dpsi, p) -> (λ_r, λ_ψ)``;
-      ``local`` the pointwise energy.
+    dict
+        ``rhs(s, y, p) -> y'`` and ``jac(s, y, p) -> ∂y'/∂y`` for
+        y = (r, ψ, λ_r, λ_ψ, z, 𝓔) (:data:`~morphoshell.layouts.BVP_STATE`);
+        ``controls(s, y, p) -> (f_s, ψ')``;
+        ``costates(s, r, psi, f_s, dpsi, p) -> (λ_r, λ_ψ)``;
+        ``local`` the pointwise energy.
     """
     local = local_function(structure)
     s = ca.SX.sym("s")

@@ -147,9 +147,11 @@ class ErrorEstimate:
         return key, rel[key]
 
     def meets(self, rtol: float) -> bool:
+        """Whether every relative error (:meth:`relative`) is finite and at most ``rtol``."""
         return all(np.isfinite(v) and v <= rtol for v in self.relative().values())
 
     def to_dict(self) -> dict:
+        """JSON-ready: absolute and relative errors (energy in C R², edges in R and rad)."""
         return {"errors": dict(self.errors), "relative": self.relative(), "nodes": self.nodes,
                 "reference_nodes": self.reference_nodes, "order": self.order,
                 "note": self.note}
@@ -168,6 +170,7 @@ class SolverStats:
     details: Mapping[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict:
+        """JSON-ready: method, iterations, seconds (wall time, s), status, nodes and scalar details."""
         return {"method": self.method, "iterations": self.iterations, "seconds": self.seconds,
                 "status": self.status, "nodes": self.nodes, "build_seconds": self.build_seconds,
                 **{k: v for k, v in self.details.items() if np.isscalar(v)}}

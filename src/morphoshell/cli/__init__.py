@@ -45,6 +45,7 @@ def _add_verbosity(p: argparse.ArgumentParser, top: bool) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The parser of ``morphoshell COMMAND ...`` with every command registered."""
     from . import analytic, estimate, example, solve
 
     parser = _Parser(
@@ -64,6 +65,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line on ``argv`` (default ``sys.argv[1:]``); return the exit status.
+
+    0 success, 2 bad input, 3 solver failure, 1 a bug, 130 interrupted (see
+    the module's docstring); messages go to standard error.
+    """
     from .._console import configure
     from ..io import ProblemFileError
     from ..results import SolverError

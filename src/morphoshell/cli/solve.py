@@ -18,7 +18,8 @@ _SET_HELP = ("override a problem or solver entry, repeatable: h, theory, family,
 def _common(p: argparse.ArgumentParser) -> None:
     from ..direct import MAX_NODES
 
-    p.add_argument("problem", metavar="PROBLEM.toml", help="problem file (see problems/)")
+    p.add_argument("problem", metavar="PROBLEM.toml",
+                   help="problem file (`morphoshell example NAME` prints one to start from)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help=_SET_HELP)
     p.add_argument("--method", choices=METHODS, default=None,
