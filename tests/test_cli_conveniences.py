@@ -143,3 +143,35 @@ def test_asymptotic_functions_take_cut_and_warn_for_sigma():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         A.rotation_small_cut(0.01, 0.0, 0.5)            # no warning for the one name
+
+
+# --------------------------------------------------------------------------
+# units on every printed quantity
+# --------------------------------------------------------------------------
+
+_NUMBER = r"[-+]?\d[\d.]*(?:e[-+]?\d+)?"
+
+
+@pytest.mark.parametrize("argv", [
+    ["solve", str(example_path("toy2_ablation")), "--nodes", "40"],
+    ["ablate", str(example_path("toy2_ablation")), "--nodes", "40"],
+    ["asymptotics", "--h", "0.01", "--k", "0", "--cut", "0.5"],
+    ["sphere", "--h", "0.01", "--k", "2"],
+], ids=lambda a: a[0])
+def test_every_printed_quantity_has_a_unit(argv, capsys):
+    assert main(argv) == 0
+    for line in capsys.readouterr().out.splitlines():
+        for match in re.finditer(rf"= ({_NUMBER})(.?\S*)", line):
+            after = line[match.end(1):].strip()
+            assert after and not after.startswith(","), f"no unit in {line!r}"
+
+
+def test_ablate_csv_keeps_the_far_end_opening_apart_from_the_observable(tmp_path):
+    import csv
+
+    out = tmp_path / "a.csv"
+    assert main(["ablate", str(example_path("toy2_ablation")), "--nodes", "40",
+                 "--set", "opening=0.2", "--csv", str(out)]) == 0
+    [row] = list(csv.DictReader(out.open()))
+    assert float(row["opening_P"]) == 0.2 and float(row["cut"]) == 0.3
+    assert 0 < float(row["opening"]) < 0.2 and float(row["rotation"]) > 0

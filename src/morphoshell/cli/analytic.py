@@ -98,8 +98,8 @@ def _sphere(args) -> int:
     except ValueError as exc:   # 5 C10 + C01 = 0: no second sign change
         out["k_star"] = None
         print(f"  (k_star: {exc})")
-    print(f"toy problem 1, thickness h = {args.h:g} R, k = {args.k:g} / R, C10 = {args.c10:g}, "
-          f"C01 = {args.c01:g} (Mooney-Rivlin; only their ratio matters)")
+    print(f"toy problem 1, thickness h = {args.h:g} R, k = {args.k:g} / R, Mooney-Rivlin "
+          f"C10 : C01 = {args.c10:g} : {args.c01:g} (moduli; only their ratio matters)")
     for key, value in out.items():
         unit = " / R" if key == "k_star" else " R"
         print(f"  {key:18s} = {'none' if value is None else format(value, '.15g') + unit}")
