@@ -175,3 +175,27 @@ def test_ablate_csv_keeps_the_far_end_opening_apart_from_the_observable(tmp_path
     [row] = list(csv.DictReader(out.open()))
     assert float(row["opening_P"]) == 0.2 and float(row["cut"]) == 0.3
     assert 0 < float(row["opening"]) < 0.2 and float(row["rotation"]) > 0
+
+
+def test_progress_bars_show_on_a_terminal_unless_quiet(monkeypatch):
+    import io
+
+    from morphoshell._console import configure, progress
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    term = Terminal()
+    monkeypatch.setattr("sys.stderr", term)
+    items = [1, 2, 3]
+    assert progress(items) is not items                      # a bar: stderr is a terminal
+    assert list(progress(items, desc="cuts")) == items and "cuts" in term.getvalue()
+    restore = configure(-1)                                  # --quiet
+    try:
+        assert progress(items) is items
+    finally:
+        restore()
+    monkeypatch.setattr("sys.stderr", io.StringIO())         # not a terminal: no bar
+    assert progress(items) is items
+    assert progress(items, enabled=True) is not items
