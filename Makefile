@@ -4,12 +4,13 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: run test fuzz bench figures clean
+.PHONY: run test docs fuzz bench figures clean
 
+# test, docs and xarray extras: make test also builds the docs and checks to_xarray()
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/python -m pip install --quiet -e '.[test,docs,xarray]'
 	touch $(STAMP)
 
 ## run: solve every problem in problems/ (plots, JSON, out/summary.json), draw Fig. 2 D-I and
@@ -19,9 +20,14 @@ run: $(STAMP)
 	$(BIN)/python scripts/fig2_toy_problems.py --out out/figures
 	$(BIN)/python scripts/fig2jk_estimates.py --out out/figures
 
-## test: the whole test suite
+## test: the whole test suite (with a strict build of the docs, tests/test_docs.py, and a
+## clean-venv install of the package and a plugin, tests/test_packaging.py)
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+
+## docs: the documentation and its API reference into site/ (any warning is an error)
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --site-dir site
 
 ## fuzz: property-based fuzzing, >= 1000 random problems and bad command lines; prints
 ## the counts (maintainers, before a release: about half an hour on 2 cores)
@@ -34,4 +40,4 @@ bench: $(STAMP)
 	$(BIN)/python scripts/bench_inverse.py
 
 clean:
-	rm -rf out .pytest_cache build src/*.egg-info
+	rm -rf out site .pytest_cache build src/*.egg-info

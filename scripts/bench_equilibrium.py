@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Benchmark: direct minimisation (cold and warm) against the BVP reference.
 
-Problem: problems/toy3_anisotropic.toml (anisotropic contraction, h = 0.3,
+Problem: the example toy3_anisotropic (anisotropic contraction, h = 0.3,
 Sigma = 0.3, f0 = 0.1: a free edge with a boundary layer and a weakly
 singular pole).  All timings are medians of several runs in this process.
 
@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from morphoshell.equilibrium import DirectSolver, solve
-from morphoshell.io import load_problem
+from morphoshell.io import example_path, load_problem
 
 ROOT = Path(__file__).resolve().parents[1]
 TARGET = 1e-6
@@ -86,7 +86,7 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer repeats, no N = 12800")
     args = parser.parse_args(argv)
-    problem, _ = load_problem(ROOT / "problems" / "toy3_anisotropic.toml")
+    problem, _ = load_problem(example_path("toy3_anisotropic"))
     rc, rw = (2, 5) if args.quick else (5, 15)
     meshes = (200, 800, 3200) if args.quick else (200, 800, 3200, 12800)
 

@@ -23,7 +23,7 @@ from pathlib import Path
 
 from morphoshell import inverse as I
 from morphoshell.direct import DirectSolver
-from morphoshell.io import load_problem, write_json
+from morphoshell.io import example_path, load_problem, write_json
 
 ROOT = Path(__file__).resolve().parents[1]
 #: README benchmark (scripts/bench_equilibrium.py): warm re-solve of toy3_anisotropic,
@@ -58,7 +58,7 @@ def run(table, methods, workers) -> dict:
 
 def slowdown(repeats: int = 30) -> tuple[float, float]:
     """(warm re-solve of bench_equilibrium's reference case now, its ratio to the README's)."""
-    problem, _ = load_problem(ROOT / "problems" / "toy3_anisotropic.toml")
+    problem, _ = load_problem(example_path("toy3_anisotropic"))
     solver = DirectSolver(problem.structure, 200, stages=2)
     base = solver.solve(problem)
     times = []

@@ -5,26 +5,33 @@ Panels (paper, main text "Mechanical toy problems", Fig. 2 caption, Materials
 and Methods "Numerical solution of the toy problems"):
 
 D  cut opening o/[h(1−k)] against the cut radius c = 2 sin Σ: asymptotic line
-   o/[h(1−k)] = sin Σ = c/2 (eq:Usol) and numerical ablations of toy problem 2
-   (classical theory, uniform family, k = 0) for h = 1e-2, 1e-3, 1e-4;
-E  cut rotation ϱ/[√h(1−k)] against c/√h: leading order √(3/2) (eq:cutr), the
-   Kelvin-function approximation for small cuts Σ = O(δ), the numerical
-   solution of the nonlinear inner problem (eq:prob) it approximates
-   (:func:`morphoshell.asymptotics.inner_problem`), and numerical ablations;
-F  cut displacement d/[h(1−k)] against c/√h: leading order 1/2 (eq:cutd),
-   Kelvin approximation, inner problem, numerical ablations;
+   o/[h(1−k)] = sin Σ = c/2 (Supplementary, toy problem 2, "Cut opening") and
+   numerical ablations of toy problem 2 (classical theory, uniform family,
+   k = 0) for h = 1e-2, 1e-3, 1e-4;
+E  cut rotation ϱ/[√h(1−k)] against c/√h: leading order √(3/2) (Supplementary,
+   "Cut rotation and cut displacement"), the Kelvin-function approximation for
+   small cuts Σ = O(δ), the numerical solution of the nonlinear inner problem
+   (Supplementary, "Asymptotic governing equations for small ablations") it
+   approximates (:func:`morphoshell.asymptotics.inner_problem`), and numerical
+   ablations;
+F  cut displacement d/[h(1−k)] against c/√h: leading order 1/2 (Supplementary,
+   "Cut rotation and cut displacement"), Kelvin approximation, inner problem,
+   numerical ablations;
 G  cross-sections before and after the ablation of toy problem 2
-   (problems/toy2_ablation.toml: large-bending theory, h = Σ = 0.3, k = 0);
-H  the same for toy problem 3 (problems/toy3_anisotropic.toml) with
+   (example toy2_ablation: large-bending theory, h = Σ = 0.3, k = 0);
+H  the same for toy problem 3 (example toy3_anisotropic) with
    f0 = +0.1 and f0 = −0.1;
 I  the same for a fast active relaxation at the cut
-   (problems/fast_relaxation.toml: F0 = 0.35, s0 = 0.2).
+   (example fast_relaxation: F0 = 0.35, s0 = 0.2).
 
 Writes fig2_D.png … fig2_I.png (single-column width, 3.4 in), the combined
 fig2_D-I.png (double-column width, 7 in), each at 300 dpi and also as PDF,
 and fig2_points.json (the numerical points plotted) to ``--out``.
 
-Usage: python scripts/fig2_toy_problems.py [--out out/figures] [--quick]
+Usage: python scripts/fig2_toy_problems.py [--out out/figures] [--quick] [-v | -q]
+
+Progress bars (one per sweep) show on a terminal; -q/--quiet hides them and
+warnings, -v/--verbose adds notes.
 """
 from __future__ import annotations
 
@@ -41,8 +48,9 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from morphoshell import asymptotics
+from morphoshell._console import configure, progress
 from morphoshell.equilibrium import solve
-from morphoshell.io import load_problem, write_json
+from morphoshell.io import EXAMPLES_DIR, load_problem, write_json
 from morphoshell.ablation import ablate
 from morphoshell.plotting import (DOUBLE_COLUMN, MIN_FONT_SIZE, SINGLE_COLUMN, far_end_shift,
                                   label_panel, paper_style, plot_ablation, save, sheet_outline)
@@ -50,7 +58,7 @@ from morphoshell.problem import Problem
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = Path(__file__).name
-PROBLEMS = ROOT / "problems"
+PROBLEMS = EXAMPLES_DIR   # the packaged examples (also problems/)
 
 #: Thicknesses of the numerical points in D–F, thickest first.
 H_VALUES = (1e-2, 1e-3, 1e-4)
@@ -88,7 +96,7 @@ def sweep(h: float, sigmas, nodes: int) -> dict[str, list[float]]:
     pre = solve(base.with_updates(cut=0.0), nodes=nodes)
     out: dict[str, list[float]] = {k: [] for k in (
         "Sigma", "c", "opening", "rotation", "displacement", "iterations")}
-    for sigma in sigmas:
+    for sigma in progress(sigmas, desc=f"D-F sweep, h = {h:g}", unit="cut"):
         ab = ablate(base.with_updates(cut=float(sigma)), nodes=nodes, pre=pre)
         out["Sigma"].append(float(sigma))
         out["c"].append(2 * math.sin(sigma))
@@ -247,10 +255,11 @@ def compute(quick: bool) -> dict:
         fig_ef[h] = sweep(h, sig[sig <= SIGMA_MAX], nodes)
     inner = asymptotics.inner_problem(x_to_sigma(np.geomspace(*X_RANGE, 25 if quick else 60)), K)
     cross = {}
-    for key, name, over in (("G", "toy2_ablation", {}),
-                            ("H+", "toy3_anisotropic", {"f0": 0.1}),
-                            ("H-", "toy3_anisotropic", {"f0": -0.1}),
-                            ("I", "fast_relaxation", {})):
+    for key, name, over in progress((("G", "toy2_ablation", {}),
+                                     ("H+", "toy3_anisotropic", {"f0": 0.1}),
+                                     ("H-", "toy3_anisotropic", {"f0": -0.1}),
+                                     ("I", "fast_relaxation", {})),
+                                    desc="G-I cross-sections", unit="ablation"):
         problem, settings = load_problem(PROBLEMS / f"{name}.toml")
         problem = problem.with_updates(**over)
         opts = {"stages": settings.stages} if settings.method == "direct" else {}
@@ -389,7 +398,18 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="out/figures", help="output folder (default: out/figures)")
     parser.add_argument("--quick", action="store_true", help="fewer points and a coarser mesh")
+    loud = parser.add_mutually_exclusive_group()
+    loud.add_argument("-v", "--verbose", action="count", default=0, help="progress notes")
+    loud.add_argument("-q", "--quiet", action="store_true", help="no warnings or progress bars")
     args = parser.parse_args(argv)
+    restore = configure(-1 if args.quiet else args.verbose)
+    try:
+        return _run(args)
+    finally:
+        restore()
+
+
+def _run(args) -> int:
     matplotlib.use("Agg")   # files only: runs without a display
     t0 = time.perf_counter()
     res = compute(args.quick)

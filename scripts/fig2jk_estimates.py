@@ -18,7 +18,10 @@ scripts/make_synthetic_ablations.py; no measurement table is public); its
 ground truth (sidecar JSON) is drawn as grey ticks.  Writes fig2_J, fig2_K and
 fig2_JK (PNG and PDF), fig2jk_estimates.json and fig2jk_estimates.csv to --out.
 
-Usage: python scripts/fig2jk_estimates.py [--input TABLE.csv] [--out out/figures]
+Usage: python scripts/fig2jk_estimates.py [--input TABLE.csv] [--out out/figures] [-v | -q]
+
+A progress bar over the embryos shows on a terminal; -q/--quiet hides it and
+warnings, -v/--verbose adds notes.
 """
 from __future__ import annotations
 
@@ -28,6 +31,7 @@ import sys
 import time
 from pathlib import Path
 
+from morphoshell._console import configure
 from morphoshell.cli.estimate import figure_JK, panel_J, panel_K
 from morphoshell.inverse import estimate
 from morphoshell.io import write_csv, write_json
@@ -66,7 +70,18 @@ def main(argv=None) -> int:
                         help="measurement table (default: the SYNTHETIC "
                              "data/synthetic_ablations.csv)")
     parser.add_argument("--out", default="out/figures", help="output folder (default out/figures)")
+    loud = parser.add_mutually_exclusive_group()
+    loud.add_argument("-v", "--verbose", action="count", default=0, help="progress notes")
+    loud.add_argument("-q", "--quiet", action="store_true", help="no warnings or progress bars")
     args = parser.parse_args(argv)
+    restore = configure(-1 if args.quiet else args.verbose)
+    try:
+        return _run(args)
+    finally:
+        restore()
+
+
+def _run(args) -> int:
     table, out = Path(args.input), Path(args.out)
     t0 = time.perf_counter()
     result = estimate(table)

@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
-"""The main job of `make run`: solve every problem in problems/ and write results to out/.
+"""The main job of `make run`: solve every example problem and write results to out/.
 
-For each problems/NAME.toml: out/NAME.json (the equilibrium) and out/NAME.png
+The examples ship in the package (src/morphoshell/examples, also reachable as
+problems/; `morphoshell example --list`).  For each NAME.toml: out/NAME.json (the equilibrium) and out/NAME.png
 (cross-section); out/summary.json collects energies, edge values and solver
 statistics of all problems.
 """
@@ -13,22 +14,35 @@ from pathlib import Path
 
 import matplotlib
 
+from morphoshell._console import configure, progress
 from morphoshell.equilibrium import solve
-from morphoshell.io import load_problem, write_json
+from morphoshell.io import EXAMPLES_DIR, load_problem, write_json
 from morphoshell.plotting import plot_cross_section, problem_label, save
 
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="out", help="output folder (default: out)")
-    parser.add_argument("--problems", default=str(ROOT / "problems"), help="problem folder")
+    parser.add_argument("--problems", default=str(EXAMPLES_DIR),
+                        help="problem folder (default: the packaged examples, also problems/)")
+    loud = parser.add_mutually_exclusive_group()
+    loud.add_argument("-v", "--verbose", action="count", default=0, help="progress notes")
+    loud.add_argument("-q", "--quiet", action="store_true", help="no warnings or progress bars")
     args = parser.parse_args(argv)
+    restore = configure(-1 if args.quiet else args.verbose)
+    try:
+        return _run(args)
+    finally:
+        restore()
+
+
+def _run(args) -> int:
     matplotlib.use("Agg")   # files only: no display needed
     out = Path(args.out)
     summary = {}
-    for path in sorted(Path(args.problems).glob("*.toml")):
+    for path in progress(sorted(Path(args.problems).glob("*.toml")), desc="problems",
+                         unit="problem"):
         problem, settings = load_problem(path)
         extra = {"stages": settings.stages} if settings.method == "direct" else {}
         eq = solve(problem, nodes=settings.nodes, method=settings.method, **extra)

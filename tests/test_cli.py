@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 from morphoshell.cli import main
+from morphoshell.io import example_path
 
 ROOT = Path(__file__).resolve().parents[1]
-TOY2 = ROOT / "problems" / "toy2_ablation.toml"
+TOY2 = example_path("toy2_ablation")
 
 
 def test_solve_writes_json_and_plot(tmp_path, capsys):

@@ -40,7 +40,7 @@ def test_estimate_writes_json_csv_and_plot(tmp_path, capsys):
     assert data["E_over_mu"] > 0 and data["E_lower_bound_Pa"] == pytest.approx(
         data["E_over_mu"] * 8e-4)
     assert data["settings"]["seed"] == 3 and data["input"] == table
-    assert out["csv"].read_text().startswith("embryo,row,h,Sigma_rad")
+    assert out["csv"].read_text().startswith("embryo,row,h,cut_rad")
     assert out["png"].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 

@@ -9,10 +9,11 @@ from pathlib import Path
 import pytest
 
 from morphoshell.cli import main
+from morphoshell.io import example_path
 
 ROOT = Path(__file__).resolve().parents[1]
-TOY2 = str(ROOT / "problems" / "toy2_ablation.toml")
-TOY3 = str(ROOT / "problems" / "toy3_anisotropic.toml")
+TOY2 = str(example_path("toy2_ablation"))
+TOY3 = str(example_path("toy3_anisotropic"))
 
 
 def _run_bad(argv, capsys, named, tmp_path):

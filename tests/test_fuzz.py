@@ -27,6 +27,7 @@ from hypothesis import strategies as st
 
 from morphoshell import Problem, SolverError, solve
 from morphoshell.cli import main
+from morphoshell.io import example_path
 from morphoshell.direct import DirectSolver
 from morphoshell.mesh import mesh_spec
 
@@ -37,7 +38,7 @@ settings.register_profile("fuzz", max_examples=1000, deadline=None,
 settings.load_profile(os.environ.get("MORPHOSHELL_FUZZ", "ci"))
 
 ROOT = Path(__file__).resolve().parents[1]
-TOY2 = str(ROOT / "problems" / "toy2_ablation.toml")
+TOY2 = str(example_path("toy2_ablation"))
 COUNTS: collections.Counter = collections.Counter()
 
 

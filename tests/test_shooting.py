@@ -13,6 +13,7 @@ import pytest
 
 from morphoshell import Problem, SolverError, solve
 from morphoshell import shooting
+from morphoshell.io import example_path
 from morphoshell.energy import boundary_layer_width
 from morphoshell.layouts import BVP_STATE
 from morphoshell.reference import initial_state, pontryagin_functions
@@ -225,7 +226,7 @@ def test_shooting_through_solve_and_the_command_line(tmp_path, capsys):
     problem = Problem("uniform", {"k": 0.5}, h=0.3, cut=0.3)
     eq = solve(problem, method="shooting")
     assert eq.solver.method == "shooting"
-    toy2 = Path(__file__).resolve().parents[1] / "problems" / "toy2_ablation.toml"
+    toy2 = example_path("toy2_ablation")
     assert main(["solve", str(toy2), "--method", "shooting", "--json", str(tmp_path / "s.json")]) == 0
     assert main(["solve", str(toy2), "--method", "shooting", "--set", "h=1e-4",
                  "--set", "theory=classical"]) == 3

@@ -8,7 +8,8 @@ observables compare the two states at the material point s = Σ
 (:func:`morphoshell.observables.recoil`):
 
 ``opening``       o = 2 [r_post(Σ) − r_pre(Σ)], the change of the hole's diameter
-                  (paper eq:Usol: o = 2[u(0) − u(∞)] across the boundary layer);
+                  (Supplementary, toy problem 2, "Cut opening": o = 2[u(0) − u(∞)]
+                  across the boundary layer);
 ``rotation``      ϱ = ψ_post(Σ) − ψ_pre(Σ), positive when the rim curls outward
                   (radians);
 ``displacement``  d, the distance the rim moves, with the gauge of the
@@ -39,9 +40,17 @@ from .equilibrium import solve
 from .observables import RECOIL, recoil, state_at
 from .parametric import parametric
 from .problem import Problem
-from .results import Equilibrium, _html_table, _problem_rows
+from .results import (FIELD_NAMES, FIELD_UNITS, FIELDS, Equilibrium, _html_table, _problem_attrs,
+                      _problem_rows, _xarray)
 
-__all__ = ["Ablation", "ablate", "edge_state", "intact_problem", "recoil_jacobian"]
+__all__ = ["Ablation", "ablate", "edge_state", "intact_problem", "recoil_jacobian", "UNITS"]
+
+#: Units of the observables of an :class:`Ablation` (lengths in units of R).
+UNITS = {"opening": "R", "rotation": "rad", "displacement": "R", "radial_displacement": "R",
+         "axial_displacement": "R", "energy_released": "C R^2", "energy_removed": "C R^2"}
+
+_GAUGE = ("post- minus pre-ablation state at the material point s = cut; z in the far-end "
+          "gauge (the far end keeps its undeformed height)")
 
 
 @dataclass(frozen=True, eq=False)
@@ -60,9 +69,9 @@ class Ablation:
     energy_removed: float
 
     def __repr__(self) -> str:
-        return (f"Ablation(cut={self.problem.cut:g}, opening={self.opening:.6g}, "
-                f"rotation={self.rotation:.6g}, displacement={self.displacement:.6g}, "
-                f"energy_released={self.energy_released:.6g})")
+        return (f"Ablation(cut={self.problem.cut:g} R, opening={self.opening:.6g} R, "
+                f"rotation={self.rotation:.6g} rad, displacement={self.displacement:.6g} R, "
+                f"energy_released={self.energy_released:.6g} C R^2)")
 
     def _repr_html_(self) -> str:
         """Jupyter's view: the problem, the observables with units, both states' solves."""
@@ -79,11 +88,69 @@ class Ablation:
         return _html_table(rows, "Ablation")
 
     def observables(self) -> dict[str, float]:
+        """The recoil observables by name (units: :data:`UNITS`; lengths in R, rotation in rad)."""
         return {k: getattr(self, k) for k in (*RECOIL, "energy_released", "energy_removed")}
 
     def to_dict(self, arrays: bool = True) -> dict:
+        """JSON-ready: problem, observables and both equilibria (optionally with arrays)."""
         return {"problem": self.problem.describe(), **self.observables(),
                 "pre": self.pre.to_dict(arrays), "post": self.post.to_dict(arrays)}
+
+    def to_dataframe(self):
+        """The ablation as a one-row table: the problem, then the observables.
+
+        Returns
+        -------
+        pandas.DataFrame
+            Columns ``name``, ``family``, ``theory``, ``geometry``, ``h``, ``cut``,
+            ``opening_P`` (the far-end opening P; ``opening`` is the cut's
+            opening o), the family's parameters, then :meth:`observables`.
+            ``df.attrs`` holds ``units`` (column → unit, :data:`UNITS`: lengths
+            in units of R, rotation in radians, energies in C R²), ``problem``
+            and ``gauge``.  Concatenate several (``pandas.concat``) for a sweep.
+            The equilibria themselves: ``ab.pre.to_dataframe()``,
+            ``ab.post.to_dataframe()``.
+        """
+        import pandas as pd
+
+        d = self.problem.describe()
+        row = {"name": d["name"], "family": d["family"], "theory": d["theory"],
+               "geometry": d["geometry"], "h": d["h"], "cut": d["cut"],
+               "opening_P": d["opening"], **d["params"], **self.observables()}
+        df = pd.DataFrame([row])
+        units = {"h": "R", "cut": "R", "opening_P": "R", **UNITS}
+        df.attrs.update(units=units, problem=d, gauge=_GAUGE)
+        return df
+
+    def to_xarray(self):
+        """The ablation as an xarray Dataset: the observables and both equilibria.
+
+        Needs the optional extra ``xarray`` (``pip install 'morphoshell[xarray]'``).
+
+        Returns
+        -------
+        xarray.Dataset
+            Scalar variables :meth:`observables` (with ``units``); the fields of
+            the pre- and post-ablation equilibria as ``<field>_pre`` along the
+            coordinate ``s_pre`` and ``<field>_post`` along ``s_post`` (the
+            undeformed arclength, units of R; each state has its own points);
+            attributes as :meth:`Equilibrium.to_xarray` (the problem, flat) and
+            ``gauge``.
+        """
+        xr = _xarray()
+        data: dict = {k: ((), float(v), {"units": UNITS[k]}) for k, v in self.observables().items()}
+        coords = {}
+        for label, eq in (("pre", self.pre), ("post", self.post)):
+            dim = f"s_{label}"
+            coords[dim] = (dim, np.asarray(eq.s, dtype=float),
+                           {"units": "R", "long_name": f"undeformed arclength, {label}-ablation"})
+            data.update({f"{k}_{label}": (dim, np.asarray(getattr(eq, k), dtype=float),
+                                          {"units": FIELD_UNITS[k], "long_name": FIELD_NAMES[k]})
+                         for k in FIELDS if k != "s"})
+        attrs = {**_problem_attrs(self.problem), "gauge": _GAUGE,
+                 "energy_pre": float(self.pre.energy), "energy_post": float(self.post.energy),
+                 "energy_units": "C R^2"}
+        return xr.Dataset(data, coords=coords, attrs=attrs)
 
 
 def edge_state(eq: Equilibrium, s: float) -> dict[str, float]:

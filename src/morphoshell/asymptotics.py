@@ -1,7 +1,7 @@
 """Asymptotic predictions of the paper's toy problems 1 and 2.
 
-Every function cites the equation (LaTeX label of the paper source) or the
-Supplementary section it implements, validates its input (ValueError naming
+Every function cites the part of the paper (Haas & Höhn, *Cut it out*: main
+text or Supplementary, by section title) it implements, validates its input (ValueError naming
 the offending value) and accepts NumPy arrays wherever the formula is
 elementwise; scalar input gives a Python float.
 
@@ -19,7 +19,9 @@ Conventions
 """
 from __future__ import annotations
 
+import functools
 import math
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
@@ -94,12 +96,26 @@ def _out(value):
     return float(value) if value.ndim == 0 else value
 
 
+def _cut_alias(func):
+    """Accept the deprecated keyword ``Sigma=`` for ``cut=`` (the one name of the cut)."""
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        if "Sigma" in kwargs:
+            if "cut" in kwargs:
+                raise TypeError(f"{func.__name__}() got both cut and its deprecated alias Sigma")
+            warnings.warn(f"{func.__name__}(Sigma=...) is deprecated: the cut is called cut",
+                          DeprecationWarning, stacklevel=2)
+            kwargs["cut"] = kwargs.pop("Sigma")
+        return func(*args, **kwargs)
+    return wrapper
+
+
 def _material(c10: Any, c01: Any) -> tuple[float, float]:
     c10 = float(_finite("c10", c10))
     c01 = float(_finite("c01", c01))
     if c10 + c01 <= 0:
         # Supplementary, toy problem 1: a positive bulk modulus needs
-        # C₁₀ + C₀₁ > 0, and eq:f divides by it.
+        # C₁₀ + C₀₁ > 0, and the result for f (Supplementary, toy problem 1) divides by it.
         raise ValueError(f"c10 + c01 = {c10 + c01!r} must be positive")
     return c10, c01
 
@@ -135,7 +151,8 @@ def _f_shell_exact_scalar(h: float, k: float) -> float:
 
 
 def f_shell_exact(h, k):
-    """Exact minimiser of the shell energy of toy problem 1 (``eq:shellenergy``).
+    """Exact minimiser of the shell energy of toy problem 1 (main text, toy problem 1:
+    E² + (h²/12)K²).
 
     Minimises (f − 1)² + (h²/12)(1/f − k)² over the deformed radius f.  The
     stationarity condition f³(f − 1) = (h²/12)(1 − kf) is solved for f − 1
@@ -169,14 +186,15 @@ def f_shell_exact(h, k):
 
 
 def f_shell_asymptotic(h, k):
-    """Shell-theory prediction f ~ 1 − h²(k − 1)/12 (``eq:toy1res``)."""
+    """Shell-theory prediction f ~ 1 − h²(k − 1)/12 (main text, toy problem 1)."""
     h = _positive("h", h)
     k = _finite("k", k)
     return _out(1 - h * h * (k - 1) / 12)
 
 
 def f_bulk_asymptotic(h, k, c10, c01):
-    """Bulk-elasticity prediction for the deformed radius (``eq:f``).
+    """Bulk-elasticity prediction for the deformed radius (Supplementary, toy problem 1,
+    "Next-order calculation").
 
     f = 1 − (h²/12)(k − 1)[(11C₁₀ + 7C₀₁) − (5C₁₀ + C₀₁)k] / (2(C₁₀ + C₀₁)).
     The remainder is printed as O(h³); it is in fact O(h⁴) because f is
@@ -199,7 +217,8 @@ def f_bulk_asymptotic(h, k, c10, c01):
 
 
 def k_star(c10, c01) -> float:
-    """Second zero k* = (11C₁₀ + 7C₀₁)/(5C₁₀ + C₀₁) of the correction in ``eq:f``.
+    """Second zero k* = (11C₁₀ + 7C₀₁)/(5C₁₀ + C₀₁) of the O(h²) correction to f (Supplementary,
+    toy problem 1, "Surprising mechanical behaviour").
 
     Supplementary, "Surprising mechanical behaviour":
     k* = 1 + 6(C₁₀ + C₀₁)/(5C₁₀ + C₀₁), so k* > 1 iff 5C₁₀ + C₀₁ > 0.
@@ -214,7 +233,7 @@ def k_star(c10, c01) -> float:
     denominator = 5 * c10 + c01
     if denominator == 0:
         raise ValueError(
-            f"5*c10 + c01 = 0 (c10 = {c10!r}, c01 = {c01!r}): eq:f is then "
+            f"5*c10 + c01 = 0 (c10 = {c10!r}, c01 = {c01!r}): the O(h^2) correction to f is then "
             "linear in k and has no second zero k*")
     return (11 * c10 + 7 * c01) / denominator
 
@@ -230,20 +249,22 @@ def delta(h):
     return _out(boundary_layer_width(h))
 
 
-def opening(h, k, Sigma):
-    """Cut opening o ~ h(1 − k) sin Σ (``eq:Usol``; main text, toy problem 2).
+@_cut_alias
+def opening(h, k, cut):
+    """Cut opening o ~ h(1 − k) sin Σ (Supplementary, toy problem 2, "Cut opening"; main text).
 
     Twice the radial displacement of the rim across the inner region;
     positive when the rim curls outwards (k < 1).
     """
     h = _positive("h", h)
     k = _finite("k", k)
-    Sigma = _angle("Sigma", Sigma)
-    return _out(h * (1 - k) * np.sin(Sigma))
+    cut = _angle("cut Sigma", cut)
+    return _out(h * (1 - k) * np.sin(cut))
 
 
 def rotation(h, k):
-    """Leading-order cut rotation ϱ ~ δ b(0) = √(3h/2)(1 − k) (``eq:cutr``).
+    """Leading-order cut rotation ϱ ~ δ b(0) = √(3h/2)(1 − k), radians (Supplementary,
+    toy problem 2, "Cut rotation and cut displacement").
 
     Independent of Σ; valid for δ ≪ Σ (see :func:`rotation_small_cut`).
     """
@@ -253,7 +274,8 @@ def rotation(h, k):
 
 
 def displacement(h, k):
-    """Leading-order cut displacement d ~ (h/2)|1 − k| (``eq:cutd``).
+    """Leading-order cut displacement d ~ (h/2)|1 − k|, units of R (Supplementary, toy
+    problem 2, "Cut rotation and cut displacement").
 
     Independent of Σ; valid for δ ≪ Σ (see :func:`displacement_small_cut`).
     """
@@ -263,7 +285,7 @@ def displacement(h, k):
 
 
 def b_inner(xi, k):
-    """Leading-order inner solution b(ξ) (``eq:bsol``).
+    """Leading-order inner solution b(ξ) (Supplementary, toy problem 2, "Asymptotic solution").
 
     b(ξ) = −3^{3/4}(k − 1) e^{−3^{1/4}ξ/2} cos(3^{1/4}ξ/2), the solution of
     4b'''' + 3b = 0 with 2b'(0) = 3(k − 1), b''(0) = 0, b → 0 as ξ → ∞; the
@@ -333,7 +355,8 @@ def _varsigma(h: np.ndarray, Sigma: np.ndarray) -> np.ndarray:
     return 3**0.25 * sigma / _SQRT2
 
 
-def rotation_small_cut(h, k, Sigma):
+@_cut_alias
+def rotation_small_cut(h, k, cut):
     """Cut rotation for small ablations Σ = O(δ) (Supplementary, "Approximate
     solution for small ablations")::
 
@@ -344,12 +367,13 @@ def rotation_small_cut(h, k, Sigma):
     """
     h = _positive("h", h)
     k = _finite("k", k)
-    Sigma = _angle("Sigma", Sigma)
-    sP, D, _ = _small_cut_parts(_varsigma(h, Sigma))
+    cut = _angle("cut Sigma", cut)
+    sP, D, _ = _small_cut_parts(_varsigma(h, cut))
     return _out(math.sqrt(3) * sP / D * np.sqrt(h) * (1 - k))
 
 
-def displacement_small_cut(h, k, Sigma):
+@_cut_alias
+def displacement_small_cut(h, k, cut):
     """Cut displacement for small ablations Σ = O(δ) (Supplementary,
     "Approximate solution for small ablations")::
 
@@ -360,8 +384,8 @@ def displacement_small_cut(h, k, Sigma):
     """
     h = _positive("h", h)
     k = _finite("k", k)
-    Sigma = _angle("Sigma", Sigma)
-    _, D, sN = _small_cut_parts(_varsigma(h, Sigma))
+    cut = _angle("cut Sigma", cut)
+    _, D, sN = _small_cut_parts(_varsigma(h, cut))
     return _out(sN / (_SQRT2 * D) * h * np.abs(1 - k))
 
 
@@ -378,7 +402,8 @@ INNER_LENGTH = 40.0
 #: tol = 1e-8 to 3e-9 relative (measured for σ = 0.3, 1, 3).
 INNER_TOL = 1e-6
 
-#: Recoil per unit of the inner solution (Supplementary, eq:uv, δ = 12^{−1/4}√h):
+#: Recoil per unit of the inner solution (Supplementary, toy problem 2, "Approximate
+#: solution for small ablations": the equations for u and v; δ = 12^{−1/4}√h):
 #: ϱ/√h = 12^{−1/4} b(σ), d/h = 12^{−1/2} |∫b dξ|, o/h^{3/2} = 2·12^{−3/4} ∫[b²/2 + xb − f] dξ.
 _INNER_SCALE = {"opening": 2 * 12**-0.75, "rotation": 12**-0.25, "signed_displacement": 12**-0.5}
 
@@ -390,7 +415,8 @@ _INNER_POWER = {"opening": 1.5, "rotation": 0.5, "signed_displacement": 1.0}
 
 
 def _inner_rhs(x, y):
-    """eq:prob as a first-order system in x = σ + ξ, with the integrals of eq:uv.
+    """The nonlinear inner problem as a first-order system in x = σ + ξ, with the
+    integrals of u, v.
 
     y = (b, b', n, n', v, w): v' = b is the axial displacement (units of δ²),
     w' = b²/2 + xb − f, f = (n − xn')/3, minus the radial one (units of δ³).
@@ -415,7 +441,8 @@ def _inner_jacobian(x, y):
 
 
 def _inner_bc(sigma: float, forcing: float):
-    """eq:probbc, n(σ) = 0, 2b'(σ) + b(σ)/σ = ``forcing``, b, n → 0; v(σ) = w(σ) = 0.
+    """Its boundary conditions: n(σ) = 0, 2b'(σ) + b(σ)/σ = ``forcing``, b, n → 0;
+    v(σ) = w(σ) = 0.
 
     ``forcing`` is 3(k − 1) for the problem and 3 for its derivative in k.
     Returns the residual and its (constant) Jacobians.
@@ -431,7 +458,7 @@ def _inner_bc(sigma: float, forcing: float):
 
 @dataclass(frozen=True, eq=False)
 class InnerSolution:
-    """The nonlinear inner problem (eq:prob) solved at one (σ, k).
+    """The nonlinear inner problem solved at one (σ, k).
 
     Attributes
     ----------
@@ -475,13 +502,15 @@ class InnerSolution:
 
 def inner_solution(sigma, k, guess: InnerSolution | None = None, derivatives: bool = True,
                    length: float = INNER_LENGTH, tol: float = INNER_TOL) -> InnerSolution:
-    """Numerical solution of the nonlinear small-cut inner problem (Supplementary, eq:prob).
+    """Numerical solution of the nonlinear small-cut inner problem (Supplementary, toy problem 2,
+    "Asymptotic governing equations for small ablations").
 
     4x²n'' = −12xn' − 6xb − 3b², 2x²b'' = −2xb' + 2b + x³n + x²bn on
     x = σ + ξ ≥ σ, with n(σ) = 0, 2b'(σ) + b(σ)/σ = 3(k − 1), b, n → 0
     (truncated at ξ = ``length``: b decays like exp(−3^{1/4}ξ/2)).
     The Kelvin-function formulas linearise it for large x.  With ψ = s + δb
-    and eq:uv (du/dξ = −δ³[b²/2 + xb − f], f = (n − xn')/3, dv/dξ = δ²b):
+    and the equations for u and v of "Approximate solution for small ablations"
+    (du/dξ = −δ³[b²/2 + xb − f], f = (n − xn')/3, dv/dξ = δ²b):
 
         ϱ/√h = 12^{−1/4} b(σ),   d/h = 12^{−1/2} |∫ b dξ|,
         o/h^{3/2} = 2·12^{−3/4} ∫ [b²/2 + xb − f] dξ,
@@ -561,14 +590,16 @@ def inner_problem(sigmas, k: float = 0.0, length: float = INNER_LENGTH) -> dict[
     return {"sigma": sigmas[::-1], **{key: np.array(v[::-1]) for key, v in out.items()}}
 
 
-def inner_recoil(h, k, Sigma, guess: InnerSolution | None = None) -> InnerSolution:
+@_cut_alias
+def inner_recoil(h, k, cut, guess: InnerSolution | None = None) -> InnerSolution:
     """:func:`inner_solution` at σ = Σ/δ(h) (the recoil in units of R: ``.recoil(h)``)."""
     h = float(_positive("h", h))
-    Sigma = float(_angle("Sigma", Sigma))
-    return inner_solution(Sigma / boundary_layer_width(h), k, guess=guess)
+    cut = float(_angle("cut Sigma", cut))
+    return inner_solution(cut / boundary_layer_width(h), k, guess=guess)
 
 
-def energy_released(h, k, Sigma, units: str = "morphoshell"):
+@_cut_alias
+def energy_released(h, k, cut, units: str = "morphoshell"):
     """Energy change on ablation ΔE (Supplementary, "Recoil velocity: scaling
     argument"), deformed minus undeformed, so ≤ 0.
 
@@ -579,8 +610,9 @@ def energy_released(h, k, Sigma, units: str = "morphoshell"):
 
     Parameters
     ----------
-    h, k, Sigma : float or array_like
-        Thickness (> 0), intrinsic curvature, cut half-angle Σ ∈ (0, π).
+    h, k, cut : float or array_like
+        Thickness h = H/R (> 0), intrinsic curvature k (units of 1/R), the cut
+        Σ ∈ (0, π) (its half-angle, radians).
     units : {"morphoshell", "paper"}
         ``"morphoshell"`` returns (h/2)·ΔE_paper, ``"paper"`` ΔE_paper.
     """
@@ -588,9 +620,9 @@ def energy_released(h, k, Sigma, units: str = "morphoshell"):
         raise ValueError(f"units = {units!r} must be one of {ENERGY_UNITS}")
     h = _positive("h", h)
     k = _finite("k", k)
-    Sigma = _angle("Sigma", Sigma)
+    cut = _angle("cut Sigma", cut)
     d = boundary_layer_width(h)
-    paper = -(3**1.75) * math.pi * d**5 * (k - 1) ** 2 * np.sin(Sigma)
+    paper = -(3**1.75) * math.pi * d**5 * (k - 1) ** 2 * np.sin(cut)
     return _out(paper if units == "paper" else 0.5 * h * paper)
 
 
@@ -617,7 +649,8 @@ def recoil_velocity(E_over_mu, H, R, k):
     return _out(E_over_mu * H**2.5 / R**1.5 * np.abs(1 - k))
 
 
-def predictions(h, k, Sigma) -> dict:
+@_cut_alias
+def predictions(h, k, cut) -> dict:
     """All toy-problem-2 predictions for one ablation.
 
     Returns
@@ -630,15 +663,15 @@ def predictions(h, k, Sigma) -> dict:
     """
     h_arr = _positive("h", h)
     _finite("k", k)
-    Sigma_arr = _angle("Sigma", Sigma)
+    cut_arr = _angle("cut Sigma", cut)
     d = delta(h)
     return {
-        "opening": opening(h, k, Sigma),
+        "opening": opening(h, k, cut),
         "rotation": rotation(h, k),
         "displacement": displacement(h, k),
-        "rotation_small_cut": rotation_small_cut(h, k, Sigma),
-        "displacement_small_cut": displacement_small_cut(h, k, Sigma),
-        "energy_released": energy_released(h, k, Sigma, units="morphoshell"),
+        "rotation_small_cut": rotation_small_cut(h, k, cut),
+        "displacement_small_cut": displacement_small_cut(h, k, cut),
+        "energy_released": energy_released(h, k, cut, units="morphoshell"),
         "delta": d,
-        "sigma": _out(Sigma_arr / boundary_layer_width(h_arr)),
+        "sigma": _out(cut_arr / boundary_layer_width(h_arr)),
     }

@@ -4,26 +4,28 @@ Paper, Supplementary "Toy Problem 1", sections "Geometry of the deformed
 shell" and "Elasticity of the deformed shell".  A spherical shell of
 thickness ``h`` whose inner and outer radii average to 1 has uniform intrinsic
 curvature ``k`` and stays spherical with deformed mean radius ``f``.  The
-asymptotic answer is ``eq:f`` (:func:`morphoshell.asymptotics.f_bulk_asymptotic`);
-this module computes ``f`` without expanding in ``h``.
+asymptotic answer is the Supplementary's f ("Next-order calculation",
+:func:`morphoshell.asymptotics.f_bulk_asymptotic`); this module computes ``f``
+without expanding in ``h``.
 
 Reduction of the printed equations
 ----------------------------------
-The maps ``eq:cond1`` and ``eq:cond2`` are statements of volume conservation:
-multiplying them by 3a² gives
+The two maps of the Supplementary's "Geometry of the deformed shell" (here
+called *cond1*, deformed, and *cond2*, undeformed) are statements of volume
+conservation: multiplying them by 3a² gives
 
-* ``eq:cond2``: (a + ζ)³ − a³ = a²[(1 + kZ)³ − 1]/k = a² Z (3 + 3kZ + k²Z²),
-* ``eq:cond1``: (ã + ζ̃)³ − ã³ = (a + ζ)³ − a³.
+* *cond2*: (a + ζ)³ − a³ = a²[(1 + kZ)³ − 1]/k = a² Z (3 + 3kZ + k²Z²),
+* *cond1*: (ã + ζ̃)³ − ã³ = (a + ζ)³ − a³.
 
 Since a = 1 − (h⁺ − h⁻)/2 and h⁺ + h⁻ = h, the undeformed faces are at
 r± = a ± h^± = 1 ± h/2 whatever h^± are.  Subtracting and adding the two
-equations ``eq:heqs`` (second line, Z = ±h⁰/2) then gives two equations for
-a and h⁰ alone (:func:`undeformed_geometry`)::
+equations for the faces (*heqs*, "Geometry of the deformed shell"; second
+line, Z = ±h⁰/2) then gives two equations for a and h⁰ alone (:func:`undeformed_geometry`)::
 
     3h + h³/4           = a² (3h⁰ + k² h⁰³/4),
     2 + 3h²/2 − 2a³     = (3/2) a² k h⁰².
 
-The first line of ``eq:heqs`` says that the deformed faces r̃± = ã ± h̃^±
+The first line of *heqs* says that the deformed faces r̃± = ã ± h̃^±
 enclose the same volume, (r̃₊³ − r̃₋³) = (r₊³ − r₋³), with f = (r̃₊ + r̃₋)/2;
 ã follows from r̃₊³ − ã³ = r₊³ − a³ (:func:`deformed_geometry`).  The
 definition ã = f − (h̃⁺ − h̃⁻)/2 is then an identity.
@@ -60,7 +62,7 @@ Parity
 Replacing h by −h maps (h⁰, t) → (−h⁰, −t) and swaps the two faces but leaves
 a, ã and the set of Z unchanged, so 𝓔 changes sign and its stationary points
 do not move: f is an even function of h.  Hence the O(h³) remainder of
-``eq:f`` actually vanishes and f − f_asymptotic = O(h⁴).
+f (Supplementary, "Next-order calculation") actually vanishes and f − f_asymptotic = O(h⁴).
 """
 from __future__ import annotations
 
@@ -108,7 +110,7 @@ def _material(c10, c01, c20=0.0, c11=0.0, c02=0.0) -> dict[tuple[int, int], floa
 
 @dataclass(frozen=True)
 class UndeformedGeometry:
-    """Solution of the second line of ``eq:heqs`` with h⁺ + h⁻ = h.
+    """Solution of the second line of *heqs* with h⁺ + h⁻ = h.
 
     Attributes
     ----------
@@ -132,7 +134,7 @@ class UndeformedGeometry:
 
 @dataclass(frozen=True)
 class DeformedGeometry:
-    """Solution of the first line of ``eq:heqs`` for a deformed radius f.
+    """Solution of the first line of *heqs* for a deformed radius f.
 
     Attributes
     ----------
@@ -160,11 +162,11 @@ class DeformedGeometry:
 
 
 def undeformed_geometry(h: float, k: float) -> UndeformedGeometry:
-    """Midsurface radius a, intrinsic thickness h⁰ and h^± (``eq:heqs``).
+    """Midsurface radius a, intrinsic thickness h⁰ and h^± (*heqs*).
 
     Solves 3h + h³/4 = a²(3h⁰ + k²h⁰³/4) and 2 + 3h²/2 − 2a³ = (3/2)a²kh⁰²
     (the difference and sum of the two signs of the second line of
-    ``eq:heqs``, see the module docstring) by eliminating a² with the first
+    *heqs*, see the module docstring) by eliminating a² with the first
     and root-finding h⁰ in the second.
 
     Raises
@@ -202,12 +204,12 @@ def undeformed_geometry(h: float, k: float) -> UndeformedGeometry:
 
 
 def deformed_geometry(geom: UndeformedGeometry, f_minus_1: float) -> DeformedGeometry:
-    """Deformed thickness t, ã and h̃^± for f = 1 + ``f_minus_1`` (``eq:heqs``).
+    """Deformed thickness t, ã and h̃^± for f = 1 + ``f_minus_1`` (*heqs*).
 
     The faces r̃± = f ± t/2 enclose the undeformed volume,
     3f²t + t³/4 = 3h + h³/4, solved for t − h by fixed-point iteration on
     t − h = −3h(f² − 1)/(3f² + (t² + th + h²)/4) (a contraction with factor
-    O(h²)).  Then ã³ − a³ = r̃₊³ − r₊³ (``eq:cond1`` at the outer face).
+    O(h²)).  Then ã³ − a³ = r̃₊³ − r₊³ (*cond1* at the outer face).
     """
     F = real("f - 1", f_minus_1)
     if F <= -1:
@@ -240,14 +242,14 @@ def _cbrt_step(base, increment):
 
 
 def zeta_of_Z(geom: UndeformedGeometry, Z):
-    """Undeformed transverse coordinate ζ(Z), the solution of ``eq:cond2``."""
+    """Undeformed transverse coordinate ζ(Z), the solution of *cond2*."""
     a, k = geom.a, geom.k
     Z = np.asarray(Z, dtype=float)
     return _cbrt_step(a, a * a * Z * (3 + 3 * k * Z + k * k * Z * Z))
 
 
 def zeta_tilde_of_zeta(geom: UndeformedGeometry, deformed: DeformedGeometry, zeta):
-    """Deformed transverse coordinate ζ̃(ζ), the solution of ``eq:cond1``."""
+    """Deformed transverse coordinate ζ̃(ζ), the solution of *cond1*."""
     a = geom.a
     zeta = np.asarray(zeta, dtype=float)
     return _cbrt_step(deformed.a_tilde, zeta * (3 * a * a + 3 * a * zeta + zeta * zeta))
@@ -377,7 +379,7 @@ def stationarity(f_minus_1: float, h: float, k: float, c10: float, c01: float,
 def energy_derivative(f: float, h: float, k: float, c10: float, c01: float,
                       c20: float = 0.0, c11: float = 0.0, c02: float = 0.0, *,
                       nodes: int = DEFAULT_NODES) -> float:
-    """d𝓔/df = 4π a r̃₊² (dr̃₊/df) S(f), differentiated through ``eq:heqs``.
+    """d𝓔/df = 4π a r̃₊² (dr̃₊/df) S(f), differentiated through *heqs*.
 
     dr̃₊/df = 1 + t'(f)/2 with t' = −8ft/(4f² + t²) from the volume
     constraint, i.e. (2f − t)²/(4f² + t²).
@@ -397,7 +399,8 @@ def f_bulk(h: float, k: float, c10: float, c01: float, c20: float = 0.0,
 
     Root-finds the stationarity condition S(f) = 0 (:func:`stationarity`) in
     f − 1 with Brent's method to relative precision 4·eps, bracketing around
-    the asymptotic prediction ``eq:f``.  S increases with f near the root
+    the asymptotic prediction for f (Supplementary, "Next-order
+    calculation").  S increases with f near the root
     (𝓔'' ≈ 24π(C₁₀ + C₀₁)h > 0), so the root is the minimum.
 
     Parameters
@@ -423,7 +426,7 @@ def f_bulk(h: float, k: float, c10: float, c01: float, c20: float = 0.0,
     geom, material = _setup(h, k, c10, c01, c20, c11, c02)
     Z, w = _nodes(geom, nodes)
     c10, c01 = material.get((1, 0), 0.0), material.get((0, 1), 0.0)
-    # eq:f, used only to centre the bracket.
+    # the asymptotic f, used only to centre the bracket.
     F0 = -(geom.h**2 / 12) * (k - 1) * ((11 * c10 + 7 * c01) - (5 * c10 + c01) * k) \
         / (2 * (c10 + c01))
 

@@ -4,7 +4,7 @@ The paper (Materials and Methods, Eq. 7) uses the large-bending shell theory of
 Haas & Goldstein (PRE 103, 022411, 2021), whose printed coefficient formulas
 (their Eqs. 58 and 64) are not available to this project.  The closed forms
 below were **re-derived** from three-dimensional incompressible
-morphoelasticity (``shared/docs/large_bending_theory.md`` section 2; the
+morphoelasticity (documentation: "Theory", large-bending coefficients; the
 through-thickness check is :func:`morphoshell.thickness.exact_density`).  They
 are the project's definition.
 
@@ -83,7 +83,7 @@ def _series(name: str, eta):
 
 
 def _closed(eta) -> Coefficients:
-    """Closed forms of ``large_bending_theory.md`` section 2 (η ≠ 0)."""
+    """Closed forms of the coefficients (documentation: "Theory"; η ≠ 0)."""
     D = (1 - eta**2) ** 2
     L = ca.log((1 + eta) / (1 - eta))
     return Coefficients(

@@ -21,6 +21,7 @@ throughout: the undeformed shell is stress-free for any of them.
 """
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import dataclass, replace
 
@@ -31,6 +32,8 @@ from .problem import Problem
 from .results import Equilibrium, SolverError
 
 __all__ = ["continue_to", "Path", "neutral_problem"]
+
+log = logging.getLogger(__name__)
 
 #: A step that needs more Newton iterations than this is retried smaller.
 HARD_STEP = 15
@@ -53,6 +56,7 @@ class Path:
     iterations: int = 0
 
     def describe(self) -> str:
+        """One line saying how the solution was reached (stored in ``solver.details["path"]``)."""
         if self.kind != "continuation":
             return self.kind
         return (f"continuation from the stress-free parameters in {self.steps} steps "
@@ -126,9 +130,15 @@ def continue_to(solver: DirectSolver, problem: Problem, anchors=(), *, first_ste
         change = None if new is None else np.max(np.abs(new.x - eq.x)) / (trial - tau)
         jumped = change is not None and rate is not None and change > JUMP_FACTOR * rate
         if new is None or new.solver.iterations > HARD_STEP or jumped:
+            log.debug("continuation to %s: step to tau = %.4g retried smaller (%s)",
+                      problem.name or problem.family, trial,
+                      "failed" if new is None else "jumped" if jumped
+                      else f"{new.solver.iterations} iterations")
             rejected += 1
             step /= 4
             continue
+        log.debug("continuation to %s: tau = %.4g reached in %d iterations",
+                  problem.name or problem.family, trial, new.solver.iterations)
         steps += 1
         iterations += new.solver.iterations
         rate = change if rate is None else max(rate, change)

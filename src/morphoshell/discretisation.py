@@ -73,14 +73,17 @@ class Layout:
 
     @property
     def points(self) -> int:
+        """Number of points: the nodes and the interior interpolation points of every cell."""
         return self.cells * self.stages + 1
 
     @property
     def free_points(self) -> int:
+        """Points whose r and ψ are unknowns (all but the poles, where they are fixed)."""
         return self.points - self.start_pole - self.end_pole
 
     @property
     def size(self) -> int:
+        """Number of unknowns: r and ψ at the free points, f_s at the Gauss points."""
         return 2 * self.free_points + self.cells * self.stages
 
     def split(self, x: np.ndarray, derivative: bool = False):
@@ -99,6 +102,7 @@ class Layout:
         return np.concatenate(parts)
 
     def pack(self, r, psi, f) -> np.ndarray:
+        """The unknown vector x from r, ψ at every point (units of R, rad) and f_s at the Gauss points."""
         sl = slice(1 if self.start_pole else 0, -1 if self.end_pole else None)
         return np.concatenate([np.asarray(r)[sl], np.asarray(psi)[sl], np.asarray(f)])
 

@@ -1,8 +1,8 @@
 """Strains and energy density of the morphoelastic shell: the one source of truth.
 
 Paper, Materials and Methods, Eqs. (5)–(7), with the coefficients of
-:mod:`morphoshell.coefficients` and the normalisation of
-``large_bending_theory.md`` section 2:
+:mod:`morphoshell.coefficients` and this project's normalisation (documentation:
+"Theory", energy):
 
     𝓔 = 2π ∫ e ρ ds,
     e = (C/2) { h [α_ss E_s² + 2α_sφ E_s E_φ + α_φφ E_φ²]

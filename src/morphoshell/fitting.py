@@ -2,7 +2,7 @@
 
 The paper (Supplementary, "Fitting of the morphoelastic theory to the average
 cell sheet midlines of Volvox inversion") fits the 13-parameter Volvox model
-(``volvox_model.md``) to the average midline of an inversion stage by
+(documentation: "Problems and families") to the average midline of an inversion stage by
 minimising the fit energy
 
     E_fit = { Σᵢ [(rᵢ − Rᵢ)² + (zᵢ − Zᵢ)²] }^½,   i = 1 … N_fit = 100,
@@ -65,7 +65,7 @@ __all__ = ["FitSpec", "FitResult", "FitError", "fit", "volvox_spec", "model_midl
 METHODS = ("nelder-mead", "gradient", "kkt")
 #: Hypotheses on the posterior intrinsic curvature κ₁ (see the module docstring).
 VARIANTS = ("flat", "undeformed", "unstressed", "free")
-#: Points of the fit energy (volvox_model.md).
+#: Points of the fit energy (documentation: "Problems and families", Volvox).
 N_FIT = 100
 #: Bounds of fitted Volvox parameters: stretches, curvatures (1/R).  Breakpoints
 #: are bounded by the shell and kept apart by at least the smoothing width σ.
@@ -130,6 +130,7 @@ class FitSpec:
 
     @property
     def theta0(self) -> np.ndarray:
+        """Starting values of the fitted parameters (from the base problem), in ``fitted`` order."""
         return np.array([self.base.params[n] for n in self.fitted])
 
     def params(self, theta) -> dict:
@@ -158,6 +159,7 @@ class FitSpec:
         return out
 
     def box(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper bounds of the fitted parameters (±inf where unbounded)."""
         lo = np.array([self.bounds.get(n, (-np.inf, np.inf))[0] for n in self.fitted])
         hi = np.array([self.bounds.get(n, (-np.inf, np.inf))[1] for n in self.fitted])
         return lo, hi
@@ -172,7 +174,7 @@ def volvox_spec(variant: str, start: Problem | None = None, hold: Mapping[str, f
     variant : {"flat", "undeformed", "unstressed", "free"}
     start : Problem, optional
         A ``volvox`` problem with the start values (default: the family's
-        illustrative defaults, h = 0.15, P = 0.3: ``volvox_model.md``).
+        illustrative defaults, h = 0.15, P = 0.3: "Problems and families").
     hold : mapping
         Parameters held at the given values (not fitted).
     breakpoint_boxes : bool
@@ -363,6 +365,8 @@ class FitResult:
                 f"converged={self.converged})")
 
     def summary(self) -> str:
+        """A few lines: the result, every fitted parameter with its standard error, and
+        the poorly identified directions."""
         lines = [repr(self)]
         for n in self.fitted:
             lines.append(f"  {n:8s} = {self.parameters[n]: .6g} ± {self.standard_errors[n]:.2g}")
@@ -372,6 +376,8 @@ class FitResult:
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
+        """JSON-ready: the problem, the fitted parameters with standard errors and
+        correlations, the fit energy E_fit (units of R) and the solver's report."""
         p = self.equilibrium.problem
         return {"problem": p.describe(), "parameters": dict(self.parameters),
                 "fitted": list(self.fitted), "standard_errors": dict(self.standard_errors),

@@ -14,15 +14,17 @@ material point s = Σ, z in the far-end gauge; ϱ > 0 when the edge unfurls
 outwards (k < 1), d ≥ 0 a distance, o the signed change of the hole's
 diameter.
 
-Methods
--------
-``leading_order``  Σ = O(1): o = h(1 − k) sin Σ (eq:Usol), ϱ = √(3h/2)(1 − k)
-                   (eq:cutr), d = (h/2)|1 − k| (eq:cutd);
+Estimation methods
+------------------
+``leading_order``  Σ = O(1): o = h(1 − k) sin Σ, ϱ = √(3h/2)(1 − k),
+                   d = (h/2)|1 − k| (Supplementary, toy problem 2, "Cut
+                   opening", "Cut rotation and cut displacement");
 ``kelvin``         Σ = O(δ): the Kelvin-function forms of ϱ and d
                    (Supplementary, "Approximate solution for small ablations");
                    there is none for o;
-``inner``          the nonlinear inner problem eq:prob that the Kelvin forms
-                   linearise, with o from eq:uv
+``inner``          the nonlinear inner problem that the Kelvin forms linearise
+                   ("Asymptotic governing equations for small ablations"), with
+                   o from its equation for u ("Approximate solution for small ablations")
                    (:func:`morphoshell.asymptotics.inner_solution`);
 ``numerical``      toy problem 2 in the large-bending (or classical) shell
                    theory at the embryo's h and Σ (:class:`RecoilModel`);
@@ -64,6 +66,8 @@ bending modulus E H³ in J.
 from __future__ import annotations
 
 import csv
+import json
+import logging
 import math
 import multiprocessing
 import os
@@ -76,6 +80,7 @@ from typing import Callable, Iterable, Mapping, Sequence
 import numpy as np
 
 from . import asymptotics
+from ._console import progress as _progress_bar
 from .ablation import _recoil_function, intact_problem
 from .continuation import continue_to
 from .direct import DirectSolver
@@ -85,6 +90,8 @@ from .observables import Observable, state_at
 from .parametric import parametric
 from .problem import Problem
 from .results import Equilibrium, SolverError
+
+log = logging.getLogger(__name__)
 
 __all__ = [
     "MEASURES", "METHODS", "ASYMPTOTIC", "DEFAULT_K_RANGE", "GRID_STEP", "K_TOL", "NODES",
@@ -250,9 +257,14 @@ class Measurement:
         return self.H_um / self.R_um
 
     @property
-    def Sigma(self) -> float:
-        """Cut Σ = arcsin(hole diameter / 2R) (radians)."""
+    def cut(self) -> float:
+        """The cut Σ = arcsin(hole diameter / 2R) (radians, = units of R on the sphere)."""
         return math.asin(min(1.0, self.hole_diameter_um / (2 * self.R_um)))
+
+    @property
+    def Sigma(self) -> float:
+        """Deprecated alias of :attr:`cut` (the one name of the cut)."""
+        return self.cut
 
     def value(self, measure: str) -> float | None:
         """The measure in units of R or radians (None if not measured)."""
@@ -359,7 +371,7 @@ class RecoilPoint:
     """
 
     h: float
-    Sigma: float
+    cut: float
     k: float
     opening: float
     rotation: float
@@ -373,9 +385,14 @@ class RecoilPoint:
     _solvers: tuple = field(repr=False, default=())
 
     def __repr__(self) -> str:
-        return (f"RecoilPoint(h={self.h:g}, Sigma={self.Sigma:g}, k={self.k:g}, "
-                f"opening={self.opening:.6g}, rotation={self.rotation:.6g}, "
-                f"displacement={self.displacement:.6g})")
+        return (f"RecoilPoint(h={self.h:g}, cut={self.cut:g} rad, k={self.k:g}/R, "
+                f"opening={self.opening:.6g} R, rotation={self.rotation:.6g} rad, "
+                f"displacement={self.displacement:.6g} R)")
+
+    @property
+    def Sigma(self) -> float:
+        """Deprecated alias of ``cut`` (the one name of the cut)."""
+        return self.cut
 
     @property
     def signed_displacement(self) -> float:
@@ -432,7 +449,10 @@ class RecoilModel:
         (:func:`morphoshell.equilibrium.direct_solver`, meshes quantised in
         h and Σ), so that a table needs a few builds.
 
-    ``builds`` counts the solvers this model built.
+    Attributes
+    ----------
+    builds : int
+        The number of direct solvers this model built.
     """
 
     def __init__(self, theory: str = "large_bending", nodes: int = NODES, stages: int = 2,
@@ -449,9 +469,10 @@ class RecoilModel:
                                 for p, a in ((pre_p, (post_p.cut,)), (post_p, ())))
             self.builds = 2
 
-    def problem(self, h: float, Sigma: float, k: float) -> Problem:
-        """The cut shell (toy problem 2)."""
-        return Problem("uniform", {"k": float(k)}, h=float(h), cut=float(Sigma),
+    def problem(self, h: float, cut: float, k: float) -> Problem:
+        """The cut shell (toy problem 2): thickness h = H/R, the cut Σ (radians),
+        intrinsic curvature k (units of 1/R)."""
+        return Problem("uniform", {"k": float(k)}, h=float(h), cut=float(cut),
                        theory=self.theory, name="toy2")
 
     def _solvers(self, post_p: Problem, pre_p: Problem) -> tuple[DirectSolver, DirectSolver]:
@@ -467,9 +488,9 @@ class RecoilModel:
         self.builds += cache_info()["builds"] - before
         return pre_s, post_s
 
-    def evaluate(self, h: float, Sigma: float, k: float,
+    def evaluate(self, h: float, cut: float, k: float,
                  start: RecoilPoint | None = None) -> RecoilPoint:
-        """The recoil at (h, Σ, k) and its exact k-derivatives.
+        """The recoil at (h, Σ = ``cut``, k) and its exact k-derivatives.
 
         Parameters
         ----------
@@ -486,7 +507,7 @@ class RecoilModel:
         SolverError
             No converged, stable solution.
         """
-        post_p = self.problem(h, Sigma, k)
+        post_p = self.problem(h, cut, k)
         pre_p = intact_problem(post_p)
         solvers = self._solvers(post_p, pre_p)
         if start is not None and start._solvers == solvers:
@@ -494,7 +515,7 @@ class RecoilModel:
                 return self._step(start, pre_p, post_p, solvers, depth=0)
             except SolverError:
                 pass
-        eqs = [continue_to(s, p, a) for s, p, a in zip(solvers, (pre_p, post_p), ((Sigma,), ()))]
+        eqs = [continue_to(s, p, a) for s, p, a in zip(solvers, (pre_p, post_p), ((cut,), ()))]
         return self._point(post_p, *eqs, solvers)
 
     def _step(self, start: RecoilPoint, pre_p: Problem, post_p: Problem, solvers,
@@ -763,6 +784,7 @@ class EmbryoEstimate:
                 f"combined={_fmt_k(self.combined.k)})")
 
     def k(self, measure: str, method: str = "numerical") -> float | None:
+        """The estimate of k (units of 1/R) from ``measure`` by ``method``; None if there is none."""
         return self.estimates[(measure, method)].k
 
     @property
@@ -775,8 +797,8 @@ class EmbryoEstimate:
     def to_dict(self) -> dict:
         """The JSON object of the embryo (keys ``k_<measure>_<method>`` …, ``notes``)."""
         m = self.measurement
-        out: dict = {"embryo": m.embryo, "row": m.row, "h": m.h, "Sigma_rad": m.Sigma,
-                     "sigma_inner": m.Sigma / asymptotics.delta(m.h)}
+        out: dict = {"embryo": m.embryo, "row": m.row, "h": m.h, "cut_rad": m.cut,
+                     "sigma_inner": m.cut / asymptotics.delta(m.h)}
         for (measure, method), e in self.estimates.items():
             out[f"k_{measure}_{method}"] = e.k
             if m.error(measure) is not None:
@@ -812,7 +834,7 @@ def estimate_embryo(m: Measurement, model: RecoilModel | None = None,
     if model is None and "numerical" in methods:
         model = RecoilModel()
     k_range = _check_k_range(k_range)
-    h, Sigma = m.h, m.Sigma
+    h, Sigma = m.h, m.cut
     out: dict[tuple[str, str], Estimate] = {}
     seconds: dict[str, float] = {}
     for method in METHODS:
@@ -835,7 +857,7 @@ def estimate_embryo(m: Measurement, model: RecoilModel | None = None,
             if method == "kelvin" and measure == "opening":
                 out[(measure, method)] = Estimate(
                     measure, method, None, status="no_formula",
-                    note="no small-cut closed form for the opening (eq:uv is not integrable "
+                    note="no small-cut closed form for the opening (the equation for u is not integrable "
                          "in closed form; the inner method solves it)")
                 continue
             if failure is None:
@@ -902,6 +924,7 @@ class Spread:
         return f"{self.mean:.3f}{std}{iv} (n = {self.n})"
 
     def to_dict(self) -> dict:
+        """JSON-ready: n, mean, std and the 95 % interval (units of the estimates)."""
         out = {"n": self.n, "mean": self.mean, "std": self.std,
                "interval_95": None if self.interval is None else list(self.interval)}
         if self.weighted_mean is not None:
@@ -972,6 +995,7 @@ class VelocityFit:
                 f"(H = {self.H_mean_um:.3g} um)")
 
     def to_dict(self) -> dict:
+        """JSON-ready: E/μ (1/s) with its error and interval, the bounds on E (Pa) and E H³ (J)."""
         return {"E_over_mu": self.E_over_mu, "E_over_mu_standard_error": self.standard_error,
                 "E_over_mu_interval_95": None if self.interval is None else list(self.interval),
                 "E_lower_bound_Pa": self.E_lower_bound_Pa,
@@ -1011,6 +1035,13 @@ def fit_velocity(V: Sequence[float], X: Sequence[float], *, mu_min: float = MU_M
 # the whole table
 # --------------------------------------------------------------------------
 
+def _column_unit(column: str) -> str:
+    """Unit of a column of :meth:`InverseResult.table`."""
+    if column.startswith("k_"):
+        return "1/R"
+    return {"h": "H/R", "cut_rad": "rad", "sigma_inner": "1 (Sigma/delta)"}.get(column, "")
+
+
 def _keys() -> list[str]:
     return [f"{m}_{meth}" for m in MEASURES for meth in ("asymptotic", *METHODS)] + ["combined"]
 
@@ -1037,16 +1068,17 @@ class InverseResult:
                  f"k in [{s['k_range'][0]:g}, {s['k_range'][1]:g}]",
                  "k per embryo, in units of 1/R (numerical; asymptotic in parentheses: "
                  "leading order for o, Kelvin for rho and d):",
-                 f"  {'embryo':10s} {'h':>6s} {'Sigma':>6s} "
+                 f"  {'embryo':10s} {'h':>6s} {'cut':>6s} "
                  + " ".join(f"{'k_' + SYMBOL[m]:>16s}" for m in MEASURES) + f" {'k_combined':>11s}"]
         lines.append(f"  {'':10s} {'H/R':>6s} {'rad':>6s}")
         for e in self.embryos:
             cells = [f"{_fmt_k(e.k(m)):>6s} ({_fmt_k(e.k(m, 'asymptotic')):>6s})"
                      for m in MEASURES]
             lines.append(f"  {e.measurement.embryo:10s} {e.measurement.h:6.3f} "
-                         f"{e.measurement.Sigma:6.3f} " + " ".join(cells)
+                         f"{e.measurement.cut:6.3f} " + " ".join(cells)
                          + f" {_fmt_k(e.combined.k):>11s}")
-        lines.append("summary over embryos: mean +- std [bootstrap 95% interval of the mean]:")
+        lines.append("summary over embryos (k in units of 1/R): mean +- std [bootstrap 95% "
+                     "interval of the mean]:")
         for m in MEASURES:
             for meth in ("numerical", "asymptotic", "inner"):
                 lines.append(f"  k from {m:12s} {meth:10s}  {self.summary[f'{m}_{meth}']}")
@@ -1071,7 +1103,7 @@ class InverseResult:
         out = {"description": "Inverse estimates of the intrinsic curvature k from laser-"
                               "ablation recoils (toy problem 2) and of E/mu from recoil "
                               "velocities: paper Fig. 2 J-K",
-               "units": {"k": "1/R (each embryo's own R)", "h": "H/R", "Sigma_rad": "rad",
+               "units": {"k": "1/R (each embryo's own R)", "h": "H/R", "cut_rad": "rad",
                          "sigma_inner": "Sigma/delta", "E_over_mu": "1/s",
                          "E_lower_bound_Pa": "Pa", "bending_modulus_lower_bound_J": "J"},
                "settings": dict(self.settings),
@@ -1084,6 +1116,48 @@ class InverseResult:
             out["velocity_fit"] = self.velocity.to_dict()
         out["timing_seconds"] = dict(self.timing)
         return out
+
+    def to_dataframe(self):
+        """The per-embryo estimates as a table (the columns of :meth:`table`).
+
+        Returns
+        -------
+        pandas.DataFrame
+            One row per embryo: ``embryo``, ``row``, ``h`` (H/R), ``cut_rad``,
+            ``sigma_inner`` (Σ/δ), ``k_<measure>_<method>`` [``_error``]
+            (units of the embryo's 1/R; NaN where there is no estimate),
+            ``k_combined`` [``_error``], ``notes``.  ``df.attrs`` holds
+            ``units`` (column → unit), ``settings``, ``summary`` (per
+            estimate: n, mean, std, interval) and, with velocities,
+            ``E_over_mu`` (1/s).
+        """
+        import pandas as pd
+
+        df = pd.DataFrame(self.table())
+        doc = self.to_dict()
+        df.attrs.update(units={c: _column_unit(c) for c in df.columns},
+                        settings=doc["settings"], summary=doc["summary"])
+        if self.velocity is not None:
+            df.attrs["E_over_mu"] = self.velocity.E_over_mu
+        return df
+
+    def to_xarray(self):
+        """The per-embryo estimates as an xarray Dataset along the coordinate ``embryo``.
+
+        Needs the optional extra ``xarray`` (``pip install 'morphoshell[xarray]'``).
+        Variables as the columns of :meth:`to_dataframe`, each with ``units``;
+        attributes: the settings (strings and numbers).
+        """
+        from .results import _xarray
+
+        xr = _xarray()
+        df = self.to_dataframe()
+        ds = xr.Dataset.from_dataframe(df.set_index("embryo"))
+        for c in ds.data_vars:
+            ds[c].attrs["units"] = _column_unit(str(c))
+        ds.attrs.update({k: (v if isinstance(v, (str, int, float)) else json.dumps(v))
+                         for k, v in self.settings.items() if v is not None})
+        return ds
 
     def table(self) -> dict[str, list]:
         """Per-embryo columns for CSV (null → NaN, written as an empty cell)."""
@@ -1119,7 +1193,7 @@ def estimate(measurements: str | Path | Iterable[Measurement], *,
              theory: str = "large_bending", k_range: tuple[float, float] = DEFAULT_K_RANGE,
              mu_min: float = MU_MIN, bootstrap: int = BOOTSTRAP, seed: int = SEED,
              nodes: int = NODES, methods: Sequence[str] = METHODS,
-             workers: int | None = None) -> InverseResult:
+             workers: int | None = None, progress: bool | None = None) -> InverseResult:
     """Estimate k for every embryo and measure, summarise, and fit E/μ.
 
     Parameters
@@ -1143,6 +1217,9 @@ def estimate(measurements: str | Path | Iterable[Measurement], *,
     workers : int, optional
         Processes sharing the embryos (default: one per core; 1: this one).
         The estimates do not depend on it.
+    progress : bool, optional
+        A progress bar over the embryos on standard error (default: when it
+        is a terminal and the ``morphoshell`` logger shows warnings).
 
     Returns
     -------
@@ -1167,17 +1244,22 @@ def estimate(measurements: str | Path | Iterable[Measurement], *,
     model = None
     if "numerical" in methods:
         model = RecoilModel(theory, nodes, mesh_for=(float(np.median([m.h for m in data])),
-                                                      float(np.median([m.Sigma for m in data]))))
+                                                      float(np.median([m.cut for m in data]))))
     workers = _check_workers(workers, len(data))
+    log.info("estimating k of %d embryos (methods %s, %d worker%s)", len(data),
+             ", ".join(methods), workers, "s" * (workers != 1))
+    bar = dict(total=len(data), desc="embryos", unit="embryo", enabled=progress)
     if workers == 1:
-        embryos = tuple(estimate_embryo(m, model, k_range, methods) for m in data)
+        embryos = tuple(estimate_embryo(m, model, k_range, methods)
+                        for m in _progress_bar(data, **bar))
     else:
         # Embryos are independent (each starts from k = 1), so the result does not
         # depend on how they are shared.  Forked workers inherit the built solvers.
         _WORKER.update(model=model, k_range=k_range, methods=tuple(methods))
         try:
             with multiprocessing.get_context("fork").Pool(workers) as pool:
-                embryos = tuple(pool.map(_estimate_in_worker, data, chunksize=1))
+                embryos = tuple(_progress_bar(pool.imap(_estimate_in_worker, data, chunksize=1),
+                                              **bar))
         finally:
             _WORKER.clear()
     t1 = time.perf_counter()

@@ -1,14 +1,15 @@
-"""Problem files (TOML), ``KEY=VALUE`` overrides and JSON output.
+"""Problem files (TOML), ``KEY=VALUE`` overrides, the packaged examples, JSON and CSV output.
 
 A problem file has a ``[problem]`` table, a ``[parameters]`` table with the
 profile family's parameters and an optional ``[solver]`` table::
 
     [problem]
-    family = "uniform"          # uniform | anisotropic | local_relaxation | volvox
+    family = "uniform"          # uniform | anisotropic | local_relaxation | volvox | a plugin's
     theory = "large_bending"    # or "classical"
     h = 0.3                     # relative thickness H/R
-    cut = 0.3                   # Sigma: ablation around the pole s = 0 (0: closed pole)
-    opening = 0.0               # P: opening around s = pi (0: closed pole)
+    cut = 0.3                   # Sigma (units of R = radians on the unit sphere): ablation
+                                # around the pole s = 0 (0: closed pole)
+    opening = 0.0               # P (units of R): opening around s = pi (0: closed pole)
 
     [parameters]
     k = 0.0
@@ -16,15 +17,25 @@ profile family's parameters and an optional ``[solver]`` table::
     [solver]
     nodes = 200                 # mesh nodes
     stages = 2                  # Gauss points per cell: order 2 * stages
-    method = "direct"           # or "bvp"
+    method = "direct"           # or "bvp" or "shooting"
 
 Unknown tables or keys, wrong types and bad values are errors that name
-the file and the offending entry; nothing is silently ignored.
+the file and the offending entry; nothing is silently ignored.  Parameters
+missing from ``[parameters]`` take the family's defaults, and the defaults
+used are reported (a warning on the ``morphoshell.io`` logger when the whole
+table is missing, an info message otherwise), never silently.
+
+The cut Σ is called ``cut`` everywhere (problem files, ``--set``, the API);
+``Sigma`` is still accepted as a deprecated alias, with a warning.
+
+The example problems ship inside the package (:func:`examples`,
+:func:`example_path`; ``morphoshell example NAME`` prints one).
 """
 from __future__ import annotations
 
 import datetime as _dt
 import json
+import logging
 import math
 import sys
 from dataclasses import dataclass
@@ -43,7 +54,15 @@ else:  # pragma: no cover - exercised on Python 3.10 only
 
 __all__ = ["ProblemFileError", "Settings", "load_problem", "parse_overrides", "apply_overrides",
            "split_overrides", "settings_from", "to_jsonable", "write_json", "write_csv", "METHODS",
-           "SOLVER_KEYS"]
+           "SOLVER_KEYS", "ALIASES", "examples", "example_path", "example_text", "EXAMPLES_DIR"]
+
+log = logging.getLogger(__name__)
+
+#: Deprecated names of keys (problem files and ``--set``) and their one name.
+ALIASES = {"Sigma": "cut"}
+
+#: The packaged example problem files (``morphoshell example NAME``).
+EXAMPLES_DIR = Path(__file__).resolve().parent / "examples"
 
 METHODS = ("direct", "bvp", "shooting")
 _PROBLEM_KEYS = {"family", "theory", "h", "cut", "opening", "geometry", "name"}
@@ -105,7 +124,7 @@ def load_problem(path: str | Path) -> tuple[Problem, Settings]:
             raise ProblemFileError(f"{path}: '{table}' must be a table ([{table}])")
     if "problem" not in data:
         raise ProblemFileError(f"{path}: missing the [problem] table")
-    prob = dict(data["problem"])
+    prob = _dealias(dict(data["problem"]), f"{path}: [problem]")
     unknown = sorted(set(prob) - _PROBLEM_KEYS)
     if unknown:
         raise ProblemFileError(f"{path}: unknown key(s) {unknown} in [problem]; "
@@ -127,6 +146,7 @@ def load_problem(path: str | Path) -> tuple[Problem, Settings]:
                           **{"name": path.stem, **prob})
     except ValueError as exc:
         raise ProblemFileError(f"{path}: {exc}") from None
+    _note_defaults(path, problem, data.get("parameters"))
     return problem, settings
 
 
@@ -147,6 +167,33 @@ def _problem_from_json(path: Path) -> Problem:
         return Problem(**{k: v for k, v in desc.items() if k in keys})
     except (TypeError, ValueError) as exc:
         raise ProblemFileError(f"{path}: {exc}") from None
+
+
+def _dealias(table: dict, where: str) -> dict:
+    """``table`` with deprecated key names (:data:`ALIASES`) renamed, with a warning each."""
+    for old, new in ALIASES.items():
+        if old in table:
+            if new in table:
+                raise ProblemFileError(f"{where} gives both {new!r} and its deprecated alias "
+                                       f"{old!r}; keep {new!r}")
+            log.warning("%s: %r is deprecated, call it %r (the same value: the cut Sigma, "
+                        "units of R)", where, old, new)
+            table = {(new if k == old else k): v for k, v in table.items()}
+    return table
+
+
+def _note_defaults(path: Path, problem: Problem, given: Mapping | None) -> None:
+    """Say which of the family's parameters a problem file leaves at their defaults."""
+    missing = [n for n in problem.family_obj.parameters if n not in (given or {})]
+    if not missing:
+        return
+    values = ", ".join(f"{n} = {problem.params[n]:g}" for n in missing)
+    if given is None:
+        log.warning("%s has no [parameters] table: using the defaults of family %r: %s",
+                    path, problem.family, values)
+    else:
+        log.info("%s: [parameters] leaves %s at the defaults of family %r: %s", path,
+                 "it" if len(missing) == 1 else "them", problem.family, values)
 
 
 def settings_from(values: Mapping[str, Any], base: Settings = Settings()) -> Settings:
@@ -182,6 +229,9 @@ def parse_overrides(items: Iterable[str]) -> dict[str, Any]:
         key, value = key.strip(), value.strip()
         if not sep or not key or not value:
             raise ProblemFileError(f"--set {item!r}: expected KEY=VALUE")
+        if key in ALIASES:
+            log.warning("--set %s: %r is deprecated, call it %r", item, key, ALIASES[key])
+            key = ALIASES[key]
         if key in _WORDS:
             out[key] = value
             continue
@@ -229,6 +279,38 @@ def apply_overrides(problem: Problem, overrides: Mapping[str, Any]) -> Problem:
         return problem.with_updates(**overrides)
     except ValueError as exc:
         raise ProblemFileError(f"--set: {exc}") from None
+
+
+def examples() -> dict[str, str]:
+    """The packaged example problems: name → description (the file's leading comment)."""
+    out = {}
+    for path in sorted(EXAMPLES_DIR.glob("*.toml")):
+        lines = []
+        for line in path.read_text(encoding="utf-8").splitlines():
+            if not line.startswith("#"):
+                break
+            lines.append(line.lstrip("#").strip())
+        out[path.stem] = " ".join(lines)
+    return out
+
+
+def example_path(name: str) -> Path:
+    """Path of the packaged example problem ``name`` (e.g. ``"toy2_ablation"``).
+
+    Raises
+    ------
+    ValueError
+        No such example (the message lists them).
+    """
+    names = examples()
+    if name not in names:
+        raise ValueError(f"unknown example {name!r}; choose one of {sorted(names)}")
+    return EXAMPLES_DIR / f"{name}.toml"
+
+
+def example_text(name: str) -> str:
+    """The text of the packaged example problem ``name``: a problem file to start from."""
+    return example_path(name).read_text(encoding="utf-8")
 
 
 def to_jsonable(obj: Any) -> Any:

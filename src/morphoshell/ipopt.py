@@ -61,6 +61,7 @@ class BackendResult:
 
     @property
     def is_minimum(self) -> bool:
+        """Whether the solution is a certified minimum (no inertia correction was needed)."""
         return self.details.get("inertia_correction", 0.0) == 0
 
 

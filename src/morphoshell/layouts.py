@@ -53,6 +53,7 @@ class VectorLayout:
         return len(self.names)
 
     def index(self, name: str) -> int:
+        """Position of ``name`` in the vector (ValueError naming the valid names)."""
         try:
             return self.names.index(name)
         except ValueError:
@@ -60,6 +61,7 @@ class VectorLayout:
                 from None
 
     def indices(self, names: Sequence[str]) -> list[int]:
+        """Positions of ``names`` in the vector, in their order."""
         return [self.index(n) for n in names]
 
     def unpack(self, vector) -> dict:

@@ -1,7 +1,7 @@
 """Traced midlines of embryos: reading, alignment, resampling and averaging.
 
 Biologists trace the cell sheet of an embryo's mid-sagittal section in
-Fiji/ImageJ.  A fit (``volvox_model.md``) needs it as a *half midline in the
+Fiji/ImageJ.  A fit (documentation: "Problems and families", Volvox) needs it as a *half midline in the
 model gauge*: points (r_i, z_i) equally spaced in arclength from the posterior
 pole, at the origin, to the rim; the axis of symmetry along z, z growing
 toward the anterior, r ≥ 0 the distance from the axis; lengths in units of

@@ -16,7 +16,7 @@ Observables
                   chosen gauge;
 ``midline``       (r_i, z_i) at N points equally spaced in the *deformed*
                   arclength, posterior end first, z measured from the first point
-                  (the gauge of traced midlines, ``volvox_model.md``);
+                  (the gauge of traced midlines; documentation: "Observables and gauges");
 ``recoil``        the ablation observables from the states of the rim before and
                   after a cut (:func:`recoil`, used by :mod:`morphoshell.ablation`).
 

@@ -153,6 +153,7 @@ class Parametric:
 
     @property
     def names(self) -> tuple[str, ...]:
+        """Names of the parameters derivatives are taken with respect to (h, cut, opening, the family's)."""
         return self.solver.structure.parameters.names
 
     def _columns(self, wrt: Sequence[str] | None) -> tuple[tuple[str, ...], tuple[int, ...]]:

@@ -148,6 +148,7 @@ class Problem:
 
     @property
     def structure(self) -> Structure:
+        """What a solver is built for: geometry, family, theory and the kinds of both ends."""
         geo = self.geometry_obj
         return Structure(
             geo, self.family_obj, self.theory_obj,
@@ -156,6 +157,7 @@ class Problem:
 
     @property
     def parameter_layout(self) -> VectorLayout:
+        """Layout of the NLP parameter vector p = [h, Σ, P, family parameters]."""
         return parameter_layout(self.family_obj)
 
     def parameter_vector(self) -> np.ndarray:
@@ -206,6 +208,7 @@ class Problem:
                 f"within the thickness; reduce h or kappa_s0")
 
     def max_abs_eta(self) -> float:
+        """Largest |η| over the shell (dimensionless; 2001 points), which must stay below 1."""
         return float(np.max(np.abs(self.profiles(np.linspace(self.cut, self.end, 2001))["eta"])))
 
     def describe(self) -> dict:

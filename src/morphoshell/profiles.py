@@ -4,10 +4,16 @@ A *profile family* turns named parameters into the four intrinsic profiles as
 CasADi expressions of the undeformed arclength s (and, where the family needs
 it, of the shell's ends: the cut Σ at the start and the end s_end = L − P).
 Families are looked up by name in :data:`FAMILIES`; :func:`register_family`
-adds another.
+adds another.  A name that is not registered is looked up among the
+installed packages' entry points of the group ``morphoshell.families``
+(:data:`ENTRY_POINT_GROUP`): a plugin package makes its family usable from
+problem files and the command line without any import (documentation:
+"Write your own profile family").
 
-Families of the paper (Materials and Methods, "Numerical solution of the toy
-problems"; Supplementary, last section, and ``volvox_model.md``):
+Families of the paper (Haas & Höhn, *Cut it out*: Materials and Methods,
+"Numerical solution of the toy problems"; Supplementary, "Fitting of the
+morphoelastic theory to the average cell sheet midlines", and this project's
+smoothed parameterisation, documentation page "Problems and families"):
 
 ``uniform``            f⁰ = 1, κ_s⁰ = κ_φ⁰ = k (toy problems 1 and 2)
 ``anisotropic``        f_s⁰ = 1 + f0 = 1/f_φ⁰, κ⁰ = 1 (toy problem 3)
@@ -17,6 +23,7 @@ problems"; Supplementary, last section, and ``volvox_model.md``):
 """
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, field
 from typing import Callable, Mapping, NamedTuple
 
@@ -26,7 +33,14 @@ import numpy as np
 from ._buffered import Buffered
 from ._validate import lookup
 
-__all__ = ["Profiles", "ProfileFamily", "FAMILIES", "register_family", "get_family"]
+__all__ = ["Profiles", "ProfileFamily", "FAMILIES", "register_family", "get_family",
+           "available_families", "ENTRY_POINT_GROUP"]
+
+log = logging.getLogger(__name__)
+
+#: Entry-point group of plugin families: each entry point is named like its
+#: family and refers to a :class:`ProfileFamily` or to a callable returning one.
+ENTRY_POINT_GROUP = "morphoshell.families"
 
 
 class Profiles(NamedTuple):
@@ -195,7 +209,7 @@ def _softplus(x):
 def _volvox(s, p, cut, end):
     sig = p["sigma"]
 
-    def step(si):  # H(s − s_i) of volvox_model.md
+    def step(si):  # the smoothed step H(s − s_i) (documentation: "Problems and families")
         return (1 + ca.tanh((s - si) / sig)) / 2
 
     ramp = sig * (_softplus((s - p["s3"]) / sig) - _softplus((s - p["s4"]) / sig)) / (p["s4"] - p["s3"])
@@ -246,10 +260,70 @@ def register_family(family: ProfileFamily) -> ProfileFamily:
 
 
 def get_family(name: "str | ProfileFamily") -> ProfileFamily:
-    """The registered family called ``name`` (a ProfileFamily is returned as is)."""
+    """The family called ``name`` (a ProfileFamily is returned as is).
+
+    Registered families come first; an unknown name is then looked up among
+    the entry points of :data:`ENTRY_POINT_GROUP` of the installed packages,
+    loaded and registered (once: later look-ups find it in :data:`FAMILIES`).
+
+    Raises
+    ------
+    ValueError
+        No family of that name (the message lists the available ones), or a
+        plugin that fails to load or does not give a :class:`ProfileFamily`.
+    """
     if isinstance(name, ProfileFamily):
         return name
-    return lookup(FAMILIES, name, "profile family")
+    if isinstance(name, str) and name not in FAMILIES:
+        _load_plugin(name)
+    if isinstance(name, str) and name in FAMILIES:
+        return FAMILIES[name]
+    # not registered and no plugin of that name: ValueError listing the available names
+    return lookup(available_families(), name, "profile family")
+
+
+def _entry_points() -> dict:
+    """Entry points of :data:`ENTRY_POINT_GROUP`, by name (the first of a duplicated name)."""
+    from importlib.metadata import entry_points
+
+    out: dict = {}
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        out.setdefault(ep.name, ep)
+    return out
+
+
+def available_families() -> dict[str, "ProfileFamily | str"]:
+    """Registered families and, not yet loaded, the installed plugins' ones.
+
+    Returns
+    -------
+    dict
+        name → the :class:`ProfileFamily`, or for a plugin not loaded yet
+        the entry point's value (``"module:attribute"``).
+    """
+    return {**{n: ep.value for n, ep in _entry_points().items()}, **FAMILIES}
+
+
+def _load_plugin(name: str) -> None:
+    """Load and register the plugin family ``name``, if an entry point provides it."""
+    ep = _entry_points().get(name)
+    if ep is None:
+        return
+    where = f"plugin family {name!r} (entry point {ep.value!r} of {ENTRY_POINT_GROUP!r})"
+    try:
+        obj = ep.load()
+        if callable(obj) and not isinstance(obj, ProfileFamily):
+            obj = obj()
+    except Exception as exc:  # a broken plugin: name it, whatever it raised
+        raise ValueError(f"{where} failed to load: {type(exc).__name__}: {exc}") from exc
+    if not isinstance(obj, ProfileFamily):
+        raise ValueError(f"{where} gives {obj!r}, not a ProfileFamily")
+    if obj.name != name:
+        raise ValueError(f"{where} gives a family called {obj.name!r}: the entry point's name "
+                         f"must be the family's name")
+    if FAMILIES.get(name) is not obj:   # a plugin module may register it itself on import
+        register_family(obj)
+    log.debug("loaded %s", where)
 
 
 register_family(ProfileFamily(
@@ -274,7 +348,7 @@ register_family(ProfileFamily(
      "kappa1": 1 / 0.9, "kappa2": -9.0, "kappa3": 1.0, "kappa4": 1.0,
      "s1": 1.3, "s2": 1.6, "s3": 1.9, "s4": 2.3, "sigma": 0.05},
     _volvox, _validate_volvox,
-    description="13-parameter Volvox inversion model (volvox_model.md), smoothing width sigma",
+    description="13-parameter Volvox inversion model, smoothing width sigma",
     neutral={**{f"f{i}": 1.0 for i in range(1, 6)}, **{f"kappa{i}": 1.0 for i in range(1, 5)}},
     breakpoints=_volvox_breakpoints))
 

@@ -14,7 +14,7 @@ with states (r, ψ), controls (f_s, u = ψ') and costates (λ_r, λ_ψ):
 
 H is quadratic in the controls, so they follow from a 2×2 linear solve.  λ_r
 is 2π times the radial force per radian and λ_ψ = −∂L/∂ψ' is 2π times minus the
-bending moment (``large_bending_theory.md`` section 5).  z' = f_s sin ψ and
+bending moment (documentation: "Theory", governing equations).  z' = f_s sin ψ and
 the energy density are integrated alongside.
 
 Boundary conditions
@@ -64,12 +64,12 @@ def pontryagin_functions(structure: Structure) -> dict[str, ca.Function]:
 
     Returns
     -------
-    dict with
-      ``rhs(s, y, p) -> y'`` and ``jac(s, y, p) -> ∂y'/∂y`` for
-      y = (r, ψ, λ_r, λ_ψ, z, 𝓔) (:data:`~morphoshell.layouts.BVP_STATE`);
-      ``controls(s, y, p) -> (f_s, ψ')``;
-      ``costates(s, r, psi, f_s, dpsi, p) -> (λ_r, λ_ψ)``;
-      ``local`` the pointwise energy.
+    dict
+        ``rhs(s, y, p) -> y'`` and ``jac(s, y, p) -> ∂y'/∂y`` for
+        y = (r, ψ, λ_r, λ_ψ, z, 𝓔) (:data:`~morphoshell.layouts.BVP_STATE`);
+        ``controls(s, y, p) -> (f_s, ψ')``;
+        ``costates(s, r, psi, f_s, dpsi, p) -> (λ_r, λ_ψ)``;
+        ``local`` the pointwise energy.
     """
     local = local_function(structure)
     s = ca.SX.sym("s")

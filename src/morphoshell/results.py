@@ -16,12 +16,65 @@ import numpy as np
 from .problem import Problem
 
 __all__ = ["Equilibrium", "SolverStats", "SolverError", "NotAMinimumError", "FIELDS", "unconverged",
-           "Quadrature", "ErrorEstimate", "ESTIMATED", "ENERGY_FLOOR"]
+           "Quadrature", "ErrorEstimate", "ESTIMATED", "ENERGY_FLOOR", "FIELD_UNITS",
+           "FIELD_NAMES"]
 
 
 #: Nodal arrays of an :class:`Equilibrium`, in order.
 FIELDS = ("s", "r", "z", "psi", "f_s", "f_phi", "kappa_s", "kappa_phi",
           "E_s", "E_phi", "K_s", "K_phi", "N_s", "N_phi", "M_s", "M_phi", "eta", "e")
+
+
+#: Unit of each of :data:`FIELDS` (lengths in units of the undeformed radius R,
+#: energies per undeformed area in units of C, "1": dimensionless).
+FIELD_UNITS = {"s": "R", "r": "R", "z": "R", "psi": "rad", "f_s": "1", "f_phi": "1",
+               "kappa_s": "1/R", "kappa_phi": "1/R", "E_s": "1", "E_phi": "1",
+               "K_s": "1/R", "K_phi": "1/R", "N_s": "C", "N_phi": "C", "M_s": "C R",
+               "M_phi": "C R", "eta": "1", "e": "C"}
+
+#: What each of :data:`FIELDS` is (the ``long_name`` of :meth:`Equilibrium.to_xarray`).
+FIELD_NAMES = {
+    "s": "undeformed arclength from the pole s = 0", "r": "distance from the axis",
+    "z": "height along the axis (solver gauge: z(s[0]) = its undeformed height)",
+    "psi": "tangent angle of the meridian", "f_s": "meridional stretch dS/ds",
+    "f_phi": "circumferential stretch r/rho", "kappa_s": "meridional curvature",
+    "kappa_phi": "circumferential curvature", "E_s": "meridional stretching strain",
+    "E_phi": "circumferential stretching strain", "K_s": "meridional bending strain",
+    "K_phi": "circumferential bending strain", "N_s": "meridional stress resultant de/dE_s",
+    "N_phi": "circumferential stress resultant de/dE_phi",
+    "M_s": "meridional moment resultant de/dK_s",
+    "M_phi": "circumferential moment resultant de/dK_phi",
+    "eta": "large-bending parameter kappa_s0 h / (2 f_s0 f_phi0)",
+    "e": "energy per undeformed area"}
+
+_XARRAY_MISSING = ("to_xarray() needs xarray, an optional extra of morphoshell: "
+                   "pip install 'morphoshell[xarray]'")
+
+
+def _xarray():
+    """The xarray module, or ImportError naming the extra that provides it."""
+    try:
+        import xarray
+    except ImportError:
+        raise ImportError(_XARRAY_MISSING) from None
+    return xarray
+
+
+def _problem_attrs(problem: Problem) -> dict[str, Any]:
+    """A problem as flat attributes (strings and numbers: valid netCDF attributes too).
+
+    ``family``, ``theory``, ``geometry``, ``name``, ``h``, ``cut``, ``opening``
+    (units of R), ``param_<name>`` for each family parameter, and ``problem``,
+    the whole description as JSON (:meth:`Problem.describe`).
+    """
+    import json
+
+    d = problem.describe()
+    out: dict[str, Any] = {k: d[k] for k in ("name", "family", "theory", "geometry", "h", "cut",
+                                             "opening")}
+    out.update({f"param_{k}": float(v) for k, v in d["params"].items()})
+    out["problem"] = json.dumps(d)
+    return out
 
 
 class Quadrature(NamedTuple):
@@ -94,9 +147,11 @@ class ErrorEstimate:
         return key, rel[key]
 
     def meets(self, rtol: float) -> bool:
+        """Whether every relative error (:meth:`relative`) is finite and at most ``rtol``."""
         return all(np.isfinite(v) and v <= rtol for v in self.relative().values())
 
     def to_dict(self) -> dict:
+        """JSON-ready: absolute and relative errors (energy in C R², edges in R and rad)."""
         return {"errors": dict(self.errors), "relative": self.relative(), "nodes": self.nodes,
                 "reference_nodes": self.reference_nodes, "order": self.order,
                 "note": self.note}
@@ -115,6 +170,7 @@ class SolverStats:
     details: Mapping[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict:
+        """JSON-ready: method, iterations, seconds (wall time, s), status, nodes and scalar details."""
         return {"method": self.method, "iterations": self.iterations, "seconds": self.seconds,
                 "status": self.status, "nodes": self.nodes, "build_seconds": self.build_seconds,
                 **{k: v for k, v in self.details.items() if np.isscalar(v)}}
@@ -270,6 +326,55 @@ class Equilibrium:
                 poly = np.polynomial.Polynomial.fit(sk[sl], Lk[sl], stages - 1).integ()
                 total += float(poly(hi) - poly(lo))
         return total
+
+    def to_dataframe(self):
+        """The fields as a table: one row per point, one column per field (:data:`FIELDS`).
+
+        Returns
+        -------
+        pandas.DataFrame
+            Columns s, r, z, psi, …, e.  ``df.attrs`` holds ``units`` (column →
+            unit, :data:`FIELD_UNITS`: lengths in units of R, angles in radians,
+            e and N in units of C, M in C R), ``problem`` (:meth:`Problem.describe`),
+            ``energy`` (C R²), ``converged``, ``solver`` and ``gauge`` (z is in
+            the solver's gauge, z(s[0]) = its undeformed height).
+        """
+        import pandas as pd
+
+        df = pd.DataFrame({k: np.asarray(getattr(self, k), dtype=float) for k in FIELDS})
+        df.attrs.update(units=dict(FIELD_UNITS), problem=self.problem.describe(),
+                        energy=float(self.energy), energy_units="C R^2",
+                        converged=bool(self.converged), solver=self.solver.to_dict(),
+                        gauge="solver: z(s[0]) = z0(s[0]), the undeformed height of the first "
+                              "point")
+        return df
+
+    def to_xarray(self):
+        """The fields as an xarray Dataset with the undeformed arclength ``s`` as coordinate.
+
+        Needs the optional extra ``xarray`` (``pip install 'morphoshell[xarray]'``).
+
+        Returns
+        -------
+        xarray.Dataset
+            One variable per field of :data:`FIELDS` along ``s``, each with
+            ``units`` and ``long_name``; the attributes are the problem
+            (``family``, ``h``, ``cut``, ``opening`` in units of R,
+            ``param_<name>``, and ``problem`` as JSON), ``energy`` (C R²),
+            ``converged``, the solver's ``method``, ``nodes`` and ``status``:
+            strings and numbers only, so the Dataset can be written to netCDF.
+        """
+        xr = _xarray()
+        data = {k: ("s", np.asarray(getattr(self, k), dtype=float),
+                    {"units": FIELD_UNITS[k], "long_name": FIELD_NAMES[k]})
+                for k in FIELDS if k != "s"}
+        coords = {"s": ("s", np.asarray(self.s, dtype=float),
+                        {"units": "R", "long_name": FIELD_NAMES["s"]})}
+        attrs = {**_problem_attrs(self.problem), "energy": float(self.energy),
+                 "energy_units": "C R^2", "converged": int(self.converged),
+                 "method": self.solver.method, "nodes": int(self.solver.nodes),
+                 "status": str(self.solver.status), "z_gauge": "solver: z(s[0]) = z0(s[0])"}
+        return xr.Dataset(data, coords=coords, attrs=attrs)
 
     def to_dict(self, arrays: bool = True) -> dict:
         """JSON-ready: problem, energy, solver and (optionally) the nodal arrays."""

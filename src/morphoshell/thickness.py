@@ -1,6 +1,6 @@
 """Exact through-thickness energy of the three-dimensional model behind the shell.
 
-``shared/docs/large_bending_theory.md`` section 3: straight-sided wedge cells
+Documentation "Theory", the three-dimensional model: straight-sided wedge cells
 of an incompressible neo-Hookean material, normals stay normal, the material
 midsurface ζ = 0 maps to the deformed midsurface z = 0.  This module evaluates
 that model *without* expanding in the strains, so that the quadratic shell

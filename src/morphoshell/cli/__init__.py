@@ -6,6 +6,10 @@ solver fails (Ipopt's or the BVP solver's status in the message); 1 only for
 a bug in morphoshell (the message says where to report it); 130 when
 interrupted.  Every output is validated before any work and written all or
 nothing (:mod:`morphoshell.cli._outputs`).
+
+``-v``/``--verbose`` (twice: debugging detail) and ``-q``/``--quiet`` (errors
+only, no progress bars) set the level of the standard ``logging`` logger
+``"morphoshell"``; they go before or after the command.
 """
 from __future__ import annotations
 
@@ -29,8 +33,20 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
+def _add_verbosity(p: argparse.ArgumentParser, top: bool) -> None:
+    """-v/--verbose and -q/--quiet (a command's own copies do not reset the top level's)."""
+    default = {} if top else {"default": argparse.SUPPRESS}
+    group = p.add_mutually_exclusive_group()
+    group.add_argument("-v", "--verbose", action="count", help="show progress notes "
+                       "(twice: debugging detail, e.g. every continuation step)",
+                       **({"default": 0} if top else default))
+    group.add_argument("-q", "--quiet", action="store_true", help="show errors only: no "
+                       "warnings, notes or progress bars", **default)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    from . import analytic, estimate, fit, solve
+    """The parser of ``morphoshell COMMAND ...`` with every command registered."""
+    from . import analytic, estimate, example, fit, solve
 
     parser = _Parser(
         prog="morphoshell",
@@ -38,14 +54,23 @@ def build_parser() -> argparse.ArgumentParser:
                     "minimisation (CasADi + Ipopt), with a boundary-value reference. Lengths "
                     "are in units of the undeformed radius R, energies in units of C R^2.")
     parser.add_argument("--version", action="version", version=f"morphoshell {__version__}")
+    _add_verbosity(parser, top=True)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND",
                                 parser_class=_Parser)
-    for module in (solve, analytic, estimate, fit):
+    for module in (solve, analytic, estimate, fit, example):
         module.register(sub)
+    for command in sub.choices.values():
+        _add_verbosity(command, top=False)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line on ``argv`` (default ``sys.argv[1:]``); return the exit status.
+
+    0 success, 2 bad input, 3 solver failure, 1 a bug, 130 interrupted (see
+    the module's docstring); messages go to standard error.
+    """
+    from .._console import configure
     from ..io import ProblemFileError
     from ..results import SolverError
 
@@ -53,6 +78,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
     except SystemExit as exc:   # argparse: --help, --version, or a bad argument (2)
         return int(exc.code or 0)
+    restore = configure(-1 if args.quiet else args.verbose)
     try:
         return args.run(args)
     except (ProblemFileError, ValueError) as exc:
@@ -65,6 +91,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("morphoshell: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:   # `morphoshell example NAME | head`: the reader left; not a bug
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
     except Exception as exc:  # a bug: say so, and where to report it
         if os.environ.get("MORPHOSHELL_DEBUG"):
             raise
@@ -72,3 +101,5 @@ def main(argv: Sequence[str] | None = None) -> int:
               f"{type(exc).__name__}: {exc}. Please report it with the command line at "
               f"{ISSUES_URL} (set MORPHOSHELL_DEBUG=1 for the traceback)", file=sys.stderr)
         return 1
+    finally:
+        restore()

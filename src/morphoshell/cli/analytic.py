@@ -1,12 +1,15 @@
 """``morphoshell asymptotics`` and ``morphoshell sphere``: the paper's closed forms."""
 from __future__ import annotations
 
+import logging
 import math
 
 from ._args import add_outputs, real
 from ._outputs import Outputs
 
 __all__ = ["register"]
+
+log = logging.getLogger(__name__)
 
 _H = real(0, 1, open_lo=True, open_hi=True, unit=" (thickness relative to the radius)")
 _K = real(-1e3, 1e3, unit=" (intrinsic curvature in units of 1/R)")
@@ -15,14 +18,19 @@ _K = real(-1e3, 1e3, unit=" (intrinsic curvature in units of 1/R)")
 def register(sub) -> None:
     p = sub.add_parser("asymptotics", help="the paper's asymptotic predictions for toy problem 2",
                        description="Leading-order and small-cut (Kelvin function) predictions "
-                                   "of the Supplementary for a cut of half-angle SIGMA in a "
-                                   "sphere of thickness H and intrinsic curvature K. Lengths in "
-                                   "units of R, angles in radians, energies in C R^2.")
+                                   "of the Supplementary for the cut SIGMA (half-angle of the "
+                                   "ablation) in a sphere of thickness H and intrinsic curvature "
+                                   "K. Lengths in units of R, angles in radians, energies in "
+                                   "C R^2.")
     p.add_argument("--h", type=_H, required=True, metavar="H", help="relative thickness h, 0 < h < 1")
     p.add_argument("--k", type=_K, required=True, metavar="K", help="intrinsic curvature k (1/R)")
-    p.add_argument("--cut-angle", type=real(0, math.pi, open_lo=True, open_hi=True, unit=" rad"),
-                   required=True, metavar="SIGMA",
-                   help="Sigma, half-angle of the ablation (radians, 0 < Sigma < pi)")
+    cut = p.add_mutually_exclusive_group(required=True)
+    angle = real(0, math.pi, open_lo=True, open_hi=True, unit=" rad")
+    cut.add_argument("--cut", type=angle, metavar="SIGMA",
+                     help="the cut Sigma: half-angle of the ablation, radians (= its arclength "
+                          "in units of R), 0 < Sigma < pi; `cut` in problem files and the API")
+    cut.add_argument("--cut-angle", type=angle, metavar="SIGMA", dest="cut_angle",
+                     help="deprecated alias of --cut")
     add_outputs(p, json="write the predictions as JSON", csv="write the predictions as a one-row CSV")
     p.set_defaults(run=_asymptotics)
 
@@ -54,18 +62,23 @@ def _write(args, data: dict) -> None:
 
 
 _UNITS = {"opening": "R", "rotation": "rad", "displacement": "R", "rotation_small_cut": "rad",
-          "displacement_small_cut": "R", "energy_released": "C R^2", "delta": "R", "sigma": ""}
+          "displacement_small_cut": "R", "energy_released": "C R^2", "delta": "R",
+          "sigma": "(dimensionless: Sigma/delta)"}
 
 
 def _asymptotics(args) -> int:
     from ..asymptotics import predictions
 
-    out = predictions(args.h, args.k, args.cut_angle)
-    print(f"toy problem 2 asymptotics, h = {args.h:g}, k = {args.k:g} / R, "
-          f"Sigma = {args.cut_angle:g} rad")
+    cut = args.cut
+    if cut is None:
+        log.warning("--cut-angle is deprecated, use --cut (the same cut Sigma, radians)")
+        cut = args.cut_angle
+    out = predictions(args.h, args.k, cut)
+    print(f"toy problem 2 asymptotics, thickness h = {args.h:g} R, k = {args.k:g} / R, "
+          f"cut Sigma = {cut:g} rad")
     for key, value in out.items():
-        print(f"  {key:22s} = {value:.10g} {_UNITS.get(key, '')}".rstrip())
-    _write(args, {"h": args.h, "k": args.k, "cut_angle": args.cut_angle, **out})
+        print(f"  {key:22s} = {value:.10g} {_UNITS[key]}")
+    _write(args, {"h": args.h, "k": args.k, "cut": cut, **out})
     return 0
 
 
@@ -85,8 +98,8 @@ def _sphere(args) -> int:
     except ValueError as exc:   # 5 C10 + C01 = 0: no second sign change
         out["k_star"] = None
         print(f"  (k_star: {exc})")
-    print(f"toy problem 1, h = {args.h:g}, k = {args.k:g} / R, C10 = {args.c10:g}, "
-          f"C01 = {args.c01:g}")
+    print(f"toy problem 1, thickness h = {args.h:g} R, k = {args.k:g} / R, Mooney-Rivlin "
+          f"C10 : C01 = {args.c10:g} : {args.c01:g} (moduli; only their ratio matters)")
     for key, value in out.items():
         unit = " / R" if key == "k_star" else " R"
         print(f"  {key:18s} = {'none' if value is None else format(value, '.15g') + unit}")

@@ -18,7 +18,8 @@ _SET_HELP = ("override a problem or solver entry, repeatable: h, theory, family,
 def _common(p: argparse.ArgumentParser) -> None:
     from ..direct import MAX_NODES
 
-    p.add_argument("problem", metavar="PROBLEM.toml", help="problem file (see problems/)")
+    p.add_argument("problem", metavar="PROBLEM.toml",
+                   help="problem file (`morphoshell example NAME` prints one to start from)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help=_SET_HELP)
     p.add_argument("--method", choices=METHODS, default=None,
@@ -132,7 +133,7 @@ def _solve(args) -> int:
     print(f"  energy          = {eq.energy:.12g} C R^2")
     print(f"  {edge} edge s = {e['s']:.6g} R: r = {e['r']:.10g} R, z = {e['z']:.10g} R, "
           f"psi = {e['psi']:.10g} rad")
-    print(f"  max |eta|       = {abs(eq.eta).max():.4g}")
+    print(f"  max |eta|       = {abs(eq.eta).max():.4g} (dimensionless)")
     _report_quality(eq)
     out = Outputs()
     out.add(args.json, lambda path: write_json(path, eq.to_dict()))
@@ -160,7 +161,7 @@ def _ablate(args) -> int:
     if not problem.cut > 0:
         raise ValueError(f"cut (Sigma) = {problem.cut!r}: an ablation needs a cut > 0")
     ab = ablate(problem, nodes=nodes, method=method, **options)
-    print(f"{_label(problem)}: ablation of Sigma = {problem.cut:g} rad "
+    print(f"{_label(problem)}: ablation of cut Sigma = {problem.cut:g} rad "
           f"({method}, {len(ab.post.s)} points)")
     for label, eq in (("pre-ablation", ab.pre), ("post-ablation", ab.post)):
         print(f"  {label}:")
@@ -171,7 +172,8 @@ def _ablate(args) -> int:
     out.add(args.json, lambda path: write_json(path, ab.to_dict()))
     out.add(args.csv, lambda path: write_csv(path, {**problem.describe()["params"],
                                                     "h": problem.h, "cut": problem.cut,
-                                                    "opening": problem.opening,
+                                                    # "opening" is the observable o below
+                                                    "opening_P": problem.opening,
                                                     **ab.observables()}))
     if args.plot:
         from ..plotting import new_axes, plot_ablation, save

@@ -1,0 +1,173 @@
+"""The documentation: it builds without warnings, its examples run, it stands alone.
+
+* ``mkdocs build --strict`` (the API reference from the docstrings included);
+* the ``>>>`` examples of README.md and docs/*.md run as doctests;
+* every option of every command is in the command-line reference;
+* no page or docstring points at files users do not have (``../shared/...``)
+  or cites the paper by LaTeX labels (``eq:...``);
+* every public function, class and method has a docstring.
+"""
+import doctest
+import importlib
+import inspect
+import os
+import pkgutil
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import morphoshell
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+PAGES = sorted(DOCS.glob("*.md"))
+_FENCE = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
+
+
+# --------------------------------------------------------------------------
+# the build
+# --------------------------------------------------------------------------
+
+def test_docs_build_strictly_without_warnings(tmp_path):
+    pytest.importorskip("mkdocs")
+    pytest.importorskip("mkdocstrings_handlers.python")
+    mkdocs = shutil.which("mkdocs", path=str(Path(sys.executable).parent)) or shutil.which("mkdocs")
+    assert mkdocs, "the docs extra is installed but its mkdocs command is not on the PATH"
+    env = {**os.environ, "NO_MKDOCS_2_WARNING": "1",
+           "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), os.environ.get("PYTHONPATH", "")])}
+    run = subprocess.run([mkdocs, "build", "--strict", "--site-dir", str(tmp_path / "site")],
+                         cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
+    log = run.stdout + run.stderr
+    assert run.returncode == 0, log
+    assert "WARNING" not in log, log
+    api = tmp_path / "site" / "api"
+    for page in ("problem", "profiles", "results", "ablation", "io", "inverse"):
+        html = (api / page / "index.html").read_text()
+        assert f"morphoshell.{page}" in html
+    html = (api / "results" / "index.html").read_text()
+    assert "to_dataframe" in html and "to_xarray" in html
+    assert ":func:" not in html and ":class:" not in html          # roles became links
+    assert (tmp_path / "site" / "tutorial_family" / "index.html").exists()
+
+
+def test_every_page_is_in_the_navigation():
+    nav = (ROOT / "mkdocs.yml").read_text()
+    for page in PAGES:
+        assert f" {page.name}" in nav, page.name
+    for page in sorted((DOCS / "api").glob("*.md")):
+        assert f"api/{page.name}" in nav, page.name
+
+
+# --------------------------------------------------------------------------
+# examples that run
+# --------------------------------------------------------------------------
+
+def _doctest_blocks(path: Path) -> str:
+    """The ``>>>`` examples of a Markdown file's ```python blocks, as one doctest text."""
+    blocks = [b for b in _FENCE.findall(path.read_text()) if ">>>" in b]
+    return "\n".join(blocks)
+
+
+def _run_doctests(path: Path, globs: dict) -> doctest.TestResults:
+    text = _doctest_blocks(path)
+    test = doctest.DocTestParser().get_doctest(text, globs, path.name, str(path), 0)
+    runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
+    runner.run(test)
+    return runner.summarize(verbose=False)
+
+
+def _tutorial_module(tmp_path: Path) -> Path:
+    """The tutorial's plugin module (the ```python block starting ``# bump_family.py``)."""
+    [source] = [b for b in _FENCE.findall((DOCS / "tutorial_family.md").read_text())
+                if b.startswith("# bump_family.py")]
+    path = tmp_path / "bump_family.py"
+    path.write_text(source)
+    return path
+
+
+@pytest.mark.parametrize("page", [ROOT / "README.md", *PAGES], ids=lambda p: p.name)
+def test_examples_run_as_doctests(page, tmp_path, monkeypatch):
+    if not _doctest_blocks(page):
+        pytest.skip("no >>> examples")
+    from morphoshell.profiles import FAMILIES
+
+    monkeypatch.chdir(ROOT)                       # the README reads data/ relative to the root
+    monkeypatch.syspath_prepend(str(_tutorial_module(tmp_path).parent))
+    monkeypatch.setattr("morphoshell.profiles.FAMILIES", dict(FAMILIES))   # no leftovers
+    result = _run_doctests(page, {})
+    assert result.failed == 0, f"{result.failed} of {result.attempted} examples of {page.name} failed"
+    assert result.attempted > 0
+
+
+def test_readme_and_quick_start_have_examples():
+    assert len(re.findall(r"^>>> ", _doctest_blocks(ROOT / "README.md"), re.M)) >= 10
+    assert ">>> " in _doctest_blocks(DOCS / "index.md")
+    assert ">>> " in _doctest_blocks(DOCS / "tutorial_family.md")
+
+
+# --------------------------------------------------------------------------
+# the command-line reference
+# --------------------------------------------------------------------------
+
+def test_cli_reference_documents_every_command_and_option():
+    import argparse
+
+    from morphoshell.cli import build_parser
+
+    text = (DOCS / "cli.md").read_text()
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    for name, command in sub.choices.items():
+        assert f"## `morphoshell {name}`" in text, f"{name}: run scripts/cli_reference.py"
+        for action in command._actions:
+            for option in action.option_strings:
+                assert re.search(rf"(?<![\w-]){re.escape(option)}(?![\w-])", text), \
+                    f"morphoshell {name} {option} is not in docs/cli.md: run scripts/cli_reference.py"
+
+
+# --------------------------------------------------------------------------
+# standing alone
+# --------------------------------------------------------------------------
+
+_SOURCES = [ROOT / "README.md", *PAGES, *sorted((ROOT / "src" / "morphoshell").rglob("*.py"))]
+
+
+@pytest.mark.parametrize("pattern", [r"\.\./shared", r"shared/docs", r"shared/reference",
+                                     r"\beq:[A-Za-z]", r"volvox_model\.md",
+                                     r"large_bending_theory\.md", r"\.tex\b"])
+def test_nothing_points_at_files_users_do_not_have(pattern):
+    hits = [f"{p.relative_to(ROOT)}:{i}" for p in _SOURCES
+            for i, line in enumerate(p.read_text().splitlines(), 1) if re.search(pattern, line)]
+    assert not hits, f"{pattern!r} in {hits}"
+
+
+def _public_modules():
+    names = ["morphoshell", "morphoshell.cli"]
+    names += [f"morphoshell.{m.name}" for m in pkgutil.iter_modules(morphoshell.__path__)
+              if not m.name.startswith("_") and m.name != "cli"]
+    return [importlib.import_module(n) for n in names]
+
+
+def test_every_public_function_class_and_method_has_a_docstring():
+    missing = []
+    for module in _public_modules():
+        assert (module.__doc__ or "").strip(), module.__name__
+        for name in getattr(module, "__all__", ()):
+            obj = getattr(module, name)
+            if not (inspect.isfunction(obj) or inspect.isclass(obj)):
+                continue
+            if not (obj.__doc__ or "").strip():
+                missing.append(f"{module.__name__}.{name}")
+            if inspect.isclass(obj):
+                for attr, member in vars(obj).items():
+                    f = member.fget if isinstance(member, property) else member
+                    if attr.startswith("_") or not inspect.isfunction(f) \
+                            or f.__name__ == "<lambda>":
+                        continue
+                    if not (f.__doc__ or "").strip():
+                        missing.append(f"{module.__name__}.{name}.{attr}")
+    assert not missing, f"no docstring: {sorted(set(missing))}"
