@@ -1,0 +1,46 @@
+"""The executor: Dask LocalCluster, process pool, serial; results complete out of order."""
+import os
+
+import pytest
+
+from morphoshell.executor import SerialExecutor, backend_name, open_executor, run
+
+
+def _square_and_pid(x):
+    return x * x, os.getpid(), os.environ.get("OMP_NUM_THREADS")
+
+
+def test_serial_runs_in_this_process():
+    with open_executor(workers=1) as ex:
+        assert isinstance(ex, SerialExecutor) and backend_name(ex) == "serial"
+        out = dict(run(_square_and_pid, range(4), ex))
+    assert [out[i][0] for i in range(4)] == [0, 1, 4, 9]
+    assert {v[1] for v in out.values()} == {os.getpid()}
+
+
+def test_a_two_worker_dask_cluster_runs_single_threaded_processes():
+    pytest.importorskip("distributed")
+    import sys
+
+    import cloudpickle
+    # the workers cannot import this test module: send the task function by value
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    with open_executor(workers=2) as ex:
+        assert backend_name(ex) == "dask"
+        out = dict(run(_square_and_pid, range(8), ex))
+    assert sorted(v[0] for v in out.values()) == [i * i for i in range(8)]
+    pids = {v[1] for v in out.values()}
+    assert os.getpid() not in pids and 1 <= len(pids) <= 2
+    assert {v[2] for v in out.values()} == {"1"}      # MUMPS: one thread per worker
+    assert os.environ.get("OMP_NUM_THREADS") != "1" or "OMP_NUM_THREADS" in os.environ
+
+
+def test_errors_in_tasks_reach_the_caller():
+    with open_executor(workers=1) as ex, pytest.raises(ZeroDivisionError):
+        list(run(lambda x: 1 / x, [1, 0], ex))
+
+
+def test_bad_worker_counts_are_named():
+    with pytest.raises(ValueError, match=r"workers = 0 must be a positive integer"):
+        with open_executor(workers=0):
+            pass
