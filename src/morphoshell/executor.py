@@ -40,6 +40,7 @@ class SerialExecutor(cf.Executor):
     """Runs each task at submission, in this process (``workers=1``)."""
 
     def submit(self, fn, /, *args, **kwargs):
+        """Run ``fn(*args, **kwargs)`` now; return a finished future with its result."""
         future: cf.Future = cf.Future()
         try:
             future.set_result(fn(*args, **kwargs))

@@ -49,7 +49,7 @@ from typing import Callable, Mapping, Sequence
 import casadi as ca
 import numpy as np
 
-from .continuation import continue_to
+from .continuation import continue_between, continue_to
 from .direct import DirectSolver
 from .mesh import mesh_spec
 from .observables import midline, midline_cells
@@ -73,6 +73,13 @@ BOUNDS = {"f": (0.5, 2.0), "kappa": (-15.0, 15.0)}
 PRINT_LEVEL = 0
 #: The KKT fit lets a fit point move this many cells either way within one NLP.
 WINDOW = 2
+#: A solved state this near (max over θ of |Δθ|/bound width) is warm-started from;
+#: farther, the inner solve continues from it (one branch of equilibria).
+NEAR = 0.02
+#: Inner states kept as starting points.
+ARCHIVE = 64
+#: Nelder–Mead runs at most this many simplices (restarts around the best point).
+NM_RESTARTS = 8
 #: Overlap (in cell widths) over which the KKT fit blends neighbouring cells.
 BLEND = 0.05
 #: Mesh of the KKT fit's first, coarse stage (see ``_kkt``).
@@ -276,28 +283,46 @@ class _Inner:
             self.eq = continue_to(self.solver, spec.base)
             self.solves += 1
         self._cache: dict = {}
+        self._archive = [(spec.theta0, self.eq)]
 
     def _build(self, problem: Problem) -> None:
         self.solver = DirectSolver(problem.structure, mesh=mesh_spec(problem, self.nodes, 2))
         self.midline = midline(self.solver.disc, self.n)
 
     def solve(self, theta) -> Equilibrium:
-        key = tuple(np.asarray(theta, dtype=float))
+        """The inner solution at θ, on the branch of the fit's start.
+
+        From the nearest state solved so far (θ scaled by its bounds' widths):
+        one warm solve if it is near, else continuation from it, so that the
+        solves follow one branch of equilibria even when θ jumps.
+        """
+        theta = np.asarray(theta, dtype=float)
+        key = tuple(theta)
         if key in self._cache:
             return self._cache[key]
         problem = self.spec.problem(theta)
+        near = min(self._archive, key=lambda item: self._distance(item[0], theta))
         try:
-            eq = self.solver.solve(problem, warm_start=self.eq)
+            if self._distance(near[0], theta) < NEAR:
+                eq = self.solver.solve(problem, warm_start=near[1])
+            else:
+                eq = continue_between(self.solver, near[1], problem)
         except ValueError:           # the mesh's breakpoints moved too far: a new mesh
-            old = self.eq
             self._build(problem)
-            eq = solve_from(self.solver, problem, old)
-        except SolverError:          # a far step: back to the branch from the last state
-            eq = continue_to(self.solver, problem)
+            eq = solve_from(self.solver, problem, near[1])
+            self._archive = []
+        except SolverError:
+            eq = continue_between(self.solver, near[1], problem, first_step=0.25)
         self.solves += 1
         self.eq = eq
         self._cache = {key: eq}
+        self._archive = (self._archive + [(theta, eq)])[-ARCHIVE:]
         return eq
+
+    def _distance(self, a, b) -> float:
+        lo, hi = self.spec.box()
+        width = np.where(np.isfinite(hi - lo), hi - lo, np.maximum(np.abs(a), 1.0))
+        return float(np.max(np.abs(a - b) / width))
 
     def residuals(self, eq: Equilibrium) -> np.ndarray:
         y = self.midline.at(eq)
@@ -508,12 +533,24 @@ def _nelder_mead(spec, inner, tol, max_iterations):
         return value
 
     lo, hi = spec.box()
-    out = minimize(E, spec.theta0, method="Nelder-Mead",
-                   bounds=list(zip(np.where(np.isfinite(lo), lo, None),
-                                   np.where(np.isfinite(hi), hi, None))),
-                   options={"adaptive": True, "xatol": 1e-8, "fatol": tol * max(E(spec.theta0), 1e-12),
-                            "maxfev": max_iterations or 20000})
-    return out.x, int(out.nfev), bool(out.success), str(out.message)
+    bounds = list(zip(np.where(np.isfinite(lo), lo, None), np.where(np.isfinite(hi), hi, None)))
+    budget = max_iterations or 20000
+    theta, evaluations, best = spec.theta0, 0, np.inf
+    start = E(theta)
+    # A simplex can collapse before the minimum: restart around the best point,
+    # as careful fminsearch users do, while a restart still improves E_fit by
+    # 1 % and E_fit is not negligible (1e-6 of the start's).
+    for _ in range(NM_RESTARTS):
+        out = minimize(E, theta, method="Nelder-Mead", bounds=bounds,
+                       options={"adaptive": True, "xatol": 1e-8,
+                                "fatol": tol * max(start, 1e-12),
+                                "maxfev": budget - evaluations})
+        evaluations += int(out.nfev)
+        improved = out.fun < 0.99 * best
+        theta, best = out.x, min(best, float(out.fun))
+        if not improved or best < 1e-6 * start or evaluations >= budget:
+            break
+    return theta, evaluations, bool(out.success), str(out.message)
 
 
 def _gradient(spec, inner, tol, max_iterations):
@@ -763,7 +800,8 @@ class _KKTProblem:
         if cells != self.cells:
             if self.cells is None:       # the misfit at the start sets the objective's scale
                 res = self.inner.residuals(self.inner.eq)
-                self.scale = 1.0 / max(0.5 * float(res @ res), 1e-300)
+                # (floored: a start that already fits would blow the scale up)
+                self.scale = 1.0 / max(0.5 * float(res @ res), 1e-12)
             self._build(cells)
         if getattr(self, "_duals", None) is not None:
             # the constraints do not depend on the cells: their multipliers
