@@ -618,7 +618,7 @@ def sweep(problem: Problem, axes: Mapping[str, Sequence], *, ablate: bool = Fals
     >>> res = sweep(Problem("uniform", h=0.3, cut=0.3), {"k": [0.0, 0.5]}, nodes=60,
     ...             workers=1)
     >>> res.to_dataframe()[["k", "psi_start"]].round(3).values.tolist()
-    [[0.0, 0.817], [0.5, 0.405]]
+    [[0.0, 0.822], [0.5, 0.561]]
     """
     if not isinstance(problem, Problem):
         raise ValueError(f"problem must be a Problem, got {problem!r}")
