@@ -16,7 +16,7 @@ LAYERS = [
     {"observables", "parametric"},
     {"continuation", "refinement"},
     {"equilibrium"},
-    {"ablation", "asymptotics", "bulk", "thickness", "fitting", "inverse"},
+    {"ablation", "asymptotics", "bulk", "thickness", "fitting", "inverse", "sweep"},
     {"io", "plotting", "cli"},
 ]
 

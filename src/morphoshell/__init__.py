@@ -14,7 +14,7 @@ Quick start::
     eq.to_dataframe()                      # one row per point, units in df.attrs
 
 The common entry points are importable from here: :class:`Problem`,
-:func:`solve`, :func:`ablate`, :func:`load_problem`, :func:`estimate`,
+:func:`solve`, :func:`ablate`, :func:`sweep`, :func:`load_problem`, :func:`estimate`,
 :class:`ProfileFamily` and :func:`register_family` (your own families),
 :func:`example_path` (the packaged example problems).
 """
@@ -29,8 +29,9 @@ from .parametric import Parametric  # noqa: E402
 from .ablation import Ablation, ablate  # noqa: E402
 from .inverse import estimate  # noqa: E402
 from .io import example_path, examples, load_problem  # noqa: E402
+from .sweep import sweep  # noqa: E402  (the function; the module is morphoshell.sweep)
 
 __all__ = ["Problem", "Structure", "ProfileFamily", "Profiles", "register_family",
            "DirectSolver", "Equilibrium", "SolverError", "NotAMinimumError", "solve",
            "Parametric", "Ablation", "ablate", "estimate", "load_problem", "examples",
-           "example_path", "__version__"]
+           "example_path", "sweep", "__version__"]

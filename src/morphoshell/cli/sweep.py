@@ -1,0 +1,174 @@
+"""``morphoshell sweep``: equilibria or ablations on the Cartesian product of ``--set`` axes."""
+from __future__ import annotations
+
+import math
+
+from ._args import LINEAR_SOLVERS, add_outputs, integer
+from ._outputs import Outputs
+
+__all__ = ["register", "parse_axes"]
+
+_SET_HELP = ("KEY=VALUE overrides a problem entry; KEY=a,b,c (a list) or KEY=start:stop:num "
+             "(num values from start to stop, both included) makes KEY an axis of the sweep. "
+             "Repeatable. Keys: h, theory, cut (Sigma), opening (P), a parameter of the "
+             "problem's family (uniform: k; anisotropic: f0; local_relaxation: F0, s0; volvox: "
+             "f1..f5, kappa1..kappa4, s1..s4, sigma), and as plain overrides family, nodes, "
+             "stages")
+
+
+def register(sub) -> None:
+    from ..direct import MAX_NODES
+    from ..sweep import ERRORS
+
+    p = sub.add_parser(
+        "sweep", help="equilibria or ablations on a grid of parameters (parallel)",
+        description="Solve PROBLEM.toml (or, with --ablate, ablate it) at every point of the "
+                    "Cartesian product of the --set axes and write one row per point: the "
+                    "axis values, then the energy (C R^2) and edge values (R, rad), or with "
+                    "--ablate the recoil observables (opening R, rotation rad, displacement R, "
+                    "energy released C R^2); each with its estimated error where estimated "
+                    "(--errors), the solver's status, the Newton iterations and the path. "
+                    "Failed points keep their row (NaN values and the status). The points are "
+                    "solved in chunks along the axis with the most values, each point warm-"
+                    "started from the previous one (continuation from the stress-free "
+                    "parameters at a chunk's first point), on the mesh `solve` and `ablate` "
+                    "would use; chunks run in parallel (Dask if installed, else a process "
+                    "pool) and the numbers do not depend on the number of workers.")
+    p.add_argument("problem", metavar="PROBLEM.toml",
+                   help="problem file (`morphoshell example NAME` prints one to start from)")
+    p.add_argument("--set", dest="overrides", action="append", default=[],
+                   metavar="KEY=VALUES", help=_SET_HELP)
+    p.add_argument("--ablate", action="store_true",
+                   help="ablate at every point (cut > 0) and report the recoil observables "
+                        "instead of the equilibrium")
+    p.add_argument("--nodes", type=integer(5, MAX_NODES), default=None, metavar="N",
+                   help=f"mesh nodes, 5..{MAX_NODES} (default: the file's [solver] nodes, else "
+                        f"200)")
+    p.add_argument("--stages", type=int, choices=(1, 2, 3), default=None, metavar="S",
+                   help="Gauss points per cell: order 2S (default: the file's, else 2)")
+    p.add_argument("--linear-solver", default="mumps", choices=LINEAR_SOLVERS, metavar="NAME",
+                   help="Ipopt's linear solver (default mumps, bundled)")
+    p.add_argument("--errors", choices=ERRORS, default="ends",
+                   help="where to estimate discretisation errors (two coarser meshes per "
+                        "estimate): at both ends of the chunk axis for every value of the "
+                        "others (default), at every point, or nowhere")
+    p.add_argument("--workers", type=integer(1, 4096), default=None, metavar="N",
+                   help="worker processes (default: this process for small sweeps, else one "
+                        "per CPU core); ignored with --scheduler")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="a running Dask scheduler, e.g. tcp://host:8786 (default: "
+                        "$DASK_SCHEDULER_ADDRESS, else a local cluster or process pool)")
+    p.add_argument("--chunk-size", dest="chunk_size", type=integer(1, 10**9), default=None,
+                   metavar="N", help="most points per task (default: automatic, at least 12 "
+                                     "tasks where the grid allows)")
+    add_outputs(p, json="write the sweep (problem, axes, units, timing, rows) as JSON",
+                csv="write one row per point as CSV (units: docs, 'Sweeps')")
+    p.set_defaults(run=_sweep)
+
+
+def parse_axes(items) -> tuple[dict, dict]:
+    """``--set`` items → (axes: key → list of values, scalar overrides: key → value).
+
+    ``KEY=a,b,c`` is a list, ``KEY=start:stop:num`` ``num`` values from
+    ``start`` to ``stop`` inclusive; anything else a scalar override
+    (:func:`morphoshell.io.parse_overrides`).  Raises ``ProblemFileError``
+    naming the item.
+    """
+    import numpy as np
+
+    from ..io import SOLVER_KEYS, ProblemFileError, parse_overrides
+
+    axes: dict = {}
+    scalars: dict = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        key, value = key.strip(), value.strip()
+        if not sep or not key or not value:
+            raise ProblemFileError(f"--set {item!r}: expected KEY=VALUE, KEY=a,b,c or "
+                                   f"KEY=start:stop:num")
+        if "," in value or ":" in value:
+            if ":" in value:
+                parts = [v.strip() for v in value.split(":")]
+                if len(parts) != 3 or "," in value:
+                    raise ProblemFileError(f"--set {item!r}: a range is start:stop:num "
+                                           f"(num values, both ends included)")
+                try:
+                    num = int(parts[2])
+                except ValueError:
+                    raise ProblemFileError(f"--set {item!r}: the number of values "
+                                           f"{parts[2]!r} is not an integer") from None
+                if num < 1:
+                    raise ProblemFileError(f"--set {item!r}: the number of values must be "
+                                           f"at least 1, got {num}")
+                ends = [parse_overrides([f"{key}={v}"]) for v in parts[:2]]
+                name = next(iter(ends[0]))
+                if not all(isinstance(e[name], float) for e in ends):
+                    raise ProblemFileError(f"--set {item!r}: a range needs numbers")
+                values = np.linspace(ends[0][name], ends[1][name], num).tolist()
+            else:
+                parsed = [parse_overrides([f"{key}={v}"]) for v in value.split(",")]
+                name = next(iter(parsed[0]))
+                values = [p[name] for p in parsed]
+            if name in SOLVER_KEYS or name in ("family", "geometry", "name"):
+                raise ProblemFileError(f"--set {item!r}: {name} cannot be a sweep axis")
+            target = axes
+        else:
+            parsed = parse_overrides([item])
+            name = next(iter(parsed))
+            values = parsed[name]
+            target = scalars
+        if name in axes or name in scalars:
+            raise ProblemFileError(f"--set {item!r}: {name} is set more than once")
+        target[name] = values
+    return axes, scalars
+
+
+def _sweep(args) -> int:
+    from ..io import (ProblemFileError, apply_overrides, load_problem, settings_from,
+                      split_overrides, write_csv, write_json)
+    from ..sweep import sweep
+
+    problem, settings = load_problem(args.problem)
+    axes, scalars = parse_axes(args.overrides)
+    if not axes:
+        raise ProblemFileError("--set: no axis to sweep; give a list (KEY=a,b,c) or a range "
+                               "(KEY=start:stop:num)")
+    problem_over, solver_over = split_overrides(scalars)
+    problem = apply_overrides(problem, problem_over)
+    try:
+        settings = settings_from(solver_over, settings)
+    except ValueError as exc:
+        raise ProblemFileError(f"--set: {exc}") from None
+    if settings.method != "direct":
+        raise ProblemFileError(f"{args.problem}: method = {settings.method!r}: sweeps use the "
+                               f"direct method")
+    nodes = settings.nodes if args.nodes is None else args.nodes
+    stages = settings.stages if args.stages is None else args.stages
+    # every point is validated before any work (ValueError naming it: exit status 2)
+    result = sweep(problem, axes, ablate=args.ablate, nodes=nodes, workers=args.workers,
+                   scheduler=args.scheduler, errors=args.errors, chunk_size=args.chunk_size,
+                   stages=stages, linear_solver=args.linear_solver)
+    t = result.timing
+    what = "ablations" if args.ablate else "equilibria"
+    shape = " x ".join(f"{len(v)} {k}" for k, v in result.axes.items())
+    per = t["seconds"] / len(result)
+    workers = "a Dask scheduler" if args.scheduler else \
+        f"{t['workers']} {'worker' if t['workers'] == 1 else 'workers'} ({t['backend']})"
+    print(f"{problem.name or problem.family}: sweep of {len(result)} {what} ({shape}), "
+          f"{nodes} nodes, in {t['chunks']} chunks along {t['chunk_axis']} on {workers}: "
+          f"{t['seconds']:.3g} s, {per * 1e3:.3g} ms per point; {result.failed} failed")
+    df = result.to_dataframe()
+    values = ["opening", "rotation", "displacement", "energy_released"] if args.ablate else \
+        ["energy", "r_start", "psi_start", "r_end", "psi_end", "z_end"]
+    show = [*result.dims(), *values, "status"]
+    units = result.units
+    df = df[show].rename(columns={c: f"{c} [{units[c]}]" for c in show if c in units
+                                  and c not in ("iterations",)})
+    print(df.to_string(max_rows=20, float_format=lambda v: f"{v:.6g}" if math.isfinite(v)
+                       else "nan"))
+    out = Outputs()
+    out.add(args.csv, lambda path: write_csv(path, result.columns))
+    out.add(args.json, lambda path: write_json(path, result.to_dict()))
+    for path in out.commit():
+        print(f"  wrote {path}")
+    return 0
