@@ -127,14 +127,23 @@ def _write_trace(path: Path, pixels: np.ndarray, header: list[str]) -> None:
 
 
 def make(out: Path, *, timepoints: int = 12, embryos: int = 5, seed: int = SEED,
-         nodes: int = 400, quiet: bool = False) -> dict:
-    """Write the data set into ``out``; returns the ground truth (also written as JSON)."""
+         nodes: int = 400, quiet: bool = False, pseudotimes=None) -> dict:
+    """Write the data set into ``out``; returns the ground truth (also written as JSON).
+
+    ``pseudotimes`` (increasing, in [0, 1]) replaces the ``timepoints`` equally
+    spaced ones (small test sets: a short stretch of the trajectory).
+    """
+    times = (np.linspace(0.0, 1.0, timepoints) if pseudotimes is None
+             else np.asarray(pseudotimes, dtype=float))
+    timepoints = len(times)
     from morphoshell.midlines import average, load_midline, to_image
 
     out.mkdir(parents=True, exist_ok=True)
     streams = np.random.SeedSequence(seed).spawn(timepoints)
     command = (f"python scripts/make_synthetic_inversion.py --seed {seed} --timepoints "
-               f"{timepoints} --embryos {embryos} --nodes {nodes}")
+               f"{timepoints} --embryos {embryos} --nodes {nodes}"
+               + ("" if pseudotimes is None else
+                  " --pseudotimes " + ",".join(f"{t:g}" for t in times)))
     truth = {"label": LABEL, "command": command, "seed": seed, "nodes": nodes,
              "family": "volvox", "fixed": FIXED, "keyframes": {f"{t:g}": v for t, v in
                                                                 KEYFRAMES.items()},
@@ -147,7 +156,7 @@ def make(out: Path, *, timepoints: int = 12, embryos: int = 5, seed: int = SEED,
                        "pixels": "x right, y down"},
              "timepoints": []}
     rows = []
-    for k, t in enumerate(np.linspace(0.0, 1.0, timepoints)):
+    for k, t in enumerate(times):
         t = float(round(t, 6))
         name = f"t{k + 1:02d}"
         folder = out / name
@@ -215,10 +224,15 @@ def main(argv=None) -> int:
     p.add_argument("--timepoints", type=int, default=12, help="timepoints (default 12)")
     p.add_argument("--embryos", type=int, default=5, help="embryos per timepoint (default 5)")
     p.add_argument("--nodes", type=int, default=400, help="mesh nodes of the forward model")
+    p.add_argument("--pseudotimes", default=None,
+                   help="comma-separated pseudotimes in [0, 1] instead of --timepoints equally "
+                        "spaced ones")
     p.add_argument("-q", "--quiet", action="store_true")
     args = p.parse_args(argv)
     make(args.out, timepoints=args.timepoints, embryos=args.embryos, seed=args.seed,
-         nodes=args.nodes, quiet=args.quiet)
+         nodes=args.nodes, quiet=args.quiet,
+         pseudotimes=None if args.pseudotimes is None else
+         [float(v) for v in args.pseudotimes.split(",")])
     return 0
 
 
