@@ -557,7 +557,15 @@ def _gradient(spec, inner, tol, max_iterations):
     from scipy.optimize import least_squares
 
     def fun(theta):
-        return inner.residuals(inner.solve(theta))
+        # A trial point whose inner solve fails (the continuation cannot reach
+        # it: measured from the default start of the unstressed variant) or
+        # that is infeasible (|eta| >= 1: measured on campaign steps) is
+        # rejected like a bad step: the trust region shrinks on non-finite
+        # residuals instead of the fit aborting.
+        try:
+            return inner.residuals(inner.solve(theta))
+        except (SolverError, ValueError):
+            return np.full(2 * inner.n, np.inf)
 
     def jac(theta):
         return inner.jacobian(inner.solve(theta), theta)
