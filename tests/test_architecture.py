@@ -16,7 +16,7 @@ LAYERS = [
     {"observables", "parametric"},
     {"continuation", "refinement"},
     {"equilibrium"},
-    {"ablation", "asymptotics", "bulk", "thickness", "fitting", "inverse", "sweep"},
+    {"ablation", "asymptotics", "bulk", "thickness", "fitting", "inverse", "sweep", "campaign"},
     {"io", "plotting", "cli"},
 ]
 

@@ -39,7 +39,7 @@ from .problem import Problem
 from .results import Equilibrium
 
 __all__ = ["plot_fit", "sheet_outline", "far_end_shift", "problem_label", "new_axes", "plot_cross_section",
-           "plot_ablation", "save", "paper_style", "label_panel", "SINGLE_COLUMN",
+           "plot_ablation", "plot_ablation_overlay", "save", "paper_style", "label_panel", "SINGLE_COLUMN",
            "DOUBLE_COLUMN", "MIN_FONT_SIZE", "PAPER_RC", "ABLATION_STYLE"]
 
 #: Figure widths of journals (inches): one column and the full page width.
@@ -445,6 +445,55 @@ def plot_ablation(ablation, ax: Axes | None = None, *, title: str | None = "auto
                     color=color, zorder=4.0)
     label = problem_label(ablation.problem)
     return _finish(ax, label if title == "auto" else title, legend)
+
+
+def plot_ablation_overlay(ablation, ax: Axes | None = None, *, pixels: int = 500,
+                          title: str | None = None) -> Axes:
+    """Pre-ablation sheet in red, post-ablation in cyan, their union white (paper Fig. 3 M).
+
+    The overlay of the paper's micrographs (Fig. 1 A′, B‴–G‴) for numerical
+    ablations: each cell sheet (midline ± half its deformed thickness, both
+    halves of the section) is rasterised on a black background into the red
+    channel (pre) and the green and blue channels (post), so that where the
+    sheets coincide the colours add up to white.  Both states are in the
+    gauge of the observables (far end at its undeformed height).
+
+    Parameters
+    ----------
+    ablation : morphoshell.ablation.Ablation
+        E.g. ``numerical_ablation(...).ablation``.
+    ax : matplotlib Axes, optional
+    pixels : int
+        Raster width (the height follows the aspect ratio).
+    title : str, optional
+
+    Returns
+    -------
+    Axes
+        Extent of the image in units of R.
+    """
+    if ax is None:
+        ax = new_axes()
+    paths = [_band_path(eq, far_end_shift(eq)) for eq in (ablation.pre, ablation.post)]
+    verts = np.vstack([pth.vertices for pth in paths])
+    lo, hi = verts.min(axis=0), verts.max(axis=0)
+    pad = 0.05 * float(np.max(hi - lo))
+    lo, hi = lo - pad, hi + pad
+    width = int(pixels)
+    height = max(int(round(width * (hi[1] - lo[1]) / (hi[0] - lo[0]))), 1)
+    x = np.linspace(lo[0], hi[0], width)
+    y = np.linspace(hi[1], lo[1], height)       # image rows from the top
+    grid = np.column_stack([np.repeat(x[None, :], height, 0).ravel(),
+                            np.repeat(y[:, None], width, 1).ravel()])
+    pre, post = (pth.contains_points(grid).reshape(height, width) for pth in paths)
+    image = np.stack([pre, post, post], axis=-1).astype(float)
+    ax.imshow(image, extent=(lo[0], hi[0], lo[1], hi[1]), interpolation="antialiased")
+    ax.set_aspect("equal")
+    ax.set_xlabel("r / R")
+    ax.set_ylabel("z / R")
+    if title:
+        ax.set_title(title)
+    return ax
 
 
 def save(fig_or_ax, path: str | Path, formats: Sequence[str] | None = None, *,

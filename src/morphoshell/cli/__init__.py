@@ -46,7 +46,7 @@ def _add_verbosity(p: argparse.ArgumentParser, top: bool) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     """The parser of ``morphoshell COMMAND ...`` with every command registered."""
-    from . import analytic, estimate, example, fit, solve, sweep
+    from . import analytic, campaign, estimate, example, fit, solve, sweep
 
     parser = _Parser(
         prog="morphoshell",
@@ -57,7 +57,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_verbosity(parser, top=True)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND",
                                 parser_class=_Parser)
-    for module in (solve, analytic, estimate, fit, sweep, example):
+    for module in (solve, analytic, estimate, fit, sweep, campaign, example):
         module.register(sub)
     for command in sub.choices.values():
         _add_verbosity(command, top=False)

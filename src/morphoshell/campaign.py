@@ -1,0 +1,645 @@
+"""Fit campaigns across inversion time, and numerical ablations of fitted shapes.
+
+The paper (main text, "The fitted mechanical sequence hints at an adaptive
+response to out-of-plane stresses", Fig. 3 D–O; Supplementary, last section)
+fits every inversion timepoint in turn, for four hypotheses on the posterior
+intrinsic curvature κ₁ = κ_post⁰ (:data:`morphoshell.fitting.VARIANTS`), and
+ablates the fitted shapes numerically (Materials and Methods: "the value of
+Σ was increased from Σ = 0 in these fitted shapes").
+
+:func:`campaign`
+    For each variant (one task of :mod:`morphoshell.executor` per variant:
+    Dask distributed, a process pool or this process), the timepoints of a
+    data set in order, each fit warm-started from the previous timepoint's
+    (its parameters and its equilibrium).  Held/fitted split of the model
+    notes ("The Volvox inversion model"): f₁, κ₃, κ₄ are fitted at the first
+    timepoint and held after, except in ``free``, which fits them (and κ₁) at
+    every timepoint.  One JSON per (timepoint, variant), written atomically
+    (a temporary file, then ``os.replace``): an interrupted campaign resumes
+    where it stopped, and the resumed results are bit-identical to an
+    uninterrupted run's, because every fit starts from what the previous
+    timepoint's *file* holds (JSON keeps floats exactly) and the solves are
+    deterministic (single-threaded MUMPS).  A summary table (CSV) of E_fit
+    and the parameters against pseudotime.
+:func:`numerical_ablation`
+    Continuation in the cut Σ from 0 (the fitted, intact shell) to the cut
+    size, with the adaptive, jump-rejecting steps of
+    :func:`morphoshell.continuation.continue_between`, the observables of
+    :func:`morphoshell.ablation.ablate`, and a check against a cold solve at
+    the final Σ on the same mesh.
+
+A data set is a folder with ``timepoints.csv`` (columns ``timepoint``,
+``pseudotime``, ``midline``: a path relative to the folder of an average
+midline as :meth:`morphoshell.midlines.Midline.to_csv` writes it, in units of
+R, posterior pole at the origin); ``scripts/make_synthetic_inversion.py``
+writes a synthetic one.  Lengths in units of R, E_fit in units of R,
+energies in C R².
+"""
+from __future__ import annotations
+
+import concurrent.futures as cf
+import csv
+import hashlib
+import io
+import json
+import os
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterator, Sequence
+
+import numpy as np
+
+from .ablation import Ablation, edge_state, intact_problem
+from .continuation import continue_between
+from .direct import DirectSolver
+from .equilibrium import solve
+from .executor import SerialExecutor, backend_name, open_executor
+from .fitting import BOUNDS, METHODS, VARIANTS, FitError, fit, volvox_spec
+from .mesh import mesh_spec
+from .midlines import Midline
+from .observables import RECOIL, recoil
+from .problem import Problem
+from .refinement import solve_from
+from .results import Equilibrium, SolverError
+
+__all__ = ["Timepoint", "CampaignResult", "NumericalAblation", "campaign", "read_timepoints",
+           "load_campaign", "fitted_problem", "fitted_state", "numerical_ablation", "HELD", "CUT",
+           "RESULT_SUFFIX", "SUMMARY"]
+
+#: Parameters fitted at the first timepoint and held after (all variants but ``free``).
+HELD = ("f1", "kappa3", "kappa4")
+#: Default cut Σ of numerical ablations (units of R): the experiments removed cells
+#: within 3–6 µm of the pole of embryos of posterior radius ≈ 40 µm (Materials and Methods).
+CUT = 0.15
+#: Result files are ``<timepoint>_<variant>.json``.
+RESULT_SUFFIX = ".json"
+#: The summary table in the output folder.
+SUMMARY = "campaign_summary.csv"
+#: A fitted value this close to a bound is moved inside it before it starts the next fit.
+_MARGIN = 1e-6
+#: First cut of the Σ continuation, as a fraction of the final one (the cap removed
+#: from the intact shell in one step; continue_between then grows it adaptively).
+_FIRST_CUT = 0.125
+
+
+@dataclass(frozen=True)
+class Timepoint:
+    """One inversion stage of a data set.
+
+    Attributes
+    ----------
+    name : str
+        Label (``t01``), used in file names.
+    pseudotime : float
+        Position in the sequence (dimensionless, increasing).
+    midline : str
+        Path of the average midline (units of R), relative to the data folder.
+    """
+
+    name: str
+    pseudotime: float
+    midline: str
+
+
+def read_timepoints(data_dir: str | Path) -> tuple[Timepoint, ...]:
+    """The timepoints of a data set, in order of pseudotime (validated).
+
+    Parameters
+    ----------
+    data_dir : str or Path
+        Folder with ``timepoints.csv`` (see the module docstring).
+
+    Raises
+    ------
+    ValueError
+        One line naming the file, row or value that is wrong.
+    """
+    data_dir = Path(data_dir)
+    table = data_dir / "timepoints.csv"
+    if not data_dir.is_dir():
+        raise ValueError(f"{str(data_dir)!r} is not a folder")
+    if not table.is_file():
+        raise ValueError(f"{str(data_dir)!r} has no timepoints.csv (columns timepoint, "
+                         f"pseudotime, midline)")
+    lines = [ln for ln in table.read_text(encoding="utf-8").splitlines()
+             if ln.strip() and not ln.lstrip().startswith("#")]
+    rows = list(csv.DictReader(io.StringIO("\n".join(lines))))
+    if not rows or not {"timepoint", "pseudotime", "midline"} <= set(rows[0]):
+        raise ValueError(f"{table}: expected a header timepoint,pseudotime,midline and at "
+                         f"least one row")
+    out = []
+    for i, row in enumerate(rows, start=2):
+        name = (row["timepoint"] or "").strip()
+        if not name or not all(c.isalnum() or c in "-_." for c in name):
+            raise ValueError(f"{table}, row {i}: timepoint {name!r} must be a non-empty name "
+                             f"of letters, digits, '-', '_' or '.'")
+        try:
+            t = float(row["pseudotime"])
+        except (TypeError, ValueError):
+            raise ValueError(f"{table}, row {i}: pseudotime {row['pseudotime']!r} is not a "
+                             f"number") from None
+        if not np.isfinite(t):
+            raise ValueError(f"{table}, row {i}: pseudotime {t!r} is not finite")
+        path = (row["midline"] or "").strip()
+        if not (data_dir / path).is_file():
+            raise ValueError(f"{table}, row {i}: midline file {path!r} does not exist")
+        out.append(Timepoint(name, t, path))
+    names = [tp.name for tp in out]
+    if len(set(names)) != len(names):
+        raise ValueError(f"{table}: timepoint names repeat")
+    times = [tp.pseudotime for tp in out]
+    if any(b <= a for a, b in zip(times, times[1:])):
+        raise ValueError(f"{table}: pseudotimes must increase down the table")
+    return tuple(out)
+
+
+def fitted_problem(record: dict) -> Problem:
+    """The Volvox problem of a campaign result (a record of :func:`campaign`)."""
+    p = dict(record["parameters"])
+    h, cut, opening = p.pop("h"), p.pop("cut"), p.pop("opening")
+    return Problem("volvox", p, h=h, cut=cut, opening=opening,
+                   name=f"{record['timepoint']}_{record['variant']}")
+
+
+def fitted_state(record: dict):
+    """The fitted equilibrium's fields s, r, ψ, f_s at its points (units of R, rad).
+
+    Enough to start a solve on any mesh on the fit's branch
+    (:func:`~morphoshell.refinement.solve_from`, ``numerical_ablation(pre=...)``).
+    """
+    from types import SimpleNamespace
+
+    return SimpleNamespace(**{k: np.asarray(record["state"][k], dtype=float)
+                              for k in ("s", "r", "psi", "f_s")})
+
+
+# --------------------------------------------------------------------------
+# the campaign
+# --------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class _Task:
+    """One variant of a campaign: what a worker needs (small and picklable)."""
+
+    data_dir: str
+    timepoints: tuple[Timepoint, ...]
+    variant: str
+    method: str
+    nodes: int
+    out: str
+    start: dict | None
+
+
+@dataclass(frozen=True)
+class CampaignResult:
+    """The results of a campaign, one record per (timepoint, variant).
+
+    Attributes
+    ----------
+    out : Path
+        The folder of the result files and of the summary (:data:`SUMMARY`).
+    timepoints : tuple of Timepoint
+    variants : tuple of str
+    records : dict
+        ``{(timepoint, variant): record}``, each record the content of its JSON
+        file (see :func:`campaign`).
+    timing : dict
+        ``seconds`` (wall clock), ``workers``, ``backend``, ``computed`` (fits
+        done in this run), ``fit_seconds`` (their summed time).
+    """
+
+    out: Path
+    timepoints: tuple[Timepoint, ...]
+    variants: tuple[str, ...]
+    records: dict
+    timing: dict = field(default_factory=dict)
+
+    def record(self, timepoint: str, variant: str) -> dict:
+        """The record of one fit (KeyError if it is missing)."""
+        return self.records[(timepoint, variant)]
+
+    def to_dataframe(self):
+        """E_fit (units of R) and the parameters against pseudotime, one row per fit.
+
+        Returns
+        -------
+        pandas.DataFrame
+            Columns ``timepoint``, ``pseudotime``, ``variant``, ``status``,
+            ``E_fit``, ``converged``, the 14 Volvox parameters (lengths in R,
+            curvatures in 1/R), then ``se_<name>`` (Gauss–Newton standard
+            errors; NaN for parameters not fitted at that timepoint).
+        """
+        import pandas as pd
+
+        rows = []
+        for tp in self.timepoints:
+            for v in self.variants:
+                rec = self.records.get((tp.name, v))
+                if rec is None:
+                    continue
+                row = {"timepoint": tp.name, "pseudotime": tp.pseudotime, "variant": v,
+                       "status": rec["status"], "E_fit": rec.get("E_fit", float("nan")),
+                       "converged": rec.get("converged", False)}
+                params = rec.get("parameters", {})
+                names = [n for n in params if n not in ("h", "cut", "opening")]
+                row.update({n: params[n] for n in names})
+                se = rec.get("standard_errors", {})
+                row.update({f"se_{n}": se.get(n, float("nan")) for n in names})
+                rows.append(row)
+        return pd.DataFrame(rows)
+
+
+def _result_path(out: Path, timepoint: str, variant: str) -> Path:
+    return out / f"{timepoint}_{variant}{RESULT_SUFFIX}"
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` all or nothing (temporary file in the folder, then rename)."""
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        # mkstemp makes the file private: give it the permissions of a new file
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _settings(task: _Task, tp: Timepoint) -> dict:
+    """What makes a stored result reusable: same data, method, mesh and start."""
+    return {"method": task.method, "nodes": task.nodes,
+            "data": {"file": tp.midline,
+                     "sha256": _sha256(Path(task.data_dir) / tp.midline)},
+            "first_start": task.start}
+
+
+def _start_problem(params: dict) -> Problem:
+    """A start problem from fitted parameters, moved just inside the fit's bounds."""
+    p = dict(params)
+    h, opening = p.pop("h", 0.15), p.pop("opening", 0.3)
+    p.pop("cut", None)
+    for n, v in p.items():
+        kind = "f" if n.startswith("f") else "kappa" if n.startswith("kappa") else None
+        if kind is not None:
+            lo, hi = BOUNDS[kind]
+            span = (hi - lo) * _MARGIN
+            p[n] = float(min(max(v, lo + span), hi - span))
+    return Problem("volvox", p, h=h, opening=opening)
+
+
+def _start_state(problem: Problem, state: dict, nodes: int) -> Equilibrium | None:
+    """The previous fit's equilibrium carried onto the mesh the next fit builds (None if it fails).
+
+    The mesh follows the breakpoints of the problem it is built for, so the
+    previous fit's unknowns belong to another mesh: r, ψ and f_s are
+    interpolated from its points (:func:`~morphoshell.refinement.solve_from`;
+    reusing the raw unknowns converged to another equilibrium, 0.5 away,
+    measured).
+    """
+    fields = fitted_state({"state": state})
+    try:
+        solver = DirectSolver(problem.structure, mesh=mesh_spec(problem, nodes, 2))
+        return solve_from(solver, problem, fields)
+    except (SolverError, ValueError):
+        return None
+
+
+def _fit_variant(task: _Task) -> list[dict]:
+    """Worker: fit the timepoints of one variant in order; write one JSON per fit.
+
+    A stored result with the same settings is read instead of fitted
+    (resume).  Returns per fit: timepoint, seconds, computed, status.
+    """
+    out = Path(task.out)
+    report = []
+    prev = first = None     # the records the next fit starts from / holds f1, κ3, κ4 of
+    for k, tp in enumerate(task.timepoints):
+        path = _result_path(out, tp.name, task.variant)
+        settings = _settings(task, tp)
+        stored = _read_record(path)
+        if stored is not None and all(stored.get(key) == value
+                                      for key, value in settings.items()):
+            rec = stored
+            report.append({"timepoint": tp.name, "seconds": 0.0, "computed": False,
+                           "status": rec["status"]})
+        else:
+            t0 = time.perf_counter()
+            rec = _fit_one(task, tp, prev, first, settings)
+            # sort_keys and full float precision: the same fit writes the same bytes
+            _write_atomic(path, json.dumps(rec, indent=1, sort_keys=True) + "\n")
+            rec = json.loads(path.read_text(encoding="utf-8"))
+            report.append({"timepoint": tp.name, "seconds": time.perf_counter() - t0,
+                           "computed": True, "status": rec["status"]})
+        if rec["status"] == "ok":
+            prev = rec
+            first = first or rec
+    return report
+
+
+def _read_record(path: Path) -> dict | None:
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+
+
+def _fit_one(task: _Task, tp: Timepoint, prev: dict | None, first: dict | None,
+             settings: dict) -> dict:
+    """Fit one timepoint; the record (a failed fit is recorded too, with its message)."""
+    data = Midline.from_csv(Path(task.data_dir) / tp.midline)
+    hold: dict = {}
+    if prev is None:
+        start = _start_problem(task.start) if task.start else Problem("volvox", h=0.15,
+                                                                      opening=0.3)
+        origin = "start" if task.start else "family defaults"
+    else:
+        start = _start_problem(prev["parameters"])
+        origin = f"fit of {prev['timepoint']}"
+        if task.variant != "free":
+            hold = {n: first["parameters"][n] for n in HELD}
+    rec = {"label": "fit of the Volvox model (morphoshell.campaign)",
+           "timepoint": tp.name, "pseudotime": tp.pseudotime, "variant": task.variant,
+           **settings, "started_from": origin, "held": hold}
+    try:
+        spec = volvox_spec(task.variant, start=start, hold=hold)
+        eq0 = None if prev is None else _start_state(spec.base, prev["state"], task.nodes)
+        result = fit(spec, data, task.method, nodes=task.nodes, start=eq0)
+    except (FitError, SolverError, ValueError) as exc:
+        return {**rec, "status": "failed", "message": f"{type(exc).__name__}: {exc}"}
+    d = result.to_dict()
+    d.pop("seconds")             # wall-clock time would break bit-identical resumes
+    eq = result.equilibrium
+    return {**rec, **d, "status": "ok",
+            "state": {k: np.asarray(getattr(eq, k), dtype=float).tolist()
+                      for k in ("s", "r", "psi", "f_s")}}
+
+
+def _validate(data_dir, variants, method, nodes, workers, out) -> tuple:
+    timepoints = read_timepoints(data_dir)
+    if isinstance(variants, str):
+        variants = (variants,)
+    variants = tuple(variants)
+    bad = [v for v in variants if v not in VARIANTS]
+    if bad or not variants:
+        raise ValueError(f"variants {list(bad) or '(none)'}: choose from {list(VARIANTS)}")
+    if len(set(variants)) != len(variants):
+        raise ValueError(f"variants {list(variants)} repeat")
+    if method not in METHODS:
+        raise ValueError(f"method = {method!r} must be one of {list(METHODS)}")
+    if isinstance(nodes, bool) or int(nodes) != nodes or not 20 <= nodes <= 2000:
+        raise ValueError(f"nodes = {nodes!r} must be an integer from 20 to 2000")
+    if workers is not None and (isinstance(workers, bool) or int(workers) != workers
+                                or workers < 1):
+        raise ValueError(f"workers = {workers!r} must be a positive integer")
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"out = {str(out)!r} is a file, not a folder")
+    return timepoints, variants, out
+
+
+def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
+             method: str = "gradient", workers: int | None = None,
+             scheduler: str | None = None, out: str | Path = "campaign", resume: bool = True,
+             nodes: int = 200, start: dict | None = None,
+             timepoints: Sequence[str] | None = None) -> CampaignResult:
+    """Fit every timepoint of a data set for each variant (paper Fig. 3 N, O).
+
+    Parameters
+    ----------
+    data_dir : str or Path
+        The data set (see the module docstring).
+    variants : sequence of str
+        Of :data:`morphoshell.fitting.VARIANTS` (default: all four).
+    method : {"gradient", "kkt", "nelder-mead"}
+        The fit method (:func:`morphoshell.fitting.fit`).
+    workers : int, optional
+        Worker processes (one variant per task, so more than ``len(variants)``
+        do not help; default: one per variant, at most the CPU count);
+        ignored with a scheduler.
+    scheduler : str, optional
+        Address of a running Dask scheduler (default ``DASK_SCHEDULER_ADDRESS``).
+    out : str or Path
+        Folder of the results: ``<timepoint>_<variant>.json`` per fit and
+        :data:`SUMMARY`.
+    resume : bool
+        Keep stored results made with the same data file, method, nodes and
+        start, and fit only the missing ones; ``False`` refits everything.
+    nodes : int
+        Mesh nodes of the inner solves.
+    start : dict, optional
+        Parameters the first timepoint starts from (default: the Volvox
+        family's illustrative defaults).
+    timepoints : sequence of str, optional
+        Fit only these timepoints (names, in the data set's order; a short
+        campaign); default all.
+
+    Returns
+    -------
+    CampaignResult
+
+    Notes
+    -----
+    Each record holds the timepoint, pseudotime, variant, method, nodes, the
+    data file and its SHA-256, where the fit started from, the held values,
+    ``status`` (``ok`` or ``failed`` with ``message``), and for a successful
+    fit :meth:`morphoshell.fitting.FitResult.to_dict` without its time and
+    ``state`` (s, r, ψ, f_s of the fitted equilibrium at its points: the
+    next timepoint's warm start).  A failed fit is recorded and the next timepoint
+    starts from the last successful one.
+    """
+    selected = timepoints
+    timepoints, variants, out = _validate(data_dir, variants, method, nodes, workers, out)
+    if selected is not None:
+        if isinstance(selected, str):
+            selected = [v.strip() for v in selected.split(",")]
+        names = [tp.name for tp in timepoints]
+        unknown = [n for n in selected if n not in names]
+        if unknown or not selected:
+            raise ValueError(f"timepoints {unknown or '(none)'}: the data set has {names}")
+        timepoints = tuple(tp for tp in timepoints if tp.name in set(selected))
+    out.mkdir(parents=True, exist_ok=True)
+    if not resume:
+        for tp in timepoints:
+            for v in variants:
+                _result_path(out, tp.name, v).unlink(missing_ok=True)
+    if workers is None:
+        workers = min(len(variants), os.cpu_count() or 1)
+    tasks = [_Task(str(Path(data_dir).resolve()), timepoints, v, method, int(nodes),
+                   str(out.resolve()), dict(start) if start else None) for v in variants]
+    total = len(tasks) * len(timepoints)
+    t0 = time.perf_counter()
+    reports: list = [None] * len(tasks)
+    from ._console import progress
+    with open_executor(workers, scheduler) as executor:
+        backend = backend_name(executor)
+        watched = _watch(executor, tasks, reports, out, timepoints, variants)
+        for _ in progress(watched, total=total, desc="fits", unit="fit"):
+            pass
+    seconds = time.perf_counter() - t0
+    records = {}
+    for tp in timepoints:
+        for v in variants:
+            rec = _read_record(_result_path(out, tp.name, v))
+            if rec is not None:
+                records[(tp.name, v)] = rec
+    done = [r for rep in reports for r in rep if r["computed"]]
+    result = CampaignResult(out, timepoints, variants, records, {
+        "seconds": seconds, "workers": 1 if backend == "serial" else workers,
+        "backend": backend, "computed": len(done),
+        "fit_seconds": float(sum(r["seconds"] for r in done)),
+        "fits": [dict(r, variant=tasks[i].variant) for i, rep in enumerate(reports)
+                 for r in rep]})
+    _write_atomic(out / SUMMARY, result.to_dataframe().to_csv(index=False))
+    return result
+
+
+def _watch(executor, tasks, reports, out, timepoints, variants) -> Iterator[None]:
+    """Run the tasks; yield once per finished fit (result files appearing), for a progress bar."""
+    paths = [_result_path(out, tp.name, v) for v in variants for tp in timepoints]
+
+    def count():
+        return sum(p.exists() for p in paths)
+    seen = 0
+    if isinstance(executor, SerialExecutor):    # runs at submission: report per variant
+        for i, task in enumerate(tasks):
+            reports[i] = _fit_variant(task)
+            now = count()
+            yield from (None for _ in range(now - seen))
+            seen = now
+        return
+    futures = {executor.submit(_fit_variant, task): i for i, task in enumerate(tasks)}
+    pending = set(futures)
+    while pending:
+        finished, pending = cf.wait(pending, timeout=0.5, return_when=cf.FIRST_COMPLETED)
+        for f in finished:
+            reports[futures[f]] = f.result()
+        now = count()
+        yield from (None for _ in range(now - seen))
+        seen = now
+
+
+def load_campaign(out: str | Path, data_dir: str | Path) -> CampaignResult:
+    """The stored results of a campaign (no fitting): for figures and reports."""
+    timepoints = read_timepoints(data_dir)
+    out = Path(out)
+    records, variants = {}, []
+    for v in VARIANTS:
+        for tp in timepoints:
+            rec = _read_record(_result_path(out, tp.name, v))
+            if rec is not None:
+                records[(tp.name, v)] = rec
+                if v not in variants:
+                    variants.append(v)
+    return CampaignResult(out, timepoints, tuple(variants), records)
+
+
+# --------------------------------------------------------------------------
+# numerical ablation of a fitted shape
+# --------------------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class NumericalAblation:
+    """A numerical ablation reached by continuation in Σ, and its check.
+
+    Attributes
+    ----------
+    ablation : Ablation
+        Pre-ablation (the intact, fitted shell), post-ablation (at the final
+        Σ) and the observables of :func:`morphoshell.ablation.ablate`.
+    steps, rejected : int
+        Accepted and retried steps of the continuation in Σ (after the first
+        cut, :data:`_FIRST_CUT` of the final one).
+    cold : Equilibrium or None
+        A cold solve at the final Σ on the same mesh (None if it failed).
+    cold_difference : float
+        max |x_continuation − x_cold| over the unknowns (NaN without a cold
+        solution): a few 1e-8 when both reach the same equilibrium.
+    """
+
+    ablation: Ablation
+    steps: int
+    rejected: int
+    cold: Equilibrium | None
+    cold_difference: float
+
+    def observables(self) -> dict[str, float]:
+        """The recoil observables (units: :data:`morphoshell.ablation.UNITS`)."""
+        return self.ablation.observables()
+
+
+def numerical_ablation(problem: Problem, cut: float = CUT, *, nodes: int = 200,
+                       pre: Equilibrium | None = None, cold: bool = True) -> NumericalAblation:
+    """Ablate a (fitted) shell by continuation in Σ from 0 to ``cut``.
+
+    Materials and Methods ("For numerical ablations, the value of Σ was
+    increased from Σ = 0 in these fitted shapes"): the intact shell (Σ = 0)
+    is solved on a mesh with a node at s = Σ; its state starts the cut shell
+    at Σ₀ = :data:`_FIRST_CUT` · Σ (interpolated, :func:`solve_from`), which
+    :func:`~morphoshell.continuation.continue_between` grows to Σ with
+    adaptive steps that are retried smaller when they fail or jump.
+
+    Parameters
+    ----------
+    problem : Problem
+        The fitted shell (its cut is ignored: Σ = 0 before, ``cut`` after).
+    cut : float
+        The final Σ (units of R).
+    nodes : int
+        Mesh nodes of both states.
+    pre : Equilibrium or fields, optional
+        The intact shell to carry onto the anchored mesh (an Equilibrium, or
+        :func:`fitted_state` of a campaign record: the fit's branch); by
+        default solved by continuation from the stress-free parameters.
+    cold : bool
+        Also solve the final Σ cold (from the solver's initial guess) on the
+        same mesh, for :attr:`NumericalAblation.cold_difference`.
+
+    Returns
+    -------
+    NumericalAblation
+    """
+    if not 0 < cut < problem.end:
+        raise ValueError(f"cut = {cut!r} must lie inside the shell (0, {problem.end:.6g})")
+    target = problem.with_updates(cut=float(cut))
+    intact = intact_problem(target)
+    if pre is None:
+        pre = solve(intact, nodes=nodes, anchors=(cut,))
+    else:
+        anchored = DirectSolver(intact.structure, mesh=mesh_spec(intact, nodes, 2, (cut,)))
+        pre = solve_from(anchored, intact, pre, anchors=(cut,))
+    solver = DirectSolver(target.structure, mesh=mesh_spec(target, nodes, 2))
+    first = target.with_updates(cut=_FIRST_CUT * cut)
+    post = solve_from(solver, first, pre)
+    post = continue_between(solver, post, target, first_step=0.25)
+    steps = int(post.solver.details.get("continuation_steps", 0))
+    rejected = _rejected(post)
+    cold_eq, diff = None, float("nan")
+    if cold:
+        try:
+            cold_eq = solver.solve(target)
+            diff = float(np.max(np.abs(cold_eq.x - post.x)))
+        except SolverError:
+            cold_eq = None
+    obs = recoil(edge_state(pre, cut), edge_state(post, cut))
+    removed = pre.energy_between(pre.s[0], cut)
+    ab = Ablation(problem=target, pre=pre, post=post, **{k: float(obs[k]) for k in RECOIL},
+                  energy_released=post.energy - (pre.energy - removed), energy_removed=removed)
+    return NumericalAblation(ab, steps, rejected, cold_eq, diff)
+
+
+def _rejected(eq: Equilibrium) -> int:
+    path = str(eq.solver.details.get("path", ""))
+    try:
+        return int(path.split("(")[1].split(" retried")[0])
+    except (IndexError, ValueError):
+        return 0

@@ -1,0 +1,107 @@
+"""``morphoshell campaign``: the Volvox fits of every timepoint and variant (paper Fig. 3 N, O)."""
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+from ._args import integer
+
+__all__ = ["register"]
+
+
+def _variants(text: str) -> tuple[str, ...]:
+    """A comma-separated list of Volvox variants (checked at parse time)."""
+    from ..fitting import VARIANTS
+
+    names = tuple(v.strip() for v in text.split(",") if v.strip())
+    bad = [v for v in names if v not in VARIANTS]
+    if not names or bad:
+        raise argparse.ArgumentTypeError(f"{text!r}: choose from {','.join(VARIANTS)}")
+    if len(set(names)) != len(names):
+        raise argparse.ArgumentTypeError(f"{text!r}: a variant is named twice")
+    return names
+
+
+def _out_dir(text: str) -> Path:
+    """An output folder: may exist (a folder, writable) or be created in an existing folder."""
+    import os
+
+    path = Path(text)
+    if not text.strip():
+        raise argparse.ArgumentTypeError("the output folder is empty")
+    if path.exists() and not path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text!r} is a file, not a folder")
+    probe = path if path.exists() else path.parent if str(path.parent) else Path(".")
+    if not probe.is_dir() or not os.access(probe, os.W_OK | os.X_OK):
+        raise argparse.ArgumentTypeError(f"{text!r}: {str(probe)!r} is not a writable folder")
+    return path
+
+
+def register(sub) -> None:
+    from ..fitting import METHODS, VARIANTS
+
+    p = sub.add_parser(
+        "campaign", help="fit every timepoint of an inversion sequence for each variant "
+                         "(parallel, resumable)",
+        description="Fit the Volvox model to the average midline of every timepoint listed in "
+                    "DATA_DIR/timepoints.csv (columns timepoint, pseudotime, midline; units of "
+                    "R), in order, each fit warm-started from the previous timepoint's, for "
+                    "each variant of the posterior intrinsic curvature kappa1 (flat 0, "
+                    "undeformed 1, unstressed 1/f1, free). f1, kappa3, kappa4 are fitted at the "
+                    "first timepoint and held after, except in the free variant. Variants run "
+                    "in parallel worker processes (Dask if installed, else a process pool). "
+                    "Writes OUT/<timepoint>_<variant>.json per fit (atomically: an interrupted "
+                    "campaign resumes where it stopped, with identical results) and "
+                    "OUT/campaign_summary.csv (E_fit in R and the parameters against "
+                    "pseudotime).")
+    p.add_argument("data_dir", metavar="DATA_DIR",
+                   help="folder with timepoints.csv (data/synthetic_inversion is a synthetic one)")
+    p.add_argument("--variants", type=_variants, default=VARIANTS, metavar="V1,V2",
+                   help=f"comma-separated variants (default: {','.join(VARIANTS)})")
+    p.add_argument("--method", choices=METHODS, default="gradient",
+                   help="fit method: gradient (exact Jacobian, default), kkt (one NLP with the "
+                        "equilibrium as constraints), nelder-mead (the paper's baseline)")
+    p.add_argument("--timepoints", default=None, metavar="T1,T2",
+                   help="fit only these timepoints (names from timepoints.csv, e.g. "
+                        "t01,t02,t03: a short campaign); default all")
+    p.add_argument("--nodes", type=integer(20, 2000), default=200, metavar="N",
+                   help="mesh nodes of the inner solves (default 200)")
+    p.add_argument("--workers", type=integer(1, 4096), default=None, metavar="N",
+                   help="worker processes (default: one per variant, at most one per CPU "
+                        "core); ignored with --scheduler")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="a running Dask scheduler, e.g. tcp://host:8786 (default: "
+                        "$DASK_SCHEDULER_ADDRESS, else a local cluster or process pool)")
+    p.add_argument("--out", type=_out_dir, default=Path("campaign"), metavar="DIR",
+                   help="output folder (default: ./campaign)")
+    resume = p.add_mutually_exclusive_group()
+    resume.add_argument("--resume", dest="resume", action="store_true", default=True,
+                        help="keep results already in DIR made with the same data, method and "
+                             "nodes, and fit only the missing ones (default)")
+    resume.add_argument("--no-resume", dest="resume", action="store_false",
+                        help="refit everything")
+    p.set_defaults(run=_campaign)
+
+
+def _campaign(args) -> int:
+    from ..campaign import SUMMARY, campaign, read_timepoints
+
+    read_timepoints(args.data_dir)          # bad input: exit 2 before any work
+    result = campaign(args.data_dir, args.variants, method=args.method, workers=args.workers,
+                      scheduler=args.scheduler, out=args.out, resume=args.resume,
+                      nodes=args.nodes, timepoints=args.timepoints)
+    t = result.timing
+    failed = sum(r["status"] != "ok" for r in result.records.values())
+    per = t["fit_seconds"] / t["computed"] if t["computed"] else math.nan
+    print(f"campaign of {len(result.timepoints)} timepoints x {len(result.variants)} variants "
+          f"({args.method}, {args.nodes} nodes) on {t['workers']} worker(s) ({t['backend']}): "
+          f"{t['computed']} fits in {t['seconds']:.3g} s ({per:.3g} s per fit), "
+          f"{len(result.records) - t['computed']} reused, {failed} failed")
+    df = result.to_dataframe()
+    if len(df):
+        table = df.pivot(index=["timepoint", "pseudotime"], columns="variant", values="E_fit")
+        print("E_fit [R]:")
+        print(table.to_string(float_format=lambda v: f"{v:.4g}"))
+    print(f"  wrote {result.out}/<timepoint>_<variant>.json and {result.out / SUMMARY}")
+    return 3 if failed == len(result.records) and failed else 0
