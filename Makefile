@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: run test docs fuzz bench figures clean
+.PHONY: run test docs fuzz bench figures campaign clean
 
 # test, docs and xarray extras: make test also builds the docs and checks to_xarray()
 $(STAMP): pyproject.toml
@@ -14,11 +14,19 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 ## run: solve every problem in problems/ (plots, JSON, out/summary.json), draw Fig. 2 D-I and
-## Fig. 2 J-K (estimates from the synthetic ablation table data/synthetic_ablations.csv)
+## Fig. 2 J-K (estimates from the synthetic ablation table data/synthetic_ablations.csv), and a
+## short fit campaign (3 synthetic timepoints x 3 variants, gradient, 100 nodes: about a minute)
 run: $(STAMP)
 	$(BIN)/python scripts/main_job.py --out out
 	$(BIN)/python scripts/fig2_toy_problems.py --out out/figures
 	$(BIN)/python scripts/fig2jk_estimates.py --out out/figures
+	$(BIN)/morphoshell campaign data/synthetic_inversion --timepoints t01,t02,t03 --variants flat,unstressed,free --method gradient --nodes 100 --workers 2 --out out/campaign_short
+
+## campaign: the full fit campaign on the synthetic inversion sequence (12 timepoints x 4
+## variants, gradient method) into out/campaign, then Fig. 3 D-O into out/figures
+campaign: $(STAMP)
+	$(BIN)/morphoshell campaign data/synthetic_inversion --method gradient --out out/campaign
+	$(BIN)/python scripts/fig3_fits.py --campaign out/campaign --out out/figures
 
 ## test: the whole test suite (with a strict build of the docs, tests/test_docs.py, and a
 ## clean-venv install of the package and a plugin, tests/test_packaging.py)

@@ -1,0 +1,165 @@
+#!/usr/bin/env python3
+"""Reproduce Fig. 3 D–O of the paper from the results of a fit campaign.
+
+Panels (paper, main text "The fitted mechanical sequence hints at an adaptive
+response to out-of-plane stresses", Fig. 3 caption; Materials and Methods
+"Fitting the morphoelastic model"):
+
+D–L  fits of the three fixed-κ₁ variants (columns: flat κ₁ = 0, undeformed
+     κ₁ = 1, unstressed κ₁ = 1/f₁) at an early, a mid and a late timepoint
+     (rows), each with its numerical ablation (pre-ablation light, post-
+     ablation dark: continuation in Σ from 0 to :data:`CUT`) and an inset of
+     the fitted midline (line) over the data (dots);
+M    overlay of the pre- (red) and post-ablation (cyan) sheets of the early
+     flat fit, their union white (as the micrographs of Fig. 1);
+N    E_fit against pseudotime for the four variants;
+O    fitted κ₁ of the free variant (± standard error) and 1/f₁ against
+     pseudotime, with the generating κ₁(t) of a synthetic data set; inset f₁.
+
+Writes fig3_D-L, fig3_M, fig3_N, fig3_O (PNG at 300 dpi and PDF) and
+fig3_ablations.json (the observables of the numerical ablations) to --out.
+
+Usage: python scripts/fig3_fits.py --campaign out/campaign [--data data/synthetic_inversion]
+       [--out out/figures] [--nodes 200]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import matplotlib
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+#: Cut Σ of the numerical ablations (units of R).
+CUT = 0.15
+FIXED = ("flat", "undeformed", "unstressed")
+LABELS = {"flat": "κ₁ = 0", "undeformed": "κ₁ = 1", "unstressed": "κ₁ = 1/f₁",
+          "free": "κ₁ fitted"}
+COLORS = {"flat": "C0", "undeformed": "C1", "unstressed": "C2", "free": "k"}
+
+
+def _stages(result) -> list:
+    """Early, mid and late timepoints: first, middle and last of the sequence."""
+    tps = result.timepoints
+    return [tps[0], tps[len(tps) // 2], tps[-1]]
+
+
+def main(argv=None) -> int:
+    """Draw the panels (see the module docstring); returns the exit status."""
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--campaign", type=Path, required=True, help="output folder of a campaign")
+    p.add_argument("--data", type=Path, default=ROOT / "data" / "synthetic_inversion",
+                   help="its data folder (default: data/synthetic_inversion)")
+    p.add_argument("--out", type=Path, default=Path("out/figures"), help="output folder")
+    p.add_argument("--nodes", type=int, default=200, help="mesh nodes of the ablations")
+    args = p.parse_args(argv)
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from morphoshell.campaign import fitted_problem, fitted_state, load_campaign, \
+        numerical_ablation
+    from morphoshell.plotting import (DOUBLE_COLUMN, SINGLE_COLUMN, label_panel, paper_style,
+                                      plot_ablation, plot_ablation_overlay, save)
+
+    result = load_campaign(args.campaign, args.data)
+    if not result.records:
+        print(f"no campaign results in {args.campaign}", file=sys.stderr)
+        return 2
+    truth_file = args.data / "synthetic_inversion.json"
+    truth = json.loads(truth_file.read_text()) if truth_file.exists() else None
+    args.out.mkdir(parents=True, exist_ok=True)
+    df = result.to_dataframe()
+    stages = _stages(result)
+    ablations = {}
+    with paper_style():
+        # ---------------------------------------------------------------- D–L
+        fig, axes = plt.subplots(3, 3, figsize=(DOUBLE_COLUMN, DOUBLE_COLUMN),
+                                 layout="constrained")
+        letters = iter("DEFGHIJKL")
+        first_flat = None
+        for i, tp in enumerate(stages):
+            for j, v in enumerate(FIXED):
+                ax = axes[i, j]
+                label_panel(ax, next(letters))
+                rec = result.records.get((tp.name, v))
+                if rec is None or rec["status"] != "ok":
+                    ax.text(0.5, 0.5, "no fit", ha="center", transform=ax.transAxes)
+                    ax.set_axis_off()
+                    continue
+                try:
+                    num = numerical_ablation(fitted_problem(rec), CUT, nodes=args.nodes,
+                                             pre=fitted_state(rec))
+                except Exception as exc:     # a figure with a gap beats no figure
+                    ablations[f"{tp.name}_{v}"] = {"error": str(exc)}
+                    ax.text(0.5, 0.5, "ablation failed", ha="center", transform=ax.transAxes)
+                    continue
+                if first_flat is None and v == "flat":
+                    first_flat = (tp, num)
+                ablations[f"{tp.name}_{v}"] = {**num.observables(), "steps": num.steps,
+                                               "cold_difference": num.cold_difference}
+                plot_ablation(num.ablation, ax, title=None, legend=False)
+                ax.set_title(f"{tp.name} (t = {tp.pseudotime:.2f}), {LABELS[v]}\n"
+                             f"E_fit = {rec['E_fit']:.3g} R, o = {num.ablation.opening:.3g} R",
+                             fontsize=7)
+                inset = ax.inset_axes([0.62, 0.02, 0.36, 0.36])
+                d, m = rec["data_midline"], rec["fitted_midline"]
+                inset.plot(d["r"], d["z"], ".", ms=1.5, color="0.4")
+                inset.plot(m["r"], m["z"], "-", lw=0.8, color=COLORS[v])
+                inset.set_aspect("equal")
+                inset.set_xticks([])
+                inset.set_yticks([])
+        save(fig, args.out / "fig3_D-L.png", ("png", "pdf"), close=True)
+        # ---------------------------------------------------------------- M
+        if first_flat is not None:
+            fig, ax = plt.subplots(figsize=(SINGLE_COLUMN, SINGLE_COLUMN), layout="constrained")
+            tp, num = first_flat
+            plot_ablation_overlay(num.ablation, ax, title=f"{tp.name}, κ₁ = 0: pre (red), "
+                                                          f"post (cyan), union (white)")
+            label_panel(ax, "M")
+            save(fig, args.out / "fig3_M.png", ("png", "pdf"), close=True)
+        # ---------------------------------------------------------------- N
+        fig, ax = plt.subplots(figsize=(SINGLE_COLUMN, 0.75 * SINGLE_COLUMN),
+                               layout="constrained")
+        for v in result.variants:
+            sub = df[(df.variant == v) & (df.status == "ok")]
+            ax.plot(sub.pseudotime, sub.E_fit, "o-", ms=3, color=COLORS[v], label=LABELS[v])
+        ax.set_xlabel("pseudotime")
+        ax.set_ylabel("E_fit / R")
+        ax.set_yscale("log")
+        ax.legend(fontsize=7)
+        label_panel(ax, "N")
+        save(fig, args.out / "fig3_N.png", ("png", "pdf"), close=True)
+        # ---------------------------------------------------------------- O
+        fig, ax = plt.subplots(figsize=(SINGLE_COLUMN, 0.75 * SINGLE_COLUMN),
+                               layout="constrained")
+        free = df[(df.variant == "free") & (df.status == "ok")]
+        if len(free):
+            ax.errorbar(free.pseudotime, free.kappa1, yerr=free.se_kappa1, fmt="o-", ms=3,
+                        color="k", capsize=2, label="fitted κ₁ (free)")
+            ax.plot(free.pseudotime, 1 / free.f1, "s--", ms=3, color="C2",
+                    label="1/f₁ (free)")
+        if truth is not None:
+            t = [tp["pseudotime"] for tp in truth["timepoints"]]
+            ax.plot(t, [tp["parameters"]["kappa1"] for tp in truth["timepoints"]], ":",
+                    color="C3", label="generating κ₁ (synthetic)")
+        ax.set_xlabel("pseudotime")
+        ax.set_ylabel("κ₁ · R")
+        ax.legend(fontsize=6, loc="upper left")
+        if len(free):
+            inset = ax.inset_axes([0.62, 0.12, 0.35, 0.35])
+            inset.plot(free.pseudotime, free.f1, "o-", ms=2, color="k")
+            inset.set_title("f₁", fontsize=7)
+            inset.tick_params(labelsize=6)
+        label_panel(ax, "O")
+        save(fig, args.out / "fig3_O.png", ("png", "pdf"), close=True)
+    (args.out / "fig3_ablations.json").write_text(json.dumps(ablations, indent=1) + "\n")
+    print(f"wrote fig3_D-L, fig3_M, fig3_N, fig3_O (.png, .pdf) and fig3_ablations.json "
+          f"to {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
