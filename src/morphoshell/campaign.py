@@ -51,7 +51,7 @@ from typing import Iterator, Sequence
 
 import numpy as np
 
-from .ablation import Ablation, edge_state, intact_problem
+from .ablation import Ablation, edge_state, intact_problem, recoil_jacobian
 from .continuation import continue_between
 from .direct import DirectSolver
 from .equilibrium import solve
@@ -65,8 +65,8 @@ from .refinement import solve_from
 from .results import Equilibrium, SolverError
 
 __all__ = ["Timepoint", "CampaignResult", "NumericalAblation", "campaign", "read_timepoints",
-           "load_campaign", "fitted_problem", "fitted_state", "numerical_ablation", "HELD", "CUT",
-           "RESULT_SUFFIX", "SUMMARY"]
+           "load_campaign", "fitted_problem", "fitted_state", "numerical_ablation",
+           "ablation_errors", "HELD", "CUT", "RESULT_SUFFIX", "SUMMARY"]
 
 #: Parameters fitted at the first timepoint and held after (all variants but ``free``).
 HELD = ("f1", "kappa3", "kappa4")
@@ -643,3 +643,41 @@ def _rejected(eq: Equilibrium) -> int:
         return int(path.split("(")[1].split(" retried")[0])
     except (IndexError, ValueError):
         return 0
+
+
+def ablation_errors(record: dict, ablation: Ablation) -> dict[str, float]:
+    """Standard errors of the recoil observables of a fitted shape's ablation.
+
+    The fit's Gauss–Newton covariance C of the fitted parameters θ (a lower
+    bound: the residuals of a traced midline are correlated) propagated
+    linearly, σ_y² = (J C Jᵀ)_yy, with J = dy/dθ the exact derivatives of the
+    observables (:func:`~morphoshell.ablation.recoil_jacobian`, through both
+    equilibria) and the ``unstressed`` tie κ₁ = 1/f₁ (dκ₁/df₁ = −1/f₁²).
+
+    Parameters
+    ----------
+    record : dict
+        A successful campaign record (``fitted``, ``standard_errors``,
+        ``correlation``, ``parameters``, ``variant``).
+    ablation : Ablation
+        Its numerical ablation (direct method, e.g. :func:`numerical_ablation`).
+
+    Returns
+    -------
+    dict
+        Observable name (:data:`morphoshell.observables.RECOIL`) → standard
+        error (units of :data:`morphoshell.ablation.UNITS`).
+    """
+    names = list(record["fitted"])
+    se = np.array([record["standard_errors"][n] for n in names], dtype=float)
+    corr = np.nan_to_num(np.array(record["correlation"], dtype=float))
+    np.fill_diagonal(corr, 1.0)
+    cov = corr * np.outer(se, se)
+    tied = record["variant"] == "unstressed"
+    wrt = names + (["kappa1"] if tied else [])
+    _, J = recoil_jacobian(ablation, wrt)
+    if tied:
+        f1 = record["parameters"]["f1"]
+        J = J[:, :-1] + np.outer(J[:, -1], [(-1 / f1 ** 2) if n == "f1" else 0.0 for n in names])
+    var = np.einsum("ij,jk,ik->i", J, cov, J)
+    return {k: float(np.sqrt(max(v, 0.0))) for k, v in zip(RECOIL, var)}

@@ -78,6 +78,9 @@ WINDOW = 2
 NEAR = 0.02
 #: Inner states kept as starting points.
 ARCHIVE = 64
+#: The gradient fit stops (not converged, at its best point) after this many
+#: consecutive trial points whose inner solve failed.
+MAX_FAILED_TRIALS = 4
 #: Nelder–Mead runs at most this many simplices (restarts around the best point).
 NM_RESTARTS = 8
 #: Overlap (in cell widths) over which the KKT fit blends neighbouring cells.
@@ -553,27 +556,51 @@ def _nelder_mead(spec, inner, tol, max_iterations):
     return theta, evaluations, bool(out.success), str(out.message)
 
 
+class _Stalled(Exception):
+    """Raised inside the gradient fit's residuals when trial points keep failing."""
+
+
 def _gradient(spec, inner, tol, max_iterations):
     from scipy.optimize import least_squares
+
+    failures, evaluations = [0], [0]
+    best = [spec.theta0, np.inf]
 
     def fun(theta):
         # A trial point whose inner solve fails (the continuation cannot reach
         # it: measured from the default start of the unstressed variant) or
         # that is infeasible (|eta| >= 1: measured on campaign steps) is
         # rejected like a bad step: the trust region shrinks on non-finite
-        # residuals instead of the fit aborting.
+        # residuals instead of the fit aborting.  When every trial fails (a
+        # state at a fold of the branch: measured, each failed trial cost ~15 s
+        # of continuation and the trust region shrank ~20 times per iteration,
+        # for many minutes), the fit stops at its best point, not converged.
+        evaluations[0] += 1
         try:
-            return inner.residuals(inner.solve(theta))
+            res = inner.residuals(inner.solve(theta))
         except (SolverError, ValueError):
+            failures[0] += 1
+            if failures[0] >= MAX_FAILED_TRIALS:
+                raise _Stalled from None
             return np.full(2 * inner.n, np.inf)
+        failures[0] = 0
+        cost = float(res @ res)
+        if cost < best[1]:
+            best[:] = [np.array(theta, dtype=float), cost]
+        return res
 
     def jac(theta):
         return inner.jacobian(inner.solve(theta), theta)
 
     lo, hi = spec.box()
-    out = least_squares(fun, spec.theta0, jac=jac, bounds=(lo, hi), method="trf",
-                        x_scale="jac", ftol=tol, xtol=1e-12, gtol=1e-12,
-                        max_nfev=max_iterations or 200)
+    try:
+        out = least_squares(fun, spec.theta0, jac=jac, bounds=(lo, hi), method="trf",
+                            x_scale="jac", ftol=tol, xtol=1e-12, gtol=1e-12,
+                            max_nfev=max_iterations or 200)
+    except _Stalled:
+        return (best[0], evaluations[0], False, f"stopped after {MAX_FAILED_TRIALS} consecutive trial "
+                                   f"points whose inner solve failed (a fold of the branch?); "
+                                   f"the best point reached is returned")
     return out.x, int(out.nfev), bool(out.status > 0), str(out.message)
 
 

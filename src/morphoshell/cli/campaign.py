@@ -39,6 +39,7 @@ def _out_dir(text: str) -> Path:
 
 
 def register(sub) -> None:
+    """Add ``morphoshell campaign`` to the subcommands ``sub``."""
     from ..fitting import METHODS, VARIANTS
 
     p = sub.add_parser(

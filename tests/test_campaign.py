@@ -1,0 +1,142 @@
+"""Fit campaigns (paper Fig. 3 N, O) and numerical ablations of fitted shapes (Fig. 3 M).
+
+A tiny SYNTHETIC sequence (scripts/make_synthetic_inversion.py: 3 timepoints
+of early invagination, where the flat hypothesis generated the data, 2 noisy
+embryo traces each) is fitted on a coarse mesh with the gradient method, so
+that the whole file runs in about a minute.
+"""
+import importlib.util
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from morphoshell.campaign import (campaign, fitted_problem, load_campaign, numerical_ablation,
+                                  read_timepoints)
+
+ROOT = Path(__file__).resolve().parents[1]
+NODES = 60
+TIMES = (0.0, 0.05, 0.1)          # kappa1 = 0 throughout: the flat variant generated them
+VARIANTS = ("flat", "unstressed", "free")
+
+
+def _generator():
+    spec = importlib.util.spec_from_file_location(
+        "make_synthetic_inversion", ROOT / "scripts" / "make_synthetic_inversion.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("synthetic")
+    truth = _generator().make(folder, pseudotimes=TIMES, embryos=2, nodes=120, quiet=True)
+    return folder, truth
+
+
+@pytest.fixture(scope="module")
+def serial(data, tmp_path_factory):
+    out = tmp_path_factory.mktemp("serial")
+    return campaign(data[0], VARIANTS, method="gradient", workers=1, out=out, nodes=NODES)
+
+
+def test_every_fit_is_written_and_summarised(serial, data):
+    assert serial.timing["computed"] == len(TIMES) * len(VARIANTS)
+    assert all(r["status"] == "ok" for r in serial.records.values()), \
+        {k: r.get("message") for k, r in serial.records.items() if r["status"] != "ok"}
+    df = serial.to_dataframe()
+    assert len(df) == 9 and set(df.variant) == set(VARIANTS)
+    assert (serial.out / "campaign_summary.csv").read_text().startswith("timepoint,pseudotime")
+    # held split: f1, kappa3, kappa4 fitted at t01 only, except in the free variant
+    for v in ("flat", "unstressed"):
+        first = serial.record("t01", v)["parameters"]
+        for tp in ("t02", "t03"):
+            rec = serial.record(tp, v)
+            assert "f1" not in rec["fitted"] and rec["held"]["f1"] == first["f1"]
+            assert rec["parameters"]["kappa3"] == first["kappa3"]
+            assert rec["started_from"] == f"fit of t0{int(tp[-1]) - 1}"
+    assert "kappa1" in serial.record("t03", "free")["fitted"]
+    assert serial.record("t02", "unstressed")["parameters"]["kappa1"] == \
+        pytest.approx(1 / serial.record("t02", "unstressed")["parameters"]["f1"])
+    again = load_campaign(serial.out, data[0])
+    assert set(again.records) == set(serial.records)
+
+
+def test_generating_variant_fits_best_and_free_recovers_kappa1(serial, data):
+    _, truth = data
+    for tp, gt in zip(serial.timepoints, truth["timepoints"]):
+        E = {v: serial.record(tp.name, v)["E_fit"] for v in VARIANTS}
+        # the flat hypothesis generated these shapes: it beats kappa1 = 1/f1
+        # (measured margin at t01: 0.0074 vs 0.0085 R)
+        assert E["flat"] < E["unstressed"], (tp.name, E)
+    # The free fit of the first timepoint (from the common start, before any
+    # warm start) recovers kappa1 = 0 within two of its standard errors
+    # (measured: 0.006 +- 0.059).  Later early-invagination timepoints are not
+    # asserted: shape alone identifies kappa1 poorly there (the paper needs the
+    # ablations to tell the hypotheses apart at early invagination; measured
+    # 0.70 +- 0.15 at t02, a poorly identified direction kappa1-kappa3-kappa4).
+    free = serial.record("t01", "free")
+    k, se = free["parameters"]["kappa1"], free["standard_errors"]["kappa1"]
+    assert abs(k - truth["timepoints"][0]["parameters"]["kappa1"]) < 2 * se, (k, se)
+    assert se < 0.2          # a standard error that still says something
+
+
+def test_resume_redoes_only_the_missing_result_bit_identically(serial, data, tmp_path):
+    out = tmp_path / "resumed"
+    shutil.copytree(serial.out, out)
+    missing = out / "t02_free.json"
+    before = missing.read_bytes()
+    missing.unlink()
+    again = campaign(data[0], VARIANTS, method="gradient", workers=1,
+                     out=out, nodes=NODES)
+    assert again.timing["computed"] == 1
+    assert [f["timepoint"] + f["variant"] for f in again.timing["fits"] if f["computed"]] == \
+        ["t02free"]
+    assert missing.read_bytes() == before
+    for path in serial.out.glob("t*.json"):
+        assert (out / path.name).read_bytes() == path.read_bytes(), path.name
+
+
+def test_two_worker_local_cluster_gives_the_same_files(serial, data, tmp_path):
+    pytest.importorskip("distributed")
+    out = tmp_path / "cluster"
+    # two variants on two workers, the first two timepoints (a short campaign)
+    result = campaign(data[0], ("flat", "free"), method="gradient", workers=2, out=out,
+                      nodes=NODES, timepoints=("t01", "t02"))
+    assert result.timing["backend"] == "dask" and result.timing["workers"] == 2
+    assert result.timing["computed"] == 4 and len(list(out.glob("t*.json"))) == 4
+    for path in out.glob("t*.json"):
+        assert path.read_bytes() == (serial.out / path.name).read_bytes(), path.name
+
+
+def test_numerical_ablation_continuation_agrees_with_cold_solve(serial):
+    from morphoshell.ablation import ablate
+
+    problem = fitted_problem(serial.record("t01", "flat"))
+    num = numerical_ablation(problem, 0.15, nodes=NODES)
+    assert num.steps >= 1
+    # kappa1 = 0: a sizeable recoil (the paper: only the flat posterior opens at
+    # early invagination); the cut opens and the rim rotates outwards
+    assert num.ablation.opening > 1e-3 and num.ablation.rotation > 0
+    assert num.ablation.energy_released < 0
+    if num.cold is not None:
+        # the same equilibrium on the same mesh: agreement to the solver's tolerance
+        assert num.cold_difference < 1e-6
+        assert num.cold.energy == pytest.approx(num.ablation.post.energy, abs=1e-10)
+    # and the library's ablate(), reached from the stress-free parameters
+    ref = ablate(problem.with_updates(cut=0.15), nodes=NODES)
+    for k, v in ref.observables().items():
+        assert getattr(num.ablation, k) == pytest.approx(v, abs=1e-6), k
+
+
+def test_bad_input_is_refused_before_any_work(tmp_path, data):
+    with pytest.raises(ValueError, match="timepoints.csv"):
+        read_timepoints(tmp_path)
+    with pytest.raises(ValueError, match="choose from"):
+        campaign(data[0], ("flat", "curly"), out=tmp_path / "x")
+    with pytest.raises(ValueError, match="method"):
+        campaign(data[0], ("flat",), method="newton", out=tmp_path / "x")
+    assert not (tmp_path / "x").exists()
