@@ -140,3 +140,20 @@ def test_bad_input_is_refused_before_any_work(tmp_path, data):
     with pytest.raises(ValueError, match="method"):
         campaign(data[0], ("flat",), method="newton", out=tmp_path / "x")
     assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.parametrize("args", [["{missing}"], ["{data}", "--variants", "flat,curly"],
+                                  ["{data}", "--out", "{file}"], ["{data}", "--timepoints", "t99"],
+                                  ["{data}", "--method", "newton"], ["{data}", "--workers", "0"]])
+def test_command_line_refuses_bad_input_with_status_2(args, data, tmp_path, capsys):
+    from morphoshell.cli import main
+
+    (tmp_path / "file.txt").write_text("x")
+    subs = {"missing": str(tmp_path / "nope"), "data": str(data[0]),
+            "file": str(tmp_path / "file.txt")}
+    out = tmp_path / "out"
+    assert main(["campaign", *[a.format(**subs) for a in args], "--out", str(out)]
+                if "--out" not in args else ["campaign", *[a.format(**subs) for a in args]]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "error" in err
+    assert not out.exists()
