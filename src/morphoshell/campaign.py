@@ -80,8 +80,9 @@ SUMMARY = "campaign_summary.csv"
 #: A fitted value this close to a bound is moved inside it before it starts the next fit.
 _MARGIN = 1e-6
 #: First cut of the Σ continuation, as a fraction of the final one (the cap removed
-#: from the intact shell in one step; continue_between then grows it adaptively).
-_FIRST_CUT = 0.125
+#: from the intact shell in one step; continue_between then grows it adaptively):
+#: the smallest of these that the final mesh holds.
+_FIRST_CUTS = (0.125, 0.25, 0.5, 0.75)
 
 
 @dataclass(frozen=True)
@@ -372,10 +373,24 @@ def _fit_one(task: _Task, tp: Timepoint, prev: dict | None, first: dict | None,
            **settings, "started_from": origin, "held": hold}
     try:
         spec = volvox_spec(task.variant, start=start, hold=hold)
-        eq0 = None if prev is None else _start_state(spec.base, prev["state"], task.nodes)
+    except ValueError as exc:
+        return {**rec, "status": "failed", "message": f"{type(exc).__name__}: {exc}"}
+    eq0 = None if prev is None else _start_state(spec.base, prev["state"], task.nodes)
+    try:
         result = fit(spec, data, task.method, nodes=task.nodes, start=eq0)
     except (FitError, SolverError, ValueError) as exc:
-        return {**rec, "status": "failed", "message": f"{type(exc).__name__}: {exc}"}
+        if eq0 is None:
+            return {**rec, "status": "failed", "message": f"{type(exc).__name__}: {exc}"}
+        # The previous fit's state can sit near a fold of the branch, where no
+        # solve from it converges (measured: unstressed variant, t08 of the
+        # synthetic sequence).  Retry once from the physical branch, reached by
+        # continuation from the stress-free parameters at the same start values.
+        rec["started_from"] += f" (its state failed: {type(exc).__name__}; restarted by " \
+                               f"continuation from the stress-free parameters)"
+        try:
+            result = fit(spec, data, task.method, nodes=task.nodes, start=None)
+        except (FitError, SolverError, ValueError) as exc2:
+            return {**rec, "status": "failed", "message": f"{type(exc2).__name__}: {exc2}"}
     d = result.to_dict()
     d.pop("seconds")             # wall-clock time would break bit-identical resumes
     eq = result.equilibrium
@@ -558,7 +573,7 @@ class NumericalAblation:
         Σ) and the observables of :func:`morphoshell.ablation.ablate`.
     steps, rejected : int
         Accepted and retried steps of the continuation in Σ (after the first
-        cut, :data:`_FIRST_CUT` of the final one).
+        cut, the smallest of :data:`_FIRST_CUTS` of the final one that its mesh holds).
     cold : Equilibrium or None
         A cold solve at the final Σ on the same mesh (None if it failed).
     cold_difference : float
@@ -584,7 +599,8 @@ def numerical_ablation(problem: Problem, cut: float = CUT, *, nodes: int = 200,
     Materials and Methods ("For numerical ablations, the value of Σ was
     increased from Σ = 0 in these fitted shapes"): the intact shell (Σ = 0)
     is solved on a mesh with a node at s = Σ; its state starts the cut shell
-    at Σ₀ = :data:`_FIRST_CUT` · Σ (interpolated, :func:`solve_from`), which
+    at Σ₀ = Σ/8 (or Σ/4, Σ/2, 3Σ/4 where the mesh needs it; interpolated,
+    :func:`~morphoshell.refinement.solve_from`), which
     :func:`~morphoshell.continuation.continue_between` grows to Σ with
     adaptive steps that are retried smaller when they fail or jump.
 
@@ -618,8 +634,20 @@ def numerical_ablation(problem: Problem, cut: float = CUT, *, nodes: int = 200,
         anchored = DirectSolver(intact.structure, mesh=mesh_spec(intact, nodes, 2, (cut,)))
         pre = solve_from(anchored, intact, pre, anchors=(cut,))
     solver = DirectSolver(target.structure, mesh=mesh_spec(target, nodes, 2))
-    first = target.with_updates(cut=_FIRST_CUT * cut)
-    post = solve_from(solver, first, pre)
+    # The mesh's knots follow the breakpoints at fixed fractions of [Σ, π − P]:
+    # far below the final Σ the map to s can fold (measured: Σ/8 for a fitted
+    # undeformed shell), so the first cut is the smallest of these that the
+    # final mesh holds.
+    post = None
+    for fraction in _FIRST_CUTS:
+        try:
+            post = solve_from(solver, target.with_updates(cut=fraction * cut), pre)
+            break
+        except ValueError:
+            continue
+    if post is None:
+        raise ValueError(f"the mesh of the cut shell at Σ = {cut:g} cannot hold a first cut "
+                         f"of {_FIRST_CUTS[-1]:g} Σ")
     post = continue_between(solver, post, target, first_step=0.25)
     steps = int(post.solver.details.get("continuation_steps", 0))
     rejected = _rejected(post)
