@@ -598,9 +598,9 @@ def _gradient(spec, inner, tol, max_iterations):
                             x_scale="jac", ftol=tol, xtol=1e-12, gtol=1e-12,
                             max_nfev=max_iterations or 200)
     except _Stalled:
-        return (best[0], evaluations[0], False, f"stopped after {MAX_FAILED_TRIALS} consecutive trial "
-                                   f"points whose inner solve failed (a fold of the branch?); "
-                                   f"the best point reached is returned")
+        return (best[0], evaluations[0], False,
+                f"stopped after {MAX_FAILED_TRIALS} consecutive trial points whose inner "
+                f"solve failed (a fold of the branch?); the best point reached is returned")
     return out.x, int(out.nfev), bool(out.status > 0), str(out.message)
 
 
