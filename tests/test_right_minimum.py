@@ -111,7 +111,9 @@ def test_error_estimate_holds_before_the_asymptotic_range():
     # found by make fuzz: the error of psi(Sigma) shrank only 1.7x from 100 to
     # 200 nodes (1.2e-8 -> 7.0e-9), and the plain difference 5.0e-9
     # under-stated it; the limit from 1600 nodes (error ~2e-11 there)
-    problem = Problem("volvox", {"f1": 0.90625, "f2": 1.09375, "kappa1": 0.5, "kappa2": -2.0,
+    problem = Problem("volvox", {"f1": 0.90625, "f2": 1.09375, "f3": 1.0, "f4": 1.0, "f5": 1.0,
+                                 "kappa1": 0.5, "kappa2": -2.0, "kappa3": 1.0, "kappa4": 1.0,
+                                 "sigma": 0.05,
                                  "s1": 1.1867676689142115, "s2": 1.460637130971337,
                                  "s3": 1.7345065930284627, "s4": 2.0996658757712967},
                       h=0.23713737056616552, cut=1.158203125, opening=0.3)
