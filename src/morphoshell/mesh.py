@@ -26,12 +26,11 @@ from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
-from scipy.special import gamma, gammainc
 
 from .energy import boundary_layer_width
 
 __all__ = ["boundary_layer_width", "pole_exponent", "graded_mesh", "shell_points", "MeshSpec",
-           "mesh_spec", "knot_for", "Knot", "breakpoints"]
+           "mesh_spec", "knot_for", "Knot", "breakpoints", "lower_gamma"]
 
 
 #: Smallest cell (in t) next to a pole; see :func:`graded_mesh`.
@@ -155,6 +154,31 @@ def graded_mesh(cells: int, length: float, start: str, end: str, width: float,
                            bounds, bumps)
 
 
+def lower_gamma(a: float, x) -> np.ndarray:
+    """The lower incomplete gamma function γ(a, x) = ∫₀^x t^(a−1) e^(−t) dt, for 0 < a ≤ 1, x ≥ 0.
+
+    The series x^a e^(−x) Σ_n x^n / (a (a+1) … (a+n)) (positive terms: no
+    cancellation), summed to round-off in one cumulative product; above
+    x = 40, γ(a, x) = Γ(a) to 1e-18.  Agrees with ``scipy.special`` to ~1e-15
+    relative.  Here so that building a mesh does not import scipy.special
+    (0.1–0.4 s, most of a fresh process's first solve).
+    """
+    shape = np.shape(x)
+    x = np.atleast_1d(np.asarray(x, dtype=float)).ravel()
+    out = np.full_like(x, math.gamma(a))
+    low = x <= 40.0
+    if low.any():
+        xs = x[low]
+        top = float(xs.max())
+        # terms peak at n ≈ x and then fall like exp(−(n − x)²/2x): below 1e-17 after 9√x
+        n = np.arange(1, int(top + 9 * math.sqrt(top) + 20))
+        terms = np.cumprod(xs[:, None] / (a + n[None, :]), axis=1)
+        total = (1.0 + terms.sum(axis=1)) / a
+        with np.errstate(divide="ignore"):
+            out[low] = np.where(xs > 0, total * np.exp(a * np.log(xs) - xs), 0.0)
+    return out.reshape(shape)
+
+
 def _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge_scale, bounds,
                     bumps=()):
     """Nodes equidistributing the density of :func:`graded_mesh`, with nodes at ``bounds``."""
@@ -169,7 +193,7 @@ def _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge
             if small_edge:
                 out = out + 0.05 * (np.log1p(d / ell_c) - np.log1p(d / ell))
             return out
-        return pole_width * gamma(1 / q) * gammainc(1 / q, d / pole_width)
+        return pole_width * lower_gamma(1 / q, d / pole_width)
 
     def bump(x, c, w):
         # ∫₀^x KNOT_REFINEMENT exp(−|u − c|/w) du
