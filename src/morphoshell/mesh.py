@@ -263,10 +263,11 @@ def _invert(W, dW, target: np.ndarray) -> np.ndarray:
     i = np.clip(np.searchsorted(Wg, target, side="right") - 1, 0, len(grid) - 2)
     lo, hi, f_lo, f_hi, d_lo, d_hi = (grid[i], grid[i + 1], Wg[i] - target, Wg[i + 1] - target,
                                       dg[i], dg[i + 1])
-    tol = 1e-14 * np.maximum(np.abs(target), 1.0)   # W's own round-off
+    # W's round-off (sums of terms up to ~W(1)): below it Newton only bounces
+    tol = 1e-14 * np.abs(target) + 1e-17
     x = np.where(np.abs(f_lo) <= np.abs(f_hi), lo, hi)
     done = (np.abs(f_lo) <= tol) | (np.abs(f_hi) <= tol)
-    for _ in range(100):
+    for _ in range(80):
         a = np.flatnonzero(~done)   # only the unconverged nodes are re-evaluated
         if not len(a):
             break
@@ -274,10 +275,15 @@ def _invert(W, dW, target: np.ndarray) -> np.ndarray:
         with np.errstate(divide="ignore", invalid="ignore"):
             c_lo, c_hi = l - f_lo[a] / d_lo[a], h - f_hi[a] / d_hi[a]
         in_lo, in_hi = (c_lo > l) & (c_lo < h), (c_hi > l) & (c_hi < h)
-        new = np.where(in_lo & (~in_hi | (np.abs(f_lo[a]) <= np.abs(f_hi[a]))), c_lo,
-                       np.where(in_hi, c_hi, (l + h) / 2))
-        stop = h - l <= 4e-16 * h
-        x[a] = np.where(stop, x[a], new)
+        use_lo = in_lo & (~in_hi | (np.abs(f_lo[a]) <= np.abs(f_hi[a])))
+        use_hi = ~use_lo & in_hi
+        new = np.where(use_lo, c_lo, np.where(use_hi, c_hi, (l + h) / 2))
+        start = np.where(use_lo, l, h)
+        # converged: a Newton step below round-off of x (relative: nodes at a
+        # pole are ~1e-15 and must keep all their digits), or the bracket closed
+        stop = (((use_lo | use_hi) & (np.abs(new - start) <= 2.3e-16 * np.abs(start)))
+                | (h - l <= 2.3e-16 * h))
+        x[a] = np.where(stop & (use_lo | use_hi), new, np.where(stop, x[a], new))
         f, d = W(x[a]) - target[a], dW(x[a])
         done[a] = stop | (np.abs(f) <= tol[a])
         below = f < 0
