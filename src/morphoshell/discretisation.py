@@ -695,8 +695,9 @@ class Discretisation:
         ok = (I >= 0) & (J >= 0)
         n_tri = len(ku)
         src = (np.arange(n_tri)[:, None] + n_tri * np.arange(cells)[None, :])[ok]
-        return self._assemble((n + m, n + m), np.minimum(I, J)[ok], np.maximum(I, J)[ok], src,
-                              ca.vec(values), n_tri * cells)
+        sp, B = self._scatter((n + m, n + m), np.minimum(I, J)[ok], np.maximum(I, J)[ok], src,
+                              n_tri * cells)
+        return ca.MX(sp, ca.mtimes(B, ca.vec(values)))
 
     def state_at(self, x: np.ndarray, p: np.ndarray, q, z_points: np.ndarray,
                  s_star: float) -> dict:
