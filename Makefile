@@ -6,11 +6,11 @@ STAMP  := $(VENV)/.installed
 
 .PHONY: run test docs fuzz bench figures campaign clean
 
-# test, docs and xarray extras: make test also builds the docs and checks to_xarray()
+# test, docs, xarray and dask extras: make test also builds the docs, checks to_xarray() and runs a 2-worker Dask LocalCluster
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test,docs,xarray]'
+	$(BIN)/python -m pip install --quiet -e '.[test,docs,xarray,dask]'
 	touch $(STAMP)
 
 ## run: solve every problem in problems/ (plots, JSON, out/summary.json), draw Fig. 2 D-I and

@@ -32,7 +32,7 @@ import time
 from pathlib import Path
 
 from morphoshell._console import configure
-from morphoshell.cli.estimate import figure_JK, panel_J, panel_K
+from morphoshell.plotting import figure_JK, plot_k_estimates, plot_recoil_velocity
 from morphoshell.inverse import estimate
 from morphoshell.io import write_csv, write_json
 from morphoshell.plotting import plt
@@ -89,8 +89,8 @@ def _run(args) -> int:
     print(result)
     truth = ground_truth(table)
     written = []
-    for name, draw, size in (("J", lambda ax: panel_J(ax, result, truth), (7.6, 4.4)),
-                             ("K", lambda ax: panel_K(ax, result), (4.4, 4.0))):
+    for name, draw, size in (("J", lambda ax: plot_k_estimates(ax, result, truth), (7.6, 4.4)),
+                             ("K", lambda ax: plot_recoil_velocity(ax, result), (4.4, 4.0))):
         fig, ax = plt.subplots(figsize=size, constrained_layout=True)
         draw(ax)
         written += _save(fig, out / f"fig2_{name}")

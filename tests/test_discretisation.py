@@ -1,4 +1,5 @@
 """The transcription: quadrature, integration to the points, cell polynomials, order 6."""
+import casadi as ca
 import numpy as np
 import pytest
 
@@ -81,3 +82,33 @@ def test_anchored_solution_equals_the_unanchored_one_to_the_mesh_error():
     assert eq.energy == pytest.approx(plain.energy, rel=1e-9)
     with pytest.raises(ValueError, match=r"anchor s = 4.0 must lie inside the shell \(0, 3.14159\)"):
         solve(problem, nodes=400, anchors=(4.0,))
+
+
+@pytest.mark.parametrize("problem", [Problem("volvox", h=0.15, opening=0.3),
+                                     Problem("uniform", {"k": 0.3}, h=0.3, cut=0.3)],
+                         ids=["volvox", "uniform-cut"])
+def test_kkt_curvature_equals_the_hessian_of_the_assembled_residual(problem):
+    """The per-cell kernels give ∂²/∂(x, λ)² of μ·F − μ_dz·Δz − μ_dS·ΔS exactly."""
+    from morphoshell.mesh import mesh_spec
+    from morphoshell.parametric import parametric
+
+    solver = DirectSolver(problem.structure, mesh=mesh_spec(problem, 30, 2))
+    d = solver.disc
+    n, m, nc = d.layout.size, d.g.shape[0], d.layout.cells
+    x, lam = ca.MX.sym("x", n), ca.MX.sym("lam", m)
+    F = parametric(solver).kkt_residual(x, lam, d.p, d.q)
+    sh = d.shape(x, d.p, d.q)
+    dz, dS = sh.increments()
+    mu, a, b = ca.MX.sym("mu", n + m), ca.MX.sym("a", nc), ca.MX.sym("b", nc)
+    direct = ca.triu(ca.hessian(ca.dot(mu, F) - ca.dot(a, dz) - ca.dot(b, dS),
+                                ca.vertcat(x, lam))[0])
+    kernels = d.kkt_curvature(x, lam, d.pre(d.p, d.q), mu, a, b, sh.s_nodes[1:] - sh.s_nodes[:nc])
+    f = ca.Function("f", [x, lam, d.p, d.q, mu, a, b], [direct, kernels])
+    rng = np.random.default_rng(0)
+    p = problem.parameter_vector()
+    x0 = d.initial_guess(p, np.zeros(0)) + 0.01 * rng.normal(size=n)
+    one, two = (np.array(v) for v in f(x0, rng.normal(size=m), p, np.zeros(d.q.shape[0]),
+                                       rng.normal(size=n + m), rng.normal(size=nc),
+                                       rng.normal(size=nc)))
+    assert np.abs(one).max() > 1
+    assert np.abs(one - two).max() < 1e-12 * np.abs(one).max()

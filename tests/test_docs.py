@@ -171,3 +171,16 @@ def test_every_public_function_class_and_method_has_a_docstring():
                     if not (f.__doc__ or "").strip():
                         missing.append(f"{module.__name__}.{name}.{attr}")
     assert not missing, f"no docstring: {sorted(set(missing))}"
+
+
+def test_docstring_examples_run():
+    """The ``>>>`` examples in the package's docstrings give the output they show."""
+    import doctest
+
+    failed = attempted = 0
+    for module in _public_modules():
+        result = doctest.testmod(module, optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
+        failed += result.failed
+        attempted += result.attempted
+    assert attempted >= 3
+    assert failed == 0, f"{failed} of {attempted} docstring examples failed (output above)"

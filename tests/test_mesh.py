@@ -117,3 +117,25 @@ def test_a_kink_no_longer_costs_the_order():
     orders = np.log2(np.abs(np.diff(E))[:-1] / np.abs(np.diff(E))[1:])
     assert np.all(orders > 3.5), orders
     assert abs(E[1] / E[-1] - 1) < 1e-5
+
+
+def test_lower_gamma_matches_scipy():
+    # the mesh's own incomplete gamma (so that meshing does not import scipy.special)
+    from scipy.special import gamma, gammainc
+    from morphoshell.mesh import lower_gamma
+    x = np.concatenate([[0.0], np.logspace(-10, 3, 300)])
+    for a in (0.2, 0.25, 0.5, 2 / 3, 1.0):
+        ref = gamma(a) * gammainc(a, x)
+        assert np.allclose(lower_gamma(a, x), ref, rtol=1e-13, atol=0)
+    assert np.shape(lower_gamma(0.25, 3.0)) == ()
+
+
+def test_a_solve_imports_no_scipy():
+    # start-up time of the command line: scipy is imported only where it is used
+    import subprocess
+    import sys
+    code = ("import sys, morphoshell, morphoshell.cli; from morphoshell import Problem, solve; "
+            "solve(Problem('uniform', {'k': 0.0}, h=0.3, cut=0.3), nodes=50); "
+            "print(sorted(m for m in sys.modules if m.split('.')[0] == 'scipy'))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"

@@ -76,10 +76,10 @@ def test_error_estimate_bounds_the_actual_error():
         for key, err in eq.error.errors.items():
             actual = abs(eq.estimated_values()[key] - fine[key])
             assert actual <= err + 1e-13, (problem.family, key, actual, err)
-            # and it is not wildly pessimistic: 2^4 - 1 = 15 times on resolved
-            # fourth-order meshes; up to 67 times (measured: Volvox z_end) where
-            # the quarter mesh (25 nodes) is far from resolved
-            assert err < 100 * actual + 1e-11, (problem.family, key, actual, err)
+            # and it is not wildly pessimistic: SAFETY (2) x (2^4 - 1) = 30 times
+            # on resolved fourth-order meshes; up to 138 times (measured: Volvox
+            # z_end) where the quarter mesh (25 nodes) is far from resolved
+            assert err < 200 * actual + 1e-11, (problem.family, key, actual, err)
 
 
 def test_rtol_refines_until_met_or_raises():
@@ -105,3 +105,20 @@ def test_neutral_problem():
     n = neutral_problem(p)
     assert n.params["f2"] == 1.0 and n.params["s2"] == p.params["s2"]
     assert neutral_problem(Problem("uniform", {"k": 1.0}, h=0.1)) is None
+
+
+def test_error_estimate_holds_before_the_asymptotic_range():
+    # found by make fuzz: the error of psi(Sigma) shrank only 1.7x from 100 to
+    # 200 nodes (1.2e-8 -> 7.0e-9), and the plain difference 5.0e-9
+    # under-stated it; the limit from 1600 nodes (error ~2e-11 there)
+    problem = Problem("volvox", {"f1": 0.90625, "f2": 1.09375, "f3": 1.0, "f4": 1.0, "f5": 1.0,
+                                 "kappa1": 0.5, "kappa2": -2.0, "kappa3": 1.0, "kappa4": 1.0,
+                                 "sigma": 0.05,
+                                 "s1": 1.1867676689142115, "s2": 1.460637130971337,
+                                 "s3": 1.7345065930284627, "s4": 2.0996658757712967},
+                      h=0.23713737056616552, cut=1.158203125, opening=0.3)
+    eq = solve(problem, nodes=200)
+    limit = solve(problem, nodes=1600).estimated_values()
+    for key, err in eq.error.errors.items():
+        actual = abs(eq.estimated_values()[key] - limit[key])
+        assert actual <= err + 1e-12, (key, actual, err)

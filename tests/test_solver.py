@@ -117,3 +117,46 @@ def test_equilibrium_fields_are_consistent():
     # the phialopore rim is free: no force, no torque -> N_s = M_s = 0 there
     assert abs(eq.N_s[-1]) < 1e-4 * np.max(np.abs(eq.N_s))
     assert abs(eq.M_s[-1]) < 1e-3 * np.max(np.abs(eq.M_s))
+
+
+def test_warm_solves_are_certified_without_an_ipopt_refactorisation(blister):
+    problem = Problem("uniform", {"k": 0.0}, h=0.3, cut=0.3)
+    solver = DirectSolver(problem.structure, 100)
+    base = solver.solve(problem)
+    eq = solver.solve(problem.with_updates(h=0.303), warm_start=base)
+    assert eq.solver.details["stability"] in ("ipopt_last_step", "penalised_ldl")
+    assert eq.solver.details["inertia_correction"] == 0
+    # the penalised factorisation never certifies a saddle: the exact check decides
+    saddle_solver = DirectSolver(blister.structure, 200)
+    with pytest.raises(NotAMinimumError) as exc:
+        saddle_solver.solve(blister)
+    saddle = exc.value.last_iterate
+    D = saddle_solver.disc.cell_data(blister.parameter_vector())
+    assert not saddle_solver.backend.penalised_certificate(saddle.x, D, saddle.lam_g)
+
+
+def test_compiled_kernels_match_casadi(monkeypatch, tmp_path):
+    from morphoshell import discretisation as disc
+    problem = Problem("uniform", {"k": 0.0}, h=0.3, cut=0.3)
+    monkeypatch.setenv("MORPHOSHELL_CACHE_DIR", str(tmp_path))
+    disc.compiled_cell_functions.cache_clear()
+    try:
+        solver = DirectSolver(problem.structure, 30)
+        if solver.disc.kernels != "compiled":
+            pytest.skip("no working C compiler: the CasADi kernels are used")
+        d, eq = solver.disc, solver.solve(problem)
+        D = d.cell_data(problem.parameter_vector())
+        for name, args in (("grad_f", (eq.x, D)), ("jac_g", (eq.x, D)),
+                           ("hess_lag", (eq.x, D, 1.0, eq.lam_g)), ("fields", (eq.x, D))):
+            fast = [np.array(v) for v in d.numeric[name].call(list(args))]
+            slow = [np.array(v) for v in d._nlp(disc._cell_functions(2))[name].call(list(args))]
+            for a, b in zip(fast, slow):
+                assert np.allclose(a, b, rtol=1e-12, atol=1e-12 * np.max(np.abs(b))), name
+        # without a compiler (or with MORPHOSHELL_COMPILE=0) the same results from CasADi
+        monkeypatch.setenv("MORPHOSHELL_COMPILE", "0")
+        disc.compiled_cell_functions.cache_clear()
+        plain = DirectSolver(problem.structure, 30)
+        assert plain.disc.kernels == "casadi"
+        assert np.allclose(plain.solve(problem).x, eq.x, rtol=1e-9, atol=1e-12)
+    finally:
+        disc.compiled_cell_functions.cache_clear()

@@ -20,16 +20,50 @@ The common entry points are importable from here: :class:`Problem`,
 """
 __version__ = "0.1.0"   # the one version source (pyproject.toml reads it)
 
-from .problem import Problem, Structure  # noqa: E402
-from .profiles import ProfileFamily, Profiles, register_family  # noqa: E402
-from .results import Equilibrium, NotAMinimumError, SolverError  # noqa: E402
-from .direct import DirectSolver  # noqa: E402
-from .equilibrium import solve  # noqa: E402
-from .parametric import Parametric  # noqa: E402
-from .ablation import Ablation, ablate  # noqa: E402
-from .inverse import estimate  # noqa: E402
-from .io import example_path, examples, load_problem  # noqa: E402
-from .sweep import sweep  # noqa: E402  (the function; the module is morphoshell.sweep)
+import importlib
+import sys
+import types
+
+# Submodules are imported on first use of a name (PEP 562): the command line
+# and ``import morphoshell`` then load only what they need; scipy's
+# interpolate, optimize and sparse.linalg alone took most of a fresh
+# process's first solve.
+_LAZY = {"Problem": "problem", "Structure": "problem", "ProfileFamily": "profiles",
+         "Profiles": "profiles", "register_family": "profiles", "Equilibrium": "results",
+         "NotAMinimumError": "results", "SolverError": "results", "DirectSolver": "direct",
+         "solve": "equilibrium", "Parametric": "parametric", "Ablation": "ablation",
+         "ablate": "ablation", "estimate": "inverse", "example_path": "io",
+         "examples": "io", "load_problem": "io", "sweep": "sweep"}
+
+
+def __getattr__(name: str):
+    """Import the submodule that defines ``name`` on first access."""
+    if name not in _LAZY:
+        raise AttributeError(f"module 'morphoshell' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))
+
+
+class _Package(types.ModuleType):
+    """The package module: ``morphoshell.sweep`` stays the function.
+
+    Importing the submodule ``morphoshell.sweep`` would bind it as the
+    package attribute ``sweep``; the function is meant (the module stays in
+    ``sys.modules``).
+    """
+
+    def __setattr__(self, name, value):
+        if name == "sweep" and isinstance(value, types.ModuleType):
+            value = value.sweep
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
 
 __all__ = ["Problem", "Structure", "ProfileFamily", "Profiles", "register_family",
            "DirectSolver", "Equilibrium", "SolverError", "NotAMinimumError", "solve",

@@ -33,7 +33,6 @@ from typing import Sequence
 
 import casadi as ca
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from .direct import solver_of
 from .equilibrium import solve
@@ -171,6 +170,7 @@ def edge_state(eq: Equilibrium, s: float) -> dict[str, float]:
         st = solver.disc.state_at(eq.x, eq.problem.parameter_vector(), eq.anchors, eq.z, s)
         r, z, psi = st["r"], st["z"], st["psi"]
     else:
+        from scipy.interpolate import CubicSpline   # on use: start-up time
         r, z, psi = (float(CubicSpline(eq.s, v)(s)) for v in (eq.r, eq.z, eq.psi))
     return {"r": float(r), "z": float(z + shift), "psi": float(psi)}
 

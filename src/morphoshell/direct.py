@@ -173,9 +173,9 @@ class DirectSolver:
         if x0 is None:
             x0 = self.disc.initial_guess(p, q)
         if lam_g0 is None:
-            lam_g0 = np.zeros(self.disc.g.shape[0])
+            lam_g0 = np.zeros(self.disc.constraints)
         D = self._pre(p, q)[0]
-        res = self.backend.solve(x0, D, lam_g0)
+        res = self.backend.solve(x0, D, lam_g0, data=lambda: self.disc.pre(p, q))
         stats = SolverStats("direct", res.iterations, res.seconds, res.status, self.nodes,
                             self.build_seconds, res.details)
         eq = self.equilibrium(problem, res.x, res.lam_g, p, q, D, stats, converged=res.converged)

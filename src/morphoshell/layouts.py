@@ -38,7 +38,7 @@ class VectorLayout:
     Examples
     --------
     >>> lay = VectorLayout("demo", ("a", "b"))
-    >>> lay.unpack(lay.pack({"a": 1.0, "b": 2.0}))["b"]
+    >>> float(lay.unpack(lay.pack({"a": 1.0, "b": 2.0}))["b"])
     2.0
     """
 

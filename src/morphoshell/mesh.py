@@ -26,12 +26,11 @@ from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
-from scipy.special import gamma, gammainc
 
 from .energy import boundary_layer_width
 
 __all__ = ["boundary_layer_width", "pole_exponent", "graded_mesh", "shell_points", "MeshSpec",
-           "mesh_spec", "knot_for", "Knot", "breakpoints"]
+           "mesh_spec", "knot_for", "Knot", "breakpoints", "lower_gamma"]
 
 
 #: Smallest cell (in t) next to a pole; see :func:`graded_mesh`.
@@ -155,6 +154,31 @@ def graded_mesh(cells: int, length: float, start: str, end: str, width: float,
                            bounds, bumps)
 
 
+def lower_gamma(a: float, x) -> np.ndarray:
+    """The lower incomplete gamma function γ(a, x) = ∫₀^x t^(a−1) e^(−t) dt, for 0 < a ≤ 1, x ≥ 0.
+
+    The series x^a e^(−x) Σ_n x^n / (a (a+1) … (a+n)) (positive terms: no
+    cancellation), summed to round-off in one cumulative product; above
+    x = 40, γ(a, x) = Γ(a) to 1e-18.  Agrees with ``scipy.special`` to ~1e-15
+    relative.  Here so that building a mesh does not import scipy.special
+    (0.1–0.4 s, most of a fresh process's first solve).
+    """
+    shape = np.shape(x)
+    x = np.atleast_1d(np.asarray(x, dtype=float)).ravel()
+    out = np.full_like(x, math.gamma(a))
+    low = x <= 40.0
+    if low.any():
+        xs = x[low]
+        top = float(xs.max())
+        # terms peak at n ≈ x and then fall like exp(−(n − x)²/2x): below 1e-17 after 9√x
+        n = np.arange(1, int(top + 9 * math.sqrt(top) + 20))
+        terms = np.cumprod(xs[:, None] / (a + n[None, :]), axis=1)
+        total = (1.0 + terms.sum(axis=1)) / a
+        with np.errstate(divide="ignore"):
+            out[low] = np.where(xs > 0, total * np.exp(a * np.log(xs) - xs), 0.0)
+    return out.reshape(shape)
+
+
 def _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge_scale, bounds,
                     bumps=()):
     """Nodes equidistributing the density of :func:`graded_mesh`, with nodes at ``bounds``."""
@@ -169,7 +193,18 @@ def _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge
             if small_edge:
                 out = out + 0.05 * (np.log1p(d / ell_c) - np.log1p(d / ell))
             return out
-        return pole_width * gamma(1 / q) * gammainc(1 / q, d / pole_width)
+        return pole_width * lower_gamma(1 / q, d / pole_width)
+
+    def density(d, kind):
+        # d/dd of cumulative(d, kind)
+        if kind == "free":
+            out = (ratio - 1) * np.exp(-d / ell)
+            if small_edge:
+                out = out + 0.05 * (1 / (ell_c + d) - 1 / (ell + d))
+            return out
+        with np.errstate(divide="ignore"):
+            u = d / pole_width
+            return np.exp((1 / q - 1) * np.log(u) - u)
 
     def bump(x, c, w):
         # ∫₀^x KNOT_REFINEMENT exp(−|u − c|/w) du
@@ -180,6 +215,12 @@ def _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge
         out = x + cumulative(x, start) + cumulative(1.0, end) - cumulative(1 - x, end)
         for c, w in bumps:
             out = out + bump(x, c, w)
+        return out
+
+    def dW(x):
+        out = 1 + density(x, start) + density(1 - x, end)
+        for c, w in bumps:
+            out = out + KNOT_REFINEMENT * np.exp(-np.abs(x - c) / w)
         return out
 
     # Nodes within ~1e-16 of the far end are not representable (s ≈ π there,
@@ -201,14 +242,56 @@ def _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge
         raise ValueError(f"{cells} cells cannot hold {len(bounds) - 2} mesh knots")
     target = np.concatenate([np.linspace(Wb[j], Wb[j + 1], n[j] + 1)[:-1] for j in range(len(n))]
                             + [[Wb[-1]]])
-    lo, hi = np.zeros_like(target), np.ones_like(target)
-    for _ in range(60):   # bisection: W is increasing
-        mid = (lo + hi) / 2
-        below = W(mid) < target
-        lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
-    t = (lo + hi) / 2
+    t = _invert(W, dW, target)
     t[np.concatenate([[0], np.cumsum(n)])] = bounds
     return t
+
+
+def _invert(W, dW, target: np.ndarray) -> np.ndarray:
+    """x in [0, 1] with W(x) = target, for W increasing with derivative dW.
+
+    Brackets from W on a fixed grid (geometric towards both ends, where pole
+    densities are singular), then Newton steps from whichever end of the
+    bracket lands inside it (from the far side of a convex or concave stretch
+    Newton converges monotonically), bisection otherwise, to round-off: about
+    6 evaluations of W instead of the 60 of plain bisection, so meshing stays
+    cheap at N = 12800.
+    """
+    ends = np.logspace(-17, -1, 49)
+    grid = np.unique(np.concatenate([[0.0], ends, np.linspace(0, 1, 129), 1 - ends, [1.0]]))
+    Wg, dg = W(grid), dW(grid)
+    i = np.clip(np.searchsorted(Wg, target, side="right") - 1, 0, len(grid) - 2)
+    lo, hi, f_lo, f_hi, d_lo, d_hi = (grid[i], grid[i + 1], Wg[i] - target, Wg[i + 1] - target,
+                                      dg[i], dg[i + 1])
+    # W's round-off (sums of terms up to ~W(1)): below it Newton only bounces
+    tol = 1e-14 * np.abs(target) + 1e-17
+    x = np.where(np.abs(f_lo) <= np.abs(f_hi), lo, hi)
+    done = (np.abs(f_lo) <= tol) | (np.abs(f_hi) <= tol)
+    for _ in range(80):
+        a = np.flatnonzero(~done)   # only the unconverged nodes are re-evaluated
+        if not len(a):
+            break
+        l, h = lo[a], hi[a]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            c_lo, c_hi = l - f_lo[a] / d_lo[a], h - f_hi[a] / d_hi[a]
+        in_lo, in_hi = (c_lo > l) & (c_lo < h), (c_hi > l) & (c_hi < h)
+        use_lo = in_lo & (~in_hi | (np.abs(f_lo[a]) <= np.abs(f_hi[a])))
+        use_hi = ~use_lo & in_hi
+        new = np.where(use_lo, c_lo, np.where(use_hi, c_hi, (l + h) / 2))
+        start = np.where(use_lo, l, h)
+        # converged: a Newton step below round-off of x (relative: nodes at a
+        # pole are ~1e-15 and must keep all their digits), or the bracket closed
+        stop = (((use_lo | use_hi) & (np.abs(new - start) <= 2.3e-16 * np.abs(start)))
+                | (h - l <= 2.3e-16 * h))
+        x[a] = np.where(stop & (use_lo | use_hi), new, np.where(stop, x[a], new))
+        f, d = W(x[a]) - target[a], dW(x[a])
+        done[a] = stop | (np.abs(f) <= tol[a])
+        below = f < 0
+        lo[a], f_lo[a], d_lo[a] = (np.where(below, x[a], l), np.where(below, f, f_lo[a]),
+                                   np.where(below, d, d_lo[a]))
+        hi[a], f_hi[a], d_hi[a] = (np.where(below, h, x[a]), np.where(below, f_hi[a], f),
+                                   np.where(below, d_hi[a], d))
+    return x
 
 
 class Knot(NamedTuple):

@@ -110,9 +110,6 @@ from pathlib import Path
 from typing import Sequence
 
 import numpy as np
-import roifile
-from scipy.interpolate import CubicSpline
-from scipy.optimize import brentq, least_squares
 
 from ._validate import real
 
@@ -418,6 +415,7 @@ def _table(path: Path, data: bytes, fmt: str):
 
 def _read_roi(path: Path, data: bytes) -> tuple[np.ndarray, list[str], bool]:
     """Pixel coordinates, labels and the spline-fit flag of an ImageJ line ROI."""
+    import roifile
     try:
         roi = roifile.ImagejRoi.frombytes(data)
     except Exception as exc:    # roifile raises ValueError, struct.error, … on damaged files
@@ -445,6 +443,7 @@ def _imagej_spline(control: np.ndarray) -> np.ndarray:
     t = np.r_[0.0, np.cumsum(np.sqrt(np.hypot(*np.diff(control, axis=0).T)))]
     fraction = np.arange(SPLINE_SUBDIVISIONS) / SPLINE_SUBDIVISIONS
     fine = np.r_[(t[:-1, None] + np.diff(t)[:, None] * fraction).ravel(), t[-1]]
+    from scipy.interpolate import CubicSpline   # scipy and roifile: imported on use (CLI start-up)
     return CubicSpline(t, control, bc_type="natural")(fine)
 
 
@@ -535,7 +534,7 @@ def _check_axis(source: str, points: np.ndarray, where) -> None:
 
 # --------------------------------------------------------------------------- arclength
 
-def _speed_integral(spline: CubicSpline, a, b):
+def _speed_integral(spline, a, b):
     """∫ₐᵇ |C′(u)| du for arrays a, b within one knot interval each (8-point Gauss–Legendre)."""
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     u = ((a + b) / 2)[..., None] + ((b - a) / 2)[..., None] * _GAUSS_X
@@ -551,12 +550,13 @@ class _Curve:
     at each knot u_j.
     """
 
-    spline: CubicSpline
+    spline: "CubicSpline"
     knots: np.ndarray
 
     @classmethod
     def through(cls, points: np.ndarray) -> "_Curve":
         u = np.r_[0.0, np.cumsum(np.hypot(*np.diff(points, axis=0).T))]
+        from scipy.interpolate import CubicSpline
         spline = CubicSpline(u, points)
         return cls(spline, np.r_[0.0, np.cumsum(_speed_integral(spline, u[:-1], u[1:]))])
 
@@ -716,6 +716,7 @@ def _whole(curve: _Curve, n_points: int, flip: bool):
         return np.r_[np.sum(d * across, axis=1),
                      _ALONG_WEIGHT * np.sum(d * along, axis=1)]
 
+    from scipy.optimize import least_squares
     t = curve(length / 2, tangent=True)       # the axis is normal to the curve at the pole
     fit = least_squares(mismatch, [math.atan2(t[1], t[0]), t @ curve(length / 2)],
                         xtol=1e-15, ftol=1e-15, gtol=1e-15)
@@ -745,6 +746,7 @@ def _crossing(curve: _Curve, normal: np.ndarray, c: float) -> float:
     k = changes[np.argmin(np.abs(s[changes] - curve.length / 2))]
     if side[k] == 0:
         return float(s[k])
+    from scipy.optimize import brentq
     return brentq(lambda x: float(curve(x) @ normal) - c, s[k], s[k + 1], xtol=1e-15)
 
 
@@ -876,6 +878,7 @@ def write_trace(path: str | Path, midline, format: str, *, pixel_size_um: float 
         noise = _positive("noise_px", noise_px)
         pixels = pixels + np.random.default_rng(seed).normal(0.0, noise, pixels.shape)
     if fmt == "roi":
+        import roifile
         roi = roifile.ImagejRoi.frompoints(pixels, name=path.stem)
         roi.roitype = roifile.ROI_TYPE.POLYLINE
         roi.options = roifile.ROI_OPTIONS.SUB_PIXEL_RESOLUTION | (

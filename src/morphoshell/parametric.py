@@ -25,7 +25,6 @@ from typing import Sequence
 
 import casadi as ca
 import numpy as np
-import scipy.sparse.linalg
 
 from ._buffered import Buffered
 from .direct import DirectSolver
@@ -169,6 +168,7 @@ class Parametric:
         if self._last is None or self._last[0] is not eq:
             p = eq.problem.parameter_vector()
             D = self.solver.disc.cell_data(p, eq.anchors)
+            import scipy.sparse.linalg   # on use: keeps the package's start-up fast
             lu = scipy.sparse.linalg.splu(self.kkt_matrix(eq.x, D, eq.lam_g))
             Fp = self._F_D(eq.x, D, eq.lam_g) @ self._D_p(p, np.asarray(eq.anchors, dtype=float))
             self._last = (eq, lu, Fp.toarray() if hasattr(Fp, "toarray") else np.asarray(Fp))

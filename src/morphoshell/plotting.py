@@ -38,7 +38,8 @@ from matplotlib.transforms import ScaledTranslation
 from .problem import Problem
 from .results import Equilibrium
 
-__all__ = ["plot_fit", "sheet_outline", "far_end_shift", "problem_label", "new_axes", "plot_cross_section",
+__all__ = ["plot_fit", "plot_k_estimates", "plot_recoil_velocity", "figure_JK", "MEASURE_COLOURS",
+           "sheet_outline", "far_end_shift", "problem_label", "new_axes", "plot_cross_section",
            "plot_ablation", "plot_ablation_overlay", "save", "paper_style", "label_panel", "SINGLE_COLUMN",
            "DOUBLE_COLUMN", "MIN_FONT_SIZE", "PAPER_RC", "ABLATION_STYLE"]
 
@@ -223,6 +224,117 @@ def _describe(eqs: Sequence[Equilibrium]) -> tuple[str, list[str]]:
     labels = [_join({k: it[k] for k in keys if k in it and k not in shared}) or f"#{i + 1}"
               for i, it in enumerate(items)]
     return title, labels
+
+
+# --------------------------------------------------------------------------
+# Fig. 2 J and K
+# --------------------------------------------------------------------------
+
+#: Colours of the measures in Fig. 2 J.
+MEASURE_COLOURS = {"opening": "tab:blue", "rotation": "tab:orange", "displacement": "tab:green"}
+_MEASURE_LABEL = {"opening": r"opening $o$", "rotation": r"rotation $\varrho$",
+          "displacement": r"displacement $d$"}
+
+
+def plot_k_estimates(ax: Axes, result, truth=None, ylim=None) -> Axes:
+    """Estimates of k per embryo (paper Fig. 2 J).
+
+    Three groups (o, ϱ, d), one column per embryo: open markers the paper's
+    asymptotic estimates, filled the numerical ones; large markers with bars
+    the mean ± standard deviation of each.  Estimates off the axis (or with
+    no k in the range, beyond it) are arrows at the axis.  ``truth``, a
+    mapping embryo → k, adds grey ticks (synthetic data).
+    """
+    from .inverse import MEASURES
+
+    n = len(result.embryos)
+    lo, hi = result.settings["k_range"]
+    ylim = ylim or (max(lo, -0.6) - 0.05, min(hi, 1.0) + 0.08)
+    gap = 2
+    for g, measure in enumerate(MEASURES):
+        x0 = g * (n + gap)
+        colour = MEASURE_COLOURS[measure]
+        for j, e in enumerate(result.embryos):
+            x = x0 + j
+            if truth is not None and e.measurement.embryo in truth:
+                ax.plot([x - 0.35, x + 0.35], [truth[e.measurement.embryo]] * 2, color="0.5",
+                        lw=1.2, zorder=1)
+            for method, filled, dx in (("asymptotic", False, -0.18), ("numerical", True, 0.18)):
+                est = e.estimates[(measure, method)]
+                _marker(ax, x + dx, est, colour, filled, ylim)
+        for method, filled, dx in (("asymptotic", False, -0.25), ("numerical", True, 0.25)):
+            s = result.summary[f"{measure}_{method}"]
+            if s.n:
+                ax.errorbar(x0 + n + 0.2 + dx, s.mean, yerr=s.std or 0, color=colour, capsize=3,
+                            marker="o", ms=9, mfc=colour if filled else "white", mew=1.5, lw=1.5,
+                            zorder=3)
+        ax.text(x0 + (n - 1) / 2, ylim[1] - 0.01 * (ylim[1] - ylim[0]), _MEASURE_LABEL[measure],
+                ha="center", va="top", fontsize="small", color=colour)
+    ax.axhline(0.0, color="0.8", lw=0.8, zorder=0)
+    ax.axhline(1.0, color="0.8", lw=0.8, ls=":", zorder=0)   # stress-free: no recoil
+    c = result.summary["combined"]
+    if c.n:
+        ax.axhline(c.mean, color="k", lw=1.0, ls="--", zorder=0,
+                   label=rf"$\langle k\rangle = {c.mean:.3f}$ ($\varrho$ and $d$, numerical)")
+    ax.set_ylim(*ylim)
+    ax.set_xlim(-1, 3 * (n + gap) - gap + 1)
+    ax.set_xticks([])
+    ax.set_xlabel(f"embryos (N = {n}), grouped by measure; large markers: mean ± std")
+    ax.set_ylabel(r"intrinsic curvature $k$ (units of $1/R$)")
+    ax.plot([], [], "o", color="0.3", mfc="white", label="asymptotic (paper's formulas)")
+    ax.plot([], [], "o", color="0.3",
+            label=f"numerical (toy problem 2, {result.settings['theory']})")
+    if truth is not None:
+        ax.plot([], [], "-", color="0.5", label="true k (synthetic data)")
+    ax.legend(loc="lower left", fontsize="x-small", frameon=False)
+    return ax
+
+
+def _marker(ax, x, est, colour, filled, ylim):
+    style = dict(color=colour, mfc=colour if filled else "white", mew=1.1, ms=5, zorder=2)
+    if est.k is not None and ylim[0] <= est.k <= ylim[1]:
+        ax.plot(x, est.k, "o", **style)
+    elif est.k is not None or est.side is not None:
+        below = est.k < ylim[0] if est.k is not None else est.side == "below"
+        ax.plot(x, ylim[0] + 0.03 if below else ylim[1] - 0.03, "v" if below else "^", **style)
+
+
+def plot_recoil_velocity(ax: Axes, result) -> Axes:
+    """Initial recoil velocity V against its scaling H^{5/2}R^{−3/2}|1 − k| (paper Fig. 2 K)."""
+    fit = result.velocity
+    if fit is None:
+        ax.text(0.5, 0.5, "no recoil velocities", transform=ax.transAxes, ha="center")
+        ax.set_axis_off()
+        return ax
+    X, V = np.array(fit.X_um), np.array(fit.V_um_per_s)
+    ax.plot(X, V, "o", color="tab:purple", ms=5, label="embryos")
+    x = np.linspace(0, 1.1 * X.max(), 50)
+    se = "" if fit.standard_error is None else rf" \pm {fit.standard_error:.2f}"
+    ax.plot(x, fit.E_over_mu * x, "k-", lw=1.2,
+            label=rf"$V = \langle E/\mu\rangle\,X$, $\langle E/\mu\rangle = {fit.E_over_mu:.2f}"
+                  rf"{se}\,\mathrm{{s^{{-1}}}}$")
+    ax.set_xlim(0, None)
+    ax.set_ylim(0, None)
+    ax.set_xlabel(r"$X = H^{5/2}R^{-3/2}|1-k|$ (µm)")
+    ax.set_ylabel(r"initial recoil velocity $V$ (µm/s)")
+    ax.legend(loc="upper left", fontsize="x-small", frameon=False)
+    ax.text(0.97, 0.03, f"E ≥ {fit.E_lower_bound_Pa * 1e3:.2g} mPa (μ ≥ {fit.mu_min_Pa_s * 1e3:g} "
+                        f"mPa s)\nE H³ ≥ {fit.bending_modulus_lower_bound_J:.2g} J "
+                        f"(H = {fit.H_mean_um:.3g} µm)",
+            transform=ax.transAxes, ha="right", va="bottom", fontsize="x-small")
+    return ax
+
+
+def figure_JK(result, truth=None) -> Figure:
+    """Fig. 2 J and K side by side (a Matplotlib figure) of an :class:`~morphoshell.inverse.InverseResult`."""
+
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11.5, 4.4), gridspec_kw={"width_ratios": [2.2, 1]},
+                               constrained_layout=True)
+    plot_k_estimates(a, result, truth)
+    plot_recoil_velocity(b, result)
+    a.set_title("J  intrinsic curvature from ablation recoils", loc="left", fontsize="medium")
+    b.set_title("K  recoil velocity", loc="left", fontsize="medium")
+    return fig
 
 
 # --------------------------------------------------------------------------

@@ -88,7 +88,7 @@ from .mesh import mesh_spec
 from .observables import RECOIL, recoil
 from .problem import BASE_KEYS, Problem
 from .profiles import ENTRY_POINT_GROUP, FAMILIES
-from .refinement import half_mesh, solve_from
+from .refinement import half_mesh, level_errors, solve_from
 from .results import ESTIMATED, Equilibrium, SolverError, _problem_attrs, _xarray
 
 __all__ = ["sweep", "SweepResult", "ERRORS", "MAX_SPLITS", "SOLVE_COLUMNS", "ABLATE_COLUMNS",
@@ -477,8 +477,7 @@ def _estimate(shells: Sequence[tuple[_Shell, Problem, tuple, Equilibrium]], meas
               order: int) -> dict[str, float]:
     """Error of each measured value: the half and quarter meshes, as ``solve()``'s estimate.
 
-    max(|fine − half|, |half − quarter|/(2^order − 1)) (see
-    :func:`morphoshell.refinement.estimate`); NaN where a coarse mesh is
+    :func:`morphoshell.refinement.level_errors`; NaN where a coarse mesh is
     too small or does not converge.
     """
     levels = [measure([eq for *_, eq in shells])]
@@ -494,16 +493,9 @@ def _estimate(shells: Sequence[tuple[_Shell, Problem, tuple, Equilibrium]], meas
         except SolverError:
             break
         levels.append(measure(eqs))
-    out = {}
-    for k in levels[0]:
-        if len(levels) < 2:
-            out[k] = math.nan
-            continue
-        err = abs(levels[0][k] - levels[1][k])
-        if len(levels) > 2:
-            err = max(err, abs(levels[1][k] - levels[2][k]) / (2 ** order - 1))
-        out[k] = float(err)
-    return out
+    if len(levels) < 2:
+        return {k: math.nan for k in levels[0]}
+    return level_errors(levels[0], levels[1], levels[2] if len(levels) > 2 else None, order)
 
 
 def _run_chunk(chunk: _Chunk) -> list[tuple[int, dict]]:

@@ -44,9 +44,30 @@ def _add_verbosity(p: argparse.ArgumentParser, top: bool) -> None:
                        "warnings, notes or progress bars", **default)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The parser of ``morphoshell COMMAND ...`` with every command registered."""
-    from . import analytic, campaign, estimate, example, fit, solve, sweep
+#: The module registering each command.
+_COMMANDS = {"solve": "solve", "ablate": "solve", "asymptotics": "analytic", "sphere": "analytic",
+             "estimate": "estimate", "fit": "fit", "sweep": "sweep", "campaign": "campaign",
+             "example": "example"}
+
+
+def _command(argv: Sequence[str]) -> str | None:
+    """The command of ``argv``: its first word not an option (-v/-q take no value)."""
+    return next((a for a in argv if not a.startswith("-")), None)
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The parser of ``morphoshell COMMAND ...`` with every command registered.
+
+    With a known ``command``, only the module that registers it is imported
+    (the others pull in fitting, midlines and their dependencies: most of a
+    fresh process's start-up).
+    """
+    import importlib
+
+    names = ("solve", "analytic", "estimate", "fit", "sweep", "campaign", "example")
+    if command in _COMMANDS:
+        names = (_COMMANDS[command],)
+    modules = [importlib.import_module(f".{n}", __name__) for n in names]
 
     parser = _Parser(
         prog="morphoshell",
@@ -57,7 +78,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_verbosity(parser, top=True)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND",
                                 parser_class=_Parser)
-    for module in (solve, analytic, estimate, fit, sweep, campaign, example):
+    for module in modules:
         module.register(sub)
     for command in sub.choices.values():
         _add_verbosity(command, top=False)
@@ -75,7 +96,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     from ..results import SolverError
 
     try:
-        args = build_parser().parse_args(argv)
+        argv = sys.argv[1:] if argv is None else list(argv)
+        args = build_parser(_command(argv)).parse_args(argv)
     except SystemExit as exc:   # argparse: --help, --version, or a bad argument (2)
         return int(exc.code or 0)
     restore = configure(-1 if args.quiet else args.verbose)
