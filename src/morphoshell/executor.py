@@ -98,7 +98,7 @@ def open_executor(workers: int | None = None, scheduler: str | None = None) -> I
             return
         log.info("starting a Dask LocalCluster of %d single-threaded workers", workers)
         with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                          dashboard_address=None) as cluster, Client(cluster) as client:
+                          dashboard_address=":0") as cluster, Client(cluster) as client:
             yield client.get_executor()
     finally:
         for k, v in saved.items():
