@@ -48,7 +48,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from morphoshell import asymptotics
-from morphoshell._console import configure, progress
+from morphoshell._console import run_script, progress
 from morphoshell.equilibrium import solve
 from morphoshell.io import EXAMPLES_DIR, load_problem, write_json
 from morphoshell.ablation import ablate
@@ -398,15 +398,7 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="out/figures", help="output folder (default: out/figures)")
     parser.add_argument("--quick", action="store_true", help="fewer points and a coarser mesh")
-    loud = parser.add_mutually_exclusive_group()
-    loud.add_argument("-v", "--verbose", action="count", default=0, help="progress notes")
-    loud.add_argument("-q", "--quiet", action="store_true", help="no warnings or progress bars")
-    args = parser.parse_args(argv)
-    restore = configure(-1 if args.quiet else args.verbose)
-    try:
-        return _run(args)
-    finally:
-        restore()
+    return run_script(parser, argv, _run)
 
 
 def _run(args) -> int:

@@ -31,7 +31,7 @@ import sys
 import time
 from pathlib import Path
 
-from morphoshell._console import configure
+from morphoshell._console import run_script
 from morphoshell.plotting import figure_JK, plot_k_estimates, plot_recoil_velocity
 from morphoshell.inverse import estimate
 from morphoshell.io import write_csv, write_json
@@ -70,15 +70,7 @@ def main(argv=None) -> int:
                         help="measurement table (default: the SYNTHETIC "
                              "data/synthetic_ablations.csv)")
     parser.add_argument("--out", default="out/figures", help="output folder (default out/figures)")
-    loud = parser.add_mutually_exclusive_group()
-    loud.add_argument("-v", "--verbose", action="count", default=0, help="progress notes")
-    loud.add_argument("-q", "--quiet", action="store_true", help="no warnings or progress bars")
-    args = parser.parse_args(argv)
-    restore = configure(-1 if args.quiet else args.verbose)
-    try:
-        return _run(args)
-    finally:
-        restore()
+    return run_script(parser, argv, _run)
 
 
 def _run(args) -> int:

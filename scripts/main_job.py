@@ -14,7 +14,7 @@ from pathlib import Path
 
 import matplotlib
 
-from morphoshell._console import configure, progress
+from morphoshell._console import run_script, progress
 from morphoshell.equilibrium import solve
 from morphoshell.io import EXAMPLES_DIR, load_problem, write_json
 from morphoshell.plotting import plot_cross_section, problem_label, save
@@ -26,15 +26,7 @@ def main(argv=None) -> int:
     parser.add_argument("--out", default="out", help="output folder (default: out)")
     parser.add_argument("--problems", default=str(EXAMPLES_DIR),
                         help="problem folder (default: the packaged examples, also problems/)")
-    loud = parser.add_mutually_exclusive_group()
-    loud.add_argument("-v", "--verbose", action="count", default=0, help="progress notes")
-    loud.add_argument("-q", "--quiet", action="store_true", help="no warnings or progress bars")
-    args = parser.parse_args(argv)
-    restore = configure(-1 if args.quiet else args.verbose)
-    try:
-        return _run(args)
-    finally:
-        restore()
+    return run_script(parser, argv, _run)
 
 
 def _run(args) -> int:

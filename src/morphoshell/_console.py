@@ -15,9 +15,9 @@ from __future__ import annotations
 
 import logging
 import sys
-from typing import Callable, Iterable, TypeVar
+from typing import Any, Callable, Iterable, TypeVar
 
-__all__ = ["configure", "progress", "LOGGER", "verbosity_level"]
+__all__ = ["configure", "progress", "LOGGER", "verbosity_level", "run_script"]
 
 #: The package's root logger name.
 LOGGER = "morphoshell"
@@ -66,6 +66,20 @@ def configure(verbosity: int = 0, stream=None) -> Callable[[], None]:
         logger.removeHandler(handler)
         logger.setLevel(old_level)
     return restore
+
+
+def run_script(parser, argv, run: Callable[[Any], int]) -> int:
+    """Parse ``argv`` with ``parser`` plus -v/--verbose and -q/--quiet, then ``run(args)``
+    with morphoshell's log messages configured (and the configuration undone after)."""
+    loud = parser.add_mutually_exclusive_group()
+    loud.add_argument("-v", "--verbose", action="count", default=0, help="progress notes")
+    loud.add_argument("-q", "--quiet", action="store_true", help="no warnings or progress bars")
+    args = parser.parse_args(argv)
+    restore = configure(-1 if args.quiet else args.verbose)
+    try:
+        return run(args)
+    finally:
+        restore()
 
 
 def progress(iterable: Iterable[T], *, total: int | None = None, desc: str = "",
