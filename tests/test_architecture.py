@@ -11,7 +11,7 @@ LAYERS = [
     {"energy"},
     {"mesh", "results", "midlines"},
     {"discretisation"},
-    {"ipopt"},
+    {"ipopt", "newton"},
     {"direct", "reference", "shooting"},
     {"observables", "parametric"},
     {"continuation", "refinement"},

@@ -73,7 +73,7 @@ def test_console_script_runs(tmp_path):
     proc = subprocess.run([str(exe), "solve", str(TOY2), "--nodes", "200"],
                           capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
-    assert "Solve_Succeeded" in proc.stdout
+    assert "Solve_Succeeded" in proc.stdout or "Newton_Converged" in proc.stdout
 
 
 def test_ablate_reports_observables(tmp_path, capsys):

@@ -25,6 +25,7 @@ from ._buffered import Buffered
 from .discretisation import Discretisation
 from .energy import boundary_layer_width, kinematics
 from .ipopt import IpoptBackend
+from .newton import NewtonBackend
 from .mesh import MeshSpec, pole_exponent
 from .problem import Problem, Structure
 from .results import (FIELDS, Equilibrium, NotAMinimumError, Quadrature, SolverError, SolverStats,
@@ -94,6 +95,12 @@ class DirectSolver:
         mesh stays valid for any h, Σ and P: they are NLP parameters.
     linear_solver, max_iter, stability, ipopt_options
         Passed to :class:`morphoshell.ipopt.IpoptBackend`.
+    newton : bool
+        Warm starts (``warm_start`` or ``lam_g0`` given) first try
+        :class:`morphoshell.newton.NewtonBackend`: Newton steps certified by
+        their own factorisation, 3–4× faster than an Ipopt call; whatever it
+        cannot certify within a few steps goes to Ipopt.  Only with
+        ``stability = "auto"``.
     tol : float
         Ipopt's convergence tolerance (on the scaled KKT error) at N = 800;
         it grows like the square of the number of points on finer meshes, as
@@ -106,7 +113,8 @@ class DirectSolver:
                  mesh: MeshSpec | None = None, grading_width: float | None = None,
                  domain_length: float | None = None, edge_scale: float | None = None,
                  linear_solver: str = "mumps", tol: float = 1e-10, max_iter: int = 500,
-                 stability: str = "auto", ipopt_options: Mapping[str, Any] | None = None):
+                 stability: str = "auto", ipopt_options: Mapping[str, Any] | None = None,
+                 newton: bool = True):
         if mesh is None:
             check_nodes(nodes)
             mesh = default_mesh(structure, int(nodes), stages, grading_width, domain_length,
@@ -126,6 +134,10 @@ class DirectSolver:
             linear_solver=linear_solver, stability=stability, ipopt_options=ipopt_options)
         self.tol = self.backend.tol
         self.stability = stability
+        # Newton needs the minimum certificate it provides: with stability
+        # "off" or "exact" the caller asked for Ipopt's own handling
+        self.newton = bool(newton) and stability == "auto"
+        self._newton = None
         self._pre = Buffered(d.pre)
         pts = d.symbolic_points(d.x, d.p, d.q)
         self._points = Buffered(ca.Function("points", [d.x, d.p, d.q],
@@ -172,10 +184,16 @@ class DirectSolver:
             x0, lam_g0 = warm_start.x, warm_start.lam_g
         if x0 is None:
             x0 = self.disc.initial_guess(p, q)
-        if lam_g0 is None:
-            lam_g0 = np.zeros(self.disc.constraints)
         D = self._pre(p, q)[0]
-        res = self.backend.solve(x0, D, lam_g0, data=lambda: self.disc.pre(p, q))
+        res = None
+        if lam_g0 is not None and self.newton:     # a warm start: Newton first
+            if self._newton is None:
+                self._newton = NewtonBackend(self.disc, tol=self.tol,
+                                             acceptable_tol=self.backend.acceptable_tol)
+            res = self._newton.solve(x0, self.disc.pre(p, q), lam_g0)
+        if res is None:
+            res = self.backend.solve(x0, D, np.zeros(self.disc.constraints) if lam_g0 is None
+                                     else lam_g0, data=lambda: self.disc.pre(p, q))
         stats = SolverStats("direct", res.iterations, res.seconds, res.status, self.nodes,
                             self.build_seconds, res.details)
         eq = self.equilibrium(problem, res.x, res.lam_g, p, q, D, stats, converged=res.converged)

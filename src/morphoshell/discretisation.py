@@ -70,7 +70,10 @@ _log = logging.getLogger("morphoshell")
 
 #: Cell kernels that are compiled to C (the evaluations of Ipopt's callbacks
 #: and of results); the rest of :func:`_cell_functions` stays in CasADi.
-COMPILED_KERNELS = ("f", "energy", "g", "grad", "jac", "hess", "fields")
+COMPILED_KERNELS = ("f", "energy", "g", "grad", "jac", "hess", "fields", "newton")
+
+#: Relative size ε of the (λ, λ) block −ε W⁻¹ of the Newton system (:meth:`Discretisation.newton_system`).
+NEWTON_EPSILON = 1e-8
 _CFLAGS = ("-O2", "-fPIC", "-shared")
 
 
@@ -351,7 +354,9 @@ class Discretisation:
         # assembled on first use.
         compiled = compiled_cell_functions(S)
         self.kernels = "compiled" if compiled is not None else "casadi"
-        self.numeric = self._nlp(compiled or _cell_functions(S))
+        self._cell = compiled or _cell_functions(S)
+        self.numeric = self._nlp(self._cell)
+        self._newton = None
         self._symbolic = None if compiled is not None else self.numeric
         self._fields = self.numeric["fields"]
         # z and S at the points are linear in the Gauss values of z' and S'
@@ -663,6 +668,58 @@ class Discretisation:
         """s, r, ψ, z and the deformed arclength S at the points (see :class:`SymbolicShape`)."""
         return self.shape(x, p, q).points
 
+    def _local_kkt_scatter(self, symmetric: bool) -> tuple:
+        """(sparsity, B): scatter of each cell's triu (x, λ) block into the (n + m)² matrix.
+
+        The cell's local slots are its unknowns (constants drop out) and its
+        S constraints; ``symmetric`` fills both triangles (for LDLᵀ), else the
+        upper one.
+        """
+        n, m = self.layout.size, self.constraints
+        S, cells = self.stages, self.layout.cells
+        n_loc = self._idx.shape[0]
+        # global (x, λ) index of each local slot; constants (idx >= n) drop out
+        local = np.vstack([np.where(self._idx < n, self._idx, -1),
+                           n + np.arange(cells)[None, :] * S + np.arange(S)[:, None]])
+        ku, lu = np.triu_indices(n_loc + S)
+        I, J = local[ku], local[lu]
+        ok = (I >= 0) & (J >= 0)
+        n_tri = len(ku)
+        src = (np.arange(n_tri)[:, None] + n_tri * np.arange(cells)[None, :])[ok]
+        rows, cols = np.minimum(I, J)[ok], np.maximum(I, J)[ok]
+        if symmetric:
+            off = rows != cols
+            rows, cols, src = (np.concatenate([a, b[off]]) for a, b in
+                               ((rows, cols), (cols, rows), (src, src)))
+        return self._scatter((n + m, n + m), rows, cols, src, n_tri * cells)
+
+    def newton_system(self) -> ca.Function:
+        """``(x, D, λ, ρ) -> (K, rhs, ‖∇f + Jᵀλ‖∞, ‖g‖∞, ‖λ‖₁)``: the certified Newton system.
+
+        K = [[M, Jᵀ], [J, −Δ]] with M = ∇²ℒ + Jᵀ W J, W > 0 per constraint
+        scaled by ρ, Δ = ε W⁻¹ (ε = :data:`NEWTON_EPSILON`);
+        rhs = −(∇f + Jᵀ(λ + W g), g).  Its
+        solution is Newton's step on the KKT conditions (to a relative ε), and
+        its inertia certifies a minimum (see :mod:`morphoshell.newton`).
+        Assembled from one kernel per cell, built on first use.  K is
+        (n + m) × (n + m), sparse and symmetric; rhs (n + m,).
+        """
+        if self._newton is None:
+            S, cells = self.stages, self.layout.cells
+            lam, rho = ca.MX.sym("lam", self.constraints), ca.MX.sym("rho")
+            tri, dual, rx, g = self._cell["newton"].map(cells)(
+                self.cell_unknowns(self.x), ca.reshape(self.D, -1, cells),
+                ca.reshape(lam, S, cells), rho)
+            sp, B = self._local_kkt_scatter(symmetric=True)
+            K = ca.MX(sp, ca.mtimes(B, ca.vec(tri)))
+            A = self._patterns["grad"]
+            dual = ca.mtimes(A, ca.vec(dual))
+            rhs = -ca.vertcat(ca.mtimes(A, ca.vec(rx)), ca.vec(g))
+            self._newton = ca.Function("newton_system", [self.x, self.D, lam, rho],
+                                       [K, rhs, ca.norm_inf(dual), ca.norm_inf(g),
+                                        ca.norm_1(lam)])
+        return self._newton
+
     def kkt_curvature(self, x, lam, D, mu_F, mu_dz, mu_dS, ds) -> ca.MX:
         """Upper triangle of ∂²/∂(x, λ)² [μ_F·F(x, λ) − Σ_c (μ_dz,c Δz_c + μ_dS,c ΔS_c)].
 
@@ -678,8 +735,7 @@ class Discretisation:
         Shapes: x (n,), λ and the constraints (m,), μ_F (n + m,), μ_dz, μ_dS
         and ds (cells,); the result is (n + m) × (n + m), sparse.
         """
-        n, m = self.layout.size, self.g.shape[0]
-        S, cells = self.stages, self.layout.cells
+        n, S, cells = self.layout.size, self.stages, self.layout.cells
         n_loc = self._idx.shape[0]
         mu_x = ca.vertcat(mu_F[:n], ca.DM.zeros(3))      # constants: no stationarity row
         Mz = ca.reshape(mu_x[self._idx.ravel(order="F").tolist()], n_loc, cells)
@@ -687,16 +743,7 @@ class Discretisation:
         values = kernel(self.cell_unknowns(x), ca.reshape(D, -1, cells), ca.reshape(lam, S, cells),
                         Mz, ca.reshape(mu_F[n:], S, cells), ca.reshape(mu_dz, 1, cells),
                         ca.reshape(mu_dS, 1, cells), ca.reshape(ds, 1, cells))
-        # global (x, λ) index of each local slot; constants (idx >= n) drop out
-        local = np.vstack([np.where(self._idx < n, self._idx, -1),
-                           n + np.arange(cells)[None, :] * S + np.arange(S)[:, None]])
-        ku, lu = np.triu_indices(n_loc + S)
-        I, J = local[ku], local[lu]
-        ok = (I >= 0) & (J >= 0)
-        n_tri = len(ku)
-        src = (np.arange(n_tri)[:, None] + n_tri * np.arange(cells)[None, :])[ok]
-        sp, B = self._scatter((n + m, n + m), np.minimum(I, J)[ok], np.maximum(I, J)[ok], src,
-                              n_tri * cells)
+        sp, B = self._local_kkt_scatter(symmetric=False)
         return ca.MX(sp, ca.mtimes(B, ca.vec(values)))
 
     def state_at(self, x: np.ndarray, p: np.ndarray, q, z_points: np.ndarray,
@@ -755,6 +802,7 @@ def _cell_functions(stages: int) -> dict[str, ca.Function]:
     H = ca.hessian(sigma * ell + ca.dot(lam, g), z)[0]
     ku, lu = np.triu_indices(3 * S + 2)
     return {
+        "newton": _newton_cell(z, D, lam, ell, g, ca.substitute(H, sigma, 1.0)),
         "f": ca.Function("cell_f", [z, D], [ell]),
         "energy": ca.Function("cell_energy", [z, D], [energy]),
         "g": ca.Function("cell_g", [z, D], [g]),
@@ -764,6 +812,27 @@ def _cell_functions(stages: int) -> dict[str, ca.Function]:
                             [ca.vertcat(*[H[int(i), int(j)] for i, j in zip(ku, lu)])]),
         "fields": ca.Function("cell_fields", [z, D], [ca.horzcat(*fields)]),
     }
+
+
+def _newton_cell(z, D, lam, ell, g, H) -> ca.Function:
+    """One cell's share of the certified Newton system (:meth:`Discretisation.newton_system`).
+
+    Weights W_k = ρ Σ_l |H_ll| / ‖∇g_k‖² (the cell's Hessian scale per unit
+    of the constraint's gradient; any W > 0 is valid), the penalised Hessian
+    M = H + Jᵀ W J, and the local block [[M, Jᵀ], [J, −ε W⁻¹]] as its upper
+    triangle; with the stationarity residual ∇ℓ + Jᵀλ, the right-hand side's
+    x part ∇ℓ + Jᵀ(λ + W g) and g.
+    """
+    rho = ca.SX.sym("rho")
+    Jc = ca.jacobian(g, z)
+    w = rho * ca.sum1(ca.fabs(ca.diag(H))) / ca.fmax(ca.sum2(Jc * Jc), 1e-300)
+    M = H + ca.mtimes(Jc.T, ca.mtimes(ca.diag(w), Jc))
+    K = ca.blockcat([[M, Jc.T], [Jc, ca.diag(-NEWTON_EPSILON / w)]])
+    ku, lu = np.triu_indices(K.shape[0])
+    dual = ca.gradient(ell, z) + ca.mtimes(Jc.T, lam)
+    return ca.Function("cell_newton", [z, D, lam, rho],
+                       [ca.vertcat(*[K[int(i), int(j)] for i, j in zip(ku, lu)]), dual,
+                        dual + ca.mtimes(Jc.T, w * g), g])
 
 
 @lru_cache(maxsize=None)

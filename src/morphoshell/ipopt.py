@@ -145,8 +145,9 @@ class IpoptBackend:
         # far below, so three iterations in a row there mean the round-off
         # floor is reached.  Thin shells raise that floor like 1/h² (stretching
         # stiffness relative to bending; measured 2e-8 at h = 1e-4, N = 200).
+        self.acceptable_tol = max(1e-6, 100 * self.tol)
         self.options = dict(IPOPT_DEFAULTS, tol=self.tol, max_iter=int(max_iter),
-                            linear_solver=linear_solver, acceptable_tol=max(1e-6, 100 * self.tol),
+                            linear_solver=linear_solver, acceptable_tol=self.acceptable_tol,
                             acceptable_iter=3, acceptable_constr_viol_tol=1e-10)
         self.options.update(ipopt_options or {})
         self._solve = Buffered(self._nlpsol("shell", self.options))

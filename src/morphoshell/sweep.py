@@ -57,7 +57,8 @@ The axes (in ablation sweeps the far-end opening P is ``opening_P``), then
   (``opening``, ``rotation``, ``displacement``, ``radial_displacement``,
   ``axial_displacement``, ``energy_released``, ``energy_removed``) and the
   errors of the first four and of ``energy_released``;
-* ``status`` (Ipopt's, or a :class:`~morphoshell.results.SolverError`'s for a
+* ``status`` (the back end's: Ipopt's, ``Newton_Converged`` for a warm start
+  certified by :mod:`morphoshell.newton`, or a :class:`~morphoshell.results.SolverError`'s for a
   failed point, whose values are NaN: failed points are never dropped),
   ``iterations`` (Newton iterations spent on the point, the intact and the cut
   shell together), ``path`` (``continuation``, ``warm``, ``split`` or
