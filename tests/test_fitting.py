@@ -74,6 +74,32 @@ def test_all_twelve_parameters_of_the_flat_variant(full_flat):
     assert flagged & {"kappa3", "kappa4"}
 
 
+@pytest.mark.parametrize("variant", ["flat", "unstressed"])
+def test_kkt_hessian_is_the_exact_hessian_of_the_lagrangian(variant):
+    """The kernel-assembled Hessian of the KKT fit's NLP equals CasADi's of the whole graph."""
+    from morphoshell.fitting import _Inner, _KKTProblem
+    from morphoshell.observables import midline_cells
+
+    spec = volvox_spec(variant, START)
+    inner = _Inner(spec, synthetic_midline(TRUE, spec.base, nodes=30, noise=1e-3), 30)
+    theta, x, lam = spec.theta0, inner.eq.x, inner.eq.lam_g
+    nlp = _KKTProblem(spec, inner, 1e-8, 10)
+    nlp._build(midline_cells(inner.solver.disc, x, spec.problem(theta).parameter_vector(),
+                             inner.n))
+    w, sigma, mult, f, g, hess = nlp.lagrangian
+    direct = ca.Function("direct", [w, sigma, mult],
+                         [ca.triu(ca.hessian(sigma * f + ca.dot(mult, g), w)[0])])
+    rng = np.random.default_rng(0)
+    w0 = np.concatenate([theta, x, lam, nlp._lifted_start(theta, x)])
+    w0 = w0 + 1e-3 * rng.normal(size=w0.shape)     # off the equilibrium: every term counts
+    mu = 1e-2 * rng.normal(size=g.shape[0])
+    one = np.array(ca.densify(direct(w0, 0.7, mu)))
+    two = np.array(ca.densify(hess(w0, np.zeros(0), 0.7, mu)))
+    k = len(theta)
+    assert np.abs(one[:k, k:]).max() > 1e-3 and np.abs(one[:k, :k]).max() > 1e-3
+    assert np.abs(one - two).max() < 1e-12 * np.abs(one).max()
+
+
 def test_the_kkt_state_is_a_true_equilibrium(full_flat):
     spec, _, results = full_flat
     kkt = results["kkt"]

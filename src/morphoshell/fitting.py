@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
+from functools import lru_cache
 from typing import Callable, Mapping, Sequence
 
 import casadi as ca
@@ -619,10 +620,16 @@ def _kkt(spec, inner, tol, max_iterations):
         coarse = _Inner(spec, inner.data, COARSE_NODES)
         theta0, its, _, _ = _kkt(spec, coarse, tol, max_iterations)
         iterations += its
-    # from a coarse fit the start is close: a tiny initial barrier (from 1e-6
-    # the fine stage took 34 iterations, wandering while mu fell)
+    # From a coarse fit the start is close: a tiny initial barrier (from 1e-6
+    # the fine stage took 34 iterations, wandering while mu fell) and the
+    # least-squares estimate of the multipliers: from zero ones the exact
+    # Hessian lacks the constraints' curvature, and the fine stage stalled in
+    # line searches (38 + 56 + 12 iterations with noisy data; 16 from the
+    # estimate, measured before the window edges were flagged).  Far from the
+    # optimum the estimate is large and the first steps went wild (the
+    # 3-parameter noisy fit at 60 nodes: 200 iterations; 6 from zero).
     nlp = _KKTProblem(spec, inner, tol, max_iterations,
-                      mu_init=1e-9 if iterations else 1e-6)
+                      mu_init=1e-9 if iterations else 1e-6, estimate_duals=iterations > 0)
     # without a coarse stage the NLP starts from the fit's start state as it
     # is (it is the inner solution there, or the caller's own start)
     theta, eq = theta0, inner.solve(theta0) if iterations else inner.eq
@@ -665,8 +672,69 @@ def _ramp(x):
     return x * x * (3 - 2 * x)
 
 
+@lru_cache(maxsize=4)
+def _blended_point(stages: int) -> ca.Function:
+    """``(u, t, first, last, keep) -> (r, z)``: one fit point blended over its window (SX).
+
+    u holds, for the 2 WINDOW + 1 cells of the window, their unknowns
+    (``cell_unknowns``), then their first and last nodes in s, z and the
+    deformed arclength S at their first nodes, then the shell's total S; the
+    point sits at S = t S_total.  Each cell's evaluation has a C¹ weight that
+    is 1 inside the cell and falls to 0 across an overlap of BLEND cell widths
+    around its boundaries: the midline is only continuous across cell
+    boundaries (the cell polynomials agree in value, to O(Δs^(S+1)), not in
+    slope), and a fit point resting on a node made E_fit(θ) kinked there,
+    where stationarity stalled (1.7e-3 with noisy data, measured).  Cells
+    flagged ``first`` (``last``) keep their weight below (above) themselves:
+    the shell's first and last cells, for targets beyond its ends, and the
+    window's outermost ones (:meth:`_KKTProblem._window_indices`).  A clipped
+    window repeats a cell, counted once (``keep``).
+    """
+    from .discretisation import _arclength_point
+
+    n_w, n_z = 2 * WINDOW + 1, 3 * stages + 2
+    u = ca.SX.sym("u", n_w * (n_z + 4) + 1)
+    t, first, last, keep = (ca.SX.sym(nm, n) for nm, n in
+                            (("t", 1), ("first", n_w), ("last", n_w), ("keep", n_w)))
+    Z = ca.reshape(u[:n_w * n_z], n_z, n_w)
+    lo, hi, z0, S0 = (u[n_w * (n_z + i):n_w * (n_z + i + 1)] for i in range(4))
+    target = u[-1] * t
+    point = _arclength_point(stages)
+    num_r = num_z = den = 0
+    for o in range(n_w):
+        s_o, r_o, _, z_o = point(Z[:, o], lo[o], hi[o] - lo[o], z0[o], S0[o], target)
+        tau = (s_o - lo[o]) / (hi[o] - lo[o])
+        weight = (ca.fmax(_ramp((tau + BLEND) / (2 * BLEND)), first[o])
+                  * ca.fmax(_ramp((1 + BLEND - tau) / (2 * BLEND)), last[o]) * keep[o])
+        num_r, num_z, den = num_r + weight * r_o, num_z + weight * z_o, den + weight
+    return ca.Function("blended_point", [u, t, first, last, keep],
+                       [ca.vertcat(num_r / den, num_z / den)])
+
+
+@lru_cache(maxsize=4)
+def _point_misfit(stages: int) -> ca.Function:
+    """``(u, t, first, last, keep, (R, Z)) -> (∂e/∂u, triu ∂²e/∂u²)`` (SX).
+
+    e = ½|(r, z) − (R, Z)|² for one fit point: the exact Hessian of its
+    squared misfit in its local unknowns (:func:`_blended_point`); the MX
+    Hessian of the assembled misfit cost 0.24 s per evaluation at 60 nodes
+    (measured).
+    """
+    f = _blended_point(stages)
+    args = [f.sx_in(i) for i in range(f.n_in())]
+    data = ca.SX.sym("data", 2)
+    e = 0.5 * ca.sumsqr(f(*args) - data)
+    u = args[0]
+    H = ca.hessian(e, u)[0]
+    ku, lu = np.triu_indices(u.shape[0])
+    # (not compiled: its C code took gcc over 300 s)
+    return ca.Function("point_misfit", [*args, data],
+                       [ca.gradient(e, u), ca.vertcat(*[H[int(i), int(j)]
+                                                        for i, j in zip(ku, lu)])])
+
+
 class _KKTProblem:
-    """The fit as one NLP, solved by constrained Gauss–Newton.
+    """The fit as one NLP, solved by Newton's method (Ipopt, exact Hessian).
 
     Unknowns w = (θ, x, λ, Z, Σ): the fitted parameters, the inner unknowns
     and multipliers, and z and the deformed arclength at the cell boundaries,
@@ -674,23 +742,26 @@ class _KKTProblem:
     point depends on its own cell only and every matrix stays sparse).
     Constraints: the inner KKT conditions F(x, λ; p(θ)) = 0, the cell
     integrals of z' = f_s sin ψ and S' = f_s, the breakpoints ordered at least
-    σ apart inside the shell, |η| ≤ ETA_MAX; bounds on θ.  The Hessian is the
-    Gauss–Newton matrix JᵀJ of the residuals (Bock's constrained Gauss–Newton):
-    the exact Hessian needs third derivatives of the energy (measured 1.7 s
-    per evaluation at 60 nodes) and its extra terms vanish with the
-    residual.  Which cell holds each fit point is structural: the NLP is
-    rebuilt (in a fraction of a second) when points change cells.
+    σ apart inside the shell, |η| ≤ ETA_MAX; bounds on θ.  The Hessian of
+    the Lagrangian is exact (:meth:`_hessian`: Gauss–Newton approximations
+    of it made the reduced Hessian indefinite or its steps diverge).  Which
+    cell holds each fit point is structural: the NLP is rebuilt (in a
+    fraction of a second) when points change cells.
     """
 
-    def __init__(self, spec, inner, tol, max_iterations, mu_init: float = 1e-6):
+    def __init__(self, spec, inner, tol, max_iterations, mu_init: float = 1e-6,
+                 estimate_duals: bool = False):
         self.spec, self.inner, self.tol = spec, inner, tol
         self.max_iter = max_iterations or 200
         self.mu_init = mu_init
+        # The first NLP starts from zero multipliers, or from Ipopt's
+        # least-squares estimate (``estimate_duals``; later NLPs carry theirs over).
+        self.estimate_duals = estimate_duals
         self.scale = 1.0
         self.cells: tuple | None = None
+        self._duals: tuple | None = None
 
     def _build(self, cells: tuple, scale: float = 1.0) -> None:
-        from .discretisation import _arclength_point
         from .layouts import CELL_DATA
 
         spec, inner = self.spec, self.inner
@@ -712,33 +783,16 @@ class _KKTProblem:
         sh = d.shape(x, p, q)
         dz, dS = sh.increments()
         lifted = ca.vertcat(zc[0], zc[1:] - zc[:nc] - dz, sc[0], sc[1:] - sc[:nc] - dS)
-        # Each point may lie in a window of cells around its assigned one.  The
-        # cells' evaluations are blended with C¹ weights that are 1 inside a
-        # cell and fall to 0 across an overlap of BLEND cell widths around its
-        # boundaries: the midline is only continuous across cell boundaries
-        # (the cell polynomials agree in value, to O(Δs^(S+1)), not in slope),
-        # and a fit point resting on a node made E_fit(θ) kinked there, where
-        # stationarity stalled (1.7e-3 with noisy data, measured).
-        targets = sc[nc] * ca.DM(np.linspace(0, 1, n)).T
-        point = _arclength_point(d.stages).map(n)
-        num_r = num_z = den = 0
-        for offset in range(-WINDOW, WINDOW + 1):
-            idx = [min(max(c + offset, 0), nc - 1) for c in cells]
-            lo, hi = sh.s_nodes[idx], sh.s_nodes[[c + 1 for c in idx]]
-            s_o, r_o, _, z_o = point(sh.Z[:, idx], lo.T, (hi - lo).T, zc[idx].T, sc[idx].T,
-                                     targets)
-            tau = (s_o - lo.T) / (hi - lo).T
-            # the first and last cells also hold targets beyond the shell's ends
-            first = np.array([i == 0 for i in idx], dtype=float)
-            last = np.array([i == nc - 1 for i in idx], dtype=float)
-            weight = (ca.fmax(_ramp((tau + BLEND) / (2 * BLEND)), ca.DM(first).T)
-                      * ca.fmax(_ramp((1 + BLEND - tau) / (2 * BLEND)), ca.DM(last).T))
-            if offset != 0:   # a clipped window repeats a cell: count it once
-                weight = weight * ca.DM([float(i != min(max(c, 0), nc - 1))
-                                         for i, c in zip(idx, cells)]).T
-            num_r, num_z, den = num_r + weight * r_o, num_z + weight * z_o, den + weight
-        r, z = num_r / den, num_z / den
-        res = ca.vertcat(r.T - inner.data[:, 0], z.T - inner.data[:, 1])
+        # Each point may lie in a window of cells around its assigned one, the
+        # cells' evaluations blended (:func:`_blended_point`).
+        t_fit = np.linspace(0, 1, n)
+        u_idx, flags = self._window_indices(cells, nc, d.layout.size, d._idx)
+        U = ca.vertcat(sh.s_nodes, x, zc, sc)           # what the residuals depend on
+        Uext = ca.vertcat(U, ca.DM([0.0, 0.0, np.pi]))   # the pole's constant r, ψ
+        local = ca.reshape(Uext[u_idx.ravel(order="F").tolist()], u_idx.shape[0], n)
+        blended = _blended_point(d.stages).map(n)
+        rz = blended(local, ca.DM(t_fit).T, *(ca.DM(f) for f in flags))
+        res = ca.vertcat(rz[0, :].T - inner.data[:, 0], rz[1, :].T - inner.data[:, 1])
         ineq, glo, ghi = [], [], []
         if spec.base.family == "volvox":
             named = layout.unpack(p)
@@ -759,28 +813,14 @@ class _KKTProblem:
         box_lo, box_hi = spec.box()
         free = np.inf * np.ones(w.shape[0] - k)
         self.lbw, self.ubw = np.concatenate([box_lo, -free]), np.concatenate([box_hi, free])
-        J = ca.jacobian(res, w)
         sigma, mult = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", g.shape[0])
         none = ca.MX.sym("p", 0)
-        # The Hessian of the Lagrangian: Gauss–Newton for the misfit, plus the
-        # exact curvature of the inner KKT conditions and of the lifted cell
-        # integrals in (x, λ) (their multipliers are of the size of the
-        # residual, but the third derivatives of the energy are large: without
-        # this term the steps lost feasibility and stalled with noisy data,
-        # measured).  Second derivatives through θ (the data D(p(θ))) are left
-        # out: the θ-block is small and the Gauss–Newton term dominates it.
-        # (assembled from per-cell kernels: the MX Hessian of the assembled
-        # residual cost ~0.4 s an evaluation at 200 nodes, measured)
-        nF = F.shape[0]
-        ds = sh.s_nodes[1:] - sh.s_nodes[:nc]
-        H_xl = d.kkt_curvature(x, lam, d.pre(p, q), mult[:nF], mult[nF + 1:nF + 1 + nc],
-                               mult[nF + nc + 2:nF + 2 * nc + 2], ds)
-        nz = w.shape[0] - k - H_xl.shape[0]
-        H_inner = ca.diagcat(ca.MX(k, k), H_xl, ca.MX(nz, nz))
-        hess = ca.Function("gauss_newton", [w, none, sigma, mult],
-                           [ca.triu(sigma * ca.mtimes(J.T, J) + H_inner)],
+        H = self._hessian(d, P, th, x, lam, p, q, sh, local, t_fit, flags, u_idx, w, sigma, mult,
+                          F.shape[0], ineq)
+        hess = ca.Function("hess_lag", [w, none, sigma, mult], [H],
                            ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
         problem = {"x": w, "p": none, "f": 0.5 * ca.sumsqr(res), "g": g}
+        self.lagrangian = (w, sigma, mult, problem["f"], g, hess)     # (for tests)
         self.nlp = ca.nlpsol("kkt_fit", "ipopt", problem, {
             # the start is an equilibrium, feasible and usually close: a small
             # initial barrier keeps the inactive |eta| bounds from slowing it
@@ -796,11 +836,114 @@ class _KKTProblem:
                       "acceptable_tol": 1e-2, "acceptable_iter": 5,
                       "acceptable_obj_change_tol": 1e-9, "obj_scaling_factor": self.scale,
                       "acceptable_constr_viol_tol": 1e-10,
-                      "warm_start_init_point": "yes",
+                      "warm_start_init_point": ("no" if self.estimate_duals and self._duals is None
+                                                else "yes"),
                       "mumps_scaling": 0, "mumps_permuting_scaling": 0, "mumps_pivot_order": 0},
             "hess_lag": hess, "jac_g": jac_g, "print_time": False, "error_on_fail": False})
         self.sizes = (k, d.layout.size, d.g.shape[0])
         self.cells = cells
+
+    @staticmethod
+    def _window_indices(cells, nc: int, n: int, idx: np.ndarray) -> tuple:
+        """Where each fit point's local unknowns (:func:`_blended_point`) sit in U.
+
+        U = (s at the nodes, x, z and S at the cell boundaries) then the
+        pole's three constants; returns the (local × points) indices and the
+        points' first/last/keep flags (windows × points).  A point that moves
+        beyond its window is evaluated on the window's outermost cell (flagged
+        first/last), not on weights that vanish there: with the exact Hessian
+        the fine stage stalled at that edge (noisy data: 97 + 165 + 9
+        iterations; 30 + 16 with the flags, measured).  It is then rebuilt
+        with the point's new cell, as whenever a point leaves its window.
+        """
+        n_U = (nc + 1) + n + 2 * (nc + 1)
+        x_at = np.where(idx < n, (nc + 1) + idx, n_U + idx - n)     # constants after U
+        cols, first, last, keep = [], [], [], []
+        offsets = range(-WINDOW, WINDOW + 1)
+        for c in cells:
+            window = [min(max(c + o, 0), nc - 1) for o in offsets]
+            cols.append(np.concatenate([x_at[:, window].ravel(order="F"), window,
+                                        [i + 1 for i in window],
+                                        [(nc + 1) + n + i for i in window],
+                                        [2 * (nc + 1) + n + i for i in window],
+                                        [2 * (nc + 1) + n + nc]]))
+            first.append([float(i == 0 or o == -WINDOW) for o, i in zip(offsets, window)])
+            last.append([float(i == nc - 1 or o == WINDOW) for o, i in zip(offsets, window)])
+            keep.append([float(o == 0 or i != min(max(c, 0), nc - 1))
+                         for o, i in zip(offsets, window)])
+        return (np.array(cols, dtype=np.int64).T,
+                tuple(np.array(f).T for f in (first, last, keep)))
+
+    def _hessian(self, d, P, th, x, lam, p, q, sh, local, t_fit, flags, u_idx, w, sigma, mult,
+                 nF: int, ineq) -> ca.MX:
+        """Upper triangle of the exact Hessian of the Lagrangian σ ½|res|² + μ·g.
+
+        Gauss–Newton for the misfit plus the inner KKT conditions' curvature
+        in (x, λ) only needed 121 + 61 iterations with noisy data (1e-3, 60
+        then 200 nodes): its reduced Hessian had an eigenvalue of −2e-3 where
+        the exact one has +1.6e-6 (measured at the coarse optimum), the
+        misfit's and the constraints' second-order terms, each large, cancel
+        (Gauss–Newton alone: +7.6e-7, but 2.7x too small in other weak
+        directions, and its steps diverged).  Exact: 25 + 30 + 16 iterations.
+        Assembled from per-point and per-cell kernels and the chain rule
+        through s_nodes(θ) and D(θ): 0.33 s an evaluation at 200 nodes (the
+        Gauss–Newton one: 0.04 s; the MX Hessian of the Lagrangian: 0.5 s at
+        60 nodes), about a third each the misfit kernel, the cells' kernel
+        and the second derivatives of D(θ) (MX).
+        """
+        from .layouts import CELL_DATA
+
+        k, n, m = th.shape[0], x.shape[0], lam.shape[0]
+        nc = d.layout.cells
+        n_w, n_U, n_pt = w.shape[0], (nc + 1) + n + 2 * (nc + 1), local.shape[1]
+        data = ca.DM(self.inner.data.T)
+        grad, tri = _point_misfit(d.stages).map(n_pt)(
+            local, ca.DM(t_fit).T, *(ca.DM(f) for f in flags), data)
+        # the misfit's Hessian in U (local duplicates of one unknown: a local
+        # off-diagonal pair on U's diagonal counts twice)
+        n_loc = u_idx.shape[0]
+        ku, lu = np.triu_indices(n_loc)
+        I, J = np.minimum(u_idx[ku], u_idx[lu]), np.maximum(u_idx[ku], u_idx[lu])
+        src = np.arange(len(ku))[:, None] + len(ku) * np.arange(n_pt)[None, :]
+        ok = J < n_U
+        twice = (I == J) & (ku != lu)[:, None]
+        sp, B = d._scatter((n_U, n_U), I[ok], J[ok], src[ok], len(ku) * n_pt,
+                           np.where(twice, 2.0, 1.0)[ok])
+        Hu = ca.MX(sp, ca.mtimes(B, ca.vec(tri)))
+        Hu = Hu + Hu.T - ca.diag(ca.diag(Hu))
+        # U in terms of w = (θ, x, λ, z, S): s_nodes(θ), the rest selected
+        E = ca.vertcat(ca.horzcat(ca.jacobian(sh.s_nodes, th), ca.MX(nc + 1, n_w - k)),
+                       ca.horzcat(ca.MX(n, k), ca.MX.eye(n), ca.MX(n, n_w - k - n)),
+                       ca.horzcat(ca.MX(2 * nc + 2, k + n + m), ca.MX.eye(2 * nc + 2)))
+        on_s = u_idx < nc + 1
+        sp_s, Bs = d._scatter((nc + 1, 1), u_idx[on_s], np.zeros(on_s.sum()),
+                              (np.arange(n_loc)[:, None] + n_loc * np.arange(n_pt))[on_s],
+                              n_loc * n_pt)
+        g_nodes = ca.densify(ca.MX(sp_s, ca.mtimes(Bs, ca.vec(grad))))
+        # the constraints: F and the lifted integrals through D(θ) per cell
+        D = d.pre(p, q)
+        T = ca.mtimes(P._D_p.function(p, q), ca.jacobian(p, th))
+        C, tt, gD = d.kkt_curvature_theta(x, lam, D, T, mult[:nF], mult[nF + 1:nF + 1 + nc],
+                                          mult[nF + nc + 2:nF + 2 * nc + 2])
+        H_xl = d.kkt_curvature(x, lam, D, mult[:nF], mult[nF + 1:nF + 1 + nc],
+                               mult[nF + nc + 2:nF + 2 * nc + 2],
+                               sh.s_nodes[1:] - sh.s_nodes[:nc])
+        n_eta, n_D = D.shape[0] // len(CELL_DATA), len(CELL_DATA)
+        eta_at = CELL_DATA.index("eta") + n_D * np.arange(n_eta)
+        mu_ineq = mult[nF + 2 * nc + 2:mult.shape[0] - n_eta]
+        # ... and the second derivatives of D, s_nodes and the breakpoint gaps in θ
+        cD, ci, cs = (ca.MX.sym(nm, size) for nm, size in
+                      (("c_D", D.shape[0]), ("c_i", len(ineq)), ("c_s", nc + 1)))
+        omega = (ca.dot(cD, D) + ca.dot(cs, sh.s_nodes)
+                 + (ca.dot(ci, ca.vertcat(*ineq)) if ineq else 0))
+        curv = ca.Function("theta_curvature", [th, cD, ci, cs], [ca.hessian(omega, th)[0]])
+        c_D = gD + ca.MX(ca.Sparsity.triplet(D.shape[0], 1, eta_at.tolist(), [0] * n_eta),
+                         mult[mult.shape[0] - n_eta:])
+        H_tt = tt + curv(th, c_D, mu_ineq, sigma * g_nodes)
+        Hw = sigma * ca.mtimes(E.T, ca.mtimes(Hu, E))
+        top = ca.horzcat(ca.triu(H_tt), C.T, ca.MX(k, n_w - k - n - m))
+        rest = ca.diagcat(H_xl, ca.MX(n_w - k - n - m, n_w - k - n - m))
+        return ca.triu(Hw) + ca.vertcat(top, ca.horzcat(ca.MX(n_w - k, k), rest))
 
     @staticmethod
     def _constraint_jacobian(P, th, x, lam, p, q, g, F, w):
@@ -840,7 +983,7 @@ class _KKTProblem:
                 # (floored: a start that already fits would blow the scale up)
                 self.scale = 1.0 / max(0.5 * float(res @ res), 1e-12)
             self._build(cells)
-        if getattr(self, "_duals", None) is not None:
+        if self._duals is not None:
             # the constraints do not depend on the cells: their multipliers
             # carry over (a cold dual start took wild first steps, measured)
             warm = {"lam_g0": self._duals[0], "lam_x0": self._duals[1]}
