@@ -29,9 +29,10 @@ campaign: $(STAMP)
 	$(BIN)/python scripts/fig3_fits.py --campaign out/campaign --out out/figures
 
 ## test: the whole test suite (with a strict build of the docs, tests/test_docs.py, and a
-## clean-venv install of the package and a plugin, tests/test_packaging.py)
+## clean-venv install of the package and a plugin, tests/test_packaging.py), on two pytest-xdist
+## workers: the solvers are single-threaded, so two cores halve the time
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2
 
 ## docs: the documentation and its API reference into site/ (any warning is an error)
 docs: $(STAMP)
