@@ -46,6 +46,17 @@ def real(lo: float = -math.inf, hi: float = math.inf, *, open_lo: bool = False,
     return parse
 
 
+def add_executor(p: argparse.ArgumentParser, default_workers: str) -> None:
+    """``--workers`` and ``--scheduler``: where the tasks of a sweep or campaign run
+    (:mod:`morphoshell.executor`); ``default_workers`` says what no ``--workers`` means."""
+    p.add_argument("--workers", type=integer(1, 4096), default=None, metavar="N",
+                   help=f"worker processes (default: {default_workers}); ignored with "
+                        f"--scheduler")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="a running Dask scheduler, e.g. tcp://host:8786 (default: "
+                        "$DASK_SCHEDULER_ADDRESS, else a local cluster or process pool)")
+
+
 def add_outputs(p: argparse.ArgumentParser, json: str, csv: str | None = None,
                 plot: str | None = None) -> None:
     """--json / --csv / --plot, each validated before any work (see ``_outputs``)."""

@@ -5,7 +5,7 @@ import argparse
 import math
 from pathlib import Path
 
-from ._args import integer
+from ._args import add_executor, integer
 
 __all__ = ["register"]
 
@@ -68,12 +68,7 @@ def register(sub) -> None:
                         "t01,t02,t03: a short campaign); default all")
     p.add_argument("--nodes", type=integer(20, 2000), default=200, metavar="N",
                    help="mesh nodes of the inner solves (default 200)")
-    p.add_argument("--workers", type=integer(1, 4096), default=None, metavar="N",
-                   help="worker processes (default: one per variant, at most one per CPU "
-                        "core); ignored with --scheduler")
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="a running Dask scheduler, e.g. tcp://host:8786 (default: "
-                        "$DASK_SCHEDULER_ADDRESS, else a local cluster or process pool)")
+    add_executor(p, "one per variant, at most one per CPU core")
     p.add_argument("--out", type=_out_dir, default=Path("campaign"), metavar="DIR",
                    help="output folder (default: ./campaign)")
     resume = p.add_mutually_exclusive_group()

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import math
 
-from ._args import LINEAR_SOLVERS, add_outputs, integer
+from ._args import LINEAR_SOLVERS, add_executor, add_outputs, integer
 from ._outputs import Outputs
 
 __all__ = ["register", "parse_axes"]
@@ -52,12 +52,7 @@ def register(sub) -> None:
                    help="where to estimate discretisation errors (two coarser meshes per "
                         "estimate): at both ends of the chunk axis for every value of the "
                         "others (default), at every point, or nowhere")
-    p.add_argument("--workers", type=integer(1, 4096), default=None, metavar="N",
-                   help="worker processes (default: this process for small sweeps, else one "
-                        "per CPU core); ignored with --scheduler")
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="a running Dask scheduler, e.g. tcp://host:8786 (default: "
-                        "$DASK_SCHEDULER_ADDRESS, else a local cluster or process pool)")
+    add_executor(p, "this process for small sweeps, else one per CPU core")
     p.add_argument("--chunk-size", dest="chunk_size", type=integer(1, 10**9), default=None,
                    metavar="N", help="most points per task (default: automatic, at least 12 "
                                      "tasks where the grid allows)")
