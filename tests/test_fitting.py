@@ -75,8 +75,9 @@ def test_all_twelve_parameters_of_the_flat_variant(full_flat):
 
 
 @pytest.mark.parametrize("variant", ["flat", "unstressed"])
-def test_kkt_hessian_is_the_exact_hessian_of_the_lagrangian(variant):
-    """The kernel-assembled Hessian of the KKT fit's NLP equals CasADi's of the whole graph."""
+def test_kkt_derivatives_are_those_of_the_whole_graph(variant):
+    """The kernel-assembled Hessian of the KKT fit's Lagrangian and Jacobian of its
+    constraints equal CasADi's of the whole graph."""
     from morphoshell.fitting import _Inner, _KKTProblem
     from morphoshell.observables import midline_cells
 
@@ -86,7 +87,7 @@ def test_kkt_hessian_is_the_exact_hessian_of_the_lagrangian(variant):
     nlp = _KKTProblem(spec, inner, 1e-8, 10)
     nlp._build(midline_cells(inner.solver.disc, x, spec.problem(theta).parameter_vector(),
                              inner.n))
-    w, sigma, mult, f, g, hess = nlp.lagrangian
+    w, sigma, mult, f, g, hess, jac_g = nlp.lagrangian
     direct = ca.Function("direct", [w, sigma, mult],
                          [ca.triu(ca.hessian(sigma * f + ca.dot(mult, g), w)[0])])
     rng = np.random.default_rng(0)
@@ -97,6 +98,10 @@ def test_kkt_hessian_is_the_exact_hessian_of_the_lagrangian(variant):
     two = np.array(ca.densify(hess(w0, np.zeros(0), 0.7, mu)))
     k = len(theta)
     assert np.abs(one[:k, k:]).max() > 1e-3 and np.abs(one[:k, :k]).max() > 1e-3
+    assert np.abs(one - two).max() < 1e-12 * np.abs(one).max()
+    one = np.array(ca.densify(ca.Function("direct_jac", [w], [ca.jacobian(g, w)])(w0)))
+    two = np.array(ca.densify(jac_g(w0, np.zeros(0))[1]))
+    assert np.abs(one[:, :k]).max() > 1e-3
     assert np.abs(one - two).max() < 1e-12 * np.abs(one).max()
 
 

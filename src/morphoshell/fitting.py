@@ -808,7 +808,7 @@ class _KKTProblem:
                                    ETA_MAX * np.ones(eta.shape[0])])
         w = ca.vertcat(th, x, lam, zc, sc)
         jac_g = ca.Function("jac_g", [w, ca.MX.sym("p", 0)],
-                            [g, self._constraint_jacobian(P, th, x, lam, p, q, g, F, w)],
+                            [g, self._constraint_jacobian(d, th, x, lam, p, q, w, lifted, ineq)],
                             ["x", "p"], ["g", "jac_g_x"])
         box_lo, box_hi = spec.box()
         free = np.inf * np.ones(w.shape[0] - k)
@@ -820,7 +820,7 @@ class _KKTProblem:
         hess = ca.Function("hess_lag", [w, none, sigma, mult], [H],
                            ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
         problem = {"x": w, "p": none, "f": 0.5 * ca.sumsqr(res), "g": g}
-        self.lagrangian = (w, sigma, mult, problem["f"], g, hess)     # (for tests)
+        self.lagrangian = (w, sigma, mult, problem["f"], g, hess, jac_g)     # (for tests)
         self.nlp = ca.nlpsol("kkt_fit", "ipopt", problem, {
             # the start is an equilibrium, feasible and usually close: a small
             # initial barrier keeps the inactive |eta| bounds from slowing it
@@ -922,7 +922,7 @@ class _KKTProblem:
         g_nodes = ca.densify(ca.MX(sp_s, ca.mtimes(Bs, ca.vec(grad))))
         # the constraints: F and the lifted integrals through D(θ) per cell
         D = d.pre(p, q)
-        T = ca.mtimes(P._D_p.function(p, q), ca.jacobian(p, th))
+        T = ca.jacobian(D, th)
         C, tt, gD = d.kkt_curvature_theta(x, lam, D, T, mult[:nF], mult[nF + 1:nF + 1 + nc],
                                           mult[nF + nc + 2:nF + 2 * nc + 2])
         H_xl = d.kkt_curvature(x, lam, D, mult[:nF], mult[nF + 1:nF + 1 + nc],
@@ -946,24 +946,31 @@ class _KKTProblem:
         return ca.triu(Hw) + ca.vertcat(top, ca.horzcat(ca.MX(n_w - k, k), rest))
 
     @staticmethod
-    def _constraint_jacobian(P, th, x, lam, p, q, g, F, w):
-        """∂g/∂w with the inner KKT block K = ∂F/∂(x, λ) and ∂F/∂θ from their local pieces.
+    def _constraint_jacobian(d, th, x, lam, p, q, w, lifted, ineq):
+        """∂g/∂w for g = (F, lifted integrals, breakpoint gaps, η), from local pieces.
 
-        Differentiating F through its assembled graph cost ~90 ms per call at
-        200 nodes (measured); the rest of g is small and differentiated as is.
+        The inner KKT block K = ∂F/∂(x, λ) and ∂F/∂θ = (∂F/∂D) T come from the
+        cell kernels, η's rows from T = ∂D/∂θ (computed once); the lifted
+        integrals and the gaps are differentiated as they are, each on its own
+        (a slice of the assembled g drags all of g into its derivative: 37 ms
+        at 200 nodes, and differentiating F through its graph cost ~90 ms,
+        measured).
         """
-        d = P.solver.disc
+        from .layouts import CELL_DATA
+
         D = d.pre(p, q)
+        T = ca.jacobian(D, th)
         Ht = d.hess_lag(x, D, 1, lam)
         J = d.jac_g(x, D)[1]
         K = ca.blockcat([[Ht + Ht.T - ca.diag(ca.diag(Ht)), J.T],
                          [J, ca.MX(J.shape[0], J.shape[0])]])
-        F_theta = ca.mtimes(P._F_D.function(x, D, lam),
-                            ca.mtimes(P._D_p.function(p, q), ca.jacobian(p, th)))
         k, nxl = th.shape[0], x.shape[0] + lam.shape[0]
-        top = ca.horzcat(F_theta, K, ca.MX(F.shape[0], w.shape[0] - k - nxl))
-        rest = g[F.shape[0]:]
-        return ca.vertcat(top, ca.jacobian(rest, w))
+        n_rest = w.shape[0] - k - nxl
+        top = ca.horzcat(d.kkt_residual_theta(x, lam, D, T), K, ca.MX(nxl, n_rest))
+        n_D = len(CELL_DATA)
+        eta_rows = (CELL_DATA.index("eta") + n_D * np.arange(D.shape[0] // n_D)).tolist()
+        eta = ca.horzcat(T[eta_rows, :], ca.MX(len(eta_rows), w.shape[0] - k))
+        return ca.vertcat(top, ca.jacobian(ca.vertcat(lifted, *ineq), w), eta)
 
     def _lifted_start(self, theta, x) -> np.ndarray:
         """z and S at the cell boundaries of the state x (gauge: 0 at the first node)."""
