@@ -88,6 +88,8 @@ NM_RESTARTS = 8
 BLEND = 0.05
 #: Mesh of the KKT fit's first, coarse stage (see ``_kkt``).
 COARSE_NODES = 60
+#: Ipopt iterations of each of the KKT fit's NLPs.
+KKT_ITERATIONS = 200
 #: |η| stays below this in the KKT fit (the theory needs |η| < 1).
 ETA_MAX = 0.98
 
@@ -313,15 +315,40 @@ class _Inner:
                 eq = continue_between(self.solver, near[1], problem)
         except ValueError:           # the mesh's breakpoints moved too far: a new mesh
             self._build(problem)
-            eq = solve_from(self.solver, problem, near[1])
             self._archive = []
+            eq = solve_from(self.solver, problem, near[1])
         except SolverError:
             eq = continue_between(self.solver, near[1], problem, first_step=0.25)
+        return self._keep(theta, eq)
+
+    def _keep(self, theta, eq: Equilibrium) -> Equilibrium:
         self.solves += 1
         self.eq = eq
-        self._cache = {key: eq}
+        self._cache = {tuple(theta): eq}
         self._archive = (self._archive + [(theta, eq)])[-ARCHIVE:]
         return eq
+
+    def transfer(self, theta, eq: Equilibrium) -> Equilibrium:
+        """The inner solution at θ on the branch of ``eq``, a solution at θ on another mesh.
+
+        Interpolated and solved (:func:`morphoshell.refinement.solve_from`); if
+        that fails, by :meth:`solve`.  A coarse mesh's state can lie near a fold
+        of the branch that the fine mesh has a little earlier: continuation
+        from the fit's start then stops short of θ (measured: flat variant, t02
+        of the synthetic inversion), while the coarse state's branch continues.
+        """
+        theta = np.asarray(theta, dtype=float)
+        problem = self.spec.problem(theta)
+        try:
+            try:
+                eq = solve_from(self.solver, problem, eq)
+            except ValueError:           # the breakpoints moved too far: a new mesh
+                self._build(problem)
+                self._archive = []
+                eq = solve_from(self.solver, problem, eq)
+        except SolverError:
+            return self.solve(theta)
+        return self._keep(theta, eq)
 
     def _distance(self, a, b) -> float:
         lo, hi = self.spec.box()
@@ -469,7 +496,8 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
     tol : float
         Relative tolerance on E_fit² of the outer iteration.
     max_iterations : int, optional
-        Outer iterations (function evaluations for Nelder–Mead).
+        Outer iterations (function evaluations for Nelder–Mead; Ipopt
+        iterations of each NLP for KKT, default :data:`KKT_ITERATIONS`).
     start : Equilibrium, optional
         The inner state to start from (a direct solution of ``spec.base`` on
         the fit's mesh, e.g. a previous fit's); by default the physical branch
@@ -632,7 +660,8 @@ def _kkt(spec, inner, tol, max_iterations):
                       mu_init=1e-9 if iterations else 1e-6, estimate_duals=iterations > 0)
     # without a coarse stage the NLP starts from the fit's start state as it
     # is (it is the inner solution there, or the caller's own start)
-    theta, eq = theta0, inner.solve(theta0) if iterations else inner.eq
+    # (the fine mesh's state on the coarse fit's branch)
+    theta, eq = theta0, inner.transfer(theta0, coarse.eq) if iterations else inner.eq
     x, lam = eq.x, eq.lam_g
     status = ""
     for _ in range(8):     # re-solve while the midline's points change cells
@@ -752,7 +781,7 @@ class _KKTProblem:
     def __init__(self, spec, inner, tol, max_iterations, mu_init: float = 1e-6,
                  estimate_duals: bool = False):
         self.spec, self.inner, self.tol = spec, inner, tol
-        self.max_iter = max_iterations or 200
+        self.max_iter = max_iterations or KKT_ITERATIONS
         self.mu_init = mu_init
         # The first NLP starts from zero multipliers, or from Ipopt's
         # least-squares estimate (``estimate_duals``; later NLPs carry theirs over).
