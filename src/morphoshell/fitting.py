@@ -868,7 +868,10 @@ class _KKTProblem:
                       "warm_start_init_point": ("no" if self.estimate_duals and self._duals is None
                                                 else "yes"),
                       "mumps_scaling": 0, "mumps_permuting_scaling": 0, "mumps_pivot_order": 0},
-            "hess_lag": hess, "jac_g": jac_g, "print_time": False, "error_on_fail": False})
+            "hess_lag": hess, "jac_g": jac_g, "print_time": False, "error_on_fail": False,
+            # a trial point outside the energy's domain evaluates to NaN and
+            # Ipopt backtracks: CasADi's "NaN detected" lines said nothing to act on
+            "show_eval_warnings": False})
         self.sizes = (k, d.layout.size, d.g.shape[0])
         self.cells = cells
 
