@@ -43,7 +43,6 @@ forward evaluation, parametric derivatives and fits share one definition.
 """
 from __future__ import annotations
 
-import hashlib
 import logging
 import os
 import platform
@@ -55,6 +54,11 @@ from pathlib import Path
 
 import casadi as ca
 import numpy as np
+
+try:     # hashlib's BLAKE2 without the OpenSSL that ``import hashlib`` loads (5 ms)
+    from _blake2 import blake2b as _blake2b
+except ImportError:  # pragma: no cover - not CPython
+    from hashlib import blake2b as _blake2b
 
 from . import _IMPORTED_NS
 from ._buffered import Buffered
@@ -117,6 +121,8 @@ def compiled_cell_functions(stages: int) -> dict[str, ca.Function] | None:
     except Exception as exc:     # unreadable index or library: the full path below decides
         _log.debug("kernel index %s not used (%s: %s)", index, type(exc).__name__, exc)
     try:
+        import hashlib
+
         cell = _cell_functions(stages)
         # Symbols named per scheme, so that libraries of different stages never clash.
         named = {k: _renamed(cell[k], names[k]) for k in COMPILED_KERNELS}
@@ -179,7 +185,7 @@ def _kernel_index(stages: int, compiler: str) -> Path | None:
         if not sources or any(f.stat().st_mtime_ns > _IMPORTED_NS - 10**9 for f in sources):
             return None
         # (BLAKE2: the package's 0.6 MB in 1 ms, half of SHA-256's time)
-        key = hashlib.blake2b("\0".join([str(stages), compiler, *_CFLAGS, ca.__version__,
+        key = _blake2b("\0".join([str(stages), compiler, *_CFLAGS, ca.__version__,
                                            np.__version__, sys.version, platform.machine()])
                               .encode(), digest_size=10)
         for source in sources:
