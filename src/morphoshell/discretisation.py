@@ -297,6 +297,16 @@ def _lagrange(points: np.ndarray, l: int) -> np.polynomial.Polynomial:
     return np.polynomial.Polynomial.fromroots(others) / np.prod(points[l] - others)
 
 
+def _compressed(n_rows: int, n_cols: int, cols: np.ndarray, rows: np.ndarray) -> ca.Sparsity:
+    """The sparsity of entries (rows, cols), given sorted by (col, row) and distinct.
+
+    CasADi's compressed-column storage directly: Sparsity.triplet would sort
+    them again (5 ms at 20 000 entries).
+    """
+    colind = np.concatenate([[0], np.cumsum(np.bincount(cols, minlength=n_cols))])
+    return ca.Sparsity(n_rows, n_cols, colind.tolist(), rows.tolist())
+
+
 def _poly(coefficients, x):
     """Horner evaluation (works on CasADi expressions)."""
     out = 0 * x + coefficients[-1]
@@ -606,12 +616,17 @@ class Discretisation:
         rows, cols, src = (np.asarray(v, dtype=np.int64).ravel() for v in (rows, cols, src))
         # Sorting by (col, row) is CasADi's compressed-column order of nonzeros.
         uniq, pos = np.unique(cols * n_rows + rows, return_inverse=True)
-        # (DM.triplet: the weights in the triplets' order, not the nonzeros')
-        # (DM.ones: converting a NumPy vector of ones took 2 ms per 20 000 entries)
-        B = ca.DM.triplet(pos.tolist(), src.tolist(),
-                          ca.DM.ones(len(src), 1) if weights is None
-                          else ca.DM(np.asarray(weights, float).ravel()), len(uniq), n_src)
-        sp = ca.Sparsity.triplet(n_rows, n_cols, (uniq % n_rows).tolist(), (uniq // n_rows).tolist())
+        pos = pos.ravel()
+        sp = _compressed(n_rows, n_cols, uniq // n_rows, uniq % n_rows)
+        if weights is None:
+            # B[pos, src] = 1 (a repeated triplet too, as DM.triplet gives it), in
+            # compressed form directly: half DM.triplet's time at 20 000 entries
+            key = np.sort(src * len(uniq) + pos)
+            key = key[np.append(True, key[1:] != key[:-1])[:len(key)]]   # (np.unique: numpy.ma)
+            B = ca.DM(_compressed(len(uniq), n_src, key // len(uniq), key % len(uniq)), 1.0)
+        else:   # (DM.triplet: the weights in the triplets' order, not the nonzeros')
+            B = ca.DM.triplet(pos.tolist(), src.tolist(),
+                              ca.DM(np.asarray(weights, float).ravel()), len(uniq), n_src)
         return sp, B
 
     def _integration_operators(self):
