@@ -215,6 +215,8 @@ def fresh_process(quick: bool) -> None:
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT / "src"), env.get("PYTHONPATH", "")])
     cases = {"python -c pass": [sys.executable, "-c", "pass"],
+             # the floor of any solve: the two libraries every direct solve needs
+             "import numpy, casadi": [sys.executable, "-c", "import numpy, casadi"],
              "import morphoshell.cli": [sys.executable, "-c", "import morphoshell.cli"],
              "morphoshell solve toy2_ablation.toml": [
                  sys.executable, "-m", "morphoshell.cli", "solve",

@@ -47,6 +47,30 @@ def test_collocation_bases(disc):
     assert np.allclose([np.polynomial.Polynomial(a)(1.0) for a in anti], w)
 
 
+def test_scatter_is_the_triplet_matrices():
+    # _scatter builds its matrices in compressed form: exactly CasADi's triplet constructors'
+    rng = np.random.default_rng(0)
+    for trial in range(100):
+        nr, nc = (int(v) for v in rng.integers(1, 25, 2))
+        k, n_src = int(rng.integers(0, 60)), int(rng.integers(1, 30))
+        r, c, s = rng.integers(0, nr, k), rng.integers(0, nc, k), rng.integers(0, n_src, k)
+        if trial % 3 == 0:     # repeated triplets too
+            r, c, s = (np.concatenate([v, v[:k // 2]]) for v in (r, c, s))
+        sp, B = Discretisation._scatter((nr, nc), r, c, s, n_src)
+        uniq, pos = np.unique(c * nr + r, return_inverse=True)
+        assert sp == ca.Sparsity.triplet(nr, nc, (uniq % nr).tolist(), (uniq // nr).tolist())
+        ref = ca.DM.triplet(pos.ravel().tolist(), s.tolist(), ca.DM.ones(len(s), 1), len(uniq),
+                            n_src)
+        assert B.shape == ref.shape and B.sparsity() == ref.sparsity()
+        assert B.nonzeros() == ref.nonzeros()
+        if trial % 3:          # and the (row, col) entry sums values[src] (of distinct triplets)
+            v = rng.normal(size=n_src)
+            dense = np.zeros((nr, nc))
+            ru, cu, su = np.unique(np.stack([r, c, s]), axis=1)
+            np.add.at(dense, (ru, cu), v[su])
+            assert np.allclose(np.array(ca.densify(ca.DM(sp, B @ v))), dense, atol=1e-14)
+
+
 def test_energy_is_the_quadrature_and_edge_state_the_polynomial():
     problem = Problem("anisotropic", {"f0": 0.1}, h=0.3, cut=0.3)
     eq = solve(problem, nodes=100)

@@ -119,9 +119,14 @@ def test_warm_solves_are_certified_without_an_ipopt_refactorisation(blister):
 
 
 def test_compiled_kernels_match_casadi(monkeypatch, tmp_path):
+    import os
+    import shutil
+    import time
     from morphoshell import discretisation as disc
     problem = Problem("uniform", {"k": 0.0}, h=0.3, cut=0.3)
     monkeypatch.setenv("MORPHOSHELL_CACHE_DIR", str(tmp_path))
+    # as if imported well after the last edit of the source (the index needs that)
+    monkeypatch.setattr(disc, "_IMPORTED_NS", time.time_ns() + 2 * 10**9)
     disc.compiled_cell_functions.cache_clear()
     try:
         solver = DirectSolver(problem.structure, 30)
@@ -135,6 +140,25 @@ def test_compiled_kernels_match_casadi(monkeypatch, tmp_path):
             slow = [np.array(v) for v in d._nlp(disc._cell_functions(2))[name].call(list(args))]
             for a, b in zip(fast, slow):
                 assert np.allclose(a, b, rtol=1e-12, atol=1e-12 * np.max(np.abs(b))), name
+        # later processes find the library by the source's hash, without building the
+        # expressions; a stale index, or a module changed since the import, take the full path
+        index = disc._kernel_index(2, shutil.which(os.environ.get("CC", "cc")))
+        assert index is not None and (tmp_path / index.read_text()).exists()
+        with monkeypatch.context() as m:
+            m.setattr(disc, "_cell_functions", None)      # not called on the fast path
+            disc.compiled_cell_functions.cache_clear()
+            fast = disc.compiled_cell_functions(2)
+            assert fast["grad"].name() == "morphoshell_cell2_grad"
+            assert np.array_equal(DirectSolver(problem.structure, 30).solve(problem).x, eq.x)
+        index.write_text("cells2_missing.so")
+        disc.compiled_cell_functions.cache_clear()
+        assert disc.compiled_cell_functions(2) is not None
+        assert (tmp_path / index.read_text()).exists()    # rewritten by the full path
+        with monkeypatch.context() as m:
+            m.setattr(disc, "_IMPORTED_NS", 0)            # every module "changed" since
+            assert disc._kernel_index(2, "cc") is None
+            disc.compiled_cell_functions.cache_clear()
+            assert disc.compiled_cell_functions(2) is not None
         # without a compiler (or with MORPHOSHELL_COMPILE=0) the same results from CasADi
         monkeypatch.setenv("MORPHOSHELL_COMPILE", "0")
         disc.compiled_cell_functions.cache_clear()

@@ -22,7 +22,12 @@ __version__ = "0.1.0"   # the one version source (pyproject.toml reads it)
 
 import importlib
 import sys
+import time
 import types
+
+# When this process imported the package: compiled kernels are found by a hash
+# of the source only if no module changed since (discretisation._kernel_index).
+_IMPORTED_NS = time.time_ns()
 
 # Submodules are imported on first use of a name (PEP 562): the command line
 # and ``import morphoshell`` then load only what they need; scipy's

@@ -21,7 +21,6 @@ Conventions
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from fractions import Fraction
 from typing import Callable, NamedTuple
 
 import casadi as ca
@@ -55,9 +54,15 @@ class Coefficients(NamedTuple):
 #: two digits to cancellation (terms ~1/(8η²) ≈ 12 against results ~0.08).
 SERIES_SWITCH = 0.1
 
+
+def _F(p: int, q: int) -> float:
+    """The rational p/q, correctly rounded (= float(Fraction(p, q)), without the
+    4 ms that importing fractions adds to every start-up)."""
+    return p / q
+
+
 # Taylor coefficients of the closed forms in powers of η (exact rationals,
 # expanded with sympy): α, γ even up to η¹², β odd up to η¹³.
-_F = Fraction
 _SERIES = {
     "alpha_ss": [1, 2, 3, 4, 5, 6, 7],
     "alpha_sphi": [_F(1, 2), 1, _F(3, 2), 2, _F(5, 2), 3, _F(7, 2)],

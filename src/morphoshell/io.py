@@ -34,7 +34,6 @@ The example problems ship inside the package (:func:`examples`,
 from __future__ import annotations
 
 import datetime as _dt
-import json
 import logging
 import math
 import sys
@@ -152,6 +151,8 @@ def load_problem(path: str | Path) -> tuple[Problem, Settings]:
 
 def _problem_from_json(path: Path) -> Problem:
     """The problem of a result JSON (``solve --json``, ``fit --json``): its "problem" entry."""
+    import json
+
     try:
         data = json.loads(path.read_text(encoding="utf-8-sig"))
     except OSError as exc:
@@ -343,6 +344,8 @@ def provenance() -> dict[str, str]:
 
 def write_json(path: str | Path, data: Mapping[str, Any]) -> Path:
     """Write ``data`` (plus ``provenance``) as JSON, creating parent folders."""
+    import json
+
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     payload = {**to_jsonable(data), "provenance": provenance()}
