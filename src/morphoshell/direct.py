@@ -138,7 +138,6 @@ class DirectSolver:
         # "off" or "exact" the caller asked for Ipopt's own handling
         self.newton = bool(newton) and stability == "auto"
         self._newton = None
-        self._pre = Buffered(d.pre)
         pts = d.symbolic_points(d.x, d.p, d.q)
         self._points = Buffered(ca.Function("points", [d.x, d.p, d.q],
                                             [pts["s"], pts["z"]], ["x", "p", "q"], ["s", "z"]))
@@ -184,16 +183,16 @@ class DirectSolver:
             x0, lam_g0 = warm_start.x, warm_start.lam_g
         if x0 is None:
             x0 = self.disc.initial_guess(p, q)
-        D = self._pre(p, q)[0]
+        D = self.disc.cell_data(p, q)
         res = None
         if lam_g0 is not None and self.newton:     # a warm start: Newton first
             if self._newton is None:
                 self._newton = NewtonBackend(self.disc, tol=self.tol,
                                              acceptable_tol=self.backend.acceptable_tol)
-            res = self._newton.solve(x0, self.disc.pre(p, q), lam_g0)
+            res = self._newton.solve(x0, self.disc.pre_numeric(p, q), lam_g0)
         if res is None:
             res = self.backend.solve(x0, D, np.zeros(self.disc.constraints) if lam_g0 is None
-                                     else lam_g0, data=lambda: self.disc.pre(p, q))
+                                     else lam_g0, data=lambda: self.disc.pre_numeric(p, q))
         stats = SolverStats("direct", res.iterations, res.seconds, res.status, self.nodes,
                             self.build_seconds, res.details)
         eq = self.equilibrium(problem, res.x, res.lam_g, p, q, D, stats, converged=res.converged)

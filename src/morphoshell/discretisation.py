@@ -55,13 +55,10 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-try:     # hashlib's BLAKE2 without the OpenSSL that ``import hashlib`` loads (5 ms)
-    from _blake2 import blake2b as _blake2b
-except ImportError:  # pragma: no cover - not CPython
-    from hashlib import blake2b as _blake2b
-
 from . import _IMPORTED_NS
 from ._buffered import Buffered
+from ._compiled import (_CFLAGS, _blake2b, _compiled_library, _renamed, compiled_point_function,
+                        kernel_cache_dir)
 from .energy import LOCAL_OUTPUTS, intrinsic_function, pointwise
 from .layouts import CELL_DATA, INTRINSIC
 from .mesh import Knot, check_monotone, shell_points
@@ -78,16 +75,6 @@ COMPILED_KERNELS = ("f", "energy", "g", "grad", "jac", "hess", "fields", "newton
 
 #: Relative size ε of the (λ, λ) block −ε W⁻¹ of the Newton system (:meth:`Discretisation.newton_system`).
 NEWTON_EPSILON = 1e-8
-_CFLAGS = ("-O2", "-fPIC", "-shared")
-
-
-def kernel_cache_dir() -> Path:
-    """Where compiled cell kernels are kept: ``$MORPHOSHELL_CACHE_DIR``, else
-    ``$XDG_CACHE_HOME/morphoshell`` (default ``~/.cache/morphoshell``)."""
-    env = os.environ.get("MORPHOSHELL_CACHE_DIR")
-    if env:
-        return Path(env)
-    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "morphoshell"
 
 
 @lru_cache(maxsize=8)
@@ -121,8 +108,6 @@ def compiled_cell_functions(stages: int) -> dict[str, ca.Function] | None:
     except Exception as exc:     # unreadable index or library: the full path below decides
         _log.debug("kernel index %s not used (%s: %s)", index, type(exc).__name__, exc)
     try:
-        import hashlib
-
         cell = _cell_functions(stages)
         # Symbols named per scheme, so that libraries of different stages never clash.
         named = {k: _renamed(cell[k], names[k]) for k in COMPILED_KERNELS}
@@ -131,27 +116,7 @@ def compiled_cell_functions(stages: int) -> dict[str, ca.Function] | None:
         # the library as adj1_<name>.
         adjoints = [_renamed(named[k].reverse(1), f"adj1_{named[k].name()}") for k in ("f", "g")]
         functions = [*named.values(), *adjoints]
-        # keyed on the serialised expressions (cheap; generating C takes ~40 ms)
-        key = hashlib.sha256("\0".join([*(f.serialize() for f in functions), compiler, *_CFLAGS,
-                                         ca.__version__, platform.machine()]).encode())
-        path = kernel_cache_dir() / f"cells{stages}_{key.hexdigest()[:20]}.so"
-        if not path.exists():
-            import subprocess   # here only: 10 ms of imports that a cached library does not need
-            import tempfile
-
-            path.parent.mkdir(parents=True, exist_ok=True)
-            with tempfile.TemporaryDirectory() as tmp:
-                gen = ca.CodeGenerator(f"cells{stages}.c", {"with_header": False})
-                for f in functions:
-                    gen.add(f)
-                gen.generate(tmp + os.sep)
-                out = Path(tmp) / "cells.so"
-                subprocess.run([compiler, *_CFLAGS, str(Path(tmp) / f"cells{stages}.c"), "-o",
-                                str(out), "-lm"], check=True, capture_output=True, timeout=300)
-                # atomic: processes compiling at once never load a partial file
-                part = path.with_suffix(f".{os.getpid()}.part")
-                shutil.copyfile(out, part)
-                os.replace(part, path)
+        path = _compiled_library(f"cells{stages}", functions, compiler)
         kernels = {k: ca.external(f.name(), str(path)) for k, f in named.items()}
         if index is not None:
             try:    # atomic, as the library; a read-only cache only loses the fast path
@@ -315,11 +280,6 @@ def _poly(coefficients, x):
     return out
 
 
-def _renamed(f: ca.Function, name: str) -> ca.Function:
-    """The SX Function ``f`` under another name (the symbol of its generated C code)."""
-    return ca.Function(name, f.sx_in(), f.call(f.sx_in()), f.name_in(), f.name_out())
-
-
 class Discretisation:
     """The discrete energy and constraints for one (structure, mesh, stages).
 
@@ -407,6 +367,11 @@ class Discretisation:
             "cell_data", [self.p, self.q],
             [ca.vec(pre.map(m)(s_gauss.T, ds.T, weights, scale, self.p))], ["p", "q"], ["D"])
         self._pre_parts = (pre, s_gauss, ds, weights, scale, m)
+        # the same numbers from compiled code, for evaluation (no derivatives)
+        self.pre_numeric = ca.Function(
+            "cell_data_numeric", [self.p, self.q],
+            [ca.vec(compiled_point_function(pre).map(m)(s_gauss.T, ds.T, weights, scale, self.p))],
+            ["p", "q"], ["D"])
         n_D = len(CELL_DATA)
         self.x = ca.MX.sym("x", n)
         self.D = ca.MX.sym("D", n_D * m)
@@ -698,7 +663,7 @@ class Discretisation:
     def cell_data(self, p: np.ndarray, q=()) -> np.ndarray:
         """The NLP parameter vector D for physical parameters ``p`` and anchors ``q``."""
         if not hasattr(self, "_pre_buffered"):
-            self._pre_buffered = Buffered(self.pre)
+            self._pre_buffered = Buffered(self.pre_numeric)
         return self._pre_buffered(p, np.asarray(q, dtype=float))[0]
 
     def gauss_fields(self, x: np.ndarray, D: np.ndarray) -> dict[str, np.ndarray]:

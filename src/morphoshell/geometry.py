@@ -18,6 +18,7 @@ import casadi as ca
 import numpy as np
 
 from ._buffered import Buffered
+from ._compiled import compiled_point_function
 from ._validate import lookup
 
 __all__ = ["Geometry", "SPHERE", "DISC", "GEOMETRIES", "get_geometry"]
@@ -61,7 +62,8 @@ class Geometry:
             if len(self._cache) > 16:
                 self._cache.clear()
                 return self.numeric(s)
-            self._cache[s.size] = Buffered(self._cache["f"].map(s.size))
+            # (compiled code where available: evaluation only, 3-4x faster)
+            self._cache[s.size] = Buffered(compiled_point_function(self._cache["f"]).map(s.size))
         out = self._cache[s.size](s.ravel())[0].reshape(-1, 3)
         return tuple(out[:, i].reshape(s.shape) for i in range(3))
 

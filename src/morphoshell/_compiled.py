@@ -1,0 +1,107 @@
+"""Compiled C for CasADi's SX functions: generated once per machine, cached, loaded on use.
+
+A utility for the layers above (no physics here): :func:`compiled_point_function`
+compiles one SX function for numerical evaluation;
+:func:`morphoshell.discretisation.compiled_cell_functions` builds the cell
+kernels' library with :func:`_compiled_library`.  Nothing depends on a
+compiler: without one (or with ``MORPHOSHELL_COMPILE=0``) the callers keep
+CasADi's virtual machine.
+"""
+from __future__ import annotations
+
+import logging
+import os
+import platform
+import shutil
+from functools import lru_cache
+from pathlib import Path
+
+import casadi as ca
+
+try:     # hashlib's BLAKE2 without the OpenSSL that ``import hashlib`` loads (5 ms)
+    from _blake2 import blake2b as _blake2b
+except ImportError:  # pragma: no cover - not CPython
+    from hashlib import blake2b as _blake2b
+
+_log = logging.getLogger("morphoshell")
+_CFLAGS = ("-O2", "-fPIC", "-shared")
+
+
+def kernel_cache_dir() -> Path:
+    """Where compiled cell kernels are kept: ``$MORPHOSHELL_CACHE_DIR``, else
+    ``$XDG_CACHE_HOME/morphoshell`` (default ``~/.cache/morphoshell``)."""
+    env = os.environ.get("MORPHOSHELL_CACHE_DIR")
+    if env:
+        return Path(env)
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "morphoshell"
+
+
+def _compiled_library(tag: str, functions: list[ca.Function], compiler: str) -> Path:
+    """The shared library of ``functions`` (C by CasADi), compiled once and cached.
+
+    Keyed on the serialised expressions (cheap; generating C takes ~40 ms),
+    the compiler, its flags, CasADi's version and the machine, in
+    :func:`kernel_cache_dir`; written atomically, so that processes compiling
+    at once never load a partial file.  Raises on any failure.
+    """
+    import hashlib
+
+    key = hashlib.sha256("\0".join([*(f.serialize() for f in functions), compiler, *_CFLAGS,
+                                     ca.__version__, platform.machine()]).encode())
+    path = kernel_cache_dir() / f"{tag}_{key.hexdigest()[:20]}.so"
+    if not path.exists():
+        import subprocess   # here only: 10 ms of imports that a cached library does not need
+        import tempfile
+
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory() as tmp:
+            gen = ca.CodeGenerator(f"{tag}.c", {"with_header": False})
+            for f in functions:
+                gen.add(f)
+            gen.generate(tmp + os.sep)
+            out = Path(tmp) / "kernels.so"
+            subprocess.run([compiler, *_CFLAGS, str(Path(tmp) / f"{tag}.c"), "-o", str(out),
+                            "-lm"], check=True, capture_output=True, timeout=300)
+            part = path.with_suffix(f".{os.getpid()}.part")
+            shutil.copyfile(out, part)
+            os.replace(part, path)
+    return path
+
+
+def compiled_point_function(f: ca.Function) -> ca.Function:
+    """The SX Function ``f`` compiled to C (:func:`_compiled_library`), or ``f`` itself.
+
+    For numerical evaluation only (a compiled function has no derivatives):
+    per-point functions that results and solves evaluate over every point,
+    the parameter data D (:attr:`morphoshell.discretisation.Discretisation.pre_numeric`),
+    the geometry and the profiles; D evaluated 3.9-4.2x faster than in
+    CasADi's virtual machine (measured, toy 3 at 200 and 3200 nodes).
+    ``f`` itself if ``MORPHOSHELL_COMPILE=0``, no compiler (``$CC`` or
+    ``cc``) is found, or anything fails (logged at debug level).  Compiled
+    once per machine (about 0.3 s), loaded once per process and expression.
+    """
+    if os.environ.get("MORPHOSHELL_COMPILE", "1") == "0":
+        return f
+    compiled = _compiled_point(f.serialize())
+    return f if compiled is None else compiled
+
+
+@lru_cache(maxsize=32)
+def _compiled_point(serialised: str) -> ca.Function | None:
+    compiler = shutil.which(os.environ.get("CC", "cc"))
+    if compiler is None:
+        return None
+    f = ca.Function.deserialize(serialised)
+    try:
+        # the symbol names the expression: structures never clash in one process
+        name = "morphoshell_" + _blake2b(serialised.encode(), digest_size=8).hexdigest()
+        return ca.external(name, str(_compiled_library(name, [_renamed(f, name)], compiler)))
+    except Exception as exc:     # no working compiler, read-only cache, ...: stay in CasADi
+        _log.debug("%s not compiled (%s: %s); using CasADi's virtual machine", f.name(),
+                   type(exc).__name__, exc)
+        return None
+
+
+def _renamed(f: ca.Function, name: str) -> ca.Function:
+    """The SX Function ``f`` under another name (the symbol of its generated C code)."""
+    return ca.Function(name, f.sx_in(), f.call(f.sx_in()), f.name_in(), f.name_out())
