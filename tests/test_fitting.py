@@ -87,20 +87,20 @@ def test_kkt_derivatives_are_those_of_the_whole_graph(variant):
     nlp = _KKTProblem(spec, inner, 1e-8, 10)
     nlp._build(midline_cells(inner.solver.disc, x, spec.problem(theta).parameter_vector(),
                              inner.n))
-    w, sigma, mult, f, g, hess, jac_g = nlp.lagrangian
-    direct = ca.Function("direct", [w, sigma, mult],
+    w, target, sigma, mult, f, g, hess, jac_g = nlp.lagrangian
+    direct = ca.Function("direct", [w, target, sigma, mult],
                          [ca.triu(ca.hessian(sigma * f + ca.dot(mult, g), w)[0])])
     rng = np.random.default_rng(0)
     w0 = np.concatenate([theta, x, lam, nlp._lifted_start(theta, x)])
     w0 = w0 + 1e-3 * rng.normal(size=w0.shape)     # off the equilibrium: every term counts
     mu = 1e-2 * rng.normal(size=g.shape[0])
-    one = np.array(ca.densify(direct(w0, 0.7, mu)))
-    two = np.array(ca.densify(hess(w0, np.zeros(0), 0.7, mu)))
+    one = np.array(ca.densify(direct(w0, inner.data.ravel(), 0.7, mu)))
+    two = np.array(ca.densify(hess(w0, inner.data.ravel(), 0.7, mu)))
     k = len(theta)
     assert np.abs(one[:k, k:]).max() > 1e-3 and np.abs(one[:k, :k]).max() > 1e-3
     assert np.abs(one - two).max() < 1e-12 * np.abs(one).max()
     one = np.array(ca.densify(ca.Function("direct_jac", [w], [ca.jacobian(g, w)])(w0)))
-    two = np.array(ca.densify(jac_g(w0, np.zeros(0))[1]))
+    two = np.array(ca.densify(jac_g(w0, inner.data.ravel())[1]))
     assert np.abs(one[:, :k]).max() > 1e-3
     assert np.abs(one - two).max() < 1e-12 * np.abs(one).max()
 
@@ -224,3 +224,39 @@ def test_fit_command_refuses_bad_input(midline_csv, args, named, capsys):
     assert main(["fit", str(midline_csv), *args]) == 2
     err = capsys.readouterr().err
     assert named in err and "Traceback" not in err
+
+
+def test_kkt_data_homotopy_shortens_failed_steps_and_reaches_the_data(monkeypatch):
+    """The homotopy retries a failed step a quarter as long, doubles after success, ends at
+    the data, and gives up (FitError naming where) when the steps become too short."""
+    import types
+
+    import morphoshell.fitting as fitting
+
+    data = np.array([[0.0, 1.0], [2.0, 3.0]])
+    model = np.zeros((2, 2))
+    inner = types.SimpleNamespace(data=data, n=2,
+                                  residuals=lambda eq: (model - data).T.ravel())
+    eq = types.SimpleNamespace(x=np.zeros(1), lam_g=np.zeros(1))
+    reached, tried = [0.0], []
+
+    def cells(nlp, inner, theta, x, lam, target, limit):
+        tau = float(target[1, 1] / 3.0)            # the target's position on the path
+        tried.append(round(tau, 6))
+        if tau - reached[-1] > limit:
+            exc = FitError("too far", "Maximum_Iterations_Exceeded")
+            exc.iterations = 60
+            raise exc
+        reached.append(tau)
+        return theta + 1, x, lam, 5, "Solve_Succeeded"
+
+    nlp = types.SimpleNamespace(_duals=None)
+    monkeypatch.setattr(fitting, "_kkt_cells", lambda *a: cells(*a, limit=0.3))
+    theta, _, _, its, status = fitting._kkt_homotopy(nlp, inner, 0.0, eq)
+    assert tried[:3] == [1.0, 0.25, 0.75] and reached[-1] == 1.0
+    assert its == 60 * (len(tried) - len(reached) + 1) + 5 * (len(reached) - 1)
+    assert theta == len(reached) - 1
+    reached[:] = [0.0]
+    monkeypatch.setattr(fitting, "_kkt_cells", lambda *a: cells(*a, limit=0.001))
+    with pytest.raises(FitError, match="stopped at τ = 0"):
+        fitting._kkt_homotopy(nlp, inner, 0.0, eq)

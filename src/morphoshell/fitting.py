@@ -90,6 +90,10 @@ BLEND = 0.05
 COARSE_NODES = 60
 #: Ipopt iterations of each of the KKT fit's NLPs.
 KKT_ITERATIONS = 200
+#: ... and of each step of its data homotopy (converging ones took 10-60, measured).
+KKT_STEP_ITERATIONS = 60
+#: The data homotopy gives up below this step in τ (``_kkt_homotopy``).
+HOMOTOPY_MIN_STEP = 1 / 64
 #: |η| stays below this in the KKT fit (the theory needs |η| < 1).
 ETA_MAX = 0.98
 
@@ -497,7 +501,8 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
         Relative tolerance on E_fit² of the outer iteration.
     max_iterations : int, optional
         Outer iterations (function evaluations for Nelder–Mead; Ipopt
-        iterations of each NLP for KKT, default :data:`KKT_ITERATIONS`).
+        iterations of each NLP for KKT, default :data:`KKT_ITERATIONS`, at
+        most :data:`KKT_STEP_ITERATIONS` in its data homotopy).
     start : Equilibrium, optional
         The inner state to start from (a direct solution of ``spec.base`` on
         the fit's mesh, e.g. a previous fit's); by default the physical branch
@@ -656,26 +661,20 @@ def _kkt(spec, inner, tol, max_iterations):
     # estimate, measured before the window edges were flagged).  Far from the
     # optimum the estimate is large and the first steps went wild (the
     # 3-parameter noisy fit at 60 nodes: 200 iterations; 6 from zero).
-    nlp = _KKTProblem(spec, inner, tol, max_iterations,
+    nlp = _KKTProblem(spec, inner, tol, max_iterations if iterations else
+                      min(max_iterations or KKT_STEP_ITERATIONS, KKT_STEP_ITERATIONS),
                       mu_init=1e-9 if iterations else 1e-6, estimate_duals=iterations > 0)
     # without a coarse stage the NLP starts from the fit's start state as it
     # is (it is the inner solution there, or the caller's own start)
     # (the fine mesh's state on the coarse fit's branch)
     theta, eq = theta0, inner.transfer(theta0, coarse.eq) if iterations else inner.eq
-    x, lam = eq.x, eq.lam_g
-    status = ""
-    for _ in range(8):     # re-solve while the midline's points change cells
-        cells = midline_cells(inner.solver.disc, x, spec.problem(theta).parameter_vector(),
-                              inner.n)
-        theta, x, lam, its, status = nlp.solve(cells, theta, x, lam)
-        iterations += its
-        problem = spec.problem(theta)
-        p = problem.parameter_vector()
-        # the NLP chose each point's cell within a window around the assigned
-        # one: exact as long as every point stayed inside its window
-        now = midline_cells(inner.solver.disc, x, p, inner.n)
-        if max(abs(a - b) for a, b in zip(now, cells)) <= WINDOW:
-            break
+    if iterations:
+        theta, x, lam, its, status = _kkt_cells(nlp, inner, theta, eq.x, eq.lam_g, inner.data)
+    else:
+        theta, x, lam, its, status = _kkt_homotopy(nlp, inner, theta, eq)
+    iterations += its
+    problem = spec.problem(theta)
+    p = problem.parameter_vector()
     d = inner.solver.disc
     D = d.cell_data(p)
     fitted = inner.solver.equilibrium(problem, x, lam, p, np.zeros(0), D, eq.solver, True)
@@ -693,6 +692,64 @@ def _kkt(spec, inner, tol, max_iterations):
     inner.eq = check
     inner._cache = {tuple(theta): check}
     return theta, iterations, True, status
+
+
+def _kkt_cells(nlp, inner, theta, x, lam, data) -> tuple:
+    """NLPs to ``data`` from (θ, x, λ), rebuilt while the fit points leave their cells' windows."""
+    iterations, status = 0, ""
+    spec, d = inner.spec, inner.solver.disc
+    for _ in range(8):
+        cells = midline_cells(d, x, spec.problem(theta).parameter_vector(), inner.n)
+        try:
+            theta, x, lam, its, status = nlp.solve(cells, theta, x, lam, data)
+        except FitError as exc:
+            exc.iterations = iterations + int(nlp.nlp.stats().get("iter_count", 0))
+            raise
+        iterations += its
+        # the NLP chose each point's cell within a window around the assigned
+        # one: exact as long as every point stayed inside its window
+        now = midline_cells(d, x, spec.problem(theta).parameter_vector(), inner.n)
+        if max(abs(a - b) for a, b in zip(now, cells)) <= WINDOW:
+            break
+    return theta, x, lam, iterations, status
+
+
+def _kkt_homotopy(nlp, inner, theta, eq) -> tuple:
+    """The KKT NLPs from the fit's start to the data, through intermediate data if need be.
+
+    The target runs from the start's own midline (fitted exactly there) to
+    the data, d(τ) = (1 − τ) m₀ + τ d, τ = 0 → 1: first in one step; a step
+    whose NLP fails (in :data:`KKT_STEP_ITERATIONS`) is retried a quarter as
+    long from the last target reached and its multipliers, and the next one
+    is twice as long.  From the family's defaults one NLP to a noisy average
+    failed (t01 of the synthetic inversion, flat: Maximum_Iterations_Exceeded
+    after 200 iterations, its full steps breaking the inner equilibrium); by
+    steps it converged (404 iterations, 46 s).  Raises the last failure when
+    the step falls below :data:`HOMOTOPY_MIN_STEP`.
+    """
+    res = inner.residuals(eq)
+    model = inner.data + np.column_stack([res[:inner.n], res[inner.n:]])
+    x, lam = eq.x, eq.lam_g
+    tau, step, iterations = 0.0, 1.0, 0
+    while True:
+        target = min(1.0, tau + step)
+        duals = nlp._duals
+        try:
+            out = _kkt_cells(nlp, inner, theta, x, lam,
+                             (1 - target) * model + target * inner.data)
+        except FitError as exc:
+            iterations += exc.iterations
+            step /= 4
+            if step < HOMOTOPY_MIN_STEP:
+                raise FitError(f"{exc} (the data homotopy stopped at τ = {tau:.4g}: a step of "
+                               f"{4 * step:.2g} failed)", exc.status, exc.last_iterate) from None
+            nlp._duals = duals
+            continue
+        theta, x, lam, its, status = out
+        iterations += its
+        if target == 1.0:
+            return theta, x, lam, iterations, status
+        tau, step = target, 2 * step
 
 
 def _ramp(x):
@@ -821,7 +878,10 @@ class _KKTProblem:
         local = ca.reshape(Uext[u_idx.ravel(order="F").tolist()], u_idx.shape[0], n)
         blended = _blended_point(d.stages).map(n)
         rz = blended(local, ca.DM(t_fit).T, *(ca.DM(f) for f in flags))
-        res = ca.vertcat(rz[0, :].T - inner.data[:, 0], rz[1, :].T - inner.data[:, 1])
+        # the data are the NLP's parameter: one NLP serves every target of the
+        # data homotopy (:func:`_kkt_homotopy`)
+        target = ca.MX.sym("data", 2 * n)         # (r, z) point by point
+        res = ca.vec((rz - ca.reshape(target, 2, n)).T)
         ineq, glo, ghi = [], [], []
         if spec.base.family == "volvox":
             named = layout.unpack(p)
@@ -836,20 +896,19 @@ class _KKTProblem:
         self.ubg = np.concatenate([np.zeros(F.shape[0] + lifted.shape[0]), ghi,
                                    ETA_MAX * np.ones(eta.shape[0])])
         w = ca.vertcat(th, x, lam, zc, sc)
-        jac_g = ca.Function("jac_g", [w, ca.MX.sym("p", 0)],
+        jac_g = ca.Function("jac_g", [w, target],
                             [g, self._constraint_jacobian(d, th, x, lam, p, q, w, lifted, ineq)],
                             ["x", "p"], ["g", "jac_g_x"])
         box_lo, box_hi = spec.box()
         free = np.inf * np.ones(w.shape[0] - k)
         self.lbw, self.ubw = np.concatenate([box_lo, -free]), np.concatenate([box_hi, free])
         sigma, mult = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", g.shape[0])
-        none = ca.MX.sym("p", 0)
         H = self._hessian(d, P, th, x, lam, p, q, sh, local, t_fit, flags, u_idx, w, sigma, mult,
-                          F.shape[0], ineq)
-        hess = ca.Function("hess_lag", [w, none, sigma, mult], [H],
+                          F.shape[0], ineq, target)
+        hess = ca.Function("hess_lag", [w, target, sigma, mult], [H],
                            ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
-        problem = {"x": w, "p": none, "f": 0.5 * ca.sumsqr(res), "g": g}
-        self.lagrangian = (w, sigma, mult, problem["f"], g, hess, jac_g)     # (for tests)
+        problem = {"x": w, "p": target, "f": 0.5 * ca.sumsqr(res), "g": g}
+        self.lagrangian = (w, target, sigma, mult, problem["f"], g, hess, jac_g)  # (for tests)
         self.nlp = ca.nlpsol("kkt_fit", "ipopt", problem, {
             # the start is an equilibrium, feasible and usually close: a small
             # initial barrier keeps the inactive |eta| bounds from slowing it
@@ -907,7 +966,7 @@ class _KKTProblem:
                 tuple(np.array(f).T for f in (first, last, keep)))
 
     def _hessian(self, d, P, th, x, lam, p, q, sh, local, t_fit, flags, u_idx, w, sigma, mult,
-                 nF: int, ineq) -> ca.MX:
+                 nF: int, ineq, target) -> ca.MX:
         """Upper triangle of the exact Hessian of the Lagrangian σ ½|res|² + μ·g.
 
         Gauss–Newton for the misfit plus the inner KKT conditions' curvature
@@ -928,9 +987,8 @@ class _KKTProblem:
         k, n, m = th.shape[0], x.shape[0], lam.shape[0]
         nc = d.layout.cells
         n_w, n_U, n_pt = w.shape[0], (nc + 1) + n + 2 * (nc + 1), local.shape[1]
-        data = ca.DM(self.inner.data.T)
         grad, tri = _point_misfit(d.stages).map(n_pt)(
-            local, ca.DM(t_fit).T, *(ca.DM(f) for f in flags), data)
+            local, ca.DM(t_fit).T, *(ca.DM(f) for f in flags), ca.reshape(target, 2, n_pt))
         # the misfit's Hessian in U (local duplicates of one unknown: a local
         # off-diagonal pair on U's diagonal counts twice)
         n_loc = u_idx.shape[0]
@@ -1014,7 +1072,8 @@ class _KKTProblem:
         z, S = (np.asarray(v).ravel()[::d.stages] for v in self._points(x, p, np.zeros(0)))
         return np.concatenate([z - z[0], S])
 
-    def solve(self, cells, theta, x, lam):
+    def solve(self, cells, theta, x, lam, data=None):
+        """One NLP from (θ, x, λ) with the fit points in ``cells``, to ``data`` (default: the fit's)."""
         warm = {}
         if cells != self.cells:
             if self.cells is None:       # the misfit at the start sets the objective's scale
@@ -1027,7 +1086,9 @@ class _KKTProblem:
             # carry over (a cold dual start took wild first steps, measured)
             warm = {"lam_g0": self._duals[0], "lam_x0": self._duals[1]}
         w0 = np.concatenate([theta, x, lam, self._lifted_start(theta, x)])
-        sol = self.nlp(x0=w0, lbx=self.lbw, ubx=self.ubw, lbg=self.lbg, ubg=self.ubg, **warm)
+        data = self.inner.data if data is None else data
+        sol = self.nlp(x0=w0, p=np.asarray(data, dtype=float).ravel(), lbx=self.lbw,
+                       ubx=self.ubw, lbg=self.lbg, ubg=self.ubg, **warm)
         self._duals = (np.asarray(sol["lam_g"]).ravel(), np.asarray(sol["lam_x"]).ravel())
         stats = self.nlp.stats()
         status = stats.get("return_status", "unknown")
