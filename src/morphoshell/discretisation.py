@@ -389,6 +389,7 @@ class Discretisation:
         self._cell = compiled or _cell_functions(S)
         self.numeric = self._nlp(self._cell)
         self._newton = None
+        self._theta_scatters: dict = {}
         self._symbolic = None if compiled is not None else self.numeric
         self._fields = self.numeric["fields"]
         # z and S at the points are linear in the Gauss values of z' and S'
@@ -718,9 +719,7 @@ class Discretisation:
         n, m = self.layout.size, self.constraints
         S, cells = self.stages, self.layout.cells
         n_loc = self._idx.shape[0]
-        # global (x, λ) index of each local slot; constants (idx >= n) drop out
-        local = np.vstack([np.where(self._idx < n, self._idx, -1),
-                           n + np.arange(cells)[None, :] * S + np.arange(S)[:, None]])
+        local = self._local_slots()
         ku, lu = np.triu_indices(n_loc + S)
         I, J = local[ku], local[lu]
         ok = (I >= 0) & (J >= 0)
@@ -827,20 +826,28 @@ class Discretisation:
         n_cell = len(CELL_DATA) * self.stages
         return ca.reshape(ca.reshape(T, n_cell, cells * k).T, cells, n_cell * k).T
 
+    def _local_slots(self) -> np.ndarray:
+        """Global (x, λ) index of each cell's local slot (its unknowns, then its S
+        constraints; −1 for the constants), ((3S + 2) + S) × cells."""
+        n, S, cells = self.layout.size, self.stages, self.layout.cells
+        return np.vstack([np.where(self._idx < n, self._idx, -1),
+                          n + np.arange(cells)[None, :] * S + np.arange(S)[:, None]])
+
     def _local_theta(self, cross, k: int) -> ca.MX:
         """Scatter of the cells' ((3S + 2) + S) × k blocks (side by side) into (n + m) × k."""
-        n, m = self.layout.size, self.g.shape[0]
-        S, cells = self.stages, self.layout.cells
-        local = np.vstack([np.where(self._idx < n, self._idx, -1),
-                           n + np.arange(cells)[None, :] * S + np.arange(S)[:, None]])
-        # cell c's local row i, column j sits at i + n_blk (c k + j) of vec(cross)
-        n_blk = local.shape[0]
-        rows = np.repeat(local.T[:, :, None], k, axis=2)
-        cols = np.broadcast_to(np.arange(k), rows.shape)
-        src = (np.arange(n_blk)[None, :, None]
-               + n_blk * (k * np.arange(cells)[:, None, None] + np.arange(k)[None, None, :]))
-        ok = rows >= 0
-        sp, B = self._scatter((n + m, k), rows[ok], cols[ok], src[ok], n_blk * cells * k)
+        if k not in self._theta_scatters:      # (the KKT fit's Jacobian and Hessian share it)
+            n, m, cells = self.layout.size, self.g.shape[0], self.layout.cells
+            local = self._local_slots()
+            # cell c's local row i, column j sits at i + n_blk (c k + j) of vec(cross)
+            n_blk = local.shape[0]
+            rows = np.repeat(local.T[:, :, None], k, axis=2)
+            cols = np.broadcast_to(np.arange(k), rows.shape)
+            src = (np.arange(n_blk)[None, :, None]
+                   + n_blk * (k * np.arange(cells)[:, None, None] + np.arange(k)[None, None, :]))
+            ok = rows >= 0
+            self._theta_scatters[k] = self._scatter((n + m, k), rows[ok], cols[ok], src[ok],
+                                                    n_blk * cells * k)
+        sp, B = self._theta_scatters[k]
         return ca.MX(sp, ca.mtimes(B, ca.vec(cross)))
 
     def state_at(self, x: np.ndarray, p: np.ndarray, q, z_points: np.ndarray,

@@ -661,17 +661,15 @@ def _kkt(spec, inner, tol, max_iterations):
     # estimate, measured before the window edges were flagged).  Far from the
     # optimum the estimate is large and the first steps went wild (the
     # 3-parameter noisy fit at 60 nodes: 200 iterations; 6 from zero).
-    nlp = _KKTProblem(spec, inner, tol, max_iterations if iterations else
-                      min(max_iterations or KKT_STEP_ITERATIONS, KKT_STEP_ITERATIONS),
-                      mu_init=1e-9 if iterations else 1e-6, estimate_duals=iterations > 0)
-    # without a coarse stage the NLP starts from the fit's start state as it
-    # is (it is the inner solution there, or the caller's own start)
-    # (the fine mesh's state on the coarse fit's branch)
-    theta, eq = theta0, inner.transfer(theta0, coarse.eq) if iterations else inner.eq
-    if iterations:
-        theta, x, lam, its, status = _kkt_cells(nlp, inner, theta, eq.x, eq.lam_g, inner.data)
-    else:
-        theta, x, lam, its, status = _kkt_homotopy(nlp, inner, theta, eq)
+    if iterations:      # from the fine mesh's state on the coarse fit's branch
+        nlp = _KKTProblem(spec, inner, tol, max_iterations, mu_init=1e-9, estimate_duals=True)
+        eq = inner.transfer(theta0, coarse.eq)
+        theta, x, lam, its, status = _kkt_cells(nlp, inner, theta0, eq.x, eq.lam_g, inner.data)
+    else:               # from the fit's start state as it is (the inner solution there)
+        nlp = _KKTProblem(spec, inner, tol, min(max_iterations or KKT_STEP_ITERATIONS,
+                                                KKT_STEP_ITERATIONS))
+        eq = inner.eq
+        theta, x, lam, its, status = _kkt_homotopy(nlp, inner, theta0, eq)
     iterations += its
     problem = spec.problem(theta)
     p = problem.parameter_vector()
