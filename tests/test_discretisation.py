@@ -136,3 +136,19 @@ def test_kkt_curvature_equals_the_hessian_of_the_assembled_residual(problem):
                                        rng.normal(size=nc)))
     assert np.abs(one).max() > 1
     assert np.abs(one - two).max() < 1e-12 * np.abs(one).max()
+
+
+@pytest.mark.parametrize("stages", [1, 2, 3])
+def test_result_points_are_the_symbolic_shape(stages):
+    # Results compute s and z in NumPy; observables and fits differentiate the
+    # CasADi shape: both must be the same numbers (to round-off of z ~ 1).
+    problem = Problem("volvox", {"kappa1": 0.0, "kappa2": -8.0, "f1": 0.88, "s2": 1.62},
+                      h=0.15, opening=0.3)
+    solver = DirectSolver(problem.structure, 40, stages=stages)
+    eq = solver.solve(problem)
+    d, p, q = solver.disc, problem.parameter_vector(), np.asarray(eq.anchors)
+    pts = d.symbolic_points(d.x, d.p, d.q)
+    s, z = (np.asarray(v).ravel() for v in
+            ca.Function("points", [d.x, d.p, d.q], [pts["s"], pts["z"]])(eq.x, p, q))
+    assert np.max(np.abs(eq.s - s)) < 1e-14 and np.max(np.abs(eq.z - z)) < 1e-14
+    assert np.ptp(eq.z) > 0.1     # a deformed shell, not a trivial comparison
