@@ -152,3 +152,28 @@ def test_result_points_are_the_symbolic_shape(stages):
             ca.Function("points", [d.x, d.p, d.q], [pts["s"], pts["z"]])(eq.x, p, q))
     assert np.max(np.abs(eq.s - s)) < 1e-14 and np.max(np.abs(eq.z - z)) < 1e-14
     assert np.ptp(eq.z) > 0.1     # a deformed shell, not a trivial comparison
+
+
+def _structures():
+    """toy 3 (a cut, no knots) and volvox (an opening, four breakpoints moving with p)."""
+    from morphoshell.io import example_path, load_problem
+
+    return [load_problem(example_path("toy3_anisotropic"))[0],
+            Problem("volvox", h=0.15, opening=0.3)]
+
+
+@pytest.mark.parametrize("compiled", ["1", "0"], ids=["compiled", "casadi"])
+@pytest.mark.parametrize("problem", _structures(), ids=["toy3", "volvox"])
+def test_cell_data_jacobian_is_the_jacobian_of_the_cell_data(problem, compiled, monkeypatch):
+    """The per-point chain rule (compiled or not) is dD/dp of the differentiable data."""
+    from morphoshell.mesh import mesh_spec
+
+    monkeypatch.setenv("MORPHOSHELL_COMPILE", compiled)
+    d = DirectSolver(problem.structure, mesh=mesh_spec(problem, 30, 2)).disc
+    direct = ca.Function("direct", [d.p, d.q], [ca.jacobian(d.pre(d.p, d.q), d.p)])
+    p, q = problem.parameter_vector(), np.zeros(d.q.shape[0])
+    one, two = np.array(direct(p, q)), np.array(d.pre_jacobian(p, q))
+    assert one.shape == two.shape == (d.D.shape[0], len(p))
+    # the same derivatives summed in another order: rounding only (measured 2e-16)
+    assert np.abs(one).max() > 1
+    assert np.abs(one - two).max() < 1e-12 * np.abs(one).max()

@@ -71,7 +71,7 @@ _log = logging.getLogger("morphoshell")
 
 #: Cell kernels that are compiled to C (the evaluations of Ipopt's callbacks
 #: and of results); the rest of :func:`_cell_functions` stays in CasADi.
-COMPILED_KERNELS = ("f", "energy", "g", "grad", "jac", "hess", "fields", "newton")
+COMPILED_KERNELS = ("f", "energy", "g", "grad", "jac", "hess", "fields", "newton", "kkt_data")
 
 #: Relative size ε of the (λ, λ) block −ε W⁻¹ of the Newton system (:meth:`Discretisation.newton_system`).
 NEWTON_EPSILON = 1e-8
@@ -516,7 +516,7 @@ class Discretisation:
 
     @property
     def pre_jacobian(self) -> ca.Function:
-        """``(p, q) -> dD/dp`` (dense, n_D·cells·S × n_p), built on first use."""
+        """``(p, q) -> dD/dp`` (dense, n_D·cells·S × n_p), for evaluation; built on first use."""
         if not hasattr(self, "_pre_jacobian"):
             self._pre_jacobian = ca.Function(
                 "cell_data_jacobian", [self.p, self.q], [self._chain_pre(*self._pre_parts)],
@@ -524,30 +524,31 @@ class Discretisation:
         return self._pre_jacobian
 
     def _chain_pre(self, pre, s_gauss, ds, weights, scale, m: int) -> ca.MX:
-        """dD/dp by the chain rule through one Gauss point's Jacobian.
+        """dD/dp by the chain rule, one Gauss point at a time.
 
         D_k = pre(s_k, Δs_k, w_k, scale, p) with s_k, Δs_k and the scale
-        functions of p (the parametric mesh): the per-point Jacobian is a
-        small SX function mapped over the points, the mesh's derivatives are
-        small; differentiating the mapped graph as a whole cost 24 ms at 200
-        nodes (measured).
+        functions of p (the parametric mesh).  A per-point SX kernel takes the
+        mesh's derivatives at its point (small MX Jacobians) and returns the
+        point's whole block of dD/dp, in compiled C where available
+        (:func:`~morphoshell._compiled.compiled_point_function`): at 200 nodes
+        of the volvox fit (17 parameters) 1.6 ms per evaluation, where the
+        per-point Jacobians in CasADi's virtual machine and their assembly by
+        MX slices cost 13-14 ms and differentiating the mapped graph as a
+        whole 18-24 ms (measured).  Compiled, the result has no derivatives.
         """
         args = [pre.sx_in(i) for i in range(pre.n_in())]
         s, dsk, _, sc, p = args
+        n_p = p.shape[0]
+        mesh = [ca.SX.sym(name, n_p) for name in ("ds_dp", "dDs_dp", "dscale_dp")]
         D = pre(*args)
-        local = ca.Function("pre_local", args, [ca.densify(ca.jacobian(D, ca.vertcat(s, dsk, sc, p)))])
-        n_p, n_D = p.shape[0], D.shape[0]
-        width = 3 + n_p
-        JM = local.map(m)(s_gauss.T, ds.T, weights, scale, self.p)     # n_D × width·m
-        block = [JM[:, list(range(j, width * m, width))] for j in range(width)]   # n_D × m each
-        dS, dDS = ca.jacobian(s_gauss, self.p), ca.jacobian(ds, self.p)
-        dSC = ca.jacobian(scale, self.p)
-        columns = []
-        for l in range(n_p):
-            col = (block[3 + l] + block[0] * ca.repmat(dS[:, l].T, n_D, 1)
-                   + block[1] * ca.repmat(dDS[:, l].T, n_D, 1) + block[2] * dSC[0, l])
-            columns.append(ca.vec(col))
-        return ca.horzcat(*columns)
+        block = (ca.jacobian(D, p)
+                 + ca.mtimes(ca.jacobian(D, ca.vertcat(s, dsk, sc)), ca.horzcat(*mesh).T))
+        # transposed: the map puts the points' blocks side by side, dD/dp stacks them
+        local = ca.Function("pre_chain", [*args, *mesh], [ca.densify(block.T)])
+        blocks = compiled_point_function(local).map(m)(
+            s_gauss.T, ds.T, weights, scale, self.p, *(ca.jacobian(v, self.p).T
+                                                      for v in (s_gauss, ds, scale)))
+        return blocks.T
 
     def _pre_function(self, n_p: int) -> ca.Function:
         """``(s_k, Δs_c, w_k, scale, p) -> D_k``: parameter-only data at one Gauss point."""
@@ -828,6 +829,37 @@ class Discretisation:
             self._cell_rows(T))
         return self._local_theta(cross, k)
 
+    def kkt_residual_theta_numeric(self, x: np.ndarray, lam: np.ndarray, D: np.ndarray,
+                                   T: np.ndarray) -> np.ndarray:
+        """:meth:`kkt_residual_theta`'s (∂F/∂D) T in numbers, (n + m) × k, dense.
+
+        Each cell's ∂F/∂D by a compiled cell kernel (``kkt_data``), times the
+        cell's rows of T by NumPy and summed into place by the scatter of
+        :meth:`_local_theta`: at 200 nodes of the volvox fit (T = dD/dp, 17
+        columns) 1.2-1.3 ms, where the assembled ∂F/∂D (an MX Jacobian, 11 ms)
+        times T cost 12-13 ms (measured).
+        """
+        import scipy.sparse   # on use, as in parametric: keeps the package's start-up fast
+
+        S, cells = self.stages, self.layout.cells
+        if not hasattr(self, "_kkt_data"):
+            lam_s = ca.MX.sym("lam", self.constraints)
+            blocks = self._cell["kkt_data"].map(cells)(
+                self.cell_unknowns(self.x), ca.reshape(self.D, -1, cells),
+                ca.reshape(lam_s, S, cells))
+            sp, B = self._theta_scatter(1)
+            self._kkt_data = (Buffered(ca.Function("kkt_data", [self.x, self.D, lam_s], [blocks])),
+                              np.array(sp.row()), scipy.sparse.csr_matrix(B.sparse()))
+        kernel, rows, B = self._kkt_data
+        n_cell, n_blk = len(CELL_DATA) * S, self._idx.shape[0] + S
+        T = np.asarray(T, dtype=float)
+        # blocks[c, j, i] = ∂F_i/∂D_j of cell c; T's rows of cell c follow its D
+        blocks = kernel(x, D, lam)[0].reshape(cells, n_cell, n_blk)
+        local = np.matmul(blocks.transpose(0, 2, 1), T.reshape(cells, n_cell, T.shape[1]))
+        out = np.zeros((self.layout.size + self.constraints, T.shape[1]))
+        out[rows] = B @ local.reshape(cells * n_blk, T.shape[1])
+        return out
+
     def _cell_rows(self, T) -> ca.MX:
         """T's rows cell by cell, each cell's block flattened row by row (one column per cell)."""
         cells, k = self.layout.cells, T.shape[1]
@@ -843,8 +875,14 @@ class Discretisation:
 
     def _local_theta(self, cross, k: int) -> ca.MX:
         """Scatter of the cells' ((3S + 2) + S) × k blocks (side by side) into (n + m) × k."""
-        if k not in self._theta_scatters:      # (the KKT fit's Jacobian and Hessian share it)
-            n, m, cells = self.layout.size, self.g.shape[0], self.layout.cells
+        sp, B = self._theta_scatter(k)
+        return ca.MX(sp, ca.mtimes(B, ca.vec(cross)))
+
+    def _theta_scatter(self, k: int) -> tuple:
+        """(sparsity, B) of :meth:`_local_theta`, built once per k (the KKT fit's
+        Jacobian and Hessian share it)."""
+        if k not in self._theta_scatters:
+            n, m, cells = self.layout.size, self.constraints, self.layout.cells
             local = self._local_slots()
             # cell c's local row i, column j sits at i + n_blk (c k + j) of vec(cross)
             n_blk = local.shape[0]
@@ -855,8 +893,7 @@ class Discretisation:
             ok = rows >= 0
             self._theta_scatters[k] = self._scatter((n + m, k), rows[ok], cols[ok], src[ok],
                                                     n_blk * cells * k)
-        sp, B = self._theta_scatters[k]
-        return ca.MX(sp, ca.mtimes(B, ca.vec(cross)))
+        return self._theta_scatters[k]
 
     def state_at(self, x: np.ndarray, p: np.ndarray, q, z_points: np.ndarray,
                  s_star: float) -> dict:
@@ -912,6 +949,7 @@ def _cell_functions(stages: int) -> dict[str, ca.Function]:
     ell = energy * CELL_DATA.unpack(D[:n_D])["scale"]
     g = ca.vertcat(*g)
     H = ca.hessian(sigma * ell + ca.dot(lam, g), z)[0]
+    kkt = ca.vertcat(ca.gradient(ell, z) + ca.mtimes(ca.jacobian(g, z).T, lam), g)
     ku, lu = np.triu_indices(3 * S + 2)
     return {
         "newton": _newton_cell(z, D, lam, ell, g, ca.substitute(H, sigma, 1.0)),
@@ -923,6 +961,9 @@ def _cell_functions(stages: int) -> dict[str, ca.Function]:
         "hess": ca.Function("cell_hess", [z, D, sigma, lam],
                             [ca.vertcat(*[H[int(i), int(j)] for i, j in zip(ku, lu)])]),
         "fields": ca.Function("cell_fields", [z, D], [ca.horzcat(*fields)]),
+        # the cell's KKT residual (∇ℓ + Jᵀλ, g) and its ∂/∂D, dense (parametric derivatives)
+        "kkt": ca.Function("cell_kkt", [z, D, lam], [kkt]),
+        "kkt_data": ca.Function("cell_kkt_data", [z, D, lam], [ca.densify(ca.jacobian(kkt, D))]),
     }
 
 
@@ -986,10 +1027,7 @@ def _cell_kkt_dtheta(stages: int, k: int) -> ca.Function:
     z, D, lam = ca.SX.sym("z", 3 * S + 2), ca.SX.sym("D", n_D * S), ca.SX.sym("lam", S)
     T = ca.SX.sym("T", n_D * S * k)
     TD = ca.reshape(T, k, n_D * S).T
-    cell = _cell_functions(S)
-    _, dell = cell["grad"](z, D)
-    g = cell["g"](z, D)
-    F = ca.vertcat(dell + ca.mtimes(ca.jacobian(g, z).T, lam), g)
+    F = _cell_functions(S)["kkt"](z, D, lam)
     return ca.Function("cell_kkt_dtheta", [z, D, lam, T], [ca.mtimes(ca.jacobian(F, D), TD)])
 
 

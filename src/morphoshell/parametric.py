@@ -136,8 +136,7 @@ class Parametric:
         # the whole graph at once took ~100 ms each at 200 nodes (measured).
         self._hess = _Sparse(ca.Function("H", [x, D, lam], [d.hess_lag(x, D, 1, lam)]))
         self._jac = _Sparse(ca.Function("J", [x, D], [J]))
-        self._F_D = _Sparse(ca.Function("F_D", [x, D, lam], [ca.jacobian(F_of_D, D)]))
-        self._D_p = _Sparse(d.pre_jacobian)
+        self._D_p = Buffered(d.pre_jacobian)
         self._jacobians: dict[int, ca.Function] = {}
         self._last: tuple | None = None
 
@@ -170,8 +169,10 @@ class Parametric:
             D = self.solver.disc.cell_data(p, eq.anchors)
             import scipy.sparse.linalg   # on use: keeps the package's start-up fast
             lu = scipy.sparse.linalg.splu(self.kkt_matrix(eq.x, D, eq.lam_g))
-            Fp = self._F_D(eq.x, D, eq.lam_g) @ self._D_p(p, np.asarray(eq.anchors, dtype=float))
-            self._last = (eq, lu, Fp.toarray() if hasattr(Fp, "toarray") else np.asarray(Fp))
+            D_p = self._D_p(p, np.asarray(eq.anchors, dtype=float))[0].reshape(len(D), -1,
+                                                                               order="F")
+            self._last = (eq, lu, self.solver.disc.kkt_residual_theta_numeric(eq.x, eq.lam_g,
+                                                                              D, D_p))
         _, lu, Fp = self._last
         sol = lu.solve(-Fp[:, list(cols)])
         return SolutionDerivative(names, cols, sol[:self.solver.disc.layout.size])
