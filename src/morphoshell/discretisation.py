@@ -952,7 +952,7 @@ def _cell_functions(stages: int) -> dict[str, ca.Function]:
     kkt = ca.vertcat(ca.gradient(ell, z) + ca.mtimes(ca.jacobian(g, z).T, lam), g)
     ku, lu = np.triu_indices(3 * S + 2)
     return {
-        "newton": _newton_cell(z, D, lam, ell, g, ca.substitute(H, sigma, 1.0)),
+        "newton": _newton_cell(z, D, lam, kkt[:3 * S + 2], g, ca.substitute(H, sigma, 1.0)),
         "f": ca.Function("cell_f", [z, D], [ell]),
         "energy": ca.Function("cell_energy", [z, D], [energy]),
         "g": ca.Function("cell_g", [z, D], [g]),
@@ -967,14 +967,14 @@ def _cell_functions(stages: int) -> dict[str, ca.Function]:
     }
 
 
-def _newton_cell(z, D, lam, ell, g, H) -> ca.Function:
+def _newton_cell(z, D, lam, dual, g, H) -> ca.Function:
     """One cell's share of the certified Newton system (:meth:`Discretisation.newton_system`).
 
     Weights W_k = ρ Σ_l |H_ll| / ‖∇g_k‖² (the cell's Hessian scale per unit
     of the constraint's gradient; any W > 0 is valid), the penalised Hessian
     M = H + Jᵀ W J, and the local block [[M, Jᵀ], [J, −ε W⁻¹]] as its upper
-    triangle; with the stationarity residual ∇ℓ + Jᵀλ, the right-hand side's
-    x part ∇ℓ + Jᵀ(λ + W g) and g.
+    triangle; with the stationarity residual ``dual`` = ∇ℓ + Jᵀλ, the
+    right-hand side's x part ∇ℓ + Jᵀ(λ + W g) and g.
     """
     rho = ca.SX.sym("rho")
     Jc = ca.jacobian(g, z)
@@ -982,7 +982,6 @@ def _newton_cell(z, D, lam, ell, g, H) -> ca.Function:
     M = H + ca.mtimes(Jc.T, ca.mtimes(ca.diag(w), Jc))
     K = ca.blockcat([[M, Jc.T], [Jc, ca.diag(-NEWTON_EPSILON / w)]])
     ku, lu = np.triu_indices(K.shape[0])
-    dual = ca.gradient(ell, z) + ca.mtimes(Jc.T, lam)
     return ca.Function("cell_newton", [z, D, lam, rho],
                        [ca.vertcat(*[K[int(i), int(j)] for i, j in zip(ku, lu)]), dual,
                         dual + ca.mtimes(Jc.T, w * g), g])
@@ -1003,11 +1002,8 @@ def _cell_kkt_theta(stages: int, k: int) -> ca.Function:
     a, b = ca.SX.sym("mu_dz"), ca.SX.sym("mu_dS")
     T, t = ca.SX.sym("T", n_D * S * k), ca.SX.sym("t", k)
     Dt = D + ca.mtimes(ca.reshape(T, k, n_D * S).T, t)
-    cell = _cell_functions(S)
-    _, dell = cell["grad"](z, Dt)
-    g = cell["g"](z, Dt)
     dz, dS = _increments(S)(z, Dt[CELL_DATA.index("ds")])
-    phi = ca.dot(mz, dell + ca.mtimes(ca.jacobian(g, z).T, lam)) + ca.dot(ml, g) - a * dz - b * dS
+    phi = ca.dot(ca.vertcat(mz, ml), _cell_functions(S)["kkt"](z, Dt, lam)) - a * dz - b * dS
     dphi_t = ca.gradient(phi, t)
     out = [ca.jacobian(dphi_t, ca.vertcat(z, lam)).T, ca.vec(ca.jacobian(dphi_t, t)),
            ca.gradient(phi, D)]
@@ -1039,11 +1035,8 @@ def _cell_kkt_curvature(stages: int) -> ca.Function:
     z, D, lam = ca.SX.sym("z", 3 * S + 2), ca.SX.sym("D", n_D * S), ca.SX.sym("lam", S)
     mz, ml = ca.SX.sym("mu_z", 3 * S + 2), ca.SX.sym("mu_lam", S)
     a, b, ds = ca.SX.sym("mu_dz"), ca.SX.sym("mu_dS"), ca.SX.sym("ds")
-    cell = _cell_functions(S)
-    _, dell = cell["grad"](z, D)
-    g = cell["g"](z, D)
     dz, dS = _increments(S)(z, ds)
-    phi = ca.dot(mz, dell + ca.mtimes(ca.jacobian(g, z).T, lam)) + ca.dot(ml, g) - a * dz - b * dS
+    phi = ca.dot(ca.vertcat(mz, ml), _cell_functions(S)["kkt"](z, D, lam)) - a * dz - b * dS
     H = ca.hessian(phi, ca.vertcat(z, lam))[0]
     ku, lu = np.triu_indices(4 * S + 2)
     return ca.Function("cell_kkt_curvature", [z, D, lam, mz, ml, a, b, ds],
