@@ -68,9 +68,11 @@ class Observable:
         midline) but are not differentiated; computed from the solution at
         every evaluation, so the function and its derivatives are built once.
     jacobian : callable, optional
-        ``jacobian(x, p, q, *extra) -> (y, ∂y/∂x (sparse), ∂y/∂p (dense))``
+        ``jacobian(x, p, q, *extra) -> (y, ∂y/∂x, ∂y/∂p (dense))``
         when the observable knows a cheaper chain rule than differentiating
-        ``function`` (:mod:`morphoshell.parametric` uses it if given).
+        ``function`` (:mod:`morphoshell.parametric` uses it if given); ∂y/∂x
+        is anything that multiplies a dense matrix by ``@`` (a sparse matrix,
+        or an operator that never forms a dense ∂y/∂x).
     """
 
     name: str
@@ -232,7 +234,7 @@ class _MidlineJacobian:
 
     def __call__(self, x, p, q, select):
         d, n, S = self.disc, self.n, self.disc.stages
-        cells, nx, nloc = d.layout.cells, d.layout.size, 3 * S + 2
+        cells, nloc = d.layout.cells, 3 * S + 2
         idx = d._idx
         Z = np.append(x, [0.0, 0.0, np.pi])[idx]                       # (nloc, cells)
         nodes, dnodes = self._nodes(p, q)
@@ -240,40 +242,61 @@ class _MidlineJacobian:
         ds = np.diff(nodes)
         inc, dinc = self._incr(Z, ds)
         inc = inc.reshape(cells, 2)                                    # Δz, ΔS per cell
-        dinc = dinc.reshape(cells, nloc + 1, 2).transpose(0, 2, 1)     # (cells, 2, nloc + 1)
+        dinc = dinc.reshape(cells, nloc + 1, 2).transpose(2, 0, 1)     # (2, cells, nloc + 1)
         z0 = np.concatenate([[0.0], np.cumsum(inc[:, 0])])
         S0 = np.concatenate([[0.0], np.cumsum(inc[:, 1])])
         c = np.argmax(select, axis=0)
         target = self.fractions * S0[-1]
         r, zz, J = self._point(Z[:, c], nodes[c], ds[c], z0[c], S0[c], target)
         J = J.reshape(n, nloc + 5, 2).transpose(0, 2, 1)               # (n, 2, inputs)
-        # ∂(Δz_c, ΔS_c)/∂x as rows over x, then cumulative: rows c < c_i
-        rows = np.zeros((2, cells + 1, nx + 3))
-        for k in range(2):
-            G = np.zeros((cells, nx + 3))
-            np.put_along_axis(G, idx.T, dinc[:, k, :nloc], axis=1)
-            rows[k, 1:] = np.cumsum(G, axis=0)
-        rows = rows[:, :, :nx]
         # ∂/∂p through the node positions (s0, Δs of each cell, and each Δs in the sums)
         dds = np.diff(dnodes, axis=0)                                   # (cells, np)
-        prow = np.zeros((2, cells + 1, len(p)))
-        for k in range(2):
-            prow[k, 1:] = np.cumsum(dinc[:, k, nloc][:, None] * dds, axis=0)
-        yx = np.zeros((2 * n, nx))
-        yp = np.zeros((2 * n, len(p)))
-        local = np.zeros((n, 2, nx + 3))
-        np.put_along_axis(local, np.broadcast_to(idx[:, c].T[:, None, :], (n, 2, nloc)),
-                          J[:, :, :nloc], axis=2)
-        for k in range(2):                  # output r, z
-            out = slice(k * n, (k + 1) * n)
-            Jk = J[:, k, :]
-            yx[out] = (local[:, k, :nx] + Jk[:, nloc + 2, None] * rows[0, c]
-                       + Jk[:, nloc + 3, None] * rows[1, c]
-                       + (Jk[:, nloc + 4] * self.fractions)[:, None] * rows[1, -1])
-            yp[out] = (Jk[:, nloc, None] * dnodes[c] + Jk[:, nloc + 1, None] * dds[c]
-                       + Jk[:, nloc + 2, None] * prow[0, c] + Jk[:, nloc + 3, None] * prow[1, c]
-                       + (Jk[:, nloc + 4] * self.fractions)[:, None] * prow[1, -1])
-        return np.concatenate([r, zz]), yx, yp
+        yp = (J[:, :, nloc, None] * dnodes[c][:, None] + J[:, :, nloc + 1, None] * dds[c][:, None]
+              + self._sums(J, c, dinc[:, :, nloc, None] * dds))
+        return np.concatenate([r, zz]), _MidlineDx(self, J, c, dinc), _stack(yp)
+
+    def _sums(self, J, c, per_cell):
+        """The terms through z and S at each point's cell and S_total, (n, 2, k), from
+        the derivatives of every cell's increments (Δz, ΔS) ``per_cell`` (2, cells, k)."""
+        nloc = J.shape[2] - 5
+        cum = np.zeros((2, per_cell.shape[1] + 1, per_cell.shape[2]))
+        np.cumsum(per_cell, axis=1, out=cum[:, 1:])                    # at each cell's first node
+        return (J[:, :, nloc + 2, None] * cum[0, c][:, None] + J[:, :, nloc + 3, None]
+                * cum[1, c][:, None] + (J[:, :, nloc + 4] * self.fractions[:, None])[:, :, None]
+                * cum[1, -1])
+
+
+def _stack(a):
+    """(n, 2, k) per point and output (r, z) as rows r_1 … r_n, z_1 … z_n."""
+    return a.transpose(1, 0, 2).reshape(-1, a.shape[2])
+
+
+class _MidlineDx:
+    """∂y/∂x of the midline as an operator: ``dx @ M`` without forming dx.
+
+    dx itself is dense (each point depends on every cell before its own through
+    the cumulative sums, 40 % nonzero at 200 nodes) and building it took
+    10-20 ms, but dx @ M is the chain rule applied to M's rows: each cell's
+    and each point's local Jacobian times M's rows of its unknowns, cumulative
+    sums of (cells × k).
+    """
+
+    def __init__(self, owner: _MidlineJacobian, J, c, dinc):
+        self._owner, self._J, self._c, self._dinc = owner, J, c, dinc
+        self.shape = (2 * owner.n, owner.disc.layout.size)
+
+    def __matmul__(self, M):
+        J, c, nloc = self._J, self._c, self._J.shape[2] - 5
+        M = np.asarray(M, dtype=float)
+        # M's rows of each cell's unknowns, (cells, nloc, k); the constants' rows are zero
+        rows = np.concatenate([M, np.zeros((3, M.shape[1]))])[self._owner.disc._idx.T]
+        local = np.matmul(J[:, :, :nloc], rows[c])
+        per_cell = np.matmul(self._dinc[:, :, :nloc].transpose(1, 0, 2), rows)
+        return _stack(local + self._owner._sums(J, c, per_cell.transpose(1, 0, 2)))
+
+    def toarray(self) -> np.ndarray:
+        """dx as a dense array (for checks)."""
+        return self @ np.eye(self.shape[1])
 
 
 def recoil(pre: dict, post: dict) -> dict:
