@@ -260,3 +260,31 @@ def test_kkt_data_homotopy_shortens_failed_steps_and_reaches_the_data(monkeypatc
     monkeypatch.setattr(fitting, "_kkt_cells", lambda *a: cells(*a, limit=0.001))
     with pytest.raises(FitError, match="stopped at τ = 0"):
         fitting._kkt_homotopy(nlp, inner, 0.0, eq)
+
+
+def test_a_failed_trial_is_rejected_without_continuation(monkeypatch):
+    """A least-squares trial whose warm solve fails raises at once; any other solve at θ
+    continues from the nearest state (the fit's own points must be reached)."""
+    import types
+
+    import morphoshell.fitting as fitting
+    from morphoshell.results import SolverError
+
+    spec = _three_parameter_spec()
+    inner = fitting._Inner.__new__(fitting._Inner)
+    start = types.SimpleNamespace(name="start")
+    inner.spec, inner.solves, inner._cache = spec, 0, {}
+    inner._archive = [(spec.theta0, start)]
+
+    def warm(problem, warm_start):
+        raise SolverError("warm solve failed", "Maximum_Iterations_Exceeded")
+
+    inner.solver = types.SimpleNamespace(solve=warm)
+    continued = []
+    monkeypatch.setattr(fitting, "continue_between",
+                        lambda solver, eq, problem, first_step: continued.append(eq) or "eq")
+    theta = spec.theta0 * (1 + 1e-3)          # well within NEAR of the start
+    with pytest.raises(SolverError, match="warm solve failed"):
+        inner.solve(theta, trial=True)
+    assert continued == [] and inner.solves == 0
+    assert inner.solve(theta) == "eq" and continued == [start] and inner.solves == 1
