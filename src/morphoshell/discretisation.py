@@ -1023,8 +1023,8 @@ def _cell_kkt_dtheta(stages: int, k: int) -> ca.Function:
     z, D, lam = ca.SX.sym("z", 3 * S + 2), ca.SX.sym("D", n_D * S), ca.SX.sym("lam", S)
     T = ca.SX.sym("T", n_D * S * k)
     TD = ca.reshape(T, k, n_D * S).T
-    F = _cell_functions(S)["kkt"](z, D, lam)
-    return ca.Function("cell_kkt_dtheta", [z, D, lam, T], [ca.mtimes(ca.jacobian(F, D), TD)])
+    F_D = _cell_functions(S)["kkt_data"](z, D, lam)     # the cell's ∂F/∂D, derived once
+    return ca.Function("cell_kkt_dtheta", [z, D, lam, T], [ca.mtimes(F_D, TD)])
 
 
 @lru_cache(maxsize=None)
