@@ -74,12 +74,18 @@ def test_all_twelve_parameters_of_the_flat_variant(full_flat):
     assert flagged & {"kappa3", "kappa4"}
 
 
-@pytest.mark.parametrize("variant", ["flat", "unstressed"])
-def test_kkt_derivatives_are_those_of_the_whole_graph(variant):
+@pytest.mark.parametrize("variant, compiled", [("flat", "1"), ("unstressed", "1"), ("flat", "0")])
+def test_kkt_derivatives_are_those_of_the_whole_graph(variant, compiled, monkeypatch, request):
     """The kernel-assembled Hessian of the KKT fit's Lagrangian and Jacobian of its
-    constraints equal CasADi's of the whole graph."""
+    constraints equal CasADi's of the whole graph, from compiled kernels or not."""
+    from morphoshell import discretisation, fitting
     from morphoshell.fitting import _Inner, _KKTProblem
     from morphoshell.observables import midline_cells
+
+    monkeypatch.setenv("MORPHOSHELL_COMPILE", compiled)
+    for cached in (fitting._compiled_misfit, discretisation._compiled_kkt_data_curvature):
+        cached.cache_clear()
+        request.addfinalizer(cached.cache_clear)     # later tests compile again
 
     spec = volvox_spec(variant, START)
     inner = _Inner(spec, synthetic_midline(TRUE, spec.base, nodes=30, noise=1e-3), 30)

@@ -57,8 +57,8 @@ import numpy as np
 
 from . import _IMPORTED_NS
 from ._buffered import Buffered
-from ._compiled import (_CFLAGS, _blake2b, _compiled_library, _renamed, compiled_point_function,
-                        kernel_cache_dir)
+from ._compiled import (_CFLAGS, LARGE, _blake2b, _compiled_library, _renamed,
+                        compiled_point_function, kernel_cache_dir)
 from .energy import LOCAL_OUTPUTS, intrinsic_function, pointwise
 from .layouts import CELL_DATA, INTRINSIC
 from .mesh import Knot, check_monotone, shell_points
@@ -523,6 +523,54 @@ class Discretisation:
                 ["p", "q"], ["dD_dp"])
         return self._pre_jacobian
 
+    @property
+    def pre_hessian(self) -> ca.Function:
+        """``(p, q, c) -> ∂²(c·D)/∂p²`` (n_p × n_p), for evaluation; built on first use.
+
+        c weighs the cell data D (as D).  Per Gauss point, D_k =
+        pre(y_k) with y_k = (s_k, Δs_k, scale, p) and the mesh values s_k, Δs_k
+        and the scale functions of p: ∂²(c·D)/∂p² = Σ_k M_kᵀ ∇²(c_k·pre) M_k
+        + ∂²/∂p² Σ_k g_k·(s_k, Δs_k, scale)(p), M_k = ∂y_k/∂p and g_k =
+        ∂(c_k·pre)/∂(s_k, Δs_k, scale) held fixed in the last term.  The first
+        term is one per-point kernel, compiled where possible (as
+        :attr:`pre_jacobian`), the second an MX Hessian of the mesh alone: at
+        200 nodes of the volvox fit about 4 ms, where the MX Hessian of the
+        mapped cell data cost about 70 ms (measured).
+        """
+        if not hasattr(self, "_pre_hessian"):
+            pre, s_gauss, ds, weights, scale, m = self._pre_parts
+            args = [pre.sx_in(i) for i in range(pre.n_in())]
+            s, dsk, _, sc, p = args
+            n_p = p.shape[0]
+            c = ca.SX.sym("c", pre.size1_out(0))
+            phi = ca.dot(c, pre(*args))
+            # M_kᵀ ∇²φ M_k as the Hessian of φ along y_k + M_k δ, the mesh
+            # moving with the parameters it depends on only (the breakpoints,
+            # ...): dense in all 17, the kernel had 21 000 SX instructions
+            J_mesh = [ca.jacobian(v, self.p) for v in (s_gauss, ds, scale)]
+            cols = sorted(set().union(*(set(J.sparsity().get_col()) for J in J_mesh)))
+            mesh = [ca.SX.sym(name, len(cols)) for name in ("ds_dp", "dDs_dp", "dscale_dp")]
+            delta = ca.SX.sym("delta", n_p)
+            moved = [v + ca.dot(dv, delta[cols]) for v, dv in zip((s, dsk, sc), mesh)]
+            phi_d = ca.substitute(phi, ca.vertcat(s, dsk, sc, p), ca.vertcat(*moved, p + delta))
+            H = ca.substitute(ca.hessian(phi_d, delta)[0], delta, ca.SX.zeros(n_p))
+            local = ca.Function("pre_curvature", [*args, *mesh, c],
+                                [ca.densify(ca.vec(H)),
+                                 ca.densify(ca.gradient(phi, ca.vertcat(s, dsk, sc)))])
+            C = ca.MX.sym("c", self.D.shape[0])
+            H_k, g = compiled_point_function(local).map(m)(
+                s_gauss.T, ds.T, weights, scale, self.p, *(J[:, cols].T for J in J_mesh),
+                ca.reshape(C, -1, m))
+            g_fixed = ca.MX.sym("g", 3, m)
+            frozen = ca.Function("mesh_curvature", [self.p, self.q, g_fixed], [ca.hessian(
+                ca.dot(g_fixed[0, :].T, s_gauss) + ca.dot(g_fixed[1, :].T, ds)
+                + ca.sum2(g_fixed[2, :]) * scale, self.p)[0]])
+            self._pre_hessian = ca.Function(
+                "cell_data_hessian", [self.p, self.q, C],
+                [ca.reshape(ca.sum2(H_k), n_p, n_p) + frozen(self.p, self.q, g)],
+                ["p", "q", "c"], ["d2cD_dp2"])
+        return self._pre_hessian
+
     def _chain_pre(self, pre, s_gauss, ds, weights, scale, m: int) -> ca.MX:
         """dD/dp by the chain rule, one Gauss point at a time.
 
@@ -801,18 +849,21 @@ class Discretisation:
         cell widths read from D: the mixed block ∂²/∂(x, λ)∂t ((n + m) × k,
         sparse rows), the block ∂²/∂t² (k × k) and the gradient ∂/∂D (as D).
         The second derivatives of D itself are the caller's (they need the
-        parameters).  Per-cell SX kernels: the same blocks from the assembled
-        MX graph cost 0.74 s per evaluation at 60 nodes (measured).
+        parameters).  Per-cell kernels, the derivatives in D compiled and
+        contracted with T afterwards: 5-6 ms at 200 nodes and k = 12, where one
+        kernel along the k directions took 24 ms and the assembled MX graph
+        0.74 s at 60 nodes (measured).
         """
         n = self.layout.size
         S, cells = self.stages, self.layout.cells
         n_loc, k = self._idx.shape[0], T.shape[1]
         mu_x = ca.vertcat(mu_F[:n], ca.DM.zeros(3))      # constants: no stationarity row
         Mz = ca.reshape(mu_x[self._idx.ravel(order="F").tolist()], n_loc, cells)
-        cross, tt, grad = _cell_kkt_theta(S, k).map(cells)(
+        X, H, grad = _compiled_kkt_data_curvature(S).map(cells)(
             self.cell_unknowns(x), ca.reshape(D, -1, cells), ca.reshape(lam, S, cells), Mz,
             ca.reshape(mu_F[n:], S, cells), ca.reshape(mu_dz, 1, cells),
-            ca.reshape(mu_dS, 1, cells), self._cell_rows(T))
+            ca.reshape(mu_dS, 1, cells))
+        cross, tt = _cell_kkt_theta(S, k).map(cells)(X, H, self._cell_rows(T))
         return self._local_theta(cross, k), ca.reshape(ca.sum2(tt), k, k), ca.vec(grad)
 
     def kkt_residual_theta(self, x, lam, D, T) -> ca.MX:
@@ -824,10 +875,9 @@ class Discretisation:
         """
         S, cells = self.stages, self.layout.cells
         k = T.shape[1]
-        cross = _cell_kkt_dtheta(S, k).map(cells)(
-            self.cell_unknowns(x), ca.reshape(D, -1, cells), ca.reshape(lam, S, cells),
-            self._cell_rows(T))
-        return self._local_theta(cross, k)
+        F_D = self._cell["kkt_data"].map(cells)(
+            self.cell_unknowns(x), ca.reshape(D, -1, cells), ca.reshape(lam, S, cells))
+        return self._local_theta(_cell_kkt_dtheta(S, k).map(cells)(F_D, self._cell_rows(T)), k)
 
     def kkt_residual_theta_numeric(self, x: np.ndarray, lam: np.ndarray, D: np.ndarray,
                                    T: np.ndarray) -> np.ndarray:
@@ -988,43 +1038,68 @@ def _newton_cell(z, D, lam, dual, g, H) -> ca.Function:
 
 
 @lru_cache(maxsize=None)
-def _cell_kkt_theta(stages: int, k: int) -> ca.Function:
-    """One cell's curvature of :func:`_cell_kkt_curvature`'s function along D + T t.
+def _cell_kkt_data_curvature(stages: int) -> tuple:
+    """One cell's second derivatives of :func:`_cell_kkt_curvature`'s function in D (SX).
 
-    Outputs at t = 0: ∂²/∂(z, λ)∂t ((4S + 2) × k), ∂²/∂t² (k², column-major)
-    and ∂/∂D; the cell width is D's (as the mesh gives it).  T is the cell's
-    block of ∂D/∂θ, row by row.
+    ``(z, D, λ, μ_z, μ_λ, a, b) -> (X, H, g)``: the structural nonzeros of
+    X = ∂²φ/∂D∂(z, λ) and of the upper triangle H of ∂²φ/∂D², and g = ∂φ/∂D;
+    the cell width is D's.  Independent of the fitted parameters (the
+    directions θ are :func:`_cell_kkt_theta`'s), so it is compiled once: 6 000
+    SX instructions, where the same blocks along k = 12 directions took
+    35 000 (and gcc 63 s per k).
     """
     S = stages
     n_D = len(CELL_DATA)
     z, D, lam = ca.SX.sym("z", 3 * S + 2), ca.SX.sym("D", n_D * S), ca.SX.sym("lam", S)
     mz, ml = ca.SX.sym("mu_z", 3 * S + 2), ca.SX.sym("mu_lam", S)
     a, b = ca.SX.sym("mu_dz"), ca.SX.sym("mu_dS")
-    T, t = ca.SX.sym("T", n_D * S * k), ca.SX.sym("t", k)
-    Dt = D + ca.mtimes(ca.reshape(T, k, n_D * S).T, t)
-    dz, dS = _increments(S)(z, Dt[CELL_DATA.index("ds")])
-    phi = ca.dot(ca.vertcat(mz, ml), _cell_functions(S)["kkt"](z, Dt, lam)) - a * dz - b * dS
-    dphi_t = ca.gradient(phi, t)
-    out = [ca.jacobian(dphi_t, ca.vertcat(z, lam)).T, ca.vec(ca.jacobian(dphi_t, t)),
-           ca.gradient(phi, D)]
-    # (SX: compiled to C it evaluated 2x faster but took gcc 63 s per k)
-    return ca.Function("cell_kkt_theta", [z, D, lam, mz, ml, a, b, T],
-                       [ca.substitute(o, t, ca.DM.zeros(k)) for o in out])
+    dz, dS = _increments(S)(z, D[CELL_DATA.index("ds")])
+    phi = ca.dot(ca.vertcat(mz, ml), _cell_functions(S)["kkt"](z, D, lam)) - a * dz - b * dS
+    g = ca.gradient(phi, D)
+    X, H = ca.jacobian(g, ca.vertcat(z, lam)), ca.triu(ca.jacobian(g, D))
+    return ca.Function("cell_kkt_data_curvature", [z, D, lam, mz, ml, a, b],
+                       [ca.vertcat(*X.nonzeros()), ca.vertcat(*H.nonzeros()), g]), \
+        X.sparsity(), H.sparsity()
+
+
+@lru_cache(maxsize=None)
+def _compiled_kkt_data_curvature(stages: int) -> ca.Function:
+    """:func:`_cell_kkt_data_curvature` compiled for evaluation (2.2x faster at 99 cells)."""
+    return compiled_point_function(_cell_kkt_data_curvature(stages)[0], LARGE)
+
+
+@lru_cache(maxsize=None)
+def _cell_kkt_theta(stages: int, k: int) -> ca.Function:
+    """One cell's curvature of :func:`_cell_kkt_curvature`'s function along D + T t (MX).
+
+    ``(X, H, T) -> (∂²/∂(z, λ)∂t ((4S + 2) × k), ∂²/∂t² (k², column-major))``
+    at t = 0 from :func:`_cell_kkt_data_curvature`'s blocks X and H (their
+    nonzeros); T is the cell's block of ∂D/∂θ, row by row.
+    """
+    _, X_sp, H_sp = _cell_kkt_data_curvature(stages)
+    n_D = len(CELL_DATA) * stages
+    # (MX: CasADi's matrix products in C, faster than the same SX products)
+    X, H = ca.MX.sym("X", X_sp.nnz()), ca.MX.sym("H", H_sp.nnz())
+    T = ca.MX.sym("T", n_D * k)
+    TD = ca.reshape(T, k, n_D).T
+    Xm, Hm = ca.MX(X_sp, X), ca.MX(H_sp, H)
+    HT = ca.mtimes(Hm + Hm.T - ca.diag(ca.diag(Hm)), TD)
+    return ca.Function("cell_kkt_theta", [X, H, T],
+                       [ca.mtimes(Xm.T, TD), ca.vec(ca.mtimes(TD.T, HT))])
 
 
 @lru_cache(maxsize=None)
 def _cell_kkt_dtheta(stages: int, k: int) -> ca.Function:
-    """One cell's ∂/∂t of its KKT residual (∇ℓ + ∇gᵀλ, g) at data D + T t, t = 0 (SX).
+    """``(F_D, T) -> F_D T``: one cell's ∂/∂t of its KKT residual (∇ℓ + ∇gᵀλ, g) at D + T t (MX).
 
-    ((4S + 2) × k); T is the cell's block of ∂D/∂θ, row by row.
+    F_D = ∂F/∂D is the cell's ``kkt_data`` block (compiled with the cell
+    kernels), T the cell's block of ∂D/∂θ, row by row; ((4S + 2) × k).
     """
-    S = stages
-    n_D = len(CELL_DATA)
-    z, D, lam = ca.SX.sym("z", 3 * S + 2), ca.SX.sym("D", n_D * S), ca.SX.sym("lam", S)
-    T = ca.SX.sym("T", n_D * S * k)
-    TD = ca.reshape(T, k, n_D * S).T
-    F_D = _cell_functions(S)["kkt_data"](z, D, lam)     # the cell's ∂F/∂D, derived once
-    return ca.Function("cell_kkt_dtheta", [z, D, lam, T], [ca.mtimes(F_D, TD)])
+    n_D = len(CELL_DATA) * stages
+    # (MX: CasADi's matrix product in C, 4-5x faster than the same SX products)
+    F_D = ca.MX.sym("F_D", _cell_functions(stages)["kkt_data"].sparsity_out(0))
+    T = ca.MX.sym("T", n_D * k)
+    return ca.Function("cell_kkt_dtheta", [F_D, T], [ca.mtimes(F_D, ca.reshape(T, k, n_D).T)])
 
 
 @lru_cache(maxsize=None)

@@ -50,6 +50,7 @@ from typing import Callable, Mapping, Sequence
 import casadi as ca
 import numpy as np
 
+from ._compiled import LARGE, compiled_point_function
 from .continuation import continue_between, continue_to
 from .direct import DirectSolver
 from .mesh import mesh_spec
@@ -819,10 +820,15 @@ def _point_misfit(stages: int) -> ca.Function:
     u = args[0]
     H = ca.hessian(e, u)[0]
     ku, lu = np.triu_indices(u.shape[0])
-    # (not compiled: its C code took gcc over 300 s)
     return ca.Function("point_misfit", [*args, data],
                        [ca.gradient(e, u), ca.vertcat(*[H[int(i), int(j)]
                                                         for i, j in zip(ku, lu)])])
+
+
+@lru_cache(maxsize=4)
+def _compiled_misfit(stages: int) -> ca.Function:
+    """:func:`_point_misfit` compiled for evaluation (at ``-O1``: gcc's -O2 took over 5 min)."""
+    return compiled_point_function(_point_misfit(stages), LARGE)
 
 
 class _KKTProblem:
@@ -983,17 +989,18 @@ class _KKTProblem:
         (Gauss–Newton alone: +7.6e-7, but 2.7x too small in other weak
         directions, and its steps diverged).  Exact: 25 + 30 + 16 iterations.
         Assembled from per-point and per-cell kernels and the chain rule
-        through s_nodes(θ) and D(θ): 0.33 s an evaluation at 200 nodes (the
-        Gauss–Newton one: 0.04 s; the MX Hessian of the Lagrangian: 0.5 s at
-        60 nodes), about a third each the misfit kernel, the cells' kernel
-        and the second derivatives of D(θ) (MX).
+        through s_nodes(θ) and D(θ), the kernels compiled (the misfit's, the
+        cells' second derivatives in D, and D's in p): 30-40 ms an evaluation
+        at 200 nodes, where the same kernels in CasADi's virtual machine and
+        the MX Hessian of D(θ) took 160 ms (the MX Hessian of the whole
+        Lagrangian: 0.5 s at 60 nodes).
         """
         from .layouts import CELL_DATA
 
         k, n, m = th.shape[0], x.shape[0], lam.shape[0]
         nc = d.layout.cells
         n_w, n_U, n_pt = w.shape[0], (nc + 1) + n + 2 * (nc + 1), local.shape[1]
-        grad, tri = _point_misfit(d.stages).map(n_pt)(
+        grad, tri = _compiled_misfit(d.stages).map(n_pt)(
             local, ca.DM(t_fit).T, *(ca.DM(f) for f in flags), ca.reshape(target, 2, n_pt))
         # the misfit's Hessian in U (local duplicates of one unknown: a local
         # off-diagonal pair on U's diagonal counts twice)
@@ -1017,8 +1024,7 @@ class _KKTProblem:
                               n_loc * n_pt)
         g_nodes = ca.densify(ca.MX(sp_s, ca.mtimes(Bs, ca.vec(grad))))
         # the constraints: F and the lifted integrals through D(θ) per cell
-        D = d.pre(p, q)
-        T = ca.jacobian(D, th)
+        D, T, Jp = self._cell_data_theta(d, th, p, q)
         C, tt, gD = d.kkt_curvature_theta(x, lam, D, T, mult[:nF], mult[nF + 1:nF + 1 + nc],
                                           mult[nF + nc + 2:nF + 2 * nc + 2])
         H_xl = d.kkt_curvature(x, lam, D, mult[:nF], mult[nF + 1:nF + 1 + nc],
@@ -1027,12 +1033,18 @@ class _KKTProblem:
         n_eta, n_D = D.shape[0] // len(CELL_DATA), len(CELL_DATA)
         eta_at = CELL_DATA.index("eta") + n_D * np.arange(n_eta)
         mu_ineq = mult[nF + 2 * nc + 2:mult.shape[0] - n_eta]
-        # ... and the second derivatives of D, s_nodes and the breakpoint gaps in θ
-        cD, ci, cs = (ca.MX.sym(nm, size) for nm, size in
-                      (("c_D", D.shape[0]), ("c_i", len(ineq)), ("c_s", nc + 1)))
-        omega = (ca.dot(cD, D) + ca.dot(cs, sh.s_nodes)
+        # ... and the second derivatives of D, s_nodes and the breakpoint gaps
+        # in θ: D's through p (Discretisation.pre_hessian), p's, s_nodes' and
+        # the gaps' by an MX Hessian with D's gradient in p (g_p) held fixed
+        cD, ci, cs, g_p = (ca.MX.sym(nm, size) for nm, size in
+                           (("c_D", D.shape[0]), ("c_i", len(ineq)), ("c_s", nc + 1),
+                            ("g_p", p.shape[0])))
+        omega = (ca.dot(g_p, p) + ca.dot(cs, sh.s_nodes)
                  + (ca.dot(ci, ca.vertcat(*ineq)) if ineq else 0))
-        curv = ca.Function("theta_curvature", [th, cD, ci, cs], [ca.hessian(omega, th)[0]])
+        rest = ca.Function("theta_curvature", [th, g_p, ci, cs], [ca.hessian(omega, th)[0]])
+        curv = ca.Function("theta_curvature", [th, cD, ci, cs], [
+            ca.mtimes(Jp.T, ca.mtimes(d.pre_hessian(p, q, cD), Jp))
+            + rest(th, ca.mtimes(d.pre_jacobian(p, q).T, cD), ci, cs)])
         c_D = gD + ca.MX(ca.Sparsity.triplet(D.shape[0], 1, eta_at.tolist(), [0] * n_eta),
                          mult[mult.shape[0] - n_eta:])
         H_tt = tt + curv(th, c_D, mu_ineq, sigma * g_nodes)
@@ -1054,8 +1066,7 @@ class _KKTProblem:
         """
         from .layouts import CELL_DATA
 
-        D = d.pre(p, q)
-        T = ca.jacobian(D, th)
+        D, T, _ = _KKTProblem._cell_data_theta(d, th, p, q)
         Ht = d.hess_lag(x, D, 1, lam)
         J = d.jac_g(x, D)[1]
         K = ca.blockcat([[Ht + Ht.T - ca.diag(ca.diag(Ht)), J.T],
@@ -1067,6 +1078,17 @@ class _KKTProblem:
         eta_rows = (CELL_DATA.index("eta") + n_D * np.arange(D.shape[0] // n_D)).tolist()
         eta = ca.horzcat(T[eta_rows, :], ca.MX(len(eta_rows), w.shape[0] - k))
         return ca.vertcat(top, ca.jacobian(ca.vertcat(lifted, *ineq), w), eta)
+
+    @staticmethod
+    def _cell_data_theta(d, th, p, q) -> tuple:
+        """D(p(θ)), T = ∂D/∂θ and ∂p/∂θ, for evaluation (no derivatives).
+
+        D and ∂D/∂p from compiled per-point kernels (Discretisation.pre_numeric
+        and pre_jacobian): the MX Jacobian of D in θ cost 16 ms an evaluation
+        at 200 nodes, twice per iteration (Hessian and constraint Jacobian).
+        """
+        Jp = ca.jacobian(p, th)
+        return d.pre_numeric(p, q), ca.mtimes(d.pre_jacobian(p, q), Jp), Jp
 
     def _lifted_start(self, theta, x) -> np.ndarray:
         """z and S at the cell boundaries of the state x (gauge: 0 at the first node)."""
