@@ -94,6 +94,10 @@ COARSE_NODES = 60
 KKT_ITERATIONS = 200
 #: ... and of each step of its data homotopy (converging ones took 10-60, measured).
 KKT_STEP_ITERATIONS = 60
+#: Tolerance (relative on E_fit²) and evaluations of the Gauss-Newton steps that
+#: start a KKT fit from a given state (``_kkt``).
+KKT_GN_TOL = 1e-4
+KKT_GN_ITERATIONS = 30
 #: The data homotopy gives up below this step in τ (``_kkt_homotopy``).
 HOMOTOPY_MIN_STEP = 1 / 64
 #: |η| stays below this in the KKT fit (the theory needs |η| < 1).
@@ -296,6 +300,8 @@ class _Inner:
             self.solves += 1
         self._cache: dict = {}
         self._archive = [(spec.theta0, self.eq)]
+        #: whether the fit started from a given state (a previous fit's)
+        self.warm = start is not None
 
     def _build(self, problem: Problem) -> None:
         self.solver = DirectSolver(problem.structure, mesh=mesh_spec(problem, self.nodes, 2))
@@ -657,8 +663,21 @@ def _kkt(spec, inner, tol, max_iterations):
     the fine NLP then starts with nearly the right cells.
     """
     theta0 = spec.theta0
-    iterations = 0
-    if inner.nodes > 2 * COARSE_NODES:
+    iterations, coarse, eq = 0, None, inner.eq
+    if inner.warm:
+        # From a previous fit's state (a campaign step) the data homotopy alone
+        # failed: its path from the start's midline crossed a nearly singular
+        # stretch of the branch (flat t03 at 200 nodes: every step beyond
+        # τ = 0.77 failed, the constraint violation rising to 20 on steps of
+        # 1e-2), while the KKT NLP from the gradient fit's optimum converged
+        # in 6 iterations.  Loose Gauss-Newton steps first (flat t03-t05:
+        # 17, 9, 9 of them), then the NLP from there (8, 8, 5 iterations).
+        try:
+            theta0, iterations, _, _ = _gradient(spec, inner, KKT_GN_TOL, KKT_GN_ITERATIONS)
+            eq = inner.solve(theta0)
+        except SolverError:          # (a start on a saddle: rejected below as before)
+            theta0, iterations, eq = spec.theta0, 0, eq
+    elif inner.nodes > 2 * COARSE_NODES:
         coarse = _Inner(spec, inner.data, COARSE_NODES)
         theta0, its, _, _ = _kkt(spec, coarse, tol, max_iterations)
         iterations += its
@@ -670,14 +689,13 @@ def _kkt(spec, inner, tol, max_iterations):
     # estimate, measured before the window edges were flagged).  Far from the
     # optimum the estimate is large and the first steps went wild (the
     # 3-parameter noisy fit at 60 nodes: 200 iterations; 6 from zero).
-    if iterations:      # from the fine mesh's state on the coarse fit's branch
+    if coarse is not None:      # from the fine mesh's state on the coarse fit's branch
         nlp = _KKTProblem(spec, inner, tol, max_iterations, mu_init=1e-9, estimate_duals=True)
         eq = inner.transfer(theta0, coarse.eq)
         theta, x, lam, its, status = _kkt_cells(nlp, inner, theta0, eq.x, eq.lam_g, inner.data)
     else:               # from the fit's start state as it is (the inner solution there)
         nlp = _KKTProblem(spec, inner, tol, min(max_iterations or KKT_STEP_ITERATIONS,
                                                 KKT_STEP_ITERATIONS))
-        eq = inner.eq
         theta, x, lam, its, status = _kkt_homotopy(nlp, inner, theta0, eq)
     iterations += its
     problem = spec.problem(theta)
