@@ -111,6 +111,37 @@ def test_kkt_derivatives_are_those_of_the_whole_graph(variant, compiled, monkeyp
     assert np.abs(one - two).max() < 1e-12 * np.abs(one).max()
 
 
+def test_kkt_fit_points_do_not_depend_on_the_window_around_their_cell():
+    """Each NLP fit point is the midline point wherever its cell sits in its window.
+
+    Far cells of the window evaluate a polynomial outside its cell, where
+    Newton's iteration for the arclength can end on a wrong root inside the
+    cell: weighted by that place, it moved a point by 110 R here (window
+    shifted by two cells); weighted by the linear estimate of S, it gets none.
+    """
+    from morphoshell.fitting import WINDOW, _Inner, _KKTProblem
+    from morphoshell.observables import midline_cells
+
+    spec = volvox_spec("flat", TRUE)
+    inner = _Inner(spec, synthetic_midline(TRUE, spec.base, nodes=30), 30)
+    theta, x, d = spec.theta0, inner.eq.x, inner.solver.disc
+    p = spec.problem(theta).parameter_vector()
+    y = np.asarray(inner.midline(x, p)).ravel()
+    true = np.column_stack([y[:inner.n], y[inner.n:]])
+    cells = midline_cells(d, x, p, inner.n)
+    nlp = _KKTProblem(spec, inner, 1e-8, 10)
+    for shift in range(-WINDOW, WINDOW + 1):
+        nlp._build(tuple(min(max(c + shift, 0), d.layout.cells - 1) for c in cells))
+        w, target, _, _, f, *_ = nlp.lagrangian
+        w0 = np.concatenate([theta, x, inner.eq.lam_g, nlp._lifted_start(theta, x)])
+        data = true.ravel() + 0.01      # f = |rz - data|^2 / 2: rz = data - df/d(data)
+        rz = data - np.asarray(ca.Function("g", [w, target], [ca.gradient(f, target)])(
+            w0, data)).ravel()
+        # blending differs from the midline by the cell polynomials' mismatch at
+        # their ends, O(ds^3): 1.2e-5 R at 30 nodes (measured)
+        assert np.abs(rz.reshape(-1, 2) - true).max() < 1e-4, shift
+
+
 def test_the_kkt_state_is_a_true_equilibrium(full_flat):
     spec, _, results = full_flat
     kkt = results["kkt"]

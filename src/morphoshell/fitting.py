@@ -801,7 +801,7 @@ def _blended_point(stages: int) -> ca.Function:
     window's outermost ones (:meth:`_KKTProblem._window_indices`).  A clipped
     window repeats a cell, counted once (``keep``).
     """
-    from .discretisation import _arclength_point
+    from .discretisation import _arclength_point, collocation
 
     n_w, n_z = 2 * WINDOW + 1, 3 * stages + 2
     u = ca.SX.sym("u", n_w * (n_z + 4) + 1)
@@ -811,10 +811,16 @@ def _blended_point(stages: int) -> ca.Function:
     lo, hi, z0, S0 = (u[n_w * (n_z + i):n_w * (n_z + i + 1)] for i in range(4))
     target = u[-1] * t
     point = _arclength_point(stages)
+    gauss = ca.DM(collocation(stages)[1])
     num_r = num_z = den = 0
     for o in range(n_w):
-        s_o, r_o, _, z_o = point(Z[:, o], lo[o], hi[o] - lo[o], z0[o], S0[o], target)
-        tau = (s_o - lo[o]) / (hi[o] - lo[o])
+        _, r_o, _, z_o = point(Z[:, o], lo[o], hi[o] - lo[o], z0[o], S0[o], target)
+        # where the point lies in the cell, from the linear interpolant of S:
+        # for a target cells away, Newton's iteration can end inside the cell
+        # on a wrong root, which then had weight (a point at r = 0.767 came
+        # out at 1.238, measured on the synthetic campaign's t03)
+        S1 = S0[o] + (hi[o] - lo[o]) * ca.dot(gauss, Z[2 * stages + 2:, o])
+        tau = (target - S0[o]) / (S1 - S0[o])
         weight = (ca.fmax(_ramp((tau + BLEND) / (2 * BLEND)), first[o])
                   * ca.fmax(_ramp((1 + BLEND - tau) / (2 * BLEND)), last[o]) * keep[o])
         num_r, num_z, den = num_r + weight * r_o, num_z + weight * z_o, den + weight
