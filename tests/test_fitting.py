@@ -202,6 +202,31 @@ def test_a_start_on_a_saddle_is_rejected():
     assert exc.value.status == "Fit_Saddle" and "not a minimum" in str(exc.value)
 
 
+def test_a_kkt_fit_from_a_given_state_starts_there(monkeypatch):
+    """A KKT fit given a start state (a campaign step) starts from it: loose
+    Gauss–Newton steps, then the NLP; no coarse refit from the stress-free
+    parameters, which discarded the start (on the synthetic campaign its data
+    homotopy then failed from t03 on).  It reaches the gradient fit's optimum."""
+    from morphoshell import fitting
+
+    nodes = 2 * fitting.COARSE_NODES + 10              # a mesh that used to get a coarse stage
+    spec = volvox_spec("flat", START, hold={"kappa3": 0.0, "kappa4": 0.0})
+    data = synthetic_midline(TRUE, spec.base, nodes=nodes, noise=1e-3, seed=3)
+    start = fitting._Inner(spec, data, nodes).eq        # the start's own state, on the fit's mesh
+    reference = fit(spec, data, "gradient", nodes=nodes, start=start)
+    made = []
+    inner = fitting._Inner.__init__
+
+    def recording(self, spec, data, nodes, start=None):
+        made.append(nodes)
+        inner(self, spec, data, nodes, start)
+
+    monkeypatch.setattr(fitting._Inner, "__init__", recording)
+    result = fit(spec, data, "kkt", nodes=nodes, start=start)
+    assert made == [nodes]
+    assert result.converged and abs(result.E_fit / reference.E_fit - 1) < 1e-3
+
+
 def test_variants_tie_hold_and_refuse():
     unstressed = volvox_spec("unstressed", START)
     assert "kappa1" not in unstressed.fitted and "f1" in unstressed.fitted
