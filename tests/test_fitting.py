@@ -227,6 +227,30 @@ def test_a_kkt_fit_from_a_given_state_starts_there(monkeypatch):
     assert result.converged and abs(result.E_fit / reference.E_fit - 1) < 1e-3
 
 
+def test_a_failed_kkt_route_starts_again_from_gauss_newton_steps(monkeypatch):
+    """Without a start state, a KKT fit whose data homotopy fails (as from the family's
+    defaults on the synthetic campaign's undeformed t01) starts again as from a given
+    state, from the same state, and reaches the gradient fit's optimum."""
+    from morphoshell import fitting
+
+    spec = volvox_spec("flat", START, hold={"kappa3": 0.0, "kappa4": 0.0})
+    data = synthetic_midline(TRUE, spec.base, nodes=NODES, noise=1e-3, seed=3)
+    reference = fit(spec, data, "gradient", nodes=NODES)
+    calls, homotopy = [], fitting._kkt_homotopy
+
+    def failing_once(nlp, inner, theta, eq):
+        calls.append(np.array(theta))
+        if len(calls) == 1:
+            raise FitError("the data homotopy stopped", "Maximum_Iterations_Exceeded")
+        return homotopy(nlp, inner, theta, eq)
+
+    monkeypatch.setattr(fitting, "_kkt_homotopy", failing_once)
+    result = fit(spec, data, "kkt", nodes=NODES)
+    # the second start is where the Gauss-Newton steps ended, not the first again
+    assert len(calls) == 2 and np.abs(calls[1] - calls[0]).max() > 1e-3
+    assert result.converged and abs(result.E_fit / reference.E_fit - 1) < 1e-3
+
+
 def test_variants_tie_hold_and_refuse():
     unstressed = volvox_spec("unstressed", START)
     assert "kappa1" not in unstressed.fitted and "f1" in unstressed.fitted
