@@ -1069,7 +1069,7 @@ class _KKTProblem:
                               n_loc * n_pt)
         g_nodes = ca.densify(ca.MX(sp_s, ca.mtimes(Bs, ca.vec(grad))))
         # the constraints: F and the lifted integrals through D(θ) per cell
-        D, T, Jp = self._cell_data_theta(d, th, p, q)
+        D, T, Jp, D_p = self._cell_data_theta(d, th, p, q)
         C, tt, gD = d.kkt_curvature_theta(x, lam, D, T, mult[:nF], mult[nF + 1:nF + 1 + nc],
                                           mult[nF + nc + 2:nF + 2 * nc + 2])
         H_xl = d.kkt_curvature(x, lam, D, mult[:nF], mult[nF + 1:nF + 1 + nc],
@@ -1081,18 +1081,15 @@ class _KKTProblem:
         # ... and the second derivatives of D, s_nodes and the breakpoint gaps
         # in θ: D's through p (Discretisation.pre_hessian), p's, s_nodes' and
         # the gaps' by an MX Hessian with D's gradient in p (g_p) held fixed
-        cD, ci, cs, g_p = (ca.MX.sym(nm, size) for nm, size in
-                           (("c_D", D.shape[0]), ("c_i", len(ineq)), ("c_s", nc + 1),
-                            ("g_p", p.shape[0])))
+        ci, cs, g_p = (ca.MX.sym(nm, size) for nm, size in
+                       (("c_i", len(ineq)), ("c_s", nc + 1), ("g_p", p.shape[0])))
         omega = (ca.dot(g_p, p) + ca.dot(cs, sh.s_nodes)
                  + (ca.dot(ci, ca.vertcat(*ineq)) if ineq else 0))
         rest = ca.Function("theta_curvature", [th, g_p, ci, cs], [ca.hessian(omega, th)[0]])
-        curv = ca.Function("theta_curvature", [th, cD, ci, cs], [
-            ca.mtimes(Jp.T, ca.mtimes(d.pre_hessian(p, q, cD), Jp))
-            + rest(th, ca.mtimes(d.pre_jacobian(p, q).T, cD), ci, cs)])
         c_D = gD + ca.MX(ca.Sparsity.triplet(D.shape[0], 1, eta_at.tolist(), [0] * n_eta),
                          mult[mult.shape[0] - n_eta:])
-        H_tt = tt + curv(th, c_D, mu_ineq, sigma * g_nodes)
+        H_tt = (tt + ca.mtimes(Jp.T, ca.mtimes(d.pre_hessian(p, q, c_D), Jp))
+                + rest(th, ca.mtimes(D_p.T, c_D), mu_ineq, sigma * g_nodes))
         Hw = sigma * ca.mtimes(E.T, ca.mtimes(Hu, E))
         top = ca.horzcat(ca.triu(H_tt), C.T, ca.MX(k, n_w - k - n - m))
         rest = ca.diagcat(H_xl, ca.MX(n_w - k - n - m, n_w - k - n - m))
@@ -1111,7 +1108,7 @@ class _KKTProblem:
         """
         from .layouts import CELL_DATA
 
-        D, T, _ = _KKTProblem._cell_data_theta(d, th, p, q)
+        D, T, *_ = _KKTProblem._cell_data_theta(d, th, p, q)
         Ht = d.hess_lag(x, D, 1, lam)
         J = d.jac_g(x, D)[1]
         K = ca.blockcat([[Ht + Ht.T - ca.diag(ca.diag(Ht)), J.T],
@@ -1126,14 +1123,14 @@ class _KKTProblem:
 
     @staticmethod
     def _cell_data_theta(d, th, p, q) -> tuple:
-        """D(p(θ)), T = ∂D/∂θ and ∂p/∂θ, for evaluation (no derivatives).
+        """D(p(θ)), T = ∂D/∂θ, ∂p/∂θ and ∂D/∂p, for evaluation (no derivatives).
 
         D and ∂D/∂p from compiled per-point kernels (Discretisation.pre_numeric
         and pre_jacobian): the MX Jacobian of D in θ cost 16 ms an evaluation
         at 200 nodes, twice per iteration (Hessian and constraint Jacobian).
         """
-        Jp = ca.jacobian(p, th)
-        return d.pre_numeric(p, q), ca.mtimes(d.pre_jacobian(p, q), Jp), Jp
+        Jp, D_p = ca.jacobian(p, th), d.pre_jacobian(p, q)
+        return d.pre_numeric(p, q), ca.mtimes(D_p, Jp), Jp, D_p
 
     def _lifted_start(self, theta, x) -> np.ndarray:
         """z and S at the cell boundaries of the state x (gauge: 0 at the first node)."""
