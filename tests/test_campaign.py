@@ -157,3 +157,29 @@ def test_command_line_refuses_bad_input_with_status_2(args, data, tmp_path, caps
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "error" in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("error, calls", [("SolverError", 2), ("FitError", 1)])
+def test_a_step_restarts_from_the_stress_free_parameters_only_when_its_state_fails(
+        serial, data, monkeypatch, error, calls):
+    """A start state near a fold fails its solves (SolverError): the step is fitted again
+    from the physical branch.  A failed KKT fit (FitError) has already started again
+    from the reduced optimum, and is recorded as failed without a cold refit."""
+    from morphoshell import campaign as module
+    from morphoshell.fitting import FitError
+    from morphoshell.results import SolverError
+
+    starts = []
+
+    def failing(spec, midline, method, nodes, start):
+        starts.append(start)
+        raise {"SolverError": SolverError, "FitError": FitError}[error]("failed", "status")
+
+    monkeypatch.setattr(module, "fit", failing)
+    tps = read_timepoints(data[0])
+    task = module._Task(str(data[0]), tps, "flat", "kkt", NODES, str(serial.out), None)
+    prev = serial.record("t01", "flat")
+    rec = module._fit_one(task, tps[1], prev, prev, module._settings(task, tps[1]))
+    assert len(starts) == calls and starts[0] is not None
+    assert calls == 1 or starts[1] is None
+    assert rec["status"] == "failed" and rec["message"] == f"{error}: failed"

@@ -227,28 +227,37 @@ def test_a_kkt_fit_from_a_given_state_starts_there(monkeypatch):
     assert result.converged and abs(result.E_fit / reference.E_fit - 1) < 1e-3
 
 
-def test_a_failed_kkt_route_starts_again_from_gauss_newton_steps(monkeypatch):
-    """Without a start state, a KKT fit whose data homotopy fails (as from the family's
-    defaults on the synthetic campaign's undeformed t01) starts again as from a given
-    state, from the same state, and reaches the gradient fit's optimum."""
+@pytest.mark.parametrize("warm", [False, True])
+def test_a_failed_kkt_nlp_is_followed_by_one_from_the_reduced_optimum(monkeypatch, warm):
+    """When the KKT fit's first NLP fails (as from the family's defaults or a previous
+    fit's state on the synthetic campaign), Gauss–Newton steps run to the fit's
+    tolerance and one NLP starts from their end, the gradient fit's optimum: the fit
+    reaches that optimum and counts the failed NLP's iterations."""
     from morphoshell import fitting
 
     spec = volvox_spec("flat", START, hold={"kappa3": 0.0, "kappa4": 0.0})
     data = synthetic_midline(TRUE, spec.base, nodes=NODES, noise=1e-3, seed=3)
-    reference = fit(spec, data, "gradient", nodes=NODES)
-    calls, homotopy = [], fitting._kkt_homotopy
+    start = fitting._Inner(spec, data, NODES).eq if warm else None
+    reference = fit(spec, data, "gradient", nodes=NODES, start=start)
+    optimum = np.array([reference.parameters[n] for n in spec.fitted])
+    calls, nlp = [], fitting._kkt_nlp
 
-    def failing_once(nlp, inner, theta, eq):
-        calls.append(np.array(theta))
+    def failing_once(spec, inner, tol, max_iterations, theta0, eq):
+        calls.append(np.array(theta0))
         if len(calls) == 1:
-            raise FitError("the data homotopy stopped", "Maximum_Iterations_Exceeded")
-        return homotopy(nlp, inner, theta, eq)
+            exc = FitError("the NLP failed", "Maximum_Iterations_Exceeded")
+            exc.iterations = 1000
+            raise exc
+        return nlp(spec, inner, tol, max_iterations, theta0, eq)
 
-    monkeypatch.setattr(fitting, "_kkt_homotopy", failing_once)
-    result = fit(spec, data, "kkt", nodes=NODES)
-    # the second start is where the Gauss-Newton steps ended, not the first again
-    assert len(calls) == 2 and np.abs(calls[1] - calls[0]).max() > 1e-3
+    monkeypatch.setattr(fitting, "_kkt_nlp", failing_once)
+    result = fit(spec, data, "kkt", nodes=NODES, start=start)
+    assert len(calls) == 2
+    # the second NLP starts at the optimum (to 1e-5 of |θ|), far closer than the first
+    gap = [np.abs(c - optimum).max() / np.abs(optimum).max() for c in calls]
+    assert gap[1] < 1e-5 and gap[1] < 0.1 * gap[0], gap
     assert result.converged and abs(result.E_fit / reference.E_fit - 1) < 1e-3
+    assert result.outer_iterations > 1000
 
 
 def test_variants_tie_hold_and_refuse():
@@ -310,42 +319,6 @@ def test_fit_command_refuses_bad_input(midline_csv, args, named, capsys):
     assert main(["fit", str(midline_csv), *args]) == 2
     err = capsys.readouterr().err
     assert named in err and "Traceback" not in err
-
-
-def test_kkt_data_homotopy_shortens_failed_steps_and_reaches_the_data(monkeypatch):
-    """The homotopy retries a failed step a quarter as long, doubles after success, ends at
-    the data, and gives up (FitError naming where) when the steps become too short."""
-    import types
-
-    import morphoshell.fitting as fitting
-
-    data = np.array([[0.0, 1.0], [2.0, 3.0]])
-    model = np.zeros((2, 2))
-    inner = types.SimpleNamespace(data=data, n=2,
-                                  residuals=lambda eq: (model - data).T.ravel())
-    eq = types.SimpleNamespace(x=np.zeros(1), lam_g=np.zeros(1))
-    reached, tried = [0.0], []
-
-    def cells(nlp, inner, theta, x, lam, target, limit):
-        tau = float(target[1, 1] / 3.0)            # the target's position on the path
-        tried.append(round(tau, 6))
-        if tau - reached[-1] > limit:
-            exc = FitError("too far", "Maximum_Iterations_Exceeded")
-            exc.iterations = 60
-            raise exc
-        reached.append(tau)
-        return theta + 1, x, lam, 5, "Solve_Succeeded"
-
-    nlp = types.SimpleNamespace(_duals=None)
-    monkeypatch.setattr(fitting, "_kkt_cells", lambda *a: cells(*a, limit=0.3))
-    theta, _, _, its, status = fitting._kkt_homotopy(nlp, inner, 0.0, eq)
-    assert tried[:3] == [1.0, 0.25, 0.75] and reached[-1] == 1.0
-    assert its == 60 * (len(tried) - len(reached) + 1) + 5 * (len(reached) - 1)
-    assert theta == len(reached) - 1
-    reached[:] = [0.0]
-    monkeypatch.setattr(fitting, "_kkt_cells", lambda *a: cells(*a, limit=0.001))
-    with pytest.raises(FitError, match="stopped at τ = 0"):
-        fitting._kkt_homotopy(nlp, inner, 0.0, eq)
 
 
 def test_a_failed_trial_is_rejected_without_continuation(monkeypatch):

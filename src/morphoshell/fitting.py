@@ -90,16 +90,13 @@ NM_RESTARTS = 8
 BLEND = 0.05
 #: Mesh of the KKT fit's first, coarse stage (see ``_kkt``).
 COARSE_NODES = 60
-#: Ipopt iterations of each of the KKT fit's NLPs.
-KKT_ITERATIONS = 200
-#: ... and of each step of its data homotopy (converging ones took 10-60, measured).
-KKT_STEP_ITERATIONS = 60
+#: Ipopt iterations of each of the KKT fit's NLPs (converging ones took 5-60,
+#: measured; a failing one costs about 0.1 s an iteration at 200 nodes).
+KKT_ITERATIONS = 60
 #: Tolerance (relative on E_fit²) and evaluations of the Gauss-Newton steps that
 #: start a KKT fit from a given state (``_kkt``).
 KKT_GN_TOL = 1e-4
 KKT_GN_ITERATIONS = 30
-#: The data homotopy gives up below this step in τ (``_kkt_homotopy``).
-HOMOTOPY_MIN_STEP = 1 / 64
 #: |η| stays below this in the KKT fit (the theory needs |η| < 1).
 ETA_MAX = 0.98
 
@@ -514,8 +511,7 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
         Relative tolerance on E_fit² of the outer iteration.
     max_iterations : int, optional
         Outer iterations (function evaluations for Nelder–Mead; Ipopt
-        iterations of each NLP for KKT, default :data:`KKT_ITERATIONS`, at
-        most :data:`KKT_STEP_ITERATIONS` in its data homotopy).
+        iterations of each NLP for KKT, default :data:`KKT_ITERATIONS`).
     start : Equilibrium, optional
         The inner state to start from (a direct solution of ``spec.base`` on
         the fit's mesh, e.g. a previous fit's); by default the physical branch
@@ -528,9 +524,12 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
     Raises
     ------
     FitError
-        Status ``"Fit_Saddle"`` when the KKT fit ends on a state that is not a
-        minimum of the inner energy; ``"Fit_Failed"`` when the outer solver
-        fails.
+        KKT only: status ``"Fit_Saddle"`` when the fit ends on a state that is
+        not a minimum of the inner energy, ``"Fit_Not_Reproduced"`` when the
+        inner solve at the fitted parameters leaves that state, else Ipopt's
+        status of the failed NLP; the last iterate is attached.  The other
+        methods return ``converged=False`` and a message when their outer
+        iteration stops short.
     """
     if method not in METHODS:
         raise ValueError(f"method = {method!r} must be one of {list(METHODS)}")
@@ -607,7 +606,7 @@ class _Stalled(Exception):
     """Raised inside the gradient fit's residuals when trial points keep failing."""
 
 
-def _gradient(spec, inner, tol, max_iterations):
+def _gradient(spec, inner, tol, max_iterations, theta0=None):
     from scipy.optimize import least_squares
 
     failures, evaluations = [0], [0]
@@ -643,7 +642,8 @@ def _gradient(spec, inner, tol, max_iterations):
 
     lo, hi = spec.box()
     try:
-        out = least_squares(fun, spec.theta0, jac=jac, bounds=(lo, hi), method="trf",
+        out = least_squares(fun, spec.theta0 if theta0 is None else theta0, jac=jac,
+                            bounds=(lo, hi), method="trf",
                             x_scale="jac", ftol=tol, xtol=1e-12, gtol=1e-12,
                             max_nfev=max_iterations or 200)
     except _Stalled:
@@ -656,71 +656,62 @@ def _gradient(spec, inner, tol, max_iterations):
 def _kkt(spec, inner, tol, max_iterations):
     """One NLP in (θ, x, λ) with the inner KKT conditions as constraints.
 
-    From a given start state (``inner.warm``: a previous fit's) the NLP
-    starts where loose Gauss–Newton steps of the reduced problem end
-    (:data:`KKT_GN_TOL`, :data:`KKT_GN_ITERATIONS`).  Otherwise, on fine
-    meshes the fit first runs on a coarse one (:data:`COARSE_NODES`):
-    a change of the model's length moves the fit points by many short cells,
-    beyond the window one NLP lets them move (measured: stalls at 200 nodes
-    from the start shape), while on the coarse mesh's long cells it does not;
-    the fine NLP then starts with nearly the right cells.  Should that route
-    fail, the fit starts again as from a given state.
+    Route A to its start: from a given start state (``inner.warm``: a
+    previous fit's) loose Gauss–Newton steps of the reduced problem
+    (:data:`KKT_GN_TOL`, :data:`KKT_GN_ITERATIONS`); otherwise, on fine
+    meshes, a KKT fit on a coarse mesh (:data:`COARSE_NODES`): a change of
+    the model's length moves the fit points by many short cells, beyond the
+    window one NLP lets them move (measured: stalls at 200 nodes from the
+    start shape), while on the coarse mesh's long cells it does not.
+    Route B, when A fails (its NLP, or its end is a saddle or not
+    reproduced): Gauss–Newton steps to the fit's tolerance, then the NLP
+    from their end.  Each NLP stops after :data:`KKT_ITERATIONS`.
     """
-    start = inner.eq
+    theta0, eq, spent = spec.theta0, inner.eq, 0
     try:
-        theta, x, lam, iterations, status, eq = _kkt_route(spec, inner, tol, max_iterations,
-                                                           inner.warm, start)
-    except FitError as exc:
         if inner.warm:
-            raise
-        # From the family's defaults the data homotopy failed on the synthetic
-        # campaign's undeformed and unstressed t01 (stopped at τ = 0.91 and
-        # 0.72); the route of a given start, from the same state, fitted
-        # undeformed t01 to the gradient method's E_fit (83 iterations in all).
-        spent = int(getattr(exc, "iterations", 0) or 0)
-        theta, x, lam, iterations, status, eq = _kkt_route(spec, inner, tol, max_iterations,
-                                                           True, start)
-        iterations += spent
-    problem = spec.problem(theta)
-    p = problem.parameter_vector()
-    d = inner.solver.disc
-    D = d.cell_data(p)
-    fitted = inner.solver.equilibrium(problem, x, lam, p, np.zeros(0), D, eq.solver, True)
-    if inner.solver.backend.inertia_correction(x, D, lam) > 0:
-        raise FitError(
-            "the KKT fit ended on a stationary state of the inner energy that is not a "
-            "minimum (a saddle: the reduced Hessian is not positive definite); start from "
-            "another point or use the gradient method", "Fit_Saddle", fitted)
-    # the fitted state must be what the inner problem gives there: re-solve from it
-    check = inner.solver.solve(problem, warm_start=fitted)
-    inner.solves += 1
-    if np.max(np.abs(check.x - x)) > 1e-6:
-        raise FitError("the KKT fit's state is not reproduced by the inner solve at the fitted "
-                       "parameters", "Fit_Not_Reproduced", fitted)
-    inner.eq = check
-    inner._cache = {tuple(theta): check}
-    return theta, iterations, True, status
+            theta0, eq, spent = _gauss_newton_steps(spec, inner, KKT_GN_TOL, KKT_GN_ITERATIONS,
+                                                    theta0, eq)
+            return _kkt_checked(inner, *_kkt_nlp(spec, inner, tol, max_iterations, theta0, eq),
+                                spent)
+        return _kkt_checked(inner, *_kkt_from_coarse(spec, inner, tol, max_iterations), 0)
+    except FitError as exc:
+        # Measured on the synthetic campaign (200 nodes): from the previous
+        # fit's state the NLP failed or ended on a saddle at unstressed t06-t09
+        # and free t02, and the data homotopy that then shortened its steps
+        # cost 90-830 s, mostly to fail; from the reduced optimum the NLP
+        # converged in 6-19 iterations (unstressed t06: 6 s in all).
+        spent += int(getattr(exc, "iterations", 0) or 0)
+    theta0, eq, its = _gauss_newton_steps(spec, inner, tol, max_iterations, theta0, eq)
+    return _kkt_checked(inner, *_kkt_nlp(spec, inner, tol, max_iterations, theta0, eq),
+                        spent + its)
 
 
-def _kkt_route(spec, inner, tol, max_iterations, gauss_newton: bool, start) -> tuple:
-    """(θ, x, λ, iterations, status, state) of :func:`_kkt`'s NLPs from the inner ``start``."""
-    theta0, iterations, coarse, eq = spec.theta0, 0, None, start
-    if gauss_newton:
-        # From a previous fit's state (a campaign step) the data homotopy alone
-        # failed: its path from the start's midline crossed a nearly singular
-        # stretch of the branch (flat t03 at 200 nodes: every step beyond
-        # τ = 0.77 failed, the constraint violation rising to 20 on steps of
-        # 1e-2), while the KKT NLP from the gradient fit's optimum converged
-        # in 6 iterations.  Loose Gauss-Newton steps first (flat t03-t05:
-        # 17, 9, 9 of them), then the NLP from there (8, 8, 5 iterations).
-        try:
-            theta0, iterations, _, _ = _gradient(spec, inner, KKT_GN_TOL, KKT_GN_ITERATIONS)
-            eq = inner.solve(theta0)
-        except SolverError:          # (a start on a saddle: rejected by _kkt as before)
-            theta0, iterations, eq = spec.theta0, 0, start
-    elif inner.nodes > 2 * COARSE_NODES:
-        coarse = _Inner(spec, inner.data, COARSE_NODES)
-        theta0, iterations, _, _ = _kkt(spec, coarse, tol, max_iterations)
+def _gauss_newton_steps(spec, inner, ftol, max_evaluations, theta0, eq) -> tuple:
+    """(θ, its inner state, evaluations): Gauss–Newton steps from θ₀ and its state ``eq``.
+
+    The reduced problem's (:func:`_gradient`).  From a start that no solve
+    reproduces (a saddle: rejected after the NLP) there are none.
+    """
+    try:
+        theta, evaluations, _, _ = _gradient(spec, inner, ftol, max_evaluations, theta0)
+        return theta, inner.solve(theta), evaluations
+    except SolverError:
+        return theta0, eq, 0
+
+
+def _kkt_nlp(spec, inner, tol, max_iterations, theta0, eq) -> tuple:
+    """(θ, x, λ, iterations, status) of the KKT NLP from θ₀ and its inner state ``eq``."""
+    return _kkt_cells(_KKTProblem(spec, inner, tol, max_iterations), inner, theta0, eq.x,
+                      eq.lam_g, inner.data)
+
+
+def _kkt_from_coarse(spec, inner, tol, max_iterations) -> tuple:
+    """Route A of :func:`_kkt` without a start state: coarse mesh first, then this one."""
+    if inner.nodes <= 2 * COARSE_NODES:
+        return _kkt_nlp(spec, inner, tol, max_iterations, spec.theta0, inner.eq)
+    coarse = _Inner(spec, inner.data, COARSE_NODES)
+    theta0, spent, _, _ = _kkt(spec, coarse, tol, max_iterations)
     # From a coarse fit the start is close: a tiny initial barrier (from 1e-6
     # the fine stage took 34 iterations, wandering while mu fell) and the
     # least-squares estimate of the multipliers: from zero ones the exact
@@ -729,15 +720,48 @@ def _kkt_route(spec, inner, tol, max_iterations, gauss_newton: bool, start) -> t
     # estimate, measured before the window edges were flagged).  Far from the
     # optimum the estimate is large and the first steps went wild (the
     # 3-parameter noisy fit at 60 nodes: 200 iterations; 6 from zero).
-    if coarse is not None:      # from the fine mesh's state on the coarse fit's branch
-        nlp = _KKTProblem(spec, inner, tol, max_iterations, mu_init=1e-9, estimate_duals=True)
-        eq = inner.transfer(theta0, coarse.eq)
-        theta, x, lam, its, status = _kkt_cells(nlp, inner, theta0, eq.x, eq.lam_g, inner.data)
-    else:               # from the fit's start state as it is (the inner solution there)
-        nlp = _KKTProblem(spec, inner, tol, min(max_iterations or KKT_STEP_ITERATIONS,
-                                                KKT_STEP_ITERATIONS))
-        theta, x, lam, its, status = _kkt_homotopy(nlp, inner, theta0, eq)
-    return theta, x, lam, iterations + its, status, eq
+    nlp = _KKTProblem(spec, inner, tol, max_iterations, mu_init=1e-9, estimate_duals=True)
+    eq = inner.transfer(theta0, coarse.eq)      # the fine state on the coarse fit's branch
+    try:
+        theta, x, lam, its, status = _kkt_cells(nlp, inner, theta0, eq.x, eq.lam_g,
+                                                inner.data)
+    except FitError as exc:
+        exc.iterations = getattr(exc, "iterations", 0) + spent
+        raise
+    return theta, x, lam, its + spent, status
+
+
+def _kkt_checked(inner, theta, x, lam, iterations, status, spent) -> tuple:
+    """:func:`_kkt`'s result at the NLP's end, after checking that it is the inner minimum.
+
+    Raises FitError (with the iterations spent) at a saddle of the inner
+    energy, or when the inner solve at the fitted θ does not stay at x.
+    """
+    spec = inner.spec
+    problem = spec.problem(theta)
+    p = problem.parameter_vector()
+    d = inner.solver.disc
+    D = d.cell_data(p)
+    fitted = inner.solver.equilibrium(problem, x, lam, p, np.zeros(0), D, inner.eq.solver, True)
+    iterations += spent
+    if inner.solver.backend.inertia_correction(x, D, lam) > 0:
+        exc = FitError(
+            "the KKT fit ended on a stationary state of the inner energy that is not a "
+            "minimum (a saddle: the reduced Hessian is not positive definite); start from "
+            "another point or use the gradient method", "Fit_Saddle", fitted)
+        exc.iterations = iterations
+        raise exc
+    # the fitted state must be what the inner problem gives there: re-solve from it
+    check = inner.solver.solve(problem, warm_start=fitted)
+    inner.solves += 1
+    if np.max(np.abs(check.x - x)) > 1e-6:
+        exc = FitError("the KKT fit's state is not reproduced by the inner solve at the "
+                       "fitted parameters", "Fit_Not_Reproduced", fitted)
+        exc.iterations = iterations
+        raise exc
+    inner.eq = check
+    inner._cache = {tuple(theta): check}
+    return theta, iterations, True, status
 
 
 def _kkt_cells(nlp, inner, theta, x, lam, data) -> tuple:
@@ -758,44 +782,6 @@ def _kkt_cells(nlp, inner, theta, x, lam, data) -> tuple:
         if max(abs(a - b) for a, b in zip(now, cells)) <= WINDOW:
             break
     return theta, x, lam, iterations, status
-
-
-def _kkt_homotopy(nlp, inner, theta, eq) -> tuple:
-    """The KKT NLPs from the fit's start to the data, through intermediate data if need be.
-
-    The target runs from the start's own midline (fitted exactly there) to
-    the data, d(τ) = (1 − τ) m₀ + τ d, τ = 0 → 1: first in one step; a step
-    whose NLP fails (in :data:`KKT_STEP_ITERATIONS`) is retried a quarter as
-    long from the last target reached and its multipliers, and the next one
-    is twice as long.  From the family's defaults one NLP to a noisy average
-    failed (t01 of the synthetic inversion, flat: Maximum_Iterations_Exceeded
-    after 200 iterations, its full steps breaking the inner equilibrium); by
-    steps it converged (404 iterations, 46 s).  Raises the last failure when
-    the step falls below :data:`HOMOTOPY_MIN_STEP`.
-    """
-    res = inner.residuals(eq)
-    model = inner.data + np.column_stack([res[:inner.n], res[inner.n:]])
-    x, lam = eq.x, eq.lam_g
-    tau, step, iterations = 0.0, 1.0, 0
-    while True:
-        target = min(1.0, tau + step)
-        duals = nlp._duals
-        try:
-            out = _kkt_cells(nlp, inner, theta, x, lam,
-                             (1 - target) * model + target * inner.data)
-        except FitError as exc:
-            iterations += exc.iterations
-            step /= 4
-            if step < HOMOTOPY_MIN_STEP:
-                raise FitError(f"{exc} (the data homotopy stopped at τ = {tau:.4g}: a step of "
-                               f"{4 * step:.2g} failed)", exc.status, exc.last_iterate) from None
-            nlp._duals = duals
-            continue
-        theta, x, lam, its, status = out
-        iterations += its
-        if target == 1.0:
-            return theta, x, lam, iterations, status
-        tau, step = target, 2 * step
 
 
 def _ramp(x):
@@ -935,8 +921,7 @@ class _KKTProblem:
         local = ca.reshape(Uext[u_idx.ravel(order="F").tolist()], u_idx.shape[0], n)
         blended = _blended_point(d.stages).map(n)
         rz = blended(local, ca.DM(t_fit).T, *(ca.DM(f) for f in flags))
-        # the data are the NLP's parameter: one NLP serves every target of the
-        # data homotopy (:func:`_kkt_homotopy`)
+        # the data are the NLP's parameter, not constants in its graph
         target = ca.MX.sym("data", 2 * n)         # (r, z) point by point
         res = ca.vec((rz - ca.reshape(target, 2, n)).T)
         ineq, glo, ghi = [], [], []
