@@ -93,6 +93,8 @@ COARSE_NODES = 60
 #: Ipopt iterations of each of the KKT fit's NLPs (converging ones took 5-60,
 #: measured; a failing one costs about 0.1 s an iteration at 200 nodes).
 KKT_ITERATIONS = 60
+#: Largest Hessian perturbation (inertia correction) of the KKT fit's NLPs.
+KKT_MAX_PERTURBATION = 1e6
 #: Tolerance (relative on E_fit²) and evaluations of the Gauss-Newton steps that
 #: start a KKT fit from a given state (``_kkt``).
 KKT_GN_TOL = 1e-4
@@ -682,26 +684,46 @@ def _kkt(spec, inner, tol, max_iterations):
         # cost 90-830 s, mostly to fail; from the reduced optimum the NLP
         # converged in 6-19 iterations (unstressed t06: 6 s in all).
         spent += int(getattr(exc, "iterations", 0) or 0)
-    theta0, eq, its = _gauss_newton_steps(spec, inner, tol, max_iterations, theta0, eq)
+        first = exc
+    try:
+        theta0, eq, its = _gauss_newton_steps(spec, inner, tol, max_iterations, theta0, eq,
+                                              required=True)
+    except FitError as exc:         # what failed first, and why it was not tried again
+        raise FitError(f"{first}; {exc}", first.status, first.last_iterate) from None
     return _kkt_checked(inner, *_kkt_nlp(spec, inner, tol, max_iterations, theta0, eq),
                         spent + its)
 
 
-def _gauss_newton_steps(spec, inner, ftol, max_evaluations, theta0, eq) -> tuple:
+def _gauss_newton_steps(spec, inner, ftol, max_evaluations, theta0, eq,
+                        required: bool = False) -> tuple:
     """(θ, its inner state, evaluations): Gauss–Newton steps from θ₀ and its state ``eq``.
 
     The reduced problem's (:func:`_gradient`).  From a start that no solve
-    reproduces (a saddle: rejected after the NLP) there are none.
+    reproduces (a saddle: rejected after the NLP) there are none.  When
+    ``required``, steps that stop short of ``ftol`` raise FitError: an NLP
+    from there went wild (synthetic campaign, unstressed t09 from t07's
+    fit: the steps stopped at a fold of the branch, and 60 Ipopt iterations
+    with Hessian perturbations up to 1e10 took 356 s).
     """
+    evaluations = 0
     try:
-        theta, evaluations, _, _ = _gradient(spec, inner, ftol, max_evaluations, theta0)
-        return theta, inner.solve(theta), evaluations
-    except SolverError:
-        return theta0, eq, 0
+        theta, evaluations, converged, message = _gradient(spec, inner, ftol, max_evaluations,
+                                                           theta0)
+        if converged or not required:
+            return theta, inner.solve(theta), evaluations
+    except SolverError as exc:
+        if not required:
+            return theta0, eq, 0
+        message = str(exc)
+    exc = FitError(f"the Gauss-Newton steps to start again from stopped short: {message}",
+                   "Gauss_Newton_Stopped", eq)
+    exc.iterations = evaluations
+    raise exc
 
 
 def _kkt_nlp(spec, inner, tol, max_iterations, theta0, eq) -> tuple:
     """(θ, x, λ, iterations, status) of the KKT NLP from θ₀ and its inner state ``eq``."""
+    inner.eq = eq         # (the NLP's objective is scaled by the misfit there)
     return _kkt_cells(_KKTProblem(spec, inner, tol, max_iterations), inner, theta0, eq.x,
                       eq.lam_g, inner.data)
 
@@ -968,7 +990,13 @@ class _KKTProblem:
                       "acceptable_constr_viol_tol": 1e-10,
                       "warm_start_init_point": ("no" if self.estimate_duals and self._duals is None
                                                 else "yes"),
-                      "mumps_scaling": 0, "mumps_permuting_scaling": 0, "mumps_pivot_order": 0},
+                      "mumps_scaling": 0, "mumps_permuting_scaling": 0, "mumps_pivot_order": 0,
+                      # An NLP that needs a large Hessian perturbation has gone wild
+                      # (converging ones needed at most 1; unstressed t09 of the synthetic
+                      # campaign from t07's fit: up to 1e10, 60 iterations in 347 s, and
+                      # MUMPS reallocating; 8 s to fail with this cap): fail, and let
+                      # _kkt start again from the reduced optimum.
+                      "max_hessian_perturbation": KKT_MAX_PERTURBATION},
             "hess_lag": hess, "jac_g": jac_g, "print_time": False, "error_on_fail": False,
             # a trial point outside the energy's domain evaluates to NaN and
             # Ipopt backtracks: CasADi's "NaN detected" lines said nothing to act on
