@@ -121,6 +121,13 @@ def _truth_midline(t: float, nodes: int, n: int):
     return model_midline(eq, n), eq
 
 
+def _write_midline(path: Path, midline, what: str) -> None:
+    """A midline CSV (units of R) with the synthetic label and what it is in its header."""
+    midline.to_csv(path)
+    text = path.read_text(encoding="utf-8")
+    path.write_text(f"# {LABEL}\n# {what}\n" + text, encoding="utf-8")
+
+
 def _write_trace(path: Path, pixels: np.ndarray, header: list[str]) -> None:
     lines = [f"# {h}" for h in header] + ["x,y"] + [f"{x:.2f},{y:.2f}" for x, y in pixels]
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
@@ -191,10 +198,17 @@ def make(out: Path, *, timepoints: int = 12, embryos: int = 5, seed: int = SEED,
         mean = type(mean)(mean.r, mean.z, mean.spread, mean.n_traces,
                           tuple(Path(s).relative_to(out).as_posix() for s in mean.source))
         avg = folder / "synthetic_average.csv"
-        mean.to_csv(avg)
-        text = avg.read_text(encoding="utf-8")
-        avg.write_text(f"# {LABEL}\n# timepoint {name}, pseudotime t = {t:g}: average of "
-                       f"{embryos} traces, units of R\n" + text, encoding="utf-8")
+        _write_midline(avg, mean, f"timepoint {name}, pseudotime t = {t:g}: average of "
+                                  f"{embryos} traces, units of R")
+        # each trace's midline too: a campaign with embryo_errors fits them one by one
+        traces = []
+        for e, single in enumerate(singles, start=1):
+            path = folder / f"synthetic_embryo{e}_midline.csv"
+            _write_midline(path, type(single)(single.r, single.z, single.spread, 1,
+                                              (f"{name}/synthetic_embryo{e}.csv",)),
+                           f"timepoint {name}, pseudotime t = {t:g}: midline of embryo {e}, "
+                           f"units of R")
+            traces.append(f"{name}/{path.name}")
         exact = fine[np.round(np.linspace(0, len(fine) - 1, N_FIT)).astype(int)]
         rms = float(np.sqrt(np.mean(np.sum((mean.points - exact) ** 2, axis=1))))
         truth["timepoints"].append({
@@ -204,12 +218,13 @@ def make(out: Path, *, timepoints: int = 12, embryos: int = 5, seed: int = SEED,
             "average": f"{name}/{avg.name}", "average_rms_error": rms,
             "E_noise": float(np.sqrt(np.sum((mean.points - exact) ** 2))),
             "embryos": placements})
-        rows.append(f"{name},{t:g},{name}/{avg.name}")
+        rows.append(f"{name},{t:g},{name}/{avg.name},{';'.join(traces)}")
         if not quiet:
             print(f"{name}: t = {t:.3f}, kappa1 = {kappa1(t):.4f} 1/R, average off the truth by "
                   f"{rms:.2e} R rms", file=sys.stderr)
     (out / "timepoints.csv").write_text(
-        f"# {LABEL}\n# ground truth: synthetic_inversion.json\ntimepoint,pseudotime,midline\n"
+        f"# {LABEL}\n# ground truth: synthetic_inversion.json\n"
+        f"timepoint,pseudotime,midline,traces\n"
         + "\n".join(rows) + "\n", encoding="utf-8")
     (out / "synthetic_inversion.json").write_text(json.dumps(truth, indent=1) + "\n",
                                                   encoding="utf-8")

@@ -139,7 +139,35 @@ def test_bad_input_is_refused_before_any_work(tmp_path, data):
         campaign(data[0], ("flat", "curly"), out=tmp_path / "x")
     with pytest.raises(ValueError, match="method"):
         campaign(data[0], ("flat",), method="newton", out=tmp_path / "x")
+    # a trace file that is not there: named with its row
+    bad = tmp_path / "bad"
+    shutil.copytree(data[0], bad)
+    table = bad / "timepoints.csv"
+    table.write_text(table.read_text().replace("t02/synthetic_embryo2_midline.csv",
+                                               "t02/nowhere.csv"))
+    with pytest.raises(ValueError, match=r"row 3: trace file 't02/nowhere.csv' does not exist"):
+        campaign(bad, ("flat",), out=tmp_path / "x")
     assert not (tmp_path / "x").exists()
+
+
+def test_embryo_errors_come_from_fits_of_the_single_traces(data, tmp_path):
+    """With embryo_errors each single trace is fitted from the average's fit; the standard
+    errors are the spread of those fits over sqrt(n)."""
+    result = campaign(data[0], ("free",), method="gradient", workers=1, out=tmp_path,
+                      nodes=NODES, timepoints=("t01",), embryo_errors=True)
+    rec = result.record("t01", "free")
+    fits = rec["embryo_fits"]
+    assert [f["file"] for f in fits] == list(read_timepoints(data[0])[0].traces)
+    assert len(fits) == 2 and all(f["status"] == "ok" and f["converged"] for f in fits)
+    # fitted to the single traces, each noisier than the average of the two
+    assert all(f["E_fit"] > rec["E_fit"] for f in fits)
+    errors = rec["embryo_standard_errors"]
+    assert set(errors) == set(rec["standard_errors"])
+    for name, se in errors.items():
+        a, b = (f["parameters"][name] for f in fits)
+        assert se == pytest.approx(abs(a - b) / 2, rel=1e-12)   # std (n - 1) / sqrt(n), n = 2
+    row = result.to_dataframe().iloc[0]
+    assert row["se_embryo_kappa1"] == errors["kappa1"]
 
 
 @pytest.mark.parametrize("args", [["{missing}"], ["{data}", "--variants", "flat,curly"],

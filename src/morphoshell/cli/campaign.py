@@ -68,6 +68,10 @@ def register(sub) -> None:
                         "t01,t02,t03: a short campaign); default all")
     p.add_argument("--nodes", type=integer(20, 2000), default=200, metavar="N",
                    help="mesh nodes of the inner solves (default 200)")
+    p.add_argument("--embryo-errors", action="store_true",
+                   help="also fit each single trace of a timepoint (the optional 'traces' "
+                        "column of timepoints.csv) and record standard errors from their "
+                        "spread (one more fit per trace)")
     add_executor(p, "one per variant, at most one per CPU core")
     p.add_argument("--out", type=_out_dir, default=Path("campaign"), metavar="DIR",
                    help="output folder (default: ./campaign)")
@@ -86,7 +90,8 @@ def _campaign(args) -> int:
     read_timepoints(args.data_dir)          # bad input: exit 2 before any work
     result = campaign(args.data_dir, args.variants, method=args.method, workers=args.workers,
                       scheduler=args.scheduler, out=args.out, resume=args.resume,
-                      nodes=args.nodes, timepoints=args.timepoints)
+                      nodes=args.nodes, timepoints=args.timepoints,
+                      embryo_errors=args.embryo_errors)
     t = result.timing
     failed = sum(r["status"] != "ok" for r in result.records.values())
     per = t["fit_seconds"] / t["computed"] if t["computed"] else math.nan
