@@ -669,29 +669,34 @@ def _kkt(spec, inner, tol, max_iterations):
     reproduced): Gauss–Newton steps to the fit's tolerance, then the NLP
     from their end.  Each NLP stops after :data:`KKT_ITERATIONS`.
     """
-    theta0, eq, spent = spec.theta0, inner.eq, 0
+    theta0, eq, spent, its = spec.theta0, inner.eq, 0, 0
     try:
         if inner.warm:
+            # From a previous fit's state (a campaign step) the NLP alone failed:
+            # its path crossed a nearly singular stretch of the branch (flat t03
+            # at 200 nodes), while from loose Gauss-Newton steps (flat t03-t05:
+            # 17, 9, 9 of them) it converged in 8, 8, 5 iterations.
             theta0, eq, spent = _gauss_newton_steps(spec, inner, KKT_GN_TOL, KKT_GN_ITERATIONS,
                                                     theta0, eq)
-            return _kkt_checked(inner, *_kkt_nlp(spec, inner, tol, max_iterations, theta0, eq),
-                                spent)
-        return _kkt_checked(inner, *_kkt_from_coarse(spec, inner, tol, max_iterations), 0)
+            theta, x, lam, its, status = _kkt_nlp(spec, inner, tol, max_iterations, theta0, eq)
+        else:
+            theta, x, lam, its, status = _kkt_from_coarse(spec, inner, tol, max_iterations)
+        return _kkt_checked(inner, theta, x, lam, spent + its, status)
     except FitError as exc:
         # Measured on the synthetic campaign (200 nodes): from the previous
         # fit's state the NLP failed or ended on a saddle at unstressed t06-t09
         # and free t02, and the data homotopy that then shortened its steps
         # cost 90-830 s, mostly to fail; from the reduced optimum the NLP
         # converged in 6-19 iterations (unstressed t06: 6 s in all).
-        spent += int(getattr(exc, "iterations", 0) or 0)
+        spent += its or int(getattr(exc, "iterations", 0) or 0)
         first = exc
     try:
-        theta0, eq, its = _gauss_newton_steps(spec, inner, tol, max_iterations, theta0, eq,
-                                              required=True)
+        theta0, eq, steps = _gauss_newton_steps(spec, inner, tol, max_iterations, theta0, eq,
+                                                required=True)
     except FitError as exc:         # what failed first, and why it was not tried again
         raise FitError(f"{first}; {exc}", first.status, first.last_iterate) from None
-    return _kkt_checked(inner, *_kkt_nlp(spec, inner, tol, max_iterations, theta0, eq),
-                        spent + its)
+    theta, x, lam, its, status = _kkt_nlp(spec, inner, tol, max_iterations, theta0, eq)
+    return _kkt_checked(inner, theta, x, lam, spent + steps + its, status)
 
 
 def _gauss_newton_steps(spec, inner, ftol, max_evaluations, theta0, eq,
@@ -753,11 +758,11 @@ def _kkt_from_coarse(spec, inner, tol, max_iterations) -> tuple:
     return theta, x, lam, its + spent, status
 
 
-def _kkt_checked(inner, theta, x, lam, iterations, status, spent) -> tuple:
+def _kkt_checked(inner, theta, x, lam, iterations, status) -> tuple:
     """:func:`_kkt`'s result at the NLP's end, after checking that it is the inner minimum.
 
-    Raises FitError (with the iterations spent) at a saddle of the inner
-    energy, or when the inner solve at the fitted θ does not stay at x.
+    Raises FitError at a saddle of the inner energy, or when the inner solve
+    at the fitted θ does not stay at x.
     """
     spec = inner.spec
     problem = spec.problem(theta)
@@ -765,22 +770,17 @@ def _kkt_checked(inner, theta, x, lam, iterations, status, spent) -> tuple:
     d = inner.solver.disc
     D = d.cell_data(p)
     fitted = inner.solver.equilibrium(problem, x, lam, p, np.zeros(0), D, inner.eq.solver, True)
-    iterations += spent
     if inner.solver.backend.inertia_correction(x, D, lam) > 0:
-        exc = FitError(
+        raise FitError(
             "the KKT fit ended on a stationary state of the inner energy that is not a "
             "minimum (a saddle: the reduced Hessian is not positive definite); start from "
             "another point or use the gradient method", "Fit_Saddle", fitted)
-        exc.iterations = iterations
-        raise exc
     # the fitted state must be what the inner problem gives there: re-solve from it
     check = inner.solver.solve(problem, warm_start=fitted)
     inner.solves += 1
     if np.max(np.abs(check.x - x)) > 1e-6:
-        exc = FitError("the KKT fit's state is not reproduced by the inner solve at the "
+        raise FitError("the KKT fit's state is not reproduced by the inner solve at the "
                        "fitted parameters", "Fit_Not_Reproduced", fitted)
-        exc.iterations = iterations
-        raise exc
     inner.eq = check
     inner._cache = {tuple(theta): check}
     return theta, iterations, True, status
