@@ -145,7 +145,7 @@ def test_bad_input_is_refused_before_any_work(tmp_path, data):
     table = bad / "timepoints.csv"
     table.write_text(table.read_text().replace("t02/synthetic_embryo2_midline.csv",
                                                "t02/nowhere.csv"))
-    with pytest.raises(ValueError, match=r"row 3: trace file 't02/nowhere.csv' does not exist"):
+    with pytest.raises(ValueError, match=r"line 5: trace file 't02/nowhere.csv' does not exist"):
         campaign(bad, ("flat",), out=tmp_path / "x")
     assert not (tmp_path / "x").exists()
 

@@ -131,32 +131,33 @@ def read_timepoints(data_dir: str | Path) -> tuple[Timepoint, ...]:
     if not table.is_file():
         raise ValueError(f"{str(data_dir)!r} has no timepoints.csv (columns timepoint, "
                          f"pseudotime, midline)")
-    lines = [ln for ln in table.read_text(encoding="utf-8").splitlines()
-             if ln.strip() and not ln.lstrip().startswith("#")]
-    rows = list(csv.DictReader(io.StringIO("\n".join(lines))))
+    # errors name the file's line: comment lines are skipped, not forgotten
+    numbered = [(k, ln) for k, ln in enumerate(table.read_text(encoding="utf-8").splitlines(), 1)
+                if ln.strip() and not ln.lstrip().startswith("#")]
+    rows = list(csv.DictReader(io.StringIO("\n".join(ln for _, ln in numbered))))
     if not rows or not {"timepoint", "pseudotime", "midline"} <= set(rows[0]):
         raise ValueError(f"{table}: expected a header timepoint,pseudotime,midline and at "
                          f"least one row")
     out = []
-    for i, row in enumerate(rows, start=2):
+    for (i, _), row in zip(numbered[1:], rows):
         name = (row["timepoint"] or "").strip()
         if not name or not all(c.isalnum() or c in "-_." for c in name):
-            raise ValueError(f"{table}, row {i}: timepoint {name!r} must be a non-empty name "
+            raise ValueError(f"{table}, line {i}: timepoint {name!r} must be a non-empty name "
                              f"of letters, digits, '-', '_' or '.'")
         try:
             t = float(row["pseudotime"])
         except (TypeError, ValueError):
-            raise ValueError(f"{table}, row {i}: pseudotime {row['pseudotime']!r} is not a "
+            raise ValueError(f"{table}, line {i}: pseudotime {row['pseudotime']!r} is not a "
                              f"number") from None
         if not np.isfinite(t):
-            raise ValueError(f"{table}, row {i}: pseudotime {t!r} is not finite")
+            raise ValueError(f"{table}, line {i}: pseudotime {t!r} is not finite")
         path = (row["midline"] or "").strip()
         if not (data_dir / path).is_file():
-            raise ValueError(f"{table}, row {i}: midline file {path!r} does not exist")
+            raise ValueError(f"{table}, line {i}: midline file {path!r} does not exist")
         traces = tuple(v.strip() for v in (row.get("traces") or "").split(";") if v.strip())
         missing = [v for v in traces if not (data_dir / v).is_file()]
         if missing:
-            raise ValueError(f"{table}, row {i}: trace file {missing[0]!r} does not exist")
+            raise ValueError(f"{table}, line {i}: trace file {missing[0]!r} does not exist")
         out.append(Timepoint(name, t, path, traces))
     names = [tp.name for tp in out]
     if len(set(names)) != len(names):
