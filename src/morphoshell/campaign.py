@@ -437,7 +437,7 @@ def _embryo_errors(task: _Task, tp: Timepoint, hold: dict, parameters: dict,
     generating parameters give 0.0101 R (t04), and κ₁ missed the truth by
     5.5 and 6 of those errors at t04 and t08.  The spread of the single
     traces' fits over √n estimates the error of the average's fit directly
-    (there 3-4x larger: 1.9 and 2.4 of them).
+    (at t04 2.9x larger: κ₁ misses by 1.9 of them; t08 in docs/campaigns.md).
     """
     spec = volvox_spec(task.variant, start=_start_problem(parameters), hold=hold)
     fits = []
