@@ -133,6 +133,40 @@ def _write_trace(path: Path, pixels: np.ndarray, header: list[str]) -> None:
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
 
 
+def embryo_trace(fine: np.ndarray, rng: np.random.Generator) -> tuple:
+    """One noisy "embryo": a whole section of the half midline ``fine`` as an image trace.
+
+    Parameters
+    ----------
+    fine : ndarray (m, 2)
+        The noiseless half midline (r, z), units of R, densely sampled.
+    rng : numpy.random.Generator
+        Draws, in this order, the radius R (µm), the rotation (degrees), the
+        offset (pixels) and the pixel noise.
+
+    Returns
+    -------
+    pixels : ndarray (n, 2)
+        Rim to rim through the pole, image pixels (x right, y down), every
+        :data:`SPACING_PX` pixels with Gaussian noise :data:`NOISE_PX`.
+    radius_um, angle_deg : float
+    offset_px : ndarray (2,)
+    """
+    from morphoshell.midlines import to_image
+
+    length = float(np.sum(np.hypot(*np.diff(fine, axis=0).T)))
+    radius_um = float(rng.uniform(*RADIUS_UM))
+    radius_px = radius_um / PIXEL_UM
+    angle = float(rng.uniform(0.0, 360.0))
+    offset = rng.uniform(0.35 * IMAGE_PX, 0.65 * IMAGE_PX, 2)
+    n = int(math.ceil(length * radius_px / SPACING_PX)) + 1
+    idx = np.linspace(0, len(fine) - 1, n)
+    half = np.column_stack([np.interp(idx, np.arange(len(fine)), fine[:, j]) for j in range(2)])
+    pixels = to_image(half, radius_px=radius_px, angle_deg=angle, offset_px=tuple(offset),
+                      section="whole")
+    return pixels + rng.normal(0.0, NOISE_PX, pixels.shape), radius_um, angle, offset
+
+
 def make(out: Path, *, timepoints: int = 12, embryos: int = 5, seed: int = SEED,
          nodes: int = 400, quiet: bool = False, pseudotimes=None) -> dict:
     """Write the data set into ``out``; returns the ground truth (also written as JSON).
@@ -143,7 +177,7 @@ def make(out: Path, *, timepoints: int = 12, embryos: int = 5, seed: int = SEED,
     times = (np.linspace(0.0, 1.0, timepoints) if pseudotimes is None
              else np.asarray(pseudotimes, dtype=float))
     timepoints = len(times)
-    from morphoshell.midlines import average, load_midline, to_image
+    from morphoshell.midlines import average, load_midline
 
     out.mkdir(parents=True, exist_ok=True)
     streams = np.random.SeedSequence(seed).spawn(timepoints)
@@ -169,21 +203,10 @@ def make(out: Path, *, timepoints: int = 12, embryos: int = 5, seed: int = SEED,
         folder = out / name
         folder.mkdir(exist_ok=True)
         fine, eq = _truth_midline(t, nodes, 4001)
-        length = float(np.sum(np.hypot(*np.diff(fine, axis=0).T)))
         rng = np.random.default_rng(streams[k])
         singles, placements = [], []
         for e in range(1, embryos + 1):
-            radius_um = float(rng.uniform(*RADIUS_UM))
-            radius_px = radius_um / PIXEL_UM
-            angle = float(rng.uniform(0.0, 360.0))
-            offset = rng.uniform(0.35 * IMAGE_PX, 0.65 * IMAGE_PX, 2)
-            n = int(math.ceil(length * radius_px / SPACING_PX)) + 1
-            idx = np.linspace(0, len(fine) - 1, n)
-            half = np.column_stack([np.interp(idx, np.arange(len(fine)), fine[:, j])
-                                    for j in range(2)])
-            pixels = to_image(half, radius_px=radius_px, angle_deg=angle,
-                              offset_px=tuple(offset), section="whole")
-            pixels = pixels + rng.normal(0.0, NOISE_PX, pixels.shape)
+            pixels, radius_um, angle, offset = embryo_trace(fine, rng)
             path = folder / f"synthetic_embryo{e}.csv"
             _write_trace(path, pixels, [LABEL, f"timepoint {name}, pseudotime t = {t:g}, "
                                        f"embryo {e}: whole mid-sagittal section, rim to rim",
