@@ -202,6 +202,31 @@ def test_a_start_on_a_saddle_is_rejected():
     assert exc.value.status == "Fit_Saddle" and "not a minimum" in str(exc.value)
 
 
+@pytest.mark.parametrize("blowup, converged", [(1.0, True), (1e2, True), (1e6, False)])
+def test_a_fit_near_a_fold_of_the_branch_is_not_converged(blowup, converged):
+    """Near a fold dx/dp ~ 1/lambda_min blows up along one direction: the Jacobian is a
+    rank-one term that dwarfs the rest (a free fit of the synthetic t07 crept onto one:
+    second singular value 5e-7 of the first).  Random J + blowup * u v^T: the singular
+    value ratio is ~0.5, ~0.1 and ~1e-6."""
+    from types import SimpleNamespace
+
+    from morphoshell.fitting import FOLD_RATIO, _result, volvox_spec
+
+    spec = volvox_spec("free")
+    k = len(spec.fitted)
+    rng = np.random.default_rng(1)
+    J = rng.normal(size=(200, k)) + blowup * np.outer(rng.normal(size=200), rng.normal(size=k))
+    eq = SimpleNamespace(problem=spec.base)
+    inner = SimpleNamespace(solve=lambda theta: eq, residuals=lambda eq: np.full(200, 1e-3),
+                            jacobian=lambda eq, theta: J, data=np.zeros((100, 2)), n=100,
+                            solves=1)
+    r = _result("gradient", spec, inner, np.ones(k), 5, 0.1, True, "ftol reached")
+    sv = np.linalg.svd(J, compute_uv=False)
+    assert (sv[1] >= FOLD_RATIO * sv[0]) == converged
+    assert r.converged is converged and r.near_fold is not converged
+    assert ("near a fold" in r.message) is not converged and r.message.startswith("ftol")
+
+
 def test_a_kkt_fit_from_a_given_state_starts_there(monkeypatch):
     """A KKT fit given a start state (a campaign step) starts from it: loose
     Gauss–Newton steps, then the NLP; no coarse refit from the stress-free

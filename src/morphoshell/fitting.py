@@ -31,6 +31,12 @@ Jacobian: σ² (JᵀJ)⁻¹ with σ² = E_fit²/(2N − n).  The residuals of a 
 midline are correlated along it (one tracing, one smooth curve), so these
 standard errors are *lower bounds*.  Small singular values of the Jacobian
 scaled by the parameters' magnitudes flag poorly identified directions.
+A fitted state near a **fold** of the inner equilibrium branch shows as one
+singular value that dwarfs all others (the inner Hessian is nearly singular,
+so ∂x/∂p ~ 1/λ_min blows up along one direction): a least-squares fit can
+creep onto a fold, where a tiny E_fit gain buys a large change of shape and the
+standard errors collapse.  Such a fit is reported as not converged
+(:data:`FOLD_RATIO`).
 
 Variants of the Volvox fit (the paper's four hypotheses on the posterior
 intrinsic curvature κ₁): ``flat`` κ₁ = 0, ``undeformed`` κ₁ = 1,
@@ -101,6 +107,11 @@ KKT_GN_TOL = 1e-4
 KKT_GN_ITERATIONS = 30
 #: |η| stays below this in the KKT fit (the theory needs |η| < 1).
 ETA_MAX = 0.98
+#: A fit whose scaled Jacobian has its second singular value below this fraction of the
+#: first sits near a fold of the inner branch (module docstring) and is not converged.
+#: Measured on the synthetic inversion fits (2026-11-23): 0.02-0.3 on the branch, 5e-7
+#: on a fold that a free fit of t07 crept onto, its largest singular value 5e4x larger.
+FOLD_RATIO = 1e-4
 
 
 class FitError(SolverError):
@@ -447,6 +458,17 @@ class FitResult:
                          f"{d['singular_value']:.2g})")
         return "\n".join(lines)
 
+    @property
+    def near_fold(self) -> bool:
+        """Whether the fitted state is near a fold of the inner branch (:data:`FOLD_RATIO`).
+
+        All singular values of the scaled Jacobian but the largest are below
+        FOLD_RATIO of it; such a fit is reported as not converged.
+        """
+        k = len(self.fitted)
+        return k > 1 and len(self.poorly_identified) == k - 1 and all(
+            d["singular_value"] < FOLD_RATIO for d in self.poorly_identified)
+
     def to_dict(self) -> dict:
         """JSON-ready: the problem, the fitted parameters with standard errors and
         correlations, the fit energy E_fit (units of R) and the solver's report."""
@@ -482,11 +504,18 @@ def _result(method, spec, inner, theta, iterations, seconds, converged, message)
             for s, v in zip(sv, vt) if s < 1e-3 * sv[0]]
     params = {**eq.problem.params, "h": eq.problem.h, "cut": eq.problem.cut,
               "opening": eq.problem.opening}
-    return FitResult(method, spec.variant, spec.fitted, params,
-                     dict(zip(spec.fitted, se.tolist())), corr, poor, float(np.sqrt(res @ res)),
-                     res, eq, inner.data, inner.data + np.column_stack([res[:inner.n],
-                                                                        res[inner.n:]]),
-                     iterations, inner.solves, seconds, converged, message)
+    result = FitResult(method, spec.variant, spec.fitted, params,
+                       dict(zip(spec.fitted, se.tolist())), corr, poor, float(np.sqrt(res @ res)),
+                       res, eq, inner.data, inner.data + np.column_stack([res[:inner.n],
+                                                                          res[inner.n:]]),
+                       iterations, inner.solves, seconds, converged, message)
+    if not result.near_fold:
+        return result
+    return replace(result, converged=False, message=(
+        f"{message}; but the fitted state is near a fold of the equilibrium branch: the "
+        f"midline's sensitivity to the parameters is {sv[0] / sv[1]:.2g}x larger along one "
+        f"direction than along any other (FOLD_RATIO), so the shape is nearly unstable and the "
+        f"standard errors are meaningless").lstrip("; "))
 
 
 # --------------------------------------------------------------------------
