@@ -150,14 +150,15 @@ def test_bad_input_is_refused_before_any_work(tmp_path, data):
     assert not (tmp_path / "x").exists()
 
 
-def test_embryo_errors_come_from_fits_of_the_single_traces(data, tmp_path):
-    """With embryo_errors each single trace is fitted from the average's fit; the standard
-    errors are the spread of those fits over sqrt(n)."""
+def test_embryo_errors_are_the_jackknife_over_the_traces(data, tmp_path):
+    """With embryo_errors the average with each trace left out is fitted from the average's
+    fit; the standard errors are the jackknife's.  With two traces the averages left are the
+    single traces, and the jackknife is half the difference of their fits."""
     result = campaign(data[0], ("free",), method="gradient", workers=1, out=tmp_path,
                       nodes=NODES, timepoints=("t01",), embryo_errors=True)
     rec = result.record("t01", "free")
     fits = rec["embryo_fits"]
-    assert [f["file"] for f in fits] == list(read_timepoints(data[0])[0].traces)
+    assert [f["left_out"] for f in fits] == list(read_timepoints(data[0])[0].traces)
     assert len(fits) == 2 and all(f["status"] == "ok" and f["converged"] for f in fits)
     # fitted to the single traces, each noisier than the average of the two
     assert all(f["E_fit"] > rec["E_fit"] for f in fits)
@@ -165,9 +166,115 @@ def test_embryo_errors_come_from_fits_of_the_single_traces(data, tmp_path):
     assert set(errors) == set(rec["standard_errors"])
     for name, se in errors.items():
         a, b = (f["parameters"][name] for f in fits)
-        assert se == pytest.approx(abs(a - b) / 2, rel=1e-12)   # std (n - 1) / sqrt(n), n = 2
+        assert se == pytest.approx(abs(a - b) / 2, rel=1e-12)   # sqrt((n-1)/n sum d^2), n = 2
     row = result.to_dataframe().iloc[0]
     assert row["se_embryo_kappa1"] == errors["kappa1"]
+    assert rec["embryo_t95"] == pytest.approx(12.7062, abs=1e-4)   # Student's t, 1 dof, 97.5 %
+
+
+def test_the_jackknife_fits_each_average_with_one_trace_left_out(data, monkeypatch):
+    """Traces (a, b, a): the averages left are (a+b)/2, a, (a+b)/2.  A stand-in fit returns
+    the mean r of what it is given, so the jackknife error is (2/3)|a - (a+b)/2| = |a - b|/3."""
+    from types import SimpleNamespace
+
+    from morphoshell import campaign as module
+    from morphoshell.midlines import Midline
+
+    def mean_r(spec, midline, method, nodes, start):
+        v = float(np.mean(midline.r))
+        return SimpleNamespace(converged=True, E_fit=0.0, equilibrium=None,
+                               parameters={n: v for n in spec.fitted})
+
+    monkeypatch.setattr(module, "fit", mean_r)
+    tp = read_timepoints(data[0])[0]
+    a, b = (float(np.mean(Midline.from_csv(data[0] / t).r)) for t in tp.traces)
+    tp3 = module.Timepoint(tp.name, tp.pseudotime, tp.midline, (*tp.traces, tp.traces[0]))
+    task = module._Task(str(data[0]), (tp3,), "free", "gradient", NODES, "unused", None, True)
+    params = data[1]["timepoints"][0]["parameters"]
+    got = module._embryo_errors(task, tp3, {}, params, None)
+    assert [f["parameters"]["kappa1"] for f in got["embryo_fits"]] == pytest.approx(
+        [(a + b) / 2, a, (a + b) / 2], rel=1e-15)
+    assert got["embryo_standard_errors"]["kappa1"] == pytest.approx(abs(a - b) / 3, rel=1e-12)
+    assert got["embryo_t95"] == pytest.approx(4.3027, abs=1e-4)        # Student's t, 2 dof
+
+
+def test_a_fit_that_stops_unconverged_is_continued_once_from_where_it_stopped(
+        serial, data, monkeypatch):
+    """Leaving unconverged jackknife fits out would bias the spread toward the data that fit
+    easily: such a fit (and the fit of an average) is fitted again from its own result, and
+    that one counts."""
+    import dataclasses
+
+    from morphoshell import campaign as module
+
+    real, calls = module.fit, []
+
+    def first_stops_short(spec, midline, method, nodes, start):
+        r = real(spec, midline, method, nodes=nodes, start=start)
+        calls.append((start, r))
+        return dataclasses.replace(r, converged=False) if len(calls) == 1 else r
+
+    monkeypatch.setattr(module, "fit", first_stops_short)
+    tps = read_timepoints(data[0])
+    task = module._Task(str(data[0]), tps, "free", "gradient", NODES, str(serial.out), None,
+                        True)
+    avg = serial.record("t01", "free")
+    base = module.volvox_spec("free", start=module._start_problem(avg["parameters"])).base
+    got = module._embryo_errors(task, tps[0], {}, avg["parameters"],
+                                module._start_state(base, avg["state"], NODES))
+    assert len(calls) == 3                      # trace 1 twice, trace 2 once
+    assert calls[1][0] is calls[0][1].equilibrium
+    fits = got["embryo_fits"]
+    assert [f["continued"] for f in fits] == [True, False]
+    assert all(f["converged"] for f in fits)
+    assert fits[0]["parameters"] == {n: calls[1][1].parameters[n] for n in fits[0]["parameters"]}
+    assert set(got["embryo_standard_errors"]) == set(avg["standard_errors"])
+    # the fit of an average too; the record counts the iterations of both
+    calls.clear()
+    task = module._Task(str(data[0]), tps, "free", "gradient", NODES, str(serial.out), None)
+    rec = module._fit_one(task, tps[1], avg, avg, module._settings(task, tps[1]))
+    assert len(calls) == 2 and rec["continued"] and rec["converged"]
+    assert rec["outer_iterations"] == sum(r.outer_iterations for _, r in calls)
+    assert rec["E_fit"] == calls[1][1].E_fit
+
+
+@pytest.mark.parametrize("case", ["near a fold", "continuing fails"])
+def test_a_fit_near_a_fold_or_whose_continuation_fails_is_kept_as_it_is(serial, data, monkeypatch,
+                                                                         case):
+    """A fit near a fold of the branch is not continued (it would only creep along the fold);
+    one whose continuation fails keeps its first result, unconverged, saying so."""
+    from morphoshell import campaign as module
+    from morphoshell.results import SolverError
+
+    first = _unconverged(serial, case == "near a fold")
+    assert first.near_fold is (case == "near a fold")
+    calls = []
+
+    def stub(spec, midline, method, nodes, start):
+        calls.append(start)
+        if len(calls) > 1:
+            raise SolverError("no step", "Solve_Failed")
+        return first
+
+    monkeypatch.setattr(module, "fit", stub)
+    task = module._Task(str(data[0]), read_timepoints(data[0]), "free", "gradient", NODES,
+                        str(serial.out), None)
+    r, continued = module._fit_on(task, {}, None, None, None)
+    assert not continued and not r.converged and r.E_fit == first.E_fit
+    assert len(calls) == (1 if case == "near a fold" else 2)
+    assert ("continuing it failed: SolverError" in r.message) is (case == "continuing fails")
+
+
+def _unconverged(serial, fold: bool):
+    """An unconverged FitResult of the free t01 fit's parameters, near a fold or not."""
+    from morphoshell.fitting import FitResult
+
+    rec = serial.record("t01", "free")
+    k = len(rec["fitted"])
+    poor = [{"singular_value": 1e-7, "direction": {}}] * (k - 1) if fold else []
+    return FitResult("gradient", "free", tuple(rec["fitted"]), rec["parameters"], {},
+                     np.eye(k), poor, rec["E_fit"], np.zeros(2), "state", np.zeros((1, 2)),
+                     np.zeros((1, 2)), 200, 201, 1.0, False, "max evaluations")
 
 
 @pytest.mark.parametrize("args", [["{missing}"], ["{data}", "--variants", "flat,curly"],

@@ -47,7 +47,7 @@ import json
 import os
 import tempfile
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Iterator, Sequence
 
@@ -58,9 +58,9 @@ from .continuation import continue_between
 from .direct import DirectSolver
 from .equilibrium import solve
 from .executor import SerialExecutor, backend_name, open_executor
-from .fitting import BOUNDS, METHODS, VARIANTS, FitError, fit, volvox_spec
+from .fitting import BOUNDS, METHODS, VARIANTS, FitError, FitResult, fit, volvox_spec
 from .mesh import mesh_spec
-from .midlines import Midline
+from .midlines import Midline, average
 from .observables import RECOIL, recoil
 from .problem import Problem
 from .refinement import solve_from
@@ -102,7 +102,8 @@ class Timepoint:
     traces : tuple of str
         Paths of the single traces' midlines that were averaged (units of R,
         relative to the data folder; optional column ``traces``, separated
-        by ``;``): with ``embryo_errors`` each is fitted as well.
+        by ``;``): with ``embryo_errors`` the jackknife over them gives
+        standard errors.
     """
 
     name: str
@@ -399,7 +400,7 @@ def _fit_one(task: _Task, tp: Timepoint, prev: dict | None, first: dict | None,
         return {**rec, "status": "failed", "message": f"{type(exc).__name__}: {exc}"}
     eq0 = None if prev is None else _start_state(spec.base, prev["state"], task.nodes)
     try:
-        result = fit(spec, data, task.method, nodes=task.nodes, start=eq0)
+        result, continued = _fit_on(task, hold, spec, data, eq0)
     except (FitError, SolverError, ValueError) as exc:
         # A KKT fit that fails (FitError) has already started again from the
         # reduced optimum (fitting._kkt); on the synthetic campaign (2026-11-23)
@@ -414,7 +415,7 @@ def _fit_one(task: _Task, tp: Timepoint, prev: dict | None, first: dict | None,
         rec["started_from"] += f" (its state failed: {type(exc).__name__}; restarted by " \
                                f"continuation from the stress-free parameters)"
         try:
-            result = fit(spec, data, task.method, nodes=task.nodes, start=None)
+            result, continued = _fit_on(task, hold, spec, data, None)
         except (FitError, SolverError, ValueError) as exc2:
             return {**rec, "status": "failed", "message": f"{type(exc2).__name__}: {exc2}"}
     d = result.to_dict()
@@ -422,39 +423,89 @@ def _fit_one(task: _Task, tp: Timepoint, prev: dict | None, first: dict | None,
     eq = result.equilibrium
     if task.embryo_errors and tp.traces:
         d.update(_embryo_errors(task, tp, hold, d["parameters"], eq))
-    return {**rec, **d, "status": "ok",
+    return {**rec, **d, "status": "ok", "continued": continued,
             "state": {k: np.asarray(getattr(eq, k), dtype=float).tolist()
                       for k in ("s", "r", "psi", "f_s")}}
 
 
+def _fit_on(task: _Task, hold: dict, spec, data, start) -> tuple[FitResult, bool]:
+    """``fit``, continued once from its own result if it stops unconverged (not at a fold).
+
+    A least-squares fit that runs out of evaluations in a long, flat valley
+    often converges when started again from where it stopped, with a fresh
+    trust region (synthetic sequence, 2026-11-23: a single trace of t08,
+    unconverged after 200 evaluations at κ₁ = 1.058, converged in 34 more
+    at 1.048).  Leaving such fits out would bias the jackknife toward the data
+    that fit easily.  Returns the result, which counts the iterations, solves
+    and seconds of both fits, and whether it was continued.
+    """
+    first = fit(spec, data, task.method, nodes=task.nodes, start=start)
+    if first.converged or first.near_fold:
+        return first, False
+    again = volvox_spec(task.variant, start=_start_problem(first.parameters), hold=hold)
+    try:
+        r = fit(again, data, task.method, nodes=task.nodes, start=first.equilibrium)
+    except (FitError, SolverError, ValueError) as exc:
+        return replace(first, message=f"{first.message}; continuing it failed: "
+                                      f"{type(exc).__name__}: {exc}"), False
+    return replace(r, outer_iterations=first.outer_iterations + r.outer_iterations,
+                   inner_solves=first.inner_solves + r.inner_solves,
+                   seconds=first.seconds + r.seconds,
+                   message=f"continued once after: {first.message}; then: {r.message}"), True
+
+
 def _embryo_errors(task: _Task, tp: Timepoint, hold: dict, parameters: dict,
                    eq: Equilibrium) -> dict:
-    """Each single trace fitted from the average's fit, and the standard errors from their spread.
+    """Jackknife standard errors of the average's fit over its traces.
 
-    The Gauss–Newton standard errors of a fit to the average see only its
+    The average of the n traces with trace k left out is fitted from the
+    average's fit, for k = 1 … n; the standard error of a parameter θ is
+    √((n − 1)/n · Σₖ (θ₍ₖ₎ − θ̄)²) (Efron & Tibshirani, *An Introduction to
+    the Bootstrap*, 1993, ch. 11), over the converged fits.  It estimates
+    the error of the estimator actually used, the fit of an average, with
+    its nonlinearity.  The Gauss–Newton errors of that one fit see only its
     residuals, which are correlated and partly absorbed by the model: on the
     synthetic sequence the free fits reached E_fit 0.0047 R where the
     generating parameters give 0.0101 R (t04), and κ₁ missed the truth by
-    5.5 and 6 of those errors at t04 and t08.  The spread of the single
-    traces' fits over √n estimates the error of the average's fit directly
-    (at t04 2.9x larger: κ₁ misses by 1.9 of them; t08 in docs/campaigns.md).
+    5.5 and 6 of those errors at t04 and t08.  Replicate data sets measure
+    how often each kind of interval holds the truth
+    (``scripts/check_embryo_errors.py``, docs/campaigns.md).  With two
+    traces the jackknife is half their fits' difference.
     """
     spec = volvox_spec(task.variant, start=_start_problem(parameters), hold=hold)
+    traces = [Midline.from_csv(Path(task.data_dir) / path) for path in tp.traces]
     fits = []
-    for path in tp.traces:
-        trace = Midline.from_csv(Path(task.data_dir) / path)
+    for k, path in enumerate(tp.traces):
+        rest = average(traces[:k] + traces[k + 1:])
         try:
-            r = fit(spec, trace, task.method, nodes=task.nodes, start=eq)
+            r, continued = _fit_on(task, hold, spec, rest, eq)
         except (FitError, SolverError, ValueError) as exc:
-            fits.append({"file": path, "status": "failed",
+            fits.append({"left_out": path, "status": "failed",
                          "message": f"{type(exc).__name__}: {exc}"})
             continue
-        fits.append({"file": path, "status": "ok", "converged": r.converged, "E_fit": r.E_fit,
+        fits.append({"left_out": path, "status": "ok", "converged": r.converged,
+                     "E_fit": r.E_fit, "continued": continued,
                      "parameters": {n: r.parameters[n] for n in spec.fitted}})
     good = [f["parameters"] for f in fits if f["status"] == "ok" and f["converged"]]
-    errors = ({n: float(np.std([g[n] for g in good], ddof=1) / np.sqrt(len(good)))
-               for n in spec.fitted} if len(good) >= 2 else {})
-    return {"embryo_fits": fits, "embryo_standard_errors": errors}
+    if len(good) < 2:
+        return {"embryo_fits": fits, "embryo_standard_errors": {}}
+    theta = np.array([[g[name] for name in spec.fitted] for g in good])    # (n, parameters)
+    n = len(good)
+    se = np.sqrt((n - 1) / n * np.sum((theta - theta.mean(axis=0)) ** 2, axis=0))
+    return {"embryo_fits": fits,
+            "embryo_standard_errors": dict(zip(spec.fitted, se.tolist())),
+            "embryo_t95": _t95(n - 1)}
+
+
+def _t95(dof: int) -> float:
+    """Half-width of a two-sided 95 % interval in standard errors estimated with ``dof`` degrees of freedom.
+
+    Student's t quantile: 2.78 for five traces, against 1.96 for a known
+    error.
+    """
+    from scipy.stats import t
+
+    return float(t.ppf(0.975, dof))
 
 
 def _validate(data_dir, variants, method, nodes, workers, out) -> tuple:
@@ -517,14 +568,16 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
         Fit only these timepoints (names, in the data set's order; a short
         campaign); default all.
     embryo_errors : bool
-        Also fit each single trace of a timepoint (its ``traces``) from the
-        average's fit, and record the standard errors of the average's
-        parameters from their spread (``embryo_standard_errors``: standard
-        deviation over √n of the converged ones; ``embryo_fits``).  They
-        include what the Gauss–Newton errors of one fit cannot see (its
-        residuals' correlation, the model absorbing them); with n traces they
-        are themselves uncertain (n − 1 degrees of freedom).  Costs one fit
-        per trace.
+        Also fit, for each of the n traces of a timepoint (its ``traces``),
+        the average of the others, from the average's fit, and record the
+        jackknife standard errors of the average's parameters
+        (``embryo_standard_errors``, over the converged fits; ``embryo_fits``;
+        a fit that stops unconverged is continued once from where it
+        stopped).  They include what the Gauss–Newton errors of one fit
+        cannot see (its residuals' correlation, the model absorbing them);
+        with n traces they are themselves uncertain (n − 1 degrees of
+        freedom): a 95 % interval is ± ``embryo_t95`` of them (Student's t,
+        2.78 for n = 5).  Costs n more fits.
 
     Returns
     -------

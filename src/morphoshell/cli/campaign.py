@@ -69,9 +69,9 @@ def register(sub) -> None:
     p.add_argument("--nodes", type=integer(20, 2000), default=200, metavar="N",
                    help="mesh nodes of the inner solves (default 200)")
     p.add_argument("--embryo-errors", action="store_true",
-                   help="also fit each single trace of a timepoint (the optional 'traces' "
-                        "column of timepoints.csv) and record standard errors from their "
-                        "spread (one more fit per trace)")
+                   help="also fit the average of a timepoint's traces (the optional 'traces' "
+                        "column of timepoints.csv) with each left out in turn, and record the "
+                        "jackknife standard errors (one more fit per trace)")
     add_executor(p, "one per variant, at most one per CPU core")
     p.add_argument("--out", type=_out_dir, default=Path("campaign"), metavar="DIR",
                    help="output folder (default: ./campaign)")
