@@ -238,11 +238,14 @@ def test_a_fit_that_stops_unconverged_is_continued_once_from_where_it_stopped(
     assert rec["E_fit"] == calls[1][1].E_fit
 
 
-@pytest.mark.parametrize("case", ["near a fold", "continuing fails"])
+@pytest.mark.parametrize("case", ["near a fold", "continuing fails", "continued onto a fold"])
 def test_a_fit_near_a_fold_or_whose_continuation_fails_is_kept_as_it_is(serial, data, monkeypatch,
                                                                          case):
     """A fit near a fold of the branch is not continued (it would only creep along the fold);
-    one whose continuation fails keeps its first result, unconverged, saying so."""
+    one whose continuation fails or ends near a fold keeps its first result, unconverged,
+    saying so."""
+    import dataclasses
+
     from morphoshell import campaign as module
     from morphoshell.results import SolverError
 
@@ -252,9 +255,11 @@ def test_a_fit_near_a_fold_or_whose_continuation_fails_is_kept_as_it_is(serial, 
 
     def stub(spec, midline, method, nodes, start):
         calls.append(start)
-        if len(calls) > 1:
+        if len(calls) == 1:
+            return first
+        if case == "continuing fails":
             raise SolverError("no step", "Solve_Failed")
-        return first
+        return dataclasses.replace(_unconverged(serial, True), E_fit=0.999 * first.E_fit)
 
     monkeypatch.setattr(module, "fit", stub)
     task = module._Task(str(data[0]), read_timepoints(data[0]), "free", "gradient", NODES,
@@ -263,6 +268,7 @@ def test_a_fit_near_a_fold_or_whose_continuation_fails_is_kept_as_it_is(serial, 
     assert not continued and not r.converged and r.E_fit == first.E_fit
     assert len(calls) == (1 if case == "near a fold" else 2)
     assert ("continuing it failed: SolverError" in r.message) is (case == "continuing fails")
+    assert ("crept onto a fold" in r.message) is (case == "continued onto a fold")
 
 
 def _unconverged(serial, fold: bool):
