@@ -137,8 +137,18 @@ def main(argv=None) -> int:
                                layout="constrained")
         free = df[(df.variant == "free") & (df.status == "ok")]
         if len(free):
-            ax.errorbar(free.pseudotime, free.kappa1, yerr=free.se_kappa1, fmt="o-", ms=3,
-                        color="k", capsize=2, label="fitted κ₁ (free)")
+            # jackknife errors where the campaign computed them (--embryo-errors); the
+            # Gauss-Newton ones are up to 4x too small (docs/campaigns.md, Standard errors)
+            jack = "se_embryo_kappa1" in free and free.se_embryo_kappa1.notna().any()
+            se = free.se_embryo_kappa1 if jack else free.se_kappa1
+            ok = free.converged.astype(bool)
+            ax.plot(free.pseudotime, free.kappa1, "-", color="k", lw=0.8)
+            ax.errorbar(free.pseudotime[ok], free.kappa1[ok], yerr=se[ok], fmt="o", ms=3,
+                        color="k", capsize=2, label="fitted κ₁ (free), ± "
+                        + ("jackknife error" if jack else "Gauss–Newton error"))
+            if (~ok).any():
+                ax.plot(free.pseudotime[~ok], free.kappa1[~ok], "o", ms=4, mfc="none",
+                        color="k", label="not converged")
             ax.plot(free.pseudotime, 1 / free.f1, "s--", ms=3, color="C2",
                     label="1/f₁ (free)")
         if truth is not None:
