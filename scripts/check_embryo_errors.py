@@ -24,7 +24,8 @@ reports
 Everything is synthetic; nothing is written outside ``--work``.
 
 Usage: python scripts/check_embryo_errors.py [--timepoints t02,t05,t08] [--replicates 20]
-       [--embryos 5] [--seed 1000] [--method gradient] [--workers 2] [--work out/check_embryo_errors]
+       [--embryos 5] [--seed 1000] [--method gradient] [--workers 2]
+       [--work out/check_embryo_errors]
 """
 from __future__ import annotations
 

@@ -506,10 +506,10 @@ def _embryo_errors(task: _Task, tp: Timepoint, hold: dict, parameters: dict,
 
 
 def _t95(dof: int) -> float:
-    """Half-width of a two-sided 95 % interval in standard errors estimated with ``dof`` degrees of freedom.
+    """Half-width, in standard errors, of a 95 % interval when they have ``dof`` degrees of freedom.
 
-    Student's t quantile: 2.78 for five traces, against 1.96 for a known
-    error.
+    Student's t quantile t₀.₉₇₅(dof): 2.78 for five traces, against 1.96
+    for a known error.
     """
     from scipy.stats import t
 
