@@ -154,8 +154,9 @@ def test_embryo_errors_are_the_jackknife_over_the_traces(data, tmp_path):
     """With embryo_errors the average with each trace left out is fitted from the average's
     fit; the standard errors are the jackknife's.  With two traces the averages left are the
     single traces, and the jackknife is half the difference of their fits."""
-    result = campaign(data[0], ("free",), method="gradient", workers=1, out=tmp_path,
-                      nodes=NODES, timepoints=("t01",), embryo_errors=True)
+    result = campaign(data[0], ("flat", "free"), method="gradient", workers=1, out=tmp_path,
+                      nodes=NODES, timepoints=("t01",), embryo_errors="free")
+    assert "embryo_fits" not in result.record("t01", "flat")      # only the variants named
     rec = result.record("t01", "free")
     fits = rec["embryo_fits"]
     assert [f["left_out"] for f in fits] == list(read_timepoints(data[0])[0].traces)
@@ -167,7 +168,8 @@ def test_embryo_errors_are_the_jackknife_over_the_traces(data, tmp_path):
     for name, se in errors.items():
         a, b = (f["parameters"][name] for f in fits)
         assert se == pytest.approx(abs(a - b) / 2, rel=1e-12)   # sqrt((n-1)/n sum d^2), n = 2
-    row = result.to_dataframe().iloc[0]
+    df = result.to_dataframe()
+    row = df[df.variant == "free"].iloc[0]
     assert row["se_embryo_kappa1"] == errors["kappa1"]
     assert rec["embryo_t95"] == pytest.approx(12.7062, abs=1e-4)   # Student's t, 1 dof, 97.5 %
 
@@ -285,7 +287,9 @@ def _unconverged(serial, fold: bool):
 
 @pytest.mark.parametrize("args", [["{missing}"], ["{data}", "--variants", "flat,curly"],
                                   ["{data}", "--out", "{file}"], ["{data}", "--timepoints", "t99"],
-                                  ["{data}", "--method", "newton"], ["{data}", "--workers", "0"]])
+                                  ["{data}", "--method", "newton"], ["{data}", "--workers", "0"],
+                                  ["{data}", "--embryo-errors", "curly"],
+                                  ["{data}", "--variants", "flat", "--embryo-errors", "free"]])
 def test_command_line_refuses_bad_input_with_status_2(args, data, tmp_path, capsys):
     from morphoshell.cli import main
 

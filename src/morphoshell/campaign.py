@@ -516,6 +516,19 @@ def _t95(dof: int) -> float:
     return float(t.ppf(0.975, dof))
 
 
+def _jackknifed(embryo_errors, variants: tuple[str, ...]) -> frozenset:
+    """The variants that get jackknife errors (``campaign``'s ``embryo_errors``), validated."""
+    if isinstance(embryo_errors, bool):
+        return frozenset(variants if embryo_errors else ())
+    names = ([v.strip() for v in embryo_errors.split(",")] if isinstance(embryo_errors, str)
+             else list(embryo_errors))
+    unknown = [v for v in names if v not in variants]
+    if unknown or not names:
+        raise ValueError(f"embryo_errors: variants {unknown or '(none)'} are not among the "
+                         f"campaign's {list(variants)}")
+    return frozenset(names)
+
+
 def _validate(data_dir, variants, method, nodes, workers, out) -> tuple:
     timepoints = read_timepoints(data_dir)
     if isinstance(variants, str):
@@ -544,7 +557,7 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
              scheduler: str | None = None, out: str | Path = "campaign", resume: bool = True,
              nodes: int = 200, start: dict | None = None,
              timepoints: Sequence[str] | None = None,
-             embryo_errors: bool = False) -> CampaignResult:
+             embryo_errors: bool | str | Sequence[str] = False) -> CampaignResult:
     """Fit every timepoint of a data set for each variant (paper Fig. 3 N, O).
 
     Parameters
@@ -585,7 +598,8 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
         cannot see (its residuals' correlation, the model absorbing them);
         with n traces they are themselves uncertain (n − 1 degrees of
         freedom): a 95 % interval is ± ``embryo_t95`` of them (Student's t,
-        2.78 for n = 5).  Costs n more fits.
+        2.78 for n = 5).  Costs n more fits.  ``True`` for every variant, or
+        the variants (names, or a comma-separated string) that get them.
 
     Returns
     -------
@@ -603,6 +617,7 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
     """
     selected = timepoints
     timepoints, variants, out = _validate(data_dir, variants, method, nodes, workers, out)
+    jackknifed = _jackknifed(embryo_errors, variants)
     if selected is not None:
         if isinstance(selected, str):
             selected = [v.strip() for v in selected.split(",")]
@@ -619,7 +634,7 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
     if workers is None:
         workers = min(len(variants), os.cpu_count() or 1)
     tasks = [_Task(str(Path(data_dir).resolve()), timepoints, v, method, int(nodes),
-                   str(out.resolve()), dict(start) if start else None, bool(embryo_errors))
+                   str(out.resolve()), dict(start) if start else None, v in jackknifed)
              for v in variants]
     total = len(tasks) * len(timepoints)
     t0 = time.perf_counter()

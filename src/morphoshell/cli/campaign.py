@@ -68,10 +68,12 @@ def register(sub) -> None:
                         "t01,t02,t03: a short campaign); default all")
     p.add_argument("--nodes", type=integer(20, 2000), default=200, metavar="N",
                    help="mesh nodes of the inner solves (default 200)")
-    p.add_argument("--embryo-errors", action="store_true",
+    p.add_argument("--embryo-errors", nargs="?", type=_variants, const=True, default=False,
+                   metavar="V1,V2",
                    help="also fit the average of a timepoint's traces (the optional 'traces' "
                         "column of timepoints.csv) with each left out in turn, and record the "
-                        "jackknife standard errors (one more fit per trace)")
+                        "jackknife standard errors (one more fit per trace); for every variant, "
+                        "or only those listed (e.g. --embryo-errors free)")
     add_executor(p, "one per variant, at most one per CPU core")
     p.add_argument("--out", type=_out_dir, default=Path("campaign"), metavar="DIR",
                    help="output folder (default: ./campaign)")
