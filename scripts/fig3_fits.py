@@ -133,7 +133,7 @@ def main(argv=None) -> int:
         label_panel(ax, "N")
         save(fig, args.out / "fig3_N.png", ("png", "pdf"), close=True)
         # ---------------------------------------------------------------- O
-        fig, ax = plt.subplots(figsize=(SINGLE_COLUMN, 0.75 * SINGLE_COLUMN),
+        fig, ax = plt.subplots(figsize=(SINGLE_COLUMN, 0.95 * SINGLE_COLUMN),
                                layout="constrained")
         free = df[(df.variant == "free") & (df.status == "ok")]
         if len(free):
@@ -157,7 +157,7 @@ def main(argv=None) -> int:
                     color="C3", label="generating κ₁ (synthetic)")
         ax.set_xlabel("pseudotime")
         ax.set_ylabel("κ₁ · R")
-        ax.legend(fontsize=6, loc="upper left")
+        ax.legend(fontsize=6, loc="upper center", bbox_to_anchor=(0.5, -0.22), ncol=2, frameon=False)
         if len(free):
             inset = ax.inset_axes([0.62, 0.12, 0.35, 0.35])
             inset.plot(free.pseudotime, free.f1, "o-", ms=2, color="k")
