@@ -245,8 +245,8 @@ class CampaignResult:
             ``E_fit``, ``converged``, the 14 Volvox parameters (lengths in R,
             curvatures in 1/R), then ``se_<name>`` (Gauss–Newton standard
             errors; NaN for parameters not fitted at that timepoint), and
-            with ``embryo_errors`` ``se_embryo_<name>`` (from the single
-            traces' fits).
+            with ``embryo_errors`` ``se_embryo_<name>`` (the jackknife over
+            the traces).
         """
         import pandas as pd
 
@@ -516,12 +516,16 @@ def _t95(dof: int) -> float:
     return float(t.ppf(0.975, dof))
 
 
+def _names(value: str | Sequence[str]) -> list[str]:
+    """A list of names from a sequence or a comma-separated string."""
+    return [v.strip() for v in value.split(",")] if isinstance(value, str) else list(value)
+
+
 def _jackknifed(embryo_errors, variants: tuple[str, ...]) -> frozenset:
     """The variants that get jackknife errors (``campaign``'s ``embryo_errors``), validated."""
     if isinstance(embryo_errors, bool):
         return frozenset(variants if embryo_errors else ())
-    names = ([v.strip() for v in embryo_errors.split(",")] if isinstance(embryo_errors, str)
-             else list(embryo_errors))
+    names = _names(embryo_errors)
     unknown = [v for v in names if v not in variants]
     if unknown or not names:
         raise ValueError(f"embryo_errors: variants {unknown or '(none)'} are not among the "
@@ -588,7 +592,7 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
     timepoints : sequence of str, optional
         Fit only these timepoints (names, in the data set's order; a short
         campaign); default all.
-    embryo_errors : bool
+    embryo_errors : bool, str or sequence of str
         Also fit, for each of the n traces of a timepoint (its ``traces``),
         the average of the others, from the average's fit, and record the
         jackknife standard errors of the average's parameters
@@ -619,8 +623,7 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
     timepoints, variants, out = _validate(data_dir, variants, method, nodes, workers, out)
     jackknifed = _jackknifed(embryo_errors, variants)
     if selected is not None:
-        if isinstance(selected, str):
-            selected = [v.strip() for v in selected.split(",")]
+        selected = _names(selected)
         names = [tp.name for tp in timepoints]
         unknown = [n for n in selected if n not in names]
         if unknown or not selected:

@@ -465,6 +465,8 @@ class FitResult:
         All singular values of the scaled Jacobian but the largest are below
         FOLD_RATIO of it; such a fit is reported as not converged.
         """
+        # poorly_identified keeps every singular value below 1e-3 of the largest, so with
+        # FOLD_RATIO < 1e-3 it holds all k - 1 of them exactly when the fit is near a fold
         k = len(self.fitted)
         return k > 1 and len(self.poorly_identified) == k - 1 and all(
             d["singular_value"] < FOLD_RATIO for d in self.poorly_identified)
