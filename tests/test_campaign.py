@@ -200,6 +200,34 @@ def test_the_jackknife_fits_each_average_with_one_trace_left_out(data, monkeypat
     assert got["embryo_t95"] == pytest.approx(4.3027, abs=1e-4)        # Student's t, 2 dof
 
 
+def test_no_jackknife_errors_unless_every_trace_left_out_fits(data, monkeypatch):
+    """A spread over the fits that converged is not the jackknife: with one of three
+    leave-one-out fits unconverged (and at a fold, so not continued) there are no errors,
+    and the record says why."""
+    from types import SimpleNamespace
+
+    from morphoshell import campaign as module
+
+    calls = []
+
+    def second_fails(spec, midline, method, nodes, start):
+        calls.append(midline)
+        ok = len(calls) != 2
+        return SimpleNamespace(converged=ok, near_fold=not ok, E_fit=0.0, equilibrium=None,
+                               parameters={n: float(len(calls)) for n in spec.fitted})
+
+    monkeypatch.setattr(module, "fit", second_fails)
+    tp = read_timepoints(data[0])[0]
+    tp3 = module.Timepoint(tp.name, tp.pseudotime, tp.midline, (*tp.traces, tp.traces[0]))
+    task = module._Task(str(data[0]), (tp3,), "free", "gradient", NODES, "unused", None, True)
+    got = module._embryo_errors(task, tp3, {}, data[1]["timepoints"][0]["parameters"], None)
+    assert len(calls) == 3
+    assert [f["converged"] for f in got["embryo_fits"]] == [True, False, True]
+    assert got["embryo_standard_errors"] == {} and "embryo_t95" not in got
+    assert "1 of the 3 fits with one trace left out did not converge" in \
+        got["embryo_errors_message"]
+
+
 def test_a_fit_that_stops_unconverged_is_continued_once_from_where_it_stopped(
         serial, data, monkeypatch):
     """Leaving unconverged jackknife fits out would bias the spread toward the data that fit

@@ -469,9 +469,11 @@ def _embryo_errors(task: _Task, tp: Timepoint, hold: dict, parameters: dict,
     The average of the n traces with trace k left out is fitted from the
     average's fit, for k = 1 … n; the standard error of a parameter θ is
     √((n − 1)/n · Σₖ (θ₍ₖ₎ − θ̄)²) (Efron & Tibshirani, *An Introduction to
-    the Bootstrap*, 1993, ch. 11), over the converged fits.  It estimates
+    the Bootstrap*, 1993, ch. 11).  It estimates
     the error of the estimator actually used, the fit of an average, with
-    its nonlinearity.  The Gauss–Newton errors of that one fit see only its
+    its nonlinearity.  It needs every one of the n fits: when one fails or
+    stops unconverged there are no errors, and ``embryo_errors_message``
+    says why.  The Gauss–Newton errors of that one fit see only its
     residuals, which are correlated and partly absorbed by the model: on the
     synthetic sequence the free fits reached E_fit 0.0047 R where the
     generating parameters give 0.0101 R (t04), and κ₁ missed the truth by
@@ -495,8 +497,15 @@ def _embryo_errors(task: _Task, tp: Timepoint, hold: dict, parameters: dict,
                      "E_fit": r.E_fit, "continued": continued,
                      "parameters": {n: r.parameters[n] for n in spec.fitted}})
     good = [f["parameters"] for f in fits if f["status"] == "ok" and f["converged"]]
-    if len(good) < 2:
-        return {"embryo_fits": fits, "embryo_standard_errors": {}}
+    if len(good) < max(len(fits), 2):
+        # A spread over the fits that converged is not the jackknife of the estimator:
+        # the traces whose absence breaks a fit are not left out at random.
+        return {"embryo_fits": fits, "embryo_standard_errors": {},
+                "embryo_errors_message": (
+                    f"no jackknife errors: {len(fits) - len(good)} of the {len(fits)} fits "
+                    f"with one trace left out did not converge (embryo_fits), and the "
+                    f"jackknife needs all of them" if len(fits) >= 2 else
+                    "no jackknife errors: they need at least 2 traces")}
     theta = np.array([[g[name] for name in spec.fitted] for g in good])    # (n, parameters)
     n = len(good)
     se = np.sqrt((n - 1) / n * np.sum((theta - theta.mean(axis=0)) ** 2, axis=0))
@@ -596,7 +605,8 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
         Also fit, for each of the n traces of a timepoint (its ``traces``),
         the average of the others, from the average's fit, and record the
         jackknife standard errors of the average's parameters
-        (``embryo_standard_errors``, over the converged fits; ``embryo_fits``;
+        (``embryo_standard_errors``, only when all n fits converge, else
+        ``embryo_errors_message`` says why; ``embryo_fits``;
         a fit that stops unconverged is continued once from where it
         stopped).  They include what the Gauss–Newton errors of one fit
         cannot see (its residuals' correlation, the model absorbing them);
