@@ -226,6 +226,10 @@ def test_no_jackknife_errors_unless_every_trace_left_out_fits(data, monkeypatch)
     assert got["embryo_standard_errors"] == {} and "embryo_t95" not in got
     assert "1 of the 3 fits with one trace left out did not converge" in \
         got["embryo_errors_message"]
+    one = module.Timepoint(tp.name, tp.pseudotime, tp.midline, tp.traces[:1])
+    got = module._embryo_errors(task, one, {}, data[1]["timepoints"][0]["parameters"], None)
+    assert len(calls) == 3 and got["embryo_standard_errors"] == {}      # nothing fitted
+    assert "at least 2 traces" in got["embryo_errors_message"]
 
 
 def test_a_fit_that_stops_unconverged_is_continued_once_from_where_it_stopped(

@@ -482,6 +482,9 @@ def _embryo_errors(task: _Task, tp: Timepoint, hold: dict, parameters: dict,
     (``scripts/check_embryo_errors.py``, docs/campaigns.md).  With two
     traces the jackknife is half their fits' difference.
     """
+    if len(tp.traces) < 2:
+        return {"embryo_fits": [], "embryo_standard_errors": {},
+                "embryo_errors_message": "no jackknife errors: they need at least 2 traces"}
     spec = volvox_spec(task.variant, start=_start_problem(parameters), hold=hold)
     traces = [Midline.from_csv(Path(task.data_dir) / path) for path in tp.traces]
     fits = []
@@ -497,15 +500,14 @@ def _embryo_errors(task: _Task, tp: Timepoint, hold: dict, parameters: dict,
                      "E_fit": r.E_fit, "continued": continued,
                      "parameters": {n: r.parameters[n] for n in spec.fitted}})
     good = [f["parameters"] for f in fits if f["status"] == "ok" and f["converged"]]
-    if len(good) < max(len(fits), 2):
+    if len(good) < len(fits):
         # A spread over the fits that converged is not the jackknife of the estimator:
         # the traces whose absence breaks a fit are not left out at random.
         return {"embryo_fits": fits, "embryo_standard_errors": {},
-                "embryo_errors_message": (
-                    f"no jackknife errors: {len(fits) - len(good)} of the {len(fits)} fits "
-                    f"with one trace left out did not converge (embryo_fits), and the "
-                    f"jackknife needs all of them" if len(fits) >= 2 else
-                    "no jackknife errors: they need at least 2 traces")}
+                "embryo_errors_message": f"no jackknife errors: {len(fits) - len(good)} of "
+                                         f"the {len(fits)} fits with one trace left out did "
+                                         f"not converge (embryo_fits), and the jackknife "
+                                         f"needs all of them"}
     theta = np.array([[g[name] for name in spec.fitted] for g in good])    # (n, parameters)
     n = len(good)
     se = np.sqrt((n - 1) / n * np.sum((theta - theta.mean(axis=0)) ** 2, axis=0))
