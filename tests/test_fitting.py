@@ -297,6 +297,11 @@ def test_variants_tie_hold_and_refuse():
     assert "kappa1" in volvox_spec("free", START).fitted
     with pytest.raises(ValueError, match="cannot be held"):
         volvox_spec("unstressed", START, hold={"kappa1": 0.5})
+    # flat and undeformed fix kappa1: holding it elsewhere would mislabel the hypothesis
+    assert volvox_spec("flat", START, hold={"kappa1": 0.0}).base.params["kappa1"] == 0.0
+    for variant, value in (("flat", 0.5), ("undeformed", 0.0)):
+        with pytest.raises(ValueError, match=f"{variant} variant holds kappa1"):
+            volvox_spec(variant, START, hold={"kappa1": value})
     with pytest.raises(ValueError, match="variant = 'rigid'"):
         volvox_spec("rigid")
 
@@ -336,6 +341,7 @@ def test_fit_command_writes_a_usable_result(midline_csv, tmp_path, capsys):
 
 @pytest.mark.parametrize("args, named", [
     (["--variant", "unstressed", "--set", "kappa1=1"], "cannot be held"),
+    (["--variant", "flat", "--set", "kappa1=0.5"], "holds kappa1 = 0, not 0.5"),
     (["--variant", "flat", "--set", "kappa9=1"], "unknown Volvox parameter(s) ['kappa9']"),
     (["--variant", "flat", "--format", "xy"], "pixel"),
     (["--variant", "sideways"], "argument --variant: invalid choice"),

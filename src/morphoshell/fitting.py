@@ -223,10 +223,12 @@ def volvox_spec(variant: str, start: Problem | None = None, hold: Mapping[str, f
         raise ValueError(f"the Volvox fit needs a 'volvox' problem, got {start.family!r}")
     hold = dict(hold)
     tied: dict = {}
-    if variant == "flat":
-        hold.setdefault("kappa1", 0.0)
-    elif variant == "undeformed":
-        hold.setdefault("kappa1", 1.0)
+    fixed = {"flat": 0.0, "undeformed": 1.0}.get(variant)
+    if fixed is not None:
+        # a fit labelled flat with kappa1 = 0.5 would be silently another hypothesis
+        if hold.setdefault("kappa1", fixed) != fixed:
+            raise ValueError(f"the {variant} variant holds kappa1 = {fixed:g}, not "
+                             f"{hold['kappa1']:g}: hold kappa1 in the free variant instead")
     elif variant == "unstressed":
         if "kappa1" in hold:
             raise ValueError("the unstressed variant ties kappa1 = 1/f1: it cannot be held")
