@@ -321,7 +321,8 @@ def _unconverged(serial, fold: bool):
                                   ["{data}", "--out", "{file}"], ["{data}", "--timepoints", "t99"],
                                   ["{data}", "--method", "newton"], ["{data}", "--workers", "0"],
                                   ["{data}", "--embryo-errors", "curly"],
-                                  ["{data}", "--variants", "flat", "--embryo-errors", "free"]])
+                                  ["{data}", "--variants", "flat", "--embryo-errors", "free"],
+                                  ["{data}", "--scheduler", "no-port-here"]])
 def test_command_line_refuses_bad_input_with_status_2(args, data, tmp_path, capsys):
     from morphoshell.cli import main
 
@@ -334,6 +335,27 @@ def test_command_line_refuses_bad_input_with_status_2(args, data, tmp_path, caps
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "error" in err
     assert not out.exists()
+
+
+def test_a_scheduler_that_does_not_answer_deletes_no_results(data, tmp_path, capsys):
+    """Without --resume a campaign deletes its old results: only once its workers are there."""
+    pytest.importorskip("distributed")
+    import dask
+
+    from morphoshell.cli import main
+
+    out = tmp_path / "out"
+    out.mkdir()
+    from morphoshell.campaign import RESULT_SUFFIX
+
+    kept = out / ("t01_flat" + RESULT_SUFFIX)
+    kept.write_text("{}")
+    with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
+        assert main(["campaign", str(data[0]), "--variants", "flat", "--out", str(out),
+                     "--scheduler", "tcp://127.0.0.1:9"]) == 2
+    err = capsys.readouterr().err
+    assert "--scheduler tcp://127.0.0.1:9: no Dask scheduler answered" in err, err
+    assert kept.read_text() == "{}" and sorted(out.iterdir()) == [kept]
 
 
 @pytest.mark.parametrize("error, calls", [("SolverError", 2), ("FitError", 1)])

@@ -641,11 +641,6 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
         if unknown or not selected:
             raise ValueError(f"timepoints {unknown or '(none)'}: the data set has {names}")
         timepoints = tuple(tp for tp in timepoints if tp.name in set(selected))
-    out.mkdir(parents=True, exist_ok=True)
-    if not resume:
-        for tp in timepoints:
-            for v in variants:
-                _result_path(out, tp.name, v).unlink(missing_ok=True)
     if workers is None:
         workers = min(len(variants), os.cpu_count() or 1)
     tasks = [_Task(str(Path(data_dir).resolve()), timepoints, v, method, int(nodes),
@@ -656,6 +651,12 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
     reports: list = [None] * len(tasks)
     from ._console import progress
     with open_executor(workers, scheduler) as executor:
+        # only now: a scheduler that does not answer must leave no folder and delete no results
+        out.mkdir(parents=True, exist_ok=True)
+        if not resume:
+            for tp in timepoints:
+                for v in variants:
+                    _result_path(out, tp.name, v).unlink(missing_ok=True)
         backend = backend_name(executor)
         watched = _watch(executor, tasks, reports, out, timepoints, variants)
         for _ in progress(watched, total=total, desc="fits", unit="fit"):

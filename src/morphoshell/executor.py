@@ -93,7 +93,14 @@ def open_executor(workers: int | None = None, scheduler: str | None = None) -> I
             return
         if scheduler is not None:
             log.info("connecting to the Dask scheduler at %s", scheduler)
-            with Client(scheduler) as client:
+            try:
+                client = Client(scheduler)
+            except (OSError, ValueError) as exc:    # unreachable, refused, not an address
+                source = ("" if scheduler != os.environ.get("DASK_SCHEDULER_ADDRESS")
+                          else " (from DASK_SCHEDULER_ADDRESS)")
+                raise ValueError(f"--scheduler {scheduler}{source}: no Dask scheduler "
+                                 f"answered there: {exc}") from None
+            with client:
                 yield client.get_executor()
             return
         log.info("starting a Dask LocalCluster of %d single-threaded workers", workers)
