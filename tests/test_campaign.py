@@ -337,6 +337,18 @@ def test_command_line_refuses_bad_input_with_status_2(args, data, tmp_path, caps
     assert not out.exists()
 
 
+def test_a_midline_that_does_not_read_fails_before_any_work(tmp_path, capsys):
+    from morphoshell.cli import main
+
+    (tmp_path / "timepoints.csv").write_text("timepoint,pseudotime,midline\nt01,0,bad.csv\n")
+    (tmp_path / "bad.csv").write_text("r,z\n0,0\n0.1,oops\n")
+    out = tmp_path / "out"
+    assert main(["campaign", str(tmp_path), "--out", str(out), "--workers", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "bad.csv: line 3, column 2 (z): 'oops' is not a number" in err, err
+    assert not out.exists()
+
+
 def test_a_scheduler_that_does_not_answer_deletes_no_results(data, tmp_path, capsys):
     """Without --resume a campaign deletes its old results: only once its workers are there."""
     pytest.importorskip("distributed")

@@ -259,6 +259,8 @@ JUMP = "\n".join(GOOD_ROWS[:6] + ["5000\t5000"] + GOOD_ROWS[6:]) + "\n"
     ("header.csv", "a,b\n1,2\n", "header.csv: line 1: unrecognised header 'a,b'"),
     ("jump.txt", JUMP, "jump.txt: line 6 to line 7: a step of"),
     ("negative.csv", "r,z\n0,0\n-0.5,0.1\n-1,0.4\n-1.2,1\n", "negative.csv: line 3: r = -0.5 < 0"),
+    # in units of R a midline stays near its pole (at 1e300 the spline overflowed)
+    ("far.csv", "r,z\n0,0\n0.1,0.1\n1e300,1\n0.3,0.3\n", "far.csv: line 4: 1e+300 R from the first"),
 ])
 def test_malformed_files(tmp_path, name, content, message):
     path = _file(tmp_path, name, content)
@@ -291,6 +293,8 @@ def test_two_pieces_and_self_intersection(tmp_path):
     ({"pixel_size_um": 0.25}, "pass radius_um (the embryo radius R in µm) to convert"),
     ({"pixel_size_um": -0.25, "radius_um": 50.0}, "pixel_size_um = -0.25 must be positive"),
     ({"pixel_size_um": 0.25, "radius_um": "50"}, "radius_um = '50' must be a real number"),
+    ({"pixel_size_um": 0.25, "radius_um": 1e-4}, "R from the first point; a midline lies within "
+                                                  "20 R of its pole (check the pixel size"),
 ])
 def test_scale_options(tmp_path, options, message):
     path = write(tmp_path, "roi")

@@ -546,6 +546,9 @@ def _jackknifed(embryo_errors, variants: tuple[str, ...]) -> frozenset:
 
 def _validate(data_dir, variants, method, nodes, workers, out) -> tuple:
     timepoints = read_timepoints(data_dir)
+    for tp in timepoints:       # their content too: a bad file fails here, not in a worker
+        for path in (tp.midline, *tp.traces):
+            Midline.from_csv(Path(data_dir) / path)
     if isinstance(variants, str):
         variants = (variants,)
     variants = tuple(variants)

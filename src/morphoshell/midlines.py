@@ -131,6 +131,9 @@ _PIXEL_DUMP = ("this is a pixel list (x, y, value) from Analyze › Tools › Sa
 _GAP_STEPS, _GAP_FRACTION = 10.0, 0.05
 #: How far (units of R) an aligned midline may stray to r < 0: noise near the pole, no more.
 _AXIS_SLACK = 0.05
+#: How far (units of R) a midline may reach from the origin: a Volvox midline lies within about
+#: 2 R of its pole; farther is a trace in other units (and at 1e300 the spline overflowed).
+_MAX_EXTENT = 20.0
 #: Samples of σ in the mirror fit of a whole section, and the weight of the mismatch along the
 #: curve relative to across it (module docstring).
 _MIRROR_SAMPLES, _ALONG_WEIGHT = 200, 0.01
@@ -253,6 +256,7 @@ class Midline:
         """Read what :meth:`to_csv` wrote (points as they are, not resampled)."""
         path = Path(path)
         header, values, where, comments = _table(path, _read_bytes(path), "csv")
+        _check_extent(str(path), values[:, :2], where, _IN_PIXELS)
         _check_axis(str(path), values[:, :2], where)
         meta = [tuple(part.strip() for part in c.partition("=")[::2]) for c in comments]
         sources = tuple(value for key, value in meta if key == "source")
@@ -302,6 +306,7 @@ def read_trace(path: str | Path, format: str | None = None, *, pixel_size_um: fl
             if value is not None:
                 raise MidlineError(f"{path}: csv traces are in units of R: {name} does not apply")
         _, values, where, _ = _table(path, data, fmt)
+        _check_extent(str(path), values[:, :2], where, _IN_PIXELS)
         points, where = _one_curve(path, values[:, :2], where, "R")
         _check_axis(str(path), points, where)
         return Trace(points, str(path), fmt, tuple(where))
@@ -312,6 +317,9 @@ def read_trace(path: str | Path, format: str | None = None, *, pixel_size_um: fl
     else:
         _, pixels, where, _ = _table(path, data, fmt)
     pixels, where = _one_curve(path, pixels, where, "px")
+    # (relative to the first point: the image origin is anywhere)
+    _check_extent(str(path), (pixels - pixels[0]) * scale, where,
+                  "check the pixel size and the radius R")
     if spline:
         pixels = _imagej_spline(pixels)     # each point labelled by the control point before it
         where = [where[min(k // SPLINE_SUBDIVISIONS, len(where) - 1)] for k in range(len(pixels))]
@@ -484,7 +492,8 @@ def _one_curve(path: Path, points: np.ndarray, where: list[str], unit: str):
         raise MidlineError(f"{path}: {where[i]} to {where[i + 1]}: a step of {steps[i]:.4g} {unit} "
                            f"({steps[i] / median:.0f} median steps): the trace is not one curve "
                            f"(two pieces, or points out of order)")
-    crossing = _first_crossing(points, _GAP_STEPS * median)
+    with np.errstate(over="ignore", invalid="ignore"):     # (coordinates near 1e300)
+        crossing = _first_crossing(points, _GAP_STEPS * median)
     if crossing is not None:
         i, j = crossing
         raise MidlineError(f"{path}: the segment {where[i]} to {where[i + 1]} crosses the segment "
@@ -522,6 +531,18 @@ def _first_crossing(points: np.ndarray, apart: float, chunk: int = 32) -> tuple[
             k, m = np.argwhere(hit)[0]
             found.append((int(i[k, 0]), int(j[0, m])))
     return min(found) if found else None
+
+
+_IN_PIXELS = "a trace in pixels is read with format 'xy', 'fiji-xy' or 'roi' and a scale"
+
+
+def _check_extent(source: str, points: np.ndarray, where, hint: str) -> None:
+    """MidlineError if a point lies more than _MAX_EXTENT R from the first (wrong units)."""
+    reach = np.hypot(*(points - points[0]).T)
+    if len(points) and reach.max() > _MAX_EXTENT:
+        i = int(np.argmax(reach > _MAX_EXTENT))
+        raise MidlineError(f"{source}: {where[i]}: {reach[i]:.4g} R from the first point; a "
+                           f"midline lies within {_MAX_EXTENT:g} R of its pole ({hint})")
 
 
 def _check_axis(source: str, points: np.ndarray, where) -> None:
