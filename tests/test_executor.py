@@ -44,3 +44,19 @@ def test_bad_worker_counts_are_named():
     with pytest.raises(ValueError, match=r"workers = 0 must be a positive integer"):
         with open_executor(workers=0):
             pass
+
+
+@pytest.mark.parametrize("address", ["tcp://127.0.0.1:9", "no-port-here"])
+def test_a_scheduler_that_does_not_answer_is_named_and_leaves_dask_as_it_was(address):
+    pytest.importorskip("distributed")
+    import dask
+
+    before = dask.config.get("scheduler", None)
+    with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
+        with pytest.raises(ValueError, match=f"--scheduler {address}: no Dask scheduler "
+                                             "answered there"):
+            with open_executor(scheduler=address):
+                pass
+    # (a Client that failed on a malformed address set it to "dask.distributed": xarray's
+    # computations in the same process then failed)
+    assert dask.config.get("scheduler", None) == before

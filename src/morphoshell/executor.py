@@ -93,9 +93,17 @@ def open_executor(workers: int | None = None, scheduler: str | None = None) -> I
             return
         if scheduler is not None:
             log.info("connecting to the Dask scheduler at %s", scheduler)
+            import copy
+
+            import dask
+            config = copy.deepcopy(dask.config.config)
             try:
                 client = Client(scheduler)
             except (OSError, ValueError) as exc:    # unreachable, refused, not an address
+                # a Client that failed (on a malformed address) left dask's scheduler at
+                # "dask.distributed": later dask computations here (xarray's) then failed
+                dask.config.config.clear()
+                dask.config.config.update(config)
                 source = ("" if scheduler != os.environ.get("DASK_SCHEDULER_ADDRESS")
                           else " (from DASK_SCHEDULER_ADDRESS)")
                 raise ValueError(f"--scheduler {scheduler}{source}: no Dask scheduler "
