@@ -131,8 +131,8 @@ _PIXEL_DUMP = ("this is a pixel list (x, y, value) from Analyze › Tools › Sa
 _GAP_STEPS, _GAP_FRACTION = 10.0, 0.05
 #: How far (units of R) an aligned midline may stray to r < 0: noise near the pole, no more.
 _AXIS_SLACK = 0.05
-#: How far (units of R) a midline may reach from the origin: a Volvox midline lies within about
-#: 2 R of its pole; farther is a trace in other units (and at 1e300 the spline overflowed).
+#: How far (units of R) a trace may reach from its first point: a Volvox midline lies within
+#: about 2 R of its pole; farther is a trace in other units (at 1e300 the spline overflowed).
 _MAX_EXTENT = 20.0
 #: Samples of σ in the mirror fit of a whole section, and the weight of the mismatch along the
 #: curve relative to across it (module docstring).
@@ -295,7 +295,8 @@ def read_trace(path: str | Path, format: str | None = None, *, pixel_size_um: fl
     MidlineError
         Unreadable or malformed file (non-numbers, ragged rows, NaN, not
         UTF-8, fewer than 4 points), a pixel list, an area selection, a trace
-        that is not one simple curve, missing or bad scale options.
+        that is not one simple curve, missing or bad scale options, points
+        more than 20 R from the first (other units, or a wrong scale).
     """
     path = Path(path)
     fmt = None if format is None else _choice(format, FORMATS, "format")
