@@ -1,4 +1,5 @@
 """The executor: Dask LocalCluster, process pool, serial; results complete out of order."""
+import gc
 import os
 
 import pytest
@@ -51,6 +52,10 @@ def test_a_scheduler_that_does_not_answer_is_named_and_leaves_dask_as_it_was(add
     pytest.importorskip("distributed")
     import dask
 
+    from distributed import Client
+
+    gc.collect()
+    clients = {id(o) for o in gc.get_objects() if isinstance(o, Client)}   # other tests'
     before = dask.config.get("scheduler", None)
     with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
         with pytest.raises(ValueError, match=f"--scheduler {address}: no Dask scheduler "
@@ -60,3 +65,6 @@ def test_a_scheduler_that_does_not_answer_is_named_and_leaves_dask_as_it_was(add
     # (a Client that failed on a malformed address set it to "dask.distributed": xarray's
     # computations in the same process then failed)
     assert dask.config.get("scheduler", None) == before
+    # and it is gone: left to the garbage collector, its __del__ ran inside the next
+    # Client's start and deadlocked the suite
+    assert not [o for o in gc.get_objects() if isinstance(o, Client) and id(o) not in clients]

@@ -94,22 +94,28 @@ def open_executor(workers: int | None = None, scheduler: str | None = None) -> I
         if scheduler is not None:
             log.info("connecting to the Dask scheduler at %s", scheduler)
             import copy
+            import gc
 
             import dask
             config = copy.deepcopy(dask.config.config)
             try:
                 client = Client(scheduler)
-            except Exception as exc:
-                # unreachable, refused, not an address, or an assertion inside distributed
-                # (seen once in the suite, after other tests' clusters).  A Client that
-                # failed on a malformed address left dask's scheduler at "dask.distributed":
-                # later dask computations here (xarray's) then failed.
+                failure = None
+            except Exception as exc:      # unreachable, refused, not an address, ...
+                failure = f"{type(exc).__name__}: {exc}"
+            if failure is not None:
+                # The failed Client closes itself in __del__ when the garbage collector
+                # finds it; in the suite that happened inside the next Client's start and
+                # deadlocked (its loop runner's lock), or raised an AssertionError there.
+                # So collect it now, then undo the configuration it left (the scheduler at
+                # "dask.distributed": later dask computations here, xarray's, failed).
+                gc.collect()
                 dask.config.config.clear()
                 dask.config.config.update(config)
                 source = ("" if scheduler != os.environ.get("DASK_SCHEDULER_ADDRESS")
                           else " (from DASK_SCHEDULER_ADDRESS)")
                 raise ValueError(f"--scheduler {scheduler}{source}: no Dask scheduler "
-                                 f"answered there: {type(exc).__name__}: {exc}") from None
+                                 f"answered there: {failure}")
             with client:
                 yield client.get_executor()
             return
