@@ -306,6 +306,22 @@ def test_variants_tie_hold_and_refuse():
         volvox_spec("rigid")
 
 
+@pytest.mark.parametrize("options, message", [
+    ({"nodes": 5}, "nodes = 5 must be an integer from 20 to 3200"),      # was "4 cells cannot..."
+    ({"nodes": 200.0}, "nodes = 200.0 must be an integer"),
+    ({"tol": -1.0}, "tol = -1.0 must lie in [1e-15, 1)"),                # was a scipy warning
+    ({"tol": float("nan")}, "tol = nan must be finite"),
+    ({"max_iterations": 0}, "max_iterations = 0 must be a positive integer"),   # was accepted
+    ({"method": "bfgs"}, "method = 'bfgs' must be one of"),
+])
+def test_fit_refuses_bad_options_before_any_work(options, message):
+    spec = _three_parameter_spec()
+    data = np.column_stack([np.linspace(0, 1, 20), np.linspace(0, 1, 20) ** 2])
+    with pytest.raises(ValueError) as exc:
+        fit(spec, data, **{"method": "gradient", "nodes": NODES, **options})
+    assert message in str(exc.value)
+
+
 # --------------------------------------------------------------------------
 # command line
 # --------------------------------------------------------------------------

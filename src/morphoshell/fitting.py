@@ -57,6 +57,7 @@ import casadi as ca
 import numpy as np
 
 from ._compiled import LARGE, compiled_point_function
+from ._validate import real
 from .continuation import continue_between, continue_to
 from .direct import DirectSolver
 from .mesh import mesh_spec
@@ -67,7 +68,7 @@ from .refinement import solve_from
 from .results import Equilibrium, SolverError
 
 __all__ = ["FitSpec", "FitResult", "FitError", "fit", "volvox_spec", "model_midline",
-           "synthetic_midline", "METHODS", "VARIANTS", "N_FIT", "BOUNDS"]
+           "synthetic_midline", "METHODS", "VARIANTS", "N_FIT", "FIT_NODES", "BOUNDS"]
 
 #: Fit methods (see the module docstring).
 METHODS = ("nelder-mead", "gradient", "kkt")
@@ -75,6 +76,9 @@ METHODS = ("nelder-mead", "gradient", "kkt")
 VARIANTS = ("flat", "undeformed", "unstressed", "free")
 #: Points of the fit energy (documentation: "Problems and families", Volvox).
 N_FIT = 100
+#: Mesh nodes a fit accepts (the command line's --nodes too): fewer cells cannot hold the
+#: Volvox model's breakpoints and steps.
+FIT_NODES = (20, 3200)
 #: Bounds of fitted Volvox parameters: stretches, curvatures (1/R).  Breakpoints
 #: are bounded by the shell and kept apart by at least the smoothing width σ.
 BOUNDS = {"f": (0.5, 2.0), "kappa": (-15.0, 15.0)}
@@ -541,9 +545,9 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
         paper.
     method : {"nelder-mead", "gradient", "kkt"}
     nodes : int
-        Mesh nodes of the inner solves.
+        Mesh nodes of the inner solves, from 20 to 3200 (:data:`FIT_NODES`).
     tol : float
-        Relative tolerance on E_fit² of the outer iteration.
+        Relative tolerance on E_fit² of the outer iteration, in [1e-15, 1).
     max_iterations : int, optional
         Outer iterations (function evaluations for Nelder–Mead; Ipopt
         iterations of each NLP for KKT, default :data:`KKT_ITERATIONS`).
@@ -558,6 +562,9 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
 
     Raises
     ------
+    ValueError
+        An option out of range, or data that are not N >= 3 finite points,
+        before any work.
     FitError
         KKT only: status ``"Fit_Saddle"`` when the fit ends on a state that is
         not a minimum of the inner energy, ``"Fit_Not_Reproduced"`` when the
@@ -568,6 +575,7 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
     """
     if method not in METHODS:
         raise ValueError(f"method = {method!r} must be one of {list(METHODS)}")
+    _check_options(nodes, tol, max_iterations)
     data = _points(data)
     t0 = time.perf_counter()
     inner = _Inner(spec, data, nodes, start)
@@ -578,6 +586,20 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
     else:
         theta, its, ok, msg = _kkt(spec, inner, tol, max_iterations)
     return _result(method, spec, inner, theta, its, time.perf_counter() - t0, ok, msg)
+
+
+def _check_options(nodes, tol, max_iterations) -> None:
+    """ValueError naming the first of :func:`fit`'s options that is out of range."""
+    def integer(value) -> bool:
+        return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+    lo, hi = FIT_NODES
+    if not (integer(nodes) and lo <= nodes <= hi):     # (5 nodes: "4 cells cannot hold ...")
+        raise ValueError(f"nodes = {nodes!r} must be an integer from {lo} to {hi}")
+    if real("tol", tol) < 1e-15 or tol >= 1:     # (scipy: below eps ends no iteration)
+        raise ValueError(f"tol = {tol!r} must lie in [1e-15, 1)")
+    if max_iterations is not None and not (integer(max_iterations) and max_iterations >= 1):
+        raise ValueError(f"max_iterations = {max_iterations!r} must be a positive integer")
 
 
 def _points(data) -> np.ndarray:

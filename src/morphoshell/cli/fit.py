@@ -10,7 +10,7 @@ __all__ = ["register"]
 
 
 def register(sub) -> None:
-    from ..fitting import METHODS, VARIANTS
+    from ..fitting import FIT_NODES, METHODS, VARIANTS
     from ..midlines import FORMATS, SECTIONS
 
     p = sub.add_parser(
@@ -45,7 +45,7 @@ def register(sub) -> None:
     p.add_argument("--start", type=Path, default=None, metavar="PARAMS.json",
                    help="start from the parameters of a previous fit (or any result JSON); "
                         "default: the family's illustrative values, h = 0.15, P = 0.3")
-    p.add_argument("--nodes", type=integer(20, 3200), default=200, metavar="N",
+    p.add_argument("--nodes", type=integer(*FIT_NODES), default=200, metavar="N",
                    help="mesh nodes of the inner solves (default 200)")
     add_outputs(p, json="write the fit (parameters by name, standard errors, E_fit, both "
                         "midlines) as JSON; usable as a problem file",
