@@ -309,6 +309,17 @@ def test_velocity_fit_recovers_a_known_slope():
     assert I.velocity_scale(11.0, 40.0, 0.05) == pytest.approx(11**2.5 / 40**1.5 * 0.95)
 
 
+def test_non_finite_values_are_named_not_averaged():
+    # a NaN made E/mu and every statistic NaN, without a word
+    with pytest.raises(ValueError, match="velocity of embryo 'e2' is nan, not a finite"):
+        I.fit_velocity([1.0, math.nan], [1.0, 2.0], embryos=["e1", "e2"])
+    with pytest.raises(ValueError, match="velocity scale of embryo 1 is inf"):
+        I.fit_velocity([1.0, 2.0], [1.0, math.inf])
+    with pytest.raises(ValueError, match="summarise: value 1 is nan"):
+        I.summarise([0.1, math.nan])
+    assert I.summarise([]).n == 0
+
+
 def test_paper_numbers():
     # main text: <E/mu> = 0.6 1/s, mu >= 0.8 mPa s => E >= 0.5 mPa; H = 11 um =>
     # E H^3 >= 7e-19 J.  Unrounded, E = 0.48 mPa and E H^3 = 6.4e-19 J; the

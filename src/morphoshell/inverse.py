@@ -934,11 +934,17 @@ class Spread:
 
 def summarise(values: Sequence[float], errors: Sequence[float | None] | None = None,
               bootstrap: int = BOOTSTRAP, rng: np.random.Generator | None = None) -> Spread:
-    """:class:`Spread` of ``values`` (std with n − 1; percentile bootstrap of the mean)."""
+    """:class:`Spread` of ``values`` (std with n − 1; percentile bootstrap of the mean).
+
+    ValueError for a value that is not finite (it would turn every statistic into NaN).
+    """
     x = np.asarray(values, dtype=float)
     n = x.size
     if n == 0:
         return Spread(0, None, None, None)
+    if not np.all(np.isfinite(x)):        # (a NaN made every statistic NaN, without a word)
+        i = int(np.flatnonzero(~np.isfinite(x))[0])
+        raise ValueError(f"summarise: value {i} is {float(x[i])!r}, not a finite number")
     interval = None
     if bootstrap and n >= 2:
         rng = rng or np.random.default_rng(SEED)
@@ -1009,10 +1015,20 @@ def fit_velocity(V: Sequence[float], X: Sequence[float], *, mu_min: float = MU_M
                  H_mean_um: float = 11.0, embryos: Sequence[str] | None = None,
                  bootstrap: int = BOOTSTRAP, rng: np.random.Generator | None = None,
                  excluded: Sequence[str] = ()) -> VelocityFit:
-    """Fit V = (E/μ) X through the origin (V in µm/s, X in µm; see :class:`VelocityFit`)."""
+    """Fit V = (E/μ) X through the origin (V in µm/s, X in µm; see :class:`VelocityFit`).
+
+    ValueError for unequal lengths, all-zero X, or a value that is not finite
+    (named by its embryo).
+    """
     V, X = np.asarray(V, dtype=float), np.asarray(X, dtype=float)
     if V.size == 0 or V.size != X.size or not np.any(X):
         raise ValueError("fit_velocity needs equally many velocities and scales, not all zero")
+    for name, values in (("velocity", V), ("velocity scale", X)):
+        bad = np.flatnonzero(~np.isfinite(values))
+        if len(bad):         # (a NaN gave E/mu = nan, without a word)
+            who = embryos[bad[0]] if embryos is not None else int(bad[0])
+            raise ValueError(f"fit_velocity: the {name} of embryo {who!r} is "
+                             f"{float(values[bad[0]])!r}, not a finite number")
     sxx = float(X @ X)
     slope = float(X @ V / sxx)
     n = V.size
