@@ -234,6 +234,13 @@ def test_resample_is_equally_spaced():
     assert np.abs(fine - truth(4901)).max() < 1e-6
 
 
+def test_resample_names_a_point_that_is_not_finite():
+    points = half(20)
+    points[3, 1] = np.nan          # (scipy said only "`x` must contain only finite values")
+    with pytest.raises(MidlineError, match=r"resample: point 3 is \[.*nan\], not finite"):
+        ml.resample(points, 10)
+
+
 # ------------------------------------------------------------------ bad input
 
 def _file(tmp_path, name, content):

@@ -610,7 +610,7 @@ def resample(points, n: int = 100) -> np.ndarray:
     Parameters
     ----------
     points : array_like, shape (m, 2)
-        At least 4 points, consecutive ones distinct.
+        At least 4 finite points, consecutive ones distinct.
     n : int
         At least 2.
 
@@ -627,6 +627,9 @@ def resample(points, n: int = 100) -> np.ndarray:
     points = np.asarray(points, dtype=float)
     if points.ndim != 2 or points.shape[1] != 2 or len(points) < 4:
         raise MidlineError(f"resample: points must have shape (m >= 4, 2), not {points.shape}")
+    if not np.all(np.isfinite(points)):     # (scipy said "`x` must contain only finite values")
+        i = int(np.flatnonzero(~np.all(np.isfinite(points), axis=1))[0])
+        raise MidlineError(f"resample: point {i} is {points[i].tolist()}, not finite")
     if np.any(np.all(np.diff(points, axis=0) == 0, axis=1)):
         raise MidlineError("resample: two consecutive points coincide")
     curve = _Curve.through(points)
