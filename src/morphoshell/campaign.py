@@ -58,7 +58,8 @@ from .continuation import continue_between
 from .direct import DirectSolver
 from .equilibrium import solve
 from .executor import SerialExecutor, backend_name, open_executor
-from .fitting import BOUNDS, METHODS, VARIANTS, FitError, FitResult, fit, volvox_spec
+from .fitting import (BOUNDS, FIT_NODES, METHODS, VARIANTS, FitError, FitResult, fit,
+                      volvox_spec)
 from .mesh import mesh_spec
 from .midlines import Midline, average
 from .observables import RECOIL, recoil
@@ -68,10 +69,12 @@ from .results import Equilibrium, SolverError
 
 __all__ = ["Timepoint", "CampaignResult", "NumericalAblation", "campaign", "read_timepoints",
            "load_campaign", "fitted_problem", "fitted_state", "numerical_ablation",
-           "ablation_errors", "HELD", "CUT", "RESULT_SUFFIX", "SUMMARY"]
+           "ablation_errors", "HELD", "CAMPAIGN_NODES", "CUT", "RESULT_SUFFIX", "SUMMARY"]
 
 #: Parameters fitted at the first timepoint and held after (all variants but ``free``).
 HELD = ("f1", "kappa3", "kappa4")
+#: Mesh nodes a campaign accepts (and its --nodes): a fit's lower limit, and a cap on its cost.
+CAMPAIGN_NODES = (FIT_NODES[0], 2000)
 #: Default cut Σ of numerical ablations (units of R): the experiments removed cells
 #: within 3–6 µm of the pole of embryos of posterior radius ≈ 40 µm (Materials and Methods).
 CUT = 0.15
@@ -559,8 +562,9 @@ def _validate(data_dir, variants, method, nodes, workers, out) -> tuple:
         raise ValueError(f"variants {list(variants)} repeat")
     if method not in METHODS:
         raise ValueError(f"method = {method!r} must be one of {list(METHODS)}")
-    if isinstance(nodes, bool) or int(nodes) != nodes or not 20 <= nodes <= 2000:
-        raise ValueError(f"nodes = {nodes!r} must be an integer from 20 to 2000")
+    lo, hi = CAMPAIGN_NODES
+    if isinstance(nodes, bool) or int(nodes) != nodes or not lo <= nodes <= hi:
+        raise ValueError(f"nodes = {nodes!r} must be an integer from {lo} to {hi}")
     if workers is not None and (isinstance(workers, bool) or int(workers) != workers
                                 or workers < 1):
         raise ValueError(f"workers = {workers!r} must be a positive integer")

@@ -40,6 +40,7 @@ def _out_dir(text: str) -> Path:
 
 def register(sub) -> None:
     """Add ``morphoshell campaign`` to the subcommands ``sub``."""
+    from ..campaign import CAMPAIGN_NODES
     from ..fitting import METHODS, VARIANTS
 
     p = sub.add_parser(
@@ -66,7 +67,7 @@ def register(sub) -> None:
     p.add_argument("--timepoints", default=None, metavar="T1,T2",
                    help="fit only these timepoints (names from timepoints.csv, e.g. "
                         "t01,t02,t03: a short campaign); default all")
-    p.add_argument("--nodes", type=integer(20, 2000), default=200, metavar="N",
+    p.add_argument("--nodes", type=integer(*CAMPAIGN_NODES), default=200, metavar="N",
                    help="mesh nodes of the inner solves (default 200)")
     p.add_argument("--embryo-errors", nargs="?", type=_variants, const=True, default=False,
                    metavar="V1,V2",
