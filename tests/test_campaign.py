@@ -347,6 +347,13 @@ def test_a_midline_that_does_not_read_fails_before_any_work(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "bad.csv: line 3, column 2 (z): 'oops' is not a number" in err, err
     assert not out.exists()
+    # a midline that reads but is far too short for the model (a wrong scale): named, before work
+    (tmp_path / "bad.csv").write_text("r,z\n0,0\n0.1,0.1\n0.2,0.1\n")
+    assert main(["campaign", str(tmp_path), "--out", str(out), "--workers", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "bad.csv: the midline is 0.241 R long, but the model's midlines are about 1.42-5.68" \
+        in err, err
+    assert not out.exists()
 
 
 def test_a_scheduler_that_does_not_answer_deletes_no_results(data, tmp_path, capsys):

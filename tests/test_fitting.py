@@ -16,8 +16,8 @@ from morphoshell import Problem, solve
 from morphoshell.cli import main
 from morphoshell.continuation import continue_to
 from morphoshell.direct import DirectSolver
-from morphoshell.fitting import (FitError, FitSpec, fit, model_midline, synthetic_midline,
-                                 volvox_spec)
+from morphoshell.fitting import (FitError, FitSpec, check_length, fit, intrinsic_lengths,
+                                 model_midline, synthetic_midline, volvox_spec)
 from morphoshell.mesh import mesh_spec
 from morphoshell.midlines import Midline
 from morphoshell.profiles import FAMILIES, ProfileFamily, Profiles, register_family
@@ -322,6 +322,23 @@ def test_fit_refuses_bad_options_before_any_work(options, message):
     assert message in str(exc.value)
 
 
+def test_a_midline_of_the_wrong_scale_is_refused_before_any_work():
+    """A 0.36 R midline used to "converge" to E_fit 8.9 R: the model's midline, as long as
+    its stretches times L - P, cannot follow a midline of a fifth of that length."""
+    spec = volvox_spec("free", START)
+    shortest, longest = intrinsic_lengths(spec)
+    assert (shortest, longest) == pytest.approx((0.5 * START.end, 2.0 * START.end), rel=1e-12)
+    data = synthetic_midline(TRUE, spec.base, nodes=NODES)
+    check_length(spec, data)                    # the model's own midline passes
+    for scale in (0.2, 5.0):                    # outside LENGTH_SLACK either way
+        with pytest.raises(ValueError, match=r"the data midline is [0-9.]+ R long, but the "
+                                             r"model's midlines are about 1\.42-5\.68 R"):
+            fit(spec, scale * data, "gradient", nodes=NODES)
+    # held stretches narrow the range to what they allow
+    held = volvox_spec("flat", START, hold={n: 1.0 for n in ("f1", "f2", "f3")})
+    assert intrinsic_lengths(held) == pytest.approx((START.end, START.end), rel=1e-12)
+
+
 # --------------------------------------------------------------------------
 # command line
 # --------------------------------------------------------------------------
@@ -366,6 +383,17 @@ def test_fit_command_refuses_bad_input(midline_csv, args, named, capsys):
     assert main(["fit", str(midline_csv), *args]) == 2
     err = capsys.readouterr().err
     assert named in err and "Traceback" not in err
+
+
+def test_fit_command_names_a_midline_of_the_wrong_scale(midline_csv, tmp_path, capsys):
+    small = tmp_path / "small.csv"
+    m = Midline.from_csv(midline_csv)
+    Midline(m.r / 5, m.z / 5, None, 1, ("scaled",)).to_csv(small)
+    out = tmp_path / "fit.json"
+    assert main(["fit", str(small), "--variant", "flat", "--json", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"{small}: the midline is " in err and "units R" in err and err.count("\n") == 1
+    assert not out.exists()
 
 
 def test_a_failed_trial_is_rejected_without_continuation(monkeypatch):

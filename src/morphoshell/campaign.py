@@ -58,8 +58,8 @@ from .continuation import continue_between
 from .direct import DirectSolver
 from .equilibrium import solve
 from .executor import SerialExecutor, backend_name, open_executor
-from .fitting import (BOUNDS, FIT_NODES, METHODS, VARIANTS, FitError, FitResult, fit,
-                      volvox_spec)
+from .fitting import (BOUNDS, FIT_NODES, METHODS, VARIANTS, FitError, FitResult,
+                      check_length, fit, volvox_spec)
 from .mesh import mesh_spec
 from .midlines import Midline, average
 from .observables import RECOIL, recoil
@@ -324,6 +324,12 @@ def _start_problem(params: dict) -> Problem:
     return Problem("volvox", p, h=h, opening=opening)
 
 
+def _first_start(params: dict | None) -> Problem | None:
+    """The first timepoint's start: ``params`` (:func:`_start_problem`), else None
+    (:func:`morphoshell.fitting.volvox_spec`'s default)."""
+    return _start_problem(params) if params else None
+
+
 def _start_state(problem: Problem, state: dict, nodes: int) -> Equilibrium | None:
     """The previous fit's equilibrium carried onto the mesh the next fit builds (None if it fails).
 
@@ -386,8 +392,7 @@ def _fit_one(task: _Task, tp: Timepoint, prev: dict | None, first: dict | None,
     data = Midline.from_csv(Path(task.data_dir) / tp.midline)
     hold: dict = {}
     if prev is None:
-        start = _start_problem(task.start) if task.start else Problem("volvox", h=0.15,
-                                                                      opening=0.3)
+        start = _first_start(task.start)
         origin = "start" if task.start else "family defaults"
     else:
         start = _start_problem(prev["parameters"])
@@ -547,11 +552,13 @@ def _jackknifed(embryo_errors, variants: tuple[str, ...]) -> frozenset:
     return frozenset(names)
 
 
-def _validate(data_dir, variants, method, nodes, workers, out) -> tuple:
+def _validate(data_dir, variants, method, nodes, workers, out, start) -> tuple:
     timepoints = read_timepoints(data_dir)
+    # (the free variant fits every stretch: the widest range of lengths)
+    spec = volvox_spec("free", _first_start(start))
     for tp in timepoints:       # their content too: a bad file fails here, not in a worker
         for path in (tp.midline, *tp.traces):
-            Midline.from_csv(Path(data_dir) / path)
+            check_length(spec, Midline.from_csv(Path(data_dir) / path), f"{path}: the midline")
     if isinstance(variants, str):
         variants = (variants,)
     variants = tuple(variants)
@@ -639,7 +646,7 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
     starts from the last successful one.
     """
     selected = timepoints
-    timepoints, variants, out = _validate(data_dir, variants, method, nodes, workers, out)
+    timepoints, variants, out = _validate(data_dir, variants, method, nodes, workers, out, start)
     jackknifed = _jackknifed(embryo_errors, variants)
     if selected is not None:
         selected = _names(selected)

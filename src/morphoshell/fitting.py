@@ -68,7 +68,8 @@ from .refinement import solve_from
 from .results import Equilibrium, SolverError
 
 __all__ = ["FitSpec", "FitResult", "FitError", "fit", "volvox_spec", "model_midline",
-           "synthetic_midline", "METHODS", "VARIANTS", "N_FIT", "FIT_NODES", "BOUNDS"]
+           "synthetic_midline", "intrinsic_lengths", "check_length", "METHODS", "VARIANTS",
+           "N_FIT", "FIT_NODES", "BOUNDS", "LENGTH_SLACK"]
 
 #: Fit methods (see the module docstring).
 METHODS = ("nelder-mead", "gradient", "kkt")
@@ -82,6 +83,11 @@ FIT_NODES = (20, 3200)
 #: Bounds of fitted Volvox parameters: stretches, curvatures (1/R).  Breakpoints
 #: are bounded by the shell and kept apart by at least the smoothing width σ.
 BOUNDS = {"f": (0.5, 2.0), "kappa": (-15.0, 15.0)}
+#: A data midline whose length lies further than this factor outside the Volvox model's
+#: intrinsic lengths (:func:`intrinsic_lengths`) is refused before a fit: its units or scale
+#: are wrong (a factor 2 means elastic strains of 100 %, far beyond the theory's).  Measured:
+#: a 0.36 R midline "converged" to E_fit 8.9 R, the model's midline nowhere near it.
+LENGTH_SLACK = 2.0
 PRINT_LEVEL = 0
 #: The KKT fit lets a fit point move this many cells either way within one NLP.
 WINDOW = 2
@@ -563,8 +569,9 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
     Raises
     ------
     ValueError
-        An option out of range, or data that are not N >= 3 finite points,
-        before any work.
+        An option out of range, data that are not N >= 3 finite points, or
+        a Volvox midline far too short or long for the model
+        (:func:`check_length`), before any work.
     FitError
         KKT only: status ``"Fit_Saddle"`` when the fit ends on a state that is
         not a minimum of the inner energy, ``"Fit_Not_Reproduced"`` when the
@@ -577,6 +584,7 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
         raise ValueError(f"method = {method!r} must be one of {list(METHODS)}")
     _check_options(nodes, tol, max_iterations)
     data = _points(data)
+    check_length(spec, data)
     t0 = time.perf_counter()
     inner = _Inner(spec, data, nodes, start)
     if method == "nelder-mead":
@@ -600,6 +608,47 @@ def _check_options(nodes, tol, max_iterations) -> None:
         raise ValueError(f"tol = {tol!r} must lie in [1e-15, 1)")
     if max_iterations is not None and not (integer(max_iterations) and max_iterations >= 1):
         raise ValueError(f"max_iterations = {max_iterations!r} must be a positive integer")
+
+
+def intrinsic_lengths(spec: FitSpec) -> tuple[float, float] | None:
+    """(shortest, longest) intrinsic length ∫ f_s0 ds of the fitted Volvox shell, in R.
+
+    f_s0 blends f₁, f₂ and f₃ with smoothed steps (documentation: "Problems
+    and families"), so over the shell's length L − P the intrinsic midline is
+    about as long as the smallest of their lower bounds (held values for held
+    stretches) times L − P, at least, and the largest of their upper bounds
+    times L − P, at most.  ``None`` for other families.
+    """
+    if spec.base.family != "volvox":
+        return None
+    lo, hi = spec.box()
+    lows, highs = [], []
+    for name in ("f1", "f2", "f3"):
+        if name in spec.fitted:
+            i = spec.fitted.index(name)
+            lows.append(lo[i]), highs.append(hi[i])
+        else:
+            lows.append(spec.base.params[name]), highs.append(spec.base.params[name])
+    return min(lows) * spec.base.end, max(highs) * spec.base.end
+
+
+def check_length(spec: FitSpec, data, name: str = "the data midline") -> None:
+    """ValueError if the midline ``data`` (N, 2) is far too short or long for ``spec``'s model.
+
+    Its polygon length against :func:`intrinsic_lengths` with a margin of
+    :data:`LENGTH_SLACK` either way: a midline in the wrong units or scale.
+    """
+    lengths = intrinsic_lengths(spec)
+    if lengths is None:
+        return
+    points = _points(data)
+    length = float(np.sum(np.hypot(*np.diff(points, axis=0).T)))
+    shortest, longest = lengths
+    if not shortest / LENGTH_SLACK <= length <= longest * LENGTH_SLACK:
+        raise ValueError(
+            f"{name} is {length:.3g} R long, but the model's midlines are about "
+            f"{shortest:.3g}-{longest:.3g} R long (stretches f1-f3 within their bounds over "
+            f"the shell's {spec.base.end:.3g} R): are its units R and its scale right?")
 
 
 def _points(data) -> np.ndarray:
