@@ -16,7 +16,7 @@ from morphoshell import Problem, solve
 from morphoshell.cli import main
 from morphoshell.continuation import continue_to
 from morphoshell.direct import DirectSolver
-from morphoshell.fitting import (FitError, FitSpec, check_length, fit, intrinsic_lengths,
+from morphoshell.fitting import (FitError, FitSpec, check_midline, fit, intrinsic_lengths,
                                  model_midline, synthetic_midline, volvox_spec)
 from morphoshell.mesh import mesh_spec
 from morphoshell.midlines import Midline
@@ -329,7 +329,7 @@ def test_a_midline_of_the_wrong_scale_is_refused_before_any_work():
     shortest, longest = intrinsic_lengths(spec)
     assert (shortest, longest) == pytest.approx((0.5 * START.end, 2.0 * START.end), rel=1e-12)
     data = synthetic_midline(TRUE, spec.base, nodes=NODES)
-    check_length(spec, data)                    # the model's own midline passes
+    check_midline(spec, data)                    # the model's own midline passes
     for scale in (0.2, 5.0):                    # outside LENGTH_SLACK either way
         with pytest.raises(ValueError, match=r"the data midline is [0-9.]+ R long, but the "
                                              r"model's midlines are about 1\.42-5\.68 R"):
@@ -337,6 +337,22 @@ def test_a_midline_of_the_wrong_scale_is_refused_before_any_work():
     # held stretches narrow the range to what they allow
     held = volvox_spec("flat", START, hold={n: 1.0 for n in ("f1", "f2", "f3")})
     assert intrinsic_lengths(held) == pytest.approx((START.end, START.end), rel=1e-12)
+
+
+def test_a_retraced_midline_is_refused_before_any_work():
+    """Out to the rim and back, 0.01 R or 0.05 R to one side (no crossing, a plausible length):
+    it used to "converge" to E_fit 4.3 R.  The hairpin turns by ~180 degrees within 0.1 R, the
+    model's midlines (and the shipped synthetic data) by less than 45."""
+    spec = volvox_spec("flat", START)
+    data = synthetic_midline(TRUE, spec.base, nodes=NODES)
+    tangent = np.gradient(data, axis=0)
+    tangent /= np.hypot(*tangent.T)[:, None]
+    for apart in (0.01, 0.05):
+        back = (data + apart * np.column_stack([-tangent[:, 1], tangent[:, 0]]))[::-1][:60]
+        with pytest.raises(ValueError, match=r"the data midline turns back on itself 2\.[67]\d R "
+                                             r"along it \(by 1[78]\d degrees within 0\.1 R\)"):
+            fit(spec, np.vstack([data, back]), "gradient", nodes=NODES)
+    check_midline(spec, data)
 
 
 # --------------------------------------------------------------------------

@@ -59,7 +59,7 @@ from .direct import DirectSolver
 from .equilibrium import solve
 from .executor import SerialExecutor, backend_name, open_executor
 from .fitting import (BOUNDS, FIT_NODES, METHODS, VARIANTS, FitError, FitResult,
-                      check_length, fit, volvox_spec)
+                      check_midline, fit, volvox_spec)
 from .mesh import mesh_spec
 from .midlines import Midline, average
 from .observables import RECOIL, recoil
@@ -249,7 +249,7 @@ class CampaignResult:
             curvatures in 1/R), then ``se_<name>`` (Gauss–Newton standard
             errors; NaN for parameters not fitted at that timepoint), and
             with ``embryo_errors`` ``se_embryo_<name>`` (the jackknife over
-            the traces).
+            the traces) and ``embryo_t95`` (their 95 % interval is ± this many).
         """
         import pandas as pd
 
@@ -270,6 +270,7 @@ class CampaignResult:
                 embryo = rec.get("embryo_standard_errors")
                 if embryo is not None:
                     row.update({f"se_embryo_{n}": embryo.get(n, float("nan")) for n in names})
+                    row["embryo_t95"] = rec.get("embryo_t95", float("nan"))   # (none: no errors)
                 rows.append(row)
         return pd.DataFrame(rows)
 
@@ -558,7 +559,7 @@ def _validate(data_dir, variants, method, nodes, workers, out, start) -> tuple:
     spec = volvox_spec("free", _first_start(start))
     for tp in timepoints:       # their content too: a bad file fails here, not in a worker
         for path in (tp.midline, *tp.traces):
-            check_length(spec, Midline.from_csv(Path(data_dir) / path), f"{path}: the midline")
+            check_midline(spec, Midline.from_csv(Path(data_dir) / path), f"{path}: the midline")
     if isinstance(variants, str):
         variants = (variants,)
     variants = tuple(variants)

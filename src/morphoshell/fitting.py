@@ -68,8 +68,8 @@ from .refinement import solve_from
 from .results import Equilibrium, SolverError
 
 __all__ = ["FitSpec", "FitResult", "FitError", "fit", "volvox_spec", "model_midline",
-           "synthetic_midline", "intrinsic_lengths", "check_length", "METHODS", "VARIANTS",
-           "N_FIT", "FIT_NODES", "BOUNDS", "LENGTH_SLACK"]
+           "synthetic_midline", "intrinsic_lengths", "check_midline", "METHODS", "VARIANTS",
+           "N_FIT", "FIT_NODES", "BOUNDS", "LENGTH_SLACK", "MAX_TURN", "TURN_LENGTH"]
 
 #: Fit methods (see the module docstring).
 METHODS = ("nelder-mead", "gradient", "kkt")
@@ -88,6 +88,13 @@ BOUNDS = {"f": (0.5, 2.0), "kappa": (-15.0, 15.0)}
 #: are wrong (a factor 2 means elastic strains of 100 %, far beyond the theory's).  Measured:
 #: a 0.36 R midline "converged" to E_fit 8.9 R, the model's midline nowhere near it.
 LENGTH_SLACK = 2.0
+#: A data midline that turns by more than MAX_TURN (radians) within TURN_LENGTH (units of R)
+#: of its arclength is refused before a fit: a line that retraces its way (measured: a trace
+#: out to the rim and back "converged" to E_fit 4.3 R).  That is a mean radius of curvature
+#: below 0.042 R, a fraction of the cell sheet's thickness (h = 0.15 R in the paper's fits);
+#: the shipped synthetic midlines turn by at most 0.73 rad within 0.1 R.  Caught: hairpins
+#: with out and back up to 0.05 R apart (measured).
+MAX_TURN, TURN_LENGTH = 0.75 * np.pi, 0.1
 PRINT_LEVEL = 0
 #: The KKT fit lets a fit point move this many cells either way within one NLP.
 WINDOW = 2
@@ -570,8 +577,8 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
     ------
     ValueError
         An option out of range, data that are not N >= 3 finite points, or
-        a Volvox midline far too short or long for the model
-        (:func:`check_length`), before any work.
+        a midline that turns back on itself or, of a Volvox fit, is far too
+        short or long for the model (:func:`check_midline`), before any work.
     FitError
         KKT only: status ``"Fit_Saddle"`` when the fit ends on a state that is
         not a minimum of the inner energy, ``"Fit_Not_Reproduced"`` when the
@@ -584,7 +591,7 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
         raise ValueError(f"method = {method!r} must be one of {list(METHODS)}")
     _check_options(nodes, tol, max_iterations)
     data = _points(data)
-    check_length(spec, data)
+    check_midline(spec, data)
     t0 = time.perf_counter()
     inner = _Inner(spec, data, nodes, start)
     if method == "nelder-mead":
@@ -632,17 +639,32 @@ def intrinsic_lengths(spec: FitSpec) -> tuple[float, float] | None:
     return min(lows) * spec.base.end, max(highs) * spec.base.end
 
 
-def check_length(spec: FitSpec, data, name: str = "the data midline") -> None:
-    """ValueError if the midline ``data`` (N, 2) is far too short or long for ``spec``'s model.
+def check_midline(spec: FitSpec, data, name: str = "the data midline") -> None:
+    """ValueError if the midline ``data`` (N, 2) cannot be a midline of ``spec``'s shell.
 
-    Its polygon length against :func:`intrinsic_lengths` with a margin of
-    :data:`LENGTH_SLACK` either way: a midline in the wrong units or scale.
+    It turns back on itself (more than :data:`MAX_TURN` within
+    :data:`TURN_LENGTH`: a retraced line), or its polygon length lies outside
+    :func:`intrinsic_lengths` by more than :data:`LENGTH_SLACK` either way
+    (the wrong units or scale).
     """
+    points = _points(data)
+    step = np.diff(points, axis=0)
+    step = step[np.any(step != 0, axis=1)]       # (a repeated point has no direction)
+    length = float(np.sum(np.hypot(*step.T)))
+    middle = np.cumsum(np.hypot(*step.T)) - np.hypot(*step.T) / 2
+    # the tangent's angle, unwrapped: a U-turn adds up to pi however many segments it spans
+    angle = np.unwrap(np.arctan2(step[:, 1], step[:, 0]))
+    for i in range(len(step)):
+        j = np.searchsorted(middle, middle[i] + TURN_LENGTH, side="right")
+        turn = np.abs(angle[i:j] - angle[i])
+        if turn.max() > MAX_TURN:
+            raise ValueError(
+                f"{name} turns back on itself {middle[i]:.3g} R along it (by "
+                f"{np.degrees(turn.max()):.0f} degrees within {TURN_LENGTH:g} R): a traced "
+                f"line that retraces its way?")
     lengths = intrinsic_lengths(spec)
     if lengths is None:
         return
-    points = _points(data)
-    length = float(np.sum(np.hypot(*np.diff(points, axis=0).T)))
     shortest, longest = lengths
     if not shortest / LENGTH_SLACK <= length <= longest * LENGTH_SLACK:
         raise ValueError(

@@ -80,14 +80,14 @@ def _start_problem(args):
 
 
 def _fit(args) -> int:
-    from ..fitting import N_FIT, check_length, fit
+    from ..fitting import N_FIT, check_midline, fit
     from ..io import write_csv, write_json
     from ..midlines import load_midline
 
     spec = _start_problem(args)
     midline = load_midline(args.midline, args.format, n=N_FIT, section=args.section,
                            pixel_size_um=args.pixel_size, radius_um=args.radius_um)
-    check_length(spec, midline, f"{args.midline}: the midline")
+    check_midline(spec, midline, f"{args.midline}: the midline")
     result = fit(spec, midline, args.method, nodes=args.nodes)
     print(result.summary())
     print(f"  E_fit = {result.E_fit:.6g} R over {N_FIT} points; {result.inner_solves} inner "
