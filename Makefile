@@ -26,6 +26,7 @@ run: $(STAMP)
 ## variants, gradient method; jackknife errors for the free fit) into out/campaign, then
 ## Fig. 3 D-O into out/figures
 campaign: $(STAMP)
+	mkdir -p out  # (campaign --out creates its folder only inside an existing one)
 	$(BIN)/morphoshell campaign data/synthetic_inversion --method gradient --embryo-errors free --out out/campaign
 	$(BIN)/python scripts/fig3_fits.py --campaign out/campaign --out out/figures
 

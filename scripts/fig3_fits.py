@@ -13,7 +13,7 @@ D–L  fits of the three fixed-κ₁ variants (columns: flat κ₁ = 0, undeform
 M    overlay of the pre- (red) and post-ablation (cyan) sheets of the early
      flat fit, their union white (as the micrographs of Fig. 1);
 N    E_fit against pseudotime for the four variants;
-O    fitted κ₁ of the free variant (± standard error) and 1/f₁ against
+O    fitted κ₁ of the free variant (95 % intervals) and 1/f₁ against
      pseudotime, with the generating κ₁(t) of a synthetic data set; inset f₁.
 
 Writes fig3_D-L, fig3_M, fig3_N, fig3_O (PNG at 300 dpi and PDF) and
@@ -31,6 +31,7 @@ from pathlib import Path
 
 import matplotlib
 import numpy as np
+import scipy.stats
 
 ROOT = Path(__file__).resolve().parents[1]
 #: Cut Σ of the numerical ablations (units of R).
@@ -139,13 +140,15 @@ def main(argv=None) -> int:
         if len(free):
             # jackknife errors where the campaign computed them (--embryo-errors); the
             # Gauss-Newton ones are up to 4x too small (docs/campaigns.md, Standard errors)
+            # bars: 95 % intervals, so that a miss of the generating kappa1 shows as one
             jack = "se_embryo_kappa1" in free and free.se_embryo_kappa1.notna().any()
-            se = free.se_embryo_kappa1 if jack else free.se_kappa1
+            half = (free.se_embryo_kappa1 * free.embryo_t95 if jack
+                    else free.se_kappa1 * scipy.stats.norm.ppf(0.975))
             ok = free.converged.astype(bool)
             ax.plot(free.pseudotime, free.kappa1, "-", color="k", lw=0.8)
-            ax.errorbar(free.pseudotime[ok], free.kappa1[ok], yerr=se[ok], fmt="o", ms=3,
-                        color="k", capsize=2, label="fitted κ₁ (free), ± "
-                        + ("jackknife error" if jack else "Gauss–Newton error"))
+            ax.errorbar(free.pseudotime[ok], free.kappa1[ok], yerr=half[ok], fmt="o", ms=3,
+                        color="k", capsize=2, label="fitted κ₁ (free), 95 % interval "
+                        + ("(jackknife, Student's t)" if jack else "(Gauss–Newton, too narrow)"))
             if (~ok).any():
                 ax.plot(free.pseudotime[~ok], free.kappa1[~ok], "o", ms=4, mfc="none",
                         color="k", label="not converged")

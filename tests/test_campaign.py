@@ -171,6 +171,7 @@ def test_embryo_errors_are_the_jackknife_over_the_traces(data, tmp_path):
     df = result.to_dataframe()
     row = df[df.variant == "free"].iloc[0]
     assert row["se_embryo_kappa1"] == errors["kappa1"]
+    assert row["embryo_t95"] == rec["embryo_t95"]
     assert rec["embryo_t95"] == pytest.approx(12.7062, abs=1e-4)   # Student's t, 1 dof, 97.5 %
 
 
@@ -226,6 +227,12 @@ def test_no_jackknife_errors_unless_every_trace_left_out_fits(data, monkeypatch)
     assert got["embryo_standard_errors"] == {} and "embryo_t95" not in got
     assert "1 of the 3 fits with one trace left out did not converge" in \
         got["embryo_errors_message"]
+    # the table has no errors there, and no t quantile (a KeyError broke make campaign)
+    rec = {"status": "ok", "E_fit": 0.01, "converged": True, "parameters": {"kappa1": 0.5},
+           "standard_errors": {"kappa1": 0.1}, **got}
+    row = module.CampaignResult(Path("."), (tp3,), ("free",),
+                                {(tp3.name, "free"): rec}).to_dataframe().iloc[0]
+    assert np.isnan(row["se_embryo_kappa1"]) and np.isnan(row["embryo_t95"])
     one = module.Timepoint(tp.name, tp.pseudotime, tp.midline, tp.traces[:1])
     got = module._embryo_errors(task, one, {}, data[1]["timepoints"][0]["parameters"], None)
     assert len(calls) == 3 and got["embryo_standard_errors"] == {}      # nothing fitted
