@@ -272,6 +272,54 @@ def _compressed(n_rows: int, n_cols: int, cols: np.ndarray, rows: np.ndarray) ->
     return ca.Sparsity(n_rows, n_cols, colind.tolist(), rows.tolist())
 
 
+@lru_cache(maxsize=16)
+def _pre_chain(pre_serialised: str) -> ca.Function:
+    """The per-point kernel of :meth:`Discretisation._chain_pre` for the data function ``pre``.
+
+    ``(s_k, Δs_k, w_k, scale, p, ∂s_k/∂p, ∂Δs_k/∂p, ∂scale/∂p) -> (dD_k/dp)ᵀ``,
+    compiled where possible.  Cached on ``pre`` (serialised: 0.5 ms), so that
+    the meshes of one problem structure (a fit's coarse and fine meshes, every
+    fit of a campaign) build and serialise it once (measured: 6 ms each).
+    """
+    pre = ca.Function.deserialize(pre_serialised)
+    args = [pre.sx_in(i) for i in range(pre.n_in())]
+    s, dsk, _, sc, p = args
+    n_p = p.shape[0]
+    mesh = [ca.SX.sym(name, n_p) for name in ("ds_dp", "dDs_dp", "dscale_dp")]
+    D = pre(*args)
+    block = (ca.jacobian(D, p)
+             + ca.mtimes(ca.jacobian(D, ca.vertcat(s, dsk, sc)), ca.horzcat(*mesh).T))
+    # transposed: the map puts the points' blocks side by side, dD/dp stacks them
+    return compiled_point_function(ca.Function("pre_chain", [*args, *mesh],
+                                               [ca.densify(block.T)]))
+
+
+@lru_cache(maxsize=16)
+def _pre_curvature(pre_serialised: str, cols: tuple[int, ...]) -> ca.Function:
+    """The per-point kernel of :attr:`Discretisation.pre_hessian` for ``pre``, mesh moving in ``cols``.
+
+    ``(s_k, Δs_k, w_k, scale, p, mesh derivatives in cols, c_k) -> (vec M_kᵀ ∇²φ M_k,
+    ∂φ/∂(s_k, Δs_k, scale))`` with φ = c_k·pre, M_kᵀ ∇²φ M_k as the Hessian
+    of φ along y_k + M_k δ; compiled where possible, cached as
+    :func:`_pre_chain` (measured: 60-75 ms a mesh to build, 17 ms of it
+    serialising for the compiled library's key).
+    """
+    pre = ca.Function.deserialize(pre_serialised)
+    args = [pre.sx_in(i) for i in range(pre.n_in())]
+    s, dsk, _, sc, p = args
+    n_p = p.shape[0]
+    c = ca.SX.sym("c", pre.size1_out(0))
+    phi = ca.dot(c, pre(*args))
+    mesh = [ca.SX.sym(name, len(cols)) for name in ("ds_dp", "dDs_dp", "dscale_dp")]
+    delta = ca.SX.sym("delta", n_p)
+    moved = [v + ca.dot(dv, delta[list(cols)]) for v, dv in zip((s, dsk, sc), mesh)]
+    phi_d = ca.substitute(phi, ca.vertcat(s, dsk, sc, p), ca.vertcat(*moved, p + delta))
+    H = ca.substitute(ca.hessian(phi_d, delta)[0], delta, ca.SX.zeros(n_p))
+    return compiled_point_function(ca.Function(
+        "pre_curvature", [*args, *mesh, c],
+        [ca.densify(ca.vec(H)), ca.densify(ca.gradient(phi, ca.vertcat(s, dsk, sc)))]))
+
+
 def _poly(coefficients, x):
     """Horner evaluation (works on CasADi expressions)."""
     out = 0 * x + coefficients[-1]
@@ -539,27 +587,14 @@ class Discretisation:
         """
         if not hasattr(self, "_pre_hessian"):
             pre, s_gauss, ds, weights, scale, m = self._pre_parts
-            args = [pre.sx_in(i) for i in range(pre.n_in())]
-            s, dsk, _, sc, p = args
-            n_p = p.shape[0]
-            c = ca.SX.sym("c", pre.size1_out(0))
-            phi = ca.dot(c, pre(*args))
-            # M_kᵀ ∇²φ M_k as the Hessian of φ along y_k + M_k δ, the mesh
-            # moving with the parameters it depends on only (7 of the volvox
-            # family's 17): 4.0 ms an evaluation at 200 nodes, 6.5-7.1 ms with
-            # the mesh moving in all 17 (measured)
+            n_p = self.p.shape[0]
+            # the mesh moves with the parameters it depends on only (7 of the
+            # volvox family's 17): 4.0 ms an evaluation at 200 nodes, 6.5-7.1 ms
+            # with the mesh moving in all 17 (measured)
             J_mesh = [ca.jacobian(v, self.p) for v in (s_gauss, ds, scale)]
             cols = sorted(set().union(*(set(J.sparsity().get_col()) for J in J_mesh)))
-            mesh = [ca.SX.sym(name, len(cols)) for name in ("ds_dp", "dDs_dp", "dscale_dp")]
-            delta = ca.SX.sym("delta", n_p)
-            moved = [v + ca.dot(dv, delta[cols]) for v, dv in zip((s, dsk, sc), mesh)]
-            phi_d = ca.substitute(phi, ca.vertcat(s, dsk, sc, p), ca.vertcat(*moved, p + delta))
-            H = ca.substitute(ca.hessian(phi_d, delta)[0], delta, ca.SX.zeros(n_p))
-            local = ca.Function("pre_curvature", [*args, *mesh, c],
-                                [ca.densify(ca.vec(H)),
-                                 ca.densify(ca.gradient(phi, ca.vertcat(s, dsk, sc)))])
             C = ca.MX.sym("c", self.D.shape[0])
-            H_k, g = compiled_point_function(local).map(m)(
+            H_k, g = _pre_curvature(pre.serialize(), tuple(cols)).map(m)(
                 s_gauss.T, ds.T, weights, scale, self.p, *(J[:, cols].T for J in J_mesh),
                 ca.reshape(C, -1, m))
             g_fixed = ca.MX.sym("g", 3, m)
@@ -585,16 +620,7 @@ class Discretisation:
         MX slices cost 13-14 ms and differentiating the mapped graph as a
         whole 18-24 ms (measured).  Compiled, the result has no derivatives.
         """
-        args = [pre.sx_in(i) for i in range(pre.n_in())]
-        s, dsk, _, sc, p = args
-        n_p = p.shape[0]
-        mesh = [ca.SX.sym(name, n_p) for name in ("ds_dp", "dDs_dp", "dscale_dp")]
-        D = pre(*args)
-        block = (ca.jacobian(D, p)
-                 + ca.mtimes(ca.jacobian(D, ca.vertcat(s, dsk, sc)), ca.horzcat(*mesh).T))
-        # transposed: the map puts the points' blocks side by side, dD/dp stacks them
-        local = ca.Function("pre_chain", [*args, *mesh], [ca.densify(block.T)])
-        blocks = compiled_point_function(local).map(m)(
+        blocks = _pre_chain(pre.serialize()).map(m)(
             s_gauss.T, ds.T, weights, scale, self.p, *(ca.jacobian(v, self.p).T
                                                       for v in (s_gauss, ds, scale)))
         return blocks.T
