@@ -296,7 +296,7 @@ def _pre_chain(pre_serialised: str) -> ca.Function:
 
 @lru_cache(maxsize=16)
 def _pre_curvature(pre_serialised: str, cols: tuple[int, ...]) -> ca.Function:
-    """The per-point kernel of :attr:`Discretisation.pre_hessian` for ``pre``, mesh moving in ``cols``.
+    """The per-point kernel of :attr:`Discretisation.pre_hessian` (the mesh moving in ``cols``).
 
     ``(s_k, Δs_k, w_k, scale, p, mesh derivatives in cols, c_k) -> (vec M_kᵀ ∇²φ M_k,
     ∂φ/∂(s_k, Δs_k, scale))`` with φ = c_k·pre, M_kᵀ ∇²φ M_k as the Hessian

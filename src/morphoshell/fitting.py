@@ -799,9 +799,9 @@ def _kkt(spec, inner, tol, max_iterations):
     window one NLP lets them move (measured: stalls at 200 nodes from the
     start shape), while on the coarse mesh's long cells it does not; then
     Gauss–Newton steps on the fine mesh (:data:`KKT_FINE_GN_TOL`) and the
-    fine NLP from their end.  Route B, when A fails (its NLP, or its end is a saddle or not
-    reproduced): Gauss–Newton steps to the fit's tolerance, then the NLP
-    from their end.  Each NLP stops after :data:`KKT_ITERATIONS`.
+    fine NLP from their end.  Route B, when A fails (its NLP, or its end is
+    a saddle or not reproduced): Gauss–Newton steps to the fit's tolerance,
+    then the NLP from their end.  Each NLP stops after :data:`KKT_ITERATIONS`.
     """
     theta0, eq, spent, its = spec.theta0, inner.eq, 0, 0
     try:
@@ -1213,8 +1213,7 @@ class _KKTProblem:
         ok = J < n_U
         sp, B = d._scatter((n_U, n_U), I[ok], J[ok], src[ok], len(ku) * n_pt)
         Hu = ca.MX(sp, ca.mtimes(B, ca.vec(tri)))
-        # ... and those pairs once more (two unweighted scatters: a weighted one
-        # of the 100 000 entries cost 85 ms a build, measured)
+        # ... and those pairs once more (a second scatter: _scatter has no weights)
         twice = ok & (I == J) & (ku != lu)[:, None]
         if twice.any():
             sp2, B2 = d._scatter((n_U, n_U), I[twice], J[twice], src[twice], len(ku) * n_pt)
