@@ -339,6 +339,19 @@ def test_a_midline_of_the_wrong_scale_is_refused_before_any_work():
     assert intrinsic_lengths(held) == pytest.approx((START.end, START.end), rel=1e-12)
 
 
+def test_a_midline_listed_rim_first_is_refused_before_any_work():
+    """The model's midline starts at the pole, the origin of its gauge; listed rim first the
+    data used to "converge" to E_fit 9.8 R.  Noise at the pole, or a pole 0.05 R off, passes."""
+    spec = volvox_spec("flat", START)
+    data = synthetic_midline(TRUE, spec.base, nodes=NODES)
+    with pytest.raises(ValueError, match=r"the data midline starts at \(r, z\) = \(0\.3\d+, "
+                                         r"1\.\d+\), 1\.\d+ R from the posterior pole"):
+        fit(spec, data[::-1], "gradient", nodes=NODES)
+    check_midline(spec, data + [0.03, 0.04])
+    with pytest.raises(ValueError, match="0.15 R from the posterior pole"):
+        check_midline(spec, data + [0.09, 0.12])
+
+
 def test_a_retraced_midline_is_refused_before_any_work():
     """Out to the rim and back, 0.01 R or 0.05 R to one side (no crossing, a plausible length):
     it used to "converge" to E_fit 4.3 R.  The hairpin turns by ~180 degrees within 0.1 R, the

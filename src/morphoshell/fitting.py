@@ -69,7 +69,8 @@ from .results import Equilibrium, SolverError
 
 __all__ = ["FitSpec", "FitResult", "FitError", "fit", "volvox_spec", "model_midline",
            "synthetic_midline", "intrinsic_lengths", "check_midline", "METHODS", "VARIANTS",
-           "N_FIT", "FIT_NODES", "BOUNDS", "LENGTH_SLACK", "MAX_TURN", "TURN_LENGTH"]
+           "N_FIT", "FIT_NODES", "BOUNDS", "LENGTH_SLACK", "MAX_TURN", "TURN_LENGTH",
+           "POLE_SLACK"]
 
 #: Fit methods (see the module docstring).
 METHODS = ("nelder-mead", "gradient", "kkt")
@@ -95,6 +96,11 @@ LENGTH_SLACK = 2.0
 #: the shipped synthetic midlines turn by at most 0.73 rad within 0.1 R.  Caught: hairpins
 #: with out and back up to 0.05 R apart (measured).
 MAX_TURN, TURN_LENGTH = 0.75 * np.pi, 0.1
+#: A data midline of an intact shell (no cut) starts at the posterior pole, the origin of the
+#: model gauge, within this distance (units of R) or is refused before a fit: one listed rim
+#: first "converged" to E_fit 9.8 R (measured).  Image traces are aligned with their pole
+#: there exactly; a CSV of r, z is taken as it is.
+POLE_SLACK = 0.1
 PRINT_LEVEL = 0
 #: The KKT fit lets a fit point move this many cells either way within one NLP.
 WINDOW = 2
@@ -584,8 +590,9 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
     ------
     ValueError
         An option out of range, data that are not N >= 3 finite points, or
-        a midline that turns back on itself or, of a Volvox fit, is far too
-        short or long for the model (:func:`check_midline`), before any work.
+        a midline that does not start at the pole, turns back on itself or,
+        of a Volvox fit, is far too short or long for the model
+        (:func:`check_midline`), before any work.
     FitError
         KKT only: status ``"Fit_Saddle"`` when the fit ends on a state that is
         not a minimum of the inner energy, ``"Fit_Not_Reproduced"`` when the
@@ -649,12 +656,20 @@ def intrinsic_lengths(spec: FitSpec) -> tuple[float, float] | None:
 def check_midline(spec: FitSpec, data, name: str = "the data midline") -> None:
     """ValueError if the midline ``data`` (N, 2) cannot be a midline of ``spec``'s shell.
 
-    It turns back on itself (more than :data:`MAX_TURN` within
+    It does not start at the posterior pole of an intact shell (further than
+    :data:`POLE_SLACK` from the origin of the model gauge: listed rim first?),
+    it turns back on itself (more than :data:`MAX_TURN` within
     :data:`TURN_LENGTH`: a retraced line), or its polygon length lies outside
     :func:`intrinsic_lengths` by more than :data:`LENGTH_SLACK` either way
     (the wrong units or scale).
     """
     points = _points(data)
+    off = float(np.hypot(*points[0]))
+    if spec.base.cut == 0 and off > POLE_SLACK:
+        raise ValueError(
+            f"{name} starts at (r, z) = ({points[0, 0]:.3g}, {points[0, 1]:.3g}), {off:.3g} R "
+            f"from the posterior pole at the origin of the model gauge, where a midline "
+            f"starts: is it listed rim first (reverse it), or not in the model gauge?")
     step = np.diff(points, axis=0)
     step = step[np.any(step != 0, axis=1)]       # (a repeated point has no direction)
     length = float(np.sum(np.hypot(*step.T)))
