@@ -651,20 +651,24 @@ class Discretisation:
         return np.vstack([r_idx[cell_pts], psi_idx[cell_pts], f_idx])
 
     @staticmethod
-    def _scatter(shape, rows, cols, src, n_src: int) -> tuple:
+    def _scatter(shape, rows, cols, src, n_src: int, weights=None) -> tuple:
         """(sparsity, B): the sparse ``shape`` matrix whose (row, col) entry sums ``values[src]``
-        has the nonzeros ``B @ values`` (a repeated triplet counts once, as in DM.triplet)."""
+        (times ``weights``, default 1) has the nonzeros ``B @ values``."""
         n_rows, n_cols = shape
         rows, cols, src = (np.asarray(v, dtype=np.int64).ravel() for v in (rows, cols, src))
         # Sorting by (col, row) is CasADi's compressed-column order of nonzeros.
         uniq, pos = np.unique(cols * n_rows + rows, return_inverse=True)
         pos = pos.ravel()
         sp = _compressed(n_rows, n_cols, uniq // n_rows, uniq % n_rows)
-        # B[pos, src] = 1 in compressed form directly: half DM.triplet's time at
-        # 20 000 entries
-        key = np.sort(src * len(uniq) + pos)
-        key = key[np.append(True, key[1:] != key[:-1])[:len(key)]]   # (np.unique: numpy.ma)
-        B = ca.DM(_compressed(len(uniq), n_src, key // len(uniq), key % len(uniq)), 1.0)
+        if weights is None:
+            # B[pos, src] = 1 (a repeated triplet too, as DM.triplet gives it), in
+            # compressed form directly: half DM.triplet's time at 20 000 entries
+            key = np.sort(src * len(uniq) + pos)
+            key = key[np.append(True, key[1:] != key[:-1])[:len(key)]]   # (np.unique: numpy.ma)
+            B = ca.DM(_compressed(len(uniq), n_src, key // len(uniq), key % len(uniq)), 1.0)
+        else:   # (DM.triplet: the weights in the triplets' order, not the nonzeros')
+            B = ca.DM.triplet(pos.tolist(), src.tolist(),
+                              ca.DM(np.asarray(weights, float).ravel()), len(uniq), n_src)
         return sp, B
 
     def _integration_operators(self):

@@ -1226,13 +1226,10 @@ class _KKTProblem:
         I, J = np.minimum(u_idx[ku], u_idx[lu]), np.maximum(u_idx[ku], u_idx[lu])
         src = np.arange(len(ku))[:, None] + len(ku) * np.arange(n_pt)[None, :]
         ok = J < n_U
-        sp, B = d._scatter((n_U, n_U), I[ok], J[ok], src[ok], len(ku) * n_pt)
+        twice = (I == J) & (ku != lu)[:, None]
+        sp, B = d._scatter((n_U, n_U), I[ok], J[ok], src[ok], len(ku) * n_pt,
+                           np.where(twice, 2.0, 1.0)[ok])
         Hu = ca.MX(sp, ca.mtimes(B, ca.vec(tri)))
-        # ... and those pairs once more (a second scatter: _scatter has no weights)
-        twice = ok & (I == J) & (ku != lu)[:, None]
-        if twice.any():
-            sp2, B2 = d._scatter((n_U, n_U), I[twice], J[twice], src[twice], len(ku) * n_pt)
-            Hu = Hu + ca.MX(sp2, ca.mtimes(B2, ca.vec(tri)))
         Hu = Hu + Hu.T - ca.diag(ca.diag(Hu))
         # U in terms of w = (θ, x, λ, z, S): s_nodes(θ), the rest selected
         E = ca.vertcat(ca.horzcat(ca.jacobian(sh.s_nodes, th), ca.MX(nc + 1, n_w - k)),
