@@ -672,8 +672,9 @@ def check_midline(spec: FitSpec, data, name: str = "the data midline") -> None:
             f"starts: is it listed rim first (reverse it), or not in the model gauge?")
     step = np.diff(points, axis=0)
     step = step[np.any(step != 0, axis=1)]       # (a repeated point has no direction)
-    length = float(np.sum(np.hypot(*step.T)))
-    middle = np.cumsum(np.hypot(*step.T)) - np.hypot(*step.T) / 2
+    seg = np.hypot(*step.T)
+    length = float(seg.sum())
+    middle = np.cumsum(seg) - seg / 2
     # the tangent's angle, unwrapped: a U-turn adds up to pi however many segments it spans
     angle = np.unwrap(np.arctan2(step[:, 1], step[:, 0]))
     for i in range(len(step)):
