@@ -11,13 +11,15 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from morphoshell import Problem, solve
 from morphoshell.cli import main
 from morphoshell.continuation import continue_to
 from morphoshell.direct import DirectSolver
-from morphoshell.fitting import (FitError, FitSpec, check_midline, fit, intrinsic_lengths,
-                                 model_midline, synthetic_midline, volvox_spec)
+from morphoshell.fitting import (FitError, FitSpec, breakpoint_bounds, check_midline, fit,
+                                 intrinsic_lengths, model_midline, synthetic_midline, volvox_spec)
 from morphoshell.mesh import mesh_spec
 from morphoshell.midlines import Midline
 from morphoshell.profiles import FAMILIES, ProfileFamily, Profiles, register_family
@@ -260,7 +262,9 @@ def test_a_failed_kkt_nlp_is_followed_by_one_from_the_reduced_optimum(monkeypatc
     reaches that optimum and counts the failed NLP's iterations."""
     from morphoshell import fitting
 
-    spec = volvox_spec("flat", START, hold={"kappa3": 0.0, "kappa4": 0.0})
+    # (s3, s4 held: with kappa3, kappa4 = 0 they slide towards s2, and the boxes
+    # that order them move, each move with an NLP of its own)
+    spec = volvox_spec("flat", START, hold={"kappa3": 0.0, "kappa4": 0.0, "s3": 1.9, "s4": 2.3})
     data = synthetic_midline(TRUE, spec.base, nodes=NODES, noise=1e-3, seed=3)
     start = fitting._Inner(spec, data, NODES).eq if warm else None
     reference = fit(spec, data, "gradient", nodes=NODES, start=start)
@@ -283,6 +287,51 @@ def test_a_failed_kkt_nlp_is_followed_by_one_from_the_reduced_optimum(monkeypatc
     assert gap[1] < 1e-5 and gap[1] < 0.1 * gap[0], gap
     assert result.converged and abs(result.E_fit / reference.E_fit - 1) < 1e-3
     assert result.outer_iterations > 1000
+
+
+
+@given(st.lists(st.floats(0.001, 3.0), min_size=5, max_size=5), st.floats(0.001, 0.5))
+@settings(max_examples=200, deadline=None)
+def test_breakpoint_boxes_hold_their_start_and_keep_breakpoints_sigma_apart(gaps, sigma):
+    """Any point of the boxes keeps the breakpoints σ apart and inside the shell (a
+    pair that starts closer keeps its gap), and each box holds its breakpoint."""
+    s = np.cumsum(gaps)
+    end, s = s[-1], s[:-1]
+    boxes = np.array(breakpoint_bounds(s.tolist(), sigma, end))
+    assert np.all(boxes[:, 0] <= s) and np.all(s <= boxes[:, 1])
+    # the nearest two points of neighbouring boxes, and the pole and the end
+    least = np.minimum(sigma, np.diff([0.0, *s, end]))
+    reach = np.diff([0.0, *boxes.ravel(), end])[::2]
+    assert np.all(reach >= least * (1 - 1e-12)), (reach, least)
+
+
+def test_a_breakpoint_resting_on_its_box_moves_it_to_the_fits_optimum():
+    """The boxes that order the breakpoints for least squares are not the fit's
+    constraints: with kappa3 = kappa4 = 0 held, s3 and s4 slide far below the start's
+    boxes (the fit used to stop on their edge, converged) to σ apart; there E_fit
+    falls along no feasible move of any breakpoint (first-order optimality, checked
+    by inner solves at ±1e-3)."""
+    from morphoshell import fitting
+
+    spec = volvox_spec("flat", START, hold={"kappa3": 0.0, "kappa4": 0.0})
+    data = synthetic_midline(TRUE, spec.base, nodes=NODES, noise=1e-3, seed=3)
+    lo, _ = spec.box()
+    result = fit(spec, data, "gradient", nodes=NODES)
+    assert result.converged and "moving the breakpoints' boxes" in result.message
+    s = [result.parameters[f"s{i}"] for i in range(1, 5)]
+    assert s[3] < lo[spec.fitted.index("s4")] - 0.3
+    sigma = spec.base.params["sigma"]
+    assert np.all(np.diff([0.0, *s, spec.base.end]) >= sigma * (1 - 1e-9))
+    theta = np.array([result.parameters[n] for n in spec.fitted])
+    inner = fitting._Inner(spec.recentred(theta), data, NODES, start=result.equilibrium)
+    for i in range(4):
+        for step in (-1e-3, 1e-3):
+            moved = theta.copy()
+            moved[spec.fitted.index(f"s{i + 1}")] += step
+            gaps = np.diff([0.0, *s[:i], s[i] + step, *s[i + 1:], spec.base.end])
+            if np.all(gaps >= sigma):
+                res = inner.residuals(inner.solve(moved))
+                assert np.sqrt(res @ res) >= result.E_fit * (1 - 1e-9), (i, step)
 
 
 def test_variants_tie_hold_and_refuse():
