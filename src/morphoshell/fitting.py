@@ -146,8 +146,11 @@ FOLD_RATIO = 1e-4
 #: (:meth:`FitSpec.on_box_edges`).
 EDGE_RTOL = 1e-4
 #: :func:`fit` moves the breakpoints' boxes at most this many times.  Each move lets a
-#: breakpoint go halfway to its neighbour; measured on the synthetic campaign: 1-4 moves.
+#: breakpoint go PUSH_SHARE of the way to its neighbour or halfway.
 MAX_RECENTRES = 12
+#: The share of the room between two breakpoints that a moved box gives the one that pushed
+#: against its edge, when the other did not (:meth:`FitSpec.recentred`).
+PUSH_SHARE = 0.75
 
 
 class FitError(SolverError):
@@ -272,44 +275,44 @@ class FitSpec:
     def recentred(self, theta) -> "FitSpec":
         """This spec started at θ, with the ordered breakpoints' boxes around their values there.
 
-        The boxes of :func:`breakpoint_bounds`, except between a breakpoint
-        that pushes against its box's edge and a neighbour that does not:
-        there the pusher may come to σ from the neighbour at once (by the
-        midpoints, each move went halfway and a breakpoint that had far to go
-        took 10 moves, measured), and the neighbour's box stops where it is.
+        The boxes of :func:`breakpoint_bounds`; between a breakpoint that
+        pushes against its box's edge and a neighbour that does not, the
+        pusher gets :data:`PUSH_SHARE` of the room between them.  (Halves: a
+        breakpoint with far to go took 10 moves, measured; all of it, pinning
+        the neighbour: neighbours that both had to move took turns, 12 moves
+        and not there, flat t08 of the synthetic campaign.)
         """
         s, down, up, sigma = self._pushing(theta)
-        boxes = [list(b) for b in breakpoint_bounds(s, sigma, self.base.end)]
-        for i in range(len(s) - 1):
-            if down[i + 1] and not up[i]:
-                boxes[i][1], boxes[i + 1][0] = s[i], s[i] + sigma
-            elif up[i] and not down[i + 1]:
-                boxes[i][1], boxes[i + 1][0] = s[i + 1] - sigma, s[i + 1]
+        share = [PUSH_SHARE if up[i] and not down[i + 1] else
+                 1 - PUSH_SHARE if down[i + 1] and not up[i] else 0.5 for i in range(len(s) - 1)]
+        boxes = breakpoint_bounds(s, sigma, self.base.end, share)
         return replace(self, base=self.problem(theta),
-                       bounds={**self.bounds, **{n: tuple(b) for n, b in zip(self.ordered, boxes)
+                       bounds={**self.bounds, **{n: b for n, b in zip(self.ordered, boxes)
                                                  if n in self.fitted}})
 
 
-def breakpoint_bounds(s: Sequence[float], sigma: float, end: float) -> list[tuple[float, float]]:
+def breakpoint_bounds(s: Sequence[float], sigma: float, end: float,
+                      share: Sequence[float] | None = None) -> list[tuple[float, float]]:
     """Disjoint boxes around ordered breakpoints 0 < s₁ < … < s_m < ``end`` that keep them σ apart.
 
-    Each box reaches to σ/2 short of the midpoint between a breakpoint and
-    its neighbours, and to σ from the pole and the shell's end, so that any
-    point of the boxes keeps the breakpoints at least σ apart (the fit's
-    constraint; the ``kkt`` method's ordering constraints say the same).  A
-    pair already closer than σ is pinned at its gap (it can only widen).
-    Least-squares methods take bounds, not the ordering itself: these boxes
-    order the breakpoints for them, and :func:`fit` moves them when a fit
-    ends on an edge (:meth:`FitSpec.on_box_edges`).
+    Of the room between neighbours s_i and s_{i+1} (their gap less σ), s_i's
+    box takes the fraction ``share[i]`` (default ½: each box stops σ/2 short
+    of the midpoint) and s_{i+1}'s the rest; the first and last boxes reach
+    to σ from the pole and the shell's end.  So any point of the boxes keeps
+    the breakpoints at least σ apart (the fit's constraint; the ``kkt``
+    method's ordering constraints say the same).  A pair already closer than
+    σ is pinned at its gap (it can only widen).  Least-squares methods take
+    bounds, not the ordering itself: these boxes order the breakpoints for
+    them, and :func:`fit` moves them when a fit ends on an edge
+    (:meth:`FitSpec.on_box_edges`).
     """
-    edges = [0.0, *s, end]
-    out = []
-    for i in range(1, len(edges) - 1):
-        a, b, c = edges[i - 1:i + 2]
-        lo = sigma if i == 1 else (a + b) / 2 + sigma / 2
-        hi = end - sigma if i == len(edges) - 2 else (b + c) / 2 - sigma / 2
-        out.append((min(lo, b), max(hi, b)))      # (exactly b when pinned)
-    return out
+    s = list(s)
+    share = [0.5] * (len(s) - 1) if share is None else list(share)
+    # the boundaries of the room between neighbours: s_i's box ends at a, s_{i+1}'s begins at b
+    room = [max(b - a - sigma, 0.0) for a, b in zip(s, s[1:])]
+    below = [sigma] + [a + w * r + sigma for a, w, r in zip(s, share, room)]
+    above = [a + w * r for a, w, r in zip(s, share, room)] + [end - sigma]
+    return [(min(lo, b), max(hi, b)) for lo, b, hi in zip(below, s, above)]   # (b when pinned)
 
 
 def volvox_spec(variant: str, start: Problem | None = None, hold: Mapping[str, float] = (),
