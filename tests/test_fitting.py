@@ -334,6 +334,35 @@ def test_a_breakpoint_resting_on_its_box_moves_it_to_the_fits_optimum():
                 assert np.sqrt(res @ res) >= result.E_fit * (1 - 1e-9), (i, step)
 
 
+
+def test_a_fit_that_fails_from_moved_boxes_keeps_the_last_one_unconverged(monkeypatch):
+    """When the fit from moved boxes fails (FitError), the fit within the last boxes is
+    returned, not converged, saying why; a failure before any move still raises."""
+    from morphoshell import fitting
+
+    spec = volvox_spec("flat", START, hold={"kappa3": 0.0, "kappa4": 0.0})
+    data = synthetic_midline(TRUE, spec.base, nodes=NODES, noise=1e-3, seed=3)
+    calls, gradient = [], fitting._gradient
+
+    def failing_second(spec, inner, *args):
+        calls.append(spec.theta0)
+        if len(calls) == 2:
+            raise FitError("the NLP failed", "Maximum_Iterations_Exceeded")
+        return gradient(spec, inner, *args)
+
+    monkeypatch.setattr(fitting, "_gradient", failing_second)
+    result = fit(spec, data, "gradient", nodes=NODES)
+    assert len(calls) == 2 and not result.converged
+    assert "the fit from moved boxes failed: the NLP failed" in result.message
+    # the first fit's end: the start of the second, on the edge of the start's boxes
+    theta = np.array([result.parameters[n] for n in spec.fitted])
+    assert np.allclose(theta, calls[1]) and spec.on_box_edges(theta)
+    calls.clear()
+    calls.append(None)           # now the first call fails
+    with pytest.raises(FitError):
+        fit(spec, data, "gradient", nodes=NODES)
+
+
 def test_variants_tie_hold_and_refuse():
     unstressed = volvox_spec("unstressed", START)
     assert "kappa1" not in unstressed.fitted and "f1" in unstressed.fitted
