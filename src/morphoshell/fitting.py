@@ -67,8 +67,8 @@ from .problem import Problem
 from .refinement import solve_from
 from .results import Equilibrium, SolverError
 
-__all__ = ["FitSpec", "FitResult", "FitError", "fit", "volvox_spec", "model_midline",
-           "synthetic_midline", "intrinsic_lengths", "check_midline", "METHODS", "VARIANTS",
+__all__ = ["FitSpec", "FitResult", "FitError", "fit", "volvox_spec", "breakpoint_bounds",
+           "model_midline", "synthetic_midline", "intrinsic_lengths", "check_midline", "METHODS", "VARIANTS",
            "N_FIT", "FIT_NODES", "BOUNDS", "LENGTH_SLACK", "MAX_TURN", "TURN_LENGTH",
            "POLE_SLACK"]
 
