@@ -68,9 +68,9 @@ from .refinement import solve_from
 from .results import Equilibrium, SolverError
 
 __all__ = ["FitSpec", "FitResult", "FitError", "fit", "volvox_spec", "breakpoint_bounds",
-           "model_midline", "synthetic_midline", "intrinsic_lengths", "check_midline", "METHODS", "VARIANTS",
-           "N_FIT", "FIT_NODES", "BOUNDS", "LENGTH_SLACK", "MAX_TURN", "TURN_LENGTH",
-           "POLE_SLACK"]
+           "model_midline", "synthetic_midline", "intrinsic_lengths", "check_midline",
+           "METHODS", "VARIANTS", "N_FIT", "FIT_NODES", "BOUNDS", "LENGTH_SLACK", "MAX_TURN",
+           "TURN_LENGTH", "POLE_SLACK"]
 
 #: Fit methods (see the module docstring).
 METHODS = ("nelder-mead", "gradient", "kkt")
