@@ -132,6 +132,38 @@ def test_numerical_ablation_continuation_agrees_with_cold_solve(serial):
         assert getattr(num.ablation, k) == pytest.approx(v, abs=1e-6), k
 
 
+
+def test_ablation_errors_propagate_the_covariance_through_the_tie(serial):
+    """ablation_errors: σ_y² = J C Jᵀ, with the unstressed tie κ₁ = 1/f₁ in J, against
+    central differences of numerical ablations along f₁ (κ₁ following it) and κ₂."""
+    from morphoshell.campaign import ablation_errors
+    from morphoshell.observables import RECOIL
+
+    problem = fitted_problem(serial.record("t01", "flat"))
+    f1 = problem.params["f1"]
+    problem = problem.with_updates(kappa1=1 / f1)          # an unstressed shape
+    se, rho = np.array([0.01, 0.2]), -0.6
+    record = {"fitted": ["f1", "kappa2"], "variant": "unstressed",
+              "standard_errors": {"f1": se[0], "kappa2": se[1]},
+              "correlation": [[1.0, rho], [rho, 1.0]], "parameters": dict(problem.params)}
+    got = ablation_errors(record, numerical_ablation(problem, 0.15, nodes=NODES).ablation)
+
+    def observables(**change):
+        ablation = numerical_ablation(problem.with_updates(**change), 0.15, nodes=NODES).ablation
+        return np.array([getattr(ablation, k) for k in RECOIL])
+
+    step = 1e-4
+    J = np.column_stack([
+        (observables(f1=f1 + step, kappa1=1 / (f1 + step))
+         - observables(f1=f1 - step, kappa1=1 / (f1 - step))) / (2 * step),
+        (observables(kappa2=problem.params["kappa2"] + step)
+         - observables(kappa2=problem.params["kappa2"] - step)) / (2 * step)])
+    cov = np.outer(se, se) * np.array([[1.0, rho], [rho, 1.0]])
+    want = np.sqrt(np.einsum("ij,jk,ik->i", J, cov, J))
+    for k, w in zip(RECOIL, want):
+        assert got[k] == pytest.approx(w, rel=1e-4, abs=1e-9), k
+
+
 def test_bad_input_is_refused_before_any_work(tmp_path, data):
     with pytest.raises(ValueError, match="timepoints.csv"):
         read_timepoints(tmp_path)
