@@ -243,11 +243,11 @@ class FitSpec:
         hi = np.array([self.bounds.get(n, (-np.inf, np.inf))[1] for n in self.fitted])
         return lo, hi
 
-    def _pushing(self, theta, rtol: float = EDGE_RTOL) -> tuple[list, list, list, float]:
+    def _pushing(self, theta) -> tuple[list, list, list, float]:
         """Which ordered breakpoints push against the lower (upper) edge of their box at θ.
 
-        A fitted breakpoint pushes when it rests on an edge (within ``rtol``
-        of the box's width) where the fit has no constraint: its neighbour
+        A fitted breakpoint pushes when it rests on an edge (within
+        :data:`EDGE_RTOL` of the box's width) where the fit has no constraint: its neighbour
         (or the pole, or the shell's end) lies more than σ beyond it.
         Returns (values, down, up, σ).
         """
@@ -258,7 +258,7 @@ class FitSpec:
         for i, n in enumerate(self.ordered):
             if n in self.fitted:
                 lo, hi = self.bounds[n]
-                tol = rtol * (hi - lo)
+                tol = EDGE_RTOL * (hi - lo)
                 down[i] = s[i] - lo <= tol and lo > near[i] + sigma + tol
                 up[i] = hi - s[i] <= tol and hi < far[i] - sigma - tol
         return s, down, up, sigma
