@@ -132,9 +132,10 @@ KKT_GN_ITERATIONS = 30
 #: fine NLPs (``_kkt_from_coarse``).
 KKT_FINE_GN_TOL = 1e-6
 #: Ipopt tolerance of the KKT fit's coarse NLP (at most; ``_kkt_from_coarse``): its optimum
-#: only starts the fine mesh's Gauss-Newton steps to KKT_FINE_GN_TOL; converged further it
-#: spent 3-6 iterations more on seven noise seeds, measured.
-KKT_COARSE_TOL = 1e-6
+#: only starts the fine mesh's Gauss-Newton steps to KKT_FINE_GN_TOL.  At 1e-6 it spent 2-5
+#: iterations more on bench_fit's seeds, and on seed 2 went on past its optimum to another
+#: one it did not reach (60 iterations, then route B: 108 in all against 37), measured.
+KKT_COARSE_TOL = 1e-5
 #: |η| stays below this in the KKT fit (the theory needs |η| < 1).
 ETA_MAX = 0.98
 #: A fit whose scaled Jacobian has its second singular value below this fraction of the
@@ -990,27 +991,33 @@ def _gauss_newton_steps(spec, inner, ftol, max_evaluations, theta0, eq,
     raise exc
 
 
-def _kkt_nlp(spec, inner, tol, max_iterations, theta0, eq) -> tuple:
-    """(θ, x, λ, iterations, status) of the KKT NLP from θ₀ and its inner state ``eq``."""
+def _kkt_nlp(spec, inner, tol, max_iterations, theta0, eq, near: bool = True) -> tuple:
+    """(θ, x, λ, iterations, status) of the KKT NLP from θ₀ and its inner state ``eq``.
+
+    ``near``: θ₀ is close to the optimum (Gauss–Newton steps' end), and the
+    NLP starts from the reduced problem's adjoints; from a far start, from
+    zero multipliers (adjoints there took as many iterations or more: 17-32
+    against 19-26 on bench_fit's coarse stage, measured).
+    """
     inner.eq = eq         # (the NLP's objective is scaled by the misfit there)
-    return _kkt_cells(_KKTProblem(spec, inner, tol, max_iterations), inner, theta0, eq.x,
-                      eq.lam_g, inner.data)
+    return _kkt_cells(_KKTProblem(spec, inner, tol, max_iterations, estimate_duals=near),
+                      inner, theta0, eq.x, eq.lam_g, inner.data)
 
 
 def _kkt_from_coarse(spec, inner, tol, max_iterations) -> tuple:
     """Route A of :func:`_kkt` without a start state: coarse mesh first, then this one."""
     if inner.nodes <= 2 * COARSE_NODES:
-        return _kkt_nlp(spec, inner, tol, max_iterations, spec.theta0, inner.eq)
+        return _kkt_nlp(spec, inner, tol, max_iterations, spec.theta0, inner.eq, near=False)
     coarse = _Inner(spec, inner.data, COARSE_NODES)
     theta0, spent, _, _ = _kkt(spec, coarse, max(tol, KKT_COARSE_TOL), max_iterations)
     # From a coarse fit the start is close: a tiny initial barrier (from 1e-6
     # the fine stage took 34 iterations, wandering while mu fell) and the
-    # least-squares estimate of the multipliers: from zero ones the exact
-    # Hessian lacks the constraints' curvature, and the fine stage stalled in
-    # line searches (38 + 56 + 12 iterations with noisy data; 16 from the
-    # estimate, measured before the window edges were flagged).  Far from the
-    # optimum the estimate is large and the first steps went wild (the
-    # 3-parameter noisy fit at 60 nodes: 200 iterations; 6 from zero).
+    # adjoints as multipliers (_KKTProblem._adjoint_duals): from zero ones the
+    # exact Hessian lacks the constraints' curvature, and the fine stage stalled
+    # in line searches (38 + 56 + 12 iterations with noisy data; 16 from Ipopt's
+    # least-squares estimate, measured before the window edges were flagged;
+    # from that estimate 5-23 on bench_fit's noisy seeds, one failing after 60,
+    # and 16 noiseless; from the adjoints 5-17 and 6, measured 2026-11-23).
     #   And Gauss-Newton steps on this mesh first: the coarse optimum lies
     # along the poorly identified directions from this mesh's (0.4 standard
     # errors, bench_fit's noisy data), across a curved valley (the misfit rises
@@ -1179,8 +1186,8 @@ class _KKTProblem:
         self.spec, self.inner, self.tol = spec, inner, tol
         self.max_iter = max_iterations or KKT_ITERATIONS
         self.mu_init = mu_init
-        # The first NLP starts from zero multipliers, or from Ipopt's
-        # least-squares estimate (``estimate_duals``; later NLPs carry theirs over).
+        # The first NLP starts from zero multipliers, or from the reduced
+        # problem's adjoints (``estimate_duals``; later NLPs carry theirs over).
         self.estimate_duals = estimate_duals
         self.scale = 1.0
         self.cells: tuple | None = None
@@ -1265,8 +1272,7 @@ class _KKTProblem:
                       "acceptable_tol": 1e-2, "acceptable_iter": 5,
                       "acceptable_obj_change_tol": 1e-9, "obj_scaling_factor": self.scale,
                       "acceptable_constr_viol_tol": 1e-10,
-                      "warm_start_init_point": ("no" if self.estimate_duals and self._duals is None
-                                                else "yes"),
+                      "warm_start_init_point": "yes",
                       "mumps_scaling": 0, "mumps_permuting_scaling": 0, "mumps_pivot_order": 0,
                       # An NLP that needs a large Hessian perturbation has gone wild
                       # (converging ones needed at most 1; unstressed t09 of the synthetic
@@ -1432,6 +1438,32 @@ class _KKTProblem:
         z, S = (np.asarray(v).ravel()[::d.stages] for v in self._points(x, p, np.zeros(0)))
         return np.concatenate([z - z[0], S])
 
+    def _adjoint_duals(self, w0, data) -> tuple | None:
+        """The multipliers at w₀ of the reduced problem: its adjoints, (λ_g, λ_x).
+
+        At an equilibrium the equality constraints (F and the lifted
+        integrals) are square in the unknowns other than θ: their multipliers
+        make the Lagrangian stationary there, ∂f/∂u + (∂g/∂u)ᵀλ = 0, which
+        leaves the reduced gradient in θ as the only dual infeasibility.  The
+        inequalities (breakpoint gaps, |η|) and θ's bounds start inactive.
+        Ipopt's least-squares estimate instead spread the misfit's gradient
+        over all rows: from the Gauss–Newton end its first step left the
+        equilibrium (violation 2e-12 to 2e-5), and 22 backtracks and the
+        restoration phase followed (bench_fit's noisy data, measured).
+        """
+        from scipy.sparse.linalg import splu
+
+        k = self.sizes[0]
+        n_eq = int(np.sum(self.lbg == self.ubg))
+        _, grad = self.nlp.get_function("nlp_grad_f")(w0, data)
+        J = self.lagrangian[-1](w0, data)[1].sparse().tocsc()
+        lam_g = np.zeros(J.shape[0])
+        try:
+            lam_g[:n_eq] = splu(J[:n_eq, k:].T.tocsc()).solve(-np.asarray(grad).ravel()[k:])
+        except RuntimeError:        # singular (a fold of the branch): from zero multipliers
+            return None
+        return (lam_g, np.zeros(J.shape[1])) if np.all(np.isfinite(lam_g)) else None
+
     def solve(self, cells, theta, x, lam, data=None):
         """One NLP from (θ, x, λ) with the fit points in ``cells``, to ``data`` (default: the fit's)."""
         warm = {}
@@ -1442,13 +1474,15 @@ class _KKTProblem:
                 # E_fit 2e-8 R, the NLP so scaled failed in restoration; measured)
                 self.scale = 1.0 / max(0.5 * float(res @ res), 1e-8)
             self._build(cells)
+        w0 = np.concatenate([theta, x, lam, self._lifted_start(theta, x)])
+        data = np.asarray(self.inner.data if data is None else data, dtype=float).ravel()
+        if self._duals is None and self.estimate_duals:
+            self._duals = self._adjoint_duals(w0, data)
         if self._duals is not None:
             # the constraints do not depend on the cells: their multipliers
             # carry over (a cold dual start took wild first steps, measured)
             warm = {"lam_g0": self._duals[0], "lam_x0": self._duals[1]}
-        w0 = np.concatenate([theta, x, lam, self._lifted_start(theta, x)])
-        data = self.inner.data if data is None else data
-        sol = self.nlp(x0=w0, p=np.asarray(data, dtype=float).ravel(), lbx=self.lbw,
+        sol = self.nlp(x0=w0, p=data, lbx=self.lbw,
                        ubx=self.ubw, lbg=self.lbg, ubg=self.ubg, **warm)
         self._duals = (np.asarray(sol["lam_g"]).ravel(), np.asarray(sol["lam_x"]).ravel())
         stats = self.nlp.stats()
