@@ -167,6 +167,36 @@ def test_axis_fit_is_robust_to_noise(tmp_path):
     assert np.sqrt(np.mean(np.square(errors))) < 0.15
 
 
+def test_pole_height_is_fitted_not_one_noisy_point(tmp_path, monkeypatch):
+    """A whole section's midline z is measured from the pole, whose height along the axis
+    is fitted near it: the noise of the one point where the axis crosses the trace
+    shifted the whole midline (the fit, its pole pinned, then bends the posterior).
+
+    40 traces of 335 points per half (spacing 1.5 px, as the synthetic inversion
+    data) with σ = ½ px: the shift of the midline beyond the pole (mean over points
+    10-99) scatters less (measured 1.01e-3 R against 1.23e-3 from the crossing, the
+    same traces) and stays unbiased (within 3 standard errors; measured 1.5);
+    without noise, 4e-7 R.
+    """
+    def shifts(height):
+        monkeypatch.setattr(ml, "_pole_height", height)
+        rng, out = np.random.default_rng(5), []
+        for i in range(40):
+            path = write(tmp_path, "xy", f"t{i}", points=half(335), angle_deg=rng.uniform(0, 360),
+                         offset_px=rng.uniform(300, 700, 2), noise_px=0.5, seed=rng)
+            out.append(np.mean(ml.load_midline(path, **SCALE).z[10:] - TRUTH[10:, 1]))
+        return np.array(out)
+
+    fitted = shifts(ml._pole_height)
+    crossing = shifts(lambda half: 0.0)
+    assert np.std(fitted) < 0.9 * np.std(crossing)
+    assert abs(np.mean(fitted)) < 3 * np.std(fitted, ddof=1) / math.sqrt(len(fitted))
+    monkeypatch.undo()
+    clean = ml.load_midline(write(tmp_path, "xy", "clean", points=half(335), angle_deg=37.0,
+                                  offset_px=(600.0, 400.0)), **SCALE)
+    assert abs(np.mean(clean.z[10:] - TRUTH[10:, 1])) < 1e-5
+
+
 def test_average_estimates_mean_and_spread():
     """K midlines with Gaussian noise σ per coordinate: mean within 5σ/√K, spread ≈ σ.
 
