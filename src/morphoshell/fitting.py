@@ -1281,6 +1281,10 @@ class _KKTProblem:
                       # _kkt start again from the reduced optimum.
                       "max_hessian_perturbation": KKT_MAX_PERTURBATION},
             "hess_lag": hess, "jac_g": jac_g, "print_time": False, "error_on_fail": False,
+            # (the data's multipliers are never used: CasADi computed them after
+            # every solve through the whole graph, and on the KKT campaign warned
+            # "Failed to calculate multipliers" where that evaluation failed)
+            "calc_lam_p": False,
             # a trial point outside the energy's domain evaluates to NaN and
             # Ipopt backtracks: CasADi's "NaN detected" lines said nothing to act on
             "show_eval_warnings": False})
