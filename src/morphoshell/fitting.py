@@ -117,8 +117,10 @@ MAX_FAILED_TRIALS = 8
 NM_RESTARTS = 8
 #: Overlap (in cell widths) over which the KKT fit blends neighbouring cells.
 BLEND = 0.05
-#: Mesh of the KKT fit's first, coarse stage (see ``_kkt``).
-COARSE_NODES = 60
+#: Mesh of the KKT fit's first, coarse stage (see ``_kkt``): 40 nodes against 60 took the
+#: bench_fit fit with noise 1.23 s instead of 1.59 s (medians of 5 interleaved, 2026-11-24),
+#: 1.1-2.8 s instead of 1.5-2.9 s on seeds 2-7, noiseless alike (1.61 and 1.57 s); 30: slower.
+COARSE_NODES = 40
 #: Ipopt iterations of each of the KKT fit's NLPs (converging ones took 5-60,
 #: measured; a failing one costs about 0.1 s an iteration at 200 nodes).
 KKT_ITERATIONS = 60
