@@ -1002,7 +1002,7 @@ def _kkt_nlp(spec, inner, tol, max_iterations, theta0, eq, near: bool = True) ->
     against 19-26 on bench_fit's coarse stage, measured).
     """
     inner.eq = eq         # (the NLP's objective is scaled by the misfit there)
-    return _kkt_cells(_KKTProblem(spec, inner, tol, max_iterations, estimate_duals=near),
+    return _kkt_cells(_KKTProblem(spec, inner, tol, max_iterations, adjoint_duals=near),
                       inner, theta0, eq.x, eq.lam_g, inner.data)
 
 
@@ -1031,7 +1031,7 @@ def _kkt_from_coarse(spec, inner, tol, max_iterations) -> tuple:
     theta0, eq, steps = _gauss_newton_steps(spec, inner, KKT_FINE_GN_TOL, KKT_GN_ITERATIONS,
                                             theta0, eq)
     spent += steps
-    nlp = _KKTProblem(spec, inner, tol, max_iterations, mu_init=1e-9, estimate_duals=True)
+    nlp = _KKTProblem(spec, inner, tol, max_iterations, mu_init=1e-9, adjoint_duals=True)
     try:
         theta, x, lam, its, status = _kkt_cells(nlp, inner, theta0, eq.x, eq.lam_g,
                                                 inner.data)
@@ -1184,13 +1184,13 @@ class _KKTProblem:
     """
 
     def __init__(self, spec, inner, tol, max_iterations, mu_init: float = 1e-6,
-                 estimate_duals: bool = False):
+                 adjoint_duals: bool = False):
         self.spec, self.inner, self.tol = spec, inner, tol
         self.max_iter = max_iterations or KKT_ITERATIONS
         self.mu_init = mu_init
         # The first NLP starts from zero multipliers, or from the reduced
-        # problem's adjoints (``estimate_duals``; later NLPs carry theirs over).
-        self.estimate_duals = estimate_duals
+        # problem's adjoints (``adjoint_duals``; later NLPs carry theirs over).
+        self.from_adjoints = adjoint_duals
         self.scale = 1.0
         self.cells: tuple | None = None
         self._duals: tuple | None = None
@@ -1256,6 +1256,7 @@ class _KKTProblem:
                            ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
         problem = {"x": w, "p": target, "f": 0.5 * ca.sumsqr(res), "g": g}
         self.lagrangian = (w, target, sigma, mult, problem["f"], g, hess, jac_g)  # (for tests)
+        self._jac_g, self._n_eq = jac_g, F.shape[0] + lifted.shape[0]     # (rows of g first)
         self.nlp = ca.nlpsol("kkt_fit", "ipopt", problem, {
             # the start is an equilibrium, feasible and usually close: a small
             # initial barrier keeps the inactive |eta| bounds from slowing it
@@ -1459,10 +1460,9 @@ class _KKTProblem:
         """
         from scipy.sparse.linalg import splu
 
-        k = self.sizes[0]
-        n_eq = int(np.sum(self.lbg == self.ubg))
+        k, n_eq = self.sizes[0], self._n_eq
         _, grad = self.nlp.get_function("nlp_grad_f")(w0, data)
-        J = self.lagrangian[-1](w0, data)[1].sparse().tocsc()
+        J = self._jac_g(w0, data)[1].sparse().tocsc()
         lam_g = np.zeros(J.shape[0])
         try:
             lam_g[:n_eq] = splu(J[:n_eq, k:].T.tocsc()).solve(-np.asarray(grad).ravel()[k:])
@@ -1482,7 +1482,7 @@ class _KKTProblem:
             self._build(cells)
         w0 = np.concatenate([theta, x, lam, self._lifted_start(theta, x)])
         data = np.asarray(self.inner.data if data is None else data, dtype=float).ravel()
-        if self._duals is None and self.estimate_duals:
+        if self._duals is None and self.from_adjoints:
             self._duals = self._adjoint_duals(w0, data)
         if self._duals is not None:
             # the constraints do not depend on the cells: their multipliers
