@@ -16,11 +16,17 @@ N    E_fit against pseudotime for the four variants;
 O    fitted κ₁ of the free variant (95 % intervals) and 1/f₁ against
      pseudotime, with the generating κ₁(t) of a synthetic data set; inset f₁.
 
-Writes fig3_D-L, fig3_M, fig3_N, fig3_O (PNG at 300 dpi and PDF) and
-fig3_ablations.json (the observables of the numerical ablations) to --out.
+S2   with ``--held DIR``, a campaign run with ``--held-from VARIANT`` (paper,
+     Supplementary Fig. S2, the test of the held values): E_fit against
+     pseudotime of the fixed-κ₁ variants with their own f₁, κ₃, κ₄ (solid)
+     and with VARIANT's (dashed).
+
+Writes fig3_D-L, fig3_M, fig3_N, fig3_O (and figS2_held) (PNG at 300 dpi and
+PDF) and fig3_ablations.json (the observables of the numerical ablations) to
+--out.
 
 Usage: python scripts/fig3_fits.py --campaign out/campaign [--data data/synthetic_inversion]
-       [--out out/figures] [--nodes 200]
+       [--out out/figures] [--nodes 200] [--held out/campaign_held_flat]
 """
 from __future__ import annotations
 
@@ -56,6 +62,8 @@ def main(argv=None) -> int:
                    help="its data folder (default: data/synthetic_inversion)")
     p.add_argument("--out", type=Path, default=Path("out/figures"), help="output folder")
     p.add_argument("--nodes", type=int, default=200, help="mesh nodes of the ablations")
+    p.add_argument("--held", type=Path, default=None,
+                   help="output folder of a campaign run with --held-from (Fig. S2)")
     args = p.parse_args(argv)
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -66,8 +74,15 @@ def main(argv=None) -> int:
                                       plot_ablation, plot_ablation_overlay, save)
 
     result = load_campaign(args.campaign, args.data)
-    if not result.records:
-        print(f"no campaign results in {args.campaign}", file=sys.stderr)
+    held = load_campaign(args.held, args.data) if args.held else None
+    for folder, res in ((args.campaign, result), (args.held, held)):
+        if res is not None and not res.records:
+            print(f"no campaign results in {folder}", file=sys.stderr)
+            return 2
+    source = held and next((r["held_from"]["variant"] for r in held.records.values()
+                            if "held_from" in r), None)
+    if held is not None and source is None:
+        print(f"{args.held}: not a campaign run with --held-from", file=sys.stderr)
         return 2
     truth_file = args.data / "synthetic_inversion.json"
     truth = json.loads(truth_file.read_text()) if truth_file.exists() else None
@@ -168,9 +183,27 @@ def main(argv=None) -> int:
             inset.tick_params(labelsize=6)
         label_panel(ax, "O")
         save(fig, args.out / "fig3_O.png", ("png", "pdf"), close=True)
+        # ---------------------------------------------------------------- S2
+        if held is not None:
+            fig, ax = plt.subplots(figsize=(SINGLE_COLUMN, 0.75 * SINGLE_COLUMN),
+                                   layout="constrained")
+            hdf = held.to_dataframe()
+            for v in FIXED:
+                for frame, style, what in ((df, "o-", "own"), (hdf, "s--", source)):
+                    sub = frame[(frame.variant == v) & (frame.status == "ok")]
+                    if len(sub) and (what == "own" or v != source):
+                        ax.plot(sub.pseudotime, sub.E_fit, style, ms=3, color=COLORS[v],
+                                label=f"{LABELS[v]}, {what} f₁, κ₃, κ₄")
+            ax.set_xlabel("pseudotime")
+            ax.set_ylabel("E_fit / R")
+            ax.set_yscale("log")
+            ax.legend(fontsize=6)
+            ax.set_title(f"f₁, κ₃, κ₄ of each variant's first fit (solid) or of {source}'s "
+                         f"(dashed)", fontsize=7)
+            save(fig, args.out / "figS2_held.png", ("png", "pdf"), close=True)
     (args.out / "fig3_ablations.json").write_text(json.dumps(ablations, indent=1) + "\n")
-    print(f"wrote fig3_D-L, fig3_M, fig3_N, fig3_O (.png, .pdf) and fig3_ablations.json "
-          f"to {args.out}")
+    print(f"wrote fig3_D-L, fig3_M, fig3_N, fig3_O{', figS2_held' if held else ''} (.png, "
+          f".pdf) and fig3_ablations.json to {args.out}")
     return 0
 
 

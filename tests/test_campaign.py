@@ -102,6 +102,76 @@ def test_resume_redoes_only_the_missing_result_bit_identically(serial, data, tmp
         assert (out / path.name).read_bytes() == path.read_bytes(), path.name
 
 
+def test_held_from_holds_one_variants_first_fit_in_the_others(serial, data, tmp_path):
+    """With held_from every variant but free holds f1, kappa3, kappa4 of that variant's first
+    fit from the first timepoint on, and starts there; the source's stored fit is reused, and
+    a failed source makes every dependent fit fail, saying why."""
+    out = tmp_path / "held"
+    shutil.copytree(serial.out, out)
+    for v in ("unstressed", "free"):
+        for tp in ("t01", "t02", "t03"):
+            (out / f"{tp}_{v}.json").unlink()
+    flat = serial.record("t01", "flat")["parameters"]
+    want = {n: flat[n] for n in ("f1", "kappa3", "kappa4")}
+    result = campaign(data[0], ("unstressed", "free"), method="gradient", workers=1, out=out,
+                      nodes=NODES, timepoints=("t01", "t02"), held_from="flat")
+    # the flat fit of t01 was read, not refitted; nothing else was stored
+    assert [(f["variant"], f["timepoint"], f["computed"]) for f in result.timing["fits"]] == \
+        [("flat", "t01", False), ("unstressed", "t01", True), ("unstressed", "t02", True),
+         ("free", "t01", True), ("free", "t02", True)]
+    for tp in ("t01", "t02"):
+        rec = result.record(tp, "unstressed")
+        assert rec["status"] == "ok" and rec["held"] == want       # exactly: JSON keeps floats
+        assert rec["held_from"] == {"variant": "flat", "timepoint": "t01", "parameters": flat}
+        assert rec["parameters"]["kappa1"] == pytest.approx(1 / want["f1"], rel=1e-12)
+        assert not {"f1", "kappa3", "kappa4"} & set(rec["fitted"])
+        # free holds nothing and is the campaign without held_from (same file, same bytes)
+        free = result.record(tp, "free")
+        assert free["held"] == {} and "held_from" not in free
+        assert free == serial.record(tp, "free")
+    assert result.record("t01", "unstressed")["started_from"] == "the flat fit of t01"
+    # resumed: nothing to do
+    again = campaign(data[0], ("unstressed",), method="gradient", workers=1, out=out,
+                     nodes=NODES, timepoints=("t01", "t02"), held_from="flat")
+    assert again.timing["computed"] == 0
+    # a failed source: recorded, and every dependent fit fails with the reason
+    source = out / "t01_flat.json"
+    rec = json.loads(source.read_text())
+    rec.update(status="failed", message="FitError: made up for the test")
+    source.write_text(json.dumps(rec))
+    failed = campaign(data[0], ("unstressed",), method="gradient", workers=1, out=out,
+                      nodes=NODES, timepoints=("t01", "t02"), held_from="flat")
+    for tp in ("t01", "t02"):
+        rec = failed.record(tp, "unstressed")
+        assert rec["status"] == "failed"
+        assert rec["message"] == ("the held values come from the flat fit of t01, which "
+                                  "failed: FitError: made up for the test")
+
+
+def test_with_the_same_held_values_the_nearest_hypothesis_fits_best(tmp_path_factory):
+    """Through invagination and inversion (kappa1 = 0, 1.05, 1.25, 1.25: generating), with f1,
+    kappa3, kappa4 held at the flat fit of the first timepoint, the variant whose kappa1
+    (0, 1, 1/f1) lies nearest the generating one fits best at every timepoint.  Measured
+    margins: 2.9, 1.5, 4.5 and 3.3 times (60 nodes, 2 traces).  With its own values, fitted
+    to the flat first timepoint, kappa1 = 1/f1 fails the late timepoints of the full
+    sequence (docs/campaigns.md)."""
+    folder = tmp_path_factory.mktemp("late")
+    truth = _generator().make(folder, pseudotimes=(0.0, 0.5, 0.75, 1.0), embryos=2, nodes=120,
+                              quiet=True)
+    fixed = ("flat", "undeformed", "unstressed")
+    result = campaign(folder, fixed, method="gradient", workers=1, nodes=NODES,
+                      out=tmp_path_factory.mktemp("late_fits"), held_from="flat")
+    # the source's first fit, fitted first, is counted once
+    assert len(result.timing["fits"]) == result.timing["computed"] == 4 * len(fixed)
+    f1 = result.record("t01", "flat")["parameters"]["f1"]
+    kappa1 = dict(zip(fixed, (0.0, 1.0, 1 / f1)))
+    for tp, gt in zip(result.timepoints, truth["timepoints"]):
+        E = {v: result.record(tp.name, v)["E_fit"] for v in fixed}
+        assert all(result.record(tp.name, v)["converged"] for v in fixed), tp.name
+        nearest = min(fixed, key=lambda v: abs(kappa1[v] - gt["parameters"]["kappa1"]))
+        assert min(E, key=E.get) == nearest, (tp.name, E)
+
+
 def test_two_worker_local_cluster_gives_the_same_files(serial, data, tmp_path):
     pytest.importorskip("distributed")
     out = tmp_path / "cluster"
@@ -173,6 +243,8 @@ def test_bad_input_is_refused_before_any_work(tmp_path, data):
         campaign(data[0], ("flat", "curly"), out=tmp_path / "x")
     with pytest.raises(ValueError, match="method"):
         campaign(data[0], ("flat",), method="newton", out=tmp_path / "x")
+    with pytest.raises(ValueError, match="held_from = 'curly'"):
+        campaign(data[0], ("flat",), held_from="curly", out=tmp_path / "x")
     # a trace file that is not there: named with its row
     bad = tmp_path / "bad"
     shutil.copytree(data[0], bad)
@@ -362,6 +434,7 @@ def _unconverged(serial, fold: bool):
                                   ["{data}", "--out", "{file}"], ["{data}", "--timepoints", "t99"],
                                   ["{data}", "--method", "newton"], ["{data}", "--workers", "0"],
                                   ["{data}", "--embryo-errors", "curly"],
+                                  ["{data}", "--held-from", "curly"],
                                   ["{data}", "--variants", "flat", "--embryo-errors", "free"],
                                   ["{data}", "--scheduler", "no-port-here"]])
 def test_command_line_refuses_bad_input_with_status_2(args, data, tmp_path, capsys):

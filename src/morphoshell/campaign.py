@@ -208,6 +208,9 @@ class _Task:
     out: str
     start: dict | None
     embryo_errors: bool = False
+    #: ``held_from``: the source variant, its first timepoint and that fit's parameters
+    #: (or its failure ``message``)
+    held_from: dict | None = None
 
 
 @dataclass(frozen=True)
@@ -249,7 +252,9 @@ class CampaignResult:
             curvatures in 1/R), then ``se_<name>`` (Gauss–Newton standard
             errors; NaN for parameters not fitted at that timepoint), and
             with ``embryo_errors`` ``se_embryo_<name>`` (the jackknife over
-            the traces) and ``embryo_t95`` (their 95 % interval is ± this many).
+            the traces) and ``embryo_t95`` (their 95 % interval is ± this many),
+            with ``held_from`` ``held_from`` (the variant whose first fit gave the
+            held values; empty where a variant fitted its own).
         """
         import pandas as pd
 
@@ -271,6 +276,8 @@ class CampaignResult:
                 if embryo is not None:
                     row.update({f"se_embryo_{n}": embryo.get(n, float("nan")) for n in names})
                     row["embryo_t95"] = rec.get("embryo_t95", float("nan"))   # (none: no errors)
+                if any("held_from" in r for r in self.records.values()):
+                    row["held_from"] = rec.get("held_from", {}).get("variant", "")
                 rows.append(row)
         return pd.DataFrame(rows)
 
@@ -305,6 +312,8 @@ def _settings(task: _Task, tp: Timepoint) -> dict:
                 "data": {"file": tp.midline,
                          "sha256": _sha256(Path(task.data_dir) / tp.midline)},
                 "first_start": task.start}
+    if task.held_from is not None and task.variant != "free":
+        settings["held_from"] = task.held_from
     if task.embryo_errors:
         settings["traces"] = [{"file": v, "sha256": _sha256(Path(task.data_dir) / v)}
                               for v in tp.traces]
@@ -391,18 +400,31 @@ def _fit_one(task: _Task, tp: Timepoint, prev: dict | None, first: dict | None,
              settings: dict) -> dict:
     """Fit one timepoint; the record (a failed fit is recorded too, with its message)."""
     data = Midline.from_csv(Path(task.data_dir) / tp.midline)
+    source = task.held_from if task.variant != "free" else None
     hold: dict = {}
-    if prev is None:
+    if prev is None and source is not None:
+        origin = f"the {source['variant']} fit of {source['timepoint']}"
+    elif prev is None:
         start = _first_start(task.start)
         origin = "start" if task.start else "family defaults"
     else:
         start = _start_problem(prev["parameters"])
         origin = f"fit of {prev['timepoint']}"
-        if task.variant != "free":
+        if task.variant != "free" and source is None:
             hold = {n: first["parameters"][n] for n in HELD}
     rec = {"label": "fit of the Volvox model (morphoshell.campaign)",
            "timepoint": tp.name, "pseudotime": tp.pseudotime, "variant": task.variant,
            **settings, "started_from": origin, "held": hold}
+    if source is not None:
+        if "parameters" not in source:
+            return {**rec, "status": "failed",
+                    "message": f"the held values come from the {source['variant']} fit of "
+                               f"{source['timepoint']}, which failed: {source['message']}"}
+        # every timepoint holds them, the first too (paper, SI Fig. S2's test)
+        hold = {n: source["parameters"][n] for n in HELD}
+        rec["held"] = hold
+        if prev is None:
+            start = _start_problem(source["parameters"])
     try:
         spec = volvox_spec(task.variant, start=start, hold=hold)
     except ValueError as exc:
@@ -587,7 +609,8 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
              scheduler: str | None = None, out: str | Path = "campaign", resume: bool = True,
              nodes: int = 200, start: dict | None = None,
              timepoints: Sequence[str] | None = None,
-             embryo_errors: bool | str | Sequence[str] = False) -> CampaignResult:
+             embryo_errors: bool | str | Sequence[str] = False,
+             held_from: str | None = None) -> CampaignResult:
     """Fit every timepoint of a data set for each variant (paper Fig. 3 N, O).
 
     Parameters
@@ -631,6 +654,14 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
         freedom): a 95 % interval is ± ``embryo_t95`` of them (Student's t,
         2.78 for n = 5).  Costs n more fits.  ``True`` for every variant, or
         the variants (names, or a comma-separated string) that get them.
+    held_from : str, optional
+        A variant whose fit of the first timepoint gives f₁, κ₃, κ₄ to every
+        other variant but ``free``, held from the first timepoint on (and
+        that fit's parameters their first start), instead of each fitting
+        its own at the first timepoint: the paper's test of the held values
+        (Supplementary, Fig. S2).  That fit runs first (stored in ``out``
+        like the others, whether or not the variant is in ``variants``).
+        With its values the variants differ in κ₁ alone.
 
     Returns
     -------
@@ -648,6 +679,8 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
     """
     selected = timepoints
     timepoints, variants, out = _validate(data_dir, variants, method, nodes, workers, out, start)
+    if held_from is not None and held_from not in VARIANTS:
+        raise ValueError(f"held_from = {held_from!r} must be one of {list(VARIANTS)}")
     jackknifed = _jackknifed(embryo_errors, variants)
     if selected is not None:
         selected = _names(selected)
@@ -661,6 +694,11 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
     tasks = [_Task(str(Path(data_dir).resolve()), timepoints, v, method, int(nodes),
                    str(out.resolve()), dict(start) if start else None, v in jackknifed)
              for v in variants]
+    source, first_report = None, []
+    if held_from is not None:
+        source = replace(tasks[variants.index(held_from)] if held_from in variants else
+                         replace(tasks[0], variant=held_from, embryo_errors=False),
+                         timepoints=timepoints[:1])
     total = len(tasks) * len(timepoints)
     t0 = time.perf_counter()
     reports: list = [None] * len(tasks)
@@ -673,6 +711,11 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
                 for v in variants:
                     _result_path(out, tp.name, v).unlink(missing_ok=True)
         backend = backend_name(executor)
+        if source is not None:
+            if not resume:
+                _result_path(out, timepoints[0].name, held_from).unlink(missing_ok=True)
+            held, first_report = _held_from(executor, source)
+            tasks = [replace(t, held_from=held) for t in tasks]
         watched = _watch(executor, tasks, reports, out, timepoints, variants)
         for _ in progress(watched, total=total, desc="fits", unit="fit"):
             pass
@@ -683,15 +726,31 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
             rec = _read_record(_result_path(out, tp.name, v))
             if rec is not None:
                 records[(tp.name, v)] = rec
-    done = [r for rep in reports for r in rep if r["computed"]]
+    # (the source's own task read its first fit back: reported once, as fitted before)
+    fits = [dict(r, variant=held_from) for r in first_report] + [
+        dict(r, variant=tasks[i].variant) for i, rep in enumerate(reports) for r in rep
+        if not (first_report and tasks[i].variant == held_from and r is rep[0])]
+    done = [r for r in fits if r["computed"]]
     result = CampaignResult(out, timepoints, variants, records, {
         "seconds": seconds, "workers": 1 if backend == "serial" else workers,
         "backend": backend, "computed": len(done),
-        "fit_seconds": float(sum(r["seconds"] for r in done)),
-        "fits": [dict(r, variant=tasks[i].variant) for i, rep in enumerate(reports)
-                 for r in rep]})
+        "fit_seconds": float(sum(r["seconds"] for r in done)), "fits": fits})
     _write_atomic(out / SUMMARY, result.to_dataframe().to_csv(index=False))
     return result
+
+
+def _held_from(executor, source: _Task) -> tuple[dict, list[dict]]:
+    """Fit (or read) the first timepoint of ``source``: the held values of ``held_from``.
+
+    Returns the task's ``held_from`` and the fit's report (:func:`_fit_variant`).
+    """
+    report = executor.submit(_fit_variant, source).result()
+    tp = source.timepoints[0]
+    rec = _read_record(_result_path(Path(source.out), tp.name, source.variant)) or {}
+    held = {"variant": source.variant, "timepoint": tp.name}
+    if rec.get("status") != "ok":
+        return {**held, "message": rec.get("message", "no result was written")}, report
+    return {**held, "parameters": rec["parameters"]}, report
 
 
 def _watch(executor, tasks, reports, out, timepoints, variants) -> Iterator[None]:

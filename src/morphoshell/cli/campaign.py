@@ -75,6 +75,12 @@ def register(sub) -> None:
                         "column of timepoints.csv) with each left out in turn, and record the "
                         "jackknife standard errors (one more fit per trace); for every variant, "
                         "or only those listed (e.g. --embryo-errors free)")
+    p.add_argument("--held-from", choices=VARIANTS, default=None, metavar="VARIANT",
+                   help="hold f1, kappa3, kappa4 in every variant but free at the values of "
+                        "this variant's fit of the first timepoint, from the first timepoint on "
+                        "(the paper's test of the held values, SI Fig. S2: the variants then "
+                        "differ in kappa1 alone); default: each variant fits its own at the "
+                        "first timepoint")
     add_executor(p, "one per variant, at most one per CPU core")
     p.add_argument("--out", type=_out_dir, default=Path("campaign"), metavar="DIR",
                    help="output folder (default: ./campaign)")
@@ -94,14 +100,14 @@ def _campaign(args) -> int:
     result = campaign(args.data_dir, args.variants, method=args.method, workers=args.workers,
                       scheduler=args.scheduler, out=args.out, resume=args.resume,
                       nodes=args.nodes, timepoints=args.timepoints,
-                      embryo_errors=args.embryo_errors)
+                      embryo_errors=args.embryo_errors, held_from=args.held_from)
     t = result.timing
     failed = sum(r["status"] != "ok" for r in result.records.values())
     per = t["fit_seconds"] / t["computed"] if t["computed"] else math.nan
     print(f"campaign of {len(result.timepoints)} timepoints x {len(result.variants)} variants "
           f"({args.method}, {args.nodes} nodes) on {t['workers']} worker(s) ({t['backend']}): "
           f"{t['computed']} fits in {t['seconds']:.3g} s ({per:.3g} s per fit), "
-          f"{len(result.records) - t['computed']} reused, {failed} failed")
+          f"{sum(not f['computed'] for f in t['fits'])} reused, {failed} failed")
     df = result.to_dataframe()
     if len(df):
         table = df.pivot(index=["timepoint", "pseudotime"], columns="variant", values="E_fit")
