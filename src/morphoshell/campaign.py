@@ -715,7 +715,9 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
             if not resume:
                 _result_path(out, timepoints[0].name, held_from).unlink(missing_ok=True)
             held, first_report = _held_from(executor, source)
-            tasks = [replace(t, held_from=held) for t in tasks]
+            # (the source itself runs as without held_from, from its stored first fit)
+            tasks = [t if t.variant == held_from else replace(t, held_from=held)
+                     for t in tasks]
         watched = _watch(executor, tasks, reports, out, timepoints, variants)
         for _ in progress(watched, total=total, desc="fits", unit="fit"):
             pass
