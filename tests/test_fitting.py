@@ -282,6 +282,36 @@ def test_a_kkt_fit_from_a_given_state_starts_there(monkeypatch):
     assert result.converged and abs(result.E_fit / reference.E_fit - 1) < 1e-3
 
 
+def test_a_kkt_start_on_a_bound_stays_an_equilibrium(monkeypatch):
+    """A start with a parameter on its bound (Gauss-Newton steps that ended on a breakpoint's
+    box) is not pushed off the equilibrium: Ipopt's default push of 1e-3 into the bound gave
+    a first iterate violating the constraints by 4 and an NLP that failed after 60
+    iterations (synthetic KKT campaign, undeformed t03)."""
+    from dataclasses import replace
+
+    from morphoshell import fitting
+
+    base = _three_parameter_spec()
+    # the start value of s2 is its box's lower edge (and the truth lies inside)
+    spec = replace(base, bounds={**base.bounds, "s2": (START.params["s2"], 1.9)})
+    data = synthetic_midline(TRUE, spec.base, nodes=NODES)
+    violations = []
+    solve = fitting._KKTProblem.solve
+
+    def recording(self, *args, **kwargs):
+        try:
+            return solve(self, *args, **kwargs)
+        finally:
+            violations.append(self.nlp.stats()["iterations"]["inf_pr"][0])
+
+    monkeypatch.setattr(fitting._KKTProblem, "solve", recording)
+    result = fit(spec, data, "kkt", nodes=NODES)
+    # (1e-3 of push in s2 moves the mesh under the state: 1e-2 or more)
+    assert violations and violations[0] < 1e-6, violations
+    assert result.converged and result.E_fit < 1e-6
+    assert abs(result.parameters["s2"] - TRUE.params["s2"]) < 1e-4
+
+
 @pytest.mark.parametrize("warm", [False, True])
 def test_a_failed_kkt_nlp_is_followed_by_one_from_the_reduced_optimum(monkeypatch, warm):
     """When the KKT fit's first NLP fails (as from the family's defaults or a previous
