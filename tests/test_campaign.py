@@ -134,6 +134,11 @@ def test_held_from_holds_one_variants_first_fit_in_the_others(serial, data, tmp_
     again = campaign(data[0], ("unstressed",), method="gradient", workers=1, out=out,
                      nodes=NODES, timepoints=("t01", "t02"), held_from="flat")
     assert again.timing["computed"] == 0
+    # nothing holds them: the source's fit is not run
+    alone = campaign(data[0], ("free",), method="gradient", workers=1, out=out, nodes=NODES,
+                     timepoints=("t01", "t02"), held_from="undeformed")
+    assert [f["variant"] for f in alone.timing["fits"]] == ["free", "free"]
+    assert not (out / "t01_undeformed.json").exists()
     # a failed source: recorded, and every dependent fit fails with the reason
     source = out / "t01_flat.json"
     rec = json.loads(source.read_text())

@@ -660,8 +660,9 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
         that fit's parameters their first start), instead of each fitting
         its own at the first timepoint: the paper's test of the held values
         (Supplementary, Fig. S2).  That fit runs first (stored in ``out``
-        like the others, whether or not the variant is in ``variants``).
-        With its values the variants differ in κ₁ alone.
+        like the others, whether or not the variant is in ``variants``;
+        not at all when no other variant but ``free`` runs).  With its
+        values the variants differ in κ₁ alone.
 
     Returns
     -------
@@ -695,7 +696,7 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
                    str(out.resolve()), dict(start) if start else None, v in jackknifed)
              for v in variants]
     source, first_report = None, []
-    if held_from is not None:
+    if held_from is not None and any(v not in ("free", held_from) for v in variants):
         source = replace(tasks[variants.index(held_from)] if held_from in variants else
                          replace(tasks[0], variant=held_from, embryo_errors=False),
                          timepoints=timepoints[:1])
