@@ -916,8 +916,8 @@ def _gradient(spec, inner, tol, max_iterations, theta0=None):
                             max_nfev=max_iterations or 200)
     except _Stalled:
         return (best[0], evaluations[0], False,
-                f"stopped after {MAX_FAILED_TRIALS} consecutive trial points whose inner "
-                f"solve failed (a fold of the branch?); the best point reached is returned")
+                f"stopped at the best point reached, after {MAX_FAILED_TRIALS} consecutive "
+                f"trial points whose inner solve failed (a fold of the branch?)")
     return out.x, int(out.nfev), bool(out.status > 0), str(out.message)
 
 
