@@ -561,6 +561,24 @@ def test_fit_command_names_a_midline_of_the_wrong_scale(midline_csv, tmp_path, c
     assert not out.exists()
 
 
+def test_a_failed_fit_exits_3_saying_what_to_try(midline_csv, tmp_path, capsys, monkeypatch):
+    """A fit that fails (as the KKT fit of a mid-inversion stage from the family's defaults)
+    exits with status 3 in one line that keeps the solver's reason and says what to try;
+    nothing is written."""
+    import morphoshell.fitting as fitting
+
+    def failing(*args, **kwargs):
+        raise FitError("the KKT fit's NLP failed", "Maximum_Iterations_Exceeded")
+
+    monkeypatch.setattr(fitting, "fit", failing)
+    out = tmp_path / "fit.json"
+    assert main(["fit", str(midline_csv), "--variant", "flat", "--json", str(out)]) == 3
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "the KKT fit's NLP failed" in err
+    assert "Maximum_Iterations_Exceeded" in err and "--start FIT.json" in err
+    assert not out.exists()
+
+
 def test_a_failed_trial_is_rejected_without_continuation(monkeypatch):
     """A least-squares trial whose warm solve fails raises at once; any other solve at θ
     continues from the nearest state (the fit's own points must be reached)."""

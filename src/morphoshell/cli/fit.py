@@ -83,12 +83,20 @@ def _fit(args) -> int:
     from ..fitting import N_FIT, check_midline, fit
     from ..io import write_csv, write_json
     from ..midlines import load_midline
+    from ..results import SolverError
 
     spec = _start_problem(args)
     midline = load_midline(args.midline, args.format, n=N_FIT, section=args.section,
                            pixel_size_um=args.pixel_size, radius_um=args.radius_um)
     check_midline(spec, midline, f"{args.midline}: the midline")
-    result = fit(spec, midline, args.method, nodes=args.nodes)
+    try:
+        result = fit(spec, midline, args.method, nodes=args.nodes)
+    except SolverError as exc:
+        # (measured: a mid-inversion stage fitted from the family's defaults)
+        where = "--start FIT.json (a fit of a neighbouring stage)" if args.start is None \
+            else "a --start nearer the data"
+        raise type(exc)(f"{exc}. A fit from far away can cross folds of the branch: try {where}, "
+                        f"or another --method", exc.status, exc.last_iterate) from None
     print(result.summary())
     print(f"  E_fit = {result.E_fit:.6g} R over {N_FIT} points; {result.inner_solves} inner "
           f"solves, {result.seconds:.2f} s")
