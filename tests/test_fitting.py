@@ -579,6 +579,49 @@ def test_a_failed_fit_exits_3_saying_what_to_try(midline_csv, tmp_path, capsys, 
     assert not out.exists()
 
 
+def test_a_stalled_gradient_fit_keeps_the_state_of_its_best_point():
+    """When every trial fails (a fold of the branch) the gradient fit stops at its best point,
+    and that point's state is made current again: it may have left the archive of recent
+    states, and the re-solve from another one failed the whole fit (measured: unstressed on
+    the synthetic t06 from the family's defaults)."""
+    import types
+
+    import morphoshell.fitting as fitting
+    from morphoshell.results import SolverError
+
+    target = np.array([1.0, 2.0])
+
+    class Inner:
+        n, trials, kept, costs = 2, 0, None, {}
+
+        def solve(self, theta, trial=False):
+            if trial:
+                self.trials += 1
+                if self.trials > 3:
+                    raise SolverError("no convergence", "Restoration_Failed")
+            return ("state", tuple(np.asarray(theta, dtype=float)))
+
+        def residuals(self, eq):       # cubic: Gauss-Newton needs many steps
+            r = np.concatenate([(np.asarray(eq[1]) - target) ** 3, [0.0, 0.0]])
+            self.costs[eq[1]] = float(r @ r)
+            return r
+
+        def jacobian(self, eq, theta):
+            return np.vstack([np.diag(3 * (np.asarray(theta) - target) ** 2), np.zeros((2, 2))])
+
+        def keep(self, theta, eq):
+            self.kept = (tuple(theta), eq)
+
+    inner = Inner()
+    spec = types.SimpleNamespace(theta0=np.array([0.0, 0.0]),
+                                 box=lambda: (np.full(2, -np.inf), np.full(2, np.inf)))
+    theta, evaluations, converged, message = fitting._gradient(spec, inner, 1e-15, 200)
+    best = min(inner.costs, key=inner.costs.get)
+    assert not converged and "best point reached" in message
+    assert evaluations == 3 + fitting.MAX_FAILED_TRIALS
+    assert tuple(theta) == best and inner.kept == (best, ("state", best))
+
+
 def test_a_failed_trial_is_rejected_without_continuation(monkeypatch):
     """A least-squares trial whose warm solve fails raises at once; any other solve at θ
     continues from the nearest state (the fit's own points must be reached)."""
