@@ -259,6 +259,7 @@ class CampaignResult:
         import pandas as pd
 
         rows = []
+        held_from = any("held_from" in r for r in self.records.values())
         for tp in self.timepoints:
             for v in self.variants:
                 rec = self.records.get((tp.name, v))
@@ -276,7 +277,7 @@ class CampaignResult:
                 if embryo is not None:
                     row.update({f"se_embryo_{n}": embryo.get(n, float("nan")) for n in names})
                     row["embryo_t95"] = rec.get("embryo_t95", float("nan"))   # (none: no errors)
-                if any("held_from" in r for r in self.records.values()):
+                if held_from:
                     row["held_from"] = rec.get("held_from", {}).get("variant", "")
                 rows.append(row)
         return pd.DataFrame(rows)
@@ -401,30 +402,26 @@ def _fit_one(task: _Task, tp: Timepoint, prev: dict | None, first: dict | None,
     """Fit one timepoint; the record (a failed fit is recorded too, with its message)."""
     data = Midline.from_csv(Path(task.data_dir) / tp.midline)
     source = task.held_from if task.variant != "free" else None
-    hold: dict = {}
-    if prev is None and source is not None:
-        origin = f"the {source['variant']} fit of {source['timepoint']}"
-    elif prev is None:
-        start = _first_start(task.start)
-        origin = "start" if task.start else "family defaults"
+    if prev is not None:
+        start, origin = _start_problem(prev["parameters"]), f"fit of {prev['timepoint']}"
+    elif source is not None:        # (the start is that fit, below, once it is known to exist)
+        start, origin = None, f"the {source['variant']} fit of {source['timepoint']}"
     else:
-        start = _start_problem(prev["parameters"])
-        origin = f"fit of {prev['timepoint']}"
-        if task.variant != "free" and source is None:
-            hold = {n: first["parameters"][n] for n in HELD}
+        start, origin = _first_start(task.start), "start" if task.start else "family defaults"
+    # held: the source's values at every timepoint, the first too (paper, SI Fig. S2's
+    # test); else, but in free, the first fit's after the first timepoint
+    fixed = source.get("parameters") if source is not None else (
+        first["parameters"] if prev is not None and task.variant != "free" else None)
+    hold = {n: fixed[n] for n in HELD} if fixed else {}
     rec = {"label": "fit of the Volvox model (morphoshell.campaign)",
            "timepoint": tp.name, "pseudotime": tp.pseudotime, "variant": task.variant,
            **settings, "started_from": origin, "held": hold}
-    if source is not None:
-        if "parameters" not in source:
-            return {**rec, "status": "failed",
-                    "message": f"the held values come from the {source['variant']} fit of "
-                               f"{source['timepoint']}, which failed: {source['message']}"}
-        # every timepoint holds them, the first too (paper, SI Fig. S2's test)
-        hold = {n: source["parameters"][n] for n in HELD}
-        rec["held"] = hold
-        if prev is None:
-            start = _start_problem(source["parameters"])
+    if source is not None and fixed is None:
+        return {**rec, "status": "failed",
+                "message": f"the held values come from the {source['variant']} fit of "
+                           f"{source['timepoint']}, which failed: {source['message']}"}
+    if prev is None and source is not None:
+        start = _start_problem(fixed)
     try:
         spec = volvox_spec(task.variant, start=start, hold=hold)
     except ValueError as exc:
