@@ -278,8 +278,9 @@ def _invert(W, dW, target: np.ndarray) -> np.ndarray:
                                       dg[i], dg[i + 1])
     # W's round-off (sums of terms up to ~W(1)): below it Newton only bounces
     tol = 1e-14 * np.abs(target) + 1e-17
+
     x = np.where(np.abs(f_lo) <= np.abs(f_hi), lo, hi)
-    done = (np.abs(f_lo) <= tol) | (np.abs(f_hi) <= tol)
+    done = _reached(f_lo, lo, d_lo, tol) | _reached(f_hi, hi, d_hi, tol)
     for _ in range(80):
         a = np.flatnonzero(~done)   # only the unconverged nodes are re-evaluated
         if not len(a):
@@ -298,13 +299,24 @@ def _invert(W, dW, target: np.ndarray) -> np.ndarray:
                 | (h - l <= 2.3e-16 * h))
         x[a] = np.where(stop & (use_lo | use_hi), new, np.where(stop, x[a], new))
         f, d = W(x[a]) - target[a], dW(x[a])
-        done[a] = stop | (np.abs(f) <= tol[a])
+        done[a] = stop | _reached(f, x[a], d, tol[a])
         below = f < 0
         lo[a], f_lo[a], d_lo[a] = (np.where(below, x[a], l), np.where(below, f, f_lo[a]),
                                    np.where(below, d, d_lo[a]))
         hi[a], f_hi[a], d_hi[a] = (np.where(below, h, x[a]), np.where(below, f_hi[a], f),
                                    np.where(below, d_hi[a], d))
     return x
+
+
+def _reached(f, x, d, tol) -> np.ndarray:
+    """|W(x) − target| = |f| is within W's round-off ``tol`` or within what one ulp of x changes W by.
+
+    Next to a pole dW ~ d^(1/q − 1) exceeds 1e3 and the root is not
+    representable to ``tol``: bisection then spent ~30 evaluations of W closing
+    the bracket (mesh of 71 nodes, order 6: 39 evaluations, 9 ms).  The slope
+    is infinite only at the pole itself, which is never a root.
+    """
+    return np.abs(f) <= tol + 2.3e-16 * np.abs(x) * np.where(np.isfinite(d), d, 0.0)
 
 
 class Knot(NamedTuple):
