@@ -157,7 +157,7 @@ def test_with_the_same_held_values_the_nearest_hypothesis_fits_best(tmp_path_fac
     """Through invagination and inversion (kappa1 = 0, 1.05, 1.25, 1.25: generating), with f1,
     kappa3, kappa4 held at the flat fit of the first timepoint, the variant whose kappa1
     (0, 1, 1/f1) lies nearest the generating one fits best at every timepoint.  Measured
-    margins: 2.9, 1.5, 4.5 and 3.3 times (60 nodes, 2 traces).  With its own values, fitted
+    margins: 3.4, 1.5, 4.9 and 3.9 times (60 nodes, 2 traces).  With its own values, fitted
     to the flat first timepoint, kappa1 = 1/f1 fails the late timepoints of the full
     sequence (docs/campaigns.md)."""
     folder = tmp_path_factory.mktemp("late")
@@ -174,9 +174,13 @@ def test_with_the_same_held_values_the_nearest_hypothesis_fits_best(tmp_path_fac
     kappa1 = dict(zip(fixed, (0.0, 1.0, 1 / f1)))
     for tp, gt in zip(result.timepoints, truth["timepoints"]):
         E = {v: result.record(tp.name, v)["E_fit"] for v in fixed}
-        assert all(result.record(tp.name, v)["converged"] for v in fixed), tp.name
         nearest = min(fixed, key=lambda v: abs(kappa1[v] - gt["parameters"]["kappa1"]))
+        assert result.record(tp.name, nearest)["converged"], tp.name
         assert min(E, key=E.get) == nearest, (tp.name, E)
+        # a farther hypothesis that stops unconverged (flat at t03 stalls at a fold, 24x
+        # worse) may not be at its optimum: only a wide margin then counts
+        for v in fixed:
+            assert result.record(tp.name, v)["converged"] or E[v] > 5 * E[nearest], (tp.name, v)
 
 
 def test_two_worker_local_cluster_gives_the_same_files(serial, data, tmp_path):
@@ -289,12 +293,12 @@ def test_embryo_errors_are_the_jackknife_over_the_traces(data, tmp_path):
 
 
 def test_the_jackknife_fits_each_average_with_one_trace_left_out(data, monkeypatch):
-    """Traces (a, b, a): the averages left are (a+b)/2, a, (a+b)/2.  A stand-in fit returns
-    the mean r of what it is given, so the jackknife error is (2/3)|a - (a+b)/2| = |a - b|/3."""
+    """Traces (a, b, a): the averages left are those of (b, a), (a, a), (a, b).  A stand-in fit
+    returns the mean r of what it is given, so the jackknife error is (2/3)|aa - ab|."""
     from types import SimpleNamespace
 
     from morphoshell import campaign as module
-    from morphoshell.midlines import Midline
+    from morphoshell.midlines import Midline, average
 
     def mean_r(spec, midline, method, nodes, start):
         v = float(np.mean(midline.r))
@@ -308,9 +312,14 @@ def test_the_jackknife_fits_each_average_with_one_trace_left_out(data, monkeypat
     task = module._Task(str(data[0]), (tp3,), "free", "gradient", NODES, "unused", None, True)
     params = data[1]["timepoints"][0]["parameters"]
     got = module._embryo_errors(task, tp3, {}, params, None)
+    ab, aa = (float(np.mean(average([Midline.from_csv(data[0] / t) for t in pair]).r))
+              for pair in ((tp.traces[1], tp.traces[0]), (tp.traces[0], tp.traces[0])))
     assert [f["parameters"]["kappa1"] for f in got["embryo_fits"]] == pytest.approx(
-        [(a + b) / 2, a, (a + b) / 2], rel=1e-15)
-    assert got["embryo_standard_errors"]["kappa1"] == pytest.approx(abs(a - b) / 3, rel=1e-12)
+        [ab, aa, ab], rel=1e-15)
+    # (the averages are resampled in their own arclength, smoother than a single trace's)
+    assert ab == pytest.approx((a + b) / 2, rel=1e-3) and aa == pytest.approx(a, rel=1e-3)
+    assert got["embryo_standard_errors"]["kappa1"] == pytest.approx(abs(aa - ab) * 2 / 3,
+                                                                     rel=1e-12)
     assert got["embryo_t95"] == pytest.approx(4.3027, abs=1e-4)        # Student's t, 2 dof
 
 
