@@ -183,6 +183,49 @@ def test_with_the_same_held_values_the_nearest_hypothesis_fits_best(tmp_path_fac
             assert result.record(tp.name, v)["converged"] or E[v] > 5 * E[nearest], (tp.name, v)
 
 
+def test_no_jackknife_errors_for_parameters_pinned_on_a_constraint(data, monkeypatch):
+    """Refits that end on a constraint are pinned there alike, so their spread is not the
+    estimator's: with one of three leave-one-out fits on s3 - s2 = sigma, s2 and s3 have no
+    jackknife errors (None, NaN in the table) and the record says why; the other parameters
+    keep theirs.  The same when only the fit of the average ends there."""
+    from types import SimpleNamespace
+
+    from morphoshell import campaign as module
+
+    calls = []
+
+    def second_pinned(spec, midline, method, nodes, start):
+        calls.append(midline)
+        return SimpleNamespace(converged=True, near_fold=False, E_fit=0.0, equilibrium=None,
+                               constrained=("s3 - s2 = sigma",) if len(calls) == 2 else (),
+                               parameters={n: float(len(calls)) for n in spec.fitted})
+
+    monkeypatch.setattr(module, "fit", second_pinned)
+    tp = read_timepoints(data[0])[0]
+    tp3 = module.Timepoint(tp.name, tp.pseudotime, tp.midline, (*tp.traces, tp.traces[0]))
+    task = module._Task(str(data[0]), (tp3,), "free", "gradient", NODES, "unused", None, True)
+    params = data[1]["timepoints"][0]["parameters"]
+    got = module._embryo_errors(task, tp3, {}, params, None)
+    se = got["embryo_standard_errors"]
+    assert se["s2"] is None and se["s3"] is None
+    assert se["kappa1"] == pytest.approx(np.sqrt(2 / 3 * 2))      # fits 1, 2, 3
+    assert got["embryo_errors_message"] == ("no jackknife errors of s2, s3: the fit or fits "
+                                            "with one trace left out end on the constraint "
+                                            "s3 - s2 = sigma")
+    rec = {"status": "ok", "E_fit": 0.01, "converged": True, "parameters": {"s2": 1.6},
+           "standard_errors": {"s2": None}, **got}
+    row = module.CampaignResult(Path("."), (tp3,), ("free",),
+                                {(tp3.name, "free"): rec}).to_dataframe().iloc[0]
+    assert np.isnan(row["se_s2"]) and np.isnan(row["se_embryo_s2"])
+    calls.clear()
+    monkeypatch.setattr(module, "fit", lambda spec, *a, **k: SimpleNamespace(
+        converged=True, near_fold=False, E_fit=0.0, equilibrium=None, constrained=(),
+        parameters={n: 1.0 for n in spec.fitted}))
+    got = module._embryo_errors(task, tp3, {}, params, None, ("s1 = sigma (from the pole)",))
+    assert got["embryo_standard_errors"]["s1"] is None
+    assert got["embryo_standard_errors"]["s2"] == 0.0
+
+
 # (three timepoints leave Fig. 3 O's legend below the axes taller than the axes: no
 # such warning on the 12-timepoint sequence, checked with -W error)
 @pytest.mark.filterwarnings("ignore:constrained_layout not applied")
@@ -319,8 +362,12 @@ def test_embryo_errors_are_the_jackknife_over_the_traces(data, tmp_path):
     assert all(f["E_fit"] > rec["E_fit"] for f in fits)
     errors = rec["embryo_standard_errors"]
     assert set(errors) == set(rec["standard_errors"])
+    pinned = {c for f in fits for c in f["constrained"]} | set(rec["constrained"])
     for name, se in errors.items():
         a, b = (f["parameters"][name] for f in fits)
+        if se is None:          # (a parameter pinned on a constraint has none)
+            assert any(name in c.split() for c in pinned), name
+            continue
         assert se == pytest.approx(abs(a - b) / 2, rel=1e-12)   # sqrt((n-1)/n sum d^2), n = 2
     df = result.to_dataframe()
     row = df[df.variant == "free"].iloc[0]
@@ -339,7 +386,7 @@ def test_the_jackknife_fits_each_average_with_one_trace_left_out(data, monkeypat
 
     def mean_r(spec, midline, method, nodes, start):
         v = float(np.mean(midline.r))
-        return SimpleNamespace(converged=True, E_fit=0.0, equilibrium=None,
+        return SimpleNamespace(converged=True, E_fit=0.0, equilibrium=None, constrained=(),
                                parameters={n: v for n in spec.fitted})
 
     monkeypatch.setattr(module, "fit", mean_r)
@@ -374,6 +421,7 @@ def test_no_jackknife_errors_unless_every_trace_left_out_fits(data, monkeypatch)
         calls.append(midline)
         ok = len(calls) != 2
         return SimpleNamespace(converged=ok, near_fold=not ok, E_fit=0.0, equilibrium=None,
+                               constrained=(),
                                parameters={n: float(len(calls)) for n in spec.fitted})
 
     monkeypatch.setattr(module, "fit", second_fails)
