@@ -173,10 +173,17 @@ class DirectSolver:
         self.check(problem)
         p = problem.parameter_vector()
         q = self.disc.check_anchors(p, anchors)
+        origin = None
         if warm_start is not None and x0 is None:
             if warm_start.x is None or len(warm_start.x) != self.disc.layout.size:
                 raise ValueError("warm_start must be a direct solution on a solver of this mesh")
             x0, lam_g0 = warm_start.x, warm_start.lam_g
+            if warm_start.problem.structure == self.structure and \
+                    len(warm_start.anchors) == self.disc.anchors:
+                # the warm start's own parameters: Newton's first step is a chord step
+                p_w = warm_start.problem.parameter_vector()
+                q_w = np.asarray(warm_start.anchors, dtype=float)
+                origin = (p_w, q_w, lambda: self.disc.pre_numeric(p_w, q_w))
         if x0 is None:
             x0 = self.disc.initial_guess(p, q)
         D = self.disc.cell_data(p, q)
@@ -185,7 +192,8 @@ class DirectSolver:
             if self._newton is None:
                 self._newton = NewtonBackend(self.disc, tol=self.tol,
                                              acceptable_tol=self.backend.acceptable_tol)
-            res = self._newton.solve(x0, self.disc.pre_numeric(p, q), lam_g0)
+            res = self._newton.solve(x0, self.disc.pre_numeric(p, q), lam_g0, at=(p, q),
+                                     origin=origin)
         if res is None:
             res = self.backend.solve(x0, D, np.zeros(self.disc.constraints) if lam_g0 is None
                                      else lam_g0, data=lambda: self.disc.pre_numeric(p, q))

@@ -71,7 +71,8 @@ _log = logging.getLogger("morphoshell")
 
 #: Cell kernels that are compiled to C (the evaluations of Ipopt's callbacks
 #: and of results); the rest of :func:`_cell_functions` stays in CasADi.
-COMPILED_KERNELS = ("f", "energy", "g", "grad", "jac", "hess", "fields", "newton", "kkt_data")
+COMPILED_KERNELS = ("f", "energy", "g", "grad", "jac", "hess", "fields", "newton", "newton_rhs",
+                    "kkt_data")
 
 #: Relative size ε of the (λ, λ) block −ε W⁻¹ of the Newton system (:meth:`Discretisation.newton_system`).
 NEWTON_EPSILON = 1e-8
@@ -436,7 +437,7 @@ class Discretisation:
         self.kernels = "compiled" if compiled is not None else "casadi"
         self._cell = compiled or _cell_functions(S)
         self.numeric = self._nlp(self._cell)
-        self._newton = None
+        self._newton = self._newton_rhs = None
         self._theta_scatters: dict = {}
         self._symbolic = None if compiled is not None else self.numeric
         self._fields = self.numeric["fields"]
@@ -817,7 +818,7 @@ class Discretisation:
         return self._scatter((n + m, n + m), rows, cols, src, n_tri * cells)
 
     def newton_system(self) -> ca.Function:
-        """``(x, D, λ, ρ) -> (K, rhs, ‖∇f + Jᵀλ‖∞, ‖g‖∞, ‖λ‖₁)``: the certified Newton system.
+        """``(x, D, λ, ρ) -> (K, rhs, ‖∇f + Jᵀλ‖∞, ‖g‖∞, ‖λ‖₁, W)``: the certified Newton system.
 
         K = [[M, Jᵀ], [J, −Δ]] with M = ∇²ℒ + Jᵀ W J, W > 0 per constraint
         scaled by ρ, Δ = ε W⁻¹ (ε = :data:`NEWTON_EPSILON`);
@@ -825,23 +826,43 @@ class Discretisation:
         solution is Newton's step on the KKT conditions (to a relative ε), and
         its inertia certifies a minimum (see :mod:`morphoshell.newton`).
         Assembled from one kernel per cell, built on first use.  K is
-        (n + m) × (n + m), sparse and symmetric; rhs (n + m,).
+        (n + m) × (n + m), sparse and symmetric; rhs (n + m,); W (m,).
         """
         if self._newton is None:
             S, cells = self.stages, self.layout.cells
             lam, rho = ca.MX.sym("lam", self.constraints), ca.MX.sym("rho")
-            tri, dual, rx, g = self._cell["newton"].map(cells)(
+            tri, dual, rx, g, w = self._cell["newton"].map(cells)(
                 self.cell_unknowns(self.x), ca.reshape(self.D, -1, cells),
                 ca.reshape(lam, S, cells), rho)
             sp, B = self._local_kkt_scatter(symmetric=True)
-            K = ca.MX(sp, ca.mtimes(B, ca.vec(tri)))
-            A = self._patterns["grad"]
-            dual = ca.mtimes(A, ca.vec(dual))
-            rhs = -ca.vertcat(ca.mtimes(A, ca.vec(rx)), ca.vec(g))
-            self._newton = ca.Function("newton_system", [self.x, self.D, lam, rho],
-                                       [K, rhs, ca.norm_inf(dual), ca.norm_inf(g),
-                                        ca.norm_1(lam)])
+            self._newton = ca.Function(
+                "newton_system", [self.x, self.D, lam, rho],
+                [ca.MX(sp, ca.mtimes(B, ca.vec(tri))),
+                 *self._newton_residual(lam, dual, rx, g), ca.vec(w)])
         return self._newton
+
+    def newton_rhs(self) -> ca.Function:
+        """``(x, D, λ, W) -> (rhs, ‖∇f + Jᵀλ‖∞, ‖g‖∞, ‖λ‖₁)``: :meth:`newton_system`'s
+        right-hand side and errors for given weights W (m,), without the Hessian.
+
+        With W those of a factorised K, a step with that factorisation is a
+        chord (simplified Newton) step (:mod:`morphoshell.newton`).
+        """
+        if self._newton_rhs is None:
+            S, cells = self.stages, self.layout.cells
+            lam, w = ca.MX.sym("lam", self.constraints), ca.MX.sym("w", self.constraints)
+            dual, rx, g = self._cell["newton_rhs"].map(cells)(
+                self.cell_unknowns(self.x), ca.reshape(self.D, -1, cells),
+                ca.reshape(lam, S, cells), ca.reshape(w, S, cells))
+            self._newton_rhs = ca.Function("newton_rhs", [self.x, self.D, lam, w],
+                                           self._newton_residual(lam, dual, rx, g))
+        return self._newton_rhs
+
+    def _newton_residual(self, lam, dual, rx, g) -> list:
+        """rhs, ‖∇f + Jᵀλ‖∞, ‖g‖∞ and ‖λ‖₁ from the cells' shares (side by side)."""
+        A = self._patterns["grad"]
+        return [-ca.vertcat(ca.mtimes(A, ca.vec(rx)), ca.vec(g)),
+                ca.norm_inf(ca.mtimes(A, ca.vec(dual))), ca.norm_inf(g), ca.norm_1(lam)]
 
     def kkt_curvature(self, x, lam, D, mu_F, mu_dz, mu_dS, ds) -> ca.MX:
         """Upper triangle of ∂²/∂(x, λ)² [μ_F·F(x, λ) − Σ_c (μ_dz,c Δz_c + μ_dS,c ΔS_c)].
@@ -1029,7 +1050,7 @@ def _cell_functions(stages: int) -> dict[str, ca.Function]:
     kkt = ca.vertcat(ca.gradient(ell, z) + ca.mtimes(ca.jacobian(g, z).T, lam), g)
     ku, lu = np.triu_indices(3 * S + 2)
     return {
-        "newton": _newton_cell(z, D, lam, kkt[:3 * S + 2], g, ca.substitute(H, sigma, 1.0)),
+        **_newton_cells(z, D, lam, kkt[:3 * S + 2], g, ca.substitute(H, sigma, 1.0)),
         "f": ca.Function("cell_f", [z, D], [ell]),
         "energy": ca.Function("cell_energy", [z, D], [energy]),
         "g": ca.Function("cell_g", [z, D], [g]),
@@ -1044,24 +1065,28 @@ def _cell_functions(stages: int) -> dict[str, ca.Function]:
     }
 
 
-def _newton_cell(z, D, lam, dual, g, H) -> ca.Function:
+def _newton_cells(z, D, lam, dual, g, H) -> dict[str, ca.Function]:
     """One cell's share of the certified Newton system (:meth:`Discretisation.newton_system`).
 
-    Weights W_k = ρ Σ_l |H_ll| / ‖∇g_k‖² (the cell's Hessian scale per unit
-    of the constraint's gradient; any W > 0 is valid), the penalised Hessian
-    M = H + Jᵀ W J, and the local block [[M, Jᵀ], [J, −ε W⁻¹]] as its upper
-    triangle; with the stationarity residual ``dual`` = ∇ℓ + Jᵀλ, the
-    right-hand side's x part ∇ℓ + Jᵀ(λ + W g) and g.
+    ``"newton"``: weights W_k = ρ Σ_l |H_ll| / ‖∇g_k‖² (the cell's Hessian
+    scale per unit of the constraint's gradient; any W > 0 is valid), the
+    penalised Hessian M = H + Jᵀ W J, and the local block
+    [[M, Jᵀ], [J, −ε W⁻¹]] as its upper triangle; with the stationarity
+    residual ``dual`` = ∇ℓ + Jᵀλ, the right-hand side's x part
+    ∇ℓ + Jᵀ(λ + W g), g, and W.  ``"newton_rhs"``: the same right-hand side
+    for given weights W, without the Hessian (:meth:`Discretisation.newton_rhs`).
     """
-    rho = ca.SX.sym("rho")
+    rho, w_in = ca.SX.sym("rho"), ca.SX.sym("w", g.shape[0])
     Jc = ca.jacobian(g, z)
     w = rho * ca.sum1(ca.fabs(ca.diag(H))) / ca.fmax(ca.sum2(Jc * Jc), 1e-300)
     M = H + ca.mtimes(Jc.T, ca.mtimes(ca.diag(w), Jc))
     K = ca.blockcat([[M, Jc.T], [Jc, ca.diag(-NEWTON_EPSILON / w)]])
     ku, lu = np.triu_indices(K.shape[0])
-    return ca.Function("cell_newton", [z, D, lam, rho],
-                       [ca.vertcat(*[K[int(i), int(j)] for i, j in zip(ku, lu)]), dual,
-                        dual + ca.mtimes(Jc.T, w * g), g])
+    return {"newton": ca.Function("cell_newton", [z, D, lam, rho],
+                                  [ca.vertcat(*[K[int(i), int(j)] for i, j in zip(ku, lu)]),
+                                   dual, dual + ca.mtimes(Jc.T, w * g), g, w]),
+            "newton_rhs": ca.Function("cell_newton_rhs", [z, D, lam, w_in],
+                                      [dual, dual + ca.mtimes(Jc.T, w_in * g), g])}
 
 
 @lru_cache(maxsize=None)
