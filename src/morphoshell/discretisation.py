@@ -58,7 +58,7 @@ import numpy as np
 from . import _IMPORTED_NS
 from ._buffered import Buffered
 from ._compiled import (_CFLAGS, LARGE, _blake2b, _compiled_library, _renamed,
-                        compiled_point_function, kernel_cache_dir)
+                        compiled_point_function, compiled_point_map, kernel_cache_dir)
 from .energy import LOCAL_OUTPUTS, intrinsic_function, pointwise
 from .layouts import CELL_DATA, INTRINSIC
 from .mesh import Knot, check_monotone, shell_points
@@ -419,7 +419,7 @@ class Discretisation:
         # the same numbers from compiled code, for evaluation (no derivatives)
         self.pre_numeric = ca.Function(
             "cell_data_numeric", [self.p, self.q],
-            [ca.vec(compiled_point_function(pre).map(m)(s_gauss.T, ds.T, weights, scale, self.p))],
+            [ca.vec(compiled_point_map(pre, m, s_gauss.T, ds.T, weights, scale, self.p))],
             ["p", "q"], ["D"])
         n_D = len(CELL_DATA)
         self.x = ca.MX.sym("x", n)

@@ -18,7 +18,7 @@ import casadi as ca
 import numpy as np
 
 from ._buffered import Buffered
-from ._compiled import compiled_point_function
+from ._compiled import point_map_function
 from ._validate import lookup
 
 __all__ = ["Geometry", "SPHERE", "DISC", "GEOMETRIES", "get_geometry"]
@@ -63,7 +63,7 @@ class Geometry:
                 self._cache.clear()
                 return self.numeric(s)
             # (compiled code where available: evaluation only, 3-4x faster)
-            self._cache[s.size] = Buffered(compiled_point_function(self._cache["f"]).map(s.size))
+            self._cache[s.size] = Buffered(point_map_function(self._cache["f"], s.size))
         out = self._cache[s.size](s.ravel())[0].reshape(-1, 3)
         return tuple(out[:, i].reshape(s.shape) for i in range(3))
 

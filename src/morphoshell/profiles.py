@@ -31,7 +31,7 @@ import casadi as ca
 import numpy as np
 
 from ._buffered import Buffered
-from ._compiled import compiled_point_function
+from ._compiled import point_map_function
 from ._validate import lookup
 
 __all__ = ["Profiles", "ProfileFamily", "FAMILIES", "register_family", "get_family",
@@ -129,7 +129,7 @@ class ProfileFamily:
         n = s.size     # a mapped Function takes every input once per point
         # compiled code where available (evaluation only: 3-4x faster)
         f = self._mapped("numeric", n,
-                         lambda: Buffered(compiled_point_function(self.function()).map(n)))
+                         lambda: Buffered(point_map_function(self.function(), n)))
         out = f(s, np.tile(np.asarray(values, dtype=float), n), np.full(n, cut), np.full(n, end))
         return Profiles(*out)
 
