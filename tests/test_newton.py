@@ -59,8 +59,8 @@ def test_far_warm_starts_fall_back_to_ipopt():
 
 
 def test_warm_solves_start_with_a_chord_step():
-    """The first step reuses the factorisation at the warm start (kept from the solve that
-    produced it) and ends where Ipopt ends, in as many steps as Newton takes."""
+    """The first step reuses the system at the warm start (kept from the solve that produced
+    it) and ends where Ipopt ends, in as many steps as Newton takes."""
     problem = Problem("anisotropic", {"f0": 0.1}, h=0.3, cut=0.3)
     solver = DirectSolver(problem.structure, 200)
     plain = DirectSolver(problem.structure, 200)
@@ -88,15 +88,15 @@ def _without_chord(solver):
 
 
 def test_a_chord_step_does_not_depend_on_what_was_solved_before():
-    """Kept or built again, the warm start's factorisation is the same: results agree to the
-    last bit (campaigns resumed in another process; workers with other histories)."""
+    """Kept or built again, the warm start's system is the same: results agree to the last
+    bit (campaigns resumed in another process; workers with other histories)."""
     problem = Problem("volvox", h=0.15, opening=0.3)
     a = DirectSolver(problem.structure, 120)
     base = a.solve(problem)
     one = a.solve(problem.with_updates(kappa2=-7.2), warm_start=base)
     a.solve(problem.with_updates(kappa2=-6.5), warm_start=base)    # another history
     target = problem.with_updates(kappa2=-7.4)
-    kept = a.solve(target, warm_start=one)              # one's factorisation was kept
+    kept = a.solve(target, warm_start=one)              # one's system was kept
     fresh = DirectSolver(problem.structure, 120).solve(target, warm_start=one)    # built now
     assert kept.solver.details["chord"] and fresh.solver.details["chord"]
     assert np.array_equal(kept.x, fresh.x) and np.array_equal(kept.lam_g, fresh.lam_g)
@@ -107,10 +107,9 @@ def test_a_chord_step_that_does_not_help_is_dropped():
     solver = DirectSolver(problem.structure, 200)
     base = solver.solve(problem)
     one = solver.solve(problem.with_updates(f0=0.101), warm_start=base)
-    # a factorisation that steps the wrong way (that of -K) in place of one's
+    # a system that steps the wrong way (-K) in place of one's
     kept = next(k for k in solver._newton._kept
                 if k.key is not None and np.array_equal(k.key[0], one.x))
-    kept.lin.nfact(-kept.K)
     kept.K = -kept.K
     target = problem.with_updates(f0=0.102)
     new = solver.solve(target, warm_start=one)
@@ -119,7 +118,7 @@ def test_a_chord_step_that_does_not_help_is_dropped():
     assert np.max(np.abs(new.x - exact)) < 1e-8
 
 
-def test_a_failed_newton_solve_keeps_no_factorisation():
+def test_a_failed_newton_solve_keeps_no_system():
     problem = Problem("anisotropic", {"f0": 0.1}, h=0.3, cut=0.3)
     solver = DirectSolver(problem.structure, 200)
     base = solver.solve(problem)
@@ -129,6 +128,6 @@ def test_a_failed_newton_solve_keeps_no_factorisation():
     assert ok is not None and sum(k.key is not None for k in newton._kept) == 1
     far = solver.disc.pre(problem.with_updates(f0=0.3, h=0.1).parameter_vector(), np.zeros(0))
     assert newton.solve(ok.x, far, ok.lam_g, at=(p, np.zeros(0))) is None
-    # the failed solve factorised in the other slot, and keeps nothing there
+    # the failed solve keeps nothing: the first result's system only
     keys = [k.key for k in newton._kept if k.key is not None]
     assert len(keys) == 1 and np.array_equal(keys[0][0], ok.x)

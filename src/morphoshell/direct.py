@@ -70,7 +70,12 @@ def _to_points(s_c: np.ndarray, v: np.ndarray, s: np.ndarray) -> np.ndarray:
     extrapolated linearly beyond the first and last Gauss points; every row at once."""
     i = np.minimum(np.maximum(np.searchsorted(s_c, s), 1), len(s_c) - 1)   # (np.clip: 4x slower)
     t = (s - s_c[i - 1]) / (s_c[i] - s_c[i - 1])
-    return v[..., i - 1] + t * (v[..., i] - v[..., i - 1])
+    # in place, with take: 0.37 ms instead of 0.65 for 14 fields at 6399 points (same bits)
+    a, b = v.take(i - 1, axis=-1), v.take(i, axis=-1)
+    b -= a
+    b *= t
+    b += a
+    return b
 
 
 class DirectSolver:

@@ -33,13 +33,18 @@ p_w, the first step solves the system K_w of that point (its own parameters,
 ρ = 1) with the right-hand side at the new parameters: a chord (simplified
 Newton) step, whose error is that of a Newton step times the distance
 between the two parameter sets (Deuflhard 2004, §2.1.4).  K_w is usually
-factorised already: it is the certificate of the solve that produced the
-warm start, or of an earlier warm start from the same point (two are
-kept).  The step then needs neither the Hessian nor a factorisation: at
-3200 nodes a warm solve took 26-28 ms instead of 33 (measured).  K_w
-depends on the warm start alone, never on what was solved before, so a
-result is the same to the last bit whether K_w was kept or built again
-(campaigns resumed in another process, workers that solved other things).
+at hand: the certificate of the solve that produced the warm start, or of
+an earlier warm start from the same point (two are kept).  The step then
+needs no Hessian.  K_w depends on the warm start alone, never on what was
+solved before, so a result is the same to the last bit whether K_w was
+kept or built again (campaigns resumed in another process, workers that
+solved other things).
+
+Factorisations.  ``Linsol.solve(A, b)`` factorises A itself (measured: a
+solve with 2A after a factorisation of A returns half the solution), so a
+step is one ``solve``, and only the returned point is factorised apart, for
+its inertia: three factorisations for two steps (there were five, with a
+factorisation before every solve).
 """
 from __future__ import annotations
 
@@ -81,8 +86,8 @@ class NewtonBackend:
         self.tol, self.acceptable_tol, self.max_iter = float(tol), float(acceptable_tol), max_iter
         self._system, self._rhs = nlp.newton_system(), nlp.newton_rhs()
         self.n, self.m = nlp.x.shape[0], self._system.size1_in(2)
-        sparsity = self._system.sparsity_out(0)
-        self._kept = [_Factorisation(ca.Linsol(f"newton{i}", "ldl", sparsity)) for i in (0, 1)]
+        self._linsol = ca.Linsol("newton", "ldl", self._system.sparsity_out(0))
+        self._kept = [_System(), _System()]
         self._clock = 0
 
     def solve(self, x0: np.ndarray, D, lam_g0: np.ndarray, at: tuple = (),
@@ -96,8 +101,8 @@ class NewtonBackend:
         D : casadi.DM
             The cell data of the parameters to solve for.
         at : tuple of ndarray
-            Those parameters (p, q): with them the factorisation at the result
-            is kept for a chord step from it.
+            Those parameters (p, q): with them the system at the result is
+            kept for a chord step from it.
         origin : tuple, optional
             ``(p_w, q_w, data)`` when (x0, λ0) solves the parameters p_w, q_w
             (a warm start), with ``data()`` their cell data: the first step is
@@ -116,21 +121,18 @@ class NewtonBackend:
         # lists convert to DM three times faster than NumPy arrays
         xk, lk = ca.DM(np.asarray(x0).tolist()), ca.DM(np.asarray(lam_g0).tolist())
         chord = None if origin is None else self._chord(x0, lam_g0, xk, lk, origin)
-        work = (min(self._kept, key=lambda k: k.used) if chord is None
-                else self._kept[chord is self._kept[0]])
-        work.key = None                      # its factorisation is about to change
+        self._last = None
         res = NotImplemented
         if chord is not None:
-            res = self._iterate(xk, D, lk, t0, work, chord)
+            res = self._iterate(xk, D, lk, t0, chord)
         if res is NotImplemented:
-            res = self._iterate(xk, D, lk, t0, work)
-        if res is not None and res.details["stability"] == "newton_ldl" and at:
-            self._keep(work, (res.x, res.lam_g, *at))
+            res = self._iterate(xk, D, lk, t0)
+        if res is not None and at and self._last is not None:
+            self._keep((res.x, res.lam_g, *at), *self._last)
         return res
 
-    def _chord(self, x0, lam0, xk, lk, origin) -> "_Factorisation | None":
-        """The factorised system at the warm start ``origin`` (kept, or built now into the
-        least recently used slot); None if it cannot be factorised."""
+    def _chord(self, x0, lam0, xk, lk, origin) -> "_System":
+        """The system (K, W) at the warm start ``origin``: kept, or evaluated now."""
         p_w, q_w, data = origin
         key = (np.asarray(x0), np.asarray(lam0), np.asarray(p_w), np.asarray(q_w))
         for kept in self._kept:
@@ -138,31 +140,29 @@ class NewtonBackend:
                 self._clock += 1
                 kept.used = self._clock
                 return kept
-        kept = min(self._kept, key=lambda k: k.used)
-        kept.key = None
         K, *_, w = self._system(xk, data(), lk, 1.0)
-        try:
-            kept.lin.nfact(K)
-        except RuntimeError:        # singular: no chord step
-            return None
-        kept.K, kept.w = K, w
-        self._keep(kept, key)
+        return self._keep(key, K, w)
+
+    def _keep(self, key: tuple, K, w) -> "_System":
+        """Keep (K, W) at ``key`` in place of the least recently used."""
+        kept = min(self._kept, key=lambda k: k.used)
+        self._clock += 1
+        kept.key, kept.K, kept.w, kept.used = (tuple(np.array(v, dtype=float) for v in key),
+                                               K, w, self._clock)
         return kept
 
-    def _keep(self, kept: "_Factorisation", key: tuple) -> None:
-        self._clock += 1
-        kept.key, kept.used = tuple(np.array(v, dtype=float) for v in key), self._clock
+    def _iterate(self, xk, D, lk, t0: float, chord: "_System | None" = None):
+        """Newton's iterations from (xk, λk), the first a chord step with the system ``chord``.
 
-    def _iterate(self, xk, D, lk, t0: float, work: "_Factorisation",
-                 chord: "_Factorisation | None" = None):
-        """Newton's iterations from (xk, λk), factorising in ``work``; the first a chord step
-        with the factorisation ``chord``.  NotImplemented if the chord step did not reduce
-        the error, or the start needs no step (the caller starts again without it)."""
+        NotImplemented if the chord step did not reduce the error, or the
+        start needs no step (the caller starts again without it).
+        """
         n, m = self.n, self.m
-        lin, last = work.lin, np.inf
+        lin, last = self._linsol, np.inf
         for it in range(self.max_iter + 1):
             if chord is not None and it == 0:
-                rhs, dual, primal, l1 = self._rhs(xk, D, lk, chord.w)
+                K, w = chord.K, chord.w
+                rhs, dual, primal, l1 = self._rhs(xk, D, lk, w)
             else:
                 K, rhs, dual, primal, l1, w = self._system(xk, D, lk, 1.0)
             dual, primal = float(dual), float(primal)
@@ -174,26 +174,25 @@ class NewtonBackend:
             if not done and (not np.isfinite(err) or (it >= 2 and err > last)
                              or it == self.max_iter):
                 return None       # not converging: Ipopt's globalisation is needed
-            if chord is not None and it == 0:
-                step = chord.lin.solve(chord.K, rhs)
-            else:
+            if done:
                 lin.nfact(K)
-                work.K, work.w = K, w
-                if done:
-                    how = self._certify(lin, K, xk, D, lk)
-                    if how is None:
-                        return None
-                    return BackendResult(np.array(xk).ravel(), np.array(lk).ravel(),
-                                         "Newton_Converged", it, time.perf_counter() - t0, True,
-                                         {"stability": how, "inertia_correction": 0.0,
-                                          "route": "newton", "chord": chord is not None})
-                step = lin.solve(K, rhs)
+                how = self._certify(K, xk, D, lk)
+                if how is None:
+                    return None
+                # kept for a chord step from here: ρ = 1's system only, as _chord builds
+                self._last = (K, w) if how == "newton_ldl" else None
+                return BackendResult(np.array(xk).ravel(), np.array(lk).ravel(),
+                                     "Newton_Converged", it, time.perf_counter() - t0, True,
+                                     {"stability": how, "inertia_correction": 0.0,
+                                      "route": "newton", "chord": chord is not None})
+            step = lin.solve(K, rhs)          # (which factorises K)
             xk, lk = xk + step[:n], lk + step[n:]
             last = err
         return None
 
-    def _certify(self, lin, K, x, D, lam) -> str | None:
+    def _certify(self, K, x, D, lam) -> str | None:
         """The certificate of the factorised K at the returned point, trying ρ = 100 if ρ = 1 fails."""
+        lin = self._linsol
         if lin.neig(K) == self.m and lin.rank(K) == self.n + self.m:
             return "newton_ldl"
         K = self._system(x, D, lam, 100.0)[0]
@@ -203,13 +202,13 @@ class NewtonBackend:
         return None
 
 
-class _Factorisation:
-    """A linear solver holding the factorised K (ρ = 1) of the point ``key`` = (x, λ, p, q)."""
+class _System:
+    """The Newton system K (ρ = 1) and weights W of the point ``key`` = (x, λ, p, q)."""
 
-    __slots__ = ("lin", "key", "K", "w", "used")
+    __slots__ = ("key", "K", "w", "used")
 
-    def __init__(self, lin):
-        self.lin, self.key, self.K, self.w, self.used = lin, None, None, None, 0
+    def __init__(self):
+        self.key, self.K, self.w, self.used = None, None, None, 0
 
     def matches(self, key: tuple) -> bool:
         return self.key is not None and all(
