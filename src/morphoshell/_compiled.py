@@ -32,8 +32,10 @@ _CFLAGS = ("-O2", "-fPIC", "-shared")
 BLOCK = 64
 #: Fewest points mapped in blocks: below, the map's calls cost less than padding
 #: and cutting the blocks adds to a build (measured: 3 ms of a 12 ms build at 35
-#: nodes when every map was blocked; at 6398 points a block map saves 0.7 ms a call).
-BLOCKED_POINTS = 16 * BLOCK
+#: nodes when every map, the cell kernels' too, was blocked).  The point maps
+#: (parameter data, geometry, profiles) cost nothing measurable in builds from
+#: 128 points on, and save 0.17 ms of a 2.3 ms warm solve at 200 nodes (399 points).
+BLOCKED_POINTS = 2 * BLOCK
 #: Optimisation for large kernels (tens of thousands of SX instructions), where
 #: gcc's -O2 takes minutes: the KKT fit's per-point misfit kernel (59 000
 #: instructions) took over 5 min at -O2 and 12 s at -O1, and then evaluated
