@@ -198,6 +198,7 @@ def test_no_jackknife_errors_for_parameters_pinned_on_a_constraint(data, monkeyp
         calls.append(midline)
         return SimpleNamespace(converged=True, near_fold=False, E_fit=0.0, equilibrium=None,
                                constrained=("s3 - s2 = sigma",) if len(calls) == 2 else (),
+                               pinned=("s2", "s3") if len(calls) == 2 else (),
                                parameters={n: float(len(calls)) for n in spec.fitted})
 
     monkeypatch.setattr(module, "fit", second_pinned)
@@ -220,8 +221,9 @@ def test_no_jackknife_errors_for_parameters_pinned_on_a_constraint(data, monkeyp
     calls.clear()
     monkeypatch.setattr(module, "fit", lambda spec, *a, **k: SimpleNamespace(
         converged=True, near_fold=False, E_fit=0.0, equilibrium=None, constrained=(),
-        parameters={n: 1.0 for n in spec.fitted}))
-    got = module._embryo_errors(task, tp3, {}, params, None, ("s1 = sigma (from the pole)",))
+        pinned=(), parameters={n: 1.0 for n in spec.fitted}))
+    got = module._embryo_errors(task, tp3, {}, params, None, ("s1 = sigma (from the pole)",),
+                                ("s1",))
     assert got["embryo_standard_errors"]["s1"] is None
     assert got["embryo_standard_errors"]["s2"] == 0.0
 
@@ -387,7 +389,7 @@ def test_the_jackknife_fits_each_average_with_one_trace_left_out(data, monkeypat
     def mean_r(spec, midline, method, nodes, start):
         v = float(np.mean(midline.r))
         return SimpleNamespace(converged=True, E_fit=0.0, equilibrium=None, constrained=(),
-                               parameters={n: v for n in spec.fitted})
+                               pinned=(), parameters={n: v for n in spec.fitted})
 
     monkeypatch.setattr(module, "fit", mean_r)
     tp = read_timepoints(data[0])[0]
@@ -421,7 +423,7 @@ def test_no_jackknife_errors_unless_every_trace_left_out_fits(data, monkeypatch)
         calls.append(midline)
         ok = len(calls) != 2
         return SimpleNamespace(converged=ok, near_fold=not ok, E_fit=0.0, equilibrium=None,
-                               constrained=(),
+                               constrained=(), pinned=(),
                                parameters={n: float(len(calls)) for n in spec.fitted})
 
     monkeypatch.setattr(module, "fit", second_fails)

@@ -668,6 +668,7 @@ def test_a_fit_that_ends_on_a_constraint_says_so_and_gives_no_errors_there():
     assert pinned.parameters["s3"] - pinned.parameters["s2"] == pytest.approx(p["sigma"],
                                                                               abs=1e-4)
     assert all(np.isnan(pinned.standard_errors[n]) for n in ("s2", "s3"))
+    assert pinned.pinned == ("s2", "s3")
     assert "ends on the constraint s3 - s2 = sigma" in pinned.message
     d = pinned.to_dict()
     assert d["standard_errors"] == {"s2": None, "s3": None}
@@ -675,6 +676,7 @@ def test_a_fit_that_ends_on_a_constraint_says_so_and_gives_no_errors_there():
     assert "(on a constraint)" in pinned.summary()
     inside = fit(spec, synthetic_midline(base, nodes=60), "gradient", nodes=60)
     assert inside.constrained == () and all(np.isfinite(list(inside.standard_errors.values())))
+    assert inside.pinned == ()
 
 
 def test_on_constraints_names_the_ordering_and_the_bounds():
@@ -730,3 +732,4 @@ def test_a_gradient_fit_that_stalls_short_of_a_stationary_point_is_not_converged
     assert "not a stationary point" in message
     theta, _, converged, message = fitting._gradient(spec, Inner(False), 1e-10, 200)
     assert converged and theta == pytest.approx(target, abs=1e-8)
+

@@ -454,7 +454,8 @@ def _fit_one(task: _Task, tp: Timepoint, prev: dict | None, first: dict | None,
     d.pop("seconds")             # wall-clock time would break bit-identical resumes
     eq = result.equilibrium
     if task.embryo_errors and tp.traces:
-        d.update(_embryo_errors(task, tp, hold, d["parameters"], eq, d["constrained"]))
+        d.update(_embryo_errors(task, tp, hold, d["parameters"], eq, result.constrained,
+                                result.pinned))
     return {**rec, **d, "status": "ok", "continued": continued,
             "state": {k: np.asarray(getattr(eq, k), dtype=float).tolist()
                       for k in ("s", "r", "psi", "f_s")}}
@@ -497,7 +498,8 @@ def _fit_on(task: _Task, hold: dict, spec, data, start) -> tuple[FitResult, bool
 
 
 def _embryo_errors(task: _Task, tp: Timepoint, hold: dict, parameters: dict,
-                   eq: Equilibrium, constrained: Sequence[str] = ()) -> dict:
+                   eq: Equilibrium, constrained: Sequence[str] = (),
+                   pinned: Sequence[str] = ()) -> dict:
     """Jackknife standard errors of the average's fit over its traces.
 
     The average of the n traces with trace k left out is fitted from the
@@ -533,7 +535,7 @@ def _embryo_errors(task: _Task, tp: Timepoint, hold: dict, parameters: dict,
         fits.append({"left_out": path, "status": "ok", "converged": r.converged,
                      "E_fit": r.E_fit, "continued": continued,
                      "parameters": {n: r.parameters[n] for n in spec.fitted},
-                     "constrained": list(r.constrained)})
+                     "constrained": list(r.constrained), "pinned": list(r.pinned)})
     good = [f["parameters"] for f in fits if f["status"] == "ok" and f["converged"]]
     if len(good) < len(fits):
         # A spread over the fits that converged is not the jackknife of the estimator:
@@ -551,19 +553,15 @@ def _embryo_errors(task: _Task, tp: Timepoint, hold: dict, parameters: dict,
     # Refits that end on a constraint (s3 - s2 = sigma, ...) are pinned there alike: their
     # spread is not the estimator's (replicate t02 data: jackknife errors of s2 of 0.001-0.002
     # against misses of 0.018).  Those parameters get none.
+    # (the fits' own record of it: FitResult.pinned, the parameters without a standard error)
     active = {c for f in fits for c in f["constrained"]} | set(constrained)
-    pinned = [p for p in spec.fitted if any(_in_constraint(p, c) for c in active)]
+    pinned = [p for p in spec.fitted if p in set(pinned).union(*(f["pinned"] for f in fits))]
     if pinned:
         se.update({p: None for p in pinned})
         out["embryo_errors_message"] = (
             f"no jackknife errors of {', '.join(pinned)}: the fit or fits with one trace left "
             f"out end on the constraint {', '.join(sorted(active))}")
     return out
-
-
-def _in_constraint(name: str, constraint: str) -> bool:
-    """Whether parameter ``name`` appears in a constraint's description (FitResult.constrained)."""
-    return name in constraint.replace("-", " ").replace("=", " ").split()
 
 
 def _number(value) -> float:

@@ -634,6 +634,11 @@ class FitResult:
         return "\n".join(lines)
 
     @property
+    def pinned(self) -> tuple[str, ...]:
+        """The fitted parameters in the constraints the fit ends on (no standard error)."""
+        return tuple(n for n in self.fitted if not np.isfinite(self.standard_errors[n]))
+
+    @property
     def near_fold(self) -> bool:
         """Whether the fitted state is near a fold of the inner branch (:data:`FOLD_RATIO`).
 
