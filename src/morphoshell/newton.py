@@ -140,9 +140,11 @@ class NewtonBackend:
             ``details["chord"]`` whether the first step was a chord step.
         """
         t0 = time.perf_counter()
-        # lists convert to DM three times faster than NumPy arrays
-        xk, lk = ca.DM(np.asarray(x0).tolist()), ca.DM(np.asarray(lam_g0).tolist())
-        chord = None if origin is None else self._chord(x0, lam_g0, xk, lk, origin)
+        chord = None if origin is None else self._chord(x0, lam_g0, origin)
+        if chord is not None:
+            xk, lk = chord.start          # (kept: the conversion is 0.12 ms at 200 nodes)
+        else:        # lists convert to DM three times faster than NumPy arrays
+            xk, lk = ca.DM(np.asarray(x0).tolist()), ca.DM(np.asarray(lam_g0).tolist())
         self._last = None
         res = NotImplemented
         if chord is not None:
@@ -153,7 +155,7 @@ class NewtonBackend:
             self._keep((res.x, res.lam_g, *at), *self._last)
         return res
 
-    def _chord(self, x0, lam0, xk, lk, origin) -> "_System":
+    def _chord(self, x0, lam0, origin) -> "_System":
         """The system (K, W) at the warm start ``origin``: kept, or evaluated now."""
         p_w, q_w, data = origin
         key = (np.asarray(x0), np.asarray(lam0), np.asarray(p_w), np.asarray(q_w))
@@ -162,15 +164,17 @@ class NewtonBackend:
                 self._clock += 1
                 kept.used = self._clock
                 return kept
+        xk, lk = ca.DM(key[0].tolist()), ca.DM(key[1].tolist())
         K, *_, w = self._system(xk, data(), lk, 1.0)
-        return self._keep(key, K, w)
+        return self._keep(key, K, w, (xk, lk))
 
-    def _keep(self, key: tuple, K, w) -> "_System":
-        """Keep (K, W) at ``key`` in place of the least recently used."""
+    def _keep(self, key: tuple, K, w, start) -> "_System":
+        """Keep (K, W) at ``key`` = (x, λ, p, q), with (x, λ) as ``start`` (DM), in place of
+        the least recently used."""
         kept = min(self._kept, key=lambda k: k.used)
         self._clock += 1
-        kept.key, kept.K, kept.w, kept.used = (tuple(np.array(v, dtype=float) for v in key),
-                                               K, w, self._clock)
+        kept.key, kept.K, kept.w, kept.start, kept.used = (
+            tuple(np.array(v, dtype=float) for v in key), K, w, start, self._clock)
         return kept
 
     def _iterate(self, xk, D, lk, t0: float, chord: "_System | None" = None):
@@ -212,7 +216,7 @@ class NewtonBackend:
                 if how is None:
                     return fail
                 # kept for a chord step from here: ρ = 1's system only, as _chord builds
-                self._last = (K, w) if how == "newton_ldl" else None
+                self._last = (K, w, (xk, lk)) if how == "newton_ldl" else None
                 return BackendResult(np.array(xk).ravel(), np.array(lk).ravel(),
                                      "Newton_Converged", it, time.perf_counter() - t0, True,
                                      {"stability": how, "inertia_correction": 0.0,
@@ -238,12 +242,13 @@ class NewtonBackend:
 
 
 class _System:
-    """The Newton system K (ρ = 1) and weights W of the point ``key`` = (x, λ, p, q)."""
+    """The Newton system K (ρ = 1) and weights W of the point ``key`` = (x, λ, p, q);
+    ``start`` its (x, λ) as CasADi matrices."""
 
-    __slots__ = ("key", "K", "w", "used")
+    __slots__ = ("key", "K", "w", "start", "used")
 
     def __init__(self):
-        self.key, self.K, self.w, self.used = None, None, None, 0
+        self.key, self.K, self.w, self.start, self.used = None, None, None, None, 0
 
     def matches(self, key: tuple) -> bool:
         return self.key is not None and all(
