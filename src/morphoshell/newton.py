@@ -38,7 +38,11 @@ an earlier warm start from the same point (two are kept).  The step then
 needs no Hessian.  K_w depends on the warm start alone, never on what was
 solved before, so a result is the same to the last bit whether K_w was
 kept or built again (campaigns resumed in another process, workers that
-solved other things).
+solved other things).  A chord step that does not cut the KKT error by
+:data:`CHORD_GAIN`, or after which Newton's steps do not end certified,
+is dropped: Newton starts again from the warm start, so the chord step
+never turns a warm start that Newton's steps certify into an Ipopt solve
+(a weak chord step had led the next steps off the branch near folds).
 
 Factorisations.  ``Linsol.solve(A, b)`` factorises A itself (measured: a
 solve with 2A after a factorisation of A returns half the solution), so a
@@ -55,7 +59,7 @@ import numpy as np
 
 from .ipopt import BackendResult
 
-__all__ = ["NewtonBackend", "S_MAX"]
+__all__ = ["NewtonBackend", "S_MAX", "CHORD_GAIN"]
 
 #: A chord step is kept only if it cuts the KKT error at least this much (a warm start's
 #: Newton step cuts it 100x or more; measured: 170x for a 1 % change); a weaker one,
