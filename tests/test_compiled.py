@@ -28,6 +28,8 @@ def test_block_map_is_the_map(n):
         assert all(np.array_equal(g, w) for g, w in zip(got, want))
     by_function = point_map_function(f, n)(s, mapped)
     assert np.array_equal(np.array(by_function[0]), np.array(f.map(n)(s, mapped)[0]))
+    once = point_map_function(f, n, shared=(1,))(s, shared)
+    assert np.array_equal(np.array(once[0]), np.array(f.map(n)(s, shared)[0]))
 
 
 def test_block_map_names_an_input_of_the_wrong_size():

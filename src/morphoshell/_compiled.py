@@ -119,9 +119,15 @@ def compiled_point_map(f: ca.Function, n: int, *args, optimisation: str = "-O2")
     return block_map(_compiled_block(f.serialize(), optimisation), f, n, args)
 
 
-def point_map_function(f: ca.Function, n: int, optimisation: str = "-O2") -> ca.Function:
-    """:func:`compiled_point_map` of ``f`` over ``n`` points as a Function (every input mapped)."""
-    args = [ca.MX.sym(f.name_in(i), f.size1_in(i), f.size2_in(i) * n) for i in range(f.n_in())]
+def point_map_function(f: ca.Function, n: int, optimisation: str = "-O2",
+                       shared: tuple[int, ...] = ()) -> ca.Function:
+    """:func:`compiled_point_map` of ``f`` over ``n`` points as a Function.
+
+    Every input is mapped (n times one point's columns) but those numbered in
+    ``shared``, given once for all points.
+    """
+    args = [ca.MX.sym(f.name_in(i), f.size1_in(i), f.size2_in(i) * (1 if i in shared else n))
+            for i in range(f.n_in())]
     out = compiled_point_map(f, n, *args, optimisation=optimisation)
     return ca.Function(f"{f.name()}_map{n}", args, list(out) if f.n_out() > 1 else [out],
                        f.name_in(), f.name_out())
