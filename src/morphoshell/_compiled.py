@@ -114,9 +114,12 @@ def compiled_point_map(f: ca.Function, n: int, *args, optimisation: str = "-O2")
     :func:`compiled_point_function` would keep it.  ``args`` as for a map:
     each either n times one point's columns, or one point's, shared by all.
     """
-    if n < BLOCKED_POINTS or os.environ.get("MORPHOSHELL_COMPILE", "1") == "0":
-        return compiled_point_function(f, optimisation).map(n)(*args)
-    return block_map(_compiled_block(f.serialize(), optimisation), f, n, args)
+    # (below BLOCKED_POINTS block_map would not use a block: none is compiled)
+    if n >= BLOCKED_POINTS and os.environ.get("MORPHOSHELL_COMPILE", "1") != "0":
+        block = _compiled_block(f.serialize(), optimisation)
+        if block is not None:
+            return block_map(block, f, n, args)
+    return compiled_point_function(f, optimisation).map(n)(*args)
 
 
 def point_map_function(f: ca.Function, n: int, optimisation: str = "-O2",
@@ -145,21 +148,22 @@ def block_map(block: ca.Function | None, f: ca.Function, n: int, args):
 
     Mapped inputs (n times f's columns) are padded to whole blocks by
     repeating their last point, whose values are dropped; inputs of one
-    point's size are shared.  ``block`` None: ``f.map(n)`` itself.
+    point's size are shared.  ``f.map(n)`` itself if ``block`` is None or
+    n < :data:`BLOCKED_POINTS`.
     """
-    if block is None:
+    for i, a in enumerate(args):
+        if a.shape[1] not in (f.size2_in(i), f.size2_in(i) * n):
+            raise ValueError(f"input {i} of {f.name()} has {a.shape[1]} columns; "
+                             f"expected {f.size2_in(i)} or {f.size2_in(i) * n}")
+    if block is None or n < BLOCKED_POINTS:
         return f.map(n)(*args)
     blocks = -(-n // BLOCK)
     pad = blocks * BLOCK - n
     padded = []
     for i, a in enumerate(args):
         a, cols = ca.MX(a), f.size2_in(i)
-        if a.size2() == cols * n:
-            if pad:
-                a = ca.horzcat(a, ca.repmat(a[:, a.size2() - cols:], 1, pad))
-        elif a.size2() != cols:
-            raise ValueError(f"input {i} of {f.name()} has {a.size2()} columns; "
-                             f"expected {cols} or {cols * n}")
+        if pad and a.size2() == cols * n:
+            a = ca.horzcat(a, ca.repmat(a[:, a.size2() - cols:], 1, pad))
         padded.append(a)
     out = block.map(blocks)(*padded)
     out = [out] if block.n_out() == 1 else out

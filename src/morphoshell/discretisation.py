@@ -57,8 +57,8 @@ import numpy as np
 
 from . import _IMPORTED_NS
 from ._buffered import Buffered
-from ._compiled import (_CFLAGS, BLOCKED_POINTS, LARGE, _blake2b, _compiled_library, _renamed,
-                        block_function, block_map, compiled_point_function, compiled_point_map,
+from ._compiled import (_CFLAGS, LARGE, _blake2b, _compiled_library, _renamed, block_function,
+                        block_map, compiled_point_function, compiled_point_map,
                         kernel_cache_dir)
 from .energy import LOCAL_OUTPUTS, intrinsic_function, pointwise
 from .layouts import CELL_DATA, INTRINSIC
@@ -869,8 +869,8 @@ class Discretisation:
         if self._newton_rhs is None:
             S, cells = self.stages, self.layout.cells
             lam, w = ca.MX.sym("lam", self.constraints), ca.MX.sym("w", self.constraints)
-            block = self._cell.get("newton_rhs_block") if cells >= BLOCKED_POINTS else None
-            dual, rx, g = block_map(block, self._cell["newton_rhs"], cells,
+            dual, rx, g = block_map(self._cell.get("newton_rhs_block"), self._cell["newton_rhs"],
+                                    cells,
                                     [self.cell_unknowns(self.x), ca.reshape(self.D, -1, cells),
                                      ca.reshape(lam, S, cells), ca.reshape(w, S, cells)])
             self._newton_rhs = ca.Function("newton_rhs", [self.x, self.D, lam, w],
