@@ -1101,11 +1101,15 @@ def _newton_cells(z, D, lam, dual, g, H) -> dict[str, ca.Function]:
     M = H + ca.mtimes(Jc.T, ca.mtimes(ca.diag(w), Jc))
     K = ca.blockcat([[M, Jc.T], [Jc, ca.diag(-NEWTON_EPSILON / w)]])
     ku, lu = np.triu_indices(K.shape[0])
+
+    def rhs_x(weights):        # the right-hand side's x part, ∇ℓ + Jᵀ(λ + W g)
+        return dual + ca.mtimes(Jc.T, weights * g)
+
     return {"newton": ca.Function("cell_newton", [z, D, lam, rho],
                                   [ca.vertcat(*[K[int(i), int(j)] for i, j in zip(ku, lu)]),
-                                   dual, dual + ca.mtimes(Jc.T, w * g), g, w]),
+                                   dual, rhs_x(w), g, w]),
             "newton_rhs": ca.Function("cell_newton_rhs", [z, D, lam, w_in],
-                                      [dual, dual + ca.mtimes(Jc.T, w_in * g), g])}
+                                      [dual, rhs_x(w_in), g])}
 
 
 @lru_cache(maxsize=None)
