@@ -131,3 +131,28 @@ def test_a_failed_newton_solve_keeps_no_system():
     # the failed solve keeps nothing: the first result's system only
     keys = [k.key for k in newton._kept if k.key is not None]
     assert len(keys) == 1 and np.array_equal(keys[0][0], ok.x)
+
+
+def test_a_thin_shell_stops_at_its_warm_start_s_round_off_floor(monkeypatch):
+    """h = 1e-4: the dual residual cannot go below ~3e-8 (tol 1e-10). A warm start that
+    stopped there marks the floor, and the re-solve stops on reaching it, a step earlier
+    than by waiting for a step that no longer helps; kept or rebuilt, to the last bit."""
+    problem = Problem("uniform", {"k": 0.0}, h=1e-4, cut=0.5, theory="classical")
+    solver = DirectSolver(problem.structure, 100)
+    base = solver.solve(problem)
+    assert base.solver.status == "Solved_To_Acceptable_Level"       # Ipopt at the floor too
+    one = problem.with_updates(h=1.01e-4)
+    new = solver.solve(one, warm_start=base)
+    monkeypatch.setattr("morphoshell.newton.FLOOR_FACTOR", 0.0)
+    waited = DirectSolver(problem.structure, 100).solve(one, warm_start=base)
+    monkeypatch.undo()
+    assert new.solver.details["route"] == "newton" and new.solver.details["chord"]
+    assert (new.solver.iterations, waited.solver.iterations) == (2, 3)
+    exact = DirectSolver(problem.structure, 100, newton=False).solve(one, warm_start=base)
+    for eq in (new, waited):    # both as close to Ipopt's point as the floor allows (9e-14)
+        assert abs(eq.r[0] - exact.r[0]) < 1e-11 and abs(eq.psi[0] - exact.psi[0]) < 1e-11
+    two = problem.with_updates(h=1.02e-4)
+    kept = solver.solve(two, warm_start=new)
+    fresh = DirectSolver(problem.structure, 100).solve(two, warm_start=new)
+    assert kept.solver.iterations == 2
+    assert np.array_equal(kept.x, fresh.x) and np.array_equal(kept.lam_g, fresh.lam_g)

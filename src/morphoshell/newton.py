@@ -49,6 +49,16 @@ solve with 2A after a factorisation of A returns half the solution), so a
 step is one ``solve``, and only the returned point is factorised apart, for
 its inertia: three factorisations for two steps (there were five, with a
 factorisation before every solve).
+
+The round-off floor.  Thin shells cannot reach ``tol``: the dual residual
+stops at a floor set by round-off (measured 2-4e-8 for h = 1e-4, 2e-10 for
+h = 1e-3), and a solve ends "acceptable" only after a step that no longer
+cuts the error tenfold, a step that shows nothing but the floor.  A warm
+start whose own KKT error is above ``tol`` stopped at that floor, which a
+small parameter change hardly moves: an iterate within :data:`FLOOR_FACTOR`
+of it is accepted at once (the measured floors of one mesh vary by 0.6-2x
+between parameter sets 1 % apart).  The error is that of the warm start's
+system, evaluated or kept, so acceptance is history-independent as well.
 """
 from __future__ import annotations
 
@@ -59,12 +69,15 @@ import numpy as np
 
 from .ipopt import BackendResult
 
-__all__ = ["NewtonBackend", "S_MAX", "CHORD_GAIN"]
+__all__ = ["NewtonBackend", "S_MAX", "CHORD_GAIN", "FLOOR_FACTOR"]
 
 #: A chord step is kept only if it cuts the KKT error at least this much (a warm start's
 #: Newton step cuts it 100x or more; measured: 170x for a 1 % change); a weaker one,
 #: from a system far from the start, could lead the next steps away from the branch.
 CHORD_GAIN = 0.1
+
+#: An acceptable iterate within this factor of the warm start's round-off floor is converged.
+FLOOR_FACTOR = 4.0
 
 #: Ipopt's ``s_max``: the dual infeasibility is scaled down by ‖λ‖₁/(n + m)/s_max when larger.
 S_MAX = 100.0
@@ -85,8 +98,9 @@ class NewtonBackend:
         unscaled KKT error (s_d as in Ipopt: max(1, ‖λ‖₁/((n + m) s_max))).
     acceptable_tol : float
         Also converged when the error is below this, ‖g‖∞ ≤ 1e-10 and a step
-        no longer reduced it tenfold (Newton at its round-off floor: Ipopt's
-        "acceptable" exit, which thin shells need).
+        no longer reduced it tenfold, or within FLOOR_FACTOR of the warm
+        start's own error above ``tol`` (Newton at its round-off floor:
+        Ipopt's "acceptable" exit, which thin shells need).
     max_iter : int
         Newton steps before giving up (warm starts need 2–3).
     """
@@ -151,10 +165,11 @@ class NewtonBackend:
             xk, lk = ca.DM(np.asarray(x0).tolist()), ca.DM(np.asarray(lam_g0).tolist())
         self._last = None
         res = NotImplemented
+        floor = 0.0 if chord is None else chord.floor
         if chord is not None:
-            res = self._iterate(xk, D, lk, t0, chord)
+            res = self._iterate(xk, D, lk, t0, floor, chord)
         if res is NotImplemented:
-            res = self._iterate(xk, D, lk, t0)
+            res = self._iterate(xk, D, lk, t0, floor)
         if res is not None and at and self._last is not None:
             self._keep((res.x, res.lam_g, *at), *self._last)
         return res
@@ -169,20 +184,27 @@ class NewtonBackend:
                 kept.used = self._clock
                 return kept
         xk, lk = ca.DM(key[0].tolist()), ca.DM(key[1].tolist())
-        K, *_, w = self._system(xk, data(), lk, 1.0)
-        return self._keep(key, K, w, (xk, lk))
+        K, _, *errors, w = self._system(xk, data(), lk, 1.0)
+        return self._keep(key, K, w, (xk, lk), self._error(*errors)[0])
 
-    def _keep(self, key: tuple, K, w, start) -> "_System":
-        """Keep (K, W) at ``key`` = (x, λ, p, q), with (x, λ) as ``start`` (DM), in place of
-        the least recently used."""
+    def _keep(self, key: tuple, K, w, start, err: float) -> "_System":
+        """Keep (K, W) at ``key`` = (x, λ, p, q), with (x, λ) as ``start`` (DM) and its KKT
+        error ``err``, in place of the least recently used."""
         kept = min(self._kept, key=lambda k: k.used)
         self._clock += 1
         kept.key, kept.K, kept.w, kept.start, kept.used = (
             tuple(np.array(v, dtype=float) for v in key), K, w, start, self._clock)
+        kept.floor = err if err > self.tol else 0.0
         return kept
 
-    def _iterate(self, xk, D, lk, t0: float, chord: "_System | None" = None):
-        """Newton's iterations from (xk, λk), the first a chord step with the system ``chord``.
+    def _error(self, dual, primal, l1) -> tuple[float, float]:
+        """(KKT error, ‖g‖∞): Ipopt's unscaled error, the dual part scaled by s_d."""
+        n, m, primal = self.n, self.m, float(primal)
+        return max(float(dual) / max(1.0, float(l1) / ((n + m) * S_MAX)), primal), primal
+
+    def _iterate(self, xk, D, lk, t0: float, floor: float, chord: "_System | None" = None):
+        """Newton's iterations from (xk, λk), the first a chord step with the system ``chord``;
+        ``floor`` is the warm start's round-off floor (0: none known).
 
         With a chord step, NotImplemented instead of None (and if the start
         needs no step): the caller starts again without it, so that the chord
@@ -190,7 +212,7 @@ class NewtonBackend:
         solve (measured: the KKT campaign's ``unstressed`` fits failed at
         t09-t11, near folds, when it did).
         """
-        n, m = self.n, self.m
+        n = self.n
         lin, last = self._linsol, np.inf
         fail = None if chord is None else NotImplemented
         for it in range(self.max_iter + 1):
@@ -203,10 +225,9 @@ class NewtonBackend:
                 x_next, l_next, dual, primal, l1 = self._step(xk, D, lk)
             else:
                 K, rhs, dual, primal, l1, w = self._system(xk, D, lk, 1.0)
-            dual, primal = float(dual), float(primal)
-            err = max(dual / max(1.0, float(l1) / ((n + m) * S_MAX)), primal)
+            err, primal = self._error(dual, primal, l1)
             done = err <= self.tol or (err <= self.acceptable_tol and primal <= 1e-10
-                                       and err > 0.1 * last)
+                                       and (err > 0.1 * last or err <= FLOOR_FACTOR * floor))
             if chord is not None and (it == 0 and done or it == 1 and not err <= CHORD_GAIN * last):
                 return NotImplemented
             if not done and (not np.isfinite(err) or (it >= 2 and err > last)
@@ -214,13 +235,14 @@ class NewtonBackend:
                 return fail       # not converging: Ipopt's globalisation is needed
             if done:
                 if fused:        # (rare: its step is not needed)
-                    K, *_, w = self._system(xk, D, lk, 1.0)
+                    K, _, *errors, w = self._system(xk, D, lk, 1.0)
+                    err = self._error(*errors)[0]   # (as _chord evaluates it, to the bit)
                 lin.nfact(K)
                 how = self._certify(K, xk, D, lk)
                 if how is None:
                     return fail
                 # kept for a chord step from here: ρ = 1's system only, as _chord builds
-                self._last = (K, w, (xk, lk)) if how == "newton_ldl" else None
+                self._last = (K, w, (xk, lk), err) if how == "newton_ldl" else None
                 return BackendResult(np.array(xk).ravel(), np.array(lk).ravel(),
                                      "Newton_Converged", it, time.perf_counter() - t0, True,
                                      {"stability": how, "inertia_correction": 0.0,
@@ -247,12 +269,12 @@ class NewtonBackend:
 
 class _System:
     """The Newton system K (ρ = 1) and weights W of the point ``key`` = (x, λ, p, q);
-    ``start`` its (x, λ) as CasADi matrices."""
+    ``start`` its (x, λ) as CasADi matrices, ``floor`` its KKT error if above tol, else 0."""
 
-    __slots__ = ("key", "K", "w", "start", "used")
+    __slots__ = ("key", "K", "w", "start", "used", "floor")
 
     def __init__(self):
-        self.key, self.K, self.w, self.start, self.used = None, None, None, None, 0
+        self.key, self.K, self.w, self.start, self.used, self.floor = None, None, None, None, 0, 0.0
 
     def matches(self, key: tuple) -> bool:
         return self.key is not None and all(
