@@ -23,14 +23,16 @@ run: $(STAMP)
 	$(BIN)/morphoshell campaign data/synthetic_inversion --timepoints t01,t02,t03 --variants flat,unstressed,free --method gradient --nodes 100 --workers 2 --out out/campaign_short
 
 ## campaign: the full fit campaign on the synthetic inversion sequence (12 timepoints x 4
-## variants, gradient method; jackknife errors for the free fit) into out/campaign, the test
+## variants, gradient method; jackknife errors for the free fit) into out/campaign, the tests
 ## of the held values (the fixed variants with f1, kappa3, kappa4 of the flat first fit, SI
-## Fig. S2) into out/campaign_held_flat, then Fig. 3 D-O and Fig. S2 into out/figures
+## Fig. S2, and of the free first fit, which assumes no hypothesis) into
+## out/campaign_held_flat and out/campaign_held_free, then Fig. 3 D-O and Fig. S2 into out/figures
 campaign: $(STAMP)
 	mkdir -p out  # (campaign --out creates its folder only inside an existing one)
 	$(BIN)/morphoshell campaign data/synthetic_inversion --method gradient --embryo-errors free --out out/campaign
 	$(BIN)/morphoshell campaign data/synthetic_inversion --method gradient --variants flat,undeformed,unstressed --held-from flat --out out/campaign_held_flat
-	$(BIN)/python scripts/fig3_fits.py --campaign out/campaign --held out/campaign_held_flat --out out/figures
+	$(BIN)/morphoshell campaign data/synthetic_inversion --method gradient --variants flat,undeformed,unstressed --held-from free --out out/campaign_held_free
+	$(BIN)/python scripts/fig3_fits.py --campaign out/campaign --held out/campaign_held_flat --held out/campaign_held_free --out out/figures
 
 ## test: the whole test suite (with a strict build of the docs, tests/test_docs.py, and a
 ## clean-venv install of the package and a plugin, tests/test_packaging.py), on two pytest-xdist

@@ -16,17 +16,17 @@ N    E_fit against pseudotime for the four variants;
 O    fitted κ₁ of the free variant (95 % intervals) and 1/f₁ against
      pseudotime, with the generating κ₁(t) of a synthetic data set; inset f₁.
 
-S2   with ``--held DIR``, a campaign run with ``--held-from VARIANT`` (paper,
-     Supplementary Fig. S2, the test of the held values): E_fit against
-     pseudotime of the fixed-κ₁ variants with their own f₁, κ₃, κ₄ (solid)
-     and with VARIANT's (dashed).
+S2   with ``--held DIR`` (repeatable), campaigns run with ``--held-from
+     VARIANT`` (paper, Supplementary Fig. S2, the test of the held values):
+     E_fit against pseudotime of the fixed-κ₁ variants with their own f₁, κ₃,
+     κ₄ (solid) and with each VARIANT's (dashed, dotted).
 
 Writes fig3_D-L, fig3_M, fig3_N, fig3_O (and figS2_held) (PNG at 300 dpi and
 PDF) and fig3_ablations.json (the observables of the numerical ablations) to
 --out.
 
 Usage: python scripts/fig3_fits.py --campaign out/campaign [--data data/synthetic_inversion]
-       [--out out/figures] [--nodes 200] [--held out/campaign_held_flat]
+       [--out out/figures] [--nodes 200] [--held out/campaign_held_flat ...]
 """
 from __future__ import annotations
 
@@ -73,8 +73,9 @@ def main(argv=None) -> int:
                    help="its data folder (default: data/synthetic_inversion)")
     p.add_argument("--out", type=Path, default=Path("out/figures"), help="output folder")
     p.add_argument("--nodes", type=int, default=200, help="mesh nodes of the ablations")
-    p.add_argument("--held", type=Path, default=None,
-                   help="output folder of a campaign run with --held-from (Fig. S2)")
+    p.add_argument("--held", type=Path, action="append", default=[],
+                   help="output folder of a campaign run with --held-from (Fig. S2); "
+                        "repeat for several")
     args = p.parse_args(argv)
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -85,16 +86,17 @@ def main(argv=None) -> int:
                                       plot_ablation, plot_ablation_overlay, save)
 
     result = load_campaign(args.campaign, args.data)
-    held = load_campaign(args.held, args.data) if args.held else None
-    for folder, res in ((args.campaign, result), (args.held, held)):
-        if res is not None and not res.records:
+    held = [load_campaign(folder, args.data) for folder in args.held]
+    for folder, res in ((args.campaign, result), *zip(args.held, held)):
+        if not res.records:
             print(f"no campaign results in {folder}", file=sys.stderr)
             return 2
-    source = held and next((r["held_from"]["variant"] for r in held.records.values()
-                            if "held_from" in r), None)
-    if held is not None and source is None:
-        print(f"{args.held}: not a campaign run with --held-from", file=sys.stderr)
-        return 2
+    sources = [next((r["held_from"]["variant"] for r in h.records.values() if "held_from" in r),
+                    None) for h in held]
+    for folder, source in zip(args.held, sources):
+        if source is None:
+            print(f"{folder}: not a campaign run with --held-from", file=sys.stderr)
+            return 2
     truth_file = args.data / "synthetic_inversion.json"
     truth = json.loads(truth_file.read_text()) if truth_file.exists() else None
     args.out.mkdir(parents=True, exist_ok=True)
@@ -200,22 +202,28 @@ def main(argv=None) -> int:
         label_panel(ax, "O")
         save(fig, args.out / "fig3_O.png", ("png", "pdf"), close=True)
         # ---------------------------------------------------------------- S2
-        if held is not None:
-            fig, ax = plt.subplots(figsize=(SINGLE_COLUMN, 0.75 * SINGLE_COLUMN),
+        if held:
+            from matplotlib.lines import Line2D
+
+            fig, ax = plt.subplots(figsize=(SINGLE_COLUMN, 0.95 * SINGLE_COLUMN),
                                    layout="constrained")
-            hdf = held.to_dataframe()
+            runs = [(df, "o-", "own")] + [(h.to_dataframe(), style, source) for h, style, source
+                                          in zip(held, ("s--", "^:", "v-."), sources)]
             for v in FIXED:
-                for frame, style, what in ((df, "o-", "own"), (hdf, "s--", source)):
+                for frame, style, what in runs:
                     sub = frame[(frame.variant == v) & (frame.status == "ok")]
-                    if len(sub) and (what == "own" or v != source):
-                        ax.plot(sub.pseudotime, sub.E_fit, style, ms=3, color=COLORS[v],
-                                label=f"{LABELS[v]}, {what} f₁, κ₃, κ₄")
+                    if len(sub) and (what == "own" or v != what):
+                        ax.plot(sub.pseudotime, sub.E_fit, style, ms=3, color=COLORS[v])
             ax.set_xlabel("pseudotime")
             ax.set_ylabel("E_fit / R")
             ax.set_yscale("log")
-            ax.legend(fontsize=6)
-            ax.set_title(f"f₁, κ₃, κ₄ of each variant's first fit (solid) or of {source}'s "
-                         f"(dashed)", fontsize=7)
+            # two legends, outside the data: colour = hypothesis, line = whose f₁, κ₃, κ₄
+            hypotheses = [Line2D([], [], color=COLORS[v], lw=2, label=LABELS[v]) for v in FIXED]
+            held_by = [Line2D([], [], color="k", ls=style.lstrip("os^v"), marker=style[0], ms=3,
+                              label="its own first fit" if what == "own" else f"{what}'s first fit")
+                       for _, style, what in runs]
+            fig.legend(handles=hypotheses + held_by, loc="outside lower center", ncols=2,
+                       fontsize=6, title="hypothesis;  f₁, κ₃, κ₄ held from", title_fontsize=6)
             save(fig, args.out / "figS2_held.png", ("png", "pdf"), close=True)
     (args.out / "fig3_ablations.json").write_text(json.dumps(ablations, indent=1) + "\n")
     print(f"wrote fig3_D-L, fig3_M, fig3_N, fig3_O{', figS2_held' if held else ''} (.png, "

@@ -681,7 +681,8 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
         other variant but ``free``, held from the first timepoint on (and
         that fit's parameters their first start), instead of each fitting
         its own at the first timepoint: the paper's test of the held values
-        (Supplementary, Fig. S2).  That fit runs first (stored in ``out``
+        (Supplementary, Fig. S2); ``"free"``, whose fit fits κ₁ as well,
+        assumes no hypothesis.  That fit runs first (stored in ``out``
         like the others, whether or not the variant is in ``variants``;
         not at all when no other variant but ``free`` runs).  With its
         values the variants differ in κ₁ alone.

@@ -79,8 +79,8 @@ def register(sub) -> None:
                    help="hold f1, kappa3, kappa4 in every variant but free at the values of "
                         "this variant's fit of the first timepoint, from the first timepoint on "
                         "(the paper's test of the held values, SI Fig. S2: the variants then "
-                        "differ in kappa1 alone); default: each variant fits its own at the "
-                        "first timepoint")
+                        "differ in kappa1 alone; free's fit assumes no hypothesis); default: "
+                        "each variant fits its own at the first timepoint")
     add_executor(p, "one per variant, at most one per CPU core")
     p.add_argument("--out", type=_out_dir, default=Path("campaign"), metavar="DIR",
                    help="output folder (default: ./campaign)")
