@@ -163,15 +163,14 @@ class NewtonBackend:
             xk, lk = chord.start          # (kept: the conversion is 0.12 ms at 200 nodes)
         else:        # lists convert to DM three times faster than NumPy arrays
             xk, lk = ca.DM(np.asarray(x0).tolist()), ca.DM(np.asarray(lam_g0).tolist())
-        self._last = None
-        res = NotImplemented
+        res, system = NotImplemented, None
         floor = 0.0 if chord is None else chord.floor
         if chord is not None:
-            res = self._iterate(xk, D, lk, t0, floor, chord)
+            res, system = self._iterate(xk, D, lk, t0, floor, chord)
         if res is NotImplemented:
-            res = self._iterate(xk, D, lk, t0, floor)
-        if res is not None and at and self._last is not None:
-            self._keep((res.x, res.lam_g, *at), *self._last)
+            res, system = self._iterate(xk, D, lk, t0, floor)
+        if res is not None and at and system is not None:
+            self._keep((res.x, res.lam_g, *at), *system)
         return res
 
     def _chord(self, x0, lam0, origin) -> "_System":
@@ -206,6 +205,9 @@ class NewtonBackend:
         """Newton's iterations from (xk, λk), the first a chord step with the system ``chord``;
         ``floor`` is the warm start's round-off floor (0: none known).
 
+        Returns (result, system): the BackendResult and, to keep for a chord step
+        from it, (K, W, (x, λ), error) at ρ = 1 (None if certified only at
+        ρ = 100), or (None, None) when Newton does not end certified.
         With a chord step, NotImplemented instead of None (and if the start
         needs no step): the caller starts again without it, so that the chord
         step never turns a warm start that Newton's steps certify into an Ipopt
@@ -214,7 +216,7 @@ class NewtonBackend:
         """
         n = self.n
         lin, last = self._linsol, np.inf
-        fail = None if chord is None else NotImplemented
+        fail = (None, None) if chord is None else (NotImplemented, None)
         for it in range(self.max_iter + 1):
             # The first two steps in one call each (a warm start is not converged
             # there); later iterates, where Newton usually stops, give K for the certificate.
@@ -229,7 +231,7 @@ class NewtonBackend:
             done = err <= self.tol or (err <= self.acceptable_tol and primal <= 1e-10
                                        and (err > 0.1 * last or err <= FLOOR_FACTOR * floor))
             if chord is not None and (it == 0 and done or it == 1 and not err <= CHORD_GAIN * last):
-                return NotImplemented
+                return NotImplemented, None
             if not done and (not np.isfinite(err) or (it >= 2 and err > last)
                              or it == self.max_iter):
                 return fail       # not converging: Ipopt's globalisation is needed
@@ -242,11 +244,11 @@ class NewtonBackend:
                 if how is None:
                     return fail
                 # kept for a chord step from here: ρ = 1's system only, as _chord builds
-                self._last = (K, w, (xk, lk), err) if how == "newton_ldl" else None
+                system = (K, w, (xk, lk), err) if how == "newton_ldl" else None
                 return BackendResult(np.array(xk).ravel(), np.array(lk).ravel(),
                                      "Newton_Converged", it, time.perf_counter() - t0, True,
                                      {"stability": how, "inertia_correction": 0.0,
-                                      "route": "newton", "chord": chord is not None})
+                                      "route": "newton", "chord": chord is not None}), system
             if fused:
                 xk, lk = x_next, l_next
             else:
