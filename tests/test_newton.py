@@ -133,17 +133,18 @@ def test_a_failed_newton_solve_keeps_no_system():
     assert len(keys) == 1 and np.array_equal(keys[0][0], ok.x)
 
 
-def test_a_thin_shell_stops_at_its_warm_start_s_round_off_floor(monkeypatch):
-    """h = 1e-4: the dual residual cannot go below ~3e-8 (tol 1e-10). A warm start that
-    stopped there marks the floor, and the re-solve stops on reaching it, a step earlier
-    than by waiting for a step that no longer helps; kept or rebuilt, to the last bit."""
+def test_a_thin_shell_stops_at_its_round_off_floor_when_newton_s_correction_is_negligible(
+        monkeypatch):
+    """h = 1e-4: the dual residual cannot go below ~3e-8 (tol 1e-10), but Newton's correction
+    there is 4e-14 of x: the warm solve stops a step earlier than by waiting for a step that
+    no longer helps, at the same point to 1e-13; kept or rebuilt system, to the last bit."""
     problem = Problem("uniform", {"k": 0.0}, h=1e-4, cut=0.5, theory="classical")
     solver = DirectSolver(problem.structure, 100)
     base = solver.solve(problem)
     assert base.solver.status == "Solved_To_Acceptable_Level"       # Ipopt at the floor too
     one = problem.with_updates(h=1.01e-4)
     new = solver.solve(one, warm_start=base)
-    monkeypatch.setattr("morphoshell.newton.FLOOR_FACTOR", 0.0)
+    monkeypatch.setattr("morphoshell.newton.STEP_TOL", 0.0)
     waited = DirectSolver(problem.structure, 100).solve(one, warm_start=base)
     monkeypatch.undo()
     assert new.solver.details["route"] == "newton" and new.solver.details["chord"]

@@ -52,13 +52,18 @@ factorisation before every solve).
 
 The round-off floor.  Thin shells cannot reach ``tol``: the dual residual
 stops at a floor set by round-off (measured 2-4e-8 for h = 1e-4, 2e-10 for
-h = 1e-3), and a solve ends "acceptable" only after a step that no longer
-cuts the error tenfold, a step that shows nothing but the floor.  A warm
-start whose own KKT error is above ``tol`` stopped at that floor, which a
-small parameter change hardly moves: an iterate within :data:`FLOOR_FACTOR`
-of it is accepted at once (the measured floors of one mesh vary by 0.6-2x
-between parameter sets 1 % apart).  The error is that of the warm start's
-system, evaluated or kept, so acceptance is history-independent as well.
+h = 1e-3), and a solve used to end, as Ipopt's "acceptable" exit does, only
+after a step that no longer cut the error tenfold, a step that showed
+nothing but the floor.  A step in Newton's quadratic phase, one that cut
+the error a thousandfold (:data:`FLOOR_GAIN`), lands far below the floor,
+so what is left is round-off; if Newton's correction there is negligible
+too (below :data:`STEP_TOL` of x; measured 4e-14 at h = 1e-4 and 4e-13 at
+h = 1e-3), the iterate is converged.  The correction is a solve of the
+factorisation that the certificate needs anyway.  The residual of a start
+alone is never taken for the floor: at h = 1e-4 a parameter change moves
+the residual by as little as 1e-7 and the solution by 1e-11 of x, which is
+still a change to follow (continuation).  The test depends on the iterate
+and its step alone.
 """
 from __future__ import annotations
 
@@ -69,15 +74,18 @@ import numpy as np
 
 from .ipopt import BackendResult
 
-__all__ = ["NewtonBackend", "S_MAX", "CHORD_GAIN", "FLOOR_FACTOR"]
+__all__ = ["NewtonBackend", "S_MAX", "CHORD_GAIN", "FLOOR_GAIN", "STEP_TOL"]
 
 #: A chord step is kept only if it cuts the KKT error at least this much (a warm start's
 #: Newton step cuts it 100x or more; measured: 170x for a 1 % change); a weaker one,
 #: from a system far from the start, could lead the next steps away from the branch.
 CHORD_GAIN = 0.1
 
-#: An acceptable iterate within this factor of the warm start's round-off floor is converged.
-FLOOR_FACTOR = 4.0
+#: An acceptable iterate reached by a step that cut the error at least 1/FLOOR_GAIN-fold,
+#: whose Newton correction is below STEP_TOL relative to max(1, ‖x‖∞), is converged
+#: (Newton at a round-off floor of its residual; measured corrections there 4e-14 to 4e-13).
+FLOOR_GAIN = 1e-3
+STEP_TOL = 1e-12
 
 #: Ipopt's ``s_max``: the dual infeasibility is scaled down by ‖λ‖₁/(n + m)/s_max when larger.
 S_MAX = 100.0
@@ -98,9 +106,10 @@ class NewtonBackend:
         unscaled KKT error (s_d as in Ipopt: max(1, ‖λ‖₁/((n + m) s_max))).
     acceptable_tol : float
         Also converged when the error is below this, ‖g‖∞ ≤ 1e-10 and a step
-        no longer reduced it tenfold, or within FLOOR_FACTOR of the warm
-        start's own error above ``tol`` (Newton at its round-off floor:
-        Ipopt's "acceptable" exit, which thin shells need).
+        no longer reduced it tenfold, or reached by a step that reduced it
+        1/FLOOR_GAIN-fold and with a Newton correction below STEP_TOL
+        (Newton at its round-off floor: Ipopt's "acceptable" exit, which
+        thin shells need).
     max_iter : int
         Newton steps before giving up (warm starts need 2–3).
     """
@@ -164,11 +173,10 @@ class NewtonBackend:
         else:        # lists convert to DM three times faster than NumPy arrays
             xk, lk = ca.DM(np.asarray(x0).tolist()), ca.DM(np.asarray(lam_g0).tolist())
         res, system = NotImplemented, None
-        floor = 0.0 if chord is None else chord.floor
         if chord is not None:
-            res, system = self._iterate(xk, D, lk, t0, floor, chord)
+            res, system = self._iterate(xk, D, lk, t0, chord)
         if res is NotImplemented:
-            res, system = self._iterate(xk, D, lk, t0, floor)
+            res, system = self._iterate(xk, D, lk, t0)
         if res is not None and at and system is not None:
             self._keep((res.x, res.lam_g, *at), *system)
         return res
@@ -183,17 +191,16 @@ class NewtonBackend:
                 kept.used = self._clock
                 return kept
         xk, lk = ca.DM(key[0].tolist()), ca.DM(key[1].tolist())
-        K, _, *errors, w = self._system(xk, data(), lk, 1.0)
-        return self._keep(key, K, w, (xk, lk), self._error(*errors)[0])
+        K, *_, w = self._system(xk, data(), lk, 1.0)
+        return self._keep(key, K, w, (xk, lk))
 
-    def _keep(self, key: tuple, K, w, start, err: float) -> "_System":
-        """Keep (K, W) at ``key`` = (x, λ, p, q), with (x, λ) as ``start`` (DM) and its KKT
-        error ``err``, in place of the least recently used."""
+    def _keep(self, key: tuple, K, w, start) -> "_System":
+        """Keep (K, W) at ``key`` = (x, λ, p, q), with (x, λ) as ``start`` (DM), in place of
+        the least recently used."""
         kept = min(self._kept, key=lambda k: k.used)
         self._clock += 1
         kept.key, kept.K, kept.w, kept.start, kept.used = (
             tuple(np.array(v, dtype=float) for v in key), K, w, start, self._clock)
-        kept.floor = err if err > self.tol else 0.0
         return kept
 
     def _error(self, dual, primal, l1) -> tuple[float, float]:
@@ -201,12 +208,11 @@ class NewtonBackend:
         n, m, primal = self.n, self.m, float(primal)
         return max(float(dual) / max(1.0, float(l1) / ((n + m) * S_MAX)), primal), primal
 
-    def _iterate(self, xk, D, lk, t0: float, floor: float, chord: "_System | None" = None):
-        """Newton's iterations from (xk, λk), the first a chord step with the system ``chord``;
-        ``floor`` is the warm start's round-off floor (0: none known).
+    def _iterate(self, xk, D, lk, t0: float, chord: "_System | None" = None):
+        """Newton's iterations from (xk, λk), the first a chord step with the system ``chord``.
 
         Returns (result, system): the BackendResult and, to keep for a chord step
-        from it, (K, W, (x, λ), error) at ρ = 1 (None if certified only at
+        from it, (K, W, (x, λ)) at ρ = 1 (None if certified only at
         ρ = 100), or (None, None) when Newton does not end certified.
         With a chord step, NotImplemented instead of None (and if the start
         needs no step): the caller starts again without it, so that the chord
@@ -228,23 +234,29 @@ class NewtonBackend:
             else:
                 K, rhs, dual, primal, l1, w = self._system(xk, D, lk, 1.0)
             err, primal = self._error(dual, primal, l1)
-            done = err <= self.tol or (err <= self.acceptable_tol and primal <= 1e-10
-                                       and (err > 0.1 * last or err <= FLOOR_FACTOR * floor))
+            acceptable = err <= self.acceptable_tol and primal <= 1e-10
+            done = err <= self.tol or acceptable and err > 0.1 * last
             if chord is not None and (it == 0 and done or it == 1 and not err <= CHORD_GAIN * last):
                 return NotImplemented, None
+            step = None
+            if not (done or fused) and acceptable and err <= FLOOR_GAIN * last < np.inf:
+                # at a round-off floor if Newton's correction is negligible (its solve
+                # factorises K, as the certificate needs; if not, it is the next step)
+                step = lin.solve(K, rhs)
+                done = _norm_inf(step[:n]) <= STEP_TOL * max(1.0, _norm_inf(xk))
             if not done and (not np.isfinite(err) or (it >= 2 and err > last)
                              or it == self.max_iter):
                 return fail       # not converging: Ipopt's globalisation is needed
             if done:
                 if fused:        # (rare: its step is not needed)
-                    K, _, *errors, w = self._system(xk, D, lk, 1.0)
-                    err = self._error(*errors)[0]   # (as _chord evaluates it, to the bit)
-                lin.nfact(K)
+                    K, *_, w = self._system(xk, D, lk, 1.0)
+                if step is None:
+                    lin.nfact(K)
                 how = self._certify(K, xk, D, lk)
                 if how is None:
                     return fail
                 # kept for a chord step from here: ρ = 1's system only, as _chord builds
-                system = (K, w, (xk, lk), err) if how == "newton_ldl" else None
+                system = (K, w, (xk, lk)) if how == "newton_ldl" else None
                 return BackendResult(np.array(xk).ravel(), np.array(lk).ravel(),
                                      "Newton_Converged", it, time.perf_counter() - t0, True,
                                      {"stability": how, "inertia_correction": 0.0,
@@ -252,7 +264,8 @@ class NewtonBackend:
             if fused:
                 xk, lk = x_next, l_next
             else:
-                step = lin.solve(K, rhs)          # (which factorises K)
+                if step is None:
+                    step = lin.solve(K, rhs)          # (which factorises K)
                 xk, lk = xk + step[:n], lk + step[n:]
             last = err
         return fail
@@ -269,14 +282,18 @@ class NewtonBackend:
         return None
 
 
+def _norm_inf(v) -> float:
+    return float(ca.norm_inf(v))
+
+
 class _System:
     """The Newton system K (ρ = 1) and weights W of the point ``key`` = (x, λ, p, q);
-    ``start`` its (x, λ) as CasADi matrices, ``floor`` its KKT error if above tol, else 0."""
+    ``start`` its (x, λ) as CasADi matrices."""
 
-    __slots__ = ("key", "K", "w", "start", "used", "floor")
+    __slots__ = ("key", "K", "w", "start", "used")
 
     def __init__(self):
-        self.key, self.K, self.w, self.start, self.used, self.floor = None, None, None, None, 0, 0.0
+        self.key, self.K, self.w, self.start, self.used = None, None, None, None, 0
 
     def matches(self, key: tuple) -> bool:
         return self.key is not None and all(
