@@ -51,7 +51,7 @@ fuzz: $(STAMP)
 
 ## bench: timing tables (scripts/bench_*.py)
 bench: $(STAMP)
-	$(BIN)/python scripts/bench_equilibrium.py
+	$(BIN)/python scripts/bench_equilibrium.py --large
 	$(BIN)/python scripts/bench_inverse.py
 
 clean:

@@ -22,7 +22,10 @@ table (the machine may be shared).  Then: the warm re-solve with certificate
 at N = 200 and 3200, the build time against N, and the first solve in a fresh
 process (``morphoshell solve problems/toy2_ablation.toml``).
 
-Usage: python scripts/bench_equilibrium.py [--quick]
+With ``--large`` (or ``--only large``), also one build and solve each on
+12 800 to 102 400 nodes, with the log-log slopes of the times against N.
+
+Usage: python scripts/bench_equilibrium.py [--quick] [--large] [--only PART]
 """
 from __future__ import annotations
 
@@ -216,6 +219,37 @@ def build_scaling(quick: bool) -> None:
           f"(target <= 2x); kernels: {solver.disc.kernels}\n")
 
 
+def large_meshes(quick: bool) -> None:
+    """Time against N up to 10^5 nodes (issue 11: linear in N): one build and solve each."""
+    import resource
+
+    problem, _ = load_problem(example_path("toy3_anisotropic"))
+    changed = problem.with_updates(f0=1.01 * problem.params["f0"])
+    meshes = (12800, 25600, 51200) if quick else (12800, 25600, 51200, 102400)
+    print(f"Large meshes, toy 3, order 4 (one run each; the slope is d log t / d log N against "
+          f"the row above, 1 = linear); {load()}")
+    print(f"{'N':>7} {'unknowns':>9} {'build s':>8} {'slope':>5} {'cold s':>7} {'slope':>5} "
+          f"{'warm s':>7} {'slope':>5} {'warm us/unknown':>15} {'peak RSS GB':>11}")
+    prev = None
+    for n in meshes:
+        t0 = time.perf_counter()
+        solver = DirectSolver(problem.structure, n)
+        t_build = time.perf_counter() - t0
+        t_cold, base = median_time(lambda: solver.solve(problem), 1)
+        solver.solve(changed, warm_start=base)          # builds the Newton back end
+        t_warm, _ = median_time(lambda: solver.solve(changed, warm_start=base), 3)
+        row = np.array([t_build, t_cold, t_warm])
+        slopes = (np.log(row / prev[1]) / np.log(n / prev[0]) if prev is not None
+                  else np.full(3, np.nan))
+        rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6     # kB on Linux
+        print(f"{n:7d} {solver.disc.layout.size:9d} {t_build:8.2f} {slopes[0]:5.2f} "
+              f"{t_cold:7.2f} {slopes[1]:5.2f} {t_warm:7.3f} {slopes[2]:5.2f} "
+              f"{1e6 * t_warm / solver.disc.layout.size:15.2f} {rss:11.1f}")
+        prev = (n, row)
+        del solver, base
+    print("  target: time linear in N up to 10^5 nodes\n")
+
+
 def fresh_process(quick: bool) -> None:
     repeats = 3 if quick else 5
     env = dict(os.environ)
@@ -246,14 +280,18 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true",
                         help="fewer repeats, no N = 12800 build")
-    parser.add_argument("--only", choices=("matched", "warm", "build", "fresh"), default=None)
+    parser.add_argument("--only", choices=("matched", "warm", "build", "fresh", "large"),
+                        default=None)
+    parser.add_argument("--large", action="store_true",
+                        help="also time meshes of 12 800 to 102 400 nodes (about 2 minutes, "
+                             "4 GB)")
     args = parser.parse_args(argv)
     print(f"{datetime.date.today()}, {platform.node()}, {platform.processor() or platform.machine()}"
           f", Python {platform.python_version()}\n")
     parts = {"fresh": fresh_process, "warm": warm_with_certificate, "build": build_scaling,
-             "matched": matched_accuracy}
+             "matched": matched_accuracy, "large": large_meshes}
     for name, fn in parts.items():
-        if args.only in (None, name):
+        if args.only == name or args.only is None and (name != "large" or args.large):
             fn(args.quick)
     return 0
 
