@@ -23,7 +23,8 @@ at N = 200 and 3200, the build time against N, and the first solve in a fresh
 process (``morphoshell solve problems/toy2_ablation.toml``).
 
 With ``--large`` (or ``--only large``), also one build and solve each on
-12 800 to 102 400 nodes, with the log-log slopes of the times against N.
+12 800 to 102 400 nodes, with the log-log slopes of the times against N,
+with the default allocator and with large blocks kept in the heap.
 
 Usage: python scripts/bench_equilibrium.py [--quick] [--large] [--only PART]
 """
@@ -220,14 +221,25 @@ def build_scaling(quick: bool) -> None:
 
 
 def large_meshes(quick: bool) -> None:
-    """Time against N up to 10^5 nodes (issue 11: linear in N): one build and solve each."""
+    """Time against N up to 10^5 nodes (issue 11: linear in N): one build and solve each,
+    with the C library's default allocator, then with large blocks kept in the heap
+    (:func:`morphoshell.keep_large_blocks`, as the command line does)."""
+    from morphoshell import keep_large_blocks
+
+    _large_meshes(quick, "default allocator")
+    if keep_large_blocks():
+        _large_meshes(quick, "keep_large_blocks() (as the command line)")
+    print("  target: time linear in N up to 10^5 nodes\n")
+
+
+def _large_meshes(quick: bool, allocator: str) -> None:
     import resource
 
     problem, _ = load_problem(example_path("toy3_anisotropic"))
     changed = problem.with_updates(f0=1.01 * problem.params["f0"])
     meshes = (12800, 25600, 51200) if quick else (12800, 25600, 51200, 102400)
-    print(f"Large meshes, toy 3, order 4 (one run each; the slope is d log t / d log N against "
-          f"the row above, 1 = linear); {load()}")
+    print(f"Large meshes, toy 3, order 4, {allocator} (one run each; the slope is "
+          f"d log t / d log N against the row above, 1 = linear); {load()}")
     print(f"{'N':>7} {'unknowns':>9} {'build s':>8} {'slope':>5} {'cold s':>7} {'slope':>5} "
           f"{'warm s':>7} {'slope':>5} {'warm us/unknown':>15} {'peak RSS GB':>11}")
     prev = None
@@ -247,7 +259,6 @@ def large_meshes(quick: bool) -> None:
               f"{1e6 * t_warm / solver.disc.layout.size:15.2f} {rss:11.1f}")
         prev = (n, row)
         del solver, base
-    print("  target: time linear in N up to 10^5 nodes\n")
 
 
 def fresh_process(quick: bool) -> None:
@@ -283,8 +294,8 @@ def main(argv=None) -> int:
     parser.add_argument("--only", choices=("matched", "warm", "build", "fresh", "large"),
                         default=None)
     parser.add_argument("--large", action="store_true",
-                        help="also time meshes of 12 800 to 102 400 nodes (about 2 minutes, "
-                             "4 GB)")
+                        help="also time meshes of 12 800 to 102 400 nodes, with the default "
+                             "allocator and with large blocks kept (about 3 minutes, 5 GB)")
     args = parser.parse_args(argv)
     print(f"{datetime.date.today()}, {platform.node()}, {platform.processor() or platform.machine()}"
           f", Python {platform.python_version()}\n")

@@ -6,7 +6,7 @@ import morphoshell
 
 #: Layers, bottom first; a module may import from its own layer or below.
 LAYERS = [
-    {"_validate", "_buffered", "_compiled", "_console", "executor"},
+    {"_validate", "_buffered", "_compiled", "_console", "_allocator", "executor"},
     {"geometry", "coefficients", "profiles", "layouts", "problem"},
     {"energy"},
     {"mesh", "results", "midlines"},

@@ -38,7 +38,8 @@ _LAZY = {"Problem": "problem", "Structure": "problem", "ProfileFamily": "profile
          "NotAMinimumError": "results", "SolverError": "results", "DirectSolver": "direct",
          "solve": "equilibrium", "Parametric": "parametric", "Ablation": "ablation",
          "ablate": "ablation", "estimate": "inverse", "example_path": "io",
-         "examples": "io", "load_problem": "io", "sweep": "sweep"}
+         "examples": "io", "load_problem": "io", "sweep": "sweep",
+         "keep_large_blocks": "_allocator"}
 
 
 def __getattr__(name: str):
@@ -73,4 +74,4 @@ sys.modules[__name__].__class__ = _Package
 __all__ = ["Problem", "Structure", "ProfileFamily", "Profiles", "register_family",
            "DirectSolver", "Equilibrium", "SolverError", "NotAMinimumError", "solve",
            "Parametric", "Ablation", "ablate", "estimate", "load_problem", "examples",
-           "example_path", "sweep", "__version__"]
+           "example_path", "sweep", "keep_large_blocks", "__version__"]

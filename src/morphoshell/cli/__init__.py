@@ -101,6 +101,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as exc:   # argparse: --help, --version, or a bad argument (2)
         return int(exc.code or 0)
     restore = configure(-1 if args.quiet else args.verbose)
+    from .._allocator import keep_large_blocks
+    keep_large_blocks()     # big meshes: large arrays reused, not page-faulted anew (linear in N)
     try:
         return args.run(args)
     except (ProblemFileError, ValueError) as exc:

@@ -1,0 +1,41 @@
+"""Large arrays from the heap: glibc's default made solves on big meshes superlinear in N.
+
+glibc's ``malloc`` serves a block above its mmap threshold (adaptive, at
+most 32 MiB on 64-bit) with fresh pages from the kernel and gives them back
+on ``free``.  Every CasADi evaluation on a mesh of 10⁴–10⁵ nodes allocates
+and frees such blocks (outputs of tens of MB), so each one page-faults its
+way through memory it just had: measured 2026-11-24 (``bench_equilibrium.py
+--only large``), a warm re-solve took 0.224 s at 12 800 nodes and 2.66 s at
+102 400 (8× the nodes, 12× the time); with large blocks kept in the heap,
+0.135 s and 1.02 s (linear).  No effect up to 3 200 nodes, where the blocks
+stay below the threshold.
+
+:func:`keep_large_blocks` raises the mmap and trim thresholds with
+``mallopt``; the command line calls it.  It changes the allocator of the
+whole process (freed memory is kept for reuse instead of returned at once),
+so library users opt in: call it, or set ``MALLOC_MMAP_THRESHOLD_`` and
+``MALLOC_TRIM_THRESHOLD_`` in the environment.
+"""
+from __future__ import annotations
+
+import ctypes
+
+__all__ = ["keep_large_blocks"]
+
+#: ``mallopt`` parameters (glibc's malloc.h).
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
+
+
+def keep_large_blocks(limit: int = 1 << 30) -> bool:
+    """Serve blocks up to ``limit`` bytes from the heap and keep up to 2 ``limit`` freed.
+
+    Returns True if glibc accepted both settings; False elsewhere (another
+    C library, or no ``mallopt``), where nothing changes.
+    """
+    try:        # the process's own symbols: glibc's, where it is the C library
+        mallopt = ctypes.CDLL(None).mallopt
+    except (OSError, AttributeError, TypeError):
+        return False
+    mallopt.argtypes, mallopt.restype = (ctypes.c_int, ctypes.c_int), ctypes.c_int
+    limit = min(int(limit), (1 << 30))      # int32 arguments; 2 limit must fit too
+    return bool(mallopt(_M_MMAP_THRESHOLD, limit)) and bool(mallopt(_M_TRIM_THRESHOLD, 2 * limit - 1))
