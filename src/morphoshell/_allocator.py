@@ -27,15 +27,30 @@ _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
 
 
 def keep_large_blocks(limit: int = 1 << 30) -> bool:
-    """Serve blocks up to ``limit`` bytes from the heap and keep up to 2 ``limit`` freed.
+    """Serve blocks of up to ``limit`` bytes from the heap, and trim it only above 2 ``limit``.
 
-    Returns True if glibc accepted both settings; False elsewhere (another
-    C library, or no ``mallopt``), where nothing changes.
+    Parameters
+    ----------
+    limit : int
+        Bytes; at most 1 GiB (``mallopt`` takes C ints).
+
+    Returns
+    -------
+    bool
+        True if glibc accepted both settings; False elsewhere (another C
+        library, or no ``mallopt``), where nothing changes.
+
+    Examples
+    --------
+    >>> import morphoshell
+    >>> morphoshell.keep_large_blocks()         # doctest: +SKIP
+    True
     """
     try:        # the process's own symbols: glibc's, where it is the C library
         mallopt = ctypes.CDLL(None).mallopt
     except (OSError, AttributeError, TypeError):
         return False
     mallopt.argtypes, mallopt.restype = (ctypes.c_int, ctypes.c_int), ctypes.c_int
-    limit = min(int(limit), (1 << 30))      # int32 arguments; 2 limit must fit too
-    return bool(mallopt(_M_MMAP_THRESHOLD, limit)) and bool(mallopt(_M_TRIM_THRESHOLD, 2 * limit - 1))
+    limit = min(int(limit), 1 << 30)
+    return bool(mallopt(_M_MMAP_THRESHOLD, limit)) and \
+        bool(mallopt(_M_TRIM_THRESHOLD, 2 * limit - 1))
