@@ -207,21 +207,24 @@ def main(argv=None) -> int:
 
             fig, ax = plt.subplots(figsize=(SINGLE_COLUMN, 0.95 * SINGLE_COLUMN),
                                    layout="constrained")
-            runs = [(df, "o-", "own")] + [(h.to_dataframe(), style, source) for h, style, source
-                                          in zip(held, ("s--", "^:", "v-."), sources)]
+            # (data, marker, line style, whose f₁, κ₃, κ₄)
+            runs = [(df, "o", "-", "own")] + [
+                (h.to_dataframe(), marker, ls, source) for h, (marker, ls), source
+                in zip(held, (("s", "--"), ("^", ":"), ("v", "-.")), sources)]
             for v in FIXED:
-                for frame, style, what in runs:
+                for frame, marker, ls, what in runs:
                     sub = frame[(frame.variant == v) & (frame.status == "ok")]
                     if len(sub) and (what == "own" or v != what):
-                        ax.plot(sub.pseudotime, sub.E_fit, style, ms=3, color=COLORS[v])
+                        ax.plot(sub.pseudotime, sub.E_fit, marker=marker, ls=ls, ms=3,
+                                color=COLORS[v])
             ax.set_xlabel("pseudotime")
             ax.set_ylabel("E_fit / R")
             ax.set_yscale("log")
             # two legends, outside the data: colour = hypothesis, line = whose f₁, κ₃, κ₄
             hypotheses = [Line2D([], [], color=COLORS[v], lw=2, label=LABELS[v]) for v in FIXED]
-            held_by = [Line2D([], [], color="k", ls=style.lstrip("os^v"), marker=style[0], ms=3,
+            held_by = [Line2D([], [], color="k", ls=ls, marker=marker, ms=3,
                               label="its own first fit" if what == "own" else f"{what}'s first fit")
-                       for _, style, what in runs]
+                       for _, marker, ls, what in runs]
             fig.legend(handles=hypotheses + held_by, loc="outside lower center", ncols=2,
                        fontsize=6, title="hypothesis;  f₁, κ₃, κ₄ held from", title_fontsize=6)
             save(fig, args.out / "figS2_held.png", ("png", "pdf"), close=True)
