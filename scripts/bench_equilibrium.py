@@ -7,8 +7,9 @@ theory at h 1e-3 and 1e-4 (Sigma 0.5, k 0), each at edge-value error targets
 whose edge values r(Sigma), psi(Sigma) meet the target both cold *and* after a
 warm re-solve is chosen:
 
-* direct: order 4 (stages 2) and order 6 (stages 3) on N nodes; cold = build
-  the NLP and solve from the undeformed shell, warm = re-solve after a 1 %
+* direct: order 4 (stages 2) and order 6 (stages 3) on N nodes of the mesh
+  ``solve()`` uses (graded for the problem's boundary layer, ``mesh_spec``);
+  cold = choose the mesh, build the NLP and solve from the undeformed shell, warm = re-solve after a 1 %
   parameter change (f0 for toy 3, h otherwise) from the previous solution,
   minimum certificate included;
 * BVP: scipy's solve_bvp at tol 1e-3 .. 1e-8 from 50 or 200 initial nodes;
@@ -46,6 +47,7 @@ from morphoshell import Problem
 from morphoshell.direct import DirectSolver
 from morphoshell.equilibrium import solve
 from morphoshell.io import example_path, load_problem
+from morphoshell.mesh import mesh_spec
 from morphoshell.results import SolverError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -97,7 +99,8 @@ def reference(problem) -> tuple[np.ndarray, float]:
 def direct_setting(problem, changed, stages, nodes, refs, repeats):
     """(cold s, warm s, cold error, warm error) of one direct setting, or None if it fails."""
     def cold():
-        solver = DirectSolver(problem.structure, nodes, stages=stages)
+        solver = DirectSolver(problem.structure, stages=stages,
+                              mesh=mesh_spec(problem, nodes, stages))
         return solver, solver.solve(problem)
     try:
         t_cold, (solver, base) = median_time(cold, repeats)

@@ -3,9 +3,9 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from morphoshell import Problem
+from morphoshell import Problem, solve
 from morphoshell.energy import boundary_layer_width
-from morphoshell.mesh import (Knot, MeshSpec, graded_mesh, knot_for, mesh_spec, pole_exponent,
+from morphoshell.mesh import (LAYER_DECAY, LAYER_SHARE, Knot, MeshSpec, graded_mesh, knot_for, mesh_spec, pole_exponent,
                               shell_points)
 
 
@@ -27,6 +27,29 @@ def test_free_edges_are_refined_by_the_ratio():
     assert dt[len(dt) // 2] / dt[-1] == pytest.approx(6.0, rel=0.02)
     # symmetric ends give a symmetric mesh
     assert np.max(np.abs(t + t[::-1] - 1)) < 1e-12
+
+
+def test_thin_free_edges_keep_a_share_of_the_nodes():
+    # width 1e-3: the ratio term alone holds (6 - 1) * 3e-3 = 1.5 % of the
+    # interior's nodes; the layer term tops the share up to LAYER_SHARE
+    t = graded_mesh(2000, 1.0, "free", "pole", 1e-3, q=4.0)
+    near = 5 * LAYER_DECAY * 1e-3
+    interior = np.sum((t > 0.25) & (t < 0.75)) / 0.5   # nodes per unit of t at density 1
+    assert np.sum(t < near) / interior - near == pytest.approx(LAYER_SHARE, rel=0.05)
+    # thicker shells are graded by the ratio term alone, as before
+    wide = graded_mesh(400, 1.0, "free", "free", 0.02, ratio=6.0)
+    assert np.all(np.diff(wide) > 0)
+
+
+def test_a_thin_shell_edge_layer_is_resolved_on_a_coarse_mesh():
+    # Classical theory, h = 1e-4 (delta = 5e-3 of a shell of length 2.6):
+    # with the ratio term alone the edge values of order 4 on 50 nodes were
+    # 2e-4 off (measured), with the layer term 4e-8.
+    p = Problem("uniform", {"k": 0.0}, h=1e-4, cut=0.5, theory="classical")
+    edge = lambda eq: np.array([eq.r[0], eq.psi[0]])
+    fine, finer = edge(solve(p, nodes=400)), edge(solve(p, nodes=800))
+    limit = finer + (finer - fine) / 15
+    assert np.max(np.abs(edge(solve(p, nodes=50)) / limit - 1)) < 2e-7
 
 
 def test_knots_are_nodes_and_keep_the_grading():
