@@ -283,7 +283,8 @@ class NewtonBackend:
 
 
 def _norm_inf(v) -> float:
-    return float(ca.norm_inf(v))
+    # (ca.norm_inf takes 40-70 us on a few hundred entries, this 10)
+    return float(ca.mmax(ca.fabs(v)))
 
 
 class _System:
