@@ -9,9 +9,9 @@ warm re-solve is chosen:
 
 * direct: order 4 (stages 2) and order 6 (stages 3) on N nodes of the mesh
   ``solve()`` uses (graded for the problem's boundary layer, ``mesh_spec``);
-  cold = choose the mesh, build the NLP and solve from the undeformed shell, warm = re-solve after a 1 %
-  parameter change (f0 for toy 3, h otherwise) from the previous solution,
-  minimum certificate included;
+  cold = choose the mesh, build the NLP and solve from the undeformed shell,
+  warm = re-solve after a 1 % parameter change (f0 for toy 3, h otherwise)
+  from the previous solution, minimum certificate included;
 * BVP: scipy's solve_bvp at tol 1e-3 .. 1e-8 from 50 or 200 initial nodes;
   warm = the previous BVP solution as guess and initial mesh.
 

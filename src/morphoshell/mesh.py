@@ -130,7 +130,7 @@ def graded_mesh(cells: int, length: float, start: str, end: str, width: float,
     e^(−x/(√2 δ)) with equidistributed error, |y^(2S+1)|^(1/(2S+1)), on the
     scale (2S + 1)√2 δ ≈ 7–10 δ (``LAYER_DECAY`` = 8).  At h = 1e-4 (classical
     theory, Σ = 0.5) this cuts the edge-value error of order 4 on 50 nodes from
-    2e-4 to 4e-8 and the nodes needed for 1e-8 at order 6 from 141 to 50
+    2e-4 to 4e-8 and the nodes needed for 1e-8 at order 6 from 141 to 30
     (measured).  A free edge closer to the axis than the boundary-layer width
     (a cut Σ smaller than δ: ``edge_scale`` ℓ_c = Σ/length) also varies on
     the scale Σ, like log s between Σ and δ (the (σ + ξ) terms of the
