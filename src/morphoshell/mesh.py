@@ -189,8 +189,8 @@ def lower_gamma(a: float, x) -> np.ndarray:
         n = np.arange(1, int(top + 9 * math.sqrt(top) + 20))
         terms = np.cumprod(xs[:, None] / (a + n[None, :]), axis=1)
         total = (1.0 + terms.sum(axis=1)) / a
-        with np.errstate(divide="ignore"):
-            out[low] = np.where(xs > 0, total * np.exp(a * np.log(xs) - xs), 0.0)
+        # (x = 0 gives 0; the floor only keeps the logarithm finite)
+        out[low] = np.where(xs > 0, total * np.exp(a * np.log(np.maximum(xs, 1e-300)) - xs), 0.0)
     return out.reshape(shape)
 
 
@@ -228,8 +228,14 @@ def _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge
         return KNOT_REFINEMENT * w * (np.sign(x - c) * -np.expm1(-np.abs(x - c) / w)
                                       - np.expm1(-c / w))
 
+    # the far end's whole cumulative density: a constant of W for the current
+    # q (q may drop below), computed once per q rather than per evaluation
+    end_total = {}
+
     def W(x):
-        out = x + cumulative(x, start) + cumulative(1.0, end) - cumulative(1 - x, end)
+        if q not in end_total:
+            end_total[q] = cumulative(1.0, end)
+        out = x + cumulative(x, start) + end_total[q] - cumulative(1 - x, end)
         for c, w in bumps:
             out = out + bump(x, c, w)
         return out
