@@ -71,8 +71,9 @@ __all__ = ["Discretisation", "Layout", "SymbolicShape", "collocation", "within_c
 _log = logging.getLogger("morphoshell")
 
 #: Cell kernels that are compiled to C (the evaluations of Ipopt's callbacks
-#: and of results); the rest of :func:`_cell_functions` stays in CasADi.
-COMPILED_KERNELS = ("f", "energy", "g", "grad", "jac", "hess", "fields", "newton", "newton_rhs",
+#: and of results); the rest of :func:`_cell_functions` stays in CasADi (the
+#: total energy of results comes from the fields).
+COMPILED_KERNELS = ("f", "g", "grad", "jac", "hess", "fields", "newton", "newton_rhs",
                     "kkt_data")
 
 #: Compiled kernels also compiled in blocks of cells, as ``<name>_block``
@@ -424,9 +425,6 @@ class Discretisation:
         pre = self._pre_function(n_p)
         s_gauss = within_cells(s_nodes, tau, last=False)
         weights = ca.DM(np.tile(w, cells)).T
-        self.pre = ca.Function(
-            "cell_data", [self.p, self.q],
-            [ca.vec(pre.map(m)(s_gauss.T, ds.T, weights, scale, self.p))], ["p", "q"], ["D"])
         self._pre_parts = (pre, s_gauss, ds, weights, scale, m)
         # the same numbers from compiled code, for evaluation (no derivatives)
         self.pre_numeric = ca.Function(
@@ -448,7 +446,7 @@ class Discretisation:
         compiled = compiled_cell_functions(S)
         self.kernels = "compiled" if compiled is not None else "casadi"
         self._cell = compiled or _cell_functions(S)
-        self.numeric = self._nlp(self._cell)
+        self.numeric = self._nlp(self._cell, energy=compiled is None)
         self._newton = self._newton_rhs = None
         self._points = (None, None)
         self._theta_scatters: dict = {}
@@ -485,8 +483,12 @@ class Discretisation:
                           n_tri * cells)
         return {"grad": A, "jac": J, "hess": H}
 
-    def _nlp(self, cell: dict) -> dict:
-        """Objective, constraints, their derivatives and the fields, from cell kernels ``cell``."""
+    def _nlp(self, cell: dict, energy: bool = True) -> dict:
+        """Objective, constraints, their derivatives and the fields, from cell kernels ``cell``.
+
+        ``energy``: include the total energy's expression (only the
+        differentiable NLP needs it; solves take it from the fields).
+        """
         S, cells = self.stages, self.layout.cells
         m = cells * S
         Dc = ca.reshape(self.D, len(CELL_DATA) * S, cells)   # one column per cell
@@ -501,9 +503,10 @@ class Discretisation:
         J = ca.MX(P["jac"][0], ca.mtimes(P["jac"][1], ca.vec(dg)))
         H = ca.MX(P["hess"][0], ca.mtimes(P["hess"][1], ca.vec(hess)))
         x, D = self.x, self.D
+        out = {"energy": ca.sum2(cell["energy"].map(cells)(Z, Dc))} if energy else {}
         return {
+            **out,
             "objective": ca.sum2(cell["f"].map(cells)(Z, Dc)),
-            "energy": ca.sum2(cell["energy"].map(cells)(Z, Dc)),
             "g": ca.vec(cell["g"].map(cells)(Z, Dc)),
             "grad_f": ca.Function("grad_f", [x, D], [ca.sum2(ell), grad],
                                   ["x", "p"], ["f", "grad_f_x"]),
@@ -575,6 +578,21 @@ class Discretisation:
         bps = fam.breakpoints({n: named[n] for n in fam.parameters}, a, b) \
             if any(k.source == "breakpoint" for k in self.knot_list) else []
         return [q[k.index] if k.source == "anchor" else bps[k.index][0] for k in self.knot_list]
+
+    @property
+    def pre(self) -> ca.Function:
+        """``(p, q) -> D``, differentiable (MX); built on first use.
+
+        Solves evaluate :attr:`pre_numeric`; only fits, observables and
+        parametric derivatives differentiate D (a build saves 0.4 ms at 42
+        nodes, 36 ms at 12 800: measured).
+        """
+        if not hasattr(self, "_pre"):
+            pre, s_gauss, ds, weights, scale, m = self._pre_parts
+            self._pre = ca.Function(
+                "cell_data", [self.p, self.q],
+                [ca.vec(pre.map(m)(s_gauss.T, ds.T, weights, scale, self.p))], ["p", "q"], ["D"])
+        return self._pre
 
     @property
     def pre_jacobian(self) -> ca.Function:
