@@ -167,3 +167,39 @@ def test_compiled_kernels_match_casadi(monkeypatch, tmp_path):
         assert np.allclose(plain.solve(problem).x, eq.x, rtol=1e-9, atol=1e-12)
     finally:
         disc.compiled_cell_functions.cache_clear()
+
+
+def test_refinement_tolerance_grows_with_the_points_as_tol(monkeypatch):
+    """Ipopt's residual_ratio_max: its default up to 800 points, then like tol, capped."""
+    from morphoshell import direct
+
+    problem = Problem("uniform", {"k": 0.0}, h=0.3, cut=0.3)
+    small = DirectSolver(problem.structure, 200)
+    assert small.backend.options["residual_ratio_max"] == 1e-10
+    big = DirectSolver(problem.structure, 3201)                  # 6401 points: 64x
+    growth = (big.disc.layout.points / 800) ** 2
+    assert growth > 64
+    assert big.backend.options["residual_ratio_max"] == pytest.approx(1e-10 * growth, rel=1e-12)
+    assert big.tol / small.tol == pytest.approx(growth, rel=1e-12)
+    mine = DirectSolver(problem.structure, 3201, ipopt_options={"residual_ratio_max": 1e-9})
+    assert mine.backend.options["residual_ratio_max"] == 1e-9    # the user's option wins
+    monkeypatch.setattr(direct, "RESIDUAL_RATIO_CAP", 2e-9)
+    assert DirectSolver(problem.structure, 3201).backend.options["residual_ratio_max"] == 2e-9
+
+
+def test_fine_meshes_do_not_refactorise_for_round_off(capfd):
+    """At 12 800 nodes (Volvox) the KKT solves' backward error stalls at ~5e-10 (measured):
+    with Ipopt's fixed 1e-10 refinement failed and Ipopt re-factorised the same matrix
+    every iteration; the tolerance that grows with the points leaves one factorisation each."""
+    problem = Problem("volvox", h=0.15, opening=0.3)
+    failures = []
+    for options in ({}, {"residual_ratio_max": 1e-10}):
+        solver = DirectSolver(problem.structure, 12800, ipopt_options={"print_level": 6,
+                                                                      **options})
+        capfd.readouterr()
+        solver.backend.solve(solver.disc.initial_guess(problem.parameter_vector(), ()),
+                             solver.disc.cell_data(problem.parameter_vector()),
+                             np.zeros(solver.disc.constraints))
+        failures.append(capfd.readouterr().out.count("Iterative refinement failed"))
+        del solver
+    assert failures[0] == 0 and failures[1] >= 2

@@ -36,6 +36,20 @@ __all__ = ["DirectSolver", "default_mesh", "solver_of", "check_nodes", "MAX_NODE
 #: 2 GB and a minute to build and solve on one core (measured).
 MAX_NODES = 102400
 
+#: Largest tolerance of Ipopt's iterative refinement (``residual_ratio_max``;
+#: Ipopt's default 1e-10 grows with the square of the points, as ``tol``).
+#: The backward error of the KKT solves has a round-off floor that grows
+#: with the mesh: above it refinement fails, and Ipopt then re-factorises the
+#: same matrix with a larger pivot tolerance and refines again, every
+#: iteration.  Measured floors: 1.5-3e-10 (toy 3, 102 400 nodes), 5e-10 and
+#: 3.4e-9 (Volvox, 12 800 and 51 200 nodes); with Ipopt's 1e-10, toy 3 took
+#: 7 factorisations instead of 4 and 7.5 s instead of 4.3 s at 102 400 nodes.
+#: An inexact step only slows Newton's convergence (by a factor ~ the ratio
+#: per iteration); the solution is judged on the KKT error.  The cap stays
+#: two decades below ``residual_ratio_singular`` (1e-5), where Ipopt would
+#: take the matrix for singular.
+RESIDUAL_RATIO_CAP = 1e-7
+
 #: Counts every DirectSolver built in this process (see ``morphoshell.equilibrium.cache_info``).
 BUILDS = {"count": 0}
 
@@ -109,8 +123,10 @@ class DirectSolver:
         Ipopt's convergence tolerance (on the scaled KKT error) at N = 800;
         it grows like the square of the number of points on finer meshes, as
         does the round-off floor of the discrete gradient (measured: 2e-12
-        with 800 points, 2e-9 with 12800).  The status is kept in
-        ``Equilibrium.solver.status``.
+        with 800 points, 2e-9 with 12800).  So does the tolerance of Ipopt's
+        iterative refinement of each linear solve (``residual_ratio_max``,
+        Ipopt's 1e-10 up to 800 points, at most :data:`RESIDUAL_RATIO_CAP`).
+        The status is kept in ``Equilibrium.solver.status``.
     """
 
     def __init__(self, structure: Structure, nodes: int = 200, *, stages: int = 2,
@@ -133,9 +149,12 @@ class DirectSolver:
         self.linear_solver = linear_solver
         self.t = mesh.nodes_t()
         self.disc = d = Discretisation(structure, self.t, self.stages, mesh.knots)
+        growth = max(1.0, (d.layout.points / 800) ** 2)
         self.backend = IpoptBackend(
-            d, tol=float(tol) * max(1.0, (d.layout.points / 800) ** 2), max_iter=max_iter,
-            linear_solver=linear_solver, stability=stability, ipopt_options=ipopt_options)
+            d, tol=float(tol) * growth, max_iter=max_iter, linear_solver=linear_solver,
+            stability=stability, ipopt_options={
+                "residual_ratio_max": min(RESIDUAL_RATIO_CAP, 1e-10 * growth),
+                **(ipopt_options or {})})
         self.tol = self.backend.tol
         self.stability = stability
         # Newton needs the minimum certificate it provides: with stability
