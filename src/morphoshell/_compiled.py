@@ -86,7 +86,8 @@ def _compiled_library(tag: str, functions: list[ca.Function], compiler: str,
     return path
 
 
-def compiled_point_function(f: ca.Function, optimisation: str = "-O2") -> ca.Function:
+def compiled_point_function(f: ca.Function, optimisation: str = "-O2",
+                            serialised: str | None = None) -> ca.Function:
     """The SX Function ``f`` compiled to C (:func:`_compiled_library`), or ``f`` itself.
 
     For numerical evaluation only (a compiled function has no derivatives):
@@ -98,28 +99,32 @@ def compiled_point_function(f: ca.Function, optimisation: str = "-O2") -> ca.Fun
     ``cc``) is found, or anything fails (logged at debug level).  Compiled
     once per machine (about 0.3 s; :data:`LARGE` kernels at ``optimisation =
     LARGE``, seconds), loaded once per process and expression.
+    ``serialised``: ``f.serialize()``, if the caller has it (0.3 ms for the
+    parameter data's function).
     """
     if os.environ.get("MORPHOSHELL_COMPILE", "1") == "0":
         return f
-    compiled = _compiled_point(f.serialize(), optimisation)
+    compiled = _compiled_point(serialised or f.serialize(), optimisation)
     return f if compiled is None else compiled
 
 
-def compiled_point_map(f: ca.Function, n: int, *args, optimisation: str = "-O2"):
+def compiled_point_map(f: ca.Function, n: int, *args, optimisation: str = "-O2",
+                       serialised: str | None = None):
     """``f.map(n)(*args)`` for an SX per-point function ``f``, evaluated in compiled blocks.
 
     The same numbers as ``compiled_point_function(f).map(n)``, 2-3x faster
     from :data:`BLOCKED_POINTS` points on (:data:`BLOCK`), and that below;
     ``f.map(n)`` in CasADi's virtual machine where
     :func:`compiled_point_function` would keep it.  ``args`` as for a map:
-    each either n times one point's columns, or one point's, shared by all.
+    each either n times one point's columns, or one point's, shared by all;
+    ``serialised`` as for :func:`compiled_point_function`.
     """
     # (below BLOCKED_POINTS block_map would not use a block: none is compiled)
     if n >= BLOCKED_POINTS and os.environ.get("MORPHOSHELL_COMPILE", "1") != "0":
-        block = _compiled_block(f.serialize(), optimisation)
+        block = _compiled_block(serialised or f.serialize(), optimisation)
         if block is not None:
             return block_map(block, f, n, args)
-    return compiled_point_function(f, optimisation).map(n)(*args)
+    return compiled_point_function(f, optimisation, serialised).map(n)(*args)
 
 
 def point_map_function(f: ca.Function, n: int, optimisation: str = "-O2",
