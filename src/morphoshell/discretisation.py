@@ -286,6 +286,34 @@ def _compressed(n_rows: int, n_cols: int, cols: np.ndarray, rows: np.ndarray) ->
     return ca.Sparsity(n_rows, n_cols, colind.tolist(), rows.tolist())
 
 
+def _positions(shape, rows, cols, src) -> tuple:
+    """(sparsity, pos, src): the pattern of the entries (rows, cols) and each entry's nonzero."""
+    n_rows, n_cols = shape
+    rows, cols, src = (np.asarray(v, dtype=np.int64).ravel() for v in (rows, cols, src))
+    # Sorting by (col, row) is CasADi's compressed-column order of nonzeros.
+    uniq, pos = np.unique(cols * n_rows + rows, return_inverse=True)
+    return _compressed(n_rows, n_cols, uniq // n_rows, uniq % n_rows), pos.ravel(), src
+
+
+def _distinct(key: np.ndarray) -> np.ndarray:
+    """The distinct values of ``key``, sorted (np.unique without index outputs imports numpy.ma)."""
+    key = np.sort(key)
+    return key[np.append(True, key[1:] != key[:-1])[:len(key)]]
+
+
+def _assembled(sp: ca.Sparsity, gathers: list, values) -> ca.MX:
+    """The matrix of pattern ``sp`` assembled from ``values`` (:meth:`Discretisation._gather`)."""
+    v = ca.vec(values)
+    nz = v[gathers[0]] if gathers else ca.MX(0, 1)
+    if nz.size2() > 1:      # (a 1x1 value indexed by a list gives a row)
+        nz = nz.T
+    if len(gathers) > 1:
+        padded = ca.vertcat(v, 0)
+        for g in gathers[1:]:
+            nz = nz + padded[g]
+    return ca.MX(sp, nz)
+
+
 @lru_cache(maxsize=CACHE_SIZE)
 def _pre_function(structure: Structure) -> tuple[ca.Function, str]:
     """``(s_k, Δs_c, w_k, scale, p) -> D_k``: parameter-only data at one Gauss point, and its
@@ -480,13 +508,12 @@ class Discretisation:
 
     # -- the NLP ---------------------------------------------------------------
     def _scatter_patterns(self) -> dict:
-        """Constant sparse scatter matrices from stacked cell values to the NLP's derivatives."""
+        """Where stacked cell values go in the NLP's derivatives (:meth:`_gather`)."""
         idx, n, S, cells = self._idx, self.layout.size, self.stages, self.layout.cells
         m, n_loc = cells * S, idx.shape[0]
         free = idx < n  # which local slots are unknowns
         cols = np.arange(n_loc * cells).reshape(cells, n_loc).T  # position of (slot, cell)
-        A = ca.DM(ca.Sparsity.triplet(n, n_loc * cells, idx[free].tolist(), cols[free].tolist()),
-                  np.ones(int(free.sum())))
+        A = self._gather((n, 1), idx[free], np.zeros(int(free.sum())), cols[free], n_loc * cells)
         # Jacobian: dg is (S n_loc × cells), row-major in (k, slot) within a cell.
         k_, l_ = np.meshgrid(np.arange(S), np.arange(n_loc), indexing="ij")
         rows = (np.arange(cells)[None, None, :] * S + k_[..., None])
@@ -495,14 +522,14 @@ class Discretisation:
         src = (np.arange(cells)[None, None, :] * (S * n_loc)
                + (l_ * S + k_)[..., None])   # column-major jacobian (S × n_loc) per cell
         keep = colv < n
-        J = self._scatter((m, n), rows[keep], colv[keep], src[keep], S * n_loc * cells)
+        J = self._gather((m, n), rows[keep], colv[keep], src[keep], S * n_loc * cells)
         ku, lu = np.triu_indices(n_loc)
         I, Jc = idx[ku], idx[lu]
         ok = (I < n) & (Jc < n)
         n_tri = len(ku)
         srch = (np.arange(n_tri)[:, None] + n_tri * np.arange(cells)[None, :])[ok]
-        H = self._scatter((n, n), np.minimum(I, Jc)[ok], np.maximum(I, Jc)[ok], srch,
-                          n_tri * cells)
+        H = self._gather((n, n), np.minimum(I, Jc)[ok], np.maximum(I, Jc)[ok], srch,
+                         n_tri * cells)
         return {"grad": A, "jac": J, "hess": H}
 
     def _nlp(self, cell: dict, energy: bool = True) -> dict:
@@ -521,9 +548,9 @@ class Discretisation:
         g2, dg = cell["jac"].map(cells)(Z, Dc)
         hess = cell["hess"].map(cells)(Z, Dc, sigma, ca.reshape(lam, S, cells))
         P = self._patterns
-        grad = ca.mtimes(P["grad"], ca.vec(dell))
-        J = ca.MX(P["jac"][0], ca.mtimes(P["jac"][1], ca.vec(dg)))
-        H = ca.MX(P["hess"][0], ca.mtimes(P["hess"][1], ca.vec(hess)))
+        grad = _assembled(*P["grad"], dell)
+        J = _assembled(*P["jac"], dg)
+        H = _assembled(*P["hess"], hess)
         x, D = self.x, self.D
         out = {"energy": ca.sum2(cell["energy"].map(cells)(Z, Dc))} if energy else {}
         return {
@@ -697,22 +724,43 @@ class Discretisation:
     def _scatter(shape, rows, cols, src, n_src: int, weights=None) -> tuple:
         """(sparsity, B): the sparse ``shape`` matrix whose (row, col) entry sums ``values[src]``
         (times ``weights``, default 1) has the nonzeros ``B @ values``."""
-        n_rows, n_cols = shape
-        rows, cols, src = (np.asarray(v, dtype=np.int64).ravel() for v in (rows, cols, src))
-        # Sorting by (col, row) is CasADi's compressed-column order of nonzeros.
-        uniq, pos = np.unique(cols * n_rows + rows, return_inverse=True)
-        pos = pos.ravel()
-        sp = _compressed(n_rows, n_cols, uniq // n_rows, uniq % n_rows)
+        sp, pos, src = _positions(shape, rows, cols, src)
+        nnz = sp.nnz()
         if weights is None:
             # B[pos, src] = 1 (a repeated triplet too, as DM.triplet gives it), in
             # compressed form directly: half DM.triplet's time at 20 000 entries
-            key = np.sort(src * len(uniq) + pos)
-            key = key[np.append(True, key[1:] != key[:-1])[:len(key)]]   # (np.unique: numpy.ma)
-            B = ca.DM(_compressed(len(uniq), n_src, key // len(uniq), key % len(uniq)), 1.0)
+            key = _distinct(src * nnz + pos)
+            B = ca.DM(_compressed(nnz, n_src, key // nnz, key % nnz), 1.0)
         else:   # (DM.triplet: the weights in the triplets' order, not the nonzeros')
             B = ca.DM.triplet(pos.tolist(), src.tolist(),
-                              ca.DM(np.asarray(weights, float).ravel()), len(uniq), n_src)
+                              ca.DM(np.asarray(weights, float).ravel()), nnz, n_src)
         return sp, B
+
+    @staticmethod
+    def _gather(shape, rows, cols, src, n_src: int) -> tuple:
+        """(sparsity, gathers): :meth:`_scatter` (without weights) as index lists.
+
+        The nonzeros are ``sum(padded[g] for g in gathers)`` with ``padded`` the
+        values and one zero appended (index ``n_src``; the first list never
+        needs it): :func:`_assembled`.  Each nonzero sums its values in
+        increasing ``src``, as ``B @ values`` does, so the results are the
+        same to the bit, in half the time (an entry of the Newton system
+        has at most two, the cells on either side of a node: 0.74 against
+        1.50 ms at 3200 nodes, measured).
+        """
+        sp, pos, src = _positions(shape, rows, cols, src)
+        nnz = sp.nnz()
+        key = _distinct(pos * n_src + src)            # by nonzero, then by value
+        pos, src = key // n_src, key % n_src
+        counts = np.bincount(pos, minlength=nnz)
+        first = np.cumsum(counts) - counts
+        gathers = []
+        for r in range(int(counts.max(initial=0))):
+            idx = np.full(nnz, n_src)
+            has = counts > r
+            idx[has] = src[first[has] + r]
+            gathers.append(idx.tolist())
+        return sp, gathers
 
     def _integration_operators(self):
         """Sparse operators of ∫ from the first node to every point (Gauss interpolant per cell).
@@ -841,12 +889,12 @@ class Discretisation:
         """s, r, ψ, z and the deformed arclength S at the points (see :class:`SymbolicShape`)."""
         return self.shape(x, p, q).points
 
-    def _local_kkt_scatter(self, symmetric: bool) -> tuple:
+    def _local_kkt_scatter(self, symmetric: bool, gather: bool = False) -> tuple:
         """(sparsity, B): scatter of each cell's triu (x, λ) block into the (n + m)² matrix.
 
         The cell's local slots are its unknowns (constants drop out) and its
         S constraints; ``symmetric`` fills both triangles (for LDLᵀ), else the
-        upper one.
+        upper one.  ``gather``: (sparsity, gathers) of :meth:`_gather` instead.
         """
         n, m = self.layout.size, self.constraints
         S, cells = self.stages, self.layout.cells
@@ -862,7 +910,8 @@ class Discretisation:
             off = rows != cols
             rows, cols, src = (np.concatenate([a, b[off]]) for a, b in
                                ((rows, cols), (cols, rows), (src, src)))
-        return self._scatter((n + m, n + m), rows, cols, src, n_tri * cells)
+        return (self._gather if gather else self._scatter)((n + m, n + m), rows, cols, src,
+                                                            n_tri * cells)
 
     def newton_system(self) -> ca.Function:
         """``(x, D, λ, ρ) -> (K, rhs, ‖∇f + Jᵀλ‖∞, ‖g‖∞, ‖λ‖₁, W)``: the certified Newton system.
@@ -881,10 +930,9 @@ class Discretisation:
             tri, dual, rx, g, w = self._cell["newton"].map(cells)(
                 self.cell_unknowns(self.x), ca.reshape(self.D, -1, cells),
                 ca.reshape(lam, S, cells), rho)
-            sp, B = self._local_kkt_scatter(symmetric=True)
             self._newton = ca.Function(
                 "newton_system", [self.x, self.D, lam, rho],
-                [ca.MX(sp, ca.mtimes(B, ca.vec(tri))),
+                [_assembled(*self._local_kkt_scatter(symmetric=True, gather=True), tri),
                  *self._newton_residual(lam, dual, rx, g), ca.vec(w)])
         return self._newton
 
@@ -909,8 +957,8 @@ class Discretisation:
     def _newton_residual(self, lam, dual, rx, g) -> list:
         """rhs, ‖∇f + Jᵀλ‖∞, ‖g‖∞ and ‖λ‖₁ from the cells' shares (side by side)."""
         A = self._patterns["grad"]
-        return [-ca.vertcat(ca.mtimes(A, ca.vec(rx)), ca.vec(g)),
-                ca.norm_inf(ca.mtimes(A, ca.vec(dual))), ca.norm_inf(g), ca.norm_1(lam)]
+        return [-ca.vertcat(_assembled(*A, rx), ca.vec(g)),
+                ca.norm_inf(_assembled(*A, dual)), ca.norm_inf(g), ca.norm_1(lam)]
 
     def kkt_curvature(self, x, lam, D, mu_F, mu_dz, mu_dS, ds) -> ca.MX:
         """Upper triangle of ∂²/∂(x, λ)² [μ_F·F(x, λ) − Σ_c (μ_dz,c Δz_c + μ_dS,c ΔS_c)].
