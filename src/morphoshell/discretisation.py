@@ -889,12 +889,13 @@ class Discretisation:
         """s, r, ψ, z and the deformed arclength S at the points (see :class:`SymbolicShape`)."""
         return self.shape(x, p, q).points
 
-    def _local_kkt_scatter(self, symmetric: bool, gather: bool = False) -> tuple:
-        """(sparsity, B): scatter of each cell's triu (x, λ) block into the (n + m)² matrix.
+    def _local_kkt_scatter(self, symmetric: bool) -> tuple:
+        """(sparsity, gathers) of :meth:`_gather`: each cell's triu (x, λ) block in the
+        (n + m)² matrix.
 
         The cell's local slots are its unknowns (constants drop out) and its
         S constraints; ``symmetric`` fills both triangles (for LDLᵀ), else the
-        upper one.  ``gather``: (sparsity, gathers) of :meth:`_gather` instead.
+        upper one.
         """
         n, m = self.layout.size, self.constraints
         S, cells = self.stages, self.layout.cells
@@ -910,8 +911,7 @@ class Discretisation:
             off = rows != cols
             rows, cols, src = (np.concatenate([a, b[off]]) for a, b in
                                ((rows, cols), (cols, rows), (src, src)))
-        return (self._gather if gather else self._scatter)((n + m, n + m), rows, cols, src,
-                                                            n_tri * cells)
+        return self._gather((n + m, n + m), rows, cols, src, n_tri * cells)
 
     def newton_system(self) -> ca.Function:
         """``(x, D, λ, ρ) -> (K, rhs, ‖∇f + Jᵀλ‖∞, ‖g‖∞, ‖λ‖₁, W)``: the certified Newton system.
@@ -932,7 +932,7 @@ class Discretisation:
                 ca.reshape(lam, S, cells), rho)
             self._newton = ca.Function(
                 "newton_system", [self.x, self.D, lam, rho],
-                [_assembled(*self._local_kkt_scatter(symmetric=True, gather=True), tri),
+                [_assembled(*self._local_kkt_scatter(symmetric=True), tri),
                  *self._newton_residual(lam, dual, rx, g), ca.vec(w)])
         return self._newton
 
@@ -983,8 +983,7 @@ class Discretisation:
         values = kernel(self.cell_unknowns(x), ca.reshape(D, -1, cells), ca.reshape(lam, S, cells),
                         Mz, ca.reshape(mu_F[n:], S, cells), ca.reshape(mu_dz, 1, cells),
                         ca.reshape(mu_dS, 1, cells), ca.reshape(ds, 1, cells))
-        sp, B = self._local_kkt_scatter(symmetric=False)
-        return ca.MX(sp, ca.mtimes(B, ca.vec(values)))
+        return _assembled(*self._local_kkt_scatter(symmetric=False), values)
 
     def kkt_curvature_theta(self, x, lam, D, T, mu_F, mu_dz, mu_dS) -> tuple:
         """The curvature of :meth:`kkt_curvature`'s function across the cell data D.
