@@ -189,8 +189,9 @@ def lower_gamma(a: float, x) -> np.ndarray:
         n = np.arange(1, int(top + 9 * math.sqrt(top) + 20))
         terms = np.cumprod(xs[:, None] / (a + n[None, :]), axis=1)
         total = (1.0 + terms.sum(axis=1)) / a
-        # (x = 0 gives 0; the floor only keeps the logarithm finite)
-        out[low] = np.where(xs > 0, total * np.exp(a * np.log(np.maximum(xs, 1e-300)) - xs), 0.0)
+        # (x = 0 gives 0; the 1 there only keeps the logarithm finite)
+        pos = xs > 0
+        out[low] = np.where(pos, total * np.exp(a * np.log(np.where(pos, xs, 1.0)) - xs), 0.0)
     return out.reshape(shape)
 
 
