@@ -33,6 +33,25 @@ def test_cold_solves_follow_the_physical_branch(problem, energy):
         cold.error.note
 
 
+def test_continuation_does_not_snap_into_a_loop():
+    """Fuzzing (2026-11-24): a thin closed sphere whose first continuation step of a quarter
+    snapped into a loop (ψ − s up to 7 rad, later 14) and ended 17 % above the physical
+    energy, its error estimate (2.4e-5) covering neither; eight fixed steps stay on the
+    physical branch."""
+    from morphoshell.direct import DirectSolver
+    from morphoshell.mesh import mesh_spec
+
+    problem = Problem("anisotropic", {"f0": -0.28515625}, h=0.001, cut=0.0)
+    eq = solve(problem, nodes=200)
+    solver, ref = DirectSolver(problem.structure, mesh=mesh_spec(problem, 200, 2)), None
+    for tau in np.linspace(0, 1, 9):
+        ref = solver.solve(problem.with_updates(f0=tau * problem.params["f0"]), warm_start=ref)
+    assert np.max(np.abs(ref.psi - ref.s)) < np.pi / 2           # the physical branch
+    assert eq.energy == pytest.approx(ref.energy, rel=1e-8)
+    assert np.max(np.abs(eq.psi - eq.s)) < np.pi / 2
+    assert abs(eq.energy - ref.energy) <= eq.error.errors["energy"] + 1e-12
+
+
 AXIS = Problem("anisotropic", {"f0": 0.1924125775330447}, h=0.0018789515602294436)
 
 
