@@ -44,6 +44,7 @@ from typing import Any, Iterable, Mapping
 import numpy as np
 
 from .direct import check_nodes
+from .equilibrium import METHODS
 from .problem import BASE_KEYS, Problem
 
 if sys.version_info >= (3, 11):
@@ -63,7 +64,6 @@ ALIASES = {"Sigma": "cut"}
 #: The packaged example problem files (``morphoshell example NAME``).
 EXAMPLES_DIR = Path(__file__).resolve().parent / "examples"
 
-METHODS = ("direct", "bvp", "shooting")
 _PROBLEM_KEYS = {"family", "theory", "h", "cut", "opening", "geometry", "name"}
 #: Keys of the [solver] table (also accepted by ``--set``).
 SOLVER_KEYS = ("nodes", "method", "stages")
