@@ -47,6 +47,7 @@ def test_continuation_does_not_snap_into_a_loop():
     for tau in np.linspace(0, 1, 9):
         ref = solver.solve(problem.with_updates(f0=tau * problem.params["f0"]), warm_start=ref)
     assert np.max(np.abs(ref.psi - ref.s)) < np.pi / 2           # the physical branch
+    # the same mesh by another path: measured 5e-11 apart (the KKT tolerance's scale)
     assert eq.energy == pytest.approx(ref.energy, rel=1e-8)
     assert np.max(np.abs(eq.psi - eq.s)) < np.pi / 2
     assert abs(eq.energy - ref.energy) <= eq.error.errors["energy"] + 1e-12

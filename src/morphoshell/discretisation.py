@@ -553,9 +553,7 @@ class Discretisation:
         J = _assembled(*P["jac"], dg)
         H = _assembled(*P["hess"], hess)
         x, D = self.x, self.D
-        out = {"energy": ca.sum2(cell["energy"].map(cells)(Z, Dc))} if energy else {}
-        return {
-            **out,
+        nlp = {
             "objective": ca.sum2(cell["f"].map(cells)(Z, Dc)),
             "g": ca.vec(cell["g"].map(cells)(Z, Dc)),
             "grad_f": ca.Function("grad_f", [x, D], [ca.sum2(ell), grad],
@@ -567,6 +565,9 @@ class Discretisation:
             # output, so a single copy to NumPy per solve).
             "fields": ca.Function("fields", [x, D], [cell["fields"].map(cells)(Z, Dc)]),
         }
+        if energy:
+            nlp["energy"] = ca.sum2(cell["energy"].map(cells)(Z, Dc))
+        return nlp
 
     def _symbolic_nlp(self) -> dict:
         if self._symbolic is None:
