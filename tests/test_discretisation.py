@@ -85,10 +85,11 @@ def test_gathers_assemble_the_scatter_to_the_bit():
     for trial in range(60):     # (repeated triplets count once, as in B)
         nr, nc, n_src, r, c, s = _triplets(rng, trial, 20, 80, 40)
         sp, B = Discretisation._scatter((nr, nc), r, c, s, n_src)
-        sp_g, gathers = Discretisation._gather((nr, nc), r, c, s, n_src)
+        sp_g, first, extras = Discretisation._gather((nr, nc), r, c, s, n_src)
         assert sp_g == sp
         v = ca.MX.sym("v", n_src)
-        f = ca.Function("f", [v], [ca.MX(sp, ca.mtimes(B, v)), _assembled(sp_g, gathers, v)])
+        f = ca.Function("f", [v], [ca.MX(sp, ca.mtimes(B, v)),
+                                   _assembled(sp_g, first, extras, v)])
         one, two = f(rng.normal(size=n_src) * 10.0 ** rng.integers(-8, 8, n_src))
         assert one.sparsity() == two.sparsity()
         assert np.array_equal(np.array(one.nonzeros()), np.array(two.nonzeros()))

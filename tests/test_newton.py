@@ -31,6 +31,37 @@ def test_newton_warm_solve_is_the_ipopt_solution(problem, change):
     assert abs(a.energy - b.energy) <= 1e-9 * abs(b.energy) + 1e-14
 
 
+@pytest.mark.parametrize("problem", CASES)
+@pytest.mark.parametrize("stages", [2, 3])
+def test_a_cold_newton_solve_is_ipopt_s_solution_without_setting_ipopt_up(problem, stages):
+    newton = DirectSolver(problem.structure, 60, stages=stages)
+    a = newton.solve(problem)
+    b = DirectSolver(problem.structure, 60, stages=stages, newton=False).solve(problem)
+    assert a.solver.details["route"] == "newton" and not a.solver.details["chord"]
+    assert newton.backend._solver is None              # Ipopt was never set up
+    # the same minimum, both within the KKT tolerance (measured: 1e-14 to 1e-12 of x)
+    assert np.max(np.abs(a.x - b.x)) < 1e-8 * max(1.0, np.max(np.abs(b.x)))
+    assert abs(a.energy - b.energy) <= 1e-9 * abs(b.energy) + 1e-14
+
+
+def test_a_cold_start_takes_no_step_ipopt_would_modify(blister, monkeypatch):
+    """The blister's flat shape is a saddle: Newton's path from the flat start meets a system
+    with the wrong inertia, where Ipopt would correct the inertia; Newton stops there and
+    Ipopt solves."""
+    original, steps = NewtonBackend._convex_step, []
+
+    def spy(self, *args):
+        steps.append(original(self, *args))
+        return steps[-1]
+
+    monkeypatch.setattr(NewtonBackend, "_convex_step", spy)
+    solver = DirectSolver(blister.structure, 60)
+    with pytest.raises(NotAMinimumError) as exc:
+        solver.solve(blister)
+    assert len(steps) >= 1 and steps[-1] is None
+    assert exc.value.last_iterate.solver.details.get("route") is None    # Ipopt's result
+
+
 def test_newton_never_certifies_a_saddle(blister):
     solver = DirectSolver(blister.structure, 200)
     with pytest.raises(NotAMinimumError) as exc:
@@ -140,7 +171,7 @@ def test_a_thin_shell_stops_at_its_round_off_floor_when_newton_s_correction_is_n
     no longer helps, at the same point to 1e-13; kept or rebuilt system, to the last bit."""
     problem = Problem("uniform", {"k": 0.0}, h=1e-4, cut=0.5, theory="classical")
     solver = DirectSolver(problem.structure, 100)
-    base = solver.solve(problem)
+    base = DirectSolver(problem.structure, 100, newton=False).solve(problem)
     assert base.solver.status == "Solved_To_Acceptable_Level"       # Ipopt at the floor too
     one = problem.with_updates(h=1.01e-4)
     new = solver.solve(one, warm_start=base)

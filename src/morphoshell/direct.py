@@ -114,11 +114,15 @@ class DirectSolver:
     linear_solver, max_iter, stability, ipopt_options
         Passed to :class:`morphoshell.ipopt.IpoptBackend`.
     newton : bool
-        Warm starts (``warm_start`` or ``lam_g0`` given) first try
-        :class:`morphoshell.newton.NewtonBackend`: Newton steps certified by
-        their own factorisation, 3–4× faster than an Ipopt call; whatever it
-        cannot certify within a few steps goes to Ipopt.  Only with
-        ``stability = "auto"``.
+        Solves first try :class:`morphoshell.newton.NewtonBackend`: Newton
+        steps certified by their own factorisation, 3–4× faster than an Ipopt
+        call; whatever it cannot certify within a few steps goes to Ipopt.
+        From a warm start (``warm_start`` or ``lam_g0`` given) only with
+        ``stability = "auto"``; from the undeformed shell (cold) also only
+        with the default ``linear_solver`` and no ``ipopt_options``, and
+        only while every step is one Ipopt would take unmodified (see
+        :mod:`morphoshell.newton`, "Cold starts"), so Ipopt is set up only
+        when needed.
     tol : float
         Ipopt's convergence tolerance (on the scaled KKT error) at N = 800;
         it grows like the square of the number of points on finer meshes, as
@@ -158,8 +162,10 @@ class DirectSolver:
         self.tol = self.backend.tol
         self.stability = stability
         # Newton needs the minimum certificate it provides: with stability
-        # "off" or "exact" the caller asked for Ipopt's own handling
+        # "off" or "exact" the caller asked for Ipopt's own handling; so does
+        # a cold solve with a linear solver or options of the caller's choice
         self.newton = bool(newton) and stability == "auto"
+        self._cold_newton = self.newton and linear_solver == "mumps" and not ipopt_options
         self._newton = None
         self.build_seconds = time.perf_counter() - t0
         BUILDS["count"] += 1
@@ -212,12 +218,13 @@ class DirectSolver:
             x0 = self.disc.initial_guess(p, q)
         D = self.disc.cell_data(p, q)
         res = None
-        if lam_g0 is not None and self.newton:     # a warm start: Newton first
+        if self.newton if lam_g0 is not None else self._cold_newton:   # Newton first
             if self._newton is None:
                 self._newton = NewtonBackend(self.disc, tol=self.tol,
                                              acceptable_tol=self.backend.acceptable_tol)
-            res = self._newton.solve(x0, self.disc.pre_numeric(p, q), lam_g0, at=(p, q),
-                                     origin=origin)
+            res = self._newton.solve(x0, self.disc.pre_numeric(p, q),
+                                     np.zeros(self.disc.constraints) if lam_g0 is None
+                                     else lam_g0, at=(p, q), origin=origin, cold=lam_g0 is None)
         if res is None:
             res = self.backend.solve(x0, D, np.zeros(self.disc.constraints) if lam_g0 is None
                                      else lam_g0, data=lambda: self.disc.pre_numeric(p, q))

@@ -301,17 +301,21 @@ def _distinct(key: np.ndarray) -> np.ndarray:
     return key[np.append(True, key[1:] != key[:-1])[:len(key)]]
 
 
-def _assembled(sp: ca.Sparsity, gathers: list, values) -> ca.MX:
+def _assembled(sp: ca.Sparsity, first: list, extras: list, values) -> ca.MX:
     """The matrix of pattern ``sp`` assembled from ``values`` (:meth:`Discretisation._gather`)."""
     v = ca.vec(values)
-    nz = v[gathers[0]] if gathers else ca.MX(0, 1)
-    if nz.size2() > 1:      # (a 1x1 value indexed by a list gives a row)
-        nz = nz.T
-    if len(gathers) > 1:
-        padded = ca.vertcat(v, 0)
-        for g in gathers[1:]:
-            nz = nz + padded[g]
+    nz = _take(v, first)
+    for pos, more in extras:
+        nz[pos] = _take(nz, pos) + _take(v, more)
     return ca.MX(sp, nz)
+
+
+def _take(v: ca.MX, idx: list) -> ca.MX:
+    """The entries ``idx`` of the column ``v``, as a column."""
+    if not idx:
+        return ca.MX(0, 1)
+    out = v[idx]
+    return out.T if out.size2() > 1 else out   # (a 1x1 value indexed by a list gives a row)
 
 
 @lru_cache(maxsize=CACHE_SIZE)
@@ -488,34 +492,45 @@ class Discretisation:
         self._idx = self._cell_indices()
         self._field_names = ("s", "ds", "weight", "r", "psi", "f_s", "dpsi", *LOCAL_OUTPUTS)
         # Scatter patterns (which local entry of which cell goes where in the
-        # gradient, Jacobian and Hessian) are computed once, numerically.
-        self._patterns = self._scatter_patterns()
+        # gradient, Jacobian and Hessian) are computed numerically, on first use.
+        self._patterns: dict = {}
         # Ipopt and results evaluate compiled cell kernels when a C compiler
         # is available (3-4x cheaper evaluations); the differentiable
         # SX-based functions (parametric derivatives, observables, fits) are
-        # assembled on first use.
+        # assembled on first use, and so is Ipopt's NLP (``numeric``): a
+        # solve that Newton certifies needs neither.
         compiled = compiled_cell_functions(S)
         self.kernels = "compiled" if compiled is not None else "casadi"
         self._cell = compiled or _cell_functions(S)
-        self.numeric = self._nlp(self._cell, energy=compiled is None)
+        self._numeric = self._symbolic = None
         self._newton = self._newton_rhs = None
         self._points = (None, None)
         self._theta_scatters: dict = {}
-        self._symbolic = None if compiled is not None else self.numeric
-        self._fields = self.numeric["fields"]
+        self._fields = self._fields_function(self._cell)
         # z and S at the points are linear in the Gauss values of z' and S'
         # (per unit of t): the same operators serve numbers and expressions.
         self._integration = self._integration_operators()
 
     # -- the NLP ---------------------------------------------------------------
-    def _scatter_patterns(self) -> dict:
-        """Where stacked cell values go in the NLP's derivatives (:meth:`_gather`)."""
-        idx, n, S, cells = self._idx, self.layout.size, self.stages, self.layout.cells
-        m, n_loc = cells * S, idx.shape[0]
+    def _pattern(self, name: str) -> tuple:
+        """Where stacked cell values go in the NLP's derivatives (:meth:`_gather`): ``name``
+        is ``"grad"``, ``"jac"`` or ``"hess"``; computed on first use."""
+        if name not in self._patterns:
+            self._patterns[name] = getattr(self, f"_{name}_pattern")()
+        return self._patterns[name]
+
+    def _grad_pattern(self) -> tuple:
+        idx, n, cells = self._idx, self.layout.size, self.layout.cells
+        n_loc = idx.shape[0]
         free = idx < n  # which local slots are unknowns
         cols = np.arange(n_loc * cells).reshape(cells, n_loc).T  # position of (slot, cell)
-        A = self._gather((n, 1), idx[free], np.zeros(int(free.sum())), cols[free], n_loc * cells)
-        # Jacobian: dg is (S n_loc × cells), row-major in (k, slot) within a cell.
+        return self._gather((n, 1), idx[free], np.zeros(int(free.sum())), cols[free],
+                            n_loc * cells)
+
+    def _jac_pattern(self) -> tuple:
+        idx, n, S, cells = self._idx, self.layout.size, self.stages, self.layout.cells
+        m, n_loc = cells * S, idx.shape[0]
+        # dg is (S n_loc × cells), row-major in (k, slot) within a cell.
         k_, l_ = np.meshgrid(np.arange(S), np.arange(n_loc), indexing="ij")
         rows = (np.arange(cells)[None, None, :] * S + k_[..., None])
         colv = np.broadcast_to(idx[l_.ravel()].reshape(S, n_loc, cells), rows.shape[:2] + (cells,))
@@ -523,15 +538,18 @@ class Discretisation:
         src = (np.arange(cells)[None, None, :] * (S * n_loc)
                + (l_ * S + k_)[..., None])   # column-major jacobian (S × n_loc) per cell
         keep = colv < n
-        J = self._gather((m, n), rows[keep], colv[keep], src[keep], S * n_loc * cells)
+        return self._gather((m, n), rows[keep], colv[keep], src[keep], S * n_loc * cells)
+
+    def _hess_pattern(self) -> tuple:
+        idx, n, cells = self._idx, self.layout.size, self.layout.cells
+        n_loc = idx.shape[0]
         ku, lu = np.triu_indices(n_loc)
         I, Jc = idx[ku], idx[lu]
         ok = (I < n) & (Jc < n)
         n_tri = len(ku)
         srch = (np.arange(n_tri)[:, None] + n_tri * np.arange(cells)[None, :])[ok]
-        H = self._gather((n, n), np.minimum(I, Jc)[ok], np.maximum(I, Jc)[ok], srch,
-                         n_tri * cells)
-        return {"grad": A, "jac": J, "hess": H}
+        return self._gather((n, n), np.minimum(I, Jc)[ok], np.maximum(I, Jc)[ok], srch,
+                            n_tri * cells)
 
     def _nlp(self, cell: dict, energy: bool = True) -> dict:
         """Objective, constraints, their derivatives and the fields, from cell kernels ``cell``.
@@ -548,10 +566,9 @@ class Discretisation:
         ell, dell = cell["grad"].map(cells)(Z, Dc)
         g2, dg = cell["jac"].map(cells)(Z, Dc)
         hess = cell["hess"].map(cells)(Z, Dc, sigma, ca.reshape(lam, S, cells))
-        P = self._patterns
-        grad = _assembled(*P["grad"], dell)
-        J = _assembled(*P["jac"], dg)
-        H = _assembled(*P["hess"], hess)
+        grad = _assembled(*self._pattern("grad"), dell)
+        J = _assembled(*self._pattern("jac"), dg)
+        H = _assembled(*self._pattern("hess"), hess)
         x, D = self.x, self.D
         nlp = {
             "objective": ca.sum2(cell["f"].map(cells)(Z, Dc)),
@@ -561,15 +578,29 @@ class Discretisation:
             "jac_g": ca.Function("jac_g", [x, D], [ca.vec(g2), J], ["x", "p"], ["g", "jac_g_x"]),
             "hess_lag": ca.Function("hess_lag", [x, D, sigma, lam], [H],
                                     ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"]),
-            # Pointwise fields at the Gauss points, for results (one stacked
-            # output, so a single copy to NumPy per solve).
-            "fields": ca.Function("fields", [x, D], [cell["fields"].map(cells)(Z, Dc)]),
         }
         if energy:
             nlp["energy"] = ca.sum2(cell["energy"].map(cells)(Z, Dc))
         return nlp
 
+    @property
+    def numeric(self) -> dict:
+        """The NLP on the cheapest kernels (compiled when available), for Ipopt's callbacks:
+        ``objective``, ``g``, ``grad_f``, ``jac_g``, ``hess_lag``; built on first use."""
+        if self._numeric is None:
+            self._numeric = self._nlp(self._cell, energy=self.kernels == "casadi")
+        return self._numeric
+
+    def _fields_function(self, cell: dict) -> ca.Function:
+        """``(x, D) -> fields``: pointwise fields at the Gauss points, for results (one
+        stacked output, so a single copy to NumPy per solve), from cell kernels ``cell``."""
+        cells = self.layout.cells
+        return ca.Function("fields", [self.x, self.D], [cell["fields"].map(cells)(
+            self.cell_unknowns(self.x), ca.reshape(self.D, -1, cells))])
+
     def _symbolic_nlp(self) -> dict:
+        if self.kernels == "casadi":
+            return self.numeric
         if self._symbolic is None:
             self._symbolic = self._nlp(_cell_functions(self.stages))
         return self._symbolic
@@ -740,29 +771,29 @@ class Discretisation:
 
     @staticmethod
     def _gather(shape, rows, cols, src, n_src: int) -> tuple:
-        """(sparsity, gathers): :meth:`_scatter` (without weights) as index lists.
+        """(sparsity, first, extras): :meth:`_scatter` (without weights) as index lists.
 
-        The nonzeros are ``sum(padded[g] for g in gathers)`` with ``padded`` the
-        values and one zero appended (index ``n_src``; the first list never
-        needs it): :func:`_assembled`.  Each nonzero sums its values in
-        increasing ``src``, as ``B @ values`` does, so the results are the
-        same to the bit, in half the time (an entry of the Newton system
-        has at most two, the cells on either side of a node: 0.74 against
-        1.50 ms at 3200 nodes, measured).
+        Every nonzero takes the value ``values[first[i]]``; then, for each
+        ``(pos, more)`` in ``extras``, the nonzeros ``pos`` add ``values[more]``
+        (:func:`_assembled`).  Each nonzero sums its values in increasing
+        ``src``, as ``B @ values`` does, so the results are the same to the
+        bit, in half the time (an entry of the Newton system has at most two,
+        the cells on either side of a node: 0.74 against 1.50 ms at 3200
+        nodes, measured).  Only the few shared entries are listed twice (a
+        full second list, padded with a zero, cost 0.5 ms of a 42-node build
+        in its conversion to CasADi).
         """
         sp, pos, src = _positions(shape, rows, cols, src)
         nnz = sp.nnz()
         key = _distinct(pos * n_src + src)            # by nonzero, then by value
         pos, src = key // n_src, key % n_src
         counts = np.bincount(pos, minlength=nnz)
-        first = np.cumsum(counts) - counts
-        gathers = []
-        for r in range(int(counts.max(initial=0))):
-            idx = np.full(nnz, n_src)
-            has = counts > r
-            idx[has] = src[first[has] + r]
-            gathers.append(idx.tolist())
-        return sp, gathers
+        start = np.cumsum(counts) - counts
+        extras = []
+        for r in range(1, int(counts.max(initial=0))):
+            has = np.flatnonzero(counts > r)
+            extras.append((has.tolist(), src[start[has] + r].tolist()))
+        return sp, src[start].tolist() if nnz else [], extras
 
     def _integration_operators(self):
         """Sparse operators of ∫ from the first node to every point (Gauss interpolant per cell).
@@ -892,7 +923,7 @@ class Discretisation:
         return self.shape(x, p, q).points
 
     def _local_kkt_scatter(self, symmetric: bool) -> tuple:
-        """(sparsity, gathers) of :meth:`_gather`: each cell's triu (x, λ) block in the
+        """(sparsity, first, extras) of :meth:`_gather`: each cell's triu (x, λ) block in the
         (n + m)² matrix.
 
         The cell's local slots are its unknowns (constants drop out) and its
@@ -958,7 +989,7 @@ class Discretisation:
 
     def _newton_residual(self, lam, dual, rx, g) -> list:
         """rhs, ‖∇f + Jᵀλ‖∞, ‖g‖∞ and ‖λ‖₁ from the cells' shares (side by side)."""
-        A = self._patterns["grad"]
+        A = self._pattern("grad")
         return [-ca.vertcat(_assembled(*A, rx), ca.vec(g)),
                 ca.norm_inf(_assembled(*A, dual)), ca.norm_inf(g), ca.norm_1(lam)]
 

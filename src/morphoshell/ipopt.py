@@ -102,7 +102,8 @@ class IpoptBackend:
     nlp : object
         With CasADi attributes ``x``, ``D`` (parameters), ``objective``,
         ``g`` and the derivative Functions ``grad_f``, ``jac_g``,
-        ``hess_lag`` (signatures of ``nlpsol``'s options).
+        ``hess_lag`` (signatures of ``nlpsol``'s options), and the number of
+        ``constraints``.  Ipopt is set up on the first :meth:`solve`.
     tol : float
         Ipopt's convergence tolerance (on the scaled KKT error).
         Ipopt's ``Search_Direction_Becomes_Too_Small`` (Newton steps at
@@ -150,12 +151,17 @@ class IpoptBackend:
                             linear_solver=linear_solver, acceptable_tol=self.acceptable_tol,
                             acceptable_iter=3, acceptable_constr_viol_tol=1e-10)
         self.options.update(ipopt_options or {})
-        self._solve = Buffered(self._nlpsol("shell", self.options))
-        self._refactor = None
-        self._certifier = None
-        n, m = nlp.x.shape[0], self._solve.function.size1_in("lbg")
+        # built on first use: a solve that Newton certifies needs no Ipopt
+        self._solver = self._refactor = self._certifier = None
+        n, m = nlp.x.shape[0], nlp.constraints
         self._bounds = (np.full(n, -np.inf), np.full(n, np.inf), np.zeros(m), np.zeros(m),
                         np.zeros(n))
+
+    @property
+    def _solve(self) -> Buffered:
+        if self._solver is None:
+            self._solver = Buffered(self._nlpsol("shell", self.options))
+        return self._solver
 
     def _nlpsol(self, name: str, ipopt: Mapping[str, Any]) -> ca.Function:
         _load_ipopt()

@@ -48,7 +48,17 @@ Factorisations.  ``Linsol.solve(A, b)`` factorises A itself (measured: a
 solve with 2A after a factorisation of A returns half the solution), so a
 step is one ``solve``, and only the returned point is factorised apart, for
 its inertia: three factorisations for two steps (there were five, with a
-factorisation before every solve).
+factorisation before every solve).  That factorisation is not the one
+``neig`` and ``rank`` read (measured: 0 and 0 after a ``solve``), so the
+inertia is always read after an ``nfact``.
+
+Cold starts.  From the undeformed shell (no multipliers), Newton's steps are
+taken only while they are the steps Ipopt would take unmodified: each step's
+system must have the inertia of a minimum (Ipopt would otherwise add δ_w I to
+the Hessian, a different step) and each step must reduce the KKT error, or
+Ipopt solves from the start.  At the 25-50 nodes of the benchmark's cold rows
+this converges in 3-4 steps, where Ipopt takes 4-5 (the same solution to
+1e-14 of x), and Ipopt's set-up is never built.
 
 The round-off floor.  Thin shells cannot reach ``tol``: the dual residual
 stops at a floor set by round-off (measured 2-4e-8 for h = 1e-4, 2e-10 for
@@ -116,22 +126,40 @@ class NewtonBackend:
 
     def __init__(self, nlp, *, tol: float, acceptable_tol: float, max_iter: int = 8):
         self.tol, self.acceptable_tol, self.max_iter = float(tol), float(acceptable_tol), max_iter
-        self._system, self._rhs = nlp.newton_system(), nlp.newton_rhs()
+        self._nlp = nlp
+        self._system = nlp.newton_system()
         self.n, self.m = nlp.x.shape[0], self._system.size1_in(2)
         self._linsol = ca.Linsol("newton", "ldl", self._system.sparsity_out(0))
         self._kept = [_System(), _System()]
         self._clock = 0
-        # A step in one call (the system, its solve and the update): a tenth faster
-        # than the three calls, the same bits (measured: 0.44 -> 0.37 ms at 200 nodes,
-        # 8.6 -> 7.7 ms at 3200); the chord step's with the system K_w, W given.
-        x, D, lam = (ca.MX.sym(name, self._system.sparsity_in(i))
+        self._fused: dict = {}
+
+    @property
+    def _step(self) -> ca.Function:
+        """A step in one call (the system, its solve and the update): a tenth faster
+        than the three calls, the same bits (measured: 0.44 -> 0.37 ms at 200 nodes,
+        8.6 -> 7.7 ms at 3200); built on first use (cold starts do not use it)."""
+        if "step" not in self._fused:
+            x, D, lam = self._symbols()
+            K, rhs, *errors, _ = self._system(x, D, lam, 1.0)
+            self._fused["step"] = self._one_call("newton_step", [x, D, lam], K, rhs, errors)
+        return self._fused["step"]
+
+    @property
+    def _chord_step(self) -> ca.Function:
+        """:attr:`_step` with a given system K_w and weights W (a chord step)."""
+        if "chord" not in self._fused:
+            x, D, lam = self._symbols()
+            K_w = ca.MX.sym("K_w", self._system.sparsity_out(0))
+            w = ca.MX.sym("w", self.m)
+            rhs, *errors = self._nlp.newton_rhs()(x, D, lam, w)
+            self._fused["chord"] = self._one_call("newton_chord_step", [x, D, lam, K_w, w],
+                                                  K_w, rhs, errors)
+        return self._fused["chord"]
+
+    def _symbols(self) -> tuple:
+        return tuple(ca.MX.sym(name, self._system.sparsity_in(i))
                      for i, name in enumerate(("x", "D", "lam")))
-        K, rhs, *errors, _ = self._system(x, D, lam, 1.0)
-        self._step = self._one_call("newton_step", [x, D, lam], K, rhs, errors)
-        K_w, w = ca.MX.sym("K_w", K.sparsity()), ca.MX.sym("w", self.m)
-        rhs, *errors = self._rhs(x, D, lam, w)
-        self._chord_step = self._one_call("newton_chord_step", [x, D, lam, K_w, w], K_w, rhs,
-                                          errors)
 
     def _one_call(self, name: str, args: list, K, rhs, errors: list) -> ca.Function:
         """``args -> (x + dx, λ + dλ, *errors)`` with (dx, dλ) = K⁻¹ rhs (LDLᵀ)."""
@@ -140,7 +168,7 @@ class NewtonBackend:
                                         *errors])
 
     def solve(self, x0: np.ndarray, D, lam_g0: np.ndarray, at: tuple = (),
-              origin: tuple | None = None) -> BackendResult | None:
+              origin: tuple | None = None, cold: bool = False) -> BackendResult | None:
         """Newton from (x0, λ0) at parameters D (a ``casadi.DM``); None if not certified.
 
         Parameters
@@ -156,6 +184,11 @@ class NewtonBackend:
             ``(p_w, q_w, data)`` when (x0, λ0) solves the parameters p_w, q_w
             (a warm start), with ``data()`` their cell data: the first step is
             then a chord step with that point's system.
+        cold : bool
+            (x0, λ0) is not near a solution (the undeformed shell): every
+            step must be one Ipopt would take unmodified, a Newton step whose
+            system has the inertia of a minimum, and must reduce the KKT error
+            (see the module docstring, "Cold starts").
 
         Returns
         -------
@@ -176,7 +209,7 @@ class NewtonBackend:
         if chord is not None:
             res, system = self._iterate(xk, D, lk, t0, chord)
         if res is NotImplemented:
-            res, system = self._iterate(xk, D, lk, t0)
+            res, system = self._iterate(xk, D, lk, t0, cold=cold)
         if res is not None and at and system is not None:
             self._keep((res.x, res.lam_g, *at), *system)
         return res
@@ -208,7 +241,8 @@ class NewtonBackend:
         n, m, primal = self.n, self.m, float(primal)
         return max(float(dual) / max(1.0, float(l1) / ((n + m) * S_MAX)), primal), primal
 
-    def _iterate(self, xk, D, lk, t0: float, chord: "_System | None" = None):
+    def _iterate(self, xk, D, lk, t0: float, chord: "_System | None" = None,
+                 cold: bool = False):
         """Newton's iterations from (xk, λk), the first a chord step with the system ``chord``.
 
         Returns (result, system): the BackendResult and, to keep for a chord step
@@ -218,7 +252,9 @@ class NewtonBackend:
         needs no step): the caller starts again without it, so that the chord
         step never turns a warm start that Newton's steps certify into an Ipopt
         solve (measured: the KKT campaign's ``unstressed`` fits failed at
-        t09-t11, near folds, when it did).
+        t09-t11, near folds, when it did).  ``cold``: every step's system is
+        factorised apart and must have the inertia of a minimum, and every
+        step must reduce the error.
         """
         n = self.n
         lin, last = self._linsol, np.inf
@@ -226,7 +262,7 @@ class NewtonBackend:
         for it in range(self.max_iter + 1):
             # The first two steps in one call each (a warm start is not converged
             # there); later iterates, where Newton usually stops, give K for the certificate.
-            fused = it == 1 or it == 0 and chord is not None
+            fused = not cold and (it == 1 or it == 0 and chord is not None)
             if it == 0 and chord is not None:
                 x_next, l_next, dual, primal, l1 = self._chord_step(xk, D, lk, chord.K, chord.w)
             elif fused:
@@ -244,14 +280,17 @@ class NewtonBackend:
                 # factorises K, as the certificate needs; if not, it is the next step)
                 step = lin.solve(K, rhs)
                 done = _norm_inf(step[:n]) <= STEP_TOL * max(1.0, _norm_inf(xk))
-            if not done and (not np.isfinite(err) or (it >= 2 and err > last)
+            if not done and (not np.isfinite(err) or (it >= (1 if cold else 2) and err > last)
                              or it == self.max_iter):
                 return fail       # not converging: Ipopt's globalisation is needed
+            if cold and not done:
+                step = self._convex_step(K, rhs, xk, D, lk)
+                if step is None:
+                    return fail   # Ipopt would correct the inertia: its step, not Newton's
             if done:
                 if fused:        # (rare: its step is not needed)
                     K, *_, w = self._system(xk, D, lk, 1.0)
-                if step is None:
-                    lin.nfact(K)
+                lin.nfact(K)
                 how = self._certify(K, xk, D, lk)
                 if how is None:
                     return fail
@@ -269,6 +308,17 @@ class NewtonBackend:
                 xk, lk = xk + step[:n], lk + step[n:]
             last = err
         return fail
+
+    def _convex_step(self, K, rhs, x, D, lam):
+        """Newton's step (dx, dλ) from K, if K (or K at ρ = 100) has the inertia of a minimum."""
+        lin = self._linsol
+        for rho in (1.0, 100.0):
+            if rho > 1:
+                K, rhs = self._system(x, D, lam, rho)[:2]
+            lin.nfact(K)
+            if lin.neig(K) == self.m and lin.rank(K) == self.n + self.m:
+                return lin.solve(K, rhs)
+        return None
 
     def _certify(self, K, x, D, lam) -> str | None:
         """The certificate of the factorised K at the returned point, trying ρ = 100 if ρ = 1 fails."""
