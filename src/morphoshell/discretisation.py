@@ -470,14 +470,18 @@ class Discretisation:
 
         self.p = ca.MX.sym("p", n_p)
         self.q = ca.MX.sym("q", self.anchors)
-        a, b = self.shell_ends(self.p)
-        s_nodes = self.nodes(self.p, self.q)
-        ds = (s_nodes[1:] - s_nodes[:-1])[np.repeat(np.arange(cells), S).tolist()]
+        a, b = ends = self.shell_ends(self.p)
+        s_nodes = self.nodes(self.p, self.q, ends)
+        # within_cells's s_k = s_c + (s_c+1 − s_c) τ_k, in few CasADi operations (each
+        # costs 20-100 µs to build, whatever its size)
+        cell = np.repeat(np.arange(cells), S).tolist()
+        ds = (s_nodes[1:] - s_nodes[:-1])[cell]
+        s_gauss = s_nodes[cell] + ds * ca.DM(np.tile(tau, cells))
         # Energies range over decades with h (bending ~ h³): dividing by h³
         # and by the mean cell size keeps Ipopt's gradients O(1).
-        scale = cells / (2 * ca.pi * self.structure.parameters.unpack(self.p)["h"] ** 3 * (b - a))
+        h = self.p[structure.parameters.index("h")]
+        scale = cells / (2 * ca.pi * h ** 3 * (b - a))
         pre, self._pre_serialised = _pre_function(structure)
-        s_gauss = within_cells(s_nodes, tau, last=False)
         weights = ca.DM(np.tile(w, cells)).T
         self._pre_parts = (pre, s_gauss, ds, weights, scale, m)
         # the same numbers from compiled code, for evaluation (no derivatives)
@@ -502,7 +506,7 @@ class Discretisation:
         compiled = compiled_cell_functions(S)
         self.kernels = "compiled" if compiled is not None else "casadi"
         self._cell = compiled or _cell_functions(S)
-        self._numeric = self._symbolic = None
+        self._numeric = self._symbolic = self._local_xd = None
         self._newton = self._newton_rhs = None
         self._points = (None, None)
         self._theta_scatters: dict = {}
@@ -559,9 +563,7 @@ class Discretisation:
         """
         S, cells = self.stages, self.layout.cells
         m = cells * S
-        Dc = ca.reshape(self.D, len(CELL_DATA) * S, cells)   # one column per cell
-        # Gather the local unknowns of every cell (constants appended to x).
-        Z = self.cell_unknowns(self.x)
+        Z, Dc = self._local
         sigma, lam = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", m)
         ell, dell = cell["grad"].map(cells)(Z, Dc)
         g2, dg = cell["jac"].map(cells)(Z, Dc)
@@ -594,9 +596,17 @@ class Discretisation:
     def _fields_function(self, cell: dict) -> ca.Function:
         """``(x, D) -> fields``: pointwise fields at the Gauss points, for results (one
         stacked output, so a single copy to NumPy per solve), from cell kernels ``cell``."""
-        cells = self.layout.cells
-        return ca.Function("fields", [self.x, self.D], [cell["fields"].map(cells)(
-            self.cell_unknowns(self.x), ca.reshape(self.D, -1, cells))])
+        return ca.Function("fields", [self.x, self.D],
+                           [cell["fields"].map(self.layout.cells)(*self._local)])
+
+    @property
+    def _local(self) -> tuple:
+        """(Z, D_c): each cell's unknowns (:meth:`cell_unknowns` of x) and data, a column per
+        cell, as expressions of the symbols x, D."""
+        if self._local_xd is None:
+            self._local_xd = (self.cell_unknowns(self.x),
+                              ca.reshape(self.D, -1, self.layout.cells))
+        return self._local_xd
 
     def _symbolic_nlp(self) -> dict:
         if self.kernels == "casadi":
@@ -641,13 +651,14 @@ class Discretisation:
         return self.layout.cells * self.stages
 
     # -- construction helpers ------------------------------------------------
-    def nodes(self, p, q):
+    def nodes(self, p, q, ends: tuple | None = None):
         """Material points s of the mesh nodes (the parametric map of :mod:`morphoshell.mesh`).
 
         Each cell is affine in s between its nodes: Gauss and interpolation
-        points sit at fixed fractions of it.
+        points sit at fixed fractions of it.  ``ends``: :meth:`shell_ends` of p,
+        if at hand.
         """
-        a, b = self.shell_ends(p)
+        a, b = self.shell_ends(p) if ends is None else ends
         return shell_points(self.t, a, b, self.knots, self.knot_positions(p, q))
 
     def knot_positions(self, p, q) -> list:
@@ -905,8 +916,8 @@ class Discretisation:
 
     def shell_ends(self, p):
         """(Σ, L − P) from the parameter vector (CasADi or NumPy)."""
-        named = self.structure.parameters.unpack(p)
-        return named["cut"], self.geometry.length - named["opening"]
+        index = self.structure.parameters.index
+        return p[index("cut")], self.geometry.length - p[index("opening")]
 
     def gauss_values(self, Z) -> tuple:
         """f_s and ψ at the Gauss points (vectors, cell by cell) from ``cell_unknowns``."""
@@ -961,8 +972,7 @@ class Discretisation:
             S, cells = self.stages, self.layout.cells
             lam, rho = ca.MX.sym("lam", self.constraints), ca.MX.sym("rho")
             tri, dual, rx, g, w = self._cell["newton"].map(cells)(
-                self.cell_unknowns(self.x), ca.reshape(self.D, -1, cells),
-                ca.reshape(lam, S, cells), rho)
+                *self._local, ca.reshape(lam, S, cells), rho)
             self._newton = ca.Function(
                 "newton_system", [self.x, self.D, lam, rho],
                 [_assembled(*self._local_kkt_scatter(symmetric=True), tri),
@@ -981,8 +991,8 @@ class Discretisation:
             lam, w = ca.MX.sym("lam", self.constraints), ca.MX.sym("w", self.constraints)
             dual, rx, g = block_map(self._cell.get("newton_rhs_block"), self._cell["newton_rhs"],
                                     cells,
-                                    [self.cell_unknowns(self.x), ca.reshape(self.D, -1, cells),
-                                     ca.reshape(lam, S, cells), ca.reshape(w, S, cells)])
+                                    [*self._local, ca.reshape(lam, S, cells),
+                                     ca.reshape(w, S, cells)])
             self._newton_rhs = ca.Function("newton_rhs", [self.x, self.D, lam, w],
                                            self._newton_residual(lam, dual, rx, g))
         return self._newton_rhs
@@ -1070,9 +1080,7 @@ class Discretisation:
         S, cells = self.stages, self.layout.cells
         if not hasattr(self, "_kkt_data"):
             lam_s = ca.MX.sym("lam", self.constraints)
-            blocks = self._cell["kkt_data"].map(cells)(
-                self.cell_unknowns(self.x), ca.reshape(self.D, -1, cells),
-                ca.reshape(lam_s, S, cells))
+            blocks = self._cell["kkt_data"].map(cells)(*self._local, ca.reshape(lam_s, S, cells))
             sp, B = self._theta_scatter(1)
             self._kkt_data = (Buffered(ca.Function("kkt_data", [self.x, self.D, lam_s], [blocks])),
                               np.array(sp.row()), scipy.sparse.csr_matrix(B.sparse()))
