@@ -10,6 +10,8 @@ warm re-solve is chosen:
 * direct: order 4 (stages 2) and order 6 (stages 3) on N nodes of the mesh
   ``solve()`` uses (graded for the problem's boundary layer, ``mesh_spec``);
   cold = choose the mesh, build the NLP and solve from the undeformed shell,
+  with no solver of that size alive (the ratio's; and again with one alive,
+  as in a session that solved that size before: "cold, size alive"),
   warm = re-solve after a 1 % parameter change (f0 for toy 3, h otherwise)
   from the previous solution, minimum certificate included;
 * BVP: scipy's solve_bvp at tol 1e-3 .. 1e-8 from 50 or 200 initial nodes;
@@ -46,7 +48,7 @@ import numpy as np
 
 from morphoshell import Problem
 from morphoshell.direct import DirectSolver
-from morphoshell.equilibrium import solve
+from morphoshell.equilibrium import clear_cache, solve
 from morphoshell.io import example_path, load_problem
 from morphoshell.mesh import mesh_spec
 from morphoshell.results import SolverError
@@ -123,6 +125,17 @@ def direct_setting(problem, changed, stages, nodes, refs, repeats):
     return t_cold, t_warm, error(base, refs[0]), error(warm, refs[1])
 
 
+def cold_with_size_alive(problem, other, stages, nodes, repeats) -> float:
+    """Seconds of a cold solve of ``problem`` while a solver of the same size and order (built
+    for ``other``) lives: the two share what is assembled from the cell kernels alone
+    (``discretisation._Shared``), as in a session that solved that size before."""
+    alive = DirectSolver(other.structure, stages=stages, mesh=mesh_spec(other, nodes, stages))
+    alive.solve(other)
+    t, _ = median_time(lambda: DirectSolver(problem.structure, stages=stages, mesh=mesh_spec(
+        problem, nodes, stages)).solve(problem), repeats, fresh=True)
+    return t
+
+
 def bvp_setting(problem, changed, tol, nodes, refs, repeats):
     try:
         t_cold, base = median_time(lambda: solve(problem, method="bvp", tol=tol, nodes=nodes),
@@ -145,10 +158,12 @@ def matched_accuracy(quick: bool) -> None:
     print(f"Matched accuracy: cheapest setting meeting the edge-value target cold AND warm "
           f"(medians of {repeats}); {load()}")
     print(f"{'problem, target':>28} | {'direct':>12} {'cold ms':>8} {'warm ms':>8} | "
-          f"{'solve_bvp':>16} {'cold ms':>8} {'warm ms':>8} | {'ratio cold':>10} {'warm':>6}")
+          f"{'solve_bvp':>16} {'cold ms':>8} {'warm ms':>8} | {'ratio cold':>10} {'warm':>6} | "
+          f"{'cold, size alive':>16}")
     misses = []
     for label, problem, changed in rows():
         refs = [reference(p) for p in (problem, changed)]
+        clear_cache()      # (solve()'s cache would keep the references' solvers alive)
         direct, bvp = {}, {}
         for stages in (2, 3):
             for n in LADDER:
@@ -170,9 +185,11 @@ def matched_accuracy(quick: bool) -> None:
             rc, rw = bv[0] / dv[0], bv[1] / dv[1]
             if rc < 3 or rw < 10:
                 misses.append((name, rc, rw))
+            shared = cold_with_size_alive(problem, changed, *dk, repeats)
             print(f"{name:>28} | {f'o{2 * dk[0]} N {dk[1]}':>12} {1e3 * dv[0]:8.2f} "
                   f"{1e3 * dv[1]:8.2f} | {f'tol {bk[0]:.0e} N0 {bk[1]}':>16} {1e3 * bv[0]:8.2f} "
-                  f"{1e3 * bv[1]:8.2f} | {rc:10.1f} {rw:6.1f}")
+                  f"{1e3 * bv[1]:8.2f} | {rc:10.1f} {rw:6.1f} | "
+                  f"{1e3 * shared:8.2f} ({bv[0] / shared:.1f}x)")
         print(f"{'':>28}   (reference cross-check: BVP tol 1e-8 differs by "
               f"{refs[0][1]:.1e} / {refs[1][1]:.1e})")
     print(f"targets (cold >= 3x, warm >= 10x faster than solve_bvp): "

@@ -95,6 +95,39 @@ def test_gathers_assemble_the_scatter_to_the_bit():
         assert np.array_equal(np.array(one.nonzeros()), np.array(two.nonzeros()))
 
 
+def test_live_discretisations_of_one_size_share_the_assembly_and_nothing_else():
+    """Meshes graded for h = 1e-3 and 3e-3 with 50 nodes (the same layout): while the first
+    solver lives the second shares its symbols and Newton system, and solves to the same bits
+    as when built alone; the sharing ends with the last user (weakly held)."""
+    import gc
+
+    from morphoshell import discretisation as dm
+    from morphoshell.mesh import mesh_spec
+
+    a, b = (Problem("uniform", {"k": 0.0}, h=h, cut=0.5, theory="classical")
+            for h in (1e-3, 3e-3))
+    gc.collect()
+    alone = DirectSolver(b.structure, mesh=mesh_spec(b, 50, 2)).solve(b)
+    gc.collect()
+    first = DirectSolver(a.structure, mesh=mesh_spec(a, 50, 2))
+    first.solve(a)
+    second = DirectSolver(b.structure, mesh=mesh_spec(b, 50, 2))
+    assert not np.array_equal(first.t, second.t)                 # different meshes
+    assert second.disc.x is first.disc.x and second.disc._shared is first.disc._shared
+    assert second.disc.newton_system() is first.disc.newton_system()
+    eq = second.solve(b)
+    assert eq.solver.details["route"] == "newton"
+    assert np.array_equal(eq.x, alone.x) and np.array_equal(eq.lam_g, alone.lam_g)
+    # other sizes and orders have their own
+    assert DirectSolver(a.structure, mesh=mesh_spec(a, 51, 2)).disc._shared is not first.disc._shared
+    assert DirectSolver(a.structure, stages=3,
+                        mesh=mesh_spec(a, 50, 3)).disc._shared is not first.disc._shared
+    key = (first.disc.layout, id(first.disc._cell))
+    del first, second, eq
+    gc.collect()
+    assert key not in dm._SHARED
+
+
 def test_energy_is_the_quadrature_and_edge_state_the_polynomial():
     problem = Problem("anisotropic", {"f0": 0.1}, h=0.3, cut=0.3)
     eq = solve(problem, nodes=100)

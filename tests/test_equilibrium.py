@@ -115,9 +115,18 @@ def test_solver_cache_is_bounded():
 def test_compiled_functions_do_not_depend_on_names():
     # the per-cell functions see the family and theory only through the data
     # (so they are shared, and nothing keyed on a name can go stale)
+    # and, while both live, two structures of one size share the assembly built from
+    # them: each still solves to the bits it has alone
+    import gc
+
     from morphoshell.discretisation import _cell_functions
-    a = DirectSolver(Problem("uniform", h=0.1).structure, 20)
-    b = DirectSolver(Problem("anisotropic", h=0.1, theory="classical").structure, 20)
-    assert a.disc.grad_f is not b.disc.grad_f
+    pa, pb = Problem("uniform", h=0.1), Problem("anisotropic", h=0.1, theory="classical")
+    gc.collect()
+    alone = DirectSolver(pb.structure, 20).solve(pb)
+    a = DirectSolver(pa.structure, 20)
+    b = DirectSolver(pb.structure, 20)
+    assert a.disc.grad_f is b.disc.grad_f
+    a.solve(pa)
+    assert np.array_equal(b.solve(pb).x, alone.x)
     assert _cell_functions.cache_info().currsize <= 3
     assert isinstance(_cell_functions(2)["f"], ca.Function)

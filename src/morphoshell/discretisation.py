@@ -48,6 +48,7 @@ import os
 import platform
 import shutil
 import sys
+import weakref
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -318,6 +319,40 @@ def _take(v: ca.MX, idx: list) -> ca.MX:
     return out.T if out.size2() > 1 else out   # (a 1x1 value indexed by a list gives a row)
 
 
+class _Shared:
+    """What every discretisation of one layout and set of cell kernels builds alike.
+
+    The unknowns x and data D (symbols), each cell's share of them, and all
+    that is assembled from the cell kernels alone in ``built``: the fields,
+    Ipopt's NLP and its scatter patterns, the Newton system.  The structure,
+    the mesh and the parameters enter through the values of D only, so two
+    solvers with the same number of cells and order (say, meshes graded for
+    different h) share these, and the second build costs the mesh and its
+    parameter data alone.  Entries are held weakly (:data:`_SHARED`): nothing
+    outlives the last discretisation using it, and a fresh build of a size
+    that no live solver has is a full build.
+    """
+
+    def __init__(self, layout: "Layout", cell: dict):
+        self.cell = cell      # (held: the key's id(cell) cannot be reused while this lives)
+        self.x = ca.MX.sym("x", layout.size)
+        self.D = ca.MX.sym("D", len(CELL_DATA) * layout.cells * layout.stages)
+        self.built: dict = {}
+
+
+#: (layout, id of the cell kernels) -> _Shared, weakly held.
+_SHARED: "weakref.WeakValueDictionary" = weakref.WeakValueDictionary()
+
+
+def _shared(layout: "Layout", cell: dict) -> _Shared:
+    """The :class:`_Shared` objects of ``layout`` with the cell kernels ``cell``."""
+    key = (layout, id(cell))
+    found = _SHARED.get(key)
+    if found is None or found.cell is not cell:
+        found = _SHARED[key] = _Shared(layout, cell)
+    return found
+
+
 @lru_cache(maxsize=CACHE_SIZE)
 def _pre_function(structure: Structure) -> tuple[ca.Function, str]:
     """``(s_k, Δs_c, w_k, scale, p) -> D_k``: parameter-only data at one Gauss point, and its
@@ -465,7 +500,6 @@ class Discretisation:
         tau, w, self._values, self._derivs, self._integrals, self._anti = collocation(S)
         self.tau, self.weights = tau, w
         n_p = len(structure.parameters)
-        n = lay.size
         m = cells * S
 
         self.p = ca.MX.sym("p", n_p)
@@ -490,14 +524,6 @@ class Discretisation:
             [ca.vec(compiled_point_map(pre, m, s_gauss.T, ds.T, weights, scale, self.p,
                                        serialised=self._pre_serialised))],
             ["p", "q"], ["D"])
-        n_D = len(CELL_DATA)
-        self.x = ca.MX.sym("x", n)
-        self.D = ca.MX.sym("D", n_D * m)
-        self._idx = self._cell_indices()
-        self._field_names = ("s", "ds", "weight", "r", "psi", "f_s", "dpsi", *LOCAL_OUTPUTS)
-        # Scatter patterns (which local entry of which cell goes where in the
-        # gradient, Jacobian and Hessian) are computed numerically, on first use.
-        self._patterns: dict = {}
         # Ipopt and results evaluate compiled cell kernels when a C compiler
         # is available (3-4x cheaper evaluations); the differentiable
         # SX-based functions (parametric derivatives, observables, fits) are
@@ -506,22 +532,32 @@ class Discretisation:
         compiled = compiled_cell_functions(S)
         self.kernels = "compiled" if compiled is not None else "casadi"
         self._cell = compiled or _cell_functions(S)
-        self._numeric = self._symbolic = self._local_xd = None
-        self._newton = self._newton_rhs = None
+        # x, D and what is assembled from the cell kernels alone are shared
+        # with the other live discretisations of this layout (_Shared)
+        self._shared = _shared(lay, self._cell)
+        self.x, self.D = self._shared.x, self._shared.D
+        self._idx = self._cell_indices()
+        self._field_names = ("s", "ds", "weight", "r", "psi", "f_s", "dpsi", *LOCAL_OUTPUTS)
         self._points = (None, None)
         self._theta_scatters: dict = {}
-        self._fields = self._fields_function(self._cell)
+        self._fields = self._built("fields", lambda: self._fields_function(self._cell))
         # z and S at the points are linear in the Gauss values of z' and S'
         # (per unit of t): the same operators serve numbers and expressions.
         self._integration = self._integration_operators()
 
     # -- the NLP ---------------------------------------------------------------
+    def _built(self, name: str, build):
+        """The object ``name``, shared by every live discretisation of this layout and
+        kernels (:class:`_Shared`); ``build()`` on first use."""
+        built = self._shared.built
+        if name not in built:
+            built[name] = build()
+        return built[name]
+
     def _pattern(self, name: str) -> tuple:
         """Where stacked cell values go in the NLP's derivatives (:meth:`_gather`): ``name``
-        is ``"grad"``, ``"jac"`` or ``"hess"``; computed on first use."""
-        if name not in self._patterns:
-            self._patterns[name] = getattr(self, f"_{name}_pattern")()
-        return self._patterns[name]
+        is ``"grad"``, ``"jac"`` or ``"hess"``; computed numerically on first use."""
+        return self._built(f"pattern {name}", getattr(self, f"_{name}_pattern"))
 
     def _grad_pattern(self) -> tuple:
         idx, n, cells = self._idx, self.layout.size, self.layout.cells
@@ -589,9 +625,8 @@ class Discretisation:
     def numeric(self) -> dict:
         """The NLP on the cheapest kernels (compiled when available), for Ipopt's callbacks:
         ``objective``, ``g``, ``grad_f``, ``jac_g``, ``hess_lag``; built on first use."""
-        if self._numeric is None:
-            self._numeric = self._nlp(self._cell, energy=self.kernels == "casadi")
-        return self._numeric
+        return self._built("numeric",
+                           lambda: self._nlp(self._cell, energy=self.kernels == "casadi"))
 
     def _fields_function(self, cell: dict) -> ca.Function:
         """``(x, D) -> fields``: pointwise fields at the Gauss points, for results (one
@@ -603,17 +638,13 @@ class Discretisation:
     def _local(self) -> tuple:
         """(Z, D_c): each cell's unknowns (:meth:`cell_unknowns` of x) and data, a column per
         cell, as expressions of the symbols x, D."""
-        if self._local_xd is None:
-            self._local_xd = (self.cell_unknowns(self.x),
-                              ca.reshape(self.D, -1, self.layout.cells))
-        return self._local_xd
+        return self._built("local", lambda: (self.cell_unknowns(self.x),
+                                             ca.reshape(self.D, -1, self.layout.cells)))
 
     def _symbolic_nlp(self) -> dict:
         if self.kernels == "casadi":
             return self.numeric
-        if self._symbolic is None:
-            self._symbolic = self._nlp(_cell_functions(self.stages))
-        return self._symbolic
+        return self._built("symbolic", lambda: self._nlp(_cell_functions(self.stages)))
 
     @property
     def objective(self) -> ca.MX:
@@ -968,16 +999,16 @@ class Discretisation:
         Assembled from one kernel per cell, built on first use.  K is
         (n + m) × (n + m), sparse and symmetric; rhs (n + m,); W (m,).
         """
-        if self._newton is None:
-            S, cells = self.stages, self.layout.cells
-            lam, rho = ca.MX.sym("lam", self.constraints), ca.MX.sym("rho")
-            tri, dual, rx, g, w = self._cell["newton"].map(cells)(
-                *self._local, ca.reshape(lam, S, cells), rho)
-            self._newton = ca.Function(
-                "newton_system", [self.x, self.D, lam, rho],
-                [_assembled(*self._local_kkt_scatter(symmetric=True), tri),
-                 *self._newton_residual(lam, dual, rx, g), ca.vec(w)])
-        return self._newton
+        return self._built("newton", self._newton_system)
+
+    def _newton_system(self) -> ca.Function:
+        S, cells = self.stages, self.layout.cells
+        lam, rho = ca.MX.sym("lam", self.constraints), ca.MX.sym("rho")
+        tri, dual, rx, g, w = self._cell["newton"].map(cells)(
+            *self._local, ca.reshape(lam, S, cells), rho)
+        return ca.Function("newton_system", [self.x, self.D, lam, rho],
+                           [_assembled(*self._local_kkt_scatter(symmetric=True), tri),
+                            *self._newton_residual(lam, dual, rx, g), ca.vec(w)])
 
     def newton_rhs(self) -> ca.Function:
         """``(x, D, λ, W) -> (rhs, ‖∇f + Jᵀλ‖∞, ‖g‖∞, ‖λ‖₁)``: :meth:`newton_system`'s
@@ -986,16 +1017,16 @@ class Discretisation:
         With W those of a factorised K, a step with that factorisation is a
         chord (simplified Newton) step (:mod:`morphoshell.newton`).
         """
-        if self._newton_rhs is None:
-            S, cells = self.stages, self.layout.cells
-            lam, w = ca.MX.sym("lam", self.constraints), ca.MX.sym("w", self.constraints)
-            dual, rx, g = block_map(self._cell.get("newton_rhs_block"), self._cell["newton_rhs"],
-                                    cells,
-                                    [*self._local, ca.reshape(lam, S, cells),
-                                     ca.reshape(w, S, cells)])
-            self._newton_rhs = ca.Function("newton_rhs", [self.x, self.D, lam, w],
-                                           self._newton_residual(lam, dual, rx, g))
-        return self._newton_rhs
+        return self._built("newton_rhs", self._newton_rhs_function)
+
+    def _newton_rhs_function(self) -> ca.Function:
+        S, cells = self.stages, self.layout.cells
+        lam, w = ca.MX.sym("lam", self.constraints), ca.MX.sym("w", self.constraints)
+        dual, rx, g = block_map(self._cell.get("newton_rhs_block"), self._cell["newton_rhs"],
+                                cells,
+                                [*self._local, ca.reshape(lam, S, cells), ca.reshape(w, S, cells)])
+        return ca.Function("newton_rhs", [self.x, self.D, lam, w],
+                           self._newton_residual(lam, dual, rx, g))
 
     def _newton_residual(self, lam, dual, rx, g) -> list:
         """rhs, ‖∇f + Jᵀλ‖∞, ‖g‖∞ and ‖λ‖₁ from the cells' shares (side by side)."""
