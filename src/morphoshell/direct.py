@@ -217,17 +217,17 @@ class DirectSolver:
         if x0 is None:
             x0 = self.disc.initial_guess(p, q)
         D = self.disc.cell_data(p, q)
+        cold = lam_g0 is None
+        lam0 = np.zeros(self.disc.constraints) if cold else lam_g0
         res = None
-        if self.newton if lam_g0 is not None else self._cold_newton:   # Newton first
+        if self._cold_newton if cold else self.newton:      # Newton first
             if self._newton is None:
                 self._newton = NewtonBackend(self.disc, tol=self.tol,
                                              acceptable_tol=self.backend.acceptable_tol)
-            res = self._newton.solve(x0, self.disc.pre_numeric(p, q),
-                                     np.zeros(self.disc.constraints) if lam_g0 is None
-                                     else lam_g0, at=(p, q), origin=origin, cold=lam_g0 is None)
+            res = self._newton.solve(x0, self.disc.pre_numeric(p, q), lam0, at=(p, q),
+                                     origin=origin, cold=cold)
         if res is None:
-            res = self.backend.solve(x0, D, np.zeros(self.disc.constraints) if lam_g0 is None
-                                     else lam_g0, data=lambda: self.disc.pre_numeric(p, q))
+            res = self.backend.solve(x0, D, lam0, data=lambda: self.disc.pre_numeric(p, q))
         stats = SolverStats("direct", res.iterations, res.seconds, res.status, self.nodes,
                             self.build_seconds, res.details)
         eq = self.equilibrium(problem, res.x, res.lam_g, p, q, D, stats, converged=res.converged)
