@@ -39,3 +39,20 @@ def test_imports_point_down():
             if isinstance(node, ast.ImportFrom) and node.level == depth and node.module:
                 target = node.module.split(".")[0]
                 assert _layer(target) <= mine, f"{path.name} imports {target} from a higher layer"
+
+
+def test_every_ipopt_solver_is_created_after_load_ipopt():
+    """The first ``nlpsol(..., "ipopt", ...)`` of a process loads Ipopt's plugin; it must do so
+    through ``ipopt.load_ipopt`` (OpenBLAS single-threaded: spin-waiting BLAS threads made
+    warm solves 2.7x slower on a busy machine). Solvers set Ipopt up only when needed, so no
+    other call may be relied on to have loaded it: each function creating one calls it."""
+    root = Path(morphoshell.__file__).parent
+    for path in [*root.glob("*.py"), *(root / "cli").glob("*.py")]:
+        for fn in ast.walk(ast.parse(path.read_text())):
+            if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                continue
+            calls = [n.func for n in ast.walk(fn) if isinstance(n, ast.Call)]
+            names = {getattr(f, "attr", getattr(f, "id", None)) for f in calls}
+            if "nlpsol" in names:
+                assert "load_ipopt" in names, f"{path.name}:{fn.name} creates an nlpsol " \
+                                              f"without calling load_ipopt() first"

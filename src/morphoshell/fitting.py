@@ -60,6 +60,7 @@ from ._compiled import LARGE, compiled_point_function
 from ._validate import real
 from .continuation import continue_between, continue_to
 from .direct import DirectSolver
+from .ipopt import load_ipopt
 from .mesh import mesh_spec
 from .observables import midline, midline_cells
 from .parametric import parametric
@@ -1353,6 +1354,7 @@ class _KKTProblem:
         problem = {"x": w, "p": target, "f": 0.5 * ca.sumsqr(res), "g": g}
         self.lagrangian = (w, target, sigma, mult, problem["f"], g, hess, jac_g)  # (for tests)
         self._jac_g, self._n_eq = jac_g, F.shape[0] + lifted.shape[0]     # (rows of g first)
+        load_ipopt()      # (solvers no longer load it on construction: Newton may do without)
         self.nlp = ca.nlpsol("kkt_fit", "ipopt", problem, {
             # the start is an equilibrium, feasible and usually close: a small
             # initial barrier keeps the inactive |eta| bounds from slowing it

@@ -21,7 +21,7 @@ import numpy as np
 from ._buffered import Buffered
 from .results import SolverError
 
-__all__ = ["IpoptBackend", "BackendResult", "IPOPT_DEFAULTS", "converged"]
+__all__ = ["IpoptBackend", "BackendResult", "IPOPT_DEFAULTS", "converged", "load_ipopt"]
 
 IPOPT_DEFAULTS = {
     "print_level": 0, "sb": "yes", "print_timing_statistics": "no",
@@ -40,8 +40,12 @@ IPOPT_DEFAULTS = {
 _PLUGIN = {"loaded": False}
 
 
-def _load_ipopt() -> None:
+def load_ipopt() -> None:
     """Load CasADi's Ipopt plugin with its bundled OpenBLAS single-threaded.
+
+    Call before any ``nlpsol(..., "ipopt", ...)``: the first creation of an
+    Ipopt solver would otherwise load the plugin with OpenBLAS's default
+    threads (and a later call here would load it twice).
 
     MUMPS factorises our banded KKT systems in small dense blocks, where BLAS
     threads do not help; on a busy machine their spin-waiting made a warm
@@ -164,7 +168,7 @@ class IpoptBackend:
         return self._solver
 
     def _nlpsol(self, name: str, ipopt: Mapping[str, Any]) -> ca.Function:
-        _load_ipopt()
+        load_ipopt()
         d = self.nlp
         # ``numeric``: the same NLP on faster (compiled, not differentiable) kernels
         f = getattr(d, "numeric", None) or {k: getattr(d, k) for k in
