@@ -1,4 +1,6 @@
-"""Newton back end for warm starts: Newton's method on the KKT conditions, certified by its own LDLᵀ.
+"""Newton back end: Newton's method on the KKT conditions, certified by its own LDLᵀ.
+
+Warm starts first, and cold starts under stricter rules ("Cold starts" below).
 
 A warm re-solve (continuation, fitting, sweeps) starts next to the solution:
 Newton's method on the KKT conditions ∇f + Jᵀλ = 0, g = 0 converges in two or
