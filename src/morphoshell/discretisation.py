@@ -261,9 +261,12 @@ def within_cells(nodes, fractions, last: bool = True):
     """
     fractions = np.asarray(fractions, dtype=float)
     if isinstance(nodes, (ca.SX, ca.MX)):
+        # cell by cell in few CasADi operations (each costs 20-100 µs to build, whatever
+        # its size): the nodes and widths repeated per fraction
         n = nodes.shape[0]
-        lo, hi = nodes[:n - 1], nodes[1:]
-        inner = ca.vec(ca.horzcat(*[lo + (hi - lo) * f for f in fractions]).T)
+        cell = np.repeat(np.arange(n - 1), len(fractions)).tolist()
+        inner = nodes[cell] + (nodes[1:] - nodes[:n - 1])[cell] * ca.DM(
+            np.tile(fractions, n - 1))
         return ca.vertcat(inner, nodes[n - 1]) if last else inner
     inner = (nodes[:-1, None] + np.diff(nodes)[:, None] * fractions[None, :]).ravel()
     return np.append(inner, nodes[-1]) if last else inner
@@ -506,11 +509,8 @@ class Discretisation:
         self.q = ca.MX.sym("q", self.anchors)
         a, b = ends = self.shell_ends(self.p)
         s_nodes = self.nodes(self.p, self.q, ends)
-        # within_cells's s_k = s_c + (s_c+1 − s_c) τ_k, in few CasADi operations (each
-        # costs 20-100 µs to build, whatever its size)
-        cell = np.repeat(np.arange(cells), S).tolist()
-        ds = (s_nodes[1:] - s_nodes[:-1])[cell]
-        s_gauss = s_nodes[cell] + ds * ca.DM(np.tile(tau, cells))
+        ds = (s_nodes[1:] - s_nodes[:-1])[np.repeat(np.arange(cells), S).tolist()]
+        s_gauss = within_cells(s_nodes, tau, last=False)
         # Energies range over decades with h (bending ~ h³): dividing by h³
         # and by the mean cell size keeps Ipopt's gradients O(1).
         h = self.p[structure.parameters.index("h")]

@@ -292,7 +292,6 @@ class NewtonBackend:
             if done:
                 if fused:        # (rare: its step is not needed)
                     K, *_, w = self._system(xk, D, lk, 1.0)
-                lin.nfact(K)
                 how = self._certify(K, xk, D, lk)
                 if how is None:
                     return fail
@@ -311,27 +310,27 @@ class NewtonBackend:
             last = err
         return fail
 
-    def _convex_step(self, K, rhs, x, D, lam):
-        """Newton's step (dx, dλ) from K, if K (or K at ρ = 100) has the inertia of a minimum."""
+    def _minimum(self, K, rhs, x, D, lam) -> tuple | None:
+        """(K, rhs, ρ): the system K given (ρ = 1), or else the system at ρ = 100, whichever
+        first has the inertia of a minimum, factorised; None if neither has."""
         lin = self._linsol
         for rho in (1.0, 100.0):
             if rho > 1:
                 K, rhs = self._system(x, D, lam, rho)[:2]
             lin.nfact(K)
             if lin.neig(K) == self.m and lin.rank(K) == self.n + self.m:
-                return lin.solve(K, rhs)
+                return K, rhs, rho
         return None
 
+    def _convex_step(self, K, rhs, x, D, lam):
+        """Newton's step (dx, dλ), if its system has the inertia of a minimum (:meth:`_minimum`)."""
+        found = self._minimum(K, rhs, x, D, lam)
+        return None if found is None else self._linsol.solve(*found[:2])
+
     def _certify(self, K, x, D, lam) -> str | None:
-        """The certificate of the factorised K at the returned point, trying ρ = 100 if ρ = 1 fails."""
-        lin = self._linsol
-        if lin.neig(K) == self.m and lin.rank(K) == self.n + self.m:
-            return "newton_ldl"
-        K = self._system(x, D, lam, 100.0)[0]
-        lin.nfact(K)
-        if lin.neig(K) == self.m and lin.rank(K) == self.n + self.m:
-            return "newton_ldl_rho100"
-        return None
+        """The certificate of the returned point's system K, trying ρ = 100 if ρ = 1 fails."""
+        found = self._minimum(K, None, x, D, lam)
+        return None if found is None else "newton_ldl" if found[2] == 1 else "newton_ldl_rho100"
 
 
 def _norm_inf(v) -> float:
