@@ -137,7 +137,9 @@ def test_compiled_kernels_match_casadi(monkeypatch, tmp_path):
         slow_nlp = {**d._nlp(disc._cell_functions(2)),
                     "fields": d._fields_function(disc._cell_functions(2))}
         for name, args in (("grad_f", (eq.x, D)), ("jac_g", (eq.x, D)),
-                           ("hess_lag", (eq.x, D, 1.0, eq.lam_g)), ("fields", (eq.x, D))):
+                           ("hess_lag", (eq.x, D, 1.0, eq.lam_g)),
+                           ("fields", (d.local_values(eq.x).reshape(-1, d.layout.cells, order="F"),
+                                       D.reshape(-1, d.layout.cells, order="F")))):
             fast = [np.array(v) for v in {**d.numeric, "fields": d._fields}[name].call(list(args))]
             slow = [np.array(v) for v in slow_nlp[name].call(list(args))]
             for a, b in zip(fast, slow):

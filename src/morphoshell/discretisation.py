@@ -85,6 +85,10 @@ COMPILED_KERNELS = ("f", "g", "grad", "jac", "hess", "fields", "newton", "newton
 #: padding their inputs would add to every build.
 BLOCKED_KERNELS = ("newton_rhs",)
 
+#: r, ψ at a start pole and ψ at an end pole: the constants that :meth:`Discretisation._cell_indices`
+#: places after the unknowns (indices n, n + 1, n + 2).
+POLE_VALUES = (0.0, 0.0, np.pi)
+
 #: Relative size ε of the (λ, λ) block −ε W⁻¹ of the Newton system (:meth:`Discretisation.newton_system`).
 NEWTON_EPSILON = 1e-8
 
@@ -280,6 +284,14 @@ def _lagrange(points: np.ndarray, l: int) -> np.polynomial.Polynomial:
     return np.polynomial.Polynomial.fromroots(others) / np.prod(points[l] - others)
 
 
+@lru_cache(maxsize=None)
+def _triu(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``np.triu_indices(n)``, kept per n (it costs 50-100 µs of every build)."""
+    ku, lu = np.triu_indices(n)
+    ku.flags.writeable = lu.flags.writeable = False
+    return ku, lu
+
+
 def _compressed(n_rows: int, n_cols: int, cols: np.ndarray, rows: np.ndarray) -> ca.Sparsity:
     """The sparsity of entries (rows, cols), given sorted by (col, row) and distinct.
 
@@ -287,7 +299,9 @@ def _compressed(n_rows: int, n_cols: int, cols: np.ndarray, rows: np.ndarray) ->
     them again (5 ms at 20 000 entries).
     """
     colind = np.concatenate([[0], np.cumsum(np.bincount(cols, minlength=n_cols))])
-    return ca.Sparsity(n_rows, n_cols, colind.tolist(), rows.tolist())
+    # (Sparsity.compressed of one list: half the constructor's time, which tries
+    # its overloads on both lists)
+    return ca.Sparsity.compressed([n_rows, n_cols, *colind.tolist(), *rows.tolist()])
 
 
 def _positions(shape, rows, cols, src) -> tuple:
@@ -310,7 +324,8 @@ def _assembled(sp: ca.Sparsity, first: list, extras: list, values) -> ca.MX:
     v = ca.vec(values)
     nz = _take(v, first)
     for pos, more in extras:
-        nz[pos] = _take(nz, pos) + _take(v, more)
+        # (MX.binary: `+` tries CasADi's DM and SX overloads first, 60 µs of a build)
+        nz[pos] = ca.MX.binary(ca.OP_ADD, _take(nz, pos), _take(v, more))
     return ca.MX(sp, nz)
 
 
@@ -541,9 +556,6 @@ class Discretisation:
         self._points = (None, None)
         self._theta_scatters: dict = {}
         self._fields = self._built("fields", lambda: self._fields_function(self._cell))
-        # z and S at the points are linear in the Gauss values of z' and S'
-        # (per unit of t): the same operators serve numbers and expressions.
-        self._integration = self._integration_operators()
 
     # -- the NLP ---------------------------------------------------------------
     def _built(self, name: str, build):
@@ -583,7 +595,7 @@ class Discretisation:
     def _hess_pattern(self) -> tuple:
         idx, n, cells = self._idx, self.layout.size, self.layout.cells
         n_loc = idx.shape[0]
-        ku, lu = np.triu_indices(n_loc)
+        ku, lu = _triu(n_loc)
         I, Jc = idx[ku], idx[lu]
         ok = (I < n) & (Jc < n)
         n_tri = len(ku)
@@ -629,10 +641,11 @@ class Discretisation:
                            lambda: self._nlp(self._cell, energy=self.kernels == "casadi"))
 
     def _fields_function(self, cell: dict) -> ca.Function:
-        """``(x, D) -> fields``: pointwise fields at the Gauss points, for results (one
-        stacked output, so a single copy to NumPy per solve), from cell kernels ``cell``."""
-        return ca.Function("fields", [self.x, self.D],
-                           [cell["fields"].map(self.layout.cells)(*self._local)])
+        """``(Z, D_c) -> fields``: pointwise fields at the Gauss points from each cell's
+        unknowns (:meth:`local_values`) and data, for results (one stacked output, so a
+        single copy to NumPy per solve), from cell kernels ``cell``.  The mapped kernel
+        itself: an MX function of x, D would cost a cold solve 0.3-0.5 ms to build."""
+        return cell["fields"].map(self.layout.cells)
 
     @property
     def _local(self) -> tuple:
@@ -782,7 +795,7 @@ class Discretisation:
         return blocks.T
 
     def _cell_indices(self) -> np.ndarray:
-        """(3S + 2, cells) positions of each cell's local unknowns in [x, constants]."""
+        """(3S + 2, cells) positions of each cell's local unknowns in [x, POLE_VALUES]."""
         lay, n, S = self.layout, self.layout.size, self.stages
         pts = np.arange(lay.points)
         r_idx = pts - lay.start_pole
@@ -836,6 +849,13 @@ class Discretisation:
             has = np.flatnonzero(counts > r)
             extras.append((has.tolist(), src[start[has] + r].tolist()))
         return sp, src[start].tolist() if nnz else [], extras
+
+    @property
+    def _integration(self) -> tuple:
+        """:meth:`_integration_operators`, built on first use (only expressions need them)."""
+        if not hasattr(self, "_integration_built"):
+            self._integration_built = self._integration_operators()
+        return self._integration_built
 
     def _integration_operators(self):
         """Sparse operators of ∫ from the first node to every point (Gauss interpolant per cell).
@@ -922,7 +942,8 @@ class Discretisation:
         """Every pointwise quantity at the Gauss points, given the data ``D``."""
         if not hasattr(self, "_fields_buffered"):
             self._fields_buffered = Buffered(self._fields)
-        out = self._fields_buffered(x, D)[0].reshape(-1, len(self._field_names)).T
+        out = self._fields_buffered(self.local_values(x), D)[0].reshape(
+            -1, len(self._field_names)).T
         return dict(zip(self._field_names, out))
 
     def integrate_to_points(self, values: np.ndarray, p: np.ndarray | None = None, q=(), *,
@@ -939,10 +960,16 @@ class Discretisation:
         return self._integrate(values, ds)
 
     # -- symbolic interface (for observables) --------------------------------
+    def local_values(self, x: np.ndarray) -> np.ndarray:
+        """:meth:`cell_unknowns` in numbers: each cell's unknowns, column-major (flat)."""
+        if not hasattr(self, "_idx_flat"):
+            self._idx_flat = self._idx.ravel(order="F")
+        return np.append(np.asarray(x, dtype=float), POLE_VALUES)[self._idx_flat]
+
     def cell_unknowns(self, x) -> ca.MX:
         """(3S + 2, cells): each cell's r, ψ at its points and f_s at its Gauss points."""
         n_loc, cells = self._idx.shape
-        xfull = ca.vertcat(x, ca.DM([0.0, 0.0, np.pi]))   # pole values r = 0, ψ = 0, ψ = π
+        xfull = ca.vertcat(x, ca.DM(POLE_VALUES))
         return ca.reshape(xfull[self._idx.ravel(order="F").tolist()], n_loc, cells)
 
     def shell_ends(self, p):
@@ -976,7 +1003,7 @@ class Discretisation:
         S, cells = self.stages, self.layout.cells
         n_loc = self._idx.shape[0]
         local = self._local_slots()
-        ku, lu = np.triu_indices(n_loc + S)
+        ku, lu = _triu(n_loc + S)
         I, J = local[ku], local[lu]
         ok = (I >= 0) & (J >= 0)
         n_tri = len(ku)
@@ -1170,7 +1197,7 @@ class Discretisation:
         """
         cell = self.cell_of(p, q, s_star)
         s0, s1 = (float(v) for v in self.nodes(np.asarray(p, dtype=float), q)[[cell, cell + 1]])
-        Zc = np.append(x, [0.0, 0.0, np.pi])[self._idx[:, cell]]
+        Zc = np.append(x, POLE_VALUES)[self._idx[:, cell]]
         out = _cell_state(self.stages)(Zc, s1 - s0, z_points[cell * self.stages], 0.0,
                                        (s_star - s0) / (s1 - s0))
         return {k: float(v) for k, v in zip(("r", "psi", "z"), out)}
