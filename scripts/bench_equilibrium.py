@@ -23,7 +23,8 @@ solve_bvp at tol 1e-8.  Timings are medians of repeated runs in this process,
 all ratios from the same run; the machine's load average is printed with every
 table (the machine may be shared).  Then: the warm re-solve with certificate
 at N = 200 and 3200, the build time against N, and the first solve in a fresh
-process (``morphoshell solve problems/toy2_ablation.toml``).
+process (``morphoshell solve problems/toy2_ablation.toml``), and what single CasADi
+operations cost to build from Python (the fixed cost of every build).
 
 With ``--large`` (or ``--only large``), also one build and solve each on
 12 800 to 102 400 nodes, with the log-log slopes of the times against N,
@@ -327,11 +328,57 @@ def fresh_process(quick: bool) -> None:
     print("  target: first solve <= 200 ms\n")
 
 
+def binding_costs(quick: bool) -> None:
+    """What a build's CasADi operations cost in Python, whatever their size (issue 11's
+    flat build and cold 3x: a cold solve at 25 nodes makes about a hundred of them)."""
+    import casadi as ca
+    repeats = 500 if quick else 3000
+    p = ca.MX.sym("p", 5)
+    h, b = p[1], p[2]
+    v, M = ca.MX.sym("v", 300), ca.MX.sym("M", 10, 30)
+    idx = list(range(0, 300, 2))
+    f = ca.Function("f", [v], [2 * v])
+    x, y = ca.SX.sym("x"), ca.SX.sym("y")
+    d = ca.DM(2.0)
+    dense = np.random.default_rng(0).random(10000)
+    cases = {
+        "h * b (MX, generic operator)": lambda: h * b,
+        "ca.MX.binary(OP_MUL, h, b) (typed)": lambda: ca.MX.binary(ca.OP_MUL, h, b),
+        "x * y (SX, generic)": lambda: x * y,
+        "d * d (DM, generic)": lambda: d * d,
+        "ca.sin(h) (generic)": lambda: ca.sin(h),
+        "ca.MX.unary(OP_SIN, h) (typed)": lambda: ca.MX.unary(ca.OP_SIN, h),
+        "ca.vec(M)": lambda: ca.vec(M),
+        "ca.vertcat(v, v)": lambda: ca.vertcat(v, v),
+        "v[list of 150]": lambda: v[idx],
+        "v[0:300:2] (slice)": lambda: v[0:300:2],
+        "f(v) (symbolic call)": lambda: f(v),
+        "ca.DM(ndarray of 10 000) / 10 000": lambda: ca.DM(dense),
+        "ca.DM(list of 10 000) / 10 000": lambda: ca.DM(dense.tolist()),
+    }
+    print(f"CasADi's Python binding: microseconds per operation built (median of 5 runs of "
+          f"{repeats}); {load()}")
+    for label, fn in cases.items():
+        runs = []
+        for _ in range(5):
+            t0 = time.perf_counter()
+            for _ in range(repeats):
+                fn()
+            runs.append((time.perf_counter() - t0) / repeats)
+        per = 1e6 * float(np.median(runs))
+        if label.endswith("/ 10 000"):
+            print(f"  {label[:-9]:44s} {1e3 * per / 10000:8.1f} ns an entry")
+        else:
+            print(f"  {label:44s} {per:8.1f} us")
+    print()
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true",
                         help="fewer repeats, no N = 12800 build")
-    parser.add_argument("--only", choices=("matched", "warm", "build", "fresh", "large"),
+    parser.add_argument("--only", choices=("matched", "warm", "build", "fresh", "binding",
+                                           "large"),
                         default=None)
     parser.add_argument("--large", action="store_true",
                         help="also time meshes of 12 800 to 102 400 nodes, with the default "
@@ -340,7 +387,7 @@ def main(argv=None) -> int:
     print(f"{datetime.date.today()}, {platform.node()}, {platform.processor() or platform.machine()}"
           f", Python {platform.python_version()}\n")
     parts = {"fresh": fresh_process, "warm": warm_with_certificate, "build": build_scaling,
-             "matched": matched_accuracy, "large": large_meshes}
+             "binding": binding_costs, "matched": matched_accuracy, "large": large_meshes}
     for name, fn in parts.items():
         if args.only == name or args.only is None and (name != "large" or args.large):
             fn(args.quick)

@@ -256,3 +256,33 @@ def test_cell_data_hessian_is_the_hessian_of_the_cell_data(problem, compiled, mo
     assert np.abs(one).max() > 1
     # rounding only (measured 5e-15 relative on toy 3, 2e-18 on volvox)
     assert np.abs(one - two).max() < 1e-12 * np.abs(one).max()
+
+
+@pytest.mark.parametrize("compiled", ["1", "0"], ids=["compiled", "casadi"])
+@pytest.mark.parametrize("nodes", [30, 400])
+@pytest.mark.parametrize("case", ["toy3", "volvox", "anchored"])
+def test_evaluated_cell_data_are_the_differentiable_cell_data_to_the_bit(case, nodes, compiled,
+                                                                         monkeypatch):
+    """``pre_numeric`` (one kernel per point fed the mesh's numbers) is ``pre`` (the mesh's
+    MX expressions), for the plain map, the family's breakpoints and anchors, and the
+    compiled blocks of large meshes."""
+    from morphoshell.mesh import Knot
+
+    monkeypatch.setenv("MORPHOSHELL_COMPILE", compiled)
+    toy3, volvox = _structures()
+    problem = volvox if case == "volvox" else toy3
+    t = np.linspace(0, 1, nodes) ** 1.2
+    knots = ()
+    if case == "volvox":
+        solver = DirectSolver(problem.structure, nodes)
+        t, knots = solver.t, solver.mesh.knots
+    elif case == "anchored":      # two anchors, one moved off its knot's place
+        t = np.sort(np.concatenate([t, [0.3, 0.6]]))
+        knots = (Knot(0.3, "anchor", 0), Knot(0.6, "anchor", 1))
+    d = Discretisation(problem.structure, t, 2, knots)
+    p = problem.parameter_vector()
+    a, b = d.shell_ends(p)
+    q = a + (b - a) * np.array([0.3, 0.6]) + [0.02, -0.01] if d.anchors else np.zeros(0)
+    evaluated, differentiable = (np.asarray(f(p, q)).ravel() for f in (d.pre_numeric, d.pre))
+    assert evaluated.shape == (d.D.shape[0],) and np.ptp(evaluated) > 0
+    assert np.array_equal(evaluated, differentiable)

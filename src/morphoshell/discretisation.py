@@ -63,7 +63,7 @@ from ._compiled import (_CFLAGS, LARGE, _blake2b, _compiled_library, _renamed, b
                         kernel_cache_dir)
 from .energy import CACHE_SIZE, LOCAL_OUTPUTS, intrinsic_function, pointwise
 from .layouts import CELL_DATA, INTRINSIC
-from .mesh import Knot, check_monotone, shell_points
+from .mesh import Knot, check_monotone, knot_shapes, mapped_points, shell_points
 from .problem import Structure
 
 __all__ = ["Discretisation", "Layout", "SymbolicShape", "collocation", "within_cells",
@@ -269,11 +269,24 @@ def within_cells(nodes, fractions, last: bool = True):
         # its size): the nodes and widths repeated per fraction
         n = nodes.shape[0]
         cell = np.repeat(np.arange(n - 1), len(fractions)).tolist()
-        inner = nodes[cell] + (nodes[1:] - nodes[:n - 1])[cell] * ca.DM(
-            np.tile(fractions, n - 1))
+        inner = _between(nodes[cell], nodes[1:][cell], ca.DM(np.tile(fractions, n - 1)))
         return ca.vertcat(inner, nodes[n - 1]) if last else inner
-    inner = (nodes[:-1, None] + np.diff(nodes)[:, None] * fractions[None, :]).ravel()
+    inner = _between(nodes[:-1, None], nodes[1:, None], fractions[None, :]).ravel()
     return np.append(inner, nodes[-1]) if last else inner
+
+
+def _between(s0, s1, fraction):
+    """The point at ``fraction`` of the cell from ``s0`` to ``s1`` (numbers or CasADi)."""
+    return s0 + (s1 - s0) * fraction
+
+
+def objective_scale(cells, h, cut, end):
+    """The factor on the energy in the objective handed to the solvers: cells/(2π h³ (L − P − Σ)).
+
+    Energies range over decades with h (bending ~ h³): dividing by h³ and by
+    the mean cell size keeps Ipopt's gradients O(1).
+    """
+    return cells / (2 * ca.pi * h ** 3 * (end - cut))
 
 
 def _lagrange(points: np.ndarray, l: int) -> np.polynomial.Polynomial:
@@ -390,6 +403,59 @@ def _pre_function(structure: Structure) -> tuple[ca.Function, str]:
     pre = ca.Function("pre", [s_k, ds, wk, scale, p],
                       [ca.vertcat(*[data[n] for n in CELL_DATA.names[:off]], I)])
     return pre, pre.serialize()
+
+
+@lru_cache(maxsize=CACHE_SIZE)
+def _data_point(structure: Structure, knots: tuple[tuple[str, int], ...]) -> tuple[ca.Function, str]:
+    """``(c, (t_knots, cells, p, q)) -> D_k``: the parameter data at one Gauss point from the
+    mesh's numbers there, and its serialisation.
+
+    c = (t_c, t_c+1, τ_k, w_k, the knots' shapes at t_c, at t_c+1) (:func:`knot_shapes`),
+    t_knots the knots' places in t and ``knots`` their (source, index); the
+    inputs shared by all points are one vector (a map with several, some of them
+    empty, cost 21 instead of 2 ms to build at 12 800 nodes, measured).  The
+    parametric map (:func:`~morphoshell.mesh.mapped_points`) at the cell's nodes, the point
+    between them (:func:`within_cells`), the cell's width and the objective's scale, then
+    :func:`_pre_function`'s data, in the same operations as the expressions of
+    :meth:`Discretisation._pre_parts`.  One kernel per structure and kind of knots, mapped
+    over the points: a build makes a handful of CasADi operations for D where the mesh's
+    expressions took some twenty (1.6 ms at 25 nodes, measured), and the kernel is compiled.
+    """
+    pre, _ = _pre_function(structure)
+    n_k, n_p = len(knots), len(structure.parameters)
+    c = ca.SX.sym("c", 4 + 2 * n_k)
+    shared = ca.SX.sym("shared", n_k + 1 + n_p + sum(source == "anchor" for source, _ in knots))
+    t_k, cells, p, q = (shared[:n_k], shared[n_k], shared[n_k + 1:n_k + 1 + n_p],
+                        shared[n_k + 1 + n_p:])
+    a, b = _shell_ends(structure, p)
+    where = _knot_positions(structure, knots, p, q)
+    t_knots = [t_k[j] for j in range(n_k)]
+    s0, s1 = (mapped_points(c[i], [c[4 + i * n_k + j] for j in range(n_k)], a, b, t_knots, where)
+              for i in (0, 1))
+    h = structure.parameters.unpack(p)["h"]
+    D = pre(_between(s0, s1, c[2]), s1 - s0, c[3], objective_scale(cells, h, a, b), p)
+    f = ca.Function("cell_data_point", [c, shared], [D])
+    return f, f.serialize()
+
+
+def _shell_ends(structure: Structure, p):
+    """(Σ, L − P) from the parameter vector (CasADi or NumPy)."""
+    index = structure.parameters.index
+    return p[index("cut")], structure.geometry.length - p[index("opening")]
+
+
+def _knot_positions(structure: Structure, knots, p, q) -> list:
+    """Material points of the knots (each with ``source`` and ``index``, as :class:`Knot`, or
+    such pairs): anchors from q, the family's breakpoints from the parameters."""
+    knots = [(k.source, k.index) if isinstance(k, Knot) else k for k in knots]
+    if not knots:
+        return []
+    fam = structure.family
+    named = structure.parameters.unpack(p)
+    a, b = _shell_ends(structure, p)
+    bps = fam.breakpoints({n: named[n] for n in fam.parameters}, a, b) \
+        if any(source == "breakpoint" for source, _ in knots) else []
+    return [q[i] if source == "anchor" else bps[i][0] for source, i in knots]
 
 
 @lru_cache(maxsize=16)
@@ -522,22 +588,21 @@ class Discretisation:
 
         self.p = ca.MX.sym("p", n_p)
         self.q = ca.MX.sym("q", self.anchors)
-        a, b = ends = self.shell_ends(self.p)
-        s_nodes = self.nodes(self.p, self.q, ends)
-        ds = (s_nodes[1:] - s_nodes[:-1])[np.repeat(np.arange(cells), S).tolist()]
-        s_gauss = within_cells(s_nodes, tau, last=False)
-        # Energies range over decades with h (bending ~ h³): dividing by h³
-        # and by the mean cell size keeps Ipopt's gradients O(1).
-        h = self.p[structure.parameters.index("h")]
-        scale = cells / (2 * ca.pi * h ** 3 * (b - a))
-        pre, self._pre_serialised = _pre_function(structure)
-        weights = ca.DM(np.tile(w, cells)).T
-        self._pre_parts = (pre, s_gauss, ds, weights, scale, m)
-        # the same numbers from compiled code, for evaluation (no derivatives)
+        # D for evaluation (no derivatives), from one compiled kernel per point fed the
+        # mesh's numbers there (_data_point); the differentiable expressions of the same
+        # numbers (_pre_parts) are built on first use
+        cell = np.repeat(np.arange(cells), S)
+        shapes = knot_shapes(self.t, self.knots)
+        point, serialised = _data_point(structure, tuple((k.source, k.index)
+                                                         for k in self.knot_list))
         self.pre_numeric = ca.Function(
             "cell_data_numeric", [self.p, self.q],
-            [ca.vec(compiled_point_map(pre, m, s_gauss.T, ds.T, weights, scale, self.p,
-                                       serialised=self._pre_serialised))],
+            [ca.vec(compiled_point_map(
+                point, m, ca.DM(np.vstack([self.t[cell], self.t[cell + 1], np.tile(tau, cells),
+                                           np.tile(w, cells), *[v[cell] for v in shapes],
+                                           *[v[cell + 1] for v in shapes]])),
+                ca.vertcat(ca.DM(self.knots + (cells,)), self.p, self.q),
+                serialised=serialised))],
             ["p", "q"], ["D"])
         # Ipopt and results evaluate compiled cell kernels when a C compiler
         # is available (3-4x cheaper evaluations); the differentiable
@@ -707,14 +772,28 @@ class Discretisation:
 
     def knot_positions(self, p, q) -> list:
         """Material points of the knots: anchors from q, breakpoints from the parameters."""
-        if not self.knot_list:
-            return []
-        fam = self.structure.family
-        named = self.structure.parameters.unpack(p)
-        a, b = self.shell_ends(p)
-        bps = fam.breakpoints({n: named[n] for n in fam.parameters}, a, b) \
-            if any(k.source == "breakpoint" for k in self.knot_list) else []
-        return [q[k.index] if k.source == "anchor" else bps[k.index][0] for k in self.knot_list]
+        return _knot_positions(self.structure, self.knot_list, p, q)
+
+    @property
+    def _pre_parts(self) -> tuple:
+        """(pre, s_gauss, ds, weights, scale, m): the per-point data function and its mesh
+        inputs as MX expressions of p, q (for :attr:`pre` and its derivatives); built on
+        first use."""
+        if not hasattr(self, "_pre_parts_built"):
+            cells, S = self.layout.cells, self.stages
+            a, b = ends = self.shell_ends(self.p)
+            s_nodes = self.nodes(self.p, self.q, ends)
+            ds = (s_nodes[1:] - s_nodes[:-1])[np.repeat(np.arange(cells), S).tolist()]
+            s_gauss = within_cells(s_nodes, self.tau, last=False)
+            scale = objective_scale(cells, self.p[self.structure.parameters.index("h")], a, b)
+            weights = ca.DM(np.tile(self.weights, cells)).T
+            self._pre_parts_built = (_pre_function(self.structure)[0], s_gauss, ds, weights,
+                                     scale, cells * S)
+        return self._pre_parts_built
+
+    @property
+    def _pre_serialised(self) -> str:
+        return _pre_function(self.structure)[1]
 
     @property
     def pre(self) -> ca.Function:
@@ -974,8 +1053,7 @@ class Discretisation:
 
     def shell_ends(self, p):
         """(Σ, L − P) from the parameter vector (CasADi or NumPy)."""
-        index = self.structure.parameters.index
-        return p[index("cut")], self.geometry.length - p[index("opening")]
+        return _shell_ends(self.structure, p)
 
     def gauss_values(self, Z) -> tuple:
         """f_s and ψ at the Gauss points (vectors, cell by cell) from ``cell_unknowns``."""

@@ -29,7 +29,8 @@ import numpy as np
 
 from .energy import boundary_layer_width
 
-__all__ = ["boundary_layer_width", "pole_exponent", "graded_mesh", "shell_points", "MeshSpec",
+__all__ = ["boundary_layer_width", "pole_exponent", "graded_mesh", "shell_points",
+           "knot_shapes", "mapped_points", "MeshSpec",
            "mesh_spec", "knot_for", "Knot", "breakpoints", "lower_gamma"]
 
 
@@ -68,16 +69,36 @@ def shell_points(t, cut, end, knots: tuple[float, ...] = (), anchors=()):
     anchors = [anchors[i] for i in range(len(knots))]
     symbolic = any(isinstance(v, (ca.SX, ca.MX)) for v in (cut, end, *anchors))
     t_arr = np.asarray(t, dtype=float)
-    T = ca.DM(np.atleast_1d(t_arr)) if symbolic else t_arr
-    s = cut + (end - cut) * T
+    shapes = knot_shapes(t_arr, knots)
+    if symbolic:
+        t_arr, shapes = ca.DM(np.atleast_1d(t_arr)), [ca.DM(np.atleast_1d(v)) for v in shapes]
+    return mapped_points(t_arr, shapes, cut, end, np.asarray(knots, dtype=float), anchors)
+
+
+def knot_shapes(t: np.ndarray, knots: tuple[float, ...]) -> list[np.ndarray]:
+    """The correction of each knot in :func:`shell_points` per unit offset, at ``t`` (as t).
+
+    t(1 − t)/(t_j(1 − t_j)) B((t − t_j)/w_j): numbers, fixed by the mesh.
+    """
+    t = np.asarray(t, dtype=float)
     k = np.asarray(knots, dtype=float)
+    out = []
     for j in range(len(k)):
         others = np.delete(k, j)
-        shape = t_arr * (1 - t_arr) / (k[j] * (1 - k[j]))
+        shape = t * (1 - t) / (k[j] * (1 - k[j]))
         if len(others):
-            shape = shape * _bump((t_arr - k[j]) / np.min(np.abs(others - k[j])))
-        offset = anchors[j] - cut - (end - cut) * k[j]
-        s = s + (ca.DM(np.atleast_1d(shape)) if symbolic else shape) * offset
+            shape = shape * _bump((t - k[j]) / np.min(np.abs(others - k[j])))
+        out.append(shape)
+    return out
+
+
+def mapped_points(t, shapes, cut, end, knots, anchors):
+    """:func:`shell_points` from t and its :func:`knot_shapes` (numbers or CasADi, e.g. the
+    t and shapes of one point as symbols, for a per-point function of the mesh)."""
+    s = cut + (end - cut) * t
+    for j in range(len(shapes)):
+        offset = anchors[j] - cut - (end - cut) * knots[j]
+        s = s + shapes[j] * offset
     return s
 
 
