@@ -321,9 +321,18 @@ def _positions(shape, rows, cols, src) -> tuple:
     """(sparsity, pos, src): the pattern of the entries (rows, cols) and each entry's nonzero."""
     n_rows, n_cols = shape
     rows, cols, src = (np.asarray(v, dtype=np.int64).ravel() for v in (rows, cols, src))
-    # Sorting by (col, row) is CasADi's compressed-column order of nonzeros.
-    uniq, pos = np.unique(cols * n_rows + rows, return_inverse=True)
-    return _compressed(n_rows, n_cols, uniq // n_rows, uniq % n_rows), pos.ravel(), src
+    # Sorting by (col, row) is CasADi's compressed-column order of nonzeros
+    # (np.unique's steps without its overhead: 150 against 60 µs at 4 600 entries)
+    key = cols * n_rows + rows
+    order = np.argsort(key, kind="stable")
+    ordered = key[order]
+    new = np.empty(len(key), dtype=bool)
+    new[:1] = True
+    np.not_equal(ordered[1:], ordered[:-1], out=new[1:])
+    pos = np.empty(len(key), dtype=np.int64)
+    pos[order] = np.cumsum(new) - 1
+    uniq = ordered[new]
+    return _compressed(n_rows, n_cols, uniq // n_rows, uniq % n_rows), pos, src
 
 
 def _distinct(key: np.ndarray) -> np.ndarray:
