@@ -102,10 +102,12 @@ def test_live_discretisations_of_one_size_share_the_assembly_and_nothing_else():
     import gc
 
     from morphoshell import discretisation as dm
+    from morphoshell.equilibrium import clear_cache
     from morphoshell.mesh import mesh_spec
 
     a, b = (Problem("uniform", {"k": 0.0}, h=h, cut=0.5, theory="classical")
             for h in (1e-3, 3e-3))
+    clear_cache()     # (solve()'s cached solvers of this size, from earlier tests, would share)
     gc.collect()
     alone = DirectSolver(b.structure, mesh=mesh_spec(b, 50, 2)).solve(b)
     gc.collect()

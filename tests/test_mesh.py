@@ -194,3 +194,13 @@ def test_nodes_next_to_a_pole_converge_in_a_few_evaluations(monkeypatch):
         f, x, slope, target = roots[-1]
         assert np.all(np.abs(f) <= 1e-14 * np.abs(target) + 1e-17
                       + 2.3e-16 * np.abs(x) * np.where(np.isfinite(slope), slope, 0.0))
+
+
+def test_mesh_spec_refuses_knots_too_close_and_has_none_without_them():
+    problem = Problem("uniform", {"k": 0.0}, h=0.1, cut=0.3)
+    assert mesh_spec(problem, 50, 2).knots == ()
+    assert [k.source for k in mesh_spec(problem, 50, 2, anchors=(1.0, 2.0)).knots] == \
+        ["anchor", "anchor"]
+    with pytest.raises(ValueError, match=r"anchors and breakpoints at \[1.0, 1.0000001\] are "
+                                         r"too close together to be mesh nodes"):
+        mesh_spec(problem, 50, 2, anchors=(1.0, 1.0000001))

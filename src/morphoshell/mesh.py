@@ -464,20 +464,25 @@ def mesh_spec(problem, nodes: int, stages: int, anchors: tuple[float, ...] = ())
             points.append((s, "breakpoint", j, None if w is None else _octave(w / length)))
     points.sort()
     fractions = [(s - problem.cut) / length for s, *_ in points]
+    # (without knots there is nothing to round: the check costs a tenth of a cold solve)
+    ts = _knot_places(fractions, [s for s, *_ in points]) if points else []
+    knots = tuple(Knot(t, src, i, w) for t, (_, src, i, w) in zip(ts, points))
+    return MeshSpec(int(nodes), st.start, st.end, width, edge, pole_exponent(stages), knots)
+
+
+def _knot_places(fractions: list[float], where: list[float]) -> list[float]:
+    """The knots' places in t for material points at ``fractions`` of the shell (``where``
+    in s, for the message): the coarsest rounding whose map is monotone with a margin
+    (slope at least half the plain one), so that the anchors may still move."""
     probe = np.linspace(0, 1, 2001)
     for resolution in (2, 4, 8, 16, 64, 256):
         ts = [knot_for(f, resolution) for f in fractions]
-        # the coarsest rounding whose map is monotone with a margin (slope at
-        # least half the plain one), so that the anchors may still move
         if len(set(ts)) == len(ts) and np.all(np.diff(ts) > 0) and \
                 np.min(np.diff(shell_points(probe, 0.0, 1.0, tuple(ts), fractions))) > \
                 0.5 * (probe[1] - probe[0]):
-            break
-    else:
-        raise ValueError(f"anchors and breakpoints at {[p[0] for p in points]} are too close "
-                         f"together to be mesh nodes")
-    knots = tuple(Knot(t, src, i, w) for t, (_, src, i, w) in zip(ts, points))
-    return MeshSpec(int(nodes), st.start, st.end, width, edge, pole_exponent(stages), knots)
+            return ts
+    raise ValueError(f"anchors and breakpoints at {where} are too close together to be mesh "
+                     f"nodes")
 
 
 def breakpoints(problem) -> list[tuple[float, float | None]]:
