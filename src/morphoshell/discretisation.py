@@ -642,24 +642,16 @@ class Discretisation:
 
     def _pattern(self, name: str) -> tuple:
         """Where stacked cell values go in the NLP's derivatives (:meth:`_gather`): ``name``
-        is ``"grad"``, ``"pair"``, ``"jac"`` or ``"hess"``; computed numerically on first use."""
+        is ``"grad"``, ``"jac"`` or ``"hess"``; computed numerically on first use."""
         return self._built(f"pattern {name}", getattr(self, f"_{name}_pattern"))
 
-    def _grad_pattern(self, columns: int = 1) -> tuple:
+    def _grad_pattern(self) -> tuple:
         idx, n, cells = self._idx, self.layout.size, self.layout.cells
         n_loc = idx.shape[0]
         free = idx < n  # which local slots are unknowns
-        # position of (slot, cell) in the vec of `columns` stacked (n_loc × cells) values
-        src = np.arange(columns * n_loc * cells).reshape(cells, columns, n_loc).transpose(1, 2, 0)
-        k = int(free.sum())
-        return self._gather((n, columns), np.tile(idx[free], columns),
-                            np.repeat(np.arange(columns), k), src[:, free].ravel(),
-                            columns * n_loc * cells)
-
-    def _pair_pattern(self) -> tuple:
-        """:meth:`_grad_pattern` of two vectors at once (the Newton system's right-hand side
-        and dual residual: one gather instead of two, the same sums)."""
-        return self._grad_pattern(columns=2)
+        cols = np.arange(n_loc * cells).reshape(cells, n_loc).T  # position of (slot, cell)
+        return self._gather((n, 1), idx[free], np.zeros(int(free.sum())), cols[free],
+                            n_loc * cells)
 
     def _jac_pattern(self) -> tuple:
         idx, n, S, cells = self._idx, self.layout.size, self.stages, self.layout.cells
@@ -1152,9 +1144,9 @@ class Discretisation:
 
     def _newton_residual(self, lam, dual, rx, g) -> list:
         """rhs, ‖∇f + Jᵀλ‖∞, ‖g‖∞ and ‖λ‖₁ from the cells' shares (side by side)."""
-        both = _assembled(*self._pattern("pair"), ca.vertcat(rx, dual))
-        return [-ca.vertcat(both[:, 0], ca.vec(g)),
-                ca.norm_inf(both[:, 1]), ca.norm_inf(g), ca.norm_1(lam)]
+        A = self._pattern("grad")
+        return [-ca.vertcat(_assembled(*A, rx), ca.vec(g)),
+                ca.norm_inf(_assembled(*A, dual)), ca.norm_inf(g), ca.norm_1(lam)]
 
     def kkt_curvature(self, x, lam, D, mu_F, mu_dz, mu_dS, ds) -> ca.MX:
         """Upper triangle of ∂²/∂(x, λ)² [μ_F·F(x, λ) − Σ_c (μ_dz,c Δz_c + μ_dS,c ΔS_c)].
