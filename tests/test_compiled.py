@@ -3,8 +3,8 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from morphoshell._compiled import (BLOCK, BLOCKED_POINTS, block_map, compiled_point_map,
-                                   point_map_function)
+from morphoshell._compiled import (BLOCK, BLOCKED_POINTS, CHUNK, PointEvaluator, block_map,
+                                   compiled_point_map, point_map_function)
 
 
 def _point():
@@ -36,3 +36,18 @@ def test_block_map_names_an_input_of_the_wrong_size():
     f = _point()
     with pytest.raises(ValueError, match="input 1 of point has 3 columns; expected 1 or 10"):
         block_map(f, f, 10, [ca.MX.sym("s", 1, 10), ca.MX.sym("p", 2, 3)])
+
+
+@pytest.mark.parametrize("n", [0, 1, CHUNK - 1, CHUNK, CHUNK + 1, 3 * CHUNK + 17])
+def test_point_evaluator_is_the_map_at_any_number_of_points(n):
+    """One evaluator of CHUNK points, called in chunks (the last padded): f.map(n)'s numbers
+    to the bit, each output (rows × n)."""
+    f = _point()
+    evaluate = PointEvaluator(f)
+    s = np.linspace(0.1, 2.0, n)
+    p = np.array([1.3, -0.7])
+    got = evaluate(s, p)
+    assert [g.shape for g in got] == [(2, n), (1, n)]
+    if n:
+        want = [np.array(v) for v in f.map(n)(s.reshape(1, -1), p)]
+        assert all(np.array_equal(g, w) for g, w in zip(got, want))

@@ -30,8 +30,7 @@ from typing import Callable, Mapping, NamedTuple
 import casadi as ca
 import numpy as np
 
-from ._buffered import Buffered
-from ._compiled import point_map_function
+from ._compiled import PointEvaluator
 from ._validate import lookup
 
 __all__ = ["Profiles", "ProfileFamily", "FAMILIES", "register_family", "get_family",
@@ -126,12 +125,11 @@ class ProfileFamily:
 
     def evaluate(self, s: np.ndarray, values, cut: float, end: float) -> Profiles:
         """Numerical profiles at the points ``s`` (1-d) for parameter ``values`` in order."""
-        n = s.size
         # compiled code where available (evaluation only: 3-4x faster); the
         # parameters, cut and end given once for all points
-        f = self._mapped("numeric", n, lambda: Buffered(
-            point_map_function(self.function(), n, shared=(1, 2, 3))))
-        return Profiles(*f(s, values, cut, end))
+        if "numeric" not in self._function:
+            self._function["numeric"] = PointEvaluator(self.function())
+        return Profiles(*(v[0] for v in self._function["numeric"](s, values, cut, end)))
 
     def _mapped(self, kind: str, points: int, make: Callable):
         maps = self._function.setdefault(kind, {})
