@@ -35,8 +35,13 @@ class Buffered:
             raise TypeError(f"{self.function.name()} takes {len(self.args)} inputs, got {len(args)}")
         for dst, v in zip(self.args, args):
             dst[:] = np.ravel(v, order="F")
-        self._eval()
+        self.run()
         return [r.copy() for r in self.res]
+
+    def run(self) -> None:
+        """Evaluate on the inputs already in :attr:`args`; the outputs are left in :attr:`res`
+        (overwritten by the next evaluation)."""
+        self._eval()
 
     def stats(self) -> dict:
         return self._buf.stats()
