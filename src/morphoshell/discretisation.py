@@ -280,7 +280,7 @@ def _between(s0, s1, fraction):
     return s0 + (s1 - s0) * fraction
 
 
-def objective_scale(cells, h, cut, end):
+def _objective_scale(cells, h, cut, end):
     """The factor on the energy in the objective handed to the solvers: cells/(2π h³ (L − P − Σ)).
 
     Energies range over decades with h (bending ~ h³): dividing by h³ and by
@@ -442,7 +442,7 @@ def _data_point(structure: Structure, knots: tuple[tuple[str, int], ...]) -> tup
     s0, s1 = (mapped_points(c[i], [c[4 + i * n_k + j] for j in range(n_k)], a, b, t_knots, where)
               for i in (0, 1))
     h = structure.parameters.unpack(p)["h"]
-    D = pre(_between(s0, s1, c[2]), s1 - s0, c[3], objective_scale(cells, h, a, b), p)
+    D = pre(_between(s0, s1, c[2]), s1 - s0, c[3], _objective_scale(cells, h, a, b), p)
     f = ca.Function("cell_data_point", [c, shared], [D])
     return f, f.serialize()
 
@@ -533,9 +533,12 @@ class Discretisation:
     values, gradients and Hessian; they are mapped over the cells and
     assembled into the global gradient, Jacobian and Hessian by constant
     index gathers computed numerically (:meth:`_gather`), so no symbolic work
-    grows with the mesh (the build still grows about linearly with N, in
-    CasADi's sparsity constructors and nlpsol's set-up: 16 ms at 200 nodes,
-    0.7 s at 12 800).
+    grows with the mesh (the build still grows about linearly with N, in the
+    index lists and patterns that cross into CasADi, 40-80 ns an entry: the
+    constructor 5-8 ms at 200 nodes and 0.16 s at 12 800, the Newton system,
+    built in the first solve, 0.6 s there).  The parameter data D are
+    evaluated by one compiled kernel per Gauss point fed the mesh's numbers
+    there (:func:`_data_point`).
     Ipopt's callbacks run the kernels compiled to C when a compiler is
     available (:func:`compiled_cell_functions`, ``numeric``).
     The data are computed once per solve (:meth:`cell_data`) and are the
@@ -794,7 +797,7 @@ class Discretisation:
             s_nodes = self.nodes(self.p, self.q, ends)
             ds = (s_nodes[1:] - s_nodes[:-1])[np.repeat(np.arange(cells), S).tolist()]
             s_gauss = within_cells(s_nodes, self.tau, last=False)
-            scale = objective_scale(cells, self.p[self.structure.parameters.index("h")], a, b)
+            scale = _objective_scale(cells, self.p[self.structure.parameters.index("h")], a, b)
             weights = ca.DM(np.tile(self.weights, cells)).T
             self._pre_parts_built = (_pre_function(self.structure)[0], s_gauss, ds, weights,
                                      scale, cells * S)
