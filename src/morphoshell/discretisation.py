@@ -50,7 +50,7 @@ import shutil
 import sys
 import weakref
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cached_property, lru_cache
 from pathlib import Path
 
 import casadi as ca
@@ -453,10 +453,9 @@ def _shell_ends(structure: Structure, p):
     return p[index("cut")], structure.geometry.length - p[index("opening")]
 
 
-def _knot_positions(structure: Structure, knots, p, q) -> list:
-    """Material points of the knots (each with ``source`` and ``index``, as :class:`Knot`, or
-    such pairs): anchors from q, the family's breakpoints from the parameters."""
-    knots = [(k.source, k.index) if isinstance(k, Knot) else k for k in knots]
+def _knot_positions(structure: Structure, knots: tuple[tuple[str, int], ...], p, q) -> list:
+    """Material points of the knots, given as (source, index) of :class:`Knot`: anchors from
+    q, the family's breakpoints from the parameters."""
     if not knots:
         return []
     fam = structure.family
@@ -586,6 +585,7 @@ class Discretisation:
         self.knot_list = tuple(k if isinstance(k, Knot) else Knot(float(k), "anchor", i)
                                for i, k in enumerate(knots))
         self.knots = tuple(k.t for k in self.knot_list)
+        self._knot_sources = tuple((k.source, k.index) for k in self.knot_list)
         self.anchors = sum(k.source == "anchor" for k in self.knot_list)
         missing = [k for k in self.knots if not np.any(self.t == k)]
         if missing:
@@ -605,8 +605,7 @@ class Discretisation:
         # numbers (_pre_parts) are built on first use
         cell = np.repeat(np.arange(cells), S)
         shapes = knot_shapes(self.t, self.knots)
-        point, serialised = _data_point(structure, tuple((k.source, k.index)
-                                                         for k in self.knot_list))
+        point, serialised = _data_point(structure, self._knot_sources)
         self.pre_numeric = ca.Function(
             "cell_data_numeric", [self.p, self.q],
             [ca.vec(compiled_point_map(
@@ -629,6 +628,7 @@ class Discretisation:
         self._shared = _shared(lay, self._cell)
         self.x, self.D = self._shared.x, self._shared.D
         self._idx = self._cell_indices()
+        self._idx_flat = self._idx.ravel(order="F")
         self._field_names = ("s", "ds", "weight", "r", "psi", "f_s", "dpsi", *LOCAL_OUTPUTS)
         self._points = (None, None)
         self._theta_scatters: dict = {}
@@ -784,24 +784,21 @@ class Discretisation:
 
     def knot_positions(self, p, q) -> list:
         """Material points of the knots: anchors from q, breakpoints from the parameters."""
-        return _knot_positions(self.structure, self.knot_list, p, q)
+        return _knot_positions(self.structure, self._knot_sources, p, q)
 
-    @property
+    @cached_property
     def _pre_parts(self) -> tuple:
         """(pre, s_gauss, ds, weights, scale, m): the per-point data function and its mesh
         inputs as MX expressions of p, q (for :attr:`pre` and its derivatives); built on
         first use."""
-        if not hasattr(self, "_pre_parts_built"):
-            cells, S = self.layout.cells, self.stages
-            a, b = ends = self.shell_ends(self.p)
-            s_nodes = self.nodes(self.p, self.q, ends)
-            ds = (s_nodes[1:] - s_nodes[:-1])[np.repeat(np.arange(cells), S).tolist()]
-            s_gauss = within_cells(s_nodes, self.tau, last=False)
-            scale = _objective_scale(cells, self.p[self.structure.parameters.index("h")], a, b)
-            weights = ca.DM(np.tile(self.weights, cells)).T
-            self._pre_parts_built = (_pre_function(self.structure)[0], s_gauss, ds, weights,
-                                     scale, cells * S)
-        return self._pre_parts_built
+        cells, S = self.layout.cells, self.stages
+        a, b = ends = self.shell_ends(self.p)
+        s_nodes = self.nodes(self.p, self.q, ends)
+        ds = (s_nodes[1:] - s_nodes[:-1])[np.repeat(np.arange(cells), S).tolist()]
+        s_gauss = within_cells(s_nodes, self.tau, last=False)
+        scale = _objective_scale(cells, self.p[self.structure.parameters.index("h")], a, b)
+        weights = ca.DM(np.tile(self.weights, cells)).T
+        return (_pre_function(self.structure)[0], s_gauss, ds, weights, scale, cells * S)
 
     @property
     def _pre_serialised(self) -> str:
@@ -941,12 +938,10 @@ class Discretisation:
             extras.append((has.tolist(), src[start[has] + r].tolist()))
         return sp, src[start].tolist() if nnz else [], extras
 
-    @property
+    @cached_property
     def _integration(self) -> tuple:
         """:meth:`_integration_operators`, built on first use (only expressions need them)."""
-        if not hasattr(self, "_integration_built"):
-            self._integration_built = self._integration_operators()
-        return self._integration_built
+        return self._integration_operators()
 
     def _integration_operators(self):
         """Sparse operators of ∫ from the first node to every point (Gauss interpolant per cell).
@@ -1053,15 +1048,13 @@ class Discretisation:
     # -- symbolic interface (for observables) --------------------------------
     def local_values(self, x: np.ndarray) -> np.ndarray:
         """:meth:`cell_unknowns` in numbers: each cell's unknowns, column-major (flat)."""
-        if not hasattr(self, "_idx_flat"):
-            self._idx_flat = self._idx.ravel(order="F")
         return np.append(np.asarray(x, dtype=float), POLE_VALUES)[self._idx_flat]
 
     def cell_unknowns(self, x) -> ca.MX:
         """(3S + 2, cells): each cell's r, ψ at its points and f_s at its Gauss points."""
         n_loc, cells = self._idx.shape
         xfull = ca.vertcat(x, ca.DM(POLE_VALUES))
-        return ca.reshape(xfull[self._idx.ravel(order="F").tolist()], n_loc, cells)
+        return ca.reshape(xfull[self._idx_flat.tolist()], n_loc, cells)
 
     def shell_ends(self, p):
         """(Σ, L − P) from the parameter vector (CasADi or NumPy)."""
@@ -1169,7 +1162,7 @@ class Discretisation:
         n, S, cells = self.layout.size, self.stages, self.layout.cells
         n_loc = self._idx.shape[0]
         mu_x = ca.vertcat(mu_F[:n], ca.DM.zeros(3))      # constants: no stationarity row
-        Mz = ca.reshape(mu_x[self._idx.ravel(order="F").tolist()], n_loc, cells)
+        Mz = ca.reshape(mu_x[self._idx_flat.tolist()], n_loc, cells)
         kernel = _cell_kkt_curvature(S).map(cells)
         values = kernel(self.cell_unknowns(x), ca.reshape(D, -1, cells), ca.reshape(lam, S, cells),
                         Mz, ca.reshape(mu_F[n:], S, cells), ca.reshape(mu_dz, 1, cells),
@@ -1192,7 +1185,7 @@ class Discretisation:
         S, cells = self.stages, self.layout.cells
         n_loc, k = self._idx.shape[0], T.shape[1]
         mu_x = ca.vertcat(mu_F[:n], ca.DM.zeros(3))      # constants: no stationarity row
-        Mz = ca.reshape(mu_x[self._idx.ravel(order="F").tolist()], n_loc, cells)
+        Mz = ca.reshape(mu_x[self._idx_flat.tolist()], n_loc, cells)
         X, H, grad = _compiled_kkt_data_curvature(S).map(cells)(
             self.cell_unknowns(x), ca.reshape(D, -1, cells), ca.reshape(lam, S, cells), Mz,
             ca.reshape(mu_F[n:], S, cells), ca.reshape(mu_dz, 1, cells),
