@@ -10,7 +10,7 @@ LAYERS = [
     {"geometry", "coefficients", "profiles", "layouts", "problem"},
     {"energy"},
     {"mesh", "results", "midlines"},
-    {"discretisation"},
+    {"cell_order", "discretisation"},
     {"ipopt", "newton"},
     {"direct", "reference", "shooting"},
     {"observables", "parametric"},

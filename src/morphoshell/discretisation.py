@@ -61,6 +61,7 @@ from ._buffered import Buffered
 from ._compiled import (_CFLAGS, LARGE, _blake2b, _compiled_library, _renamed, block_function,
                         block_map, compiled_point_function, compiled_point_map,
                         kernel_cache_dir)
+from .cell_order import Assembly, CellOrder, assembly
 from .energy import CACHE_SIZE, LOCAL_OUTPUTS, intrinsic_function, pointwise
 from .layouts import CELL_DATA, INTRINSIC
 from .mesh import Knot, check_monotone, knot_shapes, mapped_points, shell_points
@@ -349,6 +350,12 @@ def _assembled(sp: ca.Sparsity, first: list, extras: list, values) -> ca.MX:
         # (MX.binary: `+` tries CasADi's DM and SX overloads first, 60 µs of a build)
         nz[pos] = ca.MX.binary(ca.OP_ADD, _take(nz, pos), _take(v, more))
     return ca.MX(sp, nz)
+
+
+def _summed(values: ca.MX, first: ca.DM, second: ca.DM) -> ca.MX:
+    """``values``' nonzeros ``first`` plus those at ``second`` (index columns, as DM)."""
+    # (MX.binary: `+` tries CasADi's DM and SX overloads first, 40 µs of a build)
+    return ca.MX.binary(ca.OP_ADD, values.get_nz(False, first), values.get_nz(False, second))
 
 
 def _take(v: ca.MX, idx: list) -> ca.MX:
@@ -1074,13 +1081,12 @@ class Discretisation:
         """s, r, ψ, z and the deformed arclength S at the points (see :class:`SymbolicShape`)."""
         return self.shape(x, p, q).points
 
-    def _local_kkt_scatter(self, symmetric: bool) -> tuple:
+    def _local_kkt_scatter(self) -> tuple:
         """(sparsity, first, extras) of :meth:`_gather`: each cell's triu (x, λ) block in the
-        (n + m)² matrix.
+        upper triangle of the (n + m)² matrix.
 
         The cell's local slots are its unknowns (constants drop out) and its
-        S constraints; ``symmetric`` fills both triangles (for LDLᵀ), else the
-        upper one.
+        S constraints.
         """
         n, m = self.layout.size, self.constraints
         S, cells = self.stages, self.layout.cells
@@ -1092,36 +1098,56 @@ class Discretisation:
         n_tri = len(ku)
         src = (np.arange(n_tri)[:, None] + n_tri * np.arange(cells)[None, :])[ok]
         rows, cols = np.minimum(I, J)[ok], np.maximum(I, J)[ok]
-        if symmetric:
-            off = rows != cols
-            rows, cols, src = (np.concatenate([a, b[off]]) for a, b in
-                               ((rows, cols), (cols, rows), (src, src)))
         return self._gather((n + m, n + m), rows, cols, src, n_tri * cells)
 
-    def newton_system(self) -> ca.Function:
-        """``(x, D, λ, ρ) -> (K, rhs, ‖∇f + Jᵀλ‖∞, ‖g‖∞, ‖λ‖₁, W)``: the certified Newton system.
+    @cached_property
+    def cell_order(self) -> CellOrder:
+        """The cell order u of (x, λ) in which the Newton system is assembled and solved
+        (:mod:`morphoshell.cell_order`)."""
+        lay = self.layout
+        return CellOrder(lay.cells, lay.stages, lay.start_pole, lay.end_pole)
 
+    def kkt_pack(self, x: np.ndarray, lam: np.ndarray) -> np.ndarray:
+        """(x, λ) in cell order u (:attr:`cell_order`), the poles' fixed values filled in."""
+        return self.cell_order.pack(x, lam, POLE_VALUES)
+
+    def newton_system(self) -> ca.Function:
+        """``(u, D, ρ) -> (K, rhs, ‖∇f + Jᵀλ‖∞, ‖g‖∞, ‖λ‖₁, W)``: the certified Newton system.
+
+        u holds x and λ in cell order (:attr:`cell_order`; ``pack`` and
+        ``unpack`` convert), the system's unknowns are u[lo:hi].
         K = [[M, Jᵀ], [J, −Δ]] with M = ∇²ℒ + Jᵀ W J, W > 0 per constraint
         scaled by ρ, Δ = ε W⁻¹ (ε = :data:`NEWTON_EPSILON`);
-        rhs = −(∇f + Jᵀ(λ + W g), g).  Its
-        solution is Newton's step on the KKT conditions (to a relative ε), and
-        its inertia certifies a minimum (see :mod:`morphoshell.newton`).
-        Assembled from one kernel per cell, built on first use.  K is
-        (n + m) × (n + m), sparse and symmetric; rhs (n + m,); W (m,).
+        rhs = −(∇f + Jᵀ(λ + W g), g), both symmetrically permuted to cell
+        order.  Its solution is Newton's step on the KKT conditions (to a
+        relative ε), and its inertia certifies a minimum (see
+        :mod:`morphoshell.newton`).  Assembled from one kernel per cell,
+        built on first use.  K is (n + m) × (n + m), sparse and symmetric;
+        rhs (n + m,); W (m,).
         """
         return self._built("newton", self._newton_system)
 
     def _newton_system(self) -> ca.Function:
-        S, cells = self.stages, self.layout.cells
-        lam, rho = ca.MX.sym("lam", self.constraints), ca.MX.sym("rho")
-        tri, dual, rx, g, w = self._cell["newton"].map(cells)(
-            *self._local, ca.reshape(lam, S, cells), rho)
-        return ca.Function("newton_system", [self.x, self.D, lam, rho],
-                           [_assembled(*self._local_kkt_scatter(symmetric=True), tri),
-                            *self._newton_residual(lam, dual, rx, g), ca.vec(w)])
+        cells, a = self.layout.cells, self.cell_assembly
+        u, rho = ca.MX.sym("u", self.cell_order.size), ca.MX.sym("rho")
+        tri, dual, rhs, g, w = self._cell["newton"].map(cells)(*self._cell_locals(u), rho)
+        K = ca.MX(a.K, _summed(tri, a.first, a.second))
+        return ca.Function("newton_system", [u, self.D, rho],
+                           [K, *self._newton_residual(u, dual, rhs, g), ca.vec(w)])
+
+    @property
+    def cell_assembly(self) -> Assembly:
+        """Where the Newton system's entries come from (:func:`morphoshell.cell_order.assembly`)."""
+        return self._built("cell assembly", lambda: assembly(self.cell_order))
+
+    def _cell_locals(self, u) -> list:
+        """(each cell's (z, λ), its data D), a column per cell, from u and the symbol D."""
+        cells = self.layout.cells
+        return [ca.reshape(u.get_nz(False, self.cell_assembly.local), -1, cells),
+                ca.reshape(self.D, -1, cells)]
 
     def newton_rhs(self) -> ca.Function:
-        """``(x, D, λ, W) -> (rhs, ‖∇f + Jᵀλ‖∞, ‖g‖∞, ‖λ‖₁)``: :meth:`newton_system`'s
+        """``(u, D, W) -> (rhs, ‖∇f + Jᵀλ‖∞, ‖g‖∞, ‖λ‖₁)``: :meth:`newton_system`'s
         right-hand side and errors for given weights W (m,), without the Hessian.
 
         With W those of a factorised K, a step with that factorisation is a
@@ -1131,18 +1157,18 @@ class Discretisation:
 
     def _newton_rhs_function(self) -> ca.Function:
         S, cells = self.stages, self.layout.cells
-        lam, w = ca.MX.sym("lam", self.constraints), ca.MX.sym("w", self.constraints)
-        dual, rx, g = block_map(self._cell.get("newton_rhs_block"), self._cell["newton_rhs"],
-                                cells,
-                                [*self._local, ca.reshape(lam, S, cells), ca.reshape(w, S, cells)])
-        return ca.Function("newton_rhs", [self.x, self.D, lam, w],
-                           self._newton_residual(lam, dual, rx, g))
+        u, w = ca.MX.sym("u", self.cell_order.size), ca.MX.sym("w", self.constraints)
+        dual, rhs, g = block_map(self._cell.get("newton_rhs_block"), self._cell["newton_rhs"],
+                                 cells, [*self._cell_locals(u), ca.reshape(w, S, cells)])
+        return ca.Function("newton_rhs", [u, self.D, w], self._newton_residual(u, dual, rhs, g))
 
-    def _newton_residual(self, lam, dual, rx, g) -> list:
-        """rhs, ‖∇f + Jᵀλ‖∞, ‖g‖∞ and ‖λ‖₁ from the cells' shares (side by side)."""
-        A = self._pattern("grad")
-        return [-ca.vertcat(_assembled(*A, rx), ca.vec(g)),
-                ca.norm_inf(_assembled(*A, dual)), ca.norm_inf(g), ca.norm_1(lam)]
+    def _newton_residual(self, u, dual, rhs, g) -> list:
+        """rhs, ‖∇f + Jᵀλ‖∞, ‖g‖∞ and ‖λ‖₁ from the cells' shares (a column per cell)."""
+        a, order = self.cell_assembly, self.cell_order
+        lam = ca.MX.binary(ca.OP_MUL, u[order.lo:order.hi], 1 - a.x_mask)
+        return [_summed(rhs, a.rhs_first, a.rhs_second),
+                ca.norm_inf(_summed(dual, a.rhs_first, a.rhs_second)), ca.norm_inf(g),
+                ca.norm_1(lam)]
 
     def kkt_curvature(self, x, lam, D, mu_F, mu_dz, mu_dS, ds) -> ca.MX:
         """Upper triangle of ∂²/∂(x, λ)² [μ_F·F(x, λ) − Σ_c (μ_dz,c Δz_c + μ_dS,c ΔS_c)].
@@ -1167,7 +1193,7 @@ class Discretisation:
         values = kernel(self.cell_unknowns(x), ca.reshape(D, -1, cells), ca.reshape(lam, S, cells),
                         Mz, ca.reshape(mu_F[n:], S, cells), ca.reshape(mu_dz, 1, cells),
                         ca.reshape(mu_dS, 1, cells), ca.reshape(ds, 1, cells))
-        return _assembled(*self._local_kkt_scatter(symmetric=False), values)
+        return _assembled(*self._local_kkt_scatter(), values)
 
     def kkt_curvature_theta(self, x, lam, D, T, mu_F, mu_dz, mu_dS) -> tuple:
         """The curvature of :meth:`kkt_curvature`'s function across the cell data D.
@@ -1345,29 +1371,40 @@ def _cell_functions(stages: int) -> dict[str, ca.Function]:
 def _newton_cells(z, D, lam, dual, g, H) -> dict[str, ca.Function]:
     """One cell's share of the certified Newton system (:meth:`Discretisation.newton_system`).
 
-    ``"newton"``: weights W_k = ρ Σ_l |H_ll| / ‖∇g_k‖² (the cell's Hessian
-    scale per unit of the constraint's gradient; any W > 0 is valid), the
-    penalised Hessian M = H + Jᵀ W J, and the local block
-    [[M, Jᵀ], [J, −ε W⁻¹]] as its upper triangle; with the stationarity
-    residual ``dual`` = ∇ℓ + Jᵀλ, the right-hand side's x part
-    ∇ℓ + Jᵀ(λ + W g), g, and W.  ``"newton_rhs"``: the same right-hand side
-    for given weights W, without the Hessian (:meth:`Discretisation.newton_rhs`).
+    Both kernels take the cell's unknowns and multipliers as one input
+    (z, λ) of L = 4S + 2 local slots, as gathered from the cell order u
+    (:mod:`morphoshell.cell_order`).  ``"newton"``: weights
+    W_k = ρ Σ_l |H_ll| / ‖∇g_k‖² (the cell's Hessian scale per unit of the
+    constraint's gradient; any W > 0 is valid), the penalised Hessian
+    M = H + Jᵀ W J, and the local block [[M, Jᵀ], [J, −ε W⁻¹]] as its upper
+    triangle; the stationarity residual ∇ℓ + Jᵀλ (zeros in λ's slots), the
+    right-hand side −(∇ℓ + Jᵀ(λ + W g), g), g and W.  ``"newton_rhs"``: the
+    same residual and right-hand side for given weights W, without the
+    Hessian (:meth:`Discretisation.newton_rhs`).  The triangle, residual and
+    right-hand side end with a zero, dense: the value that the assembly
+    takes where a slot has no second cell (:func:`morphoshell.cell_order.assembly`).
     """
-    rho, w_in = ca.SX.sym("rho"), ca.SX.sym("w", g.shape[0])
+    S, n_z = g.shape[0], z.shape[0]
+    rho, w_in = ca.SX.sym("rho"), ca.SX.sym("w", S)
+    zl = ca.SX.sym("zl", n_z + S)
     Jc = ca.jacobian(g, z)
     w = rho * ca.sum1(ca.fabs(ca.diag(H))) / ca.fmax(ca.sum2(Jc * Jc), 1e-300)
     M = H + ca.mtimes(Jc.T, ca.mtimes(ca.diag(w), Jc))
     K = ca.blockcat([[M, Jc.T], [Jc, ca.diag(-NEWTON_EPSILON / w)]])
     ku, lu = np.triu_indices(K.shape[0])
+    zero = ca.SX.zeros(1)
 
-    def rhs_x(weights):        # the right-hand side's x part, ∇ℓ + Jᵀ(λ + W g)
-        return dual + ca.mtimes(Jc.T, weights * g)
+    def residual(weights):     # ∇ℓ + Jᵀλ and the right-hand side −(∇ℓ + Jᵀ(λ + W g), g)
+        return [ca.densify(ca.vertcat(dual, ca.SX.zeros(S), zero)),
+                ca.densify(ca.vertcat(-(dual + ca.mtimes(Jc.T, weights * g)), -g, zero))]
 
-    return {"newton": ca.Function("cell_newton", [z, D, lam, rho],
-                                  [ca.vertcat(*[K[int(i), int(j)] for i, j in zip(ku, lu)]),
-                                   dual, rhs_x(w), g, w]),
-            "newton_rhs": ca.Function("cell_newton_rhs", [z, D, lam, w_in],
-                                      [dual, rhs_x(w_in), g])}
+    def local(name, inputs, outputs):      # (z, λ) as one input
+        f = ca.Function("local", [z, D, lam, inputs[-1]], outputs)
+        return ca.Function(name, [zl, D, inputs[-1]], f(zl[:n_z], D, zl[n_z:], inputs[-1]))
+
+    tri = ca.densify(ca.vertcat(*[K[int(i), int(j)] for i, j in zip(ku, lu)], zero))
+    return {"newton": local("cell_newton", [rho], [tri, *residual(w), g, w]),
+            "newton_rhs": local("cell_newton_rhs", [w_in], [*residual(w_in), g])}
 
 
 @lru_cache(maxsize=None)

@@ -109,9 +109,13 @@ class NewtonBackend:
     Parameters
     ----------
     nlp : object
-        With the CasADi symbol ``x`` and methods ``newton_system()``, the
-        Function ``(x, D, λ, ρ) -> (K, rhs, ‖∇f + Jᵀλ‖∞, ‖g‖∞, ‖λ‖₁, W)`` of
-        the system above, and ``newton_rhs()``, ``(x, D, λ, W) -> (rhs, …, ‖λ‖₁)``
+        With the CasADi symbol ``x``, ``constraints``, the ``cell_order`` u of
+        (x, λ) in which the system is assembled and its ``cell_assembly``
+        (:mod:`morphoshell.cell_order`), ``kkt_pack(x, λ)`` giving u, and
+        methods ``newton_system()``, the
+        Function ``(u, D, ρ) -> (K, rhs, ‖∇f + Jᵀλ‖∞, ‖g‖∞, ‖λ‖₁, W)`` of
+        the system above (its unknowns u[lo:hi]), and ``newton_rhs()``,
+        ``(u, D, W) -> (rhs, …, ‖λ‖₁)``
         (:meth:`morphoshell.discretisation.Discretisation.newton_system`).
     tol : float
         Converged when max(‖∇f + Jᵀλ‖∞ / s_d, ‖g‖∞) ≤ tol, Ipopt's
@@ -130,7 +134,9 @@ class NewtonBackend:
         self.tol, self.acceptable_tol, self.max_iter = float(tol), float(acceptable_tol), max_iter
         self._nlp = nlp
         self._system = nlp.newton_system()
-        self.n, self.m = nlp.x.shape[0], self._system.size1_in(2)
+        self.n, self.m = nlp.x.shape[0], nlp.constraints
+        self._order = nlp.cell_order
+        self._x_mask = nlp.cell_assembly.x_mask
         self._linsol = ca.Linsol("newton", "ldl", self._system.sparsity_out(0))
         self._kept = [_System(), _System()]
         self._clock = 0
@@ -142,34 +148,33 @@ class NewtonBackend:
         than the three calls, the same bits (measured: 0.44 -> 0.37 ms at 200 nodes,
         8.6 -> 7.7 ms at 3200); built on first use (cold starts do not use it)."""
         if "step" not in self._fused:
-            x, D, lam = self._symbols()
-            K, rhs, *errors, _ = self._system(x, D, lam, 1.0)
-            self._fused["step"] = self._one_call("newton_step", [x, D, lam], K, rhs, errors)
+            u, D = self._symbols()
+            K, rhs, *errors, _ = self._system(u, D, 1.0)
+            self._fused["step"] = self._one_call("newton_step", [u, D], K, rhs, errors)
         return self._fused["step"]
 
     @property
     def _chord_step(self) -> ca.Function:
         """:attr:`_step` with a given system K_w and weights W (a chord step)."""
         if "chord" not in self._fused:
-            x, D, lam = self._symbols()
+            u, D = self._symbols()
             K_w = ca.MX.sym("K_w", self._system.sparsity_out(0))
             w = ca.MX.sym("w", self.m)
-            rhs, *errors = self._nlp.newton_rhs()(x, D, lam, w)
-            self._fused["chord"] = self._one_call("newton_chord_step", [x, D, lam, K_w, w],
+            rhs, *errors = self._nlp.newton_rhs()(u, D, w)
+            self._fused["chord"] = self._one_call("newton_chord_step", [u, D, K_w, w],
                                                   K_w, rhs, errors)
         return self._fused["chord"]
 
     def _symbols(self) -> tuple:
         return tuple(ca.MX.sym(name, self._system.sparsity_in(i))
-                     for i, name in enumerate(("x", "D", "lam")))
+                     for i, name in enumerate(("u", "D")))
 
     def _one_call(self, name: str, args: list, K, rhs, errors: list) -> ca.Function:
-        """``args -> (x + dx, λ + dλ, *errors)`` with (dx, dλ) = K⁻¹ rhs (LDLᵀ)."""
+        """``args -> (u + du, *errors)`` with du[lo:hi] = K⁻¹ rhs (LDLᵀ)."""
         # (the backend's own LDLᵀ solver: ca.solve would make and analyse another, 2-3 ms
         # of the first warm solve at 200 nodes)
         step = self._linsol.solve(K, rhs, False)
-        return ca.Function(name, args, [args[0] + step[:self.n], args[2] + step[self.n:],
-                                        *errors])
+        return ca.Function(name, args, [args[0] + self._order.padded(step), *errors])
 
     def solve(self, x0: np.ndarray, D, lam_g0: np.ndarray, at: tuple = (),
               origin: tuple | None = None, cold: bool = False) -> BackendResult | None:
@@ -206,14 +211,14 @@ class NewtonBackend:
         t0 = time.perf_counter()
         chord = None if origin is None else self._chord(x0, lam_g0, origin)
         if chord is not None:
-            xk, lk = chord.start          # (kept: the conversion is 0.12 ms at 200 nodes)
-        else:        # lists convert to DM three times faster than NumPy arrays
-            xk, lk = ca.DM(np.asarray(x0).tolist()), ca.DM(np.asarray(lam_g0).tolist())
+            uk = chord.start              # (kept: the conversion is 0.12 ms at 200 nodes)
+        else:
+            uk = self._point(x0, lam_g0)
         res, system = NotImplemented, None
         if chord is not None:
-            res, system = self._iterate(xk, D, lk, t0, chord)
+            res, system = self._iterate(uk, D, t0, chord)
         if res is NotImplemented:
-            res, system = self._iterate(xk, D, lk, t0, cold=cold)
+            res, system = self._iterate(uk, D, t0, cold=cold)
         if res is not None and at and system is not None:
             self._keep((res.x, res.lam_g, *at), *system)
         return res
@@ -227,12 +232,18 @@ class NewtonBackend:
                 self._clock += 1
                 kept.used = self._clock
                 return kept
-        xk, lk = ca.DM(key[0].tolist()), ca.DM(key[1].tolist())
-        K, *_, w = self._system(xk, data(), lk, 1.0)
-        return self._keep(key, K, w, (xk, lk))
+        uk = self._point(key[0], key[1])
+        K, *_, w = self._system(uk, data(), 1.0)
+        return self._keep(key, K, w, uk)
+
+    def _point(self, x, lam) -> ca.DM:
+        """u (cell order, a DM) of (x, λ)."""
+        # (lists convert to DM three times faster than NumPy arrays)
+        return ca.DM(self._nlp.kkt_pack(np.asarray(x, dtype=float),
+                                        np.asarray(lam, dtype=float)).tolist())
 
     def _keep(self, key: tuple, K, w, start) -> "_System":
-        """Keep (K, W) at ``key`` = (x, λ, p, q), with (x, λ) as ``start`` (DM), in place of
+        """Keep (K, W) at ``key`` = (x, λ, p, q), with its u as ``start`` (DM), in place of
         the least recently used."""
         kept = min(self._kept, key=lambda k: k.used)
         self._clock += 1
@@ -245,12 +256,13 @@ class NewtonBackend:
         n, m, primal = self.n, self.m, float(primal)
         return max(float(dual) / max(1.0, float(l1) / ((n + m) * S_MAX)), primal), primal
 
-    def _iterate(self, xk, D, lk, t0: float, chord: "_System | None" = None,
+    def _iterate(self, uk, D, t0: float, chord: "_System | None" = None,
                  cold: bool = False):
-        """Newton's iterations from (xk, λk), the first a chord step with the system ``chord``.
+        """Newton's iterations from uk (cell order), the first a chord step with the system
+        ``chord``.
 
         Returns (result, system): the BackendResult and, to keep for a chord step
-        from it, (K, W, (x, λ)) at ρ = 1 (None if certified only at
+        from it, (K, W, u) at ρ = 1 (None if certified only at
         ρ = 100), or (None, None) when Newton does not end certified.
         With a chord step, NotImplemented instead of None (and if the start
         needs no step): the caller starts again without it, so that the chord
@@ -260,19 +272,18 @@ class NewtonBackend:
         factorised apart and must have the inertia of a minimum, and every
         step must reduce the error.
         """
-        n = self.n
-        lin, last = self._linsol, np.inf
+        lin, last, order = self._linsol, np.inf, self._order
         fail = (None, None) if chord is None else (NotImplemented, None)
         for it in range(self.max_iter + 1):
             # The first two steps in one call each (a warm start is not converged
             # there); later iterates, where Newton usually stops, give K for the certificate.
             fused = not cold and (it == 1 or it == 0 and chord is not None)
             if it == 0 and chord is not None:
-                x_next, l_next, dual, primal, l1 = self._chord_step(xk, D, lk, chord.K, chord.w)
+                u_next, dual, primal, l1 = self._chord_step(uk, D, chord.K, chord.w)
             elif fused:
-                x_next, l_next, dual, primal, l1 = self._step(xk, D, lk)
+                u_next, dual, primal, l1 = self._step(uk, D)
             else:
-                K, rhs, dual, primal, l1, w = self._system(xk, D, lk, 1.0)
+                K, rhs, dual, primal, l1, w = self._system(uk, D, 1.0)
             err, primal = self._error(dual, primal, l1)
             acceptable = err <= self.acceptable_tol and primal <= 1e-10
             done = err <= self.tol or acceptable and err > 0.1 * last
@@ -283,55 +294,58 @@ class NewtonBackend:
                 # at a round-off floor if Newton's correction is negligible (its solve
                 # factorises K, as the certificate needs; if not, it is the next step)
                 step = lin.solve(K, rhs)
-                done = _norm_inf(step[:n]) <= STEP_TOL * max(1.0, _norm_inf(xk))
+                mask, part = self._x_mask, slice(order.lo, order.hi)
+                done = (_norm_inf(step * mask)
+                        <= STEP_TOL * max(1.0, _norm_inf(uk[part] * mask)))
             if not done and (not np.isfinite(err) or (it >= (1 if cold else 2) and err > last)
                              or it == self.max_iter):
                 return fail       # not converging: Ipopt's globalisation is needed
             if cold and not done:
-                step = self._convex_step(K, rhs, xk, D, lk)
+                step = self._convex_step(K, rhs, uk, D)
                 if step is None:
                     return fail   # Ipopt would correct the inertia: its step, not Newton's
             if done:
                 if fused:        # (rare: its step is not needed)
-                    K, *_, w = self._system(xk, D, lk, 1.0)
-                how = self._certify(K, xk, D, lk)
+                    K, *_, w = self._system(uk, D, 1.0)
+                how = self._certify(K, uk, D)
                 if how is None:
                     return fail
                 # kept for a chord step from here: ρ = 1's system only, as _chord builds
-                system = (K, w, (xk, lk)) if how == "newton_ldl" else None
-                return BackendResult(np.array(xk).ravel(), np.array(lk).ravel(),
+                system = (K, w, uk) if how == "newton_ldl" else None
+                return BackendResult(*order.unpack(np.array(uk).ravel()),
                                      "Newton_Converged", it, time.perf_counter() - t0, True,
                                      {"stability": how, "inertia_correction": 0.0,
                                       "route": "newton", "chord": chord is not None}), system
             if fused:
-                xk, lk = x_next, l_next
+                uk = u_next
             else:
                 if step is None:
                     step = lin.solve(K, rhs)          # (which factorises K)
-                xk, lk = xk + step[:n], lk + step[n:]
+                uk = uk + order.padded(step)
             last = err
         return fail
 
-    def _minimum(self, K, rhs, x, D, lam) -> tuple | None:
+    def _minimum(self, K, rhs, u, D) -> tuple | None:
         """(K, rhs, ρ): the system K given (ρ = 1), or else the system at ρ = 100, whichever
         first has the inertia of a minimum, factorised; None if neither has."""
         lin = self._linsol
         for rho in (1.0, 100.0):
             if rho > 1:
-                K, rhs = self._system(x, D, lam, rho)[:2]
+                K, rhs = self._system(u, D, rho)[:2]
             lin.nfact(K)
             if lin.neig(K) == self.m and lin.rank(K) == self.n + self.m:
                 return K, rhs, rho
         return None
 
-    def _convex_step(self, K, rhs, x, D, lam):
-        """Newton's step (dx, dλ), if its system has the inertia of a minimum (:meth:`_minimum`)."""
-        found = self._minimum(K, rhs, x, D, lam)
+    def _convex_step(self, K, rhs, u, D):
+        """Newton's step (of u[lo:hi]), if its system has the inertia of a minimum
+        (:meth:`_minimum`)."""
+        found = self._minimum(K, rhs, u, D)
         return None if found is None else self._linsol.solve(*found[:2])
 
-    def _certify(self, K, x, D, lam) -> str | None:
+    def _certify(self, K, u, D) -> str | None:
         """The certificate of the returned point's system K, trying ρ = 100 if ρ = 1 fails."""
-        found = self._minimum(K, None, x, D, lam)
+        found = self._minimum(K, None, u, D)
         return None if found is None else "newton_ldl" if found[2] == 1 else "newton_ldl_rho100"
 
 
@@ -342,7 +356,7 @@ def _norm_inf(v) -> float:
 
 class _System:
     """The Newton system K (ρ = 1) and weights W of the point ``key`` = (x, λ, p, q);
-    ``start`` its (x, λ) as CasADi matrices."""
+    ``start`` its u (cell order) as a CasADi matrix."""
 
     __slots__ = ("key", "K", "w", "start", "used")
 
