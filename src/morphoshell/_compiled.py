@@ -148,44 +148,77 @@ def point_map_function(f: ca.Function, n: int, optimisation: str = "-O2",
 CHUNK = 512
 
 
+class ChunkedMap:
+    """Numbers of a function mapped over ``chunk`` columns, for any number of columns.
+
+    ``mapped`` is the per-column function mapped over ``chunk`` columns
+    (``f.map(chunk)`` or :func:`point_map_function`), whose inputs numbered in
+    ``shared`` are given once for all columns.  Called once per chunk of
+    columns, the last padded with its last column (the padding's values
+    are dropped): one evaluator serves every number of columns, where a map
+    per size cost every new size its construction (a Function map costs 30-70 ns
+    an entry of its inputs and outputs to build: the results' fields, 0.4 ms
+    of a 25-node cold solve and 0.1 s at 12 800 nodes).
+    """
+
+    def __init__(self, mapped: ca.Function, chunk: int, shared: tuple[int, ...] = ()):
+        self.chunk, self._shared = chunk, shared
+        # (inputs set in place, outputs read in place: copying each chunk through
+        # Buffered's call cost warm re-solves at 3200 nodes 2 %)
+        self._f = Buffered(mapped)
+        self._args, self._res = self._f.args, self._f.res
+        self._width = [a.size // (1 if i in shared else chunk) for i, a in enumerate(self._args)]
+        self._out = [r.size // chunk for r in self._res]
+
+    def __call__(self, n: int, *args) -> list[np.ndarray]:
+        """Each output at ``n`` columns, flat (column-major), from each input's ``n`` columns
+        (flat, column-major) or, for a shared input, its value."""
+        if len(args) != len(self._args):
+            raise TypeError(f"{len(self._args)} inputs expected, got {len(args)}")
+        args = [np.ravel(a, order="F") for a in args]
+        for i in self._shared:
+            self._args[i][:] = args[i]
+        mapped = [i for i in range(len(args)) if i not in self._shared]
+        outs = [np.empty(w * n) for w in self._out]
+        C = self.chunk
+        for a in range(0, n, C):
+            k = min(C, n - a)
+            for i in mapped:
+                w, dst = self._width[i], self._args[i]
+                dst[:k * w] = args[i][a * w:(a + k) * w]
+                if k < C:
+                    dst[k * w:] = np.tile(args[i][(a + k - 1) * w:(a + k) * w], C - k)
+            self._f.run()
+            for out, res, w in zip(outs, self._res, self._out):
+                out[a * w:(a + k) * w] = res[:k * w]
+        return outs
+
+
 class PointEvaluator:
     """Numbers of a per-point SX function ``f`` at any number of points, in calls of :data:`CHUNK`.
 
     Input 0 of ``f`` is the point (a scalar); the others are given once for all
-    points.  One compiled evaluator per function, whatever the sizes asked for:
-    an evaluator per size cost every new mesh size 2-4 ms to build (a fresh
-    command-line solve built four), and a cache of them made a session's second
-    solve of a size cheaper than its first.  The last call's chunk is padded with
-    its last point; the padding's values are dropped.  Warm re-solves at 3200
-    nodes (13 calls each for the geometry and the profiles) take 1.002-1.007 of
-    the time of one call per size (measured, interleaved).
+    points.  One compiled evaluator per function, whatever the sizes asked for
+    (:class:`ChunkedMap`): an evaluator per size cost every new mesh size 2-4 ms
+    to build (a fresh command-line solve built four), and a cache of them made a
+    session's second solve of a size cheaper than its first.  Warm re-solves at
+    3200 nodes (13 calls each for the geometry and the profiles) take
+    1.002-1.007 of the time of one call per size (measured, interleaved).
     """
 
     def __init__(self, f: ca.Function):
-        # (shared inputs set once per call, outputs read in place: copying each chunk
-        # through Buffered's call cost warm re-solves at 3200 nodes 2 %)
-        self._f = Buffered(point_map_function(f, CHUNK, shared=tuple(range(1, f.n_in()))))
-        self._args, self._res = self._f.args, self._f.res
+        shared = tuple(range(1, f.n_in()))
+        self._map = ChunkedMap(point_map_function(f, CHUNK, shared=shared), CHUNK, shared)
         self._rows = [f.size1_out(i) for i in range(f.n_out())]
+        self._inputs = f.n_in()
 
     def __call__(self, points, *shared) -> list:
         """Each output at ``points`` (flattened), as a (rows × n) array."""
         points = np.asarray(points, dtype=float).ravel()
-        if len(shared) != len(self._args) - 1:
-            raise TypeError(f"{len(self._args) - 1} shared inputs expected, got {len(shared)}")
-        for dst, v in zip(self._args[1:], shared):
-            dst[:] = np.ravel(v, order="F")
-        n = len(points)
-        outs = [np.empty((rows, n)) for rows in self._rows]
-        chunk = self._args[0]
-        for a in range(0, n, CHUNK):
-            k = min(CHUNK, n - a)
-            chunk[:k] = points[a:a + k]
-            chunk[k:] = points[a + k - 1]
-            self._f.run()
-            for out, res, rows in zip(outs, self._res, self._rows):
-                out[:, a:a + k] = res.reshape(CHUNK, rows).T[:, :k]   # (column-major)
-        return outs
+        if len(shared) != self._inputs - 1:
+            raise TypeError(f"{self._inputs - 1} shared inputs expected, got {len(shared)}")
+        outs = self._map(len(points), points, *shared)
+        return [out.reshape(len(points), rows).T for out, rows in zip(outs, self._rows)]
 
 
 def block_function(f: ca.Function, name: str) -> ca.Function:
