@@ -111,10 +111,10 @@ class CellOrder:
 
 #: Cells of the smallest assembly table (:func:`_table`); tables up to LARGEST_TABLE cells are
 #: kept, one per power of two; larger meshes get a table of their own size, not kept.  A
-#: table costs 3-5 ms at 64 cells, about 45 us a cell (S = 2) at thousands, and holds
+#: table costs 2-5 ms at 16-64 cells, about 45 us a cell (S = 2) at thousands, and holds
 #: about 25 bytes per nonzero of the system it serves: 40 MB (S = 2) and 80 MB (S = 3) at
 #: 16 384 cells, a fraction of what a Newton system of that size takes itself.
-SMALLEST_TABLE = 64
+SMALLEST_TABLE = 16
 LARGEST_TABLE = 16384
 
 

@@ -353,7 +353,7 @@ def _assembled(sp: ca.Sparsity, first: list, extras: list, values) -> ca.MX:
 
 
 #: Cells per call of the results' fields (:func:`_fields_map`).
-FIELDS_CHUNK = 32
+FIELDS_CHUNK = 64
 _FIELDS_MAPS: dict = {}
 
 

@@ -274,10 +274,11 @@ def _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge
     # to leading order, so the first cell is t_1 ≈ ℓ_p (W(1)/(N q ℓ_p))^q:
     # lower q until it is at least MIN_POLE_CELL.  Meshes fine enough to need
     # this have pole-cell errors far below round-off anyway.
+    Wb = W(bounds)                                  # (bounds[-1] = 1: Wb[-1] = W(1))
     while "pole" in (start, end) and q > 1 and \
-            pole_width * (W(1.0) / (cells * q * pole_width)) ** q < MIN_POLE_CELL:
+            pole_width * (Wb[-1] / (cells * q * pole_width)) ** q < MIN_POLE_CELL:
         q = max(1.0, q - 0.5)
-    Wb = W(bounds)
+        Wb = W(bounds)
     # cells per segment in proportion to its share of the density, at least one each
     share = np.diff(Wb) / Wb[-1] * cells
     n = np.maximum(1, np.floor(share).astype(int))
