@@ -110,12 +110,12 @@ class CellOrder:
 
 
 #: Cells of the smallest assembly table (:func:`_table`); tables up to LARGEST_TABLE cells are
-#: kept, one per power of two; larger meshes get a table of their own size, not kept.  A
-#: table costs 2-5 ms at 16-64 cells, about 45 us a cell (S = 2) at thousands, and holds
-#: about 25 bytes per nonzero of the system it serves: 40 MB (S = 2) and 80 MB (S = 3) at
-#: 16 384 cells, a fraction of what a Newton system of that size takes itself.
+#: kept, one per power of two; a larger mesh gets its indices made for it alone, not kept
+#: (as lists, about what the assembly cost before cell order).  A table costs 2-5 ms at
+#: 16-64 cells and 0.18 s (S = 2) to 0.31 s (S = 3) at 4096 cells, once per process, and
+#: holds about 25 bytes per nonzero of the system it serves: 10 to 20 MB at 4096 cells.
 SMALLEST_TABLE = 16
-LARGEST_TABLE = 16384
+LARGEST_TABLE = 4096
 
 
 @dataclass(frozen=True)
@@ -151,13 +151,19 @@ def assembly(order: CellOrder) -> Assembly:
     table per power of two of cells (:func:`_table`) by a few slices in
     CasADi, instead of handing it lists of every nonzero (the pattern and
     index lists of a 25-node cold solve, 0.9 ms, cost more than the rest of
-    the system's build).
+    the system's build).  Above :data:`LARGEST_TABLE` cells the indices are
+    made for the mesh alone, as such lists.
     """
     S, cells = order.stages, order.cells
+    if cells > LARGEST_TABLE:
+        i = _indices(S, cells, order.lo, order.hi)
+        return Assembly(_column(i["local"]), _pattern(i["key"], order.hi - order.lo),
+                        _column(i["first"]), _column(i["second"]), _column(i["rhs_first"]),
+                        _column(i["rhs_second"]), _column(i["x_mask"]))
     M = SMALLEST_TABLE
     while M < cells:
         M *= 2
-    t = _table(S, M) if M <= LARGEST_TABLE else _table.__wrapped__(S, cells)
+    t = _table(S, M)
     L = 4 * S + 2
     n_tri = L * (L + 1) // 2
     part = slice(order.lo, order.hi)
@@ -181,72 +187,75 @@ class _Table:
 
 @lru_cache(maxsize=None)
 def _table(S: int, M: int) -> _Table:
-    """The assembly indices of M cells of S stages without poles (:func:`assembly`).
+    """The assembly indices of M cells of S stages without poles (:func:`assembly`), as CasADi
+    matrices: K's two value numbers in K's pattern, the others columns."""
+    i = _indices(S, M)
+    sp = _pattern(i["key"], 4 * S * M + 2)
+    return _Table(_column(i["local"]), ca.DM(sp, i["first"].astype(float).tolist()),
+                  ca.DM(sp, i["second"].astype(float).tolist()),
+                  *(_column(i[k]) for k in ("rhs_first", "rhs_second", "x_mask")))
 
-    Built from one cell's by Kronecker products in CasADi (a few dozen
-    operations, nothing handed over entry by entry): the first values are
-    A (V ∘ keep) Aᵀ, A the 0/1 matrix putting each cell's local slots in u
-    and V the cells' blocks of value numbers, with a later cell's entries of
-    its first node masked (the earlier cell's come first); a second value is
-    the same cell's zero, or for a shared node's entry the next cell's entry
-    of the same pair of slots.
+
+def _indices(S: int, M: int, lo: int = 0, hi: int | None = None) -> dict[str, np.ndarray]:
+    """The assembly indices of M cells of S stages for the unknowns u[lo:hi], in NumPy.
+
+    Each cell's slots (and pairs of slots, for K) are placed in u, their
+    values numbered cell after cell; a stable sort by position groups the
+    (at most two) values of each entry, the earlier cell's first, and an
+    entry of one cell takes that cell's zero second.  ``key``: K's nonzeros
+    as col (hi − lo) + row, sorted (compressed columns).  Linear in M (the
+    same indices from Kronecker and sparse products in CasADi took 0.17 s at
+    4096 cells, 5.4 s at 65 536); handing them to CasADi as lists, 0.1 us
+    an entry, is most of a table's cost.
     """
     b, L = 4 * S, 4 * S + 2
     n_tri = L * (L + 1) // 2
+    hi = b * M + 2 if hi is None else hi
+    n = hi - lo
     off = offsets(S)
-    node, last = np.array([0, S + 1]), np.array([S, 2 * S + 1])     # first, last node's r, ψ
+    c = np.arange(M)[:, None, None]
+    local = (c[:, :, 0] * b + off[None, :]).ravel()
+    _, rhs_first, rhs_second = _sources(local, (c[:, :, 0] * (L + 1) + np.arange(L)).ravel(),
+                                        L + 1)
     ku, lu = np.triu_indices(L)
-    tri = np.zeros((L, L))
+    tri = np.zeros((L, L), dtype=np.int64)
     tri[ku, lu] = tri[lu, ku] = np.arange(n_tri)
-    c = ca.DM(np.arange(float(M)).tolist())                           # 0, 1, …, M − 1
-    diagonal = ca.Sparsity.diag(M)
-    later = ca.DM(diagonal, ca.fmin(c, 1))                            # cells after the first
-    eye = ca.DM.eye(M)
-    A = _placement(S, M, off)
-    E = np.zeros((L, L))
-    E[np.ix_(node, node)] = 1.0
-    V = ((ca.kron(eye, ca.DM(tri + 1)) + ca.kron(ca.DM(diagonal, c * (n_tri + 1)), ca.DM.ones(L, L)))
-         * (ca.kron(eye, ca.DM.ones(L, L)) - ca.kron(later, ca.DM(E))))
-    first = _shifted(ca.mtimes(A, ca.mtimes(V, A.T)), -1)
-    # a shared node's pair (i, j) of the last node's slots pairs with the next cell's (i', j')
-    step = n_tri - np.arange(n_tri + 1.0)                             # to the cell's own zero
-    for i, j in np.ndindex(2, 2):
-        t = tri[last[i], last[j]]
-        step[int(t)] = n_tri + 1 + tri[node[i], node[j]] - t
-    e = ca.DM.ones(L)
-    e[node.tolist()] = 0
-    u_src = ca.vec(ca.repmat(ca.DM(np.arange(L) + 1.0), 1, M) + ca.repmat((L + 1) * c.T, L, 1))
-    u_keep = ca.vec(ca.horzcat(ca.DM.ones(L), ca.repmat(e, 1, M - 1)))
-    rhs_first = _shifted(ca.mtimes(A, u_src * u_keep), -1)
-    u_step = L - np.arange(L + 1.0)
-    u_step[last] = L + 1 + node - last
-    mask = ca.vertcat(ca.vec(ca.repmat(ca.vertcat(ca.DM.ones(3 * S), ca.DM.zeros(S)), 1, M)),
-                      ca.DM.ones(2))
-    local = ca.vec(ca.repmat(ca.DM(off.astype(float)), 1, M) + ca.repmat(b * c.T, L, 1))
-    return _Table(local, first, _then(first, step), rhs_first, _then(rhs_first, u_step), mask)
+    rows = np.broadcast_to(c * b + off[None, :, None], (M, L, L)).ravel()
+    cols = np.broadcast_to(c * b + off[None, None, :], (M, L, L)).ravel()
+    src = np.broadcast_to(c * (n_tri + 1) + tri[None], (M, L, L)).ravel()
+    if lo > 0 or hi < b * M + 2:        # (a pole's fixed entries)
+        keep = (rows >= lo) & (rows < hi) & (cols >= lo) & (cols < hi)
+        rows, cols, src = rows[keep], cols[keep], src[keep]
+    key, first, second = _sources((cols - lo) * n + rows - lo, src, n_tri + 1)
+    mask = np.ones((M, b))
+    mask[:, 3 * S:] = 0.0
+    return {"local": local, "key": key, "first": first, "second": second,
+            "rhs_first": rhs_first[lo:hi], "rhs_second": rhs_second[lo:hi],
+            "x_mask": np.append(mask.ravel(), [1.0, 1.0])[lo:hi]}
 
 
-def _placement(S: int, M: int, off: np.ndarray) -> ca.DM:
-    """The 0/1 matrix (u's size × M L) putting each cell's L local slots (a column per cell,
-    stacked) in u; a node between two cells receives both cells' slots."""
-    b, L = 4 * S, len(off)
-    own, nxt = off < b, off >= b
-    Q = ca.DM(ca.Sparsity.triplet(b, L, off[own].tolist(), np.flatnonzero(own).tolist()), 1.0)
-    Qn = ca.DM(ca.Sparsity.triplet(b, L, (off[nxt] - b).tolist(), np.flatnonzero(nxt).tolist()),
-               1.0)
-    eye, n = ca.DM.eye(M), M * L
-    # each cell's own slots, then its last node's (rows shifted down by a cell)
-    return (ca.vertcat(ca.kron(eye, Q), ca.DM(2, n))
-            + ca.vertcat(ca.DM(b, n), ca.kron(eye, Qn))[:b * M + 2, :])
+def _pattern(key: np.ndarray, n: int) -> ca.Sparsity:
+    """The n × n sparsity of the nonzeros ``key`` = col n + row, sorted."""
+    colind = np.concatenate([[0], np.cumsum(np.bincount(key // n, minlength=n))])
+    return ca.Sparsity(n, n, colind.tolist(), (key % n).tolist())
 
 
-def _shifted(m: ca.DM, k: float) -> ca.DM:
-    """``m`` with k added to its nonzeros (its structural zeros stay)."""
-    return ca.DM(m.sparsity(), m.get_nz(False, ca.Slice()) + k)
+def _column(v: np.ndarray) -> ca.DM:
+    """``v`` as a DM column (lists convert three times faster than arrays)."""
+    return ca.DM(np.asarray(v, dtype=float).tolist())
 
 
-def _then(first: ca.DM, step: np.ndarray) -> ca.DM:
-    """The second value numbers from the first: first + step[first mod (values a cell)]."""
-    per = len(step)
-    nz = first.get_nz(False, ca.Slice())
-    return ca.DM(first.sparsity(), ca.DM(step).get_nz(False, ca.fmod(nz, per)) + nz)
+def _sources(key: np.ndarray, src: np.ndarray, per: int) -> tuple:
+    """(keys, first, second): the distinct keys, sorted, and each one's first and second value
+    (``src``, numbered ``per`` a cell, given cell after cell: a stable sort keeps the
+    earlier cell's first); a key of one value takes that cell's last number (its zero)."""
+    order = np.argsort(key, kind="stable")
+    key, src = key[order], src[order]
+    head = np.empty(len(key), dtype=bool)
+    head[:1] = True
+    np.not_equal(key[1:], key[:-1], out=head[1:])
+    first = src[head]
+    second = first - first % per + per - 1
+    twice = np.flatnonzero(~head)
+    second[np.cumsum(head)[twice] - 1] = src[twice]
+    return key[head], first, second
