@@ -556,10 +556,13 @@ class Discretisation:
     values, gradients and Hessian; they are mapped over the cells and
     assembled into the global gradient, Jacobian and Hessian by constant
     index gathers computed numerically (:meth:`_gather`), so no symbolic work
-    grows with the mesh (the build still grows about linearly with N, in the
-    index lists and patterns that cross into CasADi, 40-80 ns an entry: the
-    constructor 5-8 ms at 200 nodes and 0.16 s at 12 800, the Newton system,
-    built in the first solve, 0.6 s there).  The parameter data D are
+    grows with the mesh (the build still grows about linearly with N, in
+    CasADi's constructions: any pattern of n entries costs it some 20 ns an
+    entry, a map 30-70 ns an entry of its inputs and outputs, a list handed
+    to it 40-100 ns an entry; the constructor 5 ms at 200 nodes and 0.1 s at
+    12 800, a third of that the mesh).  The Newton system is assembled in cell
+    order (:mod:`morphoshell.cell_order`), its indices cut from a table kept
+    per process.  The parameter data D are
     evaluated by one compiled kernel per Gauss point fed the mesh's numbers
     there (:func:`_data_point`).
     Ipopt's callbacks run the kernels compiled to C when a compiler is
