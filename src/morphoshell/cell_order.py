@@ -14,9 +14,10 @@ and handed to CasADi, at 40-80 ns an entry and 17 µs a list.  That cost a
 
 cell c's local slots are u[4S c + OFFSETS] with the same offsets for every
 cell (its last node's r, ψ are the next cell's first two entries).  So every
-pattern and index of the assembly is a Kronecker product of one cell's,
-cut by CasADi from one table per power of two of cells (:func:`assembly`),
-and the cells' unknowns are a gather of u.  The fixed r, ψ at a pole
+pattern and index of the assembly is periodic in the cells: a build cuts them,
+by a few CasADi slices, from one table per power of two of cells, made once
+per process in NumPy (:func:`assembly`), and the cells' unknowns are a gather
+of u.  The fixed r, ψ at a pole
 are entries of u too, the first or last two; one slice drops them from K.
 
 The order is a symmetric permutation of the NLP's, so the system has the

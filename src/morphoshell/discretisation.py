@@ -1125,8 +1125,8 @@ class Discretisation:
     def newton_system(self) -> ca.Function:
         """``(u, D, ρ) -> (K, rhs, ‖∇f + Jᵀλ‖∞, ‖g‖∞, ‖λ‖₁, W)``: the certified Newton system.
 
-        u holds x and λ in cell order (:attr:`cell_order`; ``pack`` and
-        ``unpack`` convert), the system's unknowns are u[lo:hi].
+        u holds x and λ in cell order (:attr:`cell_order`; :meth:`kkt_pack`
+        and ``cell_order.unpack`` convert), the system's unknowns are u[lo:hi].
         K = [[M, Jᵀ], [J, −Δ]] with M = ∇²ℒ + Jᵀ W J, W > 0 per constraint
         scaled by ρ, Δ = ε W⁻¹ (ε = :data:`NEWTON_EPSILON`);
         rhs = −(∇f + Jᵀ(λ + W g), g), both symmetrically permuted to cell
