@@ -48,13 +48,15 @@ def test_a_cold_start_takes_no_step_ipopt_would_modify(blister, monkeypatch):
     """The blister's flat shape is a saddle: Newton's path from the flat start meets a system
     with the wrong inertia, where Ipopt would correct the inertia; Newton stops there and
     Ipopt solves."""
-    original, steps = NewtonBackend._convex_step, []
+    original, steps = NewtonBackend._minimum, []
 
-    def spy(self, *args):
-        steps.append(original(self, *args))
-        return steps[-1]
+    def spy(self, K, rhs, *args):
+        found = original(self, K, rhs, *args)
+        if rhs is not None:            # a cold step's system (not the certificate's)
+            steps.append(found)
+        return found
 
-    monkeypatch.setattr(NewtonBackend, "_convex_step", spy)
+    monkeypatch.setattr(NewtonBackend, "_minimum", spy)
     solver = DirectSolver(blister.structure, 60)
     with pytest.raises(NotAMinimumError) as exc:
         solver.solve(blister)
