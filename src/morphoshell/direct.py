@@ -21,7 +21,7 @@ from typing import Any, Mapping
 import casadi as ca
 import numpy as np
 
-from .discretisation import Discretisation
+from .discretisation import Discretisation, PointData
 from .energy import boundary_layer_width, kinematics
 from .ipopt import IpoptBackend
 from .newton import NewtonBackend
@@ -79,15 +79,14 @@ def default_mesh(structure: Structure, nodes: int, stages: int = 2,
                     pole_exponent(stages))
 
 
-def _to_points(s_c: np.ndarray, v: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """Gauss-point values ``v`` (..., len(s_c)) at the points ``s``: piecewise linear in s,
+def _to_points(v: np.ndarray, points: PointData) -> np.ndarray:
+    """Gauss-point values ``v`` (..., Gauss points) at the ``points``: piecewise linear in s,
     extrapolated linearly beyond the first and last Gauss points; every row at once."""
-    i = np.minimum(np.maximum(np.searchsorted(s_c, s), 1), len(s_c) - 1)   # (np.clip: 4x slower)
-    t = (s - s_c[i - 1]) / (s_c[i] - s_c[i - 1])
     # in place, with take: 0.37 ms instead of 0.65 for 14 fields at 6399 points (same bits)
+    i = points.below
     a, b = v.take(i - 1, axis=-1), v.take(i, axis=-1)
     b -= a
-    b *= t
+    b *= points.weight
     b += a
     return b
 
@@ -271,18 +270,15 @@ class DirectSolver:
         """The :class:`Equilibrium` of the NLP point (x, λ) at parameters p, anchors q (data D)."""
         d = self.disc
         gf = d.gauss_fields(x, D)
-        s = d.points(p, q)
-        rho, z0, _ = d.geometry.numeric(s)
+        pts = d.point_data(p, q)
+        s, off = pts.s.copy(), pts.off
         # z(s_0) = z₀(s_0), then ∫ f_s sin ψ ds (the symbolic shape's formula, in numbers)
-        z = z0[0] + d.integrate_to_points(gf["f_s"] * np.sin(gf["psi"]), ds=gf["ds"])
+        z = pts.z0[0] + d.integrate_to_points(gf["f_s"] * np.sin(gf["psi"]), ds=gf["ds"])
         r, psi, _ = d.layout.split(x)
         names = [k for k in FIELDS if k not in ("s", "r", "z", "psi")]
-        fields = dict(zip(names, _to_points(gf["s"], np.array([gf[k] for k in names]), s)))
+        fields = dict(zip(names, _to_points(np.array([gf[k] for k in names]), pts)))
         # Exact values off the axis (interpolation is only needed at a pole).
-        # a pole is on the axis exactly, whatever sin(pi) rounds to
-        rho[[0, -1]] = np.where([d.layout.start_pole, d.layout.end_pole], 0.0, rho[[0, -1]])
-        off = rho > 0
-        exact = kinematics(rho[off], r[off], psi[off], fields["f_s"][off],
+        exact = kinematics(pts.rho[off], r[off], psi[off], fields["f_s"][off],
                            fields["kappa_s"][off] * fields["f_s"][off])
         fields["f_phi"][off], fields["kappa_phi"][off] = exact["f_phi"], exact["kappa_phi"]
         fields["eta"] = problem.profiles(s)["eta"]   # parameter-only: exact at the points
