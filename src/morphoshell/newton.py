@@ -72,8 +72,8 @@ nothing but the floor.  A step in Newton's quadratic phase, one that cut
 the error a thousandfold (:data:`FLOOR_GAIN`), lands far below the floor,
 so what is left is round-off; if Newton's correction there is negligible
 too (below :data:`STEP_TOL` of x; measured 4e-14 at h = 1e-4 and 4e-13 at
-h = 1e-3), the iterate is converged.  The correction is a solve of the
-factorisation that the certificate needs anyway.  The residual of a start
+h = 1e-3), the iterate is converged.  The correction is the next step's solve,
+which is needed anyway if it is not negligible.  The residual of a start
 alone is never taken for the floor: at h = 1e-4 a parameter change moves
 the residual by as little as 1e-7 and the solution by 1e-11 of x, which is
 still a change to follow (continuation).  The test depends on the iterate
@@ -323,8 +323,8 @@ class NewtonBackend:
             if chord is not None and (it == 0 and done or it == 1 and not err <= CHORD_GAIN * last):
                 return NotImplemented, None
             if not (done or fused) and acceptable and err <= FLOOR_GAIN * last < np.inf:
-                # at a round-off floor if Newton's correction is negligible (its solve
-                # factorises K, as the certificate needs; if not, it is the next step)
+                # at a round-off floor if Newton's correction is negligible (if it is
+                # not, it is the next step)
                 u_next, du, size = solve_step(uk, K, rhs)
                 done = float(du) <= STEP_TOL * max(1.0, float(size))
             if not done and (not np.isfinite(err) or (it >= (1 if cold else 2) and err > last)
