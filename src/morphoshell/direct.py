@@ -281,7 +281,7 @@ class DirectSolver:
         exact = kinematics(pts.rho[off], r[off], psi[off], fields["f_s"][off],
                            fields["kappa_s"][off] * fields["f_s"][off])
         fields["f_phi"][off], fields["kappa_phi"][off] = exact["f_phi"], exact["kappa_phi"]
-        fields["eta"] = problem.profiles(s)["eta"]   # parameter-only: exact at the points
+        fields["eta"] = problem.eta(s)   # parameter-only: exact at the points
         energy = float(np.sum(gf["weight"] * gf["ds"] * gf["L"]))
         return Equilibrium(problem=problem, s=s, r=r, z=z, psi=psi, **fields, energy=energy,
                            solver=stats, converged=converged, x=x, lam_g=lam,

@@ -185,10 +185,17 @@ class Problem:
     def profiles(self, s) -> dict[str, np.ndarray]:
         """Intrinsic profiles and η at the points ``s`` (NumPy arrays)."""
         s = np.asarray(s, dtype=float)
-        fam = self.family_obj
-        out = fam.evaluate(s.ravel(), [self.params[n] for n in fam.parameters], self.cut, self.end)
-        prof = Profiles(*[v.reshape(s.shape) for v in out])
+        prof = Profiles(*[v.reshape(s.shape) for v in self._profiles(s.ravel())])
         return {**prof._asdict(), "eta": prof.eta(self.h)}
+
+    def eta(self, s: np.ndarray) -> np.ndarray:
+        """η at the points ``s`` (1-d; :meth:`profiles` without the rest: a warm re-solve's
+        results need η alone)."""
+        return self._profiles(np.asarray(s, dtype=float)).eta(self.h)
+
+    def _profiles(self, s: np.ndarray) -> Profiles:
+        fam = self.family_obj
+        return fam.evaluate(s, [self.params[n] for n in fam.parameters], self.cut, self.end)
 
     def _check_intrinsic(self, fam: ProfileFamily, geo: Geometry) -> None:
         s = np.linspace(self.cut, self.end, 2001)
