@@ -92,7 +92,8 @@ import numpy as np
 
 from .ipopt import BackendResult
 
-__all__ = ["NewtonBackend", "S_MAX", "CHORD_GAIN", "FLOOR_GAIN", "STEP_TOL"]
+__all__ = ["NewtonBackend", "S_MAX", "CHORD_GAIN", "FLOOR_GAIN", "STEP_TOL",
+           "THIRD_STEP_CELLS"]
 
 #: A chord step is kept only if it cuts the KKT error at least this much (a warm start's
 #: Newton step cuts it 100x or more; measured: 170x for a 1 % change); a weaker one,
@@ -104,6 +105,12 @@ CHORD_GAIN = 0.1
 #: (Newton at a round-off floor of its residual; measured corrections there 4e-14 to 4e-13).
 FLOOR_GAIN = 1e-3
 STEP_TOL = 1e-12
+
+#: A warm start's first call (:attr:`NewtonBackend._chord_start`) also takes the third step
+#: on meshes of up to this many cells: there a step's arithmetic costs less than the 40-50 us
+#: of a call of its own (0.7 us a cell, measured at 41 and 199 cells of order 4), which it
+#: saves whenever the warm start does not end at the second step (two thirds of toy 3's).
+THIRD_STEP_CELLS = 100
 
 #: Ipopt's ``s_max``: the dual infeasibility is scaled down by ‖λ‖₁/(n + m)/s_max when larger.
 S_MAX = 100.0
@@ -171,30 +178,35 @@ class NewtonBackend:
             K = ca.MX.sym("K", self._system.sparsity_out(0))
             rhs = ca.MX.sym("rhs", self._system.sparsity_out(1))
             u_next, step = self._advance(u, K, rhs, with_step=True)
-            mask = self._x_mask
-            self._fused["solve"] = ca.Function(
-                "newton_solve_step", [u, K, rhs],
-                [u_next, ca.mmax(ca.fabs(step * mask)),
-                 ca.mmax(ca.fabs(u[self._order.lo:self._order.hi] * mask))])
+            self._fused["solve"] = ca.Function("newton_solve_step", [u, K, rhs],
+                                               [u_next, *self._norms(u, step)])
         return self._fused["solve"]
+
+    def _norms(self, u, step) -> tuple:
+        """(‖du‖∞, ‖u‖∞) over x of a step du[lo:hi] from u (CasADi matrices or expressions)."""
+        mask = self._x_mask
+        return (ca.mmax(ca.fabs(step * mask)),
+                ca.mmax(ca.fabs(u[self._order.lo:self._order.hi] * mask)))
 
     def _python_step(self, u, K, rhs, norms: bool = True) -> tuple:
         """:attr:`_solve_step` by a ``Linsol.solve`` and CasADi operations from Python (the
         norms only if asked for)."""
-        step, order = self._linsol.solve(K, rhs), self._order
-        if not norms:
-            return u + order.padded(step), None, None
-        return (u + order.padded(step), ca.mmax(ca.fabs(step * self._x_mask)),
-                ca.mmax(ca.fabs(u[order.lo:order.hi] * self._x_mask)))
+        step = self._linsol.solve(K, rhs)
+        return u + self._order.padded(step), *(self._norms(u, step) if norms else (None, None))
 
     @property
     def _chord_start(self) -> ca.Function:
-        """``(u₀, D, K_w, W_w) -> (u₁, u₂, errors, K, rhs, W)``: a warm start's first three
-        evaluations in one call: the chord step with the warm start's system K_w, W_w,
-        Newton's step from where it lands, and the system at u₂; ``errors`` holds
-        (‖∇f + Jᵀλ‖∞, ‖g‖∞, ‖λ‖₁) at u₀, u₁ and u₂ in turn.  Each call from Python
-        costs 40-50 us whatever its size (measured at 5 nodes), a tenth of a warm
-        re-solve at 42 nodes, and a warm start always takes these three."""
+        """``(u₀, D, K_w, W_w) -> (u₁, u₂, errors, K, W, u₃, ‖du‖∞, ‖u₂‖∞)``: a warm start's
+        first three evaluations in one call: the chord step with the warm start's
+        system K_w, W_w, Newton's step from where it lands, and the system K, W at u₂;
+        ``errors`` holds (‖∇f + Jᵀλ‖∞, ‖g‖∞, ‖λ‖₁) at u₀, u₁ and u₂ in turn.  On up to
+        :data:`THIRD_STEP_CELLS` cells also Newton's step from u₂ (u₃, with the norms over
+        x of :attr:`_solve_step`); on more, K's right-hand side in place of u₃ and no norms.
+        Each call from Python costs 40-50 us whatever its size (measured at 5 nodes), a
+        tenth of a warm re-solve at 42 nodes.  A warm start always takes the first two
+        steps; the third unless u₂ meets ``tol`` (at the round-off floor its correction
+        decides): a third of toy 3's warm starts at 200 nodes end at u₂, where a wasted
+        step costs 0.14 ms."""
         if "chord" not in self._fused:
             u, D = self._symbols()
             K_w = ca.MX.sym("K_w", self._system.sparsity_out(0))
@@ -204,9 +216,13 @@ class NewtonBackend:
             K, rhs, *errors1, _ = self._system(u1, D, 1.0)
             u2 = self._advance(u1, K, rhs)
             K, rhs, *errors2, w2 = self._system(u2, D, 1.0)
+            third = [rhs]
+            if self._order.cells <= THIRD_STEP_CELLS:
+                u3, step = self._advance(u2, K, rhs, with_step=True)
+                third = [u3, *self._norms(u2, step)]
             self._fused["chord"] = ca.Function(
                 "newton_chord_start", [u, D, K_w, w],
-                [u1, u2, ca.vertcat(*errors0, *errors1, *errors2), K, rhs, w2])
+                [u1, u2, ca.vertcat(*errors0, *errors1, *errors2), K, w2, *third])
         return self._fused["chord"]
 
     def _advance(self, u, K, rhs, with_step: bool = False):
@@ -324,9 +340,11 @@ class NewtonBackend:
         fail = (None, None) if chord is None else (NotImplemented, None)
         start = None
         if chord is not None:
-            u1, u2, errors, K2, rhs2, w2 = self._chord_start(uk, D, chord.K, chord.w)
+            u1, u2, errors, K2, w2, *third = self._chord_start(uk, D, chord.K, chord.w)
             e = errors.nonzeros()
-            start = [(u1, *e[0:3]), (u2, *e[3:6]), (K2, rhs2, *e[6:9], w2)]
+            # (the system at u₂ with its step, or with its right-hand side)
+            third = (None, *third) if len(third) == 3 else (third[0], None, None, None)
+            start = [(u1, *e[0:3]), (u2, *e[3:6]), (K2, third[0], *e[6:9], w2, *third[1:])]
         for it in range(self.max_iter + 1):
             # The first two steps in one call each (a warm start is not converged
             # there); later iterates, where Newton usually stops, give K for the certificate.
@@ -336,8 +354,7 @@ class NewtonBackend:
             elif fused:
                 u_next, dual, primal, l1 = self._step(uk, D)
             elif start and it == 2:
-                K, rhs, dual, primal, l1, w = start[2]
-                u_next = None
+                K, rhs, dual, primal, l1, w, u_next, du, size = start[2]
             else:
                 K, rhs, dual, primal, l1, w = self._system(uk, D, 1.0)
                 u_next = None
@@ -349,7 +366,8 @@ class NewtonBackend:
             if not (done or fused) and acceptable and err <= FLOOR_GAIN * last < np.inf:
                 # at a round-off floor if Newton's correction is negligible (if it is
                 # not, it is the next step)
-                u_next, du, size = solve_step(uk, K, rhs)
+                if u_next is None:
+                    u_next, du, size = solve_step(uk, K, rhs)
                 done = float(du) <= STEP_TOL * max(1.0, float(size))
             if not done and (not np.isfinite(err) or (it >= (1 if cold else 2) and err > last)
                              or it == self.max_iter):
