@@ -114,6 +114,30 @@ def test_warm_solves_start_with_a_chord_step():
     assert chord <= newton and max(s for s, _ in steps) <= 3
 
 
+@pytest.mark.parametrize("problem, change", [
+    (Problem("anisotropic", {"f0": 0.1}, h=0.3, cut=0.3), {"f0": 0.102}),
+    (Problem("uniform", {"k": 0.0}, h=1e-4, cut=0.5, theory="classical"), {"h": 1.01e-4})])
+def test_the_third_step_in_the_first_call_changes_nothing_but_the_time(problem, change,
+                                                                         monkeypatch):
+    """On up to THIRD_STEP_CELLS cells the warm start's first call also takes the third step
+    (the next step, or the round-off floor's test at h = 1e-4); the same arithmetic in
+    another call: the same iterate, to the last bit, after as many steps."""
+    results = []
+    for cells in (100, 0):
+        monkeypatch.setattr("morphoshell.newton.THIRD_STEP_CELLS", cells)
+        solver = DirectSolver(problem.structure, 42)
+        base = solver.solve(problem)
+        results.append([solver.solve(problem.with_updates(**{k: v * f for k, v in change.items()}),
+                                     warm_start=base) for f in (1.0, 1.005)])
+    for with_third, without in zip(*results):
+        assert with_third.solver.details["route"] == "newton" and with_third.solver.details["chord"]
+        assert with_third.solver.iterations == without.solver.iterations
+        assert np.array_equal(with_third.x, without.x)
+        assert np.array_equal(with_third.lam_g, without.lam_g)
+    # (a solve that ends at u₂ by tol does not use the third step: one of each ends at u₃)
+    assert max(eq.solver.iterations for eq in results[0]) == 3
+
+
 def _without_chord(solver):
     def solve(problem, warm_start):
         return DirectSolver.solve(solver, problem, x0=warm_start.x, lam_g0=warm_start.lam_g)
