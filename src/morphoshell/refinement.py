@@ -24,7 +24,11 @@ __all__ = ["solve_from", "estimate", "level_errors", "refine", "half_mesh", "SAF
 #: Factor on the differences between mesh levels.  Before the asymptotic
 #: range the error can shrink by less than 2 from one level to the next, and
 #: |fine − coarse| then under-states it (fuzzing: a Volvox shell's ψ(Σ) off by
-#: 7.0e-9 at 200 nodes, 1.2e-8 at 100, difference 5.0e-9).
+#: 7.0e-9 at 200 nodes, 1.2e-8 at 100, difference 5.0e-9).  The factor covers
+#: a shrink by 1.5 or more; less still fools it (fuzzing: z_end of a Volvox
+#: shell with σ = 0.05 steps, 9.8e-7 off at 100 nodes, 7.9e-7 at 200, estimate
+#: 4.7e-7, though 50 -> 100 had shrunk it 5x; asymptotic from about 400
+#: nodes; documented in docs/solution.md).
 SAFETY = 2.0
 
 
