@@ -142,3 +142,22 @@ def test_error_estimate_holds_before_the_asymptotic_range():
     for key, err in eq.error.errors.items():
         actual = abs(eq.estimated_values()[key] - limit[key])
         assert actual <= err + 1e-12, (key, actual, err)
+
+
+@pytest.mark.xfail(strict=True, reason="a known limit of estimates from coarser meshes "
+                   "(docs/solution.md, 'An error estimate'): if this passes, update the docs")
+def test_error_estimate_of_a_shell_whose_steps_are_not_yet_resolved():
+    # found by make fuzz (2026-11-24): z_end is off by 9.8e-7 at 100 nodes and 7.9e-7 at
+    # 200 (a shrink of 1.2x, after 4.6x from 50 to 100), estimate 4.7e-7; from about 400
+    # nodes (18 across each step of width sigma) it shrinks 14-17x per refinement
+    problem = Problem("volvox", {"f1": 0.818359375, "f2": 1.03125, "f3": 1.0, "f4": 1.0,
+                                 "f5": 1.09375, "kappa1": 0.0, "kappa2": -2.0, "kappa3": 1.0,
+                                 "kappa4": 1.0, "sigma": 0.05,
+                                 "s1": 1.184207084522778, "s2": 1.4574856424895728,
+                                 "s3": 1.7307642004563677, "s4": 2.095135611078761},
+                      h=0.0012863969449369746, cut=0.241036234688102, opening=0.3,
+                      theory="classical")
+    eq = solve(problem, nodes=200)
+    limit = solve(problem, nodes=1600).estimated_values()
+    actual = abs(eq.estimated_values()["z_end"] - limit["z_end"])
+    assert actual <= eq.error.errors["z_end"], (actual, eq.error.errors["z_end"])
