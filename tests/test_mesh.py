@@ -179,9 +179,9 @@ def test_nodes_next_to_a_pole_converge_in_a_few_evaluations(monkeypatch):
     invert, calls, roots = mesh._invert, [], []
 
     def counted(W, dW, target):
-        def W_counted(x):
+        def W_counted(x, grid=False):
             calls.append(1)
-            return W(x)
+            return W(x, grid=grid)
         x = invert(W_counted, dW, target)
         roots.append((W(x) - target, x, dW(x), target))
         return x
@@ -204,3 +204,23 @@ def test_mesh_spec_refuses_knots_too_close_and_has_none_without_them():
     with pytest.raises(ValueError, match=r"anchors and breakpoints at \[1.0, 1.0000001\] are "
                                          r"too close together to be mesh nodes"):
         mesh_spec(problem, 50, 2, anchors=(1.0, 1.0000001))
+
+
+@pytest.mark.parametrize("start, end", [("free", "pole"), ("pole", "free"), ("pole", "pole")])
+def test_a_pole_s_share_on_the_bracketing_grid_is_read_from_its_table_to_the_bit(
+        start, end, monkeypatch):
+    # W and dW on _invert's grid read a pole's share from a table kept per (q, pole width):
+    # the same bits as evaluating it, so meshes are unchanged by the table
+    import morphoshell.mesh as mesh
+    invert, seen = mesh._invert, []
+
+    def spy(W, dW, target):
+        g = mesh._BRACKET_GRID
+        seen.append((W(g, grid=True), W(g.copy()), dW(g, grid=True), dW(g.copy())))
+        return invert(W, dW, target)
+    monkeypatch.setattr(mesh, "_invert", spy)
+    for q in (4.0, 6.0):
+        graded_mesh(60, 2.5, start, end, 0.01, q=q, knots=(0.4,), knot_widths=(0.02,))
+    assert len(seen) == 2
+    for W_table, W_direct, dW_table, dW_direct in seen:
+        assert np.array_equal(W_table, W_direct) and np.array_equal(dW_table, dW_direct)

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import NamedTuple
 
 import casadi as ca
@@ -199,12 +200,14 @@ def lower_gamma(a: float, x) -> np.ndarray:
     relative.  Here so that building a mesh does not import scipy.special
     (0.1–0.4 s, most of a fresh process's first solve).
     """
-    shape = np.shape(x)
-    x = np.atleast_1d(np.asarray(x, dtype=float)).ravel()
-    out = np.full_like(x, math.gamma(a))
-    low = x <= 40.0
-    if low.any():
-        xs = x[low]
+    x = np.asarray(x, dtype=float)
+    shape, x = x.shape, x.ravel()
+    if not x.size:
+        return x.reshape(shape)
+    # (all at most 40, as in meshes: no mask, a third less time at 50 points)
+    low = None if x.max() <= 40.0 else x <= 40.0
+    xs = x if low is None else x[low]
+    if len(xs):
         top = float(xs.max())
         # terms peak at n ≈ x and then fall like exp(−(n − x)²/2x): below 1e-17 after 9√x
         n = np.arange(1, int(top + 9 * math.sqrt(top) + 20))
@@ -212,7 +215,12 @@ def lower_gamma(a: float, x) -> np.ndarray:
         total = (1.0 + terms.sum(axis=1)) / a
         # (x = 0 gives 0; the 1 there only keeps the logarithm finite)
         pos = xs > 0
-        out[low] = np.where(pos, total * np.exp(a * np.log(np.where(pos, xs, 1.0)) - xs), 0.0)
+        series = np.where(pos, total * np.exp(a * np.log(np.where(pos, xs, 1.0)) - xs), 0.0)
+    if low is None:
+        return series.reshape(shape)
+    out = np.full_like(x, math.gamma(a))
+    if len(xs):
+        out[low] = series
     return out.reshape(shape)
 
 
@@ -232,7 +240,7 @@ def _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge
             if small_edge:
                 out = out + 0.05 * (np.log1p(d / ell_c) - np.log1p(d / ell))
             return out
-        return pole_width * lower_gamma(1 / q, d / pole_width)
+        return _pole_cumulative(d, q, pole_width)
 
     def density(d, kind):
         # d/dd of cumulative(d, kind)
@@ -241,9 +249,7 @@ def _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge
             if small_edge:
                 out = out + 0.05 * (1 / (ell_c + d) - 1 / (ell + d))
             return out
-        with np.errstate(divide="ignore"):
-            u = d / pole_width
-            return np.exp((1 / q - 1) * np.log(u) - u)
+        return _pole_density(d, q, pole_width)
 
     def bump(x, c, w):
         # ∫₀^x KNOT_REFINEMENT exp(−|u − c|/w) du
@@ -254,16 +260,22 @@ def _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge
     # q (q may drop below), computed once per q rather than per evaluation
     end_total = {}
 
-    def W(x):
+    def W(x, grid=False):
+        # (grid: x is _invert's grid, where a pole's share is read from its table)
         if q not in end_total:
-            end_total[q] = cumulative(1.0, end)
-        out = x + cumulative(x, start) + end_total[q] - cumulative(1 - x, end)
+            end_total[q] = (_pole_on_grid(q, pole_width)[4] if end == "pole"
+                            else cumulative(1.0, end))
+        pole = _pole_on_grid(q, pole_width) if grid else None
+        out = (x + (pole[0] if grid and start == "pole" else cumulative(x, start)) + end_total[q]
+               - (pole[1] if grid and end == "pole" else cumulative(1 - x, end)))
         for c, w in bumps:
             out = out + bump(x, c, w)
         return out
 
-    def dW(x):
-        out = 1 + density(x, start) + density(1 - x, end)
+    def dW(x, grid=False):
+        pole = _pole_on_grid(q, pole_width) if grid else None
+        out = (1 + (pole[2] if grid and start == "pole" else density(x, start))
+               + (pole[3] if grid and end == "pole" else density(1 - x, end)))
         for c, w in bumps:
             out = out + KNOT_REFINEMENT * np.exp(-np.abs(x - c) / w)
         return out
@@ -293,6 +305,36 @@ def _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge
     return t
 
 
+def _pole_cumulative(d, q: float, pole_width: float):
+    """∫₀^d of a pole's extra density (d/ℓ_p)^(1/q − 1) exp(−d/ℓ_p) (:func:`graded_mesh`)."""
+    return pole_width * lower_gamma(1 / q, d / pole_width)
+
+
+def _pole_density(d, q: float, pole_width: float):
+    """A pole's extra density at distance d from it (:func:`graded_mesh`)."""
+    with np.errstate(divide="ignore"):
+        u = d / pole_width
+        return np.exp((1 / q - 1) * np.log(u) - u)
+
+
+@lru_cache(maxsize=16)
+def _pole_on_grid(q: float, pole_width: float) -> tuple:
+    """A pole's cumulative density at distance d = g and 1 − g of it, g on :func:`_invert`'s
+    bracketing grid, its density there, and its cumulative density at 1 (read-only).
+
+    They depend on q and ℓ_p alone, which the scheme's order fixes (q = 2S, lowered on
+    meshes fine enough to need it): kept, a mesh evaluates the incomplete gamma function
+    at its own nodes only (the grid's was a quarter of the time of a 50-node mesh of
+    order 4, measured).
+    """
+    g = _BRACKET_GRID
+    out = (_pole_cumulative(g, q, pole_width), _pole_cumulative(1 - g, q, pole_width),
+           _pole_density(g, q, pole_width), _pole_density(1 - g, q, pole_width))
+    for a in out:
+        a.flags.writeable = False
+    return (*out, _pole_cumulative(1.0, q, pole_width))
+
+
 def _bracket_grid() -> np.ndarray:
     """The fixed bracketing grid of :func:`_invert`: uniform, and geometric towards both ends.
 
@@ -316,10 +358,11 @@ def _invert(W, dW, target: np.ndarray) -> np.ndarray:
     Newton converges monotonically), bisection otherwise, to round-off; the
     first step is to the inverse Hermite interpolant of the bracket.  About
     4 evaluations of W instead of the 60 of plain bisection, so meshing stays
-    cheap at N = 12800.
+    cheap at N = 12800.  W and dW take a keyword ``grid``, True when x is the
+    bracketing grid (they may read parts of it kept from earlier meshes).
     """
     grid = _BRACKET_GRID
-    Wg, dg = W(grid), dW(grid)
+    Wg, dg = W(grid, grid=True), dW(grid, grid=True)
     i = np.clip(np.searchsorted(Wg, target, side="right") - 1, 0, len(grid) - 2)
     lo, hi, f_lo, f_hi, d_lo, d_hi = (grid[i], grid[i + 1], Wg[i] - target, Wg[i + 1] - target,
                                       dg[i], dg[i + 1])
