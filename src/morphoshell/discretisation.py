@@ -49,10 +49,10 @@ import platform
 import shutil
 import sys
 import weakref
-from typing import NamedTuple
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
 from pathlib import Path
+from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -68,7 +68,7 @@ from .layouts import CELL_DATA, INTRINSIC
 from .mesh import Knot, check_monotone, knot_shapes, mapped_points, shell_points
 from .problem import Structure
 
-__all__ = ["Discretisation", "Layout", "SymbolicShape", "collocation", "within_cells",
+__all__ = ["Discretisation", "Layout", "SymbolicShape", "collocation", "within_cells", "PointData",
            "compiled_cell_functions", "kernel_cache_dir"]
 
 _log = logging.getLogger("morphoshell")
@@ -287,6 +287,7 @@ class PointData(NamedTuple):
 
 
 def _point_data(nodes: np.ndarray, tau: np.ndarray, geometry, layout) -> PointData:
+    """:class:`PointData` of the mesh ``nodes`` with Gauss fractions ``tau``."""
     S = len(tau)
     s = within_cells(nodes, np.arange(S) / S)
     rho, z0, psi0 = geometry.numeric(s)
@@ -1050,7 +1051,7 @@ class Discretisation:
         """Arclength s of the points (nodes and interior points) for parameters ``p``."""
         return self.point_data(p, q).s.copy()
 
-    def point_data(self, p: np.ndarray, q=()) -> "PointData":
+    def point_data(self, p: np.ndarray, q=()) -> PointData:
         """The points for parameters ``p`` and anchors ``q``, with what depends on them alone
         (:class:`PointData`, read-only)."""
         nodes = self.nodes(np.asarray(p, dtype=float), q)

@@ -204,7 +204,7 @@ def lower_gamma(a: float, x) -> np.ndarray:
     shape, x = x.shape, x.ravel()
     if not x.size:
         return x.reshape(shape)
-    # (all at most 40, as in meshes: no mask, a third less time at 50 points)
+    # (all at most 40, as in meshes: no mask, 0.85 of the time at 50 points)
     low = None if x.max() <= 40.0 else x <= 40.0
     xs = x if low is None else x[low]
     if len(xs):

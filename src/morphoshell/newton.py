@@ -54,11 +54,11 @@ Factorisations.  ``Linsol.solve(A, b)`` factorises A itself (measured: a
 solve with 2A after a factorisation of A returns half the solution), so a
 step is one solve, and only the returned point is factorised apart, for
 its inertia: three factorisations for two steps (there were five, with a
-factorisation before every solve).  Every solve runs inside a CasADi
-Function with the update and the norms the floor's test needs: from
-Python, the solve's matrix conversions cost as much as its arithmetic.  That factorisation is not the one
+factorisation before every solve).  A solve's factorisation is not the one
 ``neig`` and ``rank`` read (measured: 0 and 0 after a ``solve``), so the
-inertia is always read after an ``nfact``.
+inertia is always read after an ``nfact``.  A warm solve's solves run
+inside CasADi Functions, with the update and the norms the floor's test
+needs: from Python, a solve's conversions cost as much as its arithmetic.
 
 Cold starts.  From the undeformed shell (no multipliers), Newton's steps are
 taken only while they are the steps Ipopt would take unmodified: each step's
@@ -346,8 +346,9 @@ class NewtonBackend:
             third = (None, *third) if len(third) == 3 else (third[0], None, None, None)
             start = [(u1, *e[0:3]), (u2, *e[3:6]), (K2, third[0], *e[6:9], w2, *third[1:])]
         for it in range(self.max_iter + 1):
-            # The first two steps in one call each (a warm start is not converged
-            # there); later iterates, where Newton usually stops, give K for the certificate.
+            # A warm start's first two steps are not the last: no system is returned for
+            # them (with a chord step, three evaluations came in one call: start); later
+            # iterates, where Newton usually stops, give K for the certificate.
             fused = not cold and it <= 1 and (it == 1 or chord is not None)
             if start and it <= 1:
                 u_next, dual, primal, l1 = start[it]
