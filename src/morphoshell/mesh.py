@@ -205,10 +205,12 @@ def lower_gamma(a: float, x) -> np.ndarray:
     if not x.size:
         return x.reshape(shape)
     # (all at most 40, as in meshes: no mask, 0.85 of the time at 50 points)
-    low = None if x.max() <= 40.0 else x <= 40.0
+    top = float(x.max())
+    low = None if top <= 40.0 else x <= 40.0
     xs = x if low is None else x[low]
     if len(xs):
-        top = float(xs.max())
+        if low is not None:
+            top = float(xs.max())
         # terms peak at n ≈ x and then fall like exp(−(n − x)²/2x): below 1e-17 after 9√x
         n = np.arange(1, int(top + 9 * math.sqrt(top) + 20))
         terms = np.cumprod(xs[:, None] / (a + n[None, :]), axis=1)
