@@ -125,10 +125,11 @@ class Assembly:
 
     ``local``: u's entries of each cell's L = 4S + 2 local slots, cell by cell
     (a gather of u gives the kernels' (z, λ) input).  ``K``: the sparsity of
-    the system; its nonzero k sums the cells' triangles' entries ``first[k]``
-    and ``second[k]`` (values stacked a cell at a time, n_tri + 1 per cell, the
-    last a zero: a slot of one cell only takes that zero second).  ``rhs_first``,
-    ``rhs_second``: the same for u[lo:hi] from the cells' L + 1 local values.
+    the system; its nonzero k is the cells' triangles' value ``first[k]``
+    (values stacked a cell at a time, n_tri + 1 per cell), after the values of
+    the entries two cells share are summed into the earlier cell's:
+    ``pairs`` = (a, b), value b added to value a.  ``rhs_first``,
+    ``rhs_pairs``: the same for u[lo:hi] from the cells' L + 1 local values.
     ``x_mask``: 1 at x's entries of u[lo:hi], 0 at λ's.  Index vectors are DM
     columns (integers as floats), for ``MX.get_nz``.
     """
@@ -136,9 +137,9 @@ class Assembly:
     local: ca.DM
     K: ca.Sparsity
     first: ca.DM
-    second: ca.DM
+    pairs: tuple[ca.DM, ca.DM]
     rhs_first: ca.DM
-    rhs_second: ca.DM
+    rhs_pairs: tuple[ca.DM, ca.DM]
     x_mask: ca.DM
 
 
@@ -146,9 +147,8 @@ def assembly(order: CellOrder) -> Assembly:
     """The :class:`Assembly` of ``order``, cut from a kept table of at least as many cells.
 
     Every index is periodic in the cells: a mesh's indices are the first
-    cells' of a longer mesh's (but for the last node's second values, which
-    would be the next cell's: clamped to the last cell's zero), and the poles'
-    fixed entries are u's first or last two.  So a build cuts them from one
+    cells' of a longer mesh's (its pairs those of its inner nodes), and the
+    poles' fixed entries are u's first or last two.  So a build cuts them from one
     table per power of two of cells (:func:`_table`) by a few slices in
     CasADi, instead of handing it lists of every nonzero (the pattern and
     index lists of a 25-node cold solve, 0.9 ms, cost more than the rest of
@@ -159,42 +159,47 @@ def assembly(order: CellOrder) -> Assembly:
     if cells > LARGEST_TABLE:
         i = _indices(S, cells, order.lo, order.hi)
         return Assembly(_column(i["local"]), _pattern(i["key"], order.hi - order.lo),
-                        _column(i["first"]), _column(i["second"]), _column(i["rhs_first"]),
-                        _column(i["rhs_second"]), _column(i["x_mask"]))
+                        _column(i["first"]), _columns(i["pairs"]), _column(i["rhs_first"]),
+                        _columns(i["rhs_pairs"]), _column(i["x_mask"]))
     M = SMALLEST_TABLE
     while M < cells:
         M *= 2
     t = _table(S, M)
-    L = 4 * S + 2
-    n_tri = L * (L + 1) // 2
     part = slice(order.lo, order.hi)
-    K1, K2 = t.first[part, part], t.second[part, part]
+    K = t.first[part, part]
     return Assembly(
-        local=t.local[:cells * L], K=K1.sparsity(), first=K1.get_nz(False, ca.Slice()),
-        second=ca.fmin(K2.get_nz(False, ca.Slice()), cells * (n_tri + 1) - 1),
-        rhs_first=t.rhs_first[part], rhs_second=ca.fmin(t.rhs_second[part], cells * (L + 1) - 1),
-        x_mask=t.x_mask[part])
+        local=t.local[:(4 * S + 2) * cells], K=K.sparsity(), first=K.get_nz(False, ca.Slice()),
+        pairs=_cut(t.pairs, cells, M), rhs_first=t.rhs_first[part],
+        rhs_pairs=_cut(t.rhs_pairs, cells, M), x_mask=t.x_mask[part])
+
+
+def _cut(pairs: tuple[ca.DM, ca.DM], cells: int, M: int) -> tuple[ca.DM, ca.DM]:
+    """The ``pairs`` of a table of M cells that a mesh of ``cells`` has: the same number at
+    each of its cells − 1 inner nodes, node after node (the last node's are the next
+    cell's)."""
+    k = ca.Slice(0, (cells - 1) * (pairs[0].numel() // (M - 1)))
+    return pairs[0].get_nz(False, k), pairs[1].get_nz(False, k)
 
 
 @dataclass(frozen=True)
 class _Table:
     local: ca.DM
     first: ca.DM
-    second: ca.DM
+    pairs: tuple[ca.DM, ca.DM]
     rhs_first: ca.DM
-    rhs_second: ca.DM
+    rhs_pairs: tuple[ca.DM, ca.DM]
     x_mask: ca.DM
 
 
 @lru_cache(maxsize=None)
 def _table(S: int, M: int) -> _Table:
     """The assembly indices of M cells of S stages without poles (:func:`assembly`), as CasADi
-    matrices: K's two value numbers in K's pattern, the others columns."""
+    matrices: K's value numbers in K's pattern, the others columns."""
     i = _indices(S, M)
     sp = _pattern(i["key"], 4 * S * M + 2)
     return _Table(_column(i["local"]), ca.DM(sp, i["first"].astype(float).tolist()),
-                  ca.DM(sp, i["second"].astype(float).tolist()),
-                  *(_column(i[k]) for k in ("rhs_first", "rhs_second", "x_mask")))
+                  _columns(i["pairs"]), _column(i["rhs_first"]), _columns(i["rhs_pairs"]),
+                  _column(i["x_mask"]))
 
 
 def _indices(S: int, M: int, lo: int = 0, hi: int | None = None) -> dict[str, np.ndarray]:
@@ -216,8 +221,7 @@ def _indices(S: int, M: int, lo: int = 0, hi: int | None = None) -> dict[str, np
     off = offsets(S)
     c = np.arange(M)[:, None, None]
     local = (c[:, :, 0] * b + off[None, :]).ravel()
-    _, rhs_first, rhs_second = _sources(local, (c[:, :, 0] * (L + 1) + np.arange(L)).ravel(),
-                                        L + 1)
+    _, rhs_first, rhs_pairs = _sources(local, (c[:, :, 0] * (L + 1) + np.arange(L)).ravel())
     ku, lu = np.triu_indices(L)
     tri = np.zeros((L, L), dtype=np.int64)
     tri[ku, lu] = tri[lu, ku] = np.arange(n_tri)
@@ -227,11 +231,12 @@ def _indices(S: int, M: int, lo: int = 0, hi: int | None = None) -> dict[str, np
     if lo > 0 or hi < b * M + 2:        # (a pole's fixed entries)
         keep = (rows >= lo) & (rows < hi) & (cols >= lo) & (cols < hi)
         rows, cols, src = rows[keep], cols[keep], src[keep]
-    key, first, second = _sources((cols - lo) * n + rows - lo, src, n_tri + 1)
+    key, first, pairs = _sources((cols - lo) * n + rows - lo, src)
     mask = np.ones((M, b))
     mask[:, 3 * S:] = 0.0
-    return {"local": local, "key": key, "first": first, "second": second,
-            "rhs_first": rhs_first[lo:hi], "rhs_second": rhs_second[lo:hi],
+    # (rhs_pairs may name u's entries outside [lo, hi): summed into values nothing reads)
+    return {"local": local, "key": key, "first": first, "pairs": pairs,
+            "rhs_first": rhs_first[lo:hi], "rhs_pairs": rhs_pairs,
             "x_mask": np.append(mask.ravel(), [1.0, 1.0])[lo:hi]}
 
 
@@ -246,17 +251,26 @@ def _column(v: np.ndarray) -> ca.DM:
     return ca.DM(np.asarray(v, dtype=float).tolist())
 
 
-def _sources(key: np.ndarray, src: np.ndarray, per: int) -> tuple:
-    """(keys, first, second): the distinct keys, sorted, and each one's first and second value
-    (``src``, numbered ``per`` a cell, given cell after cell: a stable sort keeps the
-    earlier cell's first); a key of one value takes that cell's last number (its zero)."""
+def _columns(pair: tuple[np.ndarray, np.ndarray]) -> tuple[ca.DM, ca.DM]:
+    return _column(pair[0]), _column(pair[1])
+
+
+def _sources(key: np.ndarray, src: np.ndarray) -> tuple:
+    """(keys, first, (a, b)): the distinct keys, sorted, each one's first value (``src``,
+    given cell after cell: a stable sort keeps the earlier cell's first), and for the keys
+    of two values the first (a) and the second (b), each a once, ordered by a (cell
+    after cell)."""
     order = np.argsort(key, kind="stable")
     key, src = key[order], src[order]
     head = np.empty(len(key), dtype=bool)
     head[:1] = True
     np.not_equal(key[1:], key[:-1], out=head[1:])
     first = src[head]
-    second = first - first % per + per - 1
     twice = np.flatnonzero(~head)
-    second[np.cumsum(head)[twice] - 1] = src[twice]
-    return key[head], first, second
+    a, b = src[twice - 1], src[twice]
+    by_a = np.argsort(a, kind="stable")
+    a, b = a[by_a], b[by_a]
+    # (K's entries (i, j) and (j, i) share their values: each pair once)
+    once = np.ones(len(a), dtype=bool)
+    np.not_equal(a[1:], a[:-1], out=once[1:])
+    return key[head], first, (a[once], b[once])

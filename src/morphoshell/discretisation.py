@@ -412,10 +412,19 @@ def _fields_map(kernel: ca.Function) -> ChunkedMap:
     return _FIELDS_MAPS[key][1]
 
 
-def _summed(values: ca.MX, first: ca.DM, second: ca.DM) -> ca.MX:
-    """``values``' nonzeros ``first`` plus those at ``second`` (index columns, as DM)."""
-    # (MX.binary: `+` tries CasADi's DM and SX overloads first, 40 µs of a build)
-    return ca.MX.binary(ca.OP_ADD, values.get_nz(False, first), values.get_nz(False, second))
+def _summed(values: ca.MX, first: ca.DM, pairs: tuple[ca.DM, ca.DM]) -> ca.MX:
+    """``values``' nonzeros ``first`` after adding, for ``pairs`` = (a, b), nonzero b to
+    nonzero a (index columns, as DM; :class:`morphoshell.cell_order.Assembly`)."""
+    # Summing only the entries two cells share, in place, and gathering once: two
+    # gathers of every entry and their sum took half as long again (measured: 1.66 ->
+    # 1.08 ms for K at 3200 nodes).  (MX.binary: `+` tries CasADi's DM and SX overloads
+    # first, 40 µs of a build.)
+    a, b = pairs
+    if a.numel():
+        values = ca.MX(values)          # (set_nz rebinds this handle only)
+        values.set_nz(ca.MX.binary(ca.OP_ADD, values.get_nz(False, a), values.get_nz(False, b)),
+                      False, a)
+    return values.get_nz(False, first)
 
 
 def _take(v: ca.MX, idx: list) -> ca.MX:
@@ -1190,7 +1199,7 @@ class Discretisation:
         cells, a = self.layout.cells, self.cell_assembly
         u, rho = ca.MX.sym("u", self.cell_order.size), ca.MX.sym("rho")
         tri, dual, rhs, g, w = self._cell["newton"].map(cells)(*self._cell_locals(u), rho)
-        K = ca.MX(a.K, _summed(tri, a.first, a.second))
+        K = ca.MX(a.K, _summed(tri, a.first, a.pairs))
         return ca.Function("newton_system", [u, self.D, rho],
                            [K, *self._newton_residual(u, dual, rhs, g), ca.vec(w)])
 
@@ -1225,8 +1234,8 @@ class Discretisation:
         """rhs, ‖∇f + Jᵀλ‖∞, ‖g‖∞ and ‖λ‖₁ from the cells' shares (a column per cell)."""
         a, order = self.cell_assembly, self.cell_order
         lam = ca.MX.binary(ca.OP_MUL, u[order.lo:order.hi], 1 - a.x_mask)
-        return [_summed(rhs, a.rhs_first, a.rhs_second),
-                ca.norm_inf(_summed(dual, a.rhs_first, a.rhs_second)), ca.norm_inf(g),
+        return [_summed(rhs, a.rhs_first, a.rhs_pairs),
+                ca.norm_inf(_summed(dual, a.rhs_first, a.rhs_pairs)), ca.norm_inf(g),
                 ca.norm_1(lam)]
 
     def kkt_curvature(self, x, lam, D, mu_F, mu_dz, mu_dS, ds) -> ca.MX:
