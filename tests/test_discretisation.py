@@ -265,7 +265,7 @@ def test_cell_data_hessian_is_the_hessian_of_the_cell_data(problem, compiled, mo
 @pytest.mark.parametrize("case", ["toy3", "volvox", "anchored"])
 def test_evaluated_cell_data_are_the_differentiable_cell_data_to_the_bit(case, nodes, compiled,
                                                                          monkeypatch):
-    """``pre_numeric`` (one kernel per point fed the mesh's numbers) is ``pre`` (the mesh's
+    """``pre_numeric`` (one kernel per cell fed the mesh's numbers) is ``pre`` (the mesh's
     MX expressions), for the plain map, the family's breakpoints and anchors, and the
     compiled blocks of large meshes."""
     from morphoshell.mesh import Knot
@@ -285,6 +285,26 @@ def test_evaluated_cell_data_are_the_differentiable_cell_data_to_the_bit(case, n
     p = problem.parameter_vector()
     a, b = d.shell_ends(p)
     q = a + (b - a) * np.array([0.3, 0.6]) + [0.02, -0.01] if d.anchors else np.zeros(0)
+    evaluated, differentiable = (np.asarray(f(p, q)).ravel() for f in (d.pre_numeric, d.pre))
+    assert evaluated.shape == (d.D.shape[0],) and np.ptp(evaluated) > 0
+    assert np.array_equal(evaluated, differentiable)
+
+
+@pytest.mark.parametrize("stages", [1, 3])
+@pytest.mark.parametrize("nodes", [30, 400])
+def test_evaluated_cell_data_of_every_order_are_the_differentiable_ones_to_the_bit(stages,
+                                                                                   nodes):
+    """The kernel per cell is built per number of stages (its Gauss points and weights are
+    constants in it): orders 2 and 6, on the map and on the compiled blocks, with anchors."""
+    from morphoshell.mesh import Knot
+
+    toy3, _ = _structures()
+    t = np.sort(np.concatenate([np.linspace(0, 1, nodes) ** 1.2, [0.3, 0.6]]))
+    d = Discretisation(toy3.structure, t, stages, (Knot(0.3, "anchor", 0),
+                                                    Knot(0.6, "anchor", 1)))
+    p = toy3.parameter_vector()
+    a, b = d.shell_ends(p)
+    q = a + (b - a) * np.array([0.3, 0.6]) + [0.02, -0.01]
     evaluated, differentiable = (np.asarray(f(p, q)).ravel() for f in (d.pre_numeric, d.pre))
     assert evaluated.shape == (d.D.shape[0],) and np.ptp(evaluated) > 0
     assert np.array_equal(evaluated, differentiable)

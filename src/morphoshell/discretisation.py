@@ -494,35 +494,41 @@ def _pre_function(structure: Structure) -> tuple[ca.Function, str]:
 
 
 @lru_cache(maxsize=CACHE_SIZE)
-def _data_point(structure: Structure, knots: tuple[tuple[str, int], ...]) -> tuple[ca.Function, str]:
-    """``(c, (t_knots, cells, p, q)) -> D_k``: the parameter data at one Gauss point from the
-    mesh's numbers there, and its serialisation.
+def _data_cell(structure: Structure, knots: tuple[tuple[str, int], ...],
+               stages: int) -> tuple[ca.Function, str]:
+    """``(c, (t_knots, cells, p, q)) -> D_c``: the parameter data at one cell's S Gauss points
+    (point after point) from the mesh's numbers at its two nodes, and its serialisation.
 
-    c = (t_c, t_c+1, τ_k, w_k, the knots' shapes at t_c, at t_c+1) (:func:`knot_shapes`),
+    c = (t_c and the knots' shapes there, then the same at t_c+1) (:func:`knot_shapes`),
     t_knots the knots' places in t and ``knots`` their (source, index); the
-    inputs shared by all points are one vector (a map with several, some of them
+    inputs shared by all cells are one vector (a map with several, some of them
     empty, cost 21 instead of 2 ms to build at 12 800 nodes, measured).  The
-    parametric map (:func:`~morphoshell.mesh.mapped_points`) at the cell's nodes, the point
+    parametric map (:func:`~morphoshell.mesh.mapped_points`) at the cell's nodes, the points
     between them (:func:`within_cells`), the cell's width and the objective's scale, then
     :func:`_pre_function`'s data, in the same operations as the expressions of
-    :meth:`Discretisation._pre_parts`.  One kernel per structure and kind of knots, mapped
-    over the points: a build makes a handful of CasADi operations for D where the mesh's
-    expressions took some twenty (1.6 ms at 25 nodes, measured), and the kernel is compiled.
+    :meth:`Discretisation._pre_parts`.  One kernel per structure, kind of knots and
+    number of stages, mapped over the cells: a build makes a handful of CasADi
+    operations for D where the mesh's expressions took some twenty (1.6 ms at 25
+    nodes, measured), and hands it two numbers a node (with no knots) where a
+    kernel per point took 4S a cell.  The kernel is compiled.
     """
     pre, _ = _pre_function(structure)
+    tau, w = collocation(stages)[:2]
     n_k, n_p = len(knots), len(structure.parameters)
-    c = ca.SX.sym("c", 4 + 2 * n_k)
+    c = ca.SX.sym("c", 2 + 2 * n_k)
     shared = ca.SX.sym("shared", n_k + 1 + n_p + sum(source == "anchor" for source, _ in knots))
     t_k, cells, p, q = (shared[:n_k], shared[n_k], shared[n_k + 1:n_k + 1 + n_p],
                         shared[n_k + 1 + n_p:])
     a, b = _shell_ends(structure, p)
     where = _knot_positions(structure, knots, p, q)
     t_knots = [t_k[j] for j in range(n_k)]
-    s0, s1 = (mapped_points(c[i], [c[4 + i * n_k + j] for j in range(n_k)], a, b, t_knots, where)
-              for i in (0, 1))
+    s0, s1 = (mapped_points(c[i * (1 + n_k)], [c[i * (1 + n_k) + 1 + j] for j in range(n_k)],
+                            a, b, t_knots, where) for i in (0, 1))
     h = structure.parameters.unpack(p)["h"]
-    D = pre(_between(s0, s1, c[2]), s1 - s0, c[3], _objective_scale(cells, h, a, b), p)
-    f = ca.Function("cell_data_point", [c, shared], [D])
+    scale = _objective_scale(cells, h, a, b)
+    D = ca.vertcat(*[pre(_between(s0, s1, tau[k]), s1 - s0, w[k], scale, p)
+                     for k in range(stages)])
+    f = ca.Function("cell_data_cell", [c, shared], [D])
     return f, f.serialize()
 
 
@@ -618,8 +624,8 @@ class Discretisation:
     12 800, a third of that the mesh).  The Newton system is assembled in cell
     order (:mod:`morphoshell.cell_order`), its indices cut from a table kept
     per process.  The parameter data D are
-    evaluated by one compiled kernel per Gauss point fed the mesh's numbers
-    there (:func:`_data_point`).
+    evaluated by one compiled kernel per cell fed the mesh's numbers at its
+    nodes (:func:`_data_cell`).
     Ipopt's callbacks run the kernels compiled to C when a compiler is
     available (:func:`compiled_cell_functions`, ``numeric``).
     The data are computed once per solve (:meth:`cell_data`) and are the
@@ -678,22 +684,18 @@ class Discretisation:
         tau, w, self._values, self._derivs, self._integrals, self._anti = collocation(S)
         self.tau, self.weights = tau, w
         n_p = len(structure.parameters)
-        m = cells * S
 
         self.p = ca.MX.sym("p", n_p)
         self.q = ca.MX.sym("q", self.anchors)
-        # D for evaluation (no derivatives), from one compiled kernel per point fed the
-        # mesh's numbers there (_data_point); the differentiable expressions of the same
-        # numbers (_pre_parts) are built on first use
-        cell = np.repeat(np.arange(cells), S)
-        shapes = knot_shapes(self.t, self.knots)
-        point, serialised = _data_point(structure, self._knot_sources)
+        # D for evaluation (no derivatives), from one compiled kernel per cell fed the
+        # mesh's numbers at its nodes (_data_cell); the differentiable expressions of the
+        # same numbers (_pre_parts) are built on first use
+        at_nodes = np.vstack([self.t, *knot_shapes(self.t, self.knots)])
+        kernel, serialised = _data_cell(structure, self._knot_sources, S)
         self.pre_numeric = ca.Function(
             "cell_data_numeric", [self.p, self.q],
             [ca.vec(compiled_point_map(
-                point, m, ca.DM(np.vstack([self.t[cell], self.t[cell + 1], np.tile(tau, cells),
-                                           np.tile(w, cells), *[v[cell] for v in shapes],
-                                           *[v[cell + 1] for v in shapes]])),
+                kernel, cells, ca.DM(np.vstack([at_nodes[:, :-1], at_nodes[:, 1:]])),
                 ca.vertcat(ca.DM(self.knots + (cells,)), self.p, self.q),
                 serialised=serialised))],
             ["p", "q"], ["D"])
