@@ -252,6 +252,7 @@ def _column(v: np.ndarray) -> ca.DM:
 
 
 def _columns(pair: tuple[np.ndarray, np.ndarray]) -> tuple[ca.DM, ca.DM]:
+    """Both index vectors of ``pair`` as DM columns (:func:`_column`)."""
     return _column(pair[0]), _column(pair[1])
 
 

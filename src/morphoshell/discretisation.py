@@ -420,8 +420,8 @@ def _summed(values: ca.MX, first: ca.DM, pairs: tuple[ca.DM, ca.DM]) -> ca.MX:
     cost a cold build 16 us a call).
     """
     # Summing only the entries two cells share, in place, and gathering once: two
-    # gathers of every entry and their sum took half as long again (measured: 1.66 ->
-    # 1.08 ms for K at 3200 nodes).  (MX.binary: `+` tries CasADi's DM and SX overloads
+    # gathers of every entry and their sum took 1.8 times as long (measured: 1.66 ->
+    # 0.92 ms for K at 3200 nodes, what one gather alone costs).  (MX.binary: `+` tries CasADi's DM and SX overloads
     # first, 40 µs of a build.)
     a, b = pairs
     if a.numel():
@@ -509,8 +509,8 @@ def _data_cell(structure: Structure, knots: tuple[tuple[str, int], ...],
     :meth:`Discretisation._pre_parts`.  One kernel per structure, kind of knots and
     number of stages, mapped over the cells: a build makes a handful of CasADi
     operations for D where the mesh's expressions took some twenty (1.6 ms at 25
-    nodes, measured), and hands it two numbers a node (with no knots) where a
-    kernel per point took 4S a cell.  The kernel is compiled.
+    nodes, measured), and hands it two numbers a cell (with no knots) where a
+    kernel per point took 4S.  The kernel is compiled.
     """
     pre, _ = _pre_function(structure)
     tau, w = collocation(stages)[:2]
@@ -620,8 +620,8 @@ class Discretisation:
     grows with the mesh (the build still grows about linearly with N, in
     CasADi's constructions: any pattern of n entries costs it some 20 ns an
     entry, a map 30-70 ns an entry of its inputs and outputs, a list handed
-    to it 40-100 ns an entry; the constructor 5 ms at 200 nodes and 0.1 s at
-    12 800, a third of that the mesh).  The Newton system is assembled in cell
+    to it 40-100 ns an entry; the constructor 3-5 ms at 200 nodes and 70-90 ms
+    at 12 800, a third of that the mesh).  The Newton system is assembled in cell
     order (:mod:`morphoshell.cell_order`), its indices cut from a table kept
     per process.  The parameter data D are
     evaluated by one compiled kernel per cell fed the mesh's numbers at its
