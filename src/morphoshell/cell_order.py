@@ -207,8 +207,8 @@ def _indices(S: int, M: int, lo: int = 0, hi: int | None = None) -> dict[str, np
 
     Each cell's slots (and pairs of slots, for K) are placed in u, their
     values numbered cell after cell; a stable sort by position groups the
-    (at most two) values of each entry, the earlier cell's first, and an
-    entry of one cell takes that cell's zero second.  ``key``: K's nonzeros
+    (at most two) values of each entry, the earlier cell's first, and the
+    entries of two values give the pairs to sum.  ``key``: K's nonzeros
     as col (hi − lo) + row, sorted (compressed columns).  Linear in M (the
     same indices from Kronecker and sparse products in CasADi took 0.17 s at
     4096 cells, 5.4 s at 65 536); handing them to CasADi as lists, 0.1 us
