@@ -157,16 +157,13 @@ def assembly(order: CellOrder) -> Assembly:
     """
     S, cells = order.stages, order.cells
     if cells > LARGEST_TABLE:
-        i = _indices(S, cells, order.lo, order.hi)
-        return Assembly(_column(i["local"]), _pattern(i["key"], order.hi - order.lo),
-                        _column(i["first"]), _columns(i["pairs"]), _column(i["rhs_first"]),
-                        _columns(i["rhs_pairs"]), _column(i["x_mask"]))
+        return _made(S, cells, order.lo, order.hi)
     M = SMALLEST_TABLE
     while M < cells:
         M *= 2
     t = _table(S, M)
     part = slice(order.lo, order.hi)
-    K = t.first[part, part]
+    K = ca.DM(t.K, t.first)[part, part]     # (K's pattern and value numbers cut at once)
     return Assembly(
         local=t.local[:(4 * S + 2) * cells], K=K.sparsity(), first=K.get_nz(False, ca.Slice()),
         pairs=_cut(t.pairs, cells, M), rhs_first=t.rhs_first[part],
@@ -181,25 +178,21 @@ def _cut(pairs: tuple[ca.DM, ca.DM], cells: int, M: int) -> tuple[ca.DM, ca.DM]:
     return pairs[0].get_nz(False, k), pairs[1].get_nz(False, k)
 
 
-@dataclass(frozen=True)
-class _Table:
-    local: ca.DM
-    first: ca.DM
-    pairs: tuple[ca.DM, ca.DM]
-    rhs_first: ca.DM
-    rhs_pairs: tuple[ca.DM, ca.DM]
-    x_mask: ca.DM
-
-
 @lru_cache(maxsize=None)
-def _table(S: int, M: int) -> _Table:
-    """The assembly indices of M cells of S stages without poles (:func:`assembly`), as CasADi
-    matrices: K's value numbers in K's pattern, the others columns."""
-    i = _indices(S, M)
-    sp = _pattern(i["key"], 4 * S * M + 2)
-    return _Table(_column(i["local"]), ca.DM(sp, i["first"].astype(float).tolist()),
-                  _columns(i["pairs"]), _column(i["rhs_first"]), _columns(i["rhs_pairs"]),
-                  _column(i["x_mask"]))
+def _table(S: int, M: int) -> Assembly:
+    """The :class:`Assembly` of M cells of S stages without poles: the table
+    :func:`assembly` cuts meshes of up to M cells from."""
+    return _made(S, M)
+
+
+def _made(S: int, M: int, lo: int = 0, hi: int | None = None) -> Assembly:
+    """The :class:`Assembly` of M cells of S stages for the unknowns u[lo:hi], from
+    :func:`_indices`."""
+    i = _indices(S, M, lo, hi)
+    n = (4 * S * M + 2 if hi is None else hi) - lo
+    return Assembly(_column(i["local"]), _pattern(i["key"], n), _column(i["first"]),
+                    _columns(i["pairs"]), _column(i["rhs_first"]), _columns(i["rhs_pairs"]),
+                    _column(i["x_mask"]))
 
 
 def _indices(S: int, M: int, lo: int = 0, hi: int | None = None) -> dict[str, np.ndarray]:
