@@ -50,11 +50,11 @@ from pathlib import Path
 import numpy as np
 
 from morphoshell import Problem
-from morphoshell.direct import DirectSolver
-from morphoshell.equilibrium import clear_cache, solve
-from morphoshell.io import example_path, load_problem
-from morphoshell.mesh import mesh_spec
-from morphoshell.results import SolverError
+from morphoshell.solvers.direct import DirectSolver
+from morphoshell.solvers.routes import clear_cache, solve
+from morphoshell.io.problem_files import example_path, load_problem
+from morphoshell.numerics.mesh import mesh_spec
+from morphoshell.solvers.results import SolverError
 
 ROOT = Path(__file__).resolve().parents[1]
 TARGETS = (1e-6, 1e-8)

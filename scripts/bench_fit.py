@@ -28,8 +28,8 @@ import sys
 import time
 
 from morphoshell import Problem
-from morphoshell.fitting import fit, synthetic_midline, volvox_spec
-from morphoshell.io import write_json
+from morphoshell.fitting.core import fit, synthetic_midline, volvox_spec
+from morphoshell.io.problem_files import write_json
 
 TRUE = Problem("volvox", {"kappa1": 0.0, "kappa2": -8.0, "f1": 0.88, "s2": 1.62, "f3": 1.12},
                h=0.15, opening=0.3)

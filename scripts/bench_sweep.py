@@ -24,12 +24,12 @@ import time
 
 import numpy as np
 
-from morphoshell.continuation import continue_to
-from morphoshell.direct import DirectSolver
-from morphoshell.executor import open_executor, run
-from morphoshell.io import example_path, load_problem, write_json
-from morphoshell.mesh import mesh_spec
-from morphoshell.sweep import sweep
+from morphoshell.solvers.continuation import continue_to
+from morphoshell.solvers.direct import DirectSolver
+from morphoshell.workflows.executor import open_executor, run
+from morphoshell.io.problem_files import example_path, load_problem, write_json
+from morphoshell.numerics.mesh import mesh_spec
+from morphoshell.workflows.sweeps import sweep
 
 KS = (0.0, 0.5, 2.0)
 CUTS = np.linspace(0.05, 1.4, 333)

@@ -3,7 +3,7 @@
 
 A cold solve (from the undeformed shell) tries Newton's own steps first and
 takes a step only while it is the step Ipopt would take unmodified
-(``morphoshell.newton``, "Cold starts").  This script draws ``--problems``
+(``morphoshell.numerics.newton``, "Cold starts").  This script draws ``--problems``
 random problems from the distribution of ``tests/test_fuzz.py`` (four
 families, both theories, h from 1e-3 to 0.3, cuts and openings, 30/60/200
 nodes, orders 4 and 6) and solves each cold twice on the same mesh: with the
@@ -27,8 +27,8 @@ import math
 import numpy as np
 
 from morphoshell import Problem, SolverError
-from morphoshell.direct import DirectSolver
-from morphoshell.mesh import mesh_spec
+from morphoshell.solvers.direct import DirectSolver
+from morphoshell.numerics.mesh import mesh_spec
 
 
 def params(family: str, u) -> dict:

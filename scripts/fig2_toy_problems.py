@@ -12,7 +12,7 @@ E  cut rotation ϱ/[√h(1−k)] against c/√h: leading order √(3/2) (Supplem
    "Cut rotation and cut displacement"), the Kelvin-function approximation for
    small cuts Σ = O(δ), the numerical solution of the nonlinear inner problem
    (Supplementary, "Asymptotic governing equations for small ablations") it
-   approximates (:func:`morphoshell.asymptotics.inner_problem`), and numerical
+   approximates (:func:`morphoshell.mechanics.asymptotics.inner_problem`), and numerical
    ablations;
 F  cut displacement d/[h(1−k)] against c/√h: leading order 1/2 (Supplementary,
    "Cut rotation and cut displacement"), Kelvin approximation, inner problem,
@@ -47,14 +47,14 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
-from morphoshell import asymptotics
-from morphoshell._console import run_script, progress
-from morphoshell.equilibrium import solve
-from morphoshell.io import EXAMPLES_DIR, load_problem, write_json
-from morphoshell.ablation import ablate
+from morphoshell.mechanics import asymptotics
+from morphoshell._runtime.console import run_script, progress
+from morphoshell.solvers.routes import solve
+from morphoshell.io.problem_files import EXAMPLES_DIR, load_problem, write_json
+from morphoshell.mechanics.ablation import ablate
 from morphoshell.plotting import (DOUBLE_COLUMN, MIN_FONT_SIZE, SINGLE_COLUMN, far_end_shift,
                                   label_panel, paper_style, plot_ablation, save, sheet_outline)
-from morphoshell.problem import Problem
+from morphoshell.model.problem import Problem
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = Path(__file__).name

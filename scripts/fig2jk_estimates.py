@@ -31,10 +31,10 @@ import sys
 import time
 from pathlib import Path
 
-from morphoshell._console import run_script
+from morphoshell._runtime.console import run_script
 from morphoshell.plotting import figure_JK, plot_k_estimates, plot_recoil_velocity
-from morphoshell.inverse import estimate
-from morphoshell.io import write_csv, write_json
+from morphoshell.inverse.core import estimate
+from morphoshell.io.problem_files import write_csv, write_json
 from morphoshell.plotting import plt
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -14,9 +14,9 @@ from pathlib import Path
 
 import matplotlib
 
-from morphoshell._console import run_script, progress
-from morphoshell.equilibrium import solve
-from morphoshell.io import EXAMPLES_DIR, load_problem, write_json
+from morphoshell._runtime.console import run_script, progress
+from morphoshell.solvers.routes import solve
+from morphoshell.io.problem_files import EXAMPLES_DIR, load_problem, write_json
 from morphoshell.plotting import plot_cross_section, problem_label, save
 
 

@@ -3,7 +3,7 @@ import casadi as ca
 import pytest
 
 from morphoshell import Problem
-from morphoshell.profiles import FAMILIES, ProfileFamily, Profiles, register_family
+from morphoshell.model.profiles import FAMILIES, ProfileFamily, Profiles, register_family
 
 
 def _central_growth(s, p, cut, end):

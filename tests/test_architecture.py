@@ -1,44 +1,99 @@
-"""The package's layers import downward only (README, Architecture)."""
+"""The package's layers import downward only (documentation: "Architecture").
+
+Each subpackage (or top-level module) sits in one layer; a module may import from
+its own layer or below, never above.  Names imported across modules are public:
+a private name (``_x``) is used only in the module that defines it.
+"""
 import ast
 from pathlib import Path
 
 import morphoshell
 
-#: Layers, bottom first; a module may import from its own layer or below.
+ROOT = Path(morphoshell.__file__).parent
+
+#: Layers, bottom first: subpackages and top-level modules of morphoshell.
 LAYERS = [
-    {"_validate", "_buffered", "_compiled", "_console", "_allocator", "executor"},
-    {"geometry", "coefficients", "profiles", "layouts", "problem"},
-    {"energy"},
-    {"mesh", "results", "midlines"},
-    {"cell_order", "discretisation"},
-    {"ipopt", "newton"},
-    {"direct", "reference", "shooting"},
-    {"observables", "parametric"},
-    {"continuation", "refinement"},
-    {"equilibrium"},
-    {"ablation", "asymptotics", "bulk", "thickness", "fitting", "inverse", "sweep", "campaign"},
-    {"io", "plotting", "cli"},
+    {"_runtime"},
+    {"model"},
+    {"numerics"},
+    {"solvers"},
+    {"io"},
+    {"mechanics"},
+    {"inverse", "fitting"},
+    {"workflows"},
+    {"plotting"},
+    {"cli"},
 ]
 
+#: What any module may take from the package's own ``__init__``.
+FROM_ROOT = {"__version__"}
 
-def _layer(name):
+
+def _layer(unit: str) -> int:
     for i, layer in enumerate(LAYERS):
-        if name in layer:
+        if unit in layer:
             return i
-    raise AssertionError(f"module {name!r} is in no layer: add it to the README and here")
+    raise AssertionError(f"{unit!r} is in no layer: add it to docs/architecture.md and here")
+
+
+def _modules():
+    """(path, dotted name inside the package) of every module but the package's __init__."""
+    for path in sorted(ROOT.rglob("*.py")):
+        parts = list(path.relative_to(ROOT).with_suffix("").parts)
+        if parts == ["__init__"]:
+            continue
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        yield path, parts, path.name == "__init__.py"
+
+
+def _imports(path: Path, parts: list[str], is_package: bool):
+    """(target parts, imported names) of every import of the package's own modules."""
+    base = parts if is_package else parts[:-1]
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom) and node.level:
+            up = base[: len(base) - node.level + 1]
+            target = up + (node.module.split(".") if node.module else [])
+            yield target, [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("morphoshell"):
+            yield node.module.split(".")[1:], [a.name for a in node.names]
+        elif isinstance(node, ast.Import):
+            for a in node.names:
+                if a.name.startswith("morphoshell."):
+                    yield a.name.split(".")[1:], []
+
+
+def test_every_unit_is_in_a_layer():
+    units = {p.name if p.is_dir() else p.stem for p in ROOT.iterdir()
+             if (p.is_dir() and (p / "__init__.py").exists()) or p.suffix == ".py"}
+    units -= {"__init__"}
+    for unit in units:
+        _layer(unit)
 
 
 def test_imports_point_down():
-    root = Path(morphoshell.__file__).parent
-    # modules of the package, and the command line's subpackage (in the cli layer)
-    files = [(p, p.stem, 1) for p in root.glob("*.py") if p.stem != "__init__"]
-    files += [(p, "cli", 2) for p in (root / "cli").glob("*.py")]
-    for path, name, depth in files:
-        mine = _layer(name)
-        for node in ast.walk(ast.parse(path.read_text())):
-            if isinstance(node, ast.ImportFrom) and node.level == depth and node.module:
-                target = node.module.split(".")[0]
-                assert _layer(target) <= mine, f"{path.name} imports {target} from a higher layer"
+    for path, parts, is_package in _modules():
+        mine = _layer(parts[0])
+        for target, names in _imports(path, parts, is_package):
+            if not target:     # the package's __init__
+                assert set(names) <= FROM_ROOT, f"{path}: imports {names} from morphoshell"
+                continue
+            assert _layer(target[0]) <= mine, \
+                f"{path.relative_to(ROOT)} imports {'.'.join(target)} from a higher layer"
+
+
+def test_no_private_names_cross_modules():
+    for path, parts, is_package in _modules():
+        for target, names in _imports(path, parts, is_package):
+            private = [n for n in names if n.startswith("_") and not n.startswith("__")]
+            assert not private, f"{path.relative_to(ROOT)} imports {private} from " \
+                                f"{'.'.join(target) or 'morphoshell'}: make them public there"
+
+
+def test_subpackages_say_their_job():
+    for init in ROOT.glob("*/__init__.py"):
+        doc = ast.get_docstring(ast.parse(init.read_text()))
+        assert doc and len(doc) > 40, f"{init.parent.name}/__init__.py has no docstring"
 
 
 def test_every_ipopt_solver_is_created_after_load_ipopt():
@@ -46,8 +101,7 @@ def test_every_ipopt_solver_is_created_after_load_ipopt():
     through ``ipopt.load_ipopt`` (OpenBLAS single-threaded: spin-waiting BLAS threads made
     warm solves 2.7x slower on a busy machine). Solvers set Ipopt up only when needed, so no
     other call may be relied on to have loaded it: each function creating one calls it."""
-    root = Path(morphoshell.__file__).parent
-    for path in [*root.glob("*.py"), *(root / "cli").glob("*.py")]:
+    for path in ROOT.rglob("*.py"):
         for fn in ast.walk(ast.parse(path.read_text())):
             if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 continue

@@ -15,7 +15,7 @@ from matplotlib.axes import Axes
 from matplotlib.text import Text
 from PIL import Image
 
-from morphoshell import asymptotics
+from morphoshell.mechanics import asymptotics
 from morphoshell.plotting import DOUBLE_COLUMN, MIN_FONT_SIZE, SINGLE_COLUMN
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -29,9 +29,9 @@ from hypothesis import strategies as st
 
 from morphoshell import Problem, SolverError, solve
 from morphoshell.cli import main
-from morphoshell.io import example_path
-from morphoshell.direct import DirectSolver
-from morphoshell.mesh import mesh_spec
+from morphoshell.io.problem_files import example_path
+from morphoshell.solvers.direct import DirectSolver
+from morphoshell.numerics.mesh import mesh_spec
 
 settings.register_profile("ci", max_examples=8, deadline=None, derandomize=True,
                           suppress_health_check=[HealthCheck.too_slow], database=None)
@@ -137,7 +137,7 @@ def _reference(problem, nodes: int, steps: int = 16):
 
 @given(problems(), st.sampled_from([30, 60]), st.sampled_from([2, 3]))
 def test_a_cold_newton_solve_is_the_cold_ipopt_solve(problem, nodes, stages):
-    """Cold solves try Newton's steps first (morphoshell.newton, "Cold starts"): solved or
+    """Cold solves try Newton's steps first (morphoshell.numerics.newton, "Cold starts"): solved or
     refused as Ipopt alone would, and where solved the same minimum (within the KKT tolerance:
     measured up to 1e-8 of x at thin shells' round-off floor, 1e-14 elsewhere)."""
     spec = mesh_spec(problem, nodes, stages)

@@ -12,11 +12,11 @@ import pytest
 from matplotlib.colors import to_rgba
 from PIL import Image
 
-from morphoshell.ablation import ablate
-from morphoshell.equilibrium import solve
+from morphoshell.mechanics.ablation import ablate
+from morphoshell.solvers.routes import solve
 from morphoshell.plotting import (new_axes, plot_ablation, plot_cross_section, problem_label,
                                   save)
-from morphoshell.problem import Problem
+from morphoshell.model.problem import Problem
 
 ROOT = Path(__file__).resolve().parents[1]
 NODES = 50
@@ -69,6 +69,7 @@ def test_cli_plots_without_display_or_backend(tmp_path):
 def test_cli_leaves_no_pyplot_figure(tmp_path, capsys):
     from morphoshell.cli import main
 
+    plt.close("all")     # figures other tests of this process left open
     assert main(["ablate", str(ROOT / "problems" / "toy2_ablation.toml"), "--nodes", "30",
                  "--plot", str(tmp_path / "a.png")]) == 0
     assert plt.get_fignums() == []
@@ -155,7 +156,7 @@ def test_titles_and_legends_say_what_was_solved(eqs, ablation):
 
 
 def test_large_families_name_only_the_changed_parameters():
-    from morphoshell.profiles import FAMILIES
+    from morphoshell.model.profiles import FAMILIES
 
     f1 = FAMILIES["volvox"].defaults["f1"] * 1.01
     label = problem_label(Problem("volvox", {"f1": f1}, h=0.15, opening=0.3))

@@ -35,8 +35,8 @@ from matplotlib.patches import PathPatch
 from matplotlib.path import Path as MplPath
 from matplotlib.transforms import ScaledTranslation
 
-from .problem import Problem
-from .results import Equilibrium
+from .model.problem import Problem
+from .solvers.results import Equilibrium
 
 __all__ = ["plot_fit", "plot_k_estimates", "plot_recoil_velocity", "figure_JK", "MEASURE_COLOURS",
            "sheet_outline", "far_end_shift", "problem_label", "new_axes", "plot_cross_section",
@@ -108,11 +108,11 @@ def _band_edges(eq: Equilibrium) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
 def far_end_shift(eq: Equilibrium) -> float:
     """z shift (units of R) that puts ``eq`` in the gauge of the ablation observables.
 
-    :func:`morphoshell.ablation.edge_state` keeps the far end of the shell
+    :func:`morphoshell.mechanics.ablation.edge_state` keeps the far end of the shell
     at its undeformed height; its z at the first point minus the solver's
     z there is that shift (exact: the first point is not interpolated).
     """
-    from .ablation import edge_state
+    from .mechanics.ablation import edge_state
 
     return edge_state(eq, float(eq.s[0]))["z"] - float(eq.z[0])
 
@@ -245,7 +245,7 @@ def plot_k_estimates(ax: Axes, result, truth=None, ylim=None) -> Axes:
     no k in the range, beyond it) are arrows at the axis.  ``truth``, a
     mapping embryo → k, adds grey ticks (synthetic data).
     """
-    from .inverse import MEASURES
+    from .inverse.core import MEASURES
 
     n = len(result.embryos)
     lo, hi = result.settings["k_range"]
@@ -326,7 +326,7 @@ def plot_recoil_velocity(ax: Axes, result) -> Axes:
 
 
 def figure_JK(result, truth=None) -> Figure:
-    """Fig. 2 J and K side by side (a Matplotlib figure) of an :class:`~morphoshell.inverse.InverseResult`."""
+    """Fig. 2 J and K side by side (a Matplotlib figure) of an :class:`~morphoshell.inverse.core.InverseResult`."""
 
     fig, (a, b) = plt.subplots(1, 2, figsize=(11.5, 4.4), gridspec_kw={"width_ratios": [2.2, 1]},
                                constrained_layout=True)
@@ -476,7 +476,7 @@ def plot_fit(result, ax: Axes | None = None, *, title: str | None = "auto", **st
 
     Parameters
     ----------
-    result : morphoshell.fitting.FitResult
+    result : morphoshell.fitting.core.FitResult
     ax : matplotlib Axes, optional
     title : str or None
         "auto": method, variant and E_fit (units of R).
@@ -504,14 +504,14 @@ def plot_ablation(ablation, ax: Axes | None = None, *, title: str | None = "auto
     """Draw the pre- (light) and post-ablation (dark) cross-sections of an ablation.
 
     Both shells are drawn in the gauge of the observables (far end at its
-    undeformed position, see :func:`morphoshell.ablation.edge_state`), so
+    undeformed position, see :func:`morphoshell.mechanics.ablation.edge_state`), so
     the recoil seen is the one measured by ``ablation.displacement``.  The
     whole intact shell is drawn, cap included, as an opaque band under the
     post-ablation one; both midlines (pre dashed) are drawn on top.
 
     Parameters
     ----------
-    ablation : morphoshell.ablation.Ablation
+    ablation : morphoshell.mechanics.ablation.Ablation
     ax : matplotlib Axes, optional
         Drawn into; a new figure (via pyplot) if not given.
     title : str or None
@@ -532,7 +532,7 @@ def plot_ablation(ablation, ax: Axes | None = None, *, title: str | None = "auto
     Axes
         The axes drawn into; the figure stays open.
     """
-    from .ablation import edge_state
+    from .mechanics.ablation import edge_state
 
     if ax is None:
         ax = new_axes(legend=bool(legend))
@@ -572,7 +572,7 @@ def plot_ablation_overlay(ablation, ax: Axes | None = None, *, pixels: int = 500
 
     Parameters
     ----------
-    ablation : morphoshell.ablation.Ablation
+    ablation : morphoshell.mechanics.ablation.Ablation
         E.g. ``numerical_ablation(...).ablation``.
     ax : matplotlib Axes, optional
     pixels : int

@@ -91,9 +91,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     0 success, 2 bad input, 3 solver failure, 1 a bug, 130 interrupted (see
     the module's docstring); messages go to standard error.
     """
-    from .._console import configure
-    from ..io import ProblemFileError
-    from ..results import SolverError
+    from .._runtime.console import configure
+    from ..io.problem_files import ProblemFileError
+    from ..solvers.results import SolverError
 
     try:
         argv = sys.argv[1:] if argv is None else list(argv)
@@ -101,7 +101,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as exc:   # argparse: --help, --version, or a bad argument (2)
         return int(exc.code or 0)
     restore = configure(-1 if args.quiet else args.verbose)
-    from .._allocator import keep_large_blocks
+    from .._runtime.allocator import keep_large_blocks
     keep_large_blocks()     # big meshes: large arrays reused, not page-faulted anew (linear in N)
     try:
         return args.run(args)

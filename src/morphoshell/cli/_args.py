@@ -48,7 +48,7 @@ def real(lo: float = -math.inf, hi: float = math.inf, *, open_lo: bool = False,
 
 def add_executor(p: argparse.ArgumentParser, default_workers: str) -> None:
     """``--workers`` and ``--scheduler``: where the tasks of a sweep or campaign run
-    (:mod:`morphoshell.executor`); ``default_workers`` says what no ``--workers`` means."""
+    (:mod:`morphoshell.workflows.executor`); ``default_workers`` says what no ``--workers`` means."""
     p.add_argument("--workers", type=integer(1, 4096), default=None, metavar="N",
                    help=f"worker processes (default: {default_workers}); ignored with "
                         f"--scheduler")

@@ -16,6 +16,7 @@ _K = real(-1e3, 1e3, unit=" (intrinsic curvature in units of 1/R)")
 
 
 def register(sub) -> None:
+    """Add ``morphoshell asymptotics`` and ``morphoshell sphere`` to the subcommands ``sub``."""
     p = sub.add_parser("asymptotics", help="the paper's asymptotic predictions for toy problem 2",
                        description="Leading-order and small-cut (Kelvin function) predictions "
                                    "of the Supplementary for the cut SIGMA (half-angle of the "
@@ -51,7 +52,7 @@ def register(sub) -> None:
 
 
 def _write(args, data: dict) -> None:
-    from ..io import write_csv, write_json
+    from ..io.problem_files import write_csv, write_json
 
     out = Outputs()
     out.add(args.json, lambda path: write_json(path, data))
@@ -67,7 +68,7 @@ _UNITS = {"opening": "R", "rotation": "rad", "displacement": "R", "rotation_smal
 
 
 def _asymptotics(args) -> int:
-    from ..asymptotics import predictions
+    from ..mechanics.asymptotics import predictions
 
     cut = args.cut
     if cut is None:
@@ -83,8 +84,8 @@ def _asymptotics(args) -> int:
 
 
 def _sphere(args) -> int:
-    from ..asymptotics import f_bulk_asymptotic, f_shell_asymptotic, f_shell_exact, k_star
-    from ..bulk import f_bulk
+    from ..mechanics.asymptotics import f_bulk_asymptotic, f_shell_asymptotic, f_shell_exact, k_star
+    from ..mechanics.bulk import f_bulk
 
     if not args.c10 + args.c01 > 0:
         raise ValueError(f"--c10 + --c01 = {args.c10 + args.c01:g} must be positive "

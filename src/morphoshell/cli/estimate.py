@@ -1,7 +1,7 @@
 """``morphoshell estimate``: intrinsic curvature k and E/μ from ablation recoils (Fig. 2 J–K).
 
-Also the figure panels (:func:`panel_J`, :func:`panel_K`, :func:`figure_JK`),
-shared with ``scripts/fig2jk_estimates.py``.
+Its ``--plot`` is :func:`morphoshell.plotting.figure_JK`, shared with
+``scripts/fig2jk_estimates.py``.
 """
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import argparse
 from ._args import add_outputs, integer, real
 from ._outputs import Outputs
 
-__all__ = ["register", "panel_J", "panel_K", "figure_JK"]
+__all__ = ["register"]
 
 _DESCRIPTION = """\
 Estimate the intrinsic curvature k of each embryo from the recoil of a laser
@@ -50,6 +50,7 @@ bending_modulus_lower_bound_J. CSV: the per-embryo table."""
 
 
 def register(sub) -> None:
+    """Add ``morphoshell estimate`` to the subcommands ``sub``."""
     p = sub.add_parser("estimate", help="intrinsic curvature k and E/mu from ablation recoils",
                        description=_DESCRIPTION,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -79,8 +80,8 @@ def register(sub) -> None:
 
 
 def _estimate(args) -> int:
-    from ..inverse import estimate, read_measurements
-    from ..io import write_csv, write_json
+    from ..inverse.core import estimate, read_measurements
+    from ..io.problem_files import write_csv, write_json
 
     lo, hi = args.k_range
     if not lo < hi:

@@ -7,7 +7,8 @@ __all__ = ["register"]
 
 
 def register(sub) -> None:
-    from ..io import examples
+    """Add ``morphoshell example`` to the subcommands ``sub``."""
+    from ..io.problem_files import examples
 
     names = ", ".join(examples())
     p = sub.add_parser(
@@ -23,7 +24,7 @@ def register(sub) -> None:
 def _example(args) -> int:
     import textwrap
 
-    from ..io import example_text, examples
+    from ..io.problem_files import example_text, examples
 
     if args.list or args.name is None:
         if args.name is not None:

@@ -10,8 +10,9 @@ __all__ = ["register"]
 
 
 def register(sub) -> None:
-    from ..fitting import FIT_NODES, METHODS, VARIANTS
-    from ..midlines import FORMATS, SECTIONS
+    """Add ``morphoshell fit`` to the subcommands ``sub``."""
+    from ..fitting.core import FIT_NODES, METHODS, VARIANTS
+    from ..io.traces import FORMATS, SECTIONS
 
     p = sub.add_parser(
         "fit", help="fit the 13-parameter Volvox model to a traced midline",
@@ -56,9 +57,9 @@ def register(sub) -> None:
 
 def _start_problem(args):
     """The start problem and the held values, from --start and --set (checked)."""
-    from ..fitting import volvox_spec
-    from ..io import ProblemFileError, load_problem, parse_overrides
-    from ..problem import Problem
+    from ..fitting.core import volvox_spec
+    from ..io.problem_files import ProblemFileError, load_problem, parse_overrides
+    from ..model.problem import Problem
 
     base = Problem("volvox", h=0.15, opening=0.3)
     if args.start is not None:
@@ -80,10 +81,10 @@ def _start_problem(args):
 
 
 def _fit(args) -> int:
-    from ..fitting import N_FIT, check_midline, fit
-    from ..io import write_csv, write_json
-    from ..midlines import load_midline
-    from ..results import SolverError
+    from ..fitting.core import N_FIT, check_midline, fit
+    from ..io.problem_files import write_csv, write_json
+    from ..io.traces import load_midline
+    from ..solvers.results import SolverError
 
     spec = _start_problem(args)
     midline = load_midline(args.midline, args.format, n=N_FIT, section=args.section,

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..io import METHODS
+from ..io.problem_files import METHODS
 from ._args import LINEAR_SOLVERS, add_outputs, integer, real
 from ._outputs import Outputs
 
@@ -16,7 +16,7 @@ _SET_HELP = ("override a problem or solver entry, repeatable: h, theory, family,
 
 
 def _common(p: argparse.ArgumentParser) -> None:
-    from ..direct import MAX_NODES
+    from ..solvers.direct import MAX_NODES
 
     p.add_argument("problem", metavar="PROBLEM.toml",
                    help="problem file (`morphoshell example NAME` prints one to start from)")
@@ -49,6 +49,7 @@ def _common(p: argparse.ArgumentParser) -> None:
 
 
 def register(sub) -> None:
+    """Add ``morphoshell solve`` and ``morphoshell ablate`` to the subcommands ``sub``."""
     p = sub.add_parser("solve", help="equilibrium of a problem file",
                        description="Solve for the equilibrium shape of PROBLEM.toml and print a "
                                    "summary (energy, edge values, solver statistics). z is in "
@@ -75,8 +76,8 @@ def register(sub) -> None:
 
 def _load(args):
     """Problem, method and solver options from the file, --set and the options; all checked."""
-    from ..io import (ProblemFileError, apply_overrides, load_problem, parse_overrides,
-                      settings_from, split_overrides)
+    from ..io.problem_files import (ProblemFileError, apply_overrides, load_problem,
+                                    parse_overrides, settings_from, split_overrides)
 
     problem, settings = load_problem(args.problem)
     problem_over, solver_over = split_overrides(parse_overrides(args.overrides))
@@ -117,9 +118,9 @@ def _report_quality(eq) -> None:
 
 
 def _solve(args) -> int:
-    from ..equilibrium import solve
-    from ..io import write_csv, write_json
-    from ..results import FIELDS
+    from ..solvers.routes import solve
+    from ..io.problem_files import write_csv, write_json
+    from ..solvers.results import FIELDS
 
     problem, method, nodes, options = _load(args)
     eq = solve(problem, nodes=nodes, method=method, **options)
@@ -154,8 +155,8 @@ _UNITS = {"opening": "R", "rotation": "rad", "displacement": "R", "radial_displa
 
 
 def _ablate(args) -> int:
-    from ..ablation import ablate
-    from ..io import write_csv, write_json
+    from ..mechanics.ablation import ablate
+    from ..io.problem_files import write_csv, write_json
 
     problem, method, nodes, options = _load(args)
     if not problem.cut > 0:

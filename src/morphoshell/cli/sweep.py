@@ -17,8 +17,9 @@ _SET_HELP = ("KEY=VALUE overrides a problem entry; KEY=a,b,c (a list) or KEY=sta
 
 
 def register(sub) -> None:
-    from ..direct import MAX_NODES
-    from ..sweep import ERRORS
+    """Add ``morphoshell sweep`` to the subcommands ``sub``."""
+    from ..solvers.direct import MAX_NODES
+    from ..workflows.sweeps import ERRORS
 
     p = sub.add_parser(
         "sweep", help="equilibria or ablations on a grid of parameters (parallel)",
@@ -66,12 +67,12 @@ def parse_axes(items) -> tuple[dict, dict]:
 
     ``KEY=a,b,c`` is a list, ``KEY=start:stop:num`` ``num`` values from
     ``start`` to ``stop`` inclusive; anything else a scalar override
-    (:func:`morphoshell.io.parse_overrides`).  Raises ``ProblemFileError``
+    (:func:`morphoshell.io.problem_files.parse_overrides`).  Raises ``ProblemFileError``
     naming the item.
     """
     import numpy as np
 
-    from ..io import SOLVER_KEYS, ProblemFileError, parse_overrides
+    from ..io.problem_files import SOLVER_KEYS, ProblemFileError, parse_overrides
 
     axes: dict = {}
     scalars: dict = {}
@@ -119,9 +120,9 @@ def parse_axes(items) -> tuple[dict, dict]:
 
 
 def _sweep(args) -> int:
-    from ..io import (ProblemFileError, apply_overrides, load_problem, settings_from,
-                      split_overrides, write_csv, write_json)
-    from ..sweep import sweep
+    from ..io.problem_files import (ProblemFileError, apply_overrides, load_problem, settings_from,
+                                    split_overrides, write_csv, write_json)
+    from ..workflows.sweeps import sweep
 
     problem, settings = load_problem(args.problem)
     axes, scalars = parse_axes(args.overrides)

@@ -1,0 +1,112 @@
+"""What morphoshell shows on the terminal: log messages and progress bars.
+
+Library modules log through ``logging.getLogger(__name__)`` (loggers under
+``"morphoshell"``) and never print: progress and notes at INFO or DEBUG,
+deprecations and silently-made choices at WARNING.  The command line and the
+scripts call :func:`configure` (``--verbose``/``--quiet``); in your own
+programs the standard ``logging`` configuration applies, e.g.
+``logging.getLogger("morphoshell").setLevel(logging.INFO)``.
+
+Progress bars (:func:`progress`, tqdm on standard error) are shown for long
+jobs when standard error is a terminal and morphoshell's warnings are not
+silenced (``--quiet``).
+"""
+from __future__ import annotations
+
+import logging
+import sys
+from typing import Any, Callable, Iterable, TypeVar
+
+__all__ = ["configure", "progress", "LOGGER", "verbosity_level", "run_script"]
+
+#: The package's root logger name.
+LOGGER = "morphoshell"
+
+T = TypeVar("T")
+
+
+def verbosity_level(verbosity: int) -> int:
+    """Logging level of a verbosity: −1 (``--quiet``) errors only, 0 warnings,
+    1 (``-v``) progress and notes, 2 or more (``-vv``) debugging detail."""
+    if verbosity < 0:
+        return logging.ERROR
+    return (logging.WARNING, logging.INFO)[verbosity] if verbosity < 2 else logging.DEBUG
+
+
+class _Formatter(logging.Formatter):
+    """``morphoshell: warning: ...``, ``morphoshell: ...`` (INFO), ``morphoshell [module]: ...``.
+
+    Debugging lines name the module by its last name (``continuation``, not
+    ``solvers.continuation``): short, and unique in the package.
+    """
+
+    def format(self, record: logging.LogRecord) -> str:
+        message = record.getMessage()
+        if record.levelno >= logging.WARNING:
+            return f"morphoshell: {record.levelname.lower()}: {message}"
+        if record.levelno <= logging.DEBUG:
+            return f"morphoshell [{record.name.rpartition('.')[2]}]: {message}"
+        return f"morphoshell: {message}"
+
+
+def configure(verbosity: int = 0, stream=None) -> Callable[[], None]:
+    """Show morphoshell's log messages of ``verbosity`` (see :func:`verbosity_level`) on
+    ``stream`` (standard error by default).
+
+    Returns
+    -------
+    callable
+        Undoes the configuration (the command line calls it when it returns,
+        so that calling ``main()`` in a program leaves no handler behind).
+    """
+    logger = logging.getLogger(LOGGER)
+    handler = logging.StreamHandler(sys.stderr if stream is None else stream)
+    handler.setFormatter(_Formatter())
+    old_level = logger.level
+    logger.addHandler(handler)
+    logger.setLevel(verbosity_level(verbosity))
+
+    def restore() -> None:
+        logger.removeHandler(handler)
+        logger.setLevel(old_level)
+    return restore
+
+
+def run_script(parser, argv, run: Callable[[Any], int]) -> int:
+    """Parse ``argv`` with ``parser`` plus -v/--verbose and -q/--quiet, then ``run(args)``
+    with morphoshell's log messages configured (and the configuration undone after)."""
+    loud = parser.add_mutually_exclusive_group()
+    loud.add_argument("-v", "--verbose", action="count", default=0, help="progress notes")
+    loud.add_argument("-q", "--quiet", action="store_true", help="no warnings or progress bars")
+    args = parser.parse_args(argv)
+    restore = configure(-1 if args.quiet else args.verbose)
+    try:
+        return run(args)
+    finally:
+        restore()
+
+
+def progress(iterable: Iterable[T], *, total: int | None = None, desc: str = "",
+             unit: str = "it", enabled: bool | None = None) -> Iterable[T]:
+    """``iterable`` with a progress bar on standard error (tqdm).
+
+    Parameters
+    ----------
+    iterable : iterable
+    total : int, optional
+        Number of items, if ``iterable`` has no length.
+    desc, unit : str
+        Label of the bar and of its items.
+    enabled : bool, optional
+        Default: when standard error is a terminal and the ``morphoshell``
+        logger shows warnings (not ``--quiet``).
+    """
+    if enabled is None:
+        enabled = (logging.getLogger(LOGGER).isEnabledFor(logging.WARNING)
+                   and hasattr(sys.stderr, "isatty") and sys.stderr.isatty())
+    if not enabled:
+        return iterable
+    from tqdm import tqdm
+
+    return tqdm(iterable, total=total, desc=desc, unit=unit, leave=False, file=sys.stderr,
+                dynamic_ncols=True)

@@ -1,0 +1,380 @@
+"""Problem files (TOML), ``KEY=VALUE`` overrides, the packaged examples, JSON and CSV output.
+
+A problem file has a ``[problem]`` table, a ``[parameters]`` table with the
+profile family's parameters and an optional ``[solver]`` table::
+
+    [problem]
+    family = "uniform"          # uniform | anisotropic | local_relaxation | volvox | a plugin's
+    theory = "large_bending"    # or "classical"
+    h = 0.3                     # relative thickness H/R
+    cut = 0.3                   # Sigma (units of R = radians on the unit sphere): ablation
+                                # around the pole s = 0 (0: closed pole)
+    opening = 0.0               # P (units of R): opening around s = pi (0: closed pole)
+
+    [parameters]
+    k = 0.0
+
+    [solver]
+    nodes = 200                 # mesh nodes
+    stages = 2                  # Gauss points per cell: order 2 * stages
+    method = "direct"           # or "bvp" or "shooting"
+
+Unknown tables or keys, wrong types and bad values are errors that name
+the file and the offending entry; nothing is silently ignored.  Parameters
+missing from ``[parameters]`` take the family's defaults, and the defaults
+used are reported (a warning on the ``morphoshell.io.problem_files`` logger when the whole
+table is missing, an info message otherwise), never silently.
+
+The cut Σ is called ``cut`` everywhere (problem files, ``--set``, the API);
+``Sigma`` is still accepted as a deprecated alias, with a warning.
+
+The example problems ship inside the package (:func:`examples`,
+:func:`example_path`; ``morphoshell example NAME`` prints one).
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import logging
+import math
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Iterable, Mapping
+
+import numpy as np
+
+from ..model.problem import BASE_KEYS, Problem
+from ..solvers.direct import check_nodes
+from ..solvers.routes import METHODS
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - exercised on Python 3.10 only
+    import tomli as tomllib
+
+__all__ = ["ProblemFileError", "Settings", "load_problem", "parse_overrides", "apply_overrides",
+           "split_overrides", "settings_from", "to_jsonable", "write_json", "write_csv", "METHODS",
+           "SOLVER_KEYS", "ALIASES", "examples", "example_path", "example_text", "EXAMPLES_DIR"]
+
+log = logging.getLogger(__name__)
+
+#: Deprecated names of keys (problem files and ``--set``) and their one name.
+ALIASES = {"Sigma": "cut"}
+
+#: The packaged example problem files (``morphoshell example NAME``).
+EXAMPLES_DIR = Path(__file__).resolve().parent.parent / "examples"
+
+_PROBLEM_KEYS = {"family", "theory", "h", "cut", "opening", "geometry", "name"}
+#: Keys of the [solver] table (also accepted by ``--set``).
+SOLVER_KEYS = ("nodes", "method", "stages")
+#: ``--set`` keys whose values are words, not numbers.
+_WORDS = ("theory", "family", "geometry", "name", "method")
+_INTEGERS = ("nodes", "stages")
+
+
+class ProblemFileError(ValueError):
+    """A problem file or override that cannot be used (names file and entry)."""
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Solver settings from a problem file (defaults when absent)."""
+
+    nodes: int = 200
+    method: str = "direct"
+    stages: int = 2
+
+
+def load_problem(path: str | Path) -> tuple[Problem, Settings]:
+    """Read a problem file.
+
+    Returns
+    -------
+    problem : Problem
+    settings : Settings
+
+    Raises
+    ------
+    ProblemFileError
+        Missing file, TOML syntax error, unknown or missing entries, or a
+        value that :class:`~morphoshell.model.problem.Problem` rejects.
+    """
+    path = Path(path)
+    if path.suffix.lower() == ".json":
+        return _problem_from_json(path), Settings()
+    try:
+        # utf-8-sig: a byte-order mark, as some Windows editors write, is not an error
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ProblemFileError(f"{path}: not a text file in UTF-8 (byte {exc.start}: "
+                               f"{exc.reason})") from None
+    except OSError as exc:
+        raise ProblemFileError(f"{path}: cannot read problem file ({exc.strerror})") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ProblemFileError(f"{path}: not valid TOML: {exc}") from None
+    unknown = sorted(set(data) - {"problem", "parameters", "solver"})
+    if unknown:
+        raise ProblemFileError(f"{path}: unknown table(s) {unknown}; "
+                               f"expected [problem], [parameters], [solver]")
+    for table in ("problem", "parameters", "solver"):
+        if table in data and not isinstance(data[table], dict):
+            raise ProblemFileError(f"{path}: '{table}' must be a table ([{table}])")
+    if "problem" not in data:
+        raise ProblemFileError(f"{path}: missing the [problem] table")
+    prob = _dealias(dict(data["problem"]), f"{path}: [problem]")
+    unknown = sorted(set(prob) - _PROBLEM_KEYS)
+    if unknown:
+        raise ProblemFileError(f"{path}: unknown key(s) {unknown} in [problem]; "
+                               f"valid: {sorted(_PROBLEM_KEYS)}")
+    for key in ("family", "h"):
+        if key not in prob:
+            raise ProblemFileError(f"{path}: [problem] needs '{key}'")
+    for key in ("family", "theory", "geometry", "name"):
+        if key in prob and not isinstance(prob[key], str):
+            raise ProblemFileError(f"{path}: [problem] {key} = {prob[key]!r} must be a string")
+    solver = dict(data.get("solver", {}))
+    unknown = sorted(set(solver) - set(SOLVER_KEYS))
+    if unknown:
+        raise ProblemFileError(f"{path}: unknown key(s) {unknown} in [solver]; "
+                               f"valid: {sorted(SOLVER_KEYS)}")
+    try:
+        settings = settings_from(solver)
+        problem = Problem(params=dict(data.get("parameters", {})),
+                          **{"name": path.stem, **prob})
+    except ValueError as exc:
+        raise ProblemFileError(f"{path}: {exc}") from None
+    _note_defaults(path, problem, data.get("parameters"))
+    return problem, settings
+
+
+def _problem_from_json(path: Path) -> Problem:
+    """The problem of a result JSON (``solve --json``, ``fit --json``): its "problem" entry."""
+    import json
+
+    try:
+        data = json.loads(path.read_text(encoding="utf-8-sig"))
+    except OSError as exc:
+        raise ProblemFileError(f"{path}: cannot read the file ({exc.strerror})") from None
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ProblemFileError(f"{path}: not valid JSON ({exc})") from None
+    desc = data.get("problem") if isinstance(data, dict) else None
+    if not isinstance(desc, dict):
+        raise ProblemFileError(f"{path}: no 'problem' entry: expected the JSON written by "
+                               f"morphoshell solve/ablate/fit --json")
+    keys = {"family", "params", "h", "cut", "opening", "theory", "geometry", "name"}
+    try:
+        return Problem(**{k: v for k, v in desc.items() if k in keys})
+    except (TypeError, ValueError) as exc:
+        raise ProblemFileError(f"{path}: {exc}") from None
+
+
+def _dealias(table: dict, where: str) -> dict:
+    """``table`` with deprecated key names (:data:`ALIASES`) renamed, with a warning each."""
+    for old, new in ALIASES.items():
+        if old in table:
+            if new in table:
+                raise ProblemFileError(f"{where} gives both {new!r} and its deprecated alias "
+                                       f"{old!r}; keep {new!r}")
+            log.warning("%s: %r is deprecated, call it %r (the same value: the cut Sigma, "
+                        "units of R)", where, old, new)
+            table = {(new if k == old else k): v for k, v in table.items()}
+    return table
+
+
+def _note_defaults(path: Path, problem: Problem, given: Mapping | None) -> None:
+    """Say which of the family's parameters a problem file leaves at their defaults."""
+    missing = [n for n in problem.family_obj.parameters if n not in (given or {})]
+    if not missing:
+        return
+    values = ", ".join(f"{n} = {problem.params[n]:g}" for n in missing)
+    if given is None:
+        log.warning("%s has no [parameters] table: using the defaults of family %r: %s",
+                    path, problem.family, values)
+    else:
+        log.info("%s: [parameters] leaves %s at the defaults of family %r: %s", path,
+                 "it" if len(missing) == 1 else "them", problem.family, values)
+
+
+def settings_from(values: Mapping[str, Any], base: Settings = Settings()) -> Settings:
+    """``base`` with the [solver] ``values`` applied and checked (ValueError naming the key)."""
+    def get(key):
+        return values.get(key, getattr(base, key))
+    return Settings(nodes=check_nodes(get("nodes")), method=_method(get("method")),
+                    stages=_stages(get("stages")))
+
+
+def _stages(value: Any) -> int:
+    # only integers, like nodes: 2.0 is as wrong as 200.0
+    if isinstance(value, bool) or not isinstance(value, int) or value not in (1, 2, 3):
+        raise ValueError(f"stages = {value!r} must be the integer 1, 2 or 3 (order 2, 4 or 6)")
+    return value
+
+
+def _method(value: Any) -> str:
+    if value not in METHODS:
+        raise ValueError(f"method = {value!r} must be one of {list(METHODS)}")
+    return value
+
+
+def parse_overrides(items: Iterable[str]) -> dict[str, Any]:
+    """``["k=0.5", "theory=classical"]`` → ``{"k": 0.5, "theory": "classical"}``.
+
+    theory, family, geometry, name and method take words, nodes and stages
+    integers, everything else numbers.
+    """
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        key, value = key.strip(), value.strip()
+        if not sep or not key or not value:
+            raise ProblemFileError(f"--set {item!r}: expected KEY=VALUE")
+        if key in ALIASES:
+            log.warning("--set %s: %r is deprecated, call it %r", item, key, ALIASES[key])
+            key = ALIASES[key]
+        if key in _WORDS:
+            out[key] = value
+            continue
+        if key in _INTEGERS:
+            try:
+                out[key] = int(value)
+            except ValueError:
+                raise ProblemFileError(f"--set {item!r}: {key} needs an integer, "
+                                       f"got {value!r}") from None
+            continue
+        try:
+            number = float(value)
+        except ValueError:
+            raise ProblemFileError(f"--set {item!r}: {key} needs a number, got {value!r}") from None
+        if not math.isfinite(number):
+            raise ProblemFileError(f"--set {item!r}: {key} = {value} must be finite")
+        out[key] = number
+    return out
+
+
+def split_overrides(overrides: Mapping[str, Any]) -> tuple[dict, dict]:
+    """(problem overrides, [solver] overrides)."""
+    solver = {k: v for k, v in overrides.items() if k in SOLVER_KEYS}
+    return {k: v for k, v in overrides.items() if k not in SOLVER_KEYS}, solver
+
+
+def apply_overrides(problem: Problem, overrides: Mapping[str, Any]) -> Problem:
+    """Problem with ``--set`` overrides applied; unknown keys name the valid ones.
+
+    A new ``family`` starts from its defaults; the other overrides may then
+    set its parameters.
+    """
+    from ..model.profiles import get_family
+
+    try:
+        family = get_family(overrides.get("family", problem.family))
+    except ValueError as exc:
+        raise ProblemFileError(f"--set: {exc}") from None
+    valid = set(BASE_KEYS) | {"family", "geometry", "name"} | set(family.parameters)
+    unknown = sorted(set(overrides) - valid)
+    if unknown:
+        raise ProblemFileError(f"--set: unknown key(s) {unknown} for family {family.name!r}; "
+                               f"valid: {sorted(valid)}")
+    try:
+        return problem.with_updates(**overrides)
+    except ValueError as exc:
+        raise ProblemFileError(f"--set: {exc}") from None
+
+
+def examples() -> dict[str, str]:
+    """The packaged example problems: name → description (the file's leading comment)."""
+    out = {}
+    for path in sorted(EXAMPLES_DIR.glob("*.toml")):
+        lines = []
+        for line in path.read_text(encoding="utf-8").splitlines():
+            if not line.startswith("#"):
+                break
+            lines.append(line.lstrip("#").strip())
+        out[path.stem] = " ".join(lines)
+    return out
+
+
+def example_path(name: str) -> Path:
+    """Path of the packaged example problem ``name`` (e.g. ``"toy2_ablation"``).
+
+    Raises
+    ------
+    ValueError
+        No such example (the message lists them).
+    """
+    names = examples()
+    if name not in names:
+        raise ValueError(f"unknown example {name!r}; choose one of {sorted(names)}")
+    return EXAMPLES_DIR / f"{name}.toml"
+
+
+def example_text(name: str) -> str:
+    """The text of the packaged example problem ``name``: a problem file to start from."""
+    return example_path(name).read_text(encoding="utf-8")
+
+
+def to_jsonable(obj: Any) -> Any:
+    """NumPy arrays and scalars to lists and floats (non-finite → None)."""
+    if isinstance(obj, Mapping):
+        return {str(k): to_jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [to_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return to_jsonable(obj.tolist())
+    if isinstance(obj, (np.floating, float)):
+        return float(obj) if math.isfinite(obj) else None
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    return obj
+
+
+def provenance() -> dict[str, str]:
+    """Versions and time, for reproducibility of written results."""
+    import casadi
+    import scipy
+
+    from .. import __version__
+    return {"morphoshell": __version__, "casadi": casadi.__version__, "numpy": np.__version__,
+            "scipy": scipy.__version__, "python": sys.version.split()[0],
+            "written": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")}
+
+
+def write_json(path: str | Path, data: Mapping[str, Any]) -> Path:
+    """Write ``data`` (plus ``provenance``) as JSON, creating parent folders."""
+    import json
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    payload = {**to_jsonable(data), "provenance": provenance()}
+    path.write_text(json.dumps(payload, indent=1) + "\n")
+    return path
+
+
+def write_csv(path: str | Path, columns: Mapping[str, Any]) -> Path:
+    """Write equal-length columns (scalars repeat) as CSV with a header row.
+
+    Non-finite values are written as empty cells.
+    """
+    import csv
+
+    path = Path(path)
+    arrays = {k: np.atleast_1d(np.asarray(v)) for k, v in columns.items()}
+    n = max(len(a) for a in arrays.values())
+    for k, a in arrays.items():
+        if len(a) not in (1, n):
+            raise ValueError(f"column {k!r} has {len(a)} rows, expected {n}")
+    with path.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(list(arrays))
+        for i in range(n):
+            w.writerow([_cell(a[i] if len(a) == n else a[0]) for a in arrays.values()])
+    return path
+
+
+def _cell(v: Any) -> Any:
+    if isinstance(v, (float, np.floating)):
+        return repr(float(v)) if math.isfinite(v) else ""
+    return v

@@ -1,0 +1,225 @@
+"""A shell problem: geometry, intrinsic profiles, thickness, ends, theory.
+
+Units and conventions (paper, Materials and Methods)
+----------------------------------------------------
+* Lengths are scaled by the undeformed radius R; ``h`` is the relative
+  thickness H/R.  Energies are in units of C R², C the material constant of
+  the energy density (C = 4μ for an incompressible neo-Hookean sheet of shear
+  modulus μ, lengths scaled by R).
+* The shell occupies s ∈ [Σ, L − P] of the undeformed meridian, Σ = ``cut``
+  (an ablation of angle 2Σ around the pole s = 0) and P = ``opening`` (the
+  phialopore around s = L).  An end is a regular *pole* when Σ = 0 (or P = 0
+  on a closed meridian) and a *free edge* (no force, no torque) otherwise.
+
+Every value is checked when the problem is created, so that bad input fails
+with a message naming it before any work starts.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Mapping
+
+import numpy as np
+
+from .._runtime.validate import real
+from .coefficients import Theory, get_theory
+from .geometry import Geometry, get_geometry
+from .layouts import VectorLayout, parameter_layout
+from .profiles import ProfileFamily, Profiles, get_family
+
+__all__ = ["Problem", "Structure", "BASE_KEYS", "MIN_SHELL_LENGTH"]
+
+#: Shortest shell L − P − Σ accepted (units of R): below it the energy scale
+#: reaches the solver's round-off floor (measured: Ipopt fails at 1e-4).
+MIN_SHELL_LENGTH = 1e-3
+
+#: Keys of a problem other than the family's parameters (``--set`` names).
+BASE_KEYS = ("h", "theory", "cut", "opening")
+
+
+@dataclass(frozen=True)
+class Structure:
+    """What an NLP is built for: everything except the parameter values.
+
+    Holds the geometry, family and theory *objects* (compared by identity),
+    so a solver or compiled function cached for one structure can never be
+    reused for a family or theory registered later under the same name.
+    """
+
+    geometry: Geometry
+    family: ProfileFamily
+    theory: Theory
+    start: str  # "pole" or "free"
+    end: str    # "pole" or "free"
+
+    def __repr__(self) -> str:
+        return (f"Structure(geometry={self.geometry.name!r}, family={self.family.name!r}, "
+                f"theory={self.theory.name!r}, start={self.start!r}, end={self.end!r})")
+
+    @property
+    def parameters(self) -> VectorLayout:
+        """Layout of the parameter vector p (see :mod:`morphoshell.model.layouts`)."""
+        return parameter_layout(self.family)
+
+
+@dataclass(frozen=True)
+class Problem:
+    """An axisymmetric morphoelastic shell problem.
+
+    Parameters
+    ----------
+    family : str or ProfileFamily
+        Profile family (see :mod:`morphoshell.model.profiles`).  A name is looked
+        up when the problem is created and the family object is kept
+        (``family_obj``): re-registering the name later does not change this
+        problem.
+    params : mapping
+        Values of the family's parameters; missing ones take the defaults.
+    h : float
+        Relative thickness, 0 < h < 1.
+    cut : float
+        Σ ≥ 0, arclength of the ablation around the pole s = 0.
+    opening : float
+        P ≥ 0, arclength of the opening at the far end.
+    theory : str or Theory
+        ``"large_bending"`` (default) or ``"classical"`` (η → 0 coefficients);
+        bound at creation like the family.
+    geometry : str or Geometry
+        Undeformed meridian, ``"sphere"`` by default.
+    name : str
+        Label used in outputs.
+    """
+
+    family: str = "uniform"
+    params: Mapping[str, float] = field(default_factory=dict)
+    h: float = 0.1
+    cut: float = 0.0
+    opening: float = 0.0
+    theory: str = "large_bending"
+    geometry: str = "sphere"
+    name: str = ""
+    family_obj: ProfileFamily = field(init=False, repr=False)
+    theory_obj: Theory = field(init=False, repr=False)
+    geometry_obj: Geometry = field(init=False, repr=False)
+
+    def __post_init__(self):
+        fam = get_family(self.family)
+        geo = get_geometry(self.geometry)
+        theory = get_theory(self.theory)
+        for k, v in (("family", fam.name), ("theory", theory.name), ("geometry", geo.name),
+                     ("family_obj", fam), ("theory_obj", theory), ("geometry_obj", geo)):
+            object.__setattr__(self, k, v)
+        h = real("thickness h", self.h)
+        if not 0 < h < 1:
+            raise ValueError(f"thickness h = {h!r} must lie in (0, 1) (relative to the radius)")
+        cut = real("cut (Sigma)", self.cut)
+        opening = real("opening (P)", self.opening)
+        if cut < 0:
+            raise ValueError(f"cut (Sigma) = {cut!r} must be non-negative")
+        if opening < 0:
+            raise ValueError(f"opening (P) = {opening!r} must be non-negative")
+        end = geo.length - opening
+        if not cut < end:
+            raise ValueError(
+                f"cut (Sigma) = {cut!r} is larger than the shell: with opening P = {opening!r} "
+                f"the {geo.name} ends at s = {end:.6g}")
+        if end - cut < MIN_SHELL_LENGTH:
+            raise ValueError(
+                f"the shell s in [cut, L - opening] = [{cut!r}, {end:.6g}] is shorter than "
+                f"{MIN_SHELL_LENGTH:g} (units of R): that is a ring, not a shell")
+        if not isinstance(self.params, Mapping):
+            raise ValueError(f"params must be a mapping of names to numbers, got {self.params!r}")
+        unknown = sorted(set(self.params) - set(fam.parameters))
+        if unknown:
+            raise ValueError(f"unknown parameter(s) {unknown} for family {fam.name!r}; "
+                             f"valid: {list(fam.parameters)}")
+        values = {n: real(f"parameter {n}", self.params.get(n, fam.defaults[n]))
+                  for n in fam.parameters}
+        fam.validate(values, cut, end)
+        for k, v in (("h", h), ("cut", cut), ("opening", opening), ("params", values)):
+            object.__setattr__(self, k, v)
+        self._check_intrinsic(fam, geo)
+
+    # -- derived -----------------------------------------------------------
+    @property
+    def end(self) -> float:
+        """s at the far end of the shell, L − P."""
+        return self.geometry_obj.length - self.opening
+
+    @property
+    def structure(self) -> Structure:
+        """What a solver is built for: geometry, family, theory and the kinds of both ends."""
+        geo = self.geometry_obj
+        return Structure(
+            geo, self.family_obj, self.theory_obj,
+            "pole" if self.cut == 0 else "free",
+            "pole" if (self.opening == 0 and geo.closed) else "free")
+
+    @property
+    def parameter_layout(self) -> VectorLayout:
+        """Layout of the NLP parameter vector p = [h, Σ, P, family parameters]."""
+        return parameter_layout(self.family_obj)
+
+    def parameter_vector(self) -> np.ndarray:
+        """NLP parameters p = [h, Σ, P, family parameters] (:func:`~morphoshell.model.layouts.parameter_layout`)."""
+        return self.parameter_layout.pack({"h": self.h, "cut": self.cut, "opening": self.opening,
+                                           **self.params})
+
+    def with_updates(self, **changes) -> "Problem":
+        """A copy with ``h``, ``theory``, ``cut``, ``opening`` or family parameters changed.
+
+        The copy keeps this problem's family, theory and geometry objects
+        unless their names are changed.
+        """
+        base = {k: changes.pop(k) for k in list(changes)
+                if k in BASE_KEYS or k in ("family", "geometry", "name")}
+        params = dict(self.params)
+        for key in ("family", "theory", "geometry"):
+            if key not in base or base[key] == getattr(self, key):
+                base[key] = getattr(self, f"{key}_obj")
+            elif key == "family":
+                params = {}
+        params.update(changes)
+        return replace(self, params=params, **base)
+
+    def profiles(self, s) -> dict[str, np.ndarray]:
+        """Intrinsic profiles and η at the points ``s`` (NumPy arrays)."""
+        s = np.asarray(s, dtype=float)
+        prof = Profiles(*[v.reshape(s.shape) for v in self._profiles(s.ravel())])
+        return {**prof._asdict(), "eta": prof.eta(self.h)}
+
+    def eta(self, s: np.ndarray) -> np.ndarray:
+        """η at the points ``s`` (1-d; :meth:`profiles` without the rest: a warm re-solve's
+        results need η alone)."""
+        return self._profiles(np.asarray(s, dtype=float)).eta(self.h)
+
+    def _profiles(self, s: np.ndarray) -> Profiles:
+        fam = self.family_obj
+        return fam.evaluate(s, [self.params[n] for n in fam.parameters], self.cut, self.end)
+
+    def _check_intrinsic(self, fam: ProfileFamily, geo: Geometry) -> None:
+        s = np.linspace(self.cut, self.end, 2001)
+        prof = self.profiles(s)
+        for key in ("f_s0", "f_phi0"):
+            bad = ~(prof[key] > 0)
+            if bad.any():
+                i = int(np.argmax(bad))
+                raise ValueError(f"intrinsic stretch {key} = {prof[key][i]:.6g} at s = {s[i]:.6g} "
+                                 f"must be positive (family {fam.name!r}, params {self.params})")
+        eta = prof["eta"]
+        i = int(np.argmax(np.abs(eta)))
+        if not abs(eta[i]) < 1:
+            raise ValueError(
+                f"abs(eta) = {abs(eta[i]):.6g} >= 1 at s = {s[i]:.6g} "
+                f"(eta = kappa_s0 h / (2 f_s0 f_phi0), h = {self.h}): the intrinsic wedge closes "
+                f"within the thickness; reduce h or kappa_s0")
+
+    def max_abs_eta(self) -> float:
+        """Largest |η| over the shell (dimensionless; 2001 points), which must stay below 1."""
+        return float(np.max(np.abs(self.profiles(np.linspace(self.cut, self.end, 2001))["eta"])))
+
+    def describe(self) -> dict:
+        """JSON-ready description."""
+        return {"name": self.name, "family": self.family, "params": dict(self.params),
+                "h": self.h, "cut": self.cut, "opening": self.opening,
+                "theory": self.theory, "geometry": self.geometry}

@@ -1,0 +1,176 @@
+"""The one-call front door: :func:`solve` an equilibrium by any route.
+
+``solve(problem)`` picks the route (direct minimisation by default, or the
+boundary-value reference), builds or reuses a solver and returns an
+:class:`~morphoshell.solvers.results.Equilibrium`.  Direct solvers are kept in a
+bounded least-recently-used cache (:data:`SOLVER_CACHE_SIZE` entries) keyed on
+the problem's *structure* (geometry, family and theory objects, end types),
+the mesh and the options; h, Σ, P and the family's parameters are NLP
+parameters, so a sweep over them reuses one solver.  The mesh's grading is
+rounded to octaves of the boundary-layer width (:func:`morphoshell.numerics.mesh.mesh_spec`),
+so it is rebuilt only when δ/(L − P − Σ) changes by more than a factor 2.
+
+For repeated solves of one structure (continuation, fitting) build a
+:class:`~morphoshell.solvers.direct.DirectSolver` yourself and warm-start it.
+"""
+from __future__ import annotations
+
+from collections import OrderedDict
+from typing import Any, Mapping
+
+from dataclasses import replace
+
+from ..model.problem import Problem
+from ..numerics.mesh import mesh_spec
+from .continuation import continue_to
+from .direct import BUILDS, MAX_NODES, DirectSolver, check_nodes
+from .refinement import refine
+from .results import Equilibrium, NotAMinimumError, SolverError, SolverStats
+
+__all__ = ["solve", "direct_solver", "cache_info", "clear_cache", "SOLVER_CACHE_SIZE",
+           "METHODS", "DIRECT_OPTIONS", "BVP_OPTIONS", "SHOOTING_OPTIONS",
+           # re-exported for convenience
+           "DirectSolver", "Equilibrium", "SolverError", "NotAMinimumError", "SolverStats"]
+
+#: Routes of :func:`solve`.
+METHODS = ("direct", "bvp", "shooting")
+
+#: Keyword options of :func:`solve` for each route.
+DIRECT_OPTIONS = ("stages", "linear_solver", "tol", "max_iter", "stability", "ipopt_options",
+                  "max_nodes")
+BVP_OPTIONS = ("tol", "bc_tol", "pole_offset", "max_nodes", "homotopy_steps", "max_seconds")
+SHOOTING_OPTIONS = ("segments", "integrator", "atol", "tol", "pole_offset", "homotopy_steps",
+                    "max_evaluations", "max_growth", "max_segments", "max_condition", "points")
+
+#: Direct solvers kept by :func:`solve` (least recently used dropped first).
+#: A solver of 400 nodes holds about 5 MB.
+SOLVER_CACHE_SIZE = 16
+
+_SOLVERS: "OrderedDict[tuple, DirectSolver]" = OrderedDict()
+
+
+def _frozen(value: Any):
+    """A hashable version of an option value (mappings and sequences frozen recursively)."""
+    if isinstance(value, Mapping):
+        return tuple(sorted((str(k), _frozen(v)) for k, v in value.items()))
+    if isinstance(value, (list, tuple)):
+        return tuple(_frozen(v) for v in value)
+    return value
+
+
+def _check_options(method: str, options: Mapping[str, Any]) -> None:
+    valid = {"direct": DIRECT_OPTIONS, "bvp": BVP_OPTIONS, "shooting": SHOOTING_OPTIONS}[method]
+    unknown = sorted(set(options) - set(valid))
+    if unknown:
+        raise ValueError(f"unknown option(s) {unknown} for method {method!r}; valid: {list(valid)}")
+
+
+def direct_solver(problem: Problem, nodes: int = 200, anchors=(), **options) -> DirectSolver:
+    """A cached :class:`DirectSolver` suited to ``problem`` (mesh from :func:`mesh_spec`)."""
+    _check_options("direct", options)
+    stages = options.get("stages", 2)
+    spec = mesh_spec(problem, check_nodes(nodes), stages, tuple(anchors))
+    key = (problem.structure, spec, _frozen(options))
+    if key in _SOLVERS:
+        _SOLVERS.move_to_end(key)
+        return _SOLVERS[key]
+    solver = DirectSolver(problem.structure, mesh=spec, **options)
+    _SOLVERS[key] = solver
+    while len(_SOLVERS) > SOLVER_CACHE_SIZE:
+        _SOLVERS.popitem(last=False)
+    return solver
+
+
+def cache_info() -> dict:
+    """Solvers held by :func:`solve`'s cache, its bound, and DirectSolver builds so far."""
+    return {"solvers": len(_SOLVERS), "maxsize": SOLVER_CACHE_SIZE, "builds": BUILDS["count"]}
+
+
+def clear_cache() -> None:
+    """Drop every cached solver."""
+    _SOLVERS.clear()
+
+
+def solve(problem: Problem, nodes: int = 200, method: str = "direct",
+          warm_start: Equilibrium | None = None, anchors=(), *, continuation: bool = True,
+          rtol: float | None = None, **options) -> Equilibrium:
+    """Equilibrium of ``problem``.
+
+    Parameters
+    ----------
+    problem : Problem
+    nodes : int
+        Mesh nodes (direct; the first mesh when ``rtol`` refines) or initial
+        mesh nodes (bvp).
+    method : {"direct", "bvp", "shooting"}
+        Direct energy minimisation (default), the boundary-value reference of
+        :mod:`morphoshell.solvers.bvp` (collocation, ``solve_bvp``), or the
+        multiple-shooting reference of :mod:`morphoshell.solvers.shooting`, which
+        refuses thin shells (``Shooting_Ill_Conditioned``).
+    warm_start : Equilibrium, optional
+        A previous solution (same method and mesh) to start from.
+    anchors : sequence of float
+        direct only: material points s that must be mesh nodes (where the
+        solution is to be evaluated exactly), increasing, inside the shell.
+    continuation : bool
+        direct only, without ``warm_start``: reach the problem by continuation
+        from its family's stress-free parameters (default; see
+        :mod:`morphoshell.solvers.continuation`) rather than by one cold solve from the
+        undeformed shell, which can land on a spurious local minimum.  The
+        result says which (``solver.details["path"]``).
+    rtol : float, optional
+        direct only: refine the mesh (doubling the cells) until the error
+        estimate meets this relative tolerance (energy relative to itself,
+        edge values in units of R and radians), or raise.  Every direct
+        result carries its estimate (``Equilibrium.error``), from the mesh with
+        half the cells.
+    **options
+        direct: ``stages``, ``linear_solver``, ``tol``, ``max_iter``,
+        ``stability``, ``ipopt_options`` (see :class:`DirectSolver`), and
+        ``max_nodes``, the finest mesh ``rtol`` may refine to;
+        bvp: ``tol``, ``bc_tol``, ``pole_offset``, ``max_nodes``,
+        ``homotopy_steps``, ``max_seconds`` (see
+        :func:`morphoshell.solvers.bvp.solve_bvp`); shooting: the options of
+        :func:`morphoshell.solvers.shooting.solve_shooting` but its integrator's
+        ``rtol``.
+
+    Raises
+    ------
+    SolverError
+        No converged, stable, physical answer (Ipopt's or solve_bvp's status;
+        ``"Meridian_Crosses_Axis"``, ``"Continuation_Failed"``,
+        ``"Tolerance_Not_Met"``), with the last iterate attached.
+
+    Examples
+    --------
+    >>> from morphoshell import Problem, solve
+    >>> eq = solve(Problem("uniform", {"k": 0.0}, h=0.3, cut=0.3))
+    >>> round(float(eq.psi[0]), 6)
+    0.821866
+    """
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; choose one of {list(METHODS)}")
+    _check_options(method, options)
+    if method != "direct":
+        if len(anchors) or rtol is not None:
+            raise ValueError("anchors and rtol are options of the direct method only")
+        if method == "shooting":
+            from .shooting import solve_shooting
+            return solve_shooting(problem, guess=warm_start, **options)
+        from .bvp import solve_bvp
+        return solve_bvp(problem, nodes=nodes, guess=warm_start, **options)
+    if rtol is not None and not (isinstance(rtol, (int, float)) and 0 < rtol < 1):
+        raise ValueError(f"rtol = {rtol!r} must be a number in (0, 1)")
+    max_nodes = check_nodes(options.pop("max_nodes", MAX_NODES))
+    solver = direct_solver(problem, nodes, anchors, **options)
+    if warm_start is not None:
+        eq = solver.solve(problem, warm_start=warm_start, anchors=anchors)
+        eq = replace(eq, solver=replace(eq.solver, details={**eq.solver.details,
+                                                            "path": "warm start"}))
+    elif continuation:
+        eq = continue_to(solver, problem, anchors)
+    else:
+        eq = solver.solve(problem, anchors=anchors)
+        eq = replace(eq, solver=replace(eq.solver, details={**eq.solver.details, "path": "cold"}))
+    return refine(eq, lambda n: direct_solver(problem, n, anchors, **options), rtol, anchors,
+                  max_nodes)

@@ -1,0 +1,709 @@
+"""Parameter sweeps: equilibria or ablations on the Cartesian product of axes, in parallel.
+
+:func:`sweep` solves (or, with ``ablate=True``, ablates) a problem at every
+point of the Cartesian product of its ``axes`` (any of h, theory, cut,
+opening and the family's parameters) and returns a :class:`SweepResult`, a
+table with one row per point (:meth:`SweepResult.to_dataframe`) that is also
+an xarray Dataset with the axes as dimensions (:meth:`SweepResult.to_xarray`).
+
+How it is fast
+--------------
+The product is cut into *chunks*: segments of one line along the *chunk
+axis* (the numeric axis with the most values), at fixed values of the other
+axes, in increasing position along it.  One chunk is one task of
+:mod:`morphoshell.workflows.executor` (Dask distributed, a process pool or this
+process); a worker solves a chunk with its own solvers, each point
+warm-started from the previous one, so a point costs about one warm solve
+(two for an ablation: the intact and the cut shell) instead of
+``solve()``'s continuation and error estimate (5–10 solves).
+
+* **Branch safety.** The first point of a chunk, and a point after a failure,
+  is reached by continuation from the family's stress-free parameters
+  (:func:`morphoshell.solvers.continuation.continue_to`), as :func:`solve` does.  A
+  warm step that fails or needs more than
+  :data:`~morphoshell.solvers.continuation.HARD_STEP` Newton iterations (a sign of a
+  jump to another branch) is split in two, recursively (at most
+  :data:`MAX_SPLITS` times), as :class:`morphoshell.inverse.core.RecoilModel` does;
+  the last resort is continuation again.
+* **Meshes.** Every point is solved on the mesh :func:`solve` and
+  :func:`~morphoshell.mechanics.ablation.ablate` would use
+  (:func:`morphoshell.numerics.mesh.mesh_spec`, graded for the point's h and cut, the
+  intact shell anchored at its s = Σ), so each row agrees with
+  ``solve(point)`` or ``ablate(point)`` to the solver's tolerance, whatever the
+  chunking and the number of workers.  The mesh changes only where a
+  rounded grading or anchor knot moves to the next octave; the solution is
+  then carried over by interpolation
+  (:func:`morphoshell.solvers.refinement.solve_from`).  Solvers are built once per
+  worker process and mesh (cached).
+* **Error estimates** need two more meshes per point (the half and the
+  quarter mesh, as :func:`solve`'s estimate), which would triple a sweep's
+  cost.  ``errors="ends"`` (default) estimates at both ends of the chunk
+  axis for every value of the other axes (the discretisation error varies
+  smoothly along a line); ``"all"`` at every point; ``"none"`` nowhere.
+  Rows without an estimate have NaN in the ``*_error`` columns.
+* **Determinism.** The chunks depend on the sweep only, never on the number
+  of workers, and are independent: the same sweep gives the same numbers on
+  any number of workers.
+
+Columns (units in ``SweepResult.units``; lengths in units of R, angles in
+radians, energies in C R²)
+-------------------------------------------------------------------------
+The axes (in ablation sweeps the far-end opening P is ``opening_P``), then
+
+* solves: ``energy`` and the edge values ``r_start``, ``psi_start``,
+  ``r_end``, ``psi_end`` and ``z_end`` (the last point's height above the
+  first), each with its ``<name>_error``;
+* ablations: the observables of :class:`~morphoshell.mechanics.ablation.Ablation`
+  (``opening``, ``rotation``, ``displacement``, ``radial_displacement``,
+  ``axial_displacement``, ``energy_released``, ``energy_removed``) and the
+  errors of the first four and of ``energy_released``;
+* ``status`` (the back end's: Ipopt's, ``Newton_Converged`` for a warm start
+  certified by :mod:`morphoshell.numerics.newton`, or a :class:`~morphoshell.solvers.results.SolverError`'s for a
+  failed point, whose values are NaN: failed points are never dropped),
+  ``iterations`` (Newton iterations spent on the point, the intact and the cut
+  shell together), ``path`` (``continuation``, ``warm``, ``split`` or
+  ``remesh``), ``seconds`` (wall time of the point in its worker) and
+  ``message`` (why a point failed).
+"""
+from __future__ import annotations
+
+import logging
+import math
+import os
+import time
+from contextlib import ExitStack
+from dataclasses import dataclass, field
+from itertools import product
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from .._runtime.console import progress
+from .._runtime.tables import problem_attrs, xarray_module
+from ..mechanics.ablation import UNITS as ABLATION_UNITS
+from ..mechanics.ablation import edge_state, intact_problem
+from ..model.problem import BASE_KEYS, Problem
+from ..model.profiles import ENTRY_POINT_GROUP, FAMILIES
+from ..numerics.mesh import mesh_spec
+from ..solvers.continuation import HARD_STEP, continue_to
+from ..solvers.direct import DirectSolver, check_nodes, solver_of
+from ..solvers.observables import RECOIL, recoil
+from ..solvers.refinement import half_mesh, level_errors, solve_from
+from ..solvers.results import ESTIMATED, Equilibrium, SolverError
+from ..solvers.routes import DIRECT_OPTIONS, direct_solver
+from .executor import backend_name, open_executor, run
+
+__all__ = ["sweep", "SweepResult", "ERRORS", "MAX_SPLITS", "SOLVE_COLUMNS", "ABLATE_COLUMNS",
+           "ESTIMATED_ABLATION", "UNITS", "chunk_plan"]
+
+log = logging.getLogger(__name__)
+
+#: Where error estimates are computed (see the module docstring).
+ERRORS = ("ends", "all", "none")
+#: A failing warm step is halved at most this many times (16 sub-steps).
+MAX_SPLITS = 4
+#: Chunking: at least this many tasks when the product allows it (enough to keep
+#: 2, 3, 4 or 6 workers busy to the end) ...
+MIN_TASKS = 12
+#: ... but no chunk shorter than this (each chunk starts with a continuation,
+#: about ten warm solves' worth) ...
+MIN_CHUNK = 16
+#: ... or longer than this (progress and load balance on many workers).
+MAX_CHUNK = 256
+#: Below this many solves (two per ablation) ``workers=None`` runs in this
+#: process: starting worker processes (2–7 s, measured) would cost more than
+#: it saves (a warm solve of 200 nodes takes 10–30 ms).
+SERIAL_BELOW = 200
+
+#: Value columns of a solve sweep (energy in C R², edge values in R and rad).
+SOLVE_COLUMNS = ESTIMATED
+#: Value columns of an ablation sweep (:class:`~morphoshell.mechanics.ablation.Ablation`'s observables).
+ABLATE_COLUMNS = (*RECOIL, "energy_released", "energy_removed")
+#: The ablation observables that get an error estimate.
+ESTIMATED_ABLATION = ("opening", "rotation", "displacement", "energy_released")
+#: Units of the columns (lengths in units of R, angles in rad, energies in C R²).
+UNITS = {"energy": "C R^2", "r_start": "R", "psi_start": "rad", "r_end": "R", "psi_end": "rad",
+         "z_end": "R", **ABLATION_UNITS, "h": "R", "cut": "R", "opening_P": "R",
+         "seconds": "s", "iterations": "1"}
+_BOOK = ("status", "iterations", "path", "seconds", "message")
+#: Families that worker processes can load by name: the packaged ones.
+_PACKAGED = frozenset(FAMILIES)
+
+
+# --------------------------------------------------------------------------
+# the result
+# --------------------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class SweepResult:
+    """The rows of a sweep, in the order of the Cartesian product (last axis fastest).
+
+    Attributes
+    ----------
+    problem : Problem
+        The base problem; each point is ``problem.with_updates(**point)``.
+    axes : mapping
+        Axis name → its values, in the order given (the product's order).
+    ablate : bool
+        Ablation sweep (recoil observables) or equilibria.
+    columns : mapping
+        Column name → ndarray (one entry per point): the axes (``opening`` is
+        ``opening_P`` in ablation sweeps), the values, their ``*_error``
+        estimates (NaN where not estimated or failed), then ``status``,
+        ``iterations``, ``path``, ``seconds`` and ``message``.
+    units : mapping
+        Column → unit (lengths in units of R, angles in rad, energies in C R²).
+    timing : mapping
+        ``seconds`` (wall time of the whole sweep, worker start-up included),
+        ``workers``, ``backend`` ("serial", "processes" or "dask"), ``chunks``,
+        ``chunk_axis``, ``nodes``, ``errors``.
+    """
+
+    problem: Problem
+    axes: Mapping[str, tuple]
+    ablate: bool
+    columns: Mapping[str, np.ndarray]
+    units: Mapping[str, str]
+    timing: Mapping[str, Any] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.columns["status"])
+
+    def __repr__(self) -> str:
+        shape = " x ".join(f"{len(v)} {k}" for k, v in self.axes.items())
+        what = "ablations" if self.ablate else "equilibria"
+        return (f"SweepResult({len(self)} {what}: {shape}; {self.failed} failed; "
+                f"{self.timing.get('seconds', math.nan):.3g} s on "
+                f"{self.timing.get('workers', '?')} worker(s))")
+
+    @property
+    def failed(self) -> int:
+        """Number of points without a solution (their ``status`` says why)."""
+        return int(np.sum(self.columns["message"] != ""))
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """Number of values of each axis."""
+        return tuple(len(v) for v in self.axes.values())
+
+    def dims(self) -> tuple[str, ...]:
+        """The axes' names as columns and dimensions (``opening_P`` for ``opening`` in ablations)."""
+        return tuple(_column_name(k, self.ablate) for k in self.axes)
+
+    def to_dataframe(self):
+        """The sweep as a table: one row per point.
+
+        Returns
+        -------
+        pandas.DataFrame
+            The columns of :attr:`columns`.  ``df.attrs`` holds ``units``
+            (column → unit), ``problem`` (the base problem,
+            :meth:`Problem.describe`), ``axes``, ``ablate``, ``timing`` and,
+            for ablations, ``gauge``.
+        """
+        import pandas as pd
+
+        df = pd.DataFrame({k: v for k, v in self.columns.items()})
+        df.attrs.update(units=dict(self.units), problem=self.problem.describe(),
+                        axes={k: list(v) for k, v in self.axes.items()}, ablate=self.ablate,
+                        timing=dict(self.timing))
+        if self.ablate:
+            df.attrs["gauge"] = _GAUGE
+        return df
+
+    def to_xarray(self):
+        """The sweep as an xarray Dataset with the axes as dimensions.
+
+        Needs the optional extra ``xarray`` (``pip install 'morphoshell[xarray]'``).
+
+        Returns
+        -------
+        xarray.Dataset
+            Coordinates: the axes (their values; ``units`` where known).
+            Variables: every other column of :attr:`columns`, reshaped to
+            :attr:`shape` (``units`` attached), e.g. ``ds["rotation"].sel(k=0.5)``.
+            Attributes: the base problem (flat, as
+            :meth:`Equilibrium.to_xarray`), ``ablate`` and the timing.
+        """
+        xr = xarray_module()
+        dims = self.dims()
+        coords = {d: (d, np.asarray(v), {"units": self.units[d]} if d in self.units else {})
+                  for d, v in zip(dims, self.axes.values())}
+        data = {k: (dims, np.asarray(v).reshape(self.shape),
+                    {"units": self.units[k]} if k in self.units else {})
+                for k, v in self.columns.items() if k not in dims}
+        attrs = {**problem_attrs(self.problem), "ablate": int(self.ablate),
+                 **{f"timing_{k}": v for k, v in self.timing.items()
+                    if isinstance(v, (int, float, str))}}
+        if self.ablate:
+            attrs["gauge"] = _GAUGE
+        return xr.Dataset(data, coords=coords, attrs=attrs)
+
+    def to_dict(self) -> dict:
+        """JSON-ready: the base problem, the axes, the units, the timing and one dict per row."""
+        names = list(self.columns)
+        rows = [{k: _scalar(self.columns[k][i]) for k in names} for i in range(len(self))]
+        return {"problem": self.problem.describe(), "ablate": self.ablate,
+                "axes": {k: [_scalar(v) for v in vals] for k, vals in self.axes.items()},
+                "units": dict(self.units), "timing": dict(self.timing), "rows": rows}
+
+
+_GAUGE = ("post- minus pre-ablation state at the material point s = cut; z in the far-end "
+          "gauge (the far end keeps its undeformed height)")
+
+
+def _scalar(v):
+    return v.item() if isinstance(v, np.generic) else v
+
+
+def _column_name(axis: str, ablate: bool) -> str:
+    return "opening_P" if ablate and axis == "opening" else axis
+
+
+# --------------------------------------------------------------------------
+# the plan: points, validated, and chunks
+# --------------------------------------------------------------------------
+
+def _check_axes(problem: Problem, axes: Mapping[str, Sequence]) -> dict[str, tuple]:
+    """The axes as tuples, every name and value checked (ValueError naming it)."""
+    if not isinstance(axes, Mapping) or not axes:
+        raise ValueError(f"axes = {axes!r} must be a non-empty mapping of names to values, "
+                         f"e.g. {{'k': [0, 0.5], 'cut': [0.1, 0.2]}}")
+    valid = (*BASE_KEYS, *problem.family_obj.parameters)
+    out = {}
+    for name, values in axes.items():
+        if name not in valid:
+            raise ValueError(f"sweep axis {name!r} is not a key of a {problem.family!r} problem; "
+                             f"valid: {list(valid)}")
+        if isinstance(values, (str, bytes)) or not isinstance(values, (Sequence, np.ndarray)):
+            raise ValueError(f"sweep axis {name!r}: the values {values!r} must be a list")
+        values = tuple(v.item() if isinstance(v, np.generic) else v for v in values)
+        if not values:
+            raise ValueError(f"sweep axis {name!r} has no values")
+        for v in values:
+            if name == "theory":
+                if not isinstance(v, str):
+                    raise ValueError(f"sweep axis 'theory': {v!r} is not a theory name")
+            elif isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ValueError(f"sweep axis {name!r}: {v!r} is not a finite number")
+        if len(set(values)) != len(values):
+            repeated = sorted({v for v in values if values.count(v) > 1}, key=str)
+            raise ValueError(f"sweep axis {name!r} repeats the value(s) {repeated}")
+        out[name] = tuple(float(v) if name != "theory" else v for v in values)
+    return out
+
+
+def chunk_plan(axes: Mapping[str, Sequence], chunk_size: int | None = None
+               ) -> tuple[str, list[list[int]]]:
+    """How a sweep is cut into tasks: (the chunk axis, row indices of every chunk, in order).
+
+    Rows are numbered in the order of the Cartesian product (last axis
+    fastest).  The chunk axis is the numeric axis with the most values (the
+    last of equals); each line along it, at fixed values of the other axes,
+    is cut into segments of about equal length (at most ``chunk_size``; by
+    default at least :data:`MIN_TASKS` chunks in all where lines allow it,
+    each of :data:`MIN_CHUNK` to :data:`MAX_CHUNK` points).  The plan depends
+    on the axes only, never on the number of workers.
+    """
+    names = list(axes)
+    shape = [len(axes[n]) for n in names]
+    numeric = [i for i, n in enumerate(names) if n != "theory"] or list(range(len(names)))
+    c = max(reversed(numeric), key=lambda i: shape[i])
+    n, lines = shape[c], int(np.prod(shape)) // shape[c]
+    if chunk_size is not None:
+        if isinstance(chunk_size, bool) or not isinstance(chunk_size, (int, np.integer)) \
+                or chunk_size < 1:
+            raise ValueError(f"chunk_size = {chunk_size!r} must be a positive integer")
+        segments = math.ceil(n / chunk_size)
+    else:
+        segments = max(1, min(math.ceil(MIN_TASKS / lines), n // MIN_CHUNK),
+                       math.ceil(n / MAX_CHUNK))
+    bounds = np.linspace(0, n, segments + 1).round().astype(int)
+    index = np.arange(int(np.prod(shape))).reshape(shape)
+    others = [range(s) if i != c else [slice(None)] for i, s in enumerate(shape)]
+    chunks = []
+    for key in product(*others):
+        line = index[key]
+        chunks += [line[a:b].tolist() for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
+    return names[c], chunks
+
+
+def _points(problem: Problem, axes: Mapping[str, tuple], ablate: bool, nodes: int,
+            stages: int) -> list[dict]:
+    """Every point's updates, each problem validated (ValueError naming the point)."""
+    names = list(axes)
+    points, intact = [], {}
+    for values in product(*axes.values()):
+        updates = dict(zip(names, values))
+        where = ", ".join(f"{k} = {v!r}" for k, v in updates.items())
+        try:
+            p = problem.with_updates(**updates)
+            if ablate:
+                if not p.cut > 0:
+                    raise ValueError(f"cut (Sigma) = {p.cut!r}: an ablation needs a cut > 0")
+                key = tuple((k, v) for k, v in updates.items() if k != "cut")
+                if key not in intact:       # the intact shell does not depend on the cut
+                    intact[key] = intact_problem(p)
+                mesh_spec(intact[key], nodes, stages, (p.cut,))   # the rim must be a node
+        except ValueError as exc:
+            raise ValueError(f"sweep point {where}: {exc}") from None
+        points.append(updates)
+    return points
+
+
+def _portable(problem: Problem) -> bool:
+    """Whether a fresh worker process finds the problem's family by its name."""
+    if problem.family in _PACKAGED and FAMILIES.get(problem.family) is problem.family_obj:
+        return True
+    from importlib.metadata import entry_points
+    return problem.family in {ep.name for ep in entry_points(group=ENTRY_POINT_GROUP)}
+
+
+# --------------------------------------------------------------------------
+# the work: one chunk in one worker
+# --------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class _Chunk:
+    """A task: the base problem (a description), the points and how to solve them."""
+
+    base: Mapping[str, Any]
+    points: tuple[tuple[int, Mapping[str, Any]], ...]
+    ablate: bool
+    nodes: int
+    options: Mapping[str, Any]
+    estimate: tuple[bool, ...]
+
+
+#: Solvers of this worker process, by (structure, mesh, options): one build per mesh.
+_SOLVERS: dict = {}
+#: Bound of the worker's solver cache (least recently built dropped first); a
+#: sweep over one line needs about 15 (intact shells anchored at 12 knots).
+SOLVER_CACHE_SIZE = 48
+
+
+def _solver(problem: Problem, nodes: int, anchors: tuple, options: Mapping) -> DirectSolver:
+    spec = mesh_spec(problem, nodes, options.get("stages", 2), anchors)
+    key = (problem.structure, spec, tuple(sorted((k, repr(v)) for k, v in options.items())))
+    solver = _SOLVERS.get(key)
+    if solver is None:
+        solver = _SOLVERS[key] = direct_solver(problem, nodes, anchors, **options)
+        while len(_SOLVERS) > SOLVER_CACHE_SIZE:
+            _SOLVERS.pop(next(iter(_SOLVERS)))
+    return solver
+
+
+@dataclass
+class _Shell:
+    """One shell (intact or cut) followed along a chunk: the last solution reached."""
+
+    nodes: int
+    options: Mapping[str, Any]
+    last: tuple | None = None       # (problem, anchors, eq)
+    iterations: int = 0
+
+    def solver(self, problem: Problem, anchors: tuple, nodes: int | None = None) -> DirectSolver:
+        return _solver(problem, nodes or self.nodes, anchors, self.options)
+
+    def advance(self, problem: Problem, anchors: tuple) -> tuple[Equilibrium, str]:
+        """The equilibrium of ``problem``, from the last one if there is one; (eq, path)."""
+        solver = self.solver(problem, anchors)
+        last, self.last, self.iterations = self.last, None, 0
+        eq = None
+        if last is not None and last[0].structure == problem.structure:
+            path = "warm"
+            try:
+                start = last[2]
+                if solver_of(start) is not solver:       # a new mesh: carry the solution over
+                    start = self._count(solve_from(solver, last[0], start, last[1]))
+                    path = "remesh"
+                eq, steps = self._step(solver, last[0], last[1], start, problem, anchors, 0)
+                path = "split" if steps > 1 else path
+            except SolverError as exc:
+                self._count(exc.last_iterate)
+                log.debug("sweep: warm steps to %s failed (%s); continuation", problem.params,
+                          exc.status)
+        if eq is None:
+            eq, path = self._count(continue_to(solver, problem, anchors)), "continuation"
+        self.last = (problem, anchors, eq)
+        return eq, path
+
+    def _count(self, eq: Equilibrium | None) -> Equilibrium | None:
+        if eq is not None:
+            self.iterations += eq.solver.iterations
+        return eq
+
+    def _step(self, solver, a: Problem, a_anchors, a_eq, b: Problem, b_anchors,
+              depth: int) -> tuple[Equilibrium, int]:
+        """From a's solution to b: one warm step, or two halves (recursively); (eq, steps)."""
+        try:
+            eq = self._count(solver.solve(b, warm_start=a_eq, anchors=b_anchors))
+            if eq.solver.iterations <= HARD_STEP or depth >= MAX_SPLITS:
+                return eq, 1
+        except SolverError as exc:
+            self._count(exc.last_iterate)
+            if depth >= MAX_SPLITS:
+                raise
+        mid = _midpoint(a, b, a_anchors, b_anchors)
+        if mid is None:
+            raise SolverError("no midpoint to split the step at", "Step_Not_Splittable")
+        m_eq, n1 = self._step(solver, a, a_anchors, a_eq, *mid, depth + 1)
+        eq, n2 = self._step(solver, *mid, m_eq, b, b_anchors, depth + 1)
+        return eq, n1 + n2
+
+
+def _midpoint(a: Problem, b: Problem, a_anchors, b_anchors):
+    """(problem, anchors) halfway between a and b, or None (a word differs, or invalid)."""
+    if a.structure != b.structure:
+        return None
+    try:
+        mid = a.with_updates(h=(a.h + b.h) / 2, cut=(a.cut + b.cut) / 2,
+                             opening=(a.opening + b.opening) / 2,
+                             **{k: (a.params[k] + b.params[k]) / 2 for k in a.params})
+    except ValueError:
+        return None
+    return mid, tuple((x + y) / 2 for x, y in zip(a_anchors, b_anchors))
+
+
+def _measure(problem: Problem, pre: Equilibrium, post: Equilibrium) -> dict[str, float]:
+    """The observables of :class:`~morphoshell.mechanics.ablation.Ablation` (as ``ablate`` measures them)."""
+    sigma = problem.cut
+    obs = recoil(edge_state(pre, sigma), edge_state(post, sigma))
+    removed = pre.energy_between(pre.s[0], sigma)
+    return {**{k: float(obs[k]) for k in RECOIL},
+            "energy_released": float(post.energy - (pre.energy - removed)),
+            "energy_removed": float(removed)}
+
+
+def _estimate(shells: Sequence[tuple[_Shell, Problem, tuple, Equilibrium]], measure,
+              order: int) -> dict[str, float]:
+    """Error of each measured value: the half and quarter meshes, as ``solve()``'s estimate.
+
+    :func:`morphoshell.solvers.refinement.level_errors`; NaN where a coarse mesh is
+    too small or does not converge.
+    """
+    levels = [measure([eq for *_, eq in shells])]
+    eqs = [eq for *_, eq in shells]
+    nodes = shells[0][0].nodes
+    for _ in range(2):
+        nodes = half_mesh(nodes)
+        if nodes < 5:
+            break
+        try:
+            eqs = [solve_from(shell.solver(p, anchors, nodes), p, eq, anchors)
+                   for (shell, p, anchors, _), eq in zip(shells, eqs)]
+        except SolverError:
+            break
+        levels.append(measure(eqs))
+    if len(levels) < 2:
+        return {k: math.nan for k in levels[0]}
+    return level_errors(levels[0], levels[1], levels[2] if len(levels) > 2 else None, order)
+
+
+def _run_chunk(chunk: _Chunk) -> list[tuple[int, dict]]:
+    """Solve one chunk in order, each point warm-started from the previous one (a task)."""
+    base = Problem(**chunk.base)
+    options = dict(chunk.options)
+    order = 2 * options.get("stages", 2)
+    post_shell, pre_shell = _Shell(chunk.nodes, options), _Shell(chunk.nodes, options)
+    names = ABLATE_COLUMNS if chunk.ablate else SOLVE_COLUMNS
+    estimated = ESTIMATED_ABLATION if chunk.ablate else SOLVE_COLUMNS
+    rows, intact, intact_key = [], None, None
+    for (index, updates), estimate in zip(chunk.points, chunk.estimate):
+        t0 = time.perf_counter()
+        problem = base.with_updates(**updates)
+        if chunk.ablate and intact_key != (key := {k: v for k, v in updates.items() if k != "cut"}):
+            intact, intact_key = intact_problem(problem), key   # the same for every cut
+        row: dict[str, Any] = {k: math.nan for k in names}
+        row.update({f"{k}_error": math.nan for k in estimated})
+        row.update(status="", iterations=0, path="", message="")
+        try:
+            if chunk.ablate:
+                rim = (problem.cut,)
+                try:
+                    pre, pre_path = pre_shell.advance(intact, rim)
+                finally:
+                    row["iterations"] += pre_shell.iterations
+                try:
+                    post, post_path = post_shell.advance(problem, ())
+                finally:
+                    row["iterations"] += post_shell.iterations
+                row.update(_measure(problem, pre, post))
+                paths = (pre_path, post_path)
+                row["path"] = next(p for p in ("continuation", "split", "remesh", "warm")
+                                   if p in paths)
+                if estimate:
+                    errors = _estimate([(pre_shell, intact, rim, pre), (post_shell, problem, (), post)],
+                                       lambda eqs: {k: v for k, v in _measure(problem, *eqs).items()
+                                                    if k in estimated}, order)
+                    row.update({f"{k}_error": v for k, v in errors.items()})
+            else:
+                try:
+                    post, row["path"] = post_shell.advance(problem, ())
+                finally:
+                    row["iterations"] += post_shell.iterations
+                row.update(post.estimated_values())
+                if estimate:
+                    errors = _estimate([(post_shell, problem, (), post)],
+                                       lambda eqs: eqs[0].estimated_values(), order)
+                    row.update({f"{k}_error": v for k, v in errors.items()})
+            row["status"] = post.solver.status
+        except SolverError as exc:
+            row.update({k: math.nan for k in names}, status=exc.status or "Solver_Error",
+                       path="failed", message=str(exc).splitlines()[0])
+        row["seconds"] = time.perf_counter() - t0
+        rows.append((index, row))
+    return rows
+
+
+# --------------------------------------------------------------------------
+# the front door
+# --------------------------------------------------------------------------
+
+def sweep(problem: Problem, axes: Mapping[str, Sequence], *, ablate: bool = False,
+          nodes: int = 200, workers: int | None = None, scheduler: str | None = None,
+          errors: str = "ends", chunk_size: int | None = None, **options) -> SweepResult:
+    """Solve or ablate ``problem`` at every point of the Cartesian product of ``axes``.
+
+    Parameters
+    ----------
+    problem : Problem
+        The base problem; a point is ``problem.with_updates(**point)``.
+    axes : mapping
+        Axis name → values, e.g. ``{"k": [0, 0.5, 2], "cut": np.linspace(0.05, 1.4, 15)}``:
+        h, theory, cut, opening or a parameter of the problem's family
+        (numbers; theory names for ``theory``).  Rows follow the product in
+        this order, the last axis fastest.  Every point is validated before
+        any work starts.
+    ablate : bool
+        Ablate at every point (the cut is Σ > 0; recoil observables, as
+        :func:`~morphoshell.mechanics.ablation.ablate`) instead of solving it.
+    nodes : int
+        Mesh nodes (direct method; see :func:`~morphoshell.solvers.routes.solve`).
+    workers : int, optional
+        Worker processes (see :func:`morphoshell.workflows.executor.open_executor`).
+        Default: this process for fewer than :data:`SERIAL_BELOW` solves
+        (two per ablation), else one per CPU core (at most one per chunk).  Families registered
+        only in this session (not packaged, not a plugin) need ``workers=1``.
+    scheduler : str, optional
+        Address of a running Dask scheduler (or ``DASK_SCHEDULER_ADDRESS``).
+    errors : {"ends", "all", "none"}
+        Where to estimate discretisation errors (see the module docstring).
+    chunk_size : int, optional
+        Most points per task (default: see :func:`chunk_plan`).
+    **options
+        Direct solver options: ``stages``, ``linear_solver``, ``tol``,
+        ``max_iter``, ``stability``, ``ipopt_options``.
+
+    Returns
+    -------
+    SweepResult
+        One row per point, failed points included (NaN values, their status).
+
+    Raises
+    ------
+    ValueError
+        A bad axis, value or option, or a point that is not a valid problem
+        (named), before any work.
+
+    Examples
+    --------
+    >>> from morphoshell import Problem, sweep
+    >>> res = sweep(Problem("uniform", h=0.3, cut=0.3), {"k": [0.0, 0.5]}, nodes=60,
+    ...             workers=1)
+    >>> res.to_dataframe()[["k", "psi_start"]].round(3).values.tolist()
+    [[0.0, 0.822], [0.5, 0.561]]
+    """
+    if not isinstance(problem, Problem):
+        raise ValueError(f"problem must be a Problem, got {problem!r}")
+    unknown = sorted(set(options) - set(DIRECT_OPTIONS) | ({"max_nodes"} & set(options)))
+    if unknown:
+        raise ValueError(f"unknown option(s) {unknown} of a sweep; valid: "
+                         f"{[o for o in DIRECT_OPTIONS if o != 'max_nodes']}")
+    if errors not in ERRORS:
+        raise ValueError(f"errors = {errors!r} must be one of {list(ERRORS)}")
+    nodes = check_nodes(nodes)
+    stages = options.get("stages", 2)
+    if isinstance(stages, bool) or stages not in (1, 2, 3):
+        raise ValueError(f"stages = {stages!r} must be 1, 2 or 3")
+    axes = _check_axes(problem, axes)
+    points = _points(problem, axes, ablate, nodes, stages)
+    chunk_axis, chunks = chunk_plan(axes, chunk_size)
+    n = len(points)
+    if workers is None and scheduler is None and not os.environ.get("DASK_SCHEDULER_ADDRESS"):
+        solves = n * (2 if ablate else 1)
+        workers = 1 if solves < SERIAL_BELOW else max(1, min(os.cpu_count() or 1, len(chunks)))
+    parallel = scheduler is not None or os.environ.get("DASK_SCHEDULER_ADDRESS") or workers != 1
+    if parallel and not _portable(problem):
+        raise ValueError(f"family {problem.family!r} is registered only in this session: worker "
+                         f"processes cannot load it; use workers=1, or install it as a plugin "
+                         f"(entry point group {ENTRY_POINT_GROUP!r})")
+    base = problem.describe()
+    if not parallel:
+        base = {**base, "family": problem.family_obj}     # not pickled: any family
+    c = list(axes).index(chunk_axis)
+    line = len(axes[chunk_axis])
+    tasks = []
+    for rows in chunks:
+        where = [np.unravel_index(i, [len(v) for v in axes.values()])[c] for i in rows]
+        estimate = tuple(errors == "all" or (errors == "ends" and w in (0, line - 1))
+                         for w in where)
+        tasks.append(_Chunk(base, tuple((i, points[i]) for i in rows), bool(ablate), nodes,
+                            dict(options), estimate))
+    what = "ablations" if ablate else "equilibria"
+    log.info("sweep of %d %s (%s) in %d chunks along %s", n, what,
+             " x ".join(f"{len(v)} {k}" for k, v in axes.items()), len(chunks), chunk_axis)
+    t0 = time.perf_counter()
+    results: list = [None] * n
+    with ExitStack() as stack:
+        try:
+            executor = stack.enter_context(open_executor(workers, scheduler))
+        except OSError as exc:     # no scheduler there: bad input, named
+            raise ValueError(f"scheduler {scheduler or os.environ.get('DASK_SCHEDULER_ADDRESS')!r}"
+                             f": cannot connect ({exc})") from None
+        backend = backend_name(executor)
+        desc = f"sweep: {n} {what}"
+        if backend == "serial":   # run() would solve every chunk before showing its bar
+            done = ((i, _run_chunk(t)) for i, t in enumerate(tasks))
+            done = progress(done, total=len(tasks), desc=desc, unit="chunk")
+        else:
+            done = run(_run_chunk, tasks, executor, description=desc)
+        for _, rows in done:
+            for index, row in rows:
+                results[index] = row
+    seconds = time.perf_counter() - t0
+    columns = _columns(axes, results, ablate)
+    units = {k: v for k, v in UNITS.items() if k in columns}
+    units.update({f"{k}_error": UNITS[k] for k in UNITS if f"{k}_error" in columns})
+    if "k" in columns:
+        units["k"] = "1/R"
+    timing = {"seconds": seconds, "workers": workers if scheduler is None else "scheduler",
+              "backend": backend, "chunks": len(chunks), "chunk_axis": chunk_axis,
+              "nodes": nodes, "errors": errors}
+    result = SweepResult(problem, axes, bool(ablate), columns, units, timing)
+    if result.failed:
+        statuses = sorted(set(columns["status"][columns["message"] != ""]))
+        log.warning("sweep: %d of %d points failed (%s); their rows keep the status",
+                    result.failed, n, ", ".join(statuses))
+    return result
+
+
+def _columns(axes: Mapping[str, tuple], rows: list[dict], ablate: bool) -> dict[str, np.ndarray]:
+    """Columns in order: the axes (C order of the product), then the rows' values."""
+    grid = list(product(*axes.values()))
+    out: dict[str, np.ndarray] = {}
+    for j, name in enumerate(axes):
+        out[_column_name(name, ablate)] = np.array([g[j] for g in grid],
+                                                   dtype=object if name == "theory" else float)
+    for key in rows[0]:
+        values = [r[key] for r in rows]
+        if key in ("status", "path", "message"):
+            out[key] = np.array(values, dtype=object).astype(str)
+        elif key == "iterations":
+            out[key] = np.array(values, dtype=int)
+        else:
+            out[key] = np.array(values, dtype=float)
+    # the bookkeeping last, in a fixed order
+    for key in _BOOK:
+        out[key] = out.pop(key)
+    return out

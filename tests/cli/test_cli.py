@@ -1,0 +1,131 @@
+"""The command line, as scripts and users call it."""
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from morphoshell.cli import main
+from morphoshell.io.problem_files import example_path
+
+ROOT = Path(__file__).resolve().parents[2]
+TOY2 = example_path("toy2_ablation")
+
+
+def test_solve_writes_json_and_plot(tmp_path, capsys):
+    out, png = tmp_path / "r.json", tmp_path / "r.png"
+    assert main(["solve", str(TOY2), "--set", "k=0.5", "--nodes", "400",
+                 "--json", str(out), "--plot", str(png)]) == 0
+    data = json.loads(out.read_text())
+    assert data["converged"] is True
+    assert data["problem"]["params"] == {"k": 0.5}
+    assert set(data["solver"]) >= {"method", "iterations", "seconds"}
+    assert data["solver"]["method"] == "direct" and data["solver"]["iterations"] > 0
+    s = np.array(data["s"])
+    assert len(s) == 2 * 399 + 1 and np.all(np.diff(s) > 0)   # nodes and cell midpoints and abs(s[0] - 0.3) < 1e-12
+    for key in ("r", "z", "psi"):
+        assert len(data[key]) == len(s)
+    assert np.isfinite(data["energy"]) and data["energy"] > 0
+    assert png.stat().st_size > 10_000
+    assert "energy" in capsys.readouterr().out
+
+
+def test_bvp_method_from_the_command_line(tmp_path):
+    out = tmp_path / "b.json"
+    assert main(["solve", str(TOY2), "--method", "bvp", "--json", str(out)]) == 0
+    direct = tmp_path / "d.json"
+    assert main(["solve", str(TOY2), "--nodes", "400", "--json", str(direct)]) == 0
+    b, d = json.loads(out.read_text()), json.loads(direct.read_text())
+    assert b["solver"]["method"] == "bvp"
+    # same problem by two routes: 3200 nodes give ~2e-7 relative (order 2)
+    assert abs(b["energy"] / d["energy"] - 1) < 1e-6
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--set", "kappa=1"], "unknown key(s) ['kappa']"),
+    (["--set", "k=abc"], "k needs a number, got 'abc'"),
+    (["--set", "h=-0.2"], "thickness h = -0.2"),
+    (["--set", "cut=4"], "cut (Sigma) = 4.0 is larger than the shell"),
+    (["--nodes", "2"], "argument --nodes: 2 must lie in [5, 102400]"),
+])
+def test_bad_arguments_exit_nonzero_naming_them(args, message, capsys):
+    assert main(["solve", str(TOY2), *args]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_missing_file_exits_2(tmp_path, capsys):
+    assert main(["solve", str(tmp_path / "none.toml")]) == 2
+    assert "cannot read problem file" in capsys.readouterr().err
+
+
+def test_help_documents_every_option():
+    proc = subprocess.run([sys.executable, "-m", "morphoshell.cli", "solve", "--help"],
+                          capture_output=True, text=True, check=True)
+    for option in ("--set", "--nodes", "--stages", "--method", "--linear-solver", "--json",
+                   "--plot", "KEY=VALUE", "direct", "bvp", "mumps"):
+        assert option in proc.stdout
+
+
+def test_console_script_runs(tmp_path):
+    exe = Path(sys.executable).with_name("morphoshell")
+    proc = subprocess.run([str(exe), "solve", str(TOY2), "--nodes", "200"],
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert "Solve_Succeeded" in proc.stdout or "Newton_Converged" in proc.stdout
+
+
+def test_ablate_reports_observables(tmp_path, capsys):
+    out, png = tmp_path / "a.json", tmp_path / "a.png"
+    assert main(["ablate", str(TOY2), "--json", str(out), "--plot", str(png)]) == 0
+    assert png.stat().st_size > 10_000      # the pre/post cross-section pair
+    data = json.loads(out.read_text())
+    for key in ("opening", "rotation", "displacement", "energy_released"):
+        assert np.isfinite(data[key])
+    # k = 0: the rim curls outward and the cut releases energy
+    assert data["opening"] > 0 and data["rotation"] > 0 and data["energy_released"] < 0
+    assert data["pre"]["problem"]["cut"] == 0.0 and data["post"]["problem"]["cut"] == 0.3
+    assert len(data["pre"]["s"]) > 0 and len(data["post"]["r"]) == len(data["post"]["s"])
+    assert "rotation" in capsys.readouterr().out
+
+
+def test_ablate_needs_a_cut(capsys):
+    assert main(["ablate", str(TOY2), "--set", "cut=0"]) == 2
+    assert "an ablation needs a cut > 0" in capsys.readouterr().err
+
+
+def test_asymptotics_command(tmp_path):
+    from morphoshell.mechanics import asymptotics as A
+
+    out = tmp_path / "p.json"
+    assert main(["asymptotics", "--h", "0.01", "--k", "0.5", "--cut-angle", "0.4",
+                 "--json", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert set(data) >= {"opening", "rotation", "displacement", "rotation_small_cut",
+                         "displacement_small_cut", "energy_released"}
+    assert data["opening"] == pytest.approx(0.01 * 0.5 * np.sin(0.4), rel=1e-14)
+    assert data["rotation"] == pytest.approx(A.rotation(0.01, 0.5), rel=1e-14)
+
+
+def test_asymptotics_rejects_bad_values(capsys):
+    assert main(["asymptotics", "--h", "0.01", "--k", "0", "--cut-angle", "4"]) == 2
+    assert "argument --cut-angle: 4 must be a finite number in (0, 3.14159) rad" in capsys.readouterr().err
+
+
+def test_sphere_command(tmp_path):
+    out = tmp_path / "s.json"
+    assert main(["sphere", "--h", "0.01", "--k", "0", "--c10", "1", "--c01", "0.5",
+                 "--json", str(out)]) == 0
+    data = json.loads(out.read_text())
+    # f_bulk - f_asymptotic = O(h^4) (measured coefficient ~0.5), f_shell likewise
+    assert abs(data["f_bulk"] - data["f_asymptotic"]) < 1e-7
+    assert abs(data["f_shell"] - data["f_shell_asymptotic"]) < 1e-8
+    assert data["k_star"] == pytest.approx((11 + 3.5) / (5 + 0.5), rel=1e-14)
+
+
+def test_missing_hsl_solver_is_explained(capsys):
+    # the PyPI wheel has no HSL library: the failure must say why
+    assert main(["solve", str(TOY2), "--linear-solver", "ma27"]) == 3
+    err = capsys.readouterr().err
+    assert "Invalid_Option" in err and "libhsl.so" in err

@@ -1,0 +1,163 @@
+"""The right minimum or an error: branch-safe cold solves, error estimates, valid meshes.
+
+Each reproducer of the issue "The right minimum or an error" is a test here.
+"""
+import numpy as np
+import pytest
+
+from morphoshell import Problem, SolverError, solve
+from morphoshell.solvers.continuation import neutral_problem
+from morphoshell.numerics.mesh import MIN_POLE_CELL, graded_mesh
+
+SPURIOUS = [
+    # (problem, energy of the physical branch: continuation, or 400 and 800 nodes cold)
+    (Problem("anisotropic", {"f0": -0.19}, h=0.009, cut=0.164, theory="classical"), 3.3233e-4),
+    (Problem("anisotropic", {"f0": -0.18947}, h=0.0089405, cut=0.16393, theory="classical"),
+     3.2710e-4),
+]
+
+
+@pytest.mark.parametrize("problem, energy", SPURIOUS, ids=["f0=-0.19", "f0=-0.18947"])
+def test_cold_solves_follow_the_physical_branch(problem, energy):
+    eq = solve(problem)
+    assert eq.energy == pytest.approx(energy, rel=2e-4)
+    assert eq.solver.details["path"].startswith("continuation")
+    # the single cold solve lands on a spurious minimum with 2.7x the energy
+    # (measured 9.03e-4 and 8.89e-4) that Ipopt certifies as a minimum: the
+    # test above can fail
+    cold = solve(problem, continuation=False)
+    assert cold.energy > 2 * energy and cold.solver.details["path"] == "cold"
+    # and the error estimate exposes it: the half mesh from the cold solution
+    # does not agree with it as a fourth-order scheme would
+    assert eq.error.relative()["energy"] < 1e-6 < cold.error.relative()["energy"] or \
+        cold.error.note
+
+
+def test_continuation_does_not_snap_into_a_loop():
+    """Fuzzing (2026-11-24): a thin closed sphere whose first continuation step of a quarter
+    snapped into a loop (ψ − s up to 7 rad, later 14) and ended 17 % above the physical
+    energy, its error estimate (2.4e-5) covering neither; eight fixed steps stay on the
+    physical branch."""
+    from morphoshell.solvers.direct import DirectSolver
+    from morphoshell.numerics.mesh import mesh_spec
+
+    problem = Problem("anisotropic", {"f0": -0.28515625}, h=0.001, cut=0.0)
+    eq = solve(problem, nodes=200)
+    solver, ref = DirectSolver(problem.structure, mesh=mesh_spec(problem, 200, 2)), None
+    for tau in np.linspace(0, 1, 9):
+        ref = solver.solve(problem.with_updates(f0=tau * problem.params["f0"]), warm_start=ref)
+    assert np.max(np.abs(ref.psi - ref.s)) < np.pi / 2           # the physical branch
+    # the same mesh by another path: measured 5e-11 apart (the KKT tolerance's scale)
+    assert eq.energy == pytest.approx(ref.energy, rel=1e-8)
+    assert np.max(np.abs(eq.psi - eq.s)) < np.pi / 2
+    assert abs(eq.energy - ref.energy) <= eq.error.errors["energy"] + 1e-12
+
+
+AXIS = Problem("anisotropic", {"f0": 0.1924125775330447}, h=0.0018789515602294436)
+
+
+def test_a_meridian_crossing_the_axis_is_refused():
+    eq = solve(AXIS, nodes=400)
+    assert eq.energy == pytest.approx(1.4419e-8, rel=1e-3)
+    assert eq.r.min() >= 0 and eq.quadrature_points()[1].min() > 0
+    with pytest.raises(SolverError) as exc:
+        solve(AXIS, nodes=400, continuation=False)
+    assert exc.value.status == "Meridian_Crosses_Axis"
+    assert exc.value.last_iterate.r.min() < 0 or exc.value.last_iterate.quadrature_points()[1].min() < 0
+
+
+@pytest.mark.parametrize("kwargs", [{"cut": 3.138}, {"cut": 1.57, "opening": 1.568}])
+def test_short_shells_solve(kwargs):
+    eq = solve(Problem("anisotropic", h=0.1, **kwargs))
+    assert np.isfinite(eq.energy) and eq.converged
+
+
+def test_shells_below_the_minimum_length_are_named():
+    with pytest.raises(ValueError, match="is shorter than 0.001"):
+        Problem("anisotropic", h=0.1, cut=1.57, opening=np.pi - 1.5705)
+
+
+@pytest.mark.parametrize("nodes", [51200])
+def test_fine_pole_graded_meshes_have_no_empty_cells(nodes):
+    t = graded_mesh(nodes - 1, 1.0, "pole", "pole", 0.1, q=4.0)
+    cells = np.diff(t)
+    # every cell, including the last at s = pi, is representable
+    assert cells.min() >= MIN_POLE_CELL * 0.999 and np.all(np.diff(np.pi * t) > 0)
+
+
+def test_error_estimate_bounds_the_actual_error():
+    # the estimate from the half mesh against the error measured on a mesh
+    # four times finer (fourth order: 256 times more accurate)
+    for problem in (Problem("anisotropic", {"f0": 0.1}, h=0.3, cut=0.3),
+                    Problem("volvox", h=0.15, opening=0.3),
+                    Problem("local_relaxation", {"F0": 0.35, "s0": 0.2}, h=0.05, cut=0.3)):
+        eq = solve(problem, nodes=100)
+        fine = solve(problem, nodes=397).estimated_values()
+        for key, err in eq.error.errors.items():
+            actual = abs(eq.estimated_values()[key] - fine[key])
+            assert actual <= err + 1e-13, (problem.family, key, actual, err)
+            # and it is not wildly pessimistic: SAFETY (2) x (2^4 - 1) = 30 times
+            # on resolved fourth-order meshes; up to 138 times (measured: Volvox
+            # z_end) where the quarter mesh (25 nodes) is far from resolved
+            assert err < 200 * actual + 1e-11, (problem.family, key, actual, err)
+
+
+def test_rtol_refines_until_met_or_raises():
+    problem = Problem("volvox", h=0.15, opening=0.3)
+    eq = solve(problem, nodes=50, rtol=1e-7)
+    assert eq.error.meets(1e-7) and eq.solver.nodes > 50
+    assert "refined from 50" in eq.solver.details["path"]
+    with pytest.raises(SolverError) as exc:
+        solve(problem, nodes=50, rtol=1e-15, max_nodes=400)
+    assert exc.value.status == "Tolerance_Not_Met" and "does not meet rtol = 1e-15" in str(exc.value)
+    assert exc.value.last_iterate.solver.nodes == 393     # 50 -> 99 -> 197 -> 393 nodes
+
+
+def test_bvp_runs_within_its_time_budget():
+    problem = Problem("uniform", {"k": 0.0}, h=0.3, cut=0.3)
+    with pytest.raises(SolverError) as exc:
+        solve(problem, method="bvp", max_seconds=1e-3)
+    assert exc.value.status == "Time_Limit_Exceeded"
+
+
+def test_neutral_problem():
+    p = Problem("volvox", h=0.15, opening=0.3)
+    n = neutral_problem(p)
+    assert n.params["f2"] == 1.0 and n.params["s2"] == p.params["s2"]
+    assert neutral_problem(Problem("uniform", {"k": 1.0}, h=0.1)) is None
+
+
+def test_error_estimate_holds_before_the_asymptotic_range():
+    # found by make fuzz: the error of psi(Sigma) shrank only 1.7x from 100 to
+    # 200 nodes (1.2e-8 -> 7.0e-9), and the plain difference 5.0e-9
+    # under-stated it; the limit from 1600 nodes (error ~2e-11 there)
+    problem = Problem("volvox", {"f1": 0.90625, "f2": 1.09375, "f3": 1.0, "f4": 1.0, "f5": 1.0,
+                                 "kappa1": 0.5, "kappa2": -2.0, "kappa3": 1.0, "kappa4": 1.0,
+                                 "sigma": 0.05,
+                                 "s1": 1.1867676689142115, "s2": 1.460637130971337,
+                                 "s3": 1.7345065930284627, "s4": 2.0996658757712967},
+                      h=0.23713737056616552, cut=1.158203125, opening=0.3)
+    eq = solve(problem, nodes=200)
+    limit = solve(problem, nodes=1600).estimated_values()
+    for key, err in eq.error.errors.items():
+        actual = abs(eq.estimated_values()[key] - limit[key])
+        assert actual <= err + 1e-12, (key, actual, err)
+
+
+@pytest.mark.xfail(strict=True, reason="a known limit of estimates from coarser meshes "
+                   "(docs/solution.md, 'An error estimate'): if this passes, update the docs")
+def test_error_estimate_of_a_shell_whose_steps_are_not_yet_resolved():
+    # found by make fuzz (2026-11-24): z_end is off by 9.8e-7 at 100 nodes and 7.9e-7 at
+    # 200 (a shrink of 1.2x, after 4.6x from 50 to 100), estimate 4.7e-7; from about 400
+    # nodes (18 across each step of width sigma) it shrinks 14-17x per refinement
+    problem = Problem("volvox", {"f1": 0.818359375, "f2": 1.03125, "f3": 1.0, "f4": 1.0,
+                                 "f5": 1.09375, "kappa1": 0.0, "kappa2": -2.0, "kappa3": 1.0,
+                                 "kappa4": 1.0, "sigma": 0.05,
+                                 "s1": 1.184207084522778, "s2": 1.4574856424895728,
+                                 "s3": 1.7307642004563677, "s4": 2.095135611078761},
+                      h=0.0012863969449369746, cut=0.241036234688102, opening=0.3,
+                      theory="classical")
+    eq = solve(problem, nodes=200)
+    limit = solve(problem, nodes=1600).estimated_values()
+    actual = abs(eq.estimated_values()["z_end"] - limit["z_end"])
+    assert actual <= eq.error.errors["z_end"], (actual, eq.error.errors["z_end"])

@@ -1,0 +1,70 @@
+"""The executor: Dask LocalCluster, process pool, serial; results complete out of order."""
+import gc
+import os
+
+import pytest
+
+from morphoshell.workflows.executor import SerialExecutor, backend_name, open_executor, run
+
+
+def _square_and_pid(x):
+    return x * x, os.getpid(), os.environ.get("OMP_NUM_THREADS")
+
+
+def test_serial_runs_in_this_process():
+    with open_executor(workers=1) as ex:
+        assert isinstance(ex, SerialExecutor) and backend_name(ex) == "serial"
+        out = dict(run(_square_and_pid, range(4), ex))
+    assert [out[i][0] for i in range(4)] == [0, 1, 4, 9]
+    assert {v[1] for v in out.values()} == {os.getpid()}
+
+
+def test_a_two_worker_dask_cluster_runs_single_threaded_processes():
+    pytest.importorskip("distributed")
+    import sys
+
+    import cloudpickle
+    # the workers cannot import this test module: send the task function by value
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    with open_executor(workers=2) as ex:
+        assert backend_name(ex) == "dask"
+        out = dict(run(_square_and_pid, range(8), ex))
+    assert sorted(v[0] for v in out.values()) == [i * i for i in range(8)]
+    pids = {v[1] for v in out.values()}
+    assert os.getpid() not in pids and 1 <= len(pids) <= 2
+    assert {v[2] for v in out.values()} == {"1"}      # MUMPS: one thread per worker
+    assert os.environ.get("OMP_NUM_THREADS") != "1" or "OMP_NUM_THREADS" in os.environ
+
+
+def test_errors_in_tasks_reach_the_caller():
+    with open_executor(workers=1) as ex, pytest.raises(ZeroDivisionError):
+        list(run(lambda x: 1 / x, [1, 0], ex))
+
+
+def test_bad_worker_counts_are_named():
+    with pytest.raises(ValueError, match=r"workers = 0 must be a positive integer"):
+        with open_executor(workers=0):
+            pass
+
+
+@pytest.mark.parametrize("address", ["tcp://127.0.0.1:9", "no-port-here"])
+def test_a_scheduler_that_does_not_answer_is_named_and_leaves_dask_as_it_was(address):
+    pytest.importorskip("distributed")
+    import dask
+
+    from distributed import Client
+
+    gc.collect()
+    clients = {id(o) for o in gc.get_objects() if isinstance(o, Client)}   # other tests'
+    before = dask.config.get("scheduler", None)
+    with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
+        with pytest.raises(ValueError, match=f"--scheduler {address}: no Dask scheduler "
+                                             "answered there"):
+            with open_executor(scheduler=address):
+                pass
+    # (a Client that failed on a malformed address set it to "dask.distributed": xarray's
+    # computations in the same process then failed)
+    assert dask.config.get("scheduler", None) == before
+    # and it is gone: left to the garbage collector, its __del__ ran inside the next
+    # Client's start and deadlocked the suite
+    assert not [o for o in gc.get_objects() if isinstance(o, Client) and id(o) not in clients]

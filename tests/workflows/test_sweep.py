@@ -1,0 +1,241 @@
+"""Sweeps: rows agree with solve()/ablate(), workers do not change the numbers, failures stay.
+
+Small meshes (40–60 nodes) keep this file fast; the equalities hold on any
+mesh because a sweep solves each point on the mesh solve()/ablate() use.
+"""
+import json
+import math
+import re
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from morphoshell import Problem, ablate, solve
+from morphoshell import sweep as sweep_function
+from morphoshell.cli import main
+from morphoshell.solvers.results import SolverError
+from morphoshell.workflows.sweeps import MIN_TASKS, SweepResult, chunk_plan, sweep
+
+TOY2 = Problem("uniform", {"k": 0.0}, h=0.3, cut=0.3, name="toy2")
+#: Both routes converge every point to Ipopt's tolerance (1e-10, scaled) on the
+#: same mesh from different starts (warm vs continuation): measured differences
+#: up to 8e-11 in the observables (order-one quantities).
+SAME_MESH = 1e-8
+
+#: statuses of a solved point: Ipopt's, or certified Newton steps from a warm start
+SOLVED = ("Solve_Succeeded", "Newton_Converged")
+
+
+@pytest.fixture(scope="module")
+def ablations():
+    return sweep(TOY2, {"k": [0.0, 2.0], "cut": np.linspace(0.1, 1.2, 5)}, ablate=True,
+                 nodes=60, workers=1)
+
+
+def test_the_top_level_sweep_is_the_function():
+    assert sweep_function is sweep
+
+
+def test_ablation_rows_agree_with_ablate_at_every_point(ablations):
+    df = ablations.to_dataframe()
+    assert len(df) == 10 and list(df.columns[:2]) == ["k", "cut"]
+    assert df["status"].isin(SOLVED).all() and ablations.failed == 0
+    # C order of the product: the last axis fastest
+    assert df["k"].tolist() == [0.0] * 5 + [2.0] * 5
+    assert np.allclose(df["cut"][:5], np.linspace(0.1, 1.2, 5))
+    for i in (0, 3, 9):
+        ab = ablate(TOY2.with_updates(k=df["k"][i], cut=df["cut"][i]), nodes=60)
+        for key in ("opening", "rotation", "displacement", "energy_released", "energy_removed"):
+            assert abs(df[key][i] - getattr(ab, key)) < SAME_MESH, (i, key)
+    # warm starts: a chunk's first point by continuation, the rest cheaper
+    assert df["path"][0] == "continuation"
+    assert set(df["path"][1:5]) <= {"warm", "remesh", "split"}
+    assert df["iterations"][1:5].max() < df["iterations"][0]
+
+
+def test_error_estimates_at_the_ends_of_each_line_bound_the_error(ablations):
+    df = ablations.to_dataframe()
+    est = df["rotation_error"].to_numpy()
+    ends = np.array([0, 4, 5, 9])
+    assert np.all(np.isfinite(est[ends])) and np.all(np.isnan(np.delete(est, ends)))
+    # the estimate (60 nodes vs 30 and 15) bounds the error against a 4x finer mesh
+    fine = ablate(TOY2.with_updates(k=2.0, cut=1.2), nodes=237)
+    for key in ("opening", "rotation", "displacement"):
+        err = abs(df[key][9] - getattr(fine, key))
+        assert err <= df[f"{key}_error"][9], key
+        assert df[f"{key}_error"][9] < 1e-4          # and is not vacuous
+
+
+def test_solve_rows_agree_with_solve_and_errors_everywhere():
+    res = sweep(TOY2, {"h": [0.1, 0.3], "k": [0.0, 0.5, 1.0]}, nodes=40, workers=1,
+                errors="all")
+    df = res.to_dataframe()
+    assert list(df.columns[:2]) == ["h", "k"] and res.units["energy"] == "C R^2"
+    assert np.all(np.isfinite(df["energy_error"]))
+    for i in (1, 5):
+        eq = solve(TOY2.with_updates(h=df["h"][i], k=df["k"][i]), nodes=40)
+        assert abs(df["energy"][i] - eq.energy) < SAME_MESH * abs(eq.energy)
+        assert abs(df["psi_start"][i] - eq.psi[0]) < SAME_MESH
+        # the same estimate as solve()'s (the same three meshes)
+        assert df["energy_error"][i] == pytest.approx(eq.error.errors["energy"], rel=1e-3,
+                                                      abs=1e-12)
+    none = sweep(TOY2, {"k": [0.0, 0.5]}, nodes=40, workers=1, errors="none")
+    assert none.to_dataframe()["energy_error"].isna().all()
+
+
+def test_xarray_has_the_axes_as_dimensions(ablations):
+    ds = ablations.to_xarray()
+    assert ds["rotation"].dims == ("k", "cut") and ds["rotation"].shape == (2, 5)
+    assert ds["rotation"].attrs["units"] == "rad" and ds["cut"].attrs["units"] == "R"
+    df = ablations.to_dataframe()
+    assert float(ds["opening"].sel(k=2.0).isel(cut=1)) == df["opening"][6]
+    assert ds.attrs["family"] == "uniform" and ds.attrs["ablate"] == 1
+    assert str(ds["status"].sel(k=0.0).values[0]) in SOLVED
+
+
+def test_a_word_axis_and_the_far_end_opening():
+    res = sweep(TOY2, {"theory": ["classical", "large_bending"], "opening": [0.0, 0.5],
+                       "k": [0.0]}, ablate=True, nodes=40, workers=1, errors="none")
+    df = res.to_dataframe()
+    assert list(df.columns[:3]) == ["theory", "opening_P", "k"]      # opening is o
+    assert df["theory"].tolist() == ["classical"] * 2 + ["large_bending"] * 2
+    assert res.failed == 0 and res.to_xarray()["rotation"].dims == ("theory", "opening_P", "k")
+
+
+def test_chunks_cover_every_point_once_in_order_along_the_longest_axis():
+    axis, chunks = chunk_plan({"k": [0, 0.5, 2], "cut": list(range(333))})
+    assert axis == "cut" and len(chunks) == MIN_TASKS
+    flat = sorted(i for c in chunks for i in c)
+    assert flat == list(range(999))
+    assert all(np.all(np.diff(c) == 1) for c in chunks)       # consecutive cuts, one k
+    assert {len(c) for c in chunks} <= {83, 84}
+    # the longest numeric axis, wherever it is
+    axis, chunks = chunk_plan({"cut": list(range(20)), "k": [0, 1]})
+    assert axis == "cut" and all(np.all(np.diff(c) == 2) for c in chunks)
+    assert chunk_plan({"k": [0, 1]})[1] == [[0, 1]]
+    assert [len(c) for c in chunk_plan({"k": list(range(10))}, chunk_size=4)[1]] == [3, 4, 3]
+
+
+def test_two_dask_workers_give_the_same_numbers_as_one_process():
+    pytest.importorskip("distributed")
+    axes = {"k": [0.0, 2.0], "cut": np.linspace(0.2, 1.0, 8)}
+    one = sweep(TOY2, axes, ablate=True, nodes=40, workers=1, chunk_size=4)
+    two = sweep(TOY2, axes, ablate=True, nodes=40, workers=2, chunk_size=4)
+    assert two.timing["backend"] == "dask" and two.timing["chunks"] == 4
+    # the same chunks, each started alike: the same iterations and (bitwise) numbers
+    assert np.array_equal(one.columns["iterations"], two.columns["iterations"])
+    for key in ("opening", "rotation", "displacement", "energy_released", "rotation_error"):
+        assert np.array_equal(one.columns[key], two.columns[key], equal_nan=True), key
+
+
+def test_failed_points_keep_their_row_and_the_next_restarts_safely(monkeypatch):
+    from morphoshell.solvers.direct import DirectSolver
+
+    real = DirectSolver.solve
+
+    def failing(self, problem, *args, **kwargs):
+        if problem.params["k"] == 0.5:
+            raise SolverError("forced failure", "Forced_Failure")
+        return real(self, problem, *args, **kwargs)
+
+    monkeypatch.setattr(DirectSolver, "solve", failing)
+    res = sweep(TOY2, {"k": [0.0, 0.5, 1.5]}, ablate=True, nodes=40, workers=1)
+    df = res.to_dataframe()
+    assert len(df) == 3 and res.failed == 1
+    # warm steps failed, and so did the last resort, continuation from k = 1
+    assert df["status"][1] == "Continuation_Failed" and df["path"][1] == "failed"
+    assert "continuation from the stress-free parameters stopped" in df["message"][1]
+    assert df[["opening", "rotation"]].iloc[1].isna().all()
+    assert df["status"][2] in SOLVED and df["path"][2] == "continuation"
+
+
+@pytest.mark.parametrize("axes, ablate_, match", [
+    ({"q": [1, 2]}, False, r"sweep axis 'q' is not a key of a 'uniform' problem"),
+    ({"k": []}, False, r"sweep axis 'k' has no values"),
+    ({"k": [0, 0.5, 0]}, False, r"repeats the value\(s\) \[0\]"),
+    ({"k": [0, math.nan]}, False, r"'k': nan is not a finite number"),
+    ({"h": [0.1, 1.5]}, False, r"sweep point h = 1\.5: thickness h = 1\.5 must lie in \(0, 1\)"),
+    ({"cut": [0.0, 0.5]}, True, r"sweep point cut = 0\.0: .*an ablation needs a cut > 0"),
+    ({"k": "0,1"}, False, r"must be a list"),
+])
+def test_bad_axes_are_named_before_any_work(axes, ablate_, match, monkeypatch):
+    monkeypatch.setattr(sys.modules["morphoshell.workflows.sweeps"], "_run_chunk",
+                        lambda chunk: pytest.fail("work began"))
+    with pytest.raises(ValueError, match=match):
+        sweep(TOY2, axes, ablate=ablate_, workers=1)
+
+
+def test_bad_options_and_session_families_are_named():
+    with pytest.raises(ValueError, match=r"errors = 'some' must be one of"):
+        sweep(TOY2, {"k": [0]}, errors="some")
+    with pytest.raises(ValueError, match=r"unknown option\(s\) \['rtol'\]"):
+        sweep(TOY2, {"k": [0]}, rtol=1e-3)
+    from dataclasses import replace
+
+    from morphoshell.model.profiles import FAMILIES
+    mine = replace(FAMILIES["uniform"], name="mine", _function={})
+    with pytest.raises(ValueError, match=r"family 'mine' is registered only in this session"):
+        sweep(Problem(mine, h=0.3, cut=0.3), {"k": [0.0, 1.0]}, workers=2)
+    # in this process it works (the family object travels with the task)
+    res = sweep(Problem(mine, h=0.3, cut=0.3), {"k": [0.0, 0.5]}, nodes=30, workers=1)
+    assert res.failed == 0
+
+
+def test_json_ready_and_repr(ablations):
+    d = ablations.to_dict()
+    assert d["axes"]["k"] == [0.0, 2.0] and len(d["rows"]) == 10
+    assert d["units"]["rotation"] == "rad" and d["rows"][0]["status"] in SOLVED
+    json.dumps(d)
+    assert isinstance(ablations, SweepResult)
+    assert repr(ablations).startswith("SweepResult(10 ablations: 2 k x 5 cut; 0 failed")
+
+
+# --------------------------------------------------------------------------
+# the command line
+# --------------------------------------------------------------------------
+
+def _problem_file(tmp_path):
+    from morphoshell.io.problem_files import example_text
+    path = tmp_path / "toy2.toml"
+    path.write_text(example_text("toy2_ablation"))
+    return path
+
+
+def test_cli_sweep_writes_the_rows_of_the_api(tmp_path, capsys, ablations):
+    path = _problem_file(tmp_path)
+    csv, js = tmp_path / "out.csv", tmp_path / "out.json"
+    code = main(["sweep", str(path), "--set", "k=0,2", "--set", "cut=0.1:1.2:5", "--ablate",
+                 "--nodes", "60", "--workers", "1", "--csv", str(csv), "--json", str(js)])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "sweep of 10 ablations (2 k x 5 cut)" in out and "rotation [rad]" in out
+    df = pd.read_csv(csv, keep_default_na=False, na_values=[""])
+    api = ablations.to_dataframe()           # the same sweep from Python
+    assert list(df.columns) == list(api.columns)
+    assert np.allclose(df["rotation"], api["rotation"], rtol=0, atol=1e-15)
+    assert json.loads(js.read_text())["rows"][9]["k"] == 2.0
+
+
+@pytest.mark.parametrize("items, match", [
+    (["cut=0.1:0.5"], r"--set 'cut=0\.1:0\.5': a range is start:stop:num"),
+    (["cut=0.1:0.5:x"], r"the number of values 'x' is not an integer"),
+    (["k=0,a"], r"--set 'k=a': k needs a number"),
+    (["nodes=20,40"], r"nodes cannot be a sweep axis"),
+    (["q=1,2"], r"sweep axis 'q' is not a key"),
+    (["k=0,1", "k=2"], r"k is set more than once"),
+    (["h=0.1,1.5"], r"sweep point h = 1\.5: thickness h = 1\.5 must lie in \(0, 1\)"),
+    (["h=0.1"], r"no axis to sweep"),
+])
+def test_cli_bad_axes_exit_2_with_one_line_and_no_file(tmp_path, capsys, items, match):
+    path = _problem_file(tmp_path)
+    csv = tmp_path / "out.csv"
+    args = ["sweep", str(path), "--csv", str(csv), "--workers", "1"]
+    for item in items:
+        args += ["--set", item]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and err.startswith("morphoshell: error:"), err
+    assert re.search(match, err), err
+    assert not csv.exists()
