@@ -22,8 +22,8 @@ import os
 import sys
 from pathlib import Path
 
-from morphoshell.workflows.campaigns import campaign
-from morphoshell.fitting.core import METHODS
+from morphoshell.workflows import campaign
+from morphoshell.fitting import METHODS
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -28,7 +28,7 @@ import sys
 import time
 
 from morphoshell import Problem
-from morphoshell.fitting.core import fit, synthetic_midline, volvox_spec
+from morphoshell.fitting import fit, synthetic_midline, volvox_spec
 from morphoshell.io.problem_files import write_json
 
 TRUE = Problem("volvox", {"kappa1": 0.0, "kappa2": -8.0, "f1": 0.88, "s2": 1.62, "f3": 1.12},

@@ -1,9 +1,9 @@
 #!/usr/bin/env python3
-"""Timing of the inverse estimates (morphoshell.inverse.core) on the synthetic ablation table.
+"""Timing of the inverse estimates (morphoshell.inverse) on the synthetic ablation table.
 
 Target of the issue: numerical estimates of k for 14 embryos x 3 measures,
 bootstrap included, in under 5 s on 2 cores.  Each row is the median of
---repeats runs of :func:`morphoshell.inverse.core.estimate` (the very first run of
+--repeats runs of :func:`morphoshell.inverse.estimate` (the very first run of
 the process, which also imports, is reported separately); every run builds
 its own pair of solvers.  Wall time depends on what else the machine runs: the
 load average is printed, and the CPU time of all processes (this one and its

@@ -7,7 +7,7 @@ sequence this script makes ``--replicates`` new data sets with the generator
 of ``data/synthetic_inversion`` (``scripts/make_synthetic_inversion.py``, the
 same trajectory, microscope and noise; seeds ``--seed`` + 0, 1, ...), each of
 ``--embryos`` traces and their average, and fits each with the campaign
-(``morphoshell.workflows.campaigns.campaign``, variant ``free``, ``embryo_errors=True``,
+(``morphoshell.workflows.campaign``, variant ``free``, ``embryo_errors=True``,
 starting from the generating parameters).  For every fitted parameter it
 reports
 
@@ -43,12 +43,12 @@ sys.path.insert(0, str(ROOT / "scripts"))
 
 import make_synthetic_inversion as synthetic  # noqa: E402
 from morphoshell.workflows.executor import open_executor, run  # noqa: E402
-from morphoshell.fitting.core import METHODS  # noqa: E402
+from morphoshell.fitting import METHODS  # noqa: E402
 
 
 def replicate(task: tuple) -> dict:
     """One data set of one timepoint, made and fitted; the estimates, errors and truth."""
-    from morphoshell.workflows.campaigns import campaign
+    from morphoshell.workflows import campaign
 
     pseudotime, seed, embryos, method, nodes, folder = task
     folder = Path(folder)

@@ -33,7 +33,7 @@ from pathlib import Path
 
 from morphoshell._runtime.console import run_script
 from morphoshell.plotting import figure_JK, plot_k_estimates, plot_recoil_velocity
-from morphoshell.inverse.core import estimate
+from morphoshell.inverse import estimate
 from morphoshell.io.problem_files import write_csv, write_json
 from morphoshell.plotting import plt
 

@@ -80,7 +80,7 @@ def main(argv=None) -> int:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from morphoshell.workflows.campaigns import fitted_problem, fitted_state, load_campaign, \
+    from morphoshell.workflows import fitted_problem, fitted_state, load_campaign, \
         numerical_ablation
     from morphoshell.plotting import (DOUBLE_COLUMN, SINGLE_COLUMN, label_panel, paper_style,
                                       plot_ablation, plot_ablation_overlay, save)

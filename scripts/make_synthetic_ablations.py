@@ -10,7 +10,7 @@ Materials and Methods "2-photon microscopy and laser ablation experiments"):
   cells within a radius of 3–6 µm"), so the hole's diameter is 2R sin Σ;
 * intrinsic curvature k ~ N(0.05, 0.05²) per embryo (the paper's ⟨k⟩ ≈ 0.05);
 * opening, rotation and displacement of the cut edge from
-  :class:`morphoshell.inverse.core.RecoilModel` (large-bending theory, 400 mesh
+  :class:`morphoshell.inverse.RecoilModel` (large-bending theory, 400 mesh
   nodes: finer than the estimator's default 100, so estimates do not reuse its
   discretisation), plus Gaussian noise of standard deviation
   σ_o = 0.3 µm, σ_ϱ = 2°, σ_d = 0.2 µm.  The opening (0.1–1.5 µm here) is the
@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from morphoshell import __version__
-from morphoshell.inverse.core import RecoilModel, to_physical, velocity_scale
+from morphoshell.inverse import RecoilModel, to_physical, velocity_scale
 from morphoshell.io.problem_files import write_json
 
 ROOT = Path(__file__).resolve().parents[1]

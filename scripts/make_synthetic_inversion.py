@@ -17,8 +17,8 @@ data that the project's own forward model makes, clearly labelled synthetic:
   mid-sagittal sections, rim to rim through the posterior pole, written as
   image traces (``x,y`` in pixels, y down) with a random radius R, rotation
   and offset and Gaussian pixel noise, as a microscope and Fiji give them;
-* their average midline (:func:`morphoshell.io.traces.load_midline` of each
-  trace, then :func:`morphoshell.io.traces.average`), in units of R, which the
+* their average midline (:func:`morphoshell.io.load_midline` of each
+  trace, then :func:`morphoshell.io.average`), in units of R, which the
   campaign fits; ``timepoints.csv`` lists them with their pseudotimes.
 
 The ground truth (the script, its seed and options, the trajectory, the
@@ -115,7 +115,7 @@ def problem(t: float):
 def _truth_midline(t: float, nodes: int, n: int):
     """The noiseless half midline (n, 2) of timepoint t, units of R, and its equilibrium."""
     from morphoshell import solve
-    from morphoshell.fitting.core import model_midline
+    from morphoshell.fitting import model_midline
 
     eq = solve(problem(t), nodes=nodes)
     return model_midline(eq, n), eq
@@ -152,7 +152,7 @@ def embryo_trace(fine: np.ndarray, rng: np.random.Generator) -> tuple:
     radius_um, angle_deg : float
     offset_px : ndarray (2,)
     """
-    from morphoshell.io.traces import to_image
+    from morphoshell.io import to_image
 
     length = float(np.sum(np.hypot(*np.diff(fine, axis=0).T)))
     radius_um = float(rng.uniform(*RADIUS_UM))
@@ -177,7 +177,7 @@ def make(out: Path, *, timepoints: int = 12, embryos: int = 5, seed: int = SEED,
     times = (np.linspace(0.0, 1.0, timepoints) if pseudotimes is None
              else np.asarray(pseudotimes, dtype=float))
     timepoints = len(times)
-    from morphoshell.io.traces import average, load_midline
+    from morphoshell.io import average, load_midline
 
     out.mkdir(parents=True, exist_ok=True)
     streams = np.random.SeedSequence(seed).spawn(timepoints)

@@ -41,7 +41,7 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "solvers.routes": ["solve"],
     "solvers.parametric": ["Parametric"],
     "mechanics.ablation": ["Ablation", "ablate"],
-    "inverse.core": ["estimate"],
+    "inverse": ["estimate"],
     "io.problem_files": ["load_problem", "examples", "example_path"],
     "workflows.sweeps": ["sweep"],
     "_runtime.allocator": ["keep_large_blocks"],

@@ -245,7 +245,7 @@ def plot_k_estimates(ax: Axes, result, truth=None, ylim=None) -> Axes:
     no k in the range, beyond it) are arrows at the axis.  ``truth``, a
     mapping embryo → k, adds grey ticks (synthetic data).
     """
-    from .inverse.core import MEASURES
+    from .inverse import MEASURES
 
     n = len(result.embryos)
     lo, hi = result.settings["k_range"]
@@ -326,7 +326,7 @@ def plot_recoil_velocity(ax: Axes, result) -> Axes:
 
 
 def figure_JK(result, truth=None) -> Figure:
-    """Fig. 2 J and K side by side (a Matplotlib figure) of an :class:`~morphoshell.inverse.core.InverseResult`."""
+    """Fig. 2 J and K side by side (a Matplotlib figure) of an :class:`~morphoshell.inverse.InverseResult`."""
 
     fig, (a, b) = plt.subplots(1, 2, figsize=(11.5, 4.4), gridspec_kw={"width_ratios": [2.2, 1]},
                                constrained_layout=True)
@@ -476,7 +476,7 @@ def plot_fit(result, ax: Axes | None = None, *, title: str | None = "auto", **st
 
     Parameters
     ----------
-    result : morphoshell.fitting.core.FitResult
+    result : morphoshell.fitting.FitResult
     ax : matplotlib Axes, optional
     title : str or None
         "auto": method, variant and E_fit (units of R).

@@ -18,10 +18,10 @@ from morphoshell import Problem, solve
 from morphoshell.cli import main
 from morphoshell.solvers.continuation import continue_to
 from morphoshell.solvers.direct import DirectSolver
-from morphoshell.fitting.core import (FitError, FitSpec, breakpoint_bounds, check_midline, fit,
+from morphoshell.fitting import (FitError, FitSpec, breakpoint_bounds, check_midline, fit,
                                  intrinsic_lengths, model_midline, synthetic_midline, volvox_spec)
 from morphoshell.numerics.mesh import mesh_spec
-from morphoshell.io.traces import Midline
+from morphoshell.io import Midline
 from morphoshell.model.profiles import FAMILIES, ProfileFamily, Profiles, register_family
 from morphoshell.solvers.results import NotAMinimumError
 
@@ -566,7 +566,7 @@ def test_a_failed_fit_exits_3_saying_what_to_try(midline_csv, tmp_path, capsys, 
     """A fit that fails (as the KKT fit of a mid-inversion stage from the family's defaults)
     exits with status 3 in one line that keeps the solver's reason and says what to try;
     nothing is written."""
-    import morphoshell.fitting.core as fitting
+    import morphoshell.fitting as fitting       # where the command line finds fit()
 
     def failing(*args, **kwargs):
         raise FitError("the KKT fit's NLP failed", "Maximum_Iterations_Exceeded")
@@ -657,7 +657,7 @@ def test_a_fit_that_ends_on_a_constraint_says_so_and_gives_no_errors_there():
     (Gauss-Newton errors of a free optimum; measured on replicate t02 data sets, the
     jackknife errors of fits pinned there were 0.001-0.002 against misses of 0.018).  The
     same fit of data with the default gap (6 sigma) ends inside, with finite errors."""
-    from morphoshell.fitting.core import synthetic_midline
+    from morphoshell.fitting import synthetic_midline
 
     base = Problem("volvox", h=0.15, opening=0.3)
     p = base.params

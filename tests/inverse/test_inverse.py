@@ -1,4 +1,4 @@
-"""Inverse estimates from ablation recoils (paper Fig. 2 J-K): morphoshell.inverse.core.
+"""Inverse estimates from ablation recoils (paper Fig. 2 J-K): morphoshell.inverse.
 
 Round trips forward model -> measurement -> estimate, honest "no estimate"
 answers, recovery on the synthetic table within its noise, the E/mu fit and

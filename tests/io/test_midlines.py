@@ -15,7 +15,7 @@ from numpy.polynomial import Chebyshev
 from scipy.interpolate import make_interp_spline
 
 from morphoshell.io import traces as ml
-from morphoshell.io.traces import Midline, MidlineError
+from morphoshell.io import Midline, MidlineError
 
 S_MAX = 0.8 * np.pi
 SCALE = {"pixel_size_um": 0.25, "radius_um": 50.0}

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from morphoshell.workflows.campaigns import (campaign, fitted_problem, load_campaign, numerical_ablation,
+from morphoshell.workflows import (campaign, fitted_problem, load_campaign, numerical_ablation,
                                   read_timepoints)
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -243,10 +243,11 @@ def test_fig3_draws_a_fit_whose_ablation_fails(serial, data, tmp_path, monkeypat
     """scripts/fig3_fits.py: a panel whose numerical ablation fails shows the intact fit (its
     midline, E_fit, the inset) and records the reason in fig3_ablations.json; the other
     figures are written all the same."""
-    import morphoshell.workflows.campaigns as module
+    import morphoshell.workflows as module      # where the script finds numerical_ablation()
+    from morphoshell import SolverError
 
     def fails(*args, **kwargs):
-        raise module.SolverError("continuation stopped at 0.18 of the way (made up)", "x")
+        raise SolverError("continuation stopped at 0.18 of the way (made up)", "x")
     monkeypatch.setattr(module, "numerical_ablation", fails)
     import morphoshell.plotting as plotting
     panels, save = {}, plotting.save
@@ -309,7 +310,7 @@ def test_numerical_ablation_continuation_agrees_with_cold_solve(serial):
 def test_ablation_errors_propagate_the_covariance_through_the_tie(serial):
     """ablation_errors: σ_y² = J C Jᵀ, with the unstressed tie κ₁ = 1/f₁ in J, against
     central differences of numerical ablations along f₁ (κ₁ following it) and κ₂."""
-    from morphoshell.workflows.campaigns import ablation_errors
+    from morphoshell.workflows import ablation_errors
     from morphoshell.solvers.observables import RECOIL
 
     problem = fitted_problem(serial.record("t01", "flat"))
@@ -392,7 +393,7 @@ def test_the_jackknife_fits_each_average_with_one_trace_left_out(data, monkeypat
     from types import SimpleNamespace
 
     from morphoshell.workflows import campaigns as module
-    from morphoshell.io.traces import Midline, average
+    from morphoshell.io import Midline, average
 
     def mean_r(spec, midline, method, nodes, start):
         v = float(np.mean(midline.r))
@@ -540,7 +541,7 @@ def test_a_fit_near_a_fold_or_whose_continuation_fails_is_kept_as_it_is(serial, 
 
 def _unconverged(serial, fold: bool):
     """An unconverged FitResult of the free t01 fit's parameters, near a fold or not."""
-    from morphoshell.fitting.core import FitResult
+    from morphoshell.fitting import FitResult
 
     rec = serial.record("t01", "free")
     k = len(rec["fitted"])
@@ -599,7 +600,7 @@ def test_a_scheduler_that_does_not_answer_deletes_no_results(data, tmp_path, cap
 
     out = tmp_path / "out"
     out.mkdir()
-    from morphoshell.workflows.campaigns import RESULT_SUFFIX
+    from morphoshell.workflows import RESULT_SUFFIX
 
     kept = out / ("t01_flat" + RESULT_SUFFIX)
     kept.write_text("{}")
@@ -618,7 +619,7 @@ def test_a_step_restarts_from_the_stress_free_parameters_only_when_its_state_fai
     from the physical branch.  A failed KKT fit (FitError) has already started again
     from the reduced optimum, and is recorded as failed without a cold refit."""
     from morphoshell.workflows import campaigns as module
-    from morphoshell.fitting.core import FitError
+    from morphoshell.fitting import FitError
     from morphoshell.solvers.results import SolverError
 
     starts = []

@@ -12,7 +12,7 @@ __all__ = ["register"]
 
 def _variants(text: str) -> tuple[str, ...]:
     """A comma-separated list of Volvox variants (checked at parse time)."""
-    from ..fitting.core import VARIANTS
+    from ..fitting import VARIANTS
 
     names = tuple(v.strip() for v in text.split(",") if v.strip())
     bad = [v for v in names if v not in VARIANTS]
@@ -40,8 +40,8 @@ def _out_dir(text: str) -> Path:
 
 def register(sub) -> None:
     """Add ``morphoshell campaign`` to the subcommands ``sub``."""
-    from ..workflows.campaigns import CAMPAIGN_NODES
-    from ..fitting.core import METHODS, VARIANTS
+    from ..workflows import CAMPAIGN_NODES
+    from ..fitting import METHODS, VARIANTS
 
     p = sub.add_parser(
         "campaign", help="fit every timepoint of an inversion sequence for each variant "
@@ -94,7 +94,7 @@ def register(sub) -> None:
 
 
 def _campaign(args) -> int:
-    from ..workflows.campaigns import SUMMARY, campaign, read_timepoints
+    from ..workflows import SUMMARY, campaign, read_timepoints
 
     read_timepoints(args.data_dir)          # bad input: exit 2 before any work
     result = campaign(args.data_dir, args.variants, method=args.method, workers=args.workers,

@@ -80,7 +80,7 @@ def register(sub) -> None:
 
 
 def _estimate(args) -> int:
-    from ..inverse.core import estimate, read_measurements
+    from ..inverse import estimate, read_measurements
     from ..io.problem_files import write_csv, write_json
 
     lo, hi = args.k_range

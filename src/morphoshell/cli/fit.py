@@ -11,8 +11,8 @@ __all__ = ["register"]
 
 def register(sub) -> None:
     """Add ``morphoshell fit`` to the subcommands ``sub``."""
-    from ..fitting.core import FIT_NODES, METHODS, VARIANTS
-    from ..io.traces import FORMATS, SECTIONS
+    from ..fitting import FIT_NODES, METHODS, VARIANTS
+    from ..io import FORMATS, SECTIONS
 
     p = sub.add_parser(
         "fit", help="fit the 13-parameter Volvox model to a traced midline",
@@ -57,7 +57,7 @@ def register(sub) -> None:
 
 def _start_problem(args):
     """The start problem and the held values, from --start and --set (checked)."""
-    from ..fitting.core import volvox_spec
+    from ..fitting import volvox_spec
     from ..io.problem_files import ProblemFileError, load_problem, parse_overrides
     from ..model.problem import Problem
 
@@ -81,9 +81,9 @@ def _start_problem(args):
 
 
 def _fit(args) -> int:
-    from ..fitting.core import N_FIT, check_midline, fit
+    from ..fitting import N_FIT, check_midline, fit
     from ..io.problem_files import write_csv, write_json
-    from ..io.traces import load_midline
+    from ..io import load_midline
     from ..solvers.results import SolverError
 
     spec = _start_problem(args)

@@ -4,3 +4,15 @@ Problem files (TOML) and their overrides, the packaged examples and the writers
 of results (:mod:`.problem_files`); traced midlines from Fiji/ImageJ and CSV
 (:mod:`.traces`).  Every reader names the file and the offending entry.
 """
+
+import lazy_loader
+
+# Every public name of the subpackage, imported from its module on first use.
+__getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
+    "problem_files": ["ProblemFileError", "Settings", "load_problem", "parse_overrides",
+        "apply_overrides", "split_overrides", "settings_from", "to_jsonable", "write_json",
+        "write_csv", "METHODS", "SOLVER_KEYS", "ALIASES", "examples", "example_path",
+        "example_text", "EXAMPLES_DIR"],
+    "traces": ["FORMATS", "SECTIONS", "MidlineError", "Trace", "Alignment", "Midline", "read_trace",
+        "align", "resample", "load_midline", "average", "to_image", "write_trace"],
+})

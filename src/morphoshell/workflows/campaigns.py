@@ -53,9 +53,9 @@ from typing import Iterator, Sequence
 
 import numpy as np
 
-from ..fitting.core import (BOUNDS, FIT_NODES, METHODS, VARIANTS, FitError, FitResult,
-                            check_midline, fit, volvox_spec)
-from ..io.traces import Midline, average
+from ..fitting import (BOUNDS, FIT_NODES, METHODS, VARIANTS, FitError, FitResult, check_midline,
+                       fit, volvox_spec)
+from ..io import Midline, average
 from ..mechanics.ablation import Ablation, edge_state, intact_problem, recoil_jacobian
 from ..model.problem import Problem
 from ..numerics.mesh import mesh_spec
