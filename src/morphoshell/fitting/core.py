@@ -1210,7 +1210,7 @@ def _blended_point(stages: int) -> ca.Function:
     window's outermost ones (:meth:`_KKTProblem._window_indices`).  A clipped
     window repeats a cell, counted once (``keep``).
     """
-    from ..numerics.discretisation import arclength_point, collocation
+    from ..numerics import arclength_point, collocation
 
     n_w, n_z = 2 * WINDOW + 1, 3 * stages + 2
     u = ca.SX.sym("u", n_w * (n_z + 4) + 1)

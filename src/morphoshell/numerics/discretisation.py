@@ -70,7 +70,7 @@ from .cell_order import Assembly, CellOrder, assembly
 from .mesh import Knot, check_monotone, knot_shapes, mapped_points, shell_points
 
 __all__ = ["Discretisation", "Layout", "SymbolicShape", "collocation", "within_cells", "PointData",
-           "compiled_cell_functions", "kernel_cache_dir"]
+           "compiled_cell_functions", "kernel_cache_dir", "arclength_point", "increments"]
 
 _log = logging.getLogger("morphoshell")
 

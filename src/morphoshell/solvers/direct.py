@@ -23,7 +23,7 @@ import numpy as np
 
 from ..model.energy import boundary_layer_width, kinematics
 from ..model.problem import Problem, Structure
-from ..numerics.discretisation import Discretisation, PointData
+from ..numerics import Discretisation, PointData
 from ..numerics.ipopt import IpoptBackend
 from ..numerics.mesh import MeshSpec, pole_exponent
 from ..numerics.newton import NewtonBackend

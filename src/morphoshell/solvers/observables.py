@@ -38,7 +38,7 @@ import casadi as ca
 import numpy as np
 
 from .._runtime.buffered import Buffered
-from ..numerics.discretisation import Discretisation, SymbolicShape
+from ..numerics import Discretisation, SymbolicShape
 
 __all__ = ["Observable", "GAUGES", "shape_points", "energy", "state_at", "midline",
            "midline_cells", "recoil", "RECOIL"]
@@ -211,7 +211,7 @@ class _MidlineJacobian:
     """
 
     def __init__(self, disc: Discretisation, n: int):
-        from ..numerics.discretisation import arclength_point, increments
+        from ..numerics import arclength_point, increments
 
         S, cells = disc.stages, disc.layout.cells
         self.disc, self.n = disc, n
