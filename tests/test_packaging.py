@@ -14,6 +14,7 @@ that ``morphoshell example toy2_ablation > p.toml && morphoshell solve p.toml``
 works in a folder outside the repository, and that a throwaway plugin package
 installed next to it makes its family solvable from a problem file.
 """
+import importlib.util
 import os
 import re
 import subprocess
@@ -26,9 +27,14 @@ from pathlib import Path
 import pytest
 
 import morphoshell
-from test_plugins import tutorial_module
 
 ROOT = Path(__file__).resolve().parents[1]
+# the plugin module of the family tutorial, shared with tests/model/test_plugins.py
+_spec = importlib.util.spec_from_file_location("test_plugins",
+                                               ROOT / "tests" / "model" / "test_plugins.py")
+_plugins = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(_plugins)
+tutorial_module = _plugins.tutorial_module
 
 pytestmark = pytest.mark.slow
 
