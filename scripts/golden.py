@@ -100,6 +100,9 @@ def _numbers(value, prefix: str, into: dict) -> None:
             _numbers(v, f"{prefix}[{i}]", into)
     elif isinstance(value, float):
         into[prefix] = value.hex() if math.isfinite(value) else repr(value)
+    elif isinstance(value, str):
+        # input files are named by path: the same wherever the repository is cloned
+        into[prefix] = value.replace(str(ROOT), "<repository>")
     else:
         into[prefix] = value
 
@@ -115,7 +118,7 @@ def _csv_numbers(path: Path, prefix: str, into: dict) -> None:
             try:
                 into[f"{prefix}[{i}]/{key}"] = float(cell).hex()
             except ValueError:
-                into[f"{prefix}[{i}]/{key}"] = cell
+                into[f"{prefix}[{i}]/{key}"] = cell.replace(str(ROOT), "<repository>")
 
 
 def _collect(paths: list[Path], name: str) -> dict:
