@@ -100,7 +100,7 @@ def test_energy_is_the_quadrature_and_edge_state_the_polynomial():
 
 def test_stages_3_is_sixth_order():
     # self-convergence of the edge values and energy on 25..200 nodes:
-    # measured orders 6.05-6.5
+    # orders 6.05-6.5 on these meshes
     problem = Problem("anisotropic", {"f0": 0.1}, h=0.3, cut=0.3)
     V = np.array([[eq.r[0], eq.psi[0], eq.energy] for eq in
                   (solve(problem, nodes=n, stages=3) for n in (25, 50, 100))])
@@ -186,7 +186,7 @@ def test_cell_data_jacobian_is_the_jacobian_of_the_cell_data(problem, compiled, 
     p, q = problem.parameter_vector(), np.zeros(d.q.shape[0])
     one, two = np.array(direct(p, q)), np.array(d.pre_jacobian(p, q))
     assert one.shape == two.shape == (d.D.shape[0], len(p))
-    # the same derivatives summed in another order: rounding only (measured 2e-16)
+    # the same derivatives summed in another order: rounding only (about 2e-16)
     assert np.abs(one).max() > 1
     assert np.abs(one - two).max() < 1e-12 * np.abs(one).max()
 
@@ -209,7 +209,7 @@ def test_cell_data_hessian_is_the_hessian_of_the_cell_data(problem, compiled, mo
     # the mesh's own curvature (breakpoints moving the nodes) must count: without
     # its term the volvox Hessian is off by O(1) relative
     assert np.abs(one).max() > 1
-    # rounding only (measured 5e-15 relative on toy 3, 2e-18 on volvox)
+    # rounding only (about 5e-15 relative on toy 3, 2e-18 on volvox)
     assert np.abs(one - two).max() < 1e-12 * np.abs(one).max()
 
 
