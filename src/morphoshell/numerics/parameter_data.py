@@ -5,7 +5,7 @@ its parameter-only *data* D at the Gauss points, laid out as
 :data:`~morphoshell.model.layouts.CELL_DATA`: the point s_k, its cell's width Δs,
 the Gauss weight, the objective's scale and h, then the intrinsic data of
 :func:`morphoshell.model.energy.intrinsic_function` (the undeformed shell, the
-growth profiles, η and the coefficients of the paper's energy, Section 2).  D is
+growth profiles, η and the coefficients of the paper's energy, Methods, Eq. 7).  D is
 the NLP's parameter vector: it is computed once per solve, so Ipopt's callbacks
 and Newton's steps never re-evaluate profiles or coefficients.
 

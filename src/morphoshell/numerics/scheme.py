@@ -13,7 +13,7 @@ and the compatibility r' = f_s cos ψ is collocated at the same points
     r'(s_ck) − f_s,ck cos ψ(s_ck) = 0.
 
 This is S-stage Gauss collocation of the optimal-control form of the energy
-(the paper's energy of Section 2, minimised directly): order 2S on smooth
+(the paper's energy, Methods, Eq. 7, minimised directly): order 2S on smooth
 solutions.  ``stages=1`` is the staggered scheme (r, ψ on nodes, f_s at cell
 centres, midpoint rule): second order.  ``stages=2`` (default) is fourth order
 at twice the unknowns per cell, so a given accuracy needs far fewer cells.
@@ -23,7 +23,7 @@ parameters (implicit function theorem on the KKT system) are exact.
 
 Poles are imposed by constants (r = 0, ψ = 0 at the start, ψ = π at the end,
 :data:`POLE_VALUES`); free edges need nothing: the no-force, no-torque
-conditions are natural.
+conditions (Methods, "Numerical solution of the toy problems") are natural.
 
 This module holds what depends on the scheme alone: the layout of the unknowns
 (:class:`Layout`), the Lagrange and Gauss bases of a cell (:func:`collocation`),

@@ -3,13 +3,13 @@
 A transcription's unknowns x (with the parameters p and anchors q) fix the whole
 shape: r and ψ are the cells' Lagrange polynomials through their points, and z and
 the deformed arclength S follow by exact integration of z' = f_s sin ψ and S' = f_s
-over the Gauss interpolant of f_s in each cell (the paper's compatibility relations,
-Section 2).  :class:`SymbolicShape` gives them at the points and anywhere inside a
-cell; the per-cell kernels here (:func:`cell_state`, :func:`arclength_point`,
-:func:`increments`) are SX Functions of one cell's unknowns, shared by every mesh
-of a scheme.  The observables of :mod:`morphoshell.solvers.observables` are built
-from these, so that forward evaluation, parametric derivatives and fits share one
-definition.
+over the Gauss interpolant of f_s in each cell (f_s = dS/ds and the tangent angle
+ψ of the paper's Methods, Eq. 5).  :class:`SymbolicShape` gives them at the points
+and anywhere inside a cell; the per-cell kernels here (:func:`cell_state`,
+:func:`arclength_point`, :func:`increments`) are SX Functions of one cell's
+unknowns, shared by every mesh of a scheme.  The observables of
+:mod:`morphoshell.solvers.observables` are built from these, so that forward
+evaluation, parametric derivatives and fits share one definition.
 """
 from __future__ import annotations
 
