@@ -80,13 +80,13 @@ def test_all_twelve_parameters_of_the_flat_variant(full_flat):
 def test_kkt_derivatives_are_those_of_the_whole_graph(variant, compiled, monkeypatch, request):
     """The kernel-assembled Hessian of the KKT fit's Lagrangian and Jacobian of its
     constraints equal CasADi's of the whole graph, from compiled kernels or not."""
-    from morphoshell.numerics import discretisation
+    from morphoshell.numerics import kkt_derivatives
     from morphoshell.fitting import core as fitting
     from morphoshell.fitting.core import _Inner, _KKTProblem
     from morphoshell.solvers.observables import midline_cells
 
     monkeypatch.setenv("MORPHOSHELL_COMPILE", compiled)
-    for cached in (fitting._compiled_misfit, discretisation._compiled_kkt_data_curvature):
+    for cached in (fitting._compiled_misfit, kkt_derivatives._compiled_kkt_data_curvature):
         cached.cache_clear()
         request.addfinalizer(cached.cache_clear)     # later tests compile again
 

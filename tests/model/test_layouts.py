@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from morphoshell import Problem
-from morphoshell.numerics.discretisation import Layout
+from morphoshell.numerics.scheme import Layout
 from morphoshell.model.layouts import CELL_DATA, INTRINSIC, VectorLayout, parameter_layout
 from morphoshell.model.profiles import get_family
 

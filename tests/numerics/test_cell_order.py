@@ -7,7 +7,8 @@ from morphoshell import Problem
 from morphoshell.numerics import cell_order
 from morphoshell.numerics.cell_order import CellOrder, assembly, offsets
 from morphoshell.solvers.direct import DirectSolver
-from morphoshell.numerics.discretisation import NEWTON_EPSILON, POLE_VALUES
+from morphoshell.numerics.cell_kernels import NEWTON_EPSILON
+from morphoshell.numerics.scheme import POLE_VALUES
 from morphoshell.io.problem_files import example_path, load_problem
 from morphoshell.numerics.mesh import mesh_spec
 
@@ -34,7 +35,7 @@ def _by_hand(S: int, cells: int):
 
 
 def _summed(values: np.ndarray, first, pairs) -> np.ndarray:
-    """What ``discretisation._summed`` makes of ``values``, in NumPy."""
+    """What ``gathers.summed`` makes of ``values``, in NumPy."""
     out = values.copy()
     a, b = (np.array(v, dtype=float).ravel().astype(int) for v in pairs)
     assert len(np.unique(a)) == len(a)     # (each sum once)

@@ -6,7 +6,8 @@ import pytest
 from morphoshell import Problem, solve
 from morphoshell.mechanics.ablation import edge_state
 from morphoshell.solvers.direct import DirectSolver
-from morphoshell.numerics.discretisation import Discretisation, collocation
+from morphoshell.numerics.discretisation import Discretisation
+from morphoshell.numerics.scheme import collocation
 
 
 @pytest.fixture(scope="module", params=[1, 2, 3])
@@ -45,54 +46,6 @@ def test_collocation_bases(disc):
     assert np.allclose(derivs.sum(axis=1), 0.0, atol=1e-12)
     assert np.allclose(integrals[-1], w)   # ∫₀¹ of the Gauss basis = the weights
     assert np.allclose([np.polynomial.Polynomial(a)(1.0) for a in anti], w)
-
-
-def _triplets(rng, trial: int, size: int, entries: int, sources: int):
-    """Random (shape, n_src, rows, cols, src); every third trial repeats half its triplets."""
-    nr, nc = (int(v) for v in rng.integers(1, size, 2))
-    k, n_src = int(rng.integers(0, entries)), int(rng.integers(1, sources))
-    r, c, s = rng.integers(0, nr, k), rng.integers(0, nc, k), rng.integers(0, n_src, k)
-    if trial % 3 == 0:
-        r, c, s = (np.concatenate([v, v[:k // 2]]) for v in (r, c, s))
-    return nr, nc, n_src, r, c, s
-
-
-def test_scatter_is_the_triplet_matrices():
-    # _scatter builds its matrices in compressed form: exactly CasADi's triplet constructors'
-    rng = np.random.default_rng(0)
-    for trial in range(100):
-        nr, nc, n_src, r, c, s = _triplets(rng, trial, 25, 60, 30)
-        sp, B = Discretisation._scatter((nr, nc), r, c, s, n_src)
-        uniq, pos = np.unique(c * nr + r, return_inverse=True)
-        assert sp == ca.Sparsity.triplet(nr, nc, (uniq % nr).tolist(), (uniq // nr).tolist())
-        ref = ca.DM.triplet(pos.ravel().tolist(), s.tolist(), ca.DM.ones(len(s), 1), len(uniq),
-                            n_src)
-        assert B.shape == ref.shape and B.sparsity() == ref.sparsity()
-        assert B.nonzeros() == ref.nonzeros()
-        if trial % 3:          # and the (row, col) entry sums values[src] (of distinct triplets)
-            v = rng.normal(size=n_src)
-            dense = np.zeros((nr, nc))
-            ru, cu, su = np.unique(np.stack([r, c, s]), axis=1)
-            np.add.at(dense, (ru, cu), v[su])
-            assert np.allclose(np.array(ca.densify(ca.DM(sp, B @ v))), dense, atol=1e-14)
-
-
-def test_gathers_assemble_the_scatter_to_the_bit():
-    # _gather's index lists sum each nonzero's values in the order B @ values does
-    from morphoshell.numerics.discretisation import _assembled
-
-    rng = np.random.default_rng(1)
-    for trial in range(60):     # (repeated triplets count once, as in B)
-        nr, nc, n_src, r, c, s = _triplets(rng, trial, 20, 80, 40)
-        sp, B = Discretisation._scatter((nr, nc), r, c, s, n_src)
-        sp_g, first, extras = Discretisation._gather((nr, nc), r, c, s, n_src)
-        assert sp_g == sp
-        v = ca.MX.sym("v", n_src)
-        f = ca.Function("f", [v], [ca.MX(sp, ca.mtimes(B, v)),
-                                   _assembled(sp_g, first, extras, v)])
-        one, two = f(rng.normal(size=n_src) * 10.0 ** rng.integers(-8, 8, n_src))
-        assert one.sparsity() == two.sparsity()
-        assert np.array_equal(np.array(one.nonzeros()), np.array(two.nonzeros()))
 
 
 def test_live_discretisations_of_one_size_share_the_assembly_and_nothing_else():
@@ -147,7 +100,7 @@ def test_energy_is_the_quadrature_and_edge_state_the_polynomial():
 
 def test_stages_3_is_sixth_order():
     # self-convergence of the edge values and energy on 25..200 nodes:
-    # measured orders 6.05-6.5
+    # orders 6.05-6.5 on these meshes
     problem = Problem("anisotropic", {"f0": 0.1}, h=0.3, cut=0.3)
     V = np.array([[eq.r[0], eq.psi[0], eq.energy] for eq in
                   (solve(problem, nodes=n, stages=3) for n in (25, 50, 100))])
@@ -233,7 +186,7 @@ def test_cell_data_jacobian_is_the_jacobian_of_the_cell_data(problem, compiled, 
     p, q = problem.parameter_vector(), np.zeros(d.q.shape[0])
     one, two = np.array(direct(p, q)), np.array(d.pre_jacobian(p, q))
     assert one.shape == two.shape == (d.D.shape[0], len(p))
-    # the same derivatives summed in another order: rounding only (measured 2e-16)
+    # the same derivatives summed in another order: rounding only (about 2e-16)
     assert np.abs(one).max() > 1
     assert np.abs(one - two).max() < 1e-12 * np.abs(one).max()
 
@@ -256,7 +209,7 @@ def test_cell_data_hessian_is_the_hessian_of_the_cell_data(problem, compiled, mo
     # the mesh's own curvature (breakpoints moving the nodes) must count: without
     # its term the volvox Hessian is off by O(1) relative
     assert np.abs(one).max() > 1
-    # rounding only (measured 5e-15 relative on toy 3, 2e-18 on volvox)
+    # rounding only (about 5e-15 relative on toy 3, 2e-18 on volvox)
     assert np.abs(one - two).max() < 1e-12 * np.abs(one).max()
 
 

@@ -43,7 +43,7 @@ def test_thin_free_edges_keep_a_share_of_the_nodes():
 def test_a_thin_shell_edge_layer_is_resolved_on_a_coarse_mesh():
     # Classical theory, h = 1e-4 (delta = 5e-3 of a shell of length 2.6):
     # with the ratio term alone the edge values of order 4 on 50 nodes were
-    # 2e-4 off (measured), with the layer term 4e-8.
+    # 2e-4 off, with the layer term 4e-8.
     p = Problem("uniform", {"k": 0.0}, h=1e-4, cut=0.5, theory="classical")
     edge = lambda eq: np.array([eq.r[0], eq.psi[0]])
     fine, finer = edge(solve(p, nodes=400)), edge(solve(p, nodes=800))
@@ -131,7 +131,7 @@ def test_breakpoints_are_nodes_that_follow_the_parameters():
 def test_a_kink_no_longer_costs_the_order():
     # the thin local_relaxation shell: with the kink at Sigma + s0
     # between nodes the energy converged at order 2 (relative differences
-    # 3e-3, 7e-4, 2e-4); with a node there, order 4 (measured 3.9-4.1)
+    # 3e-3, 7e-4, 2e-4); with a node there, order 4 (3.9-4.1 here)
     from morphoshell import solve
     problem = Problem("local_relaxation", {"F0": 0.35, "s0": 0.2}, h=0.01, cut=0.3,
                       theory="classical")

@@ -26,7 +26,7 @@ def test_newton_warm_solve_is_the_ipopt_solution(problem, change):
     assert 1 <= a.solver.iterations <= 4
     # the same KKT point, both within the KKT tolerance (1e-10 here): the
     # energies differ by about the multipliers times the constraints' residuals
-    # (measured up to 1.3e-10 relative, chord step first)
+    # (up to 1.3e-10 relative, chord step first)
     assert np.max(np.abs(a.x - b.x)) < 1e-8 * max(1.0, np.max(np.abs(b.x)))
     assert abs(a.energy - b.energy) <= 1e-9 * abs(b.energy) + 1e-14
 
@@ -39,7 +39,7 @@ def test_a_cold_newton_solve_is_ipopt_s_solution_without_setting_ipopt_up(proble
     b = DirectSolver(problem.structure, 60, stages=stages, newton=False).solve(problem)
     assert a.solver.details["route"] == "newton" and not a.solver.details["chord"]
     assert newton.backend._solver is None              # Ipopt was never set up
-    # the same minimum, both within the KKT tolerance (measured: 1e-14 to 1e-12 of x)
+    # the same minimum, both within the KKT tolerance (here 1e-14 to 1e-12 of x)
     assert np.max(np.abs(a.x - b.x)) < 1e-8 * max(1.0, np.max(np.abs(b.x)))
     assert abs(a.energy - b.energy) <= 1e-9 * abs(b.energy) + 1e-14
 
@@ -219,7 +219,7 @@ def test_a_thin_shell_stops_at_its_round_off_floor_when_newton_s_correction_is_n
 def test_a_start_s_residual_alone_is_never_taken_for_the_floor():
     """A thin closed shell (h = 1e-4) hardly changes with its intrinsic curvature: from the
     stress-free k = 1 to k = 0.75 the start's residual is 8e-8, near the floor, and Newton's
-    correction 8e-12 of x (measured; the first step of toy 2's continuation).  Still a change
+    correction 8e-12 of x (the first step of toy 2's continuation).  Still a change
     to follow: the warm solve takes a step and returns the new point, not the start."""
     problem = Problem("uniform", {"k": 1.0}, h=1e-4, cut=0.0, theory="classical")
     solver = DirectSolver(problem.structure, 400)

@@ -119,7 +119,7 @@ def test_compiled_functions_do_not_depend_on_names():
     # them: each still solves to the bits it has alone
     import gc
 
-    from morphoshell.numerics.discretisation import _cell_functions
+    from morphoshell.numerics.cell_kernels import cell_functions as _cell_functions
     pa, pb = Problem("uniform", h=0.1), Problem("anisotropic", h=0.1, theory="classical")
     gc.collect()
     alone = DirectSolver(pb.structure, 20).solve(pb)

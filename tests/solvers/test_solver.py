@@ -122,7 +122,7 @@ def test_compiled_kernels_match_casadi(monkeypatch, tmp_path):
     import os
     import shutil
     import time
-    from morphoshell.numerics import discretisation as disc
+    from morphoshell.numerics import cell_kernels as disc
     problem = Problem("uniform", {"k": 0.0}, h=0.3, cut=0.3)
     monkeypatch.setenv("MORPHOSHELL_CACHE_DIR", str(tmp_path))
     # as if imported well after the last edit of the source (the index needs that)
@@ -134,8 +134,8 @@ def test_compiled_kernels_match_casadi(monkeypatch, tmp_path):
             pytest.skip("no working C compiler: the CasADi kernels are used")
         d, eq = solver.disc, solver.solve(problem)
         D = d.cell_data(problem.parameter_vector())
-        slow_nlp = {**d._nlp(disc._cell_functions(2)),
-                    "fields": disc._cell_functions(2)["fields"].map(d.layout.cells)}
+        slow_nlp = {**d._nlp(disc.cell_functions(2)),
+                    "fields": disc.cell_functions(2)["fields"].map(d.layout.cells)}
         Z = d.local_values(eq.x).reshape(-1, d.layout.cells, order="F")
         for name, args in (("grad_f", (eq.x, D)), ("jac_g", (eq.x, D)),
                            ("hess_lag", (eq.x, D, 1.0, eq.lam_g)),
@@ -153,7 +153,7 @@ def test_compiled_kernels_match_casadi(monkeypatch, tmp_path):
         index = disc._kernel_index(2, shutil.which(os.environ.get("CC", "cc")))
         assert index is not None and (tmp_path / index.read_text()).exists()
         with monkeypatch.context() as m:
-            m.setattr(disc, "_cell_functions", None)      # not called on the fast path
+            m.setattr(disc, "cell_functions", None)      # not called on the fast path
             disc.compiled_cell_functions.cache_clear()
             fast = disc.compiled_cell_functions(2)
             assert fast["grad"].name() == "morphoshell_cell2_grad"

@@ -12,5 +12,5 @@ import time
 #: When this process imported the package (``time.time_ns()``; the package's
 #: ``__init__`` imports this module first): compiled kernels are found by a hash
 #: of the source only if no source file changed since
-#: (:func:`morphoshell.numerics.discretisation.compiled_cell_functions`).
+#: (:func:`morphoshell.numerics.cell_kernels.compiled_cell_functions`).
 IMPORTED_NS = time.time_ns()

@@ -4,11 +4,10 @@ glibc's ``malloc`` serves a block above its mmap threshold (adaptive, at
 most 32 MiB on 64-bit) with fresh pages from the kernel and gives them back
 on ``free``.  Every CasADi evaluation on a mesh of 10⁴–10⁵ nodes allocates
 and frees such blocks (outputs of tens of MB), so each one page-faults its
-way through memory it just had: measured 2026-11-24 (``bench_equilibrium.py
---only large``), a warm re-solve took 0.224 s at 12 800 nodes and 2.66 s at
-102 400 (8× the nodes, 12× the time); with large blocks kept in the heap,
-0.135 s and 1.02 s (linear).  No effect up to 3 200 nodes, where the blocks
-stay below the threshold.
+way through memory it just had, and a warm re-solve's time grows faster than
+the mesh (``scripts/bench_equilibrium.py --only large`` shows it); with large
+blocks kept in the heap it grows linearly.  Smaller meshes, whose blocks stay
+below the threshold, are not affected.
 
 :func:`keep_large_blocks` raises the mmap and trim thresholds with
 ``mallopt``; the command line calls it.  It changes the allocator of the

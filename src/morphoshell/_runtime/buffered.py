@@ -1,7 +1,7 @@
 """Evaluate CasADi Functions straight into NumPy arrays.
 
-Converting between ``casadi.DM`` and NumPy costs about 30 ns per element, which
-dominates a warm re-solve (the NLP parameter vector alone has ~19 entries per
+Converting between ``casadi.DM`` and NumPy costs a fixed time per element, which
+would dominate a warm re-solve (the NLP parameter vector alone has ~19 entries per
 cell).  ``Function.buffer()`` reads and writes preallocated memory instead.
 """
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 A utility for the layers above (no physics here): :func:`compiled_point_function`
 compiles one SX function for numerical evaluation;
-:func:`morphoshell.numerics.discretisation.compiled_cell_functions` builds the cell
+:func:`morphoshell.numerics.cell_kernels.compiled_cell_functions` builds the cell
 kernels' library with :func:`compiled_library`.  Nothing depends on a
 compiler: without one (or with ``MORPHOSHELL_COMPILE=0``) the callers keep
 CasADi's virtual machine.
@@ -27,20 +27,17 @@ _log = logging.getLogger("morphoshell")
 #: Flags of every compilation (the optimisation level is chosen per library).
 CFLAGS = ("-O2", "-fPIC", "-shared")
 #: Points (or cells) per call of a compiled block (:func:`block_map`): CasADi's
-#: map calls a compiled function once per point, at about 230 ns a call
-#: (measured, 6398 points of the parameter data: 2.4 ms mapped point by point,
-#: 0.9 ms in compiled blocks of 64); a block loops in C.
+#: map calls a compiled function once per point, at a fixed cost per call; a block
+#: loops in C (tuned by scripts/bench_equilibrium.py: warm re-solves).
 BLOCK = 64
 #: Fewest points mapped in blocks: below, the map's calls cost less than padding
-#: and cutting the blocks adds to a build (measured: 3 ms of a 12 ms build at 35
-#: nodes when every map, the cell kernels' too, was blocked).  The point maps
-#: (parameter data, geometry, profiles) cost nothing measurable in builds from
-#: 128 points on, and save 0.17 ms of a 2.3 ms warm solve at 200 nodes (399 points).
+#: and cutting the blocks adds to a build; from here on the point maps (parameter
+#: data, geometry, profiles) cost builds nothing noticeable and save warm solves
+#: time (tuned by scripts/bench_equilibrium.py: builds and warm re-solves).
 BLOCKED_POINTS = 2 * BLOCK
 #: Optimisation for large kernels (tens of thousands of SX instructions), where
-#: gcc's -O2 takes minutes: the KKT fit's per-point misfit kernel (59 000
-#: instructions) took over 5 min at -O2 and 12 s at -O1, and then evaluated
-#: 5.4x faster than CasADi's virtual machine (measured).
+#: gcc's -O2 takes minutes and -O1 seconds, and the code is still several times
+#: faster than CasADi's virtual machine (the KKT fit's per-point misfit kernel).
 LARGE = "-O1"
 
 
@@ -57,7 +54,7 @@ def compiled_library(tag: str, functions: list[ca.Function], compiler: str,
                       optimisation: str = "-O2") -> Path:
     """The shared library of ``functions`` (C by CasADi), compiled once and cached.
 
-    Keyed on the serialised expressions (cheap; generating C takes ~40 ms),
+    Keyed on the serialised expressions (cheaper than generating the C code),
     the compiler, its flags (``optimisation`` replaces -O2), CasADi's version and the machine, in
     :func:`kernel_cache_dir`; written atomically, so that processes compiling
     at once never load a partial file.  Raises on any failure.
@@ -69,7 +66,7 @@ def compiled_library(tag: str, functions: list[ca.Function], compiler: str,
                                      ca.__version__, platform.machine()]).encode())
     path = kernel_cache_dir() / f"{tag}_{key.hexdigest()[:20]}.so"
     if not path.exists():
-        import subprocess   # here only: 10 ms of imports that a cached library does not need
+        import subprocess   # here only: imports that a cached library does not need
         import tempfile
 
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -93,15 +90,14 @@ def compiled_point_function(f: ca.Function, optimisation: str = "-O2",
 
     For numerical evaluation only (a compiled function has no derivatives):
     per-point functions that results and solves evaluate over every point,
-    the parameter data D (:attr:`morphoshell.numerics.discretisation.Discretisation.pre_numeric`),
-    the geometry and the profiles; D evaluated 3.9-4.2x faster than in
-    CasADi's virtual machine (measured, toy 3 at 200 and 3200 nodes).
+    the parameter data D (:attr:`morphoshell.numerics.parameter_data.ParameterData.numeric`),
+    the geometry and the profiles, several times faster than in CasADi's
+    virtual machine.
     ``f`` itself if ``MORPHOSHELL_COMPILE=0``, no compiler (``$CC`` or
     ``cc``) is found, or anything fails (logged at debug level).  Compiled
-    once per machine (about 0.3 s; :data:`LARGE` kernels at ``optimisation =
-    LARGE``, seconds), loaded once per process and expression.
-    ``serialised``: ``f.serialize()``, if the caller has it (0.3 ms for the
-    parameter data's function).
+    once per machine (:data:`LARGE` kernels at ``optimisation = LARGE``),
+    loaded once per process and expression.  ``serialised``: ``f.serialize()``,
+    if the caller has it (serialising is a noticeable part of a build).
     """
     if os.environ.get("MORPHOSHELL_COMPILE", "1") == "0":
         return f
@@ -113,8 +109,8 @@ def compiled_point_map(f: ca.Function, n: int, *args, optimisation: str = "-O2",
                        serialised: str | None = None):
     """``f.map(n)(*args)`` for an SX per-point function ``f``, evaluated in compiled blocks.
 
-    The same numbers as ``compiled_point_function(f).map(n)``, 2-3x faster
-    from :data:`BLOCKED_POINTS` points on (:data:`BLOCK`), and that below;
+    The same numbers as ``compiled_point_function(f).map(n)``, faster from
+    :data:`BLOCKED_POINTS` points on (:data:`BLOCK`), and that below;
     ``f.map(n)`` in CasADi's virtual machine where
     :func:`compiled_point_function` would keep it.  ``args`` as for a map:
     each either n times one point's columns, or one point's, shared by all;
@@ -154,15 +150,14 @@ class ChunkedMap:
     ``shared`` are given once for all columns.  Called once per chunk of
     columns, the last padded with its last column (the padding's values
     are dropped): one evaluator serves every number of columns, where a map
-    per size cost every new size its construction (a Function map costs 30-70 ns
-    an entry of its inputs and outputs to build: the results' fields, 0.4 ms
-    of a 25-node cold solve and 0.1 s at 12 800 nodes).
+    per size would cost every new size its construction (a Function map costs
+    its build time in proportion to the entries of its inputs and outputs).
     """
 
     def __init__(self, mapped: ca.Function, chunk: int, shared: tuple[int, ...] = ()):
         self.chunk, self._shared = chunk, shared
         # (inputs set in place, outputs read in place: copying each chunk through
-        # Buffered's call cost warm re-solves at 3200 nodes 2 %)
+        # Buffered's call would cost every warm re-solve)
         self._f = Buffered(mapped)
         self._args, self._res = self._f.args, self._f.res
         self._width = [a.size // (1 if i in shared else chunk) for i, a in enumerate(self._args)]
@@ -199,7 +194,7 @@ class ChunkedMap:
         for i in self._mapped:
             w, dst = self._width[i], self._args[i]
             dst[:k * w] = args[i][a * w:(a + k) * w]
-            if k < C:      # (broadcast: np.tile took 15 us a call)
+            if k < C:      # (broadcast: np.tile is slower)
                 dst[k * w:].reshape(C - k, w)[:] = args[i][(a + k - 1) * w:(a + k) * w]
 
 
@@ -208,11 +203,10 @@ class PointEvaluator:
 
     Input 0 of ``f`` is the point (a scalar); the others are given once for all
     points.  One compiled evaluator per function, whatever the sizes asked for
-    (:class:`ChunkedMap`): an evaluator per size cost every new mesh size 2-4 ms
-    to build (a fresh command-line solve built four), and a cache of them made a
-    session's second solve of a size cheaper than its first.  Warm re-solves at
-    3200 nodes (13 calls each for the geometry and the profiles) take
-    1.002-1.007 of the time of one call per size (measured, interleaved).
+    (:class:`ChunkedMap`): an evaluator per size would cost every new mesh size
+    its build, and a cache of them would make a session's second solve of a
+    size cheaper than its first; the calls in chunks cost warm re-solves next to
+    nothing.
     """
 
     def __init__(self, f: ca.Function):
@@ -261,7 +255,7 @@ def block_map(block: ca.Function | None, f: ca.Function, n: int, args):
         padded.append(a)
     out = block.map(blocks)(*padded)
     out = [out] if block.n_out() == 1 else out
-    if pad:   # (horzsplit: a tenth of the time of slicing, for thousands of points)
+    if pad:   # (horzsplit: far cheaper than slicing, for thousands of points)
         out = [ca.horzsplit(o, [0, f.size2_out(i) * n, o.size2()])[0] for i, o in enumerate(out)]
     return out[0] if len(out) == 1 else tuple(out)
 

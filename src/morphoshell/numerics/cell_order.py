@@ -4,9 +4,8 @@ The certified Newton system K (:meth:`morphoshell.numerics.discretisation.Discre
 is assembled from one dense block per cell.  In the NLP's order,
 x = [r_free, ψ_free, f_s] and then λ, a cell's unknowns lie in four separate
 stretches.  Every nonzero of K was then placed by an index list built in NumPy
-and handed to CasADi, at 40-80 ns an entry and 17 µs a list.  That cost a
-25-node cold solve 0.9 ms of its 8.5 ms (sparsity pattern and gathers), and
-12 800 nodes 0.45 s.  In cell order
+and handed to CasADi, whose cost per entry and per list made the sparsity
+pattern and the gathers a large part of a small mesh's cold solve.  In cell order
 
     u = [cell 0 | cell 1 | … | cell N−1 | r, ψ at the last node],
     cell c = [r, ψ at its first node, r at its S − 1 interior points, ψ there,
@@ -112,9 +111,9 @@ class CellOrder:
 
 #: Cells of the smallest assembly table (:func:`_table`); tables up to LARGEST_TABLE cells are
 #: kept, one per power of two; a larger mesh gets its indices made for it alone, not kept
-#: (as lists, about what the assembly cost before cell order).  A table costs 2-5 ms at
-#: 16-64 cells and 0.18 s (S = 2) to 0.31 s (S = 3) at 4096 cells, once per process, and
-#: holds about 25 bytes per nonzero of the system it serves: 10 to 20 MB at 4096 cells.
+#: (as lists, about what the assembly cost before cell order).  A table is made once per
+#: process, in time linear in its cells, and holds about 25 bytes per nonzero of the
+#: system it serves (tens of MB at LARGEST_TABLE cells), which bounds the size kept.
 SMALLEST_TABLE = 16
 LARGEST_TABLE = 4096
 
@@ -150,9 +149,8 @@ def assembly(order: CellOrder) -> Assembly:
     cells' of a longer mesh's (its pairs those of its inner nodes), and the
     poles' fixed entries are u's first or last two.  So a build cuts them from one
     table per power of two of cells (:func:`_table`) by a few slices in
-    CasADi, instead of handing it lists of every nonzero (the pattern and
-    index lists of a 25-node cold solve, 0.9 ms, cost more than the rest of
-    the system's build).  Above :data:`LARGEST_TABLE` cells the indices are
+    CasADi, instead of handing it lists of every nonzero (on small meshes the
+    pattern and index lists cost more than the rest of the system's build).  Above :data:`LARGEST_TABLE` cells the indices are
     made for the mesh alone, as such lists.
     """
     S, cells = order.stages, order.cells
@@ -203,9 +201,8 @@ def _indices(S: int, M: int, lo: int = 0, hi: int | None = None) -> dict[str, np
     (at most two) values of each entry, the earlier cell's first, and the
     entries of two values give the pairs to sum.  ``key``: K's nonzeros
     as col (hi − lo) + row, sorted (compressed columns).  Linear in M (the
-    same indices from Kronecker and sparse products in CasADi took 0.17 s at
-    4096 cells, 5.4 s at 65 536); handing them to CasADi as lists, 0.1 us
-    an entry, is most of a table's cost.
+    same indices from Kronecker and sparse products in CasADi grew faster);
+    handing them to CasADi as lists is most of a table's cost.
     """
     b, L = 4 * S, 4 * S + 2
     n_tri = L * (L + 1) // 2

@@ -1,30 +1,22 @@
 """Discretisation of the shell energy as a parametric NLP (Gauss collocation).
 
-Scheme
-------
-The mesh nodes s_0 < … < s_N split the shell into cells.  In each cell r and ψ
-are polynomials of degree S (``stages``) through S + 1 equally spaced points
-(the two nodes and S − 1 interior points), and the meridional stretch f_s is
-known at the S Gauss–Legendre points s_ck of the cell.  The energy is the
-Gauss rule
+:class:`Discretisation` is the transcription's one entry point: for a problem
+structure, a mesh and a number of stages S it gives the NLP (objective,
+constraints and their exact derivatives, for Ipopt), the certified Newton system
+(for :mod:`morphoshell.numerics.newton`), the fields of a solution, and the shape
+and KKT derivatives as CasADi expressions (for observables, parametric derivatives
+and fits).  The pieces live in modules of one job each:
 
-    𝓔 ≈ Σ_c Δs_c Σ_k w_k L(s_ck, r, ψ, f_s,ck, ψ')|_{s_ck},   L = 2π ρ e,
-
-and the compatibility r' = f_s cos ψ is collocated at the same points
-
-    r'(s_ck) − f_s,ck cos ψ(s_ck) = 0.
-
-This is S-stage Gauss collocation of the optimal-control form of the energy:
-order 2S on smooth solutions.  ``stages=1`` is the staggered scheme (r, ψ on
-nodes, f_s at cell centres, midpoint rule): second order.  ``stages=2``
-(default) is fourth order at twice the unknowns per cell, so a given accuracy
-needs far fewer cells.  Nothing is evaluated on the axis (Gauss points are
-interior), and there are only equality constraints, so derivatives of the
-solution with respect to the parameters (implicit function theorem on the KKT
-system) are exact.
-
-Poles are imposed by constants (r = 0, ψ = 0 at the start, ψ = π at the end);
-free edges need nothing: the no-force, no-torque conditions are natural.
+* :mod:`.scheme`: S-stage Gauss collocation (order 2S), the layout of the
+  unknowns x = [r_free, ψ_free, f_s], the points of a mesh, integration to them;
+* :mod:`.cell_kernels`: one cell's energy, constraints, derivatives and Newton
+  block as SX kernels, compiled to C once per machine;
+* :mod:`.parameter_data`: the NLP's parameter vector D, the parameter-only data
+  at every Gauss point, and its derivatives in the physical parameters;
+* :mod:`.gathers`: the sparse assembly of per-cell values by index gathers;
+* :mod:`.newton_assembly` (with :mod:`.cell_order`): the Newton system in cell order;
+* :mod:`.kkt_derivatives`: the KKT residual's curvature and θ-derivatives;
+* :mod:`.shape`: the discrete shape as expressions of (x, p).
 
 Parametric mesh
 ---------------
@@ -32,371 +24,52 @@ The nodes are material points s_i = Σ + (L − P − Σ) t_i of a fixed graded 
 t_i (:mod:`morphoshell.numerics.mesh`), so Σ and P are NLP parameters like h and the
 profile parameters.
 
+Assembly
+--------
+Each cell's energy terms and constraints depend on its 3S + 2 local unknowns and
+on its data; the cell kernels are mapped over the cells and their values gathered
+into the global gradient, Jacobian and Hessian by constant index patterns computed
+numerically, so no symbolic work grows with the mesh (the build still grows about
+linearly with N, in CasADi's constructions of patterns, maps and index lists).
+What depends on the layout and the kernels alone (the symbols x and D, the NLP,
+its patterns, the Newton system) is shared by every live discretisation of that
+layout (:class:`_Shared`): a second mesh of the same size builds only its
+parameter data.
+
 Symbolic fields
 ---------------
 Besides the NLP, a :class:`Discretisation` gives the shape as CasADi
 expressions of the unknowns x and the physical parameters p: r and ψ at the
 points, z and the deformed arclength by exact integration of z' = f_s sin ψ
-and S' = f_s, and (r, z, ψ) anywhere inside a cell by its polynomials.  The
-observables of :mod:`morphoshell.solvers.observables` are built from these, so that
-forward evaluation, parametric derivatives and fits share one definition.
+and S' = f_s, and (r, z, ψ) anywhere inside a cell by its polynomials
+(:class:`~morphoshell.numerics.shape.SymbolicShape`).  The observables of
+:mod:`morphoshell.solvers.observables` are built from these, so that forward
+evaluation, parametric derivatives and fits share one definition.
 """
 from __future__ import annotations
 
-import logging
-import os
-import platform
-import shutil
-import sys
 import weakref
-from dataclasses import dataclass
-from functools import cached_property, lru_cache
-from hashlib import blake2b
-from pathlib import Path
-from typing import NamedTuple
+from functools import cached_property
 
 import casadi as ca
 import numpy as np
 
-from .._runtime import IMPORTED_NS
-from .._runtime.buffered import Buffered
-from .._runtime.compiled import (CFLAGS, LARGE, compiled_library, renamed, block_function,
-                                 ChunkedMap, block_map, compiled_point_function, compiled_point_map,
-                                 kernel_cache_dir)
-from ..model.energy import CACHE_SIZE, LOCAL_OUTPUTS, intrinsic_function, pointwise
-from ..model.layouts import CELL_DATA, INTRINSIC
+from .._runtime.compiled import ChunkedMap
+from ..model.energy import LOCAL_OUTPUTS
+from ..model.layouts import CELL_DATA
 from ..model.problem import Structure
+from .cell_kernels import cell_functions, compiled_cell_functions
 from .cell_order import Assembly, CellOrder, assembly
-from .mesh import Knot, check_monotone, knot_shapes, mapped_points, shell_points
+from .gathers import assembled, gather, scatter, triu
+from .kkt_derivatives import KKTDerivatives
+from .mesh import Knot, check_monotone
+from .newton_assembly import newton_rhs, newton_system
+from .parameter_data import ParameterData
+from .scheme import (POLE_VALUES, Layout, PointData, collocation, integrate_numeric,
+                     integrate_symbolic, integration_operators, mesh_point_data)
+from .shape import SymbolicShape, cell_state
 
-__all__ = ["Discretisation", "Layout", "SymbolicShape", "collocation", "within_cells", "PointData",
-           "compiled_cell_functions", "kernel_cache_dir", "arclength_point", "increments"]
-
-_log = logging.getLogger("morphoshell")
-
-#: Cell kernels that are compiled to C (the evaluations of Ipopt's callbacks
-#: and of results); the rest of :func:`_cell_functions` stays in CasADi (the
-#: total energy of results comes from the fields).
-COMPILED_KERNELS = ("f", "g", "grad", "jac", "hess", "fields", "newton", "newton_rhs",
-                    "kkt_data")
-
-#: Compiled kernels also compiled in blocks of cells, as ``<name>_block``
-#: (:func:`morphoshell._runtime.compiled.block_map`), for meshes of at least
-#: :data:`~morphoshell._runtime.compiled.BLOCKED_POINTS` cells: the chord step's
-#: right-hand side, 1.5 -> 1.15 ms at 3199 cells (measured).  The others stay cell
-#: by cell: their own work dominates (the Newton system: 5.9 ms either way), and
-#: padding their inputs would add to every build.
-BLOCKED_KERNELS = ("newton_rhs",)
-
-#: r, ψ at a start pole and ψ at an end pole: the constants that :meth:`Discretisation._cell_indices`
-#: places after the unknowns (indices n, n + 1, n + 2).
-POLE_VALUES = (0.0, 0.0, np.pi)
-
-#: Relative size ε of the (λ, λ) block −ε W⁻¹ of the Newton system (:meth:`Discretisation.newton_system`).
-NEWTON_EPSILON = 1e-8
-
-
-@lru_cache(maxsize=8)
-def compiled_cell_functions(stages: int) -> dict[str, ca.Function] | None:
-    """The cell kernels of ``stages`` as compiled C (``casadi.external``), or None.
-
-    The kernels depend on the number of stages alone, so each is compiled
-    once per machine (C code generated by CasADi, compiled by ``$CC`` or
-    ``cc``, about 1–3 s) and cached in :func:`kernel_cache_dir` under a hash
-    of the serialised expressions, the compiler and CasADi's version; later
-    processes load it in milliseconds, finding it by a hash of the package's
-    source (:func:`_kernel_index`) without building the expressions.  They evaluate 3–4× faster than CasADi's SX virtual
-    machine.  None, and the pure-CasADi kernels are used, if
-    ``MORPHOSHELL_COMPILE=0``, no compiler is found, or anything fails
-    (logged at debug level): nothing depends on a compiler.
-    """
-    if os.environ.get("MORPHOSHELL_COMPILE", "1") == "0":
-        return None
-    compiler = shutil.which(os.environ.get("CC", "cc"))
-    if compiler is None:
-        return None
-    names = {k: f"morphoshell_cell{stages}_{k}" for k in COMPILED_KERNELS}
-    names.update({f"{k}_block": f"morphoshell_cell{stages}_{k}_block" for k in BLOCKED_KERNELS})
-    # Fast path: the library recorded for this exact source, without building
-    # the expressions (30-40 ms of a fresh process's first solve).
-    index = _kernel_index(stages, compiler)
-    try:
-        if index is not None and index.exists():
-            library = index.parent / index.read_text().strip()
-            if library.name.startswith(f"cells{stages}_") and library.exists():
-                return {k: ca.external(name, str(library)) for k, name in names.items()}
-    except Exception as exc:     # unreadable index or library: the full path below decides
-        _log.debug("kernel index %s not used (%s: %s)", index, type(exc).__name__, exc)
-    try:
-        cell = _cell_functions(stages)
-        # Symbols named per scheme, so that libraries of different stages never clash.
-        named = {k: renamed(cell[k], names[k]) for k in COMPILED_KERNELS}
-        named.update({f"{k}_block": block_function(named[k], names[f"{k}_block"])
-                      for k in BLOCKED_KERNELS})
-        # nlpsol builds the reverse derivative of f and g (unused with the
-        # exact derivatives supplied, but it must exist): CasADi finds it in
-        # the library as adj1_<name>.
-        adjoints = [renamed(named[k].reverse(1), f"adj1_{named[k].name()}") for k in ("f", "g")]
-        functions = [*named.values(), *adjoints]
-        path = compiled_library(f"cells{stages}", functions, compiler)
-        kernels = {k: ca.external(f.name(), str(path)) for k, f in named.items()}
-        if index is not None:
-            try:    # atomic, as the library; a read-only cache only loses the fast path
-                part = index.with_suffix(f".{os.getpid()}.part")
-                part.write_text(path.name)
-                os.replace(part, index)
-            except OSError as exc:
-                _log.debug("kernel index %s not written (%s)", index, exc)
-        return kernels
-    except Exception as exc:     # no working compiler, read-only cache, ...: stay in CasADi
-        _log.debug("cell kernels not compiled (%s: %s); using CasADi's virtual machine",
-                   type(exc).__name__, exc)
-        return None
-
-
-def _kernel_index(stages: int, compiler: str) -> Path | None:
-    """The file naming the compiled kernels of ``stages`` for this exact source, or None.
-
-    Its name hashes every module of the package (the kernels are built from
-    them), the versions of CasADi, NumPy and Python, the machine, the
-    compiler and its flags: with any of them changed the expressions are
-    built and hashed again (:func:`compiled_cell_functions`), and the index
-    rewritten.  None when the package's source cannot be read or changed
-    since the package was imported.
-    """
-    try:
-        package = Path(__file__).resolve().parents[1]
-        sources = sorted(package.rglob("*.py"))
-        # A module edited after this process imported the package may differ
-        # from the code in memory, which built (or would be given) the kernels;
-        # 1 s of margin for coarse file times.
-        if not sources or any(f.stat().st_mtime_ns > IMPORTED_NS - 10**9 for f in sources):
-            return None
-        # (BLAKE2: the package's 0.6 MB in 1 ms, half of SHA-256's time)
-        key = blake2b("\0".join([str(stages), compiler, *CFLAGS, ca.__version__,
-                                           np.__version__, sys.version, platform.machine()])
-                              .encode(), digest_size=10)
-        for source in sources:
-            key.update(b"\0" + source.relative_to(package).as_posix().encode() + b"\0"
-                       + source.read_bytes())
-        return kernel_cache_dir() / f"cells{stages}_{key.hexdigest()}.source"
-    except OSError:
-        return None
-
-
-@dataclass(frozen=True)
-class Layout:
-    """Where the unknowns sit in the NLP vector x = [r_free, ψ_free, f_s].
-
-    Points are the nodes and the S − 1 interior interpolation points of each
-    cell, in increasing s: point j = c S + l (l = 0 … S) of cell c.
-    """
-
-    cells: int
-    stages: int
-    start_pole: bool
-    end_pole: bool
-
-    @property
-    def points(self) -> int:
-        """Number of points: the nodes and the interior interpolation points of every cell."""
-        return self.cells * self.stages + 1
-
-    @property
-    def free_points(self) -> int:
-        """Points whose r and ψ are unknowns (all but the poles, where they are fixed)."""
-        return self.points - self.start_pole - self.end_pole
-
-    @property
-    def size(self) -> int:
-        """Number of unknowns: r and ψ at the free points, f_s at the Gauss points."""
-        return 2 * self.free_points + self.cells * self.stages
-
-    def split(self, x: np.ndarray, derivative: bool = False):
-        """Full r, ψ at the points and f_s at the Gauss points, from x.
-
-        With ``derivative``, x is a derivative of the unknowns and the fixed
-        pole values contribute zeros.
-        """
-        n = self.free_points
-        return (self._pad(x[:n], 0.0), self._pad(x[n:2 * n], 0.0 if derivative else np.pi),
-                x[2 * n:])
-
-    def _pad(self, v, end_value):
-        parts = ([np.zeros(1)] if self.start_pole else []) + [v] + \
-                ([np.array([end_value])] if self.end_pole else [])
-        return np.concatenate(parts)
-
-    def pack(self, r, psi, f) -> np.ndarray:
-        """The unknown vector x from r, ψ at every point (units of R, rad) and f_s at the Gauss points."""
-        sl = slice(1 if self.start_pole else 0, -1 if self.end_pole else None)
-        return np.concatenate([np.asarray(r)[sl], np.asarray(psi)[sl], np.asarray(f)])
-
-
-@lru_cache(maxsize=8)
-def collocation(stages: int):
-    """Lagrange bases of one cell for ``stages`` S (cached per S).
-
-    Returns (tau, w, values, derivatives, integrals, antiderivatives):
-
-    * tau, w: the S Gauss–Legendre points and weights on [0, 1];
-    * values[k, l] = ℓ_l(τ_k), derivatives[k, l] = ℓ_l'(τ_k) for the Lagrange
-      basis ℓ_l on τ = 0, 1/S, …, 1 (the cell's interpolation points);
-    * integrals[l, k] = ∫₀^{l/S} λ_k(τ) dτ for the Lagrange basis λ_k on the
-      Gauss points (to integrate z' = f_s sin ψ to the interpolation points);
-    * antiderivatives[k]: coefficients (lowest first) of ∫₀^τ λ_k.
-    """
-    xg, wg = np.polynomial.legendre.leggauss(stages)
-    tau, w = (xg + 1) / 2, wg / 2
-    nodes = np.linspace(0.0, 1.0, stages + 1)
-    values = np.zeros((stages, stages + 1))
-    derivs = np.zeros((stages, stages + 1))
-    for l in range(stages + 1):
-        basis = _lagrange(nodes, l)
-        values[:, l], derivs[:, l] = basis(tau), basis.deriv()(tau)
-    integrals = np.zeros((stages + 1, stages))
-    anti = []
-    for k in range(stages):
-        antideriv = _lagrange(tau, k).integ()
-        integrals[:, k] = antideriv(nodes)
-        anti.append(antideriv.coef)
-    return tau, w, values, derivs, integrals, anti
-
-
-class PointData(NamedTuple):
-    """The points of a mesh and what depends on them alone (:meth:`Discretisation.point_data`).
-
-    Attributes
-    ----------
-    s : ndarray (n,)
-        The nodes and the S − 1 interior points of each cell, at fractions l/S.
-    rho, z0, psi0 : ndarray (n,)
-        The undeformed shell there; ρ is exactly 0 at a pole.
-    off : ndarray of bool (n,)
-        The points off the axis (ρ > 0).
-    below, weight : ndarray (n,)
-        Linear interpolation from the Gauss points s_g (cell by cell): the value at s[j]
-        is v[below[j] − 1] + weight[j] (v[below[j]] − v[below[j] − 1]), extrapolated beyond
-        the first and last Gauss points.
-    """
-
-    s: np.ndarray
-    rho: np.ndarray
-    z0: np.ndarray
-    psi0: np.ndarray
-    off: np.ndarray
-    below: np.ndarray
-    weight: np.ndarray
-
-
-def _point_data(nodes: np.ndarray, tau: np.ndarray, geometry, layout) -> PointData:
-    """:class:`PointData` of the mesh ``nodes`` with Gauss fractions ``tau``."""
-    S = len(tau)
-    s = within_cells(nodes, np.arange(S) / S)
-    rho, z0, psi0 = geometry.numeric(s)
-    # a pole is on the axis exactly, whatever sin(pi) rounds to
-    rho[[0, -1]] = np.where([layout.start_pole, layout.end_pole], 0.0, rho[[0, -1]])
-    s_g = within_cells(nodes, tau, last=False)
-    below = np.minimum(np.maximum(np.searchsorted(s_g, s), 1), len(s_g) - 1)  # (np.clip: 4x slower)
-    weight = (s - s_g[below - 1]) / (s_g[below] - s_g[below - 1])
-    out = PointData(s, rho, z0, psi0, rho > 0, below, weight)
-    for a in out:
-        a.flags.writeable = False
-    return out
-
-
-def within_cells(nodes, fractions, last: bool = True):
-    """Points at ``fractions`` of every cell (cell by cell), and the last node if ``last``.
-
-    ``nodes`` is a NumPy array or a CasADi column of the N + 1 node positions.
-    """
-    fractions = np.asarray(fractions, dtype=float)
-    if isinstance(nodes, (ca.SX, ca.MX)):
-        # cell by cell in few CasADi operations (each costs 20-100 µs to build, whatever
-        # its size): the nodes and widths repeated per fraction
-        n = nodes.shape[0]
-        cell = np.repeat(np.arange(n - 1), len(fractions)).tolist()
-        inner = _between(nodes[cell], nodes[1:][cell], ca.DM(np.tile(fractions, n - 1)))
-        return ca.vertcat(inner, nodes[n - 1]) if last else inner
-    inner = _between(nodes[:-1, None], nodes[1:, None], fractions[None, :]).ravel()
-    return np.append(inner, nodes[-1]) if last else inner
-
-
-def _between(s0, s1, fraction):
-    """The point at ``fraction`` of the cell from ``s0`` to ``s1`` (numbers or CasADi)."""
-    return s0 + (s1 - s0) * fraction
-
-
-def _objective_scale(cells, h, cut, end):
-    """The factor on the energy in the objective handed to the solvers: cells/(2π h³ (L − P − Σ)).
-
-    Energies range over decades with h (bending ~ h³): dividing by h³ and by
-    the mean cell size keeps Ipopt's gradients O(1).
-    """
-    return cells / (2 * ca.pi * h ** 3 * (end - cut))
-
-
-def _lagrange(points: np.ndarray, l: int) -> np.polynomial.Polynomial:
-    """The l-th Lagrange basis polynomial on ``points``."""
-    others = np.delete(points, l)
-    if not len(others):
-        return np.polynomial.Polynomial([1.0])
-    return np.polynomial.Polynomial.fromroots(others) / np.prod(points[l] - others)
-
-
-@lru_cache(maxsize=None)
-def _triu(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """``np.triu_indices(n)``, kept per n (it costs 50-100 µs of every build)."""
-    ku, lu = np.triu_indices(n)
-    ku.flags.writeable = lu.flags.writeable = False
-    return ku, lu
-
-
-def _compressed(n_rows: int, n_cols: int, cols: np.ndarray, rows: np.ndarray) -> ca.Sparsity:
-    """The sparsity of entries (rows, cols), given sorted by (col, row) and distinct.
-
-    CasADi's compressed-column storage directly: Sparsity.triplet would sort
-    them again (5 ms at 20 000 entries).
-    """
-    colind = np.concatenate([[0], np.cumsum(np.bincount(cols, minlength=n_cols))])
-    # (Sparsity.compressed of one list: half the constructor's time, which tries
-    # its overloads on both lists)
-    return ca.Sparsity.compressed([n_rows, n_cols, *colind.tolist(), *rows.tolist()])
-
-
-def _positions(shape, rows, cols, src) -> tuple:
-    """(sparsity, pos, src): the pattern of the entries (rows, cols) and each entry's nonzero."""
-    n_rows, n_cols = shape
-    rows, cols, src = (np.asarray(v, dtype=np.int64).ravel() for v in (rows, cols, src))
-    # Sorting by (col, row) is CasADi's compressed-column order of nonzeros
-    # (np.unique's steps without its overhead: 150 against 60 µs at 4 600 entries)
-    key = cols * n_rows + rows
-    order = np.argsort(key, kind="stable")
-    ordered = key[order]
-    new = np.empty(len(key), dtype=bool)
-    new[:1] = True
-    np.not_equal(ordered[1:], ordered[:-1], out=new[1:])
-    pos = np.empty(len(key), dtype=np.int64)
-    pos[order] = np.cumsum(new) - 1
-    uniq = ordered[new]
-    return _compressed(n_rows, n_cols, uniq // n_rows, uniq % n_rows), pos, src
-
-
-def _distinct(key: np.ndarray) -> np.ndarray:
-    """The distinct values of ``key``, sorted (np.unique without index outputs imports numpy.ma)."""
-    key = np.sort(key)
-    return key[np.append(True, key[1:] != key[:-1])[:len(key)]]
-
-
-def _assembled(sp: ca.Sparsity, first: list, extras: list, values) -> ca.MX:
-    """The matrix of pattern ``sp`` assembled from ``values`` (:meth:`Discretisation._gather`)."""
-    v = ca.vec(values)
-    nz = _take(v, first)
-    for pos, more in extras:
-        # (MX.binary: `+` tries CasADi's DM and SX overloads first, 60 µs of a build)
-        nz[pos] = ca.MX.binary(ca.OP_ADD, _take(nz, pos), _take(v, more))
-    return ca.MX(sp, nz)
-
+__all__ = ["Discretisation"]
 
 #: Cells per call of the results' fields (:func:`_fields_map`).
 FIELDS_CHUNK = 64
@@ -407,38 +80,12 @@ def _fields_map(kernel: ca.Function) -> ChunkedMap:
     """``(cells, Z, D_c) -> [fields]``: the cell kernel ``kernel`` ("fields": pointwise fields
     at the Gauss points from a cell's unknowns and data, one stacked output so that a solve
     copies to NumPy once) over any number of cells, one evaluator per kernel and process
-    (:class:`~morphoshell._runtime.compiled.ChunkedMap`; a map per mesh cost each build 0.4 ms at 25
-    cells and 0.1 s at 12 800)."""
+    (:class:`~morphoshell._runtime.compiled.ChunkedMap`), where a map per mesh would cost
+    every build its construction."""
     key = id(kernel)
     if key not in _FIELDS_MAPS:        # (the kernel is held: its id is not reused)
         _FIELDS_MAPS[key] = kernel, ChunkedMap(kernel.map(FIELDS_CHUNK), FIELDS_CHUNK)
     return _FIELDS_MAPS[key][1]
-
-
-def _summed(values: ca.MX, first: ca.DM, pairs: tuple[ca.DM, ca.DM]) -> ca.MX:
-    """``values``' nonzeros ``first`` after adding, for ``pairs`` = (a, b), nonzero b to
-    nonzero a (index columns, as DM; :class:`morphoshell.numerics.cell_order.Assembly`).
-
-    ``values`` is consumed: its handle is rebound to the sums (a copy of the handle
-    cost a cold build 16 us a call).
-    """
-    # Summing only the entries two cells share, in place, and gathering once: two
-    # gathers of every entry and their sum took 1.8 times as long (measured: 1.66 ->
-    # 0.92 ms for K at 3200 nodes, what one gather alone costs).  (MX.binary: `+` tries CasADi's DM and SX overloads
-    # first, 40 µs of a build.)
-    a, b = pairs
-    if a.numel():
-        values.set_nz(ca.MX.binary(ca.OP_ADD, values.get_nz(False, a), values.get_nz(False, b)),
-                      False, a)
-    return values.get_nz(False, first)
-
-
-def _take(v: ca.MX, idx: list) -> ca.MX:
-    """The entries ``idx`` of the column ``v``, as a column."""
-    if not idx:
-        return ca.MX(0, 1)
-    out = v[idx]
-    return out.T if out.size2() > 1 else out   # (a 1x1 value indexed by a list gives a row)
 
 
 class _Shared:
@@ -455,7 +102,7 @@ class _Shared:
     that no live solver has is a full build.
     """
 
-    def __init__(self, layout: "Layout", cell: dict):
+    def __init__(self, layout: Layout, cell: dict):
         self.cell = cell      # (held: the key's id(cell) cannot be reused while this lives)
         self.x = ca.MX.sym("x", layout.size)
         self.D = ca.MX.sym("D", len(CELL_DATA) * layout.cells * layout.stages)
@@ -466,148 +113,13 @@ class _Shared:
 _SHARED: "weakref.WeakValueDictionary" = weakref.WeakValueDictionary()
 
 
-def _shared(layout: "Layout", cell: dict) -> _Shared:
+def _shared(layout: Layout, cell: dict) -> _Shared:
     """The :class:`_Shared` objects of ``layout`` with the cell kernels ``cell``."""
     key = (layout, id(cell))
     found = _SHARED.get(key)
     if found is None or found.cell is not cell:
         found = _SHARED[key] = _Shared(layout, cell)
     return found
-
-
-@lru_cache(maxsize=CACHE_SIZE)
-def _pre_function(structure: Structure) -> tuple[ca.Function, str]:
-    """``(s_k, Δs_c, w_k, scale, p) -> D_k``: parameter-only data at one Gauss point, and its
-    serialisation (the key of its compiled code and derivative kernels).
-
-    Cached per structure, as :func:`~morphoshell.model.energy.intrinsic_function`:
-    building and serialising it were 0.6 ms of every build (measured at 42
-    nodes, where a cold solve is 13-16 ms).
-    """
-    n_p = len(structure.parameters)
-    s_k, ds, wk, scale, p = (ca.SX.sym("s"), ca.SX.sym("ds"), ca.SX.sym("wk"),
-                             ca.SX.sym("scale"), ca.SX.sym("p", n_p))
-    I = intrinsic_function(structure)(s_k, p)
-    data = {"s": s_k, "ds": ds, "weight": wk, "scale": scale,
-            "h": structure.parameters.unpack(p)["h"]}
-    off = CELL_DATA.after(INTRINSIC)
-    pre = ca.Function("pre", [s_k, ds, wk, scale, p],
-                      [ca.vertcat(*[data[n] for n in CELL_DATA.names[:off]], I)])
-    return pre, pre.serialize()
-
-
-@lru_cache(maxsize=CACHE_SIZE)
-def _data_cell(structure: Structure, knots: tuple[tuple[str, int], ...],
-               stages: int) -> tuple[ca.Function, str]:
-    """``(c, (t_knots, cells, p, q)) -> D_c``: the parameter data at one cell's S Gauss points
-    (point after point) from the mesh's numbers at its two nodes, and its serialisation.
-
-    c = (t_c and the knots' shapes there, then the same at t_c+1) (:func:`knot_shapes`),
-    t_knots the knots' places in t and ``knots`` their (source, index); the
-    inputs shared by all cells are one vector (a map with several, some of them
-    empty, cost 21 instead of 2 ms to build at 12 800 nodes, measured).  The
-    parametric map (:func:`~morphoshell.numerics.mesh.mapped_points`) at the cell's nodes, the points
-    between them (:func:`within_cells`), the cell's width and the objective's scale, then
-    :func:`_pre_function`'s data, in the same operations as the expressions of
-    :meth:`Discretisation._pre_parts`.  One kernel per structure, kind of knots and
-    number of stages, mapped over the cells: a build makes a handful of CasADi
-    operations for D where the mesh's expressions took some twenty (1.6 ms at 25
-    nodes, measured), and hands it two numbers a cell (with no knots) where a
-    kernel per point took 4S.  The kernel is compiled.
-    """
-    pre, _ = _pre_function(structure)
-    tau, w = collocation(stages)[:2]
-    n_k, n_p = len(knots), len(structure.parameters)
-    c = ca.SX.sym("c", 2 + 2 * n_k)
-    shared = ca.SX.sym("shared", n_k + 1 + n_p + sum(source == "anchor" for source, _ in knots))
-    t_k, cells, p, q = (shared[:n_k], shared[n_k], shared[n_k + 1:n_k + 1 + n_p],
-                        shared[n_k + 1 + n_p:])
-    a, b = _shell_ends(structure, p)
-    where = _knot_positions(structure, knots, p, q)
-    t_knots = [t_k[j] for j in range(n_k)]
-    s0, s1 = (mapped_points(c[i * (1 + n_k)], [c[i * (1 + n_k) + 1 + j] for j in range(n_k)],
-                            a, b, t_knots, where) for i in (0, 1))
-    h = structure.parameters.unpack(p)["h"]
-    scale = _objective_scale(cells, h, a, b)
-    D = ca.vertcat(*[pre(_between(s0, s1, tau[k]), s1 - s0, w[k], scale, p)
-                     for k in range(stages)])
-    f = ca.Function("cell_data_cell", [c, shared], [D])
-    return f, f.serialize()
-
-
-def _shell_ends(structure: Structure, p):
-    """(Σ, L − P) from the parameter vector (CasADi or NumPy)."""
-    index = structure.parameters.index
-    return p[index("cut")], structure.geometry.length - p[index("opening")]
-
-
-def _knot_positions(structure: Structure, knots: tuple[tuple[str, int], ...], p, q) -> list:
-    """Material points of the knots, given as (source, index) of :class:`Knot`: anchors from
-    q, the family's breakpoints from the parameters."""
-    if not knots:
-        return []
-    fam = structure.family
-    named = structure.parameters.unpack(p)
-    a, b = _shell_ends(structure, p)
-    bps = fam.breakpoints({n: named[n] for n in fam.parameters}, a, b) \
-        if any(source == "breakpoint" for source, _ in knots) else []
-    return [q[i] if source == "anchor" else bps[i][0] for source, i in knots]
-
-
-@lru_cache(maxsize=16)
-def _pre_chain(pre_serialised: str) -> ca.Function:
-    """The per-point kernel of :meth:`Discretisation._chain_pre` for the data function ``pre``.
-
-    ``(s_k, Δs_k, w_k, scale, p, ∂s_k/∂p, ∂Δs_k/∂p, ∂scale/∂p) -> (dD_k/dp)ᵀ``,
-    compiled where possible.  Cached on ``pre`` (serialised: 0.5 ms), so that
-    the meshes of one problem structure (a fit's coarse and fine meshes, every
-    fit of a campaign) build and serialise it once (measured: 6 ms each).
-    """
-    pre = ca.Function.deserialize(pre_serialised)
-    args = [pre.sx_in(i) for i in range(pre.n_in())]
-    s, dsk, _, sc, p = args
-    n_p = p.shape[0]
-    mesh = [ca.SX.sym(name, n_p) for name in ("ds_dp", "dDs_dp", "dscale_dp")]
-    D = pre(*args)
-    block = (ca.jacobian(D, p)
-             + ca.mtimes(ca.jacobian(D, ca.vertcat(s, dsk, sc)), ca.horzcat(*mesh).T))
-    # transposed: the map puts the points' blocks side by side, dD/dp stacks them
-    return compiled_point_function(ca.Function("pre_chain", [*args, *mesh],
-                                               [ca.densify(block.T)]))
-
-
-@lru_cache(maxsize=16)
-def _pre_curvature(pre_serialised: str, cols: tuple[int, ...]) -> ca.Function:
-    """The per-point kernel of :attr:`Discretisation.pre_hessian` (the mesh moving in ``cols``).
-
-    ``(s_k, Δs_k, w_k, scale, p, mesh derivatives in cols, c_k) -> (vec M_kᵀ ∇²φ M_k,
-    ∂φ/∂(s_k, Δs_k, scale))`` with φ = c_k·pre, M_kᵀ ∇²φ M_k as the Hessian
-    of φ along y_k + M_k δ; compiled where possible, cached as
-    :func:`_pre_chain` (measured: 60-75 ms a mesh to build, 17 ms of it
-    serialising for the compiled library's key).
-    """
-    pre = ca.Function.deserialize(pre_serialised)
-    args = [pre.sx_in(i) for i in range(pre.n_in())]
-    s, dsk, _, sc, p = args
-    n_p = p.shape[0]
-    c = ca.SX.sym("c", pre.size1_out(0))
-    phi = ca.dot(c, pre(*args))
-    mesh = [ca.SX.sym(name, len(cols)) for name in ("ds_dp", "dDs_dp", "dscale_dp")]
-    delta = ca.SX.sym("delta", n_p)
-    moved = [v + ca.dot(dv, delta[list(cols)]) for v, dv in zip((s, dsk, sc), mesh)]
-    phi_d = ca.substitute(phi, ca.vertcat(s, dsk, sc, p), ca.vertcat(*moved, p + delta))
-    H = ca.substitute(ca.hessian(phi_d, delta)[0], delta, ca.SX.zeros(n_p))
-    return compiled_point_function(ca.Function(
-        "pre_curvature", [*args, *mesh, c],
-        [ca.densify(ca.vec(H)), ca.densify(ca.gradient(phi, ca.vertcat(s, dsk, sc)))]))
-
-
-def _poly(coefficients, x):
-    """Horner evaluation (works on CasADi expressions)."""
-    out = 0 * x + coefficients[-1]
-    for c in coefficients[-2::-1]:
-        out = out * x + c
-    return out
 
 
 class Discretisation:
@@ -617,23 +129,19 @@ class Discretisation:
     unknowns z_c = (r at its S + 1 points, ψ at them, f_s at its S Gauss
     points) and on parameter-only *data* at its Gauss points, laid out as
     :data:`~morphoshell.model.layouts.CELL_DATA`.  Small SX functions give a cell's
-    values, gradients and Hessian; they are mapped over the cells and
-    assembled into the global gradient, Jacobian and Hessian by constant
-    index gathers computed numerically (:meth:`_gather`), so no symbolic work
-    grows with the mesh (the build still grows about linearly with N, in
-    CasADi's constructions: any pattern of n entries costs it some 20 ns an
-    entry, a map 30-70 ns an entry of its inputs and outputs, a list handed
-    to it 40-100 ns an entry; the constructor 3-5 ms at 200 nodes and 70-90 ms
-    at 12 800, a third of that the mesh).  The Newton system is assembled in cell
-    order (:mod:`morphoshell.numerics.cell_order`), its indices cut from a table kept
-    per process.  The parameter data D are
-    evaluated by one compiled kernel per cell fed the mesh's numbers at its
-    nodes (:func:`_data_cell`).
-    Ipopt's callbacks run the kernels compiled to C when a compiler is
-    available (:func:`compiled_cell_functions`, ``numeric``).
-    The data are computed once per solve (:meth:`cell_data`) and are the
-    NLP's parameter vector, so Ipopt's callbacks never re-evaluate profiles
-    or coefficients.
+    values, gradients and Hessian (:mod:`morphoshell.numerics.cell_kernels`); they
+    are mapped over the cells and assembled into the global gradient, Jacobian and
+    Hessian by constant index gathers computed numerically
+    (:mod:`morphoshell.numerics.gathers`).  The Newton system is assembled in cell
+    order (:mod:`morphoshell.numerics.cell_order`,
+    :mod:`morphoshell.numerics.newton_assembly`).  The parameter data D are
+    evaluated by one compiled kernel per cell fed the mesh's numbers at its nodes
+    (:mod:`morphoshell.numerics.parameter_data`).  Ipopt's callbacks run the kernels
+    compiled to C when a compiler is available
+    (:func:`~morphoshell.numerics.cell_kernels.compiled_cell_functions`, ``numeric``).
+    The data are computed once per solve (:meth:`cell_data`) and are the NLP's
+    parameter vector, so Ipopt's callbacks never re-evaluate profiles or
+    coefficients.
 
     Parameters
     ----------
@@ -651,13 +159,16 @@ class Discretisation:
     Attributes
     ----------
     x : casadi.MX
-        Unknowns [r_free, ψ_free, f_s] (:class:`Layout`).
+        Unknowns [r_free, ψ_free, f_s] (:class:`~morphoshell.numerics.scheme.Layout`).
     D : casadi.MX
         NLP parameters: the Gauss-point data, column-major (n_D × cells S).
     p : casadi.MX
         Physical parameters (``structure.parameters``); ``pre(p, q)`` gives ``D``.
     q : casadi.MX
         Positions of the anchors (one per anchor knot; empty without).
+    pre_numeric : casadi.Function
+        ``(p, q) -> D``, for evaluation
+        (:attr:`morphoshell.numerics.parameter_data.ParameterData.numeric`).
     energy, objective : casadi.MX
         Total energy 𝓔(x, D) and the scaled objective handed to Ipopt.
     g : casadi.MX
@@ -665,6 +176,11 @@ class Discretisation:
     grad_f, jac_g, hess_lag : casadi.Function
         Exact derivatives in the signatures of ``nlpsol``'s options.
     """
+
+    #: :func:`morphoshell.numerics.gathers.scatter` and :func:`~morphoshell.numerics.gathers.gather`,
+    #: where callers of the transcription build their own patterns.
+    _scatter = staticmethod(scatter)
+    _gather = staticmethod(gather)
 
     def __init__(self, structure: Structure, t: np.ndarray, stages: int = 2,
                  knots: tuple = ()):
@@ -676,7 +192,6 @@ class Discretisation:
         self.knot_list = tuple(k if isinstance(k, Knot) else Knot(float(k), "anchor", i)
                                for i, k in enumerate(knots))
         self.knots = tuple(k.t for k in self.knot_list)
-        self._knot_sources = tuple((k.source, k.index) for k in self.knot_list)
         self.anchors = sum(k.source == "anchor" for k in self.knot_list)
         missing = [k for k in self.knots if not np.any(self.t == k)]
         if missing:
@@ -684,41 +199,27 @@ class Discretisation:
         self.stages = S = stages
         cells = len(self.t) - 1
         self.layout = lay = Layout(cells, S, structure.start == "pole", structure.end == "pole")
-        tau, w, self._values, self._derivs, self._integrals, self._anti = collocation(S)
-        self.tau, self.weights = tau, w
-        n_p = len(structure.parameters)
+        self.tau, self.weights = collocation(S)[:2]
 
-        self.p = ca.MX.sym("p", n_p)
+        self.p = ca.MX.sym("p", len(structure.parameters))
         self.q = ca.MX.sym("q", self.anchors)
-        # D for evaluation (no derivatives), from one compiled kernel per cell fed the
-        # mesh's numbers at its nodes (_data_cell); the differentiable expressions of the
-        # same numbers (_pre_parts) are built on first use
-        at_nodes = np.vstack([self.t, *knot_shapes(self.t, self.knots)])
-        kernel, serialised = _data_cell(structure, self._knot_sources, S)
-        self.pre_numeric = ca.Function(
-            "cell_data_numeric", [self.p, self.q],
-            [ca.vec(compiled_point_map(
-                kernel, cells, ca.DM(np.vstack([at_nodes[:, :-1], at_nodes[:, 1:]])),
-                ca.vertcat(ca.DM(self.knots + (cells,)), self.p, self.q),
-                serialised=serialised))],
-            ["p", "q"], ["D"])
-        # Ipopt and results evaluate compiled cell kernels when a C compiler
-        # is available (3-4x cheaper evaluations); the differentiable
-        # SX-based functions (parametric derivatives, observables, fits) are
-        # assembled on first use, and so is Ipopt's NLP (``numeric``): a
-        # solve that Newton certifies needs neither.
+        self._data = ParameterData(structure, self.t, S, self.knot_list, self.p, self.q)
+        self.pre_numeric = self._data.numeric
+        # Ipopt and results evaluate compiled cell kernels when a C compiler is
+        # available; the differentiable SX-based functions (parametric derivatives,
+        # observables, fits) are assembled on first use, and so is Ipopt's NLP
+        # (``numeric``): a solve that Newton certifies needs neither.
         compiled = compiled_cell_functions(S)
         self.kernels = "compiled" if compiled is not None else "casadi"
-        self._cell = compiled or _cell_functions(S)
+        self._cell = compiled or cell_functions(S)
         # x, D and what is assembled from the cell kernels alone are shared
         # with the other live discretisations of this layout (_Shared)
         self._shared = _shared(lay, self._cell)
         self.x, self.D = self._shared.x, self._shared.D
-        self._idx = self._cell_indices()
+        self._idx = lay.cell_indices()
         self._idx_flat = self._idx.ravel(order="F")
         self._field_names = ("s", "ds", "weight", "r", "psi", "f_s", "dpsi", *LOCAL_OUTPUTS)
         self._points = (None, None)
-        self._theta_scatters: dict = {}
         self._fields = _fields_map(self._cell["fields"])
 
     # -- the NLP ---------------------------------------------------------------
@@ -731,7 +232,7 @@ class Discretisation:
         return built[name]
 
     def _pattern(self, name: str) -> tuple:
-        """Where stacked cell values go in the NLP's derivatives (:meth:`_gather`): ``name``
+        """Where stacked cell values go in the NLP's derivatives (:func:`gather`): ``name``
         is ``"grad"``, ``"jac"`` or ``"hess"``; computed numerically on first use."""
         return self._built(f"pattern {name}", getattr(self, f"_{name}_pattern"))
 
@@ -740,8 +241,7 @@ class Discretisation:
         n_loc = idx.shape[0]
         free = idx < n  # which local slots are unknowns
         cols = np.arange(n_loc * cells).reshape(cells, n_loc).T  # position of (slot, cell)
-        return self._gather((n, 1), idx[free], np.zeros(int(free.sum())), cols[free],
-                            n_loc * cells)
+        return gather((n, 1), idx[free], np.zeros(int(free.sum())), cols[free], n_loc * cells)
 
     def _jac_pattern(self) -> tuple:
         idx, n, S, cells = self._idx, self.layout.size, self.stages, self.layout.cells
@@ -754,18 +254,17 @@ class Discretisation:
         src = (np.arange(cells)[None, None, :] * (S * n_loc)
                + (l_ * S + k_)[..., None])   # column-major jacobian (S × n_loc) per cell
         keep = colv < n
-        return self._gather((m, n), rows[keep], colv[keep], src[keep], S * n_loc * cells)
+        return gather((m, n), rows[keep], colv[keep], src[keep], S * n_loc * cells)
 
     def _hess_pattern(self) -> tuple:
         idx, n, cells = self._idx, self.layout.size, self.layout.cells
         n_loc = idx.shape[0]
-        ku, lu = _triu(n_loc)
+        ku, lu = triu(n_loc)
         I, Jc = idx[ku], idx[lu]
         ok = (I < n) & (Jc < n)
         n_tri = len(ku)
         srch = (np.arange(n_tri)[:, None] + n_tri * np.arange(cells)[None, :])[ok]
-        return self._gather((n, n), np.minimum(I, Jc)[ok], np.maximum(I, Jc)[ok], srch,
-                            n_tri * cells)
+        return gather((n, n), np.minimum(I, Jc)[ok], np.maximum(I, Jc)[ok], srch, n_tri * cells)
 
     def _nlp(self, cell: dict, energy: bool = True) -> dict:
         """Objective, constraints, their derivatives and the fields, from cell kernels ``cell``.
@@ -780,9 +279,9 @@ class Discretisation:
         ell, dell = cell["grad"].map(cells)(Z, Dc)
         g2, dg = cell["jac"].map(cells)(Z, Dc)
         hess = cell["hess"].map(cells)(Z, Dc, sigma, ca.reshape(lam, S, cells))
-        grad = _assembled(*self._pattern("grad"), dell)
-        J = _assembled(*self._pattern("jac"), dg)
-        H = _assembled(*self._pattern("hess"), hess)
+        grad = assembled(*self._pattern("grad"), dell)
+        J = assembled(*self._pattern("jac"), dg)
+        H = assembled(*self._pattern("hess"), hess)
         x, D = self.x, self.D
         nlp = {
             "objective": ca.sum2(cell["f"].map(cells)(Z, Dc)),
@@ -814,7 +313,7 @@ class Discretisation:
     def _symbolic_nlp(self) -> dict:
         if self.kernels == "casadi":
             return self.numeric
-        return self._built("symbolic", lambda: self._nlp(_cell_functions(self.stages)))
+        return self._built("symbolic", lambda: self._nlp(cell_functions(self.stages)))
 
     @property
     def objective(self) -> ca.MX:
@@ -851,7 +350,7 @@ class Discretisation:
         """Number of constraints (cells × S)."""
         return self.layout.cells * self.stages
 
-    # -- construction helpers ------------------------------------------------
+    # -- the mesh and the parameter data ---------------------------------------
     def nodes(self, p, q, ends: tuple | None = None):
         """Material points s of the mesh nodes (the parametric map of :mod:`morphoshell.numerics.mesh`).
 
@@ -859,209 +358,44 @@ class Discretisation:
         points sit at fixed fractions of it.  ``ends``: :meth:`shell_ends` of p,
         if at hand.
         """
-        a, b = self.shell_ends(p) if ends is None else ends
-        return shell_points(self.t, a, b, self.knots, self.knot_positions(p, q))
+        return self._data.nodes(p, q, ends)
 
     def knot_positions(self, p, q) -> list:
         """Material points of the knots: anchors from q, breakpoints from the parameters."""
-        return _knot_positions(self.structure, self._knot_sources, p, q)
+        return self._data.knot_positions(p, q)
 
-    @cached_property
-    def _pre_parts(self) -> tuple:
-        """(pre, s_gauss, ds, weights, scale, m): the per-point data function and its mesh
-        inputs as MX expressions of p, q (for :attr:`pre` and its derivatives); built on
-        first use."""
-        cells, S = self.layout.cells, self.stages
-        a, b = ends = self.shell_ends(self.p)
-        s_nodes = self.nodes(self.p, self.q, ends)
-        ds = (s_nodes[1:] - s_nodes[:-1])[np.repeat(np.arange(cells), S).tolist()]
-        s_gauss = within_cells(s_nodes, self.tau, last=False)
-        scale = _objective_scale(cells, self.p[self.structure.parameters.index("h")], a, b)
-        weights = ca.DM(np.tile(self.weights, cells)).T
-        return (_pre_function(self.structure)[0], s_gauss, ds, weights, scale, cells * S)
-
-    @property
-    def _pre_serialised(self) -> str:
-        return _pre_function(self.structure)[1]
+    def shell_ends(self, p):
+        """(Σ, L − P) from the parameter vector (CasADi or NumPy)."""
+        return self._data.shell_ends(p)
 
     @property
     def pre(self) -> ca.Function:
-        """``(p, q) -> D``, differentiable (MX); built on first use.
+        """``(p, q) -> D``, differentiable (MX); built on first use
+        (:attr:`morphoshell.numerics.parameter_data.ParameterData.function`).
 
         Solves evaluate :attr:`pre_numeric`; only fits, observables and
-        parametric derivatives differentiate D (a build saves 0.4 ms at 42
-        nodes, 36 ms at 12 800: measured).
+        parametric derivatives differentiate D.
         """
-        if not hasattr(self, "_pre"):
-            pre, s_gauss, ds, weights, scale, m = self._pre_parts
-            self._pre = ca.Function(
-                "cell_data", [self.p, self.q],
-                [ca.vec(pre.map(m)(s_gauss.T, ds.T, weights, scale, self.p))], ["p", "q"], ["D"])
-        return self._pre
+        return self._data.function
 
     @property
     def pre_jacobian(self) -> ca.Function:
-        """``(p, q) -> dD/dp`` (dense, n_D·cells·S × n_p), for evaluation; built on first use."""
-        if not hasattr(self, "_pre_jacobian"):
-            self._pre_jacobian = ca.Function(
-                "cell_data_jacobian", [self.p, self.q], [self._chain_pre(*self._pre_parts)],
-                ["p", "q"], ["dD_dp"])
-        return self._pre_jacobian
+        """``(p, q) -> dD/dp`` (dense, n_D·cells·S × n_p), for evaluation; built on first use
+        (:attr:`morphoshell.numerics.parameter_data.ParameterData.jacobian`)."""
+        return self._data.jacobian
 
     @property
     def pre_hessian(self) -> ca.Function:
         """``(p, q, c) -> ∂²(c·D)/∂p²`` (n_p × n_p), for evaluation; built on first use.
 
-        c weighs the cell data D (as D).  Per Gauss point, D_k =
-        pre(y_k) with y_k = (s_k, Δs_k, scale, p) and the mesh values s_k, Δs_k
-        and the scale functions of p: ∂²(c·D)/∂p² = Σ_k M_kᵀ ∇²(c_k·pre) M_k
-        + ∂²/∂p² Σ_k g_k·(s_k, Δs_k, scale)(p), M_k = ∂y_k/∂p and g_k =
-        ∂(c_k·pre)/∂(s_k, Δs_k, scale) held fixed in the last term.  The first
-        term is one per-point kernel, compiled where possible (as
-        :attr:`pre_jacobian`), the second an MX Hessian of the mesh alone: at
-        200 nodes of the volvox fit about 4 ms, where the MX Hessian of the
-        mapped cell data cost about 70 ms (measured).
+        c weighs the cell data D (as D); the chain rule one Gauss point at a time
+        (:attr:`morphoshell.numerics.parameter_data.ParameterData.hessian`).
         """
-        if not hasattr(self, "_pre_hessian"):
-            pre, s_gauss, ds, weights, scale, m = self._pre_parts
-            n_p = self.p.shape[0]
-            # the mesh moves with the parameters it depends on only (7 of the
-            # volvox family's 17): 4.0 ms an evaluation at 200 nodes, 6.5-7.1 ms
-            # with the mesh moving in all 17 (measured)
-            J_mesh = [ca.jacobian(v, self.p) for v in (s_gauss, ds, scale)]
-            cols = sorted(set().union(*(set(J.sparsity().get_col()) for J in J_mesh)))
-            C = ca.MX.sym("c", self.D.shape[0])
-            H_k, g = _pre_curvature(self._pre_serialised, tuple(cols)).map(m)(
-                s_gauss.T, ds.T, weights, scale, self.p, *(J[:, cols].T for J in J_mesh),
-                ca.reshape(C, -1, m))
-            g_fixed = ca.MX.sym("g", 3, m)
-            frozen = ca.Function("mesh_curvature", [self.p, self.q, g_fixed], [ca.hessian(
-                ca.dot(g_fixed[0, :].T, s_gauss) + ca.dot(g_fixed[1, :].T, ds)
-                + ca.sum2(g_fixed[2, :]) * scale, self.p)[0]])
-            self._pre_hessian = ca.Function(
-                "cell_data_hessian", [self.p, self.q, C],
-                [ca.reshape(ca.sum2(H_k), n_p, n_p) + frozen(self.p, self.q, g)],
-                ["p", "q", "c"], ["d2cD_dp2"])
-        return self._pre_hessian
+        return self._data.hessian
 
-    def _chain_pre(self, pre, s_gauss, ds, weights, scale, m: int) -> ca.MX:
-        """dD/dp by the chain rule, one Gauss point at a time.
-
-        D_k = pre(s_k, Δs_k, w_k, scale, p) with s_k, Δs_k and the scale
-        functions of p (the parametric mesh).  A per-point SX kernel takes the
-        mesh's derivatives at its point (small MX Jacobians) and returns the
-        point's whole block of dD/dp, in compiled C where available
-        (:func:`~morphoshell._runtime.compiled.compiled_point_function`): at 200 nodes
-        of the volvox fit (17 parameters) 1.6 ms per evaluation, where the
-        per-point Jacobians in CasADi's virtual machine and their assembly by
-        MX slices cost 13-14 ms and differentiating the mapped graph as a
-        whole 18-24 ms (measured).  Compiled, the result has no derivatives.
-        """
-        blocks = _pre_chain(self._pre_serialised).map(m)(
-            s_gauss.T, ds.T, weights, scale, self.p, *(ca.jacobian(v, self.p).T
-                                                      for v in (s_gauss, ds, scale)))
-        return blocks.T
-
-    def _cell_indices(self) -> np.ndarray:
-        """(3S + 2, cells) positions of each cell's local unknowns in [x, POLE_VALUES]."""
-        lay, n, S = self.layout, self.layout.size, self.stages
-        pts = np.arange(lay.points)
-        r_idx = pts - lay.start_pole
-        psi_idx = lay.free_points + pts - lay.start_pole
-        if lay.start_pole:
-            r_idx[0], psi_idx[0] = n, n + 1
-        if lay.end_pole:
-            r_idx[-1], psi_idx[-1] = n, n + 2
-        cell_pts = np.arange(lay.cells)[None, :] * S + np.arange(S + 1)[:, None]
-        f_idx = 2 * lay.free_points + np.arange(lay.cells)[None, :] * S + np.arange(S)[:, None]
-        return np.vstack([r_idx[cell_pts], psi_idx[cell_pts], f_idx])
-
-    @staticmethod
-    def _scatter(shape, rows, cols, src, n_src: int, weights=None) -> tuple:
-        """(sparsity, B): the sparse ``shape`` matrix whose (row, col) entry sums ``values[src]``
-        (times ``weights``, default 1) has the nonzeros ``B @ values``."""
-        sp, pos, src = _positions(shape, rows, cols, src)
-        nnz = sp.nnz()
-        if weights is None:
-            # B[pos, src] = 1 (a repeated triplet too, as DM.triplet gives it), in
-            # compressed form directly: half DM.triplet's time at 20 000 entries
-            key = _distinct(src * nnz + pos)
-            B = ca.DM(_compressed(nnz, n_src, key // nnz, key % nnz), 1.0)
-        else:   # (DM.triplet: the weights in the triplets' order, not the nonzeros')
-            B = ca.DM.triplet(pos.tolist(), src.tolist(),
-                              ca.DM(np.asarray(weights, float).ravel()), nnz, n_src)
-        return sp, B
-
-    @staticmethod
-    def _gather(shape, rows, cols, src, n_src: int) -> tuple:
-        """(sparsity, first, extras): :meth:`_scatter` (without weights) as index lists.
-
-        Every nonzero takes the value ``values[first[i]]``; then, for each
-        ``(pos, more)`` in ``extras``, the nonzeros ``pos`` add ``values[more]``
-        (:func:`_assembled`).  Each nonzero sums its values in increasing
-        ``src``, as ``B @ values`` does, so the results are the same to the
-        bit, in half the time (an entry of the Newton system has at most two,
-        the cells on either side of a node: 0.74 against 1.50 ms at 3200
-        nodes, measured).  Only the few shared entries are listed twice (a
-        full second list, padded with a zero, cost 0.5 ms of a 42-node build
-        in its conversion to CasADi).
-        """
-        sp, pos, src = _positions(shape, rows, cols, src)
-        nnz = sp.nnz()
-        key = _distinct(pos * n_src + src)            # by nonzero, then by value
-        pos, src = key // n_src, key % n_src
-        counts = np.bincount(pos, minlength=nnz)
-        start = np.cumsum(counts) - counts
-        extras = []
-        for r in range(1, int(counts.max(initial=0))):
-            has = np.flatnonzero(counts > r)
-            extras.append((has.tolist(), src[start[has] + r].tolist()))
-        return sp, src[start].tolist() if nnz else [], extras
-
-    @cached_property
-    def _integration(self) -> tuple:
-        """:meth:`_integration_operators`, built on first use (only expressions need them)."""
-        return self._integration_operators()
-
-    def _integration_operators(self):
-        """Sparse operators of ∫ from the first node to every point (Gauss interpolant per cell).
-
-        For values v and widths Δs at the Gauss points (cell by cell), the
-        integral to point j = c S + l is the sum of the whole cells before c
-        (``B`` holds each cell's Gauss weights) plus the part of cell c (``P``);
-        the sum over earlier cells is a cumulative sum, so the cost is linear
-        in the mesh size.
-        """
-        S, cells = self.stages, self.layout.cells
-        j = np.arange(self.layout.points)
-        c = np.minimum(j // S, cells - 1)
-        l = j - c * S
-        cols = (c[:, None] * S + np.arange(S)[None, :]).ravel()
-        # (DM.triplet takes values in triplet order; DM(sparsity, values) would
-        # read them in compressed-column order)
-        P = ca.DM.triplet(np.repeat(j, S).tolist(), cols.tolist(), self._integrals[l].ravel(),
-                          len(j), cells * S)
-        B = ca.DM.triplet(np.repeat(np.arange(cells), S).tolist(), np.arange(cells * S).tolist(),
-                          np.tile(self.weights, cells), cells, cells * S)
-        return P, B, c
-
-    def _integrate(self, values, ds):
-        """∫ from the first node to every point, of Gauss-point ``values`` (CasADi or NumPy).
-
-        ``ds`` holds the cell widths in s at the Gauss points (cell by cell).
-        """
-        if isinstance(values, (ca.MX, ca.SX)) or isinstance(ds, (ca.MX, ca.SX)):
-            P, B, c = self._integration
-            v = values * ds
-            starts = ca.vertcat(0, ca.cumsum(ca.mtimes(B, v)))
-            return starts[c.tolist()] + ca.mtimes(P, v)
-        # Numbers: the same sums per cell in NumPy (the sparse operators would
-        # need scipy.sparse, 30-60 ms of a fresh process's imports).
-        S = self.stages
-        v = (np.asarray(values, dtype=float) * ds).reshape(-1, S)     # (cells, S)
-        starts = np.concatenate([[0.0], np.cumsum(v @ self.weights)])
-        inner = starts[:-1, None] + v @ self._integrals[:S].T           # point l of cell c
-        return np.append(inner.ravel(), starts[-2] + self._integrals[S] @ v[-1])
+    def cell_data(self, p: np.ndarray, q=()) -> np.ndarray:
+        """The NLP parameter vector D for physical parameters ``p`` and anchors ``q``."""
+        return self._data(p, q)
 
     # -- numerical interface -------------------------------------------------
     def points(self, p: np.ndarray, q=()) -> np.ndarray:
@@ -1070,13 +404,13 @@ class Discretisation:
 
     def point_data(self, p: np.ndarray, q=()) -> PointData:
         """The points for parameters ``p`` and anchors ``q``, with what depends on them alone
-        (:class:`PointData`, read-only)."""
+        (:class:`~morphoshell.numerics.scheme.PointData`, read-only)."""
         nodes = self.nodes(np.asarray(p, dtype=float), q)
-        # the nodes stay put unless the shell's ends or the knots move: kept
-        # (a warm solve's 35 us of 2 ms at 200 nodes for s alone)
+        # the nodes stay put unless the shell's ends or the knots move: kept, and a warm
+        # re-solve skips recomputing them
         key = nodes.tobytes()
         if self._points[0] != key:
-            self._points = (key, _point_data(nodes, self.tau, self.geometry, self.layout))
+            self._points = (key, mesh_point_data(nodes, self.tau, self.geometry, self.layout))
         return self._points[1]
 
     def initial_guess(self, p: np.ndarray, q=()) -> np.ndarray:
@@ -1103,12 +437,6 @@ class Discretisation:
             check_monotone(self.nodes(p, q))
         return q
 
-    def cell_data(self, p: np.ndarray, q=()) -> np.ndarray:
-        """The NLP parameter vector D for physical parameters ``p`` and anchors ``q``."""
-        if not hasattr(self, "_pre_buffered"):
-            self._pre_buffered = Buffered(self.pre_numeric)
-        return self._pre_buffered(p, np.asarray(q, dtype=float))[0]
-
     def gauss_fields(self, x: np.ndarray, D: np.ndarray) -> dict[str, np.ndarray]:
         """Every pointwise quantity at the Gauss points, given the data ``D``."""
         out = self._fields(self.layout.cells, self.local_values(x), D)[0].reshape(
@@ -1122,255 +450,20 @@ class Discretisation:
         Exact for the degree S − 1 interpolant of ``values`` through the Gauss
         points of each cell.  The cell widths come from the parameters ``p``
         and anchors ``q``, or are given as ``ds`` (one per Gauss point, as
-        :meth:`gauss_fields` returns them).
+        :meth:`gauss_fields` returns them).  Numbers or CasADi expressions; the
+        result has one entry per point.
         """
         if ds is None:
             ds = np.repeat(np.diff(self.nodes(np.asarray(p, dtype=float), q)), self.stages)
-        return self._integrate(values, ds)
-
-    # -- symbolic interface (for observables) --------------------------------
-    def local_values(self, x: np.ndarray) -> np.ndarray:
-        """:meth:`cell_unknowns` in numbers: each cell's unknowns, column-major (flat)."""
-        return np.append(np.asarray(x, dtype=float), POLE_VALUES)[self._idx_flat]
-
-    def cell_unknowns(self, x) -> ca.MX:
-        """(3S + 2, cells): each cell's r, ψ at its points and f_s at its Gauss points."""
-        n_loc, cells = self._idx.shape
-        xfull = ca.vertcat(x, ca.DM(POLE_VALUES))
-        return ca.reshape(xfull[self._idx_flat.tolist()], n_loc, cells)
-
-    def shell_ends(self, p):
-        """(Σ, L − P) from the parameter vector (CasADi or NumPy)."""
-        return _shell_ends(self.structure, p)
-
-    def gauss_values(self, Z) -> tuple:
-        """f_s and ψ at the Gauss points (vectors, cell by cell) from ``cell_unknowns``."""
-        S = self.stages
-        psi_g = ca.mtimes(ca.DM(self._values), Z[S + 1:2 * S + 2, :])
-        return ca.vec(Z[2 * S + 2:, :]), ca.vec(psi_g)
-
-    def shape(self, x, p, q) -> "SymbolicShape":
-        """The discrete shape as CasADi expressions of the unknowns x, parameters p, anchors q."""
-        return SymbolicShape(self, x, p, q)
-
-    def symbolic_points(self, x, p, q) -> dict:
-        """s, r, ψ, z and the deformed arclength S at the points (see :class:`SymbolicShape`)."""
-        return self.shape(x, p, q).points
-
-    def _local_kkt_scatter(self) -> tuple:
-        """(sparsity, first, extras) of :meth:`_gather`: each cell's triu (x, λ) block in the
-        upper triangle of the (n + m)² matrix.
-
-        The cell's local slots are its unknowns (constants drop out) and its
-        S constraints.
-        """
-        n, m = self.layout.size, self.constraints
-        S, cells = self.stages, self.layout.cells
-        n_loc = self._idx.shape[0]
-        local = self._local_slots()
-        ku, lu = _triu(n_loc + S)
-        I, J = local[ku], local[lu]
-        ok = (I >= 0) & (J >= 0)
-        n_tri = len(ku)
-        src = (np.arange(n_tri)[:, None] + n_tri * np.arange(cells)[None, :])[ok]
-        rows, cols = np.minimum(I, J)[ok], np.maximum(I, J)[ok]
-        return self._gather((n + m, n + m), rows, cols, src, n_tri * cells)
+        if isinstance(values, (ca.MX, ca.SX)) or isinstance(ds, (ca.MX, ca.SX)):
+            return integrate_symbolic(values, ds, self._integration)
+        return integrate_numeric(values, ds, self.stages)
 
     @cached_property
-    def cell_order(self) -> CellOrder:
-        """The cell order u of (x, λ) in which the Newton system is assembled and solved
-        (:mod:`morphoshell.numerics.cell_order`)."""
-        lay = self.layout
-        return CellOrder(lay.cells, lay.stages, lay.start_pole, lay.end_pole)
-
-    def kkt_pack(self, x: np.ndarray, lam: np.ndarray) -> np.ndarray:
-        """(x, λ) in cell order u (:attr:`cell_order`), the poles' fixed values filled in."""
-        return self.cell_order.pack(x, lam, POLE_VALUES)
-
-    def newton_system(self) -> ca.Function:
-        """``(u, D, ρ) -> (K, rhs, ‖∇f + Jᵀλ‖∞, ‖g‖∞, ‖λ‖₁, W)``: the certified Newton system.
-
-        u holds x and λ in cell order (:attr:`cell_order`; :meth:`kkt_pack`
-        and ``cell_order.unpack`` convert), the system's unknowns are u[lo:hi].
-        K = [[M, Jᵀ], [J, −Δ]] with M = ∇²ℒ + Jᵀ W J, W > 0 per constraint
-        scaled by ρ, Δ = ε W⁻¹ (ε = :data:`NEWTON_EPSILON`);
-        rhs = −(∇f + Jᵀ(λ + W g), g), both symmetrically permuted to cell
-        order.  Its solution is Newton's step on the KKT conditions (to a
-        relative ε), and its inertia certifies a minimum (see
-        :mod:`morphoshell.numerics.newton`).  Assembled from one kernel per cell,
-        built on first use.  K is (n + m) × (n + m), sparse and symmetric;
-        rhs (n + m,); W (m,).
-        """
-        return self._built("newton", self._newton_system)
-
-    def _newton_system(self) -> ca.Function:
-        cells, a = self.layout.cells, self.cell_assembly
-        u, rho = ca.MX.sym("u", self.cell_order.size), ca.MX.sym("rho")
-        tri, dual, rhs, g, w = self._cell["newton"].map(cells)(*self._cell_locals(u), rho)
-        K = ca.MX(a.K, _summed(tri, a.first, a.pairs))
-        return ca.Function("newton_system", [u, self.D, rho],
-                           [K, *self._newton_residual(u, dual, rhs, g), ca.vec(w)])
-
-    @property
-    def cell_assembly(self) -> Assembly:
-        """Where the Newton system's entries come from (:func:`morphoshell.numerics.cell_order.assembly`)."""
-        return self._built("cell assembly", lambda: assembly(self.cell_order))
-
-    def _cell_locals(self, u) -> list:
-        """(each cell's (z, λ), its data D), a column per cell, from u and the symbol D."""
-        cells = self.layout.cells
-        return [ca.reshape(u.get_nz(False, self.cell_assembly.local), -1, cells),
-                ca.reshape(self.D, -1, cells)]
-
-    def newton_rhs(self) -> ca.Function:
-        """``(u, D, W) -> (rhs, ‖∇f + Jᵀλ‖∞, ‖g‖∞, ‖λ‖₁)``: :meth:`newton_system`'s
-        right-hand side and errors for given weights W (m,), without the Hessian.
-
-        With W those of a factorised K, a step with that factorisation is a
-        chord (simplified Newton) step (:mod:`morphoshell.numerics.newton`).
-        """
-        return self._built("newton_rhs", self._newton_rhs_function)
-
-    def _newton_rhs_function(self) -> ca.Function:
-        S, cells = self.stages, self.layout.cells
-        u, w = ca.MX.sym("u", self.cell_order.size), ca.MX.sym("w", self.constraints)
-        dual, rhs, g = block_map(self._cell.get("newton_rhs_block"), self._cell["newton_rhs"],
-                                 cells, [*self._cell_locals(u), ca.reshape(w, S, cells)])
-        return ca.Function("newton_rhs", [u, self.D, w], self._newton_residual(u, dual, rhs, g))
-
-    def _newton_residual(self, u, dual, rhs, g) -> list:
-        """rhs, ‖∇f + Jᵀλ‖∞, ‖g‖∞ and ‖λ‖₁ from the cells' shares (a column per cell)."""
-        a, order = self.cell_assembly, self.cell_order
-        lam = ca.MX.binary(ca.OP_MUL, u[order.lo:order.hi], 1 - a.x_mask)
-        return [_summed(rhs, a.rhs_first, a.rhs_pairs),
-                ca.norm_inf(_summed(dual, a.rhs_first, a.rhs_pairs)), ca.norm_inf(g),
-                ca.norm_1(lam)]
-
-    def kkt_curvature(self, x, lam, D, mu_F, mu_dz, mu_dS, ds) -> ca.MX:
-        """Upper triangle of ∂²/∂(x, λ)² [μ_F·F(x, λ) − Σ_c (μ_dz,c Δz_c + μ_dS,c ΔS_c)].
-
-        F = (∇f + Jᵀλ, g) is the KKT residual of the NLP
-        (:attr:`morphoshell.solvers.parametric.Parametric.kkt_residual`) and Δz_c, ΔS_c
-        the cell increments of z and of the deformed arclength
-        (:meth:`SymbolicShape.increments`, cell widths ``ds``): the curvature
-        of the equilibrium as constraints of a larger NLP (a fit in one NLP).
-        Assembled from one SX kernel per cell (third derivatives of the cell
-        energy), as :attr:`hess_lag` is: differentiating the assembled graph
-        instead cost ~0.4 s per evaluation at 200 nodes (measured).
-
-        Shapes: x (n,), λ and the constraints (m,), μ_F (n + m,), μ_dz, μ_dS
-        and ds (cells,); the result is (n + m) × (n + m), sparse.
-        """
-        n, S, cells = self.layout.size, self.stages, self.layout.cells
-        n_loc = self._idx.shape[0]
-        mu_x = ca.vertcat(mu_F[:n], ca.DM.zeros(3))      # constants: no stationarity row
-        Mz = ca.reshape(mu_x[self._idx_flat.tolist()], n_loc, cells)
-        kernel = _cell_kkt_curvature(S).map(cells)
-        values = kernel(self.cell_unknowns(x), ca.reshape(D, -1, cells), ca.reshape(lam, S, cells),
-                        Mz, ca.reshape(mu_F[n:], S, cells), ca.reshape(mu_dz, 1, cells),
-                        ca.reshape(mu_dS, 1, cells), ca.reshape(ds, 1, cells))
-        return _assembled(*self._local_kkt_scatter(), values)
-
-    def kkt_curvature_theta(self, x, lam, D, T, mu_F, mu_dz, mu_dS) -> tuple:
-        """The curvature of :meth:`kkt_curvature`'s function across the cell data D.
-
-        With D moving along D + T t (T = ∂D/∂θ, rows as D, k columns) and the
-        cell widths read from D: the mixed block ∂²/∂(x, λ)∂t ((n + m) × k,
-        sparse rows), the block ∂²/∂t² (k × k) and the gradient ∂/∂D (as D).
-        The second derivatives of D itself are the caller's (they need the
-        parameters).  Per-cell kernels, the derivatives in D compiled and
-        contracted with T afterwards: 5-6 ms at 200 nodes and k = 12, where one
-        kernel along the k directions took 24 ms and the assembled MX graph
-        0.74 s at 60 nodes (measured).
-        """
-        n = self.layout.size
-        S, cells = self.stages, self.layout.cells
-        n_loc, k = self._idx.shape[0], T.shape[1]
-        mu_x = ca.vertcat(mu_F[:n], ca.DM.zeros(3))      # constants: no stationarity row
-        Mz = ca.reshape(mu_x[self._idx_flat.tolist()], n_loc, cells)
-        X, H, grad = _compiled_kkt_data_curvature(S).map(cells)(
-            self.cell_unknowns(x), ca.reshape(D, -1, cells), ca.reshape(lam, S, cells), Mz,
-            ca.reshape(mu_F[n:], S, cells), ca.reshape(mu_dz, 1, cells),
-            ca.reshape(mu_dS, 1, cells))
-        cross, tt = _cell_kkt_theta(S, k).map(cells)(X, H, self._cell_rows(T))
-        return self._local_theta(cross, k), ca.reshape(ca.sum2(tt), k, k), ca.vec(grad)
-
-    def kkt_residual_theta(self, x, lam, D, T) -> ca.MX:
-        """∂F/∂θ = (∂F/∂D) T of the KKT residual F = (∇f + Jᵀλ, g), cell by cell.
-
-        T = ∂D/∂θ (rows as D, k columns).  One SX kernel per cell, as
-        :meth:`kkt_curvature_theta`: the product of the assembled ∂F/∂D with T
-        cost ~25 ms at 200 nodes (measured).  (n + m) × k, sparse rows.
-        """
-        S, cells = self.stages, self.layout.cells
-        k = T.shape[1]
-        F_D = self._cell["kkt_data"].map(cells)(
-            self.cell_unknowns(x), ca.reshape(D, -1, cells), ca.reshape(lam, S, cells))
-        return self._local_theta(_cell_kkt_dtheta(S, k).map(cells)(F_D, self._cell_rows(T)), k)
-
-    def kkt_residual_theta_numeric(self, x: np.ndarray, lam: np.ndarray, D: np.ndarray,
-                                   T: np.ndarray) -> np.ndarray:
-        """:meth:`kkt_residual_theta`'s (∂F/∂D) T in numbers, (n + m) × k, dense.
-
-        Each cell's ∂F/∂D by a compiled cell kernel (``kkt_data``), times the
-        cell's rows of T by NumPy and summed into place by the scatter of
-        :meth:`_local_theta`: at 200 nodes of the volvox fit (T = dD/dp, 17
-        columns) 1.2-1.3 ms, where the assembled ∂F/∂D (an MX Jacobian, 11 ms)
-        times T cost 12-13 ms (measured).
-        """
-        import scipy.sparse   # on use, as in parametric: keeps the package's start-up fast
-
-        S, cells = self.stages, self.layout.cells
-        if not hasattr(self, "_kkt_data"):
-            lam_s = ca.MX.sym("lam", self.constraints)
-            blocks = self._cell["kkt_data"].map(cells)(*self._local, ca.reshape(lam_s, S, cells))
-            sp, B = self._theta_scatter(1)
-            self._kkt_data = (Buffered(ca.Function("kkt_data", [self.x, self.D, lam_s], [blocks])),
-                              np.array(sp.row()), scipy.sparse.csr_matrix(B.sparse()))
-        kernel, rows, B = self._kkt_data
-        n_cell, n_blk = len(CELL_DATA) * S, self._idx.shape[0] + S
-        T = np.asarray(T, dtype=float)
-        # blocks[c, j, i] = ∂F_i/∂D_j of cell c; T's rows of cell c follow its D
-        blocks = kernel(x, D, lam)[0].reshape(cells, n_cell, n_blk)
-        local = np.matmul(blocks.transpose(0, 2, 1), T.reshape(cells, n_cell, T.shape[1]))
-        out = np.zeros((self.layout.size + self.constraints, T.shape[1]))
-        out[rows] = B @ local.reshape(cells * n_blk, T.shape[1])
-        return out
-
-    def _cell_rows(self, T) -> ca.MX:
-        """T's rows cell by cell, each cell's block flattened row by row (one column per cell)."""
-        cells, k = self.layout.cells, T.shape[1]
-        n_cell = len(CELL_DATA) * self.stages
-        return ca.reshape(ca.reshape(T, n_cell, cells * k).T, cells, n_cell * k).T
-
-    def _local_slots(self) -> np.ndarray:
-        """Global (x, λ) index of each cell's local slot (its unknowns, then its S
-        constraints; −1 for the constants), ((3S + 2) + S) × cells."""
-        n, S, cells = self.layout.size, self.stages, self.layout.cells
-        return np.vstack([np.where(self._idx < n, self._idx, -1),
-                          n + np.arange(cells)[None, :] * S + np.arange(S)[:, None]])
-
-    def _local_theta(self, cross, k: int) -> ca.MX:
-        """Scatter of the cells' ((3S + 2) + S) × k blocks (side by side) into (n + m) × k."""
-        sp, B = self._theta_scatter(k)
-        return ca.MX(sp, ca.mtimes(B, ca.vec(cross)))
-
-    def _theta_scatter(self, k: int) -> tuple:
-        """(sparsity, B) of :meth:`_local_theta`, built once per k (the KKT fit's
-        Jacobian and Hessian share it)."""
-        if k not in self._theta_scatters:
-            n, m, cells = self.layout.size, self.constraints, self.layout.cells
-            local = self._local_slots()
-            # cell c's local row i, column j sits at i + n_blk (c k + j) of vec(cross)
-            n_blk = local.shape[0]
-            rows = np.repeat(local.T[:, :, None], k, axis=2)
-            cols = np.broadcast_to(np.arange(k), rows.shape)
-            src = (np.arange(n_blk)[None, :, None]
-                   + n_blk * (k * np.arange(cells)[:, None, None] + np.arange(k)[None, None, :]))
-            ok = rows >= 0
-            self._theta_scatters[k] = self._scatter((n + m, k), rows[ok], cols[ok], src[ok],
-                                                    n_blk * cells * k)
-        return self._theta_scatters[k]
+    def _integration(self) -> tuple:
+        """:func:`~morphoshell.numerics.scheme.integration_operators`, built on first use
+        (only expressions need them)."""
+        return integration_operators(self.layout)
 
     def state_at(self, x: np.ndarray, p: np.ndarray, q, z_points: np.ndarray,
                  s_star: float) -> dict:
@@ -1383,8 +476,8 @@ class Discretisation:
         cell = self.cell_of(p, q, s_star)
         s0, s1 = (float(v) for v in self.nodes(np.asarray(p, dtype=float), q)[[cell, cell + 1]])
         Zc = np.append(x, POLE_VALUES)[self._idx[:, cell]]
-        out = _cell_state(self.stages)(Zc, s1 - s0, z_points[cell * self.stages], 0.0,
-                                       (s_star - s0) / (s1 - s0))
+        out = cell_state(self.stages)(Zc, s1 - s0, z_points[cell * self.stages], 0.0,
+                                      (s_star - s0) / (s1 - s0))
         return {k: float(v) for k, v in zip(("r", "psi", "z"), out)}
 
     def cell_of(self, p: np.ndarray, q, s_star: float) -> int:
@@ -1393,311 +486,119 @@ class Discretisation:
         return int(np.clip(np.searchsorted(nodes, s_star, side="right") - 1, 0,
                            self.layout.cells - 1))
 
+    # -- symbolic interface (for observables) --------------------------------
+    def local_values(self, x: np.ndarray) -> np.ndarray:
+        """:meth:`cell_unknowns` in numbers: each cell's unknowns, column-major (flat)."""
+        return np.append(np.asarray(x, dtype=float), POLE_VALUES)[self._idx_flat]
 
-@lru_cache(maxsize=8)
-def _cell_functions(stages: int) -> dict[str, ca.Function]:
-    """Values, gradients and the Lagrangian's triu Hessian of one cell (SX).
+    def cell_unknowns(self, x) -> ca.MX:
+        """(3S + 2, cells): each cell's r, ψ at its points and f_s at its Gauss points."""
+        n_loc, cells = self._idx.shape
+        xfull = ca.vertcat(x, ca.DM(POLE_VALUES))
+        return ca.reshape(xfull[self._idx_flat.tolist()], n_loc, cells)
 
-    The family and the theory enter only through the cell data D (profiles,
-    η and coefficients are evaluated by the structure's ``pre`` function), so
-    these depend on the number of stages alone and every structure shares them.
-    """
-    S = stages
-    _, _, values, derivs, _, _ = collocation(S)
-    n_D = len(CELL_DATA)
-    off = CELL_DATA.after(INTRINSIC)
-    z, D = ca.SX.sym("z", 3 * S + 2), ca.SX.sym("D", n_D * S)
-    sigma, lam = ca.SX.sym("sigma"), ca.SX.sym("lam", S)
-    zr, zp, zf = z[:S + 1], z[S + 1:2 * S + 2], z[2 * S + 2:]
-    V, Dv = ca.DM(values), ca.DM(derivs)
-    energy, g, fields = 0, [], []
-    for k in range(S):
-        Dk = D[k * n_D:(k + 1) * n_D]
-        d = CELL_DATA.unpack(Dk)
-        I = Dk[off:]
-        r_k, psi_k = ca.dot(V[k, :].T, zr), ca.dot(V[k, :].T, zp)
-        dr_k, dpsi_k = ca.dot(Dv[k, :].T, zr) / d["ds"], ca.dot(Dv[k, :].T, zp) / d["ds"]
-        point = pointwise(r_k, psi_k, zf[k], dpsi_k, I, d["h"])
-        energy += d["weight"] * d["ds"] * point["L"]
-        g.append(dr_k - zf[k] * ca.cos(psi_k))
-        n_shape = len(LOCAL_OUTPUTS) - len(INTRINSIC)
-        fields.append(ca.vertcat(d["s"], d["ds"], d["weight"], r_k, psi_k, zf[k], dpsi_k,
-                                 *[point[name] for name in LOCAL_OUTPUTS[:n_shape]], I))
-    ell = energy * CELL_DATA.unpack(D[:n_D])["scale"]
-    g = ca.vertcat(*g)
-    H = ca.hessian(sigma * ell + ca.dot(lam, g), z)[0]
-    kkt = ca.vertcat(ca.gradient(ell, z) + ca.mtimes(ca.jacobian(g, z).T, lam), g)
-    ku, lu = np.triu_indices(3 * S + 2)
-    return {
-        **_newton_cells(z, D, lam, kkt[:3 * S + 2], g, ca.substitute(H, sigma, 1.0)),
-        "f": ca.Function("cell_f", [z, D], [ell]),
-        "energy": ca.Function("cell_energy", [z, D], [energy]),
-        "g": ca.Function("cell_g", [z, D], [g]),
-        "grad": ca.Function("cell_grad", [z, D], [ell, ca.gradient(ell, z)]),
-        "jac": ca.Function("cell_jac", [z, D], [g, ca.vec(ca.jacobian(g, z))]),
-        "hess": ca.Function("cell_hess", [z, D, sigma, lam],
-                            [ca.vertcat(*[H[int(i), int(j)] for i, j in zip(ku, lu)])]),
-        "fields": ca.Function("cell_fields", [z, D], [ca.horzcat(*fields)]),
-        # the cell's KKT residual (∇ℓ + Jᵀλ, g) and its ∂/∂D, dense (parametric derivatives)
-        "kkt": ca.Function("cell_kkt", [z, D, lam], [kkt]),
-        "kkt_data": ca.Function("cell_kkt_data", [z, D, lam], [ca.densify(ca.jacobian(kkt, D))]),
-    }
+    def gauss_values(self, Z) -> tuple:
+        """f_s and ψ at the Gauss points (vectors, cell by cell) from ``cell_unknowns``."""
+        S = self.stages
+        psi_g = ca.mtimes(ca.DM(collocation(S)[2]), Z[S + 1:2 * S + 2, :])
+        return ca.vec(Z[2 * S + 2:, :]), ca.vec(psi_g)
 
+    def shape(self, x, p, q) -> SymbolicShape:
+        """The discrete shape as CasADi expressions of the unknowns x, parameters p, anchors q."""
+        return SymbolicShape(self, x, p, q)
 
-def _newton_cells(z, D, lam, dual, g, H) -> dict[str, ca.Function]:
-    """One cell's share of the certified Newton system (:meth:`Discretisation.newton_system`).
+    def symbolic_points(self, x, p, q) -> dict:
+        """s, r, ψ, z and the deformed arclength S at the points (see :class:`SymbolicShape`)."""
+        return self.shape(x, p, q).points
 
-    Both kernels take the cell's unknowns and multipliers as one input
-    (z, λ) of L = 4S + 2 local slots, as gathered from the cell order u
-    (:mod:`morphoshell.numerics.cell_order`).  ``"newton"``: weights
-    W_k = ρ Σ_l |H_ll| / ‖∇g_k‖² (the cell's Hessian scale per unit of the
-    constraint's gradient; any W > 0 is valid), the penalised Hessian
-    M = H + Jᵀ W J, and the local block [[M, Jᵀ], [J, −ε W⁻¹]] as its upper
-    triangle; the stationarity residual ∇ℓ + Jᵀλ (zeros in λ's slots), the
-    right-hand side −(∇ℓ + Jᵀ(λ + W g), g), g and W.  ``"newton_rhs"``: the
-    same residual and right-hand side for given weights W, without the
-    Hessian (:meth:`Discretisation.newton_rhs`).  The triangle, residual and
-    right-hand side end with a zero, dense: the value that the assembly
-    takes where a slot has no second cell (:func:`morphoshell.numerics.cell_order.assembly`).
-    """
-    S, n_z = g.shape[0], z.shape[0]
-    rho, w_in = ca.SX.sym("rho"), ca.SX.sym("w", S)
-    zl = ca.SX.sym("zl", n_z + S)
-    Jc = ca.jacobian(g, z)
-    w = rho * ca.sum1(ca.fabs(ca.diag(H))) / ca.fmax(ca.sum2(Jc * Jc), 1e-300)
-    M = H + ca.mtimes(Jc.T, ca.mtimes(ca.diag(w), Jc))
-    K = ca.blockcat([[M, Jc.T], [Jc, ca.diag(-NEWTON_EPSILON / w)]])
-    ku, lu = np.triu_indices(K.shape[0])
-    zero = ca.SX.zeros(1)
+    # -- the Newton system -----------------------------------------------------
+    @cached_property
+    def cell_order(self) -> CellOrder:
+        """The cell order u of (x, λ) in which the Newton system is assembled and solved
+        (:mod:`morphoshell.numerics.cell_order`)."""
+        lay = self.layout
+        return CellOrder(lay.cells, lay.stages, lay.start_pole, lay.end_pole)
 
-    def residual(weights):     # ∇ℓ + Jᵀλ and the right-hand side −(∇ℓ + Jᵀ(λ + W g), g)
-        return [ca.densify(ca.vertcat(dual, ca.SX.zeros(S), zero)),
-                ca.densify(ca.vertcat(-(dual + ca.mtimes(Jc.T, weights * g)), -g, zero))]
+    @property
+    def cell_assembly(self) -> Assembly:
+        """Where the Newton system's entries come from (:func:`morphoshell.numerics.cell_order.assembly`)."""
+        return self._built("cell assembly", lambda: assembly(self.cell_order))
 
-    def local(name, inputs, outputs):      # (z, λ) as one input
-        f = ca.Function("local", [z, D, lam, inputs[-1]], outputs)
-        return ca.Function(name, [zl, D, inputs[-1]], f(zl[:n_z], D, zl[n_z:], inputs[-1]))
+    def kkt_pack(self, x: np.ndarray, lam: np.ndarray) -> np.ndarray:
+        """(x, λ) in cell order u (:attr:`cell_order`), the poles' fixed values filled in."""
+        return self.cell_order.pack(x, lam, POLE_VALUES)
 
-    tri = ca.densify(ca.vertcat(*[K[int(i), int(j)] for i, j in zip(ku, lu)], zero))
-    return {"newton": local("cell_newton", [rho], [tri, *residual(w), g, w]),
-            "newton_rhs": local("cell_newton_rhs", [w_in], [*residual(w_in), g])}
+    def newton_system(self) -> ca.Function:
+        """``(u, D, ρ) -> (K, rhs, ‖∇f + Jᵀλ‖∞, ‖g‖∞, ‖λ‖₁, W)``: the certified Newton system.
 
-
-@lru_cache(maxsize=None)
-def _cell_kkt_data_curvature(stages: int) -> tuple:
-    """One cell's second derivatives of :func:`_cell_kkt_curvature`'s function in D (SX).
-
-    ``(z, D, λ, μ_z, μ_λ, a, b) -> (X, H, g)``: the structural nonzeros of
-    X = ∂²φ/∂D∂(z, λ) and of the upper triangle H of ∂²φ/∂D², and g = ∂φ/∂D;
-    the cell width is D's.  Independent of the fitted parameters (the
-    directions θ are :func:`_cell_kkt_theta`'s), so it is compiled once: 6 000
-    SX instructions, where the same blocks along k = 12 directions took
-    35 000 (and gcc 63 s per k).
-    """
-    S = stages
-    n_D = len(CELL_DATA)
-    z, D, lam = ca.SX.sym("z", 3 * S + 2), ca.SX.sym("D", n_D * S), ca.SX.sym("lam", S)
-    mz, ml = ca.SX.sym("mu_z", 3 * S + 2), ca.SX.sym("mu_lam", S)
-    a, b = ca.SX.sym("mu_dz"), ca.SX.sym("mu_dS")
-    dz, dS = increments(S)(z, D[CELL_DATA.index("ds")])
-    phi = ca.dot(ca.vertcat(mz, ml), _cell_functions(S)["kkt"](z, D, lam)) - a * dz - b * dS
-    g = ca.gradient(phi, D)
-    X, H = ca.jacobian(g, ca.vertcat(z, lam)), ca.triu(ca.jacobian(g, D))
-    return ca.Function("cell_kkt_data_curvature", [z, D, lam, mz, ml, a, b],
-                       [ca.vertcat(*X.nonzeros()), ca.vertcat(*H.nonzeros()), g]), \
-        X.sparsity(), H.sparsity()
-
-
-@lru_cache(maxsize=None)
-def _compiled_kkt_data_curvature(stages: int) -> ca.Function:
-    """:func:`_cell_kkt_data_curvature` compiled for evaluation (2.2x faster at 99 cells)."""
-    return compiled_point_function(_cell_kkt_data_curvature(stages)[0], LARGE)
-
-
-@lru_cache(maxsize=None)
-def _cell_kkt_theta(stages: int, k: int) -> ca.Function:
-    """One cell's curvature of :func:`_cell_kkt_curvature`'s function along D + T t (MX).
-
-    ``(X, H, T) -> (∂²/∂(z, λ)∂t ((4S + 2) × k), ∂²/∂t² (k², column-major))``
-    at t = 0 from :func:`_cell_kkt_data_curvature`'s blocks X and H (their
-    nonzeros); T is the cell's block of ∂D/∂θ, row by row.
-    """
-    _, X_sp, H_sp = _cell_kkt_data_curvature(stages)
-    n_D = len(CELL_DATA) * stages
-    # (MX: CasADi's matrix products in C, faster than the same SX products)
-    X, H = ca.MX.sym("X", X_sp.nnz()), ca.MX.sym("H", H_sp.nnz())
-    T = ca.MX.sym("T", n_D * k)
-    TD = ca.reshape(T, k, n_D).T
-    Xm, Hm = ca.MX(X_sp, X), ca.MX(H_sp, H)
-    HT = ca.mtimes(Hm + Hm.T - ca.diag(ca.diag(Hm)), TD)
-    return ca.Function("cell_kkt_theta", [X, H, T],
-                       [ca.mtimes(Xm.T, TD), ca.vec(ca.mtimes(TD.T, HT))])
-
-
-@lru_cache(maxsize=None)
-def _cell_kkt_dtheta(stages: int, k: int) -> ca.Function:
-    """``(F_D, T) -> F_D T``: one cell's ∂/∂t of its KKT residual (∇ℓ + ∇gᵀλ, g) at D + T t (MX).
-
-    F_D = ∂F/∂D is the cell's ``kkt_data`` block (compiled with the cell
-    kernels), T the cell's block of ∂D/∂θ, row by row; ((4S + 2) × k).
-    """
-    n_D = len(CELL_DATA) * stages
-    # (MX: CasADi's matrix product in C, 4-5x faster than the same SX products)
-    F_D = ca.MX.sym("F_D", _cell_functions(stages)["kkt_data"].sparsity_out(0))
-    T = ca.MX.sym("T", n_D * k)
-    return ca.Function("cell_kkt_dtheta", [F_D, T], [ca.mtimes(F_D, ca.reshape(T, k, n_D).T)])
-
-
-@lru_cache(maxsize=None)
-def _cell_kkt_curvature(stages: int) -> ca.Function:
-    """One cell's triu ∂²/∂(z, λ)² of μ_z·(∇ℓ + ∇gᵀλ) + μ_λ·g − a Δz − b ΔS (SX)."""
-    S = stages
-    n_D = len(CELL_DATA)
-    z, D, lam = ca.SX.sym("z", 3 * S + 2), ca.SX.sym("D", n_D * S), ca.SX.sym("lam", S)
-    mz, ml = ca.SX.sym("mu_z", 3 * S + 2), ca.SX.sym("mu_lam", S)
-    a, b, ds = ca.SX.sym("mu_dz"), ca.SX.sym("mu_dS"), ca.SX.sym("ds")
-    dz, dS = increments(S)(z, ds)
-    phi = ca.dot(ca.vertcat(mz, ml), _cell_functions(S)["kkt"](z, D, lam)) - a * dz - b * dS
-    H = ca.hessian(phi, ca.vertcat(z, lam))[0]
-    ku, lu = np.triu_indices(4 * S + 2)
-    return ca.Function("cell_kkt_curvature", [z, D, lam, mz, ml, a, b, ds],
-                       [ca.vertcat(*[H[int(i), int(j)] for i, j in zip(ku, lu)])])
-
-
-class SymbolicShape:
-    """The shape of a :class:`Discretisation` as expressions of (x, p).
-
-    ``points`` holds s, r, ψ, z and the deformed arclength S at all points
-    (nodes and interior interpolation points); z is fixed by z(s_0) = z₀(s_0)
-    (the undeformed height) and S(s_0) = 0.  :meth:`at` evaluates the cell
-    polynomials anywhere, :meth:`at_arclength` finds the material point at a
-    given deformed arclength.
-    """
-
-    def __init__(self, disc: Discretisation, x, p, q):
-        self.disc = d = disc
-        S = d.stages
-        self.Z = Z = d.cell_unknowns(x)
-        self.p, self.q = p, q
-        self.a, self.b = a, b = d.shell_ends(p)
-        self.s_nodes = d.nodes(p, q)
-        self.f_g, self.psi_g = d.gauss_values(Z)
-        ds = (self.s_nodes[1:] - self.s_nodes[:-1])[np.repeat(np.arange(d.layout.cells),
-                                                                S).tolist()]
-        self.points = {
-            "s": within_cells(self.s_nodes, np.arange(S) / S),
-            "r": ca.vertcat(ca.vec(Z[:S, :]), Z[S, -1]),
-            "psi": ca.vertcat(ca.vec(Z[S + 1:2 * S + 1, :]), Z[2 * S + 1, -1]),
-            "z": d.geometry.z0(a) + d._integrate(self.f_g * ca.sin(self.psi_g), ds),
-            "S": d._integrate(self.f_g, ds),
-        }
-
-    def increments(self) -> tuple:
-        """(Δz, ΔS) over every cell: ∫ f_s sin ψ ds and ∫ f_s ds by the Gauss rule (columns)."""
-        S, cells = self.disc.stages, self.disc.layout.cells
-        ds = self.s_nodes[1:] - self.s_nodes[:cells]
-        f = self.Z[2 * S + 2:, :]
-        psi_g = ca.mtimes(ca.DM(self.disc._values), self.Z[S + 1:2 * S + 2, :])
-        w = ca.DM(self.disc.weights).T
-        return (ds * ca.mtimes(w, f * ca.sin(psi_g)).T, ds * ca.mtimes(w, f).T)
-
-    def cell_bounds(self, cell: int):
-        """(s at the cell's first node, its width in s)."""
-        return self.s_nodes[cell], self.s_nodes[cell + 1] - self.s_nodes[cell]
-
-    def _in_cell(self, cell: int, tau) -> dict:
-        _, ds = self.cell_bounds(cell)
-        first = cell * self.disc.stages
-        out = _cell_state(self.disc.stages)(self.Z[:, cell], ds, self.points["z"][first],
-                                            self.points["S"][first], tau)
-        return dict(zip(("r", "psi", "z", "S"), out))
-
-    def at(self, cell: int, s_star) -> dict:
-        """(r, ψ, z, S) at the material point ``s_star`` by the polynomials of ``cell``.
-
-        ``s_star`` may be an expression of p.  The cell should contain it; a
-        point just outside is extrapolated smoothly.
+        u holds x and λ in cell order (:attr:`cell_order`; :meth:`kkt_pack`
+        and ``cell_order.unpack`` convert), the system's unknowns are u[lo:hi].
+        K = [[M, Jᵀ], [J, −Δ]] with M = ∇²ℒ + Jᵀ W J, W > 0 per constraint
+        scaled by ρ, Δ = ε W⁻¹ (ε = :data:`~morphoshell.numerics.cell_kernels.NEWTON_EPSILON`);
+        rhs = −(∇f + Jᵀ(λ + W g), g), both symmetrically permuted to cell
+        order.  Its solution is Newton's step on the KKT conditions (to a
+        relative ε), and its inertia certifies a minimum (see
+        :mod:`morphoshell.numerics.newton`).  Assembled from one kernel per cell
+        (:func:`morphoshell.numerics.newton_assembly.newton_system`), built on first
+        use.  K is (n + m) × (n + m), sparse and symmetric; rhs (n + m,); W (m,).
         """
-        s0, ds = self.cell_bounds(cell)
-        tau = (s_star - s0) / ds
-        return {**self._in_cell(cell, tau), "s": s_star}
+        return self._built("newton", lambda: newton_system(
+            self._cell["newton"], self.cell_order, self.cell_assembly, self.D))
 
-    def at_arclength_selected(self, select, targets) -> dict:
-        """(s, r, ψ, z) at deformed arclengths ``targets`` (a row), each in the cell
-        chosen by the corresponding column of the one-hot matrix ``select``
-        (cells × points).  Vectorised :meth:`at_arclength`."""
-        S = self.disc.stages
-        n = targets.shape[1]
-        cells = self.disc.layout.cells
-        first = (np.arange(cells) * S).tolist()
-        lo, hi = self.s_nodes[:cells], self.s_nodes[1:]
-        starts = ca.horzcat(lo, hi - lo, self.points["z"][first], self.points["S"][first])
-        chosen = ca.mtimes(select.T, starts)                    # (points, 4)
-        Zc = ca.mtimes(self.Z, select)                          # (3S + 2, points)
-        out = arclength_point(S).map(n)(Zc, chosen[:, 0].T, chosen[:, 1].T, chosen[:, 2].T,
-                                         chosen[:, 3].T, targets)
-        return dict(zip(("s", "r", "psi", "z"), out))
+    def newton_rhs(self) -> ca.Function:
+        """``(u, D, W) -> (rhs, ‖∇f + Jᵀλ‖∞, ‖g‖∞, ‖λ‖₁)``: :meth:`newton_system`'s
+        right-hand side and errors for given weights W (m,), without the Hessian.
 
+        With W those of a factorised K, a step with that factorisation is a
+        chord (simplified Newton) step (:mod:`morphoshell.numerics.newton`).
+        """
+        return self._built("newton_rhs", lambda: newton_rhs(
+            self._cell["newton_rhs"], self._cell.get("newton_rhs_block"), self.cell_order,
+            self.cell_assembly, self.D))
 
-@lru_cache(maxsize=8)
-def _cell_state(stages: int) -> ca.Function:
-    """``(z_c, Δs, z_first, S_first, τ) -> (r, ψ, z, S)`` inside one cell.
+    # -- the KKT residual's derivatives (fits) ---------------------------------
+    @cached_property
+    def _kkt(self) -> KKTDerivatives:
+        """The KKT residual's curvature and θ-derivatives, set up on first use."""
+        return KKTDerivatives(self.layout, self._idx, self._cell["kkt_data"], self.cell_unknowns,
+                              lambda: self._local, self.x, self.D)
 
-    r and ψ by the cell's Lagrange polynomials, z and the deformed arclength
-    S by exact integration of the Gauss interpolants of f_s sin ψ and f_s
-    from the cell's first node (where they are ``z_first``, ``S_first``).
-    """
-    S = stages
-    tau_g, _, values, _, _, anti = collocation(S)
-    nodes = np.linspace(0.0, 1.0, S + 1)
-    zc, ds, z0, S0, tau = (ca.SX.sym("z_c", 3 * S + 2), ca.SX.sym("ds"), ca.SX.sym("z0"),
-                           ca.SX.sym("S0"), ca.SX.sym("tau"))
-    ell = [_poly(_lagrange(nodes, l).coef, tau) for l in range(S + 1)]
-    Lam = [_poly(c, tau) for c in anti]   # ∫₀^τ of the Gauss-point basis
-    f = zc[2 * S + 2:]
-    psi_g = ca.mtimes(ca.DM(values), zc[S + 1:2 * S + 2])
-    r = sum(ell[l] * zc[l] for l in range(S + 1))
-    psi = sum(ell[l] * zc[S + 1 + l] for l in range(S + 1))
-    z = z0 + ds * sum(Lam[k] * f[k] * ca.sin(psi_g[k]) for k in range(S))
-    arclength = S0 + ds * sum(Lam[k] * f[k] for k in range(S))
-    return ca.Function("cell_state", [zc, ds, z0, S0, tau], [r, psi, z, arclength],
-                       ["z_c", "ds", "z_first", "S_first", "tau"], ["r", "psi", "z", "S"])
+    def kkt_curvature(self, x, lam, D, mu_F, mu_dz, mu_dS, ds) -> ca.MX:
+        """Upper triangle of ∂²/∂(x, λ)² [μ_F·F(x, λ) − Σ_c (μ_dz,c Δz_c + μ_dS,c ΔS_c)].
 
+        F = (∇f + Jᵀλ, g) is the KKT residual of the NLP
+        (:attr:`morphoshell.solvers.parametric.Parametric.kkt_residual`) and Δz_c, ΔS_c
+        the cell increments of z and of the deformed arclength
+        (:meth:`SymbolicShape.increments`, cell widths ``ds``): the curvature
+        of the equilibrium as constraints of a larger NLP (a fit in one NLP).
+        Assembled from one SX kernel per cell, as :attr:`hess_lag` is
+        (:meth:`morphoshell.numerics.kkt_derivatives.KKTDerivatives.curvature`).
 
-@lru_cache(maxsize=8)
-def arclength_point(stages: int, newton_steps: int = 6) -> ca.Function:
-    """``(z_c, s_first, Δs, z_first, S_first, S*) -> (s, r, ψ, z)`` where S = S* in a cell.
+        Shapes: x (n,), λ and the constraints (m,), μ_F (n + m,), μ_dz, μ_dS
+        and ds (cells,); the result is (n + m) × (n + m), sparse.
+        """
+        return self._kkt.curvature(x, lam, D, mu_F, mu_dz, mu_dS, ds)
 
-    Newton's method on the cell's deformed arclength S(τ) (degree S, S' = f_s
-    Δs > 0) from the linear interpolant, unrolled: a cell's stretch varies
-    little, so a few steps reach machine precision, and differentiating the
-    converged iteration gives the implicit-function derivative.
-    """
-    S = stages
-    tau_g = collocation(S)[0]
-    zc, s0, ds, z0, S0, target = (ca.SX.sym("z_c", 3 * S + 2), ca.SX.sym("s0"), ca.SX.sym("ds"),
-                                  ca.SX.sym("z0"), ca.SX.sym("S0"), ca.SX.sym("target"))
-    state = _cell_state(S)
-    f = zc[2 * S + 2:]
-    S1 = S0 + ds * ca.dot(ca.DM(collocation(S)[1]), f)
-    tau = (target - S0) / (S1 - S0)
-    basis = [_lagrange(tau_g, k).coef for k in range(S)]
-    for _ in range(newton_steps if S > 1 else 0):   # S is linear in τ for S = 1
-        value = state(zc, ds, z0, S0, tau)[3] - target
-        slope = ds * sum(_poly(basis[k], tau) * f[k] for k in range(S))
-        tau = tau - value / slope
-    r, psi, z, _ = state(zc, ds, z0, S0, tau)
-    return ca.Function("arclength_point", [zc, s0, ds, z0, S0, target],
-                       [s0 + ds * tau, r, psi, z])
+    def kkt_curvature_theta(self, x, lam, D, T, mu_F, mu_dz, mu_dS) -> tuple:
+        """The curvature of :meth:`kkt_curvature`'s function across the cell data D.
 
+        With D moving along D + T t (T = ∂D/∂θ, rows as D, k columns) and the
+        cell widths read from D: the mixed block ∂²/∂(x, λ)∂t ((n + m) × k,
+        sparse rows), the block ∂²/∂t² (k × k) and the gradient ∂/∂D (as D)
+        (:meth:`morphoshell.numerics.kkt_derivatives.KKTDerivatives.curvature_theta`).
+        The second derivatives of D itself are the caller's (they need the parameters).
+        """
+        return self._kkt.curvature_theta(x, lam, D, T, mu_F, mu_dz, mu_dS)
 
-@lru_cache(maxsize=8)
-def increments(stages: int) -> ca.Function:
-    """``(z_c, Δs) -> (Δz, ΔS)``: ∫ f_s sin ψ ds and ∫ f_s ds over one cell (Gauss rule)."""
-    S = stages
-    _, w, values, _, _, _ = collocation(S)
-    zc, ds = ca.SX.sym("z_c", 3 * S + 2), ca.SX.sym("ds")
-    f = zc[2 * S + 2:]
-    psi_g = ca.mtimes(ca.DM(values), zc[S + 1:2 * S + 2])
-    return ca.Function("increments", [zc, ds], [ds * ca.dot(ca.DM(w), f * ca.sin(psi_g)),
-                                                ds * ca.dot(ca.DM(w), f)])
+    def kkt_residual_theta(self, x, lam, D, T) -> ca.MX:
+        """∂F/∂θ = (∂F/∂D) T of the KKT residual F = (∇f + Jᵀλ, g), cell by cell.
+
+        T = ∂D/∂θ (rows as D, k columns).  (n + m) × k, sparse rows.
+        """
+        return self._kkt.residual_theta(x, lam, D, T)
+
+    def kkt_residual_theta_numeric(self, x: np.ndarray, lam: np.ndarray, D: np.ndarray,
+                                   T: np.ndarray) -> np.ndarray:
+        """:meth:`kkt_residual_theta`'s (∂F/∂D) T in numbers, (n + m) × k, dense
+        (:meth:`morphoshell.numerics.kkt_derivatives.KKTDerivatives.residual_theta_numeric`)."""
+        return self._kkt.residual_theta_numeric(x, lam, D, T)

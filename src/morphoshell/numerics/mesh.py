@@ -124,7 +124,8 @@ def pole_exponent(stages: int) -> float:
 
     With a local solution ~ s^β the first cells cost O(N^(−2qβ)) and the
     others sum to O(N^(−2S)) if qβ > S; β ≥ 0.7 in the problems of the paper
-    (measured, see ``reference._PoleSolution``), so q = 2S leaves a margin.
+    (the pole series of ``reference._PoleSolution`` shows it), so q = 2S leaves
+    a margin.
     """
     return 2.0 * stages
 
@@ -150,10 +151,9 @@ def graded_mesh(cells: int, length: float, start: str, end: str, width: float,
     so that thin shells (h ≲ 0.015) keep their boundary layer resolved.  It
     decays like the error density of an order-2S scheme across a layer
     e^(−x/(√2 δ)) with equidistributed error, |y^(2S+1)|^(1/(2S+1)), on the
-    scale (2S + 1)√2 δ ≈ 7–10 δ (``LAYER_DECAY`` = 8).  At h = 1e-4 (classical
-    theory, Σ = 0.5) this cuts the edge-value error of order 4 on 50 nodes from
-    2e-4 to 4e-8 and the nodes needed for 1e-8 at order 6 from 141 to 30
-    (measured).  A free edge closer to the axis than the boundary-layer width
+    scale (2S + 1)√2 δ ≈ 7–10 δ (``LAYER_DECAY`` = 8).  On thin shells this
+    cuts the edge-value error by orders of magnitude at a given number of
+    nodes (tests/numerics/test_mesh.py checks it at h = 1e-4).  A free edge closer to the axis than the boundary-layer width
     (a cut Σ smaller than δ: ``edge_scale`` ℓ_c = Σ/length) also varies on
     the scale Σ, like log s between Σ and δ (the (σ + ξ) terms of the
     Supplementary's small-cut equations): the second term spends B ℓ_c = 5 %
@@ -326,8 +326,7 @@ def _pole_on_grid(q: float, pole_width: float) -> tuple:
 
     They depend on q and ℓ_p alone, which the scheme's order fixes (q = 2S, lowered on
     meshes fine enough to need it): kept, a mesh evaluates the incomplete gamma function
-    at its own nodes only (the grid's was a quarter of the time of a 50-node mesh of
-    order 4, measured).
+    at its own nodes only (on the grid it would be a good part of a small mesh's time).
     """
     g = _BRACKET_GRID
     out = (_pole_cumulative(g, q, pole_width), _pole_cumulative(1 - g, q, pole_width),
@@ -370,7 +369,7 @@ def _invert(W, dW, target: np.ndarray) -> np.ndarray:
     done = _reached(f_lo, lo, d_lo, tol) | _reached(f_hi, hi, d_hi, tol)
     # the first step: x of W = target on the inverse cubic Hermite interpolant of the
     # bracket's ends (W and dW known there), secant where it leaves the bracket: one
-    # evaluation of W fewer on every node (measured: 12 % of a 25-node mesh)
+    # evaluation of W fewer on every node
     a = np.flatnonzero(~done)
     l, h = lo[a], hi[a]
     span = f_hi[a] - f_lo[a]
@@ -421,7 +420,7 @@ def _reached(f, x, d, tol) -> np.ndarray:
 
     Next to a pole dW ~ d^(1/q − 1) exceeds 1e3 and the root is not
     representable to ``tol``: bisection then spent ~30 evaluations of W closing
-    the bracket (mesh of 71 nodes, order 6: 39 evaluations, 9 ms).  The slope
+    the bracket.  The slope
     is infinite only at the pole itself, which is never a root.
     """
     return np.abs(f) <= tol + 2.3e-16 * np.abs(x) * np.where(np.isfinite(d), d, 0.0)

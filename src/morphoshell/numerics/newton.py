@@ -5,10 +5,9 @@ Warm starts first, and cold starts under stricter rules ("Cold starts" below).
 A warm re-solve (continuation, fitting, sweeps) starts next to the solution:
 Newton's method on the KKT conditions ∇f + Jᵀλ = 0, g = 0 converges in two or
 three full steps, and Ipopt's fixed cost per call (set-up, MUMPS' analysis, a
-separate factorisation for the minimum certificate) was most of a warm solve
-(measured 10 of 15 ms at N = 200).  This back end takes those steps itself
-with one sparse LDLᵀ per iterate (CasADi's ``ldl``, symbolic analysis once),
-and reads the minimum certificate off the factorisation *at the returned
+separate factorisation for the minimum certificate) was most of a warm solve.
+This back end takes those steps itself with one sparse LDLᵀ per iterate
+(CasADi's ``ldl``, symbolic analysis once), and reads the minimum certificate off the factorisation *at the returned
 point*.  It returns None whenever it cannot certify a converged minimum (no
 convergence within a few steps, a growing residual, the wrong inertia), and
 the caller falls back to Ipopt: it can only make a warm solve faster, never
@@ -46,40 +45,36 @@ is dropped: Newton starts again from the warm start, so the chord step
 never turns a warm start that Newton's steps certify into an Ipopt solve
 (a weak chord step had led the next steps off the branch near folds).
 The chord step, Newton's step after it and the system where that lands
-are one call (a call from Python costs 40-50 us whatever its size); the
+are one call (a call from Python has a fixed cost, whatever its size); the
 tests above are made afterwards, on the errors the call returns for each
 of the three points.
 
-Factorisations.  ``Linsol.solve(A, b)`` factorises A itself (measured: a
-solve with 2A after a factorisation of A returns half the solution), so a
-step is one solve, and only the returned point is factorised apart, for
-its inertia: three factorisations for two steps (there were five, with a
-factorisation before every solve).  A solve's factorisation is not the one
-``neig`` and ``rank`` read (measured: 0 and 0 after a ``solve``), so the
-inertia is always read after an ``nfact``.  A warm solve's solves run
-inside CasADi Functions, with the update and the norms the floor's test
-needs: from Python, a solve's conversions cost as much as its arithmetic.
+Factorisations.  ``Linsol.solve(A, b)`` factorises A itself (a solve with
+2A after a factorisation of A returns half the solution), so a step is one
+solve, and only the returned point is factorised apart, for its inertia:
+three factorisations for two steps, not one before every solve.  A solve's
+factorisation is not the one ``neig`` and ``rank`` read (both give 0 after a
+``solve``), so the inertia is always read after an ``nfact``.  A warm solve's
+solves run inside CasADi Functions, with the update and the norms the floor's
+test needs: from Python, a solve's conversions cost as much as its arithmetic.
 
 Cold starts.  From the undeformed shell (no multipliers), Newton's steps are
 taken only while they are the steps Ipopt would take unmodified: each step's
 system must have the inertia of a minimum (Ipopt would otherwise add δ_w I to
 the Hessian, a different step) and each step must reduce the KKT error, or
-Ipopt solves from the start.  At the 25-50 nodes of the benchmark's cold rows
-this converges in 3-4 steps, where Ipopt takes 4-5 (the same solution to
-1e-14 of x), and Ipopt's set-up is never built.
+Ipopt solves from the start.  On small meshes this converges in no more
+steps than Ipopt's, to the same solution, and Ipopt's set-up is never built.
 
 The round-off floor.  Thin shells cannot reach ``tol``: the dual residual
-stops at a floor set by round-off (measured 2-4e-8 for h = 1e-4, 2e-10 for
-h = 1e-3), and a solve used to end, as Ipopt's "acceptable" exit does, only
-after a step that no longer cut the error tenfold, a step that showed
-nothing but the floor.  A step in Newton's quadratic phase, one that cut
+stops at a floor set by round-off (of order 1e-8 for h = 1e-4), and a solve
+used to end, as Ipopt's "acceptable" exit does, only after a step that no
+longer cut the error tenfold, a step that showed nothing but the floor.  A step in Newton's quadratic phase, one that cut
 the error a thousandfold (:data:`FLOOR_GAIN`), lands far below the floor,
 so what is left is round-off; if Newton's correction there is negligible
-too (below :data:`STEP_TOL` of x; measured 4e-14 at h = 1e-4 and 4e-13 at
-h = 1e-3), the iterate is converged.  The correction is the next step's solve,
-which is needed anyway if it is not negligible.  The residual of a start
-alone is never taken for the floor: at h = 1e-4 a parameter change moves
-the residual by as little as 1e-7 and the solution by 1e-11 of x, which is
+too (below :data:`STEP_TOL` of x), the iterate is converged.  The correction
+is the next step's solve, which is needed anyway if it is not negligible.  The residual of a start
+alone is never taken for the floor: at h = 1e-4 a parameter change may move
+the residual hardly above the floor and the solution by very little, which is
 still a change to follow (continuation).  The test depends on the iterate
 and its step alone.
 """
@@ -96,20 +91,21 @@ __all__ = ["NewtonBackend", "S_MAX", "CHORD_GAIN", "FLOOR_GAIN", "STEP_TOL",
            "THIRD_STEP_CELLS"]
 
 #: A chord step is kept only if it cuts the KKT error at least this much (a warm start's
-#: Newton step cuts it 100x or more; measured: 170x for a 1 % change); a weaker one,
-#: from a system far from the start, could lead the next steps away from the branch.
+#: Newton step cuts it a hundredfold or more); a weaker one, from a system far from the
+#: start, could lead the next steps away from the branch.
 CHORD_GAIN = 0.1
 
 #: An acceptable iterate reached by a step that cut the error at least 1/FLOOR_GAIN-fold,
 #: whose Newton correction is below STEP_TOL relative to max(1, ‖x‖∞), is converged
-#: (Newton at a round-off floor of its residual; measured corrections there 4e-14 to 4e-13).
+#: (Newton at a round-off floor of its residual, where the corrections are a few 1e-14
+#: to 1e-13 of x).
 FLOOR_GAIN = 1e-3
 STEP_TOL = 1e-12
 
 #: A warm start's first call (:attr:`NewtonBackend._chord_start`) also takes the third step
-#: on meshes of up to this many cells: there a step's arithmetic costs less than the 40-50 us
-#: of a call of its own (0.7 us a cell, measured at 41 and 199 cells of order 4), which it
-#: saves whenever the warm start does not end at the second step (two thirds of toy 3's).
+#: on meshes of up to this many cells: there a step's arithmetic costs less than a call of
+#: its own, which it saves whenever the warm start does not end at the second step
+#: (tuned by scripts/bench_equilibrium.py: warm re-solves).
 THIRD_STEP_CELLS = 100
 
 #: Ipopt's ``s_max``: the dual infeasibility is scaled down by ‖λ‖₁/(n + m)/s_max when larger.
@@ -157,9 +153,8 @@ class NewtonBackend:
 
     @property
     def _step(self) -> ca.Function:
-        """A step in one call (the system, its solve and the update): a tenth faster
-        than the three calls, the same bits (measured: 0.44 -> 0.37 ms at 200 nodes,
-        8.6 -> 7.7 ms at 3200); built on first use (cold starts do not use it)."""
+        """A step in one call (the system, its solve and the update): faster than the
+        three calls, the same bits; built on first use (cold starts do not use it)."""
         if "step" not in self._fused:
             u, D = self._symbols()
             K, rhs, *errors, _ = self._system(u, D, 1.0)
@@ -170,9 +165,8 @@ class NewtonBackend:
     @property
     def _solve_step(self) -> ca.Function:
         """``(u, K, rhs) -> (u + du, ‖du‖∞, ‖u‖∞)`` with du[lo:hi] = K⁻¹ rhs, both norms over x
-        only: a step with a system at hand, in one call (measured: 0.48-0.55 -> 0.24 ms at 200
-        nodes, 0.13 -> 0.05 ms at the thin row's 25 nodes of order 6, against a
-        ``Linsol.solve``, the update and two norms, each from Python)."""
+        only: a step with a system at hand, in one call, in place of a ``Linsol.solve``,
+        the update and two norms, each called from Python."""
         if "solve" not in self._fused:
             u = ca.MX.sym("u", self._system.sparsity_in(0))
             K = ca.MX.sym("K", self._system.sparsity_out(0))
@@ -202,11 +196,10 @@ class NewtonBackend:
         ``errors`` holds (‖∇f + Jᵀλ‖∞, ‖g‖∞, ‖λ‖₁) at u₀, u₁ and u₂ in turn.  On up to
         :data:`THIRD_STEP_CELLS` cells also Newton's step from u₂ (u₃, with the norms over
         x of :attr:`_solve_step`); on more, K's right-hand side in place of u₃ and no norms.
-        Each call from Python costs 40-50 us whatever its size (measured at 5 nodes), a
-        tenth of a warm re-solve at 42 nodes.  A warm start always takes the first two
-        steps; the third unless u₂ meets ``tol`` (at the round-off floor its correction
-        decides): a third of toy 3's warm starts at 200 nodes end at u₂, where a wasted
-        step costs 0.14 ms."""
+        Each call from Python has a fixed cost whatever its size, a good part of a warm
+        re-solve on a small mesh.  A warm start always takes the first two steps; the
+        third unless u₂ meets ``tol`` (at the round-off floor its correction decides),
+        which is why the third is fused only where it is cheap."""
         if "chord" not in self._fused:
             u, D = self._symbols()
             K_w = ca.MX.sym("K_w", self._system.sparsity_out(0))
@@ -227,8 +220,8 @@ class NewtonBackend:
 
     def _advance(self, u, K, rhs, with_step: bool = False):
         """u + du with du[lo:hi] = K⁻¹ rhs (LDLᵀ), as CasADi expressions (and du[lo:hi])."""
-        # (the backend's own LDLᵀ solver: ca.solve would make and analyse another, 2-3 ms
-        # of the first warm solve at 200 nodes)
+        # (the backend's own LDLᵀ solver: ca.solve would make and analyse another, in the
+        # first warm solve)
         step = self._linsol.solve(K, rhs, False)
         u_next = u + self._order.padded(step)
         return (u_next, step) if with_step else u_next
@@ -272,7 +265,7 @@ class NewtonBackend:
         t0 = time.perf_counter()
         chord = None if origin is None else self._chord(x0, lam_g0, origin)
         if chord is not None:
-            uk = chord.start              # (kept: the conversion is 0.12 ms at 200 nodes)
+            uk = chord.start              # (kept: converting x, λ again costs a warm solve)
         else:
             uk = self._point(x0, lam_g0)
         res, system = NotImplemented, None
@@ -299,7 +292,7 @@ class NewtonBackend:
 
     def _point(self, x, lam) -> ca.DM:
         """u (cell order, a DM) of (x, λ)."""
-        # (lists convert to DM three times faster than NumPy arrays)
+        # (lists convert to DM faster than NumPy arrays)
         return ca.DM(self._nlp.kkt_pack(np.asarray(x, dtype=float),
                                         np.asarray(lam, dtype=float)).tolist())
 
@@ -328,76 +321,114 @@ class NewtonBackend:
         With a chord step, NotImplemented instead of None (and if the start
         needs no step): the caller starts again without it, so that the chord
         step never turns a warm start that Newton's steps certify into an Ipopt
-        solve (measured: the KKT campaign's ``unstressed`` fits failed at
-        t09-t11, near folds, when it did).  ``cold``: every step's system is
-        factorised apart and must have the inertia of a minimum, and every
-        step must reduce the error.
+        solve (a weak chord step had led the next steps off the branch near
+        folds).  ``cold``: every step's system is factorised apart and must
+        have the inertia of a minimum, and every step must reduce the error.
         """
-        last, order = np.inf, self._order
+        last = np.inf
         # (a cold start's solver is new: building the one-call step would cost it more
-        # than the calls save, 5 % of a cold solve at the thin row's 25 nodes)
+        # than the calls save)
         solve_step = self._python_step if cold else self._solve_step
         fail = (None, None) if chord is None else (NotImplemented, None)
-        start = None
-        if chord is not None:
-            u1, u2, errors, K2, w2, *third = self._chord_start(uk, D, chord.K, chord.w)
-            e = errors.nonzeros()
-            # (the system at u₂ with its step, or with its right-hand side)
-            third = (None, *third) if len(third) == 3 else (third[0], None, None, None)
-            start = [(u1, *e[0:3]), (u2, *e[3:6]), (K2, third[0], *e[6:9], w2, *third[1:])]
+        start = None if chord is None else self._chord_evaluations(uk, D, chord)
         for it in range(self.max_iter + 1):
-            # A warm start's first two steps are not the last: no system is returned for
-            # them (with a chord step, three evaluations came in one call: start); later
-            # iterates, where Newton usually stops, give K for the certificate.
-            fused = not cold and it <= 1 and (it == 1 or chord is not None)
-            if start and it <= 1:
-                u_next, dual, primal, l1 = start[it]
-            elif fused:
-                u_next, dual, primal, l1 = self._step(uk, D)
-            elif start and it == 2:
-                K, rhs, dual, primal, l1, w, u_next, du, size = start[2]
-            else:
-                K, rhs, dual, primal, l1, w = self._system(uk, D, 1.0)
-                u_next = None
-            err, primal = self._error(dual, primal, l1)
-            acceptable = err <= self.acceptable_tol and primal <= 1e-10
-            done = err <= self.tol or acceptable and err > 0.1 * last
-            if chord is not None and (it == 0 and done or it == 1 and not err <= CHORD_GAIN * last):
+            fused = _fused(it, cold, chord is not None)
+            point = self._evaluate(it, uk, D, start, fused)
+            err, primal = self._error(point.dual, point.primal, point.l1)
+            acceptable, done = self._converged(err, primal, last)
+            if chord is not None and _chord_rejected(it, done, err, last):
                 return NotImplemented, None
-            if not (done or fused) and acceptable and err <= FLOOR_GAIN * last < np.inf:
-                # at a round-off floor if Newton's correction is negligible (if it is
-                # not, it is the next step)
-                if u_next is None:
-                    u_next, du, size = solve_step(uk, K, rhs)
-                done = float(du) <= STEP_TOL * max(1.0, float(size))
-            if not done and (not np.isfinite(err) or (it >= (1 if cold else 2) and err > last)
-                             or it == self.max_iter):
-                return fail       # not converging: Ipopt's globalisation is needed
-            if cold and not done:
-                found = self._minimum(K, rhs, uk, D)
-                if found is None:
-                    return fail   # Ipopt would correct the inertia: its step, not Newton's
-                if found[2] != 1:          # (a floor test's step is ρ = 1's)
-                    K, rhs, u_next = *found[:2], None
+            if not (done or fused) and _floor_reached(acceptable, err, last):
+                done = self._negligible_correction(point, uk, solve_step)
             if done:
-                if fused:        # (rare: its step is not needed)
-                    K, *_, w = self._system(uk, D, 1.0)
-                how = self._certify(K, uk, D)
-                if how is None:
-                    return fail
-                # kept for a chord step from here: ρ = 1's system only, as _chord builds
-                system = (K, w, uk) if how == "newton_ldl" else None
-                # (a DM's nonzeros read by np.fromiter: 60 against 140 ns an entry by np.array)
-                u = np.fromiter(ca.densify(uk).nonzeros(), float, uk.numel())
-                return BackendResult(*order.unpack(u),
-                                     "Newton_Converged", it, time.perf_counter() - t0, True,
-                                     {"stability": how, "inertia_correction": 0.0,
-                                      "route": "newton", "chord": chord is not None}), system
-            if u_next is None:
-                u_next = (self._python_step(uk, K, rhs, norms=False) if cold  # (which
-                          else self._solve_step(uk, K, rhs))[0]         # factorises K)
-            uk, last = u_next, err
+                return self._finish(point, uk, D, it, t0, chord, fused) or fail
+            if self._stalled(it, err, last, cold) or cold and not self._cold_system(point, uk, D):
+                return fail
+            uk, last = self._next_iterate(point, uk, cold), err
         return fail
+
+    def _chord_evaluations(self, uk, D, chord: "_System") -> list["_Point"]:
+        """A warm start's first three evaluations, from one call of :attr:`_chord_start`:
+        the chord step to u₁, Newton's step to u₂, and the system at u₂ (with its step
+        to u₃ on small meshes, else with its right-hand side)."""
+        u1, u2, errors, K2, w2, *third = self._chord_start(uk, D, chord.K, chord.w)
+        e = errors.nonzeros()
+        if len(third) == 3:            # the system at u₂ with its step
+            rhs, (u3, du, size) = None, third
+        else:                          # or with its right-hand side
+            rhs, u3, du, size = third[0], None, None, None
+        return [_Point(*e[0:3], u_next=u1), _Point(*e[3:6], u_next=u2),
+                _Point(*e[6:9], K=K2, rhs=rhs, w=w2, u_next=u3, du=du, size=size)]
+
+    def _evaluate(self, it: int, uk, D, start: list | None, fused: bool) -> "_Point":
+        """What iteration ``it`` knows at uk: a warm start's evaluations from the chord
+        call (``start``); a fused step (:attr:`_step`), which returns the next iterate
+        but no system; or the system at uk, whose step is taken later."""
+        if start and it <= 2:
+            return start[it]
+        if fused:
+            u_next, dual, primal, l1 = self._step(uk, D)
+            return _Point(dual, primal, l1, u_next=u_next)
+        K, rhs, dual, primal, l1, w = self._system(uk, D, 1.0)
+        return _Point(dual, primal, l1, K=K, rhs=rhs, w=w)
+
+    def _converged(self, err: float, primal: float, last: float) -> tuple[bool, bool]:
+        """(acceptable, done): the error within ``acceptable_tol`` with ‖g‖∞ ≤ 1e-10; done
+        within ``tol``, or acceptable after a step that no longer cut the error tenfold."""
+        acceptable = err <= self.acceptable_tol and primal <= 1e-10
+        return acceptable, err <= self.tol or acceptable and err > 0.1 * last
+
+    @staticmethod
+    def _negligible_correction(point: "_Point", uk, solve_step) -> bool:
+        """At a round-off floor, whether Newton's correction there is negligible (if it is
+        not, it is the next step, kept in ``point``)."""
+        if point.u_next is None:
+            point.u_next, point.du, point.size = solve_step(uk, point.K, point.rhs)
+        return float(point.du) <= STEP_TOL * max(1.0, float(point.size))
+
+    def _stalled(self, it: int, err: float, last: float, cold: bool) -> bool:
+        """Not converging: Ipopt's globalisation is needed (a non-finite error, a growing
+        one after the first steps, or the last step taken)."""
+        return (not np.isfinite(err) or (it >= (1 if cold else 2) and err > last)
+                or it == self.max_iter)
+
+    def _cold_system(self, point: "_Point", uk, D) -> bool:
+        """A cold step's system with the inertia of a minimum, at ρ = 1 or else ρ = 100 (its
+        step then taken with that system); False if neither has it: Ipopt would correct
+        the inertia, its step and not Newton's."""
+        found = self._minimum(point.K, point.rhs, uk, D)
+        if found is None:
+            return False
+        if found[2] != 1:          # (a floor test's step is ρ = 1's)
+            point.K, point.rhs, point.u_next = *found[:2], None
+        return True
+
+    def _next_iterate(self, point: "_Point", uk, cold: bool):
+        """The iterate after uk: the step ``point`` holds, or a solve with its system (which
+        factorises K)."""
+        if point.u_next is not None:
+            return point.u_next
+        if cold:
+            return self._python_step(uk, point.K, point.rhs, norms=False)[0]
+        return self._solve_step(uk, point.K, point.rhs)[0]
+
+    def _finish(self, point: "_Point", uk, D, it: int, t0: float, chord, fused: bool):
+        """(BackendResult, system to keep) at the converged uk, or None if its system does
+        not certify a minimum."""
+        K, w = point.K, point.w
+        if fused:        # (rare: its step is not needed)
+            K, *_, w = self._system(uk, D, 1.0)
+        how = self._certify(K, uk, D)
+        if how is None:
+            return None
+        # kept for a chord step from here: ρ = 1's system only, as _chord builds
+        system = (K, w, uk) if how == "newton_ldl" else None
+        # (np.fromiter reads a DM's nonzeros faster than np.array)
+        u = np.fromiter(ca.densify(uk).nonzeros(), float, uk.numel())
+        return BackendResult(*self._order.unpack(u),
+                             "Newton_Converged", it, time.perf_counter() - t0, True,
+                             {"stability": how, "inertia_correction": 0.0,
+                              "route": "newton", "chord": chord is not None}), system
 
     def _minimum(self, K, rhs, u, D) -> tuple | None:
         """(K, rhs, ρ): the system K given (ρ = 1), or else the system at ρ = 100, whichever
@@ -429,3 +460,37 @@ class _System:
     def matches(self, key: tuple) -> bool:
         return self.key is not None and all(
             a.shape == b.shape and np.array_equal(a, b) for a, b in zip(self.key, key))
+
+
+class _Point:
+    """What one iteration knows at its iterate: the KKT errors (‖∇f + Jᵀλ‖∞, ‖g‖∞, ‖λ‖₁),
+    the system K, rhs and weights W there (None after a fused step), and the next iterate
+    with the norms of its step over x, where already taken."""
+
+    __slots__ = ("dual", "primal", "l1", "K", "rhs", "w", "u_next", "du", "size")
+
+    def __init__(self, dual, primal, l1, K=None, rhs=None, w=None, u_next=None, du=None,
+                 size=None):
+        self.dual, self.primal, self.l1 = dual, primal, l1
+        self.K, self.rhs, self.w = K, rhs, w
+        self.u_next, self.du, self.size = u_next, du, size
+
+
+def _fused(it: int, cold: bool, chord: bool) -> bool:
+    """Whether iteration ``it`` is a fused step (:attr:`NewtonBackend._step`): a warm start's
+    first two steps are not the last, so no system is returned for them (with a chord step,
+    they come from the chord call); later iterates, where Newton usually stops, give K for
+    the certificate."""
+    return not cold and it <= 1 and (it == 1 or chord)
+
+
+def _chord_rejected(it: int, done: bool, err: float, last: float) -> bool:
+    """The chord step is dropped if the start needs no step, or if it did not cut the KKT
+    error by :data:`CHORD_GAIN`."""
+    return it == 0 and done or it == 1 and not err <= CHORD_GAIN * last
+
+
+def _floor_reached(acceptable: bool, err: float, last: float) -> bool:
+    """An acceptable iterate reached by a step that cut the error 1/FLOOR_GAIN-fold (never
+    the start): what is left may be round-off (module docstring, "The round-off floor")."""
+    return acceptable and err <= FLOOR_GAIN * last < np.inf
