@@ -50,6 +50,7 @@ from ..model.energy import (CACHE_SIZE, LOCAL_OUTPUTS, Strains, boundary_layer_w
 from ..model.layouts import BVP_STATE, INTRINSIC
 from ..model.problem import Problem, Structure
 from ..numerics.mesh import graded_mesh
+from ..numerics.status import BVP_STATUSES, POLE_ANALYSIS_FAILED, TIME_LIMIT_EXCEEDED, explain
 from .results import FIELDS, Equilibrium, SolverError, SolverStats
 
 __all__ = ["solve_bvp", "pontryagin_functions", "pole_solutions", "pole_state",
@@ -153,7 +154,7 @@ class _PoleSolution:
         pos = sorted(roots[roots.real > 1e-9], key=lambda z: (z.real, z.imag))
         if len(pos) != 2:
             raise SolverError(f"pole analysis found {len(pos)} admissible exponents "
-                              f"({roots}); the pole is not regular", "Pole_Analysis_Failed")
+                              f"({roots}): {explain(POLE_ANALYSIS_FAILED)}", POLE_ANALYSIS_FAILED)
         b1, b2 = pos
         if abs(b1 - b2) < 1e-6 * max(1.0, abs(b1)):
             # Double root (isotropic quadratic form): M(β) vanishes on a plane.
@@ -295,10 +296,9 @@ def solve_bvp(problem: Problem, nodes: int = 400, *, tol: float = 1e-8, bc_tol: 
     max_nodes : int
         Passed to ``solve_bvp``.
     max_seconds : float
-        Wall-clock budget: ``solve_bvp`` refines its mesh without bound on a
-        problem it cannot resolve (thin shells, profile kinks), measured at
-        90 s before it gave up; past the budget it stops with status
-        ``"Time_Limit_Exceeded"``.
+        Wall-clock budget: ``solve_bvp`` refines its mesh for minutes on a
+        problem it cannot resolve (thin shells, profile kinks); past the
+        budget it stops with status ``"Time_Limit_Exceeded"``.
 
     Raises
     ------
@@ -318,9 +318,8 @@ def solve_bvp(problem: Problem, nodes: int = 400, *, tol: float = 1e-8, bc_tol: 
         except _OutOfTime:
             raise SolverError(
                 f"solve_bvp on {problem.name or problem.family!r} ran out of its time budget "
-                f"({max_seconds:g} s; max_seconds=...): it keeps refining a solution it cannot "
-                f"resolve (a thin boundary layer or a kink of the profiles?); the direct method "
-                f"handles both", "Time_Limit_Exceeded") from None
+                f"({max_seconds:g} s; max_seconds=...): {explain(TIME_LIMIT_EXCEEDED)}",
+                TIME_LIMIT_EXCEEDED) from None
         total_iters += iters
     seconds = time.perf_counter() - t0
     st = current.solver
@@ -414,13 +413,14 @@ def _solve_one(problem: Problem, nodes: int, tol: float, bc_tol: float,
     details = {"max_rms_residual": float(np.max(sol.rms_residuals)) if sol.rms_residuals.size else 0.0,
                "pole_offset": eps}
     end_energy = pole_integrals("end", sol.p[-2:])[0] if end_pole else 0.0
+    status = BVP_STATUSES[sol.status]     # scipy's message for it, as a key of the table
     eq = to_equilibrium(problem, sol.x, sol.y, p, controls, local, end_energy,
-                         SolverStats("bvp", int(sol.niter), seconds, sol.message, len(sol.x), 0.0,
+                         SolverStats("bvp", int(sol.niter), seconds, status, len(sol.x), 0.0,
                                      details), sol.status == 0)
     if sol.status != 0:
         raise SolverError(f"solve_bvp failed on {problem.name or problem.family!r}: {sol.message} "
-                          f"(status {sol.status}); the last iterate is attached (.last_iterate)",
-                          sol.message, eq)
+                          f"(status {sol.status}): {explain(status)}; the last iterate is attached "
+                          f"(.last_iterate)", status, eq)
     return eq, int(sol.niter)
 
 

@@ -16,6 +16,7 @@ from typing import Callable
 import numpy as np
 
 from ..model.problem import Problem
+from ..numerics.status import TOLERANCE_NOT_MET, explain
 from .direct import MAX_NODES, DirectSolver
 from .results import ESTIMATED, Equilibrium, ErrorEstimate, SolverError
 
@@ -140,9 +141,9 @@ def refine(eq: Equilibrium, solver_for: Callable[[int], DirectSolver], rtol: flo
             key, err = est.worst()
             raise SolverError(
                 f"the error estimate {err:.3g} of {key} (at {nodes} nodes) does not meet "
-                f"rtol = {rtol:g} within {min(max_nodes, MAX_NODES)} nodes; the finest "
-                f"solution is attached",
-                "Tolerance_Not_Met", replace(eq, error=est))
+                f"rtol = {rtol:g} within {min(max_nodes, MAX_NODES)} nodes: "
+                f"{explain(TOLERANCE_NOT_MET)}; the finest solution is attached",
+                TOLERANCE_NOT_MET, replace(eq, error=est))
         finer = solve_from(solver_for(finer_nodes), problem, eq, anchors)
         est = estimate(finer, eq, order, coarser=reference)
         eq, reference, nodes = finer, eq, finer_nodes
