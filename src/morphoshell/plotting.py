@@ -505,7 +505,7 @@ def plot_ablation(ablation, ax: Axes | None = None, *, title: str | None = "auto
 
     Both shells are drawn in the gauge of the observables (far end at its
     undeformed position, see :func:`morphoshell.mechanics.ablation.edge_state`), so
-    the recoil seen is the one measured by ``ablation.displacement``.  The
+    the recoil seen is the one ``ablation.displacement`` gives.  The
     whole intact shell is drawn, cap included, as an opaque band under the
     post-ablation one; both midlines (pre dashed) are drawn on top.
 

@@ -64,7 +64,7 @@ class Outputs:
         """Write every staged output; on any failure remove what was written and re-raise."""
         if not self._staged:
             return []
-        import tempfile     # here only: a run without outputs needs none of its 8 ms of imports
+        import tempfile     # here only: a run without outputs needs none of its imports
 
         temps: list[tuple[Path, Path]] = []
         try:

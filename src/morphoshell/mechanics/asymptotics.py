@@ -399,7 +399,7 @@ def displacement_small_cut(h, k, cut):
 INNER_LENGTH = 40.0
 
 #: ``solve_bvp`` tolerance of the inner problem: the scaled recoils agree with
-#: tol = 1e-8 to 3e-9 relative (measured for σ = 0.3, 1, 3).
+#: those at tol = 1e-8 to a few parts in 10⁹ (tuned for σ = 0.3, 1, 3).
 INNER_TOL = 1e-6
 
 #: Recoil per unit of the inner solution (Supplementary, toy problem 2, "Approximate

@@ -56,8 +56,8 @@ SERIES_SWITCH = 0.1
 
 
 def _F(p: int, q: int) -> float:
-    """The rational p/q, correctly rounded (= float(Fraction(p, q)), without the
-    4 ms that importing fractions adds to every start-up)."""
+    """The rational p/q, correctly rounded (= float(Fraction(p, q)), without
+    importing fractions at every start-up)."""
     return p / q
 
 

@@ -29,8 +29,8 @@ from .profiles import ProfileFamily, Profiles, get_family
 
 __all__ = ["Problem", "Structure", "BASE_KEYS", "MIN_SHELL_LENGTH"]
 
-#: Shortest shell L − P − Σ accepted (units of R): below it the energy scale
-#: reaches the solver's round-off floor (measured: Ipopt fails at 1e-4).
+#: Shortest shell L − P − Σ accepted (units of R): shorter shells bring the
+#: energy scale down to the solver's round-off floor, where Ipopt fails.
 MIN_SHELL_LENGTH = 1e-3
 
 #: Keys of a problem other than the family's parameters (``--set`` names).

@@ -125,8 +125,8 @@ class ProfileFamily:
 
     def evaluate(self, s: np.ndarray, values, cut: float, end: float) -> Profiles:
         """Numerical profiles at the points ``s`` (1-d) for parameter ``values`` in order."""
-        # compiled code where available (evaluation only: 3-4x faster); the
-        # parameters, cut and end given once for all points
+        # compiled code where available (evaluation only: faster than CasADi's
+        # virtual machine); the parameters, cut and end given once for all points
         if "numeric" not in self._function:
             self._function["numeric"] = PointEvaluator(self.function())
         return Profiles(*(v[0] for v in self._function["numeric"](s, values, cut, end)))

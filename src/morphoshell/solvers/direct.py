@@ -113,8 +113,8 @@ class DirectSolver:
         Passed to :class:`morphoshell.numerics.ipopt.IpoptBackend`.
     newton : bool
         Solves first try :class:`morphoshell.numerics.newton.NewtonBackend`: Newton
-        steps certified by their own factorisation, 3–4× faster than an Ipopt
-        call; whatever it cannot certify within a few steps goes to Ipopt.
+        steps certified by their own factorisation, several times faster than
+        an Ipopt call; whatever it cannot certify within a few steps goes to Ipopt.
         From a warm start (``warm_start`` or ``lam_g0`` given) only with
         ``stability = "auto"``; from the undeformed shell (cold) also only
         with the default ``linear_solver`` and no ``ipopt_options``, and

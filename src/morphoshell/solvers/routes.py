@@ -43,7 +43,7 @@ SHOOTING_OPTIONS = ("segments", "integrator", "atol", "tol", "pole_offset", "hom
                     "max_evaluations", "max_growth", "max_segments", "max_condition", "points")
 
 #: Direct solvers kept by :func:`solve` (least recently used dropped first).
-#: A solver of 400 nodes holds about 5 MB.
+#: A solver of 400 nodes holds a few MB.
 SOLVER_CACHE_SIZE = 16
 
 _SOLVERS: "OrderedDict[tuple, DirectSolver]" = OrderedDict()

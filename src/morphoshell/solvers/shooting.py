@@ -371,7 +371,7 @@ class _Shooting:
         self.p = problem.parameter_vector()
         self.poles = pole_solutions(problem)
         self.F = pontryagin_functions(st)
-        # Bound to preallocated arrays: a plain CasADi call spends ~100 µs converting.
+        # Bound to preallocated arrays: a plain CasADi call spends most of its time converting.
         f, J = (Buffered(g) for g in _variational_functions(st))
         n_aug = _N + _NC * _NC
         self._fun = lambda s, X: f(s, X, self.p)[0]
