@@ -57,6 +57,7 @@ class Outputs:
         self._staged: list[tuple[Path, Callable[[Path], None]]] = []
 
     def add(self, path: Path | None, write: Callable[[Path], None]) -> None:
+        """Stage ``write`` for ``path`` (nothing when the option was not given: None)."""
         if path is not None:
             self._staged.append((Path(path), write))
 

@@ -49,7 +49,13 @@ class Geometry:
     _cache: dict = field(default_factory=dict, repr=False)
 
     def numeric(self, s) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(ρ, z₀, ψ₀) at the points ``s`` (scalar or array) as NumPy arrays."""
+        """(ρ, z₀, ψ₀) at the points ``s`` (scalar or array) as NumPy arrays.
+
+        Returns
+        -------
+        rho, z0, psi0 : ndarray
+            Each of the shape of ``s``.
+        """
         s = np.asarray(s, dtype=float)
         if "numeric" not in self._cache:
             sym = ca.SX.sym("s")
@@ -70,6 +76,7 @@ SPHERE = Geometry("sphere", float(np.pi), True,
 DISC = Geometry("disc", 1.0, False,
                 rho=lambda s: s, z0=lambda s: 0 * s, psi0=lambda s: 0 * s)
 
+#: The geometries by name (``Problem(geometry=...)``).
 GEOMETRIES: dict[str, Geometry] = {g.name: g for g in (SPHERE, DISC)}
 
 

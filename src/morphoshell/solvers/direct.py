@@ -70,6 +70,10 @@ def default_mesh(structure: Structure, nodes: int, stages: int = 2,
     h = 0.1) on a shell of ``domain_length`` (default the whole meridian);
     ``edge_scale``, a free edge's distance from the axis, adds logarithmic
     grading there when below the width.
+
+    Returns
+    -------
+    MeshSpec
     """
     width = boundary_layer_width(0.1) if grading_width is None else float(grading_width)
     length = structure.geometry.length if domain_length is None else float(domain_length)
@@ -190,12 +194,20 @@ class DirectSolver:
         anchors : sequence of float
             Material points of the mesh's knots (``mesh.knots``), increasing.
 
+        Returns
+        -------
+        Equilibrium
+            A certified strict local minimum whose meridian stays off the axis;
+            ``solver.status`` says which back end converged.
+
         Raises
         ------
         SolverError
-            Ipopt did not converge; ``.status`` is Ipopt's return status.
+            Ipopt did not converge (``.status`` is Ipopt's return status), or
+            converged to a meridian that crosses the axis
+            (``"Meridian_Crosses_Axis"``).
         NotAMinimumError
-            Ipopt converged to a saddle.
+            Ipopt converged to a saddle (``"Not_A_Minimum"``).
         """
         self.check(problem)
         p = problem.parameter_vector()
@@ -262,7 +274,32 @@ class DirectSolver:
     def equilibrium(self, problem: Problem, x: np.ndarray, lam: np.ndarray, p: np.ndarray,
                     q: np.ndarray, D: np.ndarray, stats: SolverStats,
                     converged: bool) -> Equilibrium:
-        """The :class:`Equilibrium` of the NLP point (x, λ) at parameters p, anchors q (data D)."""
+        """The :class:`Equilibrium` of the NLP point (x, λ) at parameters p, anchors q (data D).
+
+        The fields at the points follow from the Gauss-point fields of the
+        transcription (stretches, curvatures, strains and resultants of
+        Materials and Methods, Eqs. 5-7), exact off the axis; the energy is
+        the Gauss rule of 2π ∫ e ρ ds.
+
+        Parameters
+        ----------
+        problem : Problem
+        x : ndarray, shape (n,)
+            The NLP's unknowns.
+        lam : ndarray, shape (m,)
+            Its multipliers.
+        p, q : ndarray
+            Parameter vector and anchor positions.
+        D : ndarray
+            The cell data at (p, q).
+        stats : SolverStats
+        converged : bool
+
+        Returns
+        -------
+        Equilibrium
+            On the N = (nodes − 1) × stages + 1 points of the mesh.
+        """
         d = self.disc
         gf = d.gauss_fields(x, D)
         pts = d.point_data(p, q)

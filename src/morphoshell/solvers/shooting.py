@@ -350,6 +350,7 @@ class _Segment:
 
     @property
     def end(self) -> np.ndarray:
+        """The core state (4,) where the integration ended."""
         return self.Y[_C, -1]
 
 
