@@ -7,10 +7,10 @@ values, warm-started from a previous :class:`~morphoshell.solvers.results.Equili
 continuation and fitting call it thousands of times.
 
 Nothing unconverged is returned: an Ipopt failure raises
-:class:`~morphoshell.solvers.results.SolverError` naming Ipopt's status, a converged
+:class:`~morphoshell.numerics.status.SolverError` naming Ipopt's status, a converged
 stationary point that is not a local minimum (a saddle, which interior-point
 methods can report as success) raises
-:class:`~morphoshell.solvers.results.NotAMinimumError`; both carry the last iterate.
+:class:`~morphoshell.numerics.status.NotAMinimumError`; both carry the last iterate.
 """
 from __future__ import annotations
 
@@ -18,7 +18,6 @@ import time
 import weakref
 from typing import Any, Mapping
 
-import casadi as ca
 import numpy as np
 
 from ..model.energy import boundary_layer_width, kinematics
