@@ -92,6 +92,11 @@ def sheet_outline(eq: Equilibrium) -> tuple[np.ndarray, np.ndarray]:
 
     The right half (r ≥ 0) only, in units of R: the outer edge from the
     first point to the last, then the inner edge back.
+
+    Returns
+    -------
+    r, z : ndarray, shape (2N,)
+        For the N points of ``eq``.
     """
     outer, inner = _band_edges(eq)
     return np.concatenate([outer[0], inner[0][::-1]]), np.concatenate([outer[1], inner[1][::-1]])
@@ -244,6 +249,21 @@ def plot_k_estimates(ax: Axes, result, truth=None, ylim=None) -> Axes:
     the mean ± standard deviation of each.  Estimates off the axis (or with
     no k in the range, beyond it) are arrows at the axis.  ``truth``, a
     mapping embryo → k, adds grey ticks (synthetic data).
+
+    Parameters
+    ----------
+    ax : Axes
+    result
+        The result of ``morphoshell.inverse.estimate``.
+    truth : mapping, optional
+        Embryo → true k.
+    ylim : (float, float), optional
+        The k axis' range (default: from the result's k range).
+
+    Returns
+    -------
+    Axes
+        ``ax``.
     """
     from .inverse import MEASURES
 
@@ -300,7 +320,16 @@ def _marker(ax, x, est, colour, filled, ylim):
 
 
 def plot_recoil_velocity(ax: Axes, result) -> Axes:
-    """Initial recoil velocity V against its scaling H^{5/2}R^{−3/2}|1 − k| (paper Fig. 2 K)."""
+    """Initial recoil velocity V against its scaling H^{5/2}R^{−3/2}|1 − k| (paper Fig. 2 K).
+
+    Main text and Supplementary, "Recoil velocity: scaling argument": the
+    straight-line fit through the origin estimates ⟨E/μ⟩.
+
+    Returns
+    -------
+    Axes
+        ``ax``.
+    """
     fit = result.velocity
     if fit is None:
         ax.text(0.5, 0.5, "no recoil velocities", transform=ax.transAxes, ha="center")
@@ -326,8 +355,13 @@ def plot_recoil_velocity(ax: Axes, result) -> Axes:
 
 
 def figure_JK(result, truth=None) -> Figure:
-    """Fig. 2 J and K side by side (a Matplotlib figure) of an :class:`~morphoshell.inverse.InverseResult`."""
+    """Fig. 2 J and K side by side (a Matplotlib figure) of an :class:`~morphoshell.inverse.InverseResult`.
 
+    Returns
+    -------
+    Figure
+        :func:`plot_k_estimates` and :func:`plot_recoil_velocity`, in pyplot.
+    """
     fig, (a, b) = plt.subplots(1, 2, figsize=(11.5, 4.4), gridspec_kw={"width_ratios": [2.2, 1]},
                                constrained_layout=True)
     plot_k_estimates(a, result, truth)
@@ -356,6 +390,10 @@ def new_axes(figsize: tuple[float, float] | None = None, *, legend: bool = False
         ``plt.close``).  ``False`` gives a figure unknown to pyplot: no
         backend, no window, freed with its last reference — for programs
         that only save it (the command line).
+
+    Returns
+    -------
+    Axes
     """
     if figsize is None:
         figsize = (_FIGSIZE[0] + 1.6 * legend, _FIGSIZE[1])
@@ -505,7 +543,7 @@ def plot_ablation(ablation, ax: Axes | None = None, *, title: str | None = "auto
 
     Both shells are drawn in the gauge of the observables (far end at its
     undeformed position, see :func:`morphoshell.mechanics.ablation.edge_state`), so
-    the recoil seen is the one measured by ``ablation.displacement``.  The
+    the recoil seen is the one ``ablation.displacement`` gives.  The
     whole intact shell is drawn, cap included, as an opaque band under the
     post-ablation one; both midlines (pre dashed) are drawn on top.
 
@@ -627,6 +665,11 @@ def save(fig_or_ax, path: str | Path, formats: Sequence[str] | None = None, *,
     tight : bool, optional
         Crop to the drawn content.  Default: only figures without a layout
         engine, so that a figure laid out at a journal's width keeps its size.
+
+    Returns
+    -------
+    list of Path
+        One per format.
     """
     fig = fig_or_ax
     while not isinstance(fig, Figure):   # Axes -> (SubFigure ->) Figure
@@ -669,6 +712,10 @@ def label_panel(ax: Axes, letter: str, *, size: float = 10.0, dx: float = -4.0,
         Font size (points).
     dx, dy : float
         Offset of the letter's right/bottom edge from the axes' corner (points).
+
+    Returns
+    -------
+    matplotlib.text.Text
     """
     offset = ScaledTranslation(dx / 72, dy / 72, ax.figure.dpi_scale_trans)
     return ax.text(0.0, 1.0, letter, transform=ax.transAxes + offset, ha="right", va="bottom",

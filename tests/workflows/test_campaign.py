@@ -247,7 +247,7 @@ def test_fig3_draws_a_fit_whose_ablation_fails(serial, data, tmp_path, monkeypat
     from morphoshell import SolverError
 
     def fails(*args, **kwargs):
-        raise SolverError("continuation stopped at 0.18 of the way (made up)", "x")
+        raise SolverError("continuation stopped at 0.18 of the way (made up)", "Continuation_Failed")
     monkeypatch.setattr(module, "numerical_ablation", fails)
     import morphoshell.plotting as plotting
     panels, save = {}, plotting.save
@@ -518,7 +518,7 @@ def test_a_fit_near_a_fold_or_whose_continuation_fails_is_kept_as_it_is(serial, 
         if len(calls) == 1:
             return first
         if case == "continuing fails":
-            raise SolverError("no step", "Solve_Failed")
+            raise SolverError("no step", "Maximum_Iterations_Exceeded")
         return dataclasses.replace(_unconverged(serial, True), E_fit=0.999 * first.E_fit)
 
     monkeypatch.setattr(module, "fit", stub)
@@ -626,7 +626,7 @@ def test_a_step_restarts_from_the_stress_free_parameters_only_when_its_state_fai
 
     def failing(spec, midline, method, nodes, start):
         starts.append(start)
-        raise {"SolverError": SolverError, "FitError": FitError}[error]("failed", "status")
+        raise {"SolverError": SolverError, "FitError": FitError}[error]("failed", "Maximum_Iterations_Exceeded")
 
     monkeypatch.setattr(module, "fit", failing)
     tps = read_timepoints(data[0])

@@ -137,7 +137,7 @@ def test_failed_points_keep_their_row_and_the_next_restarts_safely(monkeypatch):
 
     def failing(self, problem, *args, **kwargs):
         if problem.params["k"] == 0.5:
-            raise SolverError("forced failure", "Forced_Failure")
+            raise SolverError("forced failure", "Maximum_Iterations_Exceeded")
         return real(self, problem, *args, **kwargs)
 
     monkeypatch.setattr(DirectSolver, "solve", failing)

@@ -57,6 +57,7 @@ class Outputs:
         self._staged: list[tuple[Path, Callable[[Path], None]]] = []
 
     def add(self, path: Path | None, write: Callable[[Path], None]) -> None:
+        """Stage ``write`` for ``path`` (nothing when the option was not given: None)."""
         if path is not None:
             self._staged.append((Path(path), write))
 
@@ -64,7 +65,7 @@ class Outputs:
         """Write every staged output; on any failure remove what was written and re-raise."""
         if not self._staged:
             return []
-        import tempfile     # here only: a run without outputs needs none of its 8 ms of imports
+        import tempfile     # here only: a run without outputs needs none of its imports
 
         temps: list[tuple[Path, Path]] = []
         try:

@@ -54,7 +54,24 @@ _GAUGE = ("post- minus pre-ablation state at the material point s = cut; z in th
 
 @dataclass(frozen=True, eq=False)
 class Ablation:
-    """Pre- and post-ablation equilibria and the observables of the cut."""
+    """Pre- and post-ablation equilibria and the observables of the cut.
+
+    Supplementary, toy problem 2: the observables compare the two states at
+    the rim's material point s = Σ (module doc).
+
+    Attributes
+    ----------
+    problem : Problem
+        The shell after ablation (its ``cut`` = Σ > 0).
+    pre, post : Equilibrium
+        The intact shell (:func:`intact_problem`) and the cut one.
+    opening, displacement, radial_displacement, axial_displacement : float
+        Units of R.
+    rotation : float
+        Radians.
+    energy_released, energy_removed : float
+        Units of C R².
+    """
 
     problem: Problem
     pre: Equilibrium
@@ -160,6 +177,11 @@ def edge_state(eq: Equilibrium, s: float) -> dict[str, float]:
     evaluated exactly by their cell polynomials (the definition of
     :func:`morphoshell.solvers.observables.state_at`); other routes by a cubic spline
     through their points.
+
+    Returns
+    -------
+    dict
+        Floats ``r``, ``z`` (units of R) and ``psi`` (radians).
     """
     z0_end = float(eq.problem.geometry_obj.numeric(eq.s[-1:])[1][0])
     shift = z0_end - eq.z[-1]
@@ -247,9 +269,9 @@ def recoil_jacobian(ablation: Ablation, wrt: Sequence[str]) -> tuple[np.ndarray,
 
     Returns
     -------
-    values : ndarray (5,)
+    values : ndarray, shape (5,)
         :data:`~morphoshell.solvers.observables.RECOIL` in order.
-    jacobian : ndarray (5, len(wrt))
+    jacobian : ndarray, shape (5, len(wrt))
     """
     wrt = tuple(wrt)
     if "cut" in wrt:

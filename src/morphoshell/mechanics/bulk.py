@@ -242,14 +242,26 @@ def _cbrt_step(base, increment):
 
 
 def zeta_of_Z(geom: UndeformedGeometry, Z):
-    """Undeformed transverse coordinate ζ(Z), the solution of *cond2*."""
+    """Undeformed transverse coordinate ζ(Z), the solution of *cond2*.
+
+    Returns
+    -------
+    ndarray
+        ζ, of the shape of ``Z``.
+    """
     a, k = geom.a, geom.k
     Z = np.asarray(Z, dtype=float)
     return _cbrt_step(a, a * a * Z * (3 + 3 * k * Z + k * k * Z * Z))
 
 
 def zeta_tilde_of_zeta(geom: UndeformedGeometry, deformed: DeformedGeometry, zeta):
-    """Deformed transverse coordinate ζ̃(ζ), the solution of *cond1*."""
+    """Deformed transverse coordinate ζ̃(ζ), the solution of *cond1*.
+
+    Returns
+    -------
+    ndarray
+        ζ̃, of the shape of ``zeta``.
+    """
     a = geom.a
     zeta = np.asarray(zeta, dtype=float)
     return _cbrt_step(deformed.a_tilde, zeta * (3 * a * a + 3 * a * zeta + zeta * zeta))
@@ -264,8 +276,8 @@ def stretch(geom: UndeformedGeometry, deformed: DeformedGeometry, Z):
 
     Returns
     -------
-    (ndarray, ndarray)
-        Λ − 1 and r̃ = ã + ζ̃.
+    lam_minus_1, r_tilde : ndarray
+        Λ − 1 and r̃ = ã + ζ̃, of the shape of ``Z``.
     """
     a, k = geom.a, geom.k
     Z = np.asarray(Z, dtype=float)
@@ -292,7 +304,13 @@ def _invariants(lam_minus_1):
 def energy_density(lam_minus_1, material: Mapping[tuple[int, int], float]):
     """e = ½ Σ C_mn (I₁ − 3)^m (I₂ − 3)^n with I₁ = 2Λ² + Λ⁻⁴, I₂ = Λ⁴ + 2Λ⁻².
 
-    ``material`` maps (m, n) to C_mn (see :func:`_material`).
+    ``material`` maps (m, n) to C_mn (see :func:`_material`); Supplementary,
+    "Elasticity of the deformed shell".
+
+    Returns
+    -------
+    ndarray
+        e, of the shape of ``lam_minus_1``.
     """
     p, q, _, _ = _invariants(np.asarray(lam_minus_1, dtype=float))
     return 0.5 * sum(c * p**m * q**n for (m, n), c in material.items())
@@ -347,6 +365,11 @@ def energy(f: float, h: float, k: float, c10: float, c01: float, c20: float = 0.
         Coefficients C_mn of the energy density; c10 + c01 > 0.
     nodes : int
         Number of Gauss–Legendre nodes.
+
+    Returns
+    -------
+    float
+        𝓔 (units of the C_mn times the radius cubed).
     """
     geom, material = _setup(h, k, c10, c01, c20, c11, c02)
     deformed = deformed_geometry(geom, real("f", f) - 1)

@@ -123,6 +123,11 @@ def normal_coordinate(zeta, f_s0: float, f_phi0: float, kappa_s0: float, d: Defo
     admissible interval where both factors are positive (no deformed cell turned
     inside out), so the root there, continued from z(0) = 0, is unique.
 
+    Returns
+    -------
+    ndarray
+        z, of the shape of ``zeta``.
+
     Raises
     ------
     ValueError
@@ -203,7 +208,13 @@ def shell_density(f_s0: float, f_phi0: float, kappa_s0: float, h: float, d: Defo
     :func:`morphoshell.model.coefficients.evaluate` at η = κ_s⁰h/(2f_s⁰f_φ⁰), i.e.
     the project's own pipeline, with C = :data:`C_PER_MU` · μ.  The deformed
     state is placed at distance ``rho`` from the axis: r = f_φ ρ,
-    ψ = arcsin(ρ f_φ κ_φ) (so sin ψ/r = κ_φ) and ψ' = f_s κ_s.
+    ψ = arcsin(ρ f_φ κ_φ) (so sin ψ/r = κ_φ) and ψ' = f_s κ_s.  The energy
+    density of Materials and Methods, Eq. 7.
+
+    Returns
+    -------
+    float or (float, Strains)
+        e, and with ``return_strains`` the strains it came from.
     """
     prof = Profiles(f_s0, f_phi0, kappa_s0, 0.0)
     s = rho * d.f_phi * d.kappa_phi

@@ -56,8 +56,8 @@ SERIES_SWITCH = 0.1
 
 
 def _F(p: int, q: int) -> float:
-    """The rational p/q, correctly rounded (= float(Fraction(p, q)), without the
-    4 ms that importing fractions adds to every start-up)."""
+    """The rational p/q, correctly rounded (= float(Fraction(p, q)), without
+    importing fractions at every start-up)."""
     return p / q
 
 
@@ -112,6 +112,12 @@ def large_bending(eta) -> Coefficients:
     both branches are CasADi expressions joined by ``if_else`` so that Ipopt
     gets exact first and second derivatives.  The closed-form branch is
     evaluated at a guarded η so that its discarded value is finite at η = 0.
+    The coefficients of the energy density of Materials and Methods, Eq. 7.
+
+    Returns
+    -------
+    Coefficients
+        CasADi expressions of ``eta``.
     """
     small = ca.fabs(eta) < SERIES_SWITCH
     guarded = ca.if_else(small, SERIES_SWITCH, eta)
@@ -153,7 +159,13 @@ class Theory:
         return self.coefficients(eta)
 
     def evaluate(self, eta) -> Coefficients:
-        """Numerical values at ``eta`` (scalar or array, abs(eta) < 1)."""
+        """Numerical values at ``eta`` (scalar or array, abs(eta) < 1).
+
+        Returns
+        -------
+        Coefficients
+            Each an ndarray of the shape of ``eta``.
+        """
         eta = np.asarray(eta, dtype=float)
         if np.any(np.abs(eta) >= 1) or not np.all(np.isfinite(eta)):
             raise ValueError(f"eta must be finite with abs(eta) < 1, got {eta}")
@@ -164,6 +176,7 @@ class Theory:
         return Coefficients(*[np.asarray(v).reshape(eta.shape) for v in out])
 
 
+#: The registered theories by name (:func:`register_theory` adds one).
 THEORIES: dict[str, Theory] = {
     "large_bending": Theory("large_bending", large_bending,
                             "re-derived large-bending coefficients alpha, beta, gamma(eta)"),
@@ -194,5 +207,11 @@ def get_theory(name: "str | Theory") -> Theory:
 
 
 def evaluate(eta, theory: "str | Theory" = "large_bending") -> Coefficients:
-    """Numerical values of the coefficients at ``eta`` (scalar or array)."""
+    """Numerical values of the coefficients at ``eta`` (scalar or array).
+
+    Returns
+    -------
+    Coefficients
+        Each an ndarray of the shape of ``eta`` (:meth:`Theory.evaluate`).
+    """
     return get_theory(theory).evaluate(eta)

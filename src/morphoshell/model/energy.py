@@ -51,6 +51,11 @@ def boundary_layer_width(h):
 
 
 class Strains(NamedTuple):
+    """The shell strains E_s, E_φ and curvature strains K_s, K_φ (Materials and Methods, Eq. 6).
+
+    Floats, arrays of one shape, or CasADi expressions.
+    """
+
     E_s: object
     E_phi: object
     K_s: object
@@ -58,17 +63,40 @@ class Strains(NamedTuple):
 
 
 def kinematics(rho, r, psi, f_s, dpsi) -> dict:
-    """Stretches and curvatures of the deformed meridian (paper, Eq. 5).
+    """Stretches and curvatures of the deformed meridian (Materials and Methods, Eq. 5).
 
-    f_φ = r/ρ, κ_s = ψ'/f_s, κ_φ = sin ψ / r; floats, arrays or CasADi.
+    f_φ = r/ρ, κ_s = ψ'/f_s, κ_φ = sin ψ / r.
+
+    Parameters
+    ----------
+    rho, r, psi, f_s, dpsi
+        ρ(s), r(s), ψ(s), f_s = dS/ds and ψ' = dψ/ds: floats, arrays of one
+        shape, or CasADi expressions.
+
+    Returns
+    -------
+    dict
+        ``f_phi``, ``kappa_s``, ``kappa_phi``, of the inputs' shape.
     """
     return {"f_phi": r / rho, "kappa_s": dpsi / f_s, "kappa_phi": _sin(psi) / r}
 
 
 def strains(rho, r, psi, f_s, dpsi, prof: Profiles) -> Strains:
-    """Stretching and bending strains (paper, Eq. 6).
+    """Stretching and bending strains (Materials and Methods, Eq. 6).
 
     Uses f_s κ_s = ψ' and f_φ κ_φ = sin ψ / ρ, so nothing is divided by r.
+
+    Parameters
+    ----------
+    rho, r, psi, f_s, dpsi
+        As for :func:`kinematics`.
+    prof : Profiles
+        The intrinsic stretches and curvatures there.
+
+    Returns
+    -------
+    Strains
+        Of the inputs' shape.
     """
     f_phi = kinematics(rho, r, psi, f_s, dpsi)["f_phi"]
     return Strains(
@@ -80,7 +108,23 @@ def strains(rho, r, psi, f_s, dpsi, prof: Profiles) -> Strains:
 
 
 def density(E: Strains, h, c: Coefficients, C=1.0):
-    """Energy per undeformed area e (paper Eq. 7, project normalisation)."""
+    """Energy per undeformed area e (Materials and Methods, Eq. 7, project normalisation).
+
+    Parameters
+    ----------
+    E : Strains
+    h : float or CasADi expression
+        Relative thickness.
+    c : Coefficients
+        α, β, γ at η (:mod:`morphoshell.model.coefficients`).
+    C : float
+        The material parameter (energies in units of C).
+
+    Returns
+    -------
+    float, ndarray or CasADi expression
+        e, of the strains' shape.
+    """
     Es, Ep, Ks, Kp = E
     stretching = c.alpha_ss * Es**2 + 2 * c.alpha_sphi * Es * Ep + c.alpha_phiphi * Ep**2
     coupling = (c.beta_ss * Es * Ks + c.beta_sphi * Es * Kp
@@ -128,7 +172,17 @@ def intrinsic_function(structure: Structure) -> ca.Function:
 
 
 def pointwise(r, psi, f_s, dpsi, I, h) -> dict:
-    """Energy integrand L = 2πρe, e, strains, resultants and kinematics from ``I``."""
+    """Energy integrand L = 2πρe, e, strains, resultants and kinematics from ``I``.
+
+    Materials and Methods, Eqs. 5-7, at one point: ``I`` the point's
+    :data:`~morphoshell.model.layouts.INTRINSIC` vector, h the thickness.
+
+    Returns
+    -------
+    dict
+        CasADi expressions by the names of :data:`LOCAL_OUTPUTS` (but the
+        intrinsic ones).
+    """
     rho, prof, _, coeffs = unpack_intrinsic(I)
     E = strains(rho, r, psi, f_s, dpsi, prof)
     # Resultants from the same density, differentiated with respect to the strains.

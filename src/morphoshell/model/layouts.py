@@ -72,7 +72,12 @@ class VectorLayout:
         return {n: vector[i] for i, n in enumerate(self.names)}
 
     def pack(self, values: Mapping[str, float]) -> np.ndarray:
-        """NumPy vector from a mapping that names every entry."""
+        """NumPy vector from a mapping that names every entry.
+
+        Returns
+        -------
+        ndarray, shape (len(names),)
+        """
         missing = [n for n in self.names if n not in values]
         if missing:
             raise ValueError(f"{self.name}: missing entries {missing}")

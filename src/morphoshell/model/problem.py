@@ -29,8 +29,8 @@ from .profiles import ProfileFamily, Profiles, get_family
 
 __all__ = ["Problem", "Structure", "BASE_KEYS", "MIN_SHELL_LENGTH"]
 
-#: Shortest shell L − P − Σ accepted (units of R): below it the energy scale
-#: reaches the solver's round-off floor (measured: Ipopt fails at 1e-4).
+#: Shortest shell L − P − Σ accepted (units of R): shorter shells bring the
+#: energy scale down to the solver's round-off floor, where Ipopt fails.
 MIN_SHELL_LENGTH = 1e-3
 
 #: Keys of a problem other than the family's parameters (``--set`` names).
@@ -44,6 +44,14 @@ class Structure:
     Holds the geometry, family and theory *objects* (compared by identity),
     so a solver or compiled function cached for one structure can never be
     reused for a family or theory registered later under the same name.
+
+    Attributes
+    ----------
+    geometry : Geometry
+    family : ProfileFamily
+    theory : Theory
+    start, end : {"pole", "free"}
+        The kind of each end: a regular pole or a free edge.
     """
 
     geometry: Geometry
@@ -161,7 +169,13 @@ class Problem:
         return parameter_layout(self.family_obj)
 
     def parameter_vector(self) -> np.ndarray:
-        """NLP parameters p = [h, Σ, P, family parameters] (:func:`~morphoshell.model.layouts.parameter_layout`)."""
+        """NLP parameters p = [h, Σ, P, family parameters].
+
+        Returns
+        -------
+        ndarray, shape (3 + len(family.parameters),)
+            In the order of :func:`~morphoshell.model.layouts.parameter_layout`.
+        """
         return self.parameter_layout.pack({"h": self.h, "cut": self.cut, "opening": self.opening,
                                            **self.params})
 
@@ -183,14 +197,28 @@ class Problem:
         return replace(self, params=params, **base)
 
     def profiles(self, s) -> dict[str, np.ndarray]:
-        """Intrinsic profiles and η at the points ``s`` (NumPy arrays)."""
+        """Intrinsic profiles and η at the points ``s`` (NumPy arrays).
+
+        Returns
+        -------
+        dict
+            ``f_s0``, ``f_phi0``, ``kappa_s0``, ``kappa_phi0`` and ``eta``
+            (η = κ_s⁰ h / (2 f_s⁰ f_φ⁰), Materials and Methods), each of the
+            shape of ``s``.
+        """
         s = np.asarray(s, dtype=float)
         prof = Profiles(*[v.reshape(s.shape) for v in self._profiles(s.ravel())])
         return {**prof._asdict(), "eta": prof.eta(self.h)}
 
     def eta(self, s: np.ndarray) -> np.ndarray:
-        """η at the points ``s`` (1-d; :meth:`profiles` without the rest: a warm re-solve's
-        results need η alone)."""
+        """η at the points ``s`` (:meth:`profiles` without the rest: a warm re-solve's
+        results need η alone).
+
+        Returns
+        -------
+        ndarray, shape (N,)
+            For the N points ``s`` (1-d).
+        """
         return self._profiles(np.asarray(s, dtype=float)).eta(self.h)
 
     def _profiles(self, s: np.ndarray) -> Profiles:

@@ -44,7 +44,10 @@ ENTRY_POINT_GROUP = "morphoshell.families"
 
 
 class Profiles(NamedTuple):
-    """Intrinsic stretches and curvatures at a point (floats, arrays or CasADi)."""
+    """Intrinsic stretches and curvatures f_s⁰, f_φ⁰, κ_s⁰, κ_φ⁰ (Materials and Methods).
+
+    At a point or at many: floats, arrays of one shape, or CasADi expressions.
+    """
 
     f_s0: object
     f_phi0: object
@@ -124,9 +127,23 @@ class ProfileFamily:
         return self._mapped("maps", points, lambda: self._function["f"].map(points))
 
     def evaluate(self, s: np.ndarray, values, cut: float, end: float) -> Profiles:
-        """Numerical profiles at the points ``s`` (1-d) for parameter ``values`` in order."""
-        # compiled code where available (evaluation only: 3-4x faster); the
-        # parameters, cut and end given once for all points
+        """Numerical profiles at the points ``s`` (1-d) for parameter ``values`` in order.
+
+        Parameters
+        ----------
+        s : ndarray, shape (N,)
+        values : sequence of float
+            The family's parameters, in the order of :attr:`parameters`.
+        cut, end : float
+            Σ and L − P.
+
+        Returns
+        -------
+        Profiles
+            Each an ndarray of shape (N,).
+        """
+        # compiled code where available (evaluation only: faster than CasADi's
+        # virtual machine); the parameters, cut and end given once for all points
         if "numeric" not in self._function:
             self._function["numeric"] = PointEvaluator(self.function())
         return Profiles(*(v[0] for v in self._function["numeric"](s, values, cut, end)))

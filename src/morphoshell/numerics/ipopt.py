@@ -19,10 +19,14 @@ import casadi as ca
 import numpy as np
 
 from .._runtime.buffered import Buffered
-from .status import SolverError
+from .status import (INVALID_OPTION, IPOPT_UNKNOWN, SEARCH_DIRECTION_BECOMES_TOO_SMALL,
+                     SOLVE_SUCCEEDED, SOLVED_TO_ACCEPTABLE_LEVEL, STABILITY_CHECK_FAILED, STATUSES,
+                     SolverError, explain)
 
-__all__ = ["IpoptBackend", "BackendResult", "IPOPT_DEFAULTS", "converged", "load_ipopt"]
+__all__ = ["IpoptBackend", "BackendResult", "IPOPT_DEFAULTS", "converged", "load_ipopt",
+           "ipopt_status"]
 
+#: Ipopt's options for every solve (``ipopt_options`` overrides them).
 IPOPT_DEFAULTS = {
     "print_level": 0, "sb": "yes", "print_timing_statistics": "no",
     "hessian_approximation": "exact",
@@ -30,9 +34,9 @@ IPOPT_DEFAULTS = {
     # purely equality-constrained problem a cold start with lam_g = 0 is a
     # plain Newton start, so one setting serves both.
     "warm_start_init_point": "yes",
-    # MUMPS' automatic (permuting) scaling dominated the run time on fine
-    # meshes (1.5 s instead of 0.2 s per solve at N = 12800) and the NLP is
-    # scaled already; AMD ordering suits the banded KKT matrix.
+    # The NLP is scaled already, so MUMPS' automatic (permuting) scaling only
+    # costs time, most of a solve's on fine meshes; AMD ordering suits the
+    # banded KKT matrix.
     "mumps_scaling": 0, "mumps_permuting_scaling": 0, "mumps_pivot_order": 0,
 }
 
@@ -48,11 +52,11 @@ def load_ipopt() -> None:
     threads (and a later call here would load it twice).
 
     MUMPS factorises our banded KKT systems in small dense blocks, where BLAS
-    threads do not help; on a busy machine their spin-waiting made a warm
-    re-solve at N = 3200 2.7x slower (528 vs 196 ms wall, measured at load 5
-    on 2 cores).  OpenBLAS reads its thread count when it is loaded, i.e. with
-    the plugin, so the variables are set only around that (NumPy's own BLAS,
-    loaded earlier, is untouched); a value the user set is kept.
+    threads do not help, and on a busy machine their spin-waiting slows warm
+    re-solves several times over (scripts/bench_equilibrium.py).  OpenBLAS
+    reads its thread count when it is loaded, i.e. with the plugin, so the
+    variables are set only around that (NumPy's own BLAS, loaded earlier, is
+    untouched); a value the user set is kept.
     """
     if _PLUGIN["loaded"]:
         return
@@ -69,11 +73,42 @@ def load_ipopt() -> None:
     _PLUGIN["loaded"] = True
 
 
+def ipopt_status(stats: Mapping[str, Any]) -> str:
+    """Ipopt's return status from the solver's ``stats()``, as a key of the status table.
+
+    Parameters
+    ----------
+    stats : mapping
+        ``casadi.Function.stats()`` of an Ipopt solver.
+
+    Returns
+    -------
+    str
+        ``stats["return_status"]`` if :data:`morphoshell.numerics.status.STATUSES`
+        has it (every status CasADi names), else ``"Unknown"``.
+    """
+    status = stats.get("return_status", IPOPT_UNKNOWN)
+    return status if status in STATUSES else IPOPT_UNKNOWN
+
+
 def converged(status: str, stats: Mapping[str, Any]) -> bool:
-    """Whether Ipopt's result is a solution (see :class:`IpoptBackend`, ``tol``)."""
-    if status in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
+    """Whether Ipopt's result is a solution (see :class:`IpoptBackend`, ``tol``).
+
+    Parameters
+    ----------
+    status : str
+        Ipopt's return status (:func:`ipopt_status`).
+    stats : mapping
+        The solver's ``stats()``: its last iterations' scaled infeasibilities
+        decide ``Search_Direction_Becomes_Too_Small``.
+
+    Returns
+    -------
+    bool
+    """
+    if status in (SOLVE_SUCCEEDED, SOLVED_TO_ACCEPTABLE_LEVEL):
         return True
-    if status == "Search_Direction_Becomes_Too_Small":
+    if status == SEARCH_DIRECTION_BECOMES_TOO_SMALL:
         it = stats.get("iterations", {})
         if it.get("inf_pr") and it.get("inf_du"):
             return it["inf_pr"][-1] < 1e-9 and it["inf_du"][-1] < 1e-6
@@ -82,7 +117,26 @@ def converged(status: str, stats: Mapping[str, Any]) -> bool:
 
 @dataclass(frozen=True)
 class BackendResult:
-    """Ipopt's answer: iterate, multipliers, status and the minimum certificate."""
+    """Ipopt's answer: iterate, multipliers, status and the minimum certificate.
+
+    Attributes
+    ----------
+    x : ndarray, shape (n,)
+        The last iterate (the unknowns of the transcription).
+    lam_g : ndarray, shape (m,)
+        Multipliers of the m equality constraints.
+    status : str
+        Ipopt's return status (a key of :data:`morphoshell.numerics.status.STATUSES`).
+    iterations : int
+    seconds : float
+        Wall time of the call (s).
+    converged : bool
+        Whether the status counts as a solution (:func:`converged`).
+    details : mapping
+        How the minimum was certified: ``stability`` (``"ipopt_last_step"``,
+        ``"penalised_ldl"`` or ``"ipopt_refactorisation"``) and
+        ``inertia_correction`` (0 for a strict minimum).
+    """
 
     x: np.ndarray
     lam_g: np.ndarray
@@ -129,7 +183,7 @@ class IpoptBackend:
         (‖d‖ < 1e-6), so that the factorised iterate is the solution;
         otherwise (every warm re-solve: two Newton steps, the last not
         negligible) it factorises a penalised Hessian once
-        (:meth:`penalised_certificate`, a few ms), and only if that does not
+        (:meth:`penalised_certificate`, one sparse LDLᵀ), and only if that does not
         certify a minimum falls back to ``"exact"``.  (A one-step convergence from
         a stress-free start is factorised only where the compressive stress
         has not built up yet, and can end on a saddle: the exact check
@@ -149,7 +203,7 @@ class IpoptBackend:
         # Newton converges quadratically: once within 1e-6 the next step lands
         # far below, so three iterations in a row there mean the round-off
         # floor is reached.  Thin shells raise that floor like 1/h² (stretching
-        # stiffness relative to bending; measured 2e-8 at h = 1e-4, N = 200).
+        # stiffness relative to bending).
         self.acceptable_tol = max(1e-6, 100 * self.tol)
         self.options = dict(IPOPT_DEFAULTS, tol=self.tol, max_iter=int(max_iter),
                             linear_solver=linear_solver, acceptable_tol=self.acceptable_tol,
@@ -185,15 +239,30 @@ class IpoptBackend:
               data=None) -> BackendResult:
         """Run Ipopt from (x0, λ0) with parameters D and certify the result.
 
-        ``data``, optional: a callable returning D as a ``casadi.DM`` (cheaper
-        than converting the NumPy array when the certificate needs it).
+        Parameters
+        ----------
+        x0 : ndarray, shape (n,)
+            Initial iterate.
+        D : ndarray
+            The NLP's parameters (the transcription's cell data).
+        lam_g0 : ndarray, shape (m,)
+            Initial multipliers (zeros: a cold start).
+        data : callable, optional
+            Returns D as a ``casadi.DM`` (cheaper than converting the NumPy
+            array when the certificate needs it).
+
+        Returns
+        -------
+        BackendResult
+            Converged or not; a converged one says in ``details`` how it was
+            certified a minimum (unless ``stability="off"``).
         """
         lbx, ubx, lbg, ubg, lam_x0 = self._bounds
         t0 = time.perf_counter()
         x, _, _, _, lam, _ = self._solve(x0, D, lbx, ubx, lbg, ubg, lam_x0, lam_g0)
         seconds = time.perf_counter() - t0
         st = self._solve.stats()
-        status = st.get("return_status", "unknown")
+        status = ipopt_status(st)
         iters = int(st.get("iter_count", -1))
         ok = converged(status, st)
         details: dict[str, Any] = {}
@@ -227,15 +296,29 @@ class IpoptBackend:
         constraint i (a penalty on the scale of the Hessian; ρ = 1, then 100).
         A saddle can never pass; a minimum that does not (weights too small,
         a nearly singular reduced Hessian) goes to :meth:`inertia_correction`.
-        The factorisation is CasADi's sparse LDLᵀ of M (SPD, banded): about 2 ms
-        at 19 000 unknowns, against a whole extra Ipopt call.
+        The factorisation is CasADi's sparse LDLᵀ of M (SPD, banded), far
+        cheaper than the extra Ipopt call of :meth:`inertia_correction`.
+
+        Parameters
+        ----------
+        x : ndarray, shape (n,)
+        D : ndarray
+            The NLP's parameters.
+        lam_g : ndarray, shape (m,)
+        data : callable, optional
+            Returns D as a ``casadi.DM``.
+
+        Returns
+        -------
+        bool
+            True: a strict local minimum; False: undecided.
         """
         try:
             if self._certifier is None:
                 self._certifier = self._build_certifier()
             F, solver = self._certifier
             Ddm = data() if data is not None else ca.DM(np.asarray(D).tolist())
-            # lists convert to DM three times faster than NumPy arrays
+            # lists convert to DM faster than NumPy arrays do
             xdm, ldm = ca.DM(np.asarray(x).tolist()), ca.DM(np.asarray(lam_g).tolist())
             n = F.size1_out(0)
             for rho in (1.0, 100.0):
@@ -273,6 +356,23 @@ class IpoptBackend:
         Hessian until the inertia is right.  Restarting Ipopt at (x, λ) for
         one iteration, with a tolerance it cannot meet so that it does not stop
         before factorising, therefore tells whether (x, λ) is a minimum.
+
+        Parameters
+        ----------
+        x : ndarray, shape (n,)
+        D : ndarray
+            The NLP's parameters.
+        lam_g : ndarray, shape (m,)
+
+        Returns
+        -------
+        float
+            δ_w ≥ 0; 0 iff (x, λ) is a strict local minimum.
+
+        Raises
+        ------
+        SolverError
+            Status ``"Stability_Check_Failed"`` when Ipopt did not factorise.
         """
         if self._refactor is None:
             self._refactor = Buffered(self._nlpsol(
@@ -281,15 +381,30 @@ class IpoptBackend:
         self._refactor(x, D, lbx, ubx, lbg, ubg, lam_x0, lam_g)
         reg = self._refactor.stats().get("iterations", {}).get("regularization_size", [])
         if len(reg) < 2:
-            raise SolverError("stability check: Ipopt did not factorise the KKT matrix",
-                              "Stability_Check_Failed")
+            raise SolverError(f"stability check: Ipopt did not factorise the KKT matrix: "
+                              f"{explain(STABILITY_CHECK_FAILED)}", STABILITY_CHECK_FAILED)
         return float(reg[1])
 
     def failure_message(self, label: str, result: BackendResult) -> str:
-        """A one-paragraph explanation of a failed solve, naming Ipopt's status."""
-        if result.status == "Invalid_Option":
+        """A one-paragraph explanation of a failed solve, naming Ipopt's status.
+
+        Parameters
+        ----------
+        label : str
+            The problem's name.
+        result : BackendResult
+            The failed solve.
+
+        Returns
+        -------
+        str
+            The status, the iterations and the status's line of the table
+            (:func:`morphoshell.numerics.status.explain`).
+        """
+        if result.status == INVALID_OPTION:
             return (f"Ipopt rejected its options (status 'Invalid_Option'): with linear_solver = "
                     f"{self.linear_solver!r}, note that the HSL solvers (ma27, ma57, ...) load "
                     f"only if libhsl.so is on the library path; 'mumps' is bundled")
         return (f"Ipopt failed on {label!r} with status {result.status!r} after "
-                f"{result.iterations} iterations; the last iterate is attached (.last_iterate)")
+                f"{result.iterations} iterations: {explain(result.status)}; the last iterate is "
+                f"attached (.last_iterate)")

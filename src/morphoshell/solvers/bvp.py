@@ -50,6 +50,7 @@ from ..model.energy import (CACHE_SIZE, LOCAL_OUTPUTS, Strains, boundary_layer_w
 from ..model.layouts import BVP_STATE, INTRINSIC
 from ..model.problem import Problem, Structure
 from ..numerics.mesh import graded_mesh
+from ..numerics.status import BVP_STATUSES, POLE_ANALYSIS_FAILED, TIME_LIMIT_EXCEEDED, explain
 from .results import FIELDS, Equilibrium, SolverError, SolverStats
 
 __all__ = ["solve_bvp", "pontryagin_functions", "pole_solutions", "pole_state",
@@ -124,7 +125,23 @@ def _pole_function() -> ca.Function:
 
 
 def pole_solutions(problem: Problem) -> dict:
-    """The local solutions at the poles of ``problem`` (keys "start" and/or "end")."""
+    """The local solutions at the poles of ``problem`` (keys "start" and/or "end").
+
+    The bounded solutions of the linearised problem at each pole (module doc,
+    "Boundary conditions"), from the quadratic form of the energy density
+    (Materials and Methods, Eq. 7) at the pole.
+
+    Returns
+    -------
+    dict
+        A local solution for each end of ``problem`` that is a pole.
+
+    Raises
+    ------
+    SolverError
+        Status ``"Pole_Analysis_Failed"`` when a pole has not two admissible
+        exponents.
+    """
     st = problem.structure
     p = problem.parameter_vector()
     out = {}
@@ -153,7 +170,7 @@ class _PoleSolution:
         pos = sorted(roots[roots.real > 1e-9], key=lambda z: (z.real, z.imag))
         if len(pos) != 2:
             raise SolverError(f"pole analysis found {len(pos)} admissible exponents "
-                              f"({roots}); the pole is not regular", "Pole_Analysis_Failed")
+                              f"({roots}): {explain(POLE_ANALYSIS_FAILED)}", POLE_ANALYSIS_FAILED)
         b1, b2 = pos
         if abs(b1 - b2) < 1e-6 * max(1.0, abs(b1)):
             # Double root (isotropic quadratic form): M(β) vanishes on a plane.
@@ -190,8 +207,22 @@ class _PoleSolution:
 def pole_state(pole: _PoleSolution, where: str, C, eps: float) -> tuple[float, float, float, float]:
     """(r, ψ, f_s, ψ') at distance ``eps`` from a pole on its local solution.
 
-    ``where`` is "start" or "end"; the end pole is mirrored (ψ → π − ψ, the
-    local solution being written in the distance from the pole).
+    Parameters
+    ----------
+    pole
+        A local solution of :func:`pole_solutions`.
+    where : {"start", "end"}
+        Which end; the end pole is mirrored (ψ → π − ψ, the local solution
+        being written in the distance from the pole).
+    C : sequence of float
+        The two mode amplitudes.
+    eps : float
+        Distance from the pole.
+
+    Returns
+    -------
+    tuple of float
+        (r, ψ, f_s, ψ').
     """
     v, dv = pole.evaluate(eps, C)
     psi = v[1] if where == "start" else np.pi - v[1]
@@ -199,7 +230,14 @@ def pole_state(pole: _PoleSolution, where: str, C, eps: float) -> tuple[float, f
 
 
 def pole_costates(problem: Problem, pole: _PoleSolution, where: str, C, eps: float) -> np.ndarray:
-    """(λ_r, λ_ψ) that make the local solution's (f_s, ψ') optimal, at ``eps`` from the pole."""
+    """(λ_r, λ_ψ) that make the local solution's (f_s, ψ') optimal, at ``eps`` from the pole.
+
+    Arguments as for :func:`pole_state`.
+
+    Returns
+    -------
+    ndarray, shape (2,)
+    """
     s_e = problem.cut + eps if where == "start" else problem.end - eps
     costates = pontryagin_functions(problem.structure)["costates"]
     return np.asarray(costates(s_e, *pole_state(pole, where, C, eps),
@@ -216,6 +254,12 @@ def pole_caps(problem: Problem, pole: _PoleSolution, where: str, C,
 
     The energy and the rise in z of the cap the integration leaves out
     (16-point Gauss rule in u, s = εu², which absorbs the s^β behaviour).
+    Arguments as for :func:`pole_state`.
+
+    Returns
+    -------
+    energy, rise : float
+        Units of C R² and R.
     """
     local = pontryagin_functions(problem.structure)["local"]
     p = problem.parameter_vector()
@@ -251,7 +295,15 @@ class _Vectorised:
 
 
 def neutral_path(problem: Problem, steps: int) -> list[Problem]:
-    """Homotopy from the family's stress-free parameters to the problem's."""
+    """Homotopy from the family's stress-free parameters to the problem's.
+
+    Returns
+    -------
+    list of Problem
+        ``steps`` problems, the family's parameters moved linearly, the last
+        one ``problem``'s (``[problem]`` for one step or a family without
+        neutral values).
+    """
     fam = problem.family_obj
     if steps <= 1 or not fam.neutral:
         return [problem]
@@ -295,16 +347,23 @@ def solve_bvp(problem: Problem, nodes: int = 400, *, tol: float = 1e-8, bc_tol: 
     max_nodes : int
         Passed to ``solve_bvp``.
     max_seconds : float
-        Wall-clock budget: ``solve_bvp`` refines its mesh without bound on a
-        problem it cannot resolve (thin shells, profile kinks), measured at
-        90 s before it gave up; past the budget it stops with status
-        ``"Time_Limit_Exceeded"``.
+        Wall-clock budget: ``solve_bvp`` refines its mesh for minutes on a
+        problem it cannot resolve (thin shells, profile kinks); past the
+        budget it stops with status ``"Time_Limit_Exceeded"``.
+
+    Returns
+    -------
+    Equilibrium
+        On ``solve_bvp``'s final mesh, s ∈ [a, b] (a pole's ε excluded);
+        ``energy`` includes the caps next to the poles.
 
     Raises
     ------
     SolverError
-        ``solve_bvp`` did not converge (``.status`` is its message) or ran
-        out of time.
+        ``solve_bvp`` did not converge (``.status`` is its message, a key of
+        :data:`morphoshell.numerics.status.STATUSES`), ran out of time
+        (``"Time_Limit_Exceeded"``), or a pole is not regular
+        (``"Pole_Analysis_Failed"``).
     """
     t0 = time.perf_counter()
     steps = 1 if guess is not None else max(1, int(homotopy_steps))
@@ -318,9 +377,8 @@ def solve_bvp(problem: Problem, nodes: int = 400, *, tol: float = 1e-8, bc_tol: 
         except _OutOfTime:
             raise SolverError(
                 f"solve_bvp on {problem.name or problem.family!r} ran out of its time budget "
-                f"({max_seconds:g} s; max_seconds=...): it keeps refining a solution it cannot "
-                f"resolve (a thin boundary layer or a kink of the profiles?); the direct method "
-                f"handles both", "Time_Limit_Exceeded") from None
+                f"({max_seconds:g} s; max_seconds=...): {explain(TIME_LIMIT_EXCEEDED)}",
+                TIME_LIMIT_EXCEEDED) from None
         total_iters += iters
     seconds = time.perf_counter() - t0
     st = current.solver
@@ -414,13 +472,14 @@ def _solve_one(problem: Problem, nodes: int, tol: float, bc_tol: float,
     details = {"max_rms_residual": float(np.max(sol.rms_residuals)) if sol.rms_residuals.size else 0.0,
                "pole_offset": eps}
     end_energy = pole_integrals("end", sol.p[-2:])[0] if end_pole else 0.0
+    status = BVP_STATUSES[sol.status]     # scipy's message for it, as a key of the table
     eq = to_equilibrium(problem, sol.x, sol.y, p, controls, local, end_energy,
-                         SolverStats("bvp", int(sol.niter), seconds, sol.message, len(sol.x), 0.0,
+                         SolverStats("bvp", int(sol.niter), seconds, status, len(sol.x), 0.0,
                                      details), sol.status == 0)
     if sol.status != 0:
         raise SolverError(f"solve_bvp failed on {problem.name or problem.family!r}: {sol.message} "
-                          f"(status {sol.status}); the last iterate is attached (.last_iterate)",
-                          sol.message, eq)
+                          f"(status {sol.status}): {explain(status)}; the last iterate is attached "
+                          f"(.last_iterate)", status, eq)
     return eq, int(sol.niter)
 
 
@@ -437,10 +496,26 @@ def _refine_near_poles(s, start_pole: float | None, end_pole: float | None, eps:
 
 
 def initial_state(s, geo, guess, costates, p):
-    """BVP states (6 × len(s)) at ``s`` from a ``guess`` Equilibrium, or the undeformed shell.
+    """BVP states at ``s`` from a ``guess`` Equilibrium, or the undeformed shell.
 
     The costates of a guess follow from its controls (``costates``); the
     undeformed shell starts with zero costates.
+
+    Parameters
+    ----------
+    s : ndarray, shape (M,)
+    geo : Geometry
+        The undeformed shell.
+    guess : Equilibrium or None
+    costates : casadi.Function
+        ``pontryagin_functions(...)["costates"]``.
+    p : ndarray
+        The parameter vector.
+
+    Returns
+    -------
+    ndarray, shape (6, M)
+        Rows in the order of :data:`~morphoshell.model.layouts.BVP_STATE`.
     """
     m = len(s)
     if guess is not None:
@@ -467,9 +542,30 @@ def initial_state(s, geo, guess, costates, p):
 
 def to_equilibrium(problem, s, Y, p, controls, local, end_energy, stats,
                     converged) -> Equilibrium:
-    """The :class:`Equilibrium` of the BVP states ``Y`` (6 × len(s)) on the points ``s``.
+    """The :class:`Equilibrium` of the BVP states ``Y`` on the points ``s``.
 
-    ``end_energy`` is added to the accumulated energy (the cap next to an end pole).
+    The controls follow from the states, and every field from the pointwise
+    energy (Materials and Methods, Eqs. 5-7).
+
+    Parameters
+    ----------
+    problem : Problem
+    s : ndarray, shape (M,)
+    Y : ndarray, shape (6, M)
+        States in the order of :data:`~morphoshell.model.layouts.BVP_STATE`.
+    p : ndarray
+        The parameter vector.
+    controls, local : casadi.Function
+        Of :func:`pontryagin_functions` (``controls_vec`` and ``local``).
+    end_energy : float
+        Added to the accumulated energy (the cap next to an end pole).
+    stats : SolverStats
+    converged : bool
+
+    Returns
+    -------
+    Equilibrium
+        On the M points ``s``.
     """
     W = controls(s, Y, p)
     f, u = W[0], W[1]

@@ -29,6 +29,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..model.problem import Problem
+from ..numerics.status import CONTINUATION_FAILED, explain
 from .direct import DirectSolver
 from .results import Equilibrium, SolverError
 
@@ -56,9 +57,18 @@ MAX_TURN = np.pi / 2
 
 @dataclass(frozen=True)
 class Path:
-    """How a solution was reached (``Equilibrium.solver.details["path"]``)."""
+    """How a solution was reached (``Equilibrium.solver.details["path"]``).
 
-    kind: str            # "continuation", "cold" or "warm start"
+    Attributes
+    ----------
+    kind : {"continuation", "cold", "warm start"}
+    steps, rejected : int
+        Continuation steps taken and retried smaller.
+    iterations : int
+        Newton (or Ipopt) iterations of every step.
+    """
+
+    kind: str
     steps: int = 1
     rejected: int = 0
     iterations: int = 0
@@ -72,7 +82,11 @@ class Path:
 
 
 def neutral_problem(problem: Problem) -> Problem | None:
-    """``problem`` at its family's stress-free parameters, or None if it has none to move."""
+    """``problem`` at its family's stress-free parameters, or None if it has none to move.
+
+    The family's ``neutral`` values (:class:`morphoshell.model.profiles.ProfileFamily`)
+    make the undeformed shell stress-free: the start of :func:`continue_to`.
+    """
     neutral = {n: v for n, v in problem.family_obj.neutral.items() if n in problem.params}
     if not neutral or all(problem.params[n] == v for n, v in neutral.items()):
         return None
@@ -129,9 +143,33 @@ def continue_between(solver: DirectSolver, start: Equilibrium, problem: Problem,
     full step: a nearby start is usually one warm solve away).  This keeps a
     sequence of solves on one branch of equilibria when the parameters jump
     (a derivative-free fit's simplex does): the Volvox shell has several
-    stable equilibria, and a warm start from a distant state can land on
-    another (measured: energies 0.0176715 and 0.0176739 at the same
-    parameters, shapes 0.26 apart).
+    stable equilibria, nearly equal in energy but of different shapes, and
+    a warm start from a distant state can land on another.
+
+    Parameters
+    ----------
+    solver : DirectSolver
+        Built for ``problem.structure``; ``start`` is a solution on it.
+    start : Equilibrium
+        The solution to continue from.
+    problem : Problem
+        The target.
+    anchors : sequence of float
+        Mesh anchors, as for :meth:`DirectSolver.solve`.
+    first_step : float
+        First step of the path parameter τ ∈ (0, 1].
+    max_steps : int
+        Accepted and rejected steps together.
+
+    Returns
+    -------
+    Equilibrium
+        With ``solver.details["path"]`` the :class:`Path` taken.
+
+    Raises
+    ------
+    SolverError
+        Status ``"Continuation_Failed"``, as :func:`continue_to`.
     """
     t0 = time.perf_counter()
     steps, rejected, iterations, eq = _follow(solver, start, problem, anchors, first_step,
@@ -139,52 +177,115 @@ def continue_between(solver: DirectSolver, start: Equilibrium, problem: Problem,
     return _with_path(eq, Path("continuation", steps, rejected, iterations), t0)
 
 
+@dataclass(frozen=True)
+class _Line:
+    """The straight path from a solution's parameters to a problem's: the ones that differ."""
+
+    problem: Problem
+    names: tuple
+    a: np.ndarray
+    b: np.ndarray
+
+    @classmethod
+    def between(cls, source: Problem, problem: Problem) -> "_Line":
+        """From ``source``'s values of the parameters that differ to ``problem``'s."""
+        names = [n for n in problem.params if problem.params[n] != source.params.get(n)]
+        names += [n for n in ("h", "cut", "opening") if getattr(problem, n) != getattr(source, n)]
+        a = np.array([source.params[n] if n in source.params else getattr(source, n)
+                      for n in names])
+        b = np.array([problem.params[n] if n in problem.params else getattr(problem, n)
+                      for n in names])
+        return cls(problem, tuple(names), a, b)
+
+    def at(self, tau: float) -> Problem:
+        """The problem at τ of the way (τ = 1: the target itself)."""
+        if tau == 1:
+            return self.problem
+        return self.problem.with_updates(**dict(zip(self.names, self.a + tau * (self.b - self.a))))
+
+
+@dataclass
+class _Progress:
+    """Where a continuation is: τ reached, the next step, the largest rate and the counts."""
+
+    step: float
+    tau: float = 0.0
+    rate: float | None = None      # largest change of x per unit of τ so far
+    steps: int = 0
+    rejected: int = 0
+    iterations: int = 0
+
+    def exhausted(self, max_steps: int) -> bool:
+        """Whether the steps ran out or the step fell below :data:`MIN_STEP`."""
+        return self.steps + self.rejected >= max_steps or self.step < MIN_STEP
+
+    def reject(self) -> None:
+        """A step retried at a quarter of its size."""
+        self.rejected += 1
+        self.step /= 4
+
+    def accept(self, trial: float, change: float, iterations: int) -> None:
+        """A step to τ = ``trial``; an easy one doubles the next."""
+        self.steps += 1
+        self.iterations += iterations
+        self.rate = change if self.rate is None else max(self.rate, change)
+        self.tau = trial
+        if iterations <= EASY_STEP:
+            self.step *= 2
+
+
+def _solve_at(solver: DirectSolver, problem: Problem, eq: Equilibrium,
+              anchors) -> Equilibrium | None:
+    """``problem`` warm-started from ``eq``, or None if that fails."""
+    try:
+        return solver.solve(problem, warm_start=eq, anchors=anchors)
+    except (SolverError, ValueError):    # ValueError: a breakpoint left its mesh's range
+        return None
+
+
+def _rejection(new: Equilibrium | None, eq: Equilibrium, change, rate) -> str:
+    """Why the step from ``eq`` to ``new`` is retried smaller ("" if it is taken).
+
+    ``change`` is the step's max |Δx| per unit of τ, ``rate`` the largest of
+    the steps before (None before the first).
+    """
+    if new is None:
+        return "failed"
+    jumped = rate is not None and change > JUMP_FACTOR * rate \
+        or np.max(np.abs(new.psi - eq.psi)) > MAX_TURN
+    if jumped:
+        return "jumped"
+    if new.solver.iterations > HARD_STEP:
+        return f"{new.solver.iterations} iterations"
+    return ""
+
+
 def _follow(solver, eq, problem, anchors, first_step, max_steps, origin):
     """Continue from the solution ``eq`` to ``problem``: (steps, rejected, iterations, solution)."""
-    source = eq.problem
-    names = [n for n in problem.params if problem.params[n] != source.params.get(n)]
-    names += [n for n in ("h", "cut", "opening") if getattr(problem, n) != getattr(source, n)]
-    a = np.array([source.params[n] if n in source.params else getattr(source, n) for n in names])
-    b = np.array([problem.params[n] if n in problem.params else getattr(problem, n)
-                  for n in names])
-
-    def at(tau: float) -> Problem:
-        return problem if tau == 1 else problem.with_updates(**dict(zip(names, a + tau * (b - a))))
-
-    tau, step, rate = 0.0, float(first_step), None
-    steps = rejected = iterations = 0
-    while tau < 1:
-        if steps + rejected >= max_steps or step < MIN_STEP:
+    line = _Line.between(eq.problem, problem)
+    run = _Progress(float(first_step))
+    name = problem.name or problem.family
+    while run.tau < 1:
+        if run.exhausted(max_steps):
             raise SolverError(
-                f"continuation from {origin} stopped at {tau:.4g} of the way to "
-                f"{problem.name or problem.family!r} ({steps} steps, {rejected} retried, step "
-                f"{step:.2g}); the last solution reached is attached", "Continuation_Failed", eq)
-        trial = min(1.0, tau + step)
-        try:
-            new = solver.solve(at(trial), warm_start=eq, anchors=anchors)
-        except (SolverError, ValueError):    # ValueError: a breakpoint left its mesh's range
-            new = None
-        change = None if new is None else np.max(np.abs(new.x - eq.x)) / (trial - tau)
-        jumped = change is not None and (
-            rate is not None and change > JUMP_FACTOR * rate
-            or np.max(np.abs(new.psi - eq.psi)) > MAX_TURN)
-        if new is None or new.solver.iterations > HARD_STEP or jumped:
-            log.debug("continuation to %s: step to tau = %.4g retried smaller (%s)",
-                      problem.name or problem.family, trial,
-                      "failed" if new is None else "jumped" if jumped
-                      else f"{new.solver.iterations} iterations")
-            rejected += 1
-            step /= 4
+                f"continuation from {origin} stopped at {run.tau:.4g} of the way to {name!r} "
+                f"({run.steps} steps, {run.rejected} retried, step {run.step:.2g}): "
+                f"{explain(CONTINUATION_FAILED)}; the last solution reached is attached",
+                CONTINUATION_FAILED, eq)
+        trial = min(1.0, run.tau + run.step)
+        new = _solve_at(solver, line.at(trial), eq, anchors)
+        change = None if new is None else np.max(np.abs(new.x - eq.x)) / (trial - run.tau)
+        why = _rejection(new, eq, change, run.rate)
+        if why:
+            log.debug("continuation to %s: step to tau = %.4g retried smaller (%s)", name, trial,
+                      why)
+            run.reject()
             continue
-        log.debug("continuation to %s: tau = %.4g reached in %d iterations",
-                  problem.name or problem.family, trial, new.solver.iterations)
-        steps += 1
-        iterations += new.solver.iterations
-        rate = change if rate is None else max(rate, change)
-        tau, eq = trial, new
-        if new.solver.iterations <= EASY_STEP:
-            step *= 2
-    return steps, rejected, iterations, eq
+        log.debug("continuation to %s: tau = %.4g reached in %d iterations", name, trial,
+                  new.solver.iterations)
+        run.accept(trial, change, new.solver.iterations)
+        eq = new
+    return run.steps, run.rejected, run.iterations, eq
 
 
 def _with_path(eq: Equilibrium, path: Path, t0: float) -> Equilibrium:

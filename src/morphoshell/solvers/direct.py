@@ -7,10 +7,10 @@ values, warm-started from a previous :class:`~morphoshell.solvers.results.Equili
 continuation and fitting call it thousands of times.
 
 Nothing unconverged is returned: an Ipopt failure raises
-:class:`~morphoshell.solvers.results.SolverError` naming Ipopt's status, a converged
+:class:`~morphoshell.numerics.status.SolverError` naming Ipopt's status, a converged
 stationary point that is not a local minimum (a saddle, which interior-point
 methods can report as success) raises
-:class:`~morphoshell.solvers.results.NotAMinimumError`; both carry the last iterate.
+:class:`~morphoshell.numerics.status.NotAMinimumError`; both carry the last iterate.
 """
 from __future__ import annotations
 
@@ -18,7 +18,6 @@ import time
 import weakref
 from typing import Any, Mapping
 
-import casadi as ca
 import numpy as np
 
 from ..model.energy import boundary_layer_width, kinematics
@@ -27,13 +26,14 @@ from ..numerics import Discretisation, PointData
 from ..numerics.ipopt import IpoptBackend
 from ..numerics.mesh import MeshSpec, pole_exponent
 from ..numerics.newton import NewtonBackend
+from ..numerics.status import MERIDIAN_CROSSES_AXIS, NOT_A_MINIMUM, explain
 from .results import (FIELDS, Equilibrium, NotAMinimumError, Quadrature, SolverError, SolverStats,
                       unconverged)
 
 __all__ = ["DirectSolver", "default_mesh", "solver_of", "check_nodes", "MAX_NODES"]
 
-#: Most mesh nodes a direct solver accepts: 102 400 nodes at order 4 take about
-#: 2 GB and a minute to build and solve on one core (measured).
+#: Most mesh nodes a direct solver accepts: 102 400 nodes at order 4 take a
+#: couple of GB and about a minute to build and solve on one core.
 MAX_NODES = 102400
 
 #: Largest tolerance of Ipopt's iterative refinement (``residual_ratio_max``;
@@ -41,10 +41,8 @@ MAX_NODES = 102400
 #: The backward error of the KKT solves has a round-off floor that grows
 #: with the mesh: above it refinement fails, and Ipopt then re-factorises the
 #: same matrix with a larger pivot tolerance and refines again, every
-#: iteration.  Measured floors: 1.5-3e-10 (toy 3, 102 400 nodes), 5e-10 and
-#: 3.4e-9 (Volvox, 12 800 and 51 200 nodes); with Ipopt's 1e-10, toy 3 took
-#: 7 factorisations instead of 4 and 7.5 s instead of 4.3 s at 102 400 nodes.
-#: An inexact step only slows Newton's convergence (by a factor ~ the ratio
+#: iteration (tuned on toy problem 3 and the Volvox shell, 12 800 to 102 400
+#: nodes).  An inexact step only slows Newton's convergence (by a factor ~ the ratio
 #: per iteration); the solution is judged on the KKT error.  The cap stays
 #: two decades below ``residual_ratio_singular`` (1e-5), where Ipopt would
 #: take the matrix for singular.
@@ -71,6 +69,10 @@ def default_mesh(structure: Structure, nodes: int, stages: int = 2,
     h = 0.1) on a shell of ``domain_length`` (default the whole meridian);
     ``edge_scale``, a free edge's distance from the axis, adds logarithmic
     grading there when below the width.
+
+    Returns
+    -------
+    MeshSpec
     """
     width = boundary_layer_width(0.1) if grading_width is None else float(grading_width)
     length = structure.geometry.length if domain_length is None else float(domain_length)
@@ -82,7 +84,7 @@ def default_mesh(structure: Structure, nodes: int, stages: int = 2,
 def _to_points(v: np.ndarray, points: PointData) -> np.ndarray:
     """Gauss-point values ``v`` (..., Gauss points) at the ``points``: piecewise linear in s,
     extrapolated linearly beyond the first and last Gauss points; every row at once."""
-    # in place, with take: 0.37 ms instead of 0.65 for 14 fields at 6399 points (same bits)
+    # in place, with take: the bits of a + (b - a) * weight, without the temporaries
     i = points.below
     a, b = v.take(i - 1, axis=-1), v.take(i, axis=-1)
     b -= a
@@ -114,8 +116,8 @@ class DirectSolver:
         Passed to :class:`morphoshell.numerics.ipopt.IpoptBackend`.
     newton : bool
         Solves first try :class:`morphoshell.numerics.newton.NewtonBackend`: Newton
-        steps certified by their own factorisation, 3–4× faster than an Ipopt
-        call; whatever it cannot certify within a few steps goes to Ipopt.
+        steps certified by their own factorisation, several times faster than
+        an Ipopt call; whatever it cannot certify within a few steps goes to Ipopt.
         From a warm start (``warm_start`` or ``lam_g0`` given) only with
         ``stability = "auto"``; from the undeformed shell (cold) also only
         with the default ``linear_solver`` and no ``ipopt_options``, and
@@ -125,8 +127,7 @@ class DirectSolver:
     tol : float
         Ipopt's convergence tolerance (on the scaled KKT error) at N = 800;
         it grows like the square of the number of points on finer meshes, as
-        does the round-off floor of the discrete gradient (measured: 2e-12
-        with 800 points, 2e-9 with 12800).  So does the tolerance of Ipopt's
+        does the round-off floor of the discrete gradient.  So does the tolerance of Ipopt's
         iterative refinement of each linear solve (``residual_ratio_max``,
         Ipopt's 1e-10 up to 800 points, at most :data:`RESIDUAL_RATIO_CAP`).
         The status is kept in ``Equilibrium.solver.status``.
@@ -192,12 +193,20 @@ class DirectSolver:
         anchors : sequence of float
             Material points of the mesh's knots (``mesh.knots``), increasing.
 
+        Returns
+        -------
+        Equilibrium
+            A certified strict local minimum whose meridian stays off the axis;
+            ``solver.status`` says which back end converged.
+
         Raises
         ------
         SolverError
-            Ipopt did not converge; ``.status`` is Ipopt's return status.
+            Ipopt did not converge (``.status`` is Ipopt's return status), or
+            converged to a meridian that crosses the axis
+            (``"Meridian_Crosses_Axis"``).
         NotAMinimumError
-            Ipopt converged to a saddle.
+            Ipopt converged to a saddle (``"Not_A_Minimum"``).
         """
         self.check(problem)
         p = problem.parameter_vector()
@@ -236,18 +245,15 @@ class DirectSolver:
         crossing = self._axis_crossing(eq)
         if crossing is not None:
             raise SolverError(
-                f"Ipopt converged ({res.status}) to a meridian that crosses the axis "
-                f"(r = {crossing[0]:.3g} at s = {crossing[1]:.6g}): not an equilibrium of the "
-                f"shell; continue from the stress-free parameters (solve(..., "
-                f"continuation=True)) or refine the mesh. The iterate is attached "
-                f"(.last_iterate)", "Meridian_Crosses_Axis", unconverged(eq))
+                f"Ipopt converged ({res.status}) to r = {crossing[0]:.3g} at s = "
+                f"{crossing[1]:.6g}: {explain(MERIDIAN_CROSSES_AXIS)}. The iterate is attached "
+                f"(.last_iterate)", MERIDIAN_CROSSES_AXIS, unconverged(eq))
         if not res.is_minimum:
             raise NotAMinimumError(
-                f"Ipopt converged ({res.status}) to a stationary point that is not a strict "
-                f"minimum: the reduced Hessian is not positive definite (Ipopt needs an inertia "
-                f"correction {res.details['inertia_correction']:.3g} there); perturb the start "
-                f"or continue from a stable solution. The saddle is attached (.last_iterate)",
-                "Not_A_Minimum", unconverged(eq))
+                f"Ipopt converged ({res.status}) to a stationary point where Ipopt needs an "
+                f"inertia correction {res.details['inertia_correction']:.3g}: "
+                f"{explain(NOT_A_MINIMUM)}. The saddle is attached (.last_iterate)",
+                NOT_A_MINIMUM, unconverged(eq))
         return eq
 
     @staticmethod
@@ -267,7 +273,32 @@ class DirectSolver:
     def equilibrium(self, problem: Problem, x: np.ndarray, lam: np.ndarray, p: np.ndarray,
                     q: np.ndarray, D: np.ndarray, stats: SolverStats,
                     converged: bool) -> Equilibrium:
-        """The :class:`Equilibrium` of the NLP point (x, λ) at parameters p, anchors q (data D)."""
+        """The :class:`Equilibrium` of the NLP point (x, λ) at parameters p, anchors q (data D).
+
+        The fields at the points follow from the Gauss-point fields of the
+        transcription (stretches, curvatures, strains and resultants of
+        Materials and Methods, Eqs. 5-7), exact off the axis; the energy is
+        the Gauss rule of 2π ∫ e ρ ds.
+
+        Parameters
+        ----------
+        problem : Problem
+        x : ndarray, shape (n,)
+            The NLP's unknowns.
+        lam : ndarray, shape (m,)
+            Its multipliers.
+        p, q : ndarray
+            Parameter vector and anchor positions.
+        D : ndarray
+            The cell data at (p, q).
+        stats : SolverStats
+        converged : bool
+
+        Returns
+        -------
+        Equilibrium
+            On the N = (nodes − 1) × stages + 1 points of the mesh.
+        """
         d = self.disc
         gf = d.gauss_fields(x, D)
         pts = d.point_data(p, q)

@@ -2,7 +2,7 @@
 
 An observable is defined once, symbolically, on a
 :class:`~morphoshell.numerics.discretisation.Discretisation`: the unknowns x and the
-physical parameters p go in, the measured quantities come out.  The same
+physical parameters p go in, the observed quantities come out.  The same
 definition serves forward evaluation, exact parametric derivatives
 (:mod:`morphoshell.solvers.parametric`), nested gradient fits and fits posed as one
 NLP with the equilibrium conditions as constraints.
@@ -15,7 +15,7 @@ Observables
 ``state_at``      (r, z, ψ) at a material point s* by the cell polynomials, z in a
                   chosen gauge;
 ``midline``       (r_i, z_i) at N points equally spaced in the *deformed*
-                  arclength, posterior end first, z measured from the first point
+                  arclength, posterior end first, z from the first point
                   (the gauge of traced midlines; documentation: "Observables and gauges");
 ``recoil``        the ablation observables from the states of the rim before and
                   after a cut (:func:`recoil`, used by :mod:`morphoshell.mechanics.ablation`).
@@ -92,7 +92,12 @@ class Observable:
         return self._buffered(*self.inputs(x, p, q))[0]
 
     def at(self, eq) -> np.ndarray:
-        """The value at a direct solution ``eq`` (of the discretisation it was built on)."""
+        """The value at a direct solution ``eq`` (of the discretisation it was built on).
+
+        Returns
+        -------
+        ndarray, shape (len(labels),)
+        """
         return self(eq.x, eq.problem.parameter_vector(), eq.anchors)
 
     def __len__(self) -> int:
@@ -117,7 +122,13 @@ def _observable(disc: Discretisation, name: str, labels, build) -> Observable:
 
 
 def shape_points(disc: Discretisation) -> Observable:
-    """s, r, z, ψ at all points, stacked in that order (z in the solver's gauge)."""
+    """s, r, z, ψ at all points, stacked in that order (z in the solver's gauge).
+
+    Returns
+    -------
+    Observable
+        y of shape (4N,) for the N points of the mesh: s, then r, z, ψ.
+    """
     n = disc.layout.points
     labels = [f"{k}[{i}]" for k in ("s", "r", "z", "psi") for i in range(n)]
     return _observable(disc, "shape_points", labels,
@@ -125,7 +136,13 @@ def shape_points(disc: Discretisation) -> Observable:
 
 
 def energy(disc: Discretisation) -> Observable:
-    """The total elastic energy 𝓔(x, D(p)) (units of C R²)."""
+    """The total elastic energy 𝓔(x, D(p)) (units of C R²; Materials and Methods, Eqs. 5-7).
+
+    Returns
+    -------
+    Observable
+        y of shape (1,).
+    """
     f = ca.Function("energy", [disc.x, disc.D], [disc.energy])
     return Observable("energy", ("energy",),
                       ca.Function("energy", [disc.x, disc.p, disc.q],
@@ -144,6 +161,11 @@ def state_at(disc: Discretisation, s_star, cell: int, gauge: str = "solver") -> 
     cell : int
         The cell that contains it (:meth:`Discretisation.cell_of`).
     gauge : {"solver", "far_end", "start"}
+
+    Returns
+    -------
+    Observable
+        y = (r, z, ψ), shape (3,), by the cell's polynomials.
     """
     def build(sh: SymbolicShape):
         point = s_star(disc.structure.parameters.unpack(disc.p)) if callable(s_star) else s_star
@@ -154,7 +176,13 @@ def state_at(disc: Discretisation, s_star, cell: int, gauge: str = "solver") -> 
 
 def midline_cells(disc: Discretisation, x: np.ndarray, p: np.ndarray, n: int,
                   q=()) -> tuple[int, ...]:
-    """Cells that contain the n points equally spaced in deformed arclength."""
+    """Cells that contain the n points equally spaced in deformed arclength.
+
+    Returns
+    -------
+    tuple of int
+        n cell indices, one per point (the first end's point first).
+    """
     if not hasattr(disc, "_arclength"):
         disc._arclength = Buffered(ca.Function(
             "S", [disc.x, disc.p, disc.q], [disc.symbolic_points(disc.x, disc.p, disc.q)["S"]]))
@@ -175,6 +203,12 @@ def midline(disc: Discretisation, n: int, gauge: str = "start") -> Observable:
     solution by :func:`midline_cells`), so the observable and its
     derivatives are built once.  z is in ``gauge`` (default: 0 at the first
     point).
+
+    Returns
+    -------
+    Observable
+        y of shape (2n,): r_1 … r_n, then z_1 … z_n; with an analytic
+        ``jacobian`` in the gauge ``"start"``.
     """
     cells = disc.layout.cells
     select = ca.MX.sym("cells", cells, n)
@@ -205,9 +239,8 @@ class _MidlineJacobian:
     node (cumulative sums of per-cell increments Δz_c = ∫ f_s sin ψ ds and
     ΔS_c = ∫ f_s ds) and on the target S_i = (i − 1)/(N − 1) S_total; the
     local derivatives come from small SX functions, the sums are cumulative
-    sums of sparse rows.  Differentiating the assembled graph instead took
-    ~150 ms at 200 nodes (measured).  Gauge "start" only (z from the first
-    point).
+    sums of sparse rows, far cheaper than differentiating the assembled
+    graph.  Gauge "start" only (z from the first point).
     """
 
     def __init__(self, disc: Discretisation, n: int):
@@ -275,10 +308,9 @@ class _MidlineDx:
     """∂y/∂x of the midline as an operator: ``dx @ M`` without forming dx.
 
     dx itself is dense (each point depends on every cell before its own through
-    the cumulative sums, 40 % nonzero at 200 nodes) and building it took
-    10-20 ms, but dx @ M is the chain rule applied to M's rows: each cell's
-    and each point's local Jacobian times M's rows of its unknowns, cumulative
-    sums of (cells × k).
+    the cumulative sums) and costly to build, but dx @ M is the chain rule
+    applied to M's rows: each cell's and each point's local Jacobian times M's
+    rows of its unknowns, cumulative sums of (cells × k).
     """
 
     def __init__(self, owner: _MidlineJacobian, J, c, dinc):
@@ -311,6 +343,16 @@ def recoil(pre: dict, post: dict) -> dict:
     * displacement d = |(Δr, Δz)|, and its radial and axial parts.
 
     Works on floats and CasADi expressions.
+
+    Parameters
+    ----------
+    pre, post : mapping
+        ``r``, ``z``, ``psi`` of the rim before and after the cut.
+
+    Returns
+    -------
+    dict
+        The keys of :data:`RECOIL`, floats (or CasADi expressions).
     """
     dr, dz = post["r"] - pre["r"], post["z"] - pre["z"]
     hypot = ca.sqrt(dr**2 + dz**2) if isinstance(dr, (ca.SX, ca.MX)) else float(np.hypot(dr, dz))

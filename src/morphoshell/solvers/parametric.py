@@ -43,29 +43,41 @@ def parametric(solver: DirectSolver) -> "Parametric":
 
 @dataclass(frozen=True, eq=False)
 class SolutionDerivative:
-    """dx/dp of one solution, for the parameters ``names`` (columns)."""
+    """dx/dp of one solution, for the parameters ``names`` (columns).
+
+    Attributes
+    ----------
+    names : tuple of str
+        The parameters, in the order of the columns.
+    columns : tuple of int
+        Their indices in the parameter vector p (``Problem.parameter_vector``).
+    dx : ndarray, shape (n, len(names))
+        dx/dp of the n unknowns of the NLP.
+    """
 
     names: tuple[str, ...]
     columns: tuple[int, ...]
-    dx: np.ndarray      # (unknowns, len(names))
+    dx: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
 class Sensitivities:
     """Derivatives of a direct solution with respect to the parameters.
 
-    Columns follow ``names`` = (h, cut, opening, family parameters...).
+    Columns follow ``names`` = (h, cut, opening, family parameters...): k
+    parameters; n unknowns of the NLP, N points of the solution.
 
     Attributes
     ----------
-    dx : ndarray (unknowns, parameters)
+    names : tuple of str
+    dx : ndarray, shape (n, k)
         Of the NLP vector x.
-    dr, dz, dpsi : ndarray (points, parameters)
+    dr, dz, dpsi : ndarray, shape (N, k)
         Of r, z (solver gauge) and ψ at the *material* points (whose s moves
         with Σ and P, see ``ds``); the pole values are fixed (zero derivative).
-    ds : ndarray (points, parameters)
+    ds : ndarray, shape (N, k)
         Of the points' arclength s.
-    denergy : ndarray (parameters,)
+    denergy : ndarray, shape (k,)
         Of the total energy 𝓔 (units of C R²).
     """
 
@@ -78,7 +90,13 @@ class Sensitivities:
     denergy: np.ndarray
 
     def column(self, name: str) -> dict[str, np.ndarray]:
-        """Derivatives with respect to one parameter, by name."""
+        """Derivatives with respect to one parameter, by name.
+
+        Returns
+        -------
+        dict
+            ``r``, ``z``, ``psi``, ``s``: ndarray, shape (N,); ``energy``: float.
+        """
         if name not in self.names:
             raise ValueError(f"unknown parameter {name!r}; valid: {list(self.names)}")
         j = self.names.index(name)
@@ -116,7 +134,7 @@ class Parametric:
         # K and ∂F/∂p are assembled from pieces that are cheap to evaluate:
         # the sparse Hessian and constraint Jacobian Ipopt uses, ∂F/∂D (local
         # to each cell) and ∂D/∂p (local to each Gauss point); differentiating
-        # the whole graph at once took ~100 ms each at 200 nodes (measured).
+        # the whole graph at once costs many times more.
         self._hess = Buffered(ca.Function("H", [x, D, lam], [d.hess_lag(x, D, 1, lam)]))
         self._jac = Buffered(ca.Function("J", [x, D], [J]))
         self._pattern: tuple | None = None       # K's, built on first use
@@ -126,7 +144,13 @@ class Parametric:
         self._last: tuple | None = None
 
     def kkt_matrix(self, x: np.ndarray, D: np.ndarray, lam: np.ndarray):
-        """The KKT matrix K = [[∇²ℒ, Jᵀ], [J, 0]] at (x, λ) with data D (scipy CSC)."""
+        """The KKT matrix K = [[∇²ℒ, Jᵀ], [J, 0]] at (x, λ) with data D.
+
+        Returns
+        -------
+        scipy.sparse.csc_matrix, shape (n + m, n + m)
+            n unknowns, m constraints.
+        """
         if self._pattern is None:
             self._pattern = _kkt_pattern(*self._sparsities())
         return self._assemble(self._pattern, x, D, lam)
@@ -150,7 +174,7 @@ class Parametric:
             # SuperLU's column order (COLAMD, then its postorder) depends on K's
             # pattern only, which is the same at every (x, λ): kept from the first
             # factorisation, K is assembled in it and SuperLU told not to reorder
-            # (same factors, bit for bit; 2.6 -> 2.2 ms at 200 nodes, minima of 100)
+            # (same factors, bit for bit, without the ordering's cost)
             lu = scipy.sparse.linalg.splu(self.kkt_matrix(x, D, lam))
             self._ordered = (_kkt_pattern(*self._sparsities(), lu.perm_c), lu.perm_c)
             return lu.solve
@@ -160,7 +184,7 @@ class Parametric:
 
     @property
     def names(self) -> tuple[str, ...]:
-        """Names of the parameters derivatives are taken with respect to (h, cut, opening, the family's)."""
+        """The parameters derivatives are taken with respect to: h, cut, opening, the family's."""
         return self.solver.structure.parameters.names
 
     def _columns(self, wrt: Sequence[str] | None) -> tuple[tuple[str, ...], tuple[int, ...]]:
@@ -168,7 +192,19 @@ class Parametric:
         return names, tuple(self.solver.structure.parameters.indices(names))
 
     def derivative(self, eq: Equilibrium, wrt: Sequence[str] | None = None) -> SolutionDerivative:
-        """dx/dp of the solution ``eq`` (one sparse LU of the KKT matrix, cached per eq)."""
+        """dx/dp of the solution ``eq`` (one sparse LU of the KKT matrix, cached per eq).
+
+        Parameters
+        ----------
+        eq : Equilibrium
+            A direct solution on this solver.
+        wrt : sequence of str, optional
+            The parameters (default: every one, :attr:`names`).
+
+        Returns
+        -------
+        SolutionDerivative
+        """
         self.solver.check(eq.problem)
         if eq.x is None or eq.lam_g is None or len(eq.x) != self.solver.disc.layout.size:
             raise ValueError("eq must be a direct solution on a solver of this mesh")
@@ -191,8 +227,8 @@ class Parametric:
 
         Returns
         -------
-        y : ndarray (len(observable),)
-        J : ndarray (len(observable), len(wrt))
+        y : ndarray, shape (len(observable),)
+        J : ndarray, shape (len(observable), len(wrt))
             Columns follow ``wrt`` (default: every parameter, in layout order).
         """
         key = id(observable.function)
@@ -215,7 +251,12 @@ class Parametric:
         return np.asarray(y).ravel(), J
 
     def sensitivities(self, eq: Equilibrium) -> Sensitivities:
-        """Derivatives of r, z, ψ, s at every point and of the energy, for every parameter."""
+        """Derivatives of r, z, ψ, s at every point and of the energy, for every parameter.
+
+        Returns
+        -------
+        Sensitivities
+        """
         d = self.solver.disc
         if not hasattr(self, "_shape"):
             self._shape, self._energy = shape_points(d), energy(d)
@@ -230,10 +271,11 @@ class Parametric:
 def _kkt_pattern(hess: ca.Sparsity, jac: ca.Sparsity, column=None) -> tuple:
     """CSC pattern of K = [[H, Jᵀ], [J, 0]] from those of triu(H) and J.
 
-    ``column[j]``, if given, is where K's column j goes (a permutation).  Returns ``(gather, indices, indptr, shape)``: K's nonzeros in CSC order are
+    ``column[j]``, if given, is where K's column j goes (a permutation).
+    Returns ``(gather, indices, indptr, shape)``: K's nonzeros in CSC order are
     ``concatenate([nonzeros of triu(H), nonzeros of J])[gather]``.  Built once
     per solver, it replaces SciPy's transposes, sums and ``bmat`` of the same
-    pattern at every call (5-6 ms of 6 at 200 nodes, measured).
+    pattern at every call, which were most of the cost of a derivative.
     """
     n, m = hess.shape[0], jac.shape[0]
     hr, hc = np.array(hess.get_triplet())

@@ -16,6 +16,7 @@ from typing import Callable
 import numpy as np
 
 from ..model.problem import Problem
+from ..numerics.status import TOLERANCE_NOT_MET, explain
 from .direct import MAX_NODES, DirectSolver
 from .results import ESTIMATED, Equilibrium, ErrorEstimate, SolverError
 
@@ -43,6 +44,11 @@ def solve_from(solver: DirectSolver, problem: Problem, eq: Equilibrium, anchors=
     r, ψ and f_s are interpolated (linearly) from ``eq``'s points; the
     multipliers start at zero.  Newton then converges in a few iterations on
     ``eq``'s branch.
+
+    Returns
+    -------
+    Equilibrium
+        On ``solver``'s mesh.
     """
     d = solver.disc
     p = problem.parameter_vector()
@@ -59,6 +65,11 @@ def level_errors(fine: dict, coarse: dict, coarser: dict | None, order: int) -> 
 
     The values on the mesh, its half and (optionally) its quarter mesh: the
     error estimate of :func:`estimate`, shared with sweeps.
+
+    Returns
+    -------
+    dict
+        The estimated absolute error of each key of ``fine``.
     """
     out = {}
     for k, v in fine.items():
@@ -80,6 +91,11 @@ def estimate(fine: Equilibrium, coarse: Equilibrium | None, order: int, note: st
     to 1.5e-11 while both were 3.6e-10 off), but then the coarser level still
     shows the size of the error, reduced at most by the design order.  Both
     are multiplied by :data:`SAFETY`.
+
+    Returns
+    -------
+    ErrorEstimate
+        NaN errors, with ``note`` saying why, when ``coarse`` is None.
     """
     values = fine.estimated_values()
     if coarse is None:
@@ -108,6 +124,12 @@ def refine(eq: Equilibrium, solver_for: Callable[[int], DirectSolver], rtol: flo
         radians); None only estimates.
     max_nodes : int
         Finest mesh allowed (at most :data:`~morphoshell.solvers.direct.MAX_NODES`).
+
+    Returns
+    -------
+    Equilibrium
+        The finest solution, with its estimate (``error``); a refined one says
+        so in ``solver.details["path"]``.
 
     Raises
     ------
@@ -140,9 +162,9 @@ def refine(eq: Equilibrium, solver_for: Callable[[int], DirectSolver], rtol: flo
             key, err = est.worst()
             raise SolverError(
                 f"the error estimate {err:.3g} of {key} (at {nodes} nodes) does not meet "
-                f"rtol = {rtol:g} within {min(max_nodes, MAX_NODES)} nodes; the finest "
-                f"solution is attached",
-                "Tolerance_Not_Met", replace(eq, error=est))
+                f"rtol = {rtol:g} within {min(max_nodes, MAX_NODES)} nodes: "
+                f"{explain(TOLERANCE_NOT_MET)}; the finest solution is attached",
+                TOLERANCE_NOT_MET, replace(eq, error=est))
         finer = solve_from(solver_for(finer_nodes), problem, eq, anchors)
         est = estimate(finer, eq, order, coarser=reference)
         eq, reference, nodes = finer, eq, finer_nodes

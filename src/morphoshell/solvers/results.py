@@ -50,7 +50,16 @@ FIELD_NAMES = {
     "e": "energy per undeformed area"}
 
 class Quadrature(NamedTuple):
-    """The Gauss rule of a direct solution: points, weights (Δs w_k), integrand L = 2πρe, r there."""
+    """The Gauss rule of a direct solution: points, weights (Δs w_k), integrand L = 2πρe, r there.
+
+    Attributes
+    ----------
+    s, weights, integrand, r : ndarray, shape (G,)
+        At the G = stages × cells Gauss points: s, the weights Δs w_k, L = 2πρe
+        (Materials and Methods, Eq. 7) and r.
+    stages : int
+        Gauss points per cell.
+    """
 
     s: np.ndarray
     weights: np.ndarray
@@ -131,7 +140,24 @@ class ErrorEstimate:
 
 @dataclass(frozen=True)
 class SolverStats:
-    """How an equilibrium was obtained."""
+    """How an equilibrium was obtained.
+
+    Attributes
+    ----------
+    method : {"direct", "bvp", "shooting"}
+    iterations : int
+        Newton (Ipopt) iterations, ``solve_bvp``'s, or shooting evaluations.
+    seconds : float
+        Wall time of the solve (s).
+    status : str
+        How it ended: a key of :data:`morphoshell.numerics.status.STATUSES`.
+    nodes : int
+        Mesh nodes (the route's final mesh).
+    build_seconds : float
+        Wall time of building the direct solver (s).
+    details : mapping
+        The route's own: how a minimum was certified, the path, residuals.
+    """
 
     method: str
     iterations: int
@@ -159,19 +185,21 @@ class Equilibrium:
     Attributes
     ----------
     problem : Problem
-    s, r, z, psi : ndarray
+    s, r, z, psi : ndarray, shape (N,)
         Undeformed arclength, deformed distance from the axis, height and
-        tangent angle.  z is fixed by z(s[0]) = z₀(s[0]) (the undeformed height).
-    f_s, f_phi, kappa_s, kappa_phi : ndarray
-        Stretches and curvatures (paper, Eq. 5).
-    E_s, E_phi, K_s, K_phi : ndarray
-        Strains (paper, Eq. 6).
-    N_s, N_phi, M_s, M_phi : ndarray
+        tangent angle at the N points.  z is fixed by z(s[0]) = z₀(s[0]) (the
+        undeformed height).
+    f_s, f_phi, kappa_s, kappa_phi : ndarray, shape (N,)
+        Stretches and curvatures (paper, Materials and Methods, Eq. 5).
+    E_s, E_phi, K_s, K_phi : ndarray, shape (N,)
+        Strains (Materials and Methods, Eq. 6).
+    N_s, N_phi, M_s, M_phi : ndarray, shape (N,)
         Resultants ∂e/∂E_a and ∂e/∂K_a (units of C).
-    eta : ndarray
+    eta : ndarray, shape (N,)
         Large-bending parameter η(s).
-    e : ndarray
-        Energy per undeformed area (units of C); 𝓔 = 2π ∫ e ρ ds.
+    e : ndarray, shape (N,)
+        Energy per undeformed area (units of C); 𝓔 = 2π ∫ e ρ ds
+        (Materials and Methods, Eq. 7).
     energy : float
         Total elastic energy 𝓔 (units of C R²).
     solver : SolverStats
@@ -245,18 +273,36 @@ class Equilibrium:
         return html_table(problem_rows(self.problem) + self._repr_rows(), "Equilibrium")
 
     def estimated_values(self) -> dict[str, float]:
-        """The quantities an :class:`ErrorEstimate` covers (:data:`ESTIMATED`)."""
+        """The quantities an :class:`ErrorEstimate` covers (:data:`ESTIMATED`).
+
+        Returns
+        -------
+        dict
+            Float by key of :data:`ESTIMATED` (energy in C R², edges in R and rad).
+        """
         return {"energy": self.energy, "r_start": float(self.r[0]), "psi_start": float(self.psi[0]),
                 "r_end": float(self.r[-1]), "psi_end": float(self.psi[-1]),
                 "z_end": float(self.z[-1] - self.z[0])}
 
     def edge(self, which: str = "start") -> dict[str, float]:
-        """Values at the first (``"start"``) or last (``"end"``) node."""
+        """Values at the first (``"start"``) or last (``"end"``) node.
+
+        Returns
+        -------
+        dict
+            Float by field of :data:`FIELDS`.
+        """
         i = 0 if which == "start" else -1
         return {k: float(getattr(self, k)[i]) for k in FIELDS}
 
     def at(self, s: float) -> dict[str, float]:
-        """Fields interpolated (cubic) at the undeformed arclength ``s``."""
+        """Fields interpolated (cubic) at the undeformed arclength ``s``.
+
+        Returns
+        -------
+        dict
+            Float by field of :data:`FIELDS`.
+        """
         from scipy.interpolate import CubicSpline
 
         if not self.s[0] <= s <= self.s[-1]:
@@ -264,7 +310,13 @@ class Equilibrium:
         return {k: float(CubicSpline(self.s, getattr(self, k))(s)) for k in FIELDS}
 
     def quadrature_points(self) -> tuple[np.ndarray, np.ndarray]:
-        """(s, r) at the Gauss points of a direct solution (empty for other routes)."""
+        """(s, r) at the Gauss points of a direct solution (empty for other routes).
+
+        Returns
+        -------
+        s, r : ndarray, shape (G,)
+            At the G Gauss points (G = 0 for the bvp and shooting routes).
+        """
         if self.quadrature is None:
             return np.zeros(0), np.zeros(0)
         return self.quadrature.s, self.quadrature.r
@@ -276,6 +328,16 @@ class Equilibrium:
         cell's interpolant of L = 2πρe where a or b cuts a cell), so that
         ``energy_between(s[0], s[-1]) == energy``; BVP solutions integrate the
         cubic spline of L through their collocation mesh.
+
+        Parameters
+        ----------
+        a, b : float
+            The ends, s[0] ≤ a ≤ b ≤ s[-1].
+
+        Returns
+        -------
+        float
+            The energy (units of C R²).
         """
         from scipy.interpolate import CubicSpline
 

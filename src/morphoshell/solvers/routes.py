@@ -43,7 +43,7 @@ SHOOTING_OPTIONS = ("segments", "integrator", "atol", "tol", "pole_offset", "hom
                     "max_evaluations", "max_growth", "max_segments", "max_condition", "points")
 
 #: Direct solvers kept by :func:`solve` (least recently used dropped first).
-#: A solver of 400 nodes holds about 5 MB.
+#: A solver of 400 nodes holds a few MB.
 SOLVER_CACHE_SIZE = 16
 
 _SOLVERS: "OrderedDict[tuple, DirectSolver]" = OrderedDict()
@@ -66,7 +66,24 @@ def _check_options(method: str, options: Mapping[str, Any]) -> None:
 
 
 def direct_solver(problem: Problem, nodes: int = 200, anchors=(), **options) -> DirectSolver:
-    """A cached :class:`DirectSolver` suited to ``problem`` (mesh from :func:`mesh_spec`)."""
+    """A cached :class:`DirectSolver` suited to ``problem`` (mesh from :func:`mesh_spec`).
+
+    Parameters
+    ----------
+    problem : Problem
+    nodes : int
+        Mesh nodes.
+    anchors : sequence of float
+        Material points that must be mesh nodes.
+    **options
+        The direct options of :func:`solve` but ``max_nodes``.
+
+    Returns
+    -------
+    DirectSolver
+        From the cache when one of the same structure, mesh and options is
+        there (it then counts as the most recently used).
+    """
     _check_options("direct", options)
     stages = options.get("stages", 2)
     spec = mesh_spec(problem, check_nodes(nodes), stages, tuple(anchors))
@@ -133,6 +150,12 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
         :func:`morphoshell.solvers.bvp.solve_bvp`); shooting: the options of
         :func:`morphoshell.solvers.shooting.solve_shooting` but its integrator's
         ``rtol``.
+
+    Returns
+    -------
+    Equilibrium
+        Converged, stable and physical; a direct one with its error estimate
+        (``error``) and how it was reached (``solver.details["path"]``).
 
     Raises
     ------

@@ -42,10 +42,9 @@ system.  The equations are stiff near poles (the Euler modes decay like
 s^(−β): eigenvalue −β/s, 10⁴ at s = ε) and, on thin shells, through the
 decaying partner of each boundary-layer mode exp(±s/δ); elsewhere they are
 smooth and non-stiff.  LSODA switches between Adams (order ≤ 12) and BDF
-with the exact Jacobian where it detects stiffness.  Measured on a segment
-of toy problem 2 at rtol = 1e-10: LSODA 86 steps, 173 evaluations, 7 ms;
-Radau (L-stable, order 5) 389 steps, 2739 evaluations, 310 ms; BDF 220
-steps, 120 ms; all with the same end state to 3e-13.
+with the exact Jacobian where it detects stiffness, and so takes several
+times fewer steps and evaluations than Radau (L-stable, order 5) or BDF on
+the toy problems' segments, for the same end state.
 ``integrator="Radau"`` remains available.
 
 Conditioning
@@ -58,13 +57,11 @@ largest real part of an eigenvalue of ∂x'/∂x is ≈ 0.66/δ, so the bound is
 conservative).  The shooting matrix inherits that factor in its condition
 number, integration errors are amplified by it, and, worse, Newton's basin
 of attraction shrinks with it: the shooting map is nonlinear on the scale
-1/growth.  Measured on toy problem 2 (classical, Σ = 0.5, h = 0.1 … 1e-3,
-8 … 64 segments): every solve with a growth ≤ 35 per segment converged from
-the undeformed shell (with at most 2 homotopy steps); a growth of 1.3e2 …
-4.7e2 needed 4 homotopy steps or stopped at a residual of 2e-9; a growth
-≥ 1.7e4 did not converge.  The converged solves agreed with the direct
-route to 1e-10, with equilibrated condition numbers up to 7e5.  Hence the
-number of segments is chosen so that the growth stays below ``max_growth``
+1/growth.  On toy problem 2 (classical, Σ = 0.5, h = 0.1 … 1e-3, 8 … 64
+segments) solves with a growth of a few tens per segment converge from the
+undeformed shell, a few hundred need homotopy steps or stall, and ten
+thousand fail; the converged solves agree with the direct route to 1e-10.
+Hence the number of segments is chosen so that the growth stays below ``max_growth``
 (default :data:`MAX_GROWTH` = 20 ≈ e³), and the route *refuses*, with status
 :data:`ILL_CONDITIONED`, when
 
@@ -100,20 +97,22 @@ from ..model.layouts import BVP_STATE
 from ..model.problem import Problem, Structure
 from .bvp import (initial_state, neutral_path, pole_caps, pole_costates, pole_solutions, pole_state,
                   pontryagin_functions, to_equilibrium)
+from ..numerics.status import (SHOOTING_ILL_CONDITIONED, SHOOTING_INTEGRATION_FAILED,
+                               SHOOTING_NOT_CONVERGED, SHOOTING_SUCCEEDED, explain)
 from .results import Equilibrium, SolverError, SolverStats, unconverged
 
 __all__ = ["solve_shooting", "ILL_CONDITIONED", "NOT_CONVERGED", "INTEGRATION_FAILED",
            "MAX_GROWTH", "MAX_SEGMENTS", "MIN_SEGMENTS", "MAX_CONDITION"]
 
 #: Status of a refusal: the shooting matrix is (or would be) too ill-conditioned.
-ILL_CONDITIONED = "Shooting_Ill_Conditioned"
+ILL_CONDITIONED = SHOOTING_ILL_CONDITIONED
 #: Status when the iterations stop short of the tolerance.
-NOT_CONVERGED = "Shooting_Not_Converged"
+NOT_CONVERGED = SHOOTING_NOT_CONVERGED
 #: Status when the integration from the initial guess fails.
-INTEGRATION_FAILED = "Shooting_Integration_Failed"
+INTEGRATION_FAILED = SHOOTING_INTEGRATION_FAILED
 
 #: Default bound on exp(Δs/δ), the growth of the boundary-layer mode over one
-#: segment (see the module doc for the measurements behind it).
+#: segment (tuned on toy problem 2: the module doc, "Conditioning").
 MAX_GROWTH = 20.0
 
 #: Default bound on the number of segments chosen automatically.
@@ -126,8 +125,7 @@ MIN_SEGMENTS = 8
 #: Default bound on the condition number of the equilibrated shooting
 #: Jacobian at the solution.  The residuals are reproducible to ~1e-12
 #: (rtol = 1e-10), which this condition could amplify to ~1e-4 in the
-#: unknowns at worst; accurate solves measured 16 (h = 0.3) … 7e5 (h = 1e-3,
-#: 64 segments).
+#: unknowns at worst; the accurate solves of the toy problems stay well below it.
 MAX_CONDITION = 1e8
 
 #: The shot part of the state (z and the energy are quadratures); starts with (r, ψ).
@@ -352,6 +350,7 @@ class _Segment:
 
     @property
     def end(self) -> np.ndarray:
+        """The core state (4,) where the integration ended."""
         return self.Y[_C, -1]
 
 
@@ -373,7 +372,7 @@ class _Shooting:
         self.p = problem.parameter_vector()
         self.poles = pole_solutions(problem)
         self.F = pontryagin_functions(st)
-        # Bound to preallocated arrays: a plain CasADi call spends ~100 µs converting.
+        # Bound to preallocated arrays: a plain CasADi call spends most of its time converting.
         f, J = (Buffered(g) for g in _variational_functions(st))
         n_aug = _N + _NC * _NC
         self._fun = lambda s, X: f(s, X, self.p)[0]
@@ -521,8 +520,8 @@ def _solve_one(problem: Problem, guess: Equilibrium | None, opts: _Settings) -> 
 
     u0 = sh.initial(guess)
     if not np.all(np.isfinite(evaluate(u0)["res"])):
-        raise SolverError(f"shooting on {name!r}: the integration from the initial guess failed",
-                          INTEGRATION_FAILED)
+        raise SolverError(f"shooting on {name!r}: the integration from the initial guess failed: "
+                          f"{explain(INTEGRATION_FAILED)}", INTEGRATION_FAILED)
     try:
         # xtol ends the iterations once Newton's steps reach the integration
         # noise (smaller values only add rejected steps); tol is checked below.
@@ -540,12 +539,12 @@ def _solve_one(problem: Problem, guess: Equilibrium | None, opts: _Settings) -> 
         res, J, segs = sh.shoot(u, max_step=(sh.b - sh.a) / max(opts.points, 1))
     except _IntegrationFailed as err:
         raise SolverError(f"shooting on {name!r}: the integration at the last iterate failed "
-                          f"({err})", INTEGRATION_FAILED) from None
+                          f"({err}): {explain(INTEGRATION_FAILED)}", INTEGRATION_FAILED) from None
     scale = max(1.0, float(np.max(np.abs([seg.Y[_C, 0] for seg in segs]))))
     residual = float(np.max(np.abs(res))) / scale
     condition = _equilibrated_condition(J)
     converged = residual <= opts.tol
-    status = ("Shooting_Succeeded" if converged and condition <= opts.max_condition
+    status = (SHOOTING_SUCCEEDED if converged and condition <= opts.max_condition
               else ILL_CONDITIONED if converged else NOT_CONVERGED)
     s, Y, end_energy = sh.assemble(segs, u)
     details = {"residual": residual, "condition": condition, "segments": opts.segments,
@@ -553,12 +552,13 @@ def _solve_one(problem: Problem, guess: Equilibrium | None, opts: _Settings) -> 
     stats = SolverStats("shooting", evaluations, time.perf_counter() - t0, status, len(s),
                         0.0, details)
     eq = to_equilibrium(problem, s, Y, sh.p, sh.F["controls_vec"], sh.F["local"], end_energy,
-                        stats, status == "Shooting_Succeeded")
+                        stats, status == SHOOTING_SUCCEEDED)
     if not converged:
         raise SolverError(
             f"shooting did not converge on {name!r}: residual {residual:.3g} > tol = "
-            f"{opts.tol:.3g} after {evaluations} evaluations ({message}); status {status}; "
-            f"the last iterate is attached (.last_iterate)", status, unconverged(eq))
+            f"{opts.tol:.3g} after {evaluations} evaluations ({message}); status {status}: "
+            f"{explain(status)}; the last iterate is attached (.last_iterate)", status,
+            unconverged(eq))
     if condition > opts.max_condition:
         raise SolverError(
             f"shooting refused on {name!r}: the equilibrated shooting Jacobian has condition "
