@@ -81,8 +81,8 @@ def test_kkt_derivatives_are_those_of_the_whole_graph(variant, compiled, monkeyp
     """The kernel-assembled Hessian of the KKT fit's Lagrangian and Jacobian of its
     constraints equal CasADi's of the whole graph, from compiled kernels or not."""
     from morphoshell.numerics import discretisation
-    from morphoshell.fitting import core as fitting
-    from morphoshell.fitting.core import _Inner, _KKTProblem
+    from morphoshell.fitting import kkt_problem as fitting
+    from morphoshell.fitting.inner import InnerProblem
     from morphoshell.solvers.observables import midline_cells
 
     monkeypatch.setenv("MORPHOSHELL_COMPILE", compiled)
@@ -91,9 +91,9 @@ def test_kkt_derivatives_are_those_of_the_whole_graph(variant, compiled, monkeyp
         request.addfinalizer(cached.cache_clear)     # later tests compile again
 
     spec = volvox_spec(variant, START)
-    inner = _Inner(spec, synthetic_midline(TRUE, spec.base, nodes=30, noise=1e-3), 30)
+    inner = InnerProblem(spec, synthetic_midline(TRUE, spec.base, nodes=30, noise=1e-3), 30)
     theta, x, lam = spec.theta0, inner.eq.x, inner.eq.lam_g
-    nlp = _KKTProblem(spec, inner, 1e-8, 10)
+    nlp = fitting.KKTProblem(spec, inner, 1e-8, 10)
     nlp._build(midline_cells(inner.solver.disc, x, spec.problem(theta).parameter_vector(),
                              inner.n))
     w, target, sigma, mult, f, g, hess, jac_g = nlp.lagrangian
@@ -120,13 +120,15 @@ def test_kkt_start_multipliers_are_the_reduced_problems_adjoints():
     gradient Jᵀr of the gradient method (implicit function theorem), an
     independent route (up to the blended points' O(ds³) mismatch: 6e-5 at 30
     nodes, 8e-7 at 60, measured)."""
-    from morphoshell.fitting.core import _Inner, _KKTProblem
+    from morphoshell.fitting.inner import InnerProblem
+    from morphoshell.fitting.kkt_problem import KKTProblem
     from morphoshell.solvers.observables import midline_cells
 
     spec = volvox_spec("flat", START)
-    inner = _Inner(spec, synthetic_midline(TRUE, spec.base, nodes=NODES, noise=1e-3), NODES)
+    inner = InnerProblem(spec, synthetic_midline(TRUE, spec.base, nodes=NODES, noise=1e-3),
+                         NODES)
     theta, x, lam = spec.theta0, inner.eq.x, inner.eq.lam_g
-    nlp = _KKTProblem(spec, inner, 1e-8, 10)
+    nlp = KKTProblem(spec, inner, 1e-8, 10)
     nlp._build(midline_cells(inner.solver.disc, x, spec.problem(theta).parameter_vector(),
                              inner.n))
     w0 = np.concatenate([theta, x, lam, nlp._lifted_start(theta, x)])
@@ -150,17 +152,18 @@ def test_kkt_fit_points_do_not_depend_on_the_window_around_their_cell():
     cell: weighted by that place, it moved a point by 110 R here (window
     shifted by two cells); weighted by the linear estimate of S, it gets none.
     """
-    from morphoshell.fitting.core import WINDOW, _Inner, _KKTProblem
+    from morphoshell.fitting.inner import InnerProblem
+    from morphoshell.fitting.kkt_problem import WINDOW, KKTProblem
     from morphoshell.solvers.observables import midline_cells
 
     spec = volvox_spec("flat", TRUE)
-    inner = _Inner(spec, synthetic_midline(TRUE, spec.base, nodes=30), 30)
+    inner = InnerProblem(spec, synthetic_midline(TRUE, spec.base, nodes=30), 30)
     theta, x, d = spec.theta0, inner.eq.x, inner.solver.disc
     p = spec.problem(theta).parameter_vector()
     y = np.asarray(inner.midline(x, p)).ravel()
     true = np.column_stack([y[:inner.n], y[inner.n:]])
     cells = midline_cells(d, x, p, inner.n)
-    nlp = _KKTProblem(spec, inner, 1e-8, 10)
+    nlp = KKTProblem(spec, inner, 1e-8, 10)
     for shift in range(-WINDOW, WINDOW + 1):
         nlp._build(tuple(min(max(c + shift, 0), d.layout.cells - 1) for c in cells))
         w, target, _, _, f, *_ = nlp.lagrangian
@@ -241,7 +244,8 @@ def test_a_fit_near_a_fold_of_the_branch_is_not_converged(blowup, converged):
     value ratio is ~0.5, ~0.1 and ~1e-6."""
     from types import SimpleNamespace
 
-    from morphoshell.fitting.core import FOLD_RATIO, _result, volvox_spec
+    from morphoshell.fitting import volvox_spec
+    from morphoshell.fitting.results import FOLD_RATIO, fit_result
 
     spec = volvox_spec("free")
     k = len(spec.fitted)
@@ -251,7 +255,7 @@ def test_a_fit_near_a_fold_of_the_branch_is_not_converged(blowup, converged):
     inner = SimpleNamespace(solve=lambda theta: eq, residuals=lambda eq: np.full(200, 1e-3),
                             jacobian=lambda eq, theta: J, data=np.zeros((100, 2)), n=100,
                             solves=1)
-    r = _result("gradient", spec, inner, np.ones(k), 5, 0.1, True, "ftol reached")
+    r = fit_result("gradient", spec, inner, np.ones(k), 5, 0.1, True, "ftol reached")
     sv = np.linalg.svd(J, compute_uv=False)
     assert (sv[1] >= FOLD_RATIO * sv[0]) == converged
     assert r.converged is converged and r.near_fold is not converged
@@ -263,21 +267,22 @@ def test_a_kkt_fit_from_a_given_state_starts_there(monkeypatch):
     Gauss–Newton steps, then the NLP; no coarse refit from the stress-free
     parameters, which discarded the start (on the synthetic campaign its data
     homotopy then failed from t03 on).  It reaches the gradient fit's optimum."""
-    from morphoshell.fitting import core as fitting
+    from morphoshell.fitting import kkt
+    from morphoshell.fitting.inner import InnerProblem
 
-    nodes = 2 * fitting.COARSE_NODES + 10              # a mesh that used to get a coarse stage
+    nodes = 2 * kkt.COARSE_NODES + 10              # a mesh that used to get a coarse stage
     spec = volvox_spec("flat", START, hold={"kappa3": 0.0, "kappa4": 0.0})
     data = synthetic_midline(TRUE, spec.base, nodes=nodes, noise=1e-3, seed=3)
-    start = fitting._Inner(spec, data, nodes).eq        # the start's own state, on the fit's mesh
+    start = InnerProblem(spec, data, nodes).eq          # the start's own state, on the fit's mesh
     reference = fit(spec, data, "gradient", nodes=nodes, start=start)
     made = []
-    inner = fitting._Inner.__init__
+    inner = InnerProblem.__init__
 
     def recording(self, spec, data, nodes, start=None):
         made.append(nodes)
         inner(self, spec, data, nodes, start)
 
-    monkeypatch.setattr(fitting._Inner, "__init__", recording)
+    monkeypatch.setattr(InnerProblem, "__init__", recording)
     result = fit(spec, data, "kkt", nodes=nodes, start=start)
     assert made == [nodes]
     assert result.converged and abs(result.E_fit / reference.E_fit - 1) < 1e-3
@@ -290,14 +295,14 @@ def test_a_kkt_start_on_a_bound_stays_an_equilibrium(monkeypatch):
     iterations (synthetic KKT campaign, undeformed t03)."""
     from dataclasses import replace
 
-    from morphoshell.fitting import core as fitting
+    from morphoshell.fitting.kkt_problem import KKTProblem
 
     base = _three_parameter_spec()
     # the start value of s2 is its box's lower edge (and the truth lies inside)
     spec = replace(base, bounds={**base.bounds, "s2": (START.params["s2"], 1.9)})
     data = synthetic_midline(TRUE, spec.base, nodes=NODES)
     violations = []
-    solve = fitting._KKTProblem.solve
+    solve = KKTProblem.solve
 
     def recording(self, *args, **kwargs):
         try:
@@ -305,7 +310,7 @@ def test_a_kkt_start_on_a_bound_stays_an_equilibrium(monkeypatch):
         finally:
             violations.append(self.nlp.stats()["iterations"]["inf_pr"][0])
 
-    monkeypatch.setattr(fitting._KKTProblem, "solve", recording)
+    monkeypatch.setattr(KKTProblem, "solve", recording)
     result = fit(spec, data, "kkt", nodes=NODES)
     # (1e-3 of push in s2 moves the mesh under the state: 1e-2 or more)
     assert violations and violations[0] < 1e-6, violations
@@ -319,16 +324,17 @@ def test_a_failed_kkt_nlp_is_followed_by_one_from_the_reduced_optimum(monkeypatc
     fit's state on the synthetic campaign), Gauss–Newton steps run to the fit's
     tolerance and one NLP starts from their end, the gradient fit's optimum: the fit
     reaches that optimum and counts the failed NLP's iterations."""
-    from morphoshell.fitting import core as fitting
+    from morphoshell.fitting import kkt
+    from morphoshell.fitting.inner import InnerProblem
 
     # (s3, s4 held: with kappa3, kappa4 = 0 they slide towards s2, and the boxes
     # that order them move, each move with an NLP of its own)
     spec = volvox_spec("flat", START, hold={"kappa3": 0.0, "kappa4": 0.0, "s3": 1.9, "s4": 2.3})
     data = synthetic_midline(TRUE, spec.base, nodes=NODES, noise=1e-3, seed=3)
-    start = fitting._Inner(spec, data, NODES).eq if warm else None
+    start = InnerProblem(spec, data, NODES).eq if warm else None
     reference = fit(spec, data, "gradient", nodes=NODES, start=start)
     optimum = np.array([reference.parameters[n] for n in spec.fitted])
-    calls, nlp = [], fitting._kkt_nlp
+    calls, nlp = [], kkt._kkt_nlp
 
     def failing_once(spec, inner, tol, max_iterations, theta0, eq, **kw):
         calls.append(np.array(theta0))
@@ -338,7 +344,7 @@ def test_a_failed_kkt_nlp_is_followed_by_one_from_the_reduced_optimum(monkeypatc
             raise exc
         return nlp(spec, inner, tol, max_iterations, theta0, eq, **kw)
 
-    monkeypatch.setattr(fitting, "_kkt_nlp", failing_once)
+    monkeypatch.setattr(kkt, "_kkt_nlp", failing_once)
     result = fit(spec, data, "kkt", nodes=NODES, start=start)
     assert len(calls) == 2
     # the second NLP starts at the optimum (to 1e-5 of |θ|), far closer than the first
@@ -370,7 +376,7 @@ def test_a_breakpoint_resting_on_its_box_moves_it_to_the_fits_optimum():
     boxes (the fit used to stop on their edge, converged) to σ apart; there E_fit
     falls along no feasible move of any breakpoint (first-order optimality, checked
     by inner solves at ±1e-3)."""
-    from morphoshell.fitting import core as fitting
+    from morphoshell.fitting.inner import InnerProblem
 
     spec = volvox_spec("flat", START, hold={"kappa3": 0.0, "kappa4": 0.0})
     data = synthetic_midline(TRUE, spec.base, nodes=NODES, noise=1e-3, seed=3)
@@ -382,7 +388,7 @@ def test_a_breakpoint_resting_on_its_box_moves_it_to_the_fits_optimum():
     sigma = spec.base.params["sigma"]
     assert np.all(np.diff([0.0, *s, spec.base.end]) >= sigma * (1 - 1e-9))
     theta = np.array([result.parameters[n] for n in spec.fitted])
-    inner = fitting._Inner(spec.recentred(theta), data, NODES, start=result.equilibrium)
+    inner = InnerProblem(spec.recentred(theta), data, NODES, start=result.equilibrium)
     for i in range(4):
         for step in (-1e-3, 1e-3):
             moved = theta.copy()
@@ -397,11 +403,11 @@ def test_a_breakpoint_resting_on_its_box_moves_it_to_the_fits_optimum():
 def test_a_fit_that_fails_from_moved_boxes_keeps_the_last_one_unconverged(monkeypatch):
     """When the fit from moved boxes fails (FitError), the fit within the last boxes is
     returned, not converged, saying why; a failure before any move still raises."""
-    from morphoshell.fitting import core as fitting
+    from morphoshell.fitting import bilevel      # where fit() finds the method
 
     spec = volvox_spec("flat", START, hold={"kappa3": 0.0, "kappa4": 0.0})
     data = synthetic_midline(TRUE, spec.base, nodes=NODES, noise=1e-3, seed=3)
-    calls, gradient = [], fitting._gradient
+    calls, gradient = [], bilevel.gradient_fit
 
     def failing_second(spec, inner, *args):
         calls.append(spec.theta0)
@@ -409,7 +415,7 @@ def test_a_fit_that_fails_from_moved_boxes_keeps_the_last_one_unconverged(monkey
             raise FitError("the NLP failed", "Maximum_Iterations_Exceeded")
         return gradient(spec, inner, *args)
 
-    monkeypatch.setattr(fitting, "_gradient", failing_second)
+    monkeypatch.setattr(bilevel, "gradient_fit", failing_second)
     result = fit(spec, data, "gradient", nodes=NODES)
     assert len(calls) == 2 and not result.converged
     assert "the fit from moved boxes failed: the NLP failed" in result.message
@@ -587,7 +593,7 @@ def test_a_stalled_gradient_fit_keeps_the_state_of_its_best_point():
     the synthetic t06 from the family's defaults)."""
     import types
 
-    import morphoshell.fitting.core as fitting
+    import morphoshell.fitting.nested as fitting
     from morphoshell.solvers.results import SolverError
 
     target = np.array([1.0, 2.0])
@@ -616,7 +622,7 @@ def test_a_stalled_gradient_fit_keeps_the_state_of_its_best_point():
     inner = Inner()
     spec = types.SimpleNamespace(theta0=np.array([0.0, 0.0]),
                                  box=lambda: (np.full(2, -np.inf), np.full(2, np.inf)))
-    theta, evaluations, converged, message = fitting._gradient(spec, inner, 1e-15, 200)
+    theta, evaluations, converged, message = fitting.gradient_fit(spec, inner, 1e-15, 200)
     best = min(inner.costs, key=inner.costs.get)
     assert not converged and "best point reached" in message
     assert evaluations == 3 + fitting.MAX_FAILED_TRIALS
@@ -628,11 +634,11 @@ def test_a_failed_trial_is_rejected_without_continuation(monkeypatch):
     continues from the nearest state (the fit's own points must be reached)."""
     import types
 
-    import morphoshell.fitting.core as fitting
+    import morphoshell.fitting.inner as fitting
     from morphoshell.solvers.results import SolverError
 
     spec = _three_parameter_spec()
-    inner = fitting._Inner.__new__(fitting._Inner)
+    inner = fitting.InnerProblem.__new__(fitting.InnerProblem)
     start = types.SimpleNamespace(name="start")
     inner.spec, inner.solves, inner._cache = spec, 0, {}
     inner._archive = [(spec.theta0, start)]
@@ -701,7 +707,7 @@ def test_a_gradient_fit_that_stalls_short_of_a_stationary_point_is_not_converged
     The same problem without the jump converges, with the gradient at round-off."""
     import types
 
-    import morphoshell.fitting.core as fitting
+    import morphoshell.fitting.nested as fitting
 
     target = np.array([1.0, 2.0])
 
@@ -728,9 +734,9 @@ def test_a_gradient_fit_that_stalls_short_of_a_stationary_point_is_not_converged
 
     spec = types.SimpleNamespace(theta0=np.array([0.0, 0.0]),
                                  box=lambda: (np.full(2, -np.inf), np.full(2, np.inf)))
-    theta, _, converged, message = fitting._gradient(spec, Inner(True), 1e-10, 200)
+    theta, _, converged, message = fitting.gradient_fit(spec, Inner(True), 1e-10, 200)
     assert theta[0] == pytest.approx(0.5, abs=1e-3) and not converged
     assert "not a stationary point" in message
-    theta, _, converged, message = fitting._gradient(spec, Inner(False), 1e-10, 200)
+    theta, _, converged, message = fitting.gradient_fit(spec, Inner(False), 1e-10, 200)
     assert converged and theta == pytest.approx(target, abs=1e-8)
 
