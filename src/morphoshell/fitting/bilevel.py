@@ -100,7 +100,7 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
     t0 = time.perf_counter()
     inner = InnerProblem(spec, data, nodes, start)
     run = {"nelder-mead": nelder_mead_fit, "gradient": gradient_fit, "kkt": kkt_fit}[method]
-    iterations, moved = 0, []
+    iterations, moved, last = 0, [], spec      # (last: the spec before the last move)
     while True:
         try:
             theta, its, ok, msg = run(spec, inner, tol, max_iterations)

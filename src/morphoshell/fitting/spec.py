@@ -33,13 +33,15 @@ import numpy as np
 from ..model.problem import Problem
 
 __all__ = ["FitSpec", "volvox_spec", "breakpoint_bounds", "VARIANTS", "BOUNDS", "EDGE_RTOL",
-           "PUSH_SHARE"]
+           "PUSH_SHARE", "VOLVOX_BREAKPOINTS"]
 
 #: Hypotheses on the posterior intrinsic curvature κ₁ (see the module docstring).
 VARIANTS = ("flat", "undeformed", "unstressed", "free")
 #: Bounds of fitted Volvox parameters: stretches, curvatures (1/R).  Breakpoints
 #: are bounded by the shell and kept apart by at least the smoothing width σ.
 BOUNDS = {"f": (0.5, 2.0), "kappa": (-15.0, 15.0)}
+#: The Volvox model's breakpoints, in order along the shell.
+VOLVOX_BREAKPOINTS = ("s1", "s2", "s3", "s4")
 #: A fitted breakpoint within this fraction of its box's width from an edge rests on it
 #: (:meth:`FitSpec.on_box_edges`).
 EDGE_RTOL = 1e-4
@@ -173,6 +175,10 @@ class FitSpec:
         had jackknife errors of s₂ of 0.001–0.002 against misses of 0.018).
         """
         values = self.params(theta)
+        return self._on_ordering(values) + self._on_bounds(values)
+
+    def _on_ordering(self, values: Mapping) -> list[tuple[str, tuple[str, ...]]]:
+        """The ordering constraints of :meth:`on_constraints` that hold at ``values``."""
         out = []
         if self.ordered:
             s, sigma = [float(values[n]) for n in self.ordered], float(values["sigma"])
@@ -186,6 +192,11 @@ class FitSpec:
                     out.append((f"{b} - {a} = sigma", both))
             if self.base.end - sigma - s[-1] <= tol and names[-1] in self.fitted:
                 out.append((f"{names[-1]} = L - P - sigma (the shell's end)", (names[-1],)))
+        return out
+
+    def _on_bounds(self, values: Mapping) -> list[tuple[str, tuple[str, ...]]]:
+        """The bounds of :meth:`on_constraints` that hold at ``values`` (not the boxes)."""
+        out = []
         for n in self.fitted:
             if n in self.ordered or n not in self.bounds:
                 continue
@@ -264,11 +275,30 @@ def volvox_spec(variant: str, start: Problem | None = None, hold: Mapping[str, f
     start = start or Problem("volvox", h=0.15, opening=0.3)
     if start.family != "volvox":
         raise ValueError(f"the Volvox fit needs a 'volvox' problem, got {start.family!r}")
+    hold, tied = _variant_holds_and_ties(variant, hold)
+    params = {**start.params, **hold}
+    if variant == "unstressed":
+        params["kappa1"] = 1 / params["f1"]
+    base = start.with_updates(**params)
+    fitted = tuple(n for n in base.family_obj.parameters
+                   if n not in hold and n not in tied and n != "sigma")
+    bounds = _volvox_bounds(base, fitted, breakpoint_boxes)
+    return FitSpec(base, fitted, tied, bounds, variant,
+                   VOLVOX_BREAKPOINTS if breakpoint_boxes else ())
+
+
+def _variant_holds_and_ties(variant: str, hold: Mapping[str, float]) -> tuple[dict, dict]:
+    """The held parameters and the tied ones (:attr:`FitSpec.tied`) of a Volvox variant.
+
+    ``flat`` and ``undeformed`` hold κ₁ at 0 and 1 (holding it at another
+    value is refused: a fit labelled flat with κ₁ = 0.5 would silently be
+    another hypothesis); ``unstressed`` ties κ₁ = 1/f₁ (holding it is
+    refused); ``free`` adds nothing to ``hold``.
+    """
     hold = dict(hold)
     tied: dict = {}
     fixed = {"flat": 0.0, "undeformed": 1.0}.get(variant)
     if fixed is not None:
-        # a fit labelled flat with kappa1 = 0.5 would be silently another hypothesis
         if hold.setdefault("kappa1", fixed) != fixed:
             raise ValueError(f"the {variant} variant holds kappa1 = {fixed:g}, not "
                              f"{hold['kappa1']:g}: hold kappa1 in the free variant instead")
@@ -276,22 +306,24 @@ def volvox_spec(variant: str, start: Problem | None = None, hold: Mapping[str, f
         if "kappa1" in hold:
             raise ValueError("the unstressed variant ties kappa1 = 1/f1: it cannot be held")
         tied["kappa1"] = (lambda p: 1 / p["f1"], lambda p: {"f1": -1 / p["f1"] ** 2})
-    params = {**start.params, **hold}
-    if variant == "unstressed":
-        params["kappa1"] = 1 / params["f1"]
-    base = start.with_updates(**params)
-    fitted = tuple(n for n in base.family_obj.parameters
-                   if n not in hold and n not in tied and n != "sigma")
+    return hold, tied
+
+
+def _volvox_bounds(base: Problem, fitted: tuple[str, ...],
+                   breakpoint_boxes: bool) -> dict[str, tuple[float, float]]:
+    """Bounds of the fitted Volvox parameters: :data:`BOUNDS` for stretches and
+    curvatures, for breakpoints their boxes (:func:`breakpoint_bounds`) or, without
+    them, the shell less σ at either end."""
     bounds = {}
     for n in fitted:
         if n.startswith("f"):
             bounds[n] = BOUNDS["f"]
         elif n.startswith("kappa"):
             bounds[n] = BOUNDS["kappa"]
-    names = tuple(f"s{i}" for i in range(1, 5))
+    names = VOLVOX_BREAKPOINTS
     sigma = base.params["sigma"]
     boxes = breakpoint_bounds([base.params[n] for n in names], sigma, base.end)
     for name, box in zip(names, boxes):
         if name in fitted:
             bounds[name] = box if breakpoint_boxes else (sigma, base.end - sigma)
-    return FitSpec(base, fitted, tied, bounds, variant, names if breakpoint_boxes else ())
+    return bounds
