@@ -107,9 +107,8 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
         except FitError as exc:
             if not moved:
                 raise
-            # the fit within the last boxes stands, reported as unconverged
-            # (measured: a KKT NLP from moved boxes ran out of iterations,
-            # undeformed t05 of the synthetic campaign)
+            # the fit within the last boxes stands, reported as unconverged (an
+            # NLP from moved boxes can run out of iterations where the last did not)
             iterations += int(getattr(exc, "iterations", 0) or 0)
             spec = inner.spec = last
             ok, msg = False, (f"{msg}; but {moved[-1]} rested on the edge of their boxes, and "
@@ -117,10 +116,8 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
             break
         iterations += its
         # The breakpoints' boxes order them for methods that take bounds, not
-        # constraints; their edges are not the fit's.  Measured on the
-        # synthetic campaign (2026-11-23), before the boxes moved: 20 of the 44
-        # fits that ran ended with a breakpoint on an edge, "converged" (undeformed s3
-        # at every timepoint, each one box lower than the last).
+        # constraints; their edges are not the fit's: a fit that ends on one
+        # goes on from boxes moved around its end.
         edges = spec.on_box_edges(theta)
         if not edges:
             break

@@ -45,7 +45,7 @@ ARCHIVE = 64
 def model_midline(eq: Equilibrium, n: int = N_FIT) -> np.ndarray:
     """(n, 2) points (r, z) of a direct solution, equally spaced in deformed arclength.
 
-    z is measured from the first point (the posterior pole): the gauge of
+    z is counted from the first point (the posterior pole): the gauge of
     traced midlines.
     """
     from ..solvers.direct import solver_of
@@ -151,8 +151,8 @@ class InnerProblem:
         Interpolated and solved (:func:`morphoshell.solvers.refinement.solve_from`); if
         that fails, by :meth:`solve`.  A coarse mesh's state can lie near a fold
         of the branch that the fine mesh has a little earlier: continuation
-        from the fit's start then stops short of θ (measured: flat variant, t02
-        of the synthetic inversion), while the coarse state's branch continues.
+        from the fit's start then stops short of θ, while the coarse state's
+        branch continues.
         """
         theta = np.asarray(theta, dtype=float)
         problem = self.spec.problem(theta)

@@ -23,21 +23,20 @@ from .results import FitError
 __all__ = ["kkt_fit", "COARSE_NODES", "KKT_GN_TOL", "KKT_GN_ITERATIONS", "KKT_FINE_GN_TOL",
            "KKT_COARSE_TOL"]
 
-#: Mesh of the KKT fit's first, coarse stage (see ``_kkt``): 40 nodes against 60 took the
-#: bench_fit fit with noise 1.23 s instead of 1.59 s (medians of 5 interleaved, 2026-11-24),
-#: 1.1-2.8 s instead of 1.5-2.9 s on seeds 2-7, noiseless alike (1.61 and 1.57 s); 30: slower.
+#: Mesh nodes of the KKT fit's first, coarse stage (see :func:`kkt_fit`; tuned by
+#: scripts/bench_fit.py: the whole fit's time, with noise and without).
 COARSE_NODES = 40
-#: Tolerance (relative on E_fit²) and evaluations of the Gauss-Newton steps that
-#: start a KKT fit from a given state (``_kkt``).
+#: Tolerance (relative on E_fit²) of the Gauss-Newton steps that start a KKT fit from a
+#: given state (:func:`kkt_fit`; loose: they only bring the NLP near, tuned on campaign steps).
 KKT_GN_TOL = 1e-4
+#: Residual evaluations of those Gauss-Newton steps, at most (tuned on campaign steps).
 KKT_GN_ITERATIONS = 30
 #: Tolerance (relative on E_fit²) of the Gauss-Newton steps between the KKT fit's coarse and
-#: fine NLPs (``_kkt_from_coarse``).
+#: fine NLPs (``_kkt_from_coarse``; tuned by scripts/bench_fit.py's fine NLP iterations).
 KKT_FINE_GN_TOL = 1e-6
 #: Ipopt tolerance of the KKT fit's coarse NLP (at most; ``_kkt_from_coarse``): its optimum
-#: only starts the fine mesh's Gauss-Newton steps to KKT_FINE_GN_TOL.  At 1e-6 it spent 2-5
-#: iterations more on bench_fit's seeds, and on seed 2 went on past its optimum to another
-#: one it did not reach (60 iterations, then route B: 108 in all against 37), measured.
+#: only starts the fine mesh's Gauss-Newton steps to KKT_FINE_GN_TOL, and a tighter one can
+#: take the coarse NLP past it (tuned by scripts/bench_fit.py over noise seeds).
 KKT_COARSE_TOL = 1e-5
 
 
@@ -49,8 +48,8 @@ def kkt_fit(spec, inner, tol, max_iterations):
     (:data:`KKT_GN_TOL`, :data:`KKT_GN_ITERATIONS`); otherwise, on fine
     meshes, a KKT fit on a coarse mesh (:data:`COARSE_NODES`): a change of
     the model's length moves the fit points by many short cells, beyond the
-    window one NLP lets them move (measured: stalls at 200 nodes from the
-    start shape), while on the coarse mesh's long cells it does not; then
+    window one NLP lets them move (the NLP stalls), while on the coarse
+    mesh's long cells it does not; then
     Gauss–Newton steps on the fine mesh (:data:`KKT_FINE_GN_TOL`) and the
     fine NLP from their end.  Route B, when A fails (its NLP, or its end is
     a saddle or not reproduced): Gauss–Newton steps to the fit's tolerance,
@@ -59,10 +58,9 @@ def kkt_fit(spec, inner, tol, max_iterations):
     theta0, eq, spent, its = spec.theta0, inner.eq, 0, 0
     try:
         if inner.warm:
-            # From a previous fit's state (a campaign step) the NLP alone failed:
-            # its path crossed a nearly singular stretch of the branch (flat t03
-            # at 200 nodes), while from loose Gauss-Newton steps (flat t03-t05:
-            # 17, 9, 9 of them) it converged in 8, 8, 5 iterations.
+            # From a previous fit's state (a campaign step) the NLP's path can
+            # cross a nearly singular stretch of the branch and fail; loose
+            # Gauss-Newton steps first bring it near its optimum.
             theta0, eq, spent = _gauss_newton_steps(spec, inner, KKT_GN_TOL, KKT_GN_ITERATIONS,
                                                     theta0, eq)
             theta, x, lam, its, status = _kkt_nlp(spec, inner, tol, max_iterations, theta0, eq)
@@ -70,11 +68,9 @@ def kkt_fit(spec, inner, tol, max_iterations):
             theta, x, lam, its, status = _kkt_from_coarse(spec, inner, tol, max_iterations)
         return _kkt_checked(inner, theta, x, lam, spent + its, status)
     except FitError as exc:
-        # Measured on the synthetic campaign (200 nodes): from the previous
-        # fit's state the NLP failed or ended on a saddle at unstressed t06-t09
-        # and free t02, and the data homotopy that then shortened its steps
-        # cost 90-830 s, mostly to fail; from the reduced optimum the NLP
-        # converged in 6-19 iterations (unstressed t06: 6 s in all).
+        # Route B: from the reduced optimum the NLP converges where from
+        # another start it failed or ended on a saddle (and a homotopy in the
+        # data that shortened its steps cost far more, mostly to fail).
         spent += its or int(getattr(exc, "iterations", 0) or 0)
         first = exc
     try:
@@ -92,15 +88,13 @@ def _gauss_newton_steps(spec, inner, ftol, max_evaluations, theta0, eq,
 
     The reduced problem's (:func:`gradient_fit`).  From a start that no solve
     reproduces (a saddle: rejected after the NLP) there are none.  When
-    ``required``, steps that stop short of ``ftol`` raise FitError: an NLP
-    from there went wild (synthetic campaign, unstressed t09 from t07's
-    fit: the steps stopped at a fold of the branch, and 60 Ipopt iterations
-    with Hessian perturbations up to 1e10 took 356 s).
+    ``required``, steps that stop short of ``ftol`` raise FitError: they
+    stopped at a fold of the branch, say, and an NLP from there goes wild.
     """
     evaluations = 0
     try:
-        theta, evaluations, converged, message = gradient_fit(spec, inner, ftol, max_evaluations,
-                                                           theta0)
+        theta, evaluations, converged, message = gradient_fit(spec, inner, ftol,
+                                                              max_evaluations, theta0)
         if converged or not required:
             return theta, inner.solve(theta), evaluations
     except SolverError as exc:
@@ -118,8 +112,7 @@ def _kkt_nlp(spec, inner, tol, max_iterations, theta0, eq, near: bool = True) ->
 
     ``near``: θ₀ is close to the optimum (Gauss–Newton steps' end), and the
     NLP starts from the reduced problem's adjoints; from a far start, from
-    zero multipliers (adjoints there took as many iterations or more: 17-32
-    against 19-26 on bench_fit's coarse stage, measured).
+    zero multipliers (adjoints there help no more than they cost).
     """
     inner.eq = eq         # (the NLP's objective is scaled by the misfit there)
     return _kkt_cells(KKTProblem(spec, inner, tol, max_iterations, adjoint_duals=near),
@@ -132,21 +125,15 @@ def _kkt_from_coarse(spec, inner, tol, max_iterations) -> tuple:
         return _kkt_nlp(spec, inner, tol, max_iterations, spec.theta0, inner.eq, near=False)
     coarse = InnerProblem(spec, inner.data, COARSE_NODES)
     theta0, spent, _, _ = kkt_fit(spec, coarse, max(tol, KKT_COARSE_TOL), max_iterations)
-    # From a coarse fit the start is close: a tiny initial barrier (from 1e-6
-    # the fine stage took 34 iterations, wandering while mu fell) and the
-    # adjoints as multipliers (KKTProblem._adjoint_duals): from zero ones the
-    # exact Hessian lacks the constraints' curvature, and the fine stage stalled
-    # in line searches (38 + 56 + 12 iterations with noisy data; 16 from Ipopt's
-    # least-squares estimate, measured before the window edges were flagged;
-    # from that estimate 5-23 on bench_fit's noisy seeds, one failing after 60,
-    # and 16 noiseless; from the adjoints 5-17 and 6, measured 2026-11-23).
+    # From a coarse fit the start is close: a tiny initial barrier (a larger
+    # one has the fine stage wander while mu falls) and the adjoints as
+    # multipliers (KKTProblem._adjoint_duals): from zero ones the exact Hessian
+    # lacks the constraints' curvature, and the fine stage stalls in line
+    # searches; Ipopt's least-squares estimate fails now and then.
     #   And Gauss-Newton steps on this mesh first: the coarse optimum lies
-    # along the poorly identified directions from this mesh's (0.4 standard
-    # errors, bench_fit's noisy data), across a curved valley (the misfit rises
-    # 2 % between the two on the straight line), where the NLP's steps crawled
-    # and moved fit points out of their windows (NLPs rebuilt): 15-92 iterations
-    # at 200 nodes over seven noise seeds, 4-9 from the steps' end (one seed 32),
-    # the fits 2.1-4.6 s instead of 2.9-11.3 s (measured 2026-11-23).
+    # along the poorly identified directions from this mesh's, across a curved
+    # valley, where the NLP's steps crawl and move fit points out of their
+    # windows (NLPs rebuilt); from the steps' end it takes a few iterations.
     eq = inner.transfer(theta0, coarse.eq)      # the fine state on the coarse fit's branch
     theta0, eq, steps = _gauss_newton_steps(spec, inner, KKT_FINE_GN_TOL, KKT_GN_ITERATIONS,
                                             theta0, eq)

@@ -28,13 +28,15 @@ __all__ = ["KKTProblem", "WINDOW", "BLEND", "KKT_ITERATIONS", "KKT_MAX_PERTURBAT
 WINDOW = 2
 #: Overlap (in cell widths) over which the KKT fit blends neighbouring cells.
 BLEND = 0.05
-#: Ipopt iterations of each of the KKT fit's NLPs (converging ones took 5-60,
-#: measured; a failing one costs about 0.1 s an iteration at 200 nodes).
+#: Ipopt iterations of each of the KKT fit's NLPs (tuned by scripts/bench_fit.py and the
+#: synthetic campaign: what converging NLPs need, before a failing one costs much).
 KKT_ITERATIONS = 60
-#: Largest Hessian perturbation (inertia correction) of the KKT fit's NLPs.
+#: Largest Hessian perturbation (inertia correction) of the KKT fit's NLPs: beyond it an
+#: NLP has gone wild and fails fast (tuned on the synthetic campaign's NLPs).
 KKT_MAX_PERTURBATION = 1e6
 #: |η| stays below this in the KKT fit (the theory needs |η| < 1).
 ETA_MAX = 0.98
+#: Ipopt's print level in the KKT fit's NLPs (0: silent).
 PRINT_LEVEL = 0
 
 
@@ -55,8 +57,8 @@ def _blended_point(stages: int) -> ca.Function:
     is 1 inside the cell and falls to 0 across an overlap of BLEND cell widths
     around its boundaries: the midline is only continuous across cell
     boundaries (the cell polynomials agree in value, to O(Δs^(S+1)), not in
-    slope), and a fit point resting on a node made E_fit(θ) kinked there,
-    where stationarity stalled (1.7e-3 with noisy data, measured).  Cells
+    slope), and a fit point resting on a node would make E_fit(θ) kinked
+    there, where stationarity stalls.  Cells
     flagged ``first`` (``last``) keep their weight below (above) themselves:
     the shell's first and last cells, for targets beyond its ends, and the
     window's outermost ones (:meth:`KKTProblem._window_indices`).  A clipped
@@ -78,8 +80,7 @@ def _blended_point(stages: int) -> ca.Function:
         _, r_o, _, z_o = point(Z[:, o], lo[o], hi[o] - lo[o], z0[o], S0[o], target)
         # where the point lies in the cell, from the linear interpolant of S:
         # for a target cells away, Newton's iteration can end inside the cell
-        # on a wrong root, which then had weight (a point at r = 0.767 came
-        # out at 1.238, measured on the synthetic campaign's t03)
+        # on a wrong root, which must get no weight
         S1 = S0[o] + (hi[o] - lo[o]) * ca.dot(gauss, Z[2 * stages + 2:, o])
         tau = (target - S0[o]) / (S1 - S0[o])
         weight = (ca.fmax(_ramp((tau + BLEND) / (2 * BLEND)), first[o])
@@ -94,9 +95,8 @@ def _point_misfit(stages: int) -> ca.Function:
     """``(u, t, first, last, keep, (R, Z)) -> (∂e/∂u, triu ∂²e/∂u²)`` (SX).
 
     e = ½|(r, z) − (R, Z)|² for one fit point: the exact Hessian of its
-    squared misfit in its local unknowns (:func:`_blended_point`); the MX
-    Hessian of the assembled misfit cost 0.24 s per evaluation at 60 nodes
-    (measured).
+    squared misfit in its local unknowns (:func:`_blended_point`), far
+    cheaper to evaluate than the MX Hessian of the assembled misfit.
     """
     f = _blended_point(stages)
     args = [f.sx_in(i) for i in range(f.n_in())]
@@ -112,7 +112,7 @@ def _point_misfit(stages: int) -> ca.Function:
 
 @lru_cache(maxsize=4)
 def _compiled_misfit(stages: int) -> ca.Function:
-    """:func:`_point_misfit` compiled for evaluation (at ``-O1``: gcc's -O2 took over 5 min)."""
+    """:func:`_point_misfit` compiled for evaluation (at ``-O1``: -O2 compiles too slowly)."""
     return compiled_point_function(_point_misfit(stages), LARGE)
 
 
@@ -128,8 +128,24 @@ class KKTProblem:
     σ apart inside the shell, |η| ≤ ETA_MAX; bounds on θ.  The Hessian of
     the Lagrangian is exact (:meth:`_hessian`: Gauss–Newton approximations
     of it made the reduced Hessian indefinite or its steps diverge).  Which
-    cell holds each fit point is structural: the NLP is rebuilt (in a
-    fraction of a second) when points change cells.
+    cell holds each fit point is structural: the NLP is rebuilt (cheaply)
+    when points change cells.
+
+    Parameters
+    ----------
+    spec : FitSpec
+        What is fitted.
+    inner : InnerProblem
+        The fit's inner problem (its solver, mesh, data and current state).
+    tol : float
+        Ipopt's tolerance.
+    max_iterations : int or None
+        Ipopt iterations of each NLP (default :data:`KKT_ITERATIONS`).
+    mu_init : float
+        Ipopt's initial barrier parameter.
+    adjoint_duals : bool
+        Start the first NLP from the reduced problem's adjoints
+        (:meth:`_adjoint_duals`) instead of zero multipliers.
     """
 
     def __init__(self, spec, inner, tol, max_iterations, mu_init: float = 1e-6,
@@ -206,22 +222,25 @@ class KKTProblem:
         problem = {"x": w, "p": target, "f": 0.5 * ca.sumsqr(res), "g": g}
         self.lagrangian = (w, target, sigma, mult, problem["f"], g, hess, jac_g)  # (for tests)
         self._jac_g, self._n_eq = jac_g, F.shape[0] + lifted.shape[0]     # (rows of g first)
+        self.nlp = self._ipopt(problem, hess, jac_g)
+        self.sizes = (k, d.layout.size, d.g.shape[0])
+        self.cells = cells
+
+    def _ipopt(self, problem: dict, hess: ca.Function, jac_g: ca.Function) -> ca.Function:
+        """The NLP ``problem`` as an Ipopt solver with the exact ``hess`` and ``jac_g``."""
         load_ipopt()      # (solvers no longer load it on construction: Newton may do without)
-        self.nlp = ca.nlpsol("kkt_fit", "ipopt", problem, {
+        return ca.nlpsol("kkt_fit", "ipopt", problem, {
             # the start is an equilibrium, feasible and usually close: a small
             # initial barrier keeps the inactive |eta| bounds from slowing it
             # down (the adaptive update raised it again after warm starts)
             # The midline is only continuous across cell boundaries (the cell
             # polynomials agree in value, not slope): a fit point resting on a
-            # node sits on a kink of E_fit(θ), where stationarity stalls (at
-            # 1.7e-3 with noisy data, measured).  Stop when the misfit no longer
-            # changes (relative to the start's: the objective is scaled to 1
-            # there) over 3 iterations while the equilibrium holds to 1e-9.  (1e-8
-            # saved bench_fit's noiseless fit 10 iterations, where excursions of the
-            # violation to 4e-9 restarted the count, but on the KKT campaign free t02
-            # then failed and the campaign took 280 s instead of 230 s, measured.
-            # 5 iterations at 1e-10 cost the noiseless fit's fine NLP 8 iterations
-            # where 4 do: 1.29 s against 1.04 s, the noisy fits alike; 2026-11-24.)
+            # node sits on a kink of E_fit(θ), where stationarity stalls.  Stop
+            # when the misfit no longer changes (relative to the start's: the
+            # objective is scaled to 1 there) over 3 iterations while the
+            # equilibrium holds to 1e-9 (both tuned by scripts/bench_fit.py and the
+            # KKT campaign: a looser violation lost campaign fits, more iterations
+            # cost time).
             "ipopt": {"print_level": PRINT_LEVEL, "sb": "yes", "tol": self.tol,
                       "max_iter": self.max_iter, "mu_init": self.mu_init,
                       "acceptable_tol": 1e-2, "acceptable_iter": 3,
@@ -229,18 +248,14 @@ class KKTProblem:
                       "acceptable_constr_viol_tol": 1e-9,
                       "warm_start_init_point": "yes",
                       # A start on a bound of θ (Gauss-Newton steps that ended on a
-                      # breakpoint's box) was pushed 1e-3 inside it, off the
-                      # equilibrium: violation 4 at the first iterate, and 60
-                      # iterations of restoration phases (synthetic KKT campaign,
-                      # undeformed t03; converges in 7 from the start as it is).
-                      # Starts farther inside are not moved either way.
+                      # breakpoint's box) stays there: pushed inside, it would leave
+                      # the equilibrium, and restoration phases follow.  Starts
+                      # farther inside are not moved either way.
                       "warm_start_bound_push": 1e-9, "warm_start_bound_frac": 1e-9,
                       "mumps_scaling": 0, "mumps_permuting_scaling": 0, "mumps_pivot_order": 0,
                       # An NLP that needs a large Hessian perturbation has gone wild
-                      # (converging ones needed at most 1; unstressed t09 of the synthetic
-                      # campaign from t07's fit: up to 1e10, 60 iterations in 347 s, and
-                      # MUMPS reallocating; 8 s to fail with this cap): fail, and let
-                      # kkt_fit start again from the reduced optimum.
+                      # (converging ones need at most 1): fail, and let kkt_fit start
+                      # again from the reduced optimum.
                       "max_hessian_perturbation": KKT_MAX_PERTURBATION},
             "hess_lag": hess, "jac_g": jac_g, "print_time": False, "error_on_fail": False,
             # (the data's multipliers are never used: CasADi computed them after
@@ -250,8 +265,6 @@ class KKTProblem:
             # a trial point outside the energy's domain evaluates to NaN and
             # Ipopt backtracks: CasADi's "NaN detected" lines said nothing to act on
             "show_eval_warnings": False})
-        self.sizes = (k, d.layout.size, d.g.shape[0])
-        self.cells = cells
 
     @staticmethod
     def _window_indices(cells, nc: int, n: int, idx: np.ndarray) -> tuple:
@@ -262,9 +275,8 @@ class KKTProblem:
         points' first/last/keep flags (windows × points).  A point that moves
         beyond its window is evaluated on the window's outermost cell (flagged
         first/last), not on weights that vanish there: with the exact Hessian
-        the fine stage stalled at that edge (noisy data: 97 + 165 + 9
-        iterations; 30 + 16 with the flags, measured).  It is then rebuilt
-        with the point's new cell, as whenever a point leaves its window.
+        the fine stage would stall at that edge.  It is then rebuilt with the
+        point's new cell, as whenever a point leaves its window.
         """
         n_U = (nc + 1) + n + 2 * (nc + 1)
         x_at = np.where(idx < n, (nc + 1) + idx, n_U + idx - n)     # constants after U
@@ -288,19 +300,16 @@ class KKTProblem:
                  nF: int, ineq, target) -> ca.MX:
         """Upper triangle of the exact Hessian of the Lagrangian σ ½|res|² + μ·g.
 
-        Gauss–Newton for the misfit plus the inner KKT conditions' curvature
-        in (x, λ) only needed 121 + 61 iterations with noisy data (1e-3, 60
-        then 200 nodes): its reduced Hessian had an eigenvalue of −2e-3 where
-        the exact one has +1.6e-6 (measured at the coarse optimum), the
-        misfit's and the constraints' second-order terms, each large, cancel
-        (Gauss–Newton alone: +7.6e-7, but 2.7x too small in other weak
-        directions, and its steps diverged).  Exact: 25 + 30 + 16 iterations.
+        Exact, not Gauss–Newton: near the optimum the misfit's and the
+        constraints' second-order terms, each large, cancel, so that
+        Gauss–Newton for the misfit (with or without the inner KKT
+        conditions' curvature in (x, λ)) gets the reduced Hessian's weak
+        directions wrong, even its sign, and its steps crawl or diverge.
         Assembled from per-point and per-cell kernels and the chain rule
         through s_nodes(θ) and D(θ), the kernels compiled (the misfit's, the
-        cells' second derivatives in D, and D's in p): 30-40 ms an evaluation
-        at 200 nodes, where the same kernels in CasADi's virtual machine and
-        the MX Hessian of D(θ) took 160 ms (the MX Hessian of the whole
-        Lagrangian: 0.5 s at 60 nodes).
+        cells' second derivatives in D, and D's in p): several times faster
+        than the same kernels in CasADi's virtual machine, and far faster
+        than the MX Hessian of the whole Lagrangian.
         """
         from ..model.layouts import CELL_DATA
 
@@ -364,9 +373,8 @@ class KKTProblem:
         The inner KKT block K = ∂F/∂(x, λ) and ∂F/∂θ = (∂F/∂D) T come from the
         cell kernels, η's rows from T = ∂D/∂θ (computed once); the lifted
         integrals and the gaps are differentiated as they are, each on its own
-        (a slice of the assembled g drags all of g into its derivative: 37 ms
-        at 200 nodes, and differentiating F through its graph cost ~90 ms,
-        measured).
+        (a slice of the assembled g drags all of g into its derivative, and
+        differentiating F through its graph is slower still).
         """
         from ..model.layouts import CELL_DATA
 
@@ -388,8 +396,8 @@ class KKTProblem:
         """D(p(θ)), T = ∂D/∂θ, ∂p/∂θ and ∂D/∂p, for evaluation (no derivatives).
 
         D and ∂D/∂p from compiled per-point kernels (Discretisation.pre_numeric
-        and pre_jacobian): the MX Jacobian of D in θ cost 16 ms an evaluation
-        at 200 nodes, twice per iteration (Hessian and constraint Jacobian).
+        and pre_jacobian), not the MX Jacobian of D in θ: it is evaluated twice
+        per iteration (Hessian and constraint Jacobian).
         """
         Jp, D_p = ca.jacobian(p, th), d.pre_jacobian(p, q)
         return d.pre_numeric(p, q), ca.mtimes(D_p, Jp), Jp, D_p
@@ -412,10 +420,9 @@ class KKTProblem:
         make the Lagrangian stationary there, ∂f/∂u + (∂g/∂u)ᵀλ = 0, which
         leaves the reduced gradient in θ as the only dual infeasibility.  The
         inequalities (breakpoint gaps, |η|) and θ's bounds start inactive.
-        Ipopt's least-squares estimate instead spread the misfit's gradient
-        over all rows: from the Gauss–Newton end its first step left the
-        equilibrium (violation 2e-12 to 2e-5), and 22 backtracks and the
-        restoration phase followed (bench_fit's noisy data, measured).
+        Ipopt's least-squares estimate instead spreads the misfit's gradient
+        over all rows: from the Gauss–Newton end its first step leaves the
+        equilibrium, and backtracks and the restoration phase follow.
         """
         from scipy.sparse.linalg import splu
 
@@ -435,8 +442,8 @@ class KKTProblem:
         if cells != self.cells:
             if self.cells is None:       # the misfit at the start sets the objective's scale
                 res = self.inner.residuals(self.inner.eq)
-                # (floored: from the Gauss-Newton steps' exact fit of noiseless data,
-                # E_fit 2e-8 R, the NLP so scaled failed in restoration; measured)
+                # (floored: after the Gauss-Newton steps' exact fit of noiseless data
+                # the NLP so scaled fails in restoration)
                 self.scale = 1.0 / max(0.5 * float(res @ res), 1e-8)
             self._build(cells)
         w0 = np.concatenate([theta, x, lam, self._lifted_start(theta, x)])
@@ -445,7 +452,7 @@ class KKTProblem:
             self._duals = self._adjoint_duals(w0, data)
         if self._duals is not None:
             # the constraints do not depend on the cells: their multipliers
-            # carry over (a cold dual start took wild first steps, measured)
+            # carry over (a cold dual start takes wild first steps)
             warm = {"lam_g0": self._duals[0], "lam_x0": self._duals[1]}
         sol = self.nlp(x0=w0, p=data, lbx=self.lbw,
                        ubx=self.ubw, lbg=self.lbg, ubg=self.ubg, **warm)

@@ -17,20 +17,18 @@ __all__ = ["check_midline", "intrinsic_lengths", "as_points", "LENGTH_SLACK", "M
 
 #: A data midline whose length lies further than this factor outside the Volvox model's
 #: intrinsic lengths (:func:`intrinsic_lengths`) is refused before a fit: its units or scale
-#: are wrong (a factor 2 means elastic strains of 100 %, far beyond the theory's).  Measured:
-#: a 0.36 R midline "converged" to E_fit 8.9 R, the model's midline nowhere near it.
+#: are wrong (a factor 2 means elastic strains of 100 %, far beyond the theory's).
 LENGTH_SLACK = 2.0
 #: A data midline that turns by more than MAX_TURN (radians) within TURN_LENGTH (units of R)
-#: of its arclength is refused before a fit: a line that retraces its way (measured: a trace
-#: out to the rim and back "converged" to E_fit 4.3 R).  That is a mean radius of curvature
-#: below 0.042 R, a fraction of the cell sheet's thickness (h = 0.15 R in the paper's fits);
-#: the shipped synthetic midlines turn by at most 0.73 rad within 0.1 R.  Caught: hairpins
-#: with out and back up to 0.05 R apart (measured).
+#: of its arclength is refused before a fit: a line that retraces its way.  That is a mean
+#: radius of curvature below 0.042 R, a fraction of the cell sheet's thickness (h = 0.15 R
+#: in the paper's fits); tuned between the shipped synthetic midlines (at most 0.73 rad
+#: within 0.1 R) and traced hairpins (tests/fitting/test_midline_checks.py).
 MAX_TURN, TURN_LENGTH = 0.75 * np.pi, 0.1
 #: A data midline of an intact shell (no cut) starts at the posterior pole, the origin of the
-#: model gauge, within this distance (units of R) or is refused before a fit: one listed rim
-#: first "converged" to E_fit 9.8 R (measured).  Image traces are aligned with their pole
-#: there exactly; a CSV of r, z is taken as it is.
+#: model gauge, within this distance (units of R) or is refused before a fit (listed rim
+#: first?).  Image traces are aligned with their pole there exactly; a CSV of r, z is taken
+#: as it is.
 POLE_SLACK = 0.1
 
 

@@ -32,12 +32,13 @@ __all__ = ["nelder_mead_fit", "gradient_fit", "MAX_FAILED_TRIALS", "STATIONARY",
 NM_RESTARTS = 8
 #: The gradient fit stops (not converged, at its best point) after this many
 #: consecutive trial points whose inner solve failed (each is one failed warm
-#: solve: the trust region has shrunk 4⁸-fold by then).
+#: solve: the trust region has shrunk 4⁸-fold by then; tuned on fits stuck at a fold).
 MAX_FAILED_TRIALS = 8
 #: Largest gradient, relative to the residual's norm, at which the gradient method's end is
-#: a stationary point (first-order optimality over ‖r‖, scaled variables; see ``_gradient``).
+#: a stationary point (first-order optimality over ‖r‖, scaled variables; see
+#: :func:`gradient_fit`; tuned on the synthetic campaign's least-squares ends).
 STATIONARY = 1e-2
-#: Residual norm (units of R) below which a fit is exact and its gradient is measured against
+#: Residual norm (units of R) below which a fit is exact and its gradient is compared with
 #: this instead (noiseless data: E_fit ~ 1e-14 R).
 RESIDUAL_FLOOR = 1e-8
 
@@ -174,17 +175,15 @@ def gradient_fit(spec: FitSpec, inner: InnerProblem, tol: float, max_iterations:
 
     def fun(theta):
         # A trial point whose inner solve fails (the continuation cannot reach
-        # it: measured from the default start of the unstressed variant) or
-        # that is infeasible (|eta| >= 1: measured on campaign steps) is
-        # rejected like a bad step: the trust region shrinks on non-finite
-        # residuals instead of the fit aborting.  When every trial fails (a
-        # state at a fold of the branch: measured, each failed trial cost ~15 s
-        # of continuation and the trust region shrank ~20 times per iteration,
-        # for many minutes), the fit stops at its best point, not converged.
+        # it) or that is infeasible (|eta| >= 1) is rejected like a bad step:
+        # the trust region shrinks on non-finite residuals instead of the fit
+        # aborting.  When every trial fails (a state at a fold of the branch,
+        # where the trust region would shrink for many minutes), the fit stops
+        # at its best point, not converged.
         evaluations[0] += 1
         try:
-            # a trial whose warm solve fails is rejected without continuation: continuing
-            # to such trials cost 1.6 s each, 14 of the 20 s of a campaign fit (t09, flat)
+            # a trial whose warm solve fails is rejected without continuation, which
+            # would cost more than the rest of the fit
             eq = inner.solve(theta, trial=True)
             res = inner.residuals(eq)
         except (SolverError, ValueError):
@@ -209,28 +208,33 @@ def gradient_fit(spec: FitSpec, inner: InnerProblem, tol: float, max_iterations:
                             max_nfev=max_iterations or 200)
     except _Stalled:
         if best[2] is not None:
-            # (its state may have left the archive: a solve from another one there failed,
-            # and with it the whole fit; measured, unstressed on the synthetic t06 from
-            # the family's defaults)
+            # (its state may have left the archive, and a solve from another one there
+            # can fail, and with it the whole fit)
             inner.keep(best[0], best[2])
         return (best[0], evaluations[0], False,
                 f"stopped at the best point reached, after {MAX_FAILED_TRIALS} consecutive "
                 f"trial points whose inner solve failed (a fold of the branch?)")
-    # least_squares also stops when its trust region has shrunk below xtol or its cost
-    # no longer falls (ftol), which a stall does too: near a fold trial points jump
-    # between states of the inner branch and are all rejected, whatever the Jacobian
-    # promises.  Measured over the synthetic campaign's 134 least-squares runs
-    # (2026-11-24): 123 ends have a gradient below 1.7e-4 of the residual's norm (the
-    # cosine of r with J's scaled columns, x_scale="jac"); 11 had 6e-3 to 600.  Of those,
-    # the 4 below 1e-2 went on by 0.2 % of E_fit or less (at 60 nodes stationary ends reach
-    # 8e-3); the 7 above include unstressed t09 "converged" by xtol at E_fit 0.32 R, which
-    # a second fit from there took to 0.038 R.
-    # (gtol, status 1, is stationarity itself; a misfit below RESIDUAL_FLOOR is exact data's)
+    stall = _not_stationary(out)
+    if stall:
+        return out.x, int(out.nfev), False, stall
+    return out.x, int(out.nfev), bool(out.status > 0), str(out.message)
+
+
+def _not_stationary(out) -> str | None:
+    """Why the end of ``least_squares`` (its result ``out``) is a stall, or None.
+
+    least_squares also stops when its trust region has shrunk below xtol or
+    its cost no longer falls (ftol), which a stall does too: near a fold
+    trial points jump between states of the inner branch and are all
+    rejected, whatever the Jacobian promises.  Such an end has a gradient
+    (the cosine of r with J's scaled columns, ``x_scale="jac"``) above
+    :data:`STATIONARY`; gtol (status 1) is stationarity itself, and a misfit
+    below :data:`RESIDUAL_FLOOR` is exact data's.
+    """
     cos = float(out.optimality) / max(np.sqrt(2 * float(out.cost)), RESIDUAL_FLOOR)
     if out.status > 1 and cos > STATIONARY:
-        return out.x, int(out.nfev), False, (
-            f"{out.message} But it is not a stationary point: the gradient there is "
-            f"{cos:.2g} of the residual's norm (STATIONARY = {STATIONARY:g}), so trial "
-            f"points near it were rejected for a reason the Jacobian does not see (the inner "
-            f"state jumping between branches near a fold?)")
-    return out.x, int(out.nfev), bool(out.status > 0), str(out.message)
+        return (f"{out.message} But it is not a stationary point: the gradient there is "
+                f"{cos:.2g} of the residual's norm (STATIONARY = {STATIONARY:g}), so trial "
+                f"points near it were rejected for a reason the Jacobian does not see (the "
+                f"inner state jumping between branches near a fold?)")
+    return None

@@ -30,9 +30,8 @@ if TYPE_CHECKING:
 __all__ = ["FitResult", "FitError", "fit_result", "FOLD_RATIO"]
 
 #: A fit whose scaled Jacobian has its second singular value below this fraction of the
-#: first sits near a fold of the inner branch (module docstring) and is not converged.
-#: Measured on the synthetic inversion fits (2026-11-23): 0.02-0.3 on the branch, 5e-7
-#: on a fold that a free fit of t07 crept onto, its largest singular value 5e4x larger.
+#: first sits near a fold of the inner branch (module docstring) and is not converged
+#: (tuned between the synthetic inversion fits on their branch and one on a fold).
 FOLD_RATIO = 1e-4
 
 

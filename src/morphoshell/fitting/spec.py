@@ -46,7 +46,8 @@ VOLVOX_BREAKPOINTS = ("s1", "s2", "s3", "s4")
 #: (:meth:`FitSpec.on_box_edges`).
 EDGE_RTOL = 1e-4
 #: The share of the room between two breakpoints that a moved box gives the one that pushed
-#: against its edge, when the other did not (:meth:`FitSpec.recentred`).
+#: against its edge, when the other did not (:meth:`FitSpec.recentred`; tuned by the moves
+#: the synthetic campaign's fits needed: halves crept, all of it made neighbours take turns).
 PUSH_SHARE = 0.75
 
 
@@ -170,9 +171,8 @@ class FitSpec:
         parameters on their bounds (:data:`BOUNDS`, within EDGE_RTOL of their
         width; not the breakpoints' movable boxes).  An optimum there is a
         constrained one: the Gauss–Newton errors of a free optimum do not
-        describe it, and refits of resampled data pin to the same constraint
-        (measured: replicate t02 data sets whose fits ended with s₃ − s₂ = σ
-        had jackknife errors of s₂ of 0.001–0.002 against misses of 0.018).
+        describe it, and refits of resampled data pin to the same constraint,
+        so that their scatter (a jackknife) understates the error too.
         """
         values = self.params(theta)
         return self._on_ordering(values) + self._on_bounds(values)
@@ -212,10 +212,10 @@ class FitSpec:
 
         The boxes of :func:`breakpoint_bounds`; between a breakpoint that
         pushes against its box's edge and a neighbour that does not, the
-        pusher gets :data:`PUSH_SHARE` of the room between them.  (Halves: a
-        breakpoint with far to go took 10 moves, measured; all of it, pinning
-        the neighbour: neighbours that both had to move took turns, 12 moves
-        and not there, flat t08 of the synthetic campaign.)
+        pusher gets :data:`PUSH_SHARE` of the room between them: more than
+        half, so that a breakpoint with far to go gets there in few moves, and
+        less than all, so that neighbours that both have to move do not take
+        turns.
         """
         s, down, up, sigma = self._pushing(theta)
         share = [PUSH_SHARE if up[i] and not down[i + 1] else
