@@ -23,6 +23,7 @@ breakpoints' boxes while the fit ends on one of their edges, and returns a
 from __future__ import annotations
 
 import time
+from typing import Callable
 
 import numpy as np
 
@@ -43,19 +44,29 @@ METHODS = ("nelder-mead", "gradient", "kkt")
 #: Volvox model's breakpoints and steps.
 FIT_NODES = (20, 3200)
 #: :func:`fit` moves the breakpoints' boxes at most this many times.  Each move lets a
-#: breakpoint go PUSH_SHARE of the way to its neighbour or halfway.
+#: breakpoint go PUSH_SHARE of the way to its neighbour or halfway (a bound on the work:
+#: each move is a fit of its own).
 MAX_RECENTRES = 12
 
 
 def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
         tol: float = 1e-10, max_iterations: int | None = None,
         start: Equilibrium | None = None) -> FitResult:
-    """Fit ``spec`` to a midline.
+    """Fit ``spec`` to a midline: minimise E_fit over θ, the model's midline an equilibrium.
+
+    The paper's fit (Supplementary, "Fitting of the morphoelastic theory to
+    the average cell sheet midlines of Volvox inversion", "Fitting methods and
+    details") by one of three methods (module docstring).  The options and
+    the data are checked first (:func:`morphoshell.fitting.midline_checks.check_midline`);
+    a fit that ends with a breakpoint on an edge of its box (not a constraint
+    of the fit: :meth:`morphoshell.fitting.spec.FitSpec.on_box_edges`) goes on
+    from boxes moved around its end, at most :data:`MAX_RECENTRES` times.
 
     Parameters
     ----------
     spec : FitSpec
-        What is fitted (:func:`volvox_spec` for the paper's variants).
+        What is fitted (:func:`morphoshell.fitting.spec.volvox_spec` for the
+        paper's variants).
     data : array_like (N, 2) or Midline
         The target midline (r, z) in the model gauge, N points equally spaced
         in arclength (:func:`morphoshell.io.traces.resample`); N = 100 in the
@@ -67,7 +78,8 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
         Relative tolerance on E_fit² of the outer iteration, in [1e-15, 1).
     max_iterations : int, optional
         Outer iterations (function evaluations for Nelder–Mead; Ipopt
-        iterations of each NLP for KKT, default :data:`KKT_ITERATIONS`).
+        iterations of each NLP for KKT, default
+        :data:`morphoshell.fitting.kkt_problem.KKT_ITERATIONS`).
     start : Equilibrium, optional
         The inner state to start from (a direct solution of ``spec.base`` on
         the fit's mesh, e.g. a previous fit's); by default the physical branch
@@ -76,6 +88,9 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
     Returns
     -------
     FitResult
+        The fitted parameters with their Gauss–Newton standard errors, E_fit,
+        the fitted equilibrium and midline, and whether and how the fit
+        converged (a fit near a fold of the inner branch is not converged).
 
     Raises
     ------
@@ -83,7 +98,8 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
         An option out of range, data that are not N >= 3 finite points, or
         a midline that does not start at the pole, turns back on itself or,
         of a Volvox fit, is far too short or long for the model
-        (:func:`check_midline`), before any work.
+        (:func:`morphoshell.fitting.midline_checks.check_midline`), before
+        any work.
     FitError
         KKT only: status ``"Fit_Saddle"`` when the fit ends on a state that is
         not a minimum of the inner energy, ``"Fit_Not_Reproduced"`` when the
@@ -100,6 +116,21 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
     t0 = time.perf_counter()
     inner = InnerProblem(spec, data, nodes, start)
     run = {"nelder-mead": nelder_mead_fit, "gradient": gradient_fit, "kkt": kkt_fit}[method]
+    spec, theta, iterations, ok, msg = _fit_moving_boxes(run, spec, inner, tol, max_iterations)
+    return fit_result(method, spec, inner, theta, iterations, time.perf_counter() - t0, ok, msg)
+
+
+def _fit_moving_boxes(run: Callable, spec: FitSpec, inner: InnerProblem, tol: float,
+                      max_iterations: int | None) -> tuple[FitSpec, np.ndarray, int, bool, str]:
+    """``run`` (a method), again from moved boxes while it ends on a breakpoint's box edge.
+
+    The breakpoints' boxes order them for methods that take bounds, not
+    constraints; their edges are not the fit's: a fit that ends on one goes
+    on from boxes moved around its end (:meth:`FitSpec.recentred`), from
+    the state it reached.  Returns the last spec, θ, the outer iterations in
+    all, whether it converged and its message; a failure (FitError) after a
+    move leaves the fit within the last boxes standing, unconverged.
+    """
     iterations, moved, last = 0, [], spec      # (last: the spec before the last move)
     while True:
         try:
@@ -115,9 +146,6 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
                               f"the fit from moved boxes failed: {exc}")
             break
         iterations += its
-        # The breakpoints' boxes order them for methods that take bounds, not
-        # constraints; their edges are not the fit's: a fit that ends on one
-        # goes on from boxes moved around its end.
         edges = spec.on_box_edges(theta)
         if not edges:
             break
@@ -132,7 +160,7 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
         inner.warm = True            # (the KKT fit goes on from this state)
     if moved:
         msg = f"{msg} (after moving the breakpoints' boxes {len(moved)} times: {'; '.join(moved)})"
-    return fit_result(method, spec, inner, theta, iterations, time.perf_counter() - t0, ok, msg)
+    return spec, theta, iterations, ok, msg
 
 
 def _check_options(nodes, tol, max_iterations) -> None:

@@ -43,10 +43,29 @@ ARCHIVE = 64
 
 
 def model_midline(eq: Equilibrium, n: int = N_FIT) -> np.ndarray:
-    """(n, 2) points (r, z) of a direct solution, equally spaced in deformed arclength.
+    """Points (r, z) of a direct solution's midline, equally spaced in deformed arclength.
 
-    z is counted from the first point (the posterior pole): the gauge of
-    traced midlines.
+    The model's fit points (rᵢ, zᵢ) of the fit energy (paper, Supplementary,
+    "Fitting of the morphoelastic theory to the average cell sheet midlines
+    of Volvox inversion", "Fitting methods and details").  z is counted from
+    the first point (the posterior pole): the gauge of traced midlines.
+
+    Parameters
+    ----------
+    eq : Equilibrium
+        A solution of :class:`morphoshell.solvers.direct.DirectSolver`.
+    n : int
+        Points (the paper's N_fit, :data:`N_FIT`).
+
+    Returns
+    -------
+    ndarray, shape (n, 2)
+        r and z, from the posterior pole to the rim.
+
+    Raises
+    ------
+    ValueError
+        ``eq`` is not a direct solution.
     """
     from ..solvers.direct import solver_of
     solver = solver_of(eq)
@@ -58,11 +77,32 @@ def model_midline(eq: Equilibrium, n: int = N_FIT) -> np.ndarray:
 
 def synthetic_midline(problem: Problem, like: Problem | None = None, *, nodes: int = 200,
                       n: int = N_FIT, noise: float = 0.0, seed: int | None = None) -> np.ndarray:
-    """The (n, 2) midline of the forward model, with Gaussian noise of std ``noise`` (units of R).
+    """The midline of the forward model, with Gaussian noise of std ``noise`` (units of R).
 
     Solved on the mesh a fit starting from ``like`` (default ``problem``)
     uses, so that noiseless data can be fitted exactly: a test of the fit,
     not of the discretisation.
+
+    Parameters
+    ----------
+    problem : Problem
+        The generating problem (solved by continuation from its stress-free
+        parameters).
+    like : Problem, optional
+        The problem whose mesh the fit will use (its start).
+    nodes : int
+        Mesh nodes.
+    n : int
+        Points (:data:`N_FIT`).
+    noise : float
+        Standard deviation of the noise added to r and z, except at the pole.
+    seed : int, optional
+        Of the noise.
+
+    Returns
+    -------
+    ndarray, shape (n, 2)
+        r and z (:func:`model_midline`), plus the noise.
     """
     solver = DirectSolver(problem.structure, mesh=mesh_spec(like or problem, nodes, 2))
     points = model_midline(continue_to(solver, problem), n)
@@ -73,7 +113,39 @@ def synthetic_midline(problem: Problem, like: Problem | None = None, *, nodes: i
 
 
 class InnerProblem:
-    """The inner problem of a fit: warm-started solves, residuals and their Jacobian."""
+    """The inner problem of a fit: warm-started solves, residuals and their Jacobian.
+
+    Keeps the states solved so far (the last :data:`ARCHIVE`), so that each
+    solve starts from the nearest one and the fit follows one branch of
+    equilibria.
+
+    Parameters
+    ----------
+    spec : FitSpec
+        What is fitted.
+    data : ndarray, shape (N, 2)
+        The data midline (r, z).
+    nodes : int
+        Mesh nodes of the inner solves.
+    start : Equilibrium, optional
+        A direct solution of ``spec.base`` on this mesh to start from; by
+        default the physical branch by continuation from the stress-free
+        parameters.
+
+    Attributes
+    ----------
+    eq : Equilibrium
+        The current state (the last solved or kept).
+    solver : DirectSolver
+        The inner solver (rebuilt when the breakpoints move too far for its
+        mesh).
+    n : int
+        N, the data's points.
+    solves : int
+        Inner solves so far.
+    warm : bool
+        Whether the fit started (or goes on) from a given state.
+    """
 
     def __init__(self, spec: FitSpec, data: np.ndarray, nodes: int,
                  start: Equilibrium | None = None):
@@ -95,6 +167,7 @@ class InnerProblem:
         self.warm = start is not None
 
     def _build(self, problem: Problem) -> None:
+        """A solver on the mesh of ``problem`` (its breakpoints) and its midline observable."""
         self.solver = DirectSolver(problem.structure, mesh=mesh_spec(problem, self.nodes, 2))
         self.midline = midline(self.solver.disc, self.n)
 
@@ -107,6 +180,22 @@ class InnerProblem:
         point (a least-squares step, which the outer loop rejects and
         shortens when its solve fails) gets no continuation after a failed
         warm solve: it raises at once.
+
+        Parameters
+        ----------
+        theta : array_like, shape (k,)
+            The fitted parameters.
+        trial : bool
+            A trial point of the outer iteration.
+
+        Returns
+        -------
+        Equilibrium
+
+        Raises
+        ------
+        SolverError
+            The solve failed (at once for a trial point).
         """
         theta = np.asarray(theta, dtype=float)
         key = tuple(theta)
@@ -141,6 +230,7 @@ class InnerProblem:
         self._cache = {tuple(theta): eq}
 
     def _keep(self, theta, eq: Equilibrium) -> Equilibrium:
+        """Count a solve at θ and keep its state ``eq``."""
         self.solves += 1
         self.keep(theta, eq)
         return eq
@@ -168,6 +258,7 @@ class InnerProblem:
         return self._keep(theta, eq)
 
     def _distance(self, a, b) -> float:
+        """max over θ of |a − b| over the bounds' widths (or |a|, at least 1, if unbounded)."""
         lo, hi = self.spec.box()
         width = np.where(np.isfinite(hi - lo), hi - lo, np.maximum(np.abs(a), 1.0))
         return float(np.max(np.abs(a - b) / width))
@@ -178,7 +269,14 @@ class InnerProblem:
         return np.concatenate([y[:self.n] - self.data[:, 0], y[self.n:] - self.data[:, 1]])
 
     def jacobian(self, eq: Equilibrium, theta) -> np.ndarray:
-        """d residuals / dθ, exact (implicit function theorem)."""
+        """d residuals / dθ at the state ``eq`` of θ, exact (implicit function theorem).
+
+        Returns
+        -------
+        ndarray, shape (2N, k)
+            Rows as :meth:`residuals`, columns in ``spec.fitted`` order (tied
+            parameters' dependence included).
+        """
         names = tuple(self.spec.fitted) + tuple(self.spec.tied)
         _, J = parametric(self.solver).jacobian(eq, self.midline, names)
         return J @ self.spec.chain(theta, names)

@@ -11,6 +11,8 @@ coarse mesh's fit, or Gauss–Newton steps of the reduced problem
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from ..solvers.observables import midline_cells
@@ -19,6 +21,9 @@ from .inner import InnerProblem
 from .kkt_problem import WINDOW, KKTProblem
 from .nested import gradient_fit
 from .results import FitError
+
+if TYPE_CHECKING:
+    from .spec import FitSpec
 
 __all__ = ["kkt_fit", "COARSE_NODES", "KKT_GN_TOL", "KKT_GN_ITERATIONS", "KKT_FINE_GN_TOL",
            "KKT_COARSE_TOL"]
@@ -40,8 +45,9 @@ KKT_FINE_GN_TOL = 1e-6
 KKT_COARSE_TOL = 1e-5
 
 
-def kkt_fit(spec, inner, tol, max_iterations):
-    """One NLP in (θ, x, λ) with the inner KKT conditions as constraints.
+def kkt_fit(spec: FitSpec, inner: InnerProblem, tol: float,
+            max_iterations: int | None) -> tuple[np.ndarray, int, bool, str]:
+    """The fit as one NLP in (θ, x, λ), the inner KKT conditions as constraints.
 
     Route A to its start: from a given start state (``inner.warm``: a
     previous fit's) loose Gauss–Newton steps of the reduced problem
@@ -49,11 +55,39 @@ def kkt_fit(spec, inner, tol, max_iterations):
     meshes, a KKT fit on a coarse mesh (:data:`COARSE_NODES`): a change of
     the model's length moves the fit points by many short cells, beyond the
     window one NLP lets them move (the NLP stalls), while on the coarse
-    mesh's long cells it does not; then
-    Gauss–Newton steps on the fine mesh (:data:`KKT_FINE_GN_TOL`) and the
-    fine NLP from their end.  Route B, when A fails (its NLP, or its end is
-    a saddle or not reproduced): Gauss–Newton steps to the fit's tolerance,
-    then the NLP from their end.  Each NLP stops after :data:`KKT_ITERATIONS`.
+    mesh's long cells it does not; then Gauss–Newton steps on the fine mesh
+    (:data:`KKT_FINE_GN_TOL`) and the fine NLP from their end.  Route B, when
+    A fails (its NLP, or its end is a saddle or not reproduced): Gauss–Newton
+    steps to the fit's tolerance, then the NLP from their end.  Each NLP
+    stops after :data:`morphoshell.fitting.kkt_problem.KKT_ITERATIONS`.
+
+    Parameters
+    ----------
+    spec : FitSpec
+        What is fitted.
+    inner : InnerProblem
+        The inner problem; its state becomes the fitted one.
+    tol : float
+        Ipopt's tolerance (and the Gauss–Newton steps' of route B).
+    max_iterations : int or None
+        Ipopt iterations of each NLP.
+
+    Returns
+    -------
+    theta : ndarray, shape (k,)
+        The fitted parameters, in ``spec.fitted`` order.
+    iterations : int
+        Ipopt iterations and Gauss–Newton evaluations in all.
+    converged : bool
+        True (a failure raises).
+    message : str
+        Ipopt's status.
+
+    Raises
+    ------
+    FitError
+        Both routes failed: the first failure's status, with the second's
+        reason.
     """
     theta0, eq, spent, its = spec.theta0, inner.eq, 0, 0
     try:

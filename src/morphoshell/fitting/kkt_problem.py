@@ -161,6 +161,8 @@ class KKTProblem:
         self._duals: tuple | None = None
 
     def _build(self, cells: tuple, scale: float = 1.0) -> None:
+        """The NLP with the fit points in ``cells``: unknowns, constraints and their bounds,
+        the exact constraint Jacobian and Hessian of the Lagrangian, and its Ipopt solver."""
         from ..model.layouts import CELL_DATA
 
         spec, inner = self.spec, self.inner
@@ -437,7 +439,39 @@ class KKTProblem:
         return (lam_g, np.zeros(J.shape[1])) if np.all(np.isfinite(lam_g)) else None
 
     def solve(self, cells, theta, x, lam, data=None):
-        """One NLP from (θ, x, λ) with the fit points in ``cells``, to ``data`` (default: the fit's)."""
+        """One NLP from (θ, x, λ) with the fit points in ``cells``, to ``data``.
+
+        Rebuilt when the cells changed; the multipliers carry over from the
+        last NLP (the first starts from the adjoints or from zero).
+
+        Parameters
+        ----------
+        cells : tuple of int, length N
+            The cell of each fit point (the centre of its window).
+        theta : ndarray, shape (k,)
+            The fitted parameters to start from.
+        x, lam : ndarray
+            The inner unknowns and multipliers to start from (an equilibrium
+            at θ).
+        data : ndarray, shape (N, 2), optional
+            The target midline (default: the fit's).
+
+        Returns
+        -------
+        theta : ndarray, shape (k,)
+        x : ndarray, shape (n_x,)
+        lam : ndarray, shape (n_λ,)
+            The NLP's end.
+        iterations : int
+            Ipopt's iterations.
+        status : str
+            Ipopt's return status.
+
+        Raises
+        ------
+        FitError
+            Ipopt did not succeed (status and the inner state attached).
+        """
         warm = {}
         if cells != self.cells:
             if self.cells is None:       # the misfit at the start sets the objective's scale

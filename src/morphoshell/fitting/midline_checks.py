@@ -39,7 +39,18 @@ def intrinsic_lengths(spec: FitSpec) -> tuple[float, float] | None:
     and families"), so over the shell's length L − P the intrinsic midline is
     about as long as the smallest of their lower bounds (held values for held
     stretches) times L − P, at least, and the largest of their upper bounds
-    times L − P, at most.  ``None`` for other families.
+    times L − P, at most.
+
+    Parameters
+    ----------
+    spec : FitSpec
+        The fit (its bounds and held values of f₁ … f₃).
+
+    Returns
+    -------
+    (float, float) or None
+        The shortest and longest length, in units of R; ``None`` for other
+        families than ``volvox``.
     """
     if spec.base.family != "volvox":
         return None
@@ -63,6 +74,20 @@ def check_midline(spec: FitSpec, data, name: str = "the data midline") -> None:
     :data:`TURN_LENGTH`: a retraced line), or its polygon length lies outside
     :func:`intrinsic_lengths` by more than :data:`LENGTH_SLACK` either way
     (the wrong units or scale).
+
+    Parameters
+    ----------
+    spec : FitSpec
+        The fit the midline is meant for.
+    data : array_like, shape (N, 2), or Midline
+        The midline (r, z) in the model gauge (:func:`as_points`).
+    name : str
+        What the messages call the midline.
+
+    Raises
+    ------
+    ValueError
+        Naming what is wrong and what to check.
     """
     points = as_points(data)
     off = float(np.hypot(*points[0]))

@@ -36,7 +36,13 @@ FOLD_RATIO = 1e-4
 
 
 class FitError(SolverError):
-    """A fit that did not deliver (status names why; the last state is attached)."""
+    """A fit that did not deliver (status names why; the last state is attached).
+
+    A :class:`morphoshell.solvers.results.SolverError`: ``status`` (e.g.
+    ``"Fit_Saddle"``, ``"Fit_Not_Reproduced"``, ``"Gauss_Newton_Stopped"``
+    or Ipopt's status) and ``last_iterate``; the KKT fit also sets
+    ``iterations``, the outer iterations spent before it.
+    """
 
 
 @dataclass(frozen=True, eq=False)
@@ -45,12 +51,18 @@ class FitResult:
 
     Attributes
     ----------
+    method : str
+        The fit method (:data:`morphoshell.fitting.bilevel.METHODS`).
+    variant : str
+        The fit's label (:attr:`FitSpec.variant`).
+    fitted : tuple of str
+        The fitted parameters, in the order of θ.
     parameters : dict
         Every family parameter by name, plus ``h``, ``cut``, ``opening``.
     standard_errors : dict
         Gauss–Newton standard errors of the fitted parameters (lower bounds:
         the residuals of a traced midline are correlated).
-    correlation : ndarray (n, n)
+    correlation : ndarray, shape (k, k)
         Their correlation matrix, in the order of ``fitted``.
     poorly_identified : list of dict
         Directions of θ (scaled by the parameters' magnitudes) with singular
@@ -61,12 +73,23 @@ class FitResult:
         them are NaN (a constrained optimum has none of a free one's).
     E_fit : float
         The fit energy (units of R).
-    residuals : ndarray (2N,)
+    residuals : ndarray, shape (2N,)
         r − R then z − Z at the N points.
     equilibrium : Equilibrium
         The fitted shape.
-    data, model : ndarray (N, 2)
+    data, model : ndarray, shape (N, 2)
         The data midline and the fitted midline (r, z).
+    outer_iterations : int
+        Outer iterations in all (the method's own count: function
+        evaluations, least-squares evaluations or Ipopt iterations).
+    inner_solves : int
+        Inner equilibrium solves.
+    seconds : float
+        Wall time of the fit.
+    converged : bool
+        Whether the method converged to a fit that is not near a fold.
+    message : str
+        The method's message, and what the fit ends on.
     """
 
     method: str

@@ -55,6 +55,12 @@ PUSH_SHARE = 0.75
 class FitSpec:
     """The fitted parameters of a problem and how the others follow.
 
+    θ is the vector of the fitted parameters, in the order of ``fitted``; every
+    other family parameter is held at ``base``'s value or tied to others.  For
+    the Volvox model :func:`volvox_spec` builds it (paper, Supplementary,
+    "Fitting of the morphoelastic theory to the average cell sheet midlines of
+    Volvox inversion").
+
     Attributes
     ----------
     base : Problem
@@ -74,8 +80,14 @@ class FitSpec:
     ordered : tuple of str
         Breakpoints, in order along the shell, that the bounds keep ordered
         and at least σ apart (:func:`breakpoint_bounds`): boxes around their
-        start values, which :func:`fit` moves when a fit ends on one of
-        their edges.
+        start values, which :func:`morphoshell.fitting.bilevel.fit` moves when
+        a fit ends on one of their edges.
+
+    Raises
+    ------
+    ValueError
+        A fitted name that is not a parameter of the family, or a start
+        value outside its bounds.
     """
 
     base: Problem
@@ -99,11 +111,29 @@ class FitSpec:
 
     @property
     def theta0(self) -> np.ndarray:
-        """Starting values of the fitted parameters (from the base problem), in ``fitted`` order."""
+        """Starting values of the fitted parameters (from the base problem).
+
+        Returns
+        -------
+        theta0 : ndarray, shape (k,)
+            In ``fitted`` order.
+        """
         return np.array([self.base.params[n] for n in self.fitted])
 
     def params(self, theta) -> dict:
-        """All family parameters at θ (numbers or CasADi expressions)."""
+        """All family parameters at θ, the tied ones from the others.
+
+        Parameters
+        ----------
+        theta : array_like, shape (k,), or casadi.MX
+            The fitted parameters, in ``fitted`` order (numbers or CasADi
+            expressions).
+
+        Returns
+        -------
+        dict
+            Every family parameter by name (numbers or CasADi expressions).
+        """
         out = dict(self.base.params)
         out.update(zip(self.fitted, [theta[i] for i in range(len(self.fitted))]))
         for name, (function, _) in self.tied.items():
@@ -115,7 +145,20 @@ class FitSpec:
         return self.base.with_updates(**{k: float(v) for k, v in self.params(theta).items()})
 
     def chain(self, theta, names: Sequence[str]) -> np.ndarray:
-        """d(params ``names``)/dθ, with the tied parameters' dependence."""
+        """The derivatives of the parameters ``names`` in θ, tied ones through their ties.
+
+        Parameters
+        ----------
+        theta : array_like, shape (k,)
+            The fitted parameters.
+        names : sequence of str
+            Family parameters (fitted, tied or held: a held one's row is 0).
+
+        Returns
+        -------
+        ndarray, shape (len(names), k)
+            d params[names[i]] / dθ[j].
+        """
         values = self.params(theta)
         out = np.zeros((len(names), len(self.fitted)))
         for i, n in enumerate(names):
@@ -128,7 +171,13 @@ class FitSpec:
         return out
 
     def box(self) -> tuple[np.ndarray, np.ndarray]:
-        """Lower and upper bounds of the fitted parameters (±inf where unbounded)."""
+        """Lower and upper bounds of the fitted parameters.
+
+        Returns
+        -------
+        lo, hi : ndarray, shape (k,)
+            In ``fitted`` order, ±inf where unbounded.
+        """
         lo = np.array([self.bounds.get(n, (-np.inf, np.inf))[0] for n in self.fitted])
         hi = np.array([self.bounds.get(n, (-np.inf, np.inf))[1] for n in self.fitted])
         return lo, hi
@@ -230,6 +279,11 @@ def breakpoint_bounds(s: Sequence[float], sigma: float, end: float,
                       share: Sequence[float] | None = None) -> list[tuple[float, float]]:
     """Disjoint boxes around ordered breakpoints 0 < s₁ < … < s_m < ``end`` that keep them σ apart.
 
+    The paper's breakpoints s₁ < s₂ < s₃ < s₄ bound the regions of different
+    cell shapes (Supplementary, "Fitting parameters encode cell shape changes
+    in intrinsic stretches and curvatures"), which the smoothing width σ
+    blends: they stay at least σ apart, and σ from the pole and the end.
+
     Of the room between neighbours s_i and s_{i+1} (their gap less σ), s_i's
     box takes the fraction ``share[i]`` (default ½: each box stops σ/2 short
     of the midpoint) and s_{i+1}'s the rest; the first and last boxes reach
@@ -238,8 +292,24 @@ def breakpoint_bounds(s: Sequence[float], sigma: float, end: float,
     method's ordering constraints say the same).  A pair already closer than
     σ is pinned at its gap (it can only widen).  Least-squares methods take
     bounds, not the ordering itself: these boxes order the breakpoints for
-    them, and :func:`fit` moves them when a fit ends on an edge
-    (:meth:`FitSpec.on_box_edges`).
+    them, and :func:`morphoshell.fitting.bilevel.fit` moves them when a fit
+    ends on an edge (:meth:`FitSpec.on_box_edges`).
+
+    Parameters
+    ----------
+    s : sequence of float, length m
+        The breakpoints, in order.
+    sigma : float
+        The least distance between them (the smoothing width σ).
+    end : float
+        The shell's intrinsic length L − P.
+    share : sequence of float, length m − 1, optional
+        Of the room between s_i and s_{i+1}, the fraction s_i's box takes.
+
+    Returns
+    -------
+    list of (float, float), length m
+        (low, high) of each breakpoint's box.
     """
     s = list(s)
     share = [0.5] * (len(s) - 1) if share is None else list(share)
@@ -254,6 +324,14 @@ def volvox_spec(variant: str, start: Problem | None = None, hold: Mapping[str, f
                 breakpoint_boxes: bool = True) -> FitSpec:
     """The fit of the Volvox model for one of :data:`VARIANTS`.
 
+    The paper's fits (Supplementary, "Fitting of the morphoelastic theory to
+    the average cell sheet midlines of Volvox inversion", "Fitting details for
+    the different fits in the main text") hold the posterior intrinsic
+    curvature κ₁ = κ_post⁰ at 0 (``flat``) or 1/R (``undeformed``), tie it to
+    1/r_post = 1/f₁ (``unstressed``), or fit it (``free``).  Every other
+    parameter but σ is fitted unless held; stretches and curvatures within
+    :data:`BOUNDS`.
+
     Parameters
     ----------
     variant : {"flat", "undeformed", "unstressed", "free"}
@@ -265,10 +343,21 @@ def volvox_spec(variant: str, start: Problem | None = None, hold: Mapping[str, f
     breakpoint_boxes : bool
         Bound each breakpoint to a disjoint interval around its start
         (:func:`breakpoint_bounds`), so that methods without constraints keep
-        them ordered; :func:`fit` moves the intervals when a fit ends on one
-        of their edges.  Without them each breakpoint lies within σ of the
+        them ordered; :func:`morphoshell.fitting.bilevel.fit` moves the
+        intervals when a fit ends on one of their edges.  Without them each breakpoint lies within σ of the
         shell only: the ``kkt`` method imposes the ordering as constraints
         and does not need them.
+
+    Returns
+    -------
+    FitSpec
+
+    Raises
+    ------
+    ValueError
+        An unknown variant, a start of another family, κ₁ held by the
+        ``unstressed`` variant or held at another value than the ``flat`` or
+        ``undeformed`` one's.
     """
     if variant not in VARIANTS:
         raise ValueError(f"variant = {variant!r} must be one of {list(VARIANTS)}")
