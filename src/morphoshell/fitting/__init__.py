@@ -3,14 +3,20 @@
 The outer least-squares fit of a midline over the model's parameters, the inner
 problem an equilibrium; nested (Nelder-Mead, exact gradient) or as one
 KKT-constrained NLP (paper, Supplementary, "Fitting of the morphoelastic theory").
+:mod:`.spec` says what is fitted, :mod:`.inner` solves the inner problem,
+:mod:`.nested` and :mod:`.kkt` (with :mod:`.kkt_problem`) are the methods,
+:mod:`.bilevel` is the front door :func:`~morphoshell.fitting.bilevel.fit`,
+:mod:`.results` what it returns and :mod:`.midline_checks` what it refuses.
 """
 
 import lazy_loader
 
 # Every public name of the subpackage, imported from its module on first use.
 __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
-    "core": ["FitSpec", "FitResult", "FitError", "fit", "volvox_spec", "breakpoint_bounds",
-        "model_midline", "synthetic_midline", "intrinsic_lengths", "check_midline", "METHODS",
-        "VARIANTS", "N_FIT", "FIT_NODES", "BOUNDS", "LENGTH_SLACK", "MAX_TURN", "TURN_LENGTH",
-        "POLE_SLACK"],
+    "spec": ["FitSpec", "volvox_spec", "breakpoint_bounds", "VARIANTS", "BOUNDS"],
+    "inner": ["model_midline", "synthetic_midline", "N_FIT"],
+    "results": ["FitResult", "FitError"],
+    "midline_checks": ["intrinsic_lengths", "check_midline", "LENGTH_SLACK", "MAX_TURN",
+                       "TURN_LENGTH", "POLE_SLACK"],
+    "bilevel": ["fit", "METHODS", "FIT_NODES"],
 })

@@ -1,0 +1,177 @@
+"""Fits of the morphoelastic model to traced midlines: a bilevel problem, three ways.
+
+The paper (Supplementary, "Fitting of the morphoelastic theory to the average
+cell sheet midlines of Volvox inversion") fits the 13-parameter Volvox model
+(documentation: "Problems and families") to the average midline of an
+inversion stage by minimising the fit energy E_fit
+(:mod:`morphoshell.fitting.inner`) over its parameters
+(:mod:`morphoshell.fitting.spec`).  The model midline is an *equilibrium*: the
+outer least-squares problem has the inner energy minimisation as a
+constraint.  Three methods, one interface, :func:`fit`:
+
+``nelder-mead``  the paper's baseline, adaptive Nelder–Mead around
+                 warm-started inner solves (:mod:`morphoshell.fitting.nested`);
+``gradient``     bounded least squares with the exact Jacobian of the
+                 residuals (:mod:`morphoshell.fitting.nested`);
+``kkt``          one NLP in (parameters, shape, multipliers) with the inner
+                 KKT conditions as constraints (:mod:`morphoshell.fitting.kkt`).
+
+:func:`fit` checks its options and the data, runs the method, moves the
+breakpoints' boxes while the fit ends on one of their edges, and returns a
+:class:`morphoshell.fitting.results.FitResult`.
+"""
+from __future__ import annotations
+
+import time
+from typing import Callable
+
+import numpy as np
+
+from .._runtime.validate import real
+from ..solvers.results import Equilibrium
+from .inner import InnerProblem
+from .kkt import kkt_fit
+from .midline_checks import as_points, check_midline
+from .nested import gradient_fit, nelder_mead_fit
+from .results import FitError, FitResult, fit_result
+from .spec import FitSpec
+
+__all__ = ["fit", "METHODS", "FIT_NODES", "MAX_RECENTRES"]
+
+#: Fit methods (see the module docstring).
+METHODS = ("nelder-mead", "gradient", "kkt")
+#: Mesh nodes a fit accepts (the command line's --nodes too): fewer cells cannot hold the
+#: Volvox model's breakpoints and steps.
+FIT_NODES = (20, 3200)
+#: :func:`fit` moves the breakpoints' boxes at most this many times.  Each move lets a
+#: breakpoint go PUSH_SHARE of the way to its neighbour or halfway (a bound on the work:
+#: each move is a fit of its own).
+MAX_RECENTRES = 12
+
+
+def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
+        tol: float = 1e-10, max_iterations: int | None = None,
+        start: Equilibrium | None = None) -> FitResult:
+    """Fit ``spec`` to a midline: minimise E_fit over θ, the model's midline an equilibrium.
+
+    The paper's fit (Supplementary, "Fitting of the morphoelastic theory to
+    the average cell sheet midlines of Volvox inversion", "Fitting methods and
+    details") by one of three methods (module docstring).  The options and
+    the data are checked first (:func:`morphoshell.fitting.midline_checks.check_midline`);
+    a fit that ends with a breakpoint on an edge of its box (not a constraint
+    of the fit: :meth:`morphoshell.fitting.spec.FitSpec.on_box_edges`) goes on
+    from boxes moved around its end, at most :data:`MAX_RECENTRES` times.
+
+    Parameters
+    ----------
+    spec : FitSpec
+        What is fitted (:func:`morphoshell.fitting.spec.volvox_spec` for the
+        paper's variants).
+    data : array_like (N, 2) or Midline
+        The target midline (r, z) in the model gauge, N points equally spaced
+        in arclength (:func:`morphoshell.io.traces.resample`); N = 100 in the
+        paper.
+    method : {"nelder-mead", "gradient", "kkt"}
+    nodes : int
+        Mesh nodes of the inner solves, from 20 to 3200 (:data:`FIT_NODES`).
+    tol : float
+        Relative tolerance on E_fit² of the outer iteration, in [1e-15, 1).
+    max_iterations : int, optional
+        Outer iterations (function evaluations for Nelder–Mead; Ipopt
+        iterations of each NLP for KKT, default
+        :data:`morphoshell.fitting.kkt_problem.KKT_ITERATIONS`).
+    start : Equilibrium, optional
+        The inner state to start from (a direct solution of ``spec.base`` on
+        the fit's mesh, e.g. a previous fit's); by default the physical branch
+        by continuation from the stress-free parameters.
+
+    Returns
+    -------
+    FitResult
+        The fitted parameters with their Gauss–Newton standard errors, E_fit,
+        the fitted equilibrium and midline, and whether and how the fit
+        converged (a fit near a fold of the inner branch is not converged).
+
+    Raises
+    ------
+    ValueError
+        An option out of range, data that are not N >= 3 finite points, or
+        a midline that does not start at the pole, turns back on itself or,
+        of a Volvox fit, is far too short or long for the model
+        (:func:`morphoshell.fitting.midline_checks.check_midline`), before
+        any work.
+    FitError
+        KKT only: status ``"Fit_Saddle"`` when the fit ends on a state that is
+        not a minimum of the inner energy, ``"Fit_Not_Reproduced"`` when the
+        inner solve at the fitted parameters leaves that state, else Ipopt's
+        status of the failed NLP; the last iterate is attached.  The other
+        methods return ``converged=False`` and a message when their outer
+        iteration stops short.
+    """
+    if method not in METHODS:
+        raise ValueError(f"method = {method!r} must be one of {list(METHODS)}")
+    _check_options(nodes, tol, max_iterations)
+    data = as_points(data)
+    check_midline(spec, data)
+    t0 = time.perf_counter()
+    inner = InnerProblem(spec, data, nodes, start)
+    run = {"nelder-mead": nelder_mead_fit, "gradient": gradient_fit, "kkt": kkt_fit}[method]
+    spec, theta, iterations, ok, msg = _fit_moving_boxes(run, spec, inner, tol, max_iterations)
+    return fit_result(method, spec, inner, theta, iterations, time.perf_counter() - t0, ok, msg)
+
+
+def _fit_moving_boxes(run: Callable, spec: FitSpec, inner: InnerProblem, tol: float,
+                      max_iterations: int | None) -> tuple[FitSpec, np.ndarray, int, bool, str]:
+    """``run`` (a method), again from moved boxes while it ends on a breakpoint's box edge.
+
+    The breakpoints' boxes order them for methods that take bounds, not
+    constraints; their edges are not the fit's: a fit that ends on one goes
+    on from boxes moved around its end (:meth:`FitSpec.recentred`), from
+    the state it reached.  Returns the last spec, θ, the outer iterations in
+    all, whether it converged and its message; a failure (FitError) after a
+    move leaves the fit within the last boxes standing, unconverged.
+    """
+    iterations, moved, last = 0, [], spec      # (last: the spec before the last move)
+    while True:
+        try:
+            theta, its, ok, msg = run(spec, inner, tol, max_iterations)
+        except FitError as exc:
+            if not moved:
+                raise
+            # the fit within the last boxes stands, reported as unconverged (an
+            # NLP from moved boxes can run out of iterations where the last did not)
+            iterations += int(getattr(exc, "iterations", 0) or 0)
+            spec = inner.spec = last
+            ok, msg = False, (f"{msg}; but {moved[-1]} rested on the edge of their boxes, and "
+                              f"the fit from moved boxes failed: {exc}")
+            break
+        iterations += its
+        edges = spec.on_box_edges(theta)
+        if not edges:
+            break
+        if len(moved) == MAX_RECENTRES:
+            ok, msg = False, (f"{msg}; but {', '.join(edges)} still rest on the edge of their "
+                              f"boxes after {MAX_RECENTRES} moves (FitSpec.on_box_edges): the "
+                              f"optimum may lie beyond")
+            break
+        moved.append(", ".join(edges))
+        inner.eq, last = inner.solve(theta), spec
+        spec = inner.spec = spec.recentred(theta)
+        inner.warm = True            # (the KKT fit goes on from this state)
+    if moved:
+        msg = f"{msg} (after moving the breakpoints' boxes {len(moved)} times: {'; '.join(moved)})"
+    return spec, theta, iterations, ok, msg
+
+
+def _check_options(nodes, tol, max_iterations) -> None:
+    """ValueError naming the first of :func:`fit`'s options that is out of range."""
+    def integer(value) -> bool:
+        return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+    lo, hi = FIT_NODES
+    if not (integer(nodes) and lo <= nodes <= hi):     # (5 nodes: "4 cells cannot hold ...")
+        raise ValueError(f"nodes = {nodes!r} must be an integer from {lo} to {hi}")
+    if real("tol", tol) < 1e-15 or tol >= 1:     # (scipy: below eps ends no iteration)
+        raise ValueError(f"tol = {tol!r} must lie in [1e-15, 1)")
+    if max_iterations is not None and not (integer(max_iterations) and max_iterations >= 1):
+        raise ValueError(f"max_iterations = {max_iterations!r} must be a positive integer")

@@ -1,0 +1,229 @@
+"""The KKT fit: how the one-NLP method gets to its optimum and checks it.
+
+The bilevel fit as one NLP in (θ, shape, multipliers), the inner equilibrium's
+KKT conditions as constraints (:class:`morphoshell.fitting.kkt_problem.KKTProblem`).
+The KKT conditions hold at saddles too: the fitted state is checked to be a
+minimum of the inner energy (the inertia of its KKT matrix) and to be what the
+inner solve gives at the fitted parameters, and is rejected otherwise.  Where
+the NLP starts decides whether it converges: :func:`kkt_fit` gets there by a
+coarse mesh's fit, or Gauss–Newton steps of the reduced problem
+(:func:`morphoshell.fitting.nested.gradient_fit`).
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..solvers.observables import midline_cells
+from ..solvers.results import SolverError
+from .inner import InnerProblem
+from .kkt_problem import WINDOW, KKTProblem
+from .nested import gradient_fit
+from .results import FitError
+
+if TYPE_CHECKING:
+    from .spec import FitSpec
+
+__all__ = ["kkt_fit", "COARSE_NODES", "KKT_GN_TOL", "KKT_GN_ITERATIONS", "KKT_FINE_GN_TOL",
+           "KKT_COARSE_TOL"]
+
+#: Mesh nodes of the KKT fit's first, coarse stage (see :func:`kkt_fit`; tuned by
+#: scripts/bench_fit.py: the whole fit's time, with noise and without).
+COARSE_NODES = 40
+#: Tolerance (relative on E_fit²) of the Gauss-Newton steps that start a KKT fit from a
+#: given state (:func:`kkt_fit`; loose: they only bring the NLP near, tuned on campaign steps).
+KKT_GN_TOL = 1e-4
+#: Residual evaluations of those Gauss-Newton steps, at most (tuned on campaign steps).
+KKT_GN_ITERATIONS = 30
+#: Tolerance (relative on E_fit²) of the Gauss-Newton steps between the KKT fit's coarse and
+#: fine NLPs (``_kkt_from_coarse``; tuned by scripts/bench_fit.py's fine NLP iterations).
+KKT_FINE_GN_TOL = 1e-6
+#: Ipopt tolerance of the KKT fit's coarse NLP (at most; ``_kkt_from_coarse``): its optimum
+#: only starts the fine mesh's Gauss-Newton steps to KKT_FINE_GN_TOL, and a tighter one can
+#: take the coarse NLP past it (tuned by scripts/bench_fit.py over noise seeds).
+KKT_COARSE_TOL = 1e-5
+
+
+def kkt_fit(spec: FitSpec, inner: InnerProblem, tol: float,
+            max_iterations: int | None) -> tuple[np.ndarray, int, bool, str]:
+    """The fit as one NLP in (θ, x, λ), the inner KKT conditions as constraints.
+
+    Route A to its start: from a given start state (``inner.warm``: a
+    previous fit's) loose Gauss–Newton steps of the reduced problem
+    (:data:`KKT_GN_TOL`, :data:`KKT_GN_ITERATIONS`); otherwise, on fine
+    meshes, a KKT fit on a coarse mesh (:data:`COARSE_NODES`): a change of
+    the model's length moves the fit points by many short cells, beyond the
+    window one NLP lets them move (the NLP stalls), while on the coarse
+    mesh's long cells it does not; then Gauss–Newton steps on the fine mesh
+    (:data:`KKT_FINE_GN_TOL`) and the fine NLP from their end.  Route B, when
+    A fails (its NLP, or its end is a saddle or not reproduced): Gauss–Newton
+    steps to the fit's tolerance, then the NLP from their end.  Each NLP
+    stops after :data:`morphoshell.fitting.kkt_problem.KKT_ITERATIONS`.
+
+    Parameters
+    ----------
+    spec : FitSpec
+        What is fitted.
+    inner : InnerProblem
+        The inner problem; its state becomes the fitted one.
+    tol : float
+        Ipopt's tolerance (and the Gauss–Newton steps' of route B).
+    max_iterations : int or None
+        Ipopt iterations of each NLP.
+
+    Returns
+    -------
+    theta : ndarray, shape (k,)
+        The fitted parameters, in ``spec.fitted`` order.
+    iterations : int
+        Ipopt iterations and Gauss–Newton evaluations in all.
+    converged : bool
+        True (a failure raises).
+    message : str
+        Ipopt's status.
+
+    Raises
+    ------
+    FitError
+        Both routes failed: the first failure's status, with the second's
+        reason.
+    """
+    theta0, eq, spent, its = spec.theta0, inner.eq, 0, 0
+    try:
+        if inner.warm:
+            # From a previous fit's state (a campaign step) the NLP's path can
+            # cross a nearly singular stretch of the branch and fail; loose
+            # Gauss-Newton steps first bring it near its optimum.
+            theta0, eq, spent = _gauss_newton_steps(spec, inner, KKT_GN_TOL, KKT_GN_ITERATIONS,
+                                                    theta0, eq)
+            theta, x, lam, its, status = _kkt_nlp(spec, inner, tol, max_iterations, theta0, eq)
+        else:
+            theta, x, lam, its, status = _kkt_from_coarse(spec, inner, tol, max_iterations)
+        return _kkt_checked(inner, theta, x, lam, spent + its, status)
+    except FitError as exc:
+        # Route B: from the reduced optimum the NLP converges where from
+        # another start it failed or ended on a saddle (and a homotopy in the
+        # data that shortened its steps cost far more, mostly to fail).
+        spent += its or int(getattr(exc, "iterations", 0) or 0)
+        first = exc
+    try:
+        theta0, eq, steps = _gauss_newton_steps(spec, inner, tol, max_iterations, theta0, eq,
+                                                required=True)
+    except FitError as exc:         # what failed first, and why it was not tried again
+        raise FitError(f"{first}; {exc}", first.status, first.last_iterate) from None
+    theta, x, lam, its, status = _kkt_nlp(spec, inner, tol, max_iterations, theta0, eq)
+    return _kkt_checked(inner, theta, x, lam, spent + steps + its, status)
+
+
+def _gauss_newton_steps(spec, inner, ftol, max_evaluations, theta0, eq,
+                        required: bool = False) -> tuple:
+    """(θ, its inner state, evaluations): Gauss–Newton steps from θ₀ and its state ``eq``.
+
+    The reduced problem's (:func:`gradient_fit`).  From a start that no solve
+    reproduces (a saddle: rejected after the NLP) there are none.  When
+    ``required``, steps that stop short of ``ftol`` raise FitError: they
+    stopped at a fold of the branch, say, and an NLP from there goes wild.
+    """
+    evaluations = 0
+    try:
+        theta, evaluations, converged, message = gradient_fit(spec, inner, ftol,
+                                                              max_evaluations, theta0)
+        if converged or not required:
+            return theta, inner.solve(theta), evaluations
+    except SolverError as exc:
+        if not required:
+            return theta0, eq, 0
+        message = str(exc)
+    exc = FitError(f"the Gauss-Newton steps to start again from stopped short: {message}",
+                   "Gauss_Newton_Stopped", eq)
+    exc.iterations = evaluations
+    raise exc
+
+
+def _kkt_nlp(spec, inner, tol, max_iterations, theta0, eq, near: bool = True) -> tuple:
+    """(θ, x, λ, iterations, status) of the KKT NLP from θ₀ and its inner state ``eq``.
+
+    ``near``: θ₀ is close to the optimum (Gauss–Newton steps' end), and the
+    NLP starts from the reduced problem's adjoints; from a far start, from
+    zero multipliers (adjoints there help no more than they cost).
+    """
+    inner.eq = eq         # (the NLP's objective is scaled by the misfit there)
+    return _kkt_cells(KKTProblem(spec, inner, tol, max_iterations, adjoint_duals=near),
+                      inner, theta0, eq.x, eq.lam_g, inner.data)
+
+
+def _kkt_from_coarse(spec, inner, tol, max_iterations) -> tuple:
+    """Route A of :func:`kkt_fit` without a start state: coarse mesh first, then this one."""
+    if inner.nodes <= 2 * COARSE_NODES:
+        return _kkt_nlp(spec, inner, tol, max_iterations, spec.theta0, inner.eq, near=False)
+    coarse = InnerProblem(spec, inner.data, COARSE_NODES)
+    theta0, spent, _, _ = kkt_fit(spec, coarse, max(tol, KKT_COARSE_TOL), max_iterations)
+    # From a coarse fit the start is close: a tiny initial barrier (a larger
+    # one has the fine stage wander while mu falls) and the adjoints as
+    # multipliers (KKTProblem._adjoint_duals): from zero ones the exact Hessian
+    # lacks the constraints' curvature, and the fine stage stalls in line
+    # searches; Ipopt's least-squares estimate fails now and then.
+    #   And Gauss-Newton steps on this mesh first: the coarse optimum lies
+    # along the poorly identified directions from this mesh's, across a curved
+    # valley, where the NLP's steps crawl and move fit points out of their
+    # windows (NLPs rebuilt); from the steps' end it takes a few iterations.
+    eq = inner.transfer(theta0, coarse.eq)      # the fine state on the coarse fit's branch
+    theta0, eq, steps = _gauss_newton_steps(spec, inner, KKT_FINE_GN_TOL, KKT_GN_ITERATIONS,
+                                            theta0, eq)
+    spent += steps
+    nlp = KKTProblem(spec, inner, tol, max_iterations, mu_init=1e-9, adjoint_duals=True)
+    try:
+        theta, x, lam, its, status = _kkt_cells(nlp, inner, theta0, eq.x, eq.lam_g,
+                                                inner.data)
+    except FitError as exc:
+        exc.iterations = getattr(exc, "iterations", 0) + spent
+        raise
+    return theta, x, lam, its + spent, status
+
+
+def _kkt_checked(inner, theta, x, lam, iterations, status) -> tuple:
+    """:func:`kkt_fit`'s result at the NLP's end, after checking that it is the inner minimum.
+
+    Raises FitError at a saddle of the inner energy, or when the inner solve
+    at the fitted θ does not stay at x.
+    """
+    spec = inner.spec
+    problem = spec.problem(theta)
+    p = problem.parameter_vector()
+    d = inner.solver.disc
+    D = d.cell_data(p)
+    fitted = inner.solver.equilibrium(problem, x, lam, p, np.zeros(0), D, inner.eq.solver, True)
+    if inner.solver.backend.inertia_correction(x, D, lam) > 0:
+        raise FitError(
+            "the KKT fit ended on a stationary state of the inner energy that is not a "
+            "minimum (a saddle: the reduced Hessian is not positive definite); start from "
+            "another point or use the gradient method", "Fit_Saddle", fitted)
+    # the fitted state must be what the inner problem gives there: re-solve from it
+    check = inner.solver.solve(problem, warm_start=fitted)
+    inner.solves += 1
+    if np.max(np.abs(check.x - x)) > 1e-6:
+        raise FitError("the KKT fit's state is not reproduced by the inner solve at the "
+                       "fitted parameters", "Fit_Not_Reproduced", fitted)
+    inner.reset(theta, check)
+    return theta, iterations, True, status
+
+
+def _kkt_cells(nlp, inner, theta, x, lam, data) -> tuple:
+    """NLPs to ``data`` from (θ, x, λ), rebuilt while the fit points leave their cells' windows."""
+    iterations, status = 0, ""
+    spec, d = inner.spec, inner.solver.disc
+    for _ in range(8):
+        cells = midline_cells(d, x, spec.problem(theta).parameter_vector(), inner.n)
+        try:
+            theta, x, lam, its, status = nlp.solve(cells, theta, x, lam, data)
+        except FitError as exc:
+            exc.iterations = iterations + int(nlp.nlp.stats().get("iter_count", 0))
+            raise
+        iterations += its
+        # the NLP chose each point's cell within a window around the assigned
+        # one: exact as long as every point stayed inside its window
+        now = midline_cells(d, x, spec.problem(theta).parameter_vector(), inner.n)
+        if max(abs(a - b) for a, b in zip(now, cells)) <= WINDOW:
+            break
+    return theta, x, lam, iterations, status

@@ -1,0 +1,240 @@
+"""The nested fits: an outer optimiser around warm-started inner solves.
+
+``nelder-mead``  the paper's baseline (Supplementary, "Fitting of the
+                 morphoelastic theory to the average cell sheet midlines of
+                 Volvox inversion", "Fitting methods and details"): an
+                 ``fminsearch``-like adaptive Nelder–Mead (scipy, Gao & Han
+                 coefficients), restarted around its best point;
+``gradient``     bounded least squares (``scipy.optimize.least_squares``, trust
+                 region) with the exact Jacobian of the residuals through the
+                 parametric inner solve (implicit function theorem,
+                 :mod:`morphoshell.solvers.parametric`).
+
+Each returns (θ, outer iterations, converged, message); a trial point whose
+inner solve fails is rejected like a bad step, not fatal.
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..solvers.results import SolverError
+
+if TYPE_CHECKING:
+    from .inner import InnerProblem
+    from .spec import FitSpec
+
+__all__ = ["nelder_mead_fit", "gradient_fit", "MAX_FAILED_TRIALS", "STATIONARY",
+           "RESIDUAL_FLOOR", "NM_RESTARTS"]
+
+#: Nelder–Mead runs at most this many simplices (restarts around the best point).
+NM_RESTARTS = 8
+#: The gradient fit stops (not converged, at its best point) after this many
+#: consecutive trial points whose inner solve failed (each is one failed warm
+#: solve: the trust region has shrunk 4⁸-fold by then; tuned on fits stuck at a fold).
+MAX_FAILED_TRIALS = 8
+#: Largest gradient, relative to the residual's norm, at which the gradient method's end is
+#: a stationary point (first-order optimality over ‖r‖, scaled variables; see
+#: :func:`gradient_fit`; tuned on the synthetic campaign's least-squares ends).
+STATIONARY = 1e-2
+#: Residual norm (units of R) below which a fit is exact and its gradient is compared with
+#: this instead (noiseless data: E_fit ~ 1e-14 R).
+RESIDUAL_FLOOR = 1e-8
+
+
+def _feasible(spec, theta) -> bool:
+    """Whether θ lies within its bounds and gives a valid problem."""
+    lo, hi = spec.box()
+    if np.any(theta < lo) or np.any(theta > hi):
+        return False
+    try:
+        spec.problem(theta)
+    except ValueError:
+        return False
+    return True
+
+
+def nelder_mead_fit(spec: FitSpec, inner: InnerProblem, tol: float,
+                    max_iterations: int | None) -> tuple[np.ndarray, int, bool, str]:
+    """The paper's fit: adaptive Nelder–Mead on E_fit(θ), restarted around its best point.
+
+    The paper's modified ``fminsearch`` (Supplementary, "Fitting of the
+    morphoelastic theory to the average cell sheet midlines of Volvox
+    inversion", "Fitting methods and details"): scipy's Nelder–Mead with
+    the adaptive (Gao & Han) coefficients, within the bounds.  Points whose
+    inner solve fails, or that are infeasible, get 10 times the worst E_fit
+    seen.  A simplex can collapse before the minimum: the search restarts
+    around its best point (at most :data:`NM_RESTARTS` simplices) while a
+    restart improves E_fit by 1 % and E_fit is above 10⁻⁶ of the start's.
+
+    Parameters
+    ----------
+    spec : FitSpec
+        What is fitted.
+    inner : InnerProblem
+        The inner solves and residuals.
+    tol : float
+        Relative tolerance on E_fit (scipy's ``fatol`` times the start's E_fit).
+    max_iterations : int or None
+        Function evaluations in all (default 20000).
+
+    Returns
+    -------
+    theta : ndarray, shape (k,)
+        The best point, in ``spec.fitted`` order.
+    evaluations : int
+        Function evaluations.
+    converged : bool
+        Whether the last simplex met its tolerances.
+    message : str
+        scipy's.
+    """
+    from scipy.optimize import minimize
+
+    worst = [1.0]
+
+    def E(theta):
+        if not _feasible(spec, theta):
+            return 10 * worst[0]
+        try:
+            res = inner.residuals(inner.solve(theta))
+        except SolverError:
+            return 10 * worst[0]
+        value = float(np.sqrt(res @ res))
+        worst[0] = max(worst[0], value)
+        return value
+
+    lo, hi = spec.box()
+    bounds = list(zip(np.where(np.isfinite(lo), lo, None), np.where(np.isfinite(hi), hi, None)))
+    budget = max_iterations or 20000
+    theta, evaluations, best = spec.theta0, 0, np.inf
+    start = E(theta)
+    # A simplex can collapse before the minimum: restart around the best point,
+    # as careful fminsearch users do, while a restart still improves E_fit by
+    # 1 % and E_fit is not negligible (1e-6 of the start's).
+    for _ in range(NM_RESTARTS):
+        out = minimize(E, theta, method="Nelder-Mead", bounds=bounds,
+                       options={"adaptive": True, "xatol": 1e-8,
+                                "fatol": tol * max(start, 1e-12),
+                                "maxfev": budget - evaluations})
+        evaluations += int(out.nfev)
+        improved = out.fun < 0.99 * best
+        theta, best = out.x, min(best, float(out.fun))
+        if not improved or best < 1e-6 * start or evaluations >= budget:
+            break
+    return theta, evaluations, bool(out.success), str(out.message)
+
+
+class _Stalled(Exception):
+    """Raised inside the gradient fit's residuals when trial points keep failing."""
+
+
+def gradient_fit(spec: FitSpec, inner: InnerProblem, tol: float, max_iterations: int | None,
+                 theta0: np.ndarray | None = None) -> tuple[np.ndarray, int, bool, str]:
+    """Bounded least squares of the residuals with their exact Jacobian (trust region).
+
+    ``scipy.optimize.least_squares`` (``trf``, ``x_scale="jac"``) on the
+    residuals r(θ) of :meth:`InnerProblem.residuals`, with the Jacobian of
+    :meth:`InnerProblem.jacobian` (implicit function theorem).  A trial point
+    whose warm inner solve fails, or that is infeasible, gets non-finite
+    residuals and is rejected like a bad step; after
+    :data:`MAX_FAILED_TRIALS` such trials in a row the fit stops at its best
+    point, not converged.  An end by ``ftol`` or ``xtol`` whose gradient
+    exceeds :data:`STATIONARY` of the residual's norm is a stall, not a
+    minimum, and is reported as not converged.
+
+    Parameters
+    ----------
+    spec : FitSpec
+        What is fitted.
+    inner : InnerProblem
+        The inner solves, residuals and Jacobian.
+    tol : float
+        Relative tolerance on E_fit² (scipy's ``ftol``).
+    max_iterations : int or None
+        Residual evaluations (default 200).
+    theta0 : ndarray, shape (k,), optional
+        The start (default ``spec.theta0``).
+
+    Returns
+    -------
+    theta : ndarray, shape (k,)
+        The end point, in ``spec.fitted`` order.
+    evaluations : int
+        Residual evaluations.
+    converged : bool
+        Whether it ended at a stationary point.
+    message : str
+        scipy's, or why it is not converged.
+    """
+    from scipy.optimize import least_squares
+
+    failures, evaluations = [0], [0]
+    best = [spec.theta0, np.inf, None]      # θ, cost, its state
+
+    def fun(theta):
+        # A trial point whose inner solve fails (the continuation cannot reach
+        # it) or that is infeasible (|eta| >= 1) is rejected like a bad step:
+        # the trust region shrinks on non-finite residuals instead of the fit
+        # aborting.  When every trial fails (a state at a fold of the branch,
+        # where the trust region would shrink for many minutes), the fit stops
+        # at its best point, not converged.
+        evaluations[0] += 1
+        try:
+            # a trial whose warm solve fails is rejected without continuation, which
+            # would cost more than the rest of the fit
+            eq = inner.solve(theta, trial=True)
+            res = inner.residuals(eq)
+        except (SolverError, ValueError):
+            failures[0] += 1
+            if failures[0] >= MAX_FAILED_TRIALS:
+                raise _Stalled from None
+            return np.full(2 * inner.n, np.inf)
+        failures[0] = 0
+        cost = float(res @ res)
+        if cost < best[1]:
+            best[:] = [np.array(theta, dtype=float), cost, eq]
+        return res
+
+    def jac(theta):
+        return inner.jacobian(inner.solve(theta), theta)
+
+    lo, hi = spec.box()
+    try:
+        out = least_squares(fun, spec.theta0 if theta0 is None else theta0, jac=jac,
+                            bounds=(lo, hi), method="trf",
+                            x_scale="jac", ftol=tol, xtol=1e-12, gtol=1e-12,
+                            max_nfev=max_iterations or 200)
+    except _Stalled:
+        if best[2] is not None:
+            # (its state may have left the archive, and a solve from another one there
+            # can fail, and with it the whole fit)
+            inner.keep(best[0], best[2])
+        return (best[0], evaluations[0], False,
+                f"stopped at the best point reached, after {MAX_FAILED_TRIALS} consecutive "
+                f"trial points whose inner solve failed (a fold of the branch?)")
+    stall = _not_stationary(out)
+    if stall:
+        return out.x, int(out.nfev), False, stall
+    return out.x, int(out.nfev), bool(out.status > 0), str(out.message)
+
+
+def _not_stationary(out) -> str | None:
+    """Why the end of ``least_squares`` (its result ``out``) is a stall, or None.
+
+    least_squares also stops when its trust region has shrunk below xtol or
+    its cost no longer falls (ftol), which a stall does too: near a fold
+    trial points jump between states of the inner branch and are all
+    rejected, whatever the Jacobian promises.  Such an end has a gradient
+    (the cosine of r with J's scaled columns, ``x_scale="jac"``) above
+    :data:`STATIONARY`; gtol (status 1) is stationarity itself, and a misfit
+    below :data:`RESIDUAL_FLOOR` is exact data's.
+    """
+    cos = float(out.optimality) / max(np.sqrt(2 * float(out.cost)), RESIDUAL_FLOOR)
+    if out.status > 1 and cos > STATIONARY:
+        return (f"{out.message} But it is not a stationary point: the gradient there is "
+                f"{cos:.2g} of the residual's norm (STATIONARY = {STATIONARY:g}), so trial "
+                f"points near it were rejected for a reason the Jacobian does not see (the "
+                f"inner state jumping between branches near a fold?)")
+    return None

@@ -1,0 +1,246 @@
+"""What a fit returns: the fitted equilibrium, its parameters and their uncertainty.
+
+The Gauss–Newton covariance of the fitted parameters comes from the exact
+Jacobian J of the residuals: σ² (JᵀJ)⁻¹ with σ² = E_fit²/(2N − n).  The
+residuals of a traced midline are correlated along it (one tracing, one smooth
+curve), so these standard errors are *lower bounds*.  Small singular values of
+the Jacobian scaled by the parameters' magnitudes flag poorly identified
+directions.  A fitted state near a **fold** of the inner equilibrium branch
+shows as one singular value that dwarfs all others (the inner Hessian is
+nearly singular, so ∂x/∂p ~ 1/λ_min blows up along one direction): a
+least-squares fit can creep onto a fold, where a tiny E_fit gain buys a large
+change of shape and the standard errors collapse.  Such a fit is reported as
+not converged (:data:`FOLD_RATIO`).
+
+Lengths and E_fit in units of R.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..solvers.results import Equilibrium, SolverError
+
+if TYPE_CHECKING:
+    from .inner import InnerProblem
+    from .spec import FitSpec
+
+__all__ = ["FitResult", "FitError", "fit_result", "FOLD_RATIO"]
+
+#: A fit whose scaled Jacobian has its second singular value below this fraction of the
+#: first sits near a fold of the inner branch (module docstring) and is not converged
+#: (tuned between the synthetic inversion fits on their branch and one on a fold).
+FOLD_RATIO = 1e-4
+
+
+class FitError(SolverError):
+    """A fit that did not deliver (status names why; the last state is attached).
+
+    A :class:`morphoshell.solvers.results.SolverError`: ``status`` (e.g.
+    ``"Fit_Saddle"``, ``"Fit_Not_Reproduced"``, ``"Gauss_Newton_Stopped"``
+    or Ipopt's status) and ``last_iterate``; the KKT fit also sets
+    ``iterations``, the outer iterations spent before it.
+    """
+
+
+@dataclass(frozen=True, eq=False)
+class FitResult:
+    """A fitted equilibrium and how it was found.
+
+    Attributes
+    ----------
+    method : str
+        The fit method (:data:`morphoshell.fitting.bilevel.METHODS`).
+    variant : str
+        The fit's label (:attr:`FitSpec.variant`).
+    fitted : tuple of str
+        The fitted parameters, in the order of θ.
+    parameters : dict
+        Every family parameter by name, plus ``h``, ``cut``, ``opening``.
+    standard_errors : dict
+        Gauss–Newton standard errors of the fitted parameters (lower bounds:
+        the residuals of a traced midline are correlated).
+    correlation : ndarray, shape (k, k)
+        Their correlation matrix, in the order of ``fitted``.
+    poorly_identified : list of dict
+        Directions of θ (scaled by the parameters' magnitudes) with singular
+        values below 1e-3 of the largest: ``{"singular_value", "direction"}``.
+    constrained : tuple of str
+        The hard constraints the fit ends on (:meth:`FitSpec.on_constraints`,
+        e.g. ``"s3 - s2 = sigma"``); the standard errors of the parameters in
+        them are NaN (a constrained optimum has none of a free one's).
+    E_fit : float
+        The fit energy (units of R).
+    residuals : ndarray, shape (2N,)
+        r − R then z − Z at the N points.
+    equilibrium : Equilibrium
+        The fitted shape.
+    data, model : ndarray, shape (N, 2)
+        The data midline and the fitted midline (r, z).
+    outer_iterations : int
+        Outer iterations in all (the method's own count: function
+        evaluations, least-squares evaluations or Ipopt iterations).
+    inner_solves : int
+        Inner equilibrium solves.
+    seconds : float
+        Wall time of the fit.
+    converged : bool
+        Whether the method converged to a fit that is not near a fold.
+    message : str
+        The method's message, and what the fit ends on.
+    """
+
+    method: str
+    variant: str
+    fitted: tuple[str, ...]
+    parameters: dict
+    standard_errors: dict
+    correlation: np.ndarray
+    poorly_identified: list
+    E_fit: float
+    residuals: np.ndarray
+    equilibrium: Equilibrium
+    data: np.ndarray
+    model: np.ndarray
+    outer_iterations: int
+    inner_solves: int
+    seconds: float
+    converged: bool
+    message: str = ""
+    constrained: tuple[str, ...] = ()
+
+    def __repr__(self) -> str:
+        return (f"FitResult({self.method}, {self.variant}, E_fit={self.E_fit:.6g} R, "
+                f"{len(self.fitted)} parameters, {self.outer_iterations} iterations, "
+                f"{self.inner_solves} inner solves, {self.seconds:.2f} s, "
+                f"converged={self.converged})")
+
+    def summary(self) -> str:
+        """A few lines: the result, every fitted parameter with its standard error, the
+        constraints it ends on and the poorly identified directions."""
+        lines = [repr(self)]
+        for n in self.fitted:
+            e = self.standard_errors[n]
+            lines.append(f"  {n:8s} = {self.parameters[n]: .6g} "
+                         + (f"± {e:.2g}" if np.isfinite(e) else "(on a constraint)"))
+        for c in self.constrained:
+            lines.append(f"  on the constraint {c}")
+        for d in self.poorly_identified:
+            lines.append(f"  poorly identified: {d['direction']} (singular value "
+                         f"{d['singular_value']:.2g})")
+        return "\n".join(lines)
+
+    @property
+    def pinned(self) -> tuple[str, ...]:
+        """The fitted parameters in the constraints the fit ends on (no standard error)."""
+        return tuple(n for n in self.fitted if not np.isfinite(self.standard_errors[n]))
+
+    @property
+    def near_fold(self) -> bool:
+        """Whether the fitted state is near a fold of the inner branch (:data:`FOLD_RATIO`).
+
+        All singular values of the scaled Jacobian but the largest are below
+        FOLD_RATIO of it; such a fit is reported as not converged.
+        """
+        # poorly_identified keeps every singular value below 1e-3 of the largest, so with
+        # FOLD_RATIO < 1e-3 it holds all k - 1 of them exactly when the fit is near a fold
+        k = len(self.fitted)
+        return k > 1 and len(self.poorly_identified) == k - 1 and all(
+            d["singular_value"] < FOLD_RATIO for d in self.poorly_identified)
+
+    def to_dict(self) -> dict:
+        """JSON-ready: the problem, the fitted parameters with standard errors and
+        correlations, the fit energy E_fit (units of R) and the solver's report."""
+        p = self.equilibrium.problem
+        return {"problem": p.describe(), "parameters": dict(self.parameters),
+                "fitted": list(self.fitted),
+                # (none on a constraint: JSON has no NaN)
+                "standard_errors": {n: (float(e) if np.isfinite(e) else None)
+                                    for n, e in self.standard_errors.items()},
+                "correlation": self.correlation.tolist(),
+                "poorly_identified": self.poorly_identified, "E_fit": self.E_fit,
+                "E_fit_units": "R", "method": self.method, "variant": self.variant,
+                "converged": self.converged, "message": self.message, "seconds": self.seconds,
+                "constrained": list(self.constrained),
+                "outer_iterations": self.outer_iterations, "inner_solves": self.inner_solves,
+                "data_midline": {"r": self.data[:, 0].tolist(), "z": self.data[:, 1].tolist()},
+                "fitted_midline": {"r": self.model[:, 0].tolist(), "z": self.model[:, 1].tolist()},
+                "note": "standard errors are Gauss-Newton lower bounds: the residuals of a "
+                        "traced midline are correlated"}
+
+
+def fit_result(method: str, spec: FitSpec, inner: InnerProblem, theta: np.ndarray,
+               iterations: int, seconds: float, converged: bool, message: str) -> FitResult:
+    """The :class:`FitResult` of a fit that ended at θ, with its Gauss–Newton statistics.
+
+    The inner state at θ, its residuals r and exact Jacobian J give the
+    covariance σ² (JᵀJ)⁺ with σ² = |r|²/(2N − k), the standard errors and
+    correlations, and the singular values of J scaled by |θ| (at least
+    10⁻²): directions below 10⁻³ of the largest are poorly identified.  A
+    fit ending on a hard constraint (:meth:`FitSpec.on_constraints`) gets
+    NaN errors for the parameters in it, and one near a fold of the inner
+    branch (:attr:`FitResult.near_fold`) is reported as not converged; the
+    message says so.
+
+    Parameters
+    ----------
+    method : str
+        The fit method.
+    spec : FitSpec
+        What was fitted.
+    inner : InnerProblem
+        The fit's inner problem.
+    theta : ndarray, shape (k,)
+        The fitted parameters, in ``spec.fitted`` order.
+    iterations : int
+        Outer iterations.
+    seconds : float
+        Wall time of the fit.
+    converged : bool
+        Whether the method converged.
+    message : str
+        The method's message.
+
+    Returns
+    -------
+    FitResult
+    """
+    eq = inner.solve(theta)
+    res = inner.residuals(eq)
+    J = inner.jacobian(eq, theta)
+    n, k = len(res), len(theta)
+    sigma2 = float(res @ res) / max(n - k, 1)
+    JTJ = J.T @ J
+    cov = sigma2 * np.linalg.pinv(JTJ)
+    se = np.sqrt(np.maximum(np.diag(cov), 0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(se, se)
+    scale = np.maximum(np.abs(theta), 1e-2)
+    _, sv, vt = np.linalg.svd(J * scale, full_matrices=False)
+    poor = [{"singular_value": float(s / sv[0]),
+             "direction": {spec.fitted[j]: round(float(v[j]), 3) for j in np.argsort(-np.abs(v))[:3]}}
+            for s, v in zip(sv, vt) if s < 1e-3 * sv[0]]
+    params = {**eq.problem.params, "h": eq.problem.h, "cut": eq.problem.cut,
+              "opening": eq.problem.opening}
+    errors = dict(zip(spec.fitted, se.tolist()))
+    active = spec.on_constraints(theta)
+    if active:
+        pinned = sorted({n for _, names in active for n in names}, key=spec.fitted.index)
+        errors.update({n: float("nan") for n in pinned})
+        message = (f"{message}; it ends on the constraint {', '.join(d for d, _ in active)}: a "
+                   f"constrained optimum, so {', '.join(pinned)} have no standard errors (NaN)"
+                   ).lstrip("; ")
+    result = FitResult(method, spec.variant, spec.fitted, params, errors, corr, poor,
+                       float(np.sqrt(res @ res)), res, eq, inner.data,
+                       inner.data + np.column_stack([res[:inner.n], res[inner.n:]]),
+                       iterations, inner.solves, seconds, converged, message,
+                       tuple(d for d, _ in active))
+    if not result.near_fold:
+        return result
+    return replace(result, converged=False, message=(
+        f"{message}; but the fitted state is near a fold of the equilibrium branch: the "
+        f"midline's sensitivity to the parameters is {sv[0] / sv[1]:.2g}x larger along one "
+        f"direction than along any other (FOLD_RATIO), so the shape is nearly unstable and the "
+        f"standard errors are meaningless").lstrip("; "))

@@ -1,0 +1,60 @@
+"""What a fit varies (fitting.spec): variants, ties, holds, breakpoint boxes and the
+constraints a fit ends on."""
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from morphoshell import Problem
+from morphoshell.fitting import breakpoint_bounds, volvox_spec
+
+from fitting_cases import START
+
+
+def test_variants_tie_hold_and_refuse():
+    unstressed = volvox_spec("unstressed", START)
+    assert "kappa1" not in unstressed.fitted and "f1" in unstressed.fitted
+    params = unstressed.params(unstressed.theta0)
+    assert params["kappa1"] == pytest.approx(1 / params["f1"])
+    # d kappa1 / d f1 = -1/f1² through the tie
+    chain = unstressed.chain(unstressed.theta0, ["kappa1"])
+    assert chain[0, unstressed.fitted.index("f1")] == pytest.approx(-1 / params["f1"] ** 2)
+    assert volvox_spec("undeformed", START).base.params["kappa1"] == 1.0
+    assert "kappa1" in volvox_spec("free", START).fitted
+    with pytest.raises(ValueError, match="cannot be held"):
+        volvox_spec("unstressed", START, hold={"kappa1": 0.5})
+    # flat and undeformed fix kappa1: holding it elsewhere would mislabel the hypothesis
+    assert volvox_spec("flat", START, hold={"kappa1": 0.0}).base.params["kappa1"] == 0.0
+    for variant, value in (("flat", 0.5), ("undeformed", 0.0)):
+        with pytest.raises(ValueError, match=f"{variant} variant holds kappa1"):
+            volvox_spec(variant, START, hold={"kappa1": value})
+    with pytest.raises(ValueError, match="variant = 'rigid'"):
+        volvox_spec("rigid")
+
+
+@given(st.lists(st.floats(0.001, 3.0), min_size=5, max_size=5), st.floats(0.001, 0.5))
+@settings(max_examples=200, deadline=None)
+def test_breakpoint_boxes_hold_their_start_and_keep_breakpoints_sigma_apart(gaps, sigma):
+    """Any point of the boxes keeps the breakpoints σ apart and inside the shell (a
+    pair that starts closer keeps its gap), and each box holds its breakpoint."""
+    s = np.cumsum(gaps)
+    end, s = s[-1], s[:-1]
+    boxes = np.array(breakpoint_bounds(s.tolist(), sigma, end))
+    assert np.all(boxes[:, 0] <= s) and np.all(s <= boxes[:, 1])
+    # the nearest two points of neighbouring boxes, and the pole and the end
+    least = np.minimum(sigma, np.diff([0.0, *s, end]))
+    reach = np.diff([0.0, *boxes.ravel(), end])[::2]
+    assert np.all(reach >= least * (1 - 1e-12)), (reach, least)
+
+
+def test_on_constraints_names_the_ordering_and_the_bounds():
+    spec = volvox_spec("free", start=Problem("volvox", h=0.15, opening=0.3))
+    theta = spec.theta0.copy()
+    i = {n: spec.fitted.index(n) for n in spec.fitted}
+    assert spec.on_constraints(theta) == []
+    theta[i["s1"]] = 0.05                      # sigma from the pole
+    theta[i["f1"]] = spec.bounds["f1"][0]      # on its bound
+    theta[i["s4"]] = theta[i["s3"]] + 0.05 + 1e-5
+    got = dict(spec.on_constraints(theta))
+    assert got == {"s1 = sigma (from the pole)": ("s1",), "s4 - s3 = sigma": ("s3", "s4"),
+                   f"f1 = {spec.bounds['f1'][0]:g} (its bound)": ("f1",)}
