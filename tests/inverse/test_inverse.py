@@ -15,6 +15,7 @@ import pytest
 from morphoshell import Problem
 from morphoshell.mechanics import asymptotics as A
 from morphoshell.inverse import core as I
+from morphoshell.io.measurements import MEASURE_COLUMN
 from morphoshell.mechanics.ablation import ablate, recoil_jacobian
 from morphoshell.solvers.observables import RECOIL
 
@@ -32,7 +33,7 @@ def model():
 def _measurement(values: dict, name="E", h=H, Sigma=SIGMA, R=R_UM, **kw) -> I.Measurement:
     """A Measurement from dimensionless o, rho, d (units of R, radians)."""
     return I.Measurement(name, R, h * R, 2 * R * math.sin(Sigma),
-                         **{I.MEASURE_COLUMN[m]: (None if values.get(m) is None else
+                         **{MEASURE_COLUMN[m]: (None if values.get(m) is None else
                                                   I.to_physical(m, values[m], R))
                             for m in I.MEASURES}, **kw)
 

@@ -58,14 +58,15 @@ the sign of dm/dk against its bracket ("not monotonic" otherwise).
 Measurement errors (optional, per row) are propagated to first order with the
 exact derivative: σ_k = σ_m / |dm/dk|.
 
-Units: the measurement table is dimensional (µm, degrees, µm/s); everything
-converts once, in :func:`to_dimensionless` and :func:`to_physical`, to lengths
-in units of R and angles in radians.  E/μ is in 1/s, μ in Pa s, E in Pa, the
+Units: the measurement table (:mod:`morphoshell.io.measurements`) is
+dimensional (µm, degrees, µm/s); everything converts once, in its
+:func:`~morphoshell.io.measurements.to_dimensionless` and
+:func:`~morphoshell.io.measurements.to_physical`, to lengths in units of R and
+angles in radians.  E/μ is in 1/s, μ in Pa s, E in Pa, the
 bending modulus E H³ in J.
 """
 from __future__ import annotations
 
-import csv
 import json
 import logging
 import math
@@ -80,6 +81,9 @@ from typing import Callable, Iterable, Mapping, Sequence
 import numpy as np
 
 from .._runtime.console import progress as _progress_bar
+from ..io.measurements import (MEASURES, OPTIONAL_COLUMNS, REQUIRED_COLUMNS, UNITS, Measurement,
+                               MeasurementError, read_measurements, to_dimensionless,
+                               to_physical)
 from ..mechanics import asymptotics
 from ..mechanics.ablation import recoil_function, intact_problem
 from ..model.problem import Problem
@@ -102,8 +106,6 @@ __all__ = [
     "velocity_scale", "elastic_bounds",
 ]
 
-#: The recoil measures, in the order of every vector here.
-MEASURES = ("opening", "rotation", "displacement")
 #: Estimation methods (see the module docstring); ``asymptotic`` is an alias.
 METHODS = ("leading_order", "kelvin", "inner", "numerical")
 #: The paper's asymptotic estimate of each measure (open markers of Fig. 2 J).
@@ -125,235 +127,10 @@ MU_MIN = 0.8e-3
 #: Default bootstrap resamples and seed.
 BOOTSTRAP, SEED = 2000, 0
 
-#: Columns of the measurement table.
-REQUIRED_COLUMNS = ("embryo", "R_um", "H_um", "hole_diameter_um", "opening_um", "rotation_deg",
-                    "displacement_um")
-OPTIONAL_COLUMNS = ("V_um_per_s", "sigma_opening_um", "sigma_rotation_deg",
-                    "sigma_displacement_um")
-#: Column of each measure and of its error; its physical unit.
-MEASURE_COLUMN = {"opening": "opening_um", "rotation": "rotation_deg",
-                  "displacement": "displacement_um"}
-ERROR_COLUMN = {m: f"sigma_{c}" for m, c in MEASURE_COLUMN.items()}
-UNITS = {"opening": "um", "rotation": "deg", "displacement": "um"}
 #: Symbols used in notes and printed tables.
 SYMBOL = {"opening": "o", "rotation": "rho", "displacement": "d"}
 
 _MICRON = 1e-6  # m
-
-
-# --------------------------------------------------------------------------
-# units: the one place where physical and dimensionless values meet
-# --------------------------------------------------------------------------
-
-def to_dimensionless(measure: str, value: float, R_um: float) -> float:
-    """A measure in its table unit (µm or degrees) → units of R or radians."""
-    return math.radians(value) if measure == "rotation" else value / R_um
-
-
-def to_physical(measure: str, value: float, R_um: float) -> float:
-    """A measure in units of R or radians → its table unit (µm or degrees)."""
-    return math.degrees(value) if measure == "rotation" else value * R_um
-
-
-# --------------------------------------------------------------------------
-# measurements
-# --------------------------------------------------------------------------
-
-class MeasurementError(ValueError):
-    """Bad measurement input; the message names the row (embryo) and column.
-
-    ``column`` and ``why`` hold the column and the reason when a cell is bad.
-    """
-
-    def __init__(self, message: str, column: str | None = None, why: str | None = None):
-        super().__init__(message)
-        self.column, self.why = column, why
-
-
-def _check_cell(column: str, value: float | None) -> str | None:
-    """Why ``value`` is not acceptable in ``column`` (None if it is)."""
-    if value is None:
-        return None
-    if not math.isfinite(value):
-        return f"{value!r} must be a finite number (leave the cell empty for a missing value)"
-    if column in ("R_um", "H_um", "hole_diameter_um") or column.startswith("sigma_"):
-        return None if value > 0 else f"{value!r} must be positive"
-    if column in ("displacement_um", "V_um_per_s"):
-        return None if value >= 0 else f"{value!r} must be non-negative (a distance or speed)"
-    if column == "rotation_deg":
-        return None if -180 < value < 180 else f"{value!r} must lie in (-180, 180) degrees"
-    return None
-
-
-@dataclass(frozen=True)
-class Measurement:
-    """One embryo's ablation: shell, cut and recoil, in the table's physical units.
-
-    Parameters
-    ----------
-    embryo : str
-        Label.
-    R_um, H_um : float
-        Posterior radius R and sheet thickness H (µm), 0 < H < R.
-    hole_diameter_um : float
-        Diameter 2R sin Σ of the ablated cap on the intact shell (µm), ≤ 2R.
-    opening_um, rotation_deg, displacement_um : float or None
-        R·o (signed change of the hole's diameter), ϱ (degrees, positive when
-        the edge unfurls outwards, in (−180, 180)), R·d (≥ 0); None if not
-        measured.
-    V_um_per_s : float or None
-        Initial recoil velocity (µm/s, ≥ 0).
-    sigma_opening_um, sigma_rotation_deg, sigma_displacement_um : float or None
-        Measurement errors (one standard deviation, > 0).
-    extra : mapping
-        Other columns of the row, kept as text and otherwise ignored.
-    row : int
-        1-based data row of the table (0 when built in code).
-    """
-
-    embryo: str
-    R_um: float
-    H_um: float
-    hole_diameter_um: float
-    opening_um: float | None = None
-    rotation_deg: float | None = None
-    displacement_um: float | None = None
-    V_um_per_s: float | None = None
-    sigma_opening_um: float | None = None
-    sigma_rotation_deg: float | None = None
-    sigma_displacement_um: float | None = None
-    extra: Mapping[str, str] = field(default_factory=dict)
-    row: int = 0
-
-    def __post_init__(self):
-        if not str(self.embryo).strip():
-            self._fail("embryo", "the embryo label is empty")
-        for column in (*REQUIRED_COLUMNS[1:], *OPTIONAL_COLUMNS):
-            value = getattr(self, column)
-            if value is None and column in REQUIRED_COLUMNS[1:4]:
-                self._fail(column, "the cell is empty (required)")
-            if value is not None:
-                if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
-                    self._fail(column, f"{value!r} is not a number")
-                object.__setattr__(self, column, float(value))
-            why = _check_cell(column, getattr(self, column))
-            if why:
-                self._fail(column, why)
-        if not self.H_um < self.R_um:
-            self._fail("H_um", f"the thickness H = {self.H_um!r} um must be smaller than the "
-                               f"radius R = {self.R_um!r} um")
-        if self.hole_diameter_um > 2 * self.R_um:
-            self._fail("hole_diameter_um", f"the hole ({self.hole_diameter_um!r} um) is larger "
-                                           f"than the shell (diameter 2R = {2 * self.R_um!r} um)")
-
-    def _fail(self, column: str, why: str):
-        where = f"row {self.row} (embryo {self.embryo!r})" if self.row else \
-            f"embryo {self.embryo!r}"
-        raise MeasurementError(f"{where}, column {column!r}: {why}", column, why)
-
-    @property
-    def h(self) -> float:
-        """Relative thickness H/R."""
-        return self.H_um / self.R_um
-
-    @property
-    def cut(self) -> float:
-        """The cut Σ = arcsin(hole diameter / 2R) (radians, = units of R on the sphere)."""
-        return math.asin(min(1.0, self.hole_diameter_um / (2 * self.R_um)))
-
-    @property
-    def Sigma(self) -> float:
-        """Deprecated alias of :attr:`cut` (the one name of the cut)."""
-        return self.cut
-
-    def value(self, measure: str) -> float | None:
-        """The measure in units of R or radians (None if not measured)."""
-        v = getattr(self, MEASURE_COLUMN[measure])
-        return None if v is None else to_dimensionless(measure, v, self.R_um)
-
-    def error(self, measure: str) -> float | None:
-        """Its measurement error in units of R or radians (None if not given)."""
-        v = getattr(self, ERROR_COLUMN[measure])
-        return None if v is None else to_dimensionless(measure, v, self.R_um)
-
-
-def _number(text: str) -> float:
-    try:
-        return float(text)
-    except ValueError:
-        raise ValueError(f"{text!r} is not a number") from None
-
-
-def read_measurements(path: str | Path) -> tuple[Measurement, ...]:
-    """Read a measurement table (CSV, one row per embryo; see :class:`Measurement`).
-
-    The header names the columns (:data:`REQUIRED_COLUMNS`, optionally
-    :data:`OPTIONAL_COLUMNS`; others are kept in ``extra``).  Lines starting
-    with ``#`` (before or between rows) are comments; an empty cell is a
-    missing value (allowed for the measures, velocity and errors).
-
-    Raises
-    ------
-    MeasurementError
-        Naming the file, row (with its line and embryo) and column: a missing
-        or repeated column, a non-numeric, NaN or out-of-range cell, a hole
-        larger than the shell, a repeated embryo label, an empty file.
-    """
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise MeasurementError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise MeasurementError(f"{path}: is a folder, not a measurement table") from None
-    except UnicodeDecodeError:
-        raise MeasurementError(f"{path}: not a UTF-8 text (CSV) file") from None
-    except OSError as exc:
-        raise MeasurementError(f"{path}: cannot be read ({exc.strerror})") from None
-    lines = [(i, line) for i, line in enumerate(text.splitlines(), 1)
-             if line.strip() and not line.lstrip().startswith("#")]
-    if not lines:
-        raise MeasurementError(f"{path}: empty file (no header row; columns "
-                               f"{', '.join(REQUIRED_COLUMNS)} are required)")
-    rows = list(csv.reader([line for _, line in lines]))
-    header = [c.strip() for c in rows[0]]
-    repeated = sorted({c for c in header if header.count(c) > 1})
-    if repeated:
-        raise MeasurementError(f"{path}: column(s) {repeated} appear more than once")
-    missing = [c for c in REQUIRED_COLUMNS if c not in header]
-    if missing:
-        raise MeasurementError(f"{path}: missing column(s) {missing} (line {lines[0][0]} is "
-                               f"the header; required: {', '.join(REQUIRED_COLUMNS)})")
-    if len(rows) == 1:
-        raise MeasurementError(f"{path}: no measurements (only a header)")
-    known = set(REQUIRED_COLUMNS) | set(OPTIONAL_COLUMNS)
-    out, seen = [], {}
-    for n, ((line_no, _), cells) in enumerate(zip(lines[1:], rows[1:]), 1):
-        cells = [c.strip() for c in cells]
-        label = cells[header.index("embryo")] if len(cells) > header.index("embryo") else ""
-        where = f"{path}: row {n} (line {line_no}, embryo {label!r})"
-        if len(cells) != len(header):
-            raise MeasurementError(f"{where}: {len(cells)} cells, but the header has "
-                                   f"{len(header)} columns")
-        values: dict = {"embryo": label, "row": n,
-                        "extra": {c: v for c, v in zip(header, cells) if c not in known}}
-        for column, cell in zip(header, cells):
-            if column in known and column != "embryo":
-                try:
-                    values[column] = _number(cell) if cell else None
-                except ValueError as exc:
-                    raise MeasurementError(f"{where}, column {column!r}: {exc}") from None
-        try:
-            m = Measurement(**values)
-        except MeasurementError as exc:
-            raise MeasurementError(f"{where}, column {exc.column!r}: {exc.why}", exc.column,
-                                   exc.why) from None
-        if label in seen:
-            raise MeasurementError(f"{where}, column 'embryo': the label {label!r} is also "
-                                   f"row {seen[label]}'s")
-        seen[label] = n
-        out.append(m)
-    return tuple(out)
 
 
 # --------------------------------------------------------------------------
