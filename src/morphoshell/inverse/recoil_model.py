@@ -146,8 +146,22 @@ class RecoilModel:
             self.builds = 2
 
     def problem(self, h: float, cut: float, k: float) -> Problem:
-        """The cut shell (toy problem 2): thickness h = H/R, the cut Σ (radians),
-        intrinsic curvature k (units of 1/R)."""
+        """The cut shell of toy problem 2.
+
+        Parameters
+        ----------
+        h : float
+            Relative thickness H/R.
+        cut : float
+            The cut Σ (radians).
+        k : float
+            Uniform intrinsic curvature (units of 1/R).
+
+        Returns
+        -------
+        Problem
+            Family ``uniform``, named ``toy2``, in this model's theory.
+        """
         return Problem("uniform", {"k": float(k)}, h=float(h), cut=float(cut),
                        theory=self.theory, name="toy2")
 
@@ -177,6 +191,12 @@ class RecoilModel:
             stress-free k = 1 (:func:`morphoshell.solvers.continuation.continue_to`).
             Without ``start`` the solve is that continuation: the physical
             branch.
+
+        Returns
+        -------
+        RecoilPoint
+            o, ϱ, d and the rim's displacements (units of R, radians), each
+            with its exact k-derivative, and both equilibria.
 
         Raises
         ------

@@ -171,7 +171,16 @@ class InverseResult:
         return ds
 
     def table(self) -> dict[str, list]:
-        """Per-embryo columns for CSV (null → NaN, written as an empty cell)."""
+        """Per-embryo columns for CSV (null → NaN, written as an empty cell).
+
+        Returns
+        -------
+        dict of str to list, each of length n_embryos
+            The keys of
+            :meth:`~morphoshell.inverse.embryo.EmbryoEstimate.to_dict` in
+            order of appearance (``extra`` left out), and ``notes`` joined by
+            ``; ``.
+        """
         rows = [e.to_dict() for e in self.embryos]
         keys = [k for k in rows[0] if k not in ("notes", "extra")]
         for r in rows[1:]:
