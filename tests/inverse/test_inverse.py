@@ -1,9 +1,9 @@
 """Inverse estimates from ablation recoils (paper Fig. 2 J-K): morphoshell.inverse.
 
 Round trips forward model -> measurement -> estimate, honest "no estimate"
-answers, recovery on the synthetic table within its noise, the E/mu fit and
-the paper's numbers, the inner problem that the asymptotic estimates use,
-and the measurement table's validation.
+answers, recovery on the synthetic table within its noise, and the inner
+problem that the asymptotic estimates use.  The E/mu fit is in
+test_recoil_velocity.py, the measurement table in test_measurement_table.py.
 """
 import json
 import math
@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 
 from morphoshell import Problem
+import morphoshell.inverse as I
+from morphoshell.io.measurements import MEASURE_COLUMN
 from morphoshell.mechanics import asymptotics as A
-from morphoshell.inverse import core as I
 from morphoshell.mechanics.ablation import ablate, recoil_jacobian
 from morphoshell.solvers.observables import RECOIL
 
@@ -32,7 +33,7 @@ def model():
 def _measurement(values: dict, name="E", h=H, Sigma=SIGMA, R=R_UM, **kw) -> I.Measurement:
     """A Measurement from dimensionless o, rho, d (units of R, radians)."""
     return I.Measurement(name, R, h * R, 2 * R * math.sin(Sigma),
-                         **{I.MEASURE_COLUMN[m]: (None if values.get(m) is None else
+                         **{MEASURE_COLUMN[m]: (None if values.get(m) is None else
                                                   I.to_physical(m, values[m], R))
                             for m in I.MEASURES}, **kw)
 
@@ -44,7 +45,7 @@ def _measurement(values: dict, name="E", h=H, Sigma=SIGMA, R=R_UM, **kw) -> I.Me
 def test_model_is_ablate_with_its_exact_derivative():
     # Without mesh_for the model uses the solvers of ablate(): the same
     # observables, from another starting point (continuation there, the
-    # tangent path here), so equal to Ipopt's tolerance (measured 2e-12).
+    # tangent path here), so equal to Ipopt's tolerance.
     k = 0.05
     point = I.RecoilModel().evaluate(H, SIGMA, k)
     ab = ablate(Problem("uniform", {"k": k}, h=H, cut=SIGMA), nodes=I.NODES)
@@ -53,7 +54,7 @@ def test_model_is_ablate_with_its_exact_derivative():
         assert getattr(point, name) == pytest.approx(getattr(ab, name), abs=1e-9), name
         assert point.derivative[name] == pytest.approx(J[i, 0], rel=1e-7, abs=1e-10), name
     # and the derivative is the slope of the map (central differences, step 1e-4:
-    # truncation ~1e-9 relative; measured 3e-10)
+    # truncation ~1e-9 relative)
     m = I.RecoilModel(mesh_for=(H, SIGMA))
     up, down = m.evaluate(H, SIGMA, k + 1e-4), m.evaluate(H, SIGMA, k - 1e-4)
     for name in ("opening", "rotation", "displacement"):
@@ -98,7 +99,7 @@ def test_noiseless_round_trip_closed_forms_and_inner(k):
              "displacement": abs(inner["signed_displacement"])}
     for method, values, tol in (("leading_order", lo, 1e-12), ("kelvin", kv, 1e-12),
                                 # solve_bvp re-meshes at every k: the map is smooth
-                                # only to its tolerance (measured error 2e-9)
+                                # only to its tolerance
                                 ("inner", inner, 1e-7)):
         e = I.estimate_embryo(_measurement(values), methods=(method,))
         for measure in I.MEASURES:
@@ -121,7 +122,7 @@ def test_error_propagation_uses_the_exact_slope(model):
         est = e.estimates[(measure, "numerical")]
         expected = m.error(measure) / abs(p.derivative[measure])
         # the slope is the last Newton iterate's (within ~1e-3 of k), moved to k
-        # with the curvature of the sampled map: measured 3e-7 relative
+        # with the curvature of the sampled map
         assert est.error == pytest.approx(expected, rel=1e-5), measure
     w = np.array([1 / e.estimates[(m_, "numerical")].error ** 2 for m_ in ("rotation",
                                                                            "displacement")])
@@ -210,18 +211,17 @@ def test_synthetic_numerical_estimates_recover_k_within_the_noise(synthetic):
     z = np.array(z)
     # 38 estimates (4 noisy openings are negative: null, "needs k > 1"); with
     # Gaussian noise propagated to first order z ~ N(0, 1): |z| < 3.5 for all
-    # (P > 0.98) and mean z^2 ~ chi2_38/38 = 1 +- 0.23 (measured 1.09, max |z| 2.4)
+    # (P > 0.98) and mean z^2 ~ chi2_38/38 = 1 +- 0.23
     assert z.size == 38
     assert np.max(np.abs(z)) < 3.5 and 0.5 < np.mean(z**2) < 1.7
     # Against the truth, with this noise (sigma_o = 0.3 um, sigma_rho = 2 deg,
     # sigma_d = 0.2 um), numerical beats the paper's asymptotic estimates in RMS
-    # error for o and d (measured 0.25 vs 0.34, 0.13 vs 0.16; in 98 % and 97 % of
-    # noise draws for these shells, linearised Monte Carlo); for rho only in 84 %
-    # (Kelvin's rotation is within 2-5 % here), so it is not asserted.  The
-    # spread over embryos is smaller for d (99.9 % of draws; measured 0.164 vs
-    # 0.189); for o the leading-order formula, which overestimates the recoil
-    # 2-4 times, shrinks the noise and spreads *less* in 85 % of draws (the
-    # shipped table is one of the other 15 %): its error is a bias, see the
+    # error for o and d (in 98 % and 97 % of noise draws for these shells,
+    # linearised Monte Carlo); for rho only in 84 % (Kelvin's rotation is within
+    # 2-5 % here), so it is not asserted.  The spread over embryos is smaller for
+    # d (99.9 % of draws); for o the leading-order formula, which overestimates
+    # the recoil 2-4 times, shrinks the noise and spreads *less* in 85 % of draws
+    # (the shipped table is one of the other 15 %): its error is a bias, see the
     # noiseless test below.
     for measure in ("opening", "displacement"):
         rms = {}
@@ -237,7 +237,7 @@ def test_synthetic_numerical_estimates_recover_k_within_the_noise(synthetic):
 def test_noiseless_synthetic_shells_show_the_asymptotic_bias():
     # The synthetic table's noiseless recoils (sidecar; 400 mesh nodes) of four
     # of its shells: numerical inversion (60 nodes) returns the true k to the
-    # discretisation error (measured 2.5e-5), the paper's asymptotic formulas are
+    # discretisation error, the paper's asymptotic formulas are
     # off by 0.37-0.72 (o, leading order), 0.023-0.050 (rho, Kelvin) and
     # 0.034-0.090 (d, Kelvin) for these thick sheets (h = 0.23-0.34).
     truth = json.loads(TABLE.with_suffix(".json").read_text())["ground_truth"]["embryos"]
@@ -293,54 +293,12 @@ def test_result_serialises_and_prints(synthetic):
 
 
 # --------------------------------------------------------------------------
-# E/mu and the paper's numbers
-# --------------------------------------------------------------------------
-
-def test_velocity_fit_recovers_a_known_slope():
-    rng = np.random.default_rng(1)
-    X = rng.uniform(0.5, 3.0, 20)
-    exact = I.fit_velocity(0.6 * X, X, bootstrap=0)
-    assert exact.E_over_mu == pytest.approx(0.6, rel=1e-14) and exact.standard_error < 1e-14
-    V = 0.6 * X + rng.normal(0, 0.05, X.size)
-    fit = I.fit_velocity(V, X, bootstrap=500)
-    slope, res, *_ = np.linalg.lstsq(X[:, None], V, rcond=None)
-    assert fit.E_over_mu == pytest.approx(slope[0], rel=1e-12)
-    assert fit.standard_error == pytest.approx(math.sqrt(res[0] / 19 / (X @ X)), rel=1e-12)
-    assert abs(fit.E_over_mu - 0.6) < 3 * fit.standard_error
-    # the scaling is asymptotics.recoil_velocity with E/mu = 1
-    assert I.velocity_scale(11.0, 40.0, 0.05) == pytest.approx(11**2.5 / 40**1.5 * 0.95)
-
-
-def test_non_finite_values_are_named_not_averaged():
-    # a NaN made E/mu and every statistic NaN, without a word
-    with pytest.raises(ValueError, match="velocity of embryo 'e2' is nan, not a finite"):
-        I.fit_velocity([1.0, math.nan], [1.0, 2.0], embryos=["e1", "e2"])
-    with pytest.raises(ValueError, match="velocity scale of embryo 1 is inf"):
-        I.fit_velocity([1.0, 2.0], [1.0, math.inf])
-    with pytest.raises(ValueError, match="summarise: value 1 is nan"):
-        I.summarise([0.1, math.nan])
-    assert I.summarise([]).n == 0
-
-
-def test_paper_numbers():
-    # main text: <E/mu> = 0.6 1/s, mu >= 0.8 mPa s => E >= 0.5 mPa; H = 11 um =>
-    # E H^3 >= 7e-19 J.  Unrounded, E = 0.48 mPa and E H^3 = 6.4e-19 J; the
-    # paper's 7e-19 J is the rounded E = 0.5 mPa times H^3 = 1.331e-15 m^3.
-    b = I.elastic_bounds(0.6, 0.8e-3, 11.0)
-    assert b["E_lower_bound_Pa"] == pytest.approx(4.8e-4, rel=1e-12)
-    assert round(b["E_lower_bound_Pa"] * 1e3, 1) == 0.5
-    assert b["bending_modulus_lower_bound_J"] == pytest.approx(6.389e-19, rel=1e-3)
-    rounded = I.elastic_bounds(0.5e-3 / 0.8e-3, 0.8e-3, 11.0)["bending_modulus_lower_bound_J"]
-    assert round(rounded * 1e19) == 7
-
-
-# --------------------------------------------------------------------------
 # the inner problem (asymptotic estimates)
 # --------------------------------------------------------------------------
 
 def test_inner_problem_linearises_to_the_kelvin_forms():
     # at k = 1 the solution is b = n = 0 and the tangent problem is the linear
-    # problem that the Kelvin forms solve exactly (measured agreement 1.4e-9)
+    # problem that the Kelvin forms solve exactly
     s = A.inner_solution(1.0, 1.0)
     h = 1e-8
     Sigma = 1.0 * A.delta(h)
@@ -359,72 +317,10 @@ def test_inner_problem_linearises_to_the_kelvin_forms():
 
 def test_inner_opening_matches_thin_shell_numerics():
     # eq:uv gives the opening of small cuts, o = O(delta^3): the classical shell
-    # at h = 1e-4, Sigma = delta/2 agrees to O(delta) = 5e-3 (measured 1.5e-4)
+    # at h = 1e-4, Sigma = delta/2 agrees to O(delta) = 5e-3
     h, sigma, k = 1e-4, 0.5, 0.0
     inner = A.inner_recoil(h, k, sigma * A.delta(h)).recoil(h)
     ab = ablate(Problem("uniform", {"k": k}, h=h, cut=sigma * A.delta(h), theory="classical"),
                 nodes=800)
     assert ab.opening / inner["opening"] == pytest.approx(1.0, abs=A.delta(h))
     assert ab.rotation / inner["rotation"] == pytest.approx(1.0, abs=A.delta(h))
-
-
-# --------------------------------------------------------------------------
-# measurements
-# --------------------------------------------------------------------------
-
-HEADER = ("embryo,R_um,H_um,hole_diameter_um,opening_um,rotation_deg,displacement_um,"
-          "V_um_per_s,sigma_rotation_deg,note")
-
-
-def test_table_reading_units_and_extras(tmp_path):
-    path = tmp_path / "t.csv"
-    path.write_text(f"# a comment\n{HEADER}\nA,40,11,8,0.5,15,1.5,0.9,2,first\n"
-                    "B, 38 ,12,10,,-3,1.7,,,\n")
-    a, b = I.read_measurements(path)
-    assert a.h == pytest.approx(11 / 40) and a.Sigma == pytest.approx(math.asin(0.1))
-    assert a.value("rotation") == pytest.approx(math.radians(15))
-    assert a.value("opening") == pytest.approx(0.5 / 40) and a.error("rotation") == \
-        pytest.approx(math.radians(2))
-    assert a.extra == {"note": "first"} and a.row == 1
-    assert b.opening_um is None and b.V_um_per_s is None and b.error("rotation") is None
-    assert b.R_um == 38.0
-
-
-@pytest.mark.parametrize("row, named", [
-    ("A,40,-11,8,0.5,15,1.5,,,",
-     "row 1 (line 2, embryo 'A'), column 'H_um': -11.0 must be positive"),
-    ("A,40,11,8,nan,15,1.5,,,", "column 'opening_um': nan must be a finite number"),
-    ("A,40,11,8,0.5,190,1.5,,,", "column 'rotation_deg': 190.0 must lie in (-180, 180)"),
-    ("A,40,11,81,0.5,15,1.5,,,", "column 'hole_diameter_um': the hole (81.0 um) is larger"),
-    ("A,40,11,8,0.5,15,abc,,,", "column 'displacement_um': 'abc' is not a number"),
-    ("A,40,11,8,0.5,15,-1.5,,,", "column 'displacement_um': -1.5 must be non-negative"),
-    ("A,40,41,8,0.5,15,1.5,,,", "column 'H_um': the thickness H = 41.0 um must be smaller"),
-    ("A,,11,8,0.5,15,1.5,,,", "column 'R_um': the cell is empty (required)"),
-    ("A,40,11,8,0.5,15,1.5,,0,", "column 'sigma_rotation_deg': 0.0 must be positive"),
-    ("A,40,11,8,0.5,15", "row 1 (line 2, embryo 'A'): 6 cells, but the header has 10"),
-])
-def test_bad_rows_name_row_and_column(tmp_path, row, named):
-    path = tmp_path / "t.csv"
-    path.write_text(f"{HEADER}\n{row}\n")
-    with pytest.raises(I.MeasurementError) as info:
-        I.read_measurements(path)
-    assert named in str(info.value)
-
-
-@pytest.mark.parametrize("text, named", [
-    ("", "empty file"),
-    ("# only a comment\n", "empty file"),
-    ("embryo,R_um,H_um,hole_diameter_um,opening_um,rotation_deg\n", "missing column(s) "
-                                                                    "['displacement_um']"),
-    (HEADER + "\n", "no measurements"),
-    (HEADER + ",R_um\n", "appear more than once"),
-    (HEADER + "\nA,40,11,8,0.5,15,1.5,,,\nA,40,11,8,0.5,15,1.5,,,\n", "also row 1's"),
-])
-def test_bad_tables(tmp_path, text, named):
-    path = tmp_path / "t.csv"
-    path.write_text(text)
-    with pytest.raises(I.MeasurementError, match=None) as info:
-        I.read_measurements(path)
-    assert named in str(info.value)
-    with pytest.raises(I.MeasurementError, match="no such file"):
-        I.read_measurements(tmp_path / "missing.csv")

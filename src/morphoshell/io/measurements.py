@@ -1,0 +1,327 @@
+"""The measurement table of laser ablations: one row per embryo, in physical units.
+
+Each row holds an embryo's shell (posterior radius R, sheet thickness H), its
+cut (the diameter 2R sin Σ of the ablated cap) and its recoil: the opening o,
+rotation ϱ and displacement d of the cut edge, optionally the initial recoil
+velocity V and the errors of the measures (paper, main text "Quantitative
+estimates of the curvature mismatch during *Volvox* invagination…" and
+"Recoil velocity measurements yield a bound on the elastic modulus…",
+Fig. 2 J–K).  :func:`read_measurements` reads and checks a table,
+:class:`Measurement` is one row; every error names the file, row, embryo and
+column.
+
+Units: the table is dimensional (µm, degrees, µm/s); the measures convert
+once, in :func:`to_dimensionless` and :func:`to_physical`, to lengths in units
+of R and angles in radians, the units of the shell theory
+(:mod:`morphoshell.inverse` works in them).
+"""
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+__all__ = [
+    "MEASURES", "REQUIRED_COLUMNS", "OPTIONAL_COLUMNS", "MEASURE_COLUMN", "ERROR_COLUMN", "UNITS",
+    "MeasurementError", "Measurement", "read_measurements", "to_dimensionless", "to_physical",
+]
+
+#: The recoil measures, in the order of every vector of the inverse estimates.
+MEASURES = ("opening", "rotation", "displacement")
+
+#: Columns of the measurement table.
+REQUIRED_COLUMNS = ("embryo", "R_um", "H_um", "hole_diameter_um", "opening_um", "rotation_deg",
+                    "displacement_um")
+OPTIONAL_COLUMNS = ("V_um_per_s", "sigma_opening_um", "sigma_rotation_deg",
+                    "sigma_displacement_um")
+#: Column of each measure and of its error; its physical unit.
+MEASURE_COLUMN = {"opening": "opening_um", "rotation": "rotation_deg",
+                  "displacement": "displacement_um"}
+ERROR_COLUMN = {m: f"sigma_{c}" for m, c in MEASURE_COLUMN.items()}
+UNITS = {"opening": "um", "rotation": "deg", "displacement": "um"}
+
+_KNOWN = frozenset(REQUIRED_COLUMNS) | frozenset(OPTIONAL_COLUMNS)
+
+
+# --------------------------------------------------------------------------
+# units: the one place where physical and dimensionless values meet
+# --------------------------------------------------------------------------
+
+def to_dimensionless(measure: str, value: float, R_um: float) -> float:
+    """A measure in its table unit (µm or degrees) → units of R or radians.
+
+    Parameters
+    ----------
+    measure : {"opening", "rotation", "displacement"}
+    value : float
+        In the table's unit (:data:`UNITS`).
+    R_um : float
+        The embryo's posterior radius R (µm).
+
+    Returns
+    -------
+    float
+        ``value / R_um`` for a length, the angle in radians for the rotation.
+    """
+    return math.radians(value) if measure == "rotation" else value / R_um
+
+
+def to_physical(measure: str, value: float, R_um: float) -> float:
+    """A measure in units of R or radians → its table unit (µm or degrees).
+
+    The inverse of :func:`to_dimensionless`.
+
+    Returns
+    -------
+    float
+        ``value * R_um`` for a length, the angle in degrees for the rotation.
+    """
+    return math.degrees(value) if measure == "rotation" else value * R_um
+
+
+# --------------------------------------------------------------------------
+# one row
+# --------------------------------------------------------------------------
+
+class MeasurementError(ValueError):
+    """Bad measurement input; the message names the row (embryo) and column.
+
+    ``column`` and ``why`` hold the column and the reason when a cell is bad.
+    """
+
+    def __init__(self, message: str, column: str | None = None, why: str | None = None):
+        super().__init__(message)
+        self.column, self.why = column, why
+
+
+def _check_cell(column: str, value: float | None) -> str | None:
+    """Why ``value`` is not acceptable in ``column`` (None if it is)."""
+    if value is None:
+        return None
+    if not math.isfinite(value):
+        return f"{value!r} must be a finite number (leave the cell empty for a missing value)"
+    if column in ("R_um", "H_um", "hole_diameter_um") or column.startswith("sigma_"):
+        return None if value > 0 else f"{value!r} must be positive"
+    if column in ("displacement_um", "V_um_per_s"):
+        return None if value >= 0 else f"{value!r} must be non-negative (a distance or speed)"
+    if column == "rotation_deg":
+        return None if -180 < value < 180 else f"{value!r} must lie in (-180, 180) degrees"
+    return None
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """One embryo's ablation: shell, cut and recoil, in the table's physical units.
+
+    Parameters
+    ----------
+    embryo : str
+        Label.
+    R_um, H_um : float
+        Posterior radius R and sheet thickness H (µm), 0 < H < R.
+    hole_diameter_um : float
+        Diameter 2R sin Σ of the ablated cap on the intact shell (µm), ≤ 2R.
+    opening_um, rotation_deg, displacement_um : float or None
+        R·o (signed change of the hole's diameter), ϱ (degrees, positive when
+        the edge unfurls outwards, in (−180, 180)), R·d (≥ 0); None where the
+        table has no value.
+    V_um_per_s : float or None
+        Initial recoil velocity (µm/s, ≥ 0).
+    sigma_opening_um, sigma_rotation_deg, sigma_displacement_um : float or None
+        Errors of the measures (one standard deviation, > 0).
+    extra : mapping
+        Other columns of the row, kept as text and otherwise ignored.
+    row : int
+        1-based data row of the table (0 when built in code).
+
+    Raises
+    ------
+    MeasurementError
+        Naming the row (if any), embryo and column of a bad value.
+    """
+
+    embryo: str
+    R_um: float
+    H_um: float
+    hole_diameter_um: float
+    opening_um: float | None = None
+    rotation_deg: float | None = None
+    displacement_um: float | None = None
+    V_um_per_s: float | None = None
+    sigma_opening_um: float | None = None
+    sigma_rotation_deg: float | None = None
+    sigma_displacement_um: float | None = None
+    extra: Mapping[str, str] = field(default_factory=dict)
+    row: int = 0
+
+    def __post_init__(self):
+        if not str(self.embryo).strip():
+            self._fail("embryo", "the embryo label is empty")
+        for column in (*REQUIRED_COLUMNS[1:], *OPTIONAL_COLUMNS):
+            value = getattr(self, column)
+            if value is None and column in REQUIRED_COLUMNS[1:4]:
+                self._fail(column, "the cell is empty (required)")
+            if value is not None:
+                if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
+                    self._fail(column, f"{value!r} is not a number")
+                object.__setattr__(self, column, float(value))
+            why = _check_cell(column, getattr(self, column))
+            if why:
+                self._fail(column, why)
+        if not self.H_um < self.R_um:
+            self._fail("H_um", f"the thickness H = {self.H_um!r} um must be smaller than the "
+                               f"radius R = {self.R_um!r} um")
+        if self.hole_diameter_um > 2 * self.R_um:
+            self._fail("hole_diameter_um", f"the hole ({self.hole_diameter_um!r} um) is larger "
+                                           f"than the shell (diameter 2R = {2 * self.R_um!r} um)")
+
+    def _fail(self, column: str, why: str):
+        where = f"row {self.row} (embryo {self.embryo!r})" if self.row else \
+            f"embryo {self.embryo!r}"
+        raise MeasurementError(f"{where}, column {column!r}: {why}", column, why)
+
+    @property
+    def h(self) -> float:
+        """Relative thickness H/R."""
+        return self.H_um / self.R_um
+
+    @property
+    def cut(self) -> float:
+        """The cut Σ = arcsin(hole diameter / 2R) (radians, = units of R on the sphere)."""
+        return math.asin(min(1.0, self.hole_diameter_um / (2 * self.R_um)))
+
+    @property
+    def Sigma(self) -> float:
+        """Deprecated alias of :attr:`cut` (the one name of the cut)."""
+        return self.cut
+
+    def value(self, measure: str) -> float | None:
+        """The measure in units of R or radians (None where the table has no value)."""
+        v = getattr(self, MEASURE_COLUMN[measure])
+        return None if v is None else to_dimensionless(measure, v, self.R_um)
+
+    def error(self, measure: str) -> float | None:
+        """Its error in units of R or radians (None if not given)."""
+        v = getattr(self, ERROR_COLUMN[measure])
+        return None if v is None else to_dimensionless(measure, v, self.R_um)
+
+
+# --------------------------------------------------------------------------
+# the table
+# --------------------------------------------------------------------------
+
+def _number(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise ValueError(f"{text!r} is not a number") from None
+
+
+def _read_text(path: Path) -> str:
+    """The file's text (a BOM dropped); each way it cannot be read is named."""
+    try:
+        return path.read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise MeasurementError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise MeasurementError(f"{path}: is a folder, not a measurement table") from None
+    except UnicodeDecodeError:
+        raise MeasurementError(f"{path}: not a UTF-8 text (CSV) file") from None
+    except OSError as exc:
+        raise MeasurementError(f"{path}: cannot be read ({exc.strerror})") from None
+
+
+def _data_lines(path: Path, text: str) -> list[tuple[int, str]]:
+    """(line number, line) of the header and rows: blank lines and ``#`` comments dropped."""
+    lines = [(i, line) for i, line in enumerate(text.splitlines(), 1)
+             if line.strip() and not line.lstrip().startswith("#")]
+    if not lines:
+        raise MeasurementError(f"{path}: empty file (no header row; columns "
+                               f"{', '.join(REQUIRED_COLUMNS)} are required)")
+    return lines
+
+
+def _check_header(path: Path, header: list[str], line_no: int) -> None:
+    """Every column once, the required ones present."""
+    repeated = sorted({c for c in header if header.count(c) > 1})
+    if repeated:
+        raise MeasurementError(f"{path}: column(s) {repeated} appear more than once")
+    missing = [c for c in REQUIRED_COLUMNS if c not in header]
+    if missing:
+        raise MeasurementError(f"{path}: missing column(s) {missing} (line {line_no} is "
+                               f"the header; required: {', '.join(REQUIRED_COLUMNS)})")
+
+
+def _where(path: Path, n: int, line_no: int, label: str) -> str:
+    """How errors name data row ``n``: file, row, line and embryo."""
+    return f"{path}: row {n} (line {line_no}, embryo {label!r})"
+
+
+def _row(path: Path, header: list[str], n: int, line_no: int, cells: list[str]) -> Measurement:
+    """Data row ``n`` (on line ``line_no``) as a :class:`Measurement`, its errors placed."""
+    cells = [c.strip() for c in cells]
+    label = cells[header.index("embryo")] if len(cells) > header.index("embryo") else ""
+    where = _where(path, n, line_no, label)
+    if len(cells) != len(header):
+        raise MeasurementError(f"{where}: {len(cells)} cells, but the header has "
+                               f"{len(header)} columns")
+    values: dict = {"embryo": label, "row": n,
+                    "extra": {c: v for c, v in zip(header, cells) if c not in _KNOWN}}
+    for column, cell in zip(header, cells):
+        if column in _KNOWN and column != "embryo":
+            try:
+                values[column] = _number(cell) if cell else None
+            except ValueError as exc:
+                raise MeasurementError(f"{where}, column {column!r}: {exc}") from None
+    try:
+        return Measurement(**values)
+    except MeasurementError as exc:
+        raise MeasurementError(f"{where}, column {exc.column!r}: {exc.why}", exc.column,
+                               exc.why) from None
+
+
+def read_measurements(path: str | Path) -> tuple[Measurement, ...]:
+    """Read a measurement table (CSV, one row per embryo; see :class:`Measurement`).
+
+    The header names the columns (:data:`REQUIRED_COLUMNS`, optionally
+    :data:`OPTIONAL_COLUMNS`; others are kept in ``extra``).  Lines starting
+    with ``#`` (before or between rows) are comments; an empty cell is a
+    missing value (allowed for the measures, velocity and errors).
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV file (UTF-8, a byte-order mark allowed).
+
+    Returns
+    -------
+    tuple of Measurement, length n_rows
+        The rows in the order of the file.
+
+    Raises
+    ------
+    MeasurementError
+        Naming the file, row (with its line and embryo) and column: a missing
+        or repeated column, a non-numeric, NaN or out-of-range cell, a hole
+        larger than the shell, a repeated embryo label, an empty file.
+    """
+    path = Path(path)
+    lines = _data_lines(path, _read_text(path))
+    rows = list(csv.reader([line for _, line in lines]))
+    header = [c.strip() for c in rows[0]]
+    _check_header(path, header, lines[0][0])
+    if len(rows) == 1:
+        raise MeasurementError(f"{path}: no measurements (only a header)")
+    out, seen = [], {}
+    for n, ((line_no, _), cells) in enumerate(zip(lines[1:], rows[1:]), 1):
+        m = _row(path, header, n, line_no, cells)
+        if m.embryo in seen:
+            raise MeasurementError(f"{_where(path, n, line_no, m.embryo)}, column 'embryo': "
+                                   f"the label {m.embryo!r} is also row {seen[m.embryo]}'s")
+        seen[m.embryo] = n
+        out.append(m)
+    return tuple(out)

@@ -1,0 +1,71 @@
+"""The measurement table of ablations (morphoshell.io.measurements), as the inverse estimates read it.
+
+Units and extra columns, and bad rows and tables named by row and column.
+"""
+import math
+
+import pytest
+
+import morphoshell.io.measurements as I
+
+
+# --------------------------------------------------------------------------
+# measurements
+# --------------------------------------------------------------------------
+
+HEADER = ("embryo,R_um,H_um,hole_diameter_um,opening_um,rotation_deg,displacement_um,"
+          "V_um_per_s,sigma_rotation_deg,note")
+
+
+def test_table_reading_units_and_extras(tmp_path):
+    path = tmp_path / "t.csv"
+    path.write_text(f"# a comment\n{HEADER}\nA,40,11,8,0.5,15,1.5,0.9,2,first\n"
+                    "B, 38 ,12,10,,-3,1.7,,,\n")
+    a, b = I.read_measurements(path)
+    assert a.h == pytest.approx(11 / 40) and a.Sigma == pytest.approx(math.asin(0.1))
+    assert a.value("rotation") == pytest.approx(math.radians(15))
+    assert a.value("opening") == pytest.approx(0.5 / 40) and a.error("rotation") == \
+        pytest.approx(math.radians(2))
+    assert a.extra == {"note": "first"} and a.row == 1
+    assert b.opening_um is None and b.V_um_per_s is None and b.error("rotation") is None
+    assert b.R_um == 38.0
+
+
+@pytest.mark.parametrize("row, named", [
+    ("A,40,-11,8,0.5,15,1.5,,,",
+     "row 1 (line 2, embryo 'A'), column 'H_um': -11.0 must be positive"),
+    ("A,40,11,8,nan,15,1.5,,,", "column 'opening_um': nan must be a finite number"),
+    ("A,40,11,8,0.5,190,1.5,,,", "column 'rotation_deg': 190.0 must lie in (-180, 180)"),
+    ("A,40,11,81,0.5,15,1.5,,,", "column 'hole_diameter_um': the hole (81.0 um) is larger"),
+    ("A,40,11,8,0.5,15,abc,,,", "column 'displacement_um': 'abc' is not a number"),
+    ("A,40,11,8,0.5,15,-1.5,,,", "column 'displacement_um': -1.5 must be non-negative"),
+    ("A,40,41,8,0.5,15,1.5,,,", "column 'H_um': the thickness H = 41.0 um must be smaller"),
+    ("A,,11,8,0.5,15,1.5,,,", "column 'R_um': the cell is empty (required)"),
+    ("A,40,11,8,0.5,15,1.5,,0,", "column 'sigma_rotation_deg': 0.0 must be positive"),
+    ("A,40,11,8,0.5,15", "row 1 (line 2, embryo 'A'): 6 cells, but the header has 10"),
+])
+def test_bad_rows_name_row_and_column(tmp_path, row, named):
+    path = tmp_path / "t.csv"
+    path.write_text(f"{HEADER}\n{row}\n")
+    with pytest.raises(I.MeasurementError) as info:
+        I.read_measurements(path)
+    assert named in str(info.value)
+
+
+@pytest.mark.parametrize("text, named", [
+    ("", "empty file"),
+    ("# only a comment\n", "empty file"),
+    ("embryo,R_um,H_um,hole_diameter_um,opening_um,rotation_deg\n", "missing column(s) "
+                                                                    "['displacement_um']"),
+    (HEADER + "\n", "no measurements"),
+    (HEADER + ",R_um\n", "appear more than once"),
+    (HEADER + "\nA,40,11,8,0.5,15,1.5,,,\nA,40,11,8,0.5,15,1.5,,,\n", "also row 1's"),
+])
+def test_bad_tables(tmp_path, text, named):
+    path = tmp_path / "t.csv"
+    path.write_text(text)
+    with pytest.raises(I.MeasurementError, match=None) as info:
+        I.read_measurements(path)
+    assert named in str(info.value)
+    with pytest.raises(I.MeasurementError, match="no such file"):
+        I.read_measurements(tmp_path / "missing.csv")

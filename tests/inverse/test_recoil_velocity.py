@@ -1,0 +1,53 @@
+"""E/mu from recoil velocities and the bounds on E (paper Fig. 2 K): morphoshell.inverse.
+
+The velocity fit against a known slope, non-finite values named rather than
+averaged, and the paper's numbers.
+"""
+import math
+
+import numpy as np
+import pytest
+
+import morphoshell.inverse as I
+
+
+# --------------------------------------------------------------------------
+# E/mu and the paper's numbers
+# --------------------------------------------------------------------------
+
+def test_velocity_fit_recovers_a_known_slope():
+    rng = np.random.default_rng(1)
+    X = rng.uniform(0.5, 3.0, 20)
+    exact = I.fit_velocity(0.6 * X, X, bootstrap=0)
+    assert exact.E_over_mu == pytest.approx(0.6, rel=1e-14) and exact.standard_error < 1e-14
+    V = 0.6 * X + rng.normal(0, 0.05, X.size)
+    fit = I.fit_velocity(V, X, bootstrap=500)
+    slope, res, *_ = np.linalg.lstsq(X[:, None], V, rcond=None)
+    assert fit.E_over_mu == pytest.approx(slope[0], rel=1e-12)
+    assert fit.standard_error == pytest.approx(math.sqrt(res[0] / 19 / (X @ X)), rel=1e-12)
+    assert abs(fit.E_over_mu - 0.6) < 3 * fit.standard_error
+    # the scaling is asymptotics.recoil_velocity with E/mu = 1
+    assert I.velocity_scale(11.0, 40.0, 0.05) == pytest.approx(11**2.5 / 40**1.5 * 0.95)
+
+
+def test_non_finite_values_are_named_not_averaged():
+    # a NaN made E/mu and every statistic NaN, without a word
+    with pytest.raises(ValueError, match="velocity of embryo 'e2' is nan, not a finite"):
+        I.fit_velocity([1.0, math.nan], [1.0, 2.0], embryos=["e1", "e2"])
+    with pytest.raises(ValueError, match="velocity scale of embryo 1 is inf"):
+        I.fit_velocity([1.0, 2.0], [1.0, math.inf])
+    with pytest.raises(ValueError, match="summarise: value 1 is nan"):
+        I.summarise([0.1, math.nan])
+    assert I.summarise([]).n == 0
+
+
+def test_paper_numbers():
+    # main text: <E/mu> = 0.6 1/s, mu >= 0.8 mPa s => E >= 0.5 mPa; H = 11 um =>
+    # E H^3 >= 7e-19 J.  Unrounded, E = 0.48 mPa and E H^3 = 6.4e-19 J; the
+    # paper's 7e-19 J is the rounded E = 0.5 mPa times H^3 = 1.331e-15 m^3.
+    b = I.elastic_bounds(0.6, 0.8e-3, 11.0)
+    assert b["E_lower_bound_Pa"] == pytest.approx(4.8e-4, rel=1e-12)
+    assert round(b["E_lower_bound_Pa"] * 1e3, 1) == 0.5
+    assert b["bending_modulus_lower_bound_J"] == pytest.approx(6.389e-19, rel=1e-3)
+    rounded = I.elastic_bounds(0.5e-3 / 0.8e-3, 0.8e-3, 11.0)["bending_modulus_lower_bound_J"]
+    assert round(rounded * 1e19) == 7
