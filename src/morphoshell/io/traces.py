@@ -301,36 +301,52 @@ def _table(path: Path, data: bytes, fmt: str):
     body = [(i, s) for i, s in lines if s and not s.startswith("#")]
     if not body:
         raise MidlineError(f"{path}: empty file: no points")
-    if fmt == "fiji-xy":
-        header, separator = ("x", "y"), None
-        width = len(body[0][1].split())
-        if width >= 3 and all(_is_number(c) for c in body[0][1].split()):
-            raise MidlineError(f"{path}: line {body[0][0]}: {width} columns: {_PIXEL_DUMP}")
-    else:
-        (i, text), body = body[0], body[1:]
-        header = tuple(c.strip().lower() for c in text.split(","))
-        expected = _CSV_HEADERS if fmt == "csv" else (_XY_HEADER,)
-        if header not in expected:
-            if {"x", "y"} <= set(header) and len(header) > 2:
-                raise MidlineError(f"{path}: line {i}: columns {text!r}: {_PIXEL_DUMP}")
-            raise MidlineError(f"{path}: line {i}: header {text!r} is not "
-                               f"{' or '.join(repr(','.join(h)) for h in expected)} (format {fmt!r})")
-        separator = ","
+    header, separator, body = _header(path, body, fmt)
     values = np.empty((len(body), len(header)))
     for k, (i, text) in enumerate(body):
-        cells = text.split(separator)
-        if len(cells) != len(header):
-            raise MidlineError(f"{path}: line {i}: {len(cells)} values, expected {len(header)} "
-                               f"({', '.join(header)})")
-        for j, cell in enumerate(cells):
-            where = f"{path}: line {i}, column {j + 1} ({header[j]})"
-            try:
-                values[k, j] = float(cell)
-            except ValueError:
-                raise MidlineError(f"{where}: {cell.strip()!r} is not a number") from None
-            if not math.isfinite(values[k, j]):
-                raise MidlineError(f"{where}: {cell.strip()} is not finite")
+        values[k] = _row(path, i, text.split(separator), header)
     return header, values, [f"line {i}" for i, _ in body], comments
+
+
+def _header(path: Path, body: list[tuple[int, str]], fmt: str):
+    """Column names, cell separator and the data lines of a text trace's non-comment lines.
+
+    fiji-xy has no header (columns x, y split at whitespace); csv and xy have
+    one, comma-separated.  A pixel list (three numbers, or x and y among more
+    named columns) is refused with the export that gives a line.
+    """
+    if fmt == "fiji-xy":
+        first = body[0][1].split()
+        if len(first) >= 3 and all(_is_number(c) for c in first):
+            raise MidlineError(f"{path}: line {body[0][0]}: {len(first)} columns: {_PIXEL_DUMP}")
+        return ("x", "y"), None, body
+    (i, text), rows = body[0], body[1:]
+    header = tuple(c.strip().lower() for c in text.split(","))
+    expected = _CSV_HEADERS if fmt == "csv" else (_XY_HEADER,)
+    if header not in expected:
+        if {"x", "y"} <= set(header) and len(header) > 2:
+            raise MidlineError(f"{path}: line {i}: columns {text!r}: {_PIXEL_DUMP}")
+        raise MidlineError(f"{path}: line {i}: header {text!r} is not "
+                           f"{' or '.join(repr(','.join(h)) for h in expected)} (format {fmt!r})")
+    return header, ",", rows
+
+
+def _row(path: Path, line: int, cells: list[str], header: tuple[str, ...]) -> list[float]:
+    """The finite numbers of one data line, one per column of ``header``."""
+    if len(cells) != len(header):
+        raise MidlineError(f"{path}: line {line}: {len(cells)} values, expected {len(header)} "
+                           f"({', '.join(header)})")
+    row = []
+    for j, cell in enumerate(cells):
+        where = f"{path}: line {line}, column {j + 1} ({header[j]})"
+        try:
+            value = float(cell)
+        except ValueError:
+            raise MidlineError(f"{where}: {cell.strip()!r} is not a number") from None
+        if not math.isfinite(value):
+            raise MidlineError(f"{where}: {cell.strip()} is not finite")
+        row.append(value)
+    return row
 
 
 def _read_roi(path: Path, data: bytes) -> tuple[np.ndarray, list[str], bool]:
