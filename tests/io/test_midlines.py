@@ -1,59 +1,16 @@
-"""Traced midlines: formats, alignment, resampling, averaging and bad input.
+"""Midline geometry: alignment of whole and half sections, noise, resampling and averaging.
 
-The reference shape is a sphere-like meridian with a bulge that keeps it
-smooth at the pole (r odd and z even in s): r = sin s (1 + 0.1 cos 3s),
-z = 1 − cos s, 0 ≤ s ≤ 0.8π.  Its points equally spaced in arclength come
-from Chebyshev quadrature of the exact speed, independently of the module.
-Images have R = 50 µm at 0.25 µm per pixel (200 px).
+The reference midline and its trace files: reference_midline.py.
 """
 import math
 
 import numpy as np
 import pytest
-import roifile
-from numpy.polynomial import Chebyshev
-from scipy.interpolate import make_interp_spline
 
-from morphoshell.io import traces as ml
+from morphoshell.io import midlines as ml
+from morphoshell.io import traces as tr
 from morphoshell.io import Midline, MidlineError
-
-S_MAX = 0.8 * np.pi
-SCALE = {"pixel_size_um": 0.25, "radius_um": 50.0}
-SIGMA = 0.5 * 0.25 / 50.0          # half a pixel, in units of R
-SUFFIX = {"csv": ".csv", "xy": ".csv", "fiji-xy": ".txt", "roi": ".roi"}
-
-
-def shape(s):
-    return np.column_stack([np.sin(s) * (1 + 0.1 * np.cos(3 * s)), 1 - np.cos(s)])
-
-
-def speed(s):
-    return np.hypot(np.cos(s) * (1 + 0.1 * np.cos(3 * s)) - 0.3 * np.sin(s) * np.sin(3 * s),
-                    np.sin(s))
-
-
-def truth(n=100):
-    """The shape at n points equally spaced in arclength (Newton on a Chebyshev arclength)."""
-    arc = Chebyshev.interpolate(speed, 100, domain=[0, S_MAX]).integ(lbnd=0)
-    target = np.linspace(0, arc(S_MAX), n)
-    s = target / target[-1] * S_MAX
-    for _ in range(30):
-        s = s - (arc(s) - target) / speed(s)
-    return shape(s)
-
-
-TRUTH = truth()
-
-
-def half(m=801):
-    return shape(np.linspace(0, S_MAX, m))
-
-
-def write(tmp_path, fmt, name="trace", points=None, **kw):
-    path = tmp_path / (name + SUFFIX[fmt])
-    scale = {} if fmt == "csv" else SCALE
-    ml.write_trace(path, half() if points is None else points, fmt, **scale, **kw)
-    return path
+from reference_midline import S_MAX, SCALE, SIGMA, TRUTH, half, shape, truth, write
 
 
 # ------------------------------------------------------------------ round trips
@@ -74,25 +31,11 @@ def test_round_trip(tmp_path, fmt, section, tol):
     scale = {} if fmt == "csv" else SCALE
     midline = ml.load_midline(path, **scale, section=section if fmt != "csv" else "auto")
     assert midline.r.shape == (100,) and midline.spread is None
-    # measured: 8e-12 (csv, xy, fiji-xy whole), 8e-8 (roi whole), 9e-8 (xy, fiji-xy half),
-    # 1.6e-4 (roi half)
     assert np.abs(midline.points - TRUTH).max() < tol
     if fmt != "csv":
-        aligned = ml.align(ml.read_trace(path, **SCALE), section)
+        aligned = ml.align(tr.read_trace(path, **SCALE), section)
         assert aligned.section == section
         assert abs(math.degrees(aligned.axis_angle) - 37.0) < 1e3 * tol
-
-
-def test_image_y_points_down(tmp_path):
-    """Anterior up on screen (angle 0) puts the rims above the pole: smaller y in the files."""
-    text = write(tmp_path, "fiji-xy", angle_deg=0.0, offset_px=(300.0, 400.0))
-    rows = np.loadtxt(text)
-    assert rows[0, 1] < rows[800, 1] and rows[-1, 1] < rows[800, 1]
-    assert rows[800] == pytest.approx([300.0, 400.0])            # the pole where it was put
-    roi = roifile.ImagejRoi.fromfile(write(tmp_path, "roi", angle_deg=0.0, offset_px=(300, 400)))
-    assert np.allclose(roi.coordinates(), rows, atol=1e-4)      # float32
-    trace = ml.read_trace(text, **SCALE)                        # read with y up
-    assert trace.points[0, 1] > trace.points[800, 1]
 
 
 def test_whole_section_equals_its_half(tmp_path):
@@ -103,8 +46,8 @@ def test_whole_section_equals_its_half(tmp_path):
                                        offset_px=(90.0, 40.0), section="half"),
                                  section="half", **SCALE)
     model_half = ml.load_midline(write(tmp_path, "csv", "model"))
-    assert np.abs(whole.points - model_half.points).max() < 1e-6      # measured 3e-12
-    assert np.abs(image_half.points - model_half.points).max() < 1e-6  # measured 9e-8
+    assert np.abs(whole.points - model_half.points).max() < 1e-6
+    assert np.abs(image_half.points - model_half.points).max() < 1e-6
     assert whole.points[0] == pytest.approx([0.0, 0.0], abs=1e-12)
     assert np.all(whole.r >= 0) and whole.z[-1] > 0
 
@@ -114,44 +57,23 @@ def test_circular_arc_is_aligned_by_its_rims(tmp_path):
     s = np.linspace(0, S_MAX, 401)
     sphere = np.column_stack([np.sin(s), 1 - np.cos(s)])
     path = write(tmp_path, "fiji-xy", points=sphere, angle_deg=-120.0, offset_px=(300.0, 700.0))
-    aligned = ml.align(ml.read_trace(path, **SCALE))
+    aligned = ml.align(tr.read_trace(path, **SCALE))
     assert math.degrees(aligned.axis_angle) == pytest.approx(-120.0, abs=1e-5)
     assert np.abs(ml.resample(aligned.points, 100) - ml.resample(sphere, 100)).max() < 1e-6
 
 
 def test_flip_reverses_the_axis(tmp_path):
     path = write(tmp_path, "roi", angle_deg=10.0)
-    up = ml.align(ml.read_trace(path, **SCALE))
-    down = ml.align(ml.read_trace(path, **SCALE), flip=True)
+    up = ml.align(tr.read_trace(path, **SCALE))
+    down = ml.align(tr.read_trace(path, **SCALE), flip=True)
     assert np.allclose(down.points, up.points * [1, -1], atol=1e-12)
     assert abs(down.axis_angle - up.axis_angle) == pytest.approx(math.pi)
-
-
-def test_spline_fit_roi_is_interpolated(tmp_path):
-    """A spline-fit ROI stores 25 control points; the curve between them is ImageJ's spline."""
-    control = half(13)
-    path = write(tmp_path, "roi", points=control, angle_deg=30.0, offset_px=(400.0, 400.0),
-                 spline_fit=True)
-    trace = ml.read_trace(path, **SCALE)
-    assert len(trace.points) == ml.SPLINE_SUBDIVISIONS * 24 + 1
-    stored = np.asarray(roifile.ImagejRoi.fromfile(path).coordinates(), dtype=float)
-    assert np.allclose(trace.points[::ml.SPLINE_SUBDIVISIONS], stored * [0.005, -0.005])
-    # ImageJ's curve, written independently: natural B-spline in the centripetal parameter
-    t = np.r_[0, np.cumsum(np.sqrt(np.hypot(*np.diff(stored, axis=0).T)))]
-    imagej = make_interp_spline(t, stored, k=3, bc_type="natural")((t[1:] + t[:-1]) / 2)
-    between = trace.points[ml.SPLINE_SUBDIVISIONS // 2::ml.SPLINE_SUBDIVISIONS]
-    assert np.abs(between - imagej * [0.005, -0.005]).max() < 1e-12
-    # ... not the spline this module puts through plain points (not-a-knot, chord length)
-    chord = np.r_[0, np.cumsum(np.hypot(*np.diff(stored, axis=0).T))]
-    plain = make_interp_spline(chord, stored, k=3)((chord[1:] + chord[:-1]) / 2)
-    assert np.abs(between - plain * [0.005, -0.005]).max() > 1e-4
-    assert np.abs(ml.load_midline(path, **SCALE).points - TRUTH).max() < 3e-3   # measured 1.4e-3
 
 
 # ------------------------------------------------------------------ noise
 
 def test_axis_fit_is_robust_to_noise(tmp_path):
-    """Half-pixel noise (σ = 0.0025 R) on 267 points per half: axis to 0.15° rms, measured 0.03°.
+    """Half-pixel noise (σ = 0.0025 R) on 267 points per half: axis to 0.15° rms.
 
     Spread of noise alone: σ over a lever of ~R across ~500 points is
     ~1e-4 rad; the near-spherical shape fixes the axis mostly through its
@@ -161,22 +83,21 @@ def test_axis_fit_is_robust_to_noise(tmp_path):
     for seed in range(8):
         path = write(tmp_path, "fiji-xy", points=half(267), angle_deg=37.0,
                      offset_px=(600.0, 400.0), noise_px=0.5, seed=seed)
-        aligned = ml.align(ml.read_trace(path, **SCALE))
+        aligned = ml.align(tr.read_trace(path, **SCALE))
         errors.append(math.degrees(aligned.axis_angle) - 37.0)
-        assert aligned.asymmetry < 2 * SIGMA              # measured up to 0.97 σ
+        assert aligned.asymmetry < 2 * SIGMA              # the halves differ by their noise
     assert np.sqrt(np.mean(np.square(errors))) < 0.15
 
 
 def test_pole_height_is_fitted_not_one_noisy_point(tmp_path, monkeypatch):
-    """A whole section's midline z is measured from the pole, whose height along the axis
+    """A whole section's midline z is counted from the pole, whose height along the axis
     is fitted near it: the noise of the one point where the axis crosses the trace
     shifted the whole midline (the fit, its pole pinned, then bends the posterior).
 
     40 traces of 335 points per half (spacing 1.5 px, as the synthetic inversion
     data) with σ = ½ px: the shift of the midline beyond the pole (mean over points
-    10-99) scatters less (measured 1.01e-3 R against 1.23e-3 from the crossing, the
-    same traces) and stays unbiased (within 3 standard errors; measured 1.5);
-    without noise, 4e-7 R.
+    10-99) scatters less than with the crossing's height (the same traces) and
+    stays unbiased (within 3 standard errors); without noise, below 1e-5 R.
     """
     def shifts(height):
         monkeypatch.setattr(ml, "_pole_height", height)
@@ -241,9 +162,9 @@ def test_average_of_noisy_image_traces(tmp_path):
     Unbiased: the mean is within 6 standard errors (spread/√K per
     coordinate) of the shape at every point; for an unbiased mean |error|²/se²
     is 2·F(2, 18), whose largest of 99 exceeds 6² with probability 1 %.
-    Measured 4.0; without the binning of noisy points, the arclength that
-    noise adds unevenly puts it at 11.  The spread is below σ: binning (k = 5)
-    and mirror-averaging reduce the noise of the points (measured 0.39 σ).
+    Without the binning of noisy points, the arclength that noise adds
+    unevenly biases the mean beyond that bound.  The spread is below σ:
+    binning (k = 5) and mirror-averaging reduce the noise of the points.
     """
     rng = np.random.default_rng(3)
     midlines = []
@@ -280,26 +201,6 @@ def test_binning_noisy_points_keeps_them_on_the_curve():
     assert abs(radii.mean() - rho) < 1.5e-4
 
 
-def test_dense_noisy_trace_is_one_curve(tmp_path):
-    """Noise as large as the spacing makes tiny loops; they are not a second curve."""
-    path = write(tmp_path, "fiji-xy", points=half(801), noise_px=0.5, seed=1)
-    assert len(ml.read_trace(path, **SCALE).points) == 1601
-
-
-# ------------------------------------------------------------------ midline csv
-
-def test_midline_csv_round_trip(tmp_path):
-    rng = np.random.default_rng(0)
-    mean = ml.average([Midline(*(TRUTH + rng.normal(0, 0.01, TRUTH.shape)).T,
-                               source=(f"embryo {i}.roi",)) for i in range(3)])
-    mean.to_csv(tmp_path / "mean.csv")
-    back = Midline.from_csv(tmp_path / "mean.csv")
-    assert np.array_equal(back.points, mean.points) and np.array_equal(back.spread, mean.spread)
-    assert back.n_traces == 3 and back.source == mean.source
-    trace = ml.read_trace(tmp_path / "mean.csv")                # the same file as a trace
-    assert trace.format == "csv" and np.array_equal(trace.points, mean.points)
-
-
 def test_resample_is_equally_spaced():
     """Coarse points are every 100th of fine ones, both ends included; 201 points: error ~1e-8."""
     coarse, fine = ml.resample(half(201), 50), ml.resample(half(201), 4901)
@@ -316,89 +217,6 @@ def test_resample_names_a_point_that_is_not_finite():
 
 
 # ------------------------------------------------------------------ bad input
-
-def _file(tmp_path, name, content):
-    path = tmp_path / name
-    path.write_bytes(content if isinstance(content, bytes) else content.encode())
-    return path
-
-
-GOOD_ROWS = [f"{x:.3f}\t{y:.3f}" for x, y in 200 * half(20) + 300]
-JUMP = "\n".join(GOOD_ROWS[:6] + ["5000\t5000"] + GOOD_ROWS[6:]) + "\n"
-
-
-@pytest.mark.parametrize("name, content, message", [
-    ("empty.txt", "", "empty.txt: empty file"),
-    ("blank.csv", "\n  \n# only a comment\n", "blank.csv: empty file"),
-    ("word.csv", "x,y\n1,2\n3,abc\n5,6\n7,8\n", "word.csv: line 3, column 2 (y): 'abc' is not a number"),
-    ("ragged.csv", "r,z\n0,0\n1,2,3\n", "ragged.csv: line 3: 3 values, expected 2 (r, z)"),
-    ("nan.txt", "1\t2\nnan\t3\n4\t5\n6\t7\n", "nan.txt: line 2, column 1 (x): nan is not finite"),
-    ("few.txt", "1\t2\n3\t4\n5\t6\n", "few.txt: 3 distinct points; a midline needs at least 4"),
-    ("latin1.csv", b"x,y\n1,2\n3,4\n# caf\xe9\n", "latin1.csv: line 4: not UTF-8"),
-    ("dump.txt", "10\t20\t255\n11\t20\t254\n", "dump.txt: line 1: 3 columns: this is a pixel list"),
-    ("area.csv", " ,X,Y,Value\n1,10,20,255\n", "area.csv: line 1: columns ',X,Y,Value': this is"),
-    ("header.csv", "a,b\n1,2\n", "header.csv: line 1: unrecognised header 'a,b'"),
-    ("jump.txt", JUMP, "jump.txt: line 6 to line 7: a step of"),
-    ("negative.csv", "r,z\n0,0\n-0.5,0.1\n-1,0.4\n-1.2,1\n", "negative.csv: line 3: r = -0.5 < 0"),
-    # in units of R a midline stays near its pole (at 1e300 the spline overflowed)
-    ("far.csv", "r,z\n0,0\n0.1,0.1\n1e300,1\n0.3,0.3\n", "far.csv: line 4: 1e+300 R from the first"),
-])
-def test_malformed_files(tmp_path, name, content, message):
-    path = _file(tmp_path, name, content)
-    scale = {} if name.endswith("csv") and "r,z" in str(content) else SCALE
-    with pytest.raises(MidlineError) as exc:
-        ml.read_trace(path, **scale)
-    assert message in str(exc.value) and str(path) in str(exc.value)
-
-
-def test_pixel_dump_names_the_right_export(tmp_path):
-    path = _file(tmp_path, "pixels.txt", "0\t0\t12\n1\t0\t13\n")
-    with pytest.raises(MidlineError, match="File › Save As › XY Coordinates"):
-        ml.read_trace(path, **SCALE)
-
-
-def test_two_pieces_and_self_intersection(tmp_path):
-    s = np.linspace(-0.5, 2 * np.pi - 1, 80)
-    pieces = np.vstack([half(40), half(40)[::-1] * [-1, 1] + [0, 3]])     # second one far off
-    loop = np.column_stack([np.sin(2 * s), np.sin(s)])                   # a figure of eight
-    for name, points, message in (("pieces", pieces, "is not one curve"),
-                                  ("loop", loop, "crosses the segment")):
-        path = write(tmp_path, "xy", name, points=points, section="half")
-        with pytest.raises(MidlineError, match=f"{name}.csv: .*{message}"):
-            ml.read_trace(path, **SCALE)
-
-
-@pytest.mark.parametrize("options, message", [
-    ({}, "pass pixel_size_um (µm per pixel) and radius_um (the embryo radius R in µm)"),
-    ({"radius_um": 50.0}, "pass pixel_size_um (µm per pixel) to convert"),
-    ({"pixel_size_um": 0.25}, "pass radius_um (the embryo radius R in µm) to convert"),
-    ({"pixel_size_um": -0.25, "radius_um": 50.0}, "pixel_size_um = -0.25 must be positive"),
-    ({"pixel_size_um": 0.25, "radius_um": "50"}, "radius_um = '50' must be a real number"),
-    ({"pixel_size_um": 0.25, "radius_um": 1e-4}, "R from the first point; a midline lies within "
-                                                  "20 R of its pole (check the pixel size"),
-])
-def test_scale_options(tmp_path, options, message):
-    path = write(tmp_path, "roi")
-    with pytest.raises(MidlineError) as exc:
-        ml.read_trace(path, **options)
-    assert message in str(exc.value) and str(path) in str(exc.value)
-
-
-def test_csv_refuses_pixel_options(tmp_path):
-    with pytest.raises(MidlineError, match="csv traces are in units of R: pixel_size_um"):
-        ml.read_trace(write(tmp_path, "csv"), pixel_size_um=0.25)
-
-
-def test_bad_roi_files(tmp_path):
-    area = roifile.ImagejRoi.frompoints(200 * half(20) + 300)     # a freehand area selection
-    area.tofile(tmp_path / "area.roi")
-    _file(tmp_path, "broken.roi", b"Iout\x00\x01")
-    for name, message in (("area.roi", "an area selection (freehand), not a line"),
-                          ("broken.roi", "not a readable ImageJ ROI file")):
-        with pytest.raises(MidlineError) as exc:
-            ml.read_trace(tmp_path / name, **SCALE)
-        assert f"{name}: {message}" in str(exc.value)
-
 
 def test_half_section_passed_as_whole_is_refused(tmp_path):
     path = write(tmp_path, "fiji-xy", section="half", angle_deg=37.0)

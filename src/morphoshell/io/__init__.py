@@ -1,8 +1,10 @@
 """Files in and out: problem files, traced midlines, and JSON/CSV output.
 
 Problem files (TOML) and their overrides, the packaged examples and the writers
-of results (:mod:`.problem_files`); traced midlines from Fiji/ImageJ and CSV
-(:mod:`.traces`).  Every reader names the file and the offending entry.
+of results (:mod:`.problem_files`); trace files of midlines from Fiji/ImageJ and
+CSV (:mod:`.traces`), and their geometry: alignment to the model gauge,
+resampling and averaging (:mod:`.midlines`).  Every reader names the file and the
+offending entry.
 """
 
 import lazy_loader
@@ -13,6 +15,7 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
         "apply_overrides", "split_overrides", "settings_from", "to_jsonable", "write_json",
         "write_csv", "METHODS", "SOLVER_KEYS", "ALIASES", "examples", "example_path",
         "example_text", "EXAMPLES_DIR"],
-    "traces": ["FORMATS", "SECTIONS", "MidlineError", "Trace", "Alignment", "Midline", "read_trace",
-        "align", "resample", "load_midline", "average", "to_image", "write_trace"],
+    "traces": ["FORMATS", "MidlineError", "Trace", "Midline", "read_trace", "to_image",
+        "write_trace"],
+    "midlines": ["SECTIONS", "Alignment", "align", "resample", "load_midline", "average"],
 })

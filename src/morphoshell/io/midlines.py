@@ -1,0 +1,501 @@
+"""Midline geometry: traces brought to the model gauge, resampled and averaged.
+
+A traced curve read from a file (:func:`morphoshell.io.traces.read_trace`,
+formats in :mod:`morphoshell.io.traces`) has an arbitrary rotation and
+offset, points unevenly spaced along it and pixel noise.  A fit needs a
+*half midline in the model gauge*: points (r_i, z_i) equally spaced in
+arclength from the posterior pole, at the origin, to the rim; the axis of
+symmetry along z, z growing toward the anterior, r ≥ 0; lengths in units of
+the embryo radius R.  The paper fits the average midline of each stage at
+N_fit = 100 such points (SI Appendix, "Fitting methods and details").  Three
+functions get there:
+
+``align``         a trace → :class:`Alignment` (half midline in the model gauge);
+``resample``      points → N points equally spaced in arclength, ends included;
+``average``       midlines of one stage → a
+                  :class:`~morphoshell.io.traces.Midline` with a pointwise spread.
+
+:func:`load_midline` chains :func:`morphoshell.io.traces.read_trace`,
+:func:`align` and :func:`resample`.  This module lives in ``io``, not with the
+fits, because :func:`load_midline` reads a file; it imports the file side
+(:mod:`morphoshell.io.traces`), never the reverse.  Bad traces and options raise
+:class:`~morphoshell.io.traces.MidlineError`, as the file side does.
+
+Alignment
+---------
+*csv* traces are already in the model gauge and are taken as they are.
+Image traces have an arbitrary rotation and offset; ``section`` says what was
+traced:
+
+``"whole"``  rim to rim through the posterior pole.  The pole is taken at
+             mid-arclength (a section traced from rim to rim has halves of
+             equal length), and the axis is the line that best maps the point
+             at arclength L/2 + σ onto the mirror image of the one at L/2 − σ,
+             0 < σ ≤ L/2: least squares of the mismatch across the curve,
+             with the mismatch along it weighted 1/100 (noise makes the
+             arclengths of the halves fluctuate, shifting partners along the
+             curve, which says nothing about the axis; the small weight keeps
+             a circular arc, symmetric about any diameter, determined by where
+             its rims are); then again with a soft-L1 loss scaled to the
+             residuals, so that a few stray points do not pull the axis.
+             The pole is where the axis crosses the curve; the two halves,
+             each from the pole to its rim, are mirrored onto r ≥ 0 and
+             averaged at equal fractions of their lengths.  The pole's height
+             along the axis is then that of a least-squares fit
+             z = z₀ + a s² + b s⁴ of the average within 0.3 R of arclength s
+             from it, not that of the one noisy point where the axis crosses
+             the trace: that point's error would shift the whole midline
+             along z.  A section whose
+             halves differ by more than ``max_asymmetry`` (rms, units of R)
+             is refused.
+``"half"``   pole to rim, the pole first.  A regular pole of an axisymmetric
+             surface has its tangent perpendicular to the axis, so the axis
+             is the normal to the trace at its first point and r grows along
+             the trace's first tangent.  That tangent is the end slope of the
+             interpolating spline: exact for clean (synthetic) data, but it
+             rests on the first few points, so noise σ at point spacing h
+             tilts the axis by ~σ/h radians (tens of degrees for pixel noise
+             on a dense trace).  Trace whole sections from real images.
+``"auto"``   csv → half; image formats → whole.  Shape alone cannot tell: a
+             circular arc traced from pole to rim is mirror-symmetric about
+             its middle exactly as a whole section of a cup is, so a half
+             image trace must be declared (a non-symmetric one passed as
+             whole fails the asymmetry check with a message that says so).
+
+The axis points toward the anterior, taken to be the side of the pole where
+the rims are (z_rim > 0, true until late inversion); ``flip=True`` reverses it.
+
+Noise and arclength
+-------------------
+Noise σ on points at spacing h lengthens a curve through them by a fraction
+~(σ/h)² (80 % for half-pixel noise on a one-pixel freehand trace), and
+unevenly, which moves equally spaced points along the curve.  So alignment
+first estimates σ (fourth differences across the curve) and, if σ/h exceeds
+1/20, averages the interior points in bins of k consecutive ones, the least
+k that brings the ratio below 1/20 (noise σ/√k at spacing kh); the end
+points are kept.  A bin's mean lies inside a curved line, by ½κ(k² − 1)h²/12,
+so each mean is moved back out by that amount, with the curvature from its
+neighbouring means.  Clean traces are left as they are.  What noise still
+leaves along the curve, :func:`average` removes by resampling the mean of the
+traces in its own arclength.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Sequence
+
+import numpy as np
+
+from .traces import (Midline, MidlineError, Trace, check_axis, check_choice, check_positive,
+                     read_trace)
+
+if TYPE_CHECKING:       # scipy is imported on use (CLI start-up)
+    from scipy.interpolate import CubicSpline
+
+__all__ = ["SECTIONS", "Alignment", "align", "resample", "load_midline", "average"]
+
+#: What a trace covers (see the module docstring).
+SECTIONS = ("auto", "whole", "half")
+#: Samples of σ in the mirror fit of a whole section, and the weight of the mismatch along the
+#: curve relative to across it (module docstring).
+_MIRROR_SAMPLES, _ALONG_WEIGHT = 200, 0.01
+#: Arclength (units of R) from the pole of a whole section over which its height is fitted,
+#: and the even powers of arclength fitted there: 1, s², s⁴ (:func:`_pole_height`).
+_POLE_WINDOW, _POLE_TERMS = 0.3, 3
+#: Largest ratio of point noise to point spacing that alignment leaves as it is (module docstring).
+_NOISE_PER_STEP = 0.05
+_GAUSS_X, _GAUSS_W = np.polynomial.legendre.leggauss(8)
+
+
+@dataclass(frozen=True, eq=False)
+class Alignment:
+    """A trace brought to the model gauge (:func:`align`).
+
+    Attributes
+    ----------
+    points : ndarray, shape (m, 2)
+        The half midline (r, z), units of R, pole first at the origin; for a
+        whole section the mirror average of its halves.
+    section : str
+        "whole" or "half".
+    axis_angle : float
+        Direction of +z (anterior) in the trace's frame (y up), radians
+        counter-clockwise from +y; nan for csv.
+    pole : ndarray, shape (2,)
+        The pole in the trace's frame (units of R).
+    asymmetry : float
+        Rms distance of each half from the mirror average (units of R); 0
+        for a half section.
+    """
+
+    points: np.ndarray
+    section: str
+    axis_angle: float
+    pole: np.ndarray
+    asymmetry: float
+
+
+
+# --------------------------------------------------------------------------- arclength
+
+def _speed_integral(spline, a, b):
+    """∫ₐᵇ |C′(u)| du for arrays a, b within one knot interval each (8-point Gauss–Legendre)."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    u = ((a + b) / 2)[..., None] + ((b - a) / 2)[..., None] * _GAUSS_X
+    return (b - a) / 2 * (np.linalg.norm(spline(u, 1), axis=-1) @ _GAUSS_W)
+
+
+@dataclass(frozen=True, eq=False)
+class _Curve:
+    """The cubic spline through a trace's points, addressed by arclength.
+
+    The spline is not-a-knot in the chord-length parameter u (error O(h⁴)
+    for points of a smooth curve at spacing h); ``knots`` holds the arclength
+    at each knot u_j.
+    """
+
+    spline: "CubicSpline"
+    knots: np.ndarray
+
+    @classmethod
+    def through(cls, points: np.ndarray) -> "_Curve":
+        u = np.r_[0.0, np.cumsum(np.hypot(*np.diff(points, axis=0).T))]
+        from scipy.interpolate import CubicSpline
+        spline = CubicSpline(u, points)
+        return cls(spline, np.r_[0.0, np.cumsum(_speed_integral(spline, u[:-1], u[1:]))])
+
+    @property
+    def length(self) -> float:
+        return float(self.knots[-1])
+
+    def __call__(self, s, tangent: bool = False) -> np.ndarray:
+        """Points, or unit tangents, at arclengths s; shape s.shape + (2,)."""
+        s = np.clip(np.asarray(s, dtype=float), 0.0, self.length)
+        u_knots = self.spline.x
+        j = np.clip(np.searchsorted(self.knots, s, side="right") - 1, 0, len(u_knots) - 2)
+        lo, hi, s_lo = u_knots[j], u_knots[j + 1], self.knots[j]
+        u = lo + (s - s_lo) / (self.knots[j + 1] - s_lo) * (hi - lo)
+        for _ in range(10):     # Newton on s(u) = s within the interval; converges in 2–3
+            excess = s_lo + _speed_integral(self.spline, lo, u) - s
+            u = np.clip(u - excess / np.linalg.norm(self.spline(u, 1), axis=-1), lo, hi)
+            if np.all(np.abs(excess) <= 1e-14 * self.length):
+                break
+        if not tangent:
+            return self.spline(u)
+        d = self.spline(u, 1)
+        return d / np.linalg.norm(d, axis=-1, keepdims=True)
+
+
+def resample(points, n: int = 100) -> np.ndarray:
+    """n points equally spaced in arclength along a curve, both ends included.
+
+    Parameters
+    ----------
+    points : array_like, shape (m, 2)
+        At least 4 finite points, consecutive ones distinct.
+    n : int
+        At least 2.
+
+    Returns
+    -------
+    ndarray, shape (n, 2)
+        On the not-a-knot cubic spline through ``points`` (chord-length
+        parameter), at arclengths k L/(n − 1) computed by Gauss–Legendre
+        quadrature and Newton's method: error O(h⁴) for a smooth curve
+        sampled at spacing h (below 1e-8 R at h = 0.01 R for curvatures of
+        order 1/R).
+    """
+    n = _count("n", n, 2)
+    points = np.asarray(points, dtype=float)
+    if points.ndim != 2 or points.shape[1] != 2 or len(points) < 4:
+        raise MidlineError(f"resample: points must have shape (m >= 4, 2), not {points.shape}")
+    if not np.all(np.isfinite(points)):     # (scipy said "`x` must contain only finite values")
+        i = int(np.flatnonzero(~np.all(np.isfinite(points), axis=1))[0])
+        raise MidlineError(f"resample: point {i} is {points[i].tolist()}, not finite")
+    if np.any(np.all(np.diff(points, axis=0) == 0, axis=1)):
+        raise MidlineError("resample: two consecutive points coincide")
+    curve = _Curve.through(points)
+    return curve(np.linspace(0.0, curve.length, n))
+
+
+def _count(name: str, value, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise MidlineError(f"{name} = {value!r} must be an integer >= {minimum}")
+    return int(value)
+
+
+# --------------------------------------------------------------------------- alignment
+
+def align(trace: Trace, section: str = "auto", *, flip: bool = False,
+          max_asymmetry: float = 0.05) -> Alignment:
+    """Bring a trace to the model gauge (rules in the module docstring).
+
+    Parameters
+    ----------
+    trace : Trace
+    section : {"auto", "whole", "half"}
+    flip : bool
+        Point +z the other way (when the rims are posterior of the pole).
+    max_asymmetry : float
+        Largest rms distance (units of R) of the halves of a whole section
+        from their mirror average.
+
+    Returns
+    -------
+    Alignment
+        ``points`` of shape (m, 2): the trace's own points for a half
+        section, max(1024, 2n) mirror-averaged points for a whole one.
+    """
+    section = check_choice(section, SECTIONS, "section")
+    max_asymmetry = check_positive("max_asymmetry", max_asymmetry)
+    if trace.format == "csv":
+        if section == "whole" or flip:
+            raise MidlineError(f"{trace.source}: csv traces are half midlines in the model gauge: "
+                               f"section='whole' and flip do not apply")
+        return Alignment(trace.points, "half", math.nan, trace.points[0], 0.0)
+    points = _bin_noisy(trace.points)
+    curve = _Curve.through(points)
+    if section == "half":
+        pole, e_r = curve(0.0), curve(0.0, tangent=True)
+        e_z = _anterior(np.array([-e_r[1], e_r[0]]), pole, [curve(curve.length)], flip)
+        points, asymmetry = _gauge(points, pole, e_r, e_z), 0.0
+        where = trace.where if len(points) == len(trace.where) else [
+            f"point {k + 1} after binning" for k in range(len(points))]
+    else:
+        pole, e_r, e_z, points, asymmetry = _whole(curve, len(points), flip)
+        if asymmetry > max_asymmetry:
+            raise MidlineError(f"{trace.source}: the halves of this whole section differ by "
+                               f"{asymmetry:.3g} R rms from their mirror average (max_asymmetry = "
+                               f"{max_asymmetry:g}): if it is a half section, pole first, pass "
+                               f"section='half'")
+        where = [f"{f:.0%} of the way from the pole" for f in np.linspace(0, 1, len(points))]
+    check_axis(trace.source, points, where)
+    return Alignment(points, "half" if section == "half" else "whole",
+                     math.atan2(-e_z[0], e_z[1]), pole, asymmetry)
+
+
+def _bin_noisy(points: np.ndarray) -> np.ndarray:
+    """The points, or, if noisy for their spacing, their interior averaged in bins of k.
+
+    σ is estimated from the fourth differences across the curve (their
+    median; Gaussian noise gives them variance 70 σ², a smooth curve O(h⁴));
+    k is the least making σ/√k ≤ _NOISE_PER_STEP·k·h.  The means are moved out by
+    the curvature bias of averaging along a curve.  Shape (m, 2), m ≤ n.
+    """
+    if len(points) < 12:
+        return points
+    chord = points[4:] - points[:-4]
+    across = chord[:, ::-1] * [1.0, -1.0] / np.linalg.norm(chord, axis=1, keepdims=True)
+    wiggle = np.abs(np.sum(np.diff(points, n=4, axis=0) * across, axis=1))
+    sigma = float(np.median(wiggle)) / (0.6745 * math.sqrt(70.0))
+    step = float(np.median(np.hypot(*np.diff(points, axis=0).T)))
+    k = math.ceil((sigma / (_NOISE_PER_STEP * step)) ** (2 / 3))
+    bins = (len(points) - 2) // k
+    if k <= 1 or bins < 4:
+        return points
+    groups = np.array_split(points[1:-1], bins)
+    out = np.vstack([points[:1], [b.mean(axis=0) for b in groups], points[-1:]])
+    # A bin's mean lies inside the curve: by ½ c''(s̄) (k² − 1) h²/12, c'' = κ n the
+    # curvature vector (Taylor: the positions s̄ + (i − (k − 1)/2) h average c(s̄) and
+    # half the variance times c'').  At the folds of a Volvox midline that is as large as the
+    # noise of an average of a few traces, and the same in every data set, so it would bias
+    # the fitted curvatures (κ₁).  It is removed, with c'' from the three-point difference of
+    # the means (which adds a little to their noise).
+    c2 = _second_derivative(out)
+    # the spacing from chords of 4 steps: noise lengthens single steps, and with them the
+    # correction
+    h = float(np.median(np.linalg.norm(chord, axis=1))) / 4
+    var = (np.array([len(b) for b in groups]) ** 2 - 1) * h ** 2 / 12
+    out[1:-1] -= 0.5 * var[:, None] * c2
+    return out
+
+
+def _second_derivative(points: np.ndarray) -> np.ndarray:
+    """c'' with respect to arclength at the interior points (m − 2, 2), from chords to their neighbours."""
+    a, b = points[1:-1] - points[:-2], points[2:] - points[1:-1]
+    d1, d2 = np.linalg.norm(a, axis=1)[:, None], np.linalg.norm(b, axis=1)[:, None]
+    return 2 * (b / d2 - a / d1) / (d1 + d2)
+
+
+def _gauge(points, pole, e_r, e_z) -> np.ndarray:
+    """(r, z) of points of the trace's frame, for the pole and axes given."""
+    return (points - pole) @ np.column_stack([e_r, e_z])
+
+
+def _anterior(e_z, pole, rims, flip: bool) -> np.ndarray:
+    """±e_z, pointing to the side of the pole where the rims are (or away, if ``flip``)."""
+    sign = 1.0 if np.mean([(rim - pole) @ e_z for rim in rims]) >= 0 else -1.0
+    return -sign * e_z if flip else sign * e_z
+
+
+def _whole(curve: _Curve, n_points: int, flip: bool):
+    """Pole, e_r, e_z, mirror-averaged half (m, 2) and asymmetry of a whole section."""
+    length = curve.length
+    sigma = length / 2 * np.arange(1, _MIRROR_SAMPLES + 1) / _MIRROR_SAMPLES
+    right, left = curve(length / 2 + sigma), curve(length / 2 - sigma)
+    # directions along and across the left half, from chords long enough to average noise out
+    chord = curve(length / 2 - sigma + length / 30) - curve(length / 2 - sigma - length / 30)
+    along = chord / np.linalg.norm(chord, axis=1, keepdims=True)
+    across = along @ [[0.0, 1.0], [-1.0, 0.0]]
+
+    def mismatch(p):      # reflection of the right half in the line n·X = c, minus the left half
+        normal = np.array([math.cos(p[0]), math.sin(p[0])])
+        d = right - 2 * (right @ normal - p[1])[:, None] * normal - left
+        return np.r_[np.sum(d * across, axis=1),
+                     _ALONG_WEIGHT * np.sum(d * along, axis=1)]
+
+    from scipy.optimize import least_squares
+    t = curve(length / 2, tangent=True)       # the axis is normal to the curve at the pole
+    fit = least_squares(mismatch, [math.atan2(t[1], t[0]), t @ curve(length / 2)],
+                        xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    scale = 1.4826 * float(np.median(np.abs(fit.fun)))      # MAD: the noise of the points
+    if scale > 1e-9 * length:
+        fit = least_squares(mismatch, fit.x, loss="soft_l1", f_scale=scale,
+                            xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    normal, c = np.array([math.cos(fit.x[0]), math.sin(fit.x[0])]), fit.x[1]
+    s_pole = _crossing(curve, normal, c)
+    pole = curve(s_pole)
+    fraction = np.linspace(0.0, 1.0, max(1024, 2 * n_points))
+    right, left = curve(s_pole + fraction * (length - s_pole)), curve(s_pole - fraction * s_pole)
+    e_r = normal if np.mean((right - pole) @ normal) >= 0 else -normal
+    e_z = _anterior(np.array([-normal[1], normal[0]]), pole, [right[-1], left[-1]], flip)
+    right, left = _gauge(right, pole, e_r, e_z), _gauge(left, pole, -e_r, e_z)    # left mirrored
+    asymmetry = float(np.sqrt(np.mean(np.sum((right - left) ** 2, axis=1)))) / 2
+    half = (right + left) / 2
+    z0 = _pole_height(half)
+    half[:, 1] -= z0
+    half[0] = 0.0
+    return pole + z0 * e_z, e_r, e_z, half, asymmetry
+
+
+def _pole_height(half: np.ndarray) -> float:
+    """Height z₀ of the pole of a mirror-averaged half (m, 2): least squares of z = z₀ + a s² + b s⁴.
+
+    Over the points within :data:`_POLE_WINDOW` of arclength s from the pole
+    (z is even in s through a regular pole).  The crossing of the axis with
+    the trace is one point of the noisy curve, and its height error shifts
+    the whole midline along z, which a fit, its pole pinned at the origin,
+    can only absorb by bending the posterior (the free fit's κ₁ is sensitive
+    to it).  The fitted height scatters less from trace to trace than
+    the crossing's; the series truncated after s⁴ errs a little on clean
+    data, and a term s⁶ would halve that error but scatter more with noise.
+    """
+    s = np.r_[0.0, np.cumsum(np.hypot(*np.diff(half, axis=0).T))]
+    near = s <= _POLE_WINDOW
+    if np.count_nonzero(near) < 6:
+        return 0.0
+    A = np.column_stack([s[near] ** (2 * j) for j in range(_POLE_TERMS)])
+    return float(np.linalg.lstsq(A, half[near, 1], rcond=None)[0][0])
+
+
+def _crossing(curve: _Curve, normal: np.ndarray, c: float) -> float:
+    """Arclength, nearest mid-length, where the curve crosses the line normal·X = c."""
+    s = np.linspace(0.0, curve.length, 4 * len(curve.knots) + 1)
+    side = curve(s) @ normal - c
+    changes = np.flatnonzero(np.sign(side[:-1]) != np.sign(side[1:]))
+    if not len(changes):
+        raise MidlineError("the fitted axis of symmetry does not cross the trace")
+    k = changes[np.argmin(np.abs(s[changes] - curve.length / 2))]
+    if side[k] == 0:
+        return float(s[k])
+    from scipy.optimize import brentq
+    return brentq(lambda x: float(curve(x) @ normal) - c, s[k], s[k + 1], xtol=1e-15)
+
+
+# --------------------------------------------------------------------------- midlines
+
+def load_midline(path: str | Path, format: str | None = None, *, n: int = 100,
+                 section: str = "auto", flip: bool = False, pixel_size_um: float | None = None,
+                 radius_um: float | None = None, max_asymmetry: float = 0.05) -> Midline:
+    """Read, align and resample one trace.
+
+    :func:`morphoshell.io.traces.read_trace`, then :func:`align`, then
+    :func:`resample`; the options are checked before the file is read.
+
+    Parameters
+    ----------
+    path : str or Path
+    format : str, optional
+        One of :data:`morphoshell.io.traces.FORMATS`; inferred from the
+        content when None.
+    n : int
+        Points of the midline, at least 2.
+    section : {"auto", "whole", "half"}
+    flip : bool
+        Point +z the other way (when the rims are posterior of the pole).
+    pixel_size_um, radius_um : float
+        µm per pixel and the embryo radius R in µm (image formats).
+    max_asymmetry : float
+        Largest rms distance (units of R) of the halves of a whole section
+        from their mirror average.
+
+    Returns
+    -------
+    Midline
+        n points (r, z each of shape (n,)), spread None, n_traces 1.
+
+    Raises
+    ------
+    MidlineError
+        A bad option, file or trace (:func:`morphoshell.io.traces.read_trace`,
+        :func:`align`).
+    """
+    n = _count("n", n, 2)
+    check_choice(section, SECTIONS, "section")
+    check_positive("max_asymmetry", max_asymmetry)
+    trace = read_trace(path, format, pixel_size_um=pixel_size_um, radius_um=radius_um)
+    half = align(trace, section, flip=flip, max_asymmetry=max_asymmetry).points
+    r, z = resample(half, n).T
+    return Midline(r, z, None, 1, (trace.source,))
+
+
+def average(midlines: Sequence[Midline]) -> Midline:
+    """Mean and spread of single-trace midlines of one stage, point by point.
+
+    The mean of the points i, resampled equally spaced in its own arclength
+    (:func:`resample`); the spread is that of the points i.  Without the
+    resampling the mean keeps a bias along the curve: pixel noise lengthens
+    each trace's arclength unevenly (most where the noise is large for the
+    point spacing), so a fraction of the length falls at a slightly other
+    material point in every trace alike, and averaging more traces does not
+    shrink it.  Resampled (and with the bins of :func:`align` moved back
+    onto the curve), the mean is unbiased within its standard error, with
+    the same spread.
+
+    Parameters
+    ----------
+    midlines : sequence of Midline
+        Single-trace midlines (n_traces 1), all of N points.
+
+    Returns
+    -------
+    Midline
+        r, z of shape (N,); spread of shape (N,) (None for a single
+        midline); n_traces the number averaged; source their files.
+
+    Raises
+    ------
+    MidlineError
+        No midlines, different numbers of points, or an input that is
+        itself an average.
+    """
+    midlines = list(midlines)
+    if not midlines:
+        raise MidlineError("average: no midlines given")
+    sizes = sorted({len(m.r) for m in midlines})
+    if len(sizes) > 1:
+        raise MidlineError(f"average: the midlines have different numbers of points {sizes}; "
+                           f"resample them to one n")
+    for m in midlines:
+        if m.n_traces != 1:
+            raise MidlineError(f"average: {', '.join(m.source) or 'a midline'} is already an "
+                               f"average of {m.n_traces} traces; average the single traces")
+    points = np.stack([m.points for m in midlines])            # (traces, N, 2)
+    mean = points.mean(axis=0)
+    if len(midlines) > 1 and len(mean) >= 4:
+        mean = resample(mean, len(mean))
+    spread = np.sqrt(points.var(axis=0, ddof=1).mean(axis=1)) if len(midlines) > 1 else None
+    return Midline(mean[:, 0], mean[:, 1], spread, len(midlines),
+                   tuple(s for m in midlines for s in m.source))

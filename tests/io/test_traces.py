@@ -1,0 +1,153 @@
+"""Trace files: formats, image coordinates, ImageJ spline-fit ROIs, the midline csv and bad files.
+
+The reference midline and its trace files: reference_midline.py.
+"""
+import numpy as np
+import pytest
+import roifile
+from scipy.interpolate import make_interp_spline
+
+from morphoshell.io import midlines as ml
+from morphoshell.io import traces as tr
+from morphoshell.io import Midline, MidlineError
+from reference_midline import SCALE, TRUTH, half, write
+
+
+# ------------------------------------------------------------------ image coordinates
+
+def test_image_y_points_down(tmp_path):
+    """Anterior up on screen (angle 0) puts the rims above the pole: smaller y in the files."""
+    text = write(tmp_path, "fiji-xy", angle_deg=0.0, offset_px=(300.0, 400.0))
+    rows = np.loadtxt(text)
+    assert rows[0, 1] < rows[800, 1] and rows[-1, 1] < rows[800, 1]
+    assert rows[800] == pytest.approx([300.0, 400.0])            # the pole where it was put
+    roi = roifile.ImagejRoi.fromfile(write(tmp_path, "roi", angle_deg=0.0, offset_px=(300, 400)))
+    assert np.allclose(roi.coordinates(), rows, atol=1e-4)      # float32
+    trace = tr.read_trace(text, **SCALE)                        # read with y up
+    assert trace.points[0, 1] > trace.points[800, 1]
+
+
+def test_spline_fit_roi_is_interpolated(tmp_path):
+    """A spline-fit ROI stores 25 control points; the curve between them is ImageJ's spline."""
+    control = half(13)
+    path = write(tmp_path, "roi", points=control, angle_deg=30.0, offset_px=(400.0, 400.0),
+                 spline_fit=True)
+    trace = tr.read_trace(path, **SCALE)
+    assert len(trace.points) == tr.SPLINE_SUBDIVISIONS * 24 + 1
+    stored = np.asarray(roifile.ImagejRoi.fromfile(path).coordinates(), dtype=float)
+    assert np.allclose(trace.points[::tr.SPLINE_SUBDIVISIONS], stored * [0.005, -0.005])
+    # ImageJ's curve, written independently: natural B-spline in the centripetal parameter
+    t = np.r_[0, np.cumsum(np.sqrt(np.hypot(*np.diff(stored, axis=0).T)))]
+    imagej = make_interp_spline(t, stored, k=3, bc_type="natural")((t[1:] + t[:-1]) / 2)
+    between = trace.points[tr.SPLINE_SUBDIVISIONS // 2::tr.SPLINE_SUBDIVISIONS]
+    assert np.abs(between - imagej * [0.005, -0.005]).max() < 1e-12
+    # ... not the spline this module puts through plain points (not-a-knot, chord length)
+    chord = np.r_[0, np.cumsum(np.hypot(*np.diff(stored, axis=0).T))]
+    plain = make_interp_spline(chord, stored, k=3)((chord[1:] + chord[:-1]) / 2)
+    assert np.abs(between - plain * [0.005, -0.005]).max() > 1e-4
+    assert np.abs(ml.load_midline(path, **SCALE).points - TRUTH).max() < 3e-3
+
+
+def test_dense_noisy_trace_is_one_curve(tmp_path):
+    """Noise as large as the spacing makes tiny loops; they are not a second curve."""
+    path = write(tmp_path, "fiji-xy", points=half(801), noise_px=0.5, seed=1)
+    assert len(tr.read_trace(path, **SCALE).points) == 1601
+
+
+# ------------------------------------------------------------------ midline csv
+
+def test_midline_csv_round_trip(tmp_path):
+    rng = np.random.default_rng(0)
+    mean = ml.average([Midline(*(TRUTH + rng.normal(0, 0.01, TRUTH.shape)).T,
+                               source=(f"embryo {i}.roi",)) for i in range(3)])
+    mean.to_csv(tmp_path / "mean.csv")
+    back = Midline.from_csv(tmp_path / "mean.csv")
+    assert np.array_equal(back.points, mean.points) and np.array_equal(back.spread, mean.spread)
+    assert back.n_traces == 3 and back.source == mean.source
+    trace = tr.read_trace(tmp_path / "mean.csv")                # the same file as a trace
+    assert trace.format == "csv" and np.array_equal(trace.points, mean.points)
+
+
+# ------------------------------------------------------------------ bad input
+
+def _file(tmp_path, name, content):
+    path = tmp_path / name
+    path.write_bytes(content if isinstance(content, bytes) else content.encode())
+    return path
+
+
+GOOD_ROWS = [f"{x:.3f}\t{y:.3f}" for x, y in 200 * half(20) + 300]
+JUMP = "\n".join(GOOD_ROWS[:6] + ["5000\t5000"] + GOOD_ROWS[6:]) + "\n"
+
+
+@pytest.mark.parametrize("name, content, message", [
+    ("empty.txt", "", "empty.txt: empty file"),
+    ("blank.csv", "\n  \n# only a comment\n", "blank.csv: empty file"),
+    ("word.csv", "x,y\n1,2\n3,abc\n5,6\n7,8\n", "word.csv: line 3, column 2 (y): 'abc' is not a number"),
+    ("ragged.csv", "r,z\n0,0\n1,2,3\n", "ragged.csv: line 3: 3 values, expected 2 (r, z)"),
+    ("nan.txt", "1\t2\nnan\t3\n4\t5\n6\t7\n", "nan.txt: line 2, column 1 (x): nan is not finite"),
+    ("few.txt", "1\t2\n3\t4\n5\t6\n", "few.txt: 3 distinct points; a midline needs at least 4"),
+    ("latin1.csv", b"x,y\n1,2\n3,4\n# caf\xe9\n", "latin1.csv: line 4: not UTF-8"),
+    ("dump.txt", "10\t20\t255\n11\t20\t254\n", "dump.txt: line 1: 3 columns: this is a pixel list"),
+    ("area.csv", " ,X,Y,Value\n1,10,20,255\n", "area.csv: line 1: columns ',X,Y,Value': this is"),
+    ("header.csv", "a,b\n1,2\n", "header.csv: line 1: unrecognised header 'a,b'"),
+    ("jump.txt", JUMP, "jump.txt: line 6 to line 7: a step of"),
+    ("negative.csv", "r,z\n0,0\n-0.5,0.1\n-1,0.4\n-1.2,1\n", "negative.csv: line 3: r = -0.5 < 0"),
+    # in units of R a midline stays near its pole (at 1e300 the spline overflowed)
+    ("far.csv", "r,z\n0,0\n0.1,0.1\n1e300,1\n0.3,0.3\n", "far.csv: line 4: 1e+300 R from the first"),
+])
+def test_malformed_files(tmp_path, name, content, message):
+    path = _file(tmp_path, name, content)
+    scale = {} if name.endswith("csv") and "r,z" in str(content) else SCALE
+    with pytest.raises(MidlineError) as exc:
+        tr.read_trace(path, **scale)
+    assert message in str(exc.value) and str(path) in str(exc.value)
+
+
+def test_pixel_dump_names_the_right_export(tmp_path):
+    path = _file(tmp_path, "pixels.txt", "0\t0\t12\n1\t0\t13\n")
+    with pytest.raises(MidlineError, match="File › Save As › XY Coordinates"):
+        tr.read_trace(path, **SCALE)
+
+
+def test_two_pieces_and_self_intersection(tmp_path):
+    s = np.linspace(-0.5, 2 * np.pi - 1, 80)
+    pieces = np.vstack([half(40), half(40)[::-1] * [-1, 1] + [0, 3]])     # second one far off
+    loop = np.column_stack([np.sin(2 * s), np.sin(s)])                   # a figure of eight
+    for name, points, message in (("pieces", pieces, "is not one curve"),
+                                  ("loop", loop, "crosses the segment")):
+        path = write(tmp_path, "xy", name, points=points, section="half")
+        with pytest.raises(MidlineError, match=f"{name}.csv: .*{message}"):
+            tr.read_trace(path, **SCALE)
+
+
+@pytest.mark.parametrize("options, message", [
+    ({}, "pass pixel_size_um (µm per pixel) and radius_um (the embryo radius R in µm)"),
+    ({"radius_um": 50.0}, "pass pixel_size_um (µm per pixel) to convert"),
+    ({"pixel_size_um": 0.25}, "pass radius_um (the embryo radius R in µm) to convert"),
+    ({"pixel_size_um": -0.25, "radius_um": 50.0}, "pixel_size_um = -0.25 must be positive"),
+    ({"pixel_size_um": 0.25, "radius_um": "50"}, "radius_um = '50' must be a real number"),
+    ({"pixel_size_um": 0.25, "radius_um": 1e-4}, "R from the first point; a midline lies within "
+                                                  "20 R of its pole (check the pixel size"),
+])
+def test_scale_options(tmp_path, options, message):
+    path = write(tmp_path, "roi")
+    with pytest.raises(MidlineError) as exc:
+        tr.read_trace(path, **options)
+    assert message in str(exc.value) and str(path) in str(exc.value)
+
+
+def test_csv_refuses_pixel_options(tmp_path):
+    with pytest.raises(MidlineError, match="csv traces are in units of R: pixel_size_um"):
+        tr.read_trace(write(tmp_path, "csv"), pixel_size_um=0.25)
+
+
+def test_bad_roi_files(tmp_path):
+    area = roifile.ImagejRoi.frompoints(200 * half(20) + 300)     # a freehand area selection
+    area.tofile(tmp_path / "area.roi")
+    _file(tmp_path, "broken.roi", b"Iout\x00\x01")
+    for name, message in (("area.roi", "an area selection (freehand), not a line"),
+                          ("broken.roi", "not a readable ImageJ ROI file")):
+        with pytest.raises(MidlineError) as exc:
+            tr.read_trace(tmp_path / name, **SCALE)
+        assert f"{name}: {message}" in str(exc.value)
