@@ -111,8 +111,8 @@ MIN_CHUNK = 16
 #: ... or longer than this (progress and load balance on many workers).
 MAX_CHUNK = 256
 #: Below this many solves (two per ablation) ``workers=None`` runs in this
-#: process: starting worker processes (2–7 s, measured) would cost more than
-#: it saves (a warm solve of 200 nodes takes 10–30 ms).
+#: process: starting worker processes would cost more than it saves (tuned by
+#: scripts/bench_sweep.py: worker start-up against warm solves).
 SERIAL_BELOW = 200
 
 #: Value columns of a solve sweep (energy in C R², edge values in R and rad).
@@ -275,22 +275,29 @@ def _check_axes(problem: Problem, axes: Mapping[str, Sequence]) -> dict[str, tup
         if name not in valid:
             raise ValueError(f"sweep axis {name!r} is not a key of a {problem.family!r} problem; "
                              f"valid: {list(valid)}")
-        if isinstance(values, (str, bytes)) or not isinstance(values, (Sequence, np.ndarray)):
-            raise ValueError(f"sweep axis {name!r}: the values {values!r} must be a list")
-        values = tuple(v.item() if isinstance(v, np.generic) else v for v in values)
-        if not values:
-            raise ValueError(f"sweep axis {name!r} has no values")
-        for v in values:
-            if name == "theory":
-                if not isinstance(v, str):
-                    raise ValueError(f"sweep axis 'theory': {v!r} is not a theory name")
-            elif isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-                raise ValueError(f"sweep axis {name!r}: {v!r} is not a finite number")
-        if len(set(values)) != len(values):
-            repeated = sorted({v for v in values if values.count(v) > 1}, key=str)
-            raise ValueError(f"sweep axis {name!r} repeats the value(s) {repeated}")
+        values = _axis_values(name, values)
         out[name] = tuple(float(v) if name != "theory" else v for v in values)
     return out
+
+
+def _axis_values(name: str, values) -> tuple:
+    """The values of axis ``name`` as a tuple of Python scalars: a list of distinct values,
+    finite numbers (theory names for ``theory``)."""
+    if isinstance(values, (str, bytes)) or not isinstance(values, (Sequence, np.ndarray)):
+        raise ValueError(f"sweep axis {name!r}: the values {values!r} must be a list")
+    values = tuple(v.item() if isinstance(v, np.generic) else v for v in values)
+    if not values:
+        raise ValueError(f"sweep axis {name!r} has no values")
+    for v in values:
+        if name == "theory":
+            if not isinstance(v, str):
+                raise ValueError(f"sweep axis 'theory': {v!r} is not a theory name")
+        elif isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise ValueError(f"sweep axis {name!r}: {v!r} is not a finite number")
+    if len(set(values)) != len(values):
+        repeated = sorted({v for v in values if values.count(v) > 1}, key=str)
+        raise ValueError(f"sweep axis {name!r} repeats the value(s) {repeated}")
+    return values
 
 
 def chunk_plan(axes: Mapping[str, Sequence], chunk_size: int | None = None
@@ -477,7 +484,7 @@ def _measure(problem: Problem, pre: Equilibrium, post: Equilibrium) -> dict[str,
 
 def _estimate(shells: Sequence[tuple[_Shell, Problem, tuple, Equilibrium]], measure,
               order: int) -> dict[str, float]:
-    """Error of each measured value: the half and quarter meshes, as ``solve()``'s estimate.
+    """Error of each value of ``measure``: the half and quarter meshes, as ``solve()``'s estimate.
 
     :func:`morphoshell.solvers.refinement.level_errors`; NaN where a coarse mesh is
     too small or does not converge.
@@ -519,34 +526,9 @@ def _run_chunk(chunk: _Chunk) -> list[tuple[int, dict]]:
         row.update(status="", iterations=0, path="", message="")
         try:
             if chunk.ablate:
-                rim = (problem.cut,)
-                try:
-                    pre, pre_path = pre_shell.advance(intact, rim)
-                finally:
-                    row["iterations"] += pre_shell.iterations
-                try:
-                    post, post_path = post_shell.advance(problem, ())
-                finally:
-                    row["iterations"] += post_shell.iterations
-                row.update(_measure(problem, pre, post))
-                paths = (pre_path, post_path)
-                row["path"] = next(p for p in ("continuation", "split", "remesh", "warm")
-                                   if p in paths)
-                if estimate:
-                    errors = _estimate([(pre_shell, intact, rim, pre), (post_shell, problem, (), post)],
-                                       lambda eqs: {k: v for k, v in _measure(problem, *eqs).items()
-                                                    if k in estimated}, order)
-                    row.update({f"{k}_error": v for k, v in errors.items()})
+                post = _ablate_point(row, problem, intact, pre_shell, post_shell, estimate, order)
             else:
-                try:
-                    post, row["path"] = post_shell.advance(problem, ())
-                finally:
-                    row["iterations"] += post_shell.iterations
-                row.update(post.estimated_values())
-                if estimate:
-                    errors = _estimate([(post_shell, problem, (), post)],
-                                       lambda eqs: eqs[0].estimated_values(), order)
-                    row.update({f"{k}_error": v for k, v in errors.items()})
+                post = _solve_point(row, problem, post_shell, estimate, order)
             row["status"] = post.solver.status
         except SolverError as exc:
             row.update({k: math.nan for k in names}, status=exc.status or "Solver_Error",
@@ -554,6 +536,48 @@ def _run_chunk(chunk: _Chunk) -> list[tuple[int, dict]]:
         row["seconds"] = time.perf_counter() - t0
         rows.append((index, row))
     return rows
+
+
+def _solve_point(row: dict, problem: Problem, shell: _Shell, estimate: bool,
+                 order: int) -> Equilibrium:
+    """Solve one point of a chunk into ``row`` (values, path, iterations, errors); its equilibrium."""
+    try:
+        post, row["path"] = shell.advance(problem, ())
+    finally:
+        row["iterations"] += shell.iterations
+    row.update(post.estimated_values())
+    if estimate:
+        errors = _estimate([(shell, problem, (), post)],
+                           lambda eqs: eqs[0].estimated_values(), order)
+        row.update({f"{k}_error": v for k, v in errors.items()})
+    return post
+
+
+def _ablate_point(row: dict, problem: Problem, intact: Problem, pre_shell: _Shell,
+                  post_shell: _Shell, estimate: bool, order: int) -> Equilibrium:
+    """Ablate one point of a chunk into ``row``: the intact shell, then the cut one.
+
+    The row's path is the most laborious of the two shells'.  Returns the
+    cut shell's equilibrium.
+    """
+    rim = (problem.cut,)
+    try:
+        pre, pre_path = pre_shell.advance(intact, rim)
+    finally:
+        row["iterations"] += pre_shell.iterations
+    try:
+        post, post_path = post_shell.advance(problem, ())
+    finally:
+        row["iterations"] += post_shell.iterations
+    row.update(_measure(problem, pre, post))
+    paths = (pre_path, post_path)
+    row["path"] = next(p for p in ("continuation", "split", "remesh", "warm") if p in paths)
+    if estimate:
+        errors = _estimate([(pre_shell, intact, rim, pre), (post_shell, problem, (), post)],
+                           lambda eqs: {k: v for k, v in _measure(problem, *eqs).items()
+                                        if k in ESTIMATED_ABLATION}, order)
+        row.update({f"{k}_error": v for k, v in errors.items()})
+    return post
 
 
 # --------------------------------------------------------------------------
@@ -614,6 +638,43 @@ def sweep(problem: Problem, axes: Mapping[str, Sequence], *, ablate: bool = Fals
     >>> res.to_dataframe()[["k", "psi_start"]].round(3).values.tolist()
     [[0.0, 0.822], [0.5, 0.561]]
     """
+    nodes, stages = _check_arguments(problem, nodes, errors, options)
+    axes = _check_axes(problem, axes)
+    points = _points(problem, axes, ablate, nodes, stages)
+    chunk_axis, chunks = chunk_plan(axes, chunk_size)
+    n = len(points)
+    if workers is None and scheduler is None and not os.environ.get("DASK_SCHEDULER_ADDRESS"):
+        workers = _default_workers(n * (2 if ablate else 1), len(chunks))
+    parallel = scheduler is not None or os.environ.get("DASK_SCHEDULER_ADDRESS") or workers != 1
+    if parallel and not _portable(problem):
+        raise ValueError(f"family {problem.family!r} is registered only in this session: worker "
+                         f"processes cannot load it; use workers=1, or install it as a plugin "
+                         f"(entry point group {ENTRY_POINT_GROUP!r})")
+    base = problem.describe()
+    if not parallel:
+        base = {**base, "family": problem.family_obj}     # not pickled: any family
+    tasks = _tasks(base, axes, chunk_axis, chunks, points, ablate, nodes, options, errors)
+    what = "ablations" if ablate else "equilibria"
+    log.info("sweep of %d %s (%s) in %d chunks along %s", n, what,
+             " x ".join(f"{len(v)} {k}" for k, v in axes.items()), len(chunks), chunk_axis)
+    t0 = time.perf_counter()
+    results, backend = _run_tasks(tasks, n, workers, scheduler, f"sweep: {n} {what}")
+    seconds = time.perf_counter() - t0
+    columns = _columns(axes, results, ablate)
+    timing = {"seconds": seconds, "workers": workers if scheduler is None else "scheduler",
+              "backend": backend, "chunks": len(chunks), "chunk_axis": chunk_axis,
+              "nodes": nodes, "errors": errors}
+    result = SweepResult(problem, axes, bool(ablate), columns, _units(columns), timing)
+    if result.failed:
+        statuses = sorted(set(columns["status"][columns["message"] != ""]))
+        log.warning("sweep: %d of %d points failed (%s); their rows keep the status",
+                    result.failed, n, ", ".join(statuses))
+    return result
+
+
+def _check_arguments(problem: Problem, nodes: int, errors: str, options: Mapping
+                     ) -> tuple[int, int]:
+    """(nodes, stages) of :func:`sweep`, with its problem, errors and options checked."""
     if not isinstance(problem, Problem):
         raise ValueError(f"problem must be a Problem, got {problem!r}")
     unknown = sorted(set(options) - set(DIRECT_OPTIONS) | ({"max_nodes"} & set(options)))
@@ -626,21 +687,23 @@ def sweep(problem: Problem, axes: Mapping[str, Sequence], *, ablate: bool = Fals
     stages = options.get("stages", 2)
     if isinstance(stages, bool) or stages not in (1, 2, 3):
         raise ValueError(f"stages = {stages!r} must be 1, 2 or 3")
-    axes = _check_axes(problem, axes)
-    points = _points(problem, axes, ablate, nodes, stages)
-    chunk_axis, chunks = chunk_plan(axes, chunk_size)
-    n = len(points)
-    if workers is None and scheduler is None and not os.environ.get("DASK_SCHEDULER_ADDRESS"):
-        solves = n * (2 if ablate else 1)
-        workers = 1 if solves < SERIAL_BELOW else max(1, min(os.cpu_count() or 1, len(chunks)))
-    parallel = scheduler is not None or os.environ.get("DASK_SCHEDULER_ADDRESS") or workers != 1
-    if parallel and not _portable(problem):
-        raise ValueError(f"family {problem.family!r} is registered only in this session: worker "
-                         f"processes cannot load it; use workers=1, or install it as a plugin "
-                         f"(entry point group {ENTRY_POINT_GROUP!r})")
-    base = problem.describe()
-    if not parallel:
-        base = {**base, "family": problem.family_obj}     # not pickled: any family
+    return nodes, stages
+
+
+def _default_workers(solves: int, chunks: int) -> int:
+    """Workers of a sweep of ``solves`` solves in ``chunks`` chunks without a scheduler:
+    this process below :data:`SERIAL_BELOW`, else one per CPU core, at most one per chunk."""
+    return 1 if solves < SERIAL_BELOW else max(1, min(os.cpu_count() or 1, chunks))
+
+
+def _tasks(base: Mapping[str, Any], axes: Mapping[str, tuple], chunk_axis: str,
+           chunks: list[list[int]], points: list[dict], ablate: bool, nodes: int,
+           options: Mapping[str, Any], errors: str) -> list[_Chunk]:
+    """One :class:`_Chunk` per chunk of the plan, each point marked where errors are estimated.
+
+    ``errors="ends"`` estimates at both ends of the chunk axis (its first and
+    last value), ``"all"`` everywhere.
+    """
     c = list(axes).index(chunk_axis)
     line = len(axes[chunk_axis])
     tasks = []
@@ -650,10 +713,15 @@ def sweep(problem: Problem, axes: Mapping[str, Sequence], *, ablate: bool = Fals
                          for w in where)
         tasks.append(_Chunk(base, tuple((i, points[i]) for i in rows), bool(ablate), nodes,
                             dict(options), estimate))
-    what = "ablations" if ablate else "equilibria"
-    log.info("sweep of %d %s (%s) in %d chunks along %s", n, what,
-             " x ".join(f"{len(v)} {k}" for k, v in axes.items()), len(chunks), chunk_axis)
-    t0 = time.perf_counter()
+    return tasks
+
+
+def _run_tasks(tasks: list[_Chunk], n: int, workers: int | None, scheduler: str | None,
+               desc: str) -> tuple[list[dict], str]:
+    """Every point's row, in the order of the product, and the executor's back end.
+
+    A scheduler that does not answer is bad input: ValueError naming it.
+    """
     results: list = [None] * n
     with ExitStack() as stack:
         try:
@@ -662,7 +730,6 @@ def sweep(problem: Problem, axes: Mapping[str, Sequence], *, ablate: bool = Fals
             raise ValueError(f"scheduler {scheduler or os.environ.get('DASK_SCHEDULER_ADDRESS')!r}"
                              f": cannot connect ({exc})") from None
         backend = backend_name(executor)
-        desc = f"sweep: {n} {what}"
         if backend == "serial":   # run() would solve every chunk before showing its bar
             done = ((i, _run_chunk(t)) for i, t in enumerate(tasks))
             done = progress(done, total=len(tasks), desc=desc, unit="chunk")
@@ -671,21 +738,16 @@ def sweep(problem: Problem, axes: Mapping[str, Sequence], *, ablate: bool = Fals
         for _, rows in done:
             for index, row in rows:
                 results[index] = row
-    seconds = time.perf_counter() - t0
-    columns = _columns(axes, results, ablate)
+    return results, backend
+
+
+def _units(columns: Mapping[str, np.ndarray]) -> dict[str, str]:
+    """The units of the columns there are (:data:`UNITS`, their errors', k in 1/R)."""
     units = {k: v for k, v in UNITS.items() if k in columns}
     units.update({f"{k}_error": UNITS[k] for k in UNITS if f"{k}_error" in columns})
     if "k" in columns:
         units["k"] = "1/R"
-    timing = {"seconds": seconds, "workers": workers if scheduler is None else "scheduler",
-              "backend": backend, "chunks": len(chunks), "chunk_axis": chunk_axis,
-              "nodes": nodes, "errors": errors}
-    result = SweepResult(problem, axes, bool(ablate), columns, units, timing)
-    if result.failed:
-        statuses = sorted(set(columns["status"][columns["message"] != ""]))
-        log.warning("sweep: %d of %d points failed (%s); their rows keep the status",
-                    result.failed, n, ", ".join(statuses))
-    return result
+    return units
 
 
 def _columns(axes: Mapping[str, tuple], rows: list[dict], ablate: bool) -> dict[str, np.ndarray]:
