@@ -1,6 +1,7 @@
 """Many solves at once: parameter sweeps and fit campaigns, in parallel.
 
-:func:`~morphoshell.workflows.sweeps.sweep` solves on grids of parameters,
+:func:`~morphoshell.workflows.sweeps.sweep` solves on grids of parameters
+(:mod:`.sweep_results`: its table),
 :func:`~morphoshell.workflows.campaigns.campaign` fits every timepoint of an
 inversion sequence (:mod:`.timepoint_fits`: one variant's timepoints in order;
 :mod:`.campaign_results`: the records and the summary table), and
@@ -20,7 +21,8 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "fitted_shapes": ["NumericalAblation", "numerical_ablation", "ablation_errors",
         "fitted_problem", "fitted_state", "CUT"],
     "timepoint_fits": ["HELD"],
-    "sweeps": ["sweep", "SweepResult", "ERRORS", "MAX_SPLITS", "SOLVE_COLUMNS", "ABLATE_COLUMNS",
+    "sweeps": ["sweep", "ERRORS", "MAX_SPLITS", "SOLVE_COLUMNS", "ABLATE_COLUMNS",
         "ESTIMATED_ABLATION", "UNITS", "chunk_plan"],
+    "sweep_results": ["SweepResult"],
     "executor": ["open_executor", "run", "SerialExecutor", "backend_name"],
 })

@@ -2,9 +2,11 @@
 
 :func:`sweep` solves (or, with ``ablate=True``, ablates) a problem at every
 point of the Cartesian product of its ``axes`` (any of h, theory, cut,
-opening and the family's parameters) and returns a :class:`SweepResult`, a
-table with one row per point (:meth:`SweepResult.to_dataframe`) that is also
-an xarray Dataset with the axes as dimensions (:meth:`SweepResult.to_xarray`).
+opening and the family's parameters) and returns a
+:class:`~morphoshell.workflows.sweep_results.SweepResult`, a table with one
+row per point (:meth:`~morphoshell.workflows.sweep_results.SweepResult.to_dataframe`)
+that is also an xarray Dataset with the axes as dimensions
+(:meth:`~morphoshell.workflows.sweep_results.SweepResult.to_xarray`).
 
 How it is fast
 --------------
@@ -72,14 +74,13 @@ import math
 import os
 import time
 from contextlib import ExitStack
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from itertools import product
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from .._runtime.console import progress
-from .._runtime.tables import problem_attrs, xarray_module
 from ..mechanics.ablation import UNITS as ABLATION_UNITS
 from ..mechanics.ablation import edge_state, intact_problem
 from ..model.problem import BASE_KEYS, Problem
@@ -92,8 +93,9 @@ from ..solvers.refinement import half_mesh, level_errors, solve_from
 from ..solvers.results import ESTIMATED, Equilibrium, SolverError
 from ..solvers.routes import DIRECT_OPTIONS, direct_solver
 from .executor import backend_name, open_executor, run
+from .sweep_results import SweepResult, result_columns
 
-__all__ = ["sweep", "SweepResult", "ERRORS", "MAX_SPLITS", "SOLVE_COLUMNS", "ABLATE_COLUMNS",
+__all__ = ["sweep", "ERRORS", "MAX_SPLITS", "SOLVE_COLUMNS", "ABLATE_COLUMNS",
            "ESTIMATED_ABLATION", "UNITS", "chunk_plan"]
 
 log = logging.getLogger(__name__)
@@ -125,139 +127,8 @@ ESTIMATED_ABLATION = ("opening", "rotation", "displacement", "energy_released")
 UNITS = {"energy": "C R^2", "r_start": "R", "psi_start": "rad", "r_end": "R", "psi_end": "rad",
          "z_end": "R", **ABLATION_UNITS, "h": "R", "cut": "R", "opening_P": "R",
          "seconds": "s", "iterations": "1"}
-_BOOK = ("status", "iterations", "path", "seconds", "message")
 #: Families that worker processes can load by name: the packaged ones.
 _PACKAGED = frozenset(FAMILIES)
-
-
-# --------------------------------------------------------------------------
-# the result
-# --------------------------------------------------------------------------
-
-@dataclass(frozen=True, eq=False)
-class SweepResult:
-    """The rows of a sweep, in the order of the Cartesian product (last axis fastest).
-
-    Attributes
-    ----------
-    problem : Problem
-        The base problem; each point is ``problem.with_updates(**point)``.
-    axes : mapping
-        Axis name → its values, in the order given (the product's order).
-    ablate : bool
-        Ablation sweep (recoil observables) or equilibria.
-    columns : mapping
-        Column name → ndarray (one entry per point): the axes (``opening`` is
-        ``opening_P`` in ablation sweeps), the values, their ``*_error``
-        estimates (NaN where not estimated or failed), then ``status``,
-        ``iterations``, ``path``, ``seconds`` and ``message``.
-    units : mapping
-        Column → unit (lengths in units of R, angles in rad, energies in C R²).
-    timing : mapping
-        ``seconds`` (wall time of the whole sweep, worker start-up included),
-        ``workers``, ``backend`` ("serial", "processes" or "dask"), ``chunks``,
-        ``chunk_axis``, ``nodes``, ``errors``.
-    """
-
-    problem: Problem
-    axes: Mapping[str, tuple]
-    ablate: bool
-    columns: Mapping[str, np.ndarray]
-    units: Mapping[str, str]
-    timing: Mapping[str, Any] = field(default_factory=dict)
-
-    def __len__(self) -> int:
-        return len(self.columns["status"])
-
-    def __repr__(self) -> str:
-        shape = " x ".join(f"{len(v)} {k}" for k, v in self.axes.items())
-        what = "ablations" if self.ablate else "equilibria"
-        return (f"SweepResult({len(self)} {what}: {shape}; {self.failed} failed; "
-                f"{self.timing.get('seconds', math.nan):.3g} s on "
-                f"{self.timing.get('workers', '?')} worker(s))")
-
-    @property
-    def failed(self) -> int:
-        """Number of points without a solution (their ``status`` says why)."""
-        return int(np.sum(self.columns["message"] != ""))
-
-    @property
-    def shape(self) -> tuple[int, ...]:
-        """Number of values of each axis."""
-        return tuple(len(v) for v in self.axes.values())
-
-    def dims(self) -> tuple[str, ...]:
-        """The axes' names as columns and dimensions (``opening_P`` for ``opening`` in ablations)."""
-        return tuple(_column_name(k, self.ablate) for k in self.axes)
-
-    def to_dataframe(self):
-        """The sweep as a table: one row per point.
-
-        Returns
-        -------
-        pandas.DataFrame
-            The columns of :attr:`columns`.  ``df.attrs`` holds ``units``
-            (column → unit), ``problem`` (the base problem,
-            :meth:`Problem.describe`), ``axes``, ``ablate``, ``timing`` and,
-            for ablations, ``gauge``.
-        """
-        import pandas as pd
-
-        df = pd.DataFrame({k: v for k, v in self.columns.items()})
-        df.attrs.update(units=dict(self.units), problem=self.problem.describe(),
-                        axes={k: list(v) for k, v in self.axes.items()}, ablate=self.ablate,
-                        timing=dict(self.timing))
-        if self.ablate:
-            df.attrs["gauge"] = _GAUGE
-        return df
-
-    def to_xarray(self):
-        """The sweep as an xarray Dataset with the axes as dimensions.
-
-        Needs the optional extra ``xarray`` (``pip install 'morphoshell[xarray]'``).
-
-        Returns
-        -------
-        xarray.Dataset
-            Coordinates: the axes (their values; ``units`` where known).
-            Variables: every other column of :attr:`columns`, reshaped to
-            :attr:`shape` (``units`` attached), e.g. ``ds["rotation"].sel(k=0.5)``.
-            Attributes: the base problem (flat, as
-            :meth:`Equilibrium.to_xarray`), ``ablate`` and the timing.
-        """
-        xr = xarray_module()
-        dims = self.dims()
-        coords = {d: (d, np.asarray(v), {"units": self.units[d]} if d in self.units else {})
-                  for d, v in zip(dims, self.axes.values())}
-        data = {k: (dims, np.asarray(v).reshape(self.shape),
-                    {"units": self.units[k]} if k in self.units else {})
-                for k, v in self.columns.items() if k not in dims}
-        attrs = {**problem_attrs(self.problem), "ablate": int(self.ablate),
-                 **{f"timing_{k}": v for k, v in self.timing.items()
-                    if isinstance(v, (int, float, str))}}
-        if self.ablate:
-            attrs["gauge"] = _GAUGE
-        return xr.Dataset(data, coords=coords, attrs=attrs)
-
-    def to_dict(self) -> dict:
-        """JSON-ready: the base problem, the axes, the units, the timing and one dict per row."""
-        names = list(self.columns)
-        rows = [{k: _scalar(self.columns[k][i]) for k in names} for i in range(len(self))]
-        return {"problem": self.problem.describe(), "ablate": self.ablate,
-                "axes": {k: [_scalar(v) for v in vals] for k, vals in self.axes.items()},
-                "units": dict(self.units), "timing": dict(self.timing), "rows": rows}
-
-
-_GAUGE = ("post- minus pre-ablation state at the material point s = cut; z in the far-end "
-          "gauge (the far end keeps its undeformed height)")
-
-
-def _scalar(v):
-    return v.item() if isinstance(v, np.generic) else v
-
-
-def _column_name(axis: str, ablate: bool) -> str:
-    return "opening_P" if ablate and axis == "opening" else axis
 
 
 # --------------------------------------------------------------------------
@@ -311,6 +182,26 @@ def chunk_plan(axes: Mapping[str, Sequence], chunk_size: int | None = None
     default at least :data:`MIN_TASKS` chunks in all where lines allow it,
     each of :data:`MIN_CHUNK` to :data:`MAX_CHUNK` points).  The plan depends
     on the axes only, never on the number of workers.
+
+    Parameters
+    ----------
+    axes : mapping
+        Axis name → values (only their number and the name ``theory`` count).
+    chunk_size : int, optional
+        Most points per chunk.
+
+    Returns
+    -------
+    chunk_axis : str
+        The axis the chunks run along.
+    chunks : list of list of int
+        Row indices of each chunk, increasing along the chunk axis; together
+        every row of the product once.
+
+    Raises
+    ------
+    ValueError
+        ``chunk_size`` is not a positive integer.
     """
     names = list(axes)
     shape = [len(axes[n]) for n in names]
@@ -660,7 +551,7 @@ def sweep(problem: Problem, axes: Mapping[str, Sequence], *, ablate: bool = Fals
     t0 = time.perf_counter()
     results, backend = _run_tasks(tasks, n, workers, scheduler, f"sweep: {n} {what}")
     seconds = time.perf_counter() - t0
-    columns = _columns(axes, results, ablate)
+    columns = result_columns(axes, results, ablate)
     timing = {"seconds": seconds, "workers": workers if scheduler is None else "scheduler",
               "backend": backend, "chunks": len(chunks), "chunk_axis": chunk_axis,
               "nodes": nodes, "errors": errors}
@@ -748,24 +639,3 @@ def _units(columns: Mapping[str, np.ndarray]) -> dict[str, str]:
     if "k" in columns:
         units["k"] = "1/R"
     return units
-
-
-def _columns(axes: Mapping[str, tuple], rows: list[dict], ablate: bool) -> dict[str, np.ndarray]:
-    """Columns in order: the axes (C order of the product), then the rows' values."""
-    grid = list(product(*axes.values()))
-    out: dict[str, np.ndarray] = {}
-    for j, name in enumerate(axes):
-        out[_column_name(name, ablate)] = np.array([g[j] for g in grid],
-                                                   dtype=object if name == "theory" else float)
-    for key in rows[0]:
-        values = [r[key] for r in rows]
-        if key in ("status", "path", "message"):
-            out[key] = np.array(values, dtype=object).astype(str)
-        elif key == "iterations":
-            out[key] = np.array(values, dtype=int)
-        else:
-            out[key] = np.array(values, dtype=float)
-    # the bookkeeping last, in a fixed order
-    for key in _BOOK:
-        out[key] = out.pop(key)
-    return out
