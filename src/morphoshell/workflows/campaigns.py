@@ -207,8 +207,6 @@ def _jackknifed(embryo_errors, variants: tuple[str, ...]) -> frozenset:
     return frozenset(names)
 
 
-
-
 def _selected(timepoints: tuple[Timepoint, ...], selected: str | Sequence[str]
               ) -> tuple[Timepoint, ...]:
     """The timepoints named in ``selected`` (``campaign``'s ``timepoints``), in the data set's order."""
