@@ -20,8 +20,8 @@ from morphoshell.workflows.sweeps import MIN_TASKS, SweepResult, chunk_plan, swe
 
 TOY2 = Problem("uniform", {"k": 0.0}, h=0.3, cut=0.3, name="toy2")
 #: Both routes converge every point to Ipopt's tolerance (1e-10, scaled) on the
-#: same mesh from different starts (warm vs continuation): measured differences
-#: up to 8e-11 in the observables (order-one quantities).
+#: same mesh from different starts (warm vs continuation): their differences in the
+#: observables (order-one quantities) stay two orders of magnitude below this bound.
 SAME_MESH = 1e-8
 
 #: statuses of a solved point: Ipopt's, or certified Newton steps from a warm start

@@ -70,9 +70,7 @@ def parse_axes(items) -> tuple[dict, dict]:
     (:func:`morphoshell.io.problem_files.parse_overrides`).  Raises ``ProblemFileError``
     naming the item.
     """
-    import numpy as np
-
-    from ..io.problem_files import SOLVER_KEYS, ProblemFileError, parse_overrides
+    from ..io.problem_files import ProblemFileError, parse_overrides
 
     axes: dict = {}
     scalars: dict = {}
@@ -83,30 +81,7 @@ def parse_axes(items) -> tuple[dict, dict]:
             raise ProblemFileError(f"--set {item!r}: expected KEY=VALUE, KEY=a,b,c or "
                                    f"KEY=start:stop:num")
         if "," in value or ":" in value:
-            if ":" in value:
-                parts = [v.strip() for v in value.split(":")]
-                if len(parts) != 3 or "," in value:
-                    raise ProblemFileError(f"--set {item!r}: a range is start:stop:num "
-                                           f"(num values, both ends included)")
-                try:
-                    num = int(parts[2])
-                except ValueError:
-                    raise ProblemFileError(f"--set {item!r}: the number of values "
-                                           f"{parts[2]!r} is not an integer") from None
-                if num < 1:
-                    raise ProblemFileError(f"--set {item!r}: the number of values must be "
-                                           f"at least 1, got {num}")
-                ends = [parse_overrides([f"{key}={v}"]) for v in parts[:2]]
-                name = next(iter(ends[0]))
-                if not all(isinstance(e[name], float) for e in ends):
-                    raise ProblemFileError(f"--set {item!r}: a range needs numbers")
-                values = np.linspace(ends[0][name], ends[1][name], num).tolist()
-            else:
-                parsed = [parse_overrides([f"{key}={v}"]) for v in value.split(",")]
-                name = next(iter(parsed[0]))
-                values = [p[name] for p in parsed]
-            if name in SOLVER_KEYS or name in ("family", "geometry", "name"):
-                raise ProblemFileError(f"--set {item!r}: {name} cannot be a sweep axis")
+            name, values = _axis(item, key, value)
             target = axes
         else:
             parsed = parse_overrides([item])
@@ -117,6 +92,46 @@ def parse_axes(items) -> tuple[dict, dict]:
             raise ProblemFileError(f"--set {item!r}: {name} is set more than once")
         target[name] = values
     return axes, scalars
+
+
+def _axis(item: str, key: str, value: str) -> tuple[str, list]:
+    """(name, values) of an axis item: ``KEY=a,b,c`` or ``KEY=start:stop:num``."""
+    from ..io.problem_files import SOLVER_KEYS, ProblemFileError, parse_overrides
+
+    if ":" in value:
+        name, values = _range(item, key, value)
+    else:
+        parsed = [parse_overrides([f"{key}={v}"]) for v in value.split(",")]
+        name = next(iter(parsed[0]))
+        values = [p[name] for p in parsed]
+    if name in SOLVER_KEYS or name in ("family", "geometry", "name"):
+        raise ProblemFileError(f"--set {item!r}: {name} cannot be a sweep axis")
+    return name, values
+
+
+def _range(item: str, key: str, value: str) -> tuple[str, list]:
+    """(name, values) of ``KEY=start:stop:num``: ``num`` numbers, both ends included."""
+    import numpy as np
+
+    from ..io.problem_files import ProblemFileError, parse_overrides
+
+    parts = [v.strip() for v in value.split(":")]
+    if len(parts) != 3 or "," in value:
+        raise ProblemFileError(f"--set {item!r}: a range is start:stop:num "
+                               f"(num values, both ends included)")
+    try:
+        num = int(parts[2])
+    except ValueError:
+        raise ProblemFileError(f"--set {item!r}: the number of values "
+                               f"{parts[2]!r} is not an integer") from None
+    if num < 1:
+        raise ProblemFileError(f"--set {item!r}: the number of values must be "
+                               f"at least 1, got {num}")
+    ends = [parse_overrides([f"{key}={v}"]) for v in parts[:2]]
+    name = next(iter(ends[0]))
+    if not all(isinstance(e[name], float) for e in ends):
+        raise ProblemFileError(f"--set {item!r}: a range needs numbers")
+    return name, np.linspace(ends[0][name], ends[1][name], num).tolist()
 
 
 def _sweep(args) -> int:

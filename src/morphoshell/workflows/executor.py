@@ -69,6 +69,18 @@ def open_executor(workers: int | None = None, scheduler: str | None = None) -> I
     scheduler : str, optional
         Address of a running Dask scheduler (``tcp://host:8786``); default from
         ``DASK_SCHEDULER_ADDRESS``.
+
+    Yields
+    ------
+    concurrent.futures.Executor
+        A :class:`SerialExecutor`, a ``ProcessPoolExecutor`` or a Dask
+        client's executor; closed (its workers stopped) on leaving the block.
+
+    Raises
+    ------
+    ValueError
+        ``workers`` is not a positive integer, or no Dask scheduler answers
+        at ``scheduler`` (or Dask is not installed).
     """
     scheduler = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
     if workers is not None and (isinstance(workers, bool) or int(workers) != workers
@@ -138,6 +150,24 @@ def run(function: Callable[[Any], Any], tasks: Iterable[Any], executor: cf.Execu
     ``function`` must be importable by the workers (a module-level function)
     and the tasks picklable.  An exception in a task is raised here when its
     result is collected, after the tasks already running.
+
+    Parameters
+    ----------
+    function : callable
+        ``function(task)`` → result, run in a worker.
+    tasks : iterable
+        The tasks, in order.
+    executor : concurrent.futures.Executor
+        From :func:`open_executor`.
+    description : str
+        The progress bar's label.
+
+    Yields
+    ------
+    index : int
+        The task's position in ``tasks``.
+    result
+        ``function(task)``, in order of completion (not of ``tasks``).
     """
     tasks = list(tasks)
     futures = {executor.submit(function, task): i for i, task in enumerate(tasks)}

@@ -2,9 +2,11 @@
 
 :func:`sweep` solves (or, with ``ablate=True``, ablates) a problem at every
 point of the Cartesian product of its ``axes`` (any of h, theory, cut,
-opening and the family's parameters) and returns a :class:`SweepResult`, a
-table with one row per point (:meth:`SweepResult.to_dataframe`) that is also
-an xarray Dataset with the axes as dimensions (:meth:`SweepResult.to_xarray`).
+opening and the family's parameters) and returns a
+:class:`~morphoshell.workflows.sweep_results.SweepResult`, a table with one
+row per point (:meth:`~morphoshell.workflows.sweep_results.SweepResult.to_dataframe`)
+that is also an xarray Dataset with the axes as dimensions
+(:meth:`~morphoshell.workflows.sweep_results.SweepResult.to_xarray`).
 
 How it is fast
 --------------
@@ -72,14 +74,13 @@ import math
 import os
 import time
 from contextlib import ExitStack
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from itertools import product
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from .._runtime.console import progress
-from .._runtime.tables import problem_attrs, xarray_module
 from ..mechanics.ablation import UNITS as ABLATION_UNITS
 from ..mechanics.ablation import edge_state, intact_problem
 from ..model.problem import BASE_KEYS, Problem
@@ -92,8 +93,9 @@ from ..solvers.refinement import half_mesh, level_errors, solve_from
 from ..solvers.results import ESTIMATED, Equilibrium, SolverError
 from ..solvers.routes import DIRECT_OPTIONS, direct_solver
 from .executor import backend_name, open_executor, run
+from .sweep_results import SweepResult, result_columns
 
-__all__ = ["sweep", "SweepResult", "ERRORS", "MAX_SPLITS", "SOLVE_COLUMNS", "ABLATE_COLUMNS",
+__all__ = ["sweep", "ERRORS", "MAX_SPLITS", "SOLVE_COLUMNS", "ABLATE_COLUMNS",
            "ESTIMATED_ABLATION", "UNITS", "chunk_plan"]
 
 log = logging.getLogger(__name__)
@@ -111,8 +113,8 @@ MIN_CHUNK = 16
 #: ... or longer than this (progress and load balance on many workers).
 MAX_CHUNK = 256
 #: Below this many solves (two per ablation) ``workers=None`` runs in this
-#: process: starting worker processes (2–7 s, measured) would cost more than
-#: it saves (a warm solve of 200 nodes takes 10–30 ms).
+#: process: starting worker processes would cost more than it saves (tuned by
+#: scripts/bench_sweep.py: worker start-up against warm solves).
 SERIAL_BELOW = 200
 
 #: Value columns of a solve sweep (energy in C R², edge values in R and rad).
@@ -125,139 +127,8 @@ ESTIMATED_ABLATION = ("opening", "rotation", "displacement", "energy_released")
 UNITS = {"energy": "C R^2", "r_start": "R", "psi_start": "rad", "r_end": "R", "psi_end": "rad",
          "z_end": "R", **ABLATION_UNITS, "h": "R", "cut": "R", "opening_P": "R",
          "seconds": "s", "iterations": "1"}
-_BOOK = ("status", "iterations", "path", "seconds", "message")
 #: Families that worker processes can load by name: the packaged ones.
 _PACKAGED = frozenset(FAMILIES)
-
-
-# --------------------------------------------------------------------------
-# the result
-# --------------------------------------------------------------------------
-
-@dataclass(frozen=True, eq=False)
-class SweepResult:
-    """The rows of a sweep, in the order of the Cartesian product (last axis fastest).
-
-    Attributes
-    ----------
-    problem : Problem
-        The base problem; each point is ``problem.with_updates(**point)``.
-    axes : mapping
-        Axis name → its values, in the order given (the product's order).
-    ablate : bool
-        Ablation sweep (recoil observables) or equilibria.
-    columns : mapping
-        Column name → ndarray (one entry per point): the axes (``opening`` is
-        ``opening_P`` in ablation sweeps), the values, their ``*_error``
-        estimates (NaN where not estimated or failed), then ``status``,
-        ``iterations``, ``path``, ``seconds`` and ``message``.
-    units : mapping
-        Column → unit (lengths in units of R, angles in rad, energies in C R²).
-    timing : mapping
-        ``seconds`` (wall time of the whole sweep, worker start-up included),
-        ``workers``, ``backend`` ("serial", "processes" or "dask"), ``chunks``,
-        ``chunk_axis``, ``nodes``, ``errors``.
-    """
-
-    problem: Problem
-    axes: Mapping[str, tuple]
-    ablate: bool
-    columns: Mapping[str, np.ndarray]
-    units: Mapping[str, str]
-    timing: Mapping[str, Any] = field(default_factory=dict)
-
-    def __len__(self) -> int:
-        return len(self.columns["status"])
-
-    def __repr__(self) -> str:
-        shape = " x ".join(f"{len(v)} {k}" for k, v in self.axes.items())
-        what = "ablations" if self.ablate else "equilibria"
-        return (f"SweepResult({len(self)} {what}: {shape}; {self.failed} failed; "
-                f"{self.timing.get('seconds', math.nan):.3g} s on "
-                f"{self.timing.get('workers', '?')} worker(s))")
-
-    @property
-    def failed(self) -> int:
-        """Number of points without a solution (their ``status`` says why)."""
-        return int(np.sum(self.columns["message"] != ""))
-
-    @property
-    def shape(self) -> tuple[int, ...]:
-        """Number of values of each axis."""
-        return tuple(len(v) for v in self.axes.values())
-
-    def dims(self) -> tuple[str, ...]:
-        """The axes' names as columns and dimensions (``opening_P`` for ``opening`` in ablations)."""
-        return tuple(_column_name(k, self.ablate) for k in self.axes)
-
-    def to_dataframe(self):
-        """The sweep as a table: one row per point.
-
-        Returns
-        -------
-        pandas.DataFrame
-            The columns of :attr:`columns`.  ``df.attrs`` holds ``units``
-            (column → unit), ``problem`` (the base problem,
-            :meth:`Problem.describe`), ``axes``, ``ablate``, ``timing`` and,
-            for ablations, ``gauge``.
-        """
-        import pandas as pd
-
-        df = pd.DataFrame({k: v for k, v in self.columns.items()})
-        df.attrs.update(units=dict(self.units), problem=self.problem.describe(),
-                        axes={k: list(v) for k, v in self.axes.items()}, ablate=self.ablate,
-                        timing=dict(self.timing))
-        if self.ablate:
-            df.attrs["gauge"] = _GAUGE
-        return df
-
-    def to_xarray(self):
-        """The sweep as an xarray Dataset with the axes as dimensions.
-
-        Needs the optional extra ``xarray`` (``pip install 'morphoshell[xarray]'``).
-
-        Returns
-        -------
-        xarray.Dataset
-            Coordinates: the axes (their values; ``units`` where known).
-            Variables: every other column of :attr:`columns`, reshaped to
-            :attr:`shape` (``units`` attached), e.g. ``ds["rotation"].sel(k=0.5)``.
-            Attributes: the base problem (flat, as
-            :meth:`Equilibrium.to_xarray`), ``ablate`` and the timing.
-        """
-        xr = xarray_module()
-        dims = self.dims()
-        coords = {d: (d, np.asarray(v), {"units": self.units[d]} if d in self.units else {})
-                  for d, v in zip(dims, self.axes.values())}
-        data = {k: (dims, np.asarray(v).reshape(self.shape),
-                    {"units": self.units[k]} if k in self.units else {})
-                for k, v in self.columns.items() if k not in dims}
-        attrs = {**problem_attrs(self.problem), "ablate": int(self.ablate),
-                 **{f"timing_{k}": v for k, v in self.timing.items()
-                    if isinstance(v, (int, float, str))}}
-        if self.ablate:
-            attrs["gauge"] = _GAUGE
-        return xr.Dataset(data, coords=coords, attrs=attrs)
-
-    def to_dict(self) -> dict:
-        """JSON-ready: the base problem, the axes, the units, the timing and one dict per row."""
-        names = list(self.columns)
-        rows = [{k: _scalar(self.columns[k][i]) for k in names} for i in range(len(self))]
-        return {"problem": self.problem.describe(), "ablate": self.ablate,
-                "axes": {k: [_scalar(v) for v in vals] for k, vals in self.axes.items()},
-                "units": dict(self.units), "timing": dict(self.timing), "rows": rows}
-
-
-_GAUGE = ("post- minus pre-ablation state at the material point s = cut; z in the far-end "
-          "gauge (the far end keeps its undeformed height)")
-
-
-def _scalar(v):
-    return v.item() if isinstance(v, np.generic) else v
-
-
-def _column_name(axis: str, ablate: bool) -> str:
-    return "opening_P" if ablate and axis == "opening" else axis
 
 
 # --------------------------------------------------------------------------
@@ -275,22 +146,29 @@ def _check_axes(problem: Problem, axes: Mapping[str, Sequence]) -> dict[str, tup
         if name not in valid:
             raise ValueError(f"sweep axis {name!r} is not a key of a {problem.family!r} problem; "
                              f"valid: {list(valid)}")
-        if isinstance(values, (str, bytes)) or not isinstance(values, (Sequence, np.ndarray)):
-            raise ValueError(f"sweep axis {name!r}: the values {values!r} must be a list")
-        values = tuple(v.item() if isinstance(v, np.generic) else v for v in values)
-        if not values:
-            raise ValueError(f"sweep axis {name!r} has no values")
-        for v in values:
-            if name == "theory":
-                if not isinstance(v, str):
-                    raise ValueError(f"sweep axis 'theory': {v!r} is not a theory name")
-            elif isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-                raise ValueError(f"sweep axis {name!r}: {v!r} is not a finite number")
-        if len(set(values)) != len(values):
-            repeated = sorted({v for v in values if values.count(v) > 1}, key=str)
-            raise ValueError(f"sweep axis {name!r} repeats the value(s) {repeated}")
+        values = _axis_values(name, values)
         out[name] = tuple(float(v) if name != "theory" else v for v in values)
     return out
+
+
+def _axis_values(name: str, values) -> tuple:
+    """The values of axis ``name`` as a tuple of Python scalars: a list of distinct values,
+    finite numbers (theory names for ``theory``)."""
+    if isinstance(values, (str, bytes)) or not isinstance(values, (Sequence, np.ndarray)):
+        raise ValueError(f"sweep axis {name!r}: the values {values!r} must be a list")
+    values = tuple(v.item() if isinstance(v, np.generic) else v for v in values)
+    if not values:
+        raise ValueError(f"sweep axis {name!r} has no values")
+    for v in values:
+        if name == "theory":
+            if not isinstance(v, str):
+                raise ValueError(f"sweep axis 'theory': {v!r} is not a theory name")
+        elif isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise ValueError(f"sweep axis {name!r}: {v!r} is not a finite number")
+    if len(set(values)) != len(values):
+        repeated = sorted({v for v in values if values.count(v) > 1}, key=str)
+        raise ValueError(f"sweep axis {name!r} repeats the value(s) {repeated}")
+    return values
 
 
 def chunk_plan(axes: Mapping[str, Sequence], chunk_size: int | None = None
@@ -304,6 +182,26 @@ def chunk_plan(axes: Mapping[str, Sequence], chunk_size: int | None = None
     default at least :data:`MIN_TASKS` chunks in all where lines allow it,
     each of :data:`MIN_CHUNK` to :data:`MAX_CHUNK` points).  The plan depends
     on the axes only, never on the number of workers.
+
+    Parameters
+    ----------
+    axes : mapping
+        Axis name → values (only their number and the name ``theory`` count).
+    chunk_size : int, optional
+        Most points per chunk.
+
+    Returns
+    -------
+    chunk_axis : str
+        The axis the chunks run along.
+    chunks : list of list of int
+        Row indices of each chunk, increasing along the chunk axis; together
+        every row of the product once.
+
+    Raises
+    ------
+    ValueError
+        ``chunk_size`` is not a positive integer.
     """
     names = list(axes)
     shape = [len(axes[n]) for n in names]
@@ -477,7 +375,7 @@ def _measure(problem: Problem, pre: Equilibrium, post: Equilibrium) -> dict[str,
 
 def _estimate(shells: Sequence[tuple[_Shell, Problem, tuple, Equilibrium]], measure,
               order: int) -> dict[str, float]:
-    """Error of each measured value: the half and quarter meshes, as ``solve()``'s estimate.
+    """Error of each value of ``measure``: the half and quarter meshes, as ``solve()``'s estimate.
 
     :func:`morphoshell.solvers.refinement.level_errors`; NaN where a coarse mesh is
     too small or does not converge.
@@ -519,34 +417,9 @@ def _run_chunk(chunk: _Chunk) -> list[tuple[int, dict]]:
         row.update(status="", iterations=0, path="", message="")
         try:
             if chunk.ablate:
-                rim = (problem.cut,)
-                try:
-                    pre, pre_path = pre_shell.advance(intact, rim)
-                finally:
-                    row["iterations"] += pre_shell.iterations
-                try:
-                    post, post_path = post_shell.advance(problem, ())
-                finally:
-                    row["iterations"] += post_shell.iterations
-                row.update(_measure(problem, pre, post))
-                paths = (pre_path, post_path)
-                row["path"] = next(p for p in ("continuation", "split", "remesh", "warm")
-                                   if p in paths)
-                if estimate:
-                    errors = _estimate([(pre_shell, intact, rim, pre), (post_shell, problem, (), post)],
-                                       lambda eqs: {k: v for k, v in _measure(problem, *eqs).items()
-                                                    if k in estimated}, order)
-                    row.update({f"{k}_error": v for k, v in errors.items()})
+                post = _ablate_point(row, problem, intact, pre_shell, post_shell, estimate, order)
             else:
-                try:
-                    post, row["path"] = post_shell.advance(problem, ())
-                finally:
-                    row["iterations"] += post_shell.iterations
-                row.update(post.estimated_values())
-                if estimate:
-                    errors = _estimate([(post_shell, problem, (), post)],
-                                       lambda eqs: eqs[0].estimated_values(), order)
-                    row.update({f"{k}_error": v for k, v in errors.items()})
+                post = _solve_point(row, problem, post_shell, estimate, order)
             row["status"] = post.solver.status
         except SolverError as exc:
             row.update({k: math.nan for k in names}, status=exc.status or "Solver_Error",
@@ -554,6 +427,48 @@ def _run_chunk(chunk: _Chunk) -> list[tuple[int, dict]]:
         row["seconds"] = time.perf_counter() - t0
         rows.append((index, row))
     return rows
+
+
+def _solve_point(row: dict, problem: Problem, shell: _Shell, estimate: bool,
+                 order: int) -> Equilibrium:
+    """Solve one point of a chunk into ``row`` (values, path, iterations, errors); its equilibrium."""
+    try:
+        post, row["path"] = shell.advance(problem, ())
+    finally:
+        row["iterations"] += shell.iterations
+    row.update(post.estimated_values())
+    if estimate:
+        errors = _estimate([(shell, problem, (), post)],
+                           lambda eqs: eqs[0].estimated_values(), order)
+        row.update({f"{k}_error": v for k, v in errors.items()})
+    return post
+
+
+def _ablate_point(row: dict, problem: Problem, intact: Problem, pre_shell: _Shell,
+                  post_shell: _Shell, estimate: bool, order: int) -> Equilibrium:
+    """Ablate one point of a chunk into ``row``: the intact shell, then the cut one.
+
+    The row's path is the most laborious of the two shells'.  Returns the
+    cut shell's equilibrium.
+    """
+    rim = (problem.cut,)
+    try:
+        pre, pre_path = pre_shell.advance(intact, rim)
+    finally:
+        row["iterations"] += pre_shell.iterations
+    try:
+        post, post_path = post_shell.advance(problem, ())
+    finally:
+        row["iterations"] += post_shell.iterations
+    row.update(_measure(problem, pre, post))
+    paths = (pre_path, post_path)
+    row["path"] = next(p for p in ("continuation", "split", "remesh", "warm") if p in paths)
+    if estimate:
+        errors = _estimate([(pre_shell, intact, rim, pre), (post_shell, problem, (), post)],
+                           lambda eqs: {k: v for k, v in _measure(problem, *eqs).items()
+                                        if k in ESTIMATED_ABLATION}, order)
+        row.update({f"{k}_error": v for k, v in errors.items()})
+    return post
 
 
 # --------------------------------------------------------------------------
@@ -614,6 +529,43 @@ def sweep(problem: Problem, axes: Mapping[str, Sequence], *, ablate: bool = Fals
     >>> res.to_dataframe()[["k", "psi_start"]].round(3).values.tolist()
     [[0.0, 0.822], [0.5, 0.561]]
     """
+    nodes, stages = _check_arguments(problem, nodes, errors, options)
+    axes = _check_axes(problem, axes)
+    points = _points(problem, axes, ablate, nodes, stages)
+    chunk_axis, chunks = chunk_plan(axes, chunk_size)
+    n = len(points)
+    if workers is None and scheduler is None and not os.environ.get("DASK_SCHEDULER_ADDRESS"):
+        workers = _default_workers(n * (2 if ablate else 1), len(chunks))
+    parallel = scheduler is not None or os.environ.get("DASK_SCHEDULER_ADDRESS") or workers != 1
+    if parallel and not _portable(problem):
+        raise ValueError(f"family {problem.family!r} is registered only in this session: worker "
+                         f"processes cannot load it; use workers=1, or install it as a plugin "
+                         f"(entry point group {ENTRY_POINT_GROUP!r})")
+    base = problem.describe()
+    if not parallel:
+        base = {**base, "family": problem.family_obj}     # not pickled: any family
+    tasks = _tasks(base, axes, chunk_axis, chunks, points, ablate, nodes, options, errors)
+    what = "ablations" if ablate else "equilibria"
+    log.info("sweep of %d %s (%s) in %d chunks along %s", n, what,
+             " x ".join(f"{len(v)} {k}" for k, v in axes.items()), len(chunks), chunk_axis)
+    t0 = time.perf_counter()
+    results, backend = _run_tasks(tasks, n, workers, scheduler, f"sweep: {n} {what}")
+    seconds = time.perf_counter() - t0
+    columns = result_columns(axes, results, ablate)
+    timing = {"seconds": seconds, "workers": workers if scheduler is None else "scheduler",
+              "backend": backend, "chunks": len(chunks), "chunk_axis": chunk_axis,
+              "nodes": nodes, "errors": errors}
+    result = SweepResult(problem, axes, bool(ablate), columns, _units(columns), timing)
+    if result.failed:
+        statuses = sorted(set(columns["status"][columns["message"] != ""]))
+        log.warning("sweep: %d of %d points failed (%s); their rows keep the status",
+                    result.failed, n, ", ".join(statuses))
+    return result
+
+
+def _check_arguments(problem: Problem, nodes: int, errors: str, options: Mapping
+                     ) -> tuple[int, int]:
+    """(nodes, stages) of :func:`sweep`, with its problem, errors and options checked."""
     if not isinstance(problem, Problem):
         raise ValueError(f"problem must be a Problem, got {problem!r}")
     unknown = sorted(set(options) - set(DIRECT_OPTIONS) | ({"max_nodes"} & set(options)))
@@ -626,21 +578,23 @@ def sweep(problem: Problem, axes: Mapping[str, Sequence], *, ablate: bool = Fals
     stages = options.get("stages", 2)
     if isinstance(stages, bool) or stages not in (1, 2, 3):
         raise ValueError(f"stages = {stages!r} must be 1, 2 or 3")
-    axes = _check_axes(problem, axes)
-    points = _points(problem, axes, ablate, nodes, stages)
-    chunk_axis, chunks = chunk_plan(axes, chunk_size)
-    n = len(points)
-    if workers is None and scheduler is None and not os.environ.get("DASK_SCHEDULER_ADDRESS"):
-        solves = n * (2 if ablate else 1)
-        workers = 1 if solves < SERIAL_BELOW else max(1, min(os.cpu_count() or 1, len(chunks)))
-    parallel = scheduler is not None or os.environ.get("DASK_SCHEDULER_ADDRESS") or workers != 1
-    if parallel and not _portable(problem):
-        raise ValueError(f"family {problem.family!r} is registered only in this session: worker "
-                         f"processes cannot load it; use workers=1, or install it as a plugin "
-                         f"(entry point group {ENTRY_POINT_GROUP!r})")
-    base = problem.describe()
-    if not parallel:
-        base = {**base, "family": problem.family_obj}     # not pickled: any family
+    return nodes, stages
+
+
+def _default_workers(solves: int, chunks: int) -> int:
+    """Workers of a sweep of ``solves`` solves in ``chunks`` chunks without a scheduler:
+    this process below :data:`SERIAL_BELOW`, else one per CPU core, at most one per chunk."""
+    return 1 if solves < SERIAL_BELOW else max(1, min(os.cpu_count() or 1, chunks))
+
+
+def _tasks(base: Mapping[str, Any], axes: Mapping[str, tuple], chunk_axis: str,
+           chunks: list[list[int]], points: list[dict], ablate: bool, nodes: int,
+           options: Mapping[str, Any], errors: str) -> list[_Chunk]:
+    """One :class:`_Chunk` per chunk of the plan, each point marked where errors are estimated.
+
+    ``errors="ends"`` estimates at both ends of the chunk axis (its first and
+    last value), ``"all"`` everywhere.
+    """
     c = list(axes).index(chunk_axis)
     line = len(axes[chunk_axis])
     tasks = []
@@ -650,10 +604,15 @@ def sweep(problem: Problem, axes: Mapping[str, Sequence], *, ablate: bool = Fals
                          for w in where)
         tasks.append(_Chunk(base, tuple((i, points[i]) for i in rows), bool(ablate), nodes,
                             dict(options), estimate))
-    what = "ablations" if ablate else "equilibria"
-    log.info("sweep of %d %s (%s) in %d chunks along %s", n, what,
-             " x ".join(f"{len(v)} {k}" for k, v in axes.items()), len(chunks), chunk_axis)
-    t0 = time.perf_counter()
+    return tasks
+
+
+def _run_tasks(tasks: list[_Chunk], n: int, workers: int | None, scheduler: str | None,
+               desc: str) -> tuple[list[dict], str]:
+    """Every point's row, in the order of the product, and the executor's back end.
+
+    A scheduler that does not answer is bad input: ValueError naming it.
+    """
     results: list = [None] * n
     with ExitStack() as stack:
         try:
@@ -662,7 +621,6 @@ def sweep(problem: Problem, axes: Mapping[str, Sequence], *, ablate: bool = Fals
             raise ValueError(f"scheduler {scheduler or os.environ.get('DASK_SCHEDULER_ADDRESS')!r}"
                              f": cannot connect ({exc})") from None
         backend = backend_name(executor)
-        desc = f"sweep: {n} {what}"
         if backend == "serial":   # run() would solve every chunk before showing its bar
             done = ((i, _run_chunk(t)) for i, t in enumerate(tasks))
             done = progress(done, total=len(tasks), desc=desc, unit="chunk")
@@ -671,39 +629,13 @@ def sweep(problem: Problem, axes: Mapping[str, Sequence], *, ablate: bool = Fals
         for _, rows in done:
             for index, row in rows:
                 results[index] = row
-    seconds = time.perf_counter() - t0
-    columns = _columns(axes, results, ablate)
+    return results, backend
+
+
+def _units(columns: Mapping[str, np.ndarray]) -> dict[str, str]:
+    """The units of the columns there are (:data:`UNITS`, their errors', k in 1/R)."""
     units = {k: v for k, v in UNITS.items() if k in columns}
     units.update({f"{k}_error": UNITS[k] for k in UNITS if f"{k}_error" in columns})
     if "k" in columns:
         units["k"] = "1/R"
-    timing = {"seconds": seconds, "workers": workers if scheduler is None else "scheduler",
-              "backend": backend, "chunks": len(chunks), "chunk_axis": chunk_axis,
-              "nodes": nodes, "errors": errors}
-    result = SweepResult(problem, axes, bool(ablate), columns, units, timing)
-    if result.failed:
-        statuses = sorted(set(columns["status"][columns["message"] != ""]))
-        log.warning("sweep: %d of %d points failed (%s); their rows keep the status",
-                    result.failed, n, ", ".join(statuses))
-    return result
-
-
-def _columns(axes: Mapping[str, tuple], rows: list[dict], ablate: bool) -> dict[str, np.ndarray]:
-    """Columns in order: the axes (C order of the product), then the rows' values."""
-    grid = list(product(*axes.values()))
-    out: dict[str, np.ndarray] = {}
-    for j, name in enumerate(axes):
-        out[_column_name(name, ablate)] = np.array([g[j] for g in grid],
-                                                   dtype=object if name == "theory" else float)
-    for key in rows[0]:
-        values = [r[key] for r in rows]
-        if key in ("status", "path", "message"):
-            out[key] = np.array(values, dtype=object).astype(str)
-        elif key == "iterations":
-            out[key] = np.array(values, dtype=int)
-        else:
-            out[key] = np.array(values, dtype=float)
-    # the bookkeeping last, in a fixed order
-    for key in _BOOK:
-        out[key] = out.pop(key)
-    return out
+    return units

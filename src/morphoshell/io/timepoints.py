@@ -1,0 +1,151 @@
+"""The timepoints of an inversion data set: the table ``timepoints.csv``.
+
+A data set is a folder with ``timepoints.csv``, one row per inversion stage
+(paper, main text, Fig. 3 D–O: the sequence a campaign fits), with columns
+
+``timepoint``
+    A name (``t01``) of letters, digits, ``-``, ``_`` or ``.``, used in file
+    names; unique.
+``pseudotime``
+    The stage's position in the sequence: a finite number, increasing down
+    the table.
+``midline``
+    Path, relative to the folder, of the stage's average midline as
+    :meth:`morphoshell.io.traces.Midline.to_csv` writes it (units of R,
+    posterior pole at the origin).
+``traces`` (optional)
+    The single traces' midlines that were averaged, in the same form,
+    separated by ``;`` (the jackknife of a campaign's ``embryo_errors``).
+
+Blank lines and lines starting with ``#`` are skipped; an error names the
+file's line.  ``scripts/make_synthetic_inversion.py`` writes a synthetic data
+set.
+"""
+from __future__ import annotations
+
+import csv
+import io
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["Timepoint", "read_timepoints"]
+
+#: The table of a data set's folder.
+_TABLE = "timepoints.csv"
+#: Columns every table has (``traces`` is optional).
+_COLUMNS = ("timepoint", "pseudotime", "midline")
+
+
+@dataclass(frozen=True)
+class Timepoint:
+    """One inversion stage of a data set.
+
+    Attributes
+    ----------
+    name : str
+        Label (``t01``), used in file names.
+    pseudotime : float
+        Position in the sequence (dimensionless, increasing).
+    midline : str
+        Path of the average midline (units of R), relative to the data folder.
+    traces : tuple of str
+        Paths of the single traces' midlines that were averaged (units of R,
+        relative to the data folder; optional column ``traces``, separated
+        by ``;``): with ``embryo_errors`` the jackknife over them gives
+        standard errors.
+    """
+
+    name: str
+    pseudotime: float
+    midline: str
+    traces: tuple[str, ...] = ()
+
+
+def read_timepoints(data_dir: str | Path) -> tuple[Timepoint, ...]:
+    """The timepoints of a data set, in order of pseudotime (validated).
+
+    Parameters
+    ----------
+    data_dir : str or Path
+        Folder with ``timepoints.csv`` (see the module docstring).
+
+    Returns
+    -------
+    timepoints : tuple of Timepoint, shape (T,)
+        One per row of the table, in its order (pseudotime increasing).
+
+    Raises
+    ------
+    ValueError
+        One line naming the file, row or value that is wrong.
+    """
+    data_dir = Path(data_dir)
+    table = data_dir / _TABLE
+    _check_folder(data_dir, table)
+    numbered, rows = _rows(table)
+    out = [_timepoint(data_dir, table, i, row) for (i, _), row in zip(numbered[1:], rows)]
+    _check_sequence(table, out)
+    return tuple(out)
+
+
+def _check_folder(data_dir: Path, table: Path) -> None:
+    """The data set is a folder that holds the table."""
+    if not data_dir.is_dir():
+        raise ValueError(f"{str(data_dir)!r} is not a folder")
+    if not table.is_file():
+        raise ValueError(f"{str(data_dir)!r} has no timepoints.csv (columns timepoint, "
+                         f"pseudotime, midline)")
+
+
+def _rows(table: Path) -> tuple[list[tuple[int, str]], list[dict]]:
+    """(file line number, text) of the lines that count, and the rows they make.
+
+    Comment lines are skipped but not forgotten: errors name the file's line.
+    """
+    numbered = [(k, ln) for k, ln in enumerate(table.read_text(encoding="utf-8").splitlines(), 1)
+                if ln.strip() and not ln.lstrip().startswith("#")]
+    rows = list(csv.DictReader(io.StringIO("\n".join(ln for _, ln in numbered))))
+    if not rows or not set(_COLUMNS) <= set(rows[0]):
+        raise ValueError(f"{table}: expected a header timepoint,pseudotime,midline and at "
+                         f"least one row")
+    return numbered, rows
+
+
+def _timepoint(data_dir: Path, table: Path, i: int, row: dict) -> Timepoint:
+    """The row on line ``i`` of the table, each value checked in the order of the columns."""
+    name = (row["timepoint"] or "").strip()
+    if not name or not all(c.isalnum() or c in "-_." for c in name):
+        raise ValueError(f"{table}, line {i}: timepoint {name!r} must be a non-empty name "
+                         f"of letters, digits, '-', '_' or '.'")
+    t = _pseudotime(table, i, row["pseudotime"])
+    path = (row["midline"] or "").strip()
+    if not (data_dir / path).is_file():
+        raise ValueError(f"{table}, line {i}: midline file {path!r} does not exist")
+    traces = tuple(v.strip() for v in (row.get("traces") or "").split(";") if v.strip())
+    missing = [v for v in traces if not (data_dir / v).is_file()]
+    if missing:
+        raise ValueError(f"{table}, line {i}: trace file {missing[0]!r} does not exist")
+    return Timepoint(name, t, path, traces)
+
+
+def _pseudotime(table: Path, i: int, text: str | None) -> float:
+    """The pseudotime of line ``i``: a finite number."""
+    try:
+        t = float(text)
+    except (TypeError, ValueError):
+        raise ValueError(f"{table}, line {i}: pseudotime {text!r} is not a number") from None
+    if not np.isfinite(t):
+        raise ValueError(f"{table}, line {i}: pseudotime {t!r} is not finite")
+    return t
+
+
+def _check_sequence(table: Path, timepoints: list[Timepoint]) -> None:
+    """Names are unique and pseudotimes increase down the table."""
+    names = [tp.name for tp in timepoints]
+    if len(set(names)) != len(names):
+        raise ValueError(f"{table}: timepoint names repeat")
+    times = [tp.pseudotime for tp in timepoints]
+    if any(b <= a for a, b in zip(times, times[1:])):
+        raise ValueError(f"{table}: pseudotimes must increase down the table")

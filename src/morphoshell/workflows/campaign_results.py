@@ -1,0 +1,151 @@
+"""The results of a fit campaign: one JSON file per fit, and the summary table.
+
+A campaign (:func:`morphoshell.workflows.campaigns.campaign`) writes, in its
+output folder, ``<timepoint>_<variant>.json`` per fit (the record of
+:func:`morphoshell.workflows.timepoint_fits.fit_variant`) and :data:`SUMMARY`,
+E_fit and the parameters against pseudotime (paper Fig. 3 N, O).
+:class:`CampaignResult` holds the records; :func:`load_campaign` reads them
+back without fitting, for figures and reports.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterable
+
+from ..fitting import VARIANTS
+from ..io.timepoints import Timepoint, read_timepoints
+
+__all__ = ["CampaignResult", "load_campaign", "RESULT_SUFFIX", "SUMMARY", "result_path",
+           "read_record", "read_records"]
+
+#: Result files are ``<timepoint>_<variant>.json``.
+RESULT_SUFFIX = ".json"
+#: The summary table in the output folder.
+SUMMARY = "campaign_summary.csv"
+#: Parameters of a record that are the problem's geometry, not the Volvox family's.
+_GEOMETRY = ("h", "cut", "opening")
+
+
+@dataclass(frozen=True)
+class CampaignResult:
+    """The results of a campaign, one record per (timepoint, variant).
+
+    Attributes
+    ----------
+    out : Path
+        The folder of the result files and of the summary (:data:`SUMMARY`).
+    timepoints : tuple of Timepoint
+    variants : tuple of str
+    records : dict
+        ``{(timepoint, variant): record}``, each record the content of its JSON
+        file (see :func:`morphoshell.workflows.campaigns.campaign`).
+    timing : dict
+        ``seconds`` (wall clock), ``workers``, ``backend``, ``computed`` (fits
+        done in this run), ``fit_seconds`` (their summed time).
+    """
+
+    out: Path
+    timepoints: tuple[Timepoint, ...]
+    variants: tuple[str, ...]
+    records: dict
+    timing: dict = field(default_factory=dict)
+
+    def record(self, timepoint: str, variant: str) -> dict:
+        """The record of one fit (KeyError if it is missing)."""
+        return self.records[(timepoint, variant)]
+
+    def to_dataframe(self):
+        """E_fit (units of R) and the parameters against pseudotime, one row per fit.
+
+        Returns
+        -------
+        pandas.DataFrame
+            Columns ``timepoint``, ``pseudotime``, ``variant``, ``status``,
+            ``E_fit``, ``converged``, the 14 Volvox parameters (lengths in R,
+            curvatures in 1/R), then ``se_<name>`` (Gauss–Newton standard
+            errors; NaN for parameters not fitted at that timepoint), and
+            with ``embryo_errors`` ``se_embryo_<name>`` (the jackknife over
+            the traces) and ``embryo_t95`` (their 95 % interval is ± this many),
+            with ``held_from`` ``held_from`` (the variant whose first fit gave the
+            held values; empty where a variant fitted its own).
+        """
+        import pandas as pd
+
+        held_from = any("held_from" in r for r in self.records.values())
+        rows = [_summary_row(tp, v, self.records[(tp.name, v)], held_from)
+                for tp in self.timepoints for v in self.variants
+                if (tp.name, v) in self.records]
+        return pd.DataFrame(rows)
+
+
+def _summary_row(tp: Timepoint, variant: str, rec: dict, held_from: bool) -> dict:
+    """One row of :meth:`CampaignResult.to_dataframe`: a fit's status, E_fit and parameters."""
+    row = {"timepoint": tp.name, "pseudotime": tp.pseudotime, "variant": variant,
+           "status": rec["status"], "E_fit": rec.get("E_fit", float("nan")),
+           "converged": rec.get("converged", False)}
+    params = rec.get("parameters", {})
+    names = [n for n in params if n not in _GEOMETRY]
+    row.update({n: params[n] for n in names})
+    se = rec.get("standard_errors", {})
+    # (None: on a constraint, FitResult.constrained)
+    row.update({f"se_{n}": _number(se.get(n)) for n in names})
+    embryo = rec.get("embryo_standard_errors")
+    if embryo is not None:
+        row.update({f"se_embryo_{n}": _number(embryo.get(n)) for n in names})
+        row["embryo_t95"] = rec.get("embryo_t95", float("nan"))   # (none: no errors)
+    if held_from:
+        row["held_from"] = rec.get("held_from", {}).get("variant", "")
+    return row
+
+
+def _number(value) -> float:
+    """A record's number, NaN for None (no value: JSON has no NaN)."""
+    return float("nan") if value is None else float(value)
+
+
+def result_path(out: Path, timepoint: str, variant: str) -> Path:
+    """The file of one fit's record: ``out/<timepoint>_<variant>.json``."""
+    return out / f"{timepoint}_{variant}{RESULT_SUFFIX}"
+
+
+def read_record(path: Path) -> dict | None:
+    """The record stored at ``path``, or None if there is none (missing, or not JSON)."""
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+
+
+def read_records(out: Path, keys: Iterable[tuple[str, str]]) -> dict:
+    """``{(timepoint, variant): record}`` of the stored ones among ``keys``, in their order."""
+    records = {}
+    for name, variant in keys:
+        rec = read_record(result_path(out, name, variant))
+        if rec is not None:
+            records[(name, variant)] = rec
+    return records
+
+
+def load_campaign(out: str | Path, data_dir: str | Path) -> CampaignResult:
+    """The stored results of a campaign (no fitting): for figures and reports.
+
+    Parameters
+    ----------
+    out : str or Path
+        The campaign's output folder.
+    data_dir : str or Path
+        Its data set (:func:`morphoshell.io.timepoints.read_timepoints`).
+
+    Returns
+    -------
+    CampaignResult
+        The records found, the variants that have any (in the order of
+        :data:`morphoshell.fitting.core.VARIANTS`); no timing.
+    """
+    timepoints = read_timepoints(data_dir)
+    out = Path(out)
+    records = read_records(out, [(tp.name, v) for v in VARIANTS for tp in timepoints])
+    variants = tuple(dict.fromkeys(v for _, v in records))
+    return CampaignResult(out, timepoints, variants, records)

@@ -1,0 +1,236 @@
+"""Fitted shapes of a campaign, and their numerical ablation.
+
+A campaign record (:func:`morphoshell.workflows.campaigns.campaign`) holds the
+fitted parameters and the fitted equilibrium's fields: :func:`fitted_problem`
+and :func:`fitted_state` turn them back into a problem and a start.  The paper
+ablates the fitted shapes numerically (Materials and Methods: "the value of Σ
+was increased from Σ = 0 in these fitted shapes"; main text, Fig. 3 M):
+:func:`numerical_ablation` continues in the cut Σ from 0 (the fitted, intact
+shell) to the cut size, with the adaptive, jump-rejecting steps of
+:func:`morphoshell.solvers.continuation.continue_between`, the observables of
+:func:`morphoshell.mechanics.ablation.ablate`, and a check against a cold solve
+at the final Σ on the same mesh; :func:`ablation_errors` propagates the fit's
+covariance to the recoil observables.  Lengths in units of R, energies in C R².
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from types import SimpleNamespace
+
+import numpy as np
+
+from ..mechanics.ablation import Ablation, edge_state, intact_problem, recoil_jacobian
+from ..model.problem import Problem
+from ..numerics.mesh import mesh_spec
+from ..solvers.continuation import continue_between
+from ..solvers.direct import DirectSolver
+from ..solvers.observables import RECOIL, recoil
+from ..solvers.refinement import solve_from
+from ..solvers.results import Equilibrium, SolverError
+from ..solvers.routes import solve
+
+__all__ = ["NumericalAblation", "numerical_ablation", "ablation_errors", "fitted_problem",
+           "fitted_state", "CUT"]
+
+#: Default cut Σ of numerical ablations (units of R): the experiments removed cells
+#: within 3–6 µm of the pole of embryos of posterior radius ≈ 40 µm (Materials and Methods).
+CUT = 0.15
+#: First cut of the Σ continuation, as a fraction of the final one (the cap removed
+#: from the intact shell in one step; continue_between then grows it adaptively):
+#: the smallest of these that the final mesh holds.
+_FIRST_CUTS = (0.125, 0.25, 0.5, 0.75)
+#: The fields of a fitted equilibrium that a record stores (its ``state``).
+_FIELDS = ("s", "r", "psi", "f_s")
+
+
+def fitted_problem(record: dict) -> Problem:
+    """The Volvox problem of a campaign result.
+
+    Parameters
+    ----------
+    record : dict
+        A successful record of :func:`morphoshell.workflows.campaigns.campaign`
+        (its ``parameters``, ``timepoint`` and ``variant``).
+
+    Returns
+    -------
+    Problem
+        The ``volvox`` family at the fitted parameters, h, cut and opening,
+        named ``<timepoint>_<variant>``.
+    """
+    p = dict(record["parameters"])
+    h, cut, opening = p.pop("h"), p.pop("cut"), p.pop("opening")
+    return Problem("volvox", p, h=h, cut=cut, opening=opening,
+                   name=f"{record['timepoint']}_{record['variant']}")
+
+
+def fitted_state(record: dict) -> SimpleNamespace:
+    """The fitted equilibrium's fields s, r, ψ, f_s at its points (units of R, rad).
+
+    Enough to start a solve on any mesh on the fit's branch
+    (:func:`~morphoshell.solvers.refinement.solve_from`, ``numerical_ablation(pre=...)``).
+
+    Parameters
+    ----------
+    record : dict
+        A campaign record with its ``state``.
+
+    Returns
+    -------
+    types.SimpleNamespace
+        Attributes ``s``, ``r``, ``psi``, ``f_s`` : ndarray, shape (N,), at
+        the N points of the fit's equilibrium.
+    """
+    return SimpleNamespace(**{k: np.asarray(record["state"][k], dtype=float) for k in _FIELDS})
+
+
+@dataclass(frozen=True, eq=False)
+class NumericalAblation:
+    """A numerical ablation reached by continuation in Σ, and its check.
+
+    Attributes
+    ----------
+    ablation : Ablation
+        Pre-ablation (the intact, fitted shell), post-ablation (at the final
+        Σ) and the observables of :func:`morphoshell.mechanics.ablation.ablate`.
+    steps, rejected : int
+        Accepted and retried steps of the continuation in Σ (after the first
+        cut, the smallest of :data:`_FIRST_CUTS` of the final one that its mesh holds).
+    cold : Equilibrium or None
+        A cold solve at the final Σ on the same mesh (None if it failed).
+    cold_difference : float
+        max |x_continuation − x_cold| over the unknowns (NaN without a cold
+        solution): a few 1e-8 when both reach the same equilibrium.
+    """
+
+    ablation: Ablation
+    steps: int
+    rejected: int
+    cold: Equilibrium | None
+    cold_difference: float
+
+    def observables(self) -> dict[str, float]:
+        """The recoil observables (units: :data:`morphoshell.mechanics.ablation.UNITS`)."""
+        return self.ablation.observables()
+
+
+def numerical_ablation(problem: Problem, cut: float = CUT, *, nodes: int = 200,
+                       pre: Equilibrium | None = None, cold: bool = True) -> NumericalAblation:
+    """Ablate a (fitted) shell by continuation in Σ from 0 to ``cut``.
+
+    Materials and Methods ("For numerical ablations, the value of Σ was
+    increased from Σ = 0 in these fitted shapes"): the intact shell (Σ = 0)
+    is solved on a mesh with a node at s = Σ; its state starts the cut shell
+    at Σ₀ = Σ/8 (or Σ/4, Σ/2, 3Σ/4 where the mesh needs it; interpolated,
+    :func:`~morphoshell.solvers.refinement.solve_from`), which
+    :func:`~morphoshell.solvers.continuation.continue_between` grows to Σ with
+    adaptive steps that are retried smaller when they fail or jump.
+
+    Parameters
+    ----------
+    problem : Problem
+        The fitted shell (its cut is ignored: Σ = 0 before, ``cut`` after).
+    cut : float
+        The final Σ (units of R).
+    nodes : int
+        Mesh nodes of both states.
+    pre : Equilibrium or fields, optional
+        The intact shell to carry onto the anchored mesh (an Equilibrium, or
+        :func:`fitted_state` of a campaign record: the fit's branch); by
+        default solved by continuation from the stress-free parameters.
+    cold : bool
+        Also solve the final Σ cold (from the solver's initial guess) on the
+        same mesh, for :attr:`NumericalAblation.cold_difference`.
+
+    Returns
+    -------
+    NumericalAblation
+    """
+    if not 0 < cut < problem.end:
+        raise ValueError(f"cut = {cut!r} must lie inside the shell (0, {problem.end:.6g})")
+    target = problem.with_updates(cut=float(cut))
+    intact = intact_problem(target)
+    if pre is None:
+        pre = solve(intact, nodes=nodes, anchors=(cut,))
+    else:
+        anchored = DirectSolver(intact.structure, mesh=mesh_spec(intact, nodes, 2, (cut,)))
+        pre = solve_from(anchored, intact, pre, anchors=(cut,))
+    solver = DirectSolver(target.structure, mesh=mesh_spec(target, nodes, 2))
+    post = continue_between(solver, _first_cut(solver, target, pre, cut), target, first_step=0.25)
+    steps = int(post.solver.details.get("continuation_steps", 0))
+    rejected = _rejected(post)
+    cold_eq, diff = None, float("nan")
+    if cold:
+        try:
+            cold_eq = solver.solve(target)
+            diff = float(np.max(np.abs(cold_eq.x - post.x)))
+        except SolverError:
+            cold_eq = None
+    obs = recoil(edge_state(pre, cut), edge_state(post, cut))
+    removed = pre.energy_between(pre.s[0], cut)
+    ab = Ablation(problem=target, pre=pre, post=post, **{k: float(obs[k]) for k in RECOIL},
+                  energy_released=post.energy - (pre.energy - removed), energy_removed=removed)
+    return NumericalAblation(ab, steps, rejected, cold_eq, diff)
+
+
+def _first_cut(solver: DirectSolver, target: Problem, pre, cut: float) -> Equilibrium:
+    """The cut shell at the smallest first cut of :data:`_FIRST_CUTS` that the mesh holds.
+
+    The mesh's knots follow the breakpoints at fixed fractions of [Σ, π − P]:
+    far below the final Σ the map to s can fold, so the first cut is the
+    smallest fraction of it that the final mesh holds.
+    """
+    for fraction in _FIRST_CUTS:
+        try:
+            return solve_from(solver, target.with_updates(cut=fraction * cut), pre)
+        except ValueError:
+            continue
+    raise ValueError(f"the mesh of the cut shell at Σ = {cut:g} cannot hold a first cut "
+                     f"of {_FIRST_CUTS[-1]:g} Σ")
+
+
+def _rejected(eq: Equilibrium) -> int:
+    """Retried steps of a continuation, from its ``path`` ("... (n retried ...)"), else 0."""
+    path = str(eq.solver.details.get("path", ""))
+    try:
+        return int(path.split("(")[1].split(" retried")[0])
+    except (IndexError, ValueError):
+        return 0
+
+
+def ablation_errors(record: dict, ablation: Ablation) -> dict[str, float]:
+    """Standard errors of the recoil observables of a fitted shape's ablation.
+
+    The fit's Gauss–Newton covariance C of the fitted parameters θ (a lower
+    bound: the residuals of a traced midline are correlated) propagated
+    linearly, σ_y² = (J C Jᵀ)_yy, with J = dy/dθ the exact derivatives of the
+    observables (:func:`~morphoshell.mechanics.ablation.recoil_jacobian`, through both
+    equilibria) and the ``unstressed`` tie κ₁ = 1/f₁ (dκ₁/df₁ = −1/f₁²).
+
+    Parameters
+    ----------
+    record : dict
+        A successful campaign record (``fitted``, ``standard_errors``,
+        ``correlation``, ``parameters``, ``variant``).
+    ablation : Ablation
+        Its numerical ablation (direct method, e.g. :func:`numerical_ablation`).
+
+    Returns
+    -------
+    dict
+        Observable name (:data:`morphoshell.solvers.observables.RECOIL`) → standard
+        error (units of :data:`morphoshell.mechanics.ablation.UNITS`).
+    """
+    names = list(record["fitted"])
+    se = np.array([record["standard_errors"][n] for n in names], dtype=float)
+    corr = np.nan_to_num(np.array(record["correlation"], dtype=float))
+    np.fill_diagonal(corr, 1.0)
+    cov = corr * np.outer(se, se)
+    tied = record["variant"] == "unstressed"
+    wrt = names + (["kappa1"] if tied else [])
+    _, J = recoil_jacobian(ablation, wrt)
+    if tied:
+        f1 = record["parameters"]["f1"]
+        J = J[:, :-1] + np.outer(J[:, -1], [(-1 / f1 ** 2) if n == "f1" else 0.0 for n in names])
+    var = np.einsum("ij,jk,ik->i", J, cov, J)
+    return {k: float(np.sqrt(max(v, 0.0))) for k, v in zip(RECOIL, var)}
