@@ -21,7 +21,7 @@ import sys
 import time
 from pathlib import Path
 
-from morphoshell.inverse import core as I
+from morphoshell import inverse as I
 from morphoshell.solvers.direct import DirectSolver
 from morphoshell.io.problem_files import example_path, load_problem, write_json
 

@@ -185,3 +185,54 @@ def test_docstring_examples_run():
         attempted += result.attempted
     assert attempted >= 3
     assert failed == 0, f"{failed} of {attempted} docstring examples failed (output above)"
+
+
+# --------------------------------------------------------------------------
+# names that point into the package
+# --------------------------------------------------------------------------
+
+_DOTTED = re.compile(r"\bmorphoshell(?:\.[A-Za-z_]\w*)+")
+#: Dotted strings that are not names in the package: the plugins' entry-point group, and
+#: the label of a campaign's JSON records (kept as written when the module was named so).
+_FROM_IMPORT = re.compile(r"from (morphoshell(?:\.\w+)*) import ([\w, ]+)")
+_NOT_NAMES = {"morphoshell.families", "morphoshell.campaign"}
+
+
+def _resolves(name: str) -> bool:
+    """Whether ``name`` is a module, or an attribute of one (instance attributes included)."""
+    parts = name.split(".")
+    for i in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:i]))
+        except ImportError:
+            continue
+        for attr in parts[i:]:
+            if hasattr(obj, attr):
+                obj = getattr(obj, attr)
+            elif inspect.isclass(obj):     # set in __init__ or a dataclass field
+                source = inspect.getsource(obj)
+                return bool(re.search(rf"self\.{attr}\b\s*[:=]|^\s+{attr}\s*:", source, re.M))
+            else:
+                return False
+        return True
+    return False
+
+
+def test_every_dotted_name_of_the_package_resolves():
+    """Docstrings, pages and scripts name objects by their module: after a move they must
+    still resolve (mkdocs shows a broken cross-reference as plain text, without a warning)."""
+    files = [*sorted((ROOT / "src" / "morphoshell").rglob("*.py")), ROOT / "README.md",
+             *sorted(DOCS.rglob("*.md")), *sorted((ROOT / "scripts").glob("*.py"))]
+    broken = []
+    for path in files:
+        for i, line in enumerate(path.read_text().splitlines(), 1):
+            names = _DOTTED.findall(line)
+            for module, imported in _FROM_IMPORT.findall(line):     # names in examples
+                names += [f"{module}.{n.split(' as ')[0].strip()}" for n in imported.split(",")
+                          if n.strip().isidentifier() or " as " in n]
+            for name in names:
+                if name in _NOT_NAMES or name.endswith((".md", ".py", ".toml", ".json")):
+                    continue
+                if not _resolves(name):
+                    broken.append(f"{path.relative_to(ROOT)}:{i}: {name}")
+    assert not broken, "\n".join(broken)

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from morphoshell import Problem, ablate, solve
-from morphoshell.inverse import core as I
+from morphoshell import inverse as I
 from morphoshell.mechanics.ablation import UNITS
 from morphoshell.solvers.results import FIELD_UNITS, FIELDS
 

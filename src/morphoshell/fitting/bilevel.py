@@ -69,7 +69,7 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
         paper's variants).
     data : array_like (N, 2) or Midline
         The target midline (r, z) in the model gauge, N points equally spaced
-        in arclength (:func:`morphoshell.io.traces.resample`); N = 100 in the
+        in arclength (:func:`morphoshell.io.midlines.resample`); N = 100 in the
         paper.
     method : {"nelder-mead", "gradient", "kkt"}
     nodes : int

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..numerics.status import FIT_NOT_REPRODUCED, FIT_SADDLE, GAUSS_NEWTON_STOPPED
 from ..solvers.observables import midline_cells
 from ..solvers.results import SolverError
 from .inner import InnerProblem
@@ -136,7 +137,7 @@ def _gauss_newton_steps(spec, inner, ftol, max_evaluations, theta0, eq,
             return theta0, eq, 0
         message = str(exc)
     exc = FitError(f"the Gauss-Newton steps to start again from stopped short: {message}",
-                   "Gauss_Newton_Stopped", eq)
+                   GAUSS_NEWTON_STOPPED, eq)
     exc.iterations = evaluations
     raise exc
 
@@ -198,13 +199,13 @@ def _kkt_checked(inner, theta, x, lam, iterations, status) -> tuple:
         raise FitError(
             "the KKT fit ended on a stationary state of the inner energy that is not a "
             "minimum (a saddle: the reduced Hessian is not positive definite); start from "
-            "another point or use the gradient method", "Fit_Saddle", fitted)
+            "another point or use the gradient method", FIT_SADDLE, fitted)
     # the fitted state must be what the inner problem gives there: re-solve from it
     check = inner.solver.solve(problem, warm_start=fitted)
     inner.solves += 1
     if np.max(np.abs(check.x - x)) > 1e-6:
         raise FitError("the KKT fit's state is not reproduced by the inner solve at the "
-                       "fitted parameters", "Fit_Not_Reproduced", fitted)
+                       "fitted parameters", FIT_NOT_REPRODUCED, fitted)
     inner.reset(theta, check)
     return theta, iterations, True, status
 

@@ -17,7 +17,9 @@ import casadi as ca
 import numpy as np
 
 from .._runtime.compiled import LARGE, compiled_point_function
-from ..numerics.ipopt import load_ipopt
+from ..numerics.gathers import scatter
+from ..numerics.ipopt import ipopt_status, load_ipopt
+from ..numerics.status import SOLVE_SUCCEEDED, SOLVED_TO_ACCEPTABLE_LEVEL
 from ..solvers.parametric import parametric
 from .results import FitError
 
@@ -187,7 +189,7 @@ class KKTProblem:
         # Each point may lie in a window of cells around its assigned one, the
         # cells' evaluations blended (:func:`_blended_point`).
         t_fit = np.linspace(0, 1, n)
-        u_idx, flags = self._window_indices(cells, nc, d.layout.size, d._idx)
+        u_idx, flags = self._window_indices(cells, nc, d.layout.size, d.cell_index)
         U = ca.vertcat(sh.s_nodes, x, zc, sc)           # what the residuals depend on
         Uext = ca.vertcat(U, ca.DM([0.0, 0.0, np.pi]))   # the pole's constant r, ψ
         local = ca.reshape(Uext[u_idx.ravel(order="F").tolist()], u_idx.shape[0], n)
@@ -328,7 +330,7 @@ class KKTProblem:
         src = np.arange(len(ku))[:, None] + len(ku) * np.arange(n_pt)[None, :]
         ok = J < n_U
         twice = (I == J) & (ku != lu)[:, None]
-        sp, B = d._scatter((n_U, n_U), I[ok], J[ok], src[ok], len(ku) * n_pt,
+        sp, B = scatter((n_U, n_U), I[ok], J[ok], src[ok], len(ku) * n_pt,
                            np.where(twice, 2.0, 1.0)[ok])
         Hu = ca.MX(sp, ca.mtimes(B, ca.vec(tri)))
         Hu = Hu + Hu.T - ca.diag(ca.diag(Hu))
@@ -337,7 +339,7 @@ class KKTProblem:
                        ca.horzcat(ca.MX(n, k), ca.MX.eye(n), ca.MX(n, n_w - k - n)),
                        ca.horzcat(ca.MX(2 * nc + 2, k + n + m), ca.MX.eye(2 * nc + 2)))
         on_s = u_idx < nc + 1
-        sp_s, Bs = d._scatter((nc + 1, 1), u_idx[on_s], np.zeros(on_s.sum()),
+        sp_s, Bs = scatter((nc + 1, 1), u_idx[on_s], np.zeros(on_s.sum()),
                               (np.arange(n_loc)[:, None] + n_loc * np.arange(n_pt))[on_s],
                               n_loc * n_pt)
         g_nodes = ca.densify(ca.MX(sp_s, ca.mtimes(Bs, ca.vec(grad))))
@@ -492,8 +494,8 @@ class KKTProblem:
                        ubx=self.ubw, lbg=self.lbg, ubg=self.ubg, **warm)
         self._duals = (np.asarray(sol["lam_g"]).ravel(), np.asarray(sol["lam_x"]).ravel())
         stats = self.nlp.stats()
-        status = stats.get("return_status", "unknown")
-        if status not in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
+        status = ipopt_status(stats)
+        if status not in (SOLVE_SUCCEEDED, SOLVED_TO_ACCEPTABLE_LEVEL):
             raise FitError(f"the KKT fit's NLP failed with Ipopt status {status!r} after "
                            f"{stats.get('iter_count')} iterations", status, self.inner.eq)
         w = np.asarray(sol["x"]).ravel()

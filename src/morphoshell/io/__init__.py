@@ -3,8 +3,9 @@
 Problem files (TOML) and their overrides, the packaged examples and the writers
 of results (:mod:`.problem_files`); trace files of midlines from Fiji/ImageJ and
 CSV (:mod:`.traces`), and their geometry: alignment to the model gauge,
-resampling and averaging (:mod:`.midlines`).  Every reader names the file and the
-offending entry.
+resampling and averaging (:mod:`.midlines`); the tables of ablation measurements
+(:mod:`.measurements`) and of an inversion sequence's timepoints (:mod:`.timepoints`).
+Every reader names the file and the offending entry.
 """
 
 import lazy_loader
@@ -18,4 +19,8 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "traces": ["FORMATS", "MidlineError", "Trace", "Midline", "read_trace", "to_image",
         "write_trace"],
     "midlines": ["SECTIONS", "Alignment", "align", "resample", "load_midline", "average"],
+    "measurements": ["MEASURES", "REQUIRED_COLUMNS", "OPTIONAL_COLUMNS", "MEASURE_COLUMN",
+        "ERROR_COLUMN", "UNITS", "MeasurementError", "Measurement", "read_measurements",
+        "to_dimensionless", "to_physical"],
+    "timepoints": ["Timepoint", "read_timepoints"],
 })

@@ -3,7 +3,7 @@
 Each cell's energy terms and constraints depend on its 3S + 2 local unknowns
 z_c = (r at its S + 1 points, ψ at them, f_s at its S Gauss points) and on
 parameter-only *data* at its Gauss points, laid out as
-:data:`~morphoshell.model.layouts.CELL_DATA` (:mod:`morphoshell.numerics.cell_data`).
+:data:`~morphoshell.model.layouts.CELL_DATA` (:mod:`morphoshell.numerics.parameter_data`).
 The family and the theory enter only through those data, so the kernels of
 :func:`cell_functions` depend on the number of stages alone and every structure
 shares them: the paper's energy (:func:`morphoshell.model.energy.pointwise`) at the

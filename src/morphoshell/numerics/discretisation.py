@@ -60,7 +60,7 @@ from ..model.layouts import CELL_DATA
 from ..model.problem import Structure
 from .cell_kernels import cell_functions, compiled_cell_functions
 from .cell_order import Assembly, CellOrder, assembly
-from .gathers import assembled, gather, scatter, triu
+from .gathers import assembled, gather, triu
 from .kkt_derivatives import KKTDerivatives
 from .mesh import Knot, check_monotone
 from .newton_assembly import newton_rhs, newton_system
@@ -175,12 +175,10 @@ class Discretisation:
         Compatibility constraints (cells S,), all equalities g = 0.
     grad_f, jac_g, hess_lag : casadi.Function
         Exact derivatives in the signatures of ``nlpsol``'s options.
+    cell_index : ndarray of int, shape (n_loc, cells)
+        Where each cell's unknowns z_c sit in ``[x, POLE_VALUES]`` (pole values
+        after the unknowns): the gather that every per-cell assembly starts from.
     """
-
-    #: :func:`morphoshell.numerics.gathers.scatter` and :func:`~morphoshell.numerics.gathers.gather`,
-    #: where callers of the transcription build their own patterns.
-    _scatter = staticmethod(scatter)
-    _gather = staticmethod(gather)
 
     def __init__(self, structure: Structure, t: np.ndarray, stages: int = 2,
                  knots: tuple = ()):
@@ -216,8 +214,8 @@ class Discretisation:
         # with the other live discretisations of this layout (_Shared)
         self._shared = _shared(lay, self._cell)
         self.x, self.D = self._shared.x, self._shared.D
-        self._idx = lay.cell_indices()
-        self._idx_flat = self._idx.ravel(order="F")
+        self.cell_index = lay.cell_indices()
+        self._idx_flat = self.cell_index.ravel(order="F")
         self._field_names = ("s", "ds", "weight", "r", "psi", "f_s", "dpsi", *LOCAL_OUTPUTS)
         self._points = (None, None)
         self._fields = _fields_map(self._cell["fields"])
@@ -237,14 +235,14 @@ class Discretisation:
         return self._built(f"pattern {name}", getattr(self, f"_{name}_pattern"))
 
     def _grad_pattern(self) -> tuple:
-        idx, n, cells = self._idx, self.layout.size, self.layout.cells
+        idx, n, cells = self.cell_index, self.layout.size, self.layout.cells
         n_loc = idx.shape[0]
         free = idx < n  # which local slots are unknowns
         cols = np.arange(n_loc * cells).reshape(cells, n_loc).T  # position of (slot, cell)
         return gather((n, 1), idx[free], np.zeros(int(free.sum())), cols[free], n_loc * cells)
 
     def _jac_pattern(self) -> tuple:
-        idx, n, S, cells = self._idx, self.layout.size, self.stages, self.layout.cells
+        idx, n, S, cells = self.cell_index, self.layout.size, self.stages, self.layout.cells
         m, n_loc = cells * S, idx.shape[0]
         # dg is (S n_loc × cells), row-major in (k, slot) within a cell.
         k_, l_ = np.meshgrid(np.arange(S), np.arange(n_loc), indexing="ij")
@@ -257,7 +255,7 @@ class Discretisation:
         return gather((m, n), rows[keep], colv[keep], src[keep], S * n_loc * cells)
 
     def _hess_pattern(self) -> tuple:
-        idx, n, cells = self._idx, self.layout.size, self.layout.cells
+        idx, n, cells = self.cell_index, self.layout.size, self.layout.cells
         n_loc = idx.shape[0]
         ku, lu = triu(n_loc)
         I, Jc = idx[ku], idx[lu]
@@ -475,7 +473,7 @@ class Discretisation:
         """
         cell = self.cell_of(p, q, s_star)
         s0, s1 = (float(v) for v in self.nodes(np.asarray(p, dtype=float), q)[[cell, cell + 1]])
-        Zc = np.append(x, POLE_VALUES)[self._idx[:, cell]]
+        Zc = np.append(x, POLE_VALUES)[self.cell_index[:, cell]]
         out = cell_state(self.stages)(Zc, s1 - s0, z_points[cell * self.stages], 0.0,
                                       (s_star - s0) / (s1 - s0))
         return {k: float(v) for k, v in zip(("r", "psi", "z"), out)}
@@ -493,7 +491,7 @@ class Discretisation:
 
     def cell_unknowns(self, x) -> ca.MX:
         """(3S + 2, cells): each cell's r, ψ at its points and f_s at its Gauss points."""
-        n_loc, cells = self._idx.shape
+        n_loc, cells = self.cell_index.shape
         xfull = ca.vertcat(x, ca.DM(POLE_VALUES))
         return ca.reshape(xfull[self._idx_flat.tolist()], n_loc, cells)
 
@@ -560,7 +558,7 @@ class Discretisation:
     @cached_property
     def _kkt(self) -> KKTDerivatives:
         """The KKT residual's curvature and θ-derivatives, set up on first use."""
-        return KKTDerivatives(self.layout, self._idx, self._cell["kkt_data"], self.cell_unknowns,
+        return KKTDerivatives(self.layout, self.cell_index, self._cell["kkt_data"], self.cell_unknowns,
                               lambda: self._local, self.x, self.D)
 
     def kkt_curvature(self, x, lam, D, mu_F, mu_dz, mu_dS, ds) -> ca.MX:

@@ -86,6 +86,7 @@ import casadi as ca
 import numpy as np
 
 from .ipopt import BackendResult
+from .status import NEWTON_CONVERGED
 
 __all__ = ["NewtonBackend", "S_MAX", "CHORD_GAIN", "FLOOR_GAIN", "STEP_TOL",
            "THIRD_STEP_CELLS"]
@@ -426,7 +427,7 @@ class NewtonBackend:
         # (np.fromiter reads a DM's nonzeros faster than np.array)
         u = np.fromiter(ca.densify(uk).nonzeros(), float, uk.numel())
         return BackendResult(*self._order.unpack(u),
-                             "Newton_Converged", it, time.perf_counter() - t0, True,
+                             NEWTON_CONVERGED, it, time.perf_counter() - t0, True,
                              {"stability": how, "inertia_correction": 0.0,
                               "route": "newton", "chord": chord is not None}), system
 

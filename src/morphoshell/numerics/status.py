@@ -39,7 +39,7 @@ __all__ = ["STATUSES", "BVP_STATUSES", "SolverError", "NotAMinimumError", "expla
            "POLE_ANALYSIS_FAILED", "TIME_LIMIT_EXCEEDED", "BVP_CONVERGED", "BVP_MAX_NODES",
            "BVP_SINGULAR_JACOBIAN", "BVP_BOUNDARY_CONDITIONS", "SHOOTING_SUCCEEDED",
            "SHOOTING_ILL_CONDITIONED", "SHOOTING_NOT_CONVERGED", "SHOOTING_INTEGRATION_FAILED",
-           "FIT_SADDLE", "FIT_NOT_REPRODUCED", "GAUSS_NEWTON_STOPPED", "SOLVER_ERROR",
+           "FIT_SADDLE", "FIT_NOT_REPRODUCED", "GAUSS_NEWTON_STOPPED",
            "STEP_NOT_SPLITTABLE"]
 
 # -- Ipopt (morphoshell.numerics.ipopt; the KKT fit's NLP) ------------------------------
@@ -74,7 +74,6 @@ SHOOTING_INTEGRATION_FAILED = "Shooting_Integration_Failed"
 FIT_SADDLE = "Fit_Saddle"
 FIT_NOT_REPRODUCED = "Fit_Not_Reproduced"
 GAUSS_NEWTON_STOPPED = "Gauss_Newton_Stopped"
-SOLVER_ERROR = "Solver_Error"
 STEP_NOT_SPLITTABLE = "Step_Not_Splittable"
 
 #: Every status a route can report, and what it means (for a failure, what to try).  Each
@@ -180,7 +179,6 @@ STATUSES: Mapping[str, str] = MappingProxyType({
         "the Gauss-Newton steps that restart the KKT fit stopped short: start nearer the data "
         "or use the gradient method",
     # sweeps (morphoshell.workflows.sweeps)
-    SOLVER_ERROR: "a sweep point failed with an error that named no status",
     STEP_NOT_SPLITTABLE:
         "a failed sweep step has no midpoint to split it at (breakpoints keep their order)",
 })

@@ -31,6 +31,7 @@ Lengths in units of R.
 """
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 from typing import Callable
 
@@ -174,6 +175,18 @@ def state_at(disc: Discretisation, s_star, cell: int, gauge: str = "solver") -> 
     return _observable(disc, "state_at", ("r", "z", "psi"), build)
 
 
+#: The deformed arclength at the points, per transcription (built once: fits call it often).
+_ARCLENGTH: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _arclength_function(disc: Discretisation) -> Buffered:
+    """S(x, p, q) at the points of ``disc``, cached for as long as ``disc`` lives."""
+    if disc not in _ARCLENGTH:
+        _ARCLENGTH[disc] = Buffered(ca.Function(
+            "S", [disc.x, disc.p, disc.q], [disc.symbolic_points(disc.x, disc.p, disc.q)["S"]]))
+    return _ARCLENGTH[disc]
+
+
 def midline_cells(disc: Discretisation, x: np.ndarray, p: np.ndarray, n: int,
                   q=()) -> tuple[int, ...]:
     """Cells that contain the n points equally spaced in deformed arclength.
@@ -183,10 +196,7 @@ def midline_cells(disc: Discretisation, x: np.ndarray, p: np.ndarray, n: int,
     tuple of int
         n cell indices, one per point (the first end's point first).
     """
-    if not hasattr(disc, "_arclength"):
-        disc._arclength = Buffered(ca.Function(
-            "S", [disc.x, disc.p, disc.q], [disc.symbolic_points(disc.x, disc.p, disc.q)["S"]]))
-    S = disc._arclength(x, p, np.asarray(q, dtype=float))[0]
+    S = _arclength_function(disc)(x, p, np.asarray(q, dtype=float))[0]
     nodes = S[::disc.stages]
     targets = np.linspace(0.0, 1.0, n) * nodes[-1]
     cells = np.searchsorted(nodes, targets, side="right") - 1
@@ -268,7 +278,7 @@ class _MidlineJacobian:
     def __call__(self, x, p, q, select):
         d, n, S = self.disc, self.n, self.disc.stages
         cells, nloc = d.layout.cells, 3 * S + 2
-        idx = d._idx
+        idx = d.cell_index
         Z = np.append(x, [0.0, 0.0, np.pi])[idx]                       # (nloc, cells)
         nodes, dnodes = self._nodes(p, q)
         dnodes = dnodes.reshape(len(p), cells + 1).T                   # (cells + 1, np)
@@ -321,7 +331,7 @@ class _MidlineDx:
         J, c, nloc = self._J, self._c, self._J.shape[2] - 5
         M = np.asarray(M, dtype=float)
         # M's rows of each cell's unknowns, (cells, nloc, k); the constants' rows are zero
-        rows = np.concatenate([M, np.zeros((3, M.shape[1]))])[self._owner.disc._idx.T]
+        rows = np.concatenate([M, np.zeros((3, M.shape[1]))])[self._owner.disc.cell_index.T]
         local = np.matmul(J[:, :, :nloc], rows[c])
         per_cell = np.matmul(self._dinc[:, :, :nloc].transpose(1, 0, 2), rows)
         return _stack(local + self._owner._sums(J, c, per_cell.transpose(1, 0, 2)))

@@ -142,7 +142,7 @@ def load_campaign(out: str | Path, data_dir: str | Path) -> CampaignResult:
     -------
     CampaignResult
         The records found, the variants that have any (in the order of
-        :data:`morphoshell.fitting.core.VARIANTS`); no timing.
+        :data:`morphoshell.fitting.spec.VARIANTS`); no timing.
     """
     timepoints = read_timepoints(data_dir)
     out = Path(out)

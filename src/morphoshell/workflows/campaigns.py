@@ -3,7 +3,7 @@
 The paper (main text, "The fitted mechanical sequence hints at an adaptive
 response to out-of-plane stresses", Fig. 3 D–O; Supplementary, last section)
 fits every inversion timepoint in turn, for four hypotheses on the posterior
-intrinsic curvature κ₁ = κ_post⁰ (:data:`morphoshell.fitting.core.VARIANTS`).
+intrinsic curvature κ₁ = κ_post⁰ (:data:`morphoshell.fitting.spec.VARIANTS`).
 
 :func:`campaign` checks its arguments and the data set (every midline, before
 any work), sends one task per variant to :mod:`morphoshell.workflows.executor`
@@ -52,9 +52,9 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
         The data set: a folder with ``timepoints.csv`` and the midlines it
         names (:mod:`morphoshell.io.timepoints`).
     variants : sequence of str
-        Of :data:`morphoshell.fitting.core.VARIANTS` (default: all four).
+        Of :data:`morphoshell.fitting.spec.VARIANTS` (default: all four).
     method : {"gradient", "kkt", "nelder-mead"}
-        The fit method (:func:`morphoshell.fitting.core.fit`).
+        The fit method (:func:`morphoshell.fitting.bilevel.fit`).
     workers : int, optional
         Worker processes (one variant per task, so more than ``len(variants)``
         do not help; default: one per variant, at most the CPU count);
@@ -116,7 +116,7 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
     Each record holds the timepoint, pseudotime, variant, method, nodes, the
     data file and its SHA-256, where the fit started from, the held values,
     ``status`` (``ok`` or ``failed`` with ``message``), and for a successful
-    fit :meth:`morphoshell.fitting.core.FitResult.to_dict` without its time and
+    fit :meth:`morphoshell.fitting.results.FitResult.to_dict` without its time and
     ``state`` (s, r, ψ, f_s of the fitted equilibrium at its points: the
     next timepoint's warm start).  A failed fit is recorded and the next timepoint
     starts from the last successful one.

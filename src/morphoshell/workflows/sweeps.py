@@ -25,7 +25,7 @@ warm-started from the previous one, so a point costs about one warm solve
   warm step that fails or needs more than
   :data:`~morphoshell.solvers.continuation.HARD_STEP` Newton iterations (a sign of a
   jump to another branch) is split in two, recursively (at most
-  :data:`MAX_SPLITS` times), as :class:`morphoshell.inverse.core.RecoilModel` does;
+  :data:`MAX_SPLITS` times), as :class:`morphoshell.inverse.recoil_model.RecoilModel` does;
   the last resort is continuation again.
 * **Meshes.** Every point is solved on the mesh :func:`solve` and
   :func:`~morphoshell.mechanics.ablation.ablate` would use
@@ -85,6 +85,7 @@ from ..mechanics.ablation import UNITS as ABLATION_UNITS
 from ..mechanics.ablation import edge_state, intact_problem
 from ..model.problem import BASE_KEYS, Problem
 from ..model.profiles import ENTRY_POINT_GROUP, FAMILIES
+from ..numerics.status import STEP_NOT_SPLITTABLE
 from ..numerics.mesh import mesh_spec
 from ..solvers.continuation import HARD_STEP, continue_to
 from ..solvers.direct import DirectSolver, check_nodes, solver_of
@@ -344,7 +345,7 @@ class _Shell:
                 raise
         mid = _midpoint(a, b, a_anchors, b_anchors)
         if mid is None:
-            raise SolverError("no midpoint to split the step at", "Step_Not_Splittable")
+            raise SolverError("no midpoint to split the step at", STEP_NOT_SPLITTABLE)
         m_eq, n1 = self._step(solver, a, a_anchors, a_eq, *mid, depth + 1)
         eq, n2 = self._step(solver, *mid, m_eq, b, b_anchors, depth + 1)
         return eq, n1 + n2
@@ -422,7 +423,7 @@ def _run_chunk(chunk: _Chunk) -> list[tuple[int, dict]]:
                 post = _solve_point(row, problem, post_shell, estimate, order)
             row["status"] = post.solver.status
         except SolverError as exc:
-            row.update({k: math.nan for k in names}, status=exc.status or "Solver_Error",
+            row.update({k: math.nan for k in names}, status=exc.status,
                        path="failed", message=str(exc).splitlines()[0])
         row["seconds"] = time.perf_counter() - t0
         rows.append((index, row))

@@ -18,7 +18,7 @@ starts from what the previous timepoint's *file* holds (JSON keeps floats
 exactly) and the solves are deterministic (single-threaded MUMPS).
 
 Errors of a timepoint's fit: the Gauss–Newton ones of
-:func:`morphoshell.fitting.core.fit`, and with ``embryo_errors`` the jackknife
+:func:`morphoshell.fitting.bilevel.fit`, and with ``embryo_errors`` the jackknife
 over the traces that were averaged (:func:`_embryo_errors`).
 """
 from __future__ import annotations
@@ -69,7 +69,7 @@ class CampaignTask:
     timepoints : tuple of Timepoint
         The timepoints to fit, in order.
     variant, method : str
-        The variant (:data:`morphoshell.fitting.core.VARIANTS`) and fit method.
+        The variant (:data:`morphoshell.fitting.spec.VARIANTS`) and fit method.
     nodes : int
         Mesh nodes of the inner solves.
     out : str
@@ -157,7 +157,7 @@ def first_start(params: dict | None) -> Problem | None:
     Returns
     -------
     Problem or None
-        None without ``params``: :func:`morphoshell.fitting.core.volvox_spec`'s default.
+        None without ``params``: :func:`morphoshell.fitting.spec.volvox_spec`'s default.
     """
     return _start_problem(params) if params else None
 
