@@ -5,6 +5,7 @@ its own layer or below, never above.  Names imported across modules are public:
 a private name (``_x``) is used only in the module that defines it.
 """
 import ast
+import re
 from pathlib import Path
 
 import morphoshell
@@ -94,6 +95,38 @@ def test_subpackages_say_their_job():
     for init in ROOT.glob("*/__init__.py"):
         doc = ast.get_docstring(ast.parse(init.read_text()))
         assert doc and len(doc) > 40, f"{init.parent.name}/__init__.py has no docstring"
+
+
+#: Longest module (lines) and most complex function (radon's cyclomatic complexity): a
+#: module should have one job and a function fit in a head (docs/architecture.md).
+MAX_LINES, MAX_COMPLEXITY = 800, 20
+
+
+def test_modules_are_short_and_functions_simple():
+    from radon.complexity import cc_visit
+
+    long, complex_ = [], []
+    for path in sorted(ROOT.rglob("*.py")):
+        text = path.read_text()
+        name = path.relative_to(ROOT)
+        if text.count("\n") > MAX_LINES:
+            long.append(f"{name}: {text.count(chr(10))} lines")
+        for block in cc_visit(text):
+            for b in [block, *getattr(block, "methods", [])]:
+                if b.complexity > MAX_COMPLEXITY:
+                    complex_.append(f"{name}: {b.fullname} {b.complexity}")
+    assert not long, f"modules over {MAX_LINES} lines: {long}"
+    assert not complex_, f"functions over complexity {MAX_COMPLEXITY}: {sorted(set(complex_))}"
+
+
+def test_the_code_explains_its_design_and_keeps_no_measurement_log():
+    """Timings, A/B ratios and dated runs belong in docs/benchmarks.md, not in comments."""
+    dated = re.compile(r"\b20\d\d-\d\d-\d\d\b")
+    hits = [(p.relative_to(ROOT), i, line.strip())
+            for p in sorted(ROOT.rglob("*.py"))
+            for i, line in enumerate(p.read_text().splitlines(), 1)
+            if "measured" in line or dated.search(line)]
+    assert len(hits) <= 10 and not [h for h in hits if dated.search(h[2])], hits
 
 
 def test_every_ipopt_solver_is_created_after_load_ipopt():

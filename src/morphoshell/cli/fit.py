@@ -93,7 +93,7 @@ def _fit(args) -> int:
     try:
         result = fit(spec, midline, args.method, nodes=args.nodes)
     except SolverError as exc:
-        # (measured: a mid-inversion stage fitted from the family's defaults)
+        # the usual cause: a mid-inversion stage fitted from the family's defaults
         where = "--start FIT.json (a fit of a neighbouring stage)" if args.start is None \
             else "a --start nearer the data"
         raise type(exc)(f"{exc}. A fit from far away can cross folds of the branch: try {where}, "
