@@ -6,3 +6,24 @@ continuation along a branch, mesh refinement to a tolerance, observables and
 parametric derivatives; :func:`~morphoshell.solvers.routes.solve` is the
 one-call front door, :mod:`.results` what every route returns.
 """
+
+import lazy_loader
+
+# Every public name of the subpackage, imported from its module on first use.
+__getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
+    "bvp": ["solve_bvp", "pontryagin_functions", "pole_solutions", "pole_state", "pole_costates",
+        "pole_caps", "initial_state", "to_equilibrium", "neutral_path"],
+    "continuation": ["continue_to", "continue_between", "Path", "neutral_problem"],
+    "direct": ["DirectSolver", "default_mesh", "solver_of", "check_nodes", "MAX_NODES"],
+    "observables": ["Observable", "GAUGES", "shape_points", "energy", "state_at", "midline",
+        "midline_cells", "recoil", "RECOIL"],
+    "parametric": ["Parametric", "Sensitivities", "SolutionDerivative", "parametric"],
+    "refinement": ["solve_from", "estimate", "level_errors", "refine", "half_mesh", "SAFETY"],
+    "results": ["Equilibrium", "SolverStats", "SolverError", "NotAMinimumError", "FIELDS",
+        "unconverged", "Quadrature", "ErrorEstimate", "ESTIMATED", "ENERGY_FLOOR", "FIELD_UNITS",
+        "FIELD_NAMES"],
+    "routes": ["solve", "direct_solver", "cache_info", "clear_cache", "SOLVER_CACHE_SIZE",
+        "METHODS", "DIRECT_OPTIONS", "BVP_OPTIONS", "SHOOTING_OPTIONS"],
+    "shooting": ["solve_shooting", "ILL_CONDITIONED", "NOT_CONVERGED", "INTEGRATION_FAILED",
+        "MAX_GROWTH", "MAX_SEGMENTS", "MIN_SEGMENTS", "MAX_CONDITION"],
+})
