@@ -45,7 +45,7 @@ docs: $(STAMP)
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --site-dir site
 
 ## fuzz: property-based fuzzing, >= 1000 random problems and bad command lines; prints
-## the counts (maintainers, before a release: 3.5-4.5 minutes on 2 cores, measured 2026-11-24)
+## the counts (maintainers, before a release: 3.5-4.5 minutes on 2 cores; docs/benchmarks.md)
 fuzz: $(STAMP)
 	MORPHOSHELL_FUZZ=fuzz $(BIN)/python -m pytest -q -s -p no:cacheprovider tests/test_fuzz.py
 

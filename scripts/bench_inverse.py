@@ -26,9 +26,9 @@ from morphoshell.solvers.direct import DirectSolver
 from morphoshell.io.problem_files import example_path, load_problem, write_json
 
 ROOT = Path(__file__).resolve().parents[1]
-#: README benchmark (scripts/bench_equilibrium.py): warm re-solve of toy3_anisotropic,
+#: docs/benchmarks.md's reference (scripts/bench_equilibrium.py): warm re-solve of toy3_anisotropic,
 #: 200 nodes, order 4, on an unloaded machine of this kind.
-README_WARM_S = 5.9e-3
+REFERENCE_WARM_S = 5.9e-3
 
 #: (label, methods, workers); None: one per core.
 CASES = (("numerical, 2 workers (target < 5 s)", ("numerical",), None),
@@ -57,7 +57,7 @@ def run(table, methods, workers) -> dict:
 
 
 def slowdown(repeats: int = 30) -> tuple[float, float]:
-    """(warm re-solve of bench_equilibrium's reference case now, its ratio to the README's)."""
+    """(warm re-solve of bench_equilibrium's reference case now, its ratio to the reference's)."""
     problem, _ = load_problem(example_path("toy3_anisotropic"))
     solver = DirectSolver(problem.structure, 200, stages=2)
     base = solver.solve(problem)
@@ -68,7 +68,7 @@ def slowdown(repeats: int = 30) -> tuple[float, float]:
         solver.solve(q, warm_start=base)
         times.append(time.perf_counter() - t0)
     warm = statistics.median(times)
-    return warm, warm / README_WARM_S
+    return warm, warm / REFERENCE_WARM_S
 
 
 def main(argv=None) -> int:
@@ -107,7 +107,7 @@ def main(argv=None) -> int:
     print(f"first run in a fresh process (numerical, imports included): {first_seconds:.2f} s")
     print(f"machine speed now: bench_equilibrium's warm re-solve (toy3, 200 nodes) took "
           f"{warm0 * 1e3:.1f} ms before and {warm1 * 1e3:.1f} ms after, "
-          f"{factor0:.1f}x and {factor1:.1f}x the README's {README_WARM_S * 1e3:.1f} ms")
+          f"{factor0:.1f}x and {factor1:.1f}x the reference's {REFERENCE_WARM_S * 1e3:.1f} ms")
     target = rows[0]["median_s"] < 5.0
     print(f"target (numerical < 5 s): {'met' if target else 'NOT met'} "
           f"({rows[0]['median_s']:.2f} s)")
