@@ -250,3 +250,11 @@ def test_every_dotted_name_of_the_package_resolves():
                 if not _resolves(name):
                     broken.append(f"{path.relative_to(ROOT)}:{i}: {name}")
     assert not broken, "\n".join(broken)
+
+
+def test_the_readme_is_a_front_page():
+    """At most 15 000 bytes; its first screen holds the two set-up commands and an example."""
+    text = (ROOT / "README.md").read_text()
+    first = "\n".join(text.splitlines()[:40])
+    assert len(text.encode()) <= 15_000
+    assert "make run" in first and "make test" in first and ">>> " in first
