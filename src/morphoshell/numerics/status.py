@@ -36,6 +36,7 @@ __all__ = ["STATUSES", "BVP_STATUSES", "SolverError", "NotAMinimumError", "expla
            "SEARCH_DIRECTION_BECOMES_TOO_SMALL", "MAXIMUM_ITERATIONS_EXCEEDED", "INVALID_OPTION",
            "IPOPT_UNKNOWN", "NEWTON_CONVERGED", "NOT_A_MINIMUM", "STABILITY_CHECK_FAILED",
            "MERIDIAN_CROSSES_AXIS", "CONTINUATION_FAILED", "TOLERANCE_NOT_MET",
+           "ARCLENGTH_CONVERGED", "SNAP_FAILED", "BRANCH_ENDED",
            "POLE_ANALYSIS_FAILED", "TIME_LIMIT_EXCEEDED", "BVP_CONVERGED", "BVP_MAX_NODES",
            "BVP_SINGULAR_JACOBIAN", "BVP_BOUNDARY_CONDITIONS", "SHOOTING_SUCCEEDED",
            "SHOOTING_ILL_CONDITIONED", "SHOOTING_NOT_CONVERGED", "SHOOTING_INTEGRATION_FAILED",
@@ -57,6 +58,9 @@ STABILITY_CHECK_FAILED = "Stability_Check_Failed"
 MERIDIAN_CROSSES_AXIS = "Meridian_Crosses_Axis"
 CONTINUATION_FAILED = "Continuation_Failed"
 TOLERANCE_NOT_MET = "Tolerance_Not_Met"
+ARCLENGTH_CONVERGED = "Arclength_Converged"
+SNAP_FAILED = "Snap_Through_Failed"
+BRANCH_ENDED = "Branch_Ended"
 # -- the boundary-value reference (morphoshell.solvers.bvp): scipy's solve_bvp ----------
 POLE_ANALYSIS_FAILED = "Pole_Analysis_Failed"
 TIME_LIMIT_EXCEEDED = "Time_Limit_Exceeded"
@@ -140,6 +144,16 @@ STATUSES: Mapping[str, str] = MappingProxyType({
         "finer mesh, or continue from a nearer solution",
     TOLERANCE_NOT_MET:
         "raise max_nodes, loosen rtol, or use more stages (a higher order)",
+    # branches (morphoshell.solvers.arclength)
+    ARCLENGTH_CONVERGED:
+        "a point of a branch, F = 0 to tol by the bordered Newton corrector; stable or not as "
+        "its inertia says",
+    SNAP_FAILED:
+        "the shell snaps through at a fold, but no stable equilibrium of lower energy was found "
+        "past it: try a finer mesh, or follow the branch (morphoshell continue) to see where it goes",
+    BRANCH_ENDED:
+        "the pseudo-arclength step fell below its minimum or the points ran out before the end "
+        "of the path: a cusp or a branch point? try a smaller --max-step or a finer mesh",
     # the boundary-value reference: solve_bvp's four outcomes, then the route's own
     BVP_CONVERGED: "solve_bvp met tol on the collocation residuals and bc_tol at the ends",
     BVP_MAX_NODES:

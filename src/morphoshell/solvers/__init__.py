@@ -13,7 +13,10 @@ import lazy_loader
 __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "bvp": ["solve_bvp", "pontryagin_functions", "pole_solutions", "pole_state", "pole_costates",
         "pole_caps", "initial_state", "to_equilibrium", "neutral_path"],
-    "continuation": ["continue_to", "continue_between", "Path", "neutral_problem"],
+    "continuation": ["continue_to", "continue_between", "Path"],
+    "paths": ["ParameterLine", "neutral_problem"],
+    "arclength": ["Arclength", "ArcPoint", "Snap", "snap_through", "cross_fold"],
+    "branches": ["Branch", "BranchPoint", "follow_branch", "continuation_path"],
     "direct": ["DirectSolver", "default_mesh", "solver_of", "check_nodes", "MAX_NODES"],
     "observables": ["Observable", "GAUGES", "shape_points", "energy", "state_at", "midline",
         "midline_cells", "recoil", "RECOIL"],

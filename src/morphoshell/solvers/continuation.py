@@ -24,16 +24,18 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ..model.problem import Problem
-from ..numerics.status import CONTINUATION_FAILED, explain
+from ..numerics.status import CONTINUATION_FAILED, SNAP_FAILED, explain
+from .arclength import cross_fold
 from .direct import DirectSolver
+from .paths import ParameterLine, neutral_problem
 from .results import Equilibrium, SolverError
 
-__all__ = ["continue_to", "continue_between", "Path", "neutral_problem"]
+__all__ = ["continue_to", "continue_between", "Path", "neutral_problem", "MAX_SNAPS"]
 
 log = logging.getLogger(__name__)
 
@@ -53,6 +55,8 @@ MIN_STEP = 1e-4
 #: f0 = −0.29, whose first step of a quarter turned ψ by 7 rad and ended 17 %
 #: above the physical energy, its error estimate covering neither).
 MAX_TURN = np.pi / 2
+#: Snap-throughs :func:`continue_to` crosses on one path before it gives up.
+MAX_SNAPS = 8
 
 
 @dataclass(frozen=True)
@@ -66,31 +70,23 @@ class Path:
         Continuation steps taken and retried smaller.
     iterations : int
         Newton (or Ipopt) iterations of every step.
+    snaps : tuple of Snap
+        The snap-throughs crossed on the way (:func:`morphoshell.solvers.arclength.snap_through`).
     """
 
     kind: str
     steps: int = 1
     rejected: int = 0
     iterations: int = 0
+    snaps: tuple = ()
 
     def describe(self) -> str:
         """One line saying how the solution was reached (stored in ``solver.details["path"]``)."""
         if self.kind != "continuation":
             return self.kind
-        return (f"continuation from the stress-free parameters in {self.steps} steps "
+        line = (f"continuation from the stress-free parameters in {self.steps} steps "
                 f"({self.rejected} retried, {self.iterations} Newton iterations)")
-
-
-def neutral_problem(problem: Problem) -> Problem | None:
-    """``problem`` at its family's stress-free parameters, or None if it has none to move.
-
-    The family's ``neutral`` values (:class:`morphoshell.model.profiles.ProfileFamily`)
-    make the undeformed shell stress-free: the start of :func:`continue_to`.
-    """
-    neutral = {n: v for n, v in problem.family_obj.neutral.items() if n in problem.params}
-    if not neutral or all(problem.params[n] == v for n, v in neutral.items()):
-        return None
-    return problem.with_updates(**neutral)
+        return "; ".join([line, *(snap.describe() for snap in self.snaps)])
 
 
 def continue_to(solver: DirectSolver, problem: Problem, anchors=(), *, first_step: float = 0.25,
@@ -128,10 +124,10 @@ def continue_to(solver: DirectSolver, problem: Problem, anchors=(), *, first_ste
         eq = solver.solve(problem, anchors=anchors)
         return _with_path(eq, Path("cold", 1, 0, eq.solver.iterations), t0)
     eq = solver.solve(start, anchors=anchors)
-    steps, rejected, iterations, eq = _follow(solver, eq, problem, anchors, first_step, max_steps,
-                                              "the stress-free parameters")
-    return _with_path(eq, Path("continuation", steps, rejected, iterations + eq.solver.iterations),
-                      t0)
+    run, eq = _follow(solver, eq, problem, anchors, first_step, max_steps,
+                      "the stress-free parameters", snap=True)
+    return _with_path(eq, Path("continuation", run.steps, run.rejected,
+                               run.iterations + eq.solver.iterations, tuple(run.snaps)), t0)
 
 
 def continue_between(solver: DirectSolver, start: Equilibrium, problem: Problem, anchors=(), *,
@@ -172,36 +168,9 @@ def continue_between(solver: DirectSolver, start: Equilibrium, problem: Problem,
         Status ``"Continuation_Failed"``, as :func:`continue_to`.
     """
     t0 = time.perf_counter()
-    steps, rejected, iterations, eq = _follow(solver, start, problem, anchors, first_step,
-                                              max_steps, "a previous solution")
-    return _with_path(eq, Path("continuation", steps, rejected, iterations), t0)
-
-
-@dataclass(frozen=True)
-class _Line:
-    """The straight path from a solution's parameters to a problem's: the ones that differ."""
-
-    problem: Problem
-    names: tuple
-    a: np.ndarray
-    b: np.ndarray
-
-    @classmethod
-    def between(cls, source: Problem, problem: Problem) -> "_Line":
-        """From ``source``'s values of the parameters that differ to ``problem``'s."""
-        names = [n for n in problem.params if problem.params[n] != source.params.get(n)]
-        names += [n for n in ("h", "cut", "opening") if getattr(problem, n) != getattr(source, n)]
-        a = np.array([source.params[n] if n in source.params else getattr(source, n)
-                      for n in names])
-        b = np.array([problem.params[n] if n in problem.params else getattr(problem, n)
-                      for n in names])
-        return cls(problem, tuple(names), a, b)
-
-    def at(self, tau: float) -> Problem:
-        """The problem at τ of the way (τ = 1: the target itself)."""
-        if tau == 1:
-            return self.problem
-        return self.problem.with_updates(**dict(zip(self.names, self.a + tau * (self.b - self.a))))
+    run, eq = _follow(solver, start, problem, anchors, first_step, max_steps,
+                      "a previous solution")
+    return _with_path(eq, Path("continuation", run.steps, run.rejected, run.iterations), t0)
 
 
 @dataclass
@@ -214,6 +183,8 @@ class _Progress:
     steps: int = 0
     rejected: int = 0
     iterations: int = 0
+    snaps: list = field(default_factory=list)
+    stuck: str = ""        # why crossing a stall failed, once it has
 
     def exhausted(self, max_steps: int) -> bool:
         """Whether the steps ran out or the step fell below :data:`MIN_STEP`."""
@@ -260,18 +231,32 @@ def _rejection(new: Equilibrium | None, eq: Equilibrium, change, rate) -> str:
     return ""
 
 
-def _follow(solver, eq, problem, anchors, first_step, max_steps, origin):
-    """Continue from the solution ``eq`` to ``problem``: (steps, rejected, iterations, solution)."""
-    line = _Line.between(eq.problem, problem)
+def _follow(solver, eq, problem, anchors, first_step, max_steps, origin, snap=False):
+    """Continue from the solution ``eq`` to ``problem``: (progress, solution).
+
+    With ``snap``, a stall of the step (a fold of the branch, where natural
+    continuation cannot go on) is crossed as the shell would cross it
+    (:func:`morphoshell.solvers.arclength.cross_fold`).
+    """
+    line = ParameterLine.between(eq.problem, problem)
     run = _Progress(float(first_step))
     name = problem.name or problem.family
     while run.tau < 1:
+        if snap and run.step < MIN_STEP and len(run.snaps) < MAX_SNAPS \
+                and run.steps + run.rejected < max_steps and not run.stuck:
+            try:
+                eq = _crossed(solver, eq, line, run, anchors, first_step)
+                continue
+            except SolverError as exc:
+                if exc.status == SNAP_FAILED:
+                    raise
+                run.stuck = f"; past it by arclength steps: {exc}"
         if run.exhausted(max_steps):
             raise SolverError(
                 f"continuation from {origin} stopped at {run.tau:.4g} of the way to {name!r} "
                 f"({run.steps} steps, {run.rejected} retried, step {run.step:.2g}): "
-                f"{explain(CONTINUATION_FAILED)}; the last solution reached is attached",
-                CONTINUATION_FAILED, eq)
+                f"{explain(CONTINUATION_FAILED)}; the last solution reached is attached"
+                f"{run.stuck}", CONTINUATION_FAILED, eq)
         trial = min(1.0, run.tau + run.step)
         new = _solve_at(solver, line.at(trial), eq, anchors)
         change = None if new is None else np.max(np.abs(new.x - eq.x)) / (trial - run.tau)
@@ -285,11 +270,26 @@ def _follow(solver, eq, problem, anchors, first_step, max_steps, origin):
                   new.solver.iterations)
         run.accept(trial, change, new.solver.iterations)
         eq = new
-    return run.steps, run.rejected, run.iterations, eq
+    return run, eq
+
+
+def _crossed(solver, eq, line, run: _Progress, anchors, first_step) -> Equilibrium:
+    """Past a stall of natural continuation: the fold's snap-through (or the stable way on),
+    certified by a warm solve; ``run`` restarts there (a new branch: no jump rate yet)."""
+    eq, tau, snap = cross_fold(solver, eq, line, run.tau, anchors)
+    eq = solver.solve(line.at(tau), warm_start=eq, anchors=anchors)
+    if snap is not None:
+        log.info("continuation to %s: %s", line.problem.name or line.problem.family,
+                 snap.describe())
+        run.snaps.append(snap)
+    run.tau, run.rate, run.step = tau, None, float(first_step)
+    return eq
 
 
 def _with_path(eq: Equilibrium, path: Path, t0: float) -> Equilibrium:
+    details = {**eq.solver.details, "path": path.describe(), "continuation_steps": path.steps}
+    if path.snaps:
+        details["snaps"] = [snap.to_dict() for snap in path.snaps]
     stats = replace(eq.solver, iterations=path.iterations, seconds=time.perf_counter() - t0,
-                    details={**eq.solver.details, "path": path.describe(),
-                             "continuation_steps": path.steps})
+                    details=details)
     return replace(eq, solver=stats)

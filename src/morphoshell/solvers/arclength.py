@@ -1,0 +1,428 @@
+"""Pseudo-arclength continuation: follow a branch of equilibria through its folds.
+
+Natural-parameter continuation (:mod:`morphoshell.solvers.continuation`) steps
+the parameter τ of a :class:`~morphoshell.solvers.paths.ParameterLine` and
+re-solves; at a *fold* (a limit point, where the branch turns back in τ) there
+is no solution beyond, and it stops.  Keller's pseudo-arclength method steps
+the arclength s of the branch instead (Keller 1977; Allgower & Georg 2003,
+§2.2): from a point w = (u, τ) with unit tangent t, the predictor w + Δs t is
+corrected by Newton's method on
+
+    F(u, τ) = 0,     tᵀ(w − w_prev) − Δs = 0,
+
+the bordered KKT system of :mod:`morphoshell.numerics.bordered`, nonsingular
+at a simple fold.  The norm weighs x's entries by 1/n_x (their mean square)
+against τ, and leaves the multipliers out.
+
+At every point the inertia of the reduced Hessian says whether the equilibrium
+is stable (a minimum) or how many directions lower its energy.  Events between
+two points are located, not just noticed:
+
+* a *fold* where τ's tangent component changes sign: the root of t_τ(s) along
+  the step (Brent's method; τ is stationary there, so an arclength located to
+  1e-9 puts τ within round-off);
+* a *branch point* where the inertia changes without a fold: by bisection on
+  s until τ is known to 1e-9.
+
+A physical shell loaded quasi-statically does not follow the unstable part of
+a branch: at a fold it *snaps through*.  :func:`snap_through` leaves the fold
+the way the shell would, down the energy along the fold's null direction (the
+one direction of zero curvature) to the stable equilibrium just beyond it.
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..numerics.bordered import BorderedKKT, Inertia, KKTState
+from ..numerics.status import BRANCH_ENDED, SNAP_FAILED, explain
+from .direct import DirectSolver
+from .paths import ParameterLine
+from .results import Equilibrium, SolverError, SolverStats
+
+__all__ = ["Arclength", "ArcPoint", "Snap", "snap_through", "cross_fold", "bordered_kkt",
+           "branch_ended", "MAX_STEP", "MIN_STEP",
+           "EVENT_TOL"]
+
+log = logging.getLogger(__name__)
+
+#: Newton iterations of a corrector before the step is retried smaller.
+MAX_CORRECTOR = 8
+#: A step corrected in at most this many iterations lets the next one grow by GROWTH.
+EASY = 3
+GROWTH = 1.5
+#: Largest and smallest arclength step (norm of (x, τ): x by its root mean square).
+MAX_STEP = 0.02
+MIN_STEP = 1e-7
+#: A step whose tangent turns by more than this angle (its cosine below) is retried
+#: smaller: it may have jumped to another branch.
+MIN_COS = 0.5
+#: ... as is one that turns the meridian's tangent ψ somewhere by more than a quarter turn.
+MAX_TURN = np.pi / 2
+#: Step in p of the bordering column's central difference (relative error ~1e-10).
+DIFFERENCE = 1e-5
+#: Events are located to this arclength (folds, where τ is stationary) and this τ
+#: (branch points).
+EVENT_TOL = 1e-9
+
+
+@dataclass(frozen=True)
+class ArcPoint:
+    """A point of a branch with its tangent and stability.
+
+    Attributes
+    ----------
+    tau : float
+        The path parameter (:class:`~morphoshell.solvers.paths.ParameterLine`).
+    u : ndarray, shape (order.size,)
+        (x, λ) in cell order (:class:`~morphoshell.numerics.bordered.BorderedKKT`).
+    t : ndarray, shape (k,)
+        The unit tangent's u part (over the system's unknowns u[lo:hi]).
+    t_tau : float
+        The tangent's τ component: positive while τ grows along the branch.
+    inertia : Inertia
+        Of the reduced Hessian.
+    iterations : int
+        Newton iterations of its corrector.
+    """
+
+    tau: float
+    u: np.ndarray
+    t: np.ndarray
+    t_tau: float
+    inertia: Inertia
+    iterations: int = 0
+
+
+@dataclass(frozen=True)
+class Snap:
+    """A snap-through: where the branch folded and where the shell landed.
+
+    Attributes
+    ----------
+    tau : float
+        The fold's path parameter.
+    tau_after : float
+        Where the snapped equilibrium was solved (just past the fold).
+    energy_before, energy_after : float
+        The energies at the fold and after the snap (C R²).
+    """
+
+    tau: float
+    tau_after: float
+    energy_before: float
+    energy_after: float
+
+    def describe(self) -> str:
+        """One line for ``solver.details["path"]``."""
+        return (f"snapped through a fold at {self.tau:.6g} of the way (energy "
+                f"{self.energy_before:.6g} -> {self.energy_after:.6g} C R^2)")
+
+    def to_dict(self) -> dict:
+        """Plain numbers (JSON)."""
+        return {"tau": self.tau, "tau_after": self.tau_after,
+                "energy_before": self.energy_before, "energy_after": self.energy_after}
+
+
+def bordered_kkt(solver: DirectSolver) -> BorderedKKT:
+    """The :class:`BorderedKKT` of ``solver``'s transcription, built once and kept with it."""
+    if getattr(solver, "_bordered", None) is None:
+        solver._bordered = BorderedKKT(solver.disc)
+    return solver._bordered
+
+
+class Arclength:
+    """Pseudo-arclength continuation of one solver's equilibria along a parameter line.
+
+    Parameters
+    ----------
+    solver : DirectSolver
+        Built for the line's structure.
+    line : ParameterLine
+        p(τ) = p_a + τ (p_b − p_a).
+    anchors : sequence of float
+        Mesh anchors, as for :meth:`DirectSolver.solve` (held fixed).
+    """
+
+    def __init__(self, solver: DirectSolver, line: ParameterLine, anchors=()):
+        self.solver, self.line = solver, line
+        self.kkt = bordered_kkt(solver)
+        d = solver.disc
+        self._p0, self._dp = line.source.parameter_vector(), line.direction
+        self.q = d.check_anchors(self._p0, anchors)
+        mask = self.kkt.x_mask
+        self._weight = np.where(mask, 1.0 / mask.sum(), 0.0)
+        self.tol, self.acceptable_tol = solver.tol, solver.backend.acceptable_tol
+
+    # -- parameters and data ----------------------------------------------------
+    def parameters(self, tau: float) -> np.ndarray:
+        """p(τ), shape (len(p),)."""
+        return self._p0 + tau * self._dp
+
+    def _data(self, tau: float):
+        return self.solver.disc.pre_numeric(self.parameters(tau), self.q)
+
+    def _around(self, tau: float) -> tuple:
+        """(D(τ + h), D(τ − h), h): the data for the bordering column's central difference
+        (:meth:`BorderedKKT.state`), h scaled so that p moves by about 1e-5."""
+        h = DIFFERENCE / max(1.0, float(np.max(np.abs(self._dp))))
+        return self._data(tau + h), self._data(tau - h), h
+
+    def norm(self, t: np.ndarray, t_tau: float) -> float:
+        """The continuation's norm of (u part over the unknowns, τ part)."""
+        return float(np.sqrt(self._weight @ (t * t) + t_tau * t_tau))
+
+    # -- points ---------------------------------------------------------------------
+    def start(self, eq: Equilibrium, tau: float, direction: float = 1.0) -> ArcPoint:
+        """The branch point of the solution ``eq`` at τ, its tangent pointing to ``direction``
+        (+1: growing τ)."""
+        u = self.kkt.pack(eq.x, eq.lam_g)
+        state = self.kkt.state(u, self._data(tau), self._around(tau))
+        t, t_tau = self.kkt.solve(state, np.zeros_like(state.rhs), np.zeros_like(state.rhs),
+                                  1.0, 1.0)
+        scale = np.copysign(self.norm(t, t_tau), direction * t_tau)
+        return ArcPoint(tau, u, t / scale, t_tau / scale, self.kkt.inertia(state))
+
+    def correct(self, prev: ArcPoint, ds: float) -> ArcPoint | None:
+        """The point at arclength ``ds`` from ``prev`` along its tangent, or None (no
+        convergence)."""
+        c, c_tau = self._weight * prev.t, prev.t_tau
+        u = self.kkt.moved(prev.u, ds * prev.t)
+        tau = prev.tau + ds * prev.t_tau
+        base = self.kkt.free(prev.u)
+
+        def row(u, tau):
+            return c @ (self.kkt.free(u) - base) + c_tau * (tau - prev.tau) - ds
+        found = self._newton(u, tau, c, c_tau, row)
+        if found is None:
+            return None
+        return self._point(*found, c, c_tau)
+
+    def _point(self, u, tau, state, iterations, c, c_tau) -> ArcPoint:
+        """The converged (u, τ) with its tangent (oriented along the border row c, c_τ) and
+        inertia, from the system there."""
+        state = self.kkt.with_column(state, u, self._around(tau))
+        t, t_tau = self.kkt.solve(state, np.zeros_like(state.rhs), c, c_tau, 1.0)
+        scale = self.norm(t, t_tau)
+        return ArcPoint(tau, u, t / scale, t_tau / scale, self.kkt.inertia(state), iterations)
+
+    def at_tau(self, prev: ArcPoint, tau: float) -> ArcPoint | None:
+        """The point of the branch at the parameter ``tau`` next to ``prev`` (τ fixed: a
+        natural-parameter step from ``prev``'s tangent), or None."""
+        ds = (tau - prev.tau) / prev.t_tau
+        u = self.kkt.moved(prev.u, ds * prev.t)
+        zero = np.zeros(len(prev.t))
+        found = self._newton(u, tau, zero, 1.0, lambda u, t: t - tau)
+        if found is None:
+            return None
+        return self._point(*found, self._weight * prev.t, prev.t_tau)
+
+    def _newton(self, u, tau, c, c_tau, row):
+        """Newton's iterations on (F = 0, row = 0): (u, τ, state, iterations) or None."""
+        # the bordering column at the predictor, kept through the iterations (a chord in it:
+        # the solution does not depend on it)
+        column = self.kkt.state(u, self._data(tau), self._around(tau)).F_tau
+        last = np.inf
+        for it in range(MAX_CORRECTOR + 1):
+            state = self.kkt.state(u, self._data(tau))
+            residual = row(u, tau)
+            if self._converged(state, last) and abs(residual) <= 1e-12:
+                return u, tau, state, it
+            if not np.isfinite(state.error) or (it >= 2 and state.error > last) \
+                    or it == MAX_CORRECTOR:
+                return None
+            du, dtau = self.kkt.solve(state, state.rhs, c, c_tau, -residual, column)
+            if not np.all(np.isfinite(du)) or not np.isfinite(dtau):
+                return None
+            u, tau, last = self.kkt.moved(u, du), tau + dtau, state.error
+        return None
+
+    def _converged(self, state: KKTState, last: float) -> bool:
+        """Within ``tol``, or within ``acceptable_tol`` once a step no longer cut the error
+        tenfold (the round-off floor of thin shells, as the Newton back end)."""
+        return state.error <= self.tol or \
+            state.error <= self.acceptable_tol and state.error > 0.1 * last
+
+    # -- results ------------------------------------------------------------------------
+    def equilibrium(self, point: ArcPoint, stats: SolverStats | None = None) -> Equilibrium:
+        """The :class:`Equilibrium` of a branch point (``converged`` True: F = 0 to ``tol``;
+        stable or not, as its inertia says)."""
+        x, lam = self.kkt.unpack(point.u)
+        problem = self.line.at(point.tau)
+        p = problem.parameter_vector()
+        D = self.solver.disc.cell_data(p, self.q)
+        stats = stats or SolverStats("direct", point.iterations, 0.0, "Arclength_Converged",
+                                     self.solver.nodes, self.solver.build_seconds,
+                                     {"path": "pseudo-arclength continuation"})
+        return self.solver.equilibrium(problem, x, lam, p, self.q, D, stats, converged=True)
+
+    def turned(self, prev: ArcPoint, new: ArcPoint) -> bool:
+        """Whether the step from ``prev`` to ``new`` turned too sharply (a branch jump?)."""
+        cos = self._weight @ (prev.t * new.t) + prev.t_tau * new.t_tau
+        if cos < MIN_COS:
+            return True
+        layout = self.solver.disc.layout
+        dpsi = layout.split(self.kkt.unpack(new.u)[0])[1] - \
+            layout.split(self.kkt.unpack(prev.u)[0])[1]
+        return bool(np.max(np.abs(dpsi)) > MAX_TURN)
+
+    # -- events --------------------------------------------------------------------------
+    def locate_fold(self, prev: ArcPoint, ds: float) -> ArcPoint:
+        """The fold between ``prev`` and the point at arclength ``ds`` from it (where t_τ
+        changes sign): the root of t_τ(s) by Brent's method."""
+        from scipy.optimize import brentq
+
+        found: dict[float, ArcPoint] = {}
+
+        def t_tau(s: float) -> float:
+            point = self.correct(prev, s)
+            if point is None:
+                raise _NoPoint(s)
+            found[s] = point
+            return point.t_tau
+        try:
+            s = brentq(t_tau, 0.0, ds, xtol=EVENT_TOL, rtol=4 * np.finfo(float).eps)
+        except _NoPoint as exc:          # a corrector failed inside: keep the best bracket
+            s = exc.s
+        return found.get(s) or self.correct(prev, s)
+
+    def locate_change(self, prev: ArcPoint, ds: float) -> ArcPoint:
+        """The point between ``prev`` and arclength ``ds`` where the inertia changes (a
+        branch point): bisection on s until τ is known to :data:`EVENT_TOL`."""
+        lo, hi = 0.0, ds
+        point = None
+        while (hi - lo) * max(abs(prev.t_tau), 1e-3) > EVENT_TOL and hi - lo > 1e-14:
+            mid = 0.5 * (lo + hi)
+            trial = self.correct(prev, mid)
+            if trial is None:
+                break
+            if trial.inertia.negative == prev.inertia.negative:
+                lo = mid
+            else:
+                hi, point = mid, trial
+        return point or self.correct(prev, hi)
+
+
+class _NoPoint(Exception):
+    def __init__(self, s: float):
+        self.s = s
+
+
+def snap_through(arc: Arclength, fold: ArcPoint, direction: float = 1.0,
+                 overshoot: float = 1e-3) -> tuple[Equilibrium, Snap]:
+    """The stable equilibrium the shell snaps to from the fold ``fold``.
+
+    Past the fold (at τ_f + ``overshoot`` in the ``direction`` of travel) the
+    branch has no equilibrium nearby; the shell leaves the fold along its null
+    direction (the tangent there, t_τ = 0), down the energy, and comes to rest
+    at a stable equilibrium: minimised from there (a cold solve: Ipopt's
+    descent) and certified a minimum, with an energy below the fold's.
+
+    Parameters
+    ----------
+    arc : Arclength
+    fold : ArcPoint
+        A located fold.
+    direction : float
+        +1 when the continuation was going to larger τ.
+    overshoot : float
+        How far past the fold in τ the snapped state is solved (raised up to
+        64-fold if the descent returns to the fold).
+
+    Returns
+    -------
+    Equilibrium
+        The snapped, stable equilibrium at τ_f + overshoot.
+    Snap
+
+    Raises
+    ------
+    SolverError
+        ``"Snap_Through_Failed"`` when no stable equilibrium of lower energy is
+        found past the fold; the fold's state is attached.
+    """
+    before = arc.equilibrium(fold)
+    mask = arc.kkt.x_mask
+    for factor in (1, 4, 16, 64):
+        tau = fold.tau + np.copysign(overshoot * factor, direction)
+        state = arc.kkt.state(fold.u, arc._data(tau))
+        # rhs = −∇ of the (penalised) Lagrangian: the energy falls along +v where rhs·v > 0
+        v = fold.t * np.copysign(1.0, state.rhs[mask] @ fold.t[mask])
+        for size in (0.02, 0.1):
+            x0, _ = arc.kkt.unpack(arc.kkt.moved(fold.u, size * v))
+            try:
+                eq = arc.solver.solve(arc.line.at(tau), x0=x0, anchors=arc.q)
+            except SolverError:
+                continue
+            if eq.energy < before.energy and _moved(eq, before):
+                snap = Snap(float(fold.tau), float(tau), float(before.energy), float(eq.energy))
+                log.debug("snap-through at tau = %.6g: energy %.6g -> %.6g", fold.tau,
+                          before.energy, eq.energy)
+                return eq, snap
+    raise SolverError(
+        f"no stable equilibrium found past the fold at {fold.tau:.6g} of the way: "
+        f"{explain(SNAP_FAILED)}; the fold's state is attached", SNAP_FAILED,
+        replace(before, converged=False))
+
+
+def _moved(eq: Equilibrium, before: Equilibrium) -> bool:
+    """Whether ``eq`` left the fold's state (it did not just slide back onto it)."""
+    return bool(np.max(np.abs(eq.x - before.x)) > 1e-3)
+
+
+def branch_ended(tau: float, why: str, last: Equilibrium | None) -> SolverError:
+    """The error of a branch that ended at τ (``"Branch_Ended"``)."""
+    return SolverError(f"the branch ended at {tau:.6g} of the way ({why}): "
+                       f"{explain(BRANCH_ENDED)}", BRANCH_ENDED, last)
+
+
+def cross_fold(solver: DirectSolver, eq: Equilibrium, line: ParameterLine, tau: float,
+               anchors=(), *, reach: float = 0.01,
+               max_points: int = 200) -> tuple[Equilibrium, float, Snap | None]:
+    """Past the point where natural-parameter continuation stalled, on the way to τ = 1.
+
+    From the stable solution ``eq`` at ``tau``, the branch is followed by
+    pseudo-arclength steps until either τ has grown by ``reach`` on stable
+    points (the stall was not a fold: natural continuation can go on from
+    there), or τ turns back: a fold, located, where the shell snaps through
+    (:func:`snap_through`).
+
+    Returns
+    -------
+    Equilibrium
+        Stable, at the returned τ.
+    float
+        Its τ.
+    Snap or None
+        The snap-through, if there was one.
+
+    Raises
+    ------
+    SolverError
+        ``"Branch_Ended"`` when the steps fail before either, or
+        ``"Snap_Through_Failed"`` (:func:`snap_through`).
+    """
+    arc = Arclength(solver, line, anchors)
+    point = arc.start(eq, tau, 1.0)
+    ds = 1e-3
+    for _ in range(max_points):
+        new = arc.correct(point, ds)
+        if new is None or arc.turned(point, new):
+            ds /= 2
+            if ds < MIN_STEP:
+                break
+            continue
+        if new.t_tau < 0:
+            eq_s, snap = snap_through(arc, arc.locate_fold(point, ds), 1.0)
+            return eq_s, snap.tau_after, snap
+        if new.tau >= min(1.0, tau + reach) and new.inertia.stable:
+            if new.tau > 1:
+                new = arc.at_tau(point, 1.0) or new
+            return arc.equilibrium(new), float(new.tau), None
+        point = new
+        if new.iterations <= EASY:
+            ds = min(GROWTH * ds, MAX_STEP)
+    raise branch_ended(point.tau, "no fold and no stable way on past the stall",
+                       arc.equilibrium(point))

@@ -1,0 +1,310 @@
+"""Branches of equilibria: bifurcation diagrams with stability, folds and snap-throughs.
+
+:func:`follow_branch` follows the equilibria of a problem along a straight path
+in parameter space (:class:`~morphoshell.solvers.paths.ParameterLine`): from
+the family's stress-free parameters to the problem's (the path τ = λ ∈ [0, 1]
+that :func:`~morphoshell.solvers.routes.solve` takes), or one parameter from
+its value to another.  Pseudo-arclength steps (:mod:`morphoshell.solvers.arclength`)
+go through folds; every point carries its stability (the inertia of the
+reduced Hessian), and folds and branch points are located on the way.
+
+Two ways to follow:
+
+``"branch"``  the connected branch, through its folds and unstable parts:
+              the bifurcation diagram;
+``"stable"``  what a shell loaded quasi-statically does: the stable branch up
+              to a fold, a snap-through to the stable equilibrium beyond it,
+              and on (hysteresis when the path is reversed).
+
+:func:`continuation_path` returns the same as a table.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..model.problem import Problem
+from .arclength import (EASY, GROWTH, MAX_STEP, MIN_STEP, ArcPoint, Arclength, Snap,
+                        branch_ended, snap_through)
+from .continuation import continue_to
+from .paths import ParameterLine, neutral_problem
+from .results import Equilibrium
+
+__all__ = ["Branch", "BranchPoint", "follow_branch", "continuation_path", "EVENTS", "FOLLOW",
+           "COLUMNS"]
+
+#: What a point of a branch can be besides an ordinary one.
+EVENTS = ("fold", "branch_point", "snap")
+#: The ways of following a path.
+FOLLOW = ("branch", "stable")
+#: The columns of a branch's table after the parameter's (units: docs, "Branches").
+COLUMNS = ("energy", "r_end", "z_end", "psi_end", "stable", "negative_eigenvalues", "event")
+#: The path parameter may leave [0, 1] by this much before the branch counts as lost.
+TAU_MARGIN = 0.5
+
+
+@dataclass(frozen=True)
+class BranchPoint:
+    """One equilibrium of a branch.
+
+    Attributes
+    ----------
+    tau : float
+        The path fraction λ ∈ [0, 1] (0: the path's start, 1: its end).
+    values : dict
+        The moving parameters' values there.
+    energy : float
+        Total energy (C R²).
+    r_end, z_end, psi_end : float
+        The far end's r and z (units of R; z in :func:`solve`'s gauge) and ψ (rad).
+    negative_eigenvalues : int
+        Of the reduced Hessian: 0 for a stable equilibrium.
+    stable : bool
+        A strict local minimum (no negative or zero eigenvalue).
+    event : str
+        "" or one of :data:`EVENTS`.
+    equilibrium : Equilibrium
+        The whole solution.
+    """
+
+    tau: float
+    values: dict
+    energy: float
+    r_end: float
+    z_end: float
+    psi_end: float
+    negative_eigenvalues: int
+    stable: bool
+    event: str
+    equilibrium: Equilibrium = field(repr=False, compare=False)
+
+
+@dataclass(frozen=True)
+class Branch:
+    """A followed branch: its points in order along it, with events and snap-throughs.
+
+    Attributes
+    ----------
+    problem : Problem
+        The path's end (τ = 1).
+    line : ParameterLine
+    parameter : str or None
+        The one parameter continued in, or None for the path from the
+        stress-free parameters.
+    follow : {"branch", "stable"}
+    points : tuple of BranchPoint
+    snaps : tuple of Snap
+    seconds : float
+    """
+
+    problem: Problem
+    line: ParameterLine
+    parameter: str | None
+    follow: str
+    points: tuple
+    snaps: tuple
+    seconds: float
+
+    @property
+    def events(self) -> list[BranchPoint]:
+        """The points that are events (folds, branch points, snaps), in order."""
+        return [pt for pt in self.points if pt.event]
+
+    @property
+    def end(self) -> BranchPoint:
+        """The last point (at τ = 1 when the branch reached the path's end)."""
+        return self.points[-1]
+
+    def columns(self) -> dict[str, list]:
+        """The table's columns: ``lambda``, the parameter's own (if one), then :data:`COLUMNS`."""
+        out: dict[str, list] = {"lambda": [pt.tau for pt in self.points]}
+        if self.parameter is not None:
+            out[self.parameter] = [pt.values[self.parameter] for pt in self.points]
+        for name in COLUMNS:
+            out[name] = [getattr(pt, name) for pt in self.points]
+        return out
+
+    def to_dataframe(self, equilibria: bool = False):
+        """The branch as a pandas DataFrame, one row per point (units in ``df.attrs``).
+
+        Parameters
+        ----------
+        equilibria : bool
+            Add a column ``equilibrium`` with each point's :class:`Equilibrium`.
+
+        Returns
+        -------
+        pandas.DataFrame
+        """
+        import pandas as pd
+
+        df = pd.DataFrame(self.columns())
+        if equilibria:
+            df["equilibrium"] = [pt.equilibrium for pt in self.points]
+        df.attrs.update(units={"lambda": "1", "energy": "C R^2", "r_end": "R", "z_end": "R",
+                               "psi_end": "rad"},
+                        problem=self.problem.describe(), follow=self.follow,
+                        path=dict(zip(self.line.names, zip(self.line.a.tolist(),
+                                                           self.line.b.tolist()))))
+        return df
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data (JSON): the problem, the path, the points' table and the snaps."""
+        return {"problem": self.problem.describe(), "parameter": self.parameter,
+                "follow": self.follow,
+                "path": {n: [float(a), float(b)] for n, a, b in zip(self.line.names, self.line.a,
+                                                                    self.line.b)},
+                "points": self.columns(), "snaps": [s.to_dict() for s in self.snaps],
+                "seconds": self.seconds}
+
+
+def follow_branch(problem: Problem, param: str | None = None, to: float | None = None, *,
+                  nodes: int = 200, stages: int = 2, follow: str = "branch",
+                  max_step: float = MAX_STEP, max_points: int = 2000, anchors=()) -> Branch:
+    """Follow the equilibria of ``problem`` along a path, with their stability and events.
+
+    Parameters
+    ----------
+    problem : Problem
+    param, to : str and float, optional
+        Continue the one parameter ``param`` (h, cut, opening or one of the
+        family's) from ``problem``'s value to ``to``; without them, follow the
+        path from the family's stress-free parameters to ``problem``'s.
+    nodes, stages : int
+        The direct solver's mesh (as :func:`solve`).
+    follow : {"branch", "stable"}
+        The connected branch through its folds, or the quasi-static path with
+        snap-throughs (module docstring).
+    max_step : float
+        Largest pseudo-arclength step (norm of (x, τ), x by its root mean square).
+    max_points : int
+        Most points before giving up.
+    anchors : sequence of float
+        Mesh anchors (as :func:`solve`).
+
+    Returns
+    -------
+    Branch
+        From τ = 0 to the first point at τ = 1.
+
+    Raises
+    ------
+    ValueError
+        An unknown parameter or ``follow``, or a family without stress-free
+        parameters to start from.
+    SolverError
+        ``"Branch_Ended"`` when the steps fail or leave the path, with the
+        last point attached; ``"Snap_Through_Failed"``.
+    """
+    from .routes import direct_solver
+
+    if follow not in FOLLOW:
+        raise ValueError(f"follow = {follow!r} must be one of {list(FOLLOW)}")
+    if not 0 < max_step <= 1:
+        raise ValueError(f"max_step = {max_step!r} must be in (0, 1]")
+    t0 = time.perf_counter()
+    solver = direct_solver(problem, nodes, anchors, stages=stages)
+    line, start = _path(solver, problem, param, to, anchors)
+    walk = _Walk(Arclength(solver, line, anchors), follow, max_step, max_points)
+    walk.run(start)
+    return Branch(line.problem, line, param, follow, tuple(walk.points), tuple(walk.snaps),
+                  time.perf_counter() - t0)
+
+
+def continuation_path(problem: Problem, param: str | None = None, to: float | None = None,
+                      **options):
+    """:func:`follow_branch` as a table: one row per point, with its ``equilibrium``.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``lambda``, the parameter (if one), ``energy``, ``r_end``,
+        ``z_end``, ``psi_end``, ``stable``, ``negative_eigenvalues``, ``event``
+        and ``equilibrium``.
+    """
+    return follow_branch(problem, param, to, **options).to_dataframe(equilibria=True)
+
+
+def _path(solver, problem: Problem, param, to, anchors) -> tuple[ParameterLine, Equilibrium]:
+    """The path and the solution at its start."""
+    if (param is None) != (to is None):
+        raise ValueError("give both param and to (one parameter from problem's value to "
+                         "another), or neither (the path from the stress-free parameters)")
+    if param is not None:
+        line = ParameterLine.along(problem, param, to)
+        return line, continue_to(solver, problem, anchors)
+    source = neutral_problem(problem)
+    if source is None:
+        raise ValueError(f"{problem.family!r} at these parameters is stress-free already: "
+                         f"continue one parameter instead (param=..., to=...)")
+    return ParameterLine.between(source, problem), solver.solve(source, anchors=anchors)
+
+
+class _Walk:
+    """The steps of one branch: points, events and snaps as they are found."""
+
+    def __init__(self, arc: Arclength, follow: str, max_step: float, max_points: int):
+        self.arc, self.follow, self.max_step, self.max_points = arc, follow, max_step, max_points
+        self.points: list[BranchPoint] = []
+        self.snaps: list[Snap] = []
+
+    def record(self, point: ArcPoint, event: str = "", eq: Equilibrium | None = None) -> None:
+        """Add ``point`` (its equilibrium ``eq`` if at hand) as a :class:`BranchPoint`."""
+        eq = eq if eq is not None else self.arc.equilibrium(point)
+        tau = float(point.tau)
+        self.points.append(BranchPoint(
+            tau, self.arc.line.values(tau), float(eq.energy), float(eq.r[-1]), float(eq.z[-1]),
+            float(eq.psi[-1]), int(point.inertia.negative), bool(point.inertia.stable), event,
+            eq))
+
+    def run(self, start: Equilibrium) -> None:
+        """Step from ``start`` (τ = 0) until τ = 1."""
+        point = self.arc.start(start, 0.0, 1.0)
+        self.record(point)
+        ds = self.max_step / 4
+        while True:
+            if len(self.points) >= self.max_points:
+                raise self._ended(point, f"{self.max_points} points")
+            new = self.arc.correct(point, ds)
+            if new is None or self.arc.turned(point, new):
+                ds /= 2
+                if ds < MIN_STEP:
+                    raise self._ended(point, "the step fell below its minimum")
+                continue
+            if not -TAU_MARGIN <= new.tau <= 1 + TAU_MARGIN:
+                raise self._ended(new, "it left the path")
+            point, done = self._advance(point, new, ds)
+            if done:
+                return
+            ds = min(GROWTH * ds, self.max_step) if new.iterations <= EASY else ds
+
+    def _advance(self, point: ArcPoint, new: ArcPoint, ds: float) -> tuple[ArcPoint, bool]:
+        """Record the events between ``point`` and ``new`` and ``new`` itself (or the end at
+        τ = 1, or the snap-through): (the next point to step from, whether done)."""
+        if np.sign(new.t_tau) != np.sign(point.t_tau):
+            fold = self.arc.locate_fold(point, ds)
+            self.record(fold, "fold")
+            if self.follow == "stable" and point.inertia.stable:
+                return self._snap(fold), False
+        elif new.inertia.negative != point.inertia.negative:
+            self.record(self.arc.locate_change(point, ds), "branch_point")
+        if point.tau < 1 <= new.tau and new.t_tau > 0:
+            end = self.arc.at_tau(point, 1.0) or new
+            self.record(end)
+            return end, True
+        self.record(new)
+        return new, False
+
+    def _snap(self, fold: ArcPoint) -> ArcPoint:
+        """Snap through at ``fold``; the walk goes on from the snapped equilibrium."""
+        eq, snap = snap_through(self.arc, fold, 1.0)
+        self.snaps.append(snap)
+        start = self.arc.start(eq, snap.tau_after, 1.0)
+        self.record(start, "snap", eq)
+        return start
+
+    def _ended(self, point: ArcPoint, why: str):
+        return branch_ended(point.tau, why, self.arc.equilibrium(point))
