@@ -61,9 +61,11 @@ class BranchPoint:
     r_end, z_end, psi_end : float
         The far end's r and z (units of R; z in :func:`solve`'s gauge) and ψ (rad).
     negative_eigenvalues : int
-        Of the reduced Hessian: 0 for a stable equilibrium.
+        Of the reduced Hessian: 0 for a stable equilibrium; at a fold or
+        branch point, the fewer of its two sides'.
     stable : bool
-        A strict local minimum (no negative or zero eigenvalue).
+        A strict local minimum (no negative or zero eigenvalue); False at a
+        fold or branch point, where an eigenvalue crosses zero.
     event : str
         "" or one of :data:`EVENTS`.
     equilibrium : Equilibrium
@@ -251,14 +253,21 @@ class _Walk:
         self.points: list[BranchPoint] = []
         self.snaps: list[Snap] = []
 
-    def record(self, point: ArcPoint, event: str = "", eq: Equilibrium | None = None) -> None:
-        """Add ``point`` (its equilibrium ``eq`` if at hand) as a :class:`BranchPoint`."""
+    def record(self, point: ArcPoint, event: str = "", eq: Equilibrium | None = None,
+               negative: int | None = None) -> None:
+        """Add ``point`` (its equilibrium ``eq`` if at hand) as a :class:`BranchPoint`.
+
+        At a fold or branch point (``negative`` given: the fewer negative
+        eigenvalues of its two sides) the reduced Hessian is singular, so the
+        point is marginal, not stable, whichever side the located point fell on.
+        """
         eq = eq if eq is not None else self.arc.equilibrium(point)
         tau = float(point.tau)
+        stable = bool(point.inertia.stable) if negative is None else False
+        negative = int(point.inertia.negative) if negative is None else int(negative)
         self.points.append(BranchPoint(
             tau, self.arc.line.values(tau), float(eq.energy), float(eq.r[-1]), float(eq.z[-1]),
-            float(eq.psi[-1]), int(point.inertia.negative), bool(point.inertia.stable), event,
-            eq))
+            float(eq.psi[-1]), negative, stable, event, eq))
 
     def run(self, start: Equilibrium) -> None:
         """Step from ``start`` (τ = 0) until τ = 1."""
@@ -286,11 +295,12 @@ class _Walk:
         τ = 1, or the snap-through): (the next point to step from, whether done)."""
         if np.sign(new.t_tau) != np.sign(point.t_tau):
             fold = self.arc.locate_fold(point, ds)
-            self.record(fold, "fold")
+            self.record(fold, "fold", negative=min(point.inertia.negative, new.inertia.negative))
             if self.follow == "stable" and point.inertia.stable:
                 return self._snap(fold), False
         elif new.inertia.negative != point.inertia.negative:
-            self.record(self.arc.locate_change(point, ds), "branch_point")
+            self.record(self.arc.locate_change(point, ds), "branch_point",
+                        negative=min(point.inertia.negative, new.inertia.negative))
         if point.tau < 1 <= new.tau and new.t_tau > 0:
             end = self.arc.at_tau(point, 1.0) or new
             self.record(end)

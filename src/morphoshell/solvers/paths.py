@@ -60,7 +60,21 @@ class ParameterLine:
 
     @classmethod
     def between(cls, source: Problem, problem: Problem) -> "ParameterLine":
-        """From ``source``'s values of the parameters that differ to ``problem``'s."""
+        """From ``source``'s values of the parameters that differ to ``problem``'s.
+
+        Raises
+        ------
+        ValueError
+            The ends differ in structure: a cut (or an opening of a closed
+            shell) that is 0 at one end and not at the other would turn a pole
+            into a free edge along the path.
+        """
+        if source.structure != problem.structure:
+            name = "cut" if source.cut != problem.cut else "opening"
+            raise ValueError(
+                f"a path cannot take {name} from {getattr(source, name)!r} to "
+                f"{getattr(problem, name)!r}: at 0 the shell ends in a pole, otherwise in a free "
+                f"edge (another problem); continue between values > 0")
         names = [n for n in problem.params if problem.params[n] != source.params.get(n)]
         names += [n for n in PATH_KEYS if getattr(problem, n) != getattr(source, n)]
         return cls(source, problem, tuple(names),
