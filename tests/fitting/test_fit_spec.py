@@ -58,3 +58,20 @@ def test_on_constraints_names_the_ordering_and_the_bounds():
     got = dict(spec.on_constraints(theta))
     assert got == {"s1 = sigma (from the pole)": ("s1",), "s4 - s3 = sigma": ("s3", "s4"),
                    f"f1 = {spec.bounds['f1'][0]:g} (its bound)": ("f1",)}
+
+
+@pytest.mark.parametrize("variant", ["free", "flat"])
+def test_a_start_outside_a_bound_by_ipopts_relaxation_is_projected_onto_it(variant):
+    """An earlier fit's f2 = 0.499999990065968 (Ipopt's bound relaxation of 0.5) starts the
+    next fit on the bound; a start truly outside is refused with the same message as ever."""
+    from morphoshell.fitting.spec import BOUND_SLACK
+
+    lo, hi = volvox_spec(variant, START).bounds["f2"]
+    for value, edge in ((0.499999990065968, lo), (hi * (1 + 0.5 * BOUND_SLACK), hi)):
+        spec = volvox_spec(variant, START.with_updates(f2=value))
+        assert spec.base.params["f2"] == edge and spec.theta0[spec.fitted.index("f2")] == edge
+    with pytest.raises(ValueError, match=r"the start f2 = 0\.4999 lies outside its bounds "
+                                         r"\(0\.5, 2\)"):
+        volvox_spec(variant, START.with_updates(f2=0.4999))
+    inside = volvox_spec(variant, START.with_updates(f2=0.5 + 1e-9))
+    assert inside.base.params["f2"] == 0.5 + 1e-9          # inside: untouched

@@ -33,7 +33,7 @@ import numpy as np
 from ..model.problem import Problem
 
 __all__ = ["FitSpec", "volvox_spec", "breakpoint_bounds", "VARIANTS", "BOUNDS", "EDGE_RTOL",
-           "PUSH_SHARE", "VOLVOX_BREAKPOINTS"]
+           "PUSH_SHARE", "VOLVOX_BREAKPOINTS", "BOUND_SLACK"]
 
 #: Hypotheses on the posterior intrinsic curvature κ₁ (see the module docstring).
 VARIANTS = ("flat", "undeformed", "unstressed", "free")
@@ -45,6 +45,10 @@ VOLVOX_BREAKPOINTS = ("s1", "s2", "s3", "s4")
 #: A fitted breakpoint within this fraction of its box's width from an edge rests on it
 #: (:meth:`FitSpec.on_box_edges`).
 EDGE_RTOL = 1e-4
+#: A start this close to a bound (relative to max(1, |bound|)) but outside it lies on it: an
+#: earlier fit's result, outside by Ipopt's bound relaxation (its ``bound_relax_factor``,
+#: 1e-8, and the constraint tolerances), is projected onto the bound, not refused.
+BOUND_SLACK = 1e-6
 #: The share of the room between two breakpoints that a moved box gives the one that pushed
 #: against its edge, when the other did not (:meth:`FitSpec.recentred`; tuned by the moves
 #: the synthetic campaign's fits needed: halves crept, all of it made neighbours take turns).
@@ -87,7 +91,8 @@ class FitSpec:
     ------
     ValueError
         A fitted name that is not a parameter of the family, or a start
-        value outside its bounds.
+        value outside its bounds by more than :data:`BOUND_SLACK` (closer
+        ones are moved onto the bound).
     """
 
     base: Problem
@@ -102,12 +107,11 @@ class FitSpec:
         if unknown:
             raise ValueError(f"cannot fit {unknown}: not parameters of family "
                              f"{self.base.family!r} ({list(self.base.params)})")
-        for n in self.fitted:
-            lo, hi = self.bounds.get(n, (-np.inf, np.inf))
-            # (on an edge is inside: a fit that ended there starts the next one)
-            if not lo <= self.base.params[n] <= hi:
-                raise ValueError(f"the start {n} = {self.base.params[n]!r} lies outside its "
-                                 f"bounds ({lo:g}, {hi:g})")
+        projected = {n: _projected(n, self.base.params[n], self.bounds.get(n))
+                     for n in self.fitted}
+        moved = {n: v for n, v in projected.items() if v != self.base.params[n]}
+        if moved:
+            object.__setattr__(self, "base", self.base.with_updates(**moved))
 
     @property
     def theta0(self) -> np.ndarray:
@@ -318,6 +322,25 @@ def breakpoint_bounds(s: Sequence[float], sigma: float, end: float,
     below = [sigma] + [a + w * r + sigma for a, w, r in zip(s, share, room)]
     above = [a + w * r for a, w, r in zip(s, share, room)] + [end - sigma]
     return [(min(lo, b), max(hi, b)) for lo, b, hi in zip(below, s, above)]   # (b when pinned)
+
+
+def _projected(name: str, value: float, bounds) -> float:
+    """``value`` onto ``bounds`` if it is outside by no more than :data:`BOUND_SLACK`.
+
+    On an edge is inside: a fit that ended there starts the next one.
+
+    Raises
+    ------
+    ValueError
+        Outside by more, with today's message naming the start and its bounds.
+    """
+    lo, hi = bounds if bounds is not None else (-np.inf, np.inf)
+    if lo <= value <= hi:
+        return value
+    edge = lo if value < lo else hi
+    if abs(value - edge) <= BOUND_SLACK * max(1.0, abs(edge)):
+        return float(edge)
+    raise ValueError(f"the start {name} = {value!r} lies outside its bounds ({lo:g}, {hi:g})")
 
 
 def volvox_spec(variant: str, start: Problem | None = None, hold: Mapping[str, float] = (),
