@@ -13,6 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from synthetic_cases import generator
+
 from morphoshell.workflows import (CampaignResult, Timepoint, campaign, fitted_problem,
                                   load_campaign, numerical_ablation, read_timepoints)
 
@@ -20,21 +22,6 @@ ROOT = Path(__file__).resolve().parents[2]
 NODES = 60
 TIMES = (0.0, 0.05, 0.1)          # kappa1 = 0 throughout: the flat variant generated them
 VARIANTS = ("flat", "unstressed", "free")
-
-
-def _generator():
-    spec = importlib.util.spec_from_file_location(
-        "make_synthetic_inversion", ROOT / "scripts" / "make_synthetic_inversion.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-@pytest.fixture(scope="module")
-def data(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("synthetic")
-    truth = _generator().make(folder, pseudotimes=TIMES, embryos=2, nodes=120, quiet=True)
-    return folder, truth
 
 
 @pytest.fixture(scope="module")
@@ -160,7 +147,7 @@ def test_with_the_same_held_values_the_nearest_hypothesis_fits_best(tmp_path_fac
     its own values, fitted to the flat first timepoint, kappa1 = 1/f1 fails the late
     timepoints of the full sequence (docs/campaigns.md)."""
     folder = tmp_path_factory.mktemp("late")
-    truth = _generator().make(folder, pseudotimes=(0.0, 0.5, 0.75, 1.0), embryos=2, nodes=120,
+    truth = generator().make(folder, pseudotimes=(0.0, 0.5, 0.75, 1.0), embryos=2, nodes=120,
                               quiet=True)
     fixed = ("flat", "undeformed", "unstressed")
     result = campaign(folder, fixed, method="gradient", workers=1, nodes=NODES,

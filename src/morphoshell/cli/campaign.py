@@ -84,6 +84,9 @@ def register(sub) -> None:
     add_executor(p, "one per variant, at most one per CPU core")
     p.add_argument("--out", type=_out_dir, default=Path("campaign"), metavar="DIR",
                    help="output folder (default: ./campaign)")
+    p.add_argument("--allow-failures", action="store_true",
+                   help="exit 0 even when fits failed or did not converge (default: exit "
+                        "status 3, naming them on the last line)")
     resume = p.add_mutually_exclusive_group()
     resume.add_argument("--resume", dest="resume", action="store_true", default=True,
                         help="keep results already in DIR made with the same data, method and "
@@ -102,7 +105,8 @@ def _campaign(args) -> int:
                       nodes=args.nodes, timepoints=args.timepoints,
                       embryo_errors=args.embryo_errors, held_from=args.held_from)
     t = result.timing
-    failed = sum(r["status"] != "ok" for r in result.records.values())
+    unfinished = result.unfinished()
+    failed = sum(why == "failed" for *_, why in unfinished)
     per = t["fit_seconds"] / t["computed"] if t["computed"] else math.nan
     print(f"campaign of {len(result.timepoints)} timepoints x {len(result.variants)} variants "
           f"({args.method}, {args.nodes} nodes) on {t['workers']} worker(s) ({t['backend']}): "
@@ -114,4 +118,18 @@ def _campaign(args) -> int:
         print("E_fit [R]:")
         print(table.to_string(float_format=lambda v: f"{v:.4g}"))
     print(f"  wrote {result.out}/<timepoint>_<variant>.json and {result.out / SUMMARY}")
-    return 3 if failed == len(result.records) and failed else 0
+    print(_verdict(unfinished, len(result.records), args.allow_failures))
+    return 3 if unfinished and not args.allow_failures else 0
+
+
+def _verdict(unfinished: list, fits: int, allowed: bool) -> str:
+    """The last line: all converged, or how many failed and did not converge, by name."""
+    if not unfinished:
+        return f"all {fits} fits converged"
+    failed = [f"{t}_{v}" for t, v, why in unfinished if why == "failed"]
+    stopped = [f"{t}_{v}" for t, v, why in unfinished if why != "failed"]
+    parts = [f"{len(names)} {what}: {', '.join(names)}"
+             for names, what in ((failed, "failed"), (stopped, "did not converge")) if names]
+    tail = ("(--allow-failures: exit status 0)" if allowed else
+            "(their JSON files say why; exit status 3, --allow-failures for 0)")
+    return f"of {fits} fits, {'; '.join(parts)} {tail}"

@@ -63,28 +63,48 @@ class CampaignResult:
         -------
         pandas.DataFrame
             Columns ``timepoint``, ``pseudotime``, ``variant``, ``status``,
-            ``E_fit``, ``converged``, the 14 Volvox parameters (lengths in R,
+            ``E_fit``, ``converged``, ``nodes`` and ``method`` (the fit's
+            settings: a folder that mixes them shows it), ``held_from`` (the
+            variant whose first fit gave the held values; empty where a
+            variant fitted its own), ``active_constraints`` (the constraints
+            and bounds the fit ends on, ``; ``-separated), the 14 Volvox parameters (lengths in R,
             curvatures in 1/R), then ``se_<name>`` (Gauss–Newton standard
             errors; NaN for parameters not fitted at that timepoint), and
             with ``embryo_errors`` ``se_embryo_<name>`` (the jackknife over
-            the traces) and ``embryo_t95`` (their 95 % interval is ± this many),
-            with ``held_from`` ``held_from`` (the variant whose first fit gave the
-            held values; empty where a variant fitted its own).
+            the traces) and ``embryo_t95`` (their 95 % interval is ± this many).
         """
         import pandas as pd
 
-        held_from = any("held_from" in r for r in self.records.values())
-        rows = [_summary_row(tp, v, self.records[(tp.name, v)], held_from)
+        rows = [_summary_row(tp, v, self.records[(tp.name, v)])
                 for tp in self.timepoints for v in self.variants
                 if (tp.name, v) in self.records]
         return pd.DataFrame(rows)
 
+    def unfinished(self) -> list[tuple[str, str, str]]:
+        """The fits that failed or did not converge: (timepoint, variant, "failed" or
+        "not converged"), in the campaign's order."""
+        out = []
+        for tp in self.timepoints:
+            for v in self.variants:
+                rec = self.records.get((tp.name, v))
+                if rec is None:
+                    continue
+                if rec["status"] != "ok":
+                    out.append((tp.name, v, "failed"))
+                elif not rec.get("converged", False):
+                    out.append((tp.name, v, "not converged"))
+        return out
 
-def _summary_row(tp: Timepoint, variant: str, rec: dict, held_from: bool) -> dict:
-    """One row of :meth:`CampaignResult.to_dataframe`: a fit's status, E_fit and parameters."""
+
+def _summary_row(tp: Timepoint, variant: str, rec: dict) -> dict:
+    """One row of :meth:`CampaignResult.to_dataframe`: a fit's status, settings, E_fit and
+    parameters."""
     row = {"timepoint": tp.name, "pseudotime": tp.pseudotime, "variant": variant,
            "status": rec["status"], "E_fit": rec.get("E_fit", float("nan")),
-           "converged": rec.get("converged", False)}
+           "converged": rec.get("converged", False), "nodes": rec.get("nodes"),
+           "method": rec.get("method", ""),
+           "held_from": (rec.get("held_from") or {}).get("variant", ""),
+           "active_constraints": "; ".join(rec.get("constrained", []))}
     params = rec.get("parameters", {})
     names = [n for n in params if n not in _GEOMETRY]
     row.update({n: params[n] for n in names})
@@ -95,8 +115,6 @@ def _summary_row(tp: Timepoint, variant: str, rec: dict, held_from: bool) -> dic
     if embryo is not None:
         row.update({f"se_embryo_{n}": _number(embryo.get(n)) for n in names})
         row["embryo_t95"] = rec.get("embryo_t95", float("nan"))   # (none: no errors)
-    if held_from:
-        row["held_from"] = rec.get("held_from", {}).get("variant", "")
     return row
 
 
