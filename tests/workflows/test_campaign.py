@@ -475,7 +475,7 @@ def test_a_fit_that_stops_unconverged_is_continued_once_from_where_it_stopped(
     # the fit of an average too; the record counts the iterations of both
     calls.clear()
     task = module.CampaignTask(str(data[0]), tps, "free", "gradient", NODES, str(serial.out), None)
-    rec = module._fit_one(task, tps[1], avg, avg, module._settings(task, tps[1]))
+    rec = module._fit_one(task, tps[1], avg, avg, module._settings(task, tps[1], avg))
     assert len(calls) == 2 and rec["continued"] and rec["converged"]
     assert rec["outer_iterations"] == sum(r.outer_iterations for _, r in calls)
     assert rec["E_fit"] == calls[1][1].E_fit
@@ -616,7 +616,7 @@ def test_a_step_restarts_from_the_stress_free_parameters_only_when_its_state_fai
     tps = read_timepoints(data[0])
     task = module.CampaignTask(str(data[0]), tps, "flat", "kkt", NODES, str(serial.out), None)
     prev = serial.record("t01", "flat")
-    rec = module._fit_one(task, tps[1], prev, prev, module._settings(task, tps[1]))
+    rec = module._fit_one(task, tps[1], prev, prev, module._settings(task, tps[1], prev))
     assert len(starts) == calls and starts[0] is not None
     assert calls == 1 or starts[1] is None
     assert rec["status"] == "failed" and rec["message"] == f"{error}: failed"

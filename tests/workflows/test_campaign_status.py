@@ -66,3 +66,109 @@ def test_a_campaign_whose_fits_all_converge_exits_0_and_says_so(data, tmp_path, 
     assert main(["campaign", str(data[0]), "--variants", "flat", "--timepoints", "t01",
                  "--nodes", str(NODES), "--workers", "1", "--out", str(out)]) == 0
     assert capsys.readouterr().out.strip().splitlines()[-1] == "all 1 fits converged"
+
+
+def test_a_folder_with_other_settings_is_refused_unless_forced(data, tmp_path, capsys):
+    """Two campaigns with different settings into one folder would mix their fits: the
+    second is refused (exit 2, naming the setting, nothing written) unless --force."""
+    out = tmp_path / "out"
+    base = ["campaign", str(data[0]), "--variants", "flat", "--timepoints", "t01",
+            "--workers", "1", "--out", str(out)]
+    assert main([*base, "--nodes", str(NODES)]) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    capsys.readouterr()
+    assert main([*base, "--nodes", str(NODES + 20)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"nodes = {NODES}, not {NODES + 20}" in err \
+        and "--force" in err
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before       # untouched
+    assert main([*base, "--nodes", str(NODES), "--method", "kkt"]) == 2
+    assert "method = 'gradient', not 'kkt'" in capsys.readouterr().err
+    assert main([*base, "--nodes", str(NODES + 20), "--force"]) == 0
+    summary = pd.read_csv(out / "campaign_summary.csv")
+    assert list(summary.nodes) == [NODES + 20]                              # refitted
+
+
+def test_resume_redoes_the_fits_downstream_of_a_changed_fit(data, tmp_path):
+    """t01's data change: t01 is refitted, and so are t02 and t03, which started from it."""
+    import shutil
+
+    from morphoshell.workflows import campaign
+
+    folder = tmp_path / "data"
+    shutil.copytree(data[0], folder)
+    out = tmp_path / "out"
+    first = campaign(folder, ["flat"], workers=1, out=out, nodes=NODES)
+    assert first.timing["computed"] == 3
+    again = campaign(folder, ["flat"], workers=1, out=out, nodes=NODES)
+    assert again.timing["computed"] == 0
+    from morphoshell.workflows import read_timepoints
+    t01 = folder / read_timepoints(folder)[0].midline
+    lines = t01.read_text().splitlines()
+    i = next(k for k, line in enumerate(lines) if line[:1].isdigit())
+    cells = lines[i + 5].split(",")
+    cells[0] = repr(float(cells[0]) + 1e-3)          # a small change at t01 only
+    lines[i + 5] = ",".join(cells)
+    t01.write_text("\n".join(lines) + "\n")
+    changed = campaign(folder, ["flat"], workers=1, out=out, nodes=NODES)
+    assert [f["computed"] for f in changed.timing["fits"]] == [True, True, True]
+    assert changed.record("t02", "flat")["previous"] != first.record("t02", "flat")["previous"]
+
+
+def test_a_folder_that_becomes_unwritable_ends_with_a_named_error(data, tmp_path, monkeypatch,
+                                                                   capsys):
+    """(Simulated: tests may run as root, whom a read-only folder does not stop.)"""
+    import errno
+    import tempfile
+
+    real, calls = tempfile.mkstemp, []
+
+    def mkstemp(*args, **kw):
+        calls.append(kw.get("prefix"))
+        if len(calls) > 1:
+            raise PermissionError(errno.EACCES, "Permission denied")
+        return real(*args, **kw)
+    monkeypatch.setattr(tempfile, "mkstemp", mkstemp)
+    out = tmp_path / "out"
+    assert main(["campaign", str(data[0]), "--variants", "flat", "--nodes", str(NODES),
+                 "--workers", "1", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "internal error" not in err
+    assert f"cannot write {out}/" in err and "Permission denied" in err
+
+
+_KILLED = """
+import sys
+sys.modules["distributed"] = None        # as without Dask: a local process pool
+from morphoshell.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_workers_end_when_the_campaign_process_is_killed(data, tmp_path):
+    """A process pool's workers go on with their task (a whole variant) after the main
+    process dies, writing results nobody reads: they must end within seconds."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    psutil = pytest.importorskip("psutil")
+    out = tmp_path / "out"
+    script = tmp_path / "run.py"
+    script.write_text(_KILLED)
+    main_process = subprocess.Popen(
+        [sys.executable, str(script), "-q", "campaign", str(data[0]), "--variants", "flat,free",
+         "--nodes", "300", "--workers", "2", "--out", str(out)],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 120
+    while not list(out.glob("t0*.json")) and time.time() < deadline:
+        time.sleep(0.2)
+    workers = psutil.Process(main_process.pid).children(recursive=True)
+    os.kill(main_process.pid, signal.SIGKILL)
+    main_process.wait()
+    gone, alive = psutil.wait_procs(workers, timeout=10)
+    for p in alive:
+        p.kill()
+    assert len(workers) >= 2 and not alive, f"{len(alive)} of {len(workers)} still running"

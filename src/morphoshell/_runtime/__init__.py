@@ -3,7 +3,8 @@
 Input validation (:mod:`.validate`), evaluation of CasADi functions into NumPy
 buffers (:mod:`.buffered`), C compilation of CasADi functions and its cache
 (:mod:`.compiled`), the terminal (:mod:`.console`: logging and progress bars)
-and the large-block allocator (:mod:`.allocator`).  No physics and no imports
+the large-block allocator (:mod:`.allocator`) and workers that end with the
+process they work for (:mod:`.lifeline`).  No physics and no imports
 from the rest of the package.
 """
 

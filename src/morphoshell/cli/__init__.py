@@ -1,7 +1,8 @@
 """Command line: ``morphoshell COMMAND ...``.
 
 Exit status: 0 on success; 2 for bad input (one line naming the option, key,
-value or file, before any work starts, and no output written); 3 when a
+value or file, before any work starts, and no output written) or a file that
+cannot be written (named); 3 when a
 solver fails (Ipopt's or the BVP solver's status in the message); 1 only for
 a bug in morphoshell (the message says where to report it); 130 when
 interrupted.  Every output is validated before any work and written all or
@@ -118,6 +119,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:   # `morphoshell example NAME | head`: the reader left; not a bug
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
+    except OSError as exc:     # a file or folder that cannot be read or written, named
+        print(f"morphoshell: error: {exc.strerror or exc} ({exc.filename})" if exc.filename
+              else f"morphoshell: error: {exc}", file=sys.stderr)
+        return 2
     except Exception as exc:  # a bug: say so, and where to report it
         if os.environ.get("MORPHOSHELL_DEBUG"):
             raise

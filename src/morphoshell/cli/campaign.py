@@ -84,6 +84,10 @@ def register(sub) -> None:
     add_executor(p, "one per variant, at most one per CPU core")
     p.add_argument("--out", type=_out_dir, default=Path("campaign"), metavar="DIR",
                    help="output folder (default: ./campaign)")
+    p.add_argument("--force", action="store_true",
+                   help="run into a folder that holds a campaign with other settings (data, "
+                        "method, nodes): record the new ones and refit its fits as "
+                        "they come (default: refused, naming the setting)")
     p.add_argument("--allow-failures", action="store_true",
                    help="exit 0 even when fits failed or did not converge (default: exit "
                         "status 3, naming them on the last line)")
@@ -103,7 +107,8 @@ def _campaign(args) -> int:
     result = campaign(args.data_dir, args.variants, method=args.method, workers=args.workers,
                       scheduler=args.scheduler, out=args.out, resume=args.resume,
                       nodes=args.nodes, timepoints=args.timepoints,
-                      embryo_errors=args.embryo_errors, held_from=args.held_from)
+                      embryo_errors=args.embryo_errors, held_from=args.held_from,
+                      force=args.force)
     t = result.timing
     unfinished = result.unfinished()
     failed = sum(why == "failed" for *_, why in unfinished)

@@ -17,12 +17,14 @@ E_fit in units of R, energies in C R².
 from __future__ import annotations
 
 import concurrent.futures as cf
+import json
 import os
 import time
 from dataclasses import replace
 from pathlib import Path
 from typing import Iterator, Sequence
 
+from .._runtime import lifeline
 from .._runtime.console import progress
 from ..fitting import FIT_NODES, METHODS, VARIANTS, check_midline, volvox_spec
 from ..io import Midline
@@ -31,8 +33,10 @@ from .campaign_results import SUMMARY, CampaignResult, read_record, read_records
 from .executor import SerialExecutor, backend_name, open_executor
 from .timepoint_fits import CampaignTask, first_start, fit_variant, write_atomic
 
-__all__ = ["campaign", "CAMPAIGN_NODES"]
+__all__ = ["campaign", "CAMPAIGN_NODES", "SETTINGS"]
 
+#: The file in a campaign's folder that records its settings (:func:`campaign`'s ``force``).
+SETTINGS = "campaign_settings.json"
 #: Mesh nodes a campaign accepts (and its --nodes): a fit's lower limit, and a cap on its cost.
 CAMPAIGN_NODES = (FIT_NODES[0], 2000)
 
@@ -43,7 +47,7 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
              nodes: int = 200, start: dict | None = None,
              timepoints: Sequence[str] | None = None,
              embryo_errors: bool | str | Sequence[str] = False,
-             held_from: str | None = None) -> CampaignResult:
+             held_from: str | None = None, force: bool = False) -> CampaignResult:
     """Fit every timepoint of a data set for each variant (paper Fig. 3 N, O).
 
     Parameters
@@ -109,7 +113,12 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
     ------
     ValueError
         A bad argument, data file or scheduler address, named, before any
-        work (and before any stored result is deleted).
+        work (and before any stored result is deleted); a folder that
+        holds a campaign with other settings (the setting named), unless
+        ``force``.
+    OSError
+        The folder cannot be written (the file named); the results written
+        before stay, and a rerun resumes.
 
     Notes
     -----
@@ -130,15 +139,18 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
         timepoints = _selected(timepoints, selected)
     if workers is None:
         workers = min(len(variants), os.cpu_count() or 1)
+    recorded = _check_settings(out, _folder_settings(data_dir, method, nodes, start),
+                               force)
     tasks = [CampaignTask(str(Path(data_dir).resolve()), timepoints, v, method, int(nodes),
-                          str(out.resolve()), dict(start) if start else None, v in jackknifed)
+                          str(out.resolve()), dict(start) if start else None, v in jackknifed,
+                          owner=lifeline.owner())
              for v in variants]
     source = _held_source(tasks, variants, timepoints, held_from)
     t0 = time.perf_counter()
     with open_executor(workers, scheduler) as executor:
         backend = backend_name(executor)
         tasks, reports, first_report = _run(executor, tasks, source, out, timepoints, variants,
-                                            resume)
+                                            resume, recorded)
     seconds = time.perf_counter() - t0
     records = read_records(out, [(tp.name, v) for tp in timepoints for v in variants])
     fits = _fit_reports(tasks, reports, first_report, held_from)
@@ -149,6 +161,34 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
         "fit_seconds": float(sum(r["seconds"] for r in done)), "fits": fits})
     write_atomic(out / SUMMARY, result.to_dataframe().to_csv(index=False))
     return result
+
+
+def _folder_settings(data_dir, method: str, nodes: int, start: dict | None) -> dict:
+    """The settings a campaign's folder records (:data:`SETTINGS`): what all its fits share.
+
+    Not ``held_from``, which the ``free`` variant never has: a folder may hold a
+    campaign's variants with and without held values (the summary's
+    ``held_from`` column says which), and their source's fit is reused.
+    """
+    return {"data": str(Path(data_dir).resolve()), "method": method, "nodes": int(nodes),
+            "start": dict(start) if start else None}
+
+
+def _check_settings(out: Path, settings: dict, force: bool) -> dict:
+    """``settings``, checked against those recorded in ``out`` (ValueError naming the first
+    that differs, unless ``force``)."""
+    path = out / SETTINGS
+    recorded = read_record(path) if path.is_file() else None
+    if recorded is None or force:
+        return settings
+    for key, value in settings.items():
+        if recorded.get(key, value) != value:
+            option = {"data": "DATA_DIR", "start": "start"}.get(key, "--" + key.replace("_", "-"))
+            raise ValueError(
+                f"{path}: the folder holds a campaign with {key} = {recorded.get(key)!r}, not "
+                f"{value!r} ({option}): choose another --out, or --force to record the new "
+                f"settings and refit its fits as they come")
+    return settings
 
 
 def _read_data(data_dir, start) -> tuple[Timepoint, ...]:
@@ -233,8 +273,8 @@ def _held_source(tasks: list[CampaignTask], variants: tuple[str, ...],
 
 
 def _run(executor, tasks: list[CampaignTask], source: CampaignTask | None, out: Path,
-         timepoints: tuple[Timepoint, ...], variants: tuple[str, ...], resume: bool
-         ) -> tuple[list[CampaignTask], list, list[dict]]:
+         timepoints: tuple[Timepoint, ...], variants: tuple[str, ...], resume: bool,
+         settings: dict) -> tuple[list[CampaignTask], list, list[dict]]:
     """Run the campaign's tasks on ``executor``, with a progress bar of the fits.
 
     The held values' source fit first, then every variant.  Returns the
@@ -244,6 +284,7 @@ def _run(executor, tasks: list[CampaignTask], source: CampaignTask | None, out: 
     """
     # only now: a scheduler that does not answer must leave no folder and delete no results
     out.mkdir(parents=True, exist_ok=True)
+    write_atomic(out / SETTINGS, json.dumps(settings, indent=1, sort_keys=True) + "\n")
     if not resume:
         for tp in timepoints:
             for v in variants:

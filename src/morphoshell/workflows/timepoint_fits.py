@@ -34,6 +34,7 @@ from typing import Sequence
 
 import numpy as np
 
+from .._runtime import lifeline
 from ..fitting import BOUNDS, FitError, FitResult, fit, volvox_spec
 from ..io import Midline, average
 from ..io.timepoints import Timepoint
@@ -81,6 +82,9 @@ class CampaignTask:
     held_from : dict or None
         The source variant, its first timepoint and that fit's ``parameters``
         (or its failure ``message``): the values held by every variant but ``free``.
+    owner : tuple or None
+        The process that runs the campaign (:func:`morphoshell._runtime.lifeline.owner`):
+        a worker on its machine stops when it has gone.
     """
 
     data_dir: str
@@ -92,10 +96,16 @@ class CampaignTask:
     start: dict | None
     embryo_errors: bool = False
     held_from: dict | None = None
+    owner: tuple | None = None
 
 
 def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _digest(record: dict) -> str:
+    """SHA-256 of a record as JSON (sorted keys: the same record, the same digest)."""
+    return hashlib.sha256(json.dumps(record, sort_keys=True).encode()).hexdigest()
 
 
 def write_atomic(path: Path, text: str) -> None:
@@ -104,7 +114,10 @@ def write_atomic(path: Path, text: str) -> None:
     An interrupted campaign leaves whole records or none, never a part of
     one: it resumes where it stopped.
     """
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".tmp", dir=path.parent)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".tmp", dir=path.parent)
+    except OSError as exc:      # (named: not the temporary file's name)
+        raise OSError(exc.errno, f"cannot write {path}: {exc.strerror}") from None
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)
@@ -118,12 +131,18 @@ def write_atomic(path: Path, text: str) -> None:
         raise
 
 
-def _settings(task: CampaignTask, tp: Timepoint) -> dict:
-    """What makes a stored result reusable: same data, method, mesh and start."""
+def _settings(task: CampaignTask, tp: Timepoint, prev: dict | None) -> dict:
+    """What makes a stored result reusable: same data, method, mesh and start.
+
+    The start of a fit after the first is the previous fit's record: its
+    digest (``previous``) makes a changed fit upstream redo every fit
+    downstream of it, not only its own.
+    """
     settings = {"method": task.method, "nodes": task.nodes,
                 "data": {"file": tp.midline,
                          "sha256": _sha256(Path(task.data_dir) / tp.midline)},
-                "first_start": task.start}
+                "first_start": task.start,
+                "previous": None if prev is None else _digest(prev)}
     if task.held_from is not None and task.variant != "free":
         settings["held_from"] = task.held_from
     if task.embryo_errors:
@@ -199,9 +218,10 @@ def fit_variant(task: CampaignTask) -> list[dict]:
     out = Path(task.out)
     report = []
     prev = first = None     # the records the next fit starts from / holds f1, κ3, κ4 of
+    lifeline.watch(task.owner)
     for tp in task.timepoints:
         path = result_path(out, tp.name, task.variant)
-        settings = _settings(task, tp)
+        settings = _settings(task, tp, prev)
         stored = read_record(path)
         if stored is not None and all(stored.get(key) == value
                                       for key, value in settings.items()):
