@@ -38,7 +38,7 @@ CUT = 0.15
 #: First cut of the Σ continuation, as a fraction of the final one (the cap removed
 #: from the intact shell in one step; continue_between then grows it adaptively):
 #: the smallest of these that the final mesh holds.
-_FIRST_CUTS = (0.125, 0.25, 0.5, 0.75)
+_FIRST_CUTS = (0.125, 0.25, 0.5, 0.75, 0.875, 1.0)
 #: The fields of a fitted equilibrium that a record stores (its ``state``).
 _FIELDS = ("s", "r", "psi", "f_s")
 
