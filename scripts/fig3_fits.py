@@ -81,7 +81,7 @@ def main(argv=None) -> int:
     import matplotlib.pyplot as plt
 
     from morphoshell.workflows import fitted_problem, fitted_state, load_campaign, \
-        numerical_ablation
+        numerical_ablation, ablation_errors
     from morphoshell.plotting import (DOUBLE_COLUMN, SINGLE_COLUMN, label_panel, paper_style,
                                       plot_ablation, plot_ablation_overlay, save)
 
@@ -138,8 +138,10 @@ def main(argv=None) -> int:
                     continue
                 if first_flat is None and v == "flat":
                     first_flat = (tp, num)
+                errors = ablation_errors(rec, num.ablation)
                 ablations[f"{tp.name}_{v}"] = {**num.observables(), "steps": num.steps,
-                                               "cold_difference": num.cold_difference}
+                                               "cold_difference": num.cold_difference,
+                                               **{f"se_{k}": e for k, e in errors.items()}}
                 plot_ablation(num.ablation, ax, title=None, legend=False)
                 ax.set_title(f"{tp.name} (t = {tp.pseudotime:.2f}), {LABELS[v]}\n"
                              f"E_fit = {rec['E_fit']:.3g} R, o = {num.ablation.opening:.3g} R",

@@ -320,6 +320,13 @@ def test_ablation_errors_propagate_the_covariance_through_the_tie(serial):
     want = np.sqrt(np.einsum("ij,jk,ik->i", J, cov, J))
     for k, w in zip(RECOIL, want):
         assert got[k] == pytest.approx(w, rel=1e-4, abs=1e-9), k
+    # a parameter pinned on a constraint (no standard error) is held there, not NaN: the
+    # errors are those of kappa2 alone
+    ablation = numerical_ablation(problem, 0.15, nodes=NODES).ablation
+    pinned = ablation_errors({**record, "standard_errors": {"f1": None, "kappa2": se[1]}},
+                             ablation)
+    for i, k in enumerate(RECOIL):
+        assert pinned[k] == pytest.approx(abs(J[i, 1]) * se[1], rel=1e-4, abs=1e-9), k
 
 
 def test_bad_input_is_refused_before_any_work(tmp_path, data):

@@ -15,7 +15,7 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "problem_files": ["ProblemFileError", "Settings", "load_problem", "parse_overrides",
         "apply_overrides", "split_overrides", "settings_from", "to_jsonable", "write_json",
         "write_csv", "METHODS", "SOLVER_KEYS", "ALIASES", "examples", "example_path",
-        "example_text", "EXAMPLES_DIR"],
+        "example_text", "EXAMPLES_DIR", "problem_of_record"],
     "traces": ["FORMATS", "MidlineError", "Trace", "Midline", "read_trace", "to_image",
         "write_trace"],
     "midlines": ["SECTIONS", "Alignment", "align", "resample", "load_midline", "average"],

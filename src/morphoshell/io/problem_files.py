@@ -54,7 +54,8 @@ else:  # pragma: no cover - exercised on Python 3.10 only
 
 __all__ = ["ProblemFileError", "Settings", "load_problem", "parse_overrides", "apply_overrides",
            "split_overrides", "settings_from", "to_jsonable", "write_json", "write_csv", "METHODS",
-           "SOLVER_KEYS", "ALIASES", "examples", "example_path", "example_text", "EXAMPLES_DIR"]
+           "SOLVER_KEYS", "ALIASES", "examples", "example_path", "example_text", "EXAMPLES_DIR",
+           "problem_of_record"]
 
 log = logging.getLogger(__name__)
 
@@ -159,15 +160,71 @@ def _problem_from_json(path: Path) -> Problem:
         raise ProblemFileError(f"{path}: cannot read the file ({exc.strerror})") from None
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise ProblemFileError(f"{path}: not valid JSON ({exc})") from None
-    desc = data.get("problem") if isinstance(data, dict) else None
-    if not isinstance(desc, dict):
+    if not isinstance(data, dict) or not isinstance(data.get("problem"), dict):
         raise ProblemFileError(f"{path}: no 'problem' entry: expected the JSON written by "
                                f"morphoshell solve/ablate/fit --json")
-    keys = {"family", "params", "h", "cut", "opening", "theory", "geometry", "name"}
     try:
-        return Problem(**{k: v for k, v in desc.items() if k in keys})
+        return problem_of_record(data, str(path))
+    except ValueError as exc:
+        raise ProblemFileError(str(exc)) from None
+
+
+
+
+def problem_of_record(record: Mapping[str, Any], where: str = "the record") -> Problem:
+    """The problem of a result (``solve``/``ablate``/``fit --json``, or a campaign's record).
+
+    A fit's record holds its parameters twice: ``parameters`` (what a reader
+    looks at and may edit) and ``problem.params`` with h, cut and opening
+    (what rebuilds the problem).  Both are read and must agree, so that an
+    edit of one is never silently ignored; a family parameter that neither
+    holds is refused rather than taken from the family's defaults.
+
+    Parameters
+    ----------
+    record : mapping
+        With a ``problem`` entry (:meth:`Problem.describe`) and, for a fit,
+        ``parameters``.
+    where : str
+        The file or record, for messages.
+
+    Returns
+    -------
+    Problem
+
+    Raises
+    ------
+    ValueError
+        No ``problem`` entry, the two copies disagree (the entry named), a
+        fit's parameter missing from both, or an invalid problem.
+    """
+    desc = record.get("problem")
+    if not isinstance(desc, Mapping):
+        raise ValueError(f"{where}: no 'problem' entry: expected the JSON written by "
+                         f"morphoshell solve/ablate/fit --json or a campaign")
+    # (a result's "problem" is Problem.describe(): the file's keys and the parameters)
+    desc = {k: v for k, v in desc.items() if k in _PROBLEM_KEYS | {"params"}}
+    params = dict(desc.get("params") or {})
+    fitted = record.get("parameters")
+    if isinstance(fitted, Mapping):
+        for name, value in fitted.items():
+            here = desc if name in ("h", "cut", "opening") else params
+            if name in here and here[name] != value:
+                entry = name if here is desc else f"params.{name}"
+                raise ValueError(f"{where}: parameters.{name} = {value!r} but problem.{entry} = "
+                                 f"{here[name]!r}: the fit's two copies of its parameters "
+                                 f"disagree; make them equal (or delete one)")
+            here.setdefault(name, value)
+    try:
+        problem = Problem(**{**desc, "params": params})
     except (TypeError, ValueError) as exc:
-        raise ProblemFileError(f"{path}: {exc}") from None
+        raise ValueError(f"{where}: {exc}") from None
+    missing = [n for n in problem.family_obj.parameters if n not in params]
+    if isinstance(fitted, Mapping) and missing:
+        raise ValueError(f"{where}: the fit gives no value of {', '.join(missing)} (neither in "
+                         f"'parameters' nor in 'problem.params'): refusing the family's "
+                         f"default for a fitted shell")
+    return problem
 
 
 def _dealias(table: dict, where: str) -> dict:

@@ -14,11 +14,12 @@ covariance to the recoil observables.  Lengths in units of R, energies in C R².
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from types import SimpleNamespace
 
 import numpy as np
 
+from ..io.problem_files import problem_of_record
 from ..mechanics.ablation import Ablation, edge_state, intact_problem, recoil_jacobian
 from ..model.problem import Problem
 from ..numerics.mesh import mesh_spec
@@ -43,25 +44,37 @@ _FIRST_CUTS = (0.125, 0.25, 0.5, 0.75, 0.875, 1.0)
 _FIELDS = ("s", "r", "psi", "f_s")
 
 
-def fitted_problem(record: dict) -> Problem:
-    """The Volvox problem of a campaign result.
+def fitted_problem(record: dict, where: str = "the fit's record") -> Problem:
+    """The problem of a fit: a record of ``morphoshell fit --json`` or of a campaign.
 
     Parameters
     ----------
     record : dict
-        A successful record of :func:`morphoshell.workflows.campaigns.campaign`
-        (its ``parameters``, ``timepoint`` and ``variant``).
+        A successful fit's record, e.g. ``json.load(open("fit.json"))``: its
+        ``problem`` and ``parameters``, which must agree
+        (:func:`morphoshell.io.problem_files.problem_of_record`).
+    where : str
+        The file, for messages.
 
     Returns
     -------
     Problem
-        The ``volvox`` family at the fitted parameters, h, cut and opening,
-        named ``<timepoint>_<variant>``.
+        The fitted shell, named ``<timepoint>_<variant>`` for a campaign's
+        record (else as the fit named it).
+
+    Raises
+    ------
+    ValueError
+        A failed fit's record, or one whose two copies of the parameters
+        disagree (the entry named).
     """
-    p = dict(record["parameters"])
-    h, cut, opening = p.pop("h"), p.pop("cut"), p.pop("opening")
-    return Problem("volvox", p, h=h, cut=cut, opening=opening,
-                   name=f"{record['timepoint']}_{record['variant']}")
+    if record.get("status", "ok") != "ok":
+        raise ValueError(f"{where}: the fit failed ({record.get('message', 'no message')}): "
+                         f"it has no fitted shell")
+    problem = problem_of_record(record, where)
+    if "timepoint" in record and "variant" in record:
+        problem = replace(problem, name=f"{record['timepoint']}_{record['variant']}")
+    return problem
 
 
 def fitted_state(record: dict) -> SimpleNamespace:
@@ -206,6 +219,10 @@ def ablation_errors(record: dict, ablation: Ablation) -> dict[str, float]:
     linearly, σ_y² = (J C Jᵀ)_yy, with J = dy/dθ the exact derivatives of the
     observables (:func:`~morphoshell.mechanics.ablation.recoil_jacobian`, through both
     equilibria) and the ``unstressed`` tie κ₁ = 1/f₁ (dκ₁/df₁ = −1/f₁²).
+    Parameters pinned on a constraint or bound (no standard error in the
+    record: :attr:`morphoshell.fitting.results.FitResult.pinned`) are held
+    there: the errors are those of the fit given its active constraints, not
+    NaN (the synthetic campaign ends 15 of 24 fits on one).
 
     Parameters
     ----------
@@ -223,6 +240,7 @@ def ablation_errors(record: dict, ablation: Ablation) -> dict[str, float]:
     """
     names = list(record["fitted"])
     se = np.array([record["standard_errors"][n] for n in names], dtype=float)
+    se = np.nan_to_num(se)                  # (None/NaN: pinned, held on its constraint)
     corr = np.nan_to_num(np.array(record["correlation"], dtype=float))
     np.fill_diagonal(corr, 1.0)
     cov = corr * np.outer(se, se)

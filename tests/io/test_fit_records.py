@@ -1,0 +1,72 @@
+"""One source of truth in a fit's JSON: its two copies of the parameters are read and must
+agree (io.problem_files.problem_of_record), for `ablate FIT.json` and fitted_problem()."""
+import json
+
+import pytest
+
+from morphoshell import Problem
+from morphoshell.cli import main
+from morphoshell.io.problem_files import problem_of_record
+from morphoshell.workflows import fitted_problem
+
+FITTED = Problem("volvox", {"kappa2": -7.5, "s1": 1.2}, h=0.15, opening=0.3)
+
+
+def _record(**changes) -> dict:
+    """A fit's record as `morphoshell fit --json` writes it (FitResult.to_dict's keys)."""
+    p = FITTED
+    parameters = {**p.params, "h": p.h, "cut": p.cut, "opening": p.opening}
+    rec = {"problem": p.describe(), "parameters": parameters, "variant": "free"}
+    rec.update(changes)
+    return json.loads(json.dumps(rec))
+
+
+def test_the_two_copies_agree_and_give_the_problem():
+    assert problem_of_record(_record()) == FITTED
+    # a campaign's record: named after its timepoint and variant
+    named = fitted_problem({**_record(), "timepoint": "t05", "status": "ok"})
+    assert named.name == "t05_free" and named.params == FITTED.params
+    # a single fit's record (`fit --json`) works as well
+    assert fitted_problem(_record()).params == FITTED.params
+
+
+@pytest.mark.parametrize("edit, entry", [
+    (lambda r: r["parameters"].update(kappa2=-7.0), "parameters.kappa2 = -7.0 but "
+                                                    "problem.params.kappa2 = -7.5"),
+    (lambda r: r["problem"]["params"].update(s1=1.3), "parameters.s1 = 1.2 but "
+                                                      "problem.params.s1 = 1.3"),
+    (lambda r: r["parameters"].update(h=0.2), "parameters.h = 0.2 but problem.h = 0.15"),
+])
+def test_an_edit_of_one_copy_is_refused_naming_the_entry(edit, entry):
+    rec = _record()
+    edit(rec)
+    with pytest.raises(ValueError, match=entry.replace(".", r"\.")):
+        problem_of_record(rec, "fit.json")
+
+
+def test_a_parameter_missing_from_both_is_refused_not_defaulted():
+    rec = _record()
+    del rec["parameters"]["kappa2"], rec["problem"]["params"]["kappa2"]
+    with pytest.raises(ValueError, match="no value of kappa2"):
+        problem_of_record(rec, "fit.json")
+    # in one copy only: taken from it
+    rec = _record()
+    del rec["problem"]["params"]["kappa2"]
+    assert problem_of_record(rec).params["kappa2"] == -7.5
+
+
+def test_ablate_refuses_a_fit_json_whose_copies_disagree(tmp_path, capsys):
+    rec = _record()
+    rec["parameters"]["kappa2"] = -7.0
+    path = tmp_path / "fit.json"
+    path.write_text(json.dumps(rec))
+    out = tmp_path / "ablation.json"
+    assert main(["ablate", str(path), "--set", "cut=0.15", "--json", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "parameters.kappa2 = -7.0" in err and str(path) in err
+    assert not out.exists()
+
+
+def test_a_failed_fit_has_no_fitted_shell():
+    with pytest.raises(ValueError, match="the fit failed"):
+        fitted_problem({"status": "failed", "message": "FitError: x"}, "t05_free.json")
