@@ -1,4 +1,5 @@
 """The inner problem of a fit (fitting.inner): solves that stay on one branch."""
+import numpy as np
 import pytest
 
 from fitting_cases import three_parameter_spec
@@ -24,9 +25,31 @@ def test_a_failed_trial_is_rejected_without_continuation(monkeypatch):
     inner.solver = types.SimpleNamespace(solve=warm)
     continued = []
     monkeypatch.setattr(fitting, "continue_between",
-                        lambda solver, eq, problem, first_step: continued.append(eq) or "eq")
+                        lambda solver, eq, problem, first_step, snap: continued.append(eq) or "eq")
     theta = spec.theta0 * (1 + 1e-3)          # well within NEAR of the start
     with pytest.raises(SolverError, match="warm solve failed"):
         inner.solve(theta, trial=True)
     assert continued == [] and inner.solves == 0
     assert inner.solve(theta) == "eq" and continued == [start] and inner.solves == 1
+
+
+def test_inner_solves_cross_a_snap_through_instead_of_failing():
+    """A fit's step across a fold of the inner branch (the issue's shell: its path from the
+    stress-free parameters folds at 0.872): the inner solve snaps through to the stable
+    equilibrium there, the cold solve's, instead of raising Continuation_Failed."""
+    from pathlib import Path
+
+    from morphoshell import solve
+    from morphoshell.fitting.inner import InnerProblem
+    from morphoshell.fitting.spec import FitSpec
+    from morphoshell.io.problem_files import load_problem
+    from morphoshell.solvers.paths import ParameterLine, neutral_problem
+
+    target, _ = load_problem(Path(__file__).parents[1] / "data" / "volvox_fold.toml")
+    line = ParameterLine.between(neutral_problem(target), target)
+    spec = FitSpec(line.at(0.85), tuple(line.names))
+    inner = InnerProblem(spec, np.zeros((10, 2)), 200)
+    eq = inner.solve(np.array([target.params[n] for n in spec.fitted]))
+    assert eq.solver.details.get("snaps"), eq.solver.details.get("path")
+    cold = solve(target, nodes=200)
+    assert abs(eq.r[-1] - cold.r[-1]) < 1e-8 and abs(eq.z[-1] - cold.z[-1]) < 1e-8

@@ -207,7 +207,7 @@ class InnerProblem:
             if self._distance(near[0], theta) < NEAR:
                 eq = self.solver.solve(problem, warm_start=near[1])
             else:
-                eq = continue_between(self.solver, near[1], problem)
+                eq = continue_between(self.solver, near[1], problem, snap=True)
         except ValueError:           # the mesh's breakpoints moved too far: a new mesh
             self._build(problem)
             self._archive = []
@@ -215,7 +215,7 @@ class InnerProblem:
         except SolverError:
             if trial:
                 raise
-            eq = continue_between(self.solver, near[1], problem, first_step=0.25)
+            eq = continue_between(self.solver, near[1], problem, first_step=0.25, snap=True)
         return self._keep(theta, eq)
 
     def keep(self, theta, eq: Equilibrium) -> None:

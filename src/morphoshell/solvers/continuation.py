@@ -131,7 +131,8 @@ def continue_to(solver: DirectSolver, problem: Problem, anchors=(), *, first_ste
 
 
 def continue_between(solver: DirectSolver, start: Equilibrium, problem: Problem, anchors=(), *,
-                     first_step: float = 1.0, max_steps: int = 200) -> Equilibrium:
+                     first_step: float = 1.0, max_steps: int = 200,
+                     snap: bool = False) -> Equilibrium:
     """Solve ``problem`` by continuation from a solution ``start`` on the same solver.
 
     The parameters that differ move linearly from ``start``'s to
@@ -156,21 +157,28 @@ def continue_between(solver: DirectSolver, start: Equilibrium, problem: Problem,
         First step of the path parameter τ ∈ (0, 1].
     max_steps : int
         Accepted and rejected steps together.
+    snap : bool
+        Cross a fold where the branch ends as the shell would, by its
+        snap-through (as :func:`continue_to` does; a fit's inner solves), instead
+        of stopping there.
 
     Returns
     -------
     Equilibrium
-        With ``solver.details["path"]`` the :class:`Path` taken.
+        With ``solver.details["path"]`` the :class:`Path` taken (and its
+        ``snaps``).
 
     Raises
     ------
     SolverError
-        Status ``"Continuation_Failed"``, as :func:`continue_to`.
+        Status ``"Continuation_Failed"``, as :func:`continue_to`;
+        ``"Snap_Through_Failed"``.
     """
     t0 = time.perf_counter()
     run, eq = _follow(solver, start, problem, anchors, first_step, max_steps,
-                      "a previous solution")
-    return _with_path(eq, Path("continuation", run.steps, run.rejected, run.iterations), t0)
+                      "a previous solution", snap=snap)
+    return _with_path(eq, Path("continuation", run.steps, run.rejected, run.iterations,
+                               tuple(run.snaps)), t0)
 
 
 @dataclass

@@ -21,6 +21,7 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "fitted_shapes": ["NumericalAblation", "numerical_ablation", "ablation_errors",
         "fitted_problem", "fitted_state", "CUT"],
     "timepoint_fits": ["HELD"],
+    "start_candidates": ["MULTI_STARTS", "RANK_NODES"],
     "sweeps": ["sweep", "ERRORS", "MAX_SPLITS", "SOLVE_COLUMNS", "ABLATE_COLUMNS",
         "ESTIMATED_ABLATION", "UNITS", "chunk_plan"],
     "sweep_results": ["SweepResult"],

@@ -45,6 +45,7 @@ from ..solvers.refinement import solve_from
 from ..solvers.results import Equilibrium, SolverError
 from .campaign_results import read_record, result_path
 from .fitted_shapes import fitted_state
+from .start_candidates import Candidate, best_start, other_candidates
 
 __all__ = ["CampaignTask", "fit_variant", "first_start", "write_atomic", "HELD", "FOLD_GAIN"]
 
@@ -297,6 +298,7 @@ def _fit_one(task: CampaignTask, tp: Timepoint, prev: dict | None, first: dict |
     except ValueError as exc:
         return _failed(rec, exc)
     eq0 = None if prev is None else _start_state(spec.base, prev["state"], task.nodes)
+    spec, eq0 = _chosen_start(task, hold, data, Candidate(origin, spec, eq0), rec)
     try:
         result, continued = _fit_or_restart(task, hold, spec, data, eq0, rec)
     except _FIT_FAILURES as exc:
@@ -310,6 +312,20 @@ def _fit_one(task: CampaignTask, tp: Timepoint, prev: dict | None, first: dict |
     return {**rec, **d, "status": "ok", "continued": continued,
             "state": {k: np.asarray(getattr(eq, k), dtype=float).tolist()
                       for k in ("s", "r", "psi", "f_s")}}
+
+
+def _chosen_start(task: CampaignTask, hold: dict, data, first: Candidate, rec: dict) -> tuple:
+    """The best start (:mod:`morphoshell.workflows.start_candidates`) of ``first`` (the
+    previous fit, or the chain's first start) and the others; its spec and state.
+
+    Records ``started_from`` and ``start_candidates`` in ``rec``.
+    """
+    others = other_candidates(task.variant, hold, first_start(task.start),
+                              "start" if task.start else "family defaults")
+    others = [c for c in others if c.origin != first.origin]
+    best, rec["start_candidates"] = best_start([first, *others], data, task.nodes)
+    rec["started_from"] = best.origin
+    return best.spec, best.state
 
 
 def _fit_or_restart(task: CampaignTask, hold: dict, spec, data, eq0: Equilibrium | None,
