@@ -35,7 +35,7 @@ from morphoshell._runtime.console import run_script
 from morphoshell.plotting import figure_JK, plot_k_estimates, plot_recoil_velocity
 from morphoshell.inverse import estimate
 from morphoshell.io.problem_files import write_csv, write_json
-from morphoshell.plotting import plt
+import matplotlib.pyplot as plt
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = Path(__file__).name

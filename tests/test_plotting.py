@@ -179,3 +179,36 @@ def test_html_views_show_energy_and_units(eqs, ablation):
 def test_html_view_escapes_names():
     eq = solve(Problem("uniform", name="<b>x</b>"), nodes=20)
     assert "<b>x</b>" not in eq._repr_html_() and "&lt;b&gt;x&lt;/b&gt;" in eq._repr_html_()
+
+
+def test_bifurcation_diagram_draws_stability_events_and_shapes():
+    """plot_branch: solid where stable, dashed where not (no line across a snap), one marker
+    per fold, and the shells at the start, the events and the end beside the diagram."""
+    from pathlib import Path
+
+    from morphoshell import follow_branch
+    from morphoshell.io.problem_files import load_problem
+    from morphoshell.plotting import BRANCH_STYLE, plot_branch
+
+    problem, _ = load_problem(Path(__file__).parent / "data" / "volvox_fold.toml")
+    branch = follow_branch(problem, nodes=100)
+    fig = plot_branch(branch)
+    diagram = fig.subfigs[0].axes[0]
+    lines = [ln for ln in diagram.get_lines() if len(ln.get_xdata())]
+    solid = [ln for ln in lines if ln.get_linestyle() == "-" and ln.get_marker() in ("None", "")]
+    dashed = [ln for ln in lines if ln.get_linestyle() == "--"]
+    assert solid and dashed
+    assert all(ln.get_color() == BRANCH_STYLE["stable"]["color"] for ln in solid)
+    folds = [ln for ln in lines if ln.get_marker() == "o"]
+    assert len(folds) == 1 and len(folds[0].get_xdata()) == sum(
+        pt.event == "fold" for pt in branch.points)
+    # every stable point lies on a solid line, every unstable one on a dashed one
+    on_solid = {float(x) for ln in solid for x in ln.get_xdata()}
+    for pt in branch.points:
+        if not pt.event:
+            assert (pt.tau in on_solid) == pt.stable
+    shapes = [ax for ax in fig.subfigs[1].axes if ax.axison]
+    assert len(shapes) == min(8, 2 + len(branch.events))
+    assert diagram.get_xlabel().startswith("path fraction") and "psi" in diagram.get_ylabel()
+    with pytest.raises(ValueError, match="y = 'stable'"):
+        plot_branch(branch, y="stable")

@@ -48,7 +48,7 @@ def _add_verbosity(p: argparse.ArgumentParser, top: bool) -> None:
 #: The module registering each command.
 _COMMANDS = {"solve": "solve", "ablate": "solve", "asymptotics": "analytic", "sphere": "analytic",
              "estimate": "estimate", "fit": "fit", "sweep": "sweep", "campaign": "campaign",
-             "example": "example"}
+             "example": "example", "continue": "branches"}
 
 
 def _command(argv: Sequence[str]) -> str | None:
@@ -65,7 +65,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     """
     import importlib
 
-    names = ("solve", "analytic", "estimate", "fit", "sweep", "campaign", "example")
+    names = ("solve", "branches", "analytic", "estimate", "fit", "sweep", "campaign", "example")
     if command in _COMMANDS:
         names = (_COMMANDS[command],)
     modules = [importlib.import_module(f".{n}", __name__) for n in names]

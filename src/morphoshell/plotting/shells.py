@@ -1,4 +1,4 @@
-"""Cross-section plots of equilibria and ablations, and paper-figure styling (Matplotlib).
+"""Cross-section plots of equilibria, ablations and fits, estimates, and paper-figure styling.
 
 Shells are drawn as in the paper's figures: the meridian (r, z) and its
 mirror image (−r, z), with the cell sheet as a band of the deformed thickness
@@ -35,8 +35,8 @@ from matplotlib.patches import PathPatch
 from matplotlib.path import Path as MplPath
 from matplotlib.transforms import ScaledTranslation
 
-from .model.problem import Problem
-from .solvers.results import Equilibrium
+from ..model.problem import Problem
+from ..solvers.results import Equilibrium
 
 __all__ = ["plot_fit", "plot_k_estimates", "plot_recoil_velocity", "figure_JK", "MEASURE_COLOURS",
            "sheet_outline", "far_end_shift", "problem_label", "new_axes", "plot_cross_section",
@@ -117,7 +117,7 @@ def far_end_shift(eq: Equilibrium) -> float:
     at its undeformed height; its z at the first point minus the solver's
     z there is that shift (exact: the first point is not interpolated).
     """
-    from .mechanics.ablation import edge_state
+    from ..mechanics.ablation import edge_state
 
     return edge_state(eq, float(eq.s[0]))["z"] - float(eq.z[0])
 
@@ -265,7 +265,7 @@ def plot_k_estimates(ax: Axes, result, truth=None, ylim=None) -> Axes:
     Axes
         ``ax``.
     """
-    from .inverse import MEASURES
+    from ..inverse import MEASURES
 
     n = len(result.embryos)
     lo, hi = result.settings["k_range"]
@@ -570,7 +570,7 @@ def plot_ablation(ablation, ax: Axes | None = None, *, title: str | None = "auto
     Axes
         The axes drawn into; the figure stays open.
     """
-    from .mechanics.ablation import edge_state
+    from ..mechanics.ablation import edge_state
 
     if ax is None:
         ax = new_axes(legend=bool(legend))

@@ -1,0 +1,149 @@
+"""``morphoshell continue``: a branch of equilibria with its stability, folds and snap-throughs."""
+from __future__ import annotations
+
+import argparse
+
+from ._args import add_outputs, integer, real
+from ._outputs import Outputs
+
+__all__ = ["register"]
+
+
+def register(sub) -> None:
+    """Add ``morphoshell continue`` to the subcommands ``sub``."""
+    from ..solvers.arclength import MAX_STEP
+    from ..solvers.branches import FOLLOW
+    from ..solvers.direct import MAX_NODES
+
+    p = sub.add_parser(
+        "continue", help="follow a branch of equilibria: stability, folds, snap-throughs",
+        description="Follow the equilibria of PROBLEM.toml by pseudo-arclength continuation "
+                    "through folds, along the straight path lambda in [0, 1] from the "
+                    "family's stress-free parameters to the file's (--from neutral, the "
+                    "default), or in one parameter from the file's value to --to. Every point "
+                    "carries its stability (the number of negative eigenvalues of the reduced "
+                    "Hessian); folds and branch points are located to 1e-8 in lambda. Prints "
+                    "the events and the end point. Direct method only. z is in solve's gauge "
+                    "(the pole at the origin); lengths in R, energies in C R^2.")
+    p.add_argument("problem", metavar="PROBLEM.toml",
+                   help="problem file (`morphoshell example NAME` prints one to start from)")
+    p.add_argument("--from", dest="source", choices=("neutral",), default="neutral",
+                   help="the path from the family's stress-free parameters (default; not "
+                        "with --param)")
+    p.add_argument("--param", default=None, metavar="NAME",
+                   help="continue in this one parameter instead: h, cut, opening or one of "
+                        "the family's (with --to)")
+    p.add_argument("--to", type=real(), default=None, metavar="VALUE",
+                   help="the value of --param to continue to")
+    p.add_argument("--follow", choices=FOLLOW, default="branch",
+                   help="branch: the connected branch through its folds and unstable parts "
+                        "(the bifurcation diagram, default); stable: what a shell loaded "
+                        "quasi-statically does, snapping through at folds")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a problem or solver entry before continuing, repeatable "
+                        "(as for solve)")
+    p.add_argument("--nodes", type=integer(5, MAX_NODES), default=None, metavar="N",
+                   help="mesh nodes (default: the file's [solver] nodes, else 200)")
+    p.add_argument("--stages", type=int, choices=(1, 2, 3), default=None, metavar="S",
+                   help="Gauss points per cell: order 2S (default: the file's, else 2)")
+    p.add_argument("--max-step", type=real(0, 1, open_lo=True), default=MAX_STEP, metavar="DS",
+                   help=f"largest pseudo-arclength step (default {MAX_STEP})")
+    p.add_argument("--max-points", type=integer(2, 100_000), default=2000, metavar="N",
+                   help="give up after this many points (default 2000; exit status 3)")
+    p.add_argument("--plot-y", choices=("psi_end", "r_end", "z_end", "energy"),
+                   default="psi_end", help="the observable of the diagram (default psi_end)")
+    add_outputs(p, json="write the branch (problem, path, points, snaps) as JSON",
+                csv="write one row per point: lambda, the parameter, energy, r_end, z_end, "
+                    "psi_end, stable, negative_eigenvalues, event",
+                plot="write the bifurcation diagram with the shapes at the events")
+    p.set_defaults(run=_continue)
+
+
+def _load(args):
+    """The problem and mesh, from the file, --set and the options; all checked."""
+    from ..io.problem_files import (ProblemFileError, apply_overrides, load_problem,
+                                    parse_overrides, settings_from, split_overrides)
+    from ..solvers.paths import ParameterLine, neutral_problem
+
+    if (args.param is None) != (args.to is None):
+        raise ValueError("--param and --to go together (one parameter from the file's value "
+                         "to VALUE); without them the path runs from the stress-free parameters")
+    problem, settings = load_problem(args.problem)
+    problem_over, solver_over = split_overrides(parse_overrides(args.overrides))
+    problem = apply_overrides(problem, problem_over)
+    try:
+        settings = settings_from(solver_over, settings)
+    except ValueError as exc:
+        raise ProblemFileError(f"--set: {exc}") from None
+    if args.param is not None:
+        try:
+            ParameterLine.along(problem, args.param, args.to)
+        except ValueError as exc:
+            raise ValueError(f"--param {args.param} --to {args.to:g}: {exc}") from None
+    elif neutral_problem(problem) is None:
+        raise ValueError(f"{args.problem}: the problem is at its family's stress-free "
+                         f"parameters already: continue one parameter (--param, --to)")
+    else:
+        ParameterLine.between(neutral_problem(problem), problem)    # (refuses another structure)
+    if settings.method != "direct":
+        print(f"note: continuation uses the direct method (the file asks for "
+              f"{settings.method!r})")
+    nodes = settings.nodes if args.nodes is None else args.nodes
+    stages = settings.stages if args.stages is None else args.stages
+    return problem, nodes, stages
+
+
+def _continue(args) -> int:
+    from ..io.problem_files import write_csv, write_json
+    from ..solvers.branches import follow_branch
+
+    problem, nodes, stages = _load(args)
+    branch = follow_branch(problem, args.param, args.to, nodes=nodes, stages=stages,
+                           follow=args.follow, max_step=args.max_step,
+                           max_points=args.max_points)
+    _report(problem, branch)
+    out = Outputs()
+    out.add(args.json, lambda path: write_json(path, _document(branch)))
+    out.add(args.csv, lambda path: write_csv(path, _csv_columns(branch)))
+    if args.plot:
+        from ..plotting import plot_branch, save
+        fig = plot_branch(branch, y=args.plot_y)
+        out.add(args.plot, lambda path: save(fig, path))
+    for path in out.commit():
+        print(f"  wrote {path}")
+    return 0
+
+
+def _report(problem, branch) -> None:
+    """The branch in a few lines: its size, the events, the snaps and the end."""
+    path = (f"{branch.parameter} from {branch.line.a[0]:g} to {branch.line.b[0]:g}"
+            if branch.parameter else "lambda from the stress-free parameters (0) to the file's (1)")
+    print(f"{problem.name or problem.family}: {len(branch.points)} points along {path} "
+          f"({branch.follow}, {branch.seconds:.2f} s)")
+    for pt in branch.events:
+        where = f"lambda = {pt.tau:.10g}" + (f", {branch.parameter} = "
+                                             f"{pt.values[branch.parameter]:.10g}"
+                                             if branch.parameter else "")
+        print(f"  {pt.event.replace('_', ' '):13s} at {where}: r_end = {pt.r_end:.6g} R, "
+              f"z_end = {pt.z_end:.6g} R, energy = {pt.energy:.6g} C R^2")
+    for snap in branch.snaps:
+        print(f"  {snap.describe()}")
+    end = branch.end
+    state = "stable" if end.stable else f"unstable ({end.negative_eigenvalues} negative " \
+                                        f"eigenvalues)"
+    print(f"  end at lambda = {end.tau:.10g}: {state}, r_end = {end.r_end:.10g} R, "
+          f"z_end = {end.z_end:.10g} R, psi_end = {end.psi_end:.10g} rad, energy = "
+          f"{end.energy:.10g} C R^2")
+
+
+def _csv_columns(branch) -> dict:
+    """The table with ``stable`` as true/false (not Python's True/False)."""
+    columns = branch.columns()
+    columns["stable"] = ["true" if s else "false" for s in columns["stable"]]
+    return columns
+
+
+def _document(branch) -> dict:
+    from .. import __version__
+
+    return {"morphoshell": __version__, **branch.to_dict()}

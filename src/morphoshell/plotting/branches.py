@@ -1,0 +1,158 @@
+"""Bifurcation diagrams of branches of equilibria (:func:`morphoshell.follow_branch`).
+
+A branch is drawn against its path parameter (λ, or the one parameter
+continued in) with one observable on the other axis: stable parts solid,
+unstable parts dashed (thin, grey), folds, branch points and snap-throughs
+marked, and the shells at the events and at the ends beside it, so that the
+diagram and the shapes it stands for are read together.  Lengths in units of
+R, energies in C R².
+"""
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure, SubFigure
+
+from .shells import DOUBLE_COLUMN, plot_cross_section
+
+__all__ = ["plot_branch", "BRANCH_STYLE", "EVENT_MARKERS", "AXIS_LABELS", "MAX_SHAPES"]
+
+#: Most shells drawn beside a diagram (start, events, end): more would be too small to read.
+MAX_SHAPES = 8
+
+#: Lines of the diagram: stable and unstable parts.
+BRANCH_STYLE = {"stable": {"color": "k", "ls": "-", "lw": 1.2},
+                "unstable": {"color": "0.45", "ls": "--", "lw": 0.9}}
+#: Markers of the events: (marker, colour, legend entry).
+EVENT_MARKERS = {"fold": ("o", "tab:red", "fold"),
+                 "branch_point": ("D", "tab:purple", "branch point"),
+                 "snap": ("v", "tab:blue", "after a snap-through")}
+#: Axis labels of the branch table's columns.
+AXIS_LABELS = {"lambda": r"path fraction $\lambda$", "energy": r"energy $E$ ($C R^2$)",
+               "r_end": r"$r$ at the far end ($R$)", "z_end": r"$z$ at the far end ($R$)",
+               "psi_end": r"$\psi$ at the far end (rad)",
+               "negative_eigenvalues": "negative eigenvalues"}
+
+
+def plot_branch(branch, *, y: str = "psi_end", x: str | None = None, shapes: bool = True,
+                fig: Figure | None = None) -> Figure:
+    """A bifurcation diagram of ``branch``, with the shapes at its events beside it.
+
+    Parameters
+    ----------
+    branch : Branch
+        From :func:`morphoshell.solvers.branches.follow_branch`.
+    y : str
+        The observable: a column of the branch's table (``psi_end``, the
+        default: the far end's rotation separates the branch's parts best;
+        ``r_end``, ``z_end``, ``energy``).
+    x : str, optional
+        ``"lambda"`` or the continued parameter (default: the parameter if
+        the branch continues one, else λ).
+    shapes : bool
+        Draw the cross-sections at the start, the events and the end below
+        the diagram (at most :data:`MAX_SHAPES`).
+    fig : Figure, optional
+        Drawn into (new, outside pyplot, two journal columns wide, if None).
+
+    Returns
+    -------
+    Figure
+    """
+    table = branch.columns()
+    x = x or (branch.parameter or "lambda")
+    for name, what in ((x, "x"), (y, "y")):
+        if name not in table or name in ("stable", "event"):
+            numeric = [k for k in table if k not in ("stable", "event")]
+            raise ValueError(f"{what} = {name!r}: choose one of {numeric}")
+    if fig is None:
+        height = (0.85 if shapes else 0.5) * DOUBLE_COLUMN
+        fig = Figure(figsize=(DOUBLE_COLUMN, height), layout="constrained")
+    if not shapes:
+        _diagram(fig.add_subplot(), table, x, y)
+        return fig
+    top, bottom = fig.subfigures(2, 1, height_ratios=(1.2, 1))
+    _diagram(top.add_subplot(), table, x, y)
+    _shapes(bottom, branch)
+    return fig
+
+
+def _diagram(ax: Axes, table: dict, x: str, y: str) -> None:
+    """The branch as a line, solid where stable, dashed where not, events marked."""
+    xs, ys = np.asarray(table[x], float), np.asarray(table[y], float)
+    stable = np.asarray(table["stable"], bool)
+    events = list(table["event"])
+    for i0, i1, is_stable in _runs(stable, events):
+        style = BRANCH_STYLE["stable" if is_stable else "unstable"]
+        ax.plot(xs[i0:i1 + 1], ys[i0:i1 + 1], **style)
+    for kind, (marker, colour, label) in EVENT_MARKERS.items():
+        at = [i for i, e in enumerate(events) if e == kind]
+        if at:
+            ax.plot(xs[at], ys[at], marker, color=colour, ms=5, ls="none", label=label,
+                    zorder=3)
+    for i, event in enumerate(events):
+        if event == "snap" and i > 0:       # the jump: from the fold to where it lands
+            ax.annotate("", (xs[i], ys[i]), (xs[i - 1], ys[i - 1]),
+                        arrowprops={"arrowstyle": "->", "color": EVENT_MARKERS["snap"][1],
+                                    "lw": 0.8, "ls": ":"})
+    ax.plot([], [], **BRANCH_STYLE["stable"], label="stable")
+    if not stable[[e == "" for e in events]].all():
+        ax.plot([], [], **BRANCH_STYLE["unstable"], label="unstable")
+    ax.set_xlabel(AXIS_LABELS.get(x, x))
+    ax.set_ylabel(AXIS_LABELS.get(y, y))
+    ax.legend(loc="best", fontsize="small", frameon=False)
+
+
+def _runs(stable: np.ndarray, events: Sequence[str]) -> list[tuple[int, int, bool]]:
+    """Index ranges (first, last, stable) of the parts of one stability.
+
+    Each segment between neighbouring points takes the stability of its
+    ordinary end (a fold or branch point is marginal: the parts on either
+    side meet there); no segment leads into a snap-through (the shell jumps).
+    """
+    runs: list[tuple[int, int, bool]] = []
+    for i in range(len(stable) - 1):
+        if events[i + 1] == "snap":
+            continue
+        ordinary = i + 1 if events[i] in ("fold", "branch_point") else i
+        kind = bool(stable[ordinary])
+        if runs and runs[-1][1] == i and runs[-1][2] == kind:
+            runs[-1] = (runs[-1][0], i + 1, kind)
+        else:
+            runs.append((i, i + 1, kind))
+    return runs
+
+
+def _shapes(fig: SubFigure, branch) -> None:
+    """Small cross-sections of the shell at the start, at each event and at the end."""
+    chosen = [0, *(i for i, pt in enumerate(branch.points) if pt.event), len(branch.points) - 1]
+    chosen = list(dict.fromkeys(chosen))[:MAX_SHAPES]
+    columns = min(len(chosen), MAX_SHAPES // 2)
+    rows = -(-len(chosen) // columns)
+    axes = np.atleast_1d(fig.subplots(rows, columns)).ravel()
+    limits = _limits([branch.points[i].equilibrium for i in chosen])
+    for ax, i in zip(axes, chosen):
+        pt = branch.points[i]
+        what = EVENT_MARKERS[pt.event][2] if pt.event else ("start" if i == 0 else "end")
+        state = ("marginal" if pt.event in ("fold", "branch_point") else
+                 "stable" if pt.stable else f"unstable ({pt.negative_eigenvalues})")
+        colour = EVENT_MARKERS[pt.event][1] if pt.event else "k"
+        plot_cross_section(pt.equilibrium, ax, title=None, legend=False, color=colour)
+        ax.set_title(f"{what}, λ = {pt.tau:.4g}\n{state}", fontsize="x-small")
+        ax.set_aspect("equal", adjustable="box")
+        ax.set(xlim=limits[0], ylim=limits[1], xlabel="", ylabel="")
+        ax.tick_params(labelsize="x-small")
+    for ax in axes[len(chosen):]:
+        ax.set_axis_off()
+    fig.supxlabel(r"$r/R$", fontsize="small")
+    fig.supylabel(r"$z/R$", fontsize="small")
+
+
+def _limits(eqs) -> tuple[tuple[float, float], tuple[float, float]]:
+    """Common (r, z) limits of the mirrored shells, with a margin: one scale for all panels."""
+    r = max(float(np.max(eq.r)) for eq in eqs) * 1.08
+    z = np.concatenate([eq.z for eq in eqs])
+    pad = 0.08 * (float(z.max()) - float(z.min()) + 1e-12)
+    return (-r, r), (float(z.min()) - pad, float(z.max()) + pad)

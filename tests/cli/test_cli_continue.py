@@ -1,0 +1,105 @@
+"""``morphoshell continue``: the issue's shell (tests/data/volvox_fold.toml, 400 nodes), whose
+path from the stress-free parameters folds at lambda = 0.8723 and snaps through."""
+import csv
+import json
+from pathlib import Path
+
+import pytest
+
+from morphoshell.cli import main
+
+FOLD = Path(__file__).resolve().parents[1] / "data" / "volvox_fold.toml"
+RIM = (0.3903, 0.4629)          # the cold solve's rim at lambda = 1 (issue 38)
+COLUMNS = ["lambda", "energy", "r_end", "z_end", "psi_end", "stable", "negative_eigenvalues",
+           "event"]
+
+
+@pytest.fixture(scope="module")
+def neutral(tmp_path_factory):
+    """`continue --from neutral` on the issue's shell: its CSV rows, JSON, stdout."""
+    folder = tmp_path_factory.mktemp("continue")
+    paths = {k: folder / f"branch.{k}" for k in ("csv", "json", "png")}
+    import contextlib
+    import io
+
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        status = main(["continue", str(FOLD), "--from", "neutral",
+                       *(a for k, p in paths.items() for a in (f"--{'plot' if k == 'png' else k}",
+                                                               str(p)))])
+    with paths["csv"].open() as fh:
+        rows = list(csv.DictReader(fh))
+    return status, rows, json.loads(paths["json"].read_text()), out.getvalue(), paths
+
+
+def test_the_issue_shell_folds_goes_unstable_and_ends_stable_at_the_cold_solve(neutral):
+    status, rows, _, stdout, _ = neutral
+    assert status == 0
+    assert list(rows[0]) == COLUMNS
+    folds = [r for r in rows if r["event"] == "fold"]
+    first = float(folds[0]["lambda"])
+    assert 0.868 <= first <= 0.876, first
+    after = rows[rows.index(folds[0]) + 1]
+    assert after["stable"] == "false" and int(after["negative_eigenvalues"]) >= 1
+    before = rows[rows.index(folds[0]) - 1]
+    assert before["stable"] == "true" and before["negative_eigenvalues"] == "0"
+    end = rows[-1]
+    assert float(end["lambda"]) == 1.0 and end["stable"] == "true"
+    assert abs(float(end["r_end"]) - RIM[0]) < 1e-3 and abs(float(end["z_end"]) - RIM[1]) < 1e-3
+    assert {r["stable"] for r in rows} == {"true", "false"}
+    assert {r["event"] for r in rows} <= {"", "fold", "branch_point", "snap"}
+    assert f"fold          at lambda = {first:.10g}" in stdout and "end at lambda = 1: stable" \
+        in stdout
+
+
+def test_json_and_plot(neutral):
+    _, rows, doc, _, paths = neutral
+    assert doc["points"]["lambda"] == [float(r["lambda"]) for r in rows]
+    assert doc["parameter"] is None and doc["follow"] == "branch" and "morphoshell" in doc
+    from morphoshell.io.problem_files import load_problem
+    from morphoshell.solvers.paths import ParameterLine, neutral_problem
+
+    problem, _ = load_problem(FOLD)
+    line = ParameterLine.between(neutral_problem(problem), problem)
+    assert doc["path"] == {n: [a, b] for n, a, b in zip(line.names, line.a, line.b)}
+    assert paths["png"].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_one_parameter_has_its_own_column(tmp_path):
+    out = tmp_path / "h.csv"
+    assert main(["continue", str(FOLD), "--param", "h", "--to", "0.13", "--nodes", "100",
+                 "--csv", str(out)]) == 0
+    with out.open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert list(rows[0]) == ["lambda", "h", *COLUMNS[1:]]
+    assert float(rows[0]["h"]) == 0.15 and float(rows[-1]["h"]) == pytest.approx(0.13, abs=1e-15)
+    for r in rows:      # the parameter's column is the path's
+        assert float(r["h"]) == pytest.approx(0.15 + float(r["lambda"]) * (0.13 - 0.15),
+                                              abs=1e-14)
+
+
+@pytest.mark.parametrize("args, named", [
+    (["--param", "h"], "--param and --to go together"),
+    (["--to", "0.2"], "--param and --to go together"),
+    (["--param", "hh", "--to", "1"], "unknown parameter 'hh'"),
+    (["--param", "h", "--to", "0.15"], "h is already 0.15"),
+    (["--param", "cut", "--to", "0.3"], "cannot take cut from 0.0 to 0.3"),
+    (["--param", "h", "--to", "2"], "thickness h"),
+    (["--nodes", "2"], "--nodes"),
+    (["--follow", "sideways"], "--follow"),
+    (["--max-step", "0"], "--max-step"),
+])
+def test_bad_input_exits_2_with_one_line_and_no_output(args, named, tmp_path, capsys):
+    out = tmp_path / "x.csv"
+    assert main(["continue", str(FOLD), *args, "--csv", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and named in err, err
+    assert not out.exists()
+
+
+def test_a_branch_that_runs_out_of_points_exits_3_naming_the_status(tmp_path, capsys):
+    out = tmp_path / "x.csv"
+    assert main(["continue", str(FOLD), "--nodes", "100", "--max-points", "5",
+                 "--csv", str(out)]) == 3
+    assert "Branch_Ended" in capsys.readouterr().err
+    assert not out.exists()
