@@ -66,10 +66,32 @@ def test_a_meridian_crossing_the_axis_is_refused():
     assert exc.value.last_iterate.r.min() < 0 or exc.value.last_iterate.quadrature_points()[1].min() < 0
 
 
-@pytest.mark.parametrize("kwargs", [{"cut": 3.138}, {"cut": 1.57, "opening": 1.568}])
-def test_short_shells_solve(kwargs):
-    eq = solve(Problem("anisotropic", h=0.1, **kwargs))
+@pytest.mark.parametrize("kwargs", [{"cut": 3.138}, {"cut": 1.57, "opening": 1.568},
+                                    {"cut": 1.0, "opening": 2.1316}])
+@pytest.mark.parametrize("nodes", [200, 800])
+def test_short_shells_solve(kwargs, nodes):
+    """Shells of 0.0036 and 0.01 R failed at 400–800 nodes (Restoration_Failed, issue 40):
+    their meshes now hold cells of MIN_CELL at least, and the result matches a coarser mesh's."""
+    from morphoshell.numerics.mesh import MIN_CELL
+
+    problem = Problem("anisotropic", h=0.002, **kwargs)
+    eq = solve(problem, nodes=nodes)
     assert np.isfinite(eq.energy) and eq.converged
+    length = problem.end - problem.cut
+    assert eq.solver.nodes <= max(20, int(length / MIN_CELL) + 1)
+    coarse = solve(problem, nodes=60)
+    assert abs(eq.psi[-1] - coarse.psi[-1]) < 1e-6 and abs(eq.r[-1] - coarse.r[-1]) < 1e-8
+
+
+def test_a_shell_shorter_than_its_thickness_is_refused():
+    """Issue 40: shells of 0.028 R at h = 0.24 and 0.0015 R at h = 0.014 were solved onto a
+    wrong branch or failed in Ipopt; thin-shell theory does not hold there."""
+    with pytest.raises(ValueError, match="shorter than its thickness h = 0.2420126494091666"):
+        Problem("local_relaxation", {"F0": -0.14006119263684613, "s0": 0.13128156296513638},
+                h=0.2420126494091666, cut=1.6588042976183948, opening=1.4544579606152306)
+    with pytest.raises(ValueError, match="shorter than its thickness"):
+        Problem("uniform", {"k": 2.595822261784333}, h=0.013779525617002138,
+                cut=2.0428758278056804, opening=1.0972331390638899, theory="classical")
 
 
 def test_shells_below_the_minimum_length_are_named():

@@ -57,18 +57,27 @@ def register(sub) -> None:
     p.add_argument("--chunk-size", dest="chunk_size", type=integer(1, 10**9), default=None,
                    metavar="N", help="most points per task (default: automatic, at least 12 "
                                      "tasks where the grid allows)")
+    p.add_argument("--max-points", dest="max_points", type=integer(1, 10**12),
+                   default=MAX_GRID, metavar="N",
+                   help=f"refuse a grid of more points (default {MAX_GRID:,}: a grid's rows "
+                        f"and its runtime grow with it); raise it to insist")
     add_outputs(p, json="write the sweep (problem, axes, units, timing, rows) as JSON",
                 csv="write one row per point as CSV (units: docs, 'Sweeps')")
     p.set_defaults(run=_sweep)
 
 
-def parse_axes(items) -> tuple[dict, dict]:
+#: Most grid points a sweep accepts unless told otherwise (``--max-points``).
+MAX_GRID = 100_000
+
+
+def parse_axes(items, max_points: int = MAX_GRID) -> tuple[dict, dict]:
     """``--set`` items → (axes: key → list of values, scalar overrides: key → value).
 
     ``KEY=a,b,c`` is a list, ``KEY=start:stop:num`` ``num`` values from
     ``start`` to ``stop`` inclusive; anything else a scalar override
     (:func:`morphoshell.io.problem_files.parse_overrides`).  Raises ``ProblemFileError``
-    naming the item.
+    naming the item, or the grid's size when it has more than ``max_points``
+    points (before any list of values is made).
     """
     from ..io.problem_files import ProblemFileError, parse_overrides
 
@@ -81,7 +90,7 @@ def parse_axes(items) -> tuple[dict, dict]:
             raise ProblemFileError(f"--set {item!r}: expected KEY=VALUE, KEY=a,b,c or "
                                    f"KEY=start:stop:num")
         if "," in value or ":" in value:
-            name, values = _axis(item, key, value)
+            name, values = _axis(item, key, value, max_points)
             target = axes
         else:
             parsed = parse_overrides([item])
@@ -91,15 +100,20 @@ def parse_axes(items) -> tuple[dict, dict]:
         if name in axes or name in scalars:
             raise ProblemFileError(f"--set {item!r}: {name} is set more than once")
         target[name] = values
+    size = math.prod(len(v) for v in axes.values())
+    if size > max_points:
+        raise ProblemFileError(f"--set: the grid has {size:,} points, more than "
+                               f"{max_points:,}: give fewer values, or --max-points {size} to "
+                               f"insist")
     return axes, scalars
 
 
-def _axis(item: str, key: str, value: str) -> tuple[str, list]:
+def _axis(item: str, key: str, value: str, max_points: int) -> tuple[str, list]:
     """(name, values) of an axis item: ``KEY=a,b,c`` or ``KEY=start:stop:num``."""
     from ..io.problem_files import SOLVER_KEYS, ProblemFileError, parse_overrides
 
     if ":" in value:
-        name, values = _range(item, key, value)
+        name, values = _range(item, key, value, max_points)
     else:
         parsed = [parse_overrides([f"{key}={v}"]) for v in value.split(",")]
         name = next(iter(parsed[0]))
@@ -109,7 +123,7 @@ def _axis(item: str, key: str, value: str) -> tuple[str, list]:
     return name, values
 
 
-def _range(item: str, key: str, value: str) -> tuple[str, list]:
+def _range(item: str, key: str, value: str, max_points: int) -> tuple[str, list]:
     """(name, values) of ``KEY=start:stop:num``: ``num`` numbers, both ends included."""
     import numpy as np
 
@@ -127,6 +141,9 @@ def _range(item: str, key: str, value: str) -> tuple[str, list]:
     if num < 1:
         raise ProblemFileError(f"--set {item!r}: the number of values must be "
                                f"at least 1, got {num}")
+    if num > max_points:
+        raise ProblemFileError(f"--set {item!r}: {num:,} values, more than {max_points:,}: "
+                               f"give fewer, or --max-points {num} to insist")
     ends = [parse_overrides([f"{key}={v}"]) for v in parts[:2]]
     name = next(iter(ends[0]))
     if not all(isinstance(e[name], float) for e in ends):
@@ -140,7 +157,7 @@ def _sweep(args) -> int:
     from ..workflows.sweeps import sweep
 
     problem, settings = load_problem(args.problem)
-    axes, scalars = parse_axes(args.overrides)
+    axes, scalars = parse_axes(args.overrides, args.max_points)
     if not axes:
         raise ProblemFileError("--set: no axis to sweep; give a list (KEY=a,b,c) or a range "
                                "(KEY=start:stop:num)")

@@ -25,6 +25,8 @@ from typing import Mapping
 
 import numpy as np
 
+from ..model.problem import MIN_THICKNESS
+
 __all__ = [
     "MEASURES", "REQUIRED_COLUMNS", "OPTIONAL_COLUMNS", "MEASURE_COLUMN", "ERROR_COLUMN", "UNITS",
     "MeasurementError", "Measurement", "read_measurements", "to_dimensionless", "to_physical",
@@ -96,6 +98,10 @@ class MeasurementError(ValueError):
     def __init__(self, message: str, column: str | None = None, why: str | None = None):
         super().__init__(message)
         self.column, self.why = column, why
+
+
+#: Largest |opening| or displacement of a recoil, in radii: a cut rim cannot move further.
+MAX_RECOIL = 10.0
 
 
 def _check_cell(column: str, value: float | None) -> str | None:
@@ -175,6 +181,16 @@ class Measurement:
         if not self.H_um < self.R_um:
             self._fail("H_um", f"the thickness H = {self.H_um!r} um must be smaller than the "
                                f"radius R = {self.R_um!r} um")
+        if self.H_um < MIN_THICKNESS * self.R_um:
+            self._fail("H_um", f"the thickness H = {self.H_um!r} um is below {MIN_THICKNESS:g} of the "
+                               f"radius R = {self.R_um!r} um: thinner than the model resolves "
+                               f"(check the units: um)")
+        for column in ("opening_um", "displacement_um"):
+            value = getattr(self, column)
+            if value is not None and abs(value) > MAX_RECOIL * self.R_um:
+                self._fail(column, f"{value!r} um is more than {MAX_RECOIL:g} radii (R = "
+                                   f"{self.R_um!r} um): not a recoil of this shell (check the "
+                                   f"units: um)")
         if self.hole_diameter_um > 2 * self.R_um:
             self._fail("hole_diameter_um", f"the hole ({self.hole_diameter_um!r} um) is larger "
                                            f"than the shell (diameter 2R = {2 * self.R_um!r} um)")

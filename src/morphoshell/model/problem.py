@@ -27,7 +27,12 @@ from .geometry import Geometry, get_geometry
 from .layouts import VectorLayout, parameter_layout
 from .profiles import ProfileFamily, Profiles, get_family
 
-__all__ = ["Problem", "Structure", "BASE_KEYS", "MIN_SHELL_LENGTH"]
+__all__ = ["Problem", "Structure", "BASE_KEYS", "MIN_SHELL_LENGTH", "MIN_THICKNESS"]
+
+#: Thinnest shell accepted, h = H/R: below it the bending energy (∝ h³) falls under the
+#: solvers' round-off relative to the stretching energy, and Ipopt fails (h = 1e-12:
+#: Restoration_Failed) or meets NaN (1e-40) instead of saying so.
+MIN_THICKNESS = 1e-6
 
 #: Shortest shell L − P − Σ accepted (units of R): shorter shells bring the
 #: energy scale down to the solver's round-off floor, where Ipopt fails.
@@ -118,8 +123,9 @@ class Problem:
                      ("family_obj", fam), ("theory_obj", theory), ("geometry_obj", geo)):
             object.__setattr__(self, k, v)
         h = real("thickness h", self.h)
-        if not 0 < h < 1:
-            raise ValueError(f"thickness h = {h!r} must lie in (0, 1) (relative to the radius)")
+        if not MIN_THICKNESS <= h < 1:
+            raise ValueError(f"thickness h = {h!r} must lie in [{MIN_THICKNESS:g}, 1) (relative "
+                             f"to the radius)")
         cut = real("cut (Sigma)", self.cut)
         opening = real("opening (P)", self.opening)
         if cut < 0:
@@ -135,6 +141,11 @@ class Problem:
             raise ValueError(
                 f"the shell s in [cut, L - opening] = [{cut!r}, {end:.6g}] is shorter than "
                 f"{MIN_SHELL_LENGTH:g} (units of R): that is a ring, not a shell")
+        if end - cut < h:
+            raise ValueError(
+                f"the shell s in [cut, L - opening] = [{cut!r}, {end:.6g}] is {end - cut:.3g} "
+                f"long, shorter than its thickness h = {h!r} (units of R): the thin-shell "
+                f"theory of this model needs a shell longer than thick")
         if not isinstance(self.params, Mapping):
             raise ValueError(f"params must be a mapping of names to numbers, got {self.params!r}")
         unknown = sorted(set(self.params) - set(fam.parameters))

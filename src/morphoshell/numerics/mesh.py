@@ -20,6 +20,7 @@ the grading in use is never more than a factor √2 from the exact one).
 """
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 from functools import lru_cache
@@ -30,11 +31,18 @@ import numpy as np
 
 from ..model.energy import boundary_layer_width
 
+log = logging.getLogger(__name__)
+
 __all__ = ["boundary_layer_width", "pole_exponent", "graded_mesh", "shell_points",
            "knot_shapes", "mapped_points", "MeshSpec",
            "mesh_spec", "knot_for", "Knot", "breakpoints", "lower_gamma"]
 
 
+#: Smallest mean cell (units of R) of a mesh: a shorter shell gets fewer nodes
+#: (:func:`mesh_spec`): cells of 1.4e-5 R failed, of 2.5e-5 R solved (docs/benchmarks.md).
+MIN_CELL = 2.5e-5
+#: Fewest nodes :data:`MIN_CELL` leaves a shell (the shortest, 1e-3 R, gets 41).
+MIN_NODES = 20
 #: Smallest cell (in t) next to a pole; see :func:`graded_mesh`.
 MIN_POLE_CELL = 1e-10
 #: Extra node density at a refined knot (3 times finer cells there).
@@ -509,6 +517,7 @@ def mesh_spec(problem, nodes: int, stages: int, anchors: tuple[float, ...] = ())
     """
     st = problem.structure
     length = problem.end - problem.cut
+    nodes = _held_nodes(int(nodes), length)
     width = _octave(boundary_layer_width(problem.h) / length)
     # A free edge near the axis also varies on the scale of its distance from it.
     edges = [v for v in (problem.cut, problem.opening) if v > 0]
@@ -530,6 +539,22 @@ def mesh_spec(problem, nodes: int, stages: int, anchors: tuple[float, ...] = ())
     ts = _knot_places(fractions, [s for s, *_ in points]) if points else []
     knots = tuple(Knot(t, src, i, w) for t, (_, src, i, w) in zip(ts, points))
     return MeshSpec(int(nodes), st.start, st.end, width, edge, pole_exponent(stages), knots)
+
+
+def _held_nodes(nodes: int, length: float) -> int:
+    """``nodes``, or fewer on a shell too short for them: cells of :data:`MIN_CELL` at least.
+
+    A short shell is a narrow annulus: below cells of about 1e-5 R the solvers'
+    absolute tolerances exceed what a cell's constraints can resolve, and Ipopt
+    stops in its restoration phase (a shell of length 0.0036 R at 400 nodes, of
+    0.01 R at 800).  Fewer, larger cells resolve such a shell just as well.
+    """
+    most = max(MIN_NODES, int(length / MIN_CELL) + 1)
+    if nodes > most:
+        log.info("a shell of length %.3g R holds at most %d nodes (cells of %.1g R at least): "
+                 "solved with %d instead of %d", length, most, MIN_CELL, most, nodes)
+        return most
+    return nodes
 
 
 def _knot_places(fractions: list[float], where: list[float]) -> list[float]:

@@ -98,11 +98,12 @@ from ..model.problem import Problem, Structure
 from .bvp import (initial_state, neutral_path, pole_caps, pole_costates, pole_solutions, pole_state,
                   pontryagin_functions, to_equilibrium)
 from ..numerics.status import (SHOOTING_ILL_CONDITIONED, SHOOTING_INTEGRATION_FAILED,
-                               SHOOTING_NOT_CONVERGED, SHOOTING_SUCCEEDED, explain)
+                               SHOOTING_NOT_CONVERGED, SHOOTING_SUCCEEDED, TIME_LIMIT_EXCEEDED,
+                               explain)
 from .results import Equilibrium, SolverError, SolverStats, unconverged
 
 __all__ = ["solve_shooting", "ILL_CONDITIONED", "NOT_CONVERGED", "INTEGRATION_FAILED",
-           "MAX_GROWTH", "MAX_SEGMENTS", "MIN_SEGMENTS", "MAX_CONDITION"]
+           "MAX_GROWTH", "MAX_SEGMENTS", "MIN_SEGMENTS", "MAX_CONDITION", "MAX_SECONDS"]
 
 #: Status of a refusal: the shooting matrix is (or would be) too ill-conditioned.
 ILL_CONDITIONED = SHOOTING_ILL_CONDITIONED
@@ -127,6 +128,9 @@ MIN_SEGMENTS = 8
 #: (rtol = 1e-10), which this condition could amplify to ~1e-4 in the
 #: unknowns at worst; the accurate solves of the toy problems stay well below it.
 MAX_CONDITION = 1e8
+#: Wall-clock limit of a shooting solve (s; ``max_seconds``): a thin shell's many stiff
+#: segments can take minutes to fail, a reference route should say so in seconds.
+MAX_SECONDS = 8.0
 
 #: The shot part of the state (z and the energy are quadratures); starts with (r, ψ).
 _CORE = ("r", "psi", "lam_r", "lam_psi")
@@ -150,6 +154,7 @@ class _Settings:
     max_evaluations: int
     max_condition: float
     points: int
+    deadline: float = math.inf      # time.perf_counter() at which the solve gives up
 
 
 def solve_shooting(problem: Problem, *, segments: int | None = None, integrator: str = "LSODA",
@@ -157,7 +162,8 @@ def solve_shooting(problem: Problem, *, segments: int | None = None, integrator:
                    pole_offset: float = 1e-4, guess: Equilibrium | None = None,
                    homotopy_steps: int | None = None, max_evaluations: int = 50,
                    max_growth: float = MAX_GROWTH, max_segments: int = MAX_SEGMENTS,
-                   max_condition: float = MAX_CONDITION, points: int = 200) -> Equilibrium:
+                   max_condition: float = MAX_CONDITION, points: int = 200,
+                   max_seconds: float = MAX_SECONDS) -> Equilibrium:
     """Equilibrium of ``problem`` by multiple shooting.
 
     Parameters
@@ -202,6 +208,9 @@ def solve_shooting(problem: Problem, *, segments: int | None = None, integrator:
     points : int
         The result has at least about this many points: the final
         integration limits its steps to (b − a)/``points``.
+    max_seconds : float
+        Wall-clock limit of the whole solve (homotopy ladder included):
+        beyond it ``Time_Limit_Exceeded`` (:data:`MAX_SECONDS`).
 
     Returns
     -------
@@ -257,7 +266,7 @@ def solve_shooting(problem: Problem, *, segments: int | None = None, integrator:
             f"above max_growth = {max_growth:g}; use segments >= {need}, or the direct or bvp "
             f"route", ILL_CONDITIONED)
     opts = _Settings(int(segments), integrator, rtol, atol, tol, float(pole_offset),
-                     int(max_evaluations), max_condition, int(points))
+                     int(max_evaluations), max_condition, int(points), t0 + float(max_seconds))
 
     if guess is not None:
         ladder = [1]
@@ -277,7 +286,7 @@ def solve_shooting(problem: Problem, *, segments: int | None = None, integrator:
         except SolverError as err:
             if err.last_iterate is not None:
                 evaluations += err.last_iterate.solver.iterations
-            if err.status == ILL_CONDITIONED or steps == ladder[-1]:
+            if err.status in (ILL_CONDITIONED, TIME_LIMIT_EXCEEDED) or steps == ladder[-1]:
                 raise
     stats = replace(current.solver, iterations=evaluations, seconds=time.perf_counter() - t0,
                     details={**current.solver.details, "growth_estimate": growth,
@@ -337,6 +346,10 @@ class _IntegrationFailed(RuntimeError):
 
 
 class _Stalled(RuntimeError):
+    pass
+
+
+class _TimeUp(RuntimeError):
     pass
 
 
@@ -500,6 +513,8 @@ def _solve_one(problem: Problem, guess: Equilibrium | None, opts: _Settings) -> 
     cache: dict = {"history": []}
 
     def evaluate(u):   # least_squares asks for residual and Jacobian separately
+        if time.perf_counter() > opts.deadline:
+            raise _TimeUp
         if cache.get("u") is None or not np.array_equal(cache["u"], u):
             try:
                 res, J, _ = sh.shoot(u)
@@ -530,6 +545,12 @@ def _solve_one(problem: Problem, guess: Equilibrium | None, opts: _Settings) -> 
                                            x_scale="jac", xtol=1e-10, ftol=1e-15, gtol=1e-15,
                                            max_nfev=opts.max_evaluations)
         u, message = sol.x, sol.message
+    except _TimeUp:
+        raise SolverError(
+            f"shooting on {name!r} stopped at its time limit (max_seconds) after "
+            f"{len(cache['history'])} evaluations of its {opts.segments} segments: a thin "
+            f"shell's stiff boundary layer makes every integration slow; use the direct or "
+            f"bvp route (or raise max_seconds)", TIME_LIMIT_EXCEEDED) from None
     except _Stalled:
         u = cache["best"]
         message = (f"stalled at residual {min(cache['history']):.3g} for {_STALL_WINDOW} "
