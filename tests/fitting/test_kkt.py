@@ -33,10 +33,9 @@ def test_a_kkt_fit_from_a_given_state_starts_there(monkeypatch):
     Gauss–Newton steps, then the NLP; no coarse refit from the stress-free
     parameters, which discarded the start (on the synthetic campaign its data
     homotopy then failed from t03 on).  It reaches the gradient fit's optimum."""
-    from morphoshell.fitting import kkt
     from morphoshell.fitting.inner import InnerProblem
 
-    nodes = 2 * kkt.COARSE_NODES + 10              # a mesh that used to get a coarse stage
+    nodes = 90              # a mesh that used to get a coarse stage (over 80 nodes)
     spec = volvox_spec("flat", START, hold={"kappa3": 0.0, "kappa4": 0.0})
     data = synthetic_midline(TRUE, spec.base, nodes=nodes, noise=1e-3, seed=3)
     start = InnerProblem(spec, data, nodes).eq          # the start's own state, on the fit's mesh
