@@ -5,8 +5,8 @@ KKT conditions as constraints (:class:`morphoshell.fitting.kkt_problem.KKTProble
 The KKT conditions hold at saddles too: the fitted state is checked to be a
 minimum of the inner energy (the inertia of its KKT matrix) and to be what the
 inner solve gives at the fitted parameters, and is rejected otherwise.  Where
-the NLP starts decides whether it converges: :func:`kkt_fit` gets there by a
-coarse mesh's fit, or Gauss–Newton steps of the reduced problem
+the NLP starts decides whether it converges: :func:`kkt_fit` gets there by
+Gauss–Newton steps of the reduced problem
 (:func:`morphoshell.fitting.nested.gradient_fit`).
 """
 from __future__ import annotations
@@ -26,41 +26,36 @@ from .results import FitError
 if TYPE_CHECKING:
     from .spec import FitSpec
 
-__all__ = ["kkt_fit", "COARSE_NODES", "KKT_GN_TOL", "KKT_GN_ITERATIONS", "KKT_FINE_GN_TOL",
-           "KKT_COARSE_TOL"]
+__all__ = ["kkt_fit", "KKT_GN_TOL", "KKT_GN_ITERATIONS"]
 
-#: Mesh nodes of the KKT fit's first, coarse stage (see :func:`kkt_fit`; tuned by
-#: scripts/bench_fit.py: the whole fit's time, with noise and without).
-COARSE_NODES = 40
-#: Tolerance (relative on E_fit²) of the Gauss-Newton steps that start a KKT fit from a
-#: given state (:func:`kkt_fit`; loose: they only bring the NLP near, tuned on campaign steps).
-KKT_GN_TOL = 1e-4
-#: Residual evaluations of those Gauss-Newton steps, at most (tuned on campaign steps).
-KKT_GN_ITERATIONS = 30
-#: Tolerance (relative on E_fit²) of the Gauss-Newton steps between the KKT fit's coarse and
-#: fine NLPs (``_kkt_from_coarse``; tuned by scripts/bench_fit.py's fine NLP iterations).
-KKT_FINE_GN_TOL = 1e-6
-#: Ipopt tolerance of the KKT fit's coarse NLP (at most; ``_kkt_from_coarse``): its optimum
-#: only starts the fine mesh's Gauss-Newton steps to KKT_FINE_GN_TOL, and a tighter one can
-#: take the coarse NLP past it (tuned by scripts/bench_fit.py over noise seeds).
-KKT_COARSE_TOL = 1e-5
+#: Tolerance (relative on E_fit²) of the Gauss-Newton steps that start every KKT fit
+#: (:func:`kkt_fit`: they bring the NLP near its optimum; tuned by scripts/bench_kkt.py).
+KKT_GN_TOL = 1e-6
+#: Residual evaluations of those Gauss-Newton steps, at most (the gradient fit's default).
+KKT_GN_ITERATIONS = 200
 
 
 def kkt_fit(spec: FitSpec, inner: InnerProblem, tol: float,
             max_iterations: int | None) -> tuple[np.ndarray, int, bool, str]:
     """The fit as one NLP in (θ, x, λ), the inner KKT conditions as constraints.
 
-    Route A to its start: from a given start state (``inner.warm``: a
-    previous fit's) loose Gauss–Newton steps of the reduced problem
-    (:data:`KKT_GN_TOL`, :data:`KKT_GN_ITERATIONS`); otherwise, on fine
-    meshes, a KKT fit on a coarse mesh (:data:`COARSE_NODES`): a change of
-    the model's length moves the fit points by many short cells, beyond the
-    window one NLP lets them move (the NLP stalls), while on the coarse
-    mesh's long cells it does not; then Gauss–Newton steps on the fine mesh
-    (:data:`KKT_FINE_GN_TOL`) and the fine NLP from their end.  Route B, when
-    A fails (its NLP, or its end is a saddle or not reproduced): Gauss–Newton
-    steps to the fit's tolerance, then the NLP from their end.  Each NLP
-    stops after :data:`morphoshell.fitting.kkt_problem.KKT_ITERATIONS`.
+    Route A: Gauss–Newton steps of the reduced problem from the start
+    (``inner.eq``: a previous fit's state, or the start parameters' branch)
+    to :data:`KKT_GN_TOL`, at most :data:`KKT_GN_ITERATIONS` evaluations,
+    then the NLP from their end, its multipliers the reduced problem's
+    adjoints; steps that end on the edge of a breakpoint's box (not a
+    constraint of the fit) return there, and :func:`morphoshell.fitting.fit`
+    goes on from moved boxes, the NLP within the last (each NLP costs as
+    much as a few dozen steps, and a fit can move its boxes several times).
+    From farther starts (the family's defaults, a previous
+    fit's state, a coarse mesh's optimum) the NLP's Newton steps crawl
+    through the curved valleys of the poorly identified directions, move
+    fit points out of their windows or cross nearly singular stretches of
+    the branch, and fail; its iterations cost several Gauss–Newton steps
+    each.  Route B, when A fails (its NLP, or its end is a saddle or not
+    reproduced): Gauss–Newton steps to the fit's tolerance, then the NLP
+    from their end.  Each NLP stops after
+    :data:`morphoshell.fitting.kkt_problem.KKT_ITERATIONS`.
 
     Parameters
     ----------
@@ -92,15 +87,15 @@ def kkt_fit(spec: FitSpec, inner: InnerProblem, tol: float,
     """
     theta0, eq, spent, its = spec.theta0, inner.eq, 0, 0
     try:
-        if inner.warm:
-            # From a previous fit's state (a campaign step) the NLP's path can
-            # cross a nearly singular stretch of the branch and fail; loose
-            # Gauss-Newton steps first bring it near its optimum.
-            theta0, eq, spent = _gauss_newton_steps(spec, inner, KKT_GN_TOL, KKT_GN_ITERATIONS,
-                                                    theta0, eq)
-            theta, x, lam, its, status = _kkt_nlp(spec, inner, tol, max_iterations, theta0, eq)
-        else:
-            theta, x, lam, its, status = _kkt_from_coarse(spec, inner, tol, max_iterations)
+        theta0, eq, spent = _gauss_newton_steps(spec, inner, KKT_GN_TOL, KKT_GN_ITERATIONS,
+                                                theta0, eq)
+        edges = spec.on_box_edges(theta0)
+        if edges:
+            # The fit goes on from boxes moved around this end (fitting.bilevel),
+            # and so would an NLP's end here: its NLP runs within the moved boxes.
+            return (theta0, spent, True, f"the Gauss-Newton steps ended on the edge of the "
+                                         f"boxes of {', '.join(edges)}")
+        theta, x, lam, its, status = _kkt_nlp(spec, inner, tol, max_iterations, theta0, eq)
         return _kkt_checked(inner, theta, x, lam, spent + its, status)
     except FitError as exc:
         # Route B: from the reduced optimum the NLP converges where from
@@ -142,45 +137,18 @@ def _gauss_newton_steps(spec, inner, ftol, max_evaluations, theta0, eq,
     raise exc
 
 
-def _kkt_nlp(spec, inner, tol, max_iterations, theta0, eq, near: bool = True) -> tuple:
+def _kkt_nlp(spec, inner, tol, max_iterations, theta0, eq) -> tuple:
     """(θ, x, λ, iterations, status) of the KKT NLP from θ₀ and its inner state ``eq``.
 
-    ``near``: θ₀ is close to the optimum (Gauss–Newton steps' end), and the
-    NLP starts from the reduced problem's adjoints; from a far start, from
-    zero multipliers (adjoints there help no more than they cost).
+    θ₀ is close to the optimum (Gauss–Newton steps' end): the NLP starts from
+    the reduced problem's adjoints as multipliers (from zero ones the exact
+    Hessian lacks the constraints' curvature and the NLP stalls in line
+    searches; Ipopt's least-squares estimate fails now and then) and with a
+    tiny initial barrier (a larger one has the NLP wander while mu falls).
     """
     inner.eq = eq         # (the NLP's objective is scaled by the misfit there)
-    return _kkt_cells(KKTProblem(spec, inner, tol, max_iterations, adjoint_duals=near),
-                      inner, theta0, eq.x, eq.lam_g, inner.data)
-
-
-def _kkt_from_coarse(spec, inner, tol, max_iterations) -> tuple:
-    """Route A of :func:`kkt_fit` without a start state: coarse mesh first, then this one."""
-    if inner.nodes <= 2 * COARSE_NODES:
-        return _kkt_nlp(spec, inner, tol, max_iterations, spec.theta0, inner.eq, near=False)
-    coarse = InnerProblem(spec, inner.data, COARSE_NODES)
-    theta0, spent, _, _ = kkt_fit(spec, coarse, max(tol, KKT_COARSE_TOL), max_iterations)
-    # From a coarse fit the start is close: a tiny initial barrier (a larger
-    # one has the fine stage wander while mu falls) and the adjoints as
-    # multipliers (KKTProblem._adjoint_duals): from zero ones the exact Hessian
-    # lacks the constraints' curvature, and the fine stage stalls in line
-    # searches; Ipopt's least-squares estimate fails now and then.
-    #   And Gauss-Newton steps on this mesh first: the coarse optimum lies
-    # along the poorly identified directions from this mesh's, across a curved
-    # valley, where the NLP's steps crawl and move fit points out of their
-    # windows (NLPs rebuilt); from the steps' end it takes a few iterations.
-    eq = inner.transfer(theta0, coarse.eq)      # the fine state on the coarse fit's branch
-    theta0, eq, steps = _gauss_newton_steps(spec, inner, KKT_FINE_GN_TOL, KKT_GN_ITERATIONS,
-                                            theta0, eq)
-    spent += steps
     nlp = KKTProblem(spec, inner, tol, max_iterations, mu_init=1e-9, adjoint_duals=True)
-    try:
-        theta, x, lam, its, status = _kkt_cells(nlp, inner, theta0, eq.x, eq.lam_g,
-                                                inner.data)
-    except FitError as exc:
-        exc.iterations = getattr(exc, "iterations", 0) + spent
-        raise
-    return theta, x, lam, its + spent, status
+    return _kkt_cells(nlp, inner, theta0, eq.x, eq.lam_g, inner.data)
 
 
 def _kkt_checked(inner, theta, x, lam, iterations, status) -> tuple:
