@@ -1,7 +1,5 @@
 """The KKT fit's routes (fitting.kkt): saddles rejected, given states kept, route B after a
 failed NLP."""
-import re
-
 import numpy as np
 import pytest
 
@@ -89,30 +87,3 @@ def test_a_failed_kkt_nlp_is_followed_by_one_from_the_reduced_optimum(monkeypatc
     assert gap[1] < 1e-5 and gap[1] < 0.1 * gap[0], gap
     assert result.converged and abs(result.E_fit / reference.E_fit - 1) < 1e-3
     assert result.outer_iterations > 1000
-
-
-def test_a_kkt_fit_runs_no_nlp_where_its_boxes_move_on(monkeypatch):
-    """Gauss–Newton steps that end on the edge of a breakpoint's box return there: the
-    fit goes on from moved boxes, and only the last boxes get an NLP (an NLP per move
-    tripled the time of campaign fits that move their boxes six times).  The fit still
-    ends where the gradient fit does (a constrained optimum, s3 - s2 = sigma)."""
-    from pathlib import Path
-
-    from morphoshell.fitting.kkt_problem import KKTProblem
-    from morphoshell.io.midlines import load_midline
-
-    path = Path(__file__).parents[2] / "data" / "synthetic_inversion" / "t01"
-    data = load_midline(path / "synthetic_average.csv").points
-    spec = volvox_spec("unstressed")
-    reference = fit(spec, data, "gradient", nodes=60)
-    nlps, solve = [], KKTProblem.solve
-
-    def counted(self, *args, **kw):
-        nlps.append(self)
-        return solve(self, *args, **kw)
-
-    monkeypatch.setattr(KKTProblem, "solve", counted)
-    result = fit(spec, data, "kkt", nodes=60)
-    moves = int(re.search(r"moving the breakpoints' boxes (\d+) times", result.message)[1])
-    assert moves >= 2 and len(set(map(id, nlps))) < moves
-    assert result.converged and abs(result.E_fit / reference.E_fit - 1) < 1e-6

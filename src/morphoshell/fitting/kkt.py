@@ -43,11 +43,7 @@ def kkt_fit(spec: FitSpec, inner: InnerProblem, tol: float,
     (``inner.eq``: a previous fit's state, or the start parameters' branch)
     to :data:`KKT_GN_TOL`, at most :data:`KKT_GN_ITERATIONS` evaluations,
     then the NLP from their end, its multipliers the reduced problem's
-    adjoints; steps that end on the edge of a breakpoint's box (not a
-    constraint of the fit) return there, and :func:`morphoshell.fitting.fit`
-    goes on from moved boxes, the NLP within the last (each NLP costs as
-    much as a few dozen steps, and a fit can move its boxes several times).
-    From farther starts (the family's defaults, a previous
+    adjoints.  From farther starts (the family's defaults, a previous
     fit's state, a coarse mesh's optimum) the NLP's Newton steps crawl
     through the curved valleys of the poorly identified directions, move
     fit points out of their windows or cross nearly singular stretches of
@@ -89,12 +85,6 @@ def kkt_fit(spec: FitSpec, inner: InnerProblem, tol: float,
     try:
         theta0, eq, spent = _gauss_newton_steps(spec, inner, KKT_GN_TOL, KKT_GN_ITERATIONS,
                                                 theta0, eq)
-        edges = spec.on_box_edges(theta0)
-        if edges:
-            # The fit goes on from boxes moved around this end (fitting.bilevel),
-            # and so would an NLP's end here: its NLP runs within the moved boxes.
-            return (theta0, spent, True, f"the Gauss-Newton steps ended on the edge of the "
-                                         f"boxes of {', '.join(edges)}")
         theta, x, lam, its, status = _kkt_nlp(spec, inner, tol, max_iterations, theta0, eq)
         return _kkt_checked(inner, theta, x, lam, spent + its, status)
     except FitError as exc:
