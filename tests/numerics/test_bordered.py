@@ -8,6 +8,8 @@ on the null space Z of the Jacobian (the last columns of a full QR of Jᵀ: an o
 basis, as ``scipy.linalg.null_space`` gives but without its SVD, slow here), and its
 eigenvalues.
 """
+import contextlib
+import ctypes
 from pathlib import Path
 
 import casadi as ca
@@ -30,8 +32,37 @@ def branch():
     return follow_branch(load_problem(FIXTURE)[0], nodes=60)
 
 
+@contextlib.contextmanager
+def one_blas_thread():
+    """NumPy's and SciPy's OpenBLAS on one thread (Linux; elsewhere nothing changes): on a
+    busy 2-core machine their spin-waiting threads make these small dense products take
+    seconds instead of milliseconds (cf. ``numerics.ipopt.load_ipopt``)."""
+    maps = Path("/proc/self/maps")
+    paths = {line.split()[-1] for line in maps.read_text().splitlines()
+             if "openblas" in line.lower()} if maps.exists() else set()
+    saved = []
+    for path in sorted(paths):
+        lib = ctypes.CDLL(path)
+        for prefix, suffix in (("scipy_openblas", "64_"), ("openblas", "")):
+            if hasattr(lib, f"{prefix}_get_num_threads{suffix}"):
+                setter = getattr(lib, f"{prefix}_set_num_threads{suffix}")
+                saved.append((setter, getattr(lib, f"{prefix}_get_num_threads{suffix}")()))
+                setter(1)
+                break
+    try:
+        yield
+    finally:
+        for setter, threads in saved:
+            setter(threads)
+
+
 def reduced_hessian_eigenvalues(eq) -> np.ndarray:
     """Eigenvalues of the reduced Hessian at ``eq`` (dense, from the CasADi NLP)."""
+    with one_blas_thread():
+        return _reduced_hessian_eigenvalues(eq)
+
+
+def _reduced_hessian_eigenvalues(eq) -> np.ndarray:
     d = solver_of(eq).disc
     p = eq.problem.parameter_vector()
     D = d.cell_data(p, d.check_anchors(p, ()))
