@@ -222,11 +222,13 @@ class Arclength:
     def _newton(self, u, tau, c, c_tau, row):
         """Newton's iterations on (F = 0, row = 0): (u, τ, state, iterations) or None."""
         # the bordering column at the predictor, kept through the iterations (a chord in it:
-        # the solution does not depend on it)
-        column = self.kkt.state(u, self._data(tau), self._around(tau)).F_tau
+        # the solution does not depend on it); the system there is the first iteration's
+        state = self.kkt.state(u, self._data(tau), self._around(tau))
+        column = state.F_tau
         last = np.inf
         for it in range(MAX_CORRECTOR + 1):
-            state = self.kkt.state(u, self._data(tau))
+            if it:
+                state = self.kkt.state(u, self._data(tau))
             residual = row(u, tau)
             if self._converged(state, last) and abs(residual) <= 1e-12:
                 return u, tau, state, it

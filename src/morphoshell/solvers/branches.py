@@ -299,8 +299,12 @@ class _Walk:
             if self.follow == "stable" and point.inertia.stable:
                 return self._snap(fold), False
         elif new.inertia.negative != point.inertia.negative:
-            self.record(self.arc.locate_change(point, ds), "branch_point",
-                        negative=min(point.inertia.negative, new.inertia.negative))
+            change = self.arc.locate_change(point, ds)
+            # one past the path's end (the last step overshoots τ = 1) is not on the branch
+            # returned, which ends at τ = 1: recording it would put it before the end point
+            if change.tau <= 1 or point.tau >= 1:
+                self.record(change, "branch_point",
+                            negative=min(point.inertia.negative, new.inertia.negative))
         if point.tau < 1 <= new.tau and new.t_tau > 0:
             end = self.arc.at_tau(point, 1.0) or new
             self.record(end)

@@ -1,0 +1,179 @@
+"""Branches of equilibria (issue 38): events located independently of the step, the inertia
+changing exactly at them, agreement with natural-parameter continuation and with cold
+solves, solve() crossing a snap-through, named errors, and the paths refused."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from morphoshell import Problem, SolverError, solve
+from morphoshell.io.problem_files import load_problem
+from morphoshell.solvers import arclength
+from morphoshell.solvers.arclength import Arclength
+from morphoshell.solvers.branches import follow_branch
+from morphoshell.solvers.direct import solver_of
+from morphoshell.solvers.paths import ParameterLine
+
+FIXTURE = Path(__file__).resolve().parents[1] / "data" / "volvox_fold.toml"
+#: The issue's folds of the fold shell (400 nodes, to the digits given there).
+FOLDS_400 = (0.8722619, 0.3757453, 0.5491197, 0.3126880, 0.5465312, 0.5459553)
+
+
+@pytest.fixture(scope="module")
+def volvox():
+    return load_problem(FIXTURE)[0]
+
+
+@pytest.fixture(scope="module")
+def branch60(volvox):
+    return follow_branch(volvox, nodes=60)
+
+
+def _events(branch, kind):
+    return [i for i, pt in enumerate(branch.points) if pt.event == kind]
+
+
+def test_folds_do_not_depend_on_the_step(volvox, branch60):
+    """Halving the largest step (other points, other brackets): the same six folds to 1e-8
+    in λ, the same sequence of events, the same end."""
+    finer = follow_branch(volvox, nodes=60, max_step=0.01)
+    assert len(finer.points) > len(branch60.points)
+    a = [pt.tau for pt in branch60.events]
+    b = [pt.tau for pt in finer.events]
+    assert [pt.event for pt in branch60.events] == ["fold"] * 6
+    assert [pt.event for pt in finer.events] == ["fold"] * 6
+    assert np.max(np.abs(np.subtract(a, b))) < 1e-8
+    assert np.allclose(a, FOLDS_400, atol=1e-4)      # 60 nodes: within 4e-5 of the 400's
+    assert finer.end.tau == 1 and abs(finer.end.r_end - branch60.end.r_end) < 1e-9
+
+
+def test_inertia_changes_by_one_exactly_at_each_fold(branch60):
+    """At every fold the points next to it on the branch have k and k ± 1 negative
+    eigenvalues (the fold itself: the fewer, and not stable); and 1e-6 of arclength either
+    side of the located fold the inertia already differs by one."""
+    arc = Arclength(solver_of(branch60.end.equilibrium), branch60.line)
+    sides = []
+    for i in _events(branch60, "fold"):
+        before, fold, after = branch60.points[i - 1:i + 2]
+        k = (before.negative_eigenvalues, after.negative_eigenvalues)
+        assert abs(k[0] - k[1]) == 1
+        assert fold.negative_eigenvalues == min(k) and not fold.stable
+        start = arc.start(fold.equilibrium, fold.tau)
+        near = {arc.correct(start, ds).inertia.negative for ds in (-1e-6, 1e-6)}
+        assert near == set(k), (fold.tau, near, k)
+        sides.append(k)
+    assert sides == [(0, 1), (1, 2), (2, 1), (1, 0), (0, 1), (1, 0)]
+    assert branch60.end.stable and branch60.end.negative_eigenvalues == 0
+
+
+def test_branch_points_are_located_to_1e8(blister):
+    """The flat disc of the blister problem loses stability at branch points (one more
+    negative eigenvalue each, no fold): located by bisection, the same to 1e-8 in λ with
+    half the step, and 1e-7 in λ either side of each the inertia differs by one."""
+    a = follow_branch(blister, nodes=60)
+    b = follow_branch(blister, nodes=60, max_step=0.01)
+    ta = [pt.tau for pt in a.events if pt.event == "branch_point"]
+    tb = [pt.tau for pt in b.events if pt.event == "branch_point"]
+    assert len(ta) >= 5 and len(ta) == len(tb)
+    assert np.max(np.abs(np.subtract(ta, tb))) < 1e-8
+    arc = Arclength(solver_of(a.end.equilibrium), a.line)
+    for k, i in enumerate(_events(a, "branch_point")[:4]):
+        pt = a.points[i]
+        start = arc.start(pt.equilibrium, pt.tau)
+        below, above = arc.at_tau(start, pt.tau - 1e-7), arc.at_tau(start, pt.tau + 1e-7)
+        assert (below.inertia.negative, above.inertia.negative) == (k, k + 1)
+
+
+def test_a_branch_stays_on_its_path_in_order(blister):
+    """Points in the order of the branch: without folds, λ grows from 0 to 1 and no event
+    lies past the path's end (60 nodes put a branch point just past λ = 1)."""
+    branch = follow_branch(blister, nodes=60)
+    taus = [pt.tau for pt in branch.points]
+    assert taus[0] == 0 and taus[-1] == 1
+    assert np.all(np.diff(taus) > 0)
+
+
+def test_arclength_reproduces_natural_continuation(branch60):
+    """Where natural-parameter continuation works (the fold shell before its first fold),
+    the branch at given λ (a natural step from the nearest point before) is solve()'s
+    solution there (continuation from the stress-free parameters, same mesh): rim and
+    angle to 1e-8 R, unknowns to 1e-7."""
+    arc = Arclength(solver_of(branch60.end.equilibrium), branch60.line)
+    points = branch60.points[:_events(branch60, "fold")[0]]
+    for tau in (0.2, 0.5, 0.8):
+        near = max((pt for pt in points if pt.tau <= tau), key=lambda pt: pt.tau)
+        mine = arc.equilibrium(arc.at_tau(arc.start(near.equilibrium, near.tau), tau))
+        ref = solve(branch60.line.at(tau), nodes=60)
+        assert ref.solver.details["path"].startswith("continuation")
+        for name in ("r", "z", "psi"):
+            assert abs(getattr(mine, name)[-1] - getattr(ref, name)[-1]) < 1e-8, (tau, name)
+        assert np.max(np.abs(mine.x - ref.x)) < 1e-7
+
+
+def test_arclength_reproduces_natural_continuation_without_folds():
+    """A fold-free path (uniform shell, k from its neutral 1 to 0.5): every point of the
+    branch is solve()'s solution at its λ to 1e-8 (the free edge's r, z and all
+    unknowns)."""
+    problem = Problem("uniform", {"k": 0.5}, h=0.3, cut=0.3)
+    branch = follow_branch(problem, nodes=60)
+    assert not branch.events and all(pt.stable for pt in branch.points)
+    for pt in branch.points[1::10]:
+        ref = solve(branch.line.at(pt.tau), nodes=60)
+        eq = pt.equilibrium
+        assert abs(eq.r[0] - ref.r[0]) < 1e-8 and abs(eq.z[0] - ref.z[0]) < 1e-8
+        assert np.max(np.abs(eq.x - ref.x)) < 1e-8
+
+
+def test_solve_snaps_through_the_fold_to_the_cold_and_branch_solution(volvox):
+    """solve() on the issue's 400-node shell: converged, the snap recorded at the fold
+    (λ = 0.8722619) with the energy falling; the same rim as a cold solve, as the followed
+    branch's end and as the issue's to 1e-8 R."""
+    eq = solve(volvox, nodes=400)
+    assert eq.converged and eq.solver.status in ("Newton_Converged", "Solve_Succeeded")
+    snaps = eq.solver.details["snaps"]
+    assert len(snaps) == 1 and abs(snaps[0]["tau"] - FOLDS_400[0]) < 1e-7
+    assert snaps[0]["energy_before"] > snaps[0]["energy_after"]
+    assert "snapped through a fold at 0.872262" in eq.solver.details["path"]
+    cold = solve(volvox, nodes=400, continuation=False)
+    end = follow_branch(volvox, nodes=400).end
+    assert end.tau == 1 and end.stable
+    for r, z in ((cold.r[-1], cold.z[-1]), (end.r_end, end.z_end),
+                 (0.3903494154, 0.4628866317)):
+        assert abs(eq.r[-1] - r) < 1e-8 and abs(eq.z[-1] - z) < 1e-8
+
+
+def test_no_stable_way_past_the_fold_is_a_named_error(volvox, monkeypatch):
+    """When every descent from the fold slides back onto the fold's state (forced:
+    ``_moved`` says so), solve() and the quasi-static walk raise Snap_Through_Failed with
+    the fold's state attached; a walk out of points raises Branch_Ended with its last
+    point."""
+    with pytest.raises(SolverError) as err:
+        follow_branch(volvox, nodes=60, max_points=20)
+    assert err.value.status == "Branch_Ended" and "(20 points)" in str(err.value)
+    last = err.value.last_iterate                        # the 20th point, before the fold
+    assert last is not None and 0 < last.energy and "0.8722" not in str(err.value)
+    monkeypatch.setattr(arclength, "_moved", lambda eq, before: False)
+    for run in (lambda: solve(volvox, nodes=60),
+                lambda: follow_branch(volvox, nodes=60, follow="stable")):
+        with pytest.raises(SolverError) as err:
+            run()
+        assert err.value.status == "Snap_Through_Failed"
+        last = err.value.last_iterate
+        assert last is not None and not last.converged
+        assert "fold at 0.8722" in str(err.value)           # (0.872298 on 60 nodes)
+
+
+def test_paths_refuse_to_open_a_pole(volvox):
+    """A cut or an opening from 0 to > 0 (or back) turns a pole into a free edge: refused."""
+    closed = Problem("uniform", {"k": 0.5}, h=0.3)
+    with pytest.raises(ValueError, match="cut"):
+        ParameterLine.along(closed, "cut", 0.2)
+    with pytest.raises(ValueError, match="cut"):
+        ParameterLine.between(closed.with_updates(cut=0.2), closed)
+    with pytest.raises(ValueError, match="cut"):
+        follow_branch(closed, "cut", 0.2, nodes=60)
+    assert volvox.cut == 0 and volvox.opening > 0
+    with pytest.raises(ValueError, match="opening"):
+        ParameterLine.along(volvox, "opening", 0.0)
+    line = ParameterLine.along(volvox, "opening", 0.2)      # > 0 to > 0: fine
+    assert line.names == ("opening",)
