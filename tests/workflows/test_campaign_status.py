@@ -172,3 +172,27 @@ def test_workers_end_when_the_campaign_process_is_killed(data, tmp_path):
     for p in alive:
         p.kill()
     assert len(workers) >= 2 and not alive, f"{len(alive)} of {len(workers)} still running"
+
+
+def test_a_failed_kkt_fit_is_done_by_the_gradient_method_and_says_so(data, tmp_path, monkeypatch):
+    """Near folds the KKT fit can end on a saddle (FitError): the campaign's record is then
+    the gradient method's fit, `fitted_by` naming it, and not a failure."""
+    import morphoshell.workflows.timepoint_fits as tf
+    from morphoshell.workflows import campaign
+
+    real = tf.fit
+
+    def fit(spec, data, method, **kw):
+        if method == "kkt":
+            raise FitError("made up for the test", "Fit_Saddle")
+        return real(spec, data, method, **kw)
+    monkeypatch.setattr(tf, "fit", fit)
+    result = campaign(data[0], ["flat"], method="kkt", workers=1, out=tmp_path / "out",
+                      nodes=NODES, timepoints=["t01"])
+    rec = result.record("t01", "flat")
+    assert rec["status"] == "ok" and rec["method"] == "kkt" and rec["fitted_by"] == "gradient"
+    assert rec["message"].startswith("the KKT fit failed (Fit_Saddle: made up for the test)")
+    # resumed: the record's settings (method kkt) still match
+    again = campaign(data[0], ["flat"], method="kkt", workers=1, out=tmp_path / "out",
+                     nodes=NODES, timepoints=["t01"])
+    assert again.timing["computed"] == 0

@@ -305,6 +305,9 @@ def _fit_one(task: CampaignTask, tp: Timepoint, prev: dict | None, first: dict |
         return _failed(rec, exc)
     d = result.to_dict()
     d.pop("seconds")             # wall-clock time would break bit-identical resumes
+    fitted_by = d.pop("method")  # (the record's "method" is the campaign's setting)
+    if fitted_by != task.method:
+        d["fitted_by"] = fitted_by
     eq = result.equilibrium
     if task.embryo_errors and tp.traces:
         d.update(_embryo_errors(task, tp, hold, d["parameters"], eq, result.constrained,
@@ -365,7 +368,7 @@ def _fit_on(task: CampaignTask, hold: dict, spec, data, start) -> tuple[FitResul
     which counts the iterations, solves and seconds of both fits, and
     whether it was continued.
     """
-    first = fit(spec, data, task.method, nodes=task.nodes, start=start)
+    first = _fit_falling_back(task, spec, data, start)
     if first.converged or first.near_fold:
         return first, False
     again = volvox_spec(task.variant, start=_start_problem(first.parameters), hold=hold)
@@ -382,6 +385,26 @@ def _fit_on(task: CampaignTask, hold: dict, spec, data, start) -> tuple[FitResul
                    inner_solves=first.inner_solves + r.inner_solves,
                    seconds=first.seconds + r.seconds,
                    message=f"continued once after: {first.message}; then: {r.message}"), True
+
+
+def _fit_falling_back(task: CampaignTask, spec, data, start) -> FitResult:
+    """``fit`` by the task's method; a KKT fit that fails (a saddle of the inner energy, its
+    NLP or its restart stopping short: FitError) is done by the gradient method instead,
+    and its message says so.
+
+    Near folds of the inner branch the KKT fit's NLP can end on a saddle where the
+    reduced problem's steps still find a minimum (the synthetic campaign's ``flat`` and
+    ``free`` fits at t07-t10): a campaign gets a fit, not a failure, and the record's
+    ``fitted_by`` names the method that made it.
+    """
+    try:
+        return fit(spec, data, task.method, nodes=task.nodes, start=start)
+    except FitError as exc:
+        if task.method != "kkt":
+            raise
+        result = fit(spec, data, "gradient", nodes=task.nodes, start=start)
+        return replace(result, message=f"the KKT fit failed ({exc.status}: {exc}); fitted by "
+                                       f"the gradient method: {result.message}")
 
 
 def _embryo_errors(task: CampaignTask, tp: Timepoint, hold: dict, parameters: dict,
