@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import sys
 from typing import Sequence
 
@@ -23,12 +24,22 @@ from .. import __version__
 
 __all__ = ["main", "build_parser", "ISSUES_URL"]
 
+#: A negative number, exponent form included: a value on the command line, not an option.
+_NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
 #: Where bugs are reported (printed with exit status 1).
 ISSUES_URL = "https://github.com/morphoshell/morphoshell/issues"
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse with one-line errors: ``morphoshell solve: error: ...``, exit status 2."""
+    """argparse with one-line errors: ``morphoshell solve: error: ...``, exit status 2.
+
+    A negative number in exponent form (``--k-range -1e9 1``) is a value, not an option:
+    argparse's own pattern knows only ``-1`` and ``-1.5``.
+    """
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = _NEGATIVE_NUMBER
 
     def error(self, message: str):  # noqa: D401 - argparse API
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")

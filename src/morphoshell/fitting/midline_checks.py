@@ -89,7 +89,10 @@ def check_midline(spec: FitSpec, data, name: str = "the data midline") -> None:
     ValueError
         Naming what is wrong and what to check.
     """
-    points = as_points(data)
+    try:
+        points = as_points(data)
+    except ValueError as exc:
+        raise ValueError(f"{name}: {exc}") from None
     off = float(np.hypot(*points[0]))
     if spec.base.cut == 0 and off > POLE_SLACK:
         raise ValueError(

@@ -104,7 +104,12 @@ def _rows(table: Path) -> tuple[list[tuple[int, str]], list[dict]]:
 
     Comment lines are skipped but not forgotten: errors name the file's line.
     """
-    numbered = [(k, ln) for k, ln in enumerate(table.read_text(encoding="utf-8").splitlines(), 1)
+    try:
+        text = table.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{table}: not a UTF-8 text (CSV) file (byte {exc.start}); expected "
+                         f"a header timepoint,pseudotime,midline") from None
+    numbered = [(k, ln) for k, ln in enumerate(text.splitlines(), 1)
                 if ln.strip() and not ln.lstrip().startswith("#")]
     rows = list(csv.DictReader(io.StringIO("\n".join(ln for _, ln in numbered))))
     if not rows or not set(_COLUMNS) <= set(rows[0]):

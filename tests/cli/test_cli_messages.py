@@ -1,0 +1,32 @@
+"""Refusals that name the file and the value (issue 40): a binary timepoints.csv, a midline of
+two points, a negative number in exponent form on the command line."""
+from pathlib import Path
+
+from morphoshell.cli import main
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_a_binary_timepoints_table_is_named(tmp_path, capsys):
+    (tmp_path / "timepoints.csv").write_bytes(bytes([0xCE, 0x00, 0xFF, 0x10]) * 50)
+    assert main(["campaign", str(tmp_path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{tmp_path / 'timepoints.csv'}: not a UTF-8 text" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_two_point_midline_names_its_file(tmp_path, capsys):
+    (tmp_path / "t01").mkdir()
+    (tmp_path / "t01" / "avg.csv").write_text("r,z\n0,0\n0.5,0.1\n")
+    (tmp_path / "timepoints.csv").write_text("timepoint,pseudotime,midline\nt01,0,t01/avg.csv\n")
+    assert main(["campaign", str(tmp_path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "t01/avg.csv" in err, err
+
+
+def test_a_negative_number_in_exponent_form_is_a_value(capsys):
+    """argparse took -1e9 for an option ("expected 2 arguments"); now it is a value, checked."""
+    assert main(["estimate", str(ROOT / "data" / "synthetic_ablations.csv"),
+                 "--k-range", "-1e9", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "-1e9 must be a finite number in [-100, 100]" in err and "expected 2" not in err
