@@ -157,3 +157,23 @@ def test_snap_through_lands_lower_or_fails_by_name(fold100, monkeypatch):
     last = err.value.last_iterate
     assert last is not None and not last.converged
     assert abs(last.energy - snap.energy_before) < 1e-12
+
+
+def test_fold_location_survives_a_failed_corrector(volvox):
+    """A corrector that fails inside Brent's bracket (as it may next to a fold) leaves the
+    bracket's best point, not None (which the walk then recorded: an AttributeError
+    instead of a branch; found by a second verification run)."""
+    arc, prev, ds = near_fold(volvox, 60)
+    correct, calls, failed = arc.correct, [], []
+
+    def flaky(start, s):
+        calls.append(s)
+        if 0 < s < ds and len(calls) > 3:           # from Brent's second inner step on
+            failed.append(s)
+            return None
+        return correct(start, s)
+    arc.correct = flaky
+    located = arc.locate_fold(prev, ds)
+    assert failed and located is not None
+    ends = [correct(prev, 0.0).t_tau, correct(prev, ds).t_tau]
+    assert abs(located.t_tau) <= min(map(abs, ends))

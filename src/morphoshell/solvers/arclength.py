@@ -286,8 +286,11 @@ class Arclength:
             return point.t_tau
         try:
             s = brentq(t_tau, 0.0, ds, xtol=EVENT_TOL, rtol=4 * np.finfo(float).eps)
-        except _NoPoint as exc:          # a corrector failed inside: keep the best bracket
-            s = exc.s
+        except _NoPoint:
+            # a corrector failed inside: the best point of the bracket so far (its ends were
+            # corrected before Brent's first inner step, so there is one); the failed s
+            # itself has no point, and correcting it again fails again
+            return min(found.values(), key=lambda point: abs(point.t_tau))
         return found.get(s) or self.correct(prev, s)
 
     def locate_change(self, prev: ArcPoint, ds: float) -> ArcPoint:
