@@ -111,7 +111,8 @@ def _fit(args) -> int:
     out = Outputs()
     out.add(args.json, lambda path: write_json(path, {**result.to_dict(),
                                                       "midline_file": str(args.midline),
-                                                      **profile_json(profiles)}))
+                                                      **(profile_json(profiles) if profiles
+                                                         else {})}))
     out.add(args.csv, lambda path: write_csv(path, {
         "parameter": list(result.fitted),
         "value": [result.parameters[n] for n in result.fitted],

@@ -36,7 +36,7 @@ from .nested import gradient_fit, nelder_mead_fit
 from .results import FitError, FitResult, fit_result
 from .spec import FitSpec
 
-__all__ = ["fit", "fit_moving_boxes", "check_options", "METHODS", "METHOD_RUNS", "FIT_NODES",
+__all__ = ["fit", "fit_moving_boxes", "check_options", "METHODS", "method_run", "FIT_NODES",
            "MAX_RECENTRES"]
 
 #: Fit methods (see the module docstring).
@@ -48,9 +48,6 @@ FIT_NODES = (20, 3200)
 #: breakpoint go PUSH_SHARE of the way to its neighbour or halfway (a bound on the work:
 #: each move is a fit of its own).
 MAX_RECENTRES = 12
-#: Each method's outer iteration, ``run(spec, inner, tol, max_iterations)`` returning
-#: (θ, iterations, converged, message): what :func:`fit_moving_boxes` runs.
-METHOD_RUNS = {"nelder-mead": nelder_mead_fit, "gradient": gradient_fit, "kkt": kkt_fit}
 
 
 def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
@@ -119,9 +116,16 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
     check_midline(spec, data)
     t0 = time.perf_counter()
     inner = InnerProblem(spec, data, nodes, start)
-    spec, theta, iterations, ok, msg = fit_moving_boxes(METHOD_RUNS[method], spec, inner, tol,
+    spec, theta, iterations, ok, msg = fit_moving_boxes(method_run(method), spec, inner, tol,
                                                         max_iterations)
     return fit_result(method, spec, inner, theta, iterations, time.perf_counter() - t0, ok, msg)
+
+
+def method_run(method: str) -> Callable:
+    """The outer iteration of ``method``, ``run(spec, inner, tol, max_iterations)`` returning
+    (θ, iterations, converged, message): what :func:`fit_moving_boxes` runs (looked up at
+    each call, so that a test can replace a method)."""
+    return {"nelder-mead": nelder_mead_fit, "gradient": gradient_fit, "kkt": kkt_fit}[method]
 
 
 def fit_moving_boxes(run: Callable, spec: FitSpec, inner: InnerProblem, tol: float,

@@ -49,7 +49,7 @@ import numpy as np
 
 from ..solvers.direct import solver_of
 from ..solvers.results import Equilibrium, SolverError
-from .bilevel import METHOD_RUNS, check_options, fit, fit_moving_boxes
+from .bilevel import check_options, fit, fit_moving_boxes, method_run
 from .inner import InnerProblem
 from .midline_checks import as_points, check_midline
 from .results import FitResult
@@ -256,7 +256,7 @@ def _optimum(spec: FitSpec, data: np.ndarray, result: FitResult | None, method: 
     inner = InnerProblem(start, data, nodes, result.equilibrium if same else None,
                          solver_of(result.equilibrium) if same else None)
     inner.warm = True
-    start, theta, _, _, _ = fit_moving_boxes(METHOD_RUNS[method], start, inner, tol, None)
+    start, theta, _, _, _ = fit_moving_boxes(method_run(method), start, inner, tol, None)
     eq = inner.solve(theta)
     res = inner.residuals(eq)
     S = float(res @ res)
@@ -335,7 +335,7 @@ def _walk(opt: _Optimum, name: str, steps: list[float], direction: float, step: 
         try:
             held = _held(spec, name, theta, value)
             opt.inner.restart(held, eq)
-            held, others, _, ok, _ = fit_moving_boxes(METHOD_RUNS[method], held, opt.inner,
+            held, others, _, ok, _ = fit_moving_boxes(method_run(method), held, opt.inner,
                                                       tol, None)
             eq = opt.inner.solve(others)
             res = opt.inner.residuals(eq)
