@@ -5,6 +5,8 @@ from pathlib import Path
 
 from ._args import add_outputs, integer, real
 from ._outputs import Outputs
+from ._profiles import (add_profile_options, plot_profiles, profile_json, profile_names,
+                        profile_plot_path, profile_table, run_profiles)
 
 __all__ = ["register"]
 
@@ -52,6 +54,7 @@ def register(sub) -> None:
                         "midlines) as JSON; usable as a problem file",
                 csv="write the fitted parameters with their standard errors as CSV",
                 plot="write the fitted shell over the data")
+    add_profile_options(p)
     p.set_defaults(run=_fit)
 
 
@@ -87,6 +90,7 @@ def _fit(args) -> int:
     from ..solvers.results import SolverError
 
     spec = _start_problem(args)
+    names = profile_names(args.profile, spec)        # (a bad name: exit 2, before any work)
     midline = load_midline(args.midline, args.format, n=N_FIT, section=args.section,
                            pixel_size_um=args.pixel_size, radius_um=args.radius_um)
     check_midline(spec, midline, f"{args.midline}: the midline")
@@ -101,9 +105,14 @@ def _fit(args) -> int:
     print(result.summary())
     print(f"  E_fit = {result.E_fit:.6g} R over {N_FIT} points; {result.inner_solves} inner "
           f"solves, {result.seconds:.2f} s")
+    profiles = run_profiles(args, spec, midline, result, names) if names else {}
+    if profiles:
+        print(profile_table(result, profiles))
     out = Outputs()
     out.add(args.json, lambda path: write_json(path, {**result.to_dict(),
-                                                      "midline_file": str(args.midline)}))
+                                                      "midline_file": str(args.midline),
+                                                      **(profile_json(profiles) if profiles
+                                                         else {})}))
     out.add(args.csv, lambda path: write_csv(path, {
         "parameter": list(result.fitted),
         "value": [result.parameters[n] for n in result.fitted],
@@ -112,6 +121,10 @@ def _fit(args) -> int:
         from ..plotting import new_axes, plot_fit, save
         ax = plot_fit(result, new_axes(pyplot=False, legend=True))
         out.add(args.plot, lambda path: save(ax, path))
+    if profiles and profile_plot_path(args) is not None:
+        from ..plotting import save
+        figure = plot_profiles(profiles)
+        out.add(profile_plot_path(args), lambda path: save(figure, path))
     for path in out.commit():
         print(f"  wrote {path}")
     return 0 if result.converged else 3

@@ -6,7 +6,8 @@ KKT-constrained NLP (paper, Supplementary, "Fitting of the morphoelastic theory"
 :mod:`.spec` says what is fitted, :mod:`.inner` solves the inner problem,
 :mod:`.nested` and :mod:`.kkt` (with :mod:`.kkt_problem`) are the methods,
 :mod:`.bilevel` is the front door :func:`~morphoshell.fitting.bilevel.fit`,
-:mod:`.results` what it returns and :mod:`.midline_checks` what it refuses.
+:mod:`.results` what it returns, :mod:`.midline_checks` what it refuses and
+:mod:`.profiles` what the data determine (profile-likelihood intervals).
 """
 
 import lazy_loader
@@ -19,4 +20,5 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "midline_checks": ["intrinsic_lengths", "check_midline", "LENGTH_SLACK", "MAX_TURN",
                        "TURN_LENGTH", "POLE_SLACK"],
     "bilevel": ["fit", "METHODS", "FIT_NODES"],
+    "profiles": ["Profile", "profile", "profile_intervals", "noise_variance"],
 })

@@ -36,7 +36,8 @@ from .nested import gradient_fit, nelder_mead_fit
 from .results import FitError, FitResult, fit_result
 from .spec import FitSpec
 
-__all__ = ["fit", "METHODS", "FIT_NODES", "MAX_RECENTRES"]
+__all__ = ["fit", "fit_moving_boxes", "check_options", "METHODS", "method_run", "FIT_NODES",
+           "MAX_RECENTRES"]
 
 #: Fit methods (see the module docstring).
 METHODS = ("nelder-mead", "gradient", "kkt")
@@ -110,18 +111,25 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
     """
     if method not in METHODS:
         raise ValueError(f"method = {method!r} must be one of {list(METHODS)}")
-    _check_options(nodes, tol, max_iterations)
+    check_options(nodes, tol, max_iterations)
     data = as_points(data)
     check_midline(spec, data)
     t0 = time.perf_counter()
     inner = InnerProblem(spec, data, nodes, start)
-    run = {"nelder-mead": nelder_mead_fit, "gradient": gradient_fit, "kkt": kkt_fit}[method]
-    spec, theta, iterations, ok, msg = _fit_moving_boxes(run, spec, inner, tol, max_iterations)
+    spec, theta, iterations, ok, msg = fit_moving_boxes(method_run(method), spec, inner, tol,
+                                                        max_iterations)
     return fit_result(method, spec, inner, theta, iterations, time.perf_counter() - t0, ok, msg)
 
 
-def _fit_moving_boxes(run: Callable, spec: FitSpec, inner: InnerProblem, tol: float,
-                      max_iterations: int | None) -> tuple[FitSpec, np.ndarray, int, bool, str]:
+def method_run(method: str) -> Callable:
+    """The outer iteration of ``method``, ``run(spec, inner, tol, max_iterations)`` returning
+    (θ, iterations, converged, message): what :func:`fit_moving_boxes` runs (looked up at
+    each call, so that a test can replace a method)."""
+    return {"nelder-mead": nelder_mead_fit, "gradient": gradient_fit, "kkt": kkt_fit}[method]
+
+
+def fit_moving_boxes(run: Callable, spec: FitSpec, inner: InnerProblem, tol: float,
+                     max_iterations: int | None) -> tuple[FitSpec, np.ndarray, int, bool, str]:
     """``run`` (a method), again from moved boxes while it ends on a breakpoint's box edge.
 
     The breakpoints' boxes order them for methods that take bounds, not
@@ -163,8 +171,8 @@ def _fit_moving_boxes(run: Callable, spec: FitSpec, inner: InnerProblem, tol: fl
     return spec, theta, iterations, ok, msg
 
 
-def _check_options(nodes, tol, max_iterations) -> None:
-    """ValueError naming the first of :func:`fit`'s options that is out of range."""
+def check_options(nodes, tol, max_iterations) -> None:
+    """ValueError naming the first of :func:`fit`'s options that is out of range (profiles too)."""
     def integer(value) -> bool:
         return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
 

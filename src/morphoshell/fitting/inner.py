@@ -131,6 +131,10 @@ class InnerProblem:
         A direct solution of ``spec.base`` on this mesh to start from; by
         default the physical branch by continuation from the stress-free
         parameters.
+    solver : DirectSolver, optional
+        The inner solver (its mesh); by default one on the mesh of
+        ``spec.base`` (a profile's refits use the fit's own, so that their
+        objective is the fit's at the fitted parameters).
 
     Attributes
     ----------
@@ -148,11 +152,14 @@ class InnerProblem:
     """
 
     def __init__(self, spec: FitSpec, data: np.ndarray, nodes: int,
-                 start: Equilibrium | None = None):
+                 start: Equilibrium | None = None, solver: DirectSolver | None = None):
         self.spec, self.data, self.nodes = spec, np.asarray(data, dtype=float), nodes
         self.n = len(self.data)
         self.solves = 0
-        self._build(spec.base)
+        if solver is None:
+            self._build(spec.base)
+        else:
+            self.solver, self.midline = solver, midline(solver.disc, self.n)
         if start is not None:
             if start.x is None or len(start.x) != self.solver.disc.layout.size:
                 raise ValueError(f"the start state must be a direct solution on {nodes} nodes "
@@ -223,6 +230,19 @@ class InnerProblem:
         self.eq = eq
         self._cache = {tuple(np.asarray(theta, dtype=float)): eq}
         self._archive = (self._archive + [(np.asarray(theta, dtype=float), eq)])[-ARCHIVE:]
+
+    def restart(self, spec: FitSpec, eq: Equilibrium) -> None:
+        """Fit ``spec`` next, from the state ``eq`` (solved on this mesh, e.g. for a neighbouring
+        value of a parameter ``spec`` holds).
+
+        The states kept so far belong to another θ (another spec: a profile's
+        step holds one parameter at a new value, :mod:`morphoshell.fitting.profiles`),
+        so they are dropped; ``eq`` is kept as the state of ``spec.theta0``, from
+        which the first solve warm-starts (continues, should that fail).
+        """
+        self.spec, self.eq, self.warm = spec, eq, True
+        self._cache = {}
+        self._archive = [(spec.theta0, eq)]
 
     def reset(self, theta, eq: Equilibrium) -> None:
         """Make ``eq`` the current state and the only cached one, θ's (not archived)."""

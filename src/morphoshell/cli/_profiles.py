@@ -1,0 +1,145 @@
+"""``morphoshell fit --profile``: profile-likelihood intervals of the fitted parameters.
+
+The options (checked before any work: an unknown name, or one the variant does
+not fit, exits with status 2 and one line), the table printed beside the
+Gauss–Newton errors, the JSON entries and the plot of the profiles
+(:mod:`morphoshell.fitting.profiles`).  The plot is drawn here, not in
+:mod:`morphoshell.plotting`: it is a plain line plot of a profile's arrays,
+and plotting.py draws shells.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from ._args import integer
+from ._outputs import output_path
+
+__all__ = ["add_profile_options", "profile_names", "profile_plot_path", "run_profiles",
+           "profile_table", "profile_json", "plot_profiles"]
+
+
+def add_profile_options(p) -> None:
+    """``--profile``, ``--profile-points``, ``--profile-noise`` and ``--profile-plot``."""
+    p.add_argument("--profile", default=None, metavar="NAMES",
+                   help="profile-likelihood intervals (95 %%) of these fitted parameters, "
+                        "comma-separated (e.g. kappa1,f1), or 'all': each stepped over a grid "
+                        "around its fitted value, the others refitted at every step; a side "
+                        "that does not close is null (not determined by the data)")
+    p.add_argument("--profile-points", dest="profile_points", type=integer(2, 1000), default=20,
+                   metavar="N", help="refits per profile (default 20)")
+    p.add_argument("--profile-noise", dest="profile_noise", default="auto",
+                   choices=("auto", "residual", "traces"),
+                   help="the noise variance of the threshold: from the fit's residual, or from "
+                        "the spread of the traces an averaged midline CSV records (n_traces > 1); "
+                        "auto: traces when the file has them")
+    p.add_argument("--profile-plot", dest="profile_plot", type=output_path("plot"), default=None,
+                   metavar="OUT.png", help="draw the profiles (default with --plot: beside it, "
+                                           "named *_profiles)")
+
+
+def profile_names(text: str | None, spec) -> list[str]:
+    """The names of ``--profile`` (ValueError: unknown, or not fitted by ``spec``)."""
+    if text is None:
+        return []
+    if text.strip() == "all":
+        return list(spec.fitted)
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    family = spec.base.family_obj.parameters
+    unknown = [n for n in names if n not in family]
+    if unknown or not names:
+        raise ValueError(f"--profile {text!r}: unknown parameter(s) {unknown}; valid: "
+                         f"{list(spec.fitted)} or 'all'")
+    held = [n for n in names if n not in spec.fitted]
+    if held:
+        raise ValueError(f"--profile {text!r}: {held} not fitted in the {spec.variant} variant "
+                         f"(fitted: {list(spec.fitted)})")
+    return list(dict.fromkeys(names))
+
+
+def profile_plot_path(args) -> Path | None:
+    """Where the profiles are drawn: --profile-plot, or beside --plot."""
+    if not args.profile or (args.profile_plot is None and args.plot is None):
+        return None
+    if args.profile_plot is not None:
+        return args.profile_plot
+    return args.plot.with_name(f"{args.plot.stem}_profiles{args.plot.suffix}")
+
+
+def _data_with_spread(path, points):
+    """The fitted points with the spread of an averaged midline CSV, if the file has one."""
+    from ..io import Midline
+    try:
+        avg = Midline.from_csv(path)
+    except Exception:            # (not a midline CSV: an image trace, a .roi, ...)
+        return points
+    if avg.spread is None or avg.n_traces < 2 or len(avg.r) != len(points):
+        return points
+    return Midline(points[:, 0], points[:, 1], avg.spread, avg.n_traces, avg.source)
+
+
+def run_profiles(args, spec, midline, result, names: list[str]) -> dict:
+    """The profiles of ``names`` about the fit ``result`` (by the fit's method if it can)."""
+    from ..fitting import profile_intervals
+
+    data = _data_with_spread(args.midline, midline.points)
+    method = args.method if args.method in ("gradient", "kkt") else "gradient"
+    return profile_intervals(spec, data, names, result=result, points=args.profile_points,
+                             method=method, nodes=args.nodes, noise=args.profile_noise)
+
+
+def profile_table(result, profiles: dict) -> str:
+    """The intervals beside the Gauss–Newton ±1.96 SE ones, one line a parameter."""
+    first = next(iter(profiles.values()))
+    lines = [f"  profile intervals ({100 * first.confidence:g} %, sigma^2 = {first.sigma2:.3g} "
+             f"R^2 from the {first.sigma2_source}; Gauss-Newton +-1.96 SE beside):"]
+    for name, p in profiles.items():
+        lo, hi = p.interval
+        se = result.standard_errors.get(name, math.nan)
+        gn = f"+-{1.96 * se:.3g}" if math.isfinite(se) else "(on a constraint)"
+        lines.append(f"  {name:8s} {p.fitted_value: .6g}  [{lo: .6g}, {hi: .6g}]  GN {gn}"
+                     + ("  not determined by the data" if p.flat else "")
+                     + (f"  ({p.note})" if p.note else ""))
+    return "\n".join(lines)
+
+
+def profile_json(profiles: dict) -> dict:
+    """The fit JSON's entries: ``profile_intervals`` ({name: [low, high]}, null where open)
+    and ``profiles`` (each profile's grid, objective and threshold)."""
+    out = {n: p.to_dict() for n, p in profiles.items()}
+    return {"profile_intervals": {n: d["interval"] for n, d in out.items()},
+            "profiles": out}
+
+
+def plot_profiles(profiles: dict):
+    """A panel per profile: the objective E_fit² against the parameter, the threshold
+    (dashed), the interval (shaded; to the panel's edge where open), the fit (a dot),
+    refits that did not converge as open circles.  Returns the figure (outside pyplot)."""
+    import numpy as np
+    from matplotlib.figure import Figure
+
+    n = len(profiles)
+    cols = min(n, 3)
+    rows = (n + cols - 1) // cols
+    fig = Figure(figsize=(3.2 * cols, 2.6 * rows), layout="constrained")
+    axes = fig.subplots(rows, cols, squeeze=False).ravel()
+    for ax, (name, p) in zip(axes, profiles.items()):
+        ok = p.converged & np.isfinite(p.objective)
+        ax.plot(p.values, p.objective, color="C0", lw=1.0)
+        ax.plot(p.values[ok], p.objective[ok], "o", color="C0", ms=3)
+        ax.plot(p.values[~ok], p.objective[~ok], "o", mfc="none", color="C3", ms=4,
+                label="not converged")
+        ax.axhline(p.threshold, color="k", ls="--", lw=0.8, label="threshold")
+        lo, hi = p.interval
+        left, right = ax.get_xlim()
+        ax.axvspan(lo if math.isfinite(lo) else left, hi if math.isfinite(hi) else right,
+                   color="C1", alpha=0.2, lw=0, label=f"{100 * p.confidence:g} % interval")
+        ax.set_xlim(left, right)
+        ax.plot([p.fitted_value], [p.S_min], "o", color="k", ms=4)
+        ax.set_xlabel(name)
+        ax.set_ylabel(r"$E_\mathrm{fit}^2$ ($R^2$)")
+        ax.set_title(name + (": not determined" if p.flat else ""), fontsize="medium")
+    for ax in axes[n:]:
+        ax.set_visible(False)
+    axes[0].legend(fontsize="small", frameon=False)
+    return fig

@@ -1,0 +1,535 @@
+"""What the data determine: profile-likelihood intervals of fitted parameters.
+
+A fit's Gauss–Newton errors (:mod:`morphoshell.fitting.results`) are those of
+the linearised problem at the optimum.  A *profile* (Venzon & Moolgavkar 1988;
+Raue et al. 2009) asks the nonlinear question instead: step one parameter θⱼ
+over a grid around its fitted value, fit all the others again at each step
+(warm-started from the neighbouring step's result), and record the least-squares
+objective S(θⱼ) = E_fit²(θⱼ) (units of R²; the fit energy of the paper,
+Supplementary, "Fitting of the morphoelastic theory to the average cell sheet
+midlines of Volvox inversion").  With Gaussian residuals of variance σ² the
+likelihood-ratio statistic [S(θⱼ) − S_min]/σ² is χ²₁-distributed at the true
+θⱼ, so the interval at confidence c is
+
+    { θⱼ : S(θⱼ) − S_min ≤ σ² χ²₁(c) }          (χ²₁(0.95) = 3.841).
+
+For a problem linear in θ it is the Gauss–Newton interval ±√χ²₁(c) SE; where
+the midline depends nonlinearly on θⱼ (folds of the branch, curvatures near
+the pole) it is asymmetric, and where the data do not determine θⱼ at all it
+does not close: the objective stays below the threshold up to the grid's end
+or the parameter's bound, and that side is reported unbounded (±inf; ``None``
+in JSON) and the parameter *not determined by the data* (:attr:`Profile.flat`).
+
+σ², the noise variance of one coordinate of one point of the data, comes from
+(:func:`noise_variance`)
+
+``residual``  S_min/(2N − k) (N points, two coordinates, k fitted parameters):
+              the Gauss–Newton errors' estimate.  It contains the model error
+              (a model that does not fit the shape exactly leaves residuals that
+              are not noise), which widens the intervals;
+``traces``    when the data are an average of n traces with a per-point spread
+              (:class:`morphoshell.io.Midline`, ``spread`` and ``n_traces``),
+              mean(spread²)/n over the points off the pole: the noise of the
+              average alone, free of model error.
+
+Both treat the 2N residuals as independent.  The errors of a traced midline
+are correlated along it (one tracing, alignment, a smooth curve), so both
+make intervals too narrow when the correlation is strong: see the coverage
+measured on synthetic replicates in the documentation ("Fitting", "Profile
+intervals").
+
+Lengths in units of R.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from ..solvers.direct import solver_of
+from ..solvers.results import Equilibrium, SolverError
+from .bilevel import check_options, fit, fit_moving_boxes, method_run
+from .inner import InnerProblem
+from .midline_checks import as_points, check_midline
+from .results import FitResult
+from .spec import FitSpec
+
+__all__ = ["Profile", "profile", "profile_intervals", "noise_variance", "PROFILE_METHODS",
+           "NOISE_SOURCES", "SPAN_FACTOR", "EXTEND_STEPS"]
+
+#: Methods of a profile's refits (Nelder–Mead is far too slow for 20 refits).
+PROFILE_METHODS = ("gradient", "kkt")
+#: Where σ² comes from (module docstring); "auto": ``traces`` when the data have them.
+NOISE_SOURCES = ("auto", "residual", "traces")
+#: The default grid reaches this many times the linear interval's half-width
+#: (√(χ²₁ σ²/σ²_GN) Gauss–Newton errors) on either side: room for a profile twice as
+#: wide as the linearisation says before the grid is extended.
+SPAN_FACTOR = 2.0
+#: A side whose objective is still below the threshold at the grid's end goes on by at most
+#: this many steps, each twice the last (to 8 half-widths in all), before it is called open.
+EXTEND_STEPS = 4
+
+
+@dataclass(frozen=True, eq=False)
+class Profile:
+    """The profile of one fitted parameter: the objective with the others refitted.
+
+    Attributes
+    ----------
+    name : str
+        The profiled parameter.
+    fitted_value : float
+        Its value at the optimum (of the profile's own refit of the fit).
+    values : ndarray, shape (m,)
+        The grid, increasing, the fitted value included.
+    objective : ndarray, shape (m,)
+        S = E_fit² with the others refitted (units of R²); NaN where the
+        refit failed.
+    converged : ndarray of bool, shape (m,)
+        Whether each refit converged (the fitted value's: the fit's).
+    interval : (float, float)
+        Where S − S_min ≤ σ² χ²₁(confidence), interpolated between grid
+        points; −inf / +inf on a side where the profile does not cross the
+        threshold before the grid's end, the parameter's bound or a failed
+        refit.
+    threshold : float
+        S_min + σ² χ²₁(confidence) (units of R²).
+    S_min : float
+        The least objective of the profile (units of R²).
+    sigma2 : float
+        The noise variance per coordinate and point (units of R²).
+    sigma2_source : str
+        ``"residual"``, ``"traces"`` or ``"given"`` (:func:`noise_variance`).
+    confidence : float
+    flat : bool
+        The interval is open on a side: the data do not determine the parameter.
+    method : str
+        The refits' method.
+    note : str
+        What else a reader should know (a refit that failed, a lower
+        objective than the fit's).
+    """
+
+    name: str
+    fitted_value: float
+    values: np.ndarray
+    objective: np.ndarray
+    converged: np.ndarray
+    interval: tuple[float, float]
+    threshold: float
+    S_min: float
+    sigma2: float
+    sigma2_source: str
+    confidence: float
+    flat: bool
+    method: str
+    note: str = ""
+
+    @property
+    def determined(self) -> bool:
+        """Whether the data determine the parameter (the interval is closed)."""
+        return not self.flat
+
+    def summary(self) -> str:
+        """One line: the parameter, its interval and whether the data determine it."""
+        lo, hi = self.interval
+        text = (f"  {self.name:8s} = {self.fitted_value: .6g}  "
+                f"[{lo: .6g}, {hi: .6g}] ({100 * self.confidence:g} % profile)")
+        if self.flat:
+            text += ": not determined by the data"
+        return text + (f" ({self.note})" if self.note else "")
+
+    def rethreshold(self, sigma2: float, source: str = "given") -> "Profile":
+        """This profile with the threshold of another σ² (the objective does not depend on it).
+
+        The grid stays: an interval wider than it reaches its end and is open
+        there.  Used to compare σ² sources on one profile
+        (scripts/check_profile_coverage.py).
+        """
+        from scipy.stats import chi2 as chi2_dist
+
+        threshold = self.S_min + sigma2 * float(chi2_dist.ppf(self.confidence, 1))
+        j = int(np.searchsorted(self.values, self.fitted_value))
+        below = (self.values[:j][::-1].tolist(), self.objective[:j][::-1].tolist())
+        above = (self.values[j + 1:].tolist(), self.objective[j + 1:].tolist())
+        start = (self.fitted_value, float(self.objective[j]))
+        interval = (_crossing(*below, start, -1.0, threshold),
+                    _crossing(*above, start, 1.0, threshold))
+        return replace(self, interval=interval, threshold=float(threshold), sigma2=float(sigma2),
+                       sigma2_source=source, flat=not all(np.isfinite(interval)))
+
+    def to_dict(self) -> dict:
+        """JSON-ready (an open side of the interval is ``None``: JSON has no infinity)."""
+        def number(v):
+            return float(v) if np.isfinite(v) else None
+        return {"name": self.name, "fitted_value": self.fitted_value,
+                "values": self.values.tolist(),
+                "objective": [number(v) for v in self.objective],
+                "converged": [bool(c) for c in self.converged],
+                "interval": [number(v) for v in self.interval], "threshold": self.threshold,
+                "S_min": self.S_min, "sigma2": self.sigma2, "sigma2_source": self.sigma2_source,
+                "confidence": self.confidence, "flat": self.flat, "method": self.method,
+                "note": self.note, "objective_units": "R^2"}
+
+    def to_dataframe(self):
+        """The profile as a table: value, objective, converged (pandas)."""
+        import pandas as pd
+        return pd.DataFrame({"value": self.values, "objective": self.objective,
+                             "converged": self.converged}).rename_axis(self.name)
+
+
+def noise_variance(data, S_min: float, k: int, source: str | float = "auto") -> tuple[float, str]:
+    """σ², the noise variance of one coordinate of one data point, and where it came from.
+
+    Parameters
+    ----------
+    data : Midline or array_like (N, 2)
+        The fitted midline; a :class:`morphoshell.io.Midline` averaged from
+        n > 1 traces carries their spread.
+    S_min : float
+        The fit's objective E_fit² (units of R²).
+    k : int
+        The fitted parameters.
+    source : {"auto", "residual", "traces"} or float
+        ``residual``: S_min/(2N − k); ``traces``: mean(spread²)/n_traces over
+        the points off the pole (the pole is the gauge's origin: no spread);
+        ``auto``: traces when the data have them, else residual; a number: σ²
+        itself (``"given"``).
+
+    Returns
+    -------
+    sigma2 : float
+    source : str
+
+    Raises
+    ------
+    ValueError
+        An unknown source, ``traces`` for data without a spread, or a σ²
+        that is not a positive number.
+    """
+    if not isinstance(source, str):
+        if not (np.isfinite(source) and source > 0):
+            raise ValueError(f"sigma2 = {source!r} must be a positive number")
+        return float(source), "given"
+    if source not in NOISE_SOURCES:
+        raise ValueError(f"noise = {source!r} must be one of {list(NOISE_SOURCES)} or a number")
+    spread = getattr(data, "spread", None)
+    n_traces = getattr(data, "n_traces", 1)
+    has_traces = spread is not None and n_traces > 1 and np.any(np.asarray(spread) > 0)
+    if source == "traces" and not has_traces:
+        raise ValueError("noise = 'traces' needs an average of several traces with their "
+                         "spread (a Midline with spread and n_traces > 1)")
+    if source == "traces" or (source == "auto" and has_traces):
+        spread = np.asarray(spread, dtype=float)
+        return float(np.mean(spread[spread > 0] ** 2) / n_traces), "traces"
+    n = len(as_points(data))
+    return float(S_min) / max(2 * n - k, 1), "residual"
+
+
+@dataclass
+class _Optimum:
+    """The profile's own refit of the fit: spec (boxes around θ̂), θ̂, S_min, its state."""
+
+    spec: FitSpec
+    theta: np.ndarray
+    S: float
+    eq: Equilibrium
+    inner: InnerProblem
+    errors: Mapping[str, float]
+    sigma2_gn: float
+
+
+def _optimum(spec: FitSpec, data: np.ndarray, result: FitResult | None, method: str,
+             nodes: int, tol: float) -> _Optimum:
+    """The fit (``result``, or a new one) refitted on the profile's own inner problem.
+
+    Refitting from the result (a few evaluations) makes θ̂ and S_min those of
+    the mesh and tolerance every step of the profile uses, so that the profile's
+    minimum sits at θ̂ whatever method or mesh gave the result.
+    """
+    if result is None:
+        result = fit(spec, data, method, nodes=nodes, tol=tol)
+    theta = np.array([result.parameters[n] for n in spec.fitted], dtype=float)
+    start = spec.recentred(theta) if spec.ordered else replace(spec, base=spec.problem(theta))
+    same = _nodes_of(result.equilibrium) == nodes      # (else a new mesh, continued to)
+    inner = InnerProblem(start, data, nodes, result.equilibrium if same else None,
+                         solver_of(result.equilibrium) if same else None)
+    inner.warm = True
+    start, theta, _, _, _ = fit_moving_boxes(method_run(method), start, inner, tol, None)
+    eq = inner.solve(theta)
+    res = inner.residuals(eq)
+    S = float(res @ res)
+    return _Optimum(start, theta, S, eq, inner, result.standard_errors,
+                    float(result.E_fit) ** 2 / max(len(res) - len(theta), 1))
+
+
+def _nodes_of(eq: Equilibrium) -> int | None:
+    """The mesh nodes of a direct solution (None for another route's)."""
+    return None if eq.source is None else int(eq.source[1].nodes)
+
+
+def _held(spec: FitSpec, name: str, theta: np.ndarray, value: float) -> FitSpec:
+    """``spec`` with ``name`` held at ``value`` and the others starting at θ (full, spec's order).
+
+    A generic spec's way of holding a parameter: out of ``fitted`` and its
+    bounds, its value (and the others' starts) in ``base``.
+    """
+    full = np.array(theta, dtype=float)
+    full[spec.fitted.index(name)] = value
+    base = spec.problem(full)
+    return replace(spec, base=base, fitted=tuple(n for n in spec.fitted if n != name),
+                   bounds={n: b for n, b in spec.bounds.items() if n != name})
+
+
+def _grid(opt: _Optimum, name: str, points: int, span, chi2: float,
+          sigma2: float) -> tuple[list[float], list[float], float]:
+    """The steps below and above the fitted value (each outward) and the grid's step."""
+    j = opt.spec.fitted.index(name)
+    value = float(opt.theta[j])
+    lo, hi = opt.spec.bounds.get(name, (-np.inf, np.inf))
+    if span is None:
+        se = opt.errors.get(name, np.nan)
+        if np.isfinite(se) and se > 0:
+            # the linear interval's half-width, √(χ² σ²/σ²_GN) Gauss-Newton errors
+            span = SPAN_FACTOR * se * np.sqrt(chi2 * sigma2 / max(opt.sigma2_gn, 1e-300))
+        else:              # no error (on a constraint): a tenth of the bounds' width
+            width = hi - lo if np.isfinite(hi - lo) else max(abs(value), 1.0)
+            span = 0.1 * width
+    span = float(span)
+    if not (np.isfinite(span) and span > 0):
+        raise ValueError(f"span = {span!r} must be a positive number")
+    half = max(points // 2, 1)
+    step = span / half
+    below = [max(value - i * step, lo) for i in range(1, half + 1)]
+    above = [min(value + i * step, hi) for i in range(1, points - half + 1)]
+    # (steps clipped onto a bound repeat it: walk to the bound once)
+    return _unique(value, below), _unique(value, above), step
+
+
+def _unique(start: float, values: list[float]) -> list[float]:
+    """``values`` without repeats of their predecessor (or of ``start``, the first's)."""
+    out: list[float] = []
+    for v in values:
+        if v != (out[-1] if out else start):
+            out.append(v)
+    return out
+
+
+def _walk(opt: _Optimum, name: str, steps: list[float], direction: float, step: float,
+          threshold: float, method: str, tol: float) -> tuple[list, list, list, str]:
+    """Refit at each of ``steps`` outward from θ̂, each from the last one's end.
+
+    Goes on beyond the planned steps (each twice the last, at most
+    :data:`EXTEND_STEPS`) while the objective stays below ``threshold`` and
+    the bound is not reached; stops at a refit that fails (its objective
+    NaN).  Returns values, objectives, converged flags and a note.
+    """
+    j = opt.spec.fitted.index(name)
+    lo, hi = opt.spec.bounds.get(name, (-np.inf, np.inf))
+    theta, eq, spec = opt.theta.copy(), opt.eq, opt.spec
+    values, objective, converged = [], [], []
+    plan, extra = list(steps), 0
+    while plan:
+        value = plan.pop(0)
+        try:
+            held = _held(spec, name, theta, value)
+            opt.inner.restart(held, eq)
+            held, others, _, ok, _ = fit_moving_boxes(method_run(method), held, opt.inner,
+                                                      tol, None)
+            eq = opt.inner.solve(others)
+            res = opt.inner.residuals(eq)
+        except (SolverError, ValueError) as exc:
+            # (the next step would start from a state the refit did not reach: stop here)
+            values.append(value)
+            objective.append(np.nan)
+            converged.append(False)
+            return values, objective, converged, f"the refit at {name} = {value:.6g} failed: {exc}"
+        theta = np.insert(others, j, value)
+        # the next step's spec: this one's boxes (moved, if the refit moved them), θⱼ fitted
+        bounds = dict(held.bounds)
+        if name in opt.spec.bounds:
+            bounds[name] = opt.spec.bounds[name]
+        spec = replace(held, fitted=opt.spec.fitted, bounds=bounds)
+        values.append(value)
+        objective.append(float(res @ res))
+        converged.append(bool(ok))
+        bound = lo if direction < 0 else hi
+        if not plan and objective[-1] < threshold and value != bound and extra < EXTEND_STEPS:
+            extra += 1
+            nxt = value + direction * step * 2 ** extra
+            plan.append(max(nxt, lo) if direction < 0 else min(nxt, hi))
+    return values, objective, converged, ""
+
+
+def _crossing(values: list, objective: list, start: tuple[float, float], direction: float,
+              threshold: float) -> float:
+    """Where the profile first crosses ``threshold`` walking out from ``start`` (θ̂ and its
+    objective S_min; ``values`` outward); ±inf (``direction``) if it never does.
+
+    Interpolated linearly in √(S − S_min) between the last step below and the
+    first above: exact for a quadratic profile (a linear problem), whatever the
+    grid's step, where interpolating S itself put the crossing inside by up to
+    a step.
+    """
+    last_v, S_min = start
+    last_r, target = 0.0, np.sqrt(max(threshold - S_min, 0.0))
+    for v, s in zip(values, objective):
+        if not np.isfinite(s):
+            break
+        r = np.sqrt(max(s - S_min, 0.0))
+        if s > threshold:
+            return float(last_v + (v - last_v) * (target - last_r) / (r - last_r))
+        last_v, last_r = v, r
+    return direction * np.inf
+
+
+def _profile(opt: _Optimum, data, name: str, points: int, span, method: str, tol: float,
+             confidence: float, noise) -> Profile:
+    """The profile of ``name`` about the optimum ``opt`` (see :func:`profile`)."""
+    from scipy.stats import chi2 as chi2_dist
+
+    chi2 = float(chi2_dist.ppf(confidence, 1))
+    sigma2, source = noise_variance(data, opt.S, len(opt.theta), noise)
+    below, above, step = _grid(opt, name, points, span, chi2, sigma2)
+    threshold = opt.S + sigma2 * chi2
+    j = opt.spec.fitted.index(name)
+    value = float(opt.theta[j])
+    vb, sb, cb, note_b = _walk(opt, name, below, -1.0, step, threshold, method, tol)
+    va, sa, ca, note_a = _walk(opt, name, above, 1.0, step, threshold, method, tol)
+    values = np.array([*vb[::-1], value, *va])
+    objective = np.array([*sb[::-1], opt.S, *sa])
+    notes = [n for n in (note_b, note_a) if n]
+    S_min = float(np.nanmin(objective))
+    if S_min < opt.S * (1 - 1e-6):
+        # (the fit was not at the minimum: the threshold from the profile's own)
+        where = float(values[int(np.nanargmin(objective))])
+        notes.append(f"a refit at {name} = {where:.6g} found a lower objective than the fit's")
+        threshold = S_min + sigma2 * chi2
+    interval = (_crossing(vb, sb, (value, opt.S), -1.0, threshold),
+                _crossing(va, sa, (value, opt.S), 1.0, threshold))
+    return Profile(name, value, values, objective, np.array([*cb[::-1], True, *ca]),
+                   interval, float(threshold), S_min, sigma2, source, confidence,
+                   not all(np.isfinite(interval)), method, "; ".join(notes))
+
+
+def _check(spec: FitSpec, names: Sequence[str], points: int, method: str,
+           confidence: float, nodes: int, tol: float) -> None:
+    """ValueError naming the first bad option of a profile, before any work."""
+    if method not in PROFILE_METHODS:
+        raise ValueError(f"method = {method!r} must be one of {list(PROFILE_METHODS)}")
+    not_fitted = [n for n in names if n not in spec.fitted]
+    if not_fitted:
+        raise ValueError(f"cannot profile {not_fitted}: not fitted in the {spec.variant} "
+                         f"variant (fitted: {list(spec.fitted)})")
+    if not names:
+        raise ValueError("no parameter to profile")
+    if not (isinstance(points, (int, np.integer)) and not isinstance(points, bool)
+            and 2 <= points <= 1000):
+        raise ValueError(f"points = {points!r} must be an integer from 2 to 1000")
+    if not (isinstance(confidence, float) and 0 < confidence < 1):
+        raise ValueError(f"confidence = {confidence!r} must lie in (0, 1)")
+    check_options(nodes, tol, None)
+
+
+def profile_intervals(spec: FitSpec, data, names: Sequence[str] | None = None, *,
+                      result: FitResult | None = None, points: int = 20, span=None,
+                      method: str = "gradient", nodes: int | None = None,
+                      confidence: float = 0.95, noise: str | float = "auto",
+                      tol: float = 1e-8) -> dict[str, Profile]:
+    """Profiles of several fitted parameters about one fit (see :func:`profile`).
+
+    The fit is refitted once on the profiles' inner problem; each profile
+    starts from there.
+
+    Parameters
+    ----------
+    spec : FitSpec
+        What was fitted.
+    data : array_like (N, 2) or Midline
+        The fitted midline.
+    names : sequence of str, optional
+        Fitted parameters (default: all of ``spec.fitted``).
+    result, points, span, method, nodes, confidence, noise, tol
+        As :func:`profile` (``span``: one value for all, or a mapping by name).
+
+    Returns
+    -------
+    dict
+        :class:`Profile` by name, in the order of ``names``.
+    """
+    names = list(spec.fitted if names is None else names)
+    if nodes is None:
+        nodes = (_nodes_of(result.equilibrium) if result is not None else None) or 200
+    _check(spec, names, points, method, confidence, nodes, tol)
+    if result is not None and tuple(result.fitted) != tuple(spec.fitted):
+        raise ValueError(f"the result fitted {list(result.fitted)}, the spec "
+                         f"{list(spec.fitted)}: not a fit of this spec")
+    noise_variance(data, 1.0, len(spec.fitted), noise)      # (checks it before any work)
+    points_ = as_points(data)
+    check_midline(spec, points_)
+    opt = _optimum(spec, points_, result, method, nodes, tol)
+    spans = span if isinstance(span, Mapping) else {n: span for n in names}
+    return {n: _profile(opt, data, n, points, spans.get(n), method, tol, confidence, noise)
+            for n in names}
+
+
+def profile(spec: FitSpec, data, name: str, *, result: FitResult | None = None,
+            points: int = 20, span: float | None = None, method: str = "gradient",
+            nodes: int | None = None, confidence: float = 0.95, noise: str | float = "auto",
+            tol: float = 1e-8) -> Profile:
+    """The profile of one fitted parameter and its interval (module docstring).
+
+    θⱼ steps over ``points`` values around its fitted value, half on either
+    side, each outward from the last; at each the other parameters are fitted
+    again (``method``), starting from the neighbouring step's parameters and
+    equilibrium (one branch of equilibria), with θⱼ held: ``spec`` with θⱼ
+    moved from ``fitted`` into ``base``.  Where the objective is still below
+    the threshold at the grid's end the side goes on by steps twice as long
+    (at most :data:`EXTEND_STEPS`); a side that reaches θⱼ's bound, a failed
+    refit or the last step below the threshold is open.
+
+    Parameters
+    ----------
+    spec : FitSpec
+        What was fitted (:func:`morphoshell.fitting.spec.volvox_spec`).
+    data : array_like (N, 2) or Midline
+        The fitted midline (a Midline averaged from traces carries the
+        spread that ``noise="traces"`` uses).
+    name : str
+        A parameter of ``spec.fitted``.
+    result : FitResult, optional
+        The fit of ``spec`` to ``data`` (default: fitted here, by ``method``).
+    points : int
+        Refits on the grid (2 to 1000; 20 by default).
+    span : float, optional
+        The grid's half-width (units of θⱼ); default :data:`SPAN_FACTOR` times
+        the linear interval's half-width from the Gauss–Newton error, or a
+        tenth of θⱼ's bounds for a parameter on a constraint.  Clipped to the
+        bounds.
+    method : {"gradient", "kkt"}
+        The refits' method.
+    nodes : int, optional
+        Mesh nodes (default: the result's, else 200).
+    confidence : float
+        Of the interval (χ²₁ quantile of the threshold).
+    noise : {"auto", "residual", "traces"} or float
+        Where σ² comes from (:func:`noise_variance`), or σ² itself.
+    tol : float
+        The refits' tolerance (relative on E_fit²).
+
+    Returns
+    -------
+    Profile
+
+    Raises
+    ------
+    ValueError
+        A name not fitted by ``spec``, another bad option, or data that
+        :func:`morphoshell.fitting.midline_checks.check_midline` refuses,
+        before any work.
+    """
+    return profile_intervals(spec, data, [name], result=result, points=points, span=span,
+                             method=method, nodes=nodes, confidence=confidence, noise=noise,
+                             tol=tol)[name]
+

@@ -1,0 +1,151 @@
+"""Profile-likelihood intervals (fitting.profiles): the profile's minimum is the fit, its
+interval that of a nearly linear problem, a parameter the data do not see is flagged;
+``morphoshell fit --profile``.
+
+The three-parameter flat fit of fitting_cases.py (κ₂, f₁, s₂) to noisy data on a
+coarse mesh: nearly linear at the noise of 10⁻³ R, so the profile intervals should
+be the Gauss–Newton ones.
+"""
+import json
+
+import numpy as np
+import pytest
+
+from morphoshell.cli import main
+from morphoshell.fitting import (fit, noise_variance, profile, profile_intervals,
+                                 synthetic_midline, volvox_spec)
+from morphoshell.io import Midline
+
+from fitting_cases import NODES, THREE, TRUE, three_parameter_spec
+
+
+@pytest.fixture(scope="module")
+def three():
+    spec = three_parameter_spec()
+    data = synthetic_midline(TRUE, spec.base, nodes=NODES, noise=1e-3, seed=3)
+    result = fit(spec, data, "gradient", nodes=NODES)
+    profiles = profile_intervals(spec, data, THREE, result=result, points=6)
+    return spec, data, result, profiles
+
+
+def test_the_profile_minimum_is_the_fit(three):
+    _, _, result, profiles = three
+    S_fit = result.E_fit ** 2
+    for name, p in profiles.items():
+        assert p.fitted_value == pytest.approx(result.parameters[name], abs=1e-3 * abs(
+            result.standard_errors[name]) + 1e-12), name
+        assert p.S_min == pytest.approx(S_fit, rel=1e-6), name
+        # every refit is a constrained version of the fit: never below it
+        assert np.all(p.objective >= S_fit * (1 - 1e-9)), name
+        assert p.values[np.argmin(p.objective)] == p.fitted_value, name
+        assert np.all(np.diff(p.values) > 0) and p.converged.all(), name
+
+
+def test_a_determined_parameter_has_the_gauss_newton_interval(three):
+    _, _, result, profiles = three
+    for name, p in profiles.items():
+        lo, hi = p.interval
+        assert not p.flat and np.isfinite(lo) and np.isfinite(hi), name
+        assert lo < p.fitted_value < hi, name
+        assert p.sigma2_source == "residual"        # (plain points: no traces)
+        gn = 1.96 * result.standard_errors[name]
+        # a nearly linear problem: the same interval within a few per cent
+        for half in (p.fitted_value - lo, hi - p.fitted_value):
+            assert 0.9 < half / gn < 1.1, (name, half, gn)
+
+
+def test_rethresholding_scales_the_interval(three):
+    _, _, _, profiles = three
+    p = profiles["f1"]
+    wide = p.rethreshold(p.sigma2 * 1.5 ** 2)     # 1.5x the noise: 1.5x the interval
+    for a, b in zip(wide.interval, p.interval):
+        assert abs(a - p.fitted_value) == pytest.approx(1.5 * abs(b - p.fitted_value), rel=0.1)
+    assert p.rethreshold(p.sigma2 * 1e4).flat      # beyond the grid: open
+
+
+def test_a_breakpoint_between_equal_curvatures_is_not_determined():
+    """s₁ steps κ_s from κ₁ to κ₂: with κ₁ = κ₂ it changes nothing, and its profile is flat
+    up to its bounds; f₁ beside it stays determined."""
+    truth = TRUE.with_updates(kappa2=0.0)
+    hold = {n: truth.params[n] for n in truth.family_obj.parameters
+            if n not in ("f1", "s1", "kappa1", "sigma")}
+    spec = volvox_spec("flat", truth.with_updates(f1=0.9), hold=hold)
+    data = synthetic_midline(truth, spec.base, nodes=40, noise=1e-3, seed=4)
+    profiles = profile_intervals(spec, data, ["s1", "f1"], points=4, nodes=40)
+    s1 = profiles["s1"]
+    assert s1.flat and s1.interval == (-np.inf, np.inf)
+    # walked to its bounds (σ from the pole; its box's edge towards s₂) and E_fit hardly
+    # changed (the mesh's knots follow s₁: the discretisation error changes, 1 % of E_fit²)
+    assert s1.values[0] == pytest.approx(spec.bounds["s1"][0])
+    assert np.ptp(s1.objective) <= 0.5 * (s1.threshold - s1.S_min)
+    assert "not determined by the data" in s1.summary()
+    assert not profiles["f1"].flat and np.isfinite(profiles["f1"].interval).all()
+    assert s1.to_dict()["interval"] == [None, None]
+
+
+def test_noise_from_the_traces_or_the_residual():
+    pts = np.column_stack([np.linspace(0, 1, 10), np.zeros(10)])
+    spread = np.full(10, 2e-3)
+    spread[0] = 0.0                   # (the pole: no spread, not counted)
+    avg = Midline(pts[:, 0], pts[:, 1], spread, 4, ("a",))
+    assert noise_variance(avg, 1.0, 3) == (pytest.approx(1e-6), "traces")
+    assert noise_variance(avg, 1.7, 3, "residual") == (pytest.approx(0.1), "residual")
+    assert noise_variance(pts, 1.7, 3) == (pytest.approx(0.1), "residual")
+    assert noise_variance(pts, 1.7, 3, 2e-6) == (2e-6, "given")
+    with pytest.raises(ValueError, match="traces"):
+        noise_variance(pts, 1.0, 3, "traces")
+
+
+def test_bad_options_are_refused_before_any_work(three):
+    spec, data, result, _ = three
+    with pytest.raises(ValueError, match=r"cannot profile \['kappa1'\]: not fitted in the flat"):
+        profile(spec, data, "kappa1", result=result)
+    with pytest.raises(ValueError, match="method"):
+        profile(spec, data, "f1", result=result, method="nelder-mead")
+    with pytest.raises(ValueError, match="points"):
+        profile(spec, data, "f1", result=result, points=1)
+
+
+# --------------------------------------------------------------------------
+# morphoshell fit --profile
+# --------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def midline_csv(tmp_path_factory):
+    spec = three_parameter_spec()
+    points = synthetic_midline(TRUE, spec.base, nodes=NODES, noise=1e-3, seed=2)
+    path = tmp_path_factory.mktemp("profile") / "synthetic_midline.csv"
+    Midline(points[:, 0], points[:, 1], None, 1, ("synthetic",)).to_csv(path)
+    return path
+
+
+HELD = [f"--set={n}={TRUE.params[n]}" for n in TRUE.family_obj.parameters
+        if n not in THREE and n not in ("kappa1", "sigma")]
+
+
+def test_fit_command_writes_profile_intervals(midline_csv, tmp_path, capsys):
+    out, png = tmp_path / "fit.json", tmp_path / "profiles.png"
+    assert main(["fit", str(midline_csv), "--variant", "flat", "--nodes", str(NODES), *HELD,
+                 "--profile", "f1,s2", "--profile-points", "4", "--json", str(out),
+                 "--profile-plot", str(png)]) == 0
+    data = json.loads(out.read_text())
+    assert set(data["profile_intervals"]) == {"f1", "s2"}
+    for name, (lo, hi) in data["profile_intervals"].items():
+        assert lo < data["parameters"][name] < hi, name
+        assert len(data["profiles"][name]["values"]) == len(data["profiles"][name]["objective"])
+    assert png.stat().st_size > 10_000
+    printed = capsys.readouterr().out
+    assert "profile intervals (95 %" in printed and "GN +-" in printed
+
+
+@pytest.mark.parametrize("names, said", [
+    ("f1,kappa9", "unknown parameter(s) ['kappa9']"),
+    ("kappa1", "['kappa1'] not fitted in the flat variant"),
+])
+def test_fit_command_refuses_bad_profile_names(midline_csv, tmp_path, capsys, names, said):
+    out = tmp_path / "fit.json"
+    assert main(["fit", str(midline_csv), "--variant", "flat", "--nodes", str(NODES), *HELD,
+                 "--profile", names, "--json", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert said in err and err.count("\n") == 1
+    assert not out.exists()
