@@ -7,7 +7,7 @@ from typing import Callable
 
 from ._outputs import output_path
 
-__all__ = ["integer", "real", "add_outputs", "LINEAR_SOLVERS"]
+__all__ = ["integer", "real", "add_outputs", "problem_and_settings", "LINEAR_SOLVERS"]
 
 #: Ipopt's linear solvers: MUMPS is bundled with CasADi; the HSL ones (ma27 …)
 #: load only from the user's libhsl.so, SPRAL and Pardiso from their libraries.
@@ -66,3 +66,21 @@ def add_outputs(p: argparse.ArgumentParser, json: str, csv: str | None = None,
     if plot:
         p.add_argument("--plot", type=output_path("plot"), metavar="OUT.png",
                        help=plot + " (.png, .pdf or .svg)")
+
+
+def problem_and_settings(path, overrides):
+    """The problem and solver settings of a problem file with ``--set`` overrides applied.
+
+    Raises ``ProblemFileError`` naming the file, or the ``--set`` item, that is bad.
+    """
+    from ..io.problem_files import (ProblemFileError, apply_overrides, load_problem,
+                                    parse_overrides, settings_from, split_overrides)
+
+    problem, settings = load_problem(path)
+    problem_over, solver_over = split_overrides(parse_overrides(overrides))
+    problem = apply_overrides(problem, problem_over)
+    try:
+        settings = settings_from(solver_over, settings)
+    except ValueError as exc:
+        raise ProblemFileError(f"--set: {exc}") from None
+    return problem, settings

@@ -1,9 +1,8 @@
 """``morphoshell continue``: a branch of equilibria with its stability, folds and snap-throughs."""
 from __future__ import annotations
 
-import argparse
 
-from ._args import add_outputs, integer, real
+from ._args import add_outputs, integer, problem_and_settings, real
 from ._outputs import Outputs
 
 __all__ = ["register"]
@@ -61,20 +60,12 @@ def register(sub) -> None:
 
 def _load(args):
     """The problem and mesh, from the file, --set and the options; all checked."""
-    from ..io.problem_files import (ProblemFileError, apply_overrides, load_problem,
-                                    parse_overrides, settings_from, split_overrides)
     from ..solvers.paths import ParameterLine, neutral_problem
 
     if (args.param is None) != (args.to is None):
         raise ValueError("--param and --to go together (one parameter from the file's value "
                          "to VALUE); without them the path runs from the stress-free parameters")
-    problem, settings = load_problem(args.problem)
-    problem_over, solver_over = split_overrides(parse_overrides(args.overrides))
-    problem = apply_overrides(problem, problem_over)
-    try:
-        settings = settings_from(solver_over, settings)
-    except ValueError as exc:
-        raise ProblemFileError(f"--set: {exc}") from None
+    problem, settings = problem_and_settings(args.problem, args.overrides)
     if args.param is not None:
         try:
             ParameterLine.along(problem, args.param, args.to)

@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 
 from ..io.problem_files import METHODS
-from ._args import LINEAR_SOLVERS, add_outputs, integer, real
+from ._args import LINEAR_SOLVERS, add_outputs, integer, problem_and_settings, real
 from ._outputs import Outputs
 
 __all__ = ["register"]
@@ -76,16 +76,7 @@ def register(sub) -> None:
 
 def _load(args):
     """Problem, method and solver options from the file, --set and the options; all checked."""
-    from ..io.problem_files import (ProblemFileError, apply_overrides, load_problem,
-                                    parse_overrides, settings_from, split_overrides)
-
-    problem, settings = load_problem(args.problem)
-    problem_over, solver_over = split_overrides(parse_overrides(args.overrides))
-    problem = apply_overrides(problem, problem_over)
-    try:
-        settings = settings_from(solver_over, settings)
-    except ValueError as exc:
-        raise ProblemFileError(f"--set: {exc}") from None
+    problem, settings = problem_and_settings(args.problem, args.overrides)
     nodes = settings.nodes if args.nodes is None else args.nodes
     stages = settings.stages if args.stages is None else args.stages
     method = args.method or settings.method
