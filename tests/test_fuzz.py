@@ -14,7 +14,7 @@ Properties (issue "The right minimum or an error"):
 
 A problem may also be refused with a SolverError naming its status ("the right
 minimum or an error"); that is counted, not failed.  ``make test`` runs a small
-derandomised budget (profile "ci"); ``make fuzz`` runs at least 1000 random
+derandomised budget (profile "ci"); ``make fuzz`` runs at least 1500 random
 problems (profile "fuzz") and prints the counts.
 """
 import collections
@@ -35,7 +35,7 @@ from morphoshell.numerics.mesh import mesh_spec
 
 settings.register_profile("ci", max_examples=8, deadline=None, derandomize=True,
                           suppress_health_check=[HealthCheck.too_slow], database=None)
-settings.register_profile("fuzz", max_examples=1000, deadline=None,
+settings.register_profile("fuzz", max_examples=1500, deadline=None,
                           suppress_health_check=[HealthCheck.too_slow])
 settings.load_profile(os.environ.get("MORPHOSHELL_FUZZ", "ci"))
 
@@ -72,11 +72,14 @@ def _params(family: str, draw) -> dict:
 def problems(draw):
     family = draw(st.sampled_from(["uniform", "anisotropic", "local_relaxation", "volvox"]))
     theory = draw(st.sampled_from(["large_bending", "classical"]))
-    h = 10 ** draw(st.floats(-3.0, math.log10(0.3)))
+    h = 10 ** draw(st.floats(-4.0, math.log10(0.3)))          # thinner than before, to 1e-4
     cut = draw(st.one_of(st.just(0.0), st.floats(0.02, 1.2)))
     opening = 0.3 if family == "volvox" else draw(st.one_of(st.just(0.0), st.floats(0.05, 1.0)))
     if family == "local_relaxation" and cut == 0:
         cut = 0.3                                  # the relaxation is at a cut
+    if family != "volvox" and draw(st.integers(0, 3)) == 0:
+        # a short shell (issue 40): an annulus of 1e-3 to 0.03 R next to the far end
+        cut = max(0.02, math.pi - opening - 10 ** draw(st.floats(-3.0, -1.5)))
     try:
         return Problem(family, _params(family, draw), h=h, cut=cut, opening=opening,
                        theory=theory)
@@ -113,6 +116,12 @@ def test_solutions_agree_with_the_refined_mesh_within_their_estimate(problem):
         # the finer mesh's own error, ~1/16 of this one's, and round-off on top
         allowed = 1.1 * err + 1e-10 * max(1.0, abs(values[key]))
         if abs(values[key] - ref[key]) > allowed:
+            if eq.energy < reference.energy - 1e-9 * abs(reference.energy):
+                # another equilibrium of lower energy than the reference's path found (short
+                # annuli of thin shells have several, 1e-4 of their width apart): the solve
+                # is the better minimum, not a wrong branch
+                COUNTS["lower minimum than the reference"] += 1
+                return
             COUNTS["wrong branch or estimate"] += 1
             pytest.fail(f"{problem}: {key} = {values[key]!r} but the refined continuation gives "
                         f"{ref[key]!r} (estimated error {err:.3g})")
@@ -177,7 +186,7 @@ _BAD_SET = st.one_of(
 @st.composite
 def bad_command_lines(draw, tmp):
     kind = draw(st.sampled_from(["nodes", "set", "stages", "method", "solver", "rtol", "output",
-                                 "file", "command"]))
+                                 "file", "command", "continue", "sweep"]))
     base = ["solve", TOY2]
     if kind == "nodes":
         return base + ["--nodes", draw(st.one_of(_NOT_INT, st.integers(-10**12, 4).map(str),
@@ -202,6 +211,19 @@ def bad_command_lines(draw, tmp):
         if path.endswith("/out"):
             path += suffix
         return base + [option, path], option
+    if kind == "continue":       # the branches command (issue 38)
+        args, named = draw(st.sampled_from([
+            (["--param", "h"], "--param and --to"), (["--to", "0.2"], "--param and --to"),
+            (["--param", "kk", "--to", "1"], "unknown parameter"),
+            (["--param", "cut", "--to", "0"], "cannot take cut"),
+            (["--param", "h", "--to", "1e308"], "thickness h"),
+            (["--param", "h", "--to", "-1e-9"], "thickness h"),
+            (["--max-step", "0"], "--max-step"), (["--max-points", "1"], "--max-points"),
+            (["--follow", "x"], "--follow")]))
+        return ["continue", TOY2, *args], named
+    if kind == "sweep":          # grids out of proportion (issue 40)
+        value = draw(st.sampled_from(["0:1:1000000000", "0:1:200001", "0:1:0", "0:1:x"]))
+        return ["sweep", TOY2, "--set", f"k={value}"], "k="
     if kind == "file":
         name = draw(st.sampled_from(["missing.toml", "binary.toml", "garbage.toml"]))
         return ["solve", f"{tmp}/{name}"], name

@@ -229,6 +229,9 @@ class IpoptBackend:
                                             ("objective", "g", "grad_f", "jac_g", "hess_lag")}
         return ca.nlpsol(name, "ipopt", {"x": d.x, "p": d.D, "f": f["objective"], "g": f["g"]}, {
             "ipopt": dict(ipopt), "print_time": False, "error_on_fail": False,
+            # a NaN at a trial point is Ipopt's to handle (a shorter step) or to report
+            # (Invalid_Number_Detected, named): not a raw C++ warning on the user's terminal
+            "show_eval_warnings": False,
             "grad_f": f["grad_f"], "jac_g": f["jac_g"], "hess_lag": f["hess_lag"],
             # Multipliers of bounds and parameters are not needed (there are
             # no bounds; parametric derivatives come from the KKT system).
