@@ -71,11 +71,11 @@ def _load(args):
             ParameterLine.along(problem, args.param, args.to)
         except ValueError as exc:
             raise ValueError(f"--param {args.param} --to {args.to:g}: {exc}") from None
-    elif neutral_problem(problem) is None:
+    elif (source := neutral_problem(problem)) is None:
         raise ValueError(f"{args.problem}: the problem is at its family's stress-free "
                          f"parameters already: continue one parameter (--param, --to)")
     else:
-        ParameterLine.between(neutral_problem(problem), problem)    # (refuses another structure)
+        ParameterLine.between(source, problem)      # (refuses another structure)
     if settings.method != "direct":
         print(f"note: continuation uses the direct method (the file asks for "
               f"{settings.method!r})")

@@ -22,6 +22,7 @@ import numpy as np
 
 from ..fitting import volvox_spec
 from ..fitting.inner import InnerProblem
+from ..fitting.midline_checks import as_points
 from ..model.problem import Problem
 from ..solvers.results import Equilibrium, SolverError
 
@@ -92,7 +93,7 @@ def best_start(candidates: Sequence[Candidate], data, nodes: int
         solve failed)}`` per candidate, in order: the record's
         ``start_candidates``.
     """
-    points = np.column_stack([data.r, data.z]) if hasattr(data, "r") else np.asarray(data)
+    points = as_points(data)
     scores = [_start_misfit(c, points, nodes) for c in candidates]
     best = int(np.argmin(scores))          # (the first of equals)
     table = [{"from": c.origin, "E_fit": (float(e) if np.isfinite(e) else None)}
