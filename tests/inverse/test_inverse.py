@@ -181,6 +181,19 @@ def test_displacement_is_not_monotonic_across_k_equal_1(model):
     assert one_side.k("displacement") > 1.4
 
 
+def test_a_k_range_beyond_the_shells_curvature_is_refused_before_any_solve():
+    """|k| < 2/h: a sheet cannot curve with a radius below its half-thickness (at h = 0.3,
+    2/h = 6.67); refused by the embryo and by the table, naming the shell and the limit."""
+    m = _measurement({"rotation": 0.1})
+    with pytest.raises(ValueError, match=r"k = -7 is beyond the curvature of embryo 'E' "
+                                         r"\(h = H/R = 0.3\): \|k\| must stay below 2/h = 6.667"):
+        I.estimate_embryo(m, None, k_range=(-7.0, 1.0), methods=("inner",))
+    with pytest.raises(ValueError, match=r"k_range = \(1.0, 6.7\): k = 6.7 .* thickest shell"):
+        I.estimate([m, _measurement({"rotation": 0.1}, name="F", h=0.1)], k_range=(1.0, 6.7))
+    assert I.estimate_embryo(m, None, k_range=(-6.6, 1.0), methods=("leading_order",)).k(
+        "rotation", "leading_order") is not None
+
+
 # --------------------------------------------------------------------------
 # the synthetic table
 # --------------------------------------------------------------------------

@@ -63,7 +63,9 @@ def register(sub) -> None:
     p.add_argument("--k-range", nargs=2, type=real(-100, 100), default=(-1.0, 1.0),
                    metavar=("LO", "HI"), help="range of k searched (default -1 1: from an "
                                               "intrinsic curvature reversed relative to the sphere "
-                                              "to the stress-free k = 1)")
+                                              "to the stress-free k = 1); |k| < 2/h of the "
+                                              "thickest shell (a sheet cannot curve with a "
+                                              "radius below its half-thickness)")
     p.add_argument("--bootstrap", type=integer(0, 1_000_000), default=2000, metavar="N",
                    help="bootstrap resamples of the 95%% intervals (default 2000; 0: none)")
     p.add_argument("--seed", type=integer(0, 2**32 - 1), default=0, metavar="S",
@@ -80,13 +82,14 @@ def register(sub) -> None:
 
 
 def _estimate(args) -> int:
-    from ..inverse import estimate, read_measurements
+    from ..inverse import check_shells, estimate, read_measurements
     from ..io.problem_files import write_csv, write_json
 
     lo, hi = args.k_range
     if not lo < hi:
         raise ValueError(f"--k-range {lo:g} {hi:g}: LO must be smaller than HI")
     data = read_measurements(args.measurements)
+    check_shells(data, (lo, hi), f"--k-range {lo:g} {hi:g}")    # (before any solve)
     result = estimate(data, theory=args.theory, k_range=(lo, hi), mu_min=args.mu_min,
                       bootstrap=args.bootstrap, seed=args.seed, nodes=args.nodes,
                       workers=args.workers)

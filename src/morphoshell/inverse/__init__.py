@@ -30,5 +30,5 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "recoil_velocity": ["MU_MIN", "VelocityFit", "fit_velocity", "velocity_scale",
                         "elastic_bounds"],
     "result": ["InverseResult"],
-    "pipeline": ["estimate"],
+    "pipeline": ["estimate", "check_shells"],
 })

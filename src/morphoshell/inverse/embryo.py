@@ -20,7 +20,7 @@ import numpy as np
 from ..io.measurements import MEASURES, UNITS, Measurement, to_physical
 from ..mechanics import asymptotics
 from .inversion import (ASYMPTOTIC, DEFAULT_K_RANGE, METHODS, SYMBOL, Curve, Estimate,
-                        check_k_range, forward_map, invert)
+                        check_curvature, check_k_range, forward_map, invert)
 from .recoil_model import RecoilModel
 
 __all__ = ["EmbryoEstimate", "estimate_embryo", "format_k"]
@@ -161,6 +161,12 @@ def estimate_embryo(m: Measurement, model: RecoilModel | None = None,
         With an :class:`~morphoshell.inverse.inversion.Estimate` for each of
         the 3 measures × 5 methods (``asymptotic`` included) and the combined k.
 
+    Raises
+    ------
+    ValueError
+        For a bad k-range, or one reaching |k| ≥ 2/h, a curvature the shell
+        cannot have (:func:`morphoshell.inverse.inversion.check_curvature`).
+
     See Also
     --------
     morphoshell.inverse.pipeline.estimate : a whole table.
@@ -168,6 +174,7 @@ def estimate_embryo(m: Measurement, model: RecoilModel | None = None,
     if model is None and "numerical" in methods:
         model = RecoilModel()
     k_range = check_k_range(k_range)
+    check_curvature(k_range, m.h, f"k_range = {k_range!r}", f"embryo {m.embryo!r}")
     out: dict[tuple[str, str], Estimate] = {}
     seconds: dict[str, float] = {}
     for method in METHODS:

@@ -27,7 +27,8 @@ import numpy as np
 from .._runtime.console import progress as _progress_bar
 from ..io.measurements import MEASURES, Measurement, read_measurements
 from .embryo import EmbryoEstimate, estimate_embryo
-from .inversion import ASYMPTOTIC, DEFAULT_K_RANGE, GRID_STEP, K_TOL, METHODS, check_k_range
+from .inversion import (ASYMPTOTIC, DEFAULT_K_RANGE, GRID_STEP, K_TOL, METHODS, check_curvature,
+                        check_k_range)
 from .recoil_model import NODES, RecoilModel
 from .recoil_velocity import MU_MIN, VelocityFit, fit_velocity, velocity_scale
 from .result import InverseResult
@@ -35,7 +36,7 @@ from .summaries import BOOTSTRAP, SEED, Spread, summarise
 
 log = logging.getLogger(__name__)
 
-__all__ = ["estimate"]
+__all__ = ["estimate", "check_shells"]
 
 
 # --------------------------------------------------------------------------
@@ -65,6 +66,27 @@ def _check_settings(methods, k_range, mu_min, bootstrap) -> tuple[float, float]:
             or bootstrap < 0:
         raise ValueError(f"bootstrap = {bootstrap!r} must be a non-negative integer")
     return k_range
+
+
+def check_shells(data: Sequence[Measurement], k_range: tuple[float, float],
+                 label: str | None = None) -> None:
+    """ValueError when a shell of ``data`` cannot have every k of ``k_range`` (before any work).
+
+    The thickest shell bounds the range: |k| < 2/h
+    (:func:`~morphoshell.inverse.inversion.curvature_limit`).
+
+    Parameters
+    ----------
+    data : sequence of Measurement
+        The embryos (not empty).
+    k_range : (float, float)
+        A checked k-range.
+    label : str, optional
+        How the message names the range (default ``k_range = (lo, hi)``).
+    """
+    thickest = max(data, key=lambda m: m.h)
+    check_curvature(k_range, thickest.h, label or f"k_range = {tuple(k_range)!r}",
+                    f"the thickest shell, embryo {thickest.embryo!r}")
 
 
 def _check_workers(workers, n: int) -> int:
@@ -195,12 +217,14 @@ def estimate(measurements: str | Path | Iterable[Measurement], *,
     MeasurementError
         For a bad table (:func:`morphoshell.io.measurements.read_measurements`).
     ValueError
-        For no measurements, an unknown method or a bad k-range, ``mu_min``,
+        For no measurements, an unknown method or a bad k-range (one that a
+        shell cannot have included: |k| ≥ 2/h, :func:`check_shells`), ``mu_min``,
         ``bootstrap`` or ``workers``.
     """
     t0 = time.perf_counter()
     data = _load(measurements)
     k_range = _check_settings(methods, k_range, mu_min, bootstrap)
+    check_shells(data, k_range)
     model = None
     if "numerical" in methods:
         model = RecoilModel(theory, nodes, mesh_for=(float(np.median([m.h for m in data])),
