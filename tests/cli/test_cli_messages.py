@@ -30,3 +30,32 @@ def test_a_negative_number_in_exponent_form_is_a_value(capsys):
                  "--k-range", "-1e9", "1"]) == 2
     err = capsys.readouterr().err
     assert "-1e9 must be a finite number in [-100, 100]" in err and "expected 2" not in err
+
+
+def test_a_k_range_the_shells_cannot_have_is_refused_at_once(capsys):
+    """|k| >= 2/h of the thickest shell (h = 0.335, embryo S10): an intrinsic radius below the
+    half-thickness; the search of -100..100 ran 84 s before it was refused (issue 40)."""
+    import time
+
+    t0 = time.perf_counter()
+    assert main(["estimate", str(ROOT / "data" / "synthetic_ablations.csv"),
+                 "--k-range", "-100", "100"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("morphoshell: error: --k-range -100 100: "), err
+    assert "embryo 'S10'" in err and "2/h = 5.963" in err
+    assert time.perf_counter() - t0 < 20
+
+
+def test_campaign_selections_name_their_option(tmp_path, capsys):
+    """The library names its arguments (timepoints, embryo_errors); the command its options."""
+    data = str(ROOT / "data" / "synthetic_inversion")
+    out = tmp_path / "out"
+    assert main(["campaign", data, "--out", str(out), "--timepoints", "t01,t99"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--timepoints 't01,t99': ['t99'] not in" in err, err
+    assert main(["campaign", data, "--out", str(out), "--variants", "flat",
+                 "--embryo-errors", "free"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--embryo-errors free: ['free'] not among --variants flat" \
+        in err, err
+    assert not out.exists()

@@ -103,7 +103,7 @@ def register(sub) -> None:
 def _campaign(args) -> int:
     from ..workflows import SUMMARY, campaign, read_timepoints
 
-    read_timepoints(args.data_dir)          # bad input: exit 2 before any work
+    _check_selection(args, read_timepoints(args.data_dir))   # bad input: exit 2 before any work
     result = campaign(args.data_dir, args.variants, method=args.method, workers=args.workers,
                       scheduler=args.scheduler, out=args.out, resume=args.resume,
                       nodes=args.nodes, timepoints=args.timepoints,
@@ -125,6 +125,24 @@ def _campaign(args) -> int:
     print(f"  wrote {result.out}/<timepoint>_<variant>.json and {result.out / SUMMARY}")
     print(_verdict(unfinished, len(result.records), args.allow_failures))
     return 3 if unfinished and not args.allow_failures else 0
+
+
+def _check_selection(args, timepoints) -> None:
+    """--timepoints against the data set, --embryo-errors against --variants (ValueError naming
+    the option: the library's messages name its arguments, not the options)."""
+    if args.timepoints is not None:
+        names = [tp.name for tp in timepoints]
+        asked = [n.strip() for n in args.timepoints.split(",")]
+        unknown = [n for n in asked if n not in names]
+        if unknown:
+            raise ValueError(f"--timepoints {args.timepoints!r}: {unknown} not in "
+                             f"{Path(args.data_dir) / 'timepoints.csv'} (it has "
+                             f"{','.join(names)})")
+    if not isinstance(args.embryo_errors, bool):
+        outside = [v for v in args.embryo_errors if v not in args.variants]
+        if outside:
+            raise ValueError(f"--embryo-errors {','.join(args.embryo_errors)}: {outside} not "
+                             f"among --variants {','.join(args.variants)}")
 
 
 def _verdict(unfinished: list, fits: int, allowed: bool) -> str:
