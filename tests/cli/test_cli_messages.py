@@ -30,6 +30,9 @@ def test_a_negative_number_in_exponent_form_is_a_value(capsys):
                  "--k-range", "-1e9", "1"]) == 2
     err = capsys.readouterr().err
     assert "-1e9 must be a finite number in [-100, 100]" in err and "expected 2" not in err
+    assert main(["solve", "x.toml", "--rtol", "-inf"]) == 2     # (fuzz: "expected one argument")
+    err = capsys.readouterr().err
+    assert "--rtol: -inf must be a finite number in (0, 1)" in err, err
 
 
 def test_a_k_range_the_shells_cannot_have_is_refused_at_once(capsys):

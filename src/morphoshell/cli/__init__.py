@@ -24,8 +24,10 @@ from .. import __version__
 
 __all__ = ["main", "build_parser", "ISSUES_URL"]
 
-#: A negative number, exponent form included: a value on the command line, not an option.
-_NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+#: A negative number, exponent form and -inf included: a value on the command line, not an
+#: option (so that a bad one is refused as a number, not as "expected one argument").
+_NEGATIVE_NUMBER = re.compile(r"^-((\d+\.?\d*|\.\d+)([eE][-+]?\d+)?|inf|infinity)$",
+                              re.IGNORECASE)
 #: Where bugs are reported (printed with exit status 1).
 ISSUES_URL = "https://github.com/morphoshell/morphoshell/issues"
 
@@ -33,8 +35,8 @@ ISSUES_URL = "https://github.com/morphoshell/morphoshell/issues"
 class _Parser(argparse.ArgumentParser):
     """argparse with one-line errors: ``morphoshell solve: error: ...``, exit status 2.
 
-    A negative number in exponent form (``--k-range -1e9 1``) is a value, not an option:
-    argparse's own pattern knows only ``-1`` and ``-1.5``.
+    A negative number in exponent form (``--k-range -1e9 1``), or ``-inf``, is a value, not an
+    option: argparse's own pattern knows only ``-1`` and ``-1.5``.
     """
 
     def __init__(self, *args, **kwargs):
