@@ -28,10 +28,11 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from morphoshell import Problem, SolverError, solve
-from morphoshell.cli import main
 from morphoshell.io.problem_files import example_path
 from morphoshell.solvers.direct import DirectSolver
 from morphoshell.numerics.mesh import mesh_spec
+
+from fuzz_bad_inputs import Hang, bad_inputs, make_bad_files, run_cli
 
 settings.register_profile("ci", max_examples=8, deadline=None, derandomize=True,
                           suppress_health_check=[HealthCheck.too_slow], database=None)
@@ -239,18 +240,57 @@ def test_bad_command_lines_exit_2_naming_the_item(tmp_path_factory):
     @given(bad_command_lines(tmp))
     def check(case):
         argv, named = case
-        before = set(tmp.rglob("*"))
-        import contextlib
-        import io
-        err = io.StringIO()
-        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
-            status = main(argv)
-        text = err.getvalue()
-        COUNTS["bad command lines"] += 1
-        if "Traceback" in text:
-            COUNTS["tracebacks"] += 1
-        assert status == 2, (argv, status, text)
-        assert "Traceback" not in text and len(text.strip().splitlines()) == 1, (argv, text)
-        assert named in text, (argv, named, text)
-        assert set(tmp.rglob("*")) == before, (argv, "left a file")
+        _check_refusal(tmp, argv, named, "bad command lines")
+    check()
+
+
+def _check_refusal(tmp: Path, argv: list[str], named: str, count: str) -> None:
+    """``morphoshell ARGV`` exits 2 within REFUSAL_SECONDS with one line on standard error (C
+    libraries' writes included) naming ``named``: no traceback, no raw warning, nothing
+    written in ``tmp``."""
+    before = set(tmp.rglob("*"))
+    try:
+        status, text, seconds, shown = run_cli(argv, REFUSAL_SECONDS)
+    except Hang:
+        COUNTS[f"{count}: hangs"] += 1
+        pytest.fail(f"{argv}: still running after {REFUSAL_SECONDS:g} s")
+    COUNTS[f"{count}: exit {status}"] += 1
+    COUNTS["slowest refusal (ms)"] = max(COUNTS["slowest refusal (ms)"], int(1000 * seconds))
+    if "Traceback" in text:
+        COUNTS["tracebacks"] += 1
+    if shown:
+        COUNTS["raw warnings"] += 1
+    assert status == 2, (argv, status, text)
+    assert "Traceback" not in text and len(text.strip().splitlines()) == 1, (argv, text)
+    assert not shown, (argv, shown)
+    assert named in text, (argv, named, text)
+    assert set(tmp.rglob("*")) == before, (argv, "left a file")
+
+
+# --------------------------------------------------------------------------
+# random bad inputs of estimate, fit, campaign and ablate (issue 40)
+# --------------------------------------------------------------------------
+
+#: Seconds a refusal may take: checks only, no solver (imports are warmed first).
+REFUSAL_SECONDS = 10.0
+#: Examples of the four commands: the profile's (make fuzz), at least 24 (make test).
+BAD_INPUT_EXAMPLES = max(24, settings.default.max_examples)
+
+
+def test_bad_inputs_of_the_fitting_commands_exit_2_at_once(tmp_path_factory):
+    """estimate, fit, campaign, ablate: exit 2, one line naming the item, nothing written, no
+    traceback or raw warning, within REFUSAL_SECONDS (no solver runs before a refusal)."""
+    import morphoshell.fitting  # noqa: F401  (imports out of the time bound)
+    import morphoshell.inverse  # noqa: F401
+    import morphoshell.mechanics.ablation  # noqa: F401
+    import morphoshell.workflows  # noqa: F401
+
+    tmp = tmp_path_factory.mktemp("bad_inputs")
+    make_bad_files(tmp)
+
+    @settings(max_examples=BAD_INPUT_EXAMPLES)
+    @given(bad_inputs(tmp))
+    def check(case):
+        argv, named = case
+        _check_refusal(tmp, argv, named, f"bad input: {argv[0]}")
     check()
