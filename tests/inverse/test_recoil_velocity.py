@@ -51,3 +51,22 @@ def test_paper_numbers():
     assert b["bending_modulus_lower_bound_J"] == pytest.approx(6.389e-19, rel=1e-3)
     rounded = I.elastic_bounds(0.5e-3 / 0.8e-3, 0.8e-3, 11.0)["bending_modulus_lower_bound_J"]
     assert round(rounded * 1e19) == 7
+
+
+def test_the_bootstrap_draws_in_bounded_chunks_with_the_same_intervals(monkeypatch):
+    """--bootstrap 1000000 of 1000 embryos held 16 GB of indices at once; drawn in chunks of
+    at most RESAMPLE_CHUNK indices, the rows and so the intervals are the same."""
+    import morphoshell.inverse.summaries as S
+    from morphoshell.inverse import fit_velocity, summarise
+
+    rng = np.random.default_rng(7)
+    x, V, X = rng.normal(size=37), rng.uniform(0.5, 1, 37), rng.uniform(0.1, 1, 37)
+
+    def intervals():
+        return (summarise(x, bootstrap=3001, rng=np.random.default_rng([0, 1])).interval,
+                fit_velocity(V, X, bootstrap=3001, rng=np.random.default_rng([0, 2])).interval)
+    whole = intervals()
+    monkeypatch.setattr(S, "RESAMPLE_CHUNK", 37 * 4 + 5)
+    assert intervals() == whole
+    sizes = [idx.size for idx in S.resamples(np.random.default_rng(0), 37, 3001)]
+    assert max(sizes) <= 37 * 4 + 5 and sum(sizes) == 37 * 3001

@@ -18,7 +18,7 @@ from typing import Sequence
 import numpy as np
 
 from ..mechanics import asymptotics
-from .summaries import BOOTSTRAP, SEED
+from .summaries import BOOTSTRAP, SEED, resamples
 
 __all__ = ["MU_MIN", "velocity_scale", "elastic_bounds", "VelocityFit", "fit_velocity"]
 
@@ -116,11 +116,16 @@ def _bootstrap_slopes(V: np.ndarray, X: np.ndarray, bootstrap: int,
     """Percentile bootstrap 95 % interval of the slope (resamples with ΣX² = 0 dropped)."""
     n = V.size
     rng = rng or np.random.default_rng(SEED)
-    idx = rng.integers(0, n, size=(int(bootstrap), n))
-    den = np.einsum("ij,ij->i", X[idx], X[idx])
-    ok = den > 0
-    slopes = np.einsum("ij,ij->i", X[idx], V[idx])[ok] / den[ok]
+    slopes = np.concatenate([_slopes(V[idx], X[idx]) for idx in resamples(rng, n, bootstrap)])
     return tuple(float(v) for v in np.percentile(slopes, [2.5, 97.5]))
+
+
+def _slopes(V: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """ΣXV/ΣX² of each row of resampled V and X, shape (m, n) → (≤ m,): rows with ΣX² = 0
+    dropped."""
+    den = np.einsum("ij,ij->i", X, X)
+    ok = den > 0
+    return np.einsum("ij,ij->i", X, V)[ok] / den[ok]
 
 
 def fit_velocity(V: Sequence[float], X: Sequence[float], *, mu_min: float = MU_MIN,

@@ -10,14 +10,33 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Iterator, Sequence
 
 import numpy as np
 
-__all__ = ["BOOTSTRAP", "SEED", "Spread", "summarise"]
+__all__ = ["BOOTSTRAP", "SEED", "Spread", "summarise", "resamples"]
 
 #: Default bootstrap resamples and seed.
 BOOTSTRAP, SEED = 2000, 0
+#: Most indices drawn at once (32 MB): memory stays bounded for any resamples × embryos.
+RESAMPLE_CHUNK = 2**22
+
+
+def resamples(rng: np.random.Generator, n: int, bootstrap: int) -> Iterator[np.ndarray]:
+    """The bootstrap's resamples of n indices, in chunks of rows of at most RESAMPLE_CHUNK indices.
+
+    The rows are those of ``rng.integers(0, n, size=(bootstrap, n))`` in the same order
+    (the generator draws them one after another), so that results do not depend on the
+    chunking; only the memory does (``--bootstrap 1000000`` of 1000 embryos held 16 GB).
+
+    Yields
+    ------
+    ndarray of int, shape (m, n)
+        The next m ≥ 1 resamples.
+    """
+    rows = max(1, RESAMPLE_CHUNK // max(n, 1))
+    for start in range(0, int(bootstrap), rows):
+        yield rng.integers(0, n, size=(min(rows, int(bootstrap) - start), n))
 
 
 @dataclass(frozen=True)
@@ -85,7 +104,7 @@ def summarise(values: Sequence[float], errors: Sequence[float | None] | None = N
     interval = None
     if bootstrap and n >= 2:
         rng = rng or np.random.default_rng(SEED)
-        means = x[rng.integers(0, n, size=(int(bootstrap), n))].mean(axis=1)
+        means = np.concatenate([x[idx].mean(axis=1) for idx in resamples(rng, n, bootstrap)])
         interval = tuple(float(v) for v in np.percentile(means, [2.5, 97.5]))
     wm = we = None
     if errors is not None and len(errors) == n and all(e for e in errors):
