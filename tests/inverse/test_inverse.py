@@ -194,6 +194,18 @@ def test_a_k_range_beyond_the_shells_curvature_is_refused_before_any_solve():
         "rotation", "leading_order") is not None
 
 
+def test_a_model_that_does_not_resolve_the_shell_gives_no_estimate():
+    """At h = 1e-5 the 60-node model's stress-free shell (k = 1) recoils as if k were off by
+    ~2: its estimates were returned as if right; now failed, naming the error in k."""
+    thin = I.RecoilModel(mesh_for=(1e-5, 0.2))
+    e = I.estimate_embryo(_measurement({"rotation": 0.01}, h=1e-5, Sigma=0.2), thin,
+                          methods=("numerical", "inner"))
+    est = e.estimates[("rotation", "numerical")]
+    assert est.k is None and est.status == "failed", est
+    assert "does not resolve this shell: at the stress-free k = 1 it gives rho = " in est.note
+    assert e.estimates[("rotation", "inner")].status in ("ok", "outside_range")
+
+
 # --------------------------------------------------------------------------
 # the synthetic table
 # --------------------------------------------------------------------------

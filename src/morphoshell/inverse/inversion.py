@@ -63,8 +63,8 @@ if TYPE_CHECKING:
     from .recoil_model import RecoilModel
 
 __all__ = ["METHODS", "ASYMPTOTIC", "DEFAULT_K_RANGE", "GRID_STEP", "K_TOL", "MAX_STEPS",
-           "SYMBOL", "Estimate", "Curve", "forward_map", "invert", "check_k_range",
-           "curvature_limit", "check_curvature"]
+           "K_STRESS_FREE", "SYMBOL", "Estimate", "Curve", "forward_map", "invert",
+           "check_k_range", "curvature_limit", "check_curvature"]
 
 #: Estimation methods (see the module docstring); ``asymptotic`` is an alias.
 METHODS = ("leading_order", "kelvin", "inner", "numerical")
@@ -78,6 +78,10 @@ GRID_STEP = 1.0
 K_TOL = 1e-9
 #: Most Newton/bisection steps per estimate.
 MAX_STEPS = 40
+#: Largest error in k the recoil of the stress-free shell (k = 1: none) may imply,
+#: |m(1)/m'(1)|, before a model is said not to resolve the shell (250 times the
+#: numerical model's accuracy on the synthetic table; 60 nodes reach 2 at h = 1e-5).
+K_STRESS_FREE = 1e-2
 #: Symbols used in notes and printed tables.
 SYMBOL = {"opening": "o", "rotation": "rho", "displacement": "d"}
 
@@ -392,6 +396,27 @@ def _refine(curve: Curve, i: int, measure: str, method: str, root: tuple,
                     note=f"no convergence in {MAX_STEPS} Newton steps (last k = {k:.6g})")
 
 
+def _unresolved(curve: Curve, i: int, measure: str, method: str,
+                fmt: Callable[[float], str]) -> Estimate | None:
+    """A failed estimate when the model's stress-free shell recoils (else None).
+
+    At k = 1 the shell is stress-free and a cut releases nothing: m(1) = 0.  A
+    model off by more than :data:`K_STRESS_FREE` in k there does not resolve
+    the shell (a mesh too coarse for its boundary layer, width ~0.54√h), and
+    every k it gives would carry that error.
+    """
+    p = next((p for p in curve.points if p.k == 1.0), None)
+    if p is None or p.derivative[i] == 0:
+        return None
+    offset = abs(p.values[i] / p.derivative[i])
+    if not offset > K_STRESS_FREE:
+        return None
+    return Estimate(measure, method, None, status="failed",
+                    note=f"the {method} model does not resolve this shell: at the stress-free "
+                         f"k = 1 it gives {SYMBOL[measure]} = {fmt(p.values[i])} instead of 0, "
+                         f"an error of {offset:.2g} in k (a finer mesh: --nodes)")
+
+
 def invert(curve: Curve, measure: str, method: str, value: float, error: float | None,
            k_range: tuple[float, float], fmt: Callable[[float], str]) -> Estimate:
     """k with m(k) = ``value`` in ``k_range`` (see the module docstring).
@@ -415,9 +440,14 @@ def invert(curve: Curve, measure: str, method: str, value: float, error: float |
     -------
     Estimate
         ``ok`` with k, its propagated error and the slope dm/dk; or no k with
-        ``outside_range``, ``not_monotonic`` or ``failed`` and a note.
+        ``outside_range``, ``not_monotonic`` or ``failed`` and a note (``failed``
+        also when the model's stress-free shell recoils by more than
+        :data:`K_STRESS_FREE` in k: it does not resolve the shell).
     """
     i = MEASURES.index(measure)
+    unresolved = _unresolved(curve, i, measure, method, fmt)
+    if unresolved is not None:
+        return unresolved
     found = _roots(curve, i, measure, value, k_range)
     label = f"{SYMBOL[measure]} = {fmt(value)}"
     if not found:
