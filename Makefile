@@ -45,8 +45,8 @@ docs: $(STAMP)
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --site-dir site
 
 ## fuzz: property-based fuzzing, 1500 random problems and 3000 bad command lines; prints
-## the counts (maintainers, before a release: 11 minutes on 2 cores at load 6; 4.5 at a
-## lower load before the bad inputs of estimate, fit, campaign, ablate; docs/benchmarks.md)
+## the counts (maintainers, before a release: 4.7 minutes on 2 cores at load 3, 11 at
+## load 6; docs/benchmarks.md)
 fuzz: $(STAMP)
 	MORPHOSHELL_FUZZ=fuzz $(BIN)/python -m pytest -q -s -p no:cacheprovider tests/test_fuzz.py
 
