@@ -68,6 +68,23 @@ def test_help_documents_every_option():
         assert option in proc.stdout
 
 
+def test_metavars_say_what_a_value_is():
+    """Not the option's name again (``--h H``, ``--k K``) nor a letter of no meaning
+    (``--c10 A``): the help reads ``--h THICKNESS``, ``--c10 MODULUS``."""
+    import argparse
+
+    from morphoshell.cli import build_parser
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    echoes = [f"{name} {option} {action.metavar}" for name, command in sub.choices.items()
+              for action in command._actions for option in action.option_strings
+              if action.metavar == option.lstrip("-").upper().replace("-", "_")]
+    assert not echoes
+    help_text = sub.choices["sphere"].format_help()
+    assert "--h THICKNESS" in help_text and "--k CURVATURE" in help_text
+    assert "--c10 MODULUS" in help_text and "--c01 MODULUS" in help_text
+
+
 def test_console_script_runs(tmp_path):
     exe = Path(sys.executable).with_name("morphoshell")
     proc = subprocess.run([str(exe), "solve", str(TOY2), "--nodes", "200"],

@@ -37,9 +37,9 @@ def _common(p: argparse.ArgumentParser) -> None:
                    help="Ipopt's linear solver for the direct method: mumps (default, bundled) "
                         "or an HSL solver such as ma27/ma57 if libhsl.so is installed")
     p.add_argument("--rtol", type=real(0, 1, open_lo=True, open_hi=True), default=None,
-                   metavar="RTOL",
+                   metavar="TOLERANCE",
                    help="direct method: refine the mesh (doubling the cells) until the error "
-                        "estimate meets RTOL (energy relative to itself, edge values in units "
+                        "estimate meets TOLERANCE (energy relative to itself, edge values in units "
                         "of R and radians), or fail with exit status 3; without it the "
                         "estimate is only reported")
     p.add_argument("--no-continuation", dest="continuation", action="store_false",
