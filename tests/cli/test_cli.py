@@ -1,5 +1,6 @@
 """The command line, as scripts and users call it."""
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -104,7 +105,16 @@ def test_ablate_reports_observables(tmp_path, capsys):
     assert data["opening"] > 0 and data["rotation"] > 0 and data["energy_released"] < 0
     assert data["pre"]["problem"]["cut"] == 0.0 and data["post"]["problem"]["cut"] == 0.3
     assert len(data["pre"]["s"]) > 0 and len(data["post"]["r"]) == len(data["post"]["s"])
-    assert "rotation" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "rotation" in printed
+    # both states' energies beside energy_released, and its sign convention in words
+    values = dict(re.findall(r"^  (energy_\w+) += (\S+) C R\^2", printed, re.M))
+    assert float(values["energy_pre"]) == pytest.approx(data["pre"]["energy"], rel=1e-9)
+    assert float(values["energy_post"]) == pytest.approx(data["post"]["energy"], rel=1e-9)
+    assert float(values["energy_post"]) - (float(values["energy_pre"])
+                                           - float(values["energy_removed"])) \
+        == pytest.approx(float(values["energy_released"]), rel=1e-6)
+    assert "(energy_post - (energy_pre - energy_removed), negative: the cut released " in printed
 
 
 def test_ablate_needs_a_cut(capsys):
