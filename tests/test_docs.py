@@ -122,6 +122,40 @@ def test_readme_and_quick_start_have_examples():
     assert ">>> " in _doctest_blocks(DOCS / "tutorial_family.md")
 
 
+_SHELL = re.compile(r"^```(?:sh|bash|console)\n(.*?)^```", re.S | re.M)
+#: The options that name an output, and a placeholder for one (a synopsis: OUT.csv, DIR).
+_WRITES = {"--json", "--csv", "--plot", "--profile-plot", "--out", ">"}
+_PLACEHOLDER = re.compile(r"^[A-Z_]+(\.\w+)?$")
+
+
+def _outputs_outside_out(text: str) -> list[str]:
+    """The outputs that the ``morphoshell`` commands of ``text``'s shell blocks write
+    anywhere but into ``out/``."""
+    import shlex
+
+    bad = []
+    for block in _SHELL.findall(text):
+        for line in block.replace("\\\n", " ").splitlines():
+            words = shlex.split(line.removeprefix("$ "), comments=True)
+            for option, value in zip(words, words[1:]):
+                if (option in _WRITES and "morphoshell" in line and not value.startswith("out/")
+                        and not _PLACEHOLDER.match(value)):
+                    bad.append(f"{option} {value}")
+            if "campaign" in words and "morphoshell" in line and "--out" not in words:
+                bad.append("campaign without --out (./campaign)")
+    return bad
+
+
+@pytest.mark.parametrize("page", [ROOT / "README.md", *PAGES], ids=lambda p: p.name)
+def test_documented_commands_write_into_out(page):
+    """Copied from the README or the docs, a command writes into out/ (ignored by git), not
+    into the clone (the quick tour wrote out.json, toy2.toml, ... into the repository)."""
+    assert not _outputs_outside_out(page.read_text()), page.name
+    assert _outputs_outside_out("```sh\nmorphoshell solve a.toml --json a.json > b.toml\n"
+                                "morphoshell campaign data\n```\n") \
+        == ["--json a.json", "> b.toml", "campaign without --out (./campaign)"]
+
+
 # --------------------------------------------------------------------------
 # the command-line reference
 # --------------------------------------------------------------------------

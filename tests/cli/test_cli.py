@@ -1,5 +1,6 @@
 """The command line, as scripts and users call it."""
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -68,6 +69,23 @@ def test_help_documents_every_option():
         assert option in proc.stdout
 
 
+def test_metavars_say_what_a_value_is():
+    """Not the option's name again (``--h H``, ``--k K``) nor a letter of no meaning
+    (``--c10 A``): the help reads ``--h THICKNESS``, ``--c10 MODULUS``."""
+    import argparse
+
+    from morphoshell.cli import build_parser
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    echoes = [f"{name} {option} {action.metavar}" for name, command in sub.choices.items()
+              for action in command._actions for option in action.option_strings
+              if action.metavar == option.lstrip("-").upper().replace("-", "_")]
+    assert not echoes
+    help_text = sub.choices["sphere"].format_help()
+    assert "--h THICKNESS" in help_text and "--k CURVATURE" in help_text
+    assert "--c10 MODULUS" in help_text and "--c01 MODULUS" in help_text
+
+
 def test_console_script_runs(tmp_path):
     exe = Path(sys.executable).with_name("morphoshell")
     proc = subprocess.run([str(exe), "solve", str(TOY2), "--nodes", "200"],
@@ -87,7 +105,16 @@ def test_ablate_reports_observables(tmp_path, capsys):
     assert data["opening"] > 0 and data["rotation"] > 0 and data["energy_released"] < 0
     assert data["pre"]["problem"]["cut"] == 0.0 and data["post"]["problem"]["cut"] == 0.3
     assert len(data["pre"]["s"]) > 0 and len(data["post"]["r"]) == len(data["post"]["s"])
-    assert "rotation" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "rotation" in printed
+    # both states' energies beside energy_released, and its sign convention in words
+    values = dict(re.findall(r"^  (energy_\w+) += (\S+) C R\^2", printed, re.M))
+    assert float(values["energy_pre"]) == pytest.approx(data["pre"]["energy"], rel=1e-9)
+    assert float(values["energy_post"]) == pytest.approx(data["post"]["energy"], rel=1e-9)
+    assert float(values["energy_post"]) - (float(values["energy_pre"])
+                                           - float(values["energy_removed"])) \
+        == pytest.approx(float(values["energy_released"]), rel=1e-6)
+    assert "(energy_post - (energy_pre - energy_removed), negative: the cut released " in printed
 
 
 def test_ablate_needs_a_cut(capsys):

@@ -30,6 +30,7 @@ def test_a_fit_near_a_fold_of_the_branch_is_not_converged(blowup, converged):
     assert (sv[1] >= FOLD_RATIO * sv[0]) == converged
     assert r.converged is converged and r.near_fold is not converged
     assert ("near a fold" in r.message) is not converged and r.message.startswith("ftol")
+    assert r.stop == ("Fit_Converged" if converged else "Fit_Near_Fold")
 
 
 def test_a_fit_that_ends_on_a_constraint_says_so_and_gives_no_errors_there():

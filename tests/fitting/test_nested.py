@@ -40,9 +40,9 @@ def test_a_stalled_gradient_fit_keeps_the_state_of_its_best_point():
     inner = Inner()
     spec = types.SimpleNamespace(theta0=np.array([0.0, 0.0]),
                                  box=lambda: (np.full(2, -np.inf), np.full(2, np.inf)))
-    theta, evaluations, converged, message = fitting.gradient_fit(spec, inner, 1e-15, 200)
+    theta, evaluations, converged, message, stop = fitting.gradient_fit(spec, inner, 1e-15, 200)
     best = min(inner.costs, key=inner.costs.get)
-    assert not converged and "best point reached" in message
+    assert not converged and "best point reached" in message and stop == "Fit_Stalled"
     assert evaluations == 3 + fitting.MAX_FAILED_TRIALS
     assert tuple(theta) == best and inner.kept == (best, ("state", best))
 
@@ -82,8 +82,11 @@ def test_a_gradient_fit_that_stalls_short_of_a_stationary_point_is_not_converged
 
     spec = types.SimpleNamespace(theta0=np.array([0.0, 0.0]),
                                  box=lambda: (np.full(2, -np.inf), np.full(2, np.inf)))
-    theta, _, converged, message = fitting.gradient_fit(spec, Inner(True), 1e-10, 200)
+    theta, _, converged, message, stop = fitting.gradient_fit(spec, Inner(True), 1e-10, 200)
     assert theta[0] == pytest.approx(0.5, abs=1e-3) and not converged
-    assert "not a stationary point" in message
-    theta, _, converged, message = fitting.gradient_fit(spec, Inner(False), 1e-10, 200)
-    assert converged and theta == pytest.approx(target, abs=1e-8)
+    assert "not a stationary point" in message and stop == "Fit_Not_Stationary"
+    theta, _, converged, message, stop = fitting.gradient_fit(spec, Inner(False), 1e-10, 200)
+    assert converged and theta == pytest.approx(target, abs=1e-8) and stop == "Fit_Converged"
+    # out of evaluations (max_nfev) it says so
+    _, evaluations, converged, _, stop = fitting.gradient_fit(spec, Inner(False), 1e-10, 1)
+    assert evaluations == 1 and not converged and stop == "Maximum_Evaluations_Exceeded"

@@ -106,6 +106,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     the module's docstring); messages go to standard error.
     """
     from .._runtime.console import configure
+    from .._runtime.interrupts import interrupted, noted
     from ..io.problem_files import ProblemFileError
     from ..solvers.results import SolverError
 
@@ -118,7 +119,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     from .._runtime.allocator import keep_large_blocks
     keep_large_blocks()     # big meshes: large arrays reused, not page-faulted anew (linear in N)
     try:
-        return args.run(args)
+        with noted():           # (Ctrl-C within an Ipopt solve: counted, see numerics.ipopt)
+            return args.run(args)
     except (ProblemFileError, ValueError) as exc:
         print(f"morphoshell: error: {exc}", file=sys.stderr)
         return 2
@@ -137,6 +139,9 @@ def main(argv: Sequence[str] | None = None) -> int:
               else f"morphoshell: error: {exc}", file=sys.stderr)
         return 2
     except Exception as exc:  # a bug: say so, and where to report it
+        if interrupted(exc):      # Ctrl-C within CasADi: a SystemError caused by it
+            print("morphoshell: interrupted", file=sys.stderr)
+            return 130
         if os.environ.get("MORPHOSHELL_DEBUG"):
             raise
         print(f"morphoshell: internal error (a bug in morphoshell {__version__}): "

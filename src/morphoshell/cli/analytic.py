@@ -20,11 +20,10 @@ def register(sub) -> None:
     p = sub.add_parser("asymptotics", help="the paper's asymptotic predictions for toy problem 2",
                        description="Leading-order and small-cut (Kelvin function) predictions "
                                    "of the Supplementary for the cut SIGMA (half-angle of the "
-                                   "ablation) in a sphere of thickness H and intrinsic curvature "
-                                   "K. Lengths in units of R, angles in radians, energies in "
-                                   "C R^2.")
-    p.add_argument("--h", type=_H, required=True, metavar="H", help="relative thickness h, 0 < h < 1")
-    p.add_argument("--k", type=_K, required=True, metavar="K", help="intrinsic curvature k (1/R)")
+                                   "ablation) in a sphere of relative thickness h = H/R and "
+                                   "intrinsic curvature k. Lengths in units of R, angles in "
+                                   "radians, energies in C R^2.")
+    _thickness_and_curvature(p)
     cut = p.add_mutually_exclusive_group(required=True)
     angle = real(0, math.pi, open_lo=True, open_hi=True, unit=" rad")
     cut.add_argument("--cut", type=angle, metavar="SIGMA",
@@ -37,18 +36,27 @@ def register(sub) -> None:
 
     p = sub.add_parser("sphere", help="toy problem 1: radius of a sphere with intrinsic curvature",
                        description="Toy problem 1: deformed radius f (units of R) of a complete "
-                                   "sphere with intrinsic curvature K: the minimiser of the main "
+                                   "sphere with intrinsic curvature k: the minimiser of the main "
                                    "text's shell energy, the exact bulk-elasticity minimiser "
                                    "(Mooney-Rivlin C10, C01) and the Supplementary's asymptotic "
                                    "formula.")
-    p.add_argument("--h", type=_H, required=True, metavar="H", help="relative thickness h, 0 < h < 1")
-    p.add_argument("--k", type=_K, required=True, metavar="K", help="intrinsic curvature k (1/R)")
+    _thickness_and_curvature(p)
     # only the ratio C01/C10 matters; bounded so that energies cannot overflow
     modulus = real(-1e6, 1e6, unit=" (Mooney-Rivlin coefficient; only ratios matter)")
-    p.add_argument("--c10", type=modulus, default=1.0, metavar="A", help="C10 (default 1)")
-    p.add_argument("--c01", type=modulus, default=0.0, metavar="B", help="C01 (default 0)")
+    p.add_argument("--c10", type=modulus, default=1.0, metavar="MODULUS",
+                   help="Mooney-Rivlin coefficient C10 (default 1; only C01/C10 matters)")
+    p.add_argument("--c01", type=modulus, default=0.0, metavar="MODULUS",
+                   help="Mooney-Rivlin coefficient C01 (default 0)")
     add_outputs(p, json="write the results as JSON", csv="write the results as a one-row CSV")
     p.set_defaults(run=_sphere)
+
+
+def _thickness_and_curvature(p) -> None:
+    """--h and --k, named by what they are (the paper's H is the thickness in µm, h = H/R)."""
+    p.add_argument("--h", type=_H, required=True, metavar="THICKNESS",
+                   help="relative thickness h = H/R, 0 < h < 1")
+    p.add_argument("--k", type=_K, required=True, metavar="CURVATURE",
+                   help="intrinsic curvature k, in units of 1/R")
 
 
 def _write(args, data: dict) -> None:

@@ -101,14 +101,20 @@ def register(sub) -> None:
 
 
 def _campaign(args) -> int:
-    from ..workflows import SUMMARY, campaign, read_timepoints
+    import sys
+
+    from ..workflows import SUMMARY, CampaignInterrupted, campaign, read_timepoints
 
     _check_selection(args, read_timepoints(args.data_dir))   # bad input: exit 2 before any work
-    result = campaign(args.data_dir, args.variants, method=args.method, workers=args.workers,
-                      scheduler=args.scheduler, out=args.out, resume=args.resume,
-                      nodes=args.nodes, timepoints=args.timepoints,
-                      embryo_errors=args.embryo_errors, held_from=args.held_from,
-                      force=args.force)
+    try:
+        result = campaign(args.data_dir, args.variants, method=args.method,
+                          workers=args.workers, scheduler=args.scheduler, out=args.out,
+                          resume=args.resume, nodes=args.nodes, timepoints=args.timepoints,
+                          embryo_errors=args.embryo_errors, held_from=args.held_from,
+                          force=args.force)
+    except CampaignInterrupted as exc:      # Ctrl-C: how far it got, on one line
+        print(f"morphoshell: {exc}", file=sys.stderr)
+        return 130
     t = result.timing
     unfinished = result.unfinished()
     failed = sum(why == "failed" for *_, why in unfinished)

@@ -13,7 +13,7 @@ __all__ = ["register"]
 
 def register(sub) -> None:
     """Add ``morphoshell fit`` to the subcommands ``sub``."""
-    from ..fitting import FIT_NODES, METHODS, VARIANTS
+    from ..fitting import EVALUATION_LIMITS, FIT_NODES, METHODS, VARIANTS
     from ..io import FORMATS, SECTIONS
 
     p = sub.add_parser(
@@ -50,6 +50,11 @@ def register(sub) -> None:
                         "default: the family's illustrative values, h = 0.15, P = 0.3")
     p.add_argument("--nodes", type=integer(*FIT_NODES), default=200, metavar="N",
                    help="mesh nodes of the inner solves (default 200)")
+    limits = "; ".join(f"{m}: {unit} (default {n})" for m, (unit, n) in EVALUATION_LIMITS.items())
+    p.add_argument("--max-evaluations", dest="max_evaluations", type=integer(1, 10**9),
+                   default=None, metavar="N",
+                   help=f"stop the fit after N steps of its method ({limits}); a fit that "
+                        f"goes on from moved breakpoint boxes gets N anew for each run")
     add_outputs(p, json="write the fit (parameters by name, standard errors, E_fit, both "
                         "midlines) as JSON; usable as a problem file",
                 csv="write the fitted parameters with their standard errors as CSV",
@@ -84,24 +89,25 @@ def _start_problem(args):
 
 
 def _fit(args) -> int:
-    from ..fitting import N_FIT, check_midline, fit
+    from ..fitting import EVALUATION_LIMITS, N_FIT, check_midline, fit
     from ..io.problem_files import write_csv, write_json
     from ..io import load_midline
     from ..solvers.results import SolverError
+    from ._fit_stops import failure_hint, stop_line
 
     spec = _start_problem(args)
     names = profile_names(args.profile, spec)        # (a bad name: exit 2, before any work)
     midline = load_midline(args.midline, args.format, n=N_FIT, section=args.section,
                            pixel_size_um=args.pixel_size, radius_um=args.radius_um)
     check_midline(spec, midline, f"{args.midline}: the midline")
+    unit, default = EVALUATION_LIMITS[args.method]
+    limit = args.max_evaluations or default
     try:
-        result = fit(spec, midline, args.method, nodes=args.nodes)
+        result = fit(spec, midline, args.method, nodes=args.nodes,
+                     max_iterations=args.max_evaluations)
     except SolverError as exc:
-        # the usual cause: a mid-inversion stage fitted from the family's defaults
-        where = "--start FIT.json (a fit of a neighbouring stage)" if args.start is None \
-            else "a --start nearer the data"
-        raise type(exc)(f"{exc}. A fit from far away can cross folds of the branch: try {where}, "
-                        f"or another --method", exc.status, exc.last_iterate) from None
+        hint = failure_hint(exc.status, limit, unit, args.start is not None)
+        raise type(exc)(f"{str(exc).rstrip('.')}. {hint}", exc.status, exc.last_iterate) from None
     print(result.summary())
     print(f"  E_fit = {result.E_fit:.6g} R over {N_FIT} points; {result.inner_solves} inner "
           f"solves, {result.seconds:.2f} s")
@@ -127,4 +133,5 @@ def _fit(args) -> int:
         out.add(profile_plot_path(args), lambda path: save(figure, path))
     for path in out.commit():
         print(f"  wrote {path}")
+    print(stop_line(result, limit))
     return 0 if result.converged else 3

@@ -37,9 +37,9 @@ def _common(p: argparse.ArgumentParser) -> None:
                    help="Ipopt's linear solver for the direct method: mumps (default, bundled) "
                         "or an HSL solver such as ma27/ma57 if libhsl.so is installed")
     p.add_argument("--rtol", type=real(0, 1, open_lo=True, open_hi=True), default=None,
-                   metavar="RTOL",
+                   metavar="TOLERANCE",
                    help="direct method: refine the mesh (doubling the cells) until the error "
-                        "estimate meets RTOL (energy relative to itself, edge values in units "
+                        "estimate meets TOLERANCE (energy relative to itself, edge values in units "
                         "of R and radians), or fail with exit status 3; without it the "
                         "estimate is only reported")
     p.add_argument("--no-continuation", dest="continuation", action="store_false",
@@ -66,7 +66,11 @@ def register(sub) -> None:
                                    "rotation, displacement and energy_released (Supplementary, "
                                    "toy problem 2): post- minus pre-ablation state at the "
                                    "material point s = Sigma, z in the far-end gauge (the far "
-                                   "end keeps its undeformed height).")
+                                   "end keeps its undeformed height). energy_released = "
+                                   "energy_post - (energy_pre - energy_removed) is the change "
+                                   "of the remaining shell's energy: negative when the cut "
+                                   "releases energy (the paper's Delta E); both states' "
+                                   "energies are printed beside it.")
     _common(p)
     add_outputs(p, json="write both equilibria and the observables as JSON",
                 csv="write the observables as a one-row CSV",
@@ -141,8 +145,27 @@ def _solve(args) -> int:
     return 0
 
 
-_UNITS = {"opening": "R", "rotation": "rad", "displacement": "R", "radial_displacement": "R",
-          "axial_displacement": "R", "energy_released": "C R^2", "energy_removed": "C R^2"}
+def _ablation_lines(ab) -> list[str]:
+    """The observables of ``ab``, one a line, the energies with both states' and the sign
+    convention of energy_released spelled out (a negative "released" energy beside a positive
+    removed one, with neither state's energy, read as a bug)."""
+    from ..mechanics.ablation import UNITS
+
+    def line(key, value, unit, note=""):
+        return f"  {key:20s} = {value:.10g} {unit}" + (f"   ({note})" if note else "")
+
+    recoil = {k: v for k, v in ab.observables().items() if not k.startswith("energy")}
+    delta = ab.energy_released
+    sign = (f"negative: the cut released {-delta:.4g} C R^2" if delta < 0 else
+            "positive: the remaining shell gained energy, not a release (an active response?)"
+            if delta > 0 else "zero")
+    return [*(line(k, v, UNITS[k]) for k, v in recoil.items()),
+            line("energy_pre", ab.pre.energy, "C R^2", "the intact shell, before the cut"),
+            line("energy_removed", ab.energy_removed, "C R^2",
+                 "of energy_pre, the cap s < Sigma that the cut removes"),
+            line("energy_post", ab.post.energy, "C R^2", "the shell after the cut"),
+            line("energy_released", delta, "C R^2",
+                 f"energy_post - (energy_pre - energy_removed), {sign}")]
 
 
 def _ablate(args) -> int:
@@ -158,8 +181,7 @@ def _ablate(args) -> int:
     for label, eq in (("pre-ablation", ab.pre), ("post-ablation", ab.post)):
         print(f"  {label}:")
         _report_quality(eq)
-    for key, value in ab.observables().items():
-        print(f"  {key:20s} = {value:.10g} {_UNITS[key]}")
+    print("\n".join(_ablation_lines(ab)))
     out = Outputs()
     out.add(args.json, lambda path: write_json(path, ab.to_dict()))
     out.add(args.csv, lambda path: write_csv(path, {**problem.describe()["params"],

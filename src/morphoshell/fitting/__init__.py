@@ -19,6 +19,6 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "results": ["FitResult", "FitError"],
     "midline_checks": ["intrinsic_lengths", "check_midline", "LENGTH_SLACK", "MAX_TURN",
                        "TURN_LENGTH", "POLE_SLACK"],
-    "bilevel": ["fit", "METHODS", "FIT_NODES"],
+    "bilevel": ["fit", "METHODS", "FIT_NODES", "EVALUATION_LIMITS"],
     "profiles": ["Profile", "profile", "profile_intervals", "noise_variance"],
 })

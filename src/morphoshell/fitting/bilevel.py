@@ -28,16 +28,18 @@ from typing import Callable
 import numpy as np
 
 from .._runtime.validate import real
+from ..numerics.status import FIT_MOVED_BOXES_FAILED, FIT_ON_BOX_EDGES
 from ..solvers.results import Equilibrium
 from .inner import InnerProblem
 from .kkt import kkt_fit
+from .kkt_problem import KKT_ITERATIONS
 from .midline_checks import as_points, check_midline
-from .nested import gradient_fit, nelder_mead_fit
+from .nested import GRADIENT_EVALUATIONS, NM_EVALUATIONS, gradient_fit, nelder_mead_fit
 from .results import FitError, FitResult, fit_result
 from .spec import FitSpec
 
 __all__ = ["fit", "fit_moving_boxes", "check_options", "METHODS", "method_run", "FIT_NODES",
-           "MAX_RECENTRES"]
+           "MAX_RECENTRES", "EVALUATION_LIMITS"]
 
 #: Fit methods (see the module docstring).
 METHODS = ("nelder-mead", "gradient", "kkt")
@@ -48,6 +50,14 @@ FIT_NODES = (20, 3200)
 #: breakpoint go PUSH_SHARE of the way to its neighbour or halfway (a bound on the work:
 #: each move is a fit of its own).
 MAX_RECENTRES = 12
+#: What ``max_iterations`` counts for each method, and its default: Nelder–Mead's function
+#: evaluations in all; the gradient fit's residual evaluations (least_squares' max_nfev);
+#: the Ipopt iterations of each of the KKT fit's NLPs (and the residual evaluations of its
+#: fallback Gauss–Newton steps, whose default is KKT_GN_ITERATIONS).  A fit that goes on
+#: from moved boxes gets the limit anew for each run.
+EVALUATION_LIMITS = {"nelder-mead": ("function evaluations", NM_EVALUATIONS),
+                     "gradient": ("residual evaluations", GRADIENT_EVALUATIONS),
+                     "kkt": ("Ipopt iterations per NLP", KKT_ITERATIONS)}
 
 
 def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
@@ -78,9 +88,13 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
     tol : float
         Relative tolerance on E_fit² of the outer iteration, in [1e-15, 1).
     max_iterations : int, optional
-        Outer iterations (function evaluations for Nelder–Mead; Ipopt
-        iterations of each NLP for KKT, default
-        :data:`morphoshell.fitting.kkt_problem.KKT_ITERATIONS`).
+        The limit of the outer iteration, for each run (:data:`EVALUATION_LIMITS`):
+        function evaluations for Nelder–Mead (default 20000), residual
+        evaluations for the gradient fit (default 200), Ipopt iterations of
+        each NLP for KKT (default
+        :data:`morphoshell.fitting.kkt_problem.KKT_ITERATIONS`).  A fit
+        that reaches it returns ``converged=False``, ``stop =
+        "Maximum_Evaluations_Exceeded"`` (KKT: raises FitError).
     start : Equilibrium, optional
         The inner state to start from (a direct solution of ``spec.base`` on
         the fit's mesh, e.g. a previous fit's); by default the physical branch
@@ -91,7 +105,8 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
     FitResult
         The fitted parameters with their Gauss–Newton standard errors, E_fit,
         the fitted equilibrium and midline, and whether and how the fit
-        converged (a fit near a fold of the inner branch is not converged).
+        converged (a fit near a fold of the inner branch is not converged;
+        :attr:`FitResult.stop` names how it ended).
 
     Raises
     ------
@@ -116,33 +131,38 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
     check_midline(spec, data)
     t0 = time.perf_counter()
     inner = InnerProblem(spec, data, nodes, start)
-    spec, theta, iterations, ok, msg = fit_moving_boxes(method_run(method), spec, inner, tol,
-                                                        max_iterations)
-    return fit_result(method, spec, inner, theta, iterations, time.perf_counter() - t0, ok, msg)
+    spec, theta, iterations, ok, msg, stop = fit_moving_boxes(method_run(method), spec, inner,
+                                                              tol, max_iterations)
+    return fit_result(method, spec, inner, theta, iterations, time.perf_counter() - t0, ok, msg,
+                      stop)
 
 
 def method_run(method: str) -> Callable:
     """The outer iteration of ``method``, ``run(spec, inner, tol, max_iterations)`` returning
-    (θ, iterations, converged, message): what :func:`fit_moving_boxes` runs (looked up at
+    (θ, iterations, converged, message, stop): what :func:`fit_moving_boxes` runs (looked up at
     each call, so that a test can replace a method)."""
     return {"nelder-mead": nelder_mead_fit, "gradient": gradient_fit, "kkt": kkt_fit}[method]
 
 
 def fit_moving_boxes(run: Callable, spec: FitSpec, inner: InnerProblem, tol: float,
-                     max_iterations: int | None) -> tuple[FitSpec, np.ndarray, int, bool, str]:
+                     max_iterations: int | None
+                     ) -> tuple[FitSpec, np.ndarray, int, bool, str, str]:
     """``run`` (a method), again from moved boxes while it ends on a breakpoint's box edge.
 
     The breakpoints' boxes order them for methods that take bounds, not
     constraints; their edges are not the fit's: a fit that ends on one goes
     on from boxes moved around its end (:meth:`FitSpec.recentred`), from
     the state it reached.  Returns the last spec, θ, the outer iterations in
-    all, whether it converged and its message; a failure (FitError) after a
-    move leaves the fit within the last boxes standing, unconverged.
+    all, whether it converged, its message and how it ended (``stop``); a
+    failure (FitError) after a move leaves the fit within the last boxes
+    standing, unconverged (``"Fit_Moved_Boxes_Failed"``), and a breakpoint
+    still on an edge after :data:`MAX_RECENTRES` moves ends it unconverged
+    (``"Fit_On_Box_Edges"``).
     """
     iterations, moved, last = 0, [], spec      # (last: the spec before the last move)
     while True:
         try:
-            theta, its, ok, msg = run(spec, inner, tol, max_iterations)
+            theta, its, ok, msg, stop = run(spec, inner, tol, max_iterations)
         except FitError as exc:
             if not moved:
                 raise
@@ -150,17 +170,18 @@ def fit_moving_boxes(run: Callable, spec: FitSpec, inner: InnerProblem, tol: flo
             # NLP from moved boxes can run out of iterations where the last did not)
             iterations += int(getattr(exc, "iterations", 0) or 0)
             spec = inner.spec = last
-            ok, msg = False, (f"{msg}; but {moved[-1]} rested on the edge of their boxes, and "
-                              f"the fit from moved boxes failed: {exc}")
+            ok, stop, msg = False, FIT_MOVED_BOXES_FAILED, (
+                f"{msg}; but {moved[-1]} rested on the edge of their boxes, and the fit from "
+                f"moved boxes failed: {exc}")
             break
         iterations += its
         edges = spec.on_box_edges(theta)
         if not edges:
             break
         if len(moved) == MAX_RECENTRES:
-            ok, msg = False, (f"{msg}; but {', '.join(edges)} still rest on the edge of their "
-                              f"boxes after {MAX_RECENTRES} moves (FitSpec.on_box_edges): the "
-                              f"optimum may lie beyond")
+            ok, stop, msg = False, FIT_ON_BOX_EDGES, (
+                f"{msg}; but {', '.join(edges)} still rest on the edge of their boxes after "
+                f"{MAX_RECENTRES} moves (FitSpec.on_box_edges): the optimum may lie beyond")
             break
         moved.append(", ".join(edges))
         inner.eq, last = inner.solve(theta), spec
@@ -168,7 +189,7 @@ def fit_moving_boxes(run: Callable, spec: FitSpec, inner: InnerProblem, tol: flo
         inner.warm = True            # (the KKT fit goes on from this state)
     if moved:
         msg = f"{msg} (after moving the breakpoints' boxes {len(moved)} times: {'; '.join(moved)})"
-    return spec, theta, iterations, ok, msg
+    return spec, theta, iterations, ok, msg, stop
 
 
 def check_options(nodes, tol, max_iterations) -> None:

@@ -36,7 +36,7 @@ KKT_GN_ITERATIONS = 200
 
 
 def kkt_fit(spec: FitSpec, inner: InnerProblem, tol: float,
-            max_iterations: int | None) -> tuple[np.ndarray, int, bool, str]:
+            max_iterations: int | None) -> tuple[np.ndarray, int, bool, str, str]:
     """The fit as one NLP in (θ, x, λ), the inner KKT conditions as constraints.
 
     Route A: Gauss–Newton steps of the reduced problem from the start
@@ -62,7 +62,10 @@ def kkt_fit(spec: FitSpec, inner: InnerProblem, tol: float,
     tol : float
         Ipopt's tolerance (and the Gauss–Newton steps' of route B).
     max_iterations : int or None
-        Ipopt iterations of each NLP.
+        Ipopt iterations of each NLP (default
+        :data:`morphoshell.fitting.kkt_problem.KKT_ITERATIONS`), and residual
+        evaluations of route B's Gauss–Newton steps (default
+        :data:`KKT_GN_ITERATIONS`).
 
     Returns
     -------
@@ -74,6 +77,8 @@ def kkt_fit(spec: FitSpec, inner: InnerProblem, tol: float,
         True (a failure raises).
     message : str
         Ipopt's status.
+    stop : str
+        Ipopt's status again (a key of :data:`morphoshell.numerics.status.STATUSES`).
 
     Raises
     ------
@@ -113,8 +118,8 @@ def _gauss_newton_steps(spec, inner, ftol, max_evaluations, theta0, eq,
     """
     evaluations = 0
     try:
-        theta, evaluations, converged, message = gradient_fit(spec, inner, ftol,
-                                                              max_evaluations, theta0)
+        theta, evaluations, converged, message, _ = gradient_fit(spec, inner, ftol,
+                                                                 max_evaluations, theta0)
         if converged or not required:
             return theta, inner.solve(theta), evaluations
     except SolverError as exc:
@@ -165,7 +170,7 @@ def _kkt_checked(inner, theta, x, lam, iterations, status) -> tuple:
         raise FitError("the KKT fit's state is not reproduced by the inner solve at the "
                        "fitted parameters", FIT_NOT_REPRODUCED, fitted)
     inner.reset(theta, check)
-    return theta, iterations, True, status
+    return theta, iterations, True, status, status
 
 
 def _kkt_cells(nlp, inner, theta, x, lam, data) -> tuple:

@@ -10,8 +10,9 @@
                  parametric inner solve (implicit function theorem,
                  :mod:`morphoshell.solvers.parametric`).
 
-Each returns (θ, outer iterations, converged, message); a trial point whose
-inner solve fails is rejected like a bad step, not fatal.
+Each returns (θ, outer iterations, converged, message, stop), ``stop`` naming
+how it ended (a key of :data:`morphoshell.numerics.status.STATUSES`); a trial
+point whose inner solve fails is rejected like a bad step, not fatal.
 """
 from __future__ import annotations
 
@@ -19,6 +20,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..numerics.status import (FIT_CONVERGED, FIT_NOT_STATIONARY, FIT_STALLED,
+                               MAXIMUM_EVALUATIONS_EXCEEDED)
 from ..solvers.results import SolverError
 
 if TYPE_CHECKING:
@@ -26,7 +29,13 @@ if TYPE_CHECKING:
     from .spec import FitSpec
 
 __all__ = ["nelder_mead_fit", "gradient_fit", "MAX_FAILED_TRIALS", "STATIONARY",
-           "RESIDUAL_FLOOR", "NM_RESTARTS"]
+           "RESIDUAL_FLOOR", "NM_RESTARTS", "NM_EVALUATIONS", "GRADIENT_EVALUATIONS"]
+
+#: Nelder–Mead's function evaluations in all (its restarts included), by default: the
+#: paper's fminsearch budget.
+NM_EVALUATIONS = 20000
+#: The gradient fit's residual evaluations (least_squares' max_nfev), by default.
+GRADIENT_EVALUATIONS = 200
 
 #: Nelder–Mead runs at most this many simplices (restarts around the best point).
 NM_RESTARTS = 8
@@ -56,7 +65,7 @@ def _feasible(spec, theta) -> bool:
 
 
 def nelder_mead_fit(spec: FitSpec, inner: InnerProblem, tol: float,
-                    max_iterations: int | None) -> tuple[np.ndarray, int, bool, str]:
+                    max_iterations: int | None) -> tuple[np.ndarray, int, bool, str, str]:
     """The paper's fit: adaptive Nelder–Mead on E_fit(θ), restarted around its best point.
 
     The paper's modified ``fminsearch`` (Supplementary, "Fitting of the
@@ -77,7 +86,7 @@ def nelder_mead_fit(spec: FitSpec, inner: InnerProblem, tol: float,
     tol : float
         Relative tolerance on E_fit (scipy's ``fatol`` times the start's E_fit).
     max_iterations : int or None
-        Function evaluations in all (default 20000).
+        Function evaluations in all, restarts included (default :data:`NM_EVALUATIONS`).
 
     Returns
     -------
@@ -89,6 +98,9 @@ def nelder_mead_fit(spec: FitSpec, inner: InnerProblem, tol: float,
         Whether the last simplex met its tolerances.
     message : str
         scipy's.
+    stop : str
+        ``"Fit_Converged"``, or ``"Maximum_Evaluations_Exceeded"`` when the
+        evaluations ran out.
     """
     from scipy.optimize import minimize
 
@@ -107,7 +119,7 @@ def nelder_mead_fit(spec: FitSpec, inner: InnerProblem, tol: float,
 
     lo, hi = spec.box()
     bounds = list(zip(np.where(np.isfinite(lo), lo, None), np.where(np.isfinite(hi), hi, None)))
-    budget = max_iterations or 20000
+    budget = max_iterations or NM_EVALUATIONS
     theta, evaluations, best = spec.theta0, 0, np.inf
     start = E(theta)
     # A simplex can collapse before the minimum: restart around the best point,
@@ -123,7 +135,9 @@ def nelder_mead_fit(spec: FitSpec, inner: InnerProblem, tol: float,
         theta, best = out.x, min(best, float(out.fun))
         if not improved or best < 1e-6 * start or evaluations >= budget:
             break
-    return theta, evaluations, bool(out.success), str(out.message)
+    # (scipy's Nelder-Mead fails only by running out of evaluations or iterations)
+    stop = FIT_CONVERGED if out.success else MAXIMUM_EVALUATIONS_EXCEEDED
+    return theta, evaluations, bool(out.success), str(out.message), stop
 
 
 class _Stalled(Exception):
@@ -131,7 +145,7 @@ class _Stalled(Exception):
 
 
 def gradient_fit(spec: FitSpec, inner: InnerProblem, tol: float, max_iterations: int | None,
-                 theta0: np.ndarray | None = None) -> tuple[np.ndarray, int, bool, str]:
+                 theta0: np.ndarray | None = None) -> tuple[np.ndarray, int, bool, str, str]:
     """Bounded least squares of the residuals with their exact Jacobian (trust region).
 
     ``scipy.optimize.least_squares`` (``trf``, ``x_scale="jac"``) on the
@@ -153,7 +167,8 @@ def gradient_fit(spec: FitSpec, inner: InnerProblem, tol: float, max_iterations:
     tol : float
         Relative tolerance on E_fit² (scipy's ``ftol``).
     max_iterations : int or None
-        Residual evaluations (default 200).
+        Residual evaluations, least_squares' ``max_nfev`` (default
+        :data:`GRADIENT_EVALUATIONS`).
     theta0 : ndarray, shape (k,), optional
         The start (default ``spec.theta0``).
 
@@ -167,6 +182,9 @@ def gradient_fit(spec: FitSpec, inner: InnerProblem, tol: float, max_iterations:
         Whether it ended at a stationary point.
     message : str
         scipy's, or why it is not converged.
+    stop : str
+        ``"Fit_Converged"``, ``"Maximum_Evaluations_Exceeded"``,
+        ``"Fit_Stalled"`` (the failed trials) or ``"Fit_Not_Stationary"``.
     """
     from scipy.optimize import least_squares
 
@@ -205,7 +223,7 @@ def gradient_fit(spec: FitSpec, inner: InnerProblem, tol: float, max_iterations:
         out = least_squares(fun, spec.theta0 if theta0 is None else theta0, jac=jac,
                             bounds=(lo, hi), method="trf",
                             x_scale="jac", ftol=tol, xtol=1e-12, gtol=1e-12,
-                            max_nfev=max_iterations or 200)
+                            max_nfev=max_iterations or GRADIENT_EVALUATIONS)
     except _Stalled:
         if best[2] is not None:
             # (its state may have left the archive, and a solve from another one there
@@ -213,11 +231,13 @@ def gradient_fit(spec: FitSpec, inner: InnerProblem, tol: float, max_iterations:
             inner.keep(best[0], best[2])
         return (best[0], evaluations[0], False,
                 f"stopped at the best point reached, after {MAX_FAILED_TRIALS} consecutive "
-                f"trial points whose inner solve failed (a fold of the branch?)")
+                f"trial points whose inner solve failed (a fold of the branch?)", FIT_STALLED)
     stall = _not_stationary(out)
     if stall:
-        return out.x, int(out.nfev), False, stall
-    return out.x, int(out.nfev), bool(out.status > 0), str(out.message)
+        return out.x, int(out.nfev), False, stall, FIT_NOT_STATIONARY
+    # (status 0: max_nfev ran out; -1, bad input, raises before)
+    stop = FIT_CONVERGED if out.status > 0 else MAXIMUM_EVALUATIONS_EXCEEDED
+    return out.x, int(out.nfev), bool(out.status > 0), str(out.message), stop
 
 
 def _not_stationary(out) -> str | None:

@@ -256,7 +256,7 @@ def _optimum(spec: FitSpec, data: np.ndarray, result: FitResult | None, method: 
     inner = InnerProblem(start, data, nodes, result.equilibrium if same else None,
                          solver_of(result.equilibrium) if same else None)
     inner.warm = True
-    start, theta, _, _, _ = fit_moving_boxes(method_run(method), start, inner, tol, None)
+    start, theta, _, _, _, _ = fit_moving_boxes(method_run(method), start, inner, tol, None)
     eq = inner.solve(theta)
     res = inner.residuals(eq)
     S = float(res @ res)
@@ -335,8 +335,8 @@ def _walk(opt: _Optimum, name: str, steps: list[float], direction: float, step: 
         try:
             held = _held(spec, name, theta, value)
             opt.inner.restart(held, eq)
-            held, others, _, ok, _ = fit_moving_boxes(method_run(method), held, opt.inner,
-                                                      tol, None)
+            held, others, _, ok, _, _ = fit_moving_boxes(method_run(method), held, opt.inner,
+                                                         tol, None)
             eq = opt.inner.solve(others)
             res = opt.inner.residuals(eq)
         except (SolverError, ValueError) as exc:

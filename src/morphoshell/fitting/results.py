@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..numerics.status import FIT_CONVERGED, FIT_NEAR_FOLD
 from ..solvers.results import Equilibrium, SolverError
 
 if TYPE_CHECKING:
@@ -90,6 +91,14 @@ class FitResult:
         Whether the method converged to a fit that is not near a fold.
     message : str
         The method's message, and what the fit ends on.
+    stop : str
+        How the fit ended, a key of :data:`morphoshell.numerics.status.STATUSES`
+        (what it means and what to try: :func:`morphoshell.numerics.status.explain`):
+        ``"Fit_Converged"`` or, of the KKT fit, Ipopt's status;
+        ``"Maximum_Evaluations_Exceeded"``, ``"Fit_Stalled"``,
+        ``"Fit_Not_Stationary"``, ``"Fit_Near_Fold"``, ``"Fit_On_Box_Edges"``
+        or ``"Fit_Moved_Boxes_Failed"``.  Not in :meth:`to_dict` (its
+        ``converged`` and ``message`` say it).
     """
 
     method: str
@@ -110,6 +119,7 @@ class FitResult:
     converged: bool
     message: str = ""
     constrained: tuple[str, ...] = ()
+    stop: str = FIT_CONVERGED
 
     def __repr__(self) -> str:
         return (f"FitResult({self.method}, {self.variant}, E_fit={self.E_fit:.6g} R, "
@@ -172,7 +182,8 @@ class FitResult:
 
 
 def fit_result(method: str, spec: FitSpec, inner: InnerProblem, theta: np.ndarray,
-               iterations: int, seconds: float, converged: bool, message: str) -> FitResult:
+               iterations: int, seconds: float, converged: bool, message: str,
+               stop: str = FIT_CONVERGED) -> FitResult:
     """The :class:`FitResult` of a fit that ended at θ, with its Gauss–Newton statistics.
 
     The inner state at θ, its residuals r and exact Jacobian J give the
@@ -202,6 +213,8 @@ def fit_result(method: str, spec: FitSpec, inner: InnerProblem, theta: np.ndarra
         Whether the method converged.
     message : str
         The method's message.
+    stop : str
+        How the method ended (:attr:`FitResult.stop`).
 
     Returns
     -------
@@ -236,10 +249,10 @@ def fit_result(method: str, spec: FitSpec, inner: InnerProblem, theta: np.ndarra
                        float(np.sqrt(res @ res)), res, eq, inner.data,
                        inner.data + np.column_stack([res[:inner.n], res[inner.n:]]),
                        iterations, inner.solves, seconds, converged, message,
-                       tuple(d for d, _ in active))
+                       tuple(d for d, _ in active), stop)
     if not result.near_fold:
         return result
-    return replace(result, converged=False, message=(
+    return replace(result, converged=False, stop=FIT_NEAR_FOLD, message=(
         f"{message}; but the fitted state is near a fold of the equilibrium branch: the "
         f"midline's sensitivity to the parameters is {sv[0] / sv[1]:.2g}x larger along one "
         f"direction than along any other (FOLD_RATIO), so the shape is nearly unstable and the "

@@ -19,6 +19,7 @@ import casadi as ca
 import numpy as np
 
 from .._runtime.buffered import Buffered
+from .._runtime.interrupts import swallowed
 from .status import (INVALID_OPTION, IPOPT_UNKNOWN, SEARCH_DIRECTION_BECOMES_TOO_SMALL,
                      SOLVE_SUCCEEDED, SOLVED_TO_ACCEPTABLE_LEVEL, STABILITY_CHECK_FAILED, STATUSES,
                      SolverError, explain)
@@ -86,8 +87,16 @@ def ipopt_status(stats: Mapping[str, Any]) -> str:
     str
         ``stats["return_status"]`` if :data:`morphoshell.numerics.status.STATUSES`
         has it (every status CasADi names), else ``"Unknown"``.
+
+    Raises
+    ------
+    KeyboardInterrupt
+        The solve ended because of a Ctrl-C (CasADi returns it as
+        ``NonIpopt_Exception_Thrown``; :mod:`morphoshell._runtime.interrupts`).
     """
     status = stats.get("return_status", IPOPT_UNKNOWN)
+    if status == "NonIpopt_Exception_Thrown" and swallowed():
+        raise KeyboardInterrupt
     return status if status in STATUSES else IPOPT_UNKNOWN
 
 

@@ -40,8 +40,9 @@ __all__ = ["STATUSES", "BVP_STATUSES", "SolverError", "NotAMinimumError", "expla
            "POLE_ANALYSIS_FAILED", "TIME_LIMIT_EXCEEDED", "BVP_CONVERGED", "BVP_MAX_NODES",
            "BVP_SINGULAR_JACOBIAN", "BVP_BOUNDARY_CONDITIONS", "SHOOTING_SUCCEEDED",
            "SHOOTING_ILL_CONDITIONED", "SHOOTING_NOT_CONVERGED", "SHOOTING_INTEGRATION_FAILED",
-           "FIT_SADDLE", "FIT_NOT_REPRODUCED", "GAUSS_NEWTON_STOPPED",
-           "STEP_NOT_SPLITTABLE"]
+           "FIT_SADDLE", "FIT_NOT_REPRODUCED", "GAUSS_NEWTON_STOPPED", "FIT_CONVERGED",
+           "MAXIMUM_EVALUATIONS_EXCEEDED", "FIT_STALLED", "FIT_NOT_STATIONARY", "FIT_NEAR_FOLD",
+           "FIT_ON_BOX_EDGES", "FIT_MOVED_BOXES_FAILED", "STEP_NOT_SPLITTABLE"]
 
 # -- Ipopt (morphoshell.numerics.ipopt; the KKT fit's NLP) ------------------------------
 SOLVE_SUCCEEDED = "Solve_Succeeded"
@@ -78,6 +79,14 @@ SHOOTING_INTEGRATION_FAILED = "Shooting_Integration_Failed"
 FIT_SADDLE = "Fit_Saddle"
 FIT_NOT_REPRODUCED = "Fit_Not_Reproduced"
 GAUSS_NEWTON_STOPPED = "Gauss_Newton_Stopped"
+# how a fit that returns a result ended (FitResult.stop; the KKT fit's is Ipopt's status)
+FIT_CONVERGED = "Fit_Converged"
+MAXIMUM_EVALUATIONS_EXCEEDED = "Maximum_Evaluations_Exceeded"
+FIT_STALLED = "Fit_Stalled"
+FIT_NOT_STATIONARY = "Fit_Not_Stationary"
+FIT_NEAR_FOLD = "Fit_Near_Fold"
+FIT_ON_BOX_EDGES = "Fit_On_Box_Edges"
+FIT_MOVED_BOXES_FAILED = "Fit_Moved_Boxes_Failed"
 STEP_NOT_SPLITTABLE = "Step_Not_Splittable"
 
 #: Every status a route can report, and what it means (for a failure, what to try).  Each
@@ -192,6 +201,27 @@ STATUSES: Mapping[str, str] = MappingProxyType({
     GAUSS_NEWTON_STOPPED:
         "the Gauss-Newton steps that restart the KKT fit stopped short: start nearer the data "
         "or use the gradient method",
+    FIT_CONVERGED:
+        "the outer iteration met its tolerance (Nelder-Mead's simplex; the gradient fit at a "
+        "stationary point)",
+    MAXIMUM_EVALUATIONS_EXCEEDED:
+        "the evaluations ran out (max_iterations) before the tolerance was met: raise "
+        "max_iterations, or start nearer the optimum (from a gradient fit's parameters)",
+    FIT_STALLED:
+        "the gradient fit stopped at its best point: trial points in a row failed their inner "
+        "solve (a fold of the branch?): start nearer the data, or use Nelder-Mead",
+    FIT_NOT_STATIONARY:
+        "the gradient fit stalled where its gradient is not zero (trial points rejected near a "
+        "fold of the branch?): start nearer the data, or use Nelder-Mead",
+    FIT_NEAR_FOLD:
+        "the fitted state is near a fold of the equilibrium branch (nearly unstable; standard "
+        "errors meaningless): start from another point, or hold a poorly identified parameter",
+    FIT_ON_BOX_EDGES:
+        "a breakpoint still rests on the edge of its box after the last move of the boxes: "
+        "the optimum may lie beyond; hold it, or start nearer the data",
+    FIT_MOVED_BOXES_FAILED:
+        "the fit from moved boxes failed, so the fit within the last boxes stands, "
+        "unconverged: start again from it, or use another method",
     # sweeps (morphoshell.workflows.sweeps)
     STEP_NOT_SPLITTABLE:
         "a failed sweep step has no midpoint to split it at (breakpoints keep their order)",

@@ -16,7 +16,8 @@ import lazy_loader
 # read_timepoints are defined in morphoshell.io.timepoints (the data set's table, a layer below):
 # campaigns imports them to check a data set, and they are exported from there as before.
 __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
-    "campaigns": ["campaign", "CAMPAIGN_NODES", "Timepoint", "read_timepoints"],
+    "campaigns": ["campaign", "CampaignInterrupted", "CAMPAIGN_NODES", "Timepoint",
+                  "read_timepoints"],
     "campaign_results": ["CampaignResult", "load_campaign", "RESULT_SUFFIX", "SUMMARY"],
     "fitted_shapes": ["NumericalAblation", "numerical_ablation", "ablation_errors",
         "fitted_problem", "fitted_state", "CUT"],

@@ -20,11 +20,13 @@ import concurrent.futures as cf
 import json
 import os
 import time
+from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
 from typing import Iterator, Sequence
 
 from .._runtime import lifeline
+from .._runtime.interrupts import interrupted
 from .._runtime.console import progress
 from ..fitting import FIT_NODES, METHODS, VARIANTS, check_midline, volvox_spec
 from ..io import Midline
@@ -33,12 +35,32 @@ from .campaign_results import SUMMARY, CampaignResult, read_record, read_records
 from .executor import SerialExecutor, backend_name, open_executor
 from .timepoint_fits import CampaignTask, first_start, fit_variant, write_atomic
 
-__all__ = ["campaign", "CAMPAIGN_NODES", "SETTINGS"]
+__all__ = ["campaign", "CampaignInterrupted", "CAMPAIGN_NODES", "SETTINGS"]
 
 #: The file in a campaign's folder that records its settings (:func:`campaign`'s ``force``).
 SETTINGS = "campaign_settings.json"
 #: Mesh nodes a campaign accepts (and its --nodes): a fit's lower limit, and a cap on its cost.
 CAMPAIGN_NODES = (FIT_NODES[0], 2000)
+
+
+class CampaignInterrupted(KeyboardInterrupt):
+    """A campaign stopped by Ctrl-C (a ``KeyboardInterrupt``), with how far it got.
+
+    Its workers were stopped at once (:func:`morphoshell.workflows.executor.open_executor`);
+    the fits already written stay, and the same call resumes from them.
+
+    Attributes
+    ----------
+    done, total : int
+        Fits of the campaign stored in ``out`` (earlier runs' included), and all of them.
+    out : Path
+        The campaign's folder.
+    """
+
+    def __init__(self, done: int, total: int, out: Path):
+        super().__init__(f"interrupted: {done} of {total} fits done (in {out}), resume with "
+                         f"the same command")
+        self.done, self.total, self.out = done, total, out
 
 
 def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
@@ -116,6 +138,9 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
         work (and before any stored result is deleted); a folder that
         holds a campaign with other settings (the setting named), unless
         ``force``.
+    CampaignInterrupted
+        Ctrl-C (a ``KeyboardInterrupt``) while fitting: the workers are
+        stopped at once, the fits written stay, and the same call resumes.
     OSError
         The folder cannot be written (the file named); the results written
         before stay, and a rerun resumes.
@@ -147,7 +172,8 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
              for v in variants]
     source = _held_source(tasks, variants, timepoints, held_from)
     t0 = time.perf_counter()
-    with open_executor(workers, scheduler) as executor:
+    with _interruptible(out, timepoints, variants), \
+            open_executor(workers, scheduler) as executor:
         backend = backend_name(executor)
         tasks, reports, first_report = _run(executor, tasks, source, out, timepoints, variants,
                                             resume, recorded)
@@ -161,6 +187,20 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
         "fit_seconds": float(sum(r["seconds"] for r in done)), "fits": fits})
     write_atomic(out / SUMMARY, result.to_dataframe().to_csv(index=False))
     return result
+
+
+@contextmanager
+def _interruptible(out: Path, timepoints: tuple[Timepoint, ...],
+                   variants: tuple[str, ...]) -> Iterator[None]:
+    """Ctrl-C in the block (in this process within CasADi: a SystemError caused by it)
+    raises :class:`CampaignInterrupted`, which counts the fits stored in ``out``."""
+    try:
+        yield
+    except BaseException as exc:
+        if not interrupted(exc):
+            raise
+        paths = [result_path(out, tp.name, v) for tp in timepoints for v in variants]
+        raise CampaignInterrupted(sum(p.exists() for p in paths), len(paths), out) from None
 
 
 def _folder_settings(data_dir, method: str, nodes: int, start: dict | None) -> dict:

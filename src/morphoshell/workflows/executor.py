@@ -75,6 +75,10 @@ def open_executor(workers: int | None = None, scheduler: str | None = None) -> I
     concurrent.futures.Executor
         A :class:`SerialExecutor`, a ``ProcessPoolExecutor`` or a Dask
         client's executor; closed (its workers stopped) on leaving the block.
+        Left by an exception (Ctrl-C: ``KeyboardInterrupt``), its local
+        workers are killed at once and its pending tasks cancelled, quietly:
+        a graceful close waits for the running tasks (a process pool: to their
+        end; Dask: 4 s, then kills them with three warnings).
 
     Raises
     ------
@@ -94,53 +98,145 @@ def open_executor(workers: int | None = None, scheduler: str | None = None) -> I
     os.environ.update(_SINGLE_THREADED)          # inherited by the worker processes
     try:
         try:
-            from distributed import Client, LocalCluster
+            import distributed  # noqa: F401
         except ImportError:
             if scheduler is not None:
                 raise ValueError("--scheduler needs Dask: pip install 'morphoshell[dask]'") \
                     from None
             log.info("Dask is not installed: a local pool of %d processes", workers)
-            with cf.ProcessPoolExecutor(max_workers=workers) as pool:
+            with _process_pool(workers) as pool:
                 yield pool
             return
         if scheduler is not None:
-            log.info("connecting to the Dask scheduler at %s", scheduler)
-            import copy
-            import gc
-
-            import dask
-            config = copy.deepcopy(dask.config.config)
-            try:
-                client = Client(scheduler)
-                failure = None
-            except Exception as exc:      # unreachable, refused, not an address, ...
-                failure = f"{type(exc).__name__}: {exc}"
-            if failure is not None:
-                # The failed Client closes itself in __del__ when the garbage collector
-                # finds it; in the suite that happened inside the next Client's start and
-                # deadlocked (its loop runner's lock), or raised an AssertionError there.
-                # So collect it now, then undo the configuration it left (the scheduler at
-                # "dask.distributed": later dask computations here, xarray's, failed).
-                gc.collect()
-                dask.config.config.clear()
-                dask.config.config.update(config)
-                source = ("" if scheduler != os.environ.get("DASK_SCHEDULER_ADDRESS")
-                          else " (from DASK_SCHEDULER_ADDRESS)")
-                raise ValueError(f"--scheduler {scheduler}{source}: no Dask scheduler "
-                                 f"answered there: {failure}")
-            with client:
-                yield client.get_executor()
+            with _remote(scheduler) as executor:
+                yield executor
             return
-        log.info("starting a Dask LocalCluster of %d single-threaded workers", workers)
-        with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                          dashboard_address=":0") as cluster, Client(cluster) as client:
-            yield client.get_executor()
+        with _local_cluster(workers) as executor:
+            yield executor
     finally:
         for k, v in saved.items():
             if v is None:
                 os.environ.pop(k, None)
             else:
                 os.environ[k] = v
+
+
+@contextmanager
+def _process_pool(workers: int) -> Iterator[cf.Executor]:
+    """A ``ProcessPoolExecutor``; left by an exception, its workers are killed at once."""
+    pool = cf.ProcessPoolExecutor(max_workers=workers, initializer=_ignore_interrupts)
+    try:
+        yield pool
+    except BaseException:
+        # shutdown() would wait for the running tasks (fits of minutes); Python 3.14's
+        # terminate_workers() is this (the pool's own table of its processes)
+        _kill(p.pid for p in list(getattr(pool, "_processes", {}).values()))
+        pool.shutdown(wait=True, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
+
+
+@contextmanager
+def _local_cluster(workers: int) -> Iterator[cf.Executor]:
+    """A Dask ``LocalCluster`` of ``workers`` single-threaded processes and its executor."""
+    from distributed import Client, LocalCluster
+
+    log.info("starting a Dask LocalCluster of %d single-threaded workers", workers)
+    with _level_kept("distributed") as dask_log, \
+            LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                         dashboard_address=":0") as cluster, Client(cluster) as client:
+        executor = client.get_executor()
+        try:
+            yield executor
+        except BaseException:
+            # A graceful close asks each busy worker to stop, waits 4 s, kills it, and
+            # logs three warnings (tasks cancelled, workers killed): kill them first, and
+            # keep Dask's loggers quiet while the cluster closes (a shutdown asked for).
+            dask_log.setLevel(logging.CRITICAL)
+            _kill(_worker_pids(cluster))
+            executor.shutdown(wait=False)
+            raise
+
+
+@contextmanager
+def _remote(scheduler: str) -> Iterator[cf.Executor]:
+    """The executor of a client of the Dask scheduler at ``scheduler`` (ValueError if none
+    answers); left by an exception, its pending tasks are cancelled."""
+    import copy
+    import gc
+
+    import dask
+    from distributed import Client
+
+    log.info("connecting to the Dask scheduler at %s", scheduler)
+    config = copy.deepcopy(dask.config.config)
+    try:
+        client = Client(scheduler)
+        failure = None
+    except Exception as exc:      # unreachable, refused, not an address, ...
+        failure = f"{type(exc).__name__}: {exc}"
+    if failure is not None:
+        # The failed Client closes itself in __del__ when the garbage collector
+        # finds it; in the suite that happened inside the next Client's start and
+        # deadlocked (its loop runner's lock), or raised an AssertionError there.
+        # So collect it now, then undo the configuration it left (the scheduler at
+        # "dask.distributed": later dask computations here, xarray's, failed).
+        gc.collect()
+        dask.config.config.clear()
+        dask.config.config.update(config)
+        source = ("" if scheduler != os.environ.get("DASK_SCHEDULER_ADDRESS")
+                  else " (from DASK_SCHEDULER_ADDRESS)")
+        raise ValueError(f"--scheduler {scheduler}{source}: no Dask scheduler "
+                         f"answered there: {failure}")
+    with _level_kept("distributed") as dask_log, client:
+        executor = client.get_executor()
+        try:
+            yield executor
+        except BaseException:
+            dask_log.setLevel(logging.CRITICAL)
+            executor.shutdown(wait=False)       # (the remote workers are its scheduler's)
+            raise
+
+
+def _ignore_interrupts() -> None:
+    """A pool worker's start: Ctrl-C (SIGINT to the terminal's process group) is for the
+    process that owns the pool, which kills its workers; in a worker it interrupted CasADi
+    mid-message ("CasADi - " on the terminal)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _worker_pids(cluster) -> list[int]:
+    """The process ids of a ``LocalCluster``'s workers (its nannies' child processes)."""
+    pids = []
+    for nanny in list(getattr(cluster, "workers", {}).values()):
+        process = getattr(getattr(nanny, "process", None), "process", None)
+        if getattr(process, "pid", None):
+            pids.append(process.pid)
+    return pids
+
+
+def _kill(pids: Iterable[int]) -> None:
+    """Kill the processes ``pids`` (this process's workers); those already gone are skipped."""
+    import signal
+
+    for pid in pids:
+        try:
+            os.kill(pid, getattr(signal, "SIGKILL", signal.SIGTERM))
+        except (ProcessLookupError, PermissionError):
+            pass
+
+
+@contextmanager
+def _level_kept(name: str) -> Iterator[logging.Logger]:
+    """The logger ``name``, its level restored on leaving the block (whatever it was set to)."""
+    logger = logging.getLogger(name)
+    level = logger.level
+    try:
+        yield logger
+    finally:
+        logger.setLevel(level)
 
 
 def run(function: Callable[[Any], Any], tasks: Iterable[Any], executor: cf.Executor, *,

@@ -1,0 +1,75 @@
+"""Ctrl-C, however it arrives: through CasADi it may not arrive as a ``KeyboardInterrupt``.
+
+Ctrl-C inside a CasADi function (a compiled kernel, a Newton step) reaches
+Python as ``SystemError: <built-in function ...> returned a result with an
+exception set``, its cause the ``KeyboardInterrupt`` (:func:`interrupted`
+says so); reported as such, the user's Ctrl-C read as a bug (exit status 1).
+Inside an Ipopt solve CasADi swallows it: it prints a warning and Ipopt
+returns ``NonIpopt_Exception_Thrown``, which a fit took for a failed solve
+and went on (a serial campaign ran 90 s more).  While :func:`noted` is in
+force, Python's Ctrl-C handler also counts the interrupts, so that
+:func:`swallowed` can tell such a return from a failure.
+"""
+from __future__ import annotations
+
+import signal
+import threading
+from contextlib import contextmanager
+from typing import Iterator
+
+__all__ = ["interrupted", "noted", "swallowed"]
+
+#: Ctrl-Cs received under :func:`noted` and not yet claimed by :func:`swallowed`.
+_received = [0]
+
+
+def interrupted(exc: BaseException) -> bool:
+    """Whether ``exc`` is a ``KeyboardInterrupt`` or was caused by one (its ``__cause__`` or
+    ``__context__`` chain).
+
+    Parameters
+    ----------
+    exc : BaseException
+        The exception caught.
+
+    Returns
+    -------
+    bool
+    """
+    seen: set[int] = set()
+    while exc is not None and id(exc) not in seen:       # (a chain can loop)
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
+def _count_and_raise(signum, frame):
+    """Python's default Ctrl-C handler (raise KeyboardInterrupt), counting the interrupt."""
+    _received[0] += 1
+    raise KeyboardInterrupt
+
+
+@contextmanager
+def noted() -> Iterator[None]:
+    """Count the Ctrl-Cs in the block (for :func:`swallowed`); they still raise
+    ``KeyboardInterrupt``.  Only where Python's default handler is in force, in the main
+    thread (a notebook's kernel, or a program's own handler, keeps its own)."""
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGINT) is not signal.default_int_handler):
+        yield
+        return
+    signal.signal(signal.SIGINT, _count_and_raise)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        _received[0] = 0
+
+
+def swallowed() -> bool:
+    """Whether a Ctrl-C arrived under :func:`noted` since the last call (which claims it):
+    after a CasADi call that returned, one that CasADi swallowed."""
+    received, _received[0] = _received[0], 0
+    return received > 0

@@ -1,0 +1,127 @@
+"""How a fit stops (FitResult.stop) and the last line of ``morphoshell fit`` that says so:
+the method, why it stopped, after how many evaluations, at which E_fit, and what to try;
+``--max-evaluations`` sets the limit each method stops at."""
+from types import SimpleNamespace
+
+import pytest
+
+from morphoshell.cli import main
+from morphoshell.cli._fit_stops import stop_line
+from morphoshell.fitting import synthetic_midline
+from morphoshell.io import Midline
+
+from fitting_cases import NODES, THREE, TRUE, three_parameter_spec
+
+#: The held parameters of the three-parameter fit, on the command line.
+HELD = [f"--set={n}={TRUE.params[n]}" for n in TRUE.family_obj.parameters
+        if n not in THREE and n not in ("kappa1", "sigma")]
+
+
+@pytest.fixture(scope="module")
+def midline_csv(tmp_path_factory):
+    spec = three_parameter_spec()
+    points = synthetic_midline(TRUE, spec.base, nodes=NODES, noise=5e-4, seed=2)
+    path = tmp_path_factory.mktemp("stops") / "synthetic_midline.csv"
+    Midline(points[:, 0], points[:, 1], None, 1, ("synthetic",)).to_csv(path)
+    return path
+
+
+def _fit(midline_csv, *options):
+    return main(["fit", str(midline_csv), "--variant", "flat", "--nodes", str(NODES), *HELD,
+                 *options])
+
+
+@pytest.mark.parametrize("method, name, then", [
+    ("nelder-mead", "Nelder-Mead", "start from a gradient fit with --start FIT.json"),
+    ("gradient", "Gradient fit", "go on from this fit with --start FIT.json"),
+])
+def test_a_fit_stopped_by_max_evaluations_says_so_on_its_last_line(midline_csv, tmp_path,
+                                                                  capsys, method, name, then):
+    """The limit is the method's (Nelder-Mead's function evaluations, least_squares'
+    max_nfev): the fit stops there, exits 3 and writes its result, its last line naming
+    the limit and what to try (Nelder-Mead used to stop after 20 000 evaluations saying
+    only converged=False)."""
+    out = tmp_path / "fit.json"
+    assert _fit(midline_csv, "--method", method, "--max-evaluations", "3",
+                "--json", str(out)) == 3
+    last = capsys.readouterr().out.splitlines()[-1]
+    assert last.startswith(f"{name} stopped after 3 evaluations (the limit) at E_fit "), last
+    assert last.endswith(f" R, not converged: raise --max-evaluations above 3, or {then}"
+                         + ("" if method == "nelder-mead" else " (its --json output)")), last
+    assert out.exists()
+
+
+def test_a_converged_fit_says_so_on_its_last_line(midline_csv, capsys):
+    assert _fit(midline_csv, "--method", "gradient") == 0
+    last = capsys.readouterr().out.splitlines()[-1]
+    assert last.startswith("Gradient fit converged after ") and " evaluations at E_fit " in last
+    assert last.endswith(" R"), last
+
+
+def test_a_kkt_fit_out_of_iterations_fails_naming_the_limit(midline_csv, tmp_path, capsys):
+    """The KKT fit's limit is Ipopt's max_iter of each NLP (and the evaluations of its
+    fallback Gauss-Newton steps): out of them it fails, exit 3, on one error line."""
+    out = tmp_path / "fit.json"
+    assert _fit(midline_csv, "--method", "kkt", "--max-evaluations", "1",
+                "--json", str(out)) == 3
+    captured = capsys.readouterr()
+    assert captured.err.count("\n") == 1 and "Maximum_Iterations_Exceeded" in captured.err
+    assert "raise --max-evaluations above 1 (Ipopt iterations per NLP)" in captured.err
+    assert ".." not in captured.err and not out.exists()
+
+
+@pytest.mark.parametrize("value, named", [("0", "0 must lie in [1, "), ("-5", "-5 must lie"),
+                                          ("2.5", "'2.5' is not an integer"),
+                                          ("many", "'many' is not an integer")])
+def test_max_evaluations_refuses_what_is_not_a_positive_integer(midline_csv, tmp_path, capsys,
+                                                                value, named):
+    out = tmp_path / "fit.json"
+    assert _fit(midline_csv, "--max-evaluations", value, "--json", str(out)) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "argument --max-evaluations: " + named in err, err
+    assert not out.exists()
+
+
+def _ended(method="gradient", stop="Fit_Converged", converged=False, its=42, E_fit=0.0123):
+    return SimpleNamespace(method=method, stop=stop, converged=converged, outer_iterations=its,
+                           E_fit=E_fit)
+
+
+@pytest.mark.parametrize("result, limit, line", [
+    (_ended("nelder-mead", converged=True, its=812), 20000,
+     "Nelder-Mead converged after 812 evaluations at E_fit 0.0123 R"),
+    (_ended("kkt", "Solved_To_Acceptable_Level", True, 69), 60,
+     "KKT fit converged after 69 iterations at E_fit 0.0123 R (Ipopt: Solved_To_Acceptable_Level)"),
+    (_ended("nelder-mead", "Maximum_Evaluations_Exceeded", its=20000), 20000,
+     "Nelder-Mead stopped after 20000 evaluations (the limit) at E_fit 0.0123 R, not converged: "
+     "raise --max-evaluations above 20000, or start from a gradient fit with --start FIT.json"),
+    (_ended("gradient", "Maximum_Evaluations_Exceeded", its=260), 200,
+     "Gradient fit stopped after 260 evaluations (the limit of 200 in its last run) at E_fit "
+     "0.0123 R, not converged: raise --max-evaluations above 200, or go on from this fit with "
+     "--start FIT.json (its --json output)"),
+    (_ended("gradient", "Fit_Stalled"), 200,
+     "Gradient fit stopped at its best point after 42 evaluations at E_fit 0.0123 R, not "
+     "converged: trial points in a row failed their inner solve (a fold of the branch?); start "
+     "nearer the data with --start FIT.json (a fit of a neighbouring stage), or --method "
+     "nelder-mead"),
+    (_ended("gradient", "Fit_Not_Stationary"), 200,
+     "Gradient fit stalled short of a stationary point after 42 evaluations at E_fit 0.0123 R, "
+     "not converged: trial points near it were rejected (a fold of the branch?); start nearer "
+     "the data with --start FIT.json (a fit of a neighbouring stage), or --method nelder-mead"),
+    (_ended("kkt", "Fit_Near_Fold"), 60,
+     "KKT fit ended near a fold of the equilibrium branch after 42 iterations at E_fit 0.0123 R, "
+     "not converged: the shape is nearly unstable, its standard errors meaningless; start from "
+     "another point with --start FIT.json, or hold a poorly identified parameter with "
+     "--set NAME=VALUE"),
+    (_ended("gradient", "Fit_On_Box_Edges"), 200,
+     "Gradient fit ended with a breakpoint on the edge of its box after 42 evaluations at E_fit "
+     "0.0123 R, not converged: the optimum may lie beyond the boxes' last move; hold it with "
+     "--set NAME=VALUE, or start nearer the data with --start FIT.json (a fit of a "
+     "neighbouring stage)"),
+    (_ended("kkt", "Fit_Moved_Boxes_Failed"), 60,
+     "KKT fit failed from moved boxes after 42 iterations at E_fit 0.0123 R, not converged: "
+     "the fit within the last boxes stands; go on from it with --start FIT.json (its --json "
+     "output), or another --method"),
+])
+def test_the_last_line_names_every_way_a_fit_ends(result, limit, line):
+    assert stop_line(result, limit) == line
