@@ -174,7 +174,7 @@ class Midline:
         path = Path(path)
         header, values, where, comments = _table(path, _read_bytes(path), "csv")
         _check_extent(str(path), values[:, :2], where, _IN_PIXELS)
-        check_axis(str(path), values[:, :2], where)
+        check_axis(str(path), values[:, :2], where, _SWAPPED)
         meta = [tuple(part.strip() for part in c.partition("=")[::2]) for c in comments]
         sources = tuple(value for key, value in meta if key == "source")
         counts = [value for key, value in meta if key == "n_traces"] or ["1"]
@@ -226,7 +226,7 @@ def read_trace(path: str | Path, format: str | None = None, *, pixel_size_um: fl
         _, values, where, _ = _table(path, data, fmt)
         _check_extent(str(path), values[:, :2], where, _IN_PIXELS)
         points, where = _one_curve(path, values[:, :2], where, "R")
-        check_axis(str(path), points, where)
+        check_axis(str(path), points, where, _SWAPPED)
         return Trace(points, str(path), fmt, tuple(where))
     scale = _scale(path, fmt, pixel_size_um, radius_um)
     spline = False
@@ -510,6 +510,9 @@ def _first_crossing(points: np.ndarray, apart: float, chunk: int = 32) -> tuple[
     return min(found) if found else None
 
 
+#: The likely cause of a csv midline that crosses the axis: a column z from the pole runs
+#: along the axis, where a column r may not.
+_SWAPPED = ": are its columns r and z swapped?"
 _IN_PIXELS = "a trace in pixels is read with format 'xy', 'fiji-xy' or 'roi' and a scale"
 
 
@@ -522,7 +525,7 @@ def _check_extent(source: str, points: np.ndarray, where, hint: str) -> None:
                            f"midline lies within {_MAX_EXTENT:g} R of its pole ({hint})")
 
 
-def check_axis(source: str, points: np.ndarray, where) -> None:
+def check_axis(source: str, points: np.ndarray, where, hint: str = "") -> None:
     """Refuse a model-gauge midline that goes to r < 0 by more than noise.
 
     Parameters
@@ -533,6 +536,8 @@ def check_axis(source: str, points: np.ndarray, where) -> None:
         (r, z) in units of R.
     where : sequence of str, length n
         Where each point is in the file ("line 7"), for the message.
+    hint : str
+        Appended to the message: the likely cause.
 
     Raises
     ------
@@ -542,7 +547,7 @@ def check_axis(source: str, points: np.ndarray, where) -> None:
     bad = np.flatnonzero(points[:, 0] < -_AXIS_SLACK)
     if len(bad):
         raise MidlineError(f"{source}: {where[bad[0]]}: r = {points[bad[0], 0]:.4g} < 0: the "
-                           f"midline crosses the axis (the model gauge has r >= 0)")
+                           f"midline crosses the axis (the model gauge has r >= 0){hint}")
 
 
 # --------------------------------------------------------------------------- writing
