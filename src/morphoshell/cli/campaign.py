@@ -5,7 +5,7 @@ import argparse
 import math
 from pathlib import Path
 
-from ._args import add_executor, integer
+from ._args import add_executor, integer, reworded
 
 __all__ = ["register"]
 
@@ -100,15 +100,23 @@ def register(sub) -> None:
     p.set_defaults(run=_campaign)
 
 
+#: The arguments of workflows.campaign that its messages name, as the command line spells them.
+_OPTIONS = {r"^embryo_errors\b": "--embryo-errors", r"^held_from\b": "--held-from",
+            r"^timepoints\b": "--timepoints", r"^variants\b": "--variants"}
+
+
 def _campaign(args) -> int:
     from ..workflows import SUMMARY, campaign, read_timepoints
 
     read_timepoints(args.data_dir)          # bad input: exit 2 before any work
-    result = campaign(args.data_dir, args.variants, method=args.method, workers=args.workers,
-                      scheduler=args.scheduler, out=args.out, resume=args.resume,
-                      nodes=args.nodes, timepoints=args.timepoints,
-                      embryo_errors=args.embryo_errors, held_from=args.held_from,
-                      force=args.force)
+    try:
+        result = campaign(args.data_dir, args.variants, method=args.method,
+                          workers=args.workers, scheduler=args.scheduler, out=args.out,
+                          resume=args.resume, nodes=args.nodes, timepoints=args.timepoints,
+                          embryo_errors=args.embryo_errors, held_from=args.held_from,
+                          force=args.force)
+    except ValueError as exc:               # (refused before any work: name the options)
+        raise ValueError(reworded(str(exc), _OPTIONS)) from None
     t = result.timing
     unfinished = result.unfinished()
     failed = sum(why == "failed" for *_, why in unfinished)
