@@ -55,7 +55,7 @@ def test_swapped_columns_are_refused_naming_the_likely_cause(capsys, tmp_path):
     (t01) and write its JSON; a later stage's swapped r goes negative."""
     for stage, named in (("t01", "leaves the pole at 89 degrees from the r axis"),
                          ("t10", "the midline crosses the axis")):
-        m = Midline.from_csv(ROOT / "data" / "synthetic_inversion" / stage / "synthetic_average.csv")
+        m = Midline.from_csv(T01.parent / stage / "synthetic_average.csv")
         path = tmp_path / f"{stage}_swapped.csv"
         Midline(m.z, m.r).to_csv(path)
         _refused(["fit", str(path), "--variant", "free"], capsys, tmp_path, named,
@@ -107,3 +107,34 @@ def test_campaign_messages_name_its_options(capsys, tmp_path):
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and named in err, err
         assert not out.exists()
+
+
+def test_fit_reads_a_roi_manager_set(tmp_path, capsys, monkeypatch):
+    """A RoiSet.zip was read as text ("line 1: not UTF-8 text (byte 11)"); now --roi chooses a
+    line ROI by name or position, or all of them, averaged; without a choice among several
+    the message names them and the option."""
+    import sys
+
+    import morphoshell.fitting as fitting
+    from morphoshell.fitting import FitError
+
+    sys.path.insert(0, str(ROOT / "tests" / "io"))
+    from test_roi_sets import _roi_set
+    from reference_midline import SCALE
+
+    path = _roi_set(tmp_path)
+    scale = ["--pixel-size", str(SCALE["pixel_size_um"]), "--radius-um", str(SCALE["radius_um"])]
+    err = _refused(["fit", str(path), "--variant", "flat", *scale], capsys, tmp_path,
+                   "choose one with --roi NAME or INDEX (from 1), or --roi all to average them")
+    assert "roi=" not in err
+    seen = []
+
+    def fake_fit(spec, midline, *args, **kwargs):
+        seen.append(midline)
+        raise FitError("stopped here", "Maximum_Iterations_Exceeded")
+
+    monkeypatch.setattr(fitting, "fit", fake_fit)
+    for choice, traces in (("all", 3), ("embryo2", 1), ("3", 1)):
+        assert main(["fit", str(path), "--variant", "flat", "--roi", choice, *scale]) == 3
+        assert seen[-1].n_traces == traces
+    assert seen[-1].source == (f"{path}, ROI 'embryo3'",)

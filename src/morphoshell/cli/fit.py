@@ -40,6 +40,11 @@ def register(sub) -> None:
     p.add_argument("--radius-um", dest="radius_um", type=real(0, 1e6, open_lo=True, unit=" um"),
                    default=None, metavar="R", help="image traces: the embryo's radius R in "
                    "micrometres, the unit of lengths; required with --pixel-size")
+    p.add_argument("--roi", default=None, metavar="NAME|INDEX|all",
+                   help="a ROI Manager set (RoiSet.zip, from ROI Manager > More > Save): the "
+                        "line ROI to fit, by its name in the ROI Manager's list or its position "
+                        "there (from 1), or all: the average of every line ROI (the traces of "
+                        "one stage); default: the set's only line ROI. Other ROIs are skipped")
     p.add_argument("--section", choices=SECTIONS, default="auto",
                    help="an image trace is a whole mid-sagittal section (rim to rim through the "
                         "posterior pole) or a half (pole to rim); default: whole for images")
@@ -93,7 +98,8 @@ def _start_problem(args):
 #: The Python arguments that the messages of morphoshell.io name, as the command line spells
 #: them (a new user typed "pixel_size_um" into the shell).
 _OPTIONS = {r"\bpixel_size_um\b": "--pixel-size", r"\bradius_um\b": "--radius-um",
-            r"\bsection='(\w+)'": r"--section \1"}
+            r"\bsection='(\w+)'": r"--section \1", r"\broi='([^']*)'": r"--roi \1",
+            r"\broi=": "--roi "}
 
 
 def load_checked(args, spec, n: int):
@@ -107,7 +113,8 @@ def load_checked(args, spec, n: int):
 
     try:
         midline = load_midline(args.midline, args.format, n=n, section=args.section,
-                               pixel_size_um=args.pixel_size, radius_um=args.radius_um)
+                               pixel_size_um=args.pixel_size, radius_um=args.radius_um,
+                               roi=args.roi)
     except MidlineError as exc:
         raise MidlineError(reworded(str(exc), _OPTIONS)) from None
     if args.pixel_size is not None:          # (an image trace: the loader required both)
