@@ -82,6 +82,9 @@ def test_bad_sets_and_options(tmp_path):
     with pytest.raises(MidlineError, match=r"a zip file \(an ImageJ ROI Manager set\?\): "
                                            r"load_midline reads it"):
         read_trace(path, **SCALE)
+    with pytest.raises(MidlineError, match=r"RoiSet\.zip: a zip file \(an ImageJ ROI Manager "
+                                           r"set\?\), not text"):      # was "not UTF-8 text"
+        read_trace(path, "xy", **SCALE)
     with pytest.raises(MidlineError, match=r"single1\.roi: roi=1 applies to an ImageJ ROI "
                                            r"Manager set \(zip\), not to this file"):
         load_midline(tmp_path / "single1.roi", roi=1, **SCALE)

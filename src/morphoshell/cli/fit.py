@@ -99,7 +99,7 @@ def _start_problem(args):
 #: them (a new user typed "pixel_size_um" into the shell).
 _OPTIONS = {r"\bpixel_size_um\b": "--pixel-size", r"\bradius_um\b": "--radius-um",
             r"\bsection='(\w+)'": r"--section \1", r"\broi='([^']*)'": r"--roi \1",
-            r"\broi=": "--roi "}
+            r"\broi=": "--roi ", r"\bwith format '(\w+)' or none": r"with --format \1 or none"}
 
 
 def load_checked(args, spec, n: int):

@@ -288,6 +288,9 @@ def _read_bytes(path: Path) -> bytes:
 
 def _text(path: Path, data: bytes) -> list[tuple[int, str]]:
     """(line number, stripped text) of every line; MidlineError if not UTF-8."""
+    if data[:4] == ZIP_MAGIC:       # (was "line 1: not UTF-8 text (byte 11)")
+        raise MidlineError(f"{path}: a zip file (an ImageJ ROI Manager set?), not text: read it "
+                           f"with format 'roi' or none")
     try:
         text = data.decode("utf-8-sig")     # Excel writes a byte-order mark
     except UnicodeDecodeError as exc:
