@@ -263,7 +263,8 @@ def test_fit_command_names_a_midline_of_the_wrong_scale(midline_csv, tmp_path, c
     out = tmp_path / "fit.json"
     assert main(["fit", str(small), "--variant", "flat", "--json", str(out)]) == 2
     err = capsys.readouterr().err
-    assert f"{small}: the midline is " in err and "units R" in err and err.count("\n") == 1
+    assert f"{small}: the midline is " in err and "5.3× shorter" in err and "units of R" in err
+    assert err.count("\n") == 1
     assert not out.exists()
 
 

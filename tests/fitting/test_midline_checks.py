@@ -17,8 +17,10 @@ def test_a_midline_of_the_wrong_scale_is_refused_before_any_work():
     data = synthetic_midline(TRUE, spec.base, nodes=NODES)
     check_midline(spec, data)                    # the model's own midline passes
     for scale in (0.2, 5.0):                    # outside LENGTH_SLACK either way
-        with pytest.raises(ValueError, match=r"the data midline is [0-9.]+ R long, but the "
-                                             r"model's midlines are about 1\.42-5\.68 R"):
+        with pytest.raises(ValueError, match=r"the data midline is [0-9.]+ R long, [0-9.]+× "
+                                             r"(longer|shorter) than the undeformed shell "
+                                             r"\(2\.84 R\); the model's midlines are about "
+                                             r"1\.89-4\.26 R long"):
             fit(spec, scale * data, "gradient", nodes=NODES)
     # held stretches narrow the range to what they allow
     held = volvox_spec("flat", START, hold={n: 1.0 for n in ("f1", "f2", "f3")})
@@ -52,3 +54,42 @@ def test_a_retraced_midline_is_refused_before_any_work():
                                              r"along it \(by 1[78]\d degrees within 0\.1 R\)"):
             fit(spec, np.vstack([data, back]), "gradient", nodes=NODES)
     check_midline(spec, data)
+
+
+def test_a_midline_scaled_within_the_stretches_bounds_is_refused_naming_the_factor():
+    """Twice or half the right scale lies within the stretches' bounds (f 0.5-2) and used to run
+    to a meaningless fit (issue 41: E_fit 0.83 R and 4.9 R, stretches on their bounds); the
+    message gives the factor, the trace's length over the undeformed shell's."""
+    spec = volvox_spec("free", START)
+    data = synthetic_midline(TRUE, spec.base, nodes=NODES)
+    with pytest.raises(ValueError, match=r"is 5\.\d+ R long, 1\.9× longer than the undeformed "
+                                         r"shell \(2\.84 R\).*: is the pixel size right\?"):
+        check_midline(spec, 2 * data, scale_hint="is the pixel size right?")
+    with pytest.raises(ValueError, match=r"2\.1× shorter than the undeformed shell"):
+        check_midline(spec, 0.5 * data)
+    check_midline(spec, 1.4 * data)          # (a fit still finds stretched shells)
+
+
+def test_a_midline_with_its_columns_swapped_is_refused_before_any_work():
+    """r and z swapped (a CSV's header still r,z) start at the pole along the axis; it used to
+    "converge" to E_fit 3.7 R.  The model's midline, and the shipped synthetic ones in every
+    variant, leave the pole across the axis; their swapped copies are refused."""
+    from pathlib import Path
+
+    from morphoshell.fitting import VARIANTS
+    from morphoshell.io import Midline
+
+    spec = volvox_spec("flat", START)
+    data = synthetic_midline(TRUE, spec.base, nodes=NODES)
+    with pytest.raises(ValueError, match=r"the data midline leaves the pole at 8\d degrees from "
+                                         r"the r axis .*are its columns r and z swapped\?"):
+        fit(spec, data[:, ::-1], "gradient", nodes=NODES)
+    shipped = sorted((Path(__file__).parents[2] / "data" / "synthetic_inversion").glob("t*/*.csv"))
+    midlines = [Midline.from_csv(p) for p in shipped if "average" in p.name or "_midline" in p.name]
+    assert len(midlines) == 72
+    for variant in VARIANTS:
+        for m in midlines:
+            check_midline(volvox_spec(variant, START), m)
+    for m in midlines[::6]:
+        with pytest.raises(ValueError, match="swapped"):
+            check_midline(spec, m.points[:, ::-1])

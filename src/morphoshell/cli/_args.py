@@ -3,15 +3,39 @@ from __future__ import annotations
 
 import argparse
 import math
-from typing import Callable
+import re
+from typing import Callable, Mapping
 
 from ._outputs import output_path
 
-__all__ = ["integer", "real", "add_outputs", "problem_and_settings", "LINEAR_SOLVERS"]
+__all__ = ["integer", "real", "add_outputs", "problem_and_settings", "reworded", "LINEAR_SOLVERS"]
 
 #: Ipopt's linear solvers: MUMPS is bundled with CasADi; the HSL ones (ma27 …)
 #: load only from the user's libhsl.so, SPRAL and Pardiso from their libraries.
 LINEAR_SOLVERS = ("mumps", "ma27", "ma57", "ma77", "ma86", "ma97", "spral", "pardisomkl")
+
+
+def reworded(message: str, options: Mapping[str, str]) -> str:
+    """``message`` with the library's argument names spelt as the command line's options.
+
+    The library's messages name its Python arguments (``pixel_size_um``); on the
+    command line they must name the options (``--pixel-size``) that the user types.
+
+    Parameters
+    ----------
+    message : str
+        A library's message.
+    options : mapping of str to str
+        Regular expressions of the argument names (``\\b`` at their ends: a file
+        name that contains one stays as it is) and their replacements.
+
+    Returns
+    -------
+    str
+    """
+    for pattern, option in options.items():
+        message = re.sub(pattern, option, message)
+    return message
 
 
 def integer(lo: int, hi: int) -> Callable[[str], int]:

@@ -5,7 +5,7 @@ import argparse
 import math
 from pathlib import Path
 
-from ._args import add_executor, integer
+from ._args import add_executor, integer, reworded
 
 __all__ = ["register"]
 
@@ -100,6 +100,11 @@ def register(sub) -> None:
     p.set_defaults(run=_campaign)
 
 
+#: The arguments of workflows.campaign that its messages name, as the command line spells them.
+_OPTIONS = {r"^embryo_errors\b": "--embryo-errors", r"^held_from\b": "--held-from",
+            r"^timepoints\b": "--timepoints", r"^variants\b": "--variants"}
+
+
 def _campaign(args) -> int:
     import sys
 
@@ -115,6 +120,8 @@ def _campaign(args) -> int:
     except CampaignInterrupted as exc:      # Ctrl-C: how far it got, on one line
         print(f"morphoshell: {exc}", file=sys.stderr)
         return 130
+    except ValueError as exc:               # (refused before any work: name the options)
+        raise ValueError(reworded(str(exc), _OPTIONS)) from None
     t = result.timing
     unfinished = result.unfinished()
     failed = sum(why == "failed" for *_, why in unfinished)

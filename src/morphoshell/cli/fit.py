@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ._args import add_outputs, integer, real
+from ._args import add_outputs, integer, real, reworded
 from ._outputs import Outputs
 from ._profiles import (add_profile_options, plot_profiles, profile_json, profile_names,
                         profile_plot_path, profile_table, run_profiles)
@@ -22,17 +22,29 @@ def register(sub) -> None:
                     "Supplementary, 'Fitting of the morphoelastic theory') to the midline in "
                     "MIDLINE by minimising E_fit = (sum_i |model_i - data_i|^2)^(1/2) over "
                     "100 points equally spaced in arclength (units of R), the model being an "
-                    "equilibrium. Image traces are aligned on their axis of symmetry and scaled "
-                    "by --pixel-size and --radius-um. Standard errors are Gauss-Newton lower "
-                    "bounds (the residuals of a traced midline are correlated).")
+                    "equilibrium. Image traces (pixel coordinates: Fiji XY, .roi, RoiSet.zip, "
+                    "x,y CSV) need --pixel-size and --radius-um: they are aligned on their axis "
+                    "of symmetry and scaled to units of R. A trace too long or short for the "
+                    "model (a wrong scale) or leaving its pole along the axis (r and z "
+                    "swapped) is refused before any work. Standard errors are Gauss-Newton "
+                    "lower bounds (the residuals of a traced midline are correlated).")
     p.add_argument("midline", metavar="MIDLINE", help="traced midline: CSV of r,z (units of "
-                   "R), CSV of image x,y, Fiji XY coordinates, or an ImageJ .roi")
+                   "R, pole first), or an image trace: CSV of x,y, Fiji XY coordinates, an "
+                   "ImageJ .roi or a ROI Manager set RoiSet.zip (with --roi)")
     p.add_argument("--format", choices=FORMATS, default=None,
                    help="file format (default: from the content)")
     p.add_argument("--pixel-size", dest="pixel_size", type=real(0, 1e6, open_lo=True, unit=" um"),
-                   default=None, metavar="UM", help="image pixel size in micrometres")
+                   default=None, metavar="UM", help="image traces: micrometres per pixel "
+                   "(Fiji: Image > Properties > Pixel width; 1 if the trace was exported in "
+                   "calibrated um); required with --radius-um")
     p.add_argument("--radius-um", dest="radius_um", type=real(0, 1e6, open_lo=True, unit=" um"),
-                   default=None, metavar="R", help="embryo radius R in micrometres")
+                   default=None, metavar="R", help="image traces: the embryo's radius R in "
+                   "micrometres, the unit of lengths; required with --pixel-size")
+    p.add_argument("--roi", default=None, metavar="NAME|INDEX|all",
+                   help="a ROI Manager set (RoiSet.zip, from ROI Manager > More > Save): the "
+                        "line ROI to fit, by its name in the ROI Manager's list or its position "
+                        "there (from 1), or all: the average of every line ROI (the traces of "
+                        "one stage); default: the set's only line ROI. Other ROIs are skipped")
     p.add_argument("--section", choices=SECTIONS, default="auto",
                    help="an image trace is a whole mid-sagittal section (rim to rim through the "
                         "posterior pole) or a half (pole to rim); default: whole for images")
@@ -88,18 +100,48 @@ def _start_problem(args):
         raise ProblemFileError(f"--set/--start: {exc}") from None
 
 
+#: The Python arguments that the messages of morphoshell.io name, as the command line spells
+#: them (a new user typed "pixel_size_um" into the shell).
+_OPTIONS = {r"\bpixel_size_um\b": "--pixel-size", r"\bradius_um\b": "--radius-um",
+            r"\bsection='(\w+)'": r"--section \1", r"\broi='([^']*)'": r"--roi \1",
+            r"\broi=": "--roi ", r"\bwith format '(\w+)' or none": r"with --format \1 or none"}
+
+
+def load_checked(args, spec, n: int):
+    """The midline of ``args.midline`` (n points), refused unless ``spec``'s shell can fit it.
+
+    The messages name the command line's options; a wrong length says which
+    ones set the scale (ValueError, exit status 2, before any work).
+    """
+    from ..fitting import check_midline
+    from ..io import MidlineError, load_midline
+
+    try:
+        midline = load_midline(args.midline, args.format, n=n, section=args.section,
+                               pixel_size_um=args.pixel_size, radius_um=args.radius_um,
+                               roi=args.roi)
+    except MidlineError as exc:
+        raise MidlineError(reworded(str(exc), _OPTIONS)) from None
+    if args.pixel_size is not None:          # (an image trace: the loader required both)
+        hint = (f"is --pixel-size {args.pixel_size:g} the size of a pixel in µm (Fiji: "
+                f"Image › Properties), and --radius-um {args.radius_um:g} the embryo's radius "
+                f"R in µm?")
+    else:
+        hint = ("are its r and z in units of R, the embryo's radius (a trace in pixels needs "
+                "--format xy with --pixel-size and --radius-um)?")
+    check_midline(spec, midline, f"{args.midline}: the midline", scale_hint=hint)
+    return midline
+
+
 def _fit(args) -> int:
-    from ..fitting import EVALUATION_LIMITS, N_FIT, check_midline, fit
+    from ..fitting import EVALUATION_LIMITS, N_FIT, fit
     from ..io.problem_files import write_csv, write_json
-    from ..io import load_midline
     from ..solvers.results import SolverError
     from ._fit_stops import failure_hint, stop_line
 
     spec = _start_problem(args)
     names = profile_names(args.profile, spec)        # (a bad name: exit 2, before any work)
-    midline = load_midline(args.midline, args.format, n=N_FIT, section=args.section,
-                           pixel_size_um=args.pixel_size, radius_um=args.radius_um)
-    check_midline(spec, midline, f"{args.midline}: the midline")
+    midline = load_checked(args, spec, N_FIT)
     unit, default = EVALUATION_LIMITS[args.method]
     limit = args.max_evaluations or default
     try:

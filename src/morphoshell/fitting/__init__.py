@@ -18,7 +18,8 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "inner": ["model_midline", "synthetic_midline", "N_FIT"],
     "results": ["FitResult", "FitError"],
     "midline_checks": ["intrinsic_lengths", "check_midline", "LENGTH_SLACK", "MAX_TURN",
-                       "TURN_LENGTH", "POLE_SLACK"],
+                       "TURN_LENGTH", "POLE_SLACK", "MAX_MEAN_STRETCH", "POLE_ANGLE", "POLE_ARC",
+                       "SCALE_HINT"],
     "bilevel": ["fit", "METHODS", "FIT_NODES", "EVALUATION_LIMITS"],
     "profiles": ["Profile", "profile", "profile_intervals", "noise_variance"],
 })

@@ -1,9 +1,10 @@
-"""Checks of a data midline before a fit: points, pole, retraced lines and length.
+"""Checks of a data midline before a fit: points, pole, retraced lines, length and scale.
 
 A midline that cannot be one of the model's (listed rim first, retracing its
-way, in the wrong units) used to "converge" to a fit energy of several R with
-the model's midline nowhere near it: :func:`check_midline` refuses it before
-any work, naming what is wrong.  :func:`intrinsic_lengths` bounds the lengths
+way, in the wrong units or scale, its columns r and z swapped) used to
+"converge" to a fit energy of several R with the model's midline nowhere near
+it: :func:`check_midline` refuses it before any work, naming what is wrong
+and what is probably the cause.  :func:`intrinsic_lengths` bounds the lengths
 the Volvox model's midline can have.
 """
 from __future__ import annotations
@@ -13,12 +14,30 @@ import numpy as np
 from .spec import FitSpec
 
 __all__ = ["check_midline", "intrinsic_lengths", "as_points", "LENGTH_SLACK", "MAX_TURN",
-           "TURN_LENGTH", "POLE_SLACK"]
+           "TURN_LENGTH", "POLE_SLACK", "MAX_MEAN_STRETCH", "POLE_ANGLE", "POLE_ARC",
+           "SCALE_HINT"]
 
 #: A data midline whose length lies further than this factor outside the Volvox model's
 #: intrinsic lengths (:func:`intrinsic_lengths`) is refused before a fit: its units or scale
 #: are wrong (a factor 2 means elastic strains of 100 %, far beyond the theory's).
 LENGTH_SLACK = 2.0
+#: A data midline longer than MAX_MEAN_STRETCH times the undeformed shell's length
+#: (π − P − Σ, units of R), or shorter than that divided by it, is refused before a fit: its
+#: scale is wrong.  Its length over the undeformed one is the shell's mean meridional stretch;
+#: an image trace at the right scale gives 0.89-0.98 (the shipped synthetic inversion), the
+#: same trace with its pixel size 1.5× too large still fits (E_fit 0.034 R, f2 on its bound
+#: 2), 2× too large ends at E_fit 0.83 R with f2 and f4 on their bound, 0.5× and 0.67× at
+#: 4.9 R and 3.1 R (issue 41): a mean stretch beyond 1.5 either way leaves the fit nothing to
+#: find but its bounds.
+MAX_MEAN_STRETCH = 1.5
+#: A data midline of an intact shell that rises more than POLE_ANGLE (radians) from the r
+#: axis over its first POLE_ARC·h of arclength is refused before a fit (its columns r and z
+#: swapped?).  A regular pole of an axisymmetric shell has its tangent perpendicular to the
+#: axis; turning from there needs curvature, and a sheet of deformed thickness h/(f_s f_φ)
+#: bends to a radius no smaller than half of it: curvature at most 2 f²/h with f ≤ 2, the
+#: stretches' bound, so the chord over h/4 rises by at most f²/4 ≤ 1 rad (57 degrees).  A
+#: swapped trace starts along the axis, at ~90 degrees.
+POLE_ANGLE, POLE_ARC = np.radians(60.0), 0.25
 #: A data midline that turns by more than MAX_TURN (radians) within TURN_LENGTH (units of R)
 #: of its arclength is refused before a fit: a line that retraces its way.  That is a mean
 #: radius of curvature below 0.042 R, a fraction of the cell sheet's thickness (h = 0.15 R
@@ -65,15 +84,26 @@ def intrinsic_lengths(spec: FitSpec) -> tuple[float, float] | None:
     return min(lows) * spec.base.end, max(highs) * spec.base.end
 
 
-def check_midline(spec: FitSpec, data, name: str = "the data midline") -> None:
+#: What the messages of a wrong length suggest checking, unless the caller says better (the
+#: command line names its options).
+SCALE_HINT = ("are its units R (divided by the embryo's radius), and for an image trace the "
+              "pixel size in µm per pixel and the radius R in µm?")
+
+
+def check_midline(spec: FitSpec, data, name: str = "the data midline", *,
+                  scale_hint: str = SCALE_HINT) -> None:
     """ValueError if the midline ``data`` (N, 2) cannot be a midline of ``spec``'s shell.
 
-    It does not start at the posterior pole of an intact shell (further than
-    :data:`POLE_SLACK` from the origin of the model gauge: listed rim first?),
-    it turns back on itself (more than :data:`MAX_TURN` within
-    :data:`TURN_LENGTH`: a retraced line), or its polygon length lies outside
-    :func:`intrinsic_lengths` by more than :data:`LENGTH_SLACK` either way
-    (the wrong units or scale).
+    In this order: it does not start at the posterior pole of an intact shell
+    (further than :data:`POLE_SLACK` from the origin of the model gauge:
+    listed rim first?); it turns back on itself (more than :data:`MAX_TURN`
+    within :data:`TURN_LENGTH`: a retraced line); its polygon length lies
+    outside :func:`intrinsic_lengths` by more than :data:`LENGTH_SLACK`
+    either way, or its mean stretch (length over the undeformed shell's)
+    beyond :data:`MAX_MEAN_STRETCH` either way (the wrong units or scale:
+    the message gives the factor); it leaves the pole of an intact shell
+    along the axis rather than across it (:data:`POLE_ANGLE`: columns r and
+    z swapped?).
 
     Parameters
     ----------
@@ -83,6 +113,9 @@ def check_midline(spec: FitSpec, data, name: str = "the data midline") -> None:
         The midline (r, z) in the model gauge (:func:`as_points`).
     name : str
         What the messages call the midline.
+    scale_hint : str
+        What the message of a wrong length asks the user to check (the
+        command line names its options --pixel-size and --radius-um).
 
     Raises
     ------
@@ -102,7 +135,14 @@ def check_midline(spec: FitSpec, data, name: str = "the data midline") -> None:
     step = np.diff(points, axis=0)
     step = step[np.any(step != 0, axis=1)]       # (a repeated point has no direction)
     seg = np.hypot(*step.T)
-    length = float(seg.sum())
+    _check_turns(step, seg, name)
+    _check_length(spec, float(seg.sum()), name, scale_hint)
+    if spec.base.cut == 0:
+        _check_pole_tangent(spec, points[0], step, seg, name)
+
+
+def _check_turns(step: np.ndarray, seg: np.ndarray, name: str) -> None:
+    """Refuse a midline that turns by more than MAX_TURN within TURN_LENGTH (retraced)."""
     middle = np.cumsum(seg) - seg / 2
     # the tangent's angle, unwrapped: a U-turn adds up to pi however many segments it spans
     angle = np.unwrap(np.arctan2(step[:, 1], step[:, 0]))
@@ -114,15 +154,47 @@ def check_midline(spec: FitSpec, data, name: str = "the data midline") -> None:
                 f"{name} turns back on itself {middle[i]:.3g} R along it (by "
                 f"{np.degrees(turn.max()):.0f} degrees within {TURN_LENGTH:g} R): a traced "
                 f"line that retraces its way?")
+
+
+def _check_length(spec: FitSpec, length: float, name: str, hint: str) -> None:
+    """Refuse a Volvox midline too long or short for the stretches and scale (module constants).
+
+    The factor named is the length over the undeformed shell's, the mean
+    stretch: about 1 at the right scale, so about the factor the scale is off.
+    """
     lengths = intrinsic_lengths(spec)
     if lengths is None:
         return
     shortest, longest = lengths
-    if not shortest / LENGTH_SLACK <= length <= longest * LENGTH_SLACK:
+    undeformed = spec.base.end - spec.base.cut
+    lo = max(shortest / LENGTH_SLACK, undeformed / MAX_MEAN_STRETCH)
+    hi = min(longest * LENGTH_SLACK, undeformed * MAX_MEAN_STRETCH)
+    if lo <= length <= hi:
+        return
+    factor = length / undeformed
+    ratio = f"{factor:.2g}× longer" if factor > 1 else f"{1 / factor:.2g}× shorter"
+    raise ValueError(
+        f"{name} is {length:.3g} R long, {ratio} than the undeformed shell ({undeformed:.3g} "
+        f"R); the model's midlines are about {lo:.3g}-{hi:.3g} R long: {hint}")
+
+
+def _check_pole_tangent(spec: FitSpec, pole: np.ndarray, step: np.ndarray, seg: np.ndarray,
+                        name: str) -> None:
+    """Refuse a midline of an intact shell that leaves its pole along the axis (POLE_ANGLE)."""
+    arc = POLE_ARC * spec.base.h
+    along = np.r_[0.0, np.cumsum(seg)]
+    if along[-1] <= arc:
+        return
+    k = int(np.searchsorted(along, arc))          # the point at arc lies on step k - 1
+    end = pole + step[:k - 1].sum(axis=0) + (arc - along[k - 1]) / seg[k - 1] * step[k - 1]
+    rise = float(np.arctan2(abs(end[1] - pole[1]), end[0] - pole[0]))
+    if rise > POLE_ANGLE:
         raise ValueError(
-            f"{name} is {length:.3g} R long, but the model's midlines are about "
-            f"{shortest:.3g}-{longest:.3g} R long (stretches f1-f3 within their bounds over "
-            f"the shell's {spec.base.end:.3g} R): are its units R and its scale right?")
+            f"{name} leaves the pole at {np.degrees(rise):.0f} degrees from the r axis (over "
+            f"its first {arc:.2g} R): a shell's midline leaves its pole perpendicular to the "
+            f"axis, and a sheet of thickness h = {spec.base.h:g} cannot bend by more than "
+            f"{np.degrees(POLE_ANGLE):.0f} degrees that soon: are its columns r and z "
+            f"swapped?")
 
 
 def as_points(data) -> np.ndarray:

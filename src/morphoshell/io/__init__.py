@@ -2,8 +2,9 @@
 
 Problem files (TOML) and their overrides, the packaged examples and the writers
 of results (:mod:`.problem_files`); trace files of midlines from Fiji/ImageJ and
-CSV (:mod:`.traces`), and their geometry: alignment to the model gauge,
-resampling and averaging (:mod:`.midlines`); the tables of ablation measurements
+CSV (:mod:`.traces`) and ImageJ's ROI Manager sets (:mod:`.roi_sets`), and their
+geometry: alignment to the model gauge, resampling and averaging
+(:mod:`.midlines`); the tables of ablation measurements
 (:mod:`.measurements`) and of an inversion sequence's timepoints (:mod:`.timepoints`).
 Every reader names the file and the offending entry.
 """
@@ -23,4 +24,5 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
         "ERROR_COLUMN", "UNITS", "MeasurementError", "Measurement", "read_measurements",
         "to_dimensionless", "to_physical"],
     "timepoints": ["Timepoint", "read_timepoints"],
+    "roi_sets": ["read_roi_set", "choose_rois", "read_set_traces"],
 })

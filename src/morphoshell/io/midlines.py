@@ -88,6 +88,7 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
+from .roi_sets import is_roi_set, read_set_traces
 from .traces import (Midline, MidlineError, Trace, check_axis, check_choice, check_positive,
                      read_trace)
 
@@ -408,18 +409,21 @@ def _crossing(curve: _Curve, normal: np.ndarray, c: float) -> float:
 
 def load_midline(path: str | Path, format: str | None = None, *, n: int = 100,
                  section: str = "auto", flip: bool = False, pixel_size_um: float | None = None,
-                 radius_um: float | None = None, max_asymmetry: float = 0.05) -> Midline:
-    """Read, align and resample one trace.
+                 radius_um: float | None = None, max_asymmetry: float = 0.05,
+                 roi: str | int | None = None) -> Midline:
+    """Read, align and resample one trace, or the chosen traces of a ROI Manager set.
 
-    :func:`morphoshell.io.traces.read_trace`, then :func:`align`, then
-    :func:`resample`; the options are checked before the file is read.
+    :func:`morphoshell.io.traces.read_trace` (or, for an ImageJ ROI Manager
+    set, :func:`morphoshell.io.roi_sets.read_set_traces`), then :func:`align`,
+    then :func:`resample`; several traces of a set are averaged
+    (:func:`average`).  The options are checked before the file is read.
 
     Parameters
     ----------
     path : str or Path
     format : str, optional
         One of :data:`morphoshell.io.traces.FORMATS`; inferred from the
-        content when None.
+        content when None (a zip file is a ROI Manager set).
     n : int
         Points of the midline, at least 2.
     section : {"auto", "whole", "half"}
@@ -430,25 +434,39 @@ def load_midline(path: str | Path, format: str | None = None, *, n: int = 100,
     max_asymmetry : float
         Largest rms distance (units of R) of the halves of a whole section
         from their mirror average.
+    roi : str, int or None
+        ROI Manager sets only: the line ROI by name or position (from 1), or
+        ``"all"`` to average every line ROI; None: the set's only line ROI
+        (:mod:`morphoshell.io.roi_sets`).
 
     Returns
     -------
     Midline
-        n points (r, z each of shape (n,)), spread None, n_traces 1.
+        n points (r, z each of shape (n,)); for one trace spread None and
+        n_traces 1, for several their :func:`average`.
 
     Raises
     ------
     MidlineError
         A bad option, file or trace (:func:`morphoshell.io.traces.read_trace`,
-        :func:`align`).
+        :func:`align`, :func:`morphoshell.io.roi_sets.choose_rois`).
     """
     n = _count("n", n, 2)
     check_choice(section, SECTIONS, "section")
     check_positive("max_asymmetry", max_asymmetry)
-    trace = read_trace(path, format, pixel_size_um=pixel_size_um, radius_um=radius_um)
-    half = align(trace, section, flip=flip, max_asymmetry=max_asymmetry).points
-    r, z = resample(half, n).T
-    return Midline(r, z, None, 1, (trace.source,))
+    if format in (None, "roi") and is_roi_set(path):
+        traces = read_set_traces(path, roi, pixel_size_um=pixel_size_um, radius_um=radius_um)
+    elif roi is not None:
+        raise MidlineError(f"{path}: roi={roi!r} applies to an ImageJ ROI Manager set (zip), "
+                           f"not to this file")
+    else:
+        traces = [read_trace(path, format, pixel_size_um=pixel_size_um, radius_um=radius_um)]
+    midlines = []
+    for trace in traces:
+        half = align(trace, section, flip=flip, max_asymmetry=max_asymmetry).points
+        r, z = resample(half, n).T
+        midlines.append(Midline(r, z, None, 1, (trace.source,)))
+    return midlines[0] if len(midlines) == 1 else average(midlines)
 
 
 def average(midlines: Sequence[Midline]) -> Midline:

@@ -67,7 +67,8 @@ import numpy as np
 
 from .._runtime.validate import real
 
-__all__ = ["FORMATS", "MidlineError", "Trace", "Midline", "read_trace", "to_image", "write_trace"]
+__all__ = ["FORMATS", "MidlineError", "Trace", "Midline", "read_trace", "to_image", "write_trace",
+           "pixel_trace", "roi_kind", "roi_points", "image_scale", "ZIP_MAGIC"]
 
 #: Trace file formats (see the module docstring).
 FORMATS = ("csv", "xy", "fiji-xy", "roi")
@@ -76,6 +77,8 @@ SPLINE_SUBDIVISIONS = 32
 
 _CSV_HEADERS = (("r", "z"), ("r", "z", "spread"))
 _XY_HEADER = ("x", "y")
+#: The first bytes of a zip file (an ImageJ ROI Manager set, :mod:`morphoshell.io.roi_sets`).
+ZIP_MAGIC = b"PK\x03\x04"
 _PIXEL_DUMP = ("this is a pixel list (x, y, value) from Analyze › Tools › Save XY Coordinates, "
                "not a line: save the line selection with File › Save As › XY Coordinates")
 #: A step longer than _GAP_STEPS median steps and _GAP_FRACTION of the trace joins two curves.
@@ -174,7 +177,7 @@ class Midline:
         path = Path(path)
         header, values, where, comments = _table(path, _read_bytes(path), "csv")
         _check_extent(str(path), values[:, :2], where, _IN_PIXELS)
-        check_axis(str(path), values[:, :2], where)
+        check_axis(str(path), values[:, :2], where, _SWAPPED)
         meta = [tuple(part.strip() for part in c.partition("=")[::2]) for c in comments]
         sources = tuple(value for key, value in meta if key == "source")
         counts = [value for key, value in meta if key == "n_traces"] or ["1"]
@@ -226,22 +229,54 @@ def read_trace(path: str | Path, format: str | None = None, *, pixel_size_um: fl
         _, values, where, _ = _table(path, data, fmt)
         _check_extent(str(path), values[:, :2], where, _IN_PIXELS)
         points, where = _one_curve(path, values[:, :2], where, "R")
-        check_axis(str(path), points, where)
+        check_axis(str(path), points, where, _SWAPPED)
         return Trace(points, str(path), fmt, tuple(where))
-    scale = _scale(path, fmt, pixel_size_um, radius_um)
+    scale = image_scale(path, fmt, pixel_size_um, radius_um)
     spline = False
     if fmt == "roi":
-        pixels, where, spline = _read_roi(path, data)
+        pixels, where, spline = roi_points(str(path), _roi_of(path, data))
     else:
         _, pixels, where, _ = _table(path, data, fmt)
-    pixels, where = _one_curve(path, pixels, where, "px")
+    return pixel_trace(str(path), fmt, pixels, where, scale, spline)
+
+
+def pixel_trace(source: str, fmt: str, pixels: np.ndarray, where: Sequence[str], scale: float,
+                spline: bool = False) -> Trace:
+    """The :class:`Trace` of a curve in image pixels (y down), checked and scaled to units of R.
+
+    Parameters
+    ----------
+    source : str
+        The file (and ROI), for messages and ``Trace.source``.
+    fmt : str
+        Its format, one of :data:`FORMATS` but csv.
+    pixels : ndarray, shape (n, 2)
+        The points (x, y) in pixels.
+    where : sequence of str, length n
+        Where each point is in the file, for messages.
+    scale : float
+        Units of R per pixel (:func:`image_scale`).
+    spline : bool
+        The points are the control points of an ImageJ spline fit.
+
+    Returns
+    -------
+    Trace
+
+    Raises
+    ------
+    MidlineError
+        Not one simple curve of at least 4 distinct points, or points more
+        than 20 R from the first (a wrong scale).
+    """
+    pixels, where = _one_curve(source, pixels, list(where), "px")
     # (relative to the first point: the image origin is anywhere)
-    _check_extent(str(path), (pixels - pixels[0]) * scale, where,
+    _check_extent(source, (pixels - pixels[0]) * scale, where,
                   "check the pixel size and the radius R")
     if spline:
         pixels = _imagej_spline(pixels)     # each point labelled by the control point before it
         where = [where[min(k // SPLINE_SUBDIVISIONS, len(where) - 1)] for k in range(len(pixels))]
-    return Trace(pixels * [scale, -scale], str(path), fmt, tuple(where))
+    return Trace(pixels * [scale, -scale], source, fmt, tuple(where))
 
 
 def _read_bytes(path: Path) -> bytes:
@@ -253,6 +288,9 @@ def _read_bytes(path: Path) -> bytes:
 
 def _text(path: Path, data: bytes) -> list[tuple[int, str]]:
     """(line number, stripped text) of every line; MidlineError if not UTF-8."""
+    if data[:4] == ZIP_MAGIC:       # (was "line 1: not UTF-8 text (byte 11)")
+        raise MidlineError(f"{path}: a zip file (an ImageJ ROI Manager set?), not text: read it "
+                           f"with format 'roi' or none")
     try:
         text = data.decode("utf-8-sig")     # Excel writes a byte-order mark
     except UnicodeDecodeError as exc:
@@ -275,7 +313,7 @@ def _is_number(cell: str) -> bool:
 
 def _sniff(path: Path, data: bytes) -> str:
     """The format of a file from its content."""
-    if data[:4] == b"Iout":
+    if data[:4] in (b"Iout", ZIP_MAGIC):        # (a zip: refused by the roi reader, named)
         return "roi"
     content = [(i, s) for i, s in _text(path, data) if s and not s.startswith("#")]
     if not content:
@@ -349,22 +387,60 @@ def _row(path: Path, line: int, cells: list[str], header: tuple[str, ...]) -> li
     return row
 
 
-def _read_roi(path: Path, data: bytes) -> tuple[np.ndarray, list[str], bool]:
-    """Pixel coordinates, labels and the spline-fit flag of an ImageJ line ROI."""
+def _roi_of(path: Path, data: bytes):
+    """The ImageJ ROI in the bytes ``data`` of the file ``path``."""
     import roifile
+    if data[:4] == ZIP_MAGIC:
+        raise MidlineError(f"{path}: a zip file (an ImageJ ROI Manager set?): load_midline reads "
+                           f"it, one line ROI chosen by roi=NAME or INDEX, or roi='all'")
     try:
-        roi = roifile.ImagejRoi.frombytes(data)
+        return roifile.ImagejRoi.frombytes(data)
     except Exception as exc:    # roifile raises ValueError, struct.error, … on damaged files
         raise MidlineError(f"{path}: not a readable ImageJ ROI file ({exc})") from None
+
+
+def roi_kind(roi) -> str | None:
+    """None for a line ROI (a trace), else what it is ("an oval", "a composite ROI", ...)."""
+    import roifile
     kind = roifile.ROI_TYPE(roi.roitype)
     if roi.multi_coordinates is not None:
-        raise MidlineError(f"{path}: a composite ROI (several shapes), not one line")
+        return "a composite ROI (several shapes)"
     if kind in (roifile.ROI_TYPE.POLYGON, roifile.ROI_TYPE.FREEHAND, roifile.ROI_TYPE.TRACED,
                 roifile.ROI_TYPE.RECT, roifile.ROI_TYPE.OVAL):
-        raise MidlineError(f"{path}: an area selection ({kind.name.lower()}), not a line: trace "
-                           f"the midline with the segmented, freehand or straight line tool")
+        return f"an area selection ({kind.name.lower()})"
     if kind not in (roifile.ROI_TYPE.POLYLINE, roifile.ROI_TYPE.FREELINE, roifile.ROI_TYPE.LINE):
-        raise MidlineError(f"{path}: a {kind.name.lower()} ROI, not a line selection")
+        return f"a {kind.name.lower()} ROI"
+    return None
+
+
+def roi_points(source: str, roi) -> tuple[np.ndarray, list[str], bool]:
+    """Pixel coordinates, labels and the spline-fit flag of an ImageJ line ROI.
+
+    Parameters
+    ----------
+    source : str
+        The file (and ROI), for messages.
+    roi : roifile.ImagejRoi
+
+    Returns
+    -------
+    pixels : ndarray, shape (n, 2)
+    where : list of str
+        "point k", k from 1.
+    spline : bool
+        Flagged as the control points of a spline fit.
+
+    Raises
+    ------
+    MidlineError
+        Not a line selection (:func:`roi_kind`).
+    """
+    import roifile
+    kind = roi_kind(roi)
+    if kind is not None:
+        hint = (": trace the midline with the segmented, freehand or straight line tool"
+                if kind.startswith("an area") else " selection")
+        raise MidlineError(f"{source}: {kind}, not a line{hint}")
     pixels = np.asarray(roi.coordinates(), dtype=float)
     spline = bool(roi.options & roifile.ROI_OPTIONS.SPLINE_FIT)
     return pixels, [f"point {k + 1}" for k in range(len(pixels))], spline
@@ -385,8 +461,22 @@ def _imagej_spline(control: np.ndarray) -> np.ndarray:
 
 # --------------------------------------------------------------------------- scale and checks
 
-def _scale(path: Path, fmt: str, pixel_size_um, radius_um) -> float:
-    """Units of R per pixel, from the two scale options."""
+def image_scale(path, fmt: str, pixel_size_um, radius_um) -> float:
+    """Units of R per pixel, from the two scale options (MidlineError naming a missing one).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file, for messages.
+    fmt : str
+        Its format, for messages.
+    pixel_size_um, radius_um : float or None
+        µm per pixel and the embryo radius R in µm.
+
+    Returns
+    -------
+    float
+    """
     options = {"pixel_size_um": (pixel_size_um, "µm per pixel"),
                "radius_um": (radius_um, "the embryo radius R in µm")}
     missing = [f"{name} ({meaning})" for name, (value, meaning) in options.items() if value is None]
@@ -455,7 +545,7 @@ def check_positive(name: str, value, prefix: str = "") -> float:
     return value
 
 
-def _one_curve(path: Path, points: np.ndarray, where: list[str], unit: str):
+def _one_curve(path, points: np.ndarray, where: list[str], unit: str):
     """Points without repeats and their labels; MidlineError unless they make one simple curve."""
     keep = np.r_[True, np.any(np.diff(points, axis=0) != 0, axis=1)]
     points, where = points[keep], [w for w, k in zip(where, keep) if k]
@@ -510,6 +600,9 @@ def _first_crossing(points: np.ndarray, apart: float, chunk: int = 32) -> tuple[
     return min(found) if found else None
 
 
+#: The likely cause of a csv midline that crosses the axis: a column z from the pole runs
+#: along the axis, where a column r may not.
+_SWAPPED = ": are its columns r and z swapped?"
 _IN_PIXELS = "a trace in pixels is read with format 'xy', 'fiji-xy' or 'roi' and a scale"
 
 
@@ -522,7 +615,7 @@ def _check_extent(source: str, points: np.ndarray, where, hint: str) -> None:
                            f"midline lies within {_MAX_EXTENT:g} R of its pole ({hint})")
 
 
-def check_axis(source: str, points: np.ndarray, where) -> None:
+def check_axis(source: str, points: np.ndarray, where, hint: str = "") -> None:
     """Refuse a model-gauge midline that goes to r < 0 by more than noise.
 
     Parameters
@@ -533,6 +626,8 @@ def check_axis(source: str, points: np.ndarray, where) -> None:
         (r, z) in units of R.
     where : sequence of str, length n
         Where each point is in the file ("line 7"), for the message.
+    hint : str
+        Appended to the message: the likely cause.
 
     Raises
     ------
@@ -542,7 +637,7 @@ def check_axis(source: str, points: np.ndarray, where) -> None:
     bad = np.flatnonzero(points[:, 0] < -_AXIS_SLACK)
     if len(bad):
         raise MidlineError(f"{source}: {where[bad[0]]}: r = {points[bad[0], 0]:.4g} < 0: the "
-                           f"midline crosses the axis (the model gauge has r >= 0)")
+                           f"midline crosses the axis (the model gauge has r >= 0){hint}")
 
 
 # --------------------------------------------------------------------------- writing
@@ -614,7 +709,7 @@ def write_trace(path: str | Path, midline, format: str, *, pixel_size_um: float 
                                f"{section!r} does not apply")
         (midline if isinstance(midline, Midline) else Midline(*points.T)).to_csv(path)
         return
-    scale = _scale(path, fmt, pixel_size_um, radius_um)
+    scale = image_scale(path, fmt, pixel_size_um, radius_um)
     pixels = to_image(points, radius_px=1.0 / scale, angle_deg=angle_deg, offset_px=offset_px,
                       section=section or "whole")
     if noise_px:

@@ -241,7 +241,8 @@ def _read_data(data_dir, start) -> tuple[Timepoint, ...]:
     spec = volvox_spec("free", first_start(start))
     for tp in timepoints:
         for path in (tp.midline, *tp.traces):
-            check_midline(spec, Midline.from_csv(Path(data_dir) / path), f"{path}: the midline")
+            check_midline(spec, Midline.from_csv(Path(data_dir) / path), f"{path}: the midline",
+                          scale_hint="are its r and z in units of R, the embryo's radius?")
     return timepoints
 
 

@@ -1,0 +1,140 @@
+"""A new user's traces on the command line (issue 41): a wrong scale or swapped columns are
+refused before any solve, naming the options to check; image traces without a scale are told
+the command line's options, not the library's arguments."""
+from pathlib import Path
+
+import pytest
+
+from morphoshell.cli import main
+from morphoshell.io import Midline
+
+ROOT = Path(__file__).resolve().parents[2]
+T01 = ROOT / "data" / "synthetic_inversion" / "t01"
+#: The scale the synthetic trace of embryo 1 was written at (its header comment).
+PIXEL_UM, RADIUS_UM = 0.3, 43.9927
+
+
+@pytest.fixture(scope="module")
+def fiji_xy(tmp_path_factory):
+    """The synthetic embryo's image trace as Fiji's XY Coordinates export: x<TAB>y, no header."""
+    rows = [ln for ln in (T01 / "synthetic_embryo1.csv").read_text().splitlines()
+            if ln[:1].isdigit()]
+    path = tmp_path_factory.mktemp("traces") / "trace_xy.txt"
+    path.write_text("".join(ln.replace(",", "\t") + "\n" for ln in rows))
+    return path
+
+
+def _refused(argv, capsys, tmp_path, *named):
+    out = tmp_path / "fit.json"
+    assert main([*argv, "--json", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    for word in named:
+        assert word in err, err
+    assert not out.exists()
+    return err
+
+
+@pytest.mark.parametrize("factor, named", [
+    (4, "3.6× longer than the undeformed shell"),
+    (2, "1.8× longer than the undeformed shell"),
+    (0.25, "4.5× shorter than the undeformed shell"),
+])
+def test_a_wrong_pixel_size_is_refused_naming_the_factor_and_the_options(
+        fiji_xy, factor, named, capsys, tmp_path):
+    """4x off used to end at E_fit 20 R (exit 3), 2x at 0.83 R with stretches on their bounds."""
+    size = PIXEL_UM * factor
+    _refused(["fit", str(fiji_xy), "--variant", "free", "--pixel-size", f"{size:g}",
+              "--radius-um", str(RADIUS_UM)], capsys, tmp_path,
+             named, f"is --pixel-size {size:g} the size of a pixel in µm",
+             f"--radius-um {RADIUS_UM:g} the embryo's radius R in µm?")
+
+
+def test_swapped_columns_are_refused_naming_the_likely_cause(capsys, tmp_path):
+    """An r,z CSV with r and z swapped (header still r,z) used to "converge" to E_fit 3.7 R
+    (t01) and write its JSON; a later stage's swapped r goes negative."""
+    for stage, named in (("t01", "leaves the pole at 89 degrees from the r axis"),
+                         ("t10", "the midline crosses the axis")):
+        m = Midline.from_csv(T01.parent / stage / "synthetic_average.csv")
+        path = tmp_path / f"{stage}_swapped.csv"
+        Midline(m.z, m.r).to_csv(path)
+        _refused(["fit", str(path), "--variant", "free"], capsys, tmp_path, named,
+                 "are its columns r and z swapped?")
+
+
+def test_a_csv_of_the_wrong_scale_names_its_units(capsys, tmp_path):
+    m = Midline.from_csv(T01 / "synthetic_average.csv")
+    path = tmp_path / "big.csv"
+    Midline(3 * m.r, 3 * m.z).to_csv(path)
+    _refused(["fit", str(path), "--variant", "flat"], capsys, tmp_path,
+             "2.7× longer", "are its r and z in units of R")
+
+
+def test_messages_name_the_command_line_options(fiji_xy, capsys, tmp_path):
+    """The library's messages name its Python arguments (pixel_size_um); the command line's
+    name its options."""
+    err = _refused(["fit", str(fiji_xy), "--variant", "free"], capsys, tmp_path,
+                   "pass --pixel-size (µm per pixel) and --radius-um (the embryo radius R in µm)")
+    assert "pixel_size_um" not in err and "radius_um" not in err
+    err = _refused(["fit", str(fiji_xy), "--variant", "free", "--radius-um", "44"], capsys,
+                   tmp_path, "pass --pixel-size (µm per pixel) to convert")
+    csv = T01 / "synthetic_average.csv"
+    _refused(["fit", str(csv), "--variant", "free", "--pixel-size", "0.3"], capsys, tmp_path,
+             "csv traces are in units of R: --pixel-size does not apply")
+    asymmetric = tmp_path / "half.txt"          # a half section passed as whole
+    rows = fiji_xy.read_text().splitlines()
+    asymmetric.write_text("\n".join(rows[len(rows) // 2 - 40:]) + "\n")
+    _refused(["fit", str(asymmetric), "--variant", "free", "--pixel-size", str(PIXEL_UM),
+              "--radius-um", str(RADIUS_UM)], capsys, tmp_path, "pass --section half")
+
+
+def test_fit_help_says_image_traces_need_the_scale(capsys):
+    assert main(["fit", "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "pixel coordinates: Fiji XY, .roi, RoiSet.zip, x,y CSV" in text
+    assert "need --pixel-size and --radius-um" in text
+
+
+def test_campaign_messages_name_its_options(capsys, tmp_path):
+    """workflows.campaign names its Python arguments (embryo_errors); the command line its
+    options."""
+    data = ROOT / "data" / "synthetic_inversion"
+    out = tmp_path / "out"
+    for argv, named in ((["--variants", "flat", "--embryo-errors", "free"],
+                         "error: --embryo-errors: variants ['free'] are not among"),
+                        (["--timepoints", "t99"], "error: --timepoints ['t99']: the data set has")):
+        assert main(["campaign", str(data), "--out", str(out), *argv]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and named in err, err
+        assert not out.exists()
+
+
+def test_fit_reads_a_roi_manager_set(tmp_path, capsys, monkeypatch):
+    """A RoiSet.zip was read as text ("line 1: not UTF-8 text (byte 11)"); now --roi chooses a
+    line ROI by name or position, or all of them, averaged; without a choice among several
+    the message names them and the option."""
+    import sys
+
+    import morphoshell.fitting as fitting
+    from morphoshell.fitting import FitError
+
+    sys.path.insert(0, str(ROOT / "tests" / "io"))
+    from test_roi_sets import _roi_set
+    from reference_midline import SCALE
+
+    path = _roi_set(tmp_path)
+    scale = ["--pixel-size", str(SCALE["pixel_size_um"]), "--radius-um", str(SCALE["radius_um"])]
+    err = _refused(["fit", str(path), "--variant", "flat", *scale], capsys, tmp_path,
+                   "choose one with --roi NAME or INDEX (from 1), or --roi all to average them")
+    assert "roi=" not in err
+    seen = []
+
+    def fake_fit(spec, midline, *args, **kwargs):
+        seen.append(midline)
+        raise FitError("stopped here", "Maximum_Iterations_Exceeded")
+
+    monkeypatch.setattr(fitting, "fit", fake_fit)
+    for choice, traces in (("all", 3), ("embryo2", 1), ("3", 1)):
+        assert main(["fit", str(path), "--variant", "flat", "--roi", choice, *scale]) == 3
+        assert seen[-1].n_traces == traces
+    assert seen[-1].source == (f"{path}, ROI 'embryo3'",)
