@@ -146,7 +146,7 @@ def test_titles_and_legends_say_what_was_solved(eqs, ablation):
     ax = plot_cross_section(eqs[1])
     assert ax.get_title() == "demo: uniform, large-bending"
     assert "k = 0.5" in get_caption(ax) and "h = 0.1" in get_caption(ax)
-    assert "direct, 50 nodes" in get_caption(ax)
+    assert "direct method, 50 nodes" in get_caption(ax)
     # several: title and caption say what they share, the entries what sets them apart
     ax = plot_cross_section(eqs)
     assert "h = 0.1" in get_caption(ax) and "k =" not in get_caption(ax) + ax.get_title()

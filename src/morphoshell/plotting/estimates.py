@@ -22,22 +22,22 @@ MEASURE_COLOURS = {"opening": "tab:blue", "rotation": "tab:orange", "displacemen
 _MEASURE_LABEL = {"opening": r"opening $o$", "rotation": r"rotation $\varrho$",
                   "displacement": r"displacement $d$"}
 #: Legend entry of the arrows at the axis' ends (:func:`plot_k_estimates`).
-OFF_SCALE_LABEL = "off scale, or no k in range (arrow at the axis)"
+OFF_SCALE_LABEL = "off scale or no k in range"
 #: Columns between the groups of embryos (one group per measure).
 _GAP = 2
 #: Marker sizes (points): one embryo's estimate, a group's mean.
 _MS, _MS_MEAN = 4.5, 7.0
 
 
-def plot_k_estimates(ax: Axes, result, truth=None, ylim=None) -> Axes:
+def plot_k_estimates(ax: Axes, result, truth=None, ylim=None, *, legend: str = "below") -> Axes:
     """Estimates of k per embryo (paper Fig. 2 J).
 
     Three groups (o, ϱ, d), one column per embryo: open markers the paper's
     asymptotic estimates, filled the numerical ones; large markers with bars
     the mean ± standard deviation of each.  Estimates off the axis (or with
     no k in the range, beyond it) are arrows at the axis.  ``truth``, a
-    mapping embryo → k, adds grey ticks (synthetic data).  The legend (under
-    the axes) names every kind of marker drawn.
+    mapping embryo → k, adds grey ticks (synthetic data).  The legend names
+    every kind of marker drawn.
 
     Parameters
     ----------
@@ -48,6 +48,9 @@ def plot_k_estimates(ax: Axes, result, truth=None, ylim=None) -> Axes:
         Embryo → true k.
     ylim : (float, float), optional
         The k axis' range (default: from the result's k range).
+    legend : {"below", "figure"}
+        Under the axes, or under the whole figure (wider than the axes: for
+        a figure of several panels, :func:`figure_JK`).
 
     Returns
     -------
@@ -69,7 +72,7 @@ def plot_k_estimates(ax: Axes, result, truth=None, ylim=None) -> Axes:
         ax.set_xticks([])
         ax.set_xlabel(f"embryos (N = {n}), grouped by measure")
         ax.set_ylabel(r"intrinsic curvature $k$ (units of $1/R$)")
-        _k_legend(ax, result, truth is not None, off_scale)
+        _k_legend(ax, result, truth is not None, off_scale, legend)
     return ax
 
 
@@ -118,24 +121,28 @@ def _reference_lines(ax: Axes, result) -> None:
                    label=rf"$\langle k\rangle = {c.mean:.3f}$ ($\varrho$ and $d$, numerical)")
 
 
-def _k_legend(ax: Axes, result, truth: bool, off_scale: bool) -> None:
+def _k_legend(ax: Axes, result, truth: bool, off_scale: bool, where: str) -> None:
     """Every marker kind, in grey (the colours are the measures, named above the groups)."""
     grey = dict(color="0.3", ls="none", mew=1.0)
     entries = [(Line2D([], [], marker="o", mfc="white", ms=_MS, **grey),
                 "asymptotic (paper's formulas)"),
                (Line2D([], [], marker="o", ms=_MS, **grey),
                 f"numerical (toy problem 2, {result.settings['theory'].replace('_', '-')})"),
-               (Line2D([], [], marker="o", ms=_MS_MEAN, **grey), "mean ± std of a group")]
+               (Line2D([], [], marker="o", ms=_MS_MEAN, **grey), "mean ± std")]
     if off_scale:
         entries.append(((Line2D([], [], marker="^", ms=_MS, **grey),
                          Line2D([], [], marker="v", ms=_MS, **grey)), OFF_SCALE_LABEL))
     if truth:
-        entries.append((Line2D([], [], color="0.5", lw=1.2), "true k (synthetic data)"))
+        entries.append((Line2D([], [], color="0.5", lw=1.2), "true k (synthetic)"))
     handles, labels = ax.get_legend_handles_labels()     # the ⟨k⟩ line
     entries += list(zip(handles, labels))
-    ax.legend(*zip(*entries), loc="upper center", bbox_to_anchor=(0.5, -0.09), ncol=3,
-              handler_map={tuple: HandlerTuple(ndivide=None, pad=0.3)}, frameon=False,
-              fontsize=MIN_FONT_SIZE, borderaxespad=0.0, columnspacing=1.2)
+    options = dict(ncol=3, handler_map={tuple: HandlerTuple(ndivide=None, pad=0.3)},
+                   frameon=False, fontsize=MIN_FONT_SIZE, columnspacing=1.2)
+    if where == "figure":
+        ax.figure.legend(*zip(*entries), loc="outside lower center", **options)
+    else:
+        ax.legend(*zip(*entries), loc="upper center", bbox_to_anchor=(0.5, -0.09),
+                  borderaxespad=0.0, **options)
 
 
 def plot_recoil_velocity(ax: Axes, result) -> Axes:
@@ -160,14 +167,16 @@ def plot_recoil_velocity(ax: Axes, result) -> Axes:
         x = np.linspace(0, 1.1 * X.max(), 50)
         se = "" if fit.standard_error is None else rf" \pm {fit.standard_error:.2f}"
         ax.plot(x, fit.E_over_mu * x, "k-", lw=1.0,
-                label=rf"$V = \langle E/\mu\rangle\,X$, $\langle E/\mu\rangle = "
-                      rf"{fit.E_over_mu:.2f}{se}\,\mathrm{{s^{{-1}}}}$")
+                label=r"$V = \langle E/\mu\rangle\,X$ (least squares)")
         ax.set_xlim(0, None)
         ax.set_ylim(0, None)
         ax.set_xlabel(r"$X = H^{5/2}R^{-3/2}|1-k|$ (µm)")
         ax.set_ylabel(r"initial recoil velocity $V$ (µm/s)")
         ax.legend(loc="upper left", fontsize=MIN_FONT_SIZE, frameon=False)
-        ax.text(0.97, 0.03, f"E ≥ {fit.E_lower_bound_Pa * 1e3:.2g} mPa (μ ≥ "
+        # the slope with the bounds it gives, in the corner the line leaves free
+        ax.text(0.97, 0.03, rf"$\langle E/\mu\rangle = {fit.E_over_mu:.2f}{se}\,"
+                            rf"\mathrm{{s^{{-1}}}}$" "\n"
+                            f"E ≥ {fit.E_lower_bound_Pa * 1e3:.2g} mPa (μ ≥ "
                             f"{fit.mu_min_Pa_s * 1e3:g} mPa s)\nE H³ ≥ "
                             f"{fit.bending_modulus_lower_bound_J:.2g} J (H = {fit.H_mean_um:.3g} µm)",
                 transform=ax.transAxes, ha="right", va="bottom", fontsize=MIN_FONT_SIZE)
@@ -194,7 +203,7 @@ def figure_JK(result, truth=None, *, pyplot: bool = True) -> Figure:
     fig = journal_figure(DOUBLE_COLUMN, 0.46 * DOUBLE_COLUMN, pyplot=pyplot)
     with styled(fig):
         a, b = fig.subplots(1, 2, width_ratios=[2.1, 1])
-        plot_k_estimates(a, result, truth)
+        plot_k_estimates(a, result, truth, legend="figure")
         plot_recoil_velocity(b, result)
         a.set_title("J  intrinsic curvature from ablation recoils", loc="left")
         b.set_title("K  recoil velocity", loc="left")

@@ -189,7 +189,7 @@ def problem_title(problem: Problem, name: str | None = None) -> str:
     ``name`` replaces the problem's own (e.g. the traced file a fit is of).
     """
     items = {k: v for k, v in _problem_items(problem).items() if k in TITLE_ITEMS}
-    return _join({"name": name, **items} if name else items)
+    return _join({**items, "name": name} if name else items)
 
 
 def problem_caption(problem: Problem) -> str:
@@ -211,10 +211,11 @@ def _caption_of(items: dict[str, str], problem: Problem) -> str:
 
 def _shared_caption(common: dict[str, str], problem: Problem) -> str:
     """The caption of what all results share: parameters; then method and mesh."""
-    solver = ", ".join(common[k] for k in ("method", "nodes") if k in common)
+    solver = ", ".join(f"{common['method']} method" if k == "method" else common[k]
+                       for k in ("method", "nodes") if k in common)
     params = _caption_of({k: v for k, v in common.items() if k not in ("method", "nodes")},
                          problem)
-    return "; ".join(part for part in (params, solver and f"{solver} solution") if part)
+    return "; ".join(part for part in (params, solver) if part)
 
 
 def _describe(eqs: Sequence[Equilibrium]) -> tuple[str, str, list[str]]:
