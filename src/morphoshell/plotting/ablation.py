@@ -19,7 +19,7 @@ from matplotlib.legend_handler import HandlerTuple
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from .shells import (_band_edges, _mirrored, band_path, draw_shell, far_end_shift,
+from .shells import (band_edges, band_path, draw_shell, far_end_shift, mirrored,
                      finish_shell_axes, problem_caption, problem_title)
 from .style import new_axes, styled
 
@@ -131,8 +131,8 @@ def _draw_state(ax: Axes, ablation, key: str, color: str | None, midline_only: b
 def _outline(eq, shift: float, **props) -> LineCollection:
     """Both edges of the band of ``eq`` (both halves of the section), as one collection."""
     segments = []
-    for r, z in _band_edges(eq):
-        x, y = _mirrored(eq, r, z + shift)
+    for r, z in band_edges(eq):
+        x, y = mirrored(eq, r, z + shift)
         gaps = np.flatnonzero(np.isnan(x))    # an edge at the far end: the halves apart
         segments += [np.column_stack(part) for part in zip(np.split(x, gaps), np.split(y, gaps))]
     return LineCollection([seg[~np.isnan(seg).any(axis=1)] for seg in segments], **props)

@@ -39,7 +39,8 @@ from .style import add_caption, new_axes, styled
 
 __all__ = ["sheet_outline", "far_end_shift", "problem_label", "problem_title",
            "problem_caption", "plot_cross_section", "finish_shell_axes", "draw_shell",
-           "band_path", "SHOW_ALL_PARAMETERS", "BAND_ALPHA", "TITLE_ITEMS"]
+           "band_path", "band_edges", "mirrored", "SHOW_ALL_PARAMETERS", "BAND_ALPHA",
+           "TITLE_ITEMS"]
 
 #: Families with at most this many parameters are described with all their
 #: values (a default is a value too: "f0 = 0.1" says more than nothing);
@@ -66,11 +67,11 @@ def sheet_outline(eq: Equilibrium) -> tuple[np.ndarray, np.ndarray]:
     r, z : ndarray, shape (2N,)
         For the N points of ``eq``.
     """
-    outer, inner = _band_edges(eq)
+    outer, inner = band_edges(eq)
     return np.concatenate([outer[0], inner[0][::-1]]), np.concatenate([outer[1], inner[1][::-1]])
 
 
-def _band_edges(eq: Equilibrium) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+def band_edges(eq: Equilibrium) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
     """(r, z) of the two edges of the sheet: the midline ± h/(2 f_s f_φ) along the normal."""
     half = eq.problem.h / (eq.f_s * eq.f_phi) / 2
     # At a pole f_φ → f_s: the nodal values are finite by construction.
@@ -90,7 +91,7 @@ def far_end_shift(eq: Equilibrium) -> float:
     return edge_state(eq, float(eq.s[0]))["z"] - float(eq.z[0])
 
 
-def _mirrored(eq: Equilibrium, r: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def mirrored(eq: Equilibrium, r: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """A curve along the meridian and back along its mirror image, as one polyline.
 
     The halves meet at a pole at the far end; where the shell has an edge
@@ -132,10 +133,10 @@ def draw_shell(ax: Axes, eq: Equilibrium, band: str | None, line: dict, *,
                                        zorder=band_zorder))
     elif band == "outline":
         lw = 0.5 * line.get("linewidth", 1.0)
-        for r, z in _band_edges(eq):
-            ax.plot(*_mirrored(eq, r, z + shift), color=color, lw=lw, alpha=0.8,
+        for r, z in band_edges(eq):
+            ax.plot(*mirrored(eq, r, z + shift), color=color, lw=lw, alpha=0.8,
                     zorder=band_zorder)
-    return ax.plot(*_mirrored(eq, eq.r, eq.z + shift), **line)[0], patch
+    return ax.plot(*mirrored(eq, eq.r, eq.z + shift), **line)[0], patch
 
 
 # --------------------------------------------------------------------------
