@@ -109,9 +109,11 @@ def journal_figure(width: float = SINGLE_COLUMN, height: float | None = None, *,
         Axes added to it later are in the paper style (:func:`styled`).
     """
     size = (width, 0.9 * width if height is None else height)
-    with paper_style():
-        fig = (plt.figure(figsize=size, layout="constrained") if pyplot
-               else Figure(figsize=size, layout="constrained"))
+    # made outside paper_style: pyplot's first figure resolves the backend, and
+    # Jupyter's inline backend then turns interactive mode on, which leaving an
+    # rc_context entered before would turn off again (no more inline plots)
+    fig = (plt.figure(figsize=size, layout="constrained") if pyplot
+           else Figure(figsize=size, layout="constrained"))
     setattr(fig, _STYLED, True)
     return fig
 
