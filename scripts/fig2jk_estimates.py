@@ -32,16 +32,17 @@ import time
 from pathlib import Path
 
 from morphoshell._runtime.console import run_script
-from morphoshell.plotting import figure_JK, plot_k_estimates, plot_recoil_velocity
+from morphoshell.plotting import (DOUBLE_COLUMN, SINGLE_COLUMN, figure_JK, new_axes,
+                                  plot_k_estimates, plot_recoil_velocity, save)
 from morphoshell.inverse import estimate
 from morphoshell.io.problem_files import write_csv, write_json
-import matplotlib.pyplot as plt
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = Path(__file__).name
 DEFAULT_INPUT = ROOT / "data" / "synthetic_ablations.csv"
-DPI = 130
 FORMATS = ("png", "pdf")
+#: Sizes (inches) of the single-panel files: J two journal columns wide, K one.
+SIZES = {"J": (DOUBLE_COLUMN, 3.1), "K": (SINGLE_COLUMN, 3.0)}
 
 
 def ground_truth(table: Path) -> dict[str, float] | None:
@@ -54,14 +55,8 @@ def ground_truth(table: Path) -> dict[str, float] | None:
 
 
 def _save(fig, stem: Path) -> list[Path]:
-    stem.parent.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for fmt in FORMATS:
-        path = stem.with_suffix("." + fmt)
-        fig.savefig(path, dpi=DPI)
-        paths.append(path)
-    plt.close(fig)
-    return paths
+    """300 dpi PNG and PDF (text editable: the paper style's TrueType fonts)."""
+    return save(fig, stem, FORMATS, close=True)
 
 
 def main(argv=None) -> int:
@@ -81,11 +76,11 @@ def _run(args) -> int:
     print(result)
     truth = ground_truth(table)
     written = []
-    for name, draw, size in (("J", lambda ax: plot_k_estimates(ax, result, truth), (7.6, 4.4)),
-                             ("K", lambda ax: plot_recoil_velocity(ax, result), (4.4, 4.0))):
-        fig, ax = plt.subplots(figsize=size, constrained_layout=True)
+    for name, draw in (("J", lambda ax: plot_k_estimates(ax, result, truth)),
+                       ("K", lambda ax: plot_recoil_velocity(ax, result))):
+        ax = new_axes(SIZES[name])        # in the paper style: fonts >= 7 pt
         draw(ax)
-        written += _save(fig, out / f"fig2_{name}")
+        written += _save(ax.figure, out / f"fig2_{name}")
     written += _save(figure_JK(result, truth), out / "fig2_JK")
     written.append(write_json(out / "fig2jk_estimates.json",
                               {"script": SCRIPT, "input": str(table),

@@ -17,7 +17,7 @@ import matplotlib
 from morphoshell._runtime.console import run_script, progress
 from morphoshell.solvers.routes import solve
 from morphoshell.io.problem_files import EXAMPLES_DIR, load_problem, write_json
-from morphoshell.plotting import plot_cross_section, problem_label, save
+from morphoshell.plotting import plot_cross_section, save
 
 
 
@@ -39,8 +39,8 @@ def _run(args) -> int:
         extra = {"stages": settings.stages} if settings.method == "direct" else {}
         eq = solve(problem, nodes=settings.nodes, method=settings.method, **extra)
         write_json(out / f"{path.stem}.json", eq.to_dict())
-        title = f"{problem_label(problem)}\n({settings.method}, {settings.nodes} nodes)"
-        save(plot_cross_section(eq, title=title), out / f"{path.stem}.png", close=True)
+        # title: the problem; caption: its parameters, method and mesh
+        save(plot_cross_section(eq), out / f"{path.stem}.png", close=True)
         summary[path.stem] = eq.to_dict(arrays=False)
         print(f"{path.stem:20s} energy {eq.energy:.10g}  {eq.solver.iterations} iterations  "
               f"{eq.solver.seconds * 1e3:7.1f} ms")

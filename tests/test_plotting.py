@@ -14,8 +14,8 @@ from PIL import Image
 
 from morphoshell.mechanics.ablation import ablate
 from morphoshell.solvers.routes import solve
-from morphoshell.plotting import (new_axes, plot_ablation, plot_cross_section, problem_label,
-                                  save)
+from morphoshell.plotting import (get_caption, new_axes, plot_ablation, plot_cross_section,
+                                  problem_label, save)
 from morphoshell.model.problem import Problem
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -142,16 +142,25 @@ def test_titles_and_legends_say_what_was_solved(eqs, ablation):
                  "k = 0.5"):
         assert part in label, part
     assert "cut" not in problem_label(eqs[0].problem)   # no cut, no opening: not mentioned
-    assert "k = 0.5" in plot_cross_section(eqs[1]).get_title()
-    # several: the title says what they share, the entries what sets them apart
+    # one result: the title names the problem (one line), the caption its parameters
+    ax = plot_cross_section(eqs[1])
+    assert ax.get_title() == "demo: uniform, large-bending"
+    assert "k = 0.5" in get_caption(ax) and "h = 0.1" in get_caption(ax)
+    assert "direct method, 50 nodes" in get_caption(ax)
+    # several: title and caption say what they share, the entries what sets them apart
     ax = plot_cross_section(eqs)
-    assert "h = 0.1" in ax.get_title() and "k =" not in ax.get_title()
+    assert "h = 0.1" in get_caption(ax) and "k =" not in get_caption(ax) + ax.get_title()
     assert [t.get_text() for t in ax.get_legend().get_texts()] == ["k = 0", "k = 0.5"]
     # the legend is beside the axes, not over the shells
     ax.figure.canvas.draw()
     assert (ax.get_legend().get_window_extent().x0
             >= ax.get_window_extent().x1 - 1e-6)
-    assert "cut Σ = 0.3" in plot_ablation(ablation).get_title()
+    ax = plot_ablation(ablation)
+    assert ax.get_title() == "toy2: uniform, large-bending"
+    assert "cut Σ = 0.3" in get_caption(ax) and f"{ablation.rotation:.3g} rad" in get_caption(ax)
+    # a caller's own title (or none, for a panel): no caption of ours
+    for ax in (plot_cross_section(eqs[0], title=None), plot_ablation(ablation, title="B")):
+        assert get_caption(ax) == ""
     assert plot_cross_section(eqs[0], title=None).get_title() == ""
 
 

@@ -101,9 +101,9 @@ def _estimate(args) -> int:
                                                       **result.to_dict()}))
     out.add(args.csv, lambda path: write_csv(path, result.table()))
     if args.plot:
-        from ..plotting import figure_JK
-        fig = figure_JK(result)
-        out.add(args.plot, lambda path: fig.savefig(path, dpi=130))
+        from ..plotting import figure_JK, save
+        fig = figure_JK(result, pyplot=False)    # (no pyplot figure left open)
+        out.add(args.plot, lambda path: save(fig, path))
     for path in out.commit():
         print(f"  wrote {path}")
     return 0

@@ -166,8 +166,9 @@ def _fit(args) -> int:
         "value": [result.parameters[n] for n in result.fitted],
         "standard_error": [result.standard_errors[n] for n in result.fitted]}))
     if args.plot:
-        from ..plotting import new_axes, plot_fit, save
-        ax = plot_fit(result, new_axes(pyplot=False, legend=True))
+        from ..plotting import fit_axes, plot_fit, save
+        shell, residual = fit_axes(pyplot=False)
+        ax = plot_fit(result, shell, residual_ax=residual, name=Path(args.midline).name)
         out.add(args.plot, lambda path: save(ax, path))
     if profiles and profile_plot_path(args) is not None:
         from ..plotting import save

@@ -135,10 +135,10 @@ def _solve(args) -> int:
     out.add(args.json, lambda path: write_json(path, eq.to_dict()))
     out.add(args.csv, lambda path: write_csv(path, {k: getattr(eq, k) for k in FIELDS}))
     if args.plot:
-        from ..plotting import new_axes, plot_cross_section, problem_label, save
-        # a figure outside pyplot: no backend or display needed, none left open
-        ax = plot_cross_section(eq, new_axes(pyplot=False),
-                                title=f"{problem_label(problem)} ({method})")
+        from ..plotting import new_axes, plot_cross_section, save
+        # a figure outside pyplot: no backend or display needed, none left open; the
+        # title names the problem, the caption its parameters and the method
+        ax = plot_cross_section(eq, new_axes(pyplot=False))
         out.add(args.plot, lambda path: save(ax, path))
     for path in out.commit():
         print(f"  wrote {path}")

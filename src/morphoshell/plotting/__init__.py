@@ -1,6 +1,8 @@
-"""Plots (Matplotlib): cross-sections of equilibria, ablations and fits, the paper's
-figures and their styling (:mod:`.shells`), and bifurcation diagrams of branches
-(:mod:`.branches`).
+"""Plots (Matplotlib): cross-sections of equilibria (:mod:`.shells`), ablations
+(:mod:`.ablation`) and fits with their residuals (:mod:`.fits`), the paper's
+Fig. 2 J–K (:mod:`.estimates`), bifurcation diagrams of branches
+(:mod:`.branches`), and the look they share — journal sizes, fonts, one-line
+titles and captions, saving (:mod:`.style`).
 
 Importing the package leaves the Matplotlib backend alone, so plots show inline
 in Jupyter; the command line draws into figures outside pyplot
@@ -11,10 +13,14 @@ import lazy_loader
 
 # Every public name of the subpackage, imported from its module on first use.
 __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
-    "shells": ["plot_fit", "plot_k_estimates", "plot_recoil_velocity", "figure_JK",
-        "MEASURE_COLOURS", "sheet_outline", "far_end_shift", "problem_label", "new_axes",
-        "plot_cross_section", "plot_ablation", "plot_ablation_overlay", "save",
-        "paper_style", "label_panel", "SINGLE_COLUMN", "DOUBLE_COLUMN", "MIN_FONT_SIZE",
-        "PAPER_RC", "ABLATION_STYLE"],
+    "style": ["new_axes", "journal_figure", "save", "paper_style", "styled", "label_panel",
+              "add_caption", "get_caption", "SINGLE_COLUMN", "DOUBLE_COLUMN", "MIN_FONT_SIZE",
+              "PAPER_RC"],
+    "shells": ["sheet_outline", "far_end_shift", "problem_label", "problem_title",
+               "problem_caption", "plot_cross_section"],
+    "ablation": ["plot_ablation", "plot_ablation_overlay", "ABLATION_STYLE", "recoil_caption"],
+    "fits": ["plot_fit", "fit_axes", "fit_residuals"],
+    "estimates": ["plot_k_estimates", "plot_recoil_velocity", "figure_JK", "MEASURE_COLOURS",
+                  "OFF_SCALE_LABEL"],
     "branches": ["plot_branch", "BRANCH_STYLE"],
 })

@@ -15,7 +15,8 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure, SubFigure
 
-from .shells import DOUBLE_COLUMN, plot_cross_section
+from .shells import plot_cross_section
+from .style import DOUBLE_COLUMN
 
 __all__ = ["plot_branch", "BRANCH_STYLE", "EVENT_MARKERS", "AXIS_LABELS", "MAX_SHAPES"]
 

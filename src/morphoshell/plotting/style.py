@@ -1,0 +1,270 @@
+"""The look every morphoshell figure shares: journal sizes, fonts, titles, captions, saving.
+
+One place for the sizes and fonts, so that the command line's figures, the
+notebook's and the paper's scripts agree: a figure made here
+(:func:`new_axes`, :func:`journal_figure`) is a journal column wide and
+remembers its style, and the plot functions draw into it in that style
+(:func:`styled`); figures of the caller's own keep the caller's rcParams.
+
+A figure says what it shows in two places: a one-line title (the problem:
+name, family, theory) and a caption under the axes (parameters, method,
+what was measured, see :func:`add_caption`), so that the title never wraps
+or runs past the figure's edge.
+"""
+from __future__ import annotations
+
+import contextlib
+from pathlib import Path
+from typing import Any, Sequence
+
+import matplotlib as mpl
+import matplotlib.pyplot as plt
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+from matplotlib.text import Text
+from matplotlib.transforms import ScaledTranslation
+
+__all__ = ["SINGLE_COLUMN", "DOUBLE_COLUMN", "MIN_FONT_SIZE", "PAPER_RC", "paper_style",
+           "styled", "journal_figure", "new_axes", "add_caption", "get_caption", "label_panel",
+           "save"]
+
+#: Figure widths of journals (inches): one column and the full page width.
+SINGLE_COLUMN = 3.4
+DOUBLE_COLUMN = 7.0
+#: Smallest font size (points) of :data:`PAPER_RC`: legible in print at these widths.
+MIN_FONT_SIZE = 7.0
+
+#: rcParams of :func:`paper_style`.  Named font sizes are relative to
+#: ``font.size`` ("small" = 0.83×), so figures drawn in this style should use
+#: the rc defaults or absolute sizes; TrueType fonts (type 42) keep the text
+#: of the PDF editable, as journals ask.
+PAPER_RC: dict[str, Any] = {
+    "font.size": 8, "axes.titlesize": 8, "axes.labelsize": 8, "figure.titlesize": 8,
+    "figure.labelsize": 8, "xtick.labelsize": MIN_FONT_SIZE, "ytick.labelsize": MIN_FONT_SIZE,
+    "legend.fontsize": MIN_FONT_SIZE, "legend.frameon": False, "legend.handlelength": 1.6,
+    "axes.linewidth": 0.6, "axes.titlepad": 4.0, "axes.labelpad": 2.0,
+    "xtick.major.width": 0.6, "ytick.major.width": 0.6, "xtick.minor.width": 0.4,
+    "ytick.minor.width": 0.4, "xtick.major.size": 3.0, "ytick.major.size": 3.0,
+    "xtick.minor.size": 1.8, "ytick.minor.size": 1.8,
+    "lines.linewidth": 1.0, "lines.markersize": 4.0, "lines.markeredgewidth": 0.8,
+    "savefig.dpi": 300, "pdf.fonttype": 42, "ps.fonttype": 42,
+}
+
+#: Attribute that marks a figure made in the paper style (see :func:`styled`).
+_STYLED = "_morphoshell_paper_style"
+#: gid of a caption's text, by which :func:`get_caption` finds it.
+_CAPTION = "morphoshell-caption"
+#: Width of a character in ems (DejaVu Sans, mixed text): to break captions into lines.
+_EM_PER_CHAR = 0.55
+
+
+def paper_style():
+    """Context manager of the paper style (:data:`PAPER_RC`): fonts ≥ 7 pt, 300 dpi.
+
+    Create *and* save the figures inside it: fonts are set when artists are
+    made, the PDF font type when the file is written.
+    """
+    return mpl.rc_context(PAPER_RC)
+
+
+def _figure_of(fig_or_ax) -> Figure:
+    """The top-level figure holding an Axes, SubFigure or Figure."""
+    fig = fig_or_ax
+    while not isinstance(fig, Figure):   # Axes -> (SubFigure ->) Figure
+        fig = fig.figure
+    return fig
+
+
+def styled(fig_or_ax):
+    """The paper style if ``fig_or_ax`` is in a figure made here, else no change.
+
+    The plot functions draw inside it: a legend, title or caption made later
+    than the figure takes the rcParams of that moment, and a figure made at a
+    journal's width needs the paper's fonts for all of them.
+    """
+    if getattr(_figure_of(fig_or_ax), _STYLED, False):
+        return paper_style()
+    return contextlib.nullcontext()
+
+
+def journal_figure(width: float = SINGLE_COLUMN, height: float | None = None, *,
+                   pyplot: bool = True) -> Figure:
+    """An empty figure of a journal's width in the paper style, laid out by constrained layout.
+
+    Parameters
+    ----------
+    width : float
+        Inches: :data:`SINGLE_COLUMN` (default) or :data:`DOUBLE_COLUMN`.
+    height : float, optional
+        Inches (default: 0.9 × the width).
+    pyplot : bool
+        Register the figure with pyplot (shown inline in Jupyter, closed by
+        ``plt.close``).  ``False`` gives a figure unknown to pyplot: no
+        backend, no window, freed with its last reference — for programs
+        that only save it (the command line).
+
+    Returns
+    -------
+    Figure
+        Axes added to it later are in the paper style (:func:`styled`).
+    """
+    size = (width, 0.9 * width if height is None else height)
+    # made outside paper_style: pyplot's first figure resolves the backend, and
+    # Jupyter's inline backend then turns interactive mode on, which leaving an
+    # rc_context entered before would turn off again (no more inline plots)
+    fig = (plt.figure(figsize=size, layout="constrained") if pyplot
+           else Figure(figsize=size, layout="constrained"))
+    setattr(fig, _STYLED, True)
+    return fig
+
+
+def new_axes(figsize: tuple[float, float] | None = None, *, legend: bool = False,
+             pyplot: bool = True) -> Axes:
+    """Axes in a new single-column figure in the paper style (a legend beside the axes fits).
+
+    Parameters
+    ----------
+    figsize : (float, float), optional
+        Width and height (inches); default :data:`SINGLE_COLUMN` wide, a
+        little less high with ``legend`` (the legend takes width, the
+        shell keeps its aspect).
+    legend : bool
+        Leave room for a legend beside the axes (default size only).
+    pyplot : bool
+        See :func:`journal_figure`.
+
+    Returns
+    -------
+    Axes
+    """
+    width, height = figsize or (SINGLE_COLUMN, (0.78 if legend else 0.95) * SINGLE_COLUMN)
+    fig = journal_figure(width, height, pyplot=pyplot)
+    with paper_style():   # the ticks' and labels' fonts are fixed when the axes are made
+        return fig.add_subplot()
+
+
+def wrap_items(text: str, width: int, sep: str = ", ") -> str:
+    """Break ``text`` into lines of at most ``width`` characters between its items (``sep``).
+
+    Matplotlib's own wrapping breaks at any space ("h =" / "0.15").
+    """
+    lines: list[str] = []
+    for line in text.split("\n"):
+        out = ""
+        for item in line.split(sep):
+            joined = f"{out}{sep}{item}" if out else item
+            if out and len(joined) > width:
+                lines.append(out + sep.rstrip())
+                joined = item
+            out = joined
+        lines.append(out)
+    return "\n".join(lines)
+
+
+def add_caption(ax: Axes, text: str, *, width: float | None = None) -> Text:
+    """A short caption under the x label of ``ax``: what the title leaves out.
+
+    Broken between its items (", " and "; ") to the figure's width (or
+    ``width`` inches) and set in :data:`MIN_FONT_SIZE`; anchored to the x
+    label, so that constrained layout makes room for it and nothing is cut.
+
+    Returns
+    -------
+    Text
+        The caption (found again by :func:`get_caption`).
+    """
+    width = width or 0.95 * _figure_of(ax).get_figwidth()
+    chars = int(width * 72 / (_EM_PER_CHAR * MIN_FONT_SIZE))
+    lines = "\n".join(wrap_items(part, chars) for part in text.split("; "))
+    return ax.annotate(lines, xy=(0.5, 0.0), xycoords=ax.xaxis.label, xytext=(0, -3),
+                       textcoords="offset points", ha="center", va="top",
+                       fontsize=MIN_FONT_SIZE, color="0.25", gid=_CAPTION)
+
+
+def get_caption(ax: Axes) -> str:
+    """The caption :func:`add_caption` put under ``ax`` (its lines joined by spaces), or ""."""
+    texts = [t.get_text() for t in ax.texts if t.get_gid() == _CAPTION]
+    return " ".join(" ".join(texts).split("\n"))
+
+
+def label_panel(ax: Axes, letter: str, *, size: float = 10.0, dx: float = -4.0,
+                dy: float = 4.0):
+    """Bold panel letter above the top-left corner of ``ax``, outside its title.
+
+    Parameters
+    ----------
+    letter : str
+    size : float
+        Font size (points).
+    dx, dy : float
+        Offset of the letter's right/bottom edge from the axes' corner (points).
+
+    Returns
+    -------
+    matplotlib.text.Text
+    """
+    offset = ScaledTranslation(dx / 72, dy / 72, ax.figure.dpi_scale_trans)
+    return ax.text(0.0, 1.0, letter, transform=ax.transAxes + offset, ha="right", va="bottom",
+                   fontsize=size, fontweight="bold")
+
+
+#: Drawing passes before saving a laid-out figure (see :func:`_settle_layout`).
+_LAYOUT_PASSES = 2
+
+
+def _settle_layout(fig: Figure) -> None:
+    """Draw (without rendering) until constrained layout has settled.
+
+    The layout is made before an equal aspect shrinks the axes' box, which
+    then moves the title, tick labels and caption: saved after one pass, a
+    title ended above the figure's top edge.  Each further pass starts from
+    the shrunk box; two are enough for the shells' figures.
+    """
+    if fig.get_layout_engine() is not None:
+        for _ in range(_LAYOUT_PASSES):
+            fig.draw_without_rendering()
+
+
+def save(fig_or_ax, path: str | Path, formats: Sequence[str] | None = None, *,
+         dpi: float = 300, close: bool = False, tight: bool | None = None) -> list[Path]:
+    """Save a figure; returns the paths written.
+
+    Parameters
+    ----------
+    fig_or_ax : Figure, SubFigure or Axes
+        The figure saved is the one holding it.
+    path : str or Path
+        Target; its suffix is replaced by each of ``formats``.
+    formats : sequence of str, optional
+        E.g. ``("png", "pdf")``; default: the suffix of ``path`` (png if none).
+    dpi : float
+        Resolution of raster formats (dots per inch).
+    close : bool
+        Close the figure afterwards (pyplot figures; the default keeps it open).
+    tight : bool, optional
+        Crop to the drawn content.  Default: only figures without a layout
+        engine, so that a figure laid out at a journal's width keeps its size.
+
+    Returns
+    -------
+    list of Path
+        One per format.
+    """
+    fig = _figure_of(fig_or_ax)
+    if tight is None:
+        tight = fig.get_layout_engine() is None
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    out = []
+    # a figure of the paper style keeps its text editable in the PDF (read on saving)
+    with styled(fig):
+        if not tight:
+            _settle_layout(fig)
+        for fmt in formats or [path.suffix.lstrip(".") or "png"]:
+            target = path.with_suffix("." + fmt)
+            fig.savefig(target, dpi=dpi, bbox_inches="tight" if tight else None)
+            out.append(target)
+    if close:
+        plt.close(fig)
+    return out
+

@@ -1,0 +1,156 @@
+"""Figures a journal would take (issue 41, item 7): one-line titles that name the problem,
+parameters in a caption, nothing cut at the figure's edge, both ablation states visible,
+the fit's residual along the midline, every marker kind of Fig. 2 J in its legend,
+single-column sizes and fonts >= 7 pt.
+
+Equilibria on coarse meshes (40-50 nodes): the drawing is under test, not the solution.
+"""
+from types import SimpleNamespace
+
+import matplotlib.pyplot as plt
+import numpy as np
+import pytest
+from matplotlib.collections import LineCollection
+from matplotlib.colors import to_rgba
+from matplotlib.text import Text
+
+from morphoshell.mechanics.ablation import ablate
+from morphoshell.model.problem import Problem
+from morphoshell.plotting import (ABLATION_STYLE, MIN_FONT_SIZE, OFF_SCALE_LABEL, SINGLE_COLUMN,
+                                  fit_axes, fit_residuals, get_caption, new_axes, plot_ablation,
+                                  plot_cross_section, plot_fit, plot_k_estimates, save)
+from morphoshell.solvers.routes import solve
+
+
+@pytest.fixture(scope="module")
+def ablation():
+    return ablate(Problem("uniform", {"k": 0.0}, h=0.3, cut=0.3, name="toy2"), nodes=40)
+
+
+@pytest.fixture(scope="module")
+def volvox():
+    """A large family with a long description: the title once wrapped to three lines."""
+    return solve(Problem("volvox", {"kappa1": 1.1}, h=0.15, opening=0.3, name="volvox_demo"),
+                 nodes=50)
+
+
+@pytest.fixture(autouse=True)
+def _close_figures():
+    yield
+    plt.close("all")
+
+
+def _texts(fig):
+    return [t for t in fig.findobj(Text) if t.get_visible() and t.get_text().strip()]
+
+
+def _outside_figure(fig, tmp_path) -> list[str]:
+    """The axes whose drawn content (title, labels, ticks, caption, legend) reaches past
+    the edges of the figure as saved; "" for each, titled by its title."""
+    # at the figure's own dpi: the extents below are those of the last drawing
+    save(fig, tmp_path / "figure.png", dpi=fig.dpi)
+    box = fig.bbox
+    return [ax.get_title() for ax in fig.axes
+            if (e := ax.get_tightbbox()).x0 < box.x0 - 1 or e.x1 > box.x1 + 1
+            or e.y0 < box.y0 - 1 or e.y1 > box.y1 + 1]
+
+
+def test_the_title_is_one_line_naming_the_problem_and_the_caption_has_the_parameters(
+        volvox, tmp_path):
+    ax = plot_cross_section(volvox, new_axes(pyplot=False))
+    assert ax.get_title() == "volvox_demo: volvox, large-bending"
+    caption = get_caption(ax)
+    for part in ("h = 0.15", "opening P = 0.3", "kappa1 = 1.1", "volvox defaults",
+                 "direct method, 50 nodes"):
+        assert part in caption, part
+    # the figure is one journal column wide and every text is legible and inside it
+    assert ax.figure.get_figwidth() == pytest.approx(SINGLE_COLUMN)
+    assert min(t.get_fontsize() for t in _texts(ax.figure)) >= MIN_FONT_SIZE
+    assert _outside_figure(ax.figure, tmp_path) == []
+
+
+def test_ablation_draws_both_states_distinctly_and_marks_the_cut(ablation, tmp_path):
+    ax = plot_ablation(ablation, new_axes(legend=True, pyplot=False))
+    pre, post = sorted((l for l in ax.get_lines() if l.get_linestyle() != "None"),
+                       key=lambda l: l.get_linestyle() != "--")
+    assert pre.get_linestyle() == "--" and post.get_linestyle() == "-"
+    assert to_rgba(pre.get_color()) == to_rgba(ABLATION_STYLE["pre"]["color"])
+    assert to_rgba(post.get_color()) == to_rgba(ABLATION_STYLE["post"]["color"])
+    # the pre-ablation shell is not hidden: its band under the post-ablation band, its
+    # midline and outline (both edges of its band) over it
+    pre_band, post_band = sorted(ax.patches, key=lambda p: p.get_zorder())
+    assert pre_band.get_label() == "pre-ablation" and post_band.get_label() == "post-ablation"
+    outline = [c for c in ax.collections if isinstance(c, LineCollection)]
+    assert len(outline) == 1 and outline[0].get_zorder() > post_band.get_zorder()
+    assert pre.get_zorder() > post.get_zorder() > post_band.get_zorder()
+    # the cut's edge, in both states, and a legend entry for each kind
+    rims = [l for l in ax.get_lines() if l.get_marker() == "o"]
+    assert len(rims) == 2 and all(len(l.get_xdata()) == 2 for l in rims)
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert labels == ["pre-ablation", "post-ablation", "cut edge s = Σ"]
+    assert "rotation ϱ" in get_caption(ax) and "cut Σ = 0.3" in get_caption(ax)
+    assert "\n" not in ax.get_title() and ax.get_title().startswith("toy2")
+    assert min(t.get_fontsize() for t in _texts(ax.figure)) >= MIN_FONT_SIZE
+    assert _outside_figure(ax.figure, tmp_path) == []
+
+
+def _fake_fit(eq):
+    """A FitResult's fields that plot_fit reads, with known residuals."""
+    rng = np.random.default_rng(1)
+    model = np.column_stack([eq.r, eq.z])[::3]
+    data = model + rng.normal(scale=0.01, size=model.shape)
+    return SimpleNamespace(equilibrium=eq, data=data, model=model, method="gradient",
+                           variant="free", fitted=("f1", "kappa1"), E_fit=0.123,
+                           parameters={"h": 0.15, "opening": 0.3})
+
+
+def test_fit_figure_has_the_residual_along_the_midline(volvox, tmp_path):
+    result = _fake_fit(volvox)
+    shell, residual = fit_axes(pyplot=False)
+    plot_fit(result, shell, residual_ax=residual, name="trace.csv")
+    line = residual.get_lines()[0]
+    distance = np.hypot(*(result.model - result.data).T)
+    np.testing.assert_allclose(line.get_ydata(), distance)
+    steps = np.hypot(*np.diff(result.data, axis=0).T)
+    np.testing.assert_allclose(line.get_xdata(), np.r_[0, np.cumsum(steps)])
+    np.testing.assert_allclose(fit_residuals(result)[1], distance)
+    assert "s/R" in residual.get_xlabel() and "model" in residual.get_ylabel()
+    assert shell.get_title() == "trace.csv: volvox, large-bending"
+    assert "E_fit = 0.123 R" in get_caption(residual)
+    assert [t.get_text() for t in shell.get_legend().get_texts()] == ["fit", "data"]
+    assert min(t.get_fontsize() for t in _texts(shell.figure)) >= MIN_FONT_SIZE
+    assert _outside_figure(shell.figure, tmp_path) == []
+
+
+def _estimates(ks):
+    """An InverseResult's fields that plot_k_estimates reads: every estimate of embryo j is
+    ks[j] (None with a side: no k in range)."""
+    from morphoshell.inverse import MEASURES
+
+    def est(k):
+        return SimpleNamespace(k=k, side=None if k is not None else "above")
+
+    embryos = [SimpleNamespace(measurement=SimpleNamespace(embryo=f"e{j}"),
+                               estimates={(m, method): est(k) for m in MEASURES
+                                          for method in ("asymptotic", "numerical")})
+               for j, k in enumerate(ks)]
+    stats = SimpleNamespace(n=len(ks), mean=0.1, std=0.05)
+    return SimpleNamespace(embryos=embryos, settings={"k_range": (-1, 1),
+                                                      "theory": "large_bending"},
+                           summary={**{f"{m}_{method}": stats for m in MEASURES
+                                       for method in ("asymptotic", "numerical")},
+                                    "combined": stats})
+
+
+@pytest.mark.parametrize("ks, off_scale", [([0.1, 0.2, 5.0], True), ([0.1, None], True),
+                                           ([0.1, 0.2], False)])
+def test_every_marker_kind_of_fig2J_is_in_its_legend(ks, off_scale):
+    ax = plot_k_estimates(new_axes((7.0, 3.0), pyplot=False), _estimates(ks),
+                          truth={"e0": 0.0})
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert (OFF_SCALE_LABEL in labels) == off_scale
+    for kind in ("asymptotic", "numerical", "mean ± std", "true k", r"\langle k\rangle"):
+        assert any(kind in label for label in labels), kind
+    arrows = [l for l in ax.get_lines() if l.get_marker() in ("^", "v")]
+    assert bool(arrows) == off_scale
+    assert min(t.get_fontsize() for t in _texts(ax.figure)) >= MIN_FONT_SIZE
