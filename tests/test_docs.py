@@ -37,7 +37,8 @@ def test_docs_build_strictly_without_warnings(tmp_path):
     pytest.importorskip("mkdocstrings_handlers.python")
     mkdocs = shutil.which("mkdocs", path=str(Path(sys.executable).parent)) or shutil.which("mkdocs")
     assert mkdocs, "the docs extra is installed but its mkdocs command is not on the PATH"
-    env = {**os.environ, "NO_MKDOCS_2_WARNING": "1",
+    # the notebook page without running the notebook (tests/test_notebooks.py runs it)
+    env = {**os.environ, "NO_MKDOCS_2_WARNING": "1", "MORPHOSHELL_DOCS_EXECUTE": "false",
            "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), os.environ.get("PYTHONPATH", "")])}
     run = subprocess.run([mkdocs, "build", "--strict", "--site-dir", str(tmp_path / "site")],
                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
@@ -53,6 +54,12 @@ def test_docs_build_strictly_without_warnings(tmp_path):
     assert "to_dataframe" in html and "to_xarray" in html
     assert ":func:" not in html and ":class:" not in html          # roles became links
     assert (tmp_path / "site" / "tutorial_family" / "index.html").exists()
+    # the tutorial notebook is a page (executed by `make docs`, which shows its outputs) and
+    # a download
+    notebook = tmp_path / "site" / "notebooks" / "tutorial"
+    assert "Fit a traced midline" in (notebook / "index.html").read_text()
+    assert (notebook / "tutorial.ipynb").exists()
+    assert "execute: !ENV [MORPHOSHELL_DOCS_EXECUTE, true]" in (ROOT / "mkdocs.yml").read_text()
 
 
 def test_every_public_module_has_a_place_in_the_api_reference():

@@ -80,13 +80,15 @@ def test_plots_render_inline_after_importing_morphoshell_plotting(kernel_name, t
     assert any("image/png" in o.get("data", {}) for o in second), second
 
 
-def test_the_tutorial_runs_end_to_end_with_plots_and_tables(kernel_name, tmp_path):
-    nb = _run(nbformat.read(TUTORIAL, as_version=4), kernel_name, tmp_path)
+def test_the_tutorial_runs_end_to_end_with_plots_and_tables(kernel_name):
+    # in its folder, as Jupyter and the docs build run it (it reads ../../data)
+    nb = _run(nbformat.read(TUTORIAL, as_version=4), kernel_name, TUTORIAL.parent)
     outputs = _outputs(nb)
     assert not [o for o in outputs if o.output_type == "error"]
     data = [o.get("data", {}) for o in outputs]
     pngs = sum("image/png" in d for d in data)
-    assert pngs >= 4, f"{pngs} inline images"      # shell, ablation, sweep lines, rings
+    # shell, ablation, sweep lines, rings; the fit, its residuals, the fitted shell's ablation
+    assert pngs >= 7, f"{pngs} inline images"
     html = [d["text/html"] for d in data if "text/html" in d]
     # DataFrames (pandas' table repr), an xarray Dataset, and the results' own tables
     assert sum("dataframe" in h and "<table" in h for h in html) >= 3
@@ -94,6 +96,11 @@ def test_the_tutorial_runs_end_to_end_with_plots_and_tables(kernel_name, tmp_pat
     assert any(d.get("text/plain", "").startswith("<xarray.Dataset>") for d in data)
     assert any("SweepResult(18 ablations: 3 k x 6 cut; 0 failed" in d.get("text/plain", "")
                for d in data)
-    # the stored notebook carries no outputs (it is run here, not trusted)
+    # the fitting section: a converged free fit of the shipped trace, the fitted shell ablated
+    text = "".join(o.get("text", "") for o in outputs) + "".join(d.get("text/plain", "") for d in data)
+    assert "FitResult(gradient, free," in text and "converged=True" in text, text
+    assert "Ablation(cut=0.15 R" in text and "cold solve differs by" in text, text
+    # the stored notebook carries no outputs (it is run here, not trusted; the docs build runs
+    # it again to show its outputs)
     stored = nbformat.read(TUTORIAL, as_version=4)
     assert all(not c.get("outputs") for c in stored.cells if c.cell_type == "code")
