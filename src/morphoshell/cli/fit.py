@@ -165,13 +165,12 @@ def _fit(args) -> int:
         "parameter": list(result.fitted),
         "value": [result.parameters[n] for n in result.fitted],
         "standard_error": [result.standard_errors[n] for n in result.fitted]}))
+    from ..plotting import fit_axes, plot_fit, save
     if args.plot:
-        from ..plotting import fit_axes, plot_fit, save
         shell, residual = fit_axes(pyplot=False)
         ax = plot_fit(result, shell, residual_ax=residual, name=Path(args.midline).name)
         out.add(args.plot, lambda path: save(ax, path))
     if profiles and profile_plot_path(args) is not None:
-        from ..plotting import save
         figure = plot_profiles(profiles)
         out.add(profile_plot_path(args), lambda path: save(figure, path))
     for path in out.commit():
