@@ -14,7 +14,10 @@ objective (:meth:`Profile.rethreshold`), from the fit's residual.  It reports
 the fraction of replicates whose interval contains the generating value, with
 a Clopper–Pearson 95 % interval of that fraction, for
 
-* the profile interval, σ² from the traces (``profile/traces``);
+* the profile interval, σ² from the traces (``profile/traces``: the threshold's
+  quantile F(1, n − 1), the library's default for σ² from n traces);
+* the same profile with the χ²₁ quantile, as if σ² were known
+  (``profile/traces, chi2``: what the library did before);
 * the profile interval, σ² from the residual (``profile/residual``);
 * the Gauss–Newton interval ±1.96 SE (``GN``);
 
@@ -82,6 +85,7 @@ def replicate(task: tuple) -> dict:
             "truth": truth[name], "estimate": value, "gn_se": se,
             "GN": [value - 1.96 * se, value + 1.96 * se],
             "profile/traces": list(p.interval),
+            "profile/traces, chi2": list(p.rethreshold(p.sigma2, "traces").interval),
             "profile/residual": list(p.rethreshold(residual, "residual").interval),
             "refits_converged": int(p.converged.sum()) - 1, "refits": len(p.values) - 1,
             "note": p.note}
@@ -103,7 +107,7 @@ def table(runs: list[dict]) -> list[str]:
     lines = ["| parameter | interval | coverage | 95 % CI of the coverage | median width | open |",
              "|---|---|---|---|---|---|"]
     for name in NAMES:
-        for kind in ("profile/traces", "profile/residual", "GN"):
+        for kind in ("profile/traces", "profile/traces, chi2", "profile/residual", "GN"):
             hits, widths, open_ = 0, [], 0
             for r in ok:
                 par = r["parameters"][name]

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from morphoshell.cli import main
-from morphoshell.fitting import (fit, noise_variance, profile, profile_intervals,
-                                 synthetic_midline, volvox_spec)
+from morphoshell.fitting import (fit, noise_dof, noise_variance, profile, profile_intervals,
+                                 synthetic_midline, threshold_quantile, volvox_spec)
 from morphoshell.io import Midline
 
 from fitting_cases import NODES, THREE, TRUE, three_parameter_spec
@@ -94,6 +94,27 @@ def test_noise_from_the_traces_or_the_residual():
     assert noise_variance(pts, 1.7, 3, 2e-6) == (2e-6, "given")
     with pytest.raises(ValueError, match="traces"):
         noise_variance(pts, 1.0, 3, "traces")
+
+
+def test_sigma2_from_n_traces_counts_n_minus_1_degrees_of_freedom(three):
+    """A traced midline's errors are correlated along each trace: σ² from the spread of five
+    traces has 4 degrees of freedom, so the threshold's quantile is F(1, 4) = 7.709, not
+    χ²₁ = 3.841, and the interval of a nearly linear problem is √(7.709/3.841) = 1.42× as
+    wide (the coverage this buys: docs/fitting.md, "Profile intervals")."""
+    spec, data, result, _ = three
+    avg = Midline(data[:, 0], data[:, 1], np.full(len(data), np.sqrt(5) * 1e-3), 5, ("a",))
+    p = profile(spec, avg, "f1", result=result, points=6, noise="traces")
+    assert (p.sigma2_source, p.dof) == ("traces", 4.0)
+    assert p.sigma2 == pytest.approx(1e-6)
+    assert threshold_quantile(0.95, 4) == pytest.approx(7.7086, abs=1e-4)
+    assert threshold_quantile(0.95) == pytest.approx(3.8415, abs=1e-4)
+    assert p.threshold == pytest.approx(p.S_min + 7.7086e-6, rel=1e-4)
+    known = p.rethreshold(p.sigma2, "traces")            # (as if σ² were known: χ²₁)
+    for a, b in zip(p.interval, known.interval):
+        assert abs(a - p.fitted_value) == pytest.approx(
+            np.sqrt(7.7086 / 3.8415) * abs(b - p.fitted_value), rel=0.05)
+    assert p.to_dict()["sigma2_dof"] == 4.0 and known.to_dict()["sigma2_dof"] is None
+    assert noise_dof(avg, "residual") == np.inf
 
 
 def test_bad_options_are_refused_before_any_work(three):

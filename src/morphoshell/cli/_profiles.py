@@ -88,11 +88,16 @@ def run_profiles(args, spec, midline, result, names: list[str]) -> dict:
                              method=method, nodes=args.nodes, noise=args.profile_noise)
 
 
+def _dof(p) -> str:
+    """How the threshold counts σ²'s degrees of freedom, for the table's header."""
+    return f", {p.dof:g} degrees of freedom: F(1, {p.dof:g})" if math.isfinite(p.dof) else ""
+
+
 def profile_table(result, profiles: dict) -> str:
     """The intervals beside the Gauss–Newton ±1.96 SE ones, one line a parameter."""
     first = next(iter(profiles.values()))
     lines = [f"  profile intervals ({100 * first.confidence:g} %, sigma^2 = {first.sigma2:.3g} "
-             f"R^2 from the {first.sigma2_source}; Gauss-Newton +-1.96 SE beside):"]
+             f"R^2 from the {first.sigma2_source}{_dof(first)}; Gauss-Newton +-1.96 SE beside):"]
     for name, p in profiles.items():
         lo, hi = p.interval
         se = result.standard_errors.get(name, math.nan)

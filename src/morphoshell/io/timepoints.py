@@ -127,12 +127,18 @@ def _timepoint(data_dir: Path, table: Path, i: int, row: dict) -> Timepoint:
     t = _pseudotime(table, i, row["pseudotime"])
     path = (row["midline"] or "").strip()
     if not (data_dir / path).is_file():
-        raise ValueError(f"{table}, line {i}: midline file {path!r} does not exist")
+        raise ValueError(f"{table}, line {i}: midline file {path!r} {_why_not_a_file(data_dir / path)}")
     traces = tuple(v.strip() for v in (row.get("traces") or "").split(";") if v.strip())
     missing = [v for v in traces if not (data_dir / v).is_file()]
     if missing:
-        raise ValueError(f"{table}, line {i}: trace file {missing[0]!r} does not exist")
+        raise ValueError(f"{table}, line {i}: trace file {missing[0]!r} "
+                         f"{_why_not_a_file(data_dir / missing[0])}")
     return Timepoint(name, t, path, traces)
+
+
+def _why_not_a_file(path: Path) -> str:
+    """Why ``path`` is no file to read: it is a folder, or it does not exist."""
+    return "is a folder, not a file" if path.is_dir() else "does not exist"
 
 
 def _pseudotime(table: Path, i: int, text: str | None) -> float:

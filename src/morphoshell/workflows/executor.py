@@ -32,6 +32,11 @@ __all__ = ["open_executor", "run", "SerialExecutor", "backend_name"]
 
 log = logging.getLogger(__name__)
 
+#: Seconds to wait for a Dask scheduler (--scheduler) to answer: a running scheduler on a
+#: reachable host answers in well under a second; Dask's default, 30 s, made a mistyped
+#: address look like a hang.
+CONNECT_SECONDS = 5
+
 #: Thread counts forced to 1 in workers: MUMPS and BLAS must not share a process's threads.
 _SINGLE_THREADED = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
@@ -171,7 +176,9 @@ def _remote(scheduler: str) -> Iterator[cf.Executor]:
     log.info("connecting to the Dask scheduler at %s", scheduler)
     config = copy.deepcopy(dask.config.config)
     try:
-        client = Client(scheduler)
+        # (Dask's own connect timeout is 30 s of retries: a scheduler that does not
+        # answer in CONNECT_SECONDS is refused before any work)
+        client = Client(scheduler, timeout=CONNECT_SECONDS)
         failure = None
     except Exception as exc:      # unreachable, refused, not an address, ...
         failure = f"{type(exc).__name__}: {exc}"
