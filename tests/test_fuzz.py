@@ -45,6 +45,9 @@ settings.load_profile(os.environ.get("MORPHOSHELL_FUZZ", "ci"))
 ROOT = Path(__file__).resolve().parents[1]
 TOY2 = str(example_path("toy2_ablation"))
 COUNTS: collections.Counter = collections.Counter()
+#: The valid problems refused with a solver status, printed after the counts: the next
+#: session's reproducers (a refusal is named, but a valid problem should be solved).
+REFUSED: list = []
 #: Seconds a refusal may take: checks only, no solver (imports are warmed first).
 REFUSAL_SECONDS = 10.0
 #: Bad inputs of estimate, fit, campaign, ablate: the profile's examples (make fuzz), at
@@ -62,6 +65,8 @@ def report():
     for key in MUST_BE_ZERO:
         COUNTS.setdefault(key, 0)
     print("\nfuzz counts: " + ", ".join(f"{k} {v}" for k, v in sorted(COUNTS.items())))
+    for line in dict.fromkeys(REFUSED):          # (hypothesis replays a failing example)
+        print(f"  refused: {line}")
 
 
 # --------------------------------------------------------------------------
@@ -106,6 +111,7 @@ def _solve_or_count(problem, **kwargs):
         return solve(problem, **kwargs)
     except SolverError as exc:
         COUNTS[f"refused ({exc.status})"] += 1
+        REFUSED.append(f"{problem!r} ({exc.status})")
         return None
 
 

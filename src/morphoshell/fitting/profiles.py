@@ -64,7 +64,7 @@ from .results import FitResult
 from .spec import FitSpec
 
 __all__ = ["Profile", "profile", "profile_intervals", "noise_variance", "noise_dof",
-           "threshold_quantile", "PROFILE_METHODS",
+           "threshold_quantile", "STOP_MARGIN", "PROFILE_METHODS",
            "NOISE_SOURCES", "SPAN_FACTOR", "EXTEND_STEPS"]
 
 #: Methods of a profile's refits (Nelder–Mead is far too slow for 20 refits).
@@ -78,6 +78,12 @@ SPAN_FACTOR = 2.0
 #: A side whose objective is still below the threshold at the grid's end goes on by at most
 #: this many steps, each twice the last (to 8 half-widths in all), before it is called open.
 EXTEND_STEPS = 4
+#: A side's walk ends at the first refit whose objective lies beyond S_min + STOP_MARGIN
+#: (threshold − S_min): its interval ends before that refit, and the refits further out
+#: cannot move it (:func:`_crossing` takes the first crossing) while they are the slowest and
+#: fail most (far from the data; 8 of the 13 s of a 20-point κ₁ profile of the synthetic t05).
+#: The profile stays long enough to rethreshold with up to STOP_MARGIN times the σ².
+STOP_MARGIN = 1.5
 
 
 @dataclass(frozen=True, eq=False)
@@ -359,14 +365,16 @@ def _walk(opt: _Optimum, name: str, steps: list[float], direction: float, step: 
     Goes on beyond the planned steps (each twice the last, at most
     :data:`EXTEND_STEPS`) while the objective stays below ``threshold`` and
     the bound is not reached; stops at a refit that fails (its objective
-    NaN).  Returns values, objectives, converged flags and a note.
+    NaN) or lies beyond :data:`STOP_MARGIN` times the threshold's height.
+    Returns values, objectives, converged flags and a note.
     """
     j = opt.spec.fitted.index(name)
     lo, hi = opt.spec.bounds.get(name, (-np.inf, np.inf))
     theta, eq, spec = opt.theta.copy(), opt.eq, opt.spec
     values, objective, converged = [], [], []
     plan, extra = list(steps), 0
-    while plan:
+    beyond = opt.S + STOP_MARGIN * (threshold - opt.S)
+    while plan and not (objective and objective[-1] > beyond):
         value = plan.pop(0)
         try:
             held = _held(spec, name, theta, value)
@@ -434,7 +442,8 @@ def _profile(opt: _Optimum, data, name: str, points: int, span, method: str, tol
     va, sa, ca, note_a = _walk(opt, name, above, 1.0, step, threshold, method, tol)
     values = np.array([*vb[::-1], value, *va])
     objective = np.array([*sb[::-1], opt.S, *sa])
-    notes = [n for n in (note_b, note_a) if n]
+    notes = [n for n in (note_b, note_a, _unconverged_crossing(name, vb, sb, cb, threshold),
+                         _unconverged_crossing(name, va, sa, ca, threshold)) if n]
     S_min = float(np.nanmin(objective))
     if S_min < opt.S * (1 - 1e-6):
         # (the fit was not at the minimum: the threshold from the profile's own)
@@ -446,6 +455,20 @@ def _profile(opt: _Optimum, data, name: str, points: int, span, method: str, tol
     return Profile(name, value, values, objective, np.array([*cb[::-1], True, *ca]),
                    interval, float(threshold), S_min, sigma2, source, confidence,
                    not all(np.isfinite(interval)), method, "; ".join(notes), dof)
+
+
+def _unconverged_crossing(name: str, values: list, objective: list, converged: list,
+                          threshold: float) -> str:
+    """A note when the refit where a side first exceeds the threshold did not converge.
+
+    An unconverged refit's objective lies above the profile's (the others not
+    at their best), so the interval may reach further on that side.
+    """
+    above = [i for i, S in enumerate(objective) if S > threshold]
+    if not above or converged[above[0]]:
+        return ""
+    return (f"the refit at {name} = {values[above[0]]:.6g}, where the profile first exceeds "
+            f"the threshold, did not converge: the interval may reach further on that side")
 
 
 def _check(spec: FitSpec, names: Sequence[str], points: int, method: str,
