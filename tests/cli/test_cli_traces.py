@@ -101,8 +101,8 @@ def test_campaign_messages_name_its_options(capsys, tmp_path):
     data = ROOT / "data" / "synthetic_inversion"
     out = tmp_path / "out"
     for argv, named in ((["--variants", "flat", "--embryo-errors", "free"],
-                         "error: --embryo-errors: variants ['free'] are not among"),
-                        (["--timepoints", "t99"], "error: --timepoints ['t99']: the data set has")):
+                         "error: --embryo-errors free: ['free'] not among --variants flat"),
+                        (["--timepoints", "t99"], "error: --timepoints 't99': ['t99'] not in")):
         assert main(["campaign", str(data), "--out", str(out), *argv]) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and named in err, err
