@@ -143,13 +143,20 @@ def _process_pool(workers: int) -> Iterator[cf.Executor]:
 
 @contextmanager
 def _local_cluster(workers: int) -> Iterator[cf.Executor]:
-    """A Dask ``LocalCluster`` of ``workers`` single-threaded processes and its executor."""
+    """A Dask ``LocalCluster`` of ``workers`` single-threaded processes and its executor.
+
+    Its scheduler and workers log nothing below CRITICAL: a task's error reaches the
+    campaign through its future, and what else they logged were tracebacks of their own
+    recovery (a worker's heartbeat that timed out while the scheduler's thread waited on
+    the GIL, in a campaign that then finished with every fit done).
+    """
     from distributed import Client, LocalCluster
 
     log.info("starting a Dask LocalCluster of %d single-threaded workers", workers)
     with _level_kept("distributed") as dask_log, \
             LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                         dashboard_address=":0") as cluster, Client(cluster) as client:
+                         dashboard_address=":0", silence_logs=logging.CRITICAL) as cluster, \
+            Client(cluster) as client:
         executor = client.get_executor()
         try:
             yield executor
