@@ -104,9 +104,7 @@ def main(argv=None) -> int:
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--work", type=Path, default=Path("out/check_embryo_errors"))
     args = p.parse_args(argv)
-    truth = json.loads((ROOT / "data" / "synthetic_inversion" /
-                        "synthetic_inversion.json").read_text(encoding="utf-8"))
-    times = {t["timepoint"]: t["pseudotime"] for t in truth["timepoints"]}
+    times = synthetic.shipped_pseudotimes()
     names = args.timepoints.split(",")
     unknown = [n for n in names if n not in times]
     if unknown or args.replicates < 2 or args.embryos < 2:

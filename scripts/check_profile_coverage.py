@@ -33,11 +33,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import shutil
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
@@ -45,13 +43,15 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "scripts"))
 
+import make_synthetic_inversion as synthetic  # noqa: E402
+from morphoshell.workflows.executor import open_executor, run  # noqa: E402
+
 NAMES = ("kappa1", "f1")
 LABEL = "SYNTHETIC replicates (scripts/check_profile_coverage.py)"
 
 
 def replicate(task: tuple) -> dict:
     """One data set made, fitted and profiled: every interval and the truth."""
-    import make_synthetic_inversion as synthetic
     from morphoshell import Problem
     from morphoshell.fitting import fit, profile_intervals, volvox_spec
     from morphoshell.io import Midline
@@ -135,28 +135,20 @@ def main(argv=None) -> int:
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--work", type=Path, default=Path("out/check_profile_coverage"))
     args = p.parse_args(argv)
-    truth = json.loads((ROOT / "data" / "synthetic_inversion" /
-                        "synthetic_inversion.json").read_text(encoding="utf-8"))
-    times = {t["timepoint"]: t["pseudotime"] for t in truth["timepoints"]}
+    times = synthetic.shipped_pseudotimes()
     if args.timepoint not in times or args.replicates < 2:
         print(f"check_profile_coverage: timepoint {args.timepoint!r} not in {sorted(times)}, "
               f"or fewer than 2 replicates", file=sys.stderr)
         return 2
-    # one thread per worker: MUMPS is not thread-safe, and 2 workers fill 2 cores
-    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ[var] = "1"
     args.work.mkdir(parents=True, exist_ok=True)
     tasks = [(times[args.timepoint], args.seed + k, args.embryos, args.nodes, args.points,
               str((args.work / f"{args.timepoint}_{k:03d}").resolve()))
              for k in range(args.replicates)]
     runs: list = [None] * len(tasks)
     t0 = time.perf_counter()
-    with ProcessPoolExecutor(args.workers) as pool:
-        futures = {pool.submit(replicate, task): i for i, task in enumerate(tasks)}
-        for done, future in enumerate(as_completed(futures), 1):
-            runs[futures[future]] = future.result()
-            print(f"  {done}/{len(tasks)} replicates ({time.perf_counter() - t0:.0f} s)",
-                  file=sys.stderr)
+    with open_executor(args.workers) as executor:     # (single-threaded workers: MUMPS)
+        for i, r in run(replicate, tasks, executor, description="replicates"):
+            runs[i] = r
     ok = [r for r in runs if r["status"] == "ok"]
     header = (f"# {LABEL}: {args.timepoint} (t = {times[args.timepoint]:.4g}), "
               f"{len(ok)} of {args.replicates} replicates fitted, {args.embryos} traces each "

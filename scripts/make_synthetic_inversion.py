@@ -76,6 +76,13 @@ NOISE_PX = 0.5
 N_FIT = 100
 
 
+def shipped_pseudotimes() -> dict[str, float]:
+    """Pseudotime by timepoint name of the shipped data set (data/synthetic_inversion)."""
+    truth = json.loads((ROOT / "data" / "synthetic_inversion" / "synthetic_inversion.json")
+                       .read_text(encoding="utf-8"))
+    return {t["timepoint"]: t["pseudotime"] for t in truth["timepoints"]}
+
+
 def smoothstep(x: float) -> float:
     """3x² − 2x³ on [0, 1], 0 below and 1 above."""
     x = min(max(x, 0.0), 1.0)
