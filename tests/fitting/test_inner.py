@@ -53,3 +53,27 @@ def test_inner_solves_cross_a_snap_through_instead_of_failing():
     assert eq.solver.details.get("snaps"), eq.solver.details.get("path")
     cold = solve(target, nodes=200)
     assert abs(eq.r[-1] - cold.r[-1]) < 1e-8 and abs(eq.z[-1] - cold.z[-1]) < 1e-8
+
+
+def test_a_state_kept_after_the_mesh_moved_is_read_through_its_own_mesh():
+    """The gradient fit keeps its best point's state when its trials stall; trials that
+    moved the breakpoints far had built a new mesh.  The kept state must be read through
+    its own mesh: through the new one's midline, a profile refit of the synthetic t05
+    reported E_fit² = 1.6 R² for a state whose own is 2.9e-5 R².  (Fails without
+    InnerProblem._adopt: the residuals differ by O(1).)"""
+    from morphoshell.fitting import synthetic_midline, volvox_spec
+    from morphoshell.fitting.inner import InnerProblem
+
+    spec = volvox_spec("free")
+    data = synthetic_midline(spec.base, nodes=120, n=60)
+    inner = InnerProblem(spec, data, 60)
+    theta = spec.theta0
+    eq = inner.solve(theta)
+    before = inner.residuals(eq)
+    moved = theta.copy()
+    moved[spec.fitted.index("s3")] += 0.3     # (what a trial far along s3 builds)
+    inner._build(spec.problem(moved))
+    assert inner.solver is not eq.source[0]()
+    inner.keep(theta, eq)
+    after = inner.residuals(inner.solve(theta))
+    np.testing.assert_array_equal(after, before)
