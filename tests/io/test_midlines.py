@@ -241,3 +241,12 @@ def test_average_refuses_mismatched_midlines():
         ml.average([one, other])
     with pytest.raises(MidlineError, match="already an average of 2 traces"):
         ml.average([ml.average([one, one]), one])
+
+
+def test_a_midline_file_of_three_points_is_refused_as_a_trace_is(tmp_path):
+    """An average midline read back needs the 4 points a trace needs (campaign and fit
+    said "N >= 3" and "at least 4" of the same file)."""
+    path = tmp_path / "average.csv"
+    path.write_text("r,z\n0,0\n0.5,0.1\n1,0.3\n", encoding="utf-8")
+    with pytest.raises(MidlineError, match=r"average.csv: 3 points; a midline needs at least 4"):
+        Midline.from_csv(path)

@@ -303,7 +303,15 @@ class InnerProblem:
         return float(np.max(np.abs(a - b) / width))
 
     def residuals(self, eq: Equilibrium) -> np.ndarray:
-        """r − R then z − Z at the N fit points of the state ``eq``: ndarray, shape (2N,)."""
+        """r − R then z − Z at the N fit points of the state ``eq``: ndarray, shape (2N,).
+
+        Raises ValueError for a state of another mesh (its unknowns would be read as
+        this mesh's: :meth:`_adopt`).
+        """
+        source = getattr(eq, "source", None)
+        if source is not None and source[1] != self.solver.mesh:
+            raise ValueError("a state of another mesh read through the fit's current one "
+                             "(a bug)")
         y = self.midline.at(eq)
         return np.concatenate([y[:self.n] - self.data[:, 0], y[self.n:] - self.data[:, 1]])
 

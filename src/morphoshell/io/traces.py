@@ -176,6 +176,8 @@ class Midline:
         """Read what :meth:`to_csv` wrote (points as they are, not resampled)."""
         path = Path(path)
         header, values, where, comments = _table(path, _read_bytes(path), "csv")
+        if len(values) < 4:         # (as a trace: read_trace)
+            raise MidlineError(f"{path}: {len(values)} points; a midline needs at least 4")
         _check_extent(str(path), values[:, :2], where, _IN_PIXELS)
         check_axis(str(path), values[:, :2], where, _SWAPPED)
         meta = [tuple(part.strip() for part in c.partition("=")[::2]) for c in comments]
