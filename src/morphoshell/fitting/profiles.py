@@ -172,8 +172,8 @@ class Profile:
         below = (self.values[:j][::-1].tolist(), self.objective[:j][::-1].tolist())
         above = (self.values[j + 1:].tolist(), self.objective[j + 1:].tolist())
         start = (self.fitted_value, float(self.objective[j]))
-        interval = (_crossing(*below, start, -1.0, threshold),
-                    _crossing(*above, start, 1.0, threshold))
+        interval = (_crossing(*below, start, -1.0, threshold, self.S_min),
+                    _crossing(*above, start, 1.0, threshold, self.S_min))
         return replace(self, interval=interval, threshold=float(threshold), sigma2=float(sigma2),
                        sigma2_source=source, flat=not all(np.isfinite(interval)), dof=dof)
 
@@ -407,25 +407,31 @@ def _walk(opt: _Optimum, name: str, steps: list[float], direction: float, step: 
 
 
 def _crossing(values: list, objective: list, start: tuple[float, float], direction: float,
-              threshold: float) -> float:
+              threshold: float, S_min: float) -> float:
     """Where the profile first crosses ``threshold`` walking out from ``start`` (θ̂ and its
-    objective S_min; ``values`` outward); ±inf (``direction``) if it never does.
+    objective; ``values`` outward); ±inf (``direction``) if it never does.
 
-    Interpolated linearly in √(S − S_min) between the last step below and the
-    first above: exact for a quadratic profile (a linear problem), whatever the
-    grid's step, where interpolating S itself put the crossing inside by up to
-    a step.
+    Interpolated linearly in √(S − S_min), S_min the profile's least objective,
+    between the last step below and the first above: exact for a quadratic
+    profile (a linear problem), whatever the grid's step, where interpolating S
+    itself put the crossing inside by up to a step.  Where θ̂ itself lies above
+    the threshold (a refit found an objective lower than the fit's by more than
+    the threshold's height: rethresholded with a small σ²), the crossing is the
+    first outward from the steps below it, and a side without any ends at θ̂
+    (at θ̂ the interpolation divided 0 by 0).
     """
-    last_v, S_min = start
-    last_r, target = 0.0, np.sqrt(max(threshold - S_min, 0.0))
+    last_v, S_start = start
+    below = S_start <= threshold
+    last_r, target = (np.sqrt(max(S - S_min, 0.0)) for S in (S_start, threshold))
     for v, s in zip(values, objective):
         if not np.isfinite(s):
             break
         r = np.sqrt(max(s - S_min, 0.0))
-        if s > threshold:
+        if s > threshold and below:
             return float(last_v + (v - last_v) * (target - last_r) / (r - last_r))
+        below = below or s <= threshold
         last_v, last_r = v, r
-    return direction * np.inf
+    return direction * np.inf if below else float(start[0])
 
 
 def _profile(opt: _Optimum, data, name: str, points: int, span, method: str, tol: float,
@@ -450,8 +456,8 @@ def _profile(opt: _Optimum, data, name: str, points: int, span, method: str, tol
         where = float(values[int(np.nanargmin(objective))])
         notes.append(f"a refit at {name} = {where:.6g} found a lower objective than the fit's")
         threshold = S_min + sigma2 * q
-    interval = (_crossing(vb, sb, (value, opt.S), -1.0, threshold),
-                _crossing(va, sa, (value, opt.S), 1.0, threshold))
+    interval = (_crossing(vb, sb, (value, opt.S), -1.0, threshold, S_min),
+                _crossing(va, sa, (value, opt.S), 1.0, threshold, S_min))
     return Profile(name, value, values, objective, np.array([*cb[::-1], True, *ca]),
                    interval, float(threshold), S_min, sigma2, source, confidence,
                    not all(np.isfinite(interval)), method, "; ".join(notes), dof)
