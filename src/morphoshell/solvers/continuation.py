@@ -72,6 +72,8 @@ class Path:
         Newton (or Ipopt) iterations of every step.
     snaps : tuple of Snap
         The snap-throughs crossed on the way (:func:`morphoshell.solvers.arclength.snap_through`).
+    origin : str
+        Where a continuation started.
     """
 
     kind: str
@@ -79,12 +81,13 @@ class Path:
     rejected: int = 0
     iterations: int = 0
     snaps: tuple = ()
+    origin: str = "the stress-free parameters"
 
     def describe(self) -> str:
         """One line saying how the solution was reached (stored in ``solver.details["path"]``)."""
         if self.kind != "continuation":
             return self.kind
-        line = (f"continuation from the stress-free parameters in {self.steps} steps "
+        line = (f"continuation from {self.origin} in {self.steps} steps "
                 f"({self.rejected} retried, {self.iterations} Newton iterations)")
         return "; ".join([line, *(snap.describe() for snap in self.snaps)])
 
@@ -174,11 +177,10 @@ def continue_between(solver: DirectSolver, start: Equilibrium, problem: Problem,
         Status ``"Continuation_Failed"``, as :func:`continue_to`;
         ``"Snap_Through_Failed"``.
     """
-    t0 = time.perf_counter()
-    run, eq = _follow(solver, start, problem, anchors, first_step, max_steps,
-                      "a previous solution", snap=snap)
+    t0, origin = time.perf_counter(), "a previous solution"
+    run, eq = _follow(solver, start, problem, anchors, first_step, max_steps, origin, snap=snap)
     return _with_path(eq, Path("continuation", run.steps, run.rejected, run.iterations,
-                               tuple(run.snaps)), t0)
+                               tuple(run.snaps), origin), t0)
 
 
 @dataclass
