@@ -154,3 +154,36 @@ def test_every_marker_kind_of_fig2J_is_in_its_legend(ks, off_scale):
     arrows = [l for l in ax.get_lines() if l.get_marker() in ("^", "v")]
     assert bool(arrows) == off_scale
     assert min(t.get_fontsize() for t in _texts(ax.figure)) >= MIN_FONT_SIZE
+
+
+def _profile(name, values, objective, converged, interval, flat=False):
+    from morphoshell.fitting import Profile
+    values = np.asarray(values, float)
+    return Profile(name, 0.0, values, np.asarray(objective, float), np.asarray(converged),
+                   interval, 2.0, 1.0, 0.1, "traces", 0.95, flat, "gradient")
+
+
+def test_profile_figure_is_journal_sized_and_shows_every_kind_of_refit(tmp_path):
+    """fit --profile-plot: two journal columns for several profiles, fonts >= 7 pt, one
+    line per title, nothing outside the figure; the unconverged refit, the threshold and
+    the interval are in the legend, and an open side is shaded to the panel's edge."""
+    from morphoshell.plotting import DOUBLE_COLUMN, plot_profiles
+    x = np.linspace(-1, 1, 5)
+    profiles = {"kappa1": _profile("kappa1", x, 1 + x ** 2, [True, True, True, True, False],
+                                   (-1.0, np.inf), flat=True),
+                "f1": _profile("f1", x, 1 + 4 * x ** 2, [True] * 5, (-0.5, 0.5))}
+    fig = plot_profiles(profiles, pyplot=False)
+    assert fig.get_size_inches()[0] == pytest.approx(DOUBLE_COLUMN)
+    first, second = fig.axes[:2]
+    assert first.get_title() == r"$\kappa_{1}$: not determined" and second.get_title() == "$f_{1}$"
+    (legend,) = fig.legends                         # one, below the panels
+    labels = [t.get_text() for t in legend.get_texts()]
+    assert {"not converged", "threshold", "95 % interval", "fit"} <= set(labels)
+    span = next(p for p in first.patches)           # the interval, open above
+    assert span.get_x() + span.get_width() == pytest.approx(first.get_xlim()[1])
+    for one in (fig, plot_profiles({"kappa1": profiles["kappa1"]}, pyplot=False)):
+        assert _outside_figure(one, tmp_path) == []
+        box, drawn = one.bbox, one.legends[0].get_window_extent()
+        assert box.x0 <= drawn.x0 and drawn.x1 <= box.x1 and box.y0 <= drawn.y0
+        assert min(t.get_fontsize() for t in _texts(one)) >= MIN_FONT_SIZE
+        assert all("\n" not in ax.get_title() for ax in one.axes)

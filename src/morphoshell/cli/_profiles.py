@@ -2,10 +2,9 @@
 
 The options (checked before any work: an unknown name, or one the variant does
 not fit, exits with status 2 and one line), the table printed beside the
-Gauss–Newton errors, the JSON entries and the plot of the profiles
-(:mod:`morphoshell.fitting.profiles`).  The plot is drawn here, not in
-:mod:`morphoshell.plotting`: it is a plain line plot of a profile's arrays,
-and plotting.py draws shells.
+Gauss–Newton errors and the JSON entries of the profiles
+(:mod:`morphoshell.fitting.profiles`); :mod:`morphoshell.plotting.profiles`
+draws them.
 """
 from __future__ import annotations
 
@@ -16,7 +15,7 @@ from ._args import integer
 from ._outputs import output_path
 
 __all__ = ["add_profile_options", "profile_names", "profile_plot_path", "run_profiles",
-           "profile_table", "profile_json", "plot_profiles"]
+           "profile_table", "profile_json"]
 
 
 def add_profile_options(p) -> None:
@@ -114,37 +113,3 @@ def profile_json(profiles: dict) -> dict:
     out = {n: p.to_dict() for n, p in profiles.items()}
     return {"profile_intervals": {n: d["interval"] for n, d in out.items()},
             "profiles": out}
-
-
-def plot_profiles(profiles: dict):
-    """A panel per profile: the objective E_fit² against the parameter, the threshold
-    (dashed), the interval (shaded; to the panel's edge where open), the fit (a dot),
-    refits that did not converge as open circles.  Returns the figure (outside pyplot)."""
-    import numpy as np
-    from matplotlib.figure import Figure
-
-    n = len(profiles)
-    cols = min(n, 3)
-    rows = (n + cols - 1) // cols
-    fig = Figure(figsize=(3.2 * cols, 2.6 * rows), layout="constrained")
-    axes = fig.subplots(rows, cols, squeeze=False).ravel()
-    for ax, (name, p) in zip(axes, profiles.items()):
-        ok = p.converged & np.isfinite(p.objective)
-        ax.plot(p.values, p.objective, color="C0", lw=1.0)
-        ax.plot(p.values[ok], p.objective[ok], "o", color="C0", ms=3)
-        ax.plot(p.values[~ok], p.objective[~ok], "o", mfc="none", color="C3", ms=4,
-                label="not converged")
-        ax.axhline(p.threshold, color="k", ls="--", lw=0.8, label="threshold")
-        lo, hi = p.interval
-        left, right = ax.get_xlim()
-        ax.axvspan(lo if math.isfinite(lo) else left, hi if math.isfinite(hi) else right,
-                   color="C1", alpha=0.2, lw=0, label=f"{100 * p.confidence:g} % interval")
-        ax.set_xlim(left, right)
-        ax.plot([p.fitted_value], [p.S_min], "o", color="k", ms=4)
-        ax.set_xlabel(name)
-        ax.set_ylabel(r"$E_\mathrm{fit}^2$ ($R^2$)")
-        ax.set_title(name + (": not determined" if p.flat else ""), fontsize="medium")
-    for ax in axes[n:]:
-        ax.set_visible(False)
-    axes[0].legend(fontsize="small", frameon=False)
-    return fig

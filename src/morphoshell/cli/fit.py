@@ -5,8 +5,8 @@ from pathlib import Path
 
 from ._args import add_outputs, integer, real, reworded
 from ._outputs import Outputs
-from ._profiles import (add_profile_options, plot_profiles, profile_json, profile_names,
-                        profile_plot_path, profile_table, run_profiles)
+from ._profiles import (add_profile_options, profile_json, profile_names, profile_plot_path,
+                        profile_table, run_profiles)
 
 __all__ = ["register"]
 
@@ -165,13 +165,13 @@ def _fit(args) -> int:
         "parameter": list(result.fitted),
         "value": [result.parameters[n] for n in result.fitted],
         "standard_error": [result.standard_errors[n] for n in result.fitted]}))
-    from ..plotting import fit_axes, plot_fit, save
+    from ..plotting import fit_axes, plot_fit, plot_profiles, save
     if args.plot:
         shell, residual = fit_axes(pyplot=False)
         ax = plot_fit(result, shell, residual_ax=residual, name=Path(args.midline).name)
         out.add(args.plot, lambda path: save(ax, path))
     if profiles and profile_plot_path(args) is not None:
-        figure = plot_profiles(profiles)
+        figure = plot_profiles(profiles, pyplot=False)
         out.add(profile_plot_path(args), lambda path: save(figure, path))
     for path in out.commit():
         print(f"  wrote {path}")

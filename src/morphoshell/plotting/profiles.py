@@ -1,0 +1,111 @@
+"""Profile likelihoods of fitted parameters (:mod:`morphoshell.fitting.profiles`).
+
+One panel per parameter: the least-squares objective E_fit² with the other
+parameters refitted, against the parameter's value, the threshold that defines
+the interval, and the interval itself — where a picture shows what the numbers
+hide: an asymmetric profile, a flat one (the data do not determine the
+parameter), or refits that did not converge near the crossing.
+"""
+from __future__ import annotations
+
+import math
+import re
+from typing import Mapping
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+
+from .style import DOUBLE_COLUMN, SINGLE_COLUMN, journal_figure, styled
+
+__all__ = ["plot_profiles", "plot_profile", "parameter_label"]
+
+#: Panels side by side in :func:`plot_profiles` (three fit a double column).
+COLUMNS = 3
+
+
+def parameter_label(name: str) -> str:
+    """A fitted parameter's name as the paper writes it (``kappa1`` -> κ₁, ``s3`` -> s₃)."""
+    match = re.fullmatch(r"([A-Za-z]+?)(\d*)", name)
+    if match is None:
+        return name
+    base, index = match.groups()
+    symbol = {"kappa": r"\kappa", "eta": r"\eta", "sigma": r"\sigma"}.get(base, base)
+    return f"${symbol}_{{{index}}}$" if index else f"${symbol}$"
+
+
+def plot_profile(profile, ax: Axes, *, legend: bool = True) -> Axes:
+    """One profile on ``ax``: E_fit² (R²) against the parameter.
+
+    The refits as dots (open red circles where they did not converge), the
+    threshold dashed, the interval shaded (to the panel's edge on an open
+    side), the fit a black dot; the title names the parameter and says when
+    the data do not determine it.
+
+    Parameters
+    ----------
+    profile : morphoshell.fitting.Profile
+    ax : matplotlib Axes
+    legend : bool
+        Draw the legend.
+    """
+    p = profile
+    ok = np.asarray(p.converged, bool) & np.isfinite(p.objective)
+    with styled(ax):
+        ax.plot(p.values, p.objective, color="C0", lw=1.0)
+        ax.plot(p.values[ok], p.objective[ok], "o", color="C0", ms=3, label="refit")
+        if not ok.all():
+            ax.plot(p.values[~ok], p.objective[~ok], "o", mfc="none", color="C3", ms=4,
+                    label="not converged")
+        ax.axhline(p.threshold, color="k", ls="--", lw=0.8, label="threshold")
+        lo, hi = p.interval
+        left, right = ax.get_xlim()
+        ax.axvspan(lo if math.isfinite(lo) else left, hi if math.isfinite(hi) else right,
+                   color="C1", alpha=0.2, lw=0, label=f"{100 * p.confidence:g} % interval")
+        ax.set_xlim(left, right)
+        ax.plot([p.fitted_value], [p.S_min], "o", color="k", ms=4, label="fit")
+        ax.set_xlabel(parameter_label(p.name))
+        ax.set_ylabel(r"$E_\mathrm{fit}^2$ ($R^2$)")
+        ax.set_title(parameter_label(p.name) + (": not determined" if p.flat else ""))
+        if legend:
+            ax.legend(frameon=False)
+    return ax
+
+
+def plot_profiles(profiles: Mapping, *, pyplot: bool = True) -> Figure:
+    """A panel per profile (:func:`plot_profile`), :data:`COLUMNS` a row, one legend below.
+
+    Parameters
+    ----------
+    profiles : mapping of str to morphoshell.fitting.Profile
+        As :func:`morphoshell.fitting.profile_intervals` returns them.
+    pyplot : bool
+        See :func:`~morphoshell.plotting.journal_figure` (``False`` for the command line).
+
+    Returns
+    -------
+    Figure
+        One journal column wide for one profile, two for more.
+    """
+    n = len(profiles)
+    if n == 0:
+        raise ValueError("no profiles to plot")
+    cols = min(n, COLUMNS)
+    rows = -(-n // cols)
+    width = SINGLE_COLUMN if cols == 1 else DOUBLE_COLUMN
+    fig = journal_figure(width, rows * 0.8 * width / cols + 0.3, pyplot=pyplot)
+    with styled(fig):
+        axes = fig.subplots(rows, cols, squeeze=False).ravel()
+    for ax, p in zip(axes, profiles.values()):
+        plot_profile(p, ax, legend=False)
+    for ax in axes[n:]:
+        ax.set_visible(False)
+    # one legend below the panels, of every kind drawn in any (not over a curve)
+    kinds: dict = {}
+    for ax in axes[:n]:
+        for handle, label in zip(*ax.get_legend_handles_labels()):
+            kinds.setdefault(label, handle)
+    with styled(fig):
+        fig.legend(kinds.values(), kinds.keys(), loc="outside lower center",
+                   ncols=len(kinds) if cols > 1 else 3, frameon=False)
+    return fig
