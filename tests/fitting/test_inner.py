@@ -77,3 +77,28 @@ def test_a_state_kept_after_the_mesh_moved_is_read_through_its_own_mesh():
     inner.keep(theta, eq)
     after = inner.residuals(inner.solve(theta))
     np.testing.assert_array_equal(after, before)
+
+
+def test_a_profile_refit_does_not_snap_its_trial_points_through(monkeypatch):
+    """Trial points far from every kept state are continued to; across a fold of the branch
+    a fit's trial snaps through, a profile refit's is rejected (snap_trials False: failed
+    snaps cost 0.8 s each, and the retry from the optimum tries other branches)."""
+    import types
+
+    import morphoshell.fitting.inner as fitting
+
+    spec = three_parameter_spec()
+    inner = fitting.InnerProblem.__new__(fitting.InnerProblem)
+    start = types.SimpleNamespace(name="start")
+    inner.spec, inner.solves, inner._cache = spec, 0, {}
+    inner._archive = [(spec.theta0, start)]
+    inner.solver, inner.snap_trials = object(), True
+    snaps = []
+    monkeypatch.setattr(fitting, "continue_between",
+                        lambda solver, eq, problem, snap: snaps.append(snap) or "eq")
+    far = spec.theta0 + 0.5 * (spec.box()[1] - spec.box()[0])
+    inner.solve(far, trial=True)
+    inner.snap_trials, inner._cache = False, {}
+    inner.solve(far * 1.01, trial=True)
+    inner.solve(far * 1.02)
+    assert snaps == [True, False, True]

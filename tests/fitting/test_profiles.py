@@ -205,3 +205,41 @@ def test_a_crossing_about_a_refit_below_the_fit_is_a_number():
         # the usual case is unchanged: the start is the minimum, r = √(S − 4)
         assert _crossing([1.0, 2.0], [5.0, 13.0], start, 1.0, 8.0, 4.0) == \
             pytest.approx(1.0 + (2.0 - 1.0) / (3.0 - 1.0))
+
+
+def test_a_refit_that_jumps_is_tried_again_from_the_optimum(monkeypatch):
+    """A refit continued from the last step can end on another branch, far above the profile
+    (the synthetic t05's κ₁ at 1.09: 13.8 threshold heights, 1.12 from the optimum).  Above
+    JUMP_MARGIN heights, or failed, it is tried again from the optimum and the lower kept;
+    below, it is not."""
+    import types
+
+    import morphoshell.fitting.profiles as profiles
+    from morphoshell.solvers.results import SolverError
+
+    opt = types.SimpleNamespace(spec="opt spec", theta="opt theta", eq="opt eq")
+    results = {"walk": 14.0, "opt spec": 1.1}
+    calls = []
+
+    def refit(opt_, name, spec, theta, eq, value, method, tol):
+        calls.append(spec)
+        if results[spec] is None:
+            raise SolverError("no", "Continuation_Failed")
+        return (spec, theta, eq, results[spec], True)
+
+    monkeypatch.setattr(profiles, "_refit", refit)
+    walked = ("walk", "theta", "eq")
+    jump = profiles.JUMP_MARGIN        # (S_min 0, threshold 1: heights are objectives)
+    out, failure = profiles._refit_checked(opt, "k", walked, 1.0, "gradient", 1e-8, jump)
+    assert calls == ["walk", "opt spec"] and out[3] == 1.1 and failure == ""
+    calls.clear()
+    results["walk"] = 2.0               # (below the jump: no retry)
+    out, _ = profiles._refit_checked(opt, "k", walked, 1.0, "gradient", 1e-8, jump)
+    assert calls == ["walk"] and out[3] == 2.0
+    calls.clear()
+    results.update(walk=None, **{"opt spec": 3.0})     # failed: the retry's, even above
+    out, _ = profiles._refit_checked(opt, "k", walked, 1.0, "gradient", 1e-8, jump)
+    assert calls == ["walk", "opt spec"] and out[3] == 3.0
+    results["opt spec"] = None          # both failed: the first failure's message
+    out, failure = profiles._refit_checked(opt, "k", walked, 1.0, "gradient", 1e-8, jump)
+    assert out is None and failure == "no"

@@ -574,10 +574,10 @@ def test_a_midline_that_does_not_read_fails_before_any_work(tmp_path, capsys):
     assert "bad.csv: line 3, column 2 (z): 'oops' is not a number" in err, err
     assert not out.exists()
     # a midline that reads but is far too short for the model (a wrong scale): named, before work
-    (tmp_path / "bad.csv").write_text("r,z\n0,0\n0.1,0.1\n0.2,0.1\n")
+    (tmp_path / "bad.csv").write_text("r,z\n0,0\n0.1,0.1\n0.2,0.1\n0.2,0.2\n")
     assert main(["campaign", str(tmp_path), "--out", str(out), "--workers", "1"]) == 2
     err = capsys.readouterr().err
-    assert "bad.csv: the midline is 0.241 R long, 12× shorter than the undeformed shell (2.84 " \
+    assert "bad.csv: the midline is 0.341 R long, 8.3× shorter than the undeformed shell (2.84 " \
            "R); the model's midlines are about 1.89-4.26 R long: are its r and z in units of R" \
         in err, err
     assert not out.exists()

@@ -170,6 +170,9 @@ class InnerProblem:
             self.solves += 1
         self._cache: dict = {}
         self._archive = [(spec.theta0, self.eq)]
+        #: whether a trial point's continuation crosses folds by their snap-through (a
+        #: profile's refits do not: :mod:`morphoshell.fitting.profiles`)
+        self.snap_trials = True
         #: whether the fit started from a given state (a previous fit's)
         self.warm = start is not None
 
@@ -214,7 +217,8 @@ class InnerProblem:
             if self._distance(near[0], theta) < NEAR:
                 eq = self.solver.solve(problem, warm_start=near[1])
             else:
-                eq = continue_between(self.solver, near[1], problem, snap=True)
+                eq = continue_between(self.solver, near[1], problem,
+                                      snap=self.snap_trials or not trial)
         except ValueError:           # the mesh's breakpoints moved too far: a new mesh
             self._build(problem)
             self._archive = []
