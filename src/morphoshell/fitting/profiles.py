@@ -4,7 +4,8 @@ A fit's Gauss–Newton errors (:mod:`morphoshell.fitting.results`) are those of
 the linearised problem at the optimum.  A *profile* (Venzon & Moolgavkar 1988;
 Raue et al. 2009) asks the nonlinear question instead: step one parameter θⱼ
 over a grid around its fitted value, fit all the others again at each step
-(warm-started from the neighbouring step's result), and record the least-squares
+(warm-started from the neighbouring step's result; a refit far above the
+profile, or failed, again from the optimum), and record the least-squares
 objective S(θⱼ) = E_fit²(θⱼ) (units of R²; the fit energy of the paper,
 Supplementary, "Fitting of the morphoelastic theory to the average cell sheet
 midlines of Volvox inversion").  With Gaussian residuals of variance σ² the
