@@ -45,3 +45,33 @@ def test_an_ipopt_solve_that_swallowed_a_ctrl_c_raises_it(default_handler):
         assert ipopt_status(status) == "NonIpopt_Exception_Thrown"   # (claimed once)
         assert not swallowed()
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_a_ctrl_c_that_casadi_dropped_stops_a_campaign_between_fits(default_handler, tmp_path,
+                                                                    monkeypatch):
+    """CasADi's wrappers drop a KeyboardInterrupt raised while they try a conversion's
+    overloads (ca.DM(list) during Ctrl-C returned normally, and a serial campaign ran to its
+    end, exit 3).  The fits' loop checks the count: the fit so cut is not stored, and the
+    Ctrl-C is raised before the next."""
+    import morphoshell.workflows.timepoint_fits as timepoint_fits
+    from morphoshell._runtime.interrupts import check
+    from morphoshell.io.timepoints import Timepoint
+
+    def dropped(*args):             # a fit during which CasADi dropped a Ctrl-C
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(5)
+        except KeyboardInterrupt:
+            pass
+        return {"status": "ok"}
+
+    monkeypatch.setattr(timepoint_fits, "_fit_one", dropped)
+    monkeypatch.setattr(timepoint_fits, "_settings", lambda *args: {"x": 1})
+    task = type("Task", (), {"out": str(tmp_path), "variant": "flat", "owner": None,
+                             "timepoints": (Timepoint("t01", 0.0, "a.csv"),)})()
+    with noted():
+        check()                     # nothing pending: no effect
+        with pytest.raises(KeyboardInterrupt):
+            timepoint_fits.fit_variant(task)
+        check()                     # (claimed)
+    assert not list(tmp_path.iterdir())

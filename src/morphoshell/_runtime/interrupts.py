@@ -6,9 +6,12 @@ exception set``, its cause the ``KeyboardInterrupt`` (:func:`interrupted`
 says so); reported as such, the user's Ctrl-C read as a bug (exit status 1).
 Inside an Ipopt solve CasADi swallows it: it prints a warning and Ipopt
 returns ``NonIpopt_Exception_Thrown``, which a fit took for a failed solve
-and went on (a serial campaign ran 90 s more).  While :func:`noted` is in
-force, Python's Ctrl-C handler also counts the interrupts, so that
-:func:`swallowed` can tell such a return from a failure.
+and went on (a serial campaign ran 90 s more).  And CasADi's wrappers try a
+conversion's overloads in turn, dropping a ``KeyboardInterrupt`` raised inside
+one: ``ca.DM(list)`` during a Ctrl-C returned normally, and a serial campaign
+ran to its end (exit 3, not 130).  While :func:`noted` is in force, Python's
+Ctrl-C handler also counts the interrupts, so that :func:`swallowed` can tell
+such a return from a failure and :func:`check` can raise one that was lost.
 """
 from __future__ import annotations
 
@@ -17,7 +20,7 @@ import threading
 from contextlib import contextmanager
 from typing import Iterator
 
-__all__ = ["interrupted", "noted", "swallowed"]
+__all__ = ["interrupted", "noted", "swallowed", "check"]
 
 #: Ctrl-Cs received under :func:`noted` and not yet claimed by :func:`swallowed`.
 _received = [0]
@@ -73,3 +76,10 @@ def swallowed() -> bool:
     after a CasADi call that returned, one that CasADi swallowed."""
     received, _received[0] = _received[0], 0
     return received > 0
+
+
+def check() -> None:
+    """Raise ``KeyboardInterrupt`` if a Ctrl-C arrived under :func:`noted` and was not claimed
+    (lost on its way through CasADi, say): between the steps of long work.  Claims it."""
+    if swallowed():
+        raise KeyboardInterrupt
