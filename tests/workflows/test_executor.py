@@ -68,3 +68,30 @@ def test_a_scheduler_that_does_not_answer_is_named_and_leaves_dask_as_it_was(add
     # and it is gone: left to the garbage collector, its __del__ ran inside the next
     # Client's start and deadlocked the suite
     assert not [o for o in gc.get_objects() if isinstance(o, Client) and id(o) not in clients]
+
+
+def test_a_ctrl_c_dropped_in_a_serial_task_stops_the_next_one():
+    """The serial executor runs each task at submission: a Ctrl-C that CasADi dropped in
+    one task (morphoshell._runtime.interrupts) is raised before the next runs."""
+    import signal
+    import time
+
+    from morphoshell._runtime.interrupts import noted
+
+    def dropped(i):
+        if i == 0:
+            try:
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(5)
+            except KeyboardInterrupt:           # as CasADi drops one
+                pass
+        return i
+
+    ran = []
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with noted(), pytest.raises(KeyboardInterrupt):
+            list(run(lambda i: ran.append(i) or dropped(i), range(3), SerialExecutor()))
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert ran == [0]

@@ -26,6 +26,7 @@ import os
 from contextlib import contextmanager
 from typing import Any, Callable, Iterable, Iterator
 
+from .._runtime import interrupts
 from .._runtime.console import progress
 
 __all__ = ["open_executor", "run", "SerialExecutor", "backend_name"]
@@ -45,7 +46,13 @@ class SerialExecutor(cf.Executor):
     """Runs each task at submission, in this process (``workers=1``)."""
 
     def submit(self, fn, /, *args, **kwargs):
-        """Run ``fn(*args, **kwargs)`` now; return a finished future with its result."""
+        """Run ``fn(*args, **kwargs)`` now; return a finished future with its result.
+
+        Raises ``KeyboardInterrupt`` first if a Ctrl-C of an earlier task was dropped on
+        its way through CasADi (:func:`morphoshell._runtime.interrupts.check`): the tasks
+        run at submission, and a sweep went on through all of them.
+        """
+        interrupts.check()
         future: cf.Future = cf.Future()
         try:
             future.set_result(fn(*args, **kwargs))
