@@ -81,8 +81,8 @@ def test_a_state_kept_after_the_mesh_moved_is_read_through_its_own_mesh():
 
 def test_a_profile_refit_does_not_snap_its_trial_points_through(monkeypatch):
     """Trial points far from every kept state are continued to; across a fold of the branch
-    a fit's trial snaps through, a profile refit's is rejected (snap_trials False: failed
-    snaps cost 0.8 s each, and the retry from the optimum tries other branches)."""
+    a fit's trial snaps through, a profile refit's is rejected (snap_trials False: a failed
+    snap costs far more, and the retry from the optimum tries other branches)."""
     import types
 
     import morphoshell.fitting.inner as fitting

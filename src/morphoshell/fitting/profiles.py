@@ -306,9 +306,9 @@ def _optimum(spec: FitSpec, data: np.ndarray, result: FitResult | None, method: 
                          solver_of(result.equilibrium) if same else None)
     inner.warm = True
     # A refit stays on the branch of its neighbour: a trial point beyond a fold is
-    # rejected, not snapped through (failed snaps cost 0.8 s each, and a stalled refit
-    # eight of them); another branch is tried by the retry from the optimum
-    # (_refit_checked).
+    # rejected, not snapped through (a failed snap costs far more than a rejected trial,
+    # and a stalled refit eight of them: docs/benchmarks.md, "Profile intervals");
+    # another branch is tried by the retry from the optimum (_refit_checked).
     inner.snap_trials = False
     start, theta, _, _, _, _ = fit_moving_boxes(method_run(method), start, inner, tol, None)
     eq = inner.solve(theta)
