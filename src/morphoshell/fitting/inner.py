@@ -244,13 +244,16 @@ class InnerProblem:
         gave E_fit² 1.6 R² for 2.9e-5 (a profile's refit of the synthetic t05).
         The archived states of other meshes are dropped.
         """
-        source = getattr(eq, "source", None)        # (None: not a direct solution)
-        if source is None or source[0]() is self.solver:
+        if self._on_this_mesh(eq):
             return
         solver = solver_of(eq)
         self.solver, self.midline = solver, midline(solver.disc, self.n)
-        self._archive = [(t, e) for t, e in self._archive
-                         if e.source is not None and e.source[0]() is solver]
+        self._archive = [(t, e) for t, e in self._archive if self._on_this_mesh(e)]
+
+    def _on_this_mesh(self, eq) -> bool:
+        """Whether ``eq`` was solved on the current solver's mesh (or is no direct solution)."""
+        source = getattr(eq, "source", None)
+        return source is None or source[0]() is self.solver or source[1] == self.solver.mesh
 
     def restart(self, spec: FitSpec, eq: Equilibrium) -> None:
         """Fit ``spec`` next, from the state ``eq`` (solved on this mesh, e.g. for a neighbouring
@@ -312,8 +315,7 @@ class InnerProblem:
         Raises ValueError for a state of another mesh (its unknowns would be read as
         this mesh's: :meth:`_adopt`).
         """
-        source = getattr(eq, "source", None)
-        if source is not None and source[1] != self.solver.mesh:
+        if not self._on_this_mesh(eq):
             raise ValueError("a state of another mesh read through the fit's current one "
                              "(a bug)")
         y = self.midline.at(eq)

@@ -221,7 +221,6 @@ def fit_variant(task: CampaignTask) -> list[dict]:
     prev = first = None     # the records the next fit starts from / holds f1, κ3, κ4 of
     lifeline.watch(task.owner)
     for tp in task.timepoints:
-        interrupts.check()          # (a Ctrl-C that CasADi dropped: _runtime.interrupts)
         path = result_path(out, tp.name, task.variant)
         settings = _settings(task, tp, prev)
         stored = read_record(path)
@@ -233,7 +232,9 @@ def fit_variant(task: CampaignTask) -> list[dict]:
         else:
             t0 = time.perf_counter()
             rec = _fit_one(task, tp, prev, first, settings)
-            interrupts.check()      # (not stored: a fit that a dropped Ctrl-C may have cut)
+            # a Ctrl-C that CasADi dropped (_runtime.interrupts) stops the campaign here: the
+            # fit it may have cut is not stored
+            interrupts.check()
             # sort_keys and full float precision: the same fit writes the same bytes
             write_atomic(path, json.dumps(rec, indent=1, sort_keys=True) + "\n")
             rec = json.loads(path.read_text(encoding="utf-8"))
