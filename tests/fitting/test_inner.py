@@ -22,7 +22,8 @@ def test_a_failed_trial_is_rejected_without_continuation(monkeypatch):
     def warm(problem, warm_start):
         raise SolverError("warm solve failed", "Maximum_Iterations_Exceeded")
 
-    inner.solver = types.SimpleNamespace(solve=warm)
+    inner.nodes = 40
+    inner.solver = types.SimpleNamespace(solve=warm, mesh=fitting.mesh_spec(spec.base, 40, 2))
     continued = []
     monkeypatch.setattr(fitting, "continue_between",
                         lambda solver, eq, problem, first_step, snap: continued.append(eq) or "eq")
@@ -31,6 +32,51 @@ def test_a_failed_trial_is_rejected_without_continuation(monkeypatch):
         inner.solve(theta, trial=True)
     assert continued == [] and inner.solves == 0
     assert inner.solve(theta) == "eq" and continued == [start] and inner.solves == 1
+
+
+def test_a_failed_trial_on_a_stale_mesh_is_tried_on_a_mesh_of_its_own(monkeypatch):
+    """A trial whose breakpoints lie STALE_MESH knot widths or more from the mesh's knots, and
+    whose solve there fails, is solved once more on a mesh built for it (from the nearest
+    state), which becomes the inner problem's; a trial near the knots still fails at once.
+    (The synthetic sequence's undeformed t12, fitted from t06's fit: the fit stalled at
+    E_fit 1.34 R on the family defaults' mesh, 0.028 R with this.)"""
+    import types
+
+    import morphoshell.fitting.inner as fitting
+    from morphoshell.solvers.results import SolverError
+
+    spec = three_parameter_spec()
+    base = spec.problem(spec.theta0)
+    inner = fitting.InnerProblem.__new__(fitting.InnerProblem)
+    start = types.SimpleNamespace(name="start")
+    inner.spec, inner.solves, inner._cache, inner.nodes, inner.n = spec, 0, {}, 40, 10
+    inner.snap_trials = True
+    inner._archive = [(spec.theta0, start)]
+
+    def failing(problem, warm_start):
+        raise SolverError("warm solve failed", "Maximum_Iterations_Exceeded")
+
+    old = types.SimpleNamespace(solve=failing, mesh=fitting.mesh_spec(base, 40, 2))
+    inner.solver = old
+    built = []
+    monkeypatch.setattr(fitting, "DirectSolver", lambda structure, mesh: built.append(mesh)
+                        or types.SimpleNamespace(mesh=mesh, disc=None))
+    monkeypatch.setattr(fitting, "midline", lambda disc, n: "midline")
+    monkeypatch.setattr(fitting, "solve_from", lambda solver, problem, eq: ("new", eq))
+    monkeypatch.setattr(fitting, "continue_between", lambda *args, **kw: failing(None, None))
+    breakpoints = [i for i, name in enumerate(spec.fitted) if name.startswith("s")]
+    assert breakpoints, spec.fitted
+    near = spec.theta0.copy()
+    near[breakpoints[0]] *= 1.001                       # within NEAR: one warm solve
+    with pytest.raises(SolverError, match="warm solve failed"):
+        inner.solve(near, trial=True)
+    assert built == [] and inner.solver is old
+    stale = near.copy()
+    stale[breakpoints[0]] *= 1.1
+    assert inner._stale(spec.problem(stale))
+    assert inner.solve(stale, trial=True) == ("new", start)
+    assert built == [fitting.mesh_spec(spec.problem(stale), 40, 2)]
+    assert inner.solver.mesh == built[0] and inner.midline == "midline"
 
 
 def test_inner_solves_cross_a_snap_through_instead_of_failing():

@@ -177,3 +177,43 @@ def test_fold_location_survives_a_failed_corrector(volvox):
     assert failed and located is not None
     ends = [correct(prev, 0.0).t_tau, correct(prev, ds).t_tau]
     assert abs(located.t_tau) <= min(map(abs, ends))
+
+
+def test_the_walk_past_a_stall_stops_where_it_reaches_the_target_unstable(monkeypatch):
+    """A branch that goes on past τ = 1 on unstable points (its stability lost without a
+    fold) ends there, "Branch_Ended", instead of walking on to the 200th point: beyond
+    τ = 1 the parameters are extrapolated (the synthetic campaign's walks reached τ = 4.8,
+    where the breakpoints cross, 0.9 s each for nothing). Cheap fake branch: τ grows
+    with the arclength, every point unstable."""
+    import types
+
+    asked = []
+
+    class Branch:
+        def __init__(self, solver, line, anchors):
+            pass
+
+        def start(self, eq, tau, direction):
+            return types.SimpleNamespace(tau=tau, t_tau=1.0, iterations=1,
+                                         inertia=types.SimpleNamespace(stable=True))
+
+        def correct(self, prev, ds):
+            asked.append(prev.tau + ds)
+            return types.SimpleNamespace(tau=prev.tau + ds, t_tau=1.0, iterations=1,
+                                         inertia=types.SimpleNamespace(stable=False))
+
+        def turned(self, prev, new):
+            return False
+
+        def at_tau(self, prev, tau):
+            return None
+
+        def equilibrium(self, point):
+            return f"state at {point.tau:.3f}"
+
+    monkeypatch.setattr(arclength, "Arclength", Branch)
+    with pytest.raises(SolverError) as info:
+        arclength.cross_fold(None, None, None, 0.9)
+    assert info.value.status == "Branch_Ended"
+    assert max(asked) <= 1 + arclength.MAX_STEP and len(asked) < 30
+    assert info.value.last_iterate.startswith("state at 0.9")

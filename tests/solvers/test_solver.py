@@ -211,3 +211,21 @@ def test_fine_meshes_do_not_refactorise_for_round_off(capfd):
         failures.append(capfd.readouterr().out.count("Iterative refinement failed"))
         del solver
     assert failures[0] == 0 and failures[1] >= 2
+
+
+def test_a_warm_start_from_another_mesh_is_carried_onto_this_one():
+    """A state of another mesh with as many unknowns (here: another boundary-layer grading)
+    starts the solve from its fields interpolated in s (DirectSolver.carried), not from its
+    raw unknowns, which would put each node's r and psi at another s; its multipliers are
+    not used. Same iterates as the explicit carried start, to the bit."""
+    p = Problem("uniform", {"k": 0.5}, h=0.2, cut=0.3)
+    a = DirectSolver(p.structure, nodes=60)
+    b = DirectSolver(p.structure, nodes=60, grading_width=0.3)
+    eq = a.solve(p)
+    assert a.made(eq) and not b.made(eq) and len(eq.x) == b.disc.layout.size
+    x0 = b.carried(eq, p.parameter_vector())
+    assert np.max(np.abs(x0 - eq.x)) > 1e-3         # the raw unknowns are another start
+    warm, explicit = b.solve(p, warm_start=eq), b.solve(p, x0=x0)
+    assert b.made(warm)
+    assert np.array_equal(warm.x, explicit.x)
+    assert warm.solver.iterations == explicit.solver.iterations

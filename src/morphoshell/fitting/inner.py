@@ -40,6 +40,10 @@ N_FIT = 100
 NEAR = 0.02
 #: Inner states kept as starting points.
 ARCHIVE = 64
+#: A trial point whose solve fails on a mesh whose knots lie more than this many knot
+#: widths from the trial's breakpoints is tried once more on a mesh of its own
+#: (:meth:`InnerProblem.solve`): the graded cells then no longer sit at the breakpoints.
+STALE_MESH = 2.0
 
 
 def model_midline(eq: Equilibrium, n: int = N_FIT) -> np.ndarray:
@@ -220,14 +224,30 @@ class InnerProblem:
                 eq = continue_between(self.solver, near[1], problem,
                                       snap=self.snap_trials or not trial)
         except ValueError:           # the mesh's breakpoints moved too far: a new mesh
-            self._build(problem)
-            self._archive = []
-            eq = solve_from(self.solver, problem, near[1])
+            eq = self._remeshed(problem, near[1])
         except SolverError:
-            if trial:
+            if trial and self._stale(problem):
+                eq = self._remeshed(problem, near[1])
+            elif trial:
                 raise
-            eq = continue_between(self.solver, near[1], problem, first_step=0.25, snap=True)
+            else:
+                eq = continue_between(self.solver, near[1], problem, first_step=0.25, snap=True)
         return self._keep(theta, eq)
+
+    def _stale(self, problem: Problem) -> bool:
+        """Whether the mesh's knots lie more than :data:`STALE_MESH` knot widths from where
+        ``problem``'s mesh would put them (its breakpoints)."""
+        own = mesh_spec(problem, self.nodes, 2).knots
+        return any(abs(a.t - b.t) > STALE_MESH * (a.width or 0.0)
+                   for a, b in zip(own, self.solver.mesh.knots))
+
+    def _remeshed(self, problem: Problem, eq: Equilibrium) -> Equilibrium:
+        """``problem`` solved on a mesh of its own, from the state ``eq`` of another mesh; the
+        new mesh becomes the inner problem's (after the solve: a failure keeps the old one)."""
+        solver = DirectSolver(problem.structure, mesh=mesh_spec(problem, self.nodes, 2))
+        new = solve_from(solver, problem, eq)
+        self.solver, self.midline, self._archive = solver, midline(solver.disc, self.n), []
+        return new
 
     def keep(self, theta, eq: Equilibrium) -> None:
         """Make ``eq``, solved before at θ, the state of θ again (without a solve)."""
@@ -252,8 +272,7 @@ class InnerProblem:
 
     def _on_this_mesh(self, eq) -> bool:
         """Whether ``eq`` was solved on the current solver's mesh (or is no direct solution)."""
-        source = getattr(eq, "source", None)
-        return source is None or source[0]() is self.solver or source[1] == self.solver.mesh
+        return getattr(eq, "source", None) is None or self.solver.made(eq)
 
     def restart(self, spec: FitSpec, eq: Equilibrium) -> None:
         """Fit ``spec`` next, from the state ``eq`` (solved on this mesh, e.g. for a neighbouring

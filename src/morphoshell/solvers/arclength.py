@@ -426,6 +426,9 @@ def cross_fold(solver: DirectSolver, eq: Equilibrium, line: ParameterLine, tau: 
             if new.tau > 1:
                 new = arc.at_tau(point, 1.0) or new
             return arc.equilibrium(new), float(new.tau), None
+        if new.tau > 1:       # beyond, p leaves the segment (extrapolated: the family's ranges)
+            raise branch_ended(point.tau, "it reaches the target unstable",
+                               arc.equilibrium(point))
         point = new
         if new.iterations <= EASY:
             ds = min(GROWTH * ds, MAX_STEP)

@@ -187,7 +187,9 @@ class DirectSolver:
         problem : Problem
             Must have this solver's structure; any parameter values.
         warm_start : Equilibrium, optional
-            A previous solution on this solver (continuation, fitting).
+            A previous solution on this solver (continuation, fitting).  One of
+            another mesh or route is carried onto this mesh by interpolation
+            (:meth:`carried`), without its multipliers.
         x0, lam_g0 : ndarray, optional
             Raw initial iterate and multipliers (override ``warm_start``).
         anchors : sequence of float
@@ -213,15 +215,7 @@ class DirectSolver:
         q = self.disc.check_anchors(p, anchors)
         origin = None
         if warm_start is not None and x0 is None:
-            if warm_start.x is None or len(warm_start.x) != self.disc.layout.size:
-                raise ValueError("warm_start must be a direct solution on a solver of this mesh")
-            x0, lam_g0 = warm_start.x, warm_start.lam_g
-            if warm_start.problem.structure == self.structure and \
-                    len(warm_start.anchors) == self.disc.anchors:
-                # the warm start's own parameters: Newton's first step is a chord step
-                p_w = warm_start.problem.parameter_vector()
-                q_w = np.asarray(warm_start.anchors, dtype=float)
-                origin = (p_w, q_w, lambda: self.disc.pre_numeric(p_w, q_w))
+            x0, lam_g0, origin = self._warm(warm_start, p, q)
         if x0 is None:
             x0 = self.disc.initial_guess(p, q)
         D = self.disc.cell_data(p, q)
@@ -255,6 +249,41 @@ class DirectSolver:
                 f"{explain(NOT_A_MINIMUM)}. The saddle is attached (.last_iterate)",
                 NOT_A_MINIMUM, unconverged(eq))
         return eq
+
+    def _warm(self, eq: Equilibrium, p: np.ndarray, q: np.ndarray) -> tuple:
+        """(x₀, λ₀, origin) of the warm start ``eq``: its unknowns and multipliers, and its
+        parameters for Newton's chord step; a state of another mesh is carried onto this
+        one (read through this mesh, its x would put each node's r and ψ at another s)."""
+        if not self.made(eq):
+            return self.carried(eq, p, q), None, None
+        origin = None
+        if eq.problem.structure == self.structure and len(eq.anchors) == self.disc.anchors:
+            p_w = eq.problem.parameter_vector()
+            q_w = np.asarray(eq.anchors, dtype=float)
+            origin = (p_w, q_w, lambda: self.disc.pre_numeric(p_w, q_w))
+        return eq.x, eq.lam_g, origin
+
+    def made(self, eq: Equilibrium) -> bool:
+        """Whether ``eq`` is a state of this solver's mesh: solved by it or by a solver of
+        the same mesh (a direct solution; False for other routes' results)."""
+        source = eq.source
+        return source is not None and eq.x is not None and (
+            source[0]() is self or source[1] == self.mesh and source[2] == self.stages)
+
+    def carried(self, eq: Equilibrium, p: np.ndarray, q=()) -> np.ndarray:
+        """The unknowns x of this mesh at the parameters ``p`` (anchors ``q``) interpolated
+        (linearly in s) from the fields of ``eq``, a solution on any mesh or by any route.
+
+        Returns
+        -------
+        ndarray, shape (layout.size,)
+        """
+        d = self.disc
+        s = d.points(p, q)
+        nodes = s[::d.stages]
+        s_g = (nodes[:-1, None] + np.diff(nodes)[:, None] * d.tau[None, :]).ravel()
+        return d.layout.pack(np.interp(s, eq.s, eq.r), np.interp(s, eq.s, eq.psi),
+                             np.interp(s_g, eq.s, eq.f_s))
 
     @staticmethod
     def _axis_crossing(eq: Equilibrium) -> tuple[float, float] | None:

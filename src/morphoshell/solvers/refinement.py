@@ -50,13 +50,7 @@ def solve_from(solver: DirectSolver, problem: Problem, eq: Equilibrium, anchors=
     Equilibrium
         On ``solver``'s mesh.
     """
-    d = solver.disc
-    p = problem.parameter_vector()
-    s = d.points(p, anchors)
-    nodes = s[::d.stages]
-    s_g = (nodes[:-1, None] + np.diff(nodes)[:, None] * d.tau[None, :]).ravel()
-    x0 = d.layout.pack(np.interp(s, eq.s, eq.r), np.interp(s, eq.s, eq.psi),
-                       np.interp(s_g, eq.s, eq.f_s))
+    x0 = solver.carried(eq, problem.parameter_vector(), anchors)
     return solver.solve(problem, x0=x0, anchors=anchors)
 
 
