@@ -182,8 +182,12 @@ class InnerProblem:
 
     def _build(self, problem: Problem) -> None:
         """A solver on the mesh of ``problem`` (its breakpoints) and its midline observable."""
-        self.solver = DirectSolver(problem.structure, mesh=mesh_spec(problem, self.nodes, 2))
+        self.solver = DirectSolver(problem.structure, mesh=self._mesh(problem))
         self.midline = midline(self.solver.disc, self.n)
+
+    def _mesh(self, problem: Problem):
+        """The mesh of the inner solves at ``problem`` (its breakpoints as knots)."""
+        return mesh_spec(problem, self.nodes, 2)
 
     def solve(self, theta, trial: bool = False) -> Equilibrium:
         """The inner solution at θ, on the branch of the fit's start.
@@ -237,14 +241,14 @@ class InnerProblem:
     def _stale(self, problem: Problem) -> bool:
         """Whether the mesh's knots lie more than :data:`STALE_MESH` knot widths from where
         ``problem``'s mesh would put them (its breakpoints)."""
-        own = mesh_spec(problem, self.nodes, 2).knots
+        own = self._mesh(problem).knots
         return any(abs(a.t - b.t) > STALE_MESH * (a.width or 0.0)
                    for a, b in zip(own, self.solver.mesh.knots))
 
     def _remeshed(self, problem: Problem, eq: Equilibrium) -> Equilibrium:
         """``problem`` solved on a mesh of its own, from the state ``eq`` of another mesh; the
         new mesh becomes the inner problem's (after the solve: a failure keeps the old one)."""
-        solver = DirectSolver(problem.structure, mesh=mesh_spec(problem, self.nodes, 2))
+        solver = DirectSolver(problem.structure, mesh=self._mesh(problem))
         new = solve_from(solver, problem, eq)
         self.solver, self.midline, self._archive = solver, midline(solver.disc, self.n), []
         return new
