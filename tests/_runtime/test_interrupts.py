@@ -75,3 +75,31 @@ def test_a_ctrl_c_that_casadi_dropped_stops_a_campaign_between_fits(default_hand
             timepoint_fits.fit_variant(task)
         check()                     # (claimed)
     assert not list(tmp_path.iterdir())
+
+
+def test_a_ctrl_c_that_casadi_dropped_during_a_command_writes_nothing(default_handler, tmp_path,
+                                                                      monkeypatch, capsys):
+    """A single `solve` (or `fit`, `estimate`) has no loop to check between steps: a Ctrl-C
+    CasADi dropped let it write its outputs and exit 0.  Outputs.commit checks first."""
+    import morphoshell.solvers.routes as routes
+    from morphoshell.cli import main
+
+    solve = routes.solve
+
+    def dropped(*args, **kwargs):   # a solve during which CasADi dropped a Ctrl-C
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(5)
+        except KeyboardInterrupt:
+            pass
+        return solve(*args, **kwargs)
+
+    monkeypatch.setattr(routes, "solve", dropped)
+    out = tmp_path / "eq.json"
+    assert main(["solve", "problems/toy1_sphere.toml", "--nodes", "40",
+                 "--json", str(out)]) == 130
+    assert "interrupted" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
+    monkeypatch.setattr(routes, "solve", solve)     # (without a Ctrl-C: written, exit 0)
+    assert main(["solve", "problems/toy1_sphere.toml", "--nodes", "40",
+                 "--json", str(out)]) == 0 and out.exists()

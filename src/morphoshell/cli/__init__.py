@@ -106,7 +106,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     the module's docstring); messages go to standard error.
     """
     from .._runtime.console import configure
-    from .._runtime.interrupts import interrupted, noted
+    from .._runtime.interrupts import check, interrupted, noted
     from ..io.problem_files import ProblemFileError
     from ..solvers.results import SolverError
 
@@ -120,7 +120,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     keep_large_blocks()     # big meshes: large arrays reused, not page-faulted anew (linear in N)
     try:
         with noted():           # (Ctrl-C within an Ipopt solve: counted, see numerics.ipopt)
-            return args.run(args)
+            status = args.run(args)
+            check()             # (one CasADi dropped in a command that writes nothing)
+            return status
     except (ProblemFileError, ValueError) as exc:
         print(f"morphoshell: error: {exc}", file=sys.stderr)
         return 2

@@ -62,7 +62,14 @@ class Outputs:
             self._staged.append((Path(path), write))
 
     def commit(self) -> list[Path]:
-        """Write every staged output; on any failure remove what was written and re-raise."""
+        """Write every staged output; on any failure remove what was written and re-raise.
+
+        A Ctrl-C that CasADi dropped during the work (:mod:`morphoshell._runtime.interrupts`)
+        is raised first: the results of a cut run are not written.
+        """
+        from .._runtime.interrupts import check
+
+        check()
         if not self._staged:
             return []
         import tempfile     # here only: a run without outputs needs none of its imports
