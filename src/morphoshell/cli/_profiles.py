@@ -23,7 +23,8 @@ def add_profile_options(p) -> None:
     p.add_argument("--profile", default=None, metavar="NAMES",
                    help="profile-likelihood intervals (95 %%) of these fitted parameters, "
                         "comma-separated (e.g. kappa1,f1), or 'all': each stepped over a grid "
-                        "around its fitted value, the others refitted at every step; a side "
+                        "around its fitted value, the others refitted at every step (by the "
+                        "gradient method, whatever --method); a side "
                         "that does not close is null (not determined by the data)")
     p.add_argument("--profile-points", dest="profile_points", type=integer(2, 1000), default=20,
                    metavar="N", help="refits per profile (default 20)")
@@ -78,13 +79,17 @@ def _data_with_spread(path, points):
 
 
 def run_profiles(args, spec, midline, result, names: list[str]) -> dict:
-    """The profiles of ``names`` about the fit ``result`` (by the fit's method if it can)."""
+    """The profiles of ``names`` about the fit ``result``, refitted by the gradient method.
+
+    Whatever the fit's method: with the Volvox model's at most 13 parameters a KKT refit is
+    the gradient refit's Gauss-Newton steps and an NLP after them, and a KKT fit's profiles
+    took 2.8 times as long for the same intervals (docs/benchmarks.md, "Profile intervals").
+    """
     from ..fitting import profile_intervals
 
     data = _data_with_spread(args.midline, midline.points)
-    method = args.method if args.method in ("gradient", "kkt") else "gradient"
     return profile_intervals(spec, data, names, result=result, points=args.profile_points,
-                             method=method, nodes=args.nodes, noise=args.profile_noise)
+                             method="gradient", nodes=args.nodes, noise=args.profile_noise)
 
 
 def _dof(p) -> str:
@@ -95,8 +100,9 @@ def _dof(p) -> str:
 def profile_table(result, profiles: dict) -> str:
     """The intervals beside the Gauss–Newton ±1.96 SE ones, one line a parameter."""
     first = next(iter(profiles.values()))
-    lines = [f"  profile intervals ({100 * first.confidence:g} %, sigma^2 = {first.sigma2:.3g} "
-             f"R^2 from the {first.sigma2_source}{_dof(first)}; Gauss-Newton +-1.96 SE beside):"]
+    lines = [f"  profile intervals ({100 * first.confidence:g} %, {first.method} refits, sigma^2 = "
+             f"{first.sigma2:.3g} R^2 from the {first.sigma2_source}{_dof(first)}; Gauss-Newton "
+             f"+-1.96 SE beside):"]
     for name, p in profiles.items():
         lo, hi = p.interval
         se = result.standard_errors.get(name, math.nan)
