@@ -320,10 +320,44 @@ def _ablate(draw, tmp: Path) -> tuple[list[str], str]:
     return ["ablate", toy2, *args], named
 
 
+#: Two image traces of one stage (pixels) and their radii in µm, for `average`.
+_PIXEL_TRACES = [str(DATA_DIR / "t02" / f"synthetic_embryo{k}.csv") for k in (1, 2)]
+_PIXEL_SCALE = ["--pixel-size", "0.3", "--section", "whole"]
+
+
+def _average(draw, tmp: Path) -> tuple[list[str], str]:
+    kind = draw(st.sampled_from(["file", "format", "section", "pixel-size", "radius-um",
+                                 "radii", "roi", "traces", "output"]))
+    radius = ["--radius-um", "41.7078,42.8509"]
+    if kind == "file":
+        name = draw(st.sampled_from([*MIDLINES, "binary.csv", "binary.roi", "a_folder.csv",
+                                     "missing.csv"]))
+        return ["average", MIDLINE.replace("synthetic_average", "synthetic_embryo1_midline"),
+                f"{tmp}/{name}"], name
+    args, named = {
+        "format": lambda: (["--format", draw(_typo(["csv", "xy", "fiji-xy", "roi"]))],
+                           "--format"),
+        "section": lambda: (["--section", draw(_typo(["auto", "whole", "half"]))], "--section"),
+        "pixel-size": lambda: (["--pixel-size", draw(_number(["0", "-0.3", "1e7"])), *radius],
+                               "--pixel-size"),
+        "radius-um": lambda: (["--pixel-size", "0.3", "--radius-um",
+                               draw(_number(["0", "-40", "1e300"]))], "--radius-um"),
+        "radii": lambda: (["--pixel-size", "0.3", "--radius-um",
+                           draw(st.sampled_from(["40,41,42", "40,", ",", "40,,41"]))],
+                          "--radius-um"),
+        "roi": lambda: (["--pixel-size", "0.3", *radius, "--roi",
+                         draw(st.sampled_from(["", "1"]))], "--roi"),
+        "traces": lambda: ([*_PIXEL_SCALE, *radius, "--traces"], "--traces"),
+        "output": lambda: _output(tmp, draw),
+    }[kind]()
+    return ["average", *_PIXEL_TRACES, *args], named
+
+
 @st.composite
 def bad_inputs(draw, tmp: Path) -> tuple[list[str], str]:
-    """A bad command line of estimate, fit, campaign or ablate, and the text its refusal names."""
-    command = draw(st.sampled_from([_estimate, _fit, _campaign, _ablate]))
+    """A bad command line of estimate, fit, average, campaign or ablate, and the text its
+    refusal names."""
+    command = draw(st.sampled_from([_estimate, _fit, _average, _campaign, _ablate]))
     return command(draw, tmp)
 
 

@@ -221,3 +221,27 @@ def test_bifurcation_diagram_draws_stability_events_and_shapes():
     assert diagram.get_xlabel().startswith("path fraction") and "psi" in diagram.get_ylabel()
     with pytest.raises(ValueError, match="y = 'stable'"):
         plot_branch(branch, y="stable")
+
+
+def test_traces_over_their_average_show_each_ones_distance_from_the_others():
+    """plot_traces: the traces, their average and spread above; below, each trace's distance
+    from their pointwise median, the same as io.trace_distances; the caption names the
+    farthest trace."""
+    import numpy as np
+
+    from morphoshell.io import Midline, average, trace_distances
+    from morphoshell.plotting import plot_traces
+
+    s = np.linspace(0.0, 1.0, 50)
+    base = np.column_stack([np.sin(2 * s), 1 - np.cos(2 * s)])
+    traces = [Midline(*(base * (1 + e)).T) for e in (0.0, 0.01, -0.01, 0.2)]
+    fig = plot_traces(average(traces), traces, ["a", "b", "c", "far"])
+    top, bottom = fig.axes
+    assert len(top.get_lines()) == 5 and len(bottom.get_lines()) == 4
+    distances = trace_distances(traces)
+    for line, d in zip(bottom.get_lines(), distances):
+        assert np.allclose(line.get_ydata(), d)
+    rms = np.sqrt((distances ** 2).mean(axis=1))
+    assert rms.argmax() == 3 and rms[3] > 10 * np.median(rms)
+    assert "(far)" in get_caption(bottom)
+    plt.close(fig)

@@ -100,3 +100,15 @@ def test_bad_sets_and_options(tmp_path):
         zf.writestr("notes.txt", "hello")
     with pytest.raises(MidlineError, match=r"notes\.zip: a zip file without \.roi entries"):
         load_midline(other, **SCALE)
+
+
+def test_load_midlines_gives_a_sets_traces_one_by_one(tmp_path):
+    """load_midlines: the single traces that load_midline averages, each its own ROI's."""
+    from morphoshell.io import load_midlines
+
+    path = _roi_set(tmp_path)
+    singles = load_midlines(path, roi="all", **SCALE)
+    assert [m.source for m in singles] == [(f"{path}, ROI 'embryo{k}'",) for k in (1, 2, 3)]
+    for k, m in enumerate(singles, start=1):
+        assert np.array_equal(m.points, load_midline(tmp_path / f"single{k}.roi", **SCALE).points)
+    assert np.array_equal(average(singles).points, load_midline(path, roi="all", **SCALE).points)

@@ -61,7 +61,7 @@ def _add_verbosity(p: argparse.ArgumentParser, top: bool) -> None:
 #: The module registering each command.
 _COMMANDS = {"solve": "solve", "ablate": "solve", "asymptotics": "analytic", "sphere": "analytic",
              "estimate": "estimate", "fit": "fit", "sweep": "sweep", "campaign": "campaign",
-             "example": "example", "continue": "branches"}
+             "example": "example", "continue": "branches", "average": "average"}
 
 
 def _command(argv: Sequence[str]) -> str | None:
@@ -78,7 +78,8 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     """
     import importlib
 
-    names = ("solve", "branches", "analytic", "estimate", "fit", "sweep", "campaign", "example")
+    names = ("solve", "branches", "analytic", "estimate", "fit", "average", "sweep", "campaign",
+             "example")
     if command in _COMMANDS:
         names = (_COMMANDS[command],)
     modules = [importlib.import_module(f".{n}", __name__) for n in names]

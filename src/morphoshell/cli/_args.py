@@ -8,11 +8,21 @@ from typing import Callable, Mapping
 
 from ._outputs import output_path
 
-__all__ = ["integer", "real", "add_outputs", "problem_and_settings", "reworded", "LINEAR_SOLVERS"]
+__all__ = ["integer", "real", "micrometres", "add_outputs", "TRACE_OPTIONS", "problem_and_settings",
+           "reworded", "LINEAR_SOLVERS"]
 
 #: Ipopt's linear solvers: MUMPS is bundled with CasADi; the HSL ones (ma27 …)
 #: load only from the user's libhsl.so, SPRAL and Pardiso from their libraries.
 LINEAR_SOLVERS = ("mumps", "ma27", "ma57", "ma77", "ma86", "ma97", "spral", "pardisomkl")
+
+
+#: The Python arguments that the messages of morphoshell.io name, as the command line spells
+#: them (a new user typed "pixel_size_um" into the shell).
+TRACE_OPTIONS = {r"\bpixel_size_um\b": "--pixel-size", r"\bradius_um\b": "--radius-um",
+                 r"\bsection='(\w+)'": r"--section \1", r"\broi='([^']*)'": r"--roi \1",
+                 r"\broi=": "--roi ",
+                 r"\bwith format '(\w+)' or none": r"with --format \1 or none",
+                 r"\bthe pixel size and the radius R\b": "--pixel-size and --radius-um"}
 
 
 def reworded(message: str, options: Mapping[str, str]) -> str:
@@ -68,6 +78,14 @@ def real(lo: float = -math.inf, hi: float = math.inf, *, open_lo: bool = False,
         return value
     parse.__name__ = "number"
     return parse
+
+
+def micrometres(text: str) -> float:
+    """A length in µm of an image's scale (a pixel's size, an embryo's radius): in (0, 10⁶]."""
+    return real(0, 1e6, open_lo=True, unit=" um")(text)
+
+
+micrometres.__name__ = "number"
 
 
 def add_executor(p: argparse.ArgumentParser, default_workers: str) -> None:

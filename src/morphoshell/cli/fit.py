@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ._args import add_outputs, integer, real, reworded
+from ._args import TRACE_OPTIONS, add_outputs, integer, micrometres, reworded
 from ._outputs import Outputs
 from ._profiles import (add_profile_options, profile_json, profile_names, profile_plot_path,
                         profile_table, run_profiles)
@@ -33,11 +33,11 @@ def register(sub) -> None:
                    "ImageJ .roi or a ROI Manager set RoiSet.zip (with --roi)")
     p.add_argument("--format", choices=FORMATS, default=None,
                    help="file format (default: from the content)")
-    p.add_argument("--pixel-size", dest="pixel_size", type=real(0, 1e6, open_lo=True, unit=" um"),
+    p.add_argument("--pixel-size", dest="pixel_size", type=micrometres,
                    default=None, metavar="UM", help="image traces: micrometres per pixel "
                    "(Fiji: Image > Properties > Pixel width; 1 if the trace was exported in "
                    "calibrated um); required with --radius-um")
-    p.add_argument("--radius-um", dest="radius_um", type=real(0, 1e6, open_lo=True, unit=" um"),
+    p.add_argument("--radius-um", dest="radius_um", type=micrometres,
                    default=None, metavar="R", help="image traces: the embryo's radius R in "
                    "micrometres, the unit of lengths; required with --pixel-size")
     p.add_argument("--roi", default=None, metavar="NAME|INDEX|all",
@@ -100,13 +100,6 @@ def _start_problem(args):
         raise ProblemFileError(f"--set/--start: {exc}") from None
 
 
-#: The Python arguments that the messages of morphoshell.io name, as the command line spells
-#: them (a new user typed "pixel_size_um" into the shell).
-_OPTIONS = {r"\bpixel_size_um\b": "--pixel-size", r"\bradius_um\b": "--radius-um",
-            r"\bsection='(\w+)'": r"--section \1", r"\broi='([^']*)'": r"--roi \1",
-            r"\broi=": "--roi ", r"\bwith format '(\w+)' or none": r"with --format \1 or none"}
-
-
 def load_checked(args, spec, n: int):
     """The midline of ``args.midline`` (n points), refused unless ``spec``'s shell can fit it.
 
@@ -121,7 +114,7 @@ def load_checked(args, spec, n: int):
                                pixel_size_um=args.pixel_size, radius_um=args.radius_um,
                                roi=args.roi)
     except MidlineError as exc:
-        raise MidlineError(reworded(str(exc), _OPTIONS)) from None
+        raise MidlineError(reworded(str(exc), TRACE_OPTIONS)) from None
     if args.pixel_size is not None:          # (an image trace: the loader required both)
         hint = (f"is --pixel-size {args.pixel_size:g} the size of a pixel in µm (Fiji: "
                 f"Image › Properties), and --radius-um {args.radius_um:g} the embryo's radius "

@@ -95,7 +95,8 @@ from .traces import (Midline, MidlineError, Trace, check_axis, check_choice, che
 if TYPE_CHECKING:       # scipy is imported on use (CLI start-up)
     from scipy.interpolate import CubicSpline
 
-__all__ = ["SECTIONS", "Alignment", "align", "resample", "load_midline", "average"]
+__all__ = ["SECTIONS", "Alignment", "align", "resample", "load_midline", "load_midlines", "average",
+           "trace_distances"]
 
 #: What a trace covers (see the module docstring).
 SECTIONS = ("auto", "whole", "half")
@@ -413,9 +414,7 @@ def load_midline(path: str | Path, format: str | None = None, *, n: int = 100,
                  roi: str | int | None = None) -> Midline:
     """Read, align and resample one trace, or the chosen traces of a ROI Manager set.
 
-    :func:`morphoshell.io.traces.read_trace` (or, for an ImageJ ROI Manager
-    set, :func:`morphoshell.io.roi_sets.read_set_traces`), then :func:`align`,
-    then :func:`resample`; several traces of a set are averaged
+    :func:`load_midlines`; several traces of a set are averaged
     (:func:`average`).  The options are checked before the file is read.
 
     Parameters
@@ -451,6 +450,29 @@ def load_midline(path: str | Path, format: str | None = None, *, n: int = 100,
         A bad option, file or trace (:func:`morphoshell.io.traces.read_trace`,
         :func:`align`, :func:`morphoshell.io.roi_sets.choose_rois`).
     """
+    midlines = load_midlines(path, format, n=n, section=section, flip=flip,
+                             pixel_size_um=pixel_size_um, radius_um=radius_um,
+                             max_asymmetry=max_asymmetry, roi=roi)
+    return midlines[0] if len(midlines) == 1 else average(midlines)
+
+
+def load_midlines(path: str | Path, format: str | None = None, *, n: int = 100,
+                  section: str = "auto", flip: bool = False, pixel_size_um: float | None = None,
+                  radius_um: float | None = None, max_asymmetry: float = 0.05,
+                  roi: str | int | None = None) -> list[Midline]:
+    """The single-trace midlines of a file, each read, aligned and resampled, not averaged.
+
+    :func:`morphoshell.io.traces.read_trace` (or, for an ImageJ ROI Manager
+    set, :func:`morphoshell.io.roi_sets.read_set_traces`), then :func:`align`,
+    then :func:`resample`.  Parameters as :func:`load_midline`'s.
+
+    Returns
+    -------
+    list of Midline
+        One per trace (one for a trace file, the chosen line ROIs' for a
+        set), each of n points, spread None, n_traces 1, its source the
+        trace's (for a set's ROI ``"PATH, ROI 'NAME'"``).
+    """
     n = _count("n", n, 2)
     check_choice(section, SECTIONS, "section")
     check_positive("max_asymmetry", max_asymmetry)
@@ -466,7 +488,7 @@ def load_midline(path: str | Path, format: str | None = None, *, n: int = 100,
         half = align(trace, section, flip=flip, max_asymmetry=max_asymmetry).points
         r, z = resample(half, n).T
         midlines.append(Midline(r, z, None, 1, (trace.source,)))
-    return midlines[0] if len(midlines) == 1 else average(midlines)
+    return midlines
 
 
 def average(midlines: Sequence[Midline]) -> Midline:
@@ -517,3 +539,31 @@ def average(midlines: Sequence[Midline]) -> Midline:
     spread = np.sqrt(points.var(axis=0, ddof=1).mean(axis=1)) if len(midlines) > 1 else None
     return Midline(mean[:, 0], mean[:, 1], spread, len(midlines),
                    tuple(s for m in midlines for s in m.source))
+
+
+def trace_distances(midlines: Sequence[Midline]) -> np.ndarray:
+    """Each trace's distance from the traces' pointwise median, point by point (units of R).
+
+    A median (of r and of z at each point), not a mean: a trace at the wrong
+    scale or orientation would drag a mean toward itself, and among three
+    to five traces even a mean of the others is dragged so far that the
+    outlier stands out by only about the number of traces less one.  From the
+    median it stands out by far more: on the shipped synthetic stages every
+    trace's rms distance lies within 2.4 times the median of the five, and
+    one read 5 % off in scale lies 13–37 times as far.
+
+    Parameters
+    ----------
+    midlines : sequence of Midline
+        At least two single-trace midlines of one number of points N.
+
+    Returns
+    -------
+    ndarray, shape (n_traces, N)
+        |p_k,i − median_j p_j,i| for trace k at point i; their rms over i
+        (the square root of the mean of the squares) is the trace's summary.
+    """
+    points = np.stack([m.points for m in midlines])            # (traces, N, 2)
+    if len(points) < 2:
+        raise MidlineError(f"trace_distances: {len(points)} midline; it needs at least 2")
+    return np.hypot(*np.moveaxis(points - np.median(points, axis=0), 2, 0))

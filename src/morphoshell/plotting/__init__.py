@@ -1,7 +1,8 @@
 """Plots (Matplotlib): cross-sections of equilibria (:mod:`.shells`), ablations
 (:mod:`.ablation`) and fits with their residuals (:mod:`.fits`), the paper's
 Fig. 2 J–K (:mod:`.estimates`), bifurcation diagrams of branches
-(:mod:`.branches`), profile likelihoods of fitted parameters (:mod:`.profiles`), and the look they share — journal sizes, fonts, one-line
+(:mod:`.branches`), profile likelihoods of fitted parameters (:mod:`.profiles`), the traces of one
+stage over their average (:mod:`.traces`), and the look they share — journal sizes, fonts, one-line
 titles and captions, saving (:mod:`.style`).
 
 Importing the package leaves the Matplotlib backend alone, so plots show inline
@@ -24,4 +25,5 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
                   "OFF_SCALE_LABEL"],
     "branches": ["plot_branch", "BRANCH_STYLE"],
     "profiles": ["plot_profiles", "plot_profile"],
+    "traces": ["plot_traces"],
 })

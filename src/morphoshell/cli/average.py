@@ -1,0 +1,187 @@
+"""``morphoshell average``: the traces of one stage as the average midline a campaign fits.
+
+From image traces (Fiji XY, .roi, RoiSet.zip, x,y CSV; each embryo at its own
+radius) or midline CSVs to the files of a campaign's data folder
+(docs/campaigns.md, "Data"): the average midline with its pointwise spread
+and, with ``--traces``, each trace's midline beside it (the jackknife's
+inputs).  Each trace is checked as a fit would check it, and a trace far from
+the others (:data:`OUTLIER_RATIO`) is named: the check to make before a campaign.
+"""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from ._args import TRACE_OPTIONS, add_outputs, micrometres, reworded
+from ._outputs import Outputs
+
+__all__ = ["register", "OUTLIER_RATIO"]
+
+#: A trace whose rms distance from the traces' pointwise median exceeds this many times the
+#: median of all traces' is named as an outlier (a wrong scale, a flipped or retraced path):
+#: on the shipped synthetic stages (12 × 5 traces) every trace lies within 2.4 times the
+#: median, and one read 5 % off in scale at 13-37 times (io.midlines.trace_distances).
+OUTLIER_RATIO = 5.0
+
+
+def _radii(text: str) -> list[float]:
+    """``--radius-um``: one radius in µm, or one per TRACE separated by commas."""
+    return [micrometres(part.strip()) for part in text.split(",")]
+
+
+def register(sub) -> None:
+    """Add ``morphoshell average`` to the subcommands ``sub``."""
+    from ..io.midlines import SECTIONS
+    from ..io.traces import FORMATS
+
+    p = sub.add_parser(
+        "average", help="average the traces of one stage into the midline a campaign fits",
+        description="Read, align and resample each trace (the same steps as `fit`), check "
+                    "it, and write their average midline (units of R, 100 points equally "
+                    "spaced in arclength, with the pointwise spread and the number of traces) "
+                    "as a campaign's data folder lists it in timepoints.csv. A ROI Manager "
+                    "set (RoiSet.zip) adds every line ROI as a trace (or the one --roi "
+                    "names). Each trace's rms distance from the traces' pointwise median is "
+                    "printed; one over 5 times the median of these is named as an outlier.")
+    p.add_argument("traces", nargs="+", metavar="TRACE",
+                   help="trace files of one stage: image traces (Fiji XY, .roi, RoiSet.zip, "
+                        "x,y CSV; need --pixel-size and --radius-um) or midline CSVs of r,z "
+                        "(units of R)")
+    p.add_argument("--format", choices=FORMATS, default=None,
+                   help="file format of every TRACE (default: from each file's content)")
+    p.add_argument("--pixel-size", dest="pixel_size", type=micrometres, default=None,
+                   metavar="UM", help="image traces: micrometres per pixel "
+                   "(Fiji: Image > Properties > Pixel width); required with --radius-um")
+    p.add_argument("--radius-um", dest="radius_um", type=_radii, default=None, metavar="R[,R...]",
+                   help="image traces: the embryo's radius R in micrometres, the unit of "
+                        "lengths: one for every TRACE, or one per TRACE in their order "
+                        "(comma-separated); the ROIs of one set share its file's")
+    p.add_argument("--roi", default=None, metavar="NAME|INDEX|all",
+                   help="in a ROI Manager set: the line ROI to take, by name or position "
+                        "(from 1), or all (default): every line ROI is a trace")
+    p.add_argument("--section", choices=SECTIONS, default="auto",
+                   help="each image trace is a whole mid-sagittal section (rim to rim) or a "
+                        "half (pole to rim); default: whole for images")
+    p.add_argument("--traces", dest="write_traces", action="store_true",
+                   help="also write each trace's midline beside the --csv file, named "
+                        "<average>_<trace>.csv (the timepoints.csv column traces, for "
+                        "the campaign's jackknife errors)")
+    add_outputs(p, json="write the average, the traces' midlines and their distances as JSON",
+                csv="write the average midline (r, z, spread; n_traces and sources as # "
+                    "comments), as a campaign's timepoints.csv lists it",
+                plot="draw the traces over their average, and their distances along it")
+    p.set_defaults(run=_average)
+
+
+def _check_options(args) -> list[float | None]:
+    """The radius of each TRACE (None: not an image trace); one line naming a bad option."""
+    if (args.pixel_size is None) != (args.radius_um is None):
+        raise ValueError("--pixel-size and --radius-um go together: image traces need both")
+    if args.write_traces and args.csv is None:
+        raise ValueError("--traces writes the traces' midlines beside the --csv file: give --csv")
+    radii = args.radius_um or [None]
+    if len(radii) not in (1, len(args.traces)):
+        raise ValueError(f"--radius-um has {len(radii)} radii for {len(args.traces)} TRACE "
+                         f"files: give one for all or one per TRACE")
+    return radii * len(args.traces) if len(radii) == 1 else radii
+
+
+def _load(args, radii) -> list:
+    """Every trace's midline (N_FIT points), checked as `fit` checks a midline."""
+    from ..fitting import N_FIT, check_midline, volvox_spec
+    from ..io import MidlineError, load_midlines
+    from ..io.roi_sets import is_roi_set
+
+    spec, midlines = volvox_spec("free"), []
+    for path, radius in zip(args.traces, radii):
+        try:
+            roi = args.roi
+            if roi is None and args.format in (None, "roi") and is_roi_set(path):
+                roi = "all"
+            found = load_midlines(path, args.format, n=N_FIT, section=args.section,
+                                  pixel_size_um=args.pixel_size, radius_um=radius, roi=roi)
+        except MidlineError as exc:
+            raise MidlineError(reworded(str(exc), TRACE_OPTIONS)) from None
+        hint = (f"is --pixel-size {args.pixel_size:g} the size of a pixel in µm, and "
+                f"--radius-um {radius:g} this embryo's radius R in µm?" if radius is not None
+                else "are its r and z in units of R (a trace in pixels needs --pixel-size and "
+                     "--radius-um)?")
+        for m in found:
+            check_midline(spec, m, f"{m.source[0]}: the midline", scale_hint=hint)
+        midlines += found
+    if len(midlines) < 2:
+        raise ValueError(f"{len(midlines)} trace in {', '.join(map(str, args.traces))}: an "
+                         f"average needs at least 2 (fit a single trace with `morphoshell fit`)")
+    return midlines
+
+
+def _trace_names(midlines) -> list[str]:
+    """Short, file-safe names of the traces: file stems, a set's ROI names after its stem."""
+    names = []
+    for m in midlines:
+        path, _, roi = m.source[0].partition(", ROI ")
+        name = Path(path).stem + (f"_{roi.strip(chr(39))}" if roi else "")
+        names.append(re.sub(r"[^A-Za-z0-9_.-]+", "_", name))
+    repeated = sorted({n for n in names if names.count(n) > 1})
+    if repeated:
+        raise ValueError(f"two traces have the same name {repeated[0]!r} (files of one name in "
+                         f"different folders?): rename one")
+    return names
+
+
+def _average(args) -> int:
+    import numpy as np
+
+    from ..io import average, trace_distances
+
+    radii = _check_options(args)
+    midlines = _load(args, radii)
+    names = _trace_names(midlines)
+    mean = average(midlines)
+    rms = np.sqrt((trace_distances(midlines) ** 2).mean(axis=1))
+    median = float(np.median(rms))
+    print(f"{len(midlines)} traces, {len(mean.r)} points each; mean spread "
+          f"{float(np.mean(mean.spread)):.3g} R")
+    print("  trace                          rms distance from the traces' median (R)")
+    outliers = [n for n, d in zip(names, rms) if len(rms) > 2 and d > OUTLIER_RATIO * median]
+    for name, d in zip(names, rms):
+        flag = "  <- an outlier: check its scale and path" if name in outliers else ""
+        print(f"  {name:30s} {d:.3g}{flag}")
+    out = Outputs()
+    out.add(args.csv, mean.to_csv)
+    written = {}
+    if args.write_traces:
+        for name, m in zip(names, midlines):
+            path = args.csv.with_name(f"{args.csv.stem}_{name}.csv")
+            written[name] = path
+            out.add(path, m.to_csv)
+    out.add(args.json, lambda path: _write_json(path, mean, midlines, names, rms, written))
+    out.add(args.plot, lambda path: _plot(path, mean, midlines, names))
+    for path in out.commit():
+        print(f"  wrote {path}")
+    if args.csv is not None:
+        traces = ";".join(str(p) for p in written.values())
+        print(f"for timepoints.csv (paths relative to its folder): midline {args.csv}"
+              + (f", traces {traces}" if traces else ""))
+    if outliers:
+        print(f"morphoshell average: {len(outliers)} outlier{'s' * (len(outliers) > 1)} "
+              f"({', '.join(outliers)}): more than {OUTLIER_RATIO:g} times the median "
+              f"distance {median:.3g} R from the traces' median")
+    return 0
+
+
+def _write_json(path, mean, midlines, names, rms, written) -> None:
+    from ..io.problem_files import write_json
+
+    write_json(path, {"average": {"r": mean.r, "z": mean.z, "spread": mean.spread,
+                                  "n_traces": mean.n_traces},
+                      "traces": [{"name": n, "source": m.source[0], "r": m.r, "z": m.z,
+                                  "rms_distance": float(d), "file": str(written.get(n, ""))
+                                  or None} for n, m, d in zip(names, midlines, rms)],
+                      "units": "R"})
+
+
+def _plot(path, mean, midlines, names) -> None:
+    from ..plotting import plot_traces, save
+
+    save(plot_traces(mean, midlines, names, pyplot=False), path)

@@ -1,0 +1,100 @@
+"""`morphoshell average`: the traces of one stage as the files of a campaign's data folder."""
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from morphoshell.cli import main
+from morphoshell.io import Midline
+
+ROOT = Path(__file__).resolve().parents[2]
+STAGE = ROOT / "data" / "synthetic_inversion" / "t02"
+TRACES = [str(STAGE / f"synthetic_embryo{k}.csv") for k in range(1, 6)]
+
+
+def _radii() -> list[str]:
+    """Each shipped trace's radius R (µm), from its header, as the generator rounded it."""
+    return [re.search(r"R = ([0-9.]+) um", Path(t).read_text()).group(1) for t in TRACES]
+
+
+def _scale(radii) -> list[str]:
+    return ["--pixel-size", "0.3", "--radius-um", ",".join(radii), "--section", "whole"]
+
+
+def test_the_average_of_the_shipped_traces_is_the_shipped_average(tmp_path, capsys):
+    """scripts/make_synthetic_inversion.py averaged these five pixel traces (each at its own
+    radius) into t02's synthetic_average.csv and wrote each one's midline: the command gives
+    both again (to round-off of the alignment's least squares, 1e-9 R)."""
+    out = tmp_path / "average.csv"
+    assert main(["average", *TRACES, *_scale(_radii()), "--csv", str(out), "--traces",
+                 "--json", str(tmp_path / "average.json"), "--plot", str(tmp_path / "a.png")]) == 0
+    mine, shipped = Midline.from_csv(out), Midline.from_csv(STAGE / "synthetic_average.csv")
+    assert mine.n_traces == 5
+    for a, b in ((mine.r, shipped.r), (mine.z, shipped.z), (mine.spread, shipped.spread)):
+        assert np.max(np.abs(a - b)) < 1e-9
+    for k in range(1, 6):
+        single = Midline.from_csv(tmp_path / f"average_synthetic_embryo{k}.csv")
+        expected = Midline.from_csv(STAGE / f"synthetic_embryo{k}_midline.csv")
+        assert np.max(np.abs(single.points - expected.points)) < 1e-9
+    data = json.loads((tmp_path / "average.json").read_text())
+    distances = [t["rms_distance"] for t in data["traces"]]
+    assert len(distances) == 5 and max(distances) < 2 * np.median(distances)
+    assert (tmp_path / "a.png").stat().st_size > 10_000
+    printed = capsys.readouterr().out
+    assert "outlier" not in printed and f"midline {out}, traces " in printed
+
+
+def test_a_trace_at_the_wrong_scale_is_named_an_outlier(tmp_path, capsys):
+    """Embryo 3 read with embryo 2's radius (13 % too small a scale): its rms distance from
+    the traces' median is 57 times the median of the five; the last line names it, also
+    among three traces (where a mean of the others would be dragged toward it)."""
+    radii = _radii()
+    radii[2] = radii[1]
+    for n in (5, 3):
+        assert main(["average", *TRACES[:n], *_scale(radii[:n])]) == 0
+        last = capsys.readouterr().out.strip().splitlines()[-1]
+        assert last.startswith("morphoshell average: 1 outlier (synthetic_embryo3)"), last
+
+
+def test_a_roi_manager_set_adds_every_line_roi(tmp_path, capsys):
+    import sys
+
+    sys.path.insert(0, str(ROOT / "tests" / "io"))
+    from reference_midline import SCALE
+    from test_roi_sets import _roi_set
+
+    from morphoshell.io import load_midline
+
+    path = _roi_set(tmp_path)
+    out = tmp_path / "stage.csv"
+    assert main(["average", str(path), "--pixel-size", str(SCALE["pixel_size_um"]),
+                 "--radius-um", str(SCALE["radius_um"]), "--csv", str(out), "--traces"]) == 0
+    expected = load_midline(path, roi="all", **SCALE)
+    mine = Midline.from_csv(out)
+    assert mine.n_traces == 3 and np.array_equal(mine.points, expected.points)
+    assert sorted(p.name for p in tmp_path.glob("stage_*.csv")) == [
+        f"stage_RoiSet_embryo{k}.csv" for k in (1, 2, 3)]
+
+
+@pytest.mark.parametrize("argv, said", [
+    (["--pixel-size", "0.3", "--radius-um", "40,41"], "--radius-um has 2 radii for 5 TRACE"),
+    (["--pixel-size", "0.3"], "--pixel-size and --radius-um go together"),
+    (["--traces"], "--traces writes the traces' midlines beside the --csv file"),
+    (["--pixel-size", "3", "--radius-um", "40"], "is --pixel-size 3 the size of a pixel"),
+    (["--radius-um", "-4"], "argument --radius-um: -4 must be a finite number in (0, 1e+06] um"),
+])
+def test_bad_options_are_one_line_and_write_nothing(tmp_path, capsys, argv, said):
+    out = tmp_path / "average.csv"
+    assert main(["average", *TRACES, *argv, "--json", str(tmp_path / "a.json")]) == 2
+    err = capsys.readouterr().err
+    assert said in err and err.count("\n") == 1, err
+    assert not list(tmp_path.iterdir()) and not out.exists()
+
+
+def test_one_trace_is_no_average(tmp_path, capsys):
+    assert main(["average", TRACES[0], "--pixel-size", "0.3", "--radius-um", "41.7",
+                 "--csv", str(tmp_path / "a.csv")]) == 2
+    assert "an average needs at least 2" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
