@@ -122,7 +122,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         with noted():           # (Ctrl-C within an Ipopt solve: counted, see numerics.ipopt)
             status = args.run(args)
-            check()             # (one CasADi dropped in a command that writes nothing)
+            if status == 0:     # (a Ctrl-C CasADi dropped in a command that writes nothing;
+                check()         # one that reported its interruption returned 130)
             return status
     except (ProblemFileError, ValueError) as exc:
         print(f"morphoshell: error: {exc}", file=sys.stderr)
