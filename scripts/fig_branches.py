@@ -1,13 +1,19 @@
 #!/usr/bin/env python3
-"""The bifurcation diagram of docs/branches.md: the issue's Volvox shell along its path
-from the stress-free parameters (tests/data/volvox_fold.toml, 400 nodes).
+"""The bifurcation diagrams of docs/branches.md.
 
-Follows the branch through its folds (``follow_branch``, pseudo-arclength) and, for the
-quasi-static path with its snap-through, ``follow="stable"``; draws both diagrams with
-the shapes at the events (``plot_branch``) and prints the events.  Writes
-branches_volvox.png and branches_volvox_stable.png to --out (default docs/figures).
+* The issue's Volvox shell along its path from the stress-free parameters
+  (tests/data/volvox_fold.toml, --nodes, 400): the branch through its folds
+  (``follow_branch``, pseudo-arclength) and the quasi-static path with its
+  snap-through (``follow="stable"``): branches_volvox.png, branches_volvox_stable.png.
+* The blister (the test suite's disc grown in its centre, f = 1 + G exp(−(s/0.3)²),
+  h = 0.02, G from 0 to 0.2; --blister-nodes, 100): its flat branch, which loses
+  stability at branch points, and the branches through the first two
+  (``switch_branch``, both halves): branches_blister.png.
 
-Usage: python scripts/fig_branches.py [--out DIR] [--nodes N]
+Draws the diagrams with the shapes at the events (``plot_branch``), prints the events,
+writes to --out (default docs/figures).
+
+Usage: python scripts/fig_branches.py [--out DIR] [--nodes N] [--blister-nodes N]
 """
 from __future__ import annotations
 
@@ -21,6 +27,7 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--out", type=Path, default=ROOT / "docs" / "figures")
     p.add_argument("--nodes", type=int, default=400)
+    p.add_argument("--blister-nodes", type=int, default=100)
     args = p.parse_args(argv)
     import matplotlib
     matplotlib.use("Agg")
@@ -37,8 +44,38 @@ def main(argv=None) -> int:
               + ", ".join(f"{pt.event} at {pt.tau:.7f}" for pt in branch.events))
         with paper_style():
             save(plot_branch(branch), args.out / f"{name}.png")
-    print(f"wrote {args.out}/branches_volvox.png and branches_volvox_stable.png")
+    blister(args.out, args.blister_nodes)
+    print(f"wrote {args.out}/branches_volvox.png, branches_volvox_stable.png and "
+          f"branches_blister.png")
     return 0
+
+
+def blister(out: Path, nodes: int) -> None:
+    """The blister's flat branch and the branches through its first two branch points."""
+    import casadi as ca
+
+    from morphoshell import Problem, follow_branch, switch_branch
+    from morphoshell.model.profiles import FAMILIES, ProfileFamily, Profiles, register_family
+    from morphoshell.plotting import paper_style, plot_branch, save
+
+    def central_growth(s, p, cut, end):
+        f = 1 + p["G"] * ca.exp(-(s / 0.3) ** 2)
+        return Profiles(f, f, 0 * s, 0 * s)
+
+    if "central_growth" not in FAMILIES:
+        register_family(ProfileFamily("central_growth", ("G",), {"G": 0.2}, central_growth,
+                                      neutral={"G": 0.0}))
+    flat = follow_branch(Problem("central_growth", {"G": 0.2}, h=0.02, geometry="disc"),
+                         nodes=nodes)
+    switched = [switch_branch(flat, k, d) for k in (0, 1) for d in (1, -1)]
+    for b in [flat, *switched]:
+        print(f"blister {b.origin or 0:.7f} {b.direction:+g}: {len(b.points)} points in "
+              f"{b.seconds:.2f} s, end {'stable' if b.end.stable else 'unstable'} "
+              f"({b.end.negative_eigenvalues}), psi_end {b.end.psi_end:.6f}, energy "
+              f"{b.end.energy:.6g}; events " + ", ".join(f"{pt.event} at {pt.tau:.7f}"
+                                                         for pt in b.events))
+    with paper_style():
+        save(plot_branch(flat, switched=switched), out / "branches_blister.png")
 
 
 if __name__ == "__main__":

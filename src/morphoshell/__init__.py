@@ -40,7 +40,7 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "solvers.direct": ["DirectSolver"],
     "solvers.routes": ["solve"],
     "solvers.parametric": ["Parametric"],
-    "solvers.branches": ["follow_branch", "continuation_path"],
+    "solvers.branches": ["follow_branch", "switch_branch", "continuation_path"],
     "mechanics.ablation": ["Ablation", "ablate"],
     "inverse": ["estimate"],
     "io.problem_files": ["load_problem", "examples", "example_path"],

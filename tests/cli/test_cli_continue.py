@@ -103,3 +103,43 @@ def test_a_branch_that_runs_out_of_points_exits_3_naming_the_status(tmp_path, ca
                  "--csv", str(out)]) == 3
     assert "Branch_Ended" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_switch_follows_both_halves_of_the_branch_through_a_branch_point(blister, tmp_path,
+                                                                          capsys):
+    """`continue --switch 1` on the blister disc (family registered by the fixture): the flat
+    branch, then both halves of the dome branch through its first branch point, stable at
+    lambda = 1 and mirror images; the CSV names each row's branch, the JSON holds them."""
+    problem = tmp_path / "blister.toml"
+    problem.write_text('[problem]\nfamily = "central_growth"\ngeometry = "disc"\nh = 0.02\n'
+                       '[parameters]\nG = 0.2\n')
+    paths = {k: tmp_path / f"b.{k}" for k in ("csv", "json", "png")}
+    assert main(["continue", str(problem), "--nodes", "40", "--switch", "1",
+                 "--csv", str(paths["csv"]), "--json", str(paths["json"]),
+                 "--plot", str(paths["png"])]) == 0
+    stdout = capsys.readouterr().out
+    assert stdout.count("switched at branch point 1") == 2
+    with paths["csv"].open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert list(rows[0]) == ["branch", *COLUMNS]
+    assert [r["branch"] for r in rows][::len(rows) - 1] == ["main", "1-"]
+    ends = {name: [r for r in rows if r["branch"] == name][-1] for name in ("1+", "1-")}
+    for end in ends.values():
+        assert end["lambda"] == "1.0" and end["stable"] == "true"
+    assert float(ends["1+"]["z_end"]) == -float(ends["1-"]["z_end"]) > 0.25
+    doc = json.loads(paths["json"].read_text())
+    assert [b["name"] for b in doc["switched"]] == ["1+", "1-"]
+    assert doc["switched"][0]["origin"] == float(
+        next(r["lambda"] for r in rows if r["event"] == "branch_point"))
+    assert paths["png"].stat().st_size > 20_000
+
+
+def test_switch_beyond_the_branch_points_is_a_note():
+    """(The fold shell has no branch point: --switch has nothing to follow; said, not failed.)"""
+    import contextlib
+    import io
+
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        assert main(["continue", str(FOLD), "--nodes", "40", "--switch", "2"]) == 0
+    assert "note: --switch 2: the branch has 0 branch point(s)" in out.getvalue()

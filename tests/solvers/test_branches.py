@@ -177,3 +177,74 @@ def test_paths_refuse_to_open_a_pole(volvox):
         ParameterLine.along(volvox, "opening", 0.0)
     line = ParameterLine.along(volvox, "opening", 0.2)      # > 0 to > 0: fine
     assert line.names == ("opening",)
+
+
+@pytest.fixture(scope="module")
+def flat_disc(blister):
+    """The blister's flat branch at 60 nodes: nine branch points, unstable at its end."""
+    return follow_branch(blister, nodes=60)
+
+
+@pytest.fixture(scope="module")
+def domes(flat_disc):
+    """Both halves of the branch through the flat disc's first branch point."""
+    from morphoshell.solvers.branches import switch_branch
+
+    return switch_branch(flat_disc, 0, 1), switch_branch(flat_disc, 0, -1)
+
+
+def test_switching_at_the_first_branch_point_reaches_the_stable_dome(blister, flat_disc, domes):
+    """The other branch through the first branch point (a pitchfork: the disc buckles up or
+    down) is stable from its first step to lambda = 1, where it is the dome a cold Ipopt
+    solve finds from a tilted start on the same mesh (unknowns to 1e-7, energy to 1e-10
+    relative) with an energy 40 times below the flat disc's; its halves are mirror images."""
+    from morphoshell.solvers.direct import solver_of
+
+    up, down = domes
+    bp = _events(flat_disc, "branch_point")[0]
+    for half in domes:
+        assert half.origin == flat_disc.points[bp].tau and half.points[0].event == "branch_point"
+        assert all(pt.stable for pt in half.points[1:]), [pt.tau for pt in half.points
+                                                          if not pt.stable]
+        assert half.end.tau == 1 and half.end.energy < flat_disc.end.energy / 40
+    assert up.end.z_end > 0.25 and up.end.psi_end > 0
+    for a, b in zip(up.points, down.points):
+        assert abs(a.tau - b.tau) < 1e-10 and abs(a.z_end + b.z_end) < 1e-10
+    solver = solver_of(up.end.equilibrium)
+    x0 = solver.disc.initial_guess(blister.parameter_vector())
+    n = solver.disc.layout.free_points
+    x0[n:2 * n] = 0.1 * solver.disc.points(blister.parameter_vector())[1:]   # tilt it up
+    dome = solver.solve(blister, x0=x0)
+    assert np.max(np.abs(dome.x - up.end.equilibrium.x)) < 1e-7
+    assert abs(dome.energy - up.end.energy) < 1e-10 * dome.energy
+
+
+def test_the_switched_tangent_leaves_the_branch_across_it(blister, flat_disc):
+    """At the branch point the switched tangent is orthogonal to the flat branch's (the
+    continuation's norm) and changes no parameter (a pitchfork); the flat disc's second
+    branch point leads to a branch with one negative eigenvalue all along (the second
+    buckling mode), and a fold is refused as no branch point."""
+    from morphoshell.solvers.branches import switch_branch
+    from morphoshell.solvers.direct import solver_of
+
+    arc = Arclength(solver_of(flat_disc.end.equilibrium), flat_disc.line)
+    pt = flat_disc.points[_events(flat_disc, "branch_point")[0]]
+    own = arc.start(pt.equilibrium, pt.tau)
+    other = arc.switch(own)
+    assert abs(arc._weight @ (own.t * other.t) + own.t_tau * other.t_tau) < 1e-8
+    assert abs(other.t_tau) < 1e-8 and abs(arc.norm(other.t, other.t_tau) - 1) < 1e-12
+    second = switch_branch(flat_disc, 1, 1)
+    assert {pt.negative_eigenvalues for pt in second.points[1:]} == {1}
+    with pytest.raises(ValueError, match="the branch has 9 branch point"):
+        switch_branch(flat_disc, 9)
+    with pytest.raises(ValueError, match="direction = 0 must be"):
+        switch_branch(flat_disc, 0, 0)
+
+
+def test_a_fold_is_no_branch_point_to_switch_at(branch60):
+    from morphoshell.solvers.direct import solver_of
+
+    arc = Arclength(solver_of(branch60.end.equilibrium), branch60.line)
+    fold = branch60.points[_events(branch60, "fold")[0]]
+    with pytest.raises(ValueError, match="a fold, not a branch point"):
+        arc.switch(arc.start(fold.equilibrium, fold.tau))

@@ -49,9 +49,15 @@ def register(sub) -> None:
                    help=f"largest pseudo-arclength step (default {MAX_STEP})")
     p.add_argument("--max-points", type=integer(2, 100_000), default=2000, metavar="N",
                    help="give up after this many points (default 2000; exit status 3)")
+    p.add_argument("--switch", type=integer(0, 1000), default=0, metavar="N",
+                   help="also follow the branches through the first N branch points, both "
+                        "halves of each, to either end of the path (branch switching; "
+                        "default 0); the CSV then has a column branch: main, or the branch "
+                        "point's number and +/-")
     p.add_argument("--plot-y", choices=("psi_end", "r_end", "z_end", "energy"),
                    default="psi_end", help="the observable of the diagram (default psi_end)")
-    add_outputs(p, json="write the branch (problem, path, points, snaps) as JSON",
+    add_outputs(p, json="write the branch (problem, path, points, snaps; with --switch the "
+                        "switched branches) as JSON",
                 csv="write one row per point: lambda, the parameter, energy, r_end, z_end, "
                     "psi_end, stable, negative_eigenvalues, event",
                 plot="write the bifurcation diagram with the shapes at the events")
@@ -93,12 +99,13 @@ def _continue(args) -> int:
                            follow=args.follow, max_step=args.max_step,
                            max_points=args.max_points)
     _report(problem, branch)
+    switched = _switched(args, branch)
     out = Outputs()
-    out.add(args.json, lambda path: write_json(path, _document(branch)))
-    out.add(args.csv, lambda path: write_csv(path, _csv_columns(branch)))
+    out.add(args.json, lambda path: write_json(path, _document(branch, switched)))
+    out.add(args.csv, lambda path: write_csv(path, _csv_columns(branch, switched)))
     if args.plot:
         from ..plotting import plot_branch, save
-        fig = plot_branch(branch, y=args.plot_y)
+        fig = plot_branch(branch, y=args.plot_y, switched=[b for _, b in switched])
         out.add(args.plot, lambda path: save(fig, path))
     for path in out.commit():
         print(f"  wrote {path}")
@@ -127,14 +134,44 @@ def _report(problem, branch) -> None:
           f"{end.energy:.10g} C R^2")
 
 
-def _csv_columns(branch) -> dict:
-    """The table with ``stable`` as true/false (not Python's True/False)."""
-    columns = branch.columns()
+def _switched(args, branch) -> list[tuple[str, object]]:
+    """(name, branch) of both halves of the branches through the first ``--switch`` branch
+    points, reported as they are followed."""
+    from ..solvers.branches import switch_branch
+
+    count = sum(pt.event == "branch_point" for pt in branch.points)
+    if args.switch > count:
+        print(f"note: --switch {args.switch}: the branch has {count} branch point(s)")
+    out = []
+    for k in range(min(args.switch, count)):
+        for direction, sign in ((1, "+"), (-1, "-")):
+            other = switch_branch(branch, k, direction, max_step=args.max_step,
+                                  max_points=args.max_points)
+            end = other.end
+            state = "stable" if end.stable else f"unstable ({end.negative_eigenvalues})"
+            print(f"  switched at branch point {k + 1}{sign} (lambda = {other.origin:.10g}): "
+                  f"{len(other.points)} points, {len(other.events) - 1} more event(s), end at "
+                  f"lambda = {end.tau:.10g}: {state}, r_end = {end.r_end:.10g} R, z_end = "
+                  f"{end.z_end:.10g} R, psi_end = {end.psi_end:.10g} rad, energy = "
+                  f"{end.energy:.10g} C R^2")
+            out.append((f"{k + 1}{sign}", other))
+    return out
+
+
+def _csv_columns(branch, switched) -> dict:
+    """The table with ``stable`` as true/false (not Python's True/False); after a switch, the
+    switched branches' rows follow, and a first column ``branch`` names each row's."""
+    tables = [("main", branch.columns())] + [(name, b.columns()) for name, b in switched]
+    columns = {k: [v for _, t in tables for v in t[k]] for k in tables[0][1]}
     columns["stable"] = ["true" if s else "false" for s in columns["stable"]]
+    if switched:
+        columns = {"branch": [name for name, t in tables for _ in t["lambda"]], **columns}
     return columns
 
 
-def _document(branch) -> dict:
+def _document(branch, switched) -> dict:
     from .. import __version__
 
-    return {"morphoshell": __version__, **branch.to_dict()}
+    return {"morphoshell": __version__, **branch.to_dict(),
+            **({"switched": [{"name": name, **b.to_dict()} for name, b in switched]}
+               if switched else {})}

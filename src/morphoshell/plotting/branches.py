@@ -18,7 +18,8 @@ from matplotlib.figure import Figure, SubFigure
 from .shells import plot_cross_section
 from .style import DOUBLE_COLUMN
 
-__all__ = ["plot_branch", "BRANCH_STYLE", "EVENT_MARKERS", "AXIS_LABELS", "MAX_SHAPES"]
+__all__ = ["plot_branch", "BRANCH_STYLE", "EVENT_MARKERS", "AXIS_LABELS", "MAX_SHAPES",
+           "SWITCHED_COLOURS"]
 
 #: Most shells drawn beside a diagram (start, events, end): more would be too small to read.
 MAX_SHAPES = 8
@@ -30,6 +31,8 @@ BRANCH_STYLE = {"stable": {"color": "k", "ls": "-", "lw": 1.2},
 EVENT_MARKERS = {"fold": ("o", "tab:red", "fold"),
                  "branch_point": ("D", "tab:purple", "branch point"),
                  "snap": ("v", "tab:blue", "after a snap-through")}
+#: Colours of the branches switched to at branch points (:func:`switch_branch`), by origin.
+SWITCHED_COLOURS = ("tab:green", "tab:orange", "tab:cyan", "tab:olive", "tab:pink", "tab:brown")
 #: Axis labels of the branch table's columns.
 AXIS_LABELS = {"lambda": r"path fraction $\lambda$", "energy": r"energy $E$ ($C R^2$)",
                "r_end": r"$r$ at the far end ($R$)", "z_end": r"$z$ at the far end ($R$)",
@@ -38,7 +41,7 @@ AXIS_LABELS = {"lambda": r"path fraction $\lambda$", "energy": r"energy $E$ ($C 
 
 
 def plot_branch(branch, *, y: str = "psi_end", x: str | None = None, shapes: bool = True,
-                fig: Figure | None = None) -> Figure:
+                fig: Figure | None = None, switched: Sequence = ()) -> Figure:
     """A bifurcation diagram of ``branch``, with the shapes at its events beside it.
 
     Parameters
@@ -57,6 +60,11 @@ def plot_branch(branch, *, y: str = "psi_end", x: str | None = None, shapes: boo
         the diagram (at most :data:`MAX_SHAPES`).
     fig : Figure, optional
         Drawn into (new, outside pyplot, two journal columns wide, if None).
+    switched : sequence of Branch
+        Branches followed from ``branch``'s branch points
+        (:func:`morphoshell.solvers.branches.switch_branch`): drawn in one
+        colour per branch point (:data:`SWITCHED_COLOURS`), solid where
+        stable, their ends first among the shapes.
 
     Returns
     -------
@@ -71,13 +79,35 @@ def plot_branch(branch, *, y: str = "psi_end", x: str | None = None, shapes: boo
     if fig is None:
         height = (0.85 if shapes else 0.5) * DOUBLE_COLUMN
         fig = Figure(figsize=(DOUBLE_COLUMN, height), layout="constrained")
-    if not shapes:
-        _diagram(fig.add_subplot(), table, x, y)
-        return fig
-    top, bottom = fig.subfigures(2, 1, height_ratios=(1.2, 1))
-    _diagram(top.add_subplot(), table, x, y)
-    _shapes(bottom, branch)
+    colours = _switched_colours(switched)
+    ax = fig.add_subplot() if not shapes else None
+    if shapes:
+        top, bottom = fig.subfigures(2, 1, height_ratios=(1.2, 1))
+        ax = top.add_subplot()
+    for other, colour in zip(switched, colours):
+        _line(ax, other.columns(), x, y, colour)
+    _diagram(ax, table, x, y)
+    for origin, colour in dict(zip((b.origin for b in switched), colours)).items():
+        ax.plot([], [], color=colour, lw=1.2, label=f"branch from λ = {origin:.4g}")
+    if switched:         # (beside: inside, the switched branches leave no empty corner)
+        ax.legend(loc="center left", bbox_to_anchor=(1.0, 0.5), fontsize="small", frameon=False)
+    if shapes:
+        _shapes(bottom, branch, list(zip(switched, colours)))
     return fig
+
+
+def _switched_colours(switched: Sequence) -> list[str]:
+    """One colour per branch point of origin (both halves of its branch alike)."""
+    origins = list(dict.fromkeys(b.origin for b in switched))
+    return [SWITCHED_COLOURS[origins.index(b.origin) % len(SWITCHED_COLOURS)] for b in switched]
+
+
+def _line(ax: Axes, table: dict, x: str, y: str, colour: str) -> None:
+    """A switched branch: solid where stable, dashed where not, in its colour."""
+    xs, ys = np.asarray(table[x], float), np.asarray(table[y], float)
+    for i0, i1, is_stable in _runs(np.asarray(table["stable"], bool), list(table["event"])):
+        style = {**BRANCH_STYLE["stable" if is_stable else "unstable"], "color": colour}
+        ax.plot(xs[i0:i1 + 1], ys[i0:i1 + 1], **style)
 
 
 def _diagram(ax: Axes, table: dict, x: str, y: str) -> None:
@@ -126,26 +156,29 @@ def _runs(stable: np.ndarray, events: Sequence[str]) -> list[tuple[int, int, boo
     return runs
 
 
-def _shapes(fig: SubFigure, branch) -> None:
-    """Small cross-sections of the shell at the start, at each event and at the end."""
-    chosen = [0, *(i for i, pt in enumerate(branch.points) if pt.event), len(branch.points) - 1]
-    chosen = list(dict.fromkeys(chosen))[:MAX_SHAPES]
-    columns = min(len(chosen), MAX_SHAPES // 2)
-    rows = -(-len(chosen) // columns)
+def _shapes(fig: SubFigure, branch, switched: list) -> None:
+    """Small cross-sections of the shell at the start, the switched branches' ends, each event
+    and the end."""
+    later = [pt for pt in branch.points[1:-1] if pt.event] + [branch.points[-1]]
+    shown = [(branch.points[0], "start", "k")]
+    shown += [(b.end, f"from λ = {b.origin:.4g} ({'+' if b.direction > 0 else '−'})", colour)
+              for b, colour in switched]
+    shown += [(pt, *(EVENT_MARKERS[pt.event][2:0:-1] if pt.event else ("end", "k")))
+              for pt in later]
+    shown = shown[:MAX_SHAPES]
+    columns = min(len(shown), MAX_SHAPES // 2)
+    rows = -(-len(shown) // columns)
     axes = np.atleast_1d(fig.subplots(rows, columns)).ravel()
-    limits = _limits([branch.points[i].equilibrium for i in chosen])
-    for ax, i in zip(axes, chosen):
-        pt = branch.points[i]
-        what = EVENT_MARKERS[pt.event][2] if pt.event else ("start" if i == 0 else "end")
+    limits = _limits([pt.equilibrium for pt, _, _ in shown])
+    for ax, (pt, what, colour) in zip(axes, shown):
         state = ("marginal" if pt.event in ("fold", "branch_point") else
                  "stable" if pt.stable else f"unstable ({pt.negative_eigenvalues})")
-        colour = EVENT_MARKERS[pt.event][1] if pt.event else "k"
         plot_cross_section(pt.equilibrium, ax, title=None, legend=False, color=colour)
         ax.set_title(f"{what}, λ = {pt.tau:.4g}\n{state}", fontsize="x-small")
         ax.set_aspect("equal", adjustable="box")
         ax.set(xlim=limits[0], ylim=limits[1], xlabel="", ylabel="")
         ax.tick_params(labelsize="x-small")
-    for ax in axes[len(chosen):]:
+    for ax in axes[len(shown):]:
         ax.set_axis_off()
     fig.supxlabel(r"$r/R$", fontsize="small")
     fig.supylabel(r"$z/R$", fontsize="small")

@@ -16,7 +16,7 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "continuation": ["continue_to", "continue_between", "Path"],
     "paths": ["ParameterLine", "neutral_problem"],
     "arclength": ["Arclength", "ArcPoint", "Snap", "snap_through", "cross_fold"],
-    "branches": ["Branch", "BranchPoint", "follow_branch", "continuation_path"],
+    "branches": ["Branch", "BranchPoint", "follow_branch", "switch_branch", "continuation_path"],
     "direct": ["DirectSolver", "default_mesh", "solver_of", "check_nodes", "MAX_NODES"],
     "observables": ["Observable", "GAUGES", "shape_points", "energy", "state_at", "midline",
         "midline_cells", "recoil", "RECOIL"],

@@ -24,6 +24,14 @@ two points are located, not just noticed:
 * a *branch point* where the inertia changes without a fold: by bisection on
   s until τ is known to 1e-9.
 
+At a simple branch point another branch crosses.  :meth:`Arclength.switch`
+starts on it: the tangents of both branches there span the null space of
+[K F_τ], the KKT matrix K being singular with one null vector φ (found by
+inverse iteration); the direction in that null space orthogonal to the
+branch's own tangent is the predictor onto the other one, and the corrector's
+border row, that direction, keeps Newton's iterations off the branch it left
+(Keller 1977, §5; AUTO-07p's and BifurcationKit's branch switching).
+
 A physical shell loaded quasi-statically does not follow the unstable part of
 a branch: at a fold it *snaps through*.  :func:`snap_through` leaves the fold
 the way the shell would, down the energy along the fold's null direction (the
@@ -66,6 +74,13 @@ DIFFERENCE = 1e-5
 #: Events are located to this arclength (folds, where τ is stationary) and this τ
 #: (branch points).
 EVENT_TOL = 1e-9
+#: Inverse iterations for the null vector of K at a branch point, and the change of its
+#: direction at which it has converged: a located branch point's zero eigenvalue is many
+#: orders below the others (on the blister disc three iterations change it by 1e-13).
+NULL_ITERATIONS, NULL_TOL = 10, 1e-8
+#: At a fold the null vector is the branch's own tangent: a null vector whose part
+#: orthogonal to the tangent is smaller than this is no branch point's.
+MIN_ORTHOGONAL = 1e-3
 
 
 @dataclass(frozen=True)
@@ -184,6 +199,61 @@ class Arclength:
                                   1.0, 1.0)
         scale = np.copysign(self.norm(t, t_tau), direction * t_tau)
         return ArcPoint(tau, u, t / scale, t_tau / scale, self.kkt.inertia(state))
+
+    def switch(self, point: ArcPoint, direction: float = 1.0) -> ArcPoint:
+        """``point``, a located branch point, with the tangent of the other branch through it.
+
+        The null vector φ of the KKT matrix there (inverse iteration), less
+        its part along the point's own tangent (the continuation's norm), as
+        the tangent (module docstring): :meth:`correct` from the returned
+        point steps onto the other branch.
+
+        Parameters
+        ----------
+        point : ArcPoint
+            A branch point (:meth:`locate_change`), or :meth:`start` at one.
+        direction : float
+            +1 or −1: the two halves of the other branch (mirror images at a
+            pitchfork); +1 where the largest entry of φ's shape part is
+            positive.
+
+        Returns
+        -------
+        ArcPoint
+            At ``point``'s (u, τ); ``t``, ``t_tau`` the other branch's unit
+            tangent.
+
+        Raises
+        ------
+        ValueError
+            The inverse iteration did not converge (no simple zero
+            eigenvalue: not a located branch point), or the null vector is the
+            branch's own tangent (a fold).
+        """
+        state = self.kkt.state(point.u, self._data(point.tau))
+        k = len(point.t)
+        zero = np.zeros(k)
+        v = np.sin(np.arange(1.0, k + 1.0))        # (any start with a part along φ)
+        for _ in range(NULL_ITERATIONS):
+            w, _ = self.kkt.solve(state, v, zero, 1.0, 0.0, zero)      # K⁻¹ v
+            w /= np.linalg.norm(w)
+            change = min(np.linalg.norm(w - v), np.linalg.norm(w + v))
+            v = w
+            if change <= NULL_TOL:
+                break
+        else:
+            raise ValueError(f"no simple zero eigenvalue at {point.tau:.6g} of the way (the "
+                             f"null vector changed by {change:.1e} after {NULL_ITERATIONS} "
+                             f"inverse iterations): not a located branch point")
+        along = self._weight @ (v * point.t)
+        phi, phi_tau = v - along * point.t, -along * point.t_tau
+        size = self.norm(phi, phi_tau)
+        if size < MIN_ORTHOGONAL * self.norm(v, 0.0):
+            raise ValueError(f"the null vector at {point.tau:.6g} of the way is the branch's "
+                             f"own tangent: a fold, not a branch point")
+        shape = np.where(self.kkt.x_mask, phi, 0.0)
+        sign = np.copysign(1.0, direction) * np.copysign(1.0, shape[np.argmax(np.abs(shape))])
+        return replace(point, t=sign * phi / size, t_tau=sign * phi_tau / size)
 
     def correct(self, prev: ArcPoint, ds: float) -> ArcPoint | None:
         """The point at arclength ``ds`` from ``prev`` along its tangent, or None (no

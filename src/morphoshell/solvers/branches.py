@@ -16,7 +16,10 @@ Two ways to follow:
               to a fold, a snap-through to the stable equilibrium beyond it,
               and on (hysteresis when the path is reversed).
 
-:func:`continuation_path` returns the same as a table.
+:func:`switch_branch` follows the other branch through one of a branch's
+branch points (:meth:`~morphoshell.solvers.arclength.Arclength.switch`): the
+buckled shells beside a symmetric one, say.  :func:`continuation_path` returns
+a branch as a table.
 """
 from __future__ import annotations
 
@@ -33,8 +36,8 @@ from .continuation import continue_to
 from .paths import ParameterLine, neutral_problem
 from .results import Equilibrium
 
-__all__ = ["Branch", "BranchPoint", "follow_branch", "continuation_path", "EVENTS", "FOLLOW",
-           "COLUMNS"]
+__all__ = ["Branch", "BranchPoint", "follow_branch", "switch_branch", "continuation_path",
+           "EVENTS", "FOLLOW", "COLUMNS"]
 
 #: What a point of a branch can be besides an ordinary one.
 EVENTS = ("fold", "branch_point", "snap")
@@ -100,6 +103,11 @@ class Branch:
     points : tuple of BranchPoint
     snaps : tuple of Snap
     seconds : float
+    origin : float or None
+        For a branch that :func:`switch_branch` followed: the λ of the branch
+        point it starts from (its first point); None for one from the path's start.
+    direction : float
+        For such a branch: which half (+1 or −1) of the branch through that point.
     """
 
     problem: Problem
@@ -109,6 +117,8 @@ class Branch:
     points: tuple
     snaps: tuple
     seconds: float
+    origin: float | None = None
+    direction: float = 1.0
 
     @property
     def events(self) -> list[BranchPoint]:
@@ -160,7 +170,9 @@ class Branch:
                 "path": {n: [float(a), float(b)] for n, a, b in zip(self.line.names, self.line.a,
                                                                     self.line.b)},
                 "points": self.columns(), "snaps": [s.to_dict() for s in self.snaps],
-                "seconds": self.seconds}
+                "seconds": self.seconds,
+                **({"origin": self.origin, "direction": self.direction}
+                   if self.origin is not None else {})}
 
 
 def follow_branch(problem: Problem, param: str | None = None, to: float | None = None, *,
@@ -216,6 +228,58 @@ def follow_branch(problem: Problem, param: str | None = None, to: float | None =
                   time.perf_counter() - t0)
 
 
+def switch_branch(branch: Branch, at: int, direction: float = 1.0, *,
+                  max_step: float = MAX_STEP, max_points: int = 2000) -> Branch:
+    """Follow the other branch through a branch point of ``branch``.
+
+    From the branch point, along the null direction of its KKT matrix
+    orthogonal to ``branch`` (:meth:`Arclength.switch`), by the same
+    pseudo-arclength steps as :func:`follow_branch` (``follow="branch"``:
+    through folds, unstable parts included), until the branch reaches either
+    end of the path (λ = 1 or λ = 0).
+
+    Parameters
+    ----------
+    branch : Branch
+        From :func:`follow_branch` (on its mesh the new one is followed).
+    at : int
+        Which of its branch points: 0 for the first along it, 1 for the next...
+    direction : float
+        +1 or −1: the two halves of the other branch (at a pitchfork, mirror
+        images; :meth:`Arclength.switch` says which is which).
+    max_step, max_points : float and int
+        As for :func:`follow_branch`.
+
+    Returns
+    -------
+    Branch
+        Its first point the branch point (event ``"branch_point"``), its last
+        at λ = 1 or 0; ``origin`` that point's λ, ``direction`` as given.
+
+    Raises
+    ------
+    ValueError
+        ``at`` beyond the branch's branch points, or ``direction`` not ±1,
+        or the point not a simple branch point (:meth:`Arclength.switch`).
+    SolverError
+        ``"Branch_Ended"`` when the steps fail or leave the path.
+    """
+    from .direct import solver_of
+
+    points = [pt for pt in branch.points if pt.event == "branch_point"]
+    if not -len(points) <= at < len(points):
+        raise ValueError(f"at = {at!r}: the branch has {len(points)} branch point(s)")
+    if direction not in (1, -1):
+        raise ValueError(f"direction = {direction!r} must be +1 or -1")
+    t0 = time.perf_counter()
+    origin = points[at]
+    arc = Arclength(solver_of(origin.equilibrium), branch.line, origin.equilibrium.anchors)
+    walk = _Walk(arc, "branch", max_step, max_points, ends=(0.0, 1.0))
+    walk.switched(origin, direction)
+    return Branch(branch.problem, branch.line, branch.parameter, "branch", tuple(walk.points),
+                  (), time.perf_counter() - t0, origin.tau, float(direction))
+
+
 def continuation_path(problem: Problem, param: str | None = None, to: float | None = None,
                       **options):
     """:func:`follow_branch` as a table: one row per point, with its ``equilibrium``.
@@ -248,8 +312,11 @@ def _path(solver, problem: Problem, param, to, anchors) -> tuple[ParameterLine, 
 class _Walk:
     """The steps of one branch: points, events and snaps as they are found."""
 
-    def __init__(self, arc: Arclength, follow: str, max_step: float, max_points: int):
+    def __init__(self, arc: Arclength, follow: str, max_step: float, max_points: int,
+                 ends: tuple[float, ...] = (1.0,)):
         self.arc, self.follow, self.max_step, self.max_points = arc, follow, max_step, max_points
+        # where the walk ends: λ = 1 going up; a switched branch also at λ = 0 going down
+        self.ends = ends
         self.points: list[BranchPoint] = []
         self.snaps: list[Snap] = []
 
@@ -273,6 +340,27 @@ class _Walk:
         """Step from ``start`` (τ = 0) until τ = 1."""
         point = self.arc.start(start, 0.0, 1.0)
         self.record(point)
+        self._steps(point)
+
+    def switched(self, origin: BranchPoint, direction: float) -> None:
+        """Step from the branch point ``origin`` onto the other branch through it, to an end.
+
+        The first step leaves the point along the switched tangent (its τ
+        component near 0 at a pitchfork: no fold is looked for between the
+        two); its step is halved until the corrector converges.
+        """
+        at = self.arc.switch(self.arc.start(origin.equilibrium, origin.tau), direction)
+        self.record(at, "branch_point", origin.equilibrium, origin.negative_eigenvalues)
+        ds = self.max_step / 4
+        while (first := self.arc.correct(at, ds)) is None or self.arc.turned(at, first):
+            ds /= 2
+            if ds < MIN_STEP:
+                raise self._ended(at, "no step left the branch point")
+        self.record(first)
+        self._steps(first)
+
+    def _steps(self, point: ArcPoint) -> None:
+        """Step on from ``point`` until an end (:attr:`ends`)."""
         ds = self.max_step / 4
         while True:
             if len(self.points) >= self.max_points:
@@ -305,10 +393,12 @@ class _Walk:
             if change.tau <= 1 or point.tau >= 1:
                 self.record(change, "branch_point",
                             negative=min(point.inertia.negative, new.inertia.negative))
-        if point.tau < 1 <= new.tau and new.t_tau > 0:
-            end = self.arc.at_tau(point, 1.0) or new
-            self.record(end)
-            return end, True
+        for end in self.ends:
+            if min(point.tau, new.tau) < end <= max(point.tau, new.tau) and \
+                    (new.t_tau > 0) == (end > point.tau):
+                last = self.arc.at_tau(point, end) or new
+                self.record(last)
+                return last, True
         self.record(new)
         return new, False
 
