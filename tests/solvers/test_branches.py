@@ -248,3 +248,26 @@ def test_a_fold_is_no_branch_point_to_switch_at(branch60):
     fold = branch60.points[_events(branch60, "fold")[0]]
     with pytest.raises(ValueError, match="a fold, not a branch point"):
         arc.switch(arc.start(fold.equilibrium, fold.tau))
+
+
+def test_solve_switches_to_the_stable_branch_where_the_flat_disc_buckles(blister, domes):
+    """solve() on the blister: natural continuation stalls where the flat disc loses its
+    stability (no fold: a branch point); it switches to the stable half of the branch through
+    it and goes on to the dome of switch_branch (energy to 1e-10 relative, edge to 1e-9 R),
+    saying so in its path.  A fit's inner solve (continue_to without switch) still stops there,
+    named."""
+    from morphoshell.solvers.continuation import continue_to
+    from morphoshell.solvers.direct import solver_of
+
+    eq = solve(blister, nodes=60)
+    up = domes[0].end
+    assert eq.converged                 # (certified a minimum, as every solve)
+    assert abs(eq.energy - up.energy) < 1e-10 * up.energy
+    assert abs(eq.z[-1] - up.z_end) < 1e-9 and abs(eq.r[-1] - up.r_end) < 1e-9
+    switch, = eq.solver.details["switches"]
+    assert abs(switch["tau"] - domes[0].origin) < 1e-8 and switch["direction"] == 1.0
+    assert "switched branches at a branch point at 0.0152445" in eq.solver.details["path"]
+    with pytest.raises(SolverError) as exc:
+        continue_to(solver_of(up.equilibrium), blister)
+    assert exc.value.status == "Continuation_Failed" and "reaches the target unstable" in \
+        str(exc.value)

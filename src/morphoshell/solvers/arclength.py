@@ -50,7 +50,7 @@ from .direct import DirectSolver
 from .paths import ParameterLine
 from .results import Equilibrium, SolverError, SolverStats
 
-__all__ = ["Arclength", "ArcPoint", "Snap", "snap_through", "cross_fold", "bordered_kkt",
+__all__ = ["Arclength", "ArcPoint", "Snap", "Switch", "snap_through", "cross_fold", "bordered_kkt",
            "branch_ended", "MAX_STEP", "MIN_STEP",
            "EVENT_TOL"]
 
@@ -138,6 +138,42 @@ class Snap:
     def to_dict(self) -> dict:
         """Plain numbers (JSON)."""
         return {"tau": self.tau, "tau_after": self.tau_after,
+                "energy_before": self.energy_before, "energy_after": self.energy_after}
+
+
+@dataclass(frozen=True)
+class Switch:
+    """A switch of branches where the branch lost its stability at a branch point.
+
+    Attributes
+    ----------
+    tau : float
+        The branch point's path parameter.
+    tau_after : float
+        Where the first point on the other branch was solved.
+    direction : float
+        Which half of the other branch (:meth:`Arclength.switch`): the first of
+        +1, −1 that is stable (at a symmetric pitchfork the other half is its
+        mirror image, as good a solution).
+    energy_before, energy_after : float
+        The energies at the branch point and on the other branch (C R²).
+    """
+
+    tau: float
+    tau_after: float
+    direction: float
+    energy_before: float
+    energy_after: float
+
+    def describe(self) -> str:
+        """One line for ``solver.details["path"]``."""
+        return (f"switched branches at a branch point at {self.tau:.6g} of the way, where the "
+                f"branch lost its stability, to the stable half {self.direction:+g} of the "
+                f"other (energy {self.energy_before:.6g} -> {self.energy_after:.6g} C R^2)")
+
+    def to_dict(self) -> dict:
+        """Plain numbers (JSON)."""
+        return {"tau": self.tau, "tau_after": self.tau_after, "direction": self.direction,
                 "energy_before": self.energy_before, "energy_after": self.energy_after}
 
 
@@ -269,6 +305,16 @@ class Arclength:
         if found is None:
             return None
         return self._point(*found, c, c_tau)
+
+    def first_step(self, start: ArcPoint, ds: float) -> ArcPoint | None:
+        """The point at arclength ``ds`` from ``start``, the step halved until the corrector
+        converges without turning (:meth:`turned`), or None below :data:`MIN_STEP`."""
+        while ds >= MIN_STEP:
+            new = self.correct(start, ds)
+            if new is not None and not self.turned(start, new):
+                return new
+            ds /= 2
+        return None
 
     def _point(self, u, tau, state, iterations, c, c_tau) -> ArcPoint:
         """The converged (u, τ) with its tangent (oriented along the border row c, c_τ) and
@@ -454,15 +500,17 @@ def branch_ended(tau: float, why: str, last: Equilibrium | None) -> SolverError:
 
 
 def cross_fold(solver: DirectSolver, eq: Equilibrium, line: ParameterLine, tau: float,
-               anchors=(), *, reach: float = 0.01,
-               max_points: int = 200) -> tuple[Equilibrium, float, Snap | None]:
+               anchors=(), *, reach: float = 0.01, max_points: int = 200,
+               switch: bool = False) -> tuple[Equilibrium, float, Snap | Switch | None]:
     """Past the point where natural-parameter continuation stalled, on the way to τ = 1.
 
     From the stable solution ``eq`` at ``tau``, the branch is followed by
     pseudo-arclength steps until either τ has grown by ``reach`` on stable
     points (the stall was not a fold: natural continuation can go on from
     there), or τ turns back: a fold, located, where the shell snaps through
-    (:func:`snap_through`).
+    (:func:`snap_through`).  With ``switch``, a branch point where the branch
+    loses its stability is a third way: the branch point is located and the
+    stable half of the other branch through it taken (:func:`_switch_stable`).
 
     Returns
     -------
@@ -470,13 +518,14 @@ def cross_fold(solver: DirectSolver, eq: Equilibrium, line: ParameterLine, tau: 
         Stable, at the returned τ.
     float
         Its τ.
-    Snap or None
-        The snap-through, if there was one.
+    Snap, Switch or None
+        The snap-through or the switch of branches, if there was one.
 
     Raises
     ------
     SolverError
-        ``"Branch_Ended"`` when the steps fail before either, or
+        ``"Branch_Ended"`` when the steps fail before either (or, with
+        ``switch``, no branch through the branch point goes on stable), or
         ``"Snap_Through_Failed"`` (:func:`snap_through`).
     """
     arc = Arclength(solver, line, anchors)
@@ -492,6 +541,8 @@ def cross_fold(solver: DirectSolver, eq: Equilibrium, line: ParameterLine, tau: 
         if new.t_tau < 0:
             eq_s, snap = snap_through(arc, arc.locate_fold(point, ds), 1.0)
             return eq_s, snap.tau_after, snap
+        if switch and point.inertia.stable and not new.inertia.stable:
+            return _switch_stable(arc, point, ds)
         if new.tau >= min(1.0, tau + reach) and new.inertia.stable:
             if new.tau > 1:
                 new = arc.at_tau(point, 1.0) or new
@@ -504,3 +555,28 @@ def cross_fold(solver: DirectSolver, eq: Equilibrium, line: ParameterLine, tau: 
             ds = min(GROWTH * ds, MAX_STEP)
     raise branch_ended(point.tau, "no fold and no stable way on past the stall",
                        arc.equilibrium(point))
+
+
+def _switch_stable(arc: Arclength, point: ArcPoint, ds: float) -> tuple:
+    """(equilibrium, τ, Switch): the stable half of the other branch through the branch point
+    between the stable ``point`` and arclength ``ds`` past it, one step from the point.
+
+    The half that is stable there and goes on to larger τ (a supercritical
+    bifurcation); at a subcritical one neither does and the shell would jump,
+    which is not followed here.
+    """
+    bp = arc.locate_change(point, ds)
+    before = arc.equilibrium(bp)
+    for direction in (1.0, -1.0):
+        try:
+            other = arc.switch(bp, direction)
+        except ValueError:
+            break
+        first = arc.first_step(other, ds)
+        if first is not None and first.inertia.stable and first.t_tau > 0:
+            eq = arc.equilibrium(first)
+            log.debug("switched branches at tau = %.6g (direction %+g)", bp.tau, direction)
+            return eq, float(first.tau), Switch(float(bp.tau), float(first.tau), direction,
+                                                float(before.energy), float(eq.energy))
+    raise branch_ended(bp.tau, "it loses its stability at a branch point and no branch "
+                               "through it goes on stable", before)

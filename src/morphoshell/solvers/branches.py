@@ -351,11 +351,9 @@ class _Walk:
         """
         at = self.arc.switch(self.arc.start(origin.equilibrium, origin.tau), direction)
         self.record(at, "branch_point", origin.equilibrium, origin.negative_eigenvalues)
-        ds = self.max_step / 4
-        while (first := self.arc.correct(at, ds)) is None or self.arc.turned(at, first):
-            ds /= 2
-            if ds < MIN_STEP:
-                raise self._ended(at, "no step left the branch point")
+        first = self.arc.first_step(at, self.max_step / 4)
+        if first is None:
+            raise self._ended(at, "no step left the branch point")
         self.record(first)
         self._steps(first)
 

@@ -30,7 +30,7 @@ import numpy as np
 
 from ..model.problem import Problem
 from ..numerics.status import CONTINUATION_FAILED, SNAP_FAILED, explain
-from .arclength import cross_fold
+from .arclength import Switch, cross_fold
 from .direct import DirectSolver
 from .paths import ParameterLine, neutral_problem
 from .results import Equilibrium, SolverError
@@ -74,6 +74,9 @@ class Path:
         The snap-throughs crossed on the way (:func:`morphoshell.solvers.arclength.snap_through`).
     origin : str
         Where a continuation started.
+    switches : tuple of Switch
+        The switches of branches at branch points where the branch lost its
+        stability (:func:`morphoshell.solvers.arclength.cross_fold`).
     """
 
     kind: str
@@ -82,6 +85,7 @@ class Path:
     iterations: int = 0
     snaps: tuple = ()
     origin: str = "the stress-free parameters"
+    switches: tuple = ()
 
     def describe(self) -> str:
         """One line saying how the solution was reached (stored in ``solver.details["path"]``)."""
@@ -89,11 +93,11 @@ class Path:
             return self.kind
         line = (f"continuation from {self.origin} in {self.steps} steps "
                 f"({self.rejected} retried, {self.iterations} Newton iterations)")
-        return "; ".join([line, *(snap.describe() for snap in self.snaps)])
+        return "; ".join([line, *(event.describe() for event in (*self.snaps, *self.switches))])
 
 
 def continue_to(solver: DirectSolver, problem: Problem, anchors=(), *, first_step: float = 0.25,
-                max_steps: int = 200) -> Equilibrium:
+                max_steps: int = 200, switch: bool = False) -> Equilibrium:
     """Solve ``problem`` by continuation from its family's neutral parameters.
 
     Parameters
@@ -107,6 +111,10 @@ def continue_to(solver: DirectSolver, problem: Problem, anchors=(), *, first_ste
         First step of the path parameter τ ∈ (0, 1].
     max_steps : int
         Accepted and rejected steps together.
+    switch : bool
+        Where the branch loses its stability at a branch point, go on along
+        the stable half of the other branch through it (``solve``'s choice;
+        a fit's inner solves stay on their branch and fail there).
 
     Returns
     -------
@@ -128,9 +136,10 @@ def continue_to(solver: DirectSolver, problem: Problem, anchors=(), *, first_ste
         return _with_path(eq, Path("cold", 1, 0, eq.solver.iterations), t0)
     eq = solver.solve(start, anchors=anchors)
     run, eq = _follow(solver, eq, problem, anchors, first_step, max_steps,
-                      "the stress-free parameters", snap=True)
+                      "the stress-free parameters", snap=True, switch=switch)
     return _with_path(eq, Path("continuation", run.steps, run.rejected,
-                               run.iterations + eq.solver.iterations, tuple(run.snaps)), t0)
+                               run.iterations + eq.solver.iterations, tuple(run.snaps),
+                               switches=tuple(run.switches)), t0)
 
 
 def continue_between(solver: DirectSolver, start: Equilibrium, problem: Problem, anchors=(), *,
@@ -194,6 +203,7 @@ class _Progress:
     rejected: int = 0
     iterations: int = 0
     snaps: list = field(default_factory=list)
+    switches: list = field(default_factory=list)
     stuck: str = ""        # why crossing a stall failed, once it has
 
     def exhausted(self, max_steps: int) -> bool:
@@ -241,12 +251,14 @@ def _rejection(new: Equilibrium | None, eq: Equilibrium, change, rate) -> str:
     return ""
 
 
-def _follow(solver, eq, problem, anchors, first_step, max_steps, origin, snap=False):
+def _follow(solver, eq, problem, anchors, first_step, max_steps, origin, snap=False,
+            switch=False):
     """Continue from the solution ``eq`` to ``problem``: (progress, solution).
 
     With ``snap``, a stall of the step (a fold of the branch, where natural
     continuation cannot go on) is crossed as the shell would cross it
-    (:func:`morphoshell.solvers.arclength.cross_fold`).
+    (:func:`morphoshell.solvers.arclength.cross_fold`; with ``switch`` also a
+    branch point where the branch loses its stability).
     """
     line = ParameterLine.between(eq.problem, problem)
     run = _Progress(float(first_step))
@@ -255,7 +267,7 @@ def _follow(solver, eq, problem, anchors, first_step, max_steps, origin, snap=Fa
         if snap and run.step < MIN_STEP and len(run.snaps) < MAX_SNAPS \
                 and run.steps + run.rejected < max_steps and not run.stuck:
             try:
-                eq = _crossed(solver, eq, line, run, anchors, first_step)
+                eq = _crossed(solver, eq, line, run, anchors, first_step, switch)
                 continue
             except SolverError as exc:
                 if exc.status == SNAP_FAILED:
@@ -283,15 +295,16 @@ def _follow(solver, eq, problem, anchors, first_step, max_steps, origin, snap=Fa
     return run, eq
 
 
-def _crossed(solver, eq, line, run: _Progress, anchors, first_step) -> Equilibrium:
-    """Past a stall of natural continuation: the fold's snap-through (or the stable way on),
-    certified by a warm solve; ``run`` restarts there (a new branch: no jump rate yet)."""
-    eq, tau, snap = cross_fold(solver, eq, line, run.tau, anchors)
+def _crossed(solver, eq, line, run: _Progress, anchors, first_step, switch) -> Equilibrium:
+    """Past a stall of natural continuation: the fold's snap-through, the switch of branches
+    (or the stable way on), certified by a warm solve; ``run`` restarts there (a new branch:
+    no jump rate yet)."""
+    eq, tau, event = cross_fold(solver, eq, line, run.tau, anchors, switch=switch)
     eq = solver.solve(line.at(tau), warm_start=eq, anchors=anchors)
-    if snap is not None:
+    if event is not None:
         log.info("continuation to %s: %s", line.problem.name or line.problem.family,
-                 snap.describe())
-        run.snaps.append(snap)
+                 event.describe())
+        (run.switches if isinstance(event, Switch) else run.snaps).append(event)
     run.tau, run.rate, run.step = tau, None, float(first_step)
     return eq
 
@@ -300,6 +313,8 @@ def _with_path(eq: Equilibrium, path: Path, t0: float) -> Equilibrium:
     details = {**eq.solver.details, "path": path.describe(), "continuation_steps": path.steps}
     if path.snaps:
         details["snaps"] = [snap.to_dict() for snap in path.snaps]
+    if path.switches:
+        details["switches"] = [switch.to_dict() for switch in path.switches]
     stats = replace(eq.solver, iterations=path.iterations, seconds=time.perf_counter() - t0,
                     details=details)
     return replace(eq, solver=stats)

@@ -191,7 +191,7 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
         eq = replace(eq, solver=replace(eq.solver, details={**eq.solver.details,
                                                             "path": "warm start"}))
     elif continuation:
-        eq = continue_to(solver, problem, anchors)
+        eq = continue_to(solver, problem, anchors, switch=True)
     else:
         eq = solver.solve(problem, anchors=anchors)
         eq = replace(eq, solver=replace(eq.solver, details={**eq.solver.details, "path": "cold"}))
