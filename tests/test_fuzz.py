@@ -45,8 +45,9 @@ settings.load_profile(os.environ.get("MORPHOSHELL_FUZZ", "ci"))
 ROOT = Path(__file__).resolve().parents[1]
 TOY2 = str(example_path("toy2_ablation"))
 COUNTS: collections.Counter = collections.Counter()
-#: The valid problems refused with a solver status, printed after the counts: the next
-#: session's reproducers (a refusal is named, but a valid problem should be solved).
+#: The valid problems refused with a solver status, and those whose solve found a lower
+#: minimum than the reference (with the path that got there), printed after the counts: the
+#: next session's reproducers (a refusal is named, but a valid problem should be solved).
 REFUSED: list = []
 #: Seconds a refusal may take: checks only, no solver (imports are warmed first).
 REFUSAL_SECONDS = 10.0
@@ -66,7 +67,7 @@ def report():
         COUNTS.setdefault(key, 0)
     print("\nfuzz counts: " + ", ".join(f"{k} {v}" for k, v in sorted(COUNTS.items())))
     for line in dict.fromkeys(REFUSED):          # (hypothesis replays a failing example)
-        print(f"  refused: {line}")
+        print(f"  {line}" if line.startswith("lower") else f"  refused: {line}")
 
 
 # --------------------------------------------------------------------------
@@ -121,6 +122,8 @@ def test_solutions_agree_with_the_refined_mesh_within_their_estimate(problem):
     if eq is None:
         return
     COUNTS["solved"] += 1
+    if eq.solver.details.get("switches"):       # (where its path lost stability at a branch point)
+        COUNTS["switched branches"] += 1
     assert eq.r.min() >= 0 and eq.quadrature_points()[1].min() >= 0, "r < 0"
     if eq.error.note:
         COUNTS["no estimate"] += 1
@@ -141,6 +144,8 @@ def test_solutions_agree_with_the_refined_mesh_within_their_estimate(problem):
                 # annuli of thin shells have several, 1e-4 of their width apart): the solve
                 # is the better minimum, not a wrong branch
                 COUNTS["lower minimum than the reference"] += 1
+                REFUSED.append(f"lower than the reference: {problem!r} "
+                               f"({eq.solver.details['path']})")
                 return
             COUNTS["wrong branch or estimate"] += 1
             pytest.fail(f"{problem}: {key} = {values[key]!r} but the refined continuation gives "
