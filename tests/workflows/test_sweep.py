@@ -239,3 +239,17 @@ def test_cli_bad_axes_exit_2_with_one_line_and_no_file(tmp_path, capsys, items, 
     assert len(err.splitlines()) == 1 and err.startswith("morphoshell: error:"), err
     assert re.search(match, err), err
     assert not csv.exists()
+
+
+def test_a_sweep_past_a_branch_point_gives_solves_dome(blister):
+    """Past the blister disc's first branch point (G = 0.003) the flat disc is unstable: a
+    sweep's point there falls back on continuation, which switches to the stable dome as
+    solve() does (energies to 1e-10 relative); before, the point failed."""
+    from morphoshell import solve
+    from morphoshell.workflows.sweeps import sweep
+
+    df = sweep(blister, {"G": [0.002, 0.1, 0.2]}, nodes=60, workers=1).to_dataframe()
+    for G, energy in zip(df["G"], df["energy"]):
+        expected = solve(blister.with_updates(G=G), nodes=60).energy
+        assert abs(energy - expected) < 1e-10 * expected, (G, energy, expected)
+    assert df["energy"].iloc[1] > 100 * df["energy"].iloc[0]     # (0.1: the dome, not flat)

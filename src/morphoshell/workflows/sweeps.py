@@ -323,7 +323,8 @@ class _Shell:
                 log.debug("sweep: warm steps to %s failed (%s); continuation", problem.params,
                           exc.status)
         if eq is None:
-            eq, path = self._count(continue_to(solver, problem, anchors)), "continuation"
+            eq = self._count(continue_to(solver, problem, anchors, switch=True))    # (as solve)
+            path = "continuation"
         self.last = (problem, anchors, eq)
         return eq, path
 
