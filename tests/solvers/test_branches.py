@@ -271,3 +271,18 @@ def test_solve_switches_to_the_stable_branch_where_the_flat_disc_buckles(blister
         continue_to(solver_of(up.equilibrium), blister)
     assert exc.value.status == "Continuation_Failed" and "reaches the target unstable" in \
         str(exc.value)
+
+
+def test_the_quasi_static_path_buckles_onto_the_stable_dome(blister, domes):
+    """follow="stable" (what a slowly grown disc does): flat up to the first branch point,
+    where it loses its stability, then the stable half of the dome branch to lambda = 1,
+    every ordinary point stable (before, the walk went on along the unstable flat disc); the
+    end is switch_branch's dome (energy to 1e-10 relative)."""
+    path = follow_branch(blister, nodes=60, follow="stable")
+    switch, = path.switches
+    assert abs(switch.tau - domes[0].origin) < 1e-8 and switch.direction == 1.0
+    assert [pt.event for pt in path.events] == ["branch_point"]
+    assert all(pt.stable for pt in path.points if not pt.event)
+    assert path.end.tau == 1 and abs(path.end.energy - domes[0].end.energy) < \
+        1e-10 * domes[0].end.energy
+    assert path.to_dict()["switches"][0]["tau"] == switch.tau

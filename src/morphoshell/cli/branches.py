@@ -124,8 +124,8 @@ def _report(problem, branch) -> None:
                                              if branch.parameter else "")
         print(f"  {pt.event.replace('_', ' '):13s} at {where}: r_end = {pt.r_end:.6g} R, "
               f"z_end = {pt.z_end:.6g} R, energy = {pt.energy:.6g} C R^2")
-    for snap in branch.snaps:
-        print(f"  {snap.describe()}")
+    for event in (*branch.snaps, *branch.switches):
+        print(f"  {event.describe()}")
     end = branch.end
     state = "stable" if end.stable else f"unstable ({end.negative_eigenvalues} negative " \
                                         f"eigenvalues)"

@@ -50,7 +50,8 @@ from .direct import DirectSolver
 from .paths import ParameterLine
 from .results import Equilibrium, SolverError, SolverStats
 
-__all__ = ["Arclength", "ArcPoint", "Snap", "Switch", "snap_through", "cross_fold", "bordered_kkt",
+__all__ = ["Arclength", "ArcPoint", "Snap", "Switch", "snap_through", "switch_stable",
+           "cross_fold", "bordered_kkt",
            "branch_ended", "MAX_STEP", "MIN_STEP",
            "EVENT_TOL"]
 
@@ -510,7 +511,7 @@ def cross_fold(solver: DirectSolver, eq: Equilibrium, line: ParameterLine, tau: 
     there), or τ turns back: a fold, located, where the shell snaps through
     (:func:`snap_through`).  With ``switch``, a branch point where the branch
     loses its stability is a third way: the branch point is located and the
-    stable half of the other branch through it taken (:func:`_switch_stable`).
+    stable half of the other branch through it taken (:func:`switch_stable`).
 
     Returns
     -------
@@ -542,7 +543,7 @@ def cross_fold(solver: DirectSolver, eq: Equilibrium, line: ParameterLine, tau: 
             eq_s, snap = snap_through(arc, arc.locate_fold(point, ds), 1.0)
             return eq_s, snap.tau_after, snap
         if switch and point.inertia.stable and not new.inertia.stable:
-            return _switch_stable(arc, point, ds)
+            return switch_stable(arc, arc.locate_change(point, ds), ds)
         if new.tau >= min(1.0, tau + reach) and new.inertia.stable:
             if new.tau > 1:
                 new = arc.at_tau(point, 1.0) or new
@@ -557,15 +558,20 @@ def cross_fold(solver: DirectSolver, eq: Equilibrium, line: ParameterLine, tau: 
                        arc.equilibrium(point))
 
 
-def _switch_stable(arc: Arclength, point: ArcPoint, ds: float) -> tuple:
-    """(equilibrium, τ, Switch): the stable half of the other branch through the branch point
-    between the stable ``point`` and arclength ``ds`` past it, one step from the point.
+def switch_stable(arc: Arclength, bp: ArcPoint, ds: float) -> tuple:
+    """(equilibrium, τ, Switch): the stable half of the other branch through the located
+    branch point ``bp`` (where the branch loses its stability), one step ``ds`` past it.
 
     The half that is stable there and goes on to larger τ (a supercritical
-    bifurcation); at a subcritical one neither does and the shell would jump,
-    which is not followed here.
+    bifurcation), +1 first (:meth:`Arclength.switch`); at a subcritical one
+    neither does and the shell would jump, which is not followed: a named error.
+
+    Raises
+    ------
+    SolverError
+        ``"Branch_Ended"``: no branch through ``bp`` goes on stable (the branch
+        point's state attached).
     """
-    bp = arc.locate_change(point, ds)
     before = arc.equilibrium(bp)
     for direction in (1.0, -1.0):
         try:

@@ -14,7 +14,9 @@ Two ways to follow:
               the bifurcation diagram;
 ``"stable"``  what a shell loaded quasi-statically does: the stable branch up
               to a fold, a snap-through to the stable equilibrium beyond it,
-              and on (hysteresis when the path is reversed).
+              and on (hysteresis when the path is reversed); where it loses
+              its stability at a branch point, on along the stable half of
+              the other branch through it (a buckling disc).
 
 :func:`switch_branch` follows the other branch through one of a branch's
 branch points (:meth:`~morphoshell.solvers.arclength.Arclength.switch`): the
@@ -30,8 +32,8 @@ from typing import Any
 import numpy as np
 
 from ..model.problem import Problem
-from .arclength import (EASY, GROWTH, MAX_STEP, MIN_STEP, ArcPoint, Arclength, Snap,
-                        branch_ended, snap_through)
+from .arclength import (EASY, GROWTH, MAX_STEP, MIN_STEP, ArcPoint, Arclength, Snap, Switch,
+                        branch_ended, snap_through, switch_stable)
 from .continuation import continue_to
 from .paths import ParameterLine, neutral_problem
 from .results import Equilibrium
@@ -108,6 +110,9 @@ class Branch:
         point it starts from (its first point); None for one from the path's start.
     direction : float
         For such a branch: which half (+1 or −1) of the branch through that point.
+    switches : tuple of Switch
+        ``follow="stable"``: where the branch lost its stability at a branch
+        point and the walk went on along the stable half of the other branch.
     """
 
     problem: Problem
@@ -119,6 +124,7 @@ class Branch:
     seconds: float
     origin: float | None = None
     direction: float = 1.0
+    switches: tuple = ()
 
     @property
     def events(self) -> list[BranchPoint]:
@@ -172,7 +178,8 @@ class Branch:
                 "points": self.columns(), "snaps": [s.to_dict() for s in self.snaps],
                 "seconds": self.seconds,
                 **({"origin": self.origin, "direction": self.direction}
-                   if self.origin is not None else {})}
+                   if self.origin is not None else {}),
+                **({"switches": [s.to_dict() for s in self.switches]} if self.switches else {})}
 
 
 def follow_branch(problem: Problem, param: str | None = None, to: float | None = None, *,
@@ -225,7 +232,7 @@ def follow_branch(problem: Problem, param: str | None = None, to: float | None =
     walk = _Walk(Arclength(solver, line, anchors), follow, max_step, max_points)
     walk.run(start)
     return Branch(line.problem, line, param, follow, tuple(walk.points), tuple(walk.snaps),
-                  time.perf_counter() - t0)
+                  time.perf_counter() - t0, switches=tuple(walk.switches))
 
 
 def switch_branch(branch: Branch, at: int, direction: float = 1.0, *,
@@ -319,6 +326,7 @@ class _Walk:
         self.ends = ends
         self.points: list[BranchPoint] = []
         self.snaps: list[Snap] = []
+        self.switches: list[Switch] = []
 
     def record(self, point: ArcPoint, event: str = "", eq: Equilibrium | None = None,
                negative: int | None = None) -> None:
@@ -391,6 +399,8 @@ class _Walk:
             if change.tau <= 1 or point.tau >= 1:
                 self.record(change, "branch_point",
                             negative=min(point.inertia.negative, new.inertia.negative))
+                if self.follow == "stable" and point.inertia.stable and change.tau < 1:
+                    return self._switch(change, ds), False
         for end in self.ends:
             if min(point.tau, new.tau) < end <= max(point.tau, new.tau) and \
                     (new.t_tau > 0) == (end > point.tau):
@@ -399,6 +409,15 @@ class _Walk:
                 return last, True
         self.record(new)
         return new, False
+
+    def _switch(self, bp: ArcPoint, ds: float) -> ArcPoint:
+        """Where the branch loses its stability at ``bp``: on along the stable half of the
+        other branch through it (a shell loaded slowly follows it), from its first point."""
+        eq, tau, switch = switch_stable(self.arc, bp, ds)
+        self.switches.append(switch)
+        start = self.arc.start(eq, tau, 1.0)
+        self.record(start, eq=eq)
+        return start
 
     def _snap(self, fold: ArcPoint) -> ArcPoint:
         """Snap through at ``fold``; the walk goes on from the snapped equilibrium."""
