@@ -27,7 +27,8 @@ def test_the_average_of_the_shipped_traces_is_the_shipped_average(tmp_path, caps
     """scripts/make_synthetic_inversion.py averaged these five pixel traces (each at its own
     radius) into t02's synthetic_average.csv and wrote each one's midline: the command gives
     both again (to round-off of the alignment's least squares, 1e-9 R)."""
-    out = tmp_path / "average.csv"
+    out = tmp_path / "t02" / "average.csv"
+    out.parent.mkdir()
     assert main(["average", *TRACES, *_scale(_radii()), "--csv", str(out), "--traces",
                  "--json", str(tmp_path / "average.json"), "--plot", str(tmp_path / "a.png")]) == 0
     mine, shipped = Midline.from_csv(out), Midline.from_csv(STAGE / "synthetic_average.csv")
@@ -35,7 +36,7 @@ def test_the_average_of_the_shipped_traces_is_the_shipped_average(tmp_path, caps
     for a, b in ((mine.r, shipped.r), (mine.z, shipped.z), (mine.spread, shipped.spread)):
         assert np.max(np.abs(a - b)) < 1e-9
     for k in range(1, 6):
-        single = Midline.from_csv(tmp_path / f"average_synthetic_embryo{k}.csv")
+        single = Midline.from_csv(out.parent / f"average_synthetic_embryo{k}.csv")
         expected = Midline.from_csv(STAGE / f"synthetic_embryo{k}_midline.csv")
         assert np.max(np.abs(single.points - expected.points)) < 1e-9
     data = json.loads((tmp_path / "average.json").read_text())
@@ -43,7 +44,17 @@ def test_the_average_of_the_shipped_traces_is_the_shipped_average(tmp_path, caps
     assert len(distances) == 5 and max(distances) < 2 * np.median(distances)
     assert (tmp_path / "a.png").stat().st_size > 10_000
     printed = capsys.readouterr().out
-    assert "outlier" not in printed and f"midline {out}, traces " in printed
+    assert "outlier" not in printed
+    # the row it prints is one a campaign's data folder reads (read_timepoints checks files)
+    from morphoshell.io import read_timepoints
+
+    row = re.search(r"for timepoints.csv in (.+): midline (\S+), traces (\S+)", printed)
+    data = Path(row.group(1))
+    assert data == tmp_path.resolve()
+    (data / "timepoints.csv").write_text(f"timepoint,pseudotime,midline,traces\n"
+                                         f"t02,0.1,{row.group(2)},{row.group(3)}\n")
+    stage, = read_timepoints(data)
+    assert stage.midline == "t02/average.csv" and len(stage.traces) == 5
 
 
 def test_a_trace_at_the_wrong_scale_is_named_an_outlier(tmp_path, capsys):

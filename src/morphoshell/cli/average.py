@@ -160,14 +160,23 @@ def _average(args) -> int:
     for path in out.commit():
         print(f"  wrote {path}")
     if args.csv is not None:
-        traces = ";".join(str(p) for p in written.values())
-        print(f"for timepoints.csv (paths relative to its folder): midline {args.csv}"
-              + (f", traces {traces}" if traces else ""))
+        _row_hint(args.csv, list(written.values()))
     if outliers:
         print(f"morphoshell average: {len(outliers)} outlier{'s' * (len(outliers) > 1)} "
               f"({', '.join(outliers)}): more than {OUTLIER_RATIO:g} times the median "
               f"distance {median:.3g} R from the traces' median")
     return 0
+
+
+def _row_hint(csv: Path, traces: list[Path]) -> None:
+    """The files' entries of a timepoints.csv row, relative to the data folder DATA, taken to
+    be the --csv file's grandparent (the layout DATA/t01/average.csv)."""
+    data = csv.resolve().parent.parent
+
+    def rel(path: Path) -> str:
+        return path.resolve().relative_to(data).as_posix()
+    print(f"for timepoints.csv in {data}: midline {rel(csv)}"
+          + (f", traces {';'.join(rel(p) for p in traces)}" if traces else ""))
 
 
 def _write_json(path, mean, midlines, names, rms, written) -> None:
