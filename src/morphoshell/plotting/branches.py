@@ -79,20 +79,13 @@ def plot_branch(branch, *, y: str = "psi_end", x: str | None = None, shapes: boo
     if fig is None:
         height = (0.85 if shapes else 0.5) * DOUBLE_COLUMN
         fig = Figure(figsize=(DOUBLE_COLUMN, height), layout="constrained")
-    colours = _switched_colours(switched)
-    ax = fig.add_subplot() if not shapes else None
-    if shapes:
-        top, bottom = fig.subfigures(2, 1, height_ratios=(1.2, 1))
-        ax = top.add_subplot()
-    for other, colour in zip(switched, colours):
-        _line(ax, other.columns(), x, y, colour)
-    _diagram(ax, table, x, y)
-    for origin, colour in dict(zip((b.origin for b in switched), colours)).items():
-        ax.plot([], [], color=colour, lw=1.2, label=f"branch from λ = {origin:.4g}")
-    if switched:         # (beside: inside, the switched branches leave no empty corner)
-        ax.legend(loc="center left", bbox_to_anchor=(1.0, 0.5), fontsize="small", frameon=False)
-    if shapes:
-        _shapes(bottom, branch, list(zip(switched, colours)))
+    coloured = list(zip(switched, _switched_colours(switched)))
+    if not shapes:
+        _diagrams(fig.add_subplot(), table, coloured, x, y)
+        return fig
+    top, bottom = fig.subfigures(2, 1, height_ratios=(1.2, 1))
+    _diagrams(top.add_subplot(), table, coloured, x, y)
+    _shapes(bottom, branch, coloured)
     return fig
 
 
@@ -100,6 +93,17 @@ def _switched_colours(switched: Sequence) -> list[str]:
     """One colour per branch point of origin (both halves of its branch alike)."""
     origins = list(dict.fromkeys(b.origin for b in switched))
     return [SWITCHED_COLOURS[origins.index(b.origin) % len(SWITCHED_COLOURS)] for b in switched]
+
+
+def _diagrams(ax: Axes, table: dict, coloured: list, x: str, y: str) -> None:
+    """The branch's diagram (:func:`_diagram`) over the switched ones, each in its colour."""
+    for other, colour in coloured:
+        _line(ax, other.columns(), x, y, colour)
+    _diagram(ax, table, x, y)
+    for origin, colour in dict((b.origin, c) for b, c in coloured).items():
+        ax.plot([], [], color=colour, lw=1.2, label=f"branch from λ = {origin:.4g}")
+    if coloured:         # (beside: inside, the switched branches leave no empty corner)
+        ax.legend(loc="center left", bbox_to_anchor=(1.0, 0.5), fontsize="small", frameon=False)
 
 
 def _line(ax: Axes, table: dict, x: str, y: str, colour: str) -> None:
