@@ -126,12 +126,16 @@ def _report(problem, branch) -> None:
               f"z_end = {pt.z_end:.6g} R, energy = {pt.energy:.6g} C R^2")
     for event in (*branch.snaps, *branch.switches):
         print(f"  {event.describe()}")
-    end = branch.end
+    print(f"  {_end_line(branch.end)}")
+
+
+def _end_line(end) -> str:
+    """Where a branch ends: λ, stability and the far end's values."""
     state = "stable" if end.stable else f"unstable ({end.negative_eigenvalues} negative " \
                                         f"eigenvalues)"
-    print(f"  end at lambda = {end.tau:.10g}: {state}, r_end = {end.r_end:.10g} R, "
-          f"z_end = {end.z_end:.10g} R, psi_end = {end.psi_end:.10g} rad, energy = "
-          f"{end.energy:.10g} C R^2")
+    return (f"end at lambda = {end.tau:.10g}: {state}, r_end = {end.r_end:.10g} R, "
+            f"z_end = {end.z_end:.10g} R, psi_end = {end.psi_end:.10g} rad, energy = "
+            f"{end.energy:.10g} C R^2")
 
 
 def _switched(args, branch) -> list[tuple[str, object]]:
@@ -147,13 +151,9 @@ def _switched(args, branch) -> list[tuple[str, object]]:
         for direction, sign in ((1, "+"), (-1, "-")):
             other = switch_branch(branch, k, direction, max_step=args.max_step,
                                   max_points=args.max_points)
-            end = other.end
-            state = "stable" if end.stable else f"unstable ({end.negative_eigenvalues})"
             print(f"  switched at branch point {k + 1}{sign} (lambda = {other.origin:.10g}): "
-                  f"{len(other.points)} points, {len(other.events) - 1} more event(s), end at "
-                  f"lambda = {end.tau:.10g}: {state}, r_end = {end.r_end:.10g} R, z_end = "
-                  f"{end.z_end:.10g} R, psi_end = {end.psi_end:.10g} rad, energy = "
-                  f"{end.energy:.10g} C R^2")
+                  f"{len(other.points)} points, {len(other.events) - 1} more event(s), "
+                  f"{_end_line(other.end)}")
             out.append((f"{k + 1}{sign}", other))
     return out
 

@@ -40,7 +40,7 @@ one direction of zero curvature) to the stable equilibrium just beyond it.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -138,8 +138,7 @@ class Snap:
 
     def to_dict(self) -> dict:
         """Plain numbers (JSON)."""
-        return {"tau": self.tau, "tau_after": self.tau_after,
-                "energy_before": self.energy_before, "energy_after": self.energy_after}
+        return asdict(self)
 
 
 @dataclass(frozen=True)
@@ -174,8 +173,7 @@ class Switch:
 
     def to_dict(self) -> dict:
         """Plain numbers (JSON)."""
-        return {"tau": self.tau, "tau_after": self.tau_after, "direction": self.direction,
-                "energy_before": self.energy_before, "energy_after": self.energy_after}
+        return asdict(self)
 
 
 def bordered_kkt(solver: DirectSolver) -> BorderedKKT:
