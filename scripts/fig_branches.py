@@ -5,8 +5,9 @@
   (tests/data/volvox_fold.toml, --nodes, 400): the branch through its folds
   (``follow_branch``, pseudo-arclength) and the quasi-static path with its
   snap-through (``follow="stable"``): branches_volvox.png, branches_volvox_stable.png.
-* The blister (the test suite's disc grown in its centre, f = 1 + G exp(−(s/0.3)²),
-  h = 0.02, G from 0 to 0.2; --blister-nodes, 100): its flat branch, which loses
+* The blister (the packaged example ``blister``: a disc grown in its centre, family
+  ``central_growth``, f = 1 + G exp(−(s/0.3)²), h = 0.02, G from 0 to 0.2;
+  --blister-nodes, 100): its flat branch, which loses
   stability at branch points, and the branches through the first two
   (``switch_branch``, both halves): branches_blister.png.
 
@@ -52,21 +53,11 @@ def main(argv=None) -> int:
 
 def blister(out: Path, nodes: int) -> None:
     """The blister's flat branch and the branches through its first two branch points."""
-    import casadi as ca
-
-    from morphoshell import Problem, follow_branch, switch_branch
-    from morphoshell.model.profiles import FAMILIES, ProfileFamily, Profiles, register_family
+    from morphoshell import follow_branch, switch_branch
+    from morphoshell.io.problem_files import example_path, load_problem
     from morphoshell.plotting import paper_style, plot_branch, save
 
-    def central_growth(s, p, cut, end):
-        f = 1 + p["G"] * ca.exp(-(s / 0.3) ** 2)
-        return Profiles(f, f, 0 * s, 0 * s)
-
-    if "central_growth" not in FAMILIES:
-        register_family(ProfileFamily("central_growth", ("G",), {"G": 0.2}, central_growth,
-                                      neutral={"G": 0.0}))
-    flat = follow_branch(Problem("central_growth", {"G": 0.2}, h=0.02, geometry="disc"),
-                         nodes=nodes)
+    flat = follow_branch(load_problem(example_path("blister"))[0], nodes=nodes)
     switched = [switch_branch(flat, k, d) for k in (0, 1) for d in (1, -1)]
     for b in [flat, *switched]:
         print(f"blister {b.origin or 0:.7f} {b.direction:+g}: {len(b.points)} points in "

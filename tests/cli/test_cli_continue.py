@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 
 from morphoshell.cli import main
+from morphoshell.io.problem_files import example_path
 
 FOLD = Path(__file__).resolve().parents[1] / "data" / "volvox_fold.toml"
 RIM = (0.3903, 0.4629)          # the cold solve's rim at lambda = 1 (issue 38)
@@ -105,14 +106,11 @@ def test_a_branch_that_runs_out_of_points_exits_3_naming_the_status(tmp_path, ca
     assert not out.exists()
 
 
-def test_switch_follows_both_halves_of_the_branch_through_a_branch_point(blister, tmp_path,
-                                                                          capsys):
-    """`continue --switch 1` on the blister disc (family registered by the fixture): the flat
-    branch, then both halves of the dome branch through its first branch point, stable at
-    lambda = 1 and mirror images; the CSV names each row's branch, the JSON holds them."""
-    problem = tmp_path / "blister.toml"
-    problem.write_text('[problem]\nfamily = "central_growth"\ngeometry = "disc"\nh = 0.02\n'
-                       '[parameters]\nG = 0.2\n')
+def test_switch_follows_both_halves_of_the_branch_through_a_branch_point(tmp_path, capsys):
+    """`continue --switch 1` on the packaged example blister: the flat branch, then both
+    halves of the dome branch through its first branch point, stable at lambda = 1 and
+    mirror images; the CSV names each row's branch, the JSON holds them."""
+    problem = example_path("blister")
     paths = {k: tmp_path / f"b.{k}" for k in ("csv", "json", "png")}
     assert main(["continue", str(problem), "--nodes", "40", "--switch", "1",
                  "--csv", str(paths["csv"]), "--json", str(paths["json"]),

@@ -12,7 +12,7 @@ from morphoshell.cli import main
 from morphoshell.io.problem_files import (ProblemFileError, example_path, example_text, examples, load_problem,
                             parse_overrides)
 
-EXAMPLES = ("fast_relaxation", "toy1_sphere", "toy2_ablation", "toy3_anisotropic",
+EXAMPLES = ("blister", "fast_relaxation", "toy1_sphere", "toy2_ablation", "toy3_anisotropic",
             "volvox_inversion")
 
 

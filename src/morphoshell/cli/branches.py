@@ -131,8 +131,8 @@ def _report(problem, branch) -> None:
 
 def _end_line(end) -> str:
     """Where a branch ends: λ, stability and the far end's values."""
-    state = "stable" if end.stable else f"unstable ({end.negative_eigenvalues} negative " \
-                                        f"eigenvalues)"
+    k = end.negative_eigenvalues
+    state = "stable" if end.stable else f"unstable ({k} negative eigenvalue{'s' * (k != 1)})"
     return (f"end at lambda = {end.tau:.10g}: {state}, r_end = {end.r_end:.10g} R, "
             f"z_end = {end.z_end:.10g} R, psi_end = {end.psi_end:.10g} rad, energy = "
             f"{end.energy:.10g} C R^2")

@@ -20,6 +20,11 @@ smoothed parameterisation, documentation page "Problems and families"):
 ``local_relaxation``   f⁰ = 1 + F0 (Σ + s0 − s)/s0 on [Σ, Σ + s0], else 1;
                        κ⁰ = 1 (fast active relaxation near the cut)
 ``volvox``             the 13-parameter inversion model, smoothing width σ
+
+and a disc that buckles at branch points (documentation: "Branches, folds and
+snap-throughs", "Branch switching: the blister"):
+
+``central_growth``     f_s⁰ = f_φ⁰ = 1 + G exp(−(s/w)²), κ⁰ = 0
 """
 from __future__ import annotations
 
@@ -197,6 +202,20 @@ def _validate_anisotropic(v, cut, end):
     _within(v, lo - 1, hi - 1, "f0", why=" (intrinsic stretch 1 + f0 between 1/10 and 10)")
 
 
+def _central_growth(s, p, cut, end):
+    f = 1 + p["G"] * ca.exp(-(s / p["w"]) ** 2)
+    zero = 0 * s
+    return Profiles(f, f, zero, zero)
+
+
+def _validate_central_growth(v, cut, end):
+    _positive(v, "w")
+    lo, hi = STRETCH_RANGE
+    _within(v, lo - 1, hi - 1, "G", why=" (intrinsic stretch 1 + G at the centre between 1/10 "
+                                         "and 10)")
+    _within(v, 0, 2 * np.pi, "w", why=" (width of the grown region, in units of R)")
+
+
 def _local_relaxation(s, p, cut, end):
     # Piecewise linear as printed in the paper; the kink at Σ + s0 is in the
     # data, not in the unknowns, so Ipopt's derivatives stay exact.
@@ -358,6 +377,14 @@ register_family(ProfileFamily(
     description="f0 = 1 + F0 (cut + s0 - s)/s0 near the cut, kappa0 = 1 (fast relaxation)",
     # The relaxation is an active response to the cut: the intact shell has none.
     neutral={"F0": 0.0}, pre_ablation={"F0": 0.0}, breakpoints=_local_relaxation_breakpoints))
+register_family(ProfileFamily(
+    "central_growth", ("G", "w"), {"G": 0.2, "w": 0.3}, _central_growth,
+    _validate_central_growth,
+    description="f_s0 = f_phi0 = 1 + G exp(-(s/w)^2), kappa0 = 0: a flat disc grown in its "
+                "centre, which buckles (the blister)",
+    # stress-free as a flat disc (geometry = "disc"), which it stays, by mirror symmetry,
+    # on an unstable branch past its first branch point
+    neutral={"G": 0.0}))
 register_family(ProfileFamily(
     "volvox",
     ("f1", "f2", "f3", "f4", "f5", "kappa1", "kappa2", "kappa3", "kappa4",

@@ -1,0 +1,36 @@
+"""The packaged profile families' formulas and their parameters' checks."""
+import numpy as np
+import pytest
+
+from morphoshell import Problem
+from morphoshell.cli import main
+from morphoshell.io.problem_files import example_path
+from morphoshell.model.profiles import get_family
+
+
+def test_central_growth_is_a_gaussian_growth_of_a_flat_disc():
+    """f_s0 = f_phi0 = 1 + G exp(-(s/w)^2), no intrinsic curvature; stress-free at G = 0."""
+    p = Problem("central_growth", {"G": 0.3, "w": 0.4}, h=0.02, geometry="disc")
+    s = np.array([0.0, 0.4, 0.8])
+    prof = p.profiles(s)
+    expected = 1 + 0.3 * np.exp(-(s / 0.4) ** 2)
+    np.testing.assert_allclose(prof["f_s0"], expected, rtol=1e-15)
+    np.testing.assert_allclose(prof["f_phi0"], expected, rtol=1e-15)
+    assert np.all(prof["kappa_s0"] == 0) and np.all(prof["kappa_phi0"] == 0)
+    assert get_family("central_growth").neutral == {"G": 0.0}
+
+
+@pytest.mark.parametrize("params, match", [
+    ({"G": -0.95}, r"parameter G = -0.95 must lie in \[-0.9, 9\] \(intrinsic stretch 1 \+ G"),
+    ({"w": 0.0}, "parameter w = 0.0 must be positive"),
+    ({"w": 7.0}, r"parameter w = 7.0 must lie in \[0, 6.28319\] \(width of the grown region"),
+])
+def test_central_growth_names_a_bad_parameter(params, match):
+    with pytest.raises(ValueError, match=match):
+        Problem("central_growth", params, h=0.02, geometry="disc")
+
+
+def test_the_blister_example_refuses_a_bad_growth_before_any_work(capsys):
+    assert main(["solve", str(example_path("blister")), "--set", "G=-2"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "G = -2" in err[0]
