@@ -10,7 +10,7 @@ from morphoshell import Problem, SolverError, solve
 from morphoshell.io.problem_files import load_problem
 from morphoshell.solvers import arclength
 from morphoshell.solvers.arclength import Arclength
-from morphoshell.solvers.branches import follow_branch
+from morphoshell.solvers.branches import follow_branch, switch_branch
 from morphoshell.solvers.direct import solver_of
 from morphoshell.solvers.paths import ParameterLine
 
@@ -286,3 +286,63 @@ def test_the_quasi_static_path_buckles_onto_the_stable_dome(blister, domes):
     assert path.end.tau == 1 and abs(path.end.energy - domes[0].end.energy) < \
         1e-10 * domes[0].end.energy
     assert path.to_dict()["switches"][0]["tau"] == switch.tau
+
+
+def test_where_no_half_can_be_followed_the_shell_buckles_down_its_unstable_mode(blister, domes,
+                                                                                monkeypatch):
+    """When no step onto the other branch works (a subcritical branch point, where the shell
+    jumps, or a corrector that fails), solve() leaves the branch point as the shell would:
+    minimised down its unstable mode just past it, then on to lambda = 1, named in its path;
+    here it lands on the same dome as switching does (energy to 1e-9 relative)."""
+    monkeypatch.setattr(Arclength, "first_step", lambda self, start, ds: None)
+    eq = solve(blister, nodes=60)
+    switch, = eq.solver.details["switches"]
+    assert switch["descent"] and abs(switch["tau"] - domes[0].origin) < 1e-8
+    assert switch["tau_after"] == pytest.approx(switch["tau"] + arclength.BUCKLE_OVERSHOOT)
+    assert "buckled at a branch point at 0.0152445" in eq.solver.details["path"]
+    assert abs(eq.energy - domes[0].end.energy) < 1e-9 * eq.energy
+
+
+@pytest.fixture(scope="module")
+def thin_disc():
+    """The blister at h = 1e-3: its first branch point at lambda = 3.8e-5 (proportional to
+    h^2), its KKT matrix with other eigenvalues near zero (a pair of unknowns at the centre)."""
+    return follow_branch(Problem("central_growth", {"G": 0.2}, h=1e-3, geometry="disc"),
+                         nodes=60)
+
+
+def test_a_thin_disc_switches_at_its_first_branch_points(thin_disc):
+    """Every branch point is located, one per negative eigenvalue gained (before: one step
+    passed ten, recorded as one); switching at the first three gives branches that leave
+    with 0, 1 and 2 negative eigenvalues.  solve() ends on the switched dome
+    (energy to 1e-10 relative), 40x below the unstable flat disc; 100 nodes give its energy
+    to 2e-5."""
+    assert thin_disc.events[0].tau == pytest.approx(3.838e-5, rel=1e-3)
+    assert [pt.negative_eigenvalues for pt in thin_disc.events[:15]] == list(range(15))
+    dome = switch_branch(thin_disc, 0, +1)
+    for k in (1, 2):
+        other = switch_branch(thin_disc, k, +1)
+        assert other.end.tau == 1 and abs(other.end.psi_end) > 0.01       # off the flat disc
+        assert other.points[1].negative_eigenvalues == k
+    assert all(pt.stable for pt in dome.points[1:]) and dome.end.tau == 1
+    eq = solve(thin_disc.problem, nodes=60)
+    switch, = eq.solver.details["switches"]
+    assert not switch["descent"] and abs(switch["tau"] - thin_disc.events[0].tau) < 1e-12
+    assert abs(eq.energy - dome.end.energy) < 1e-10 * eq.energy
+    assert eq.energy < thin_disc.end.energy / 40
+    assert solve(thin_disc.problem, nodes=100).energy == pytest.approx(eq.energy, rel=2e-5)
+
+
+def test_branch_points_of_a_thinner_disc_are_located_closely_enough_to_switch(monkeypatch):
+    """At h = 1e-2 on 200 nodes, the first branch point (tau = 0.0038) located to 1e-9 left
+    the null vector unconverged (inverse iterations changing it by 2e-5) and solve() failed;
+    located to 1e-11 the switch goes along the other branch, and lands where minimisation down
+    the unstable mode lands (the descent, a route without the other branch: to 1e-10)."""
+    disc = Problem("central_growth", {"G": 0.2}, h=1e-2, geometry="disc")
+    eq = solve(disc, nodes=200)
+    switch, = eq.solver.details["switches"]
+    assert not switch["descent"] and switch["tau"] == pytest.approx(0.0038312, rel=1e-5)
+    monkeypatch.setattr(Arclength, "first_step", lambda self, start, ds: None)
+    descended = solve(disc, nodes=200)
+    assert descended.solver.details["switches"][0]["descent"]
+    assert abs(descended.energy - eq.energy) < 1e-10 * eq.energy

@@ -53,7 +53,7 @@ from .results import Equilibrium, SolverError, SolverStats
 __all__ = ["Arclength", "ArcPoint", "Snap", "Switch", "snap_through", "switch_stable",
            "cross_fold", "bordered_kkt",
            "branch_ended", "MAX_STEP", "MIN_STEP",
-           "EVENT_TOL"]
+           "EVENT_TOL", "BRANCH_TOL"]
 
 log = logging.getLogger(__name__)
 
@@ -72,9 +72,13 @@ MIN_COS = 0.5
 MAX_TURN = np.pi / 2
 #: Step in p of the bordering column's central difference (relative error ~1e-10).
 DIFFERENCE = 1e-5
-#: Events are located to this arclength (folds, where τ is stationary) and this τ
-#: (branch points).
+#: Folds (where τ is stationary) are located to this arclength.
 EVENT_TOL = 1e-9
+#: Branch points are located to this τ, relatively below τ = BRANCH_SCALE
+#: (:meth:`Arclength.locate_change`): switching there needs their zero eigenvalue far
+#: below the others, which crowd near zero in thin shells (located to 1e-9, a disc at
+#: h = 1e-2 did not switch at its first, at τ = 0.0038; at h = 3e-4 not at its second).
+BRANCH_TOL, BRANCH_SCALE = 1e-11, 1e-3
 #: Inverse iterations for the null vector of K at a branch point, and the change of its
 #: direction at which it has converged: a located branch point's zero eigenvalue is many
 #: orders below the others (on the blister disc three iterations change it by 1e-13).
@@ -82,6 +86,9 @@ NULL_ITERATIONS, NULL_TOL = 10, 1e-8
 #: At a fold the null vector is the branch's own tangent: a null vector whose part
 #: orthogonal to the tangent is smaller than this is no branch point's.
 MIN_ORTHOGONAL = 1e-3
+#: How far past a branch point (in τ) a shell that leaves it down its unstable mode is
+#: minimised (:func:`switch_stable`; raised up to 64-fold while it returns to the point).
+BUCKLE_OVERSHOOT = 1e-3
 
 
 @dataclass(frozen=True)
@@ -157,6 +164,10 @@ class Switch:
         mirror image, as good a solution).
     energy_before, energy_after : float
         The energies at the branch point and on the other branch (C R²).
+    descent : bool
+        Whether the shell got there by minimisation down the branch point's
+        unstable mode (:func:`switch_stable`: no half of the other branch
+        could be followed from the point), not along the other branch.
     """
 
     tau: float
@@ -164,12 +175,18 @@ class Switch:
     direction: float
     energy_before: float
     energy_after: float
+    descent: bool = False
 
     def describe(self) -> str:
         """One line for ``solver.details["path"]``."""
-        return (f"switched branches at a branch point at {self.tau:.6g} of the way, where the "
-                f"branch lost its stability, to the stable half {self.direction:+g} of the "
-                f"other (energy {self.energy_before:.6g} -> {self.energy_after:.6g} C R^2)")
+        where = f"at a branch point at {self.tau:.6g} of the way, where the branch lost its " \
+                f"stability"
+        energy = f"(energy {self.energy_before:.6g} -> {self.energy_after:.6g} C R^2)"
+        if self.descent:
+            return (f"buckled {where}: minimised from there down its unstable mode "
+                    f"({self.direction:+g}) to a stable state at {self.tau_after:.6g} {energy}")
+        return f"switched branches {where}, to the stable half {self.direction:+g} of the " \
+               f"other {energy}"
 
     def to_dict(self) -> dict:
         """Plain numbers (JSON)."""
@@ -265,18 +282,8 @@ class Arclength:
             eigenvalue: not a located branch point), or the null vector is the
             branch's own tangent (a fold).
         """
-        state = self.kkt.state(point.u, self._data(point.tau))
-        k = len(point.t)
-        zero = np.zeros(k)
-        v = np.sin(np.arange(1.0, k + 1.0))        # (any start with a part along φ)
-        for _ in range(NULL_ITERATIONS):
-            w, _ = self.kkt.solve(state, v, zero, 1.0, 0.0, zero)      # K⁻¹ v
-            w /= np.linalg.norm(w)
-            change = min(np.linalg.norm(w - v), np.linalg.norm(w + v))
-            v = w
-            if change <= NULL_TOL:
-                break
-        else:
+        v, change = self.null_vector(point)
+        if change > NULL_TOL:
             raise ValueError(f"no simple zero eigenvalue at {point.tau:.6g} of the way (the "
                              f"null vector changed by {change:.1e} after {NULL_ITERATIONS} "
                              f"inverse iterations): not a located branch point")
@@ -289,6 +296,23 @@ class Arclength:
         shape = np.where(self.kkt.x_mask, phi, 0.0)
         sign = np.copysign(1.0, direction) * np.copysign(1.0, shape[np.argmax(np.abs(shape))])
         return replace(point, t=sign * phi / size, t_tau=sign * phi_tau / size)
+
+    def null_vector(self, point: ArcPoint) -> tuple[np.ndarray, float]:
+        """(φ, change): the unit eigenvector of the KKT matrix at ``point`` whose eigenvalue
+        is nearest zero, by at most :data:`NULL_ITERATIONS` inverse iterations, and how much
+        its direction changed in the last (converged when below :data:`NULL_TOL`)."""
+        state = self.kkt.state(point.u, self._data(point.tau))
+        k = len(point.t)
+        zero = np.zeros(k)
+        v = np.sin(np.arange(1.0, k + 1.0))        # (any start with a part along φ)
+        for _ in range(NULL_ITERATIONS):
+            w, _ = self.kkt.solve(state, v, zero, 1.0, 0.0, zero)      # K⁻¹ v
+            w /= np.linalg.norm(w)
+            change = min(np.linalg.norm(w - v), np.linalg.norm(w + v))
+            v = w
+            if change <= NULL_TOL:
+                break
+        return v, change
 
     def correct(self, prev: ArcPoint, ds: float) -> ArcPoint | None:
         """The point at arclength ``ds`` from ``prev`` along its tangent, or None (no
@@ -410,10 +434,35 @@ class Arclength:
 
     def locate_change(self, prev: ArcPoint, ds: float) -> ArcPoint:
         """The point between ``prev`` and arclength ``ds`` where the inertia changes (a
-        branch point): bisection on s until τ is known to :data:`EVENT_TOL`."""
+        branch point): bisection on s until τ is known to :data:`BRANCH_TOL`, relatively
+        below τ = :data:`BRANCH_SCALE` (a thin shell's first branch point lies at τ ∝ h²,
+        4e-7 for a disc at h = 1e-4)."""
+        return self._bisect_change(prev, ds)[0]
+
+    def locate_changes(self, prev: ArcPoint, new: ArcPoint, ds: float) -> list[ArcPoint]:
+        """Every branch point between ``prev`` and ``new`` (arclength ``ds``): one per
+        change of the number of negative eigenvalues, each located from the last (a thin
+        shell's step can pass several: a disc at h = 1e-3 passes ten in one)."""
+        out, left = [], ds
+        # (at most one located point per eigenvalue changing sign, twice for a count that
+        # goes back and forth)
+        for _ in range(2 * abs(new.inertia.negative - prev.inertia.negative) + 2):
+            if prev.inertia.negative == new.inertia.negative or left <= 0:
+                break
+            change, s = self._bisect_change(prev, left)
+            if change is None or change.inertia.negative == prev.inertia.negative:
+                break
+            out.append(change)
+            prev, left = change, left - s
+        return out
+
+    def _bisect_change(self, prev: ArcPoint, ds: float) -> tuple[ArcPoint | None, float]:
+        """(the first point past the change of inertia within arclength ``ds`` of ``prev``,
+        its arclength from ``prev``) (:meth:`locate_change`)."""
         lo, hi = 0.0, ds
         point = None
-        while (hi - lo) * max(abs(prev.t_tau), 1e-3) > EVENT_TOL and hi - lo > 1e-14:
+        tol = BRANCH_TOL * min(1.0, abs(prev.tau) / BRANCH_SCALE)
+        while (hi - lo) * max(abs(prev.t_tau), 1e-3) > tol and hi - lo > 1e-14:
             mid = 0.5 * (lo + hi)
             trial = self.correct(prev, mid)
             if trial is None:
@@ -422,7 +471,7 @@ class Arclength:
                 lo = mid
             else:
                 hi, point = mid, trial
-        return point or self.correct(prev, hi)
+        return point or self.correct(prev, hi), hi
 
 
 class _NoPoint(Exception):
@@ -464,27 +513,46 @@ def snap_through(arc: Arclength, fold: ArcPoint, direction: float = 1.0,
         found past the fold; the fold's state is attached.
     """
     before = arc.equilibrium(fold)
-    mask = arc.kkt.x_mask
-    for factor in (1, 4, 16, 64):
-        tau = fold.tau + np.copysign(overshoot * factor, direction)
-        state = arc.kkt.state(fold.u, arc._data(tau))
-        # rhs = −∇ of the (penalised) Lagrangian: the energy falls along +v where rhs·v > 0
-        v = fold.t * np.copysign(1.0, state.rhs[mask] @ fold.t[mask])
-        for size in (0.02, 0.1):
-            x0, _ = arc.kkt.unpack(arc.kkt.moved(fold.u, size * v))
-            try:
-                eq = arc.solver.solve(arc.line.at(tau), x0=x0, anchors=arc.q)
-            except SolverError:
-                continue
-            if eq.energy < before.energy and _moved(eq, before):
-                snap = Snap(float(fold.tau), float(tau), float(before.energy), float(eq.energy))
-                log.debug("snap-through at tau = %.6g: energy %.6g -> %.6g", fold.tau,
-                          before.energy, eq.energy)
-                return eq, snap
+    found = _descend(arc, fold, fold.t, np.copysign(overshoot, direction), before,
+                     downhill=True, lower=True)
+    if found is not None:
+        eq, tau = found
+        log.debug("snap-through at tau = %.6g: energy %.6g -> %.6g", fold.tau, before.energy,
+                  eq.energy)
+        return eq, Snap(float(fold.tau), float(tau), float(before.energy), float(eq.energy))
     raise SolverError(
         f"no stable equilibrium found past the fold at {fold.tau:.6g} of the way: "
         f"{explain(SNAP_FAILED)}; the fold's state is attached", SNAP_FAILED,
         replace(before, converged=False))
+
+
+def _descend(arc: Arclength, point: ArcPoint, mode: np.ndarray, overshoot: float,
+             before: Equilibrium, *, downhill: bool,
+             lower: bool) -> tuple[Equilibrium, float] | None:
+    """(equilibrium, τ): a stable state minimised from ``point`` moved along ``mode``, at
+    τ + ``overshoot`` (raised up to 64-fold while the descent returns to ``point``'s state);
+    None if none is found.
+
+    ``downhill`` turns ``mode`` to where the energy falls there; ``lower``
+    also asks for an energy below ``before``'s (a snap-through's landing).
+    """
+    mask = arc.kkt.x_mask
+    for factor in (1, 4, 16, 64):
+        tau = point.tau + overshoot * factor
+        v = mode
+        if downhill:
+            state = arc.kkt.state(point.u, arc._data(tau))
+            # rhs = −∇ of the (penalised) Lagrangian: the energy falls along +v where rhs·v > 0
+            v = mode * np.copysign(1.0, state.rhs[mask] @ mode[mask])
+        for size in (0.02, 0.1):
+            x0, _ = arc.kkt.unpack(arc.kkt.moved(point.u, size * v))
+            try:
+                eq = arc.solver.solve(arc.line.at(tau), x0=x0, anchors=arc.q)
+            except SolverError:
+                continue
+            if _moved(eq, before) and (eq.energy < before.energy or not lower):
+                return eq, float(tau)
+    return None
 
 
 def _moved(eq: Equilibrium, before: Equilibrium) -> bool:
@@ -561,13 +629,17 @@ def switch_stable(arc: Arclength, bp: ArcPoint, ds: float) -> tuple:
     branch point ``bp`` (where the branch loses its stability), one step ``ds`` past it.
 
     The half that is stable there and goes on to larger τ (a supercritical
-    bifurcation), +1 first (:meth:`Arclength.switch`); at a subcritical one
-    neither does and the shell would jump, which is not followed: a named error.
+    bifurcation), +1 first (:meth:`Arclength.switch`).  Where neither does
+    (a subcritical bifurcation, where the shell jumps; or a branch point of a
+    thin shell located too roughly for the other branch's corrector), the
+    shell leaves the unstable state as it would: down the branch point's
+    unstable mode (its null vector, +1 first), minimised to a stable state
+    just past it (:func:`_descend`, as a snap-through).
 
     Raises
     ------
     SolverError
-        ``"Branch_Ended"``: no branch through ``bp`` goes on stable (the branch
+        ``"Branch_Ended"``: neither way found a stable state (the branch
         point's state attached).
     """
     before = arc.equilibrium(bp)
@@ -582,5 +654,15 @@ def switch_stable(arc: Arclength, bp: ArcPoint, ds: float) -> tuple:
             log.debug("switched branches at tau = %.6g (direction %+g)", bp.tau, direction)
             return eq, float(first.tau), Switch(float(bp.tau), float(first.tau), direction,
                                                 float(before.energy), float(eq.energy))
-    raise branch_ended(bp.tau, "it loses its stability at a branch point and no branch "
-                               "through it goes on stable", before)
+    phi = arc.null_vector(bp)[0]      # (converged or not: any part along it descends)
+    for direction in (1.0, -1.0):
+        found = _descend(arc, bp, direction * phi, BUCKLE_OVERSHOOT, before, downhill=False,
+                         lower=False)
+        if found is not None:
+            eq, tau = found
+            log.debug("buckled at tau = %.6g (direction %+g)", bp.tau, direction)
+            return eq, tau, Switch(float(bp.tau), tau, direction, float(before.energy),
+                                   float(eq.energy), descent=True)
+    raise branch_ended(bp.tau, "it loses its stability at a branch point and no stable "
+                               "state was found past it, along the other branch or down "
+                               "its unstable mode", before)

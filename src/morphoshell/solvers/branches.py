@@ -393,14 +393,18 @@ class _Walk:
             if self.follow == "stable" and point.inertia.stable:
                 return self._snap(fold), False
         elif new.inertia.negative != point.inertia.negative:
-            change = self.arc.locate_change(point, ds)
-            # one past the path's end (the last step overshoots τ = 1) is not on the branch
-            # returned, which ends at τ = 1: recording it would put it before the end point
-            if change.tau <= 1 or point.tau >= 1:
+            before = point
+            for change in self.arc.locate_changes(point, new, ds):
+                # one past the path's end (the last step overshoots τ = 1) is not on the
+                # branch returned, which ends at τ = 1: recording it would put it before the
+                # end point
+                if change.tau > 1 and point.tau < 1:
+                    break
                 self.record(change, "branch_point",
-                            negative=min(point.inertia.negative, new.inertia.negative))
-                if self.follow == "stable" and point.inertia.stable and change.tau < 1:
+                            negative=min(before.inertia.negative, change.inertia.negative))
+                if self.follow == "stable" and before.inertia.stable and change.tau < 1:
                     return self._switch(change, ds), False
+                before = change
         for end in self.ends:
             if min(point.tau, new.tau) < end <= max(point.tau, new.tau) and \
                     (new.t_tau > 0) == (end > point.tau):
