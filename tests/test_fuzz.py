@@ -145,14 +145,19 @@ def test_solutions_agree_with_the_refined_mesh_within_their_estimate(problem):
     # (a different path and mesh from the solution's), from the stress-free
     # parameters
     reference = _reference(problem, 399)
-    if reference is None and eq.solver.details.get("switches"):
+    tilted = reference is None and bool(eq.solver.details.get("switches"))
+    if tilted:
         reference = _tilted(problem, eq, 399)
     if reference is None:
         return
     values, ref = eq.estimated_values(), reference.estimated_values()
+    if tilted:
+        ref = _as_seen_from(ref, values)
     for key, err in eq.error.errors.items():
-        # the finer mesh's own error, ~1/16 of this one's, and round-off on top
-        allowed = 1.1 * err + 1e-10 * max(1.0, abs(values[key]))
+        # the finer mesh's own error, ~1/16 of this one's, and round-off on top (a cold
+        # minimisation's tolerance on top: it stops at a KKT error of 1e-8, 4e-10 off in
+        # psi_start on a thick annulus, where the continuations agree to 1e-12)
+        allowed = 1.1 * err + (1e-8 if tilted else 1e-10) * max(1.0, abs(values[key]))
         if abs(values[key] - ref[key]) > allowed:
             if eq.energy < reference.energy - 1e-9 * abs(reference.energy):
                 # another equilibrium of lower energy than the reference's path found (short
@@ -188,7 +193,7 @@ def _tilted(problem, eq, nodes: int):
     """The reference of a solve that switched branches (the reference continuation stays on
     the branch that lost its stability, and is refused there): a cold minimisation on the
     finer mesh from the undeformed shell tilted toward the solution's side (no continuation,
-    no branch switching)."""
+    no branch switching), polished by a warm re-solve."""
     solver = DirectSolver(problem.structure, mesh=mesh_spec(problem, nodes, 2))
     p = problem.parameter_vector()
     layout = solver.disc.layout
@@ -196,10 +201,25 @@ def _tilted(problem, eq, nodes: int):
     s = solver.disc.points(p)
     side = 1.0 if eq.psi[-1] >= 0 else -1.0
     try:
-        return solver.solve(problem, x0=layout.pack(r, psi + side * 0.1 * (s - s[0]), f))
+        cold = solver.solve(problem, x0=layout.pack(r, psi + side * 0.1 * (s - s[0]), f))
+        # then warm from itself (Newton's steps): Ipopt's cold solve of a thin shell stops
+        # within its tolerance, at h = 1e-4 0.4 % off in psi_end
+        return solver.solve(problem, warm_start=cold)
     except SolverError:
         COUNTS["reference refused"] += 1
         return None
+
+
+def _as_seen_from(ref: dict, values: dict) -> dict:
+    """A disc's reference values, ψ wrapped to (−π, π] and mirrored (z → −z, ψ → −ψ: a mirror
+    image is as good a solution) if it bends the other way than ``values``'."""
+    out = dict(ref)
+    for key in ("psi_start", "psi_end"):
+        out[key] = math.remainder(ref[key], 2 * math.pi)
+    if out["psi_end"] * values["psi_end"] < 0:
+        for key in ("psi_start", "psi_end", "z_end"):
+            out[key] = -out[key]
+    return out
 
 
 @given(problems(), st.sampled_from([30, 60]), st.sampled_from([2, 3]))
