@@ -161,7 +161,7 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
         raise ValueError(f"held_from = {held_from!r} must be one of {list(VARIANTS)}")
     jackknifed = _jackknifed(embryo_errors, variants)
     if selected is not None:
-        timepoints = _selected(timepoints, selected)
+        timepoints = _selected(timepoints, selected, data_dir)
     if workers is None:
         workers = min(len(variants), os.cpu_count() or 1)
     recorded = _check_settings(out, _folder_settings(data_dir, method, nodes, start),
@@ -283,20 +283,22 @@ def _jackknifed(embryo_errors, variants: tuple[str, ...]) -> frozenset:
     names = _names(embryo_errors)
     unknown = [v for v in names if v not in variants]
     if unknown or not names:
-        raise ValueError(f"embryo_errors: variants {unknown or '(none)'} are not among the "
-                         f"campaign's {list(variants)}")
+        raise ValueError(f"embryo_errors {','.join(names)}: {unknown or '(none)'} not among "
+                         f"the variants {','.join(variants)}")
     return frozenset(names)
 
 
-def _selected(timepoints: tuple[Timepoint, ...], selected: str | Sequence[str]
+def _selected(timepoints: tuple[Timepoint, ...], selected: str | Sequence[str], data_dir
               ) -> tuple[Timepoint, ...]:
     """The timepoints named in ``selected`` (``campaign``'s ``timepoints``), in the data set's order."""
-    selected = _names(selected)
+    asked = _names(selected)
     names = [tp.name for tp in timepoints]
-    unknown = [n for n in selected if n not in names]
-    if unknown or not selected:
-        raise ValueError(f"timepoints {unknown or '(none)'}: the data set has {names}")
-    return tuple(tp for tp in timepoints if tp.name in set(selected))
+    unknown = [n for n in asked if n not in names]
+    if unknown or not asked:
+        typed = selected if isinstance(selected, str) else ",".join(asked)
+        raise ValueError(f"timepoints {typed!r}: {unknown or '(none)'} not in "
+                         f"{Path(data_dir) / 'timepoints.csv'} (it has {','.join(names)})")
+    return tuple(tp for tp in timepoints if tp.name in set(asked))
 
 
 def _held_source(tasks: list[CampaignTask], variants: tuple[str, ...],
