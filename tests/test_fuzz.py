@@ -154,6 +154,8 @@ def test_solutions_agree_with_the_refined_mesh_within_their_estimate(problem):
     if tilted:
         ref = _as_seen_from(ref, values)
     for key, err in eq.error.errors.items():
+        if key.startswith("psi"):        # (an angle: the same modulo 2 pi)
+            ref[key] = values[key] + math.remainder(ref[key] - values[key], 2 * math.pi)
         # the finer mesh's own error, ~1/16 of this one's, and round-off on top (a cold
         # minimisation's tolerance on top: it stops at a KKT error of 1e-8, 4e-10 off in
         # psi_start on a thick annulus, where the continuations agree to 1e-12)
@@ -226,7 +228,10 @@ def _as_seen_from(ref: dict, values: dict) -> dict:
 def test_a_cold_newton_solve_is_the_cold_ipopt_solve(problem, nodes, stages):
     """Cold solves try Newton's steps first (morphoshell.numerics.newton, "Cold starts"): solved or
     refused as Ipopt alone would, and where solved the same minimum (within the KKT tolerance:
-    measured up to 1e-8 of x at thin shells' round-off floor, 1e-14 elsewhere)."""
+    measured up to 1e-8 of x at thin shells' round-off floor, 1e-14 elsewhere), or one of no
+    higher energy: where a shell has several minima near the start Ipopt's line search can
+    take it to another (a thin annulus of local_relaxation: Newton's the continuation's,
+    Ipopt's 5 % higher), and they are counted and listed."""
     spec = mesh_spec(problem, nodes, stages)
     out = []
     for newton in (True, False):
@@ -241,7 +246,12 @@ def test_a_cold_newton_solve_is_the_cold_ipopt_solve(problem, nodes, stages):
         assert a == b, f"{problem}: Newton first {a!r}, Ipopt alone {b!r}"
         return
     COUNTS[f"cold: solved by {a.solver.details.get('route', 'ipopt')}"] += 1
-    assert np.max(np.abs(a.x - b.x)) < 1e-7 * max(1.0, np.max(np.abs(b.x))), problem
+    if np.max(np.abs(a.x - b.x)) < 1e-7 * max(1.0, np.max(np.abs(b.x))):
+        return
+    COUNTS["cold: another minimum than Ipopt's"] += 1
+    REFUSED.append(f"cold: Newton first {a.energy:.6g}, Ipopt alone {b.energy:.6g}: {problem!r} "
+                   f"({nodes} nodes, {stages} stages)")
+    assert a.energy <= b.energy * (1 + 1e-9), f"{problem}: Newton's steps to a higher minimum"
 
 
 # --------------------------------------------------------------------------

@@ -63,7 +63,9 @@ taken only while they are the steps Ipopt would take unmodified: each step's
 system must have the inertia of a minimum (Ipopt would otherwise add δ_w I to
 the Hessian, a different step) and each step must reduce the KKT error, or
 Ipopt solves from the start.  On small meshes this converges in no more
-steps than Ipopt's, to the same solution, and Ipopt's set-up is never built.
+steps than Ipopt's, to the same solution, and Ipopt's set-up is never built (where a
+shell has several minima near the start, Ipopt's line search can take it to another:
+tests/test_fuzz.py asks that Newton's steps never end at a higher one).
 
 The round-off floor.  Thin shells cannot reach ``tol``: the dual residual
 stops at a floor set by round-off (of order 1e-8 for h = 1e-4), and a solve
