@@ -346,3 +346,18 @@ def test_branch_points_of_a_thinner_disc_are_located_closely_enough_to_switch(mo
     descended = solve(disc, nodes=200)
     assert descended.solver.details["switches"][0]["descent"]
     assert abs(descended.energy - eq.energy) < 1e-10 * eq.energy
+
+
+def test_a_parameter_branch_starts_where_solve_does(blister):
+    """Along h the branch starts at the problem's solution as solve() finds it: the blister's
+    dome, past the branch point where the flat disc buckles (before, its start stopped there,
+    Continuation_Failed), and at h = 0.01 ends on the dome that the stress-free path reaches
+    at that h on the same mesh (energy to 1e-9)."""
+    from morphoshell.solvers.continuation import continue_to
+
+    branch = follow_branch(blister, "h", 0.01, nodes=60)
+    assert branch.points[0].stable and branch.points[0].z_end > 0.25
+    assert branch.end.tau == 1 and branch.end.stable
+    target = blister.with_updates(h=0.01)
+    direct = continue_to(solver_of(branch.end.equilibrium), target, switch=True)
+    assert abs(direct.energy - branch.end.energy) < 1e-9 * direct.energy

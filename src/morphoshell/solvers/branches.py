@@ -302,13 +302,15 @@ def continuation_path(problem: Problem, param: str | None = None, to: float | No
 
 
 def _path(solver, problem: Problem, param, to, anchors) -> tuple[ParameterLine, Equilibrium]:
-    """The path and the solution at its start."""
+    """The path and the solution at its start (along a parameter: ``problem``'s, as solve()
+    finds it, switching where its path from the stress-free parameters loses stability at a
+    branch point)."""
     if (param is None) != (to is None):
         raise ValueError("give both param and to (one parameter from problem's value to "
                          "another), or neither (the path from the stress-free parameters)")
     if param is not None:
         line = ParameterLine.along(problem, param, to)
-        return line, continue_to(solver, problem, anchors)
+        return line, continue_to(solver, problem, anchors, switch=True)
     source = neutral_problem(problem)
     if source is None:
         raise ValueError(f"{problem.family!r} at these parameters is stress-free already: "
