@@ -293,7 +293,8 @@ def test_where_no_half_can_be_followed_the_shell_buckles_down_its_unstable_mode(
     """When no step onto the other branch works (a subcritical branch point, where the shell
     jumps, or a corrector that fails), solve() leaves the branch point as the shell would:
     minimised down its unstable mode just past it, then on to lambda = 1, named in its path;
-    here it lands on the same dome as switching does (energy to 1e-9 relative)."""
+    here it lands on the same dome as switching does (energy to 1e-9 relative), as does the
+    quasi-static walk (follow="stable")."""
     monkeypatch.setattr(Arclength, "first_step", lambda self, start, ds: None)
     eq = solve(blister, nodes=60)
     switch, = eq.solver.details["switches"]
@@ -301,6 +302,9 @@ def test_where_no_half_can_be_followed_the_shell_buckles_down_its_unstable_mode(
     assert switch["tau_after"] == pytest.approx(switch["tau"] + arclength.BUCKLE_OVERSHOOT)
     assert "buckled at a branch point at 0.0152445" in eq.solver.details["path"]
     assert abs(eq.energy - domes[0].end.energy) < 1e-9 * eq.energy
+    path = follow_branch(blister, nodes=60, follow="stable")      # the quasi-static walk too
+    assert path.switches[0].descent and path.end.stable
+    assert abs(path.end.energy - domes[0].end.energy) < 1e-9 * eq.energy
 
 
 @pytest.fixture(scope="module")
