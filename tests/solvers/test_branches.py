@@ -365,3 +365,20 @@ def test_a_parameter_branch_starts_where_solve_does(blister):
     target = blister.with_updates(h=0.01)
     direct = continue_to(solver_of(branch.end.equilibrium), target, switch=True)
     assert abs(direct.energy - branch.end.energy) < 1e-9 * direct.energy
+
+
+def test_the_switched_half_is_the_one_whose_rim_rises():
+    """Direction +1 is the half along which the far end rises, whatever the parameters, and a
+    solve keeps to it after the switch (it goes on by arclength steps 0.01 in lambda before
+    natural ones: at G = 0.005 the first natural steps from next to the branch point jumped
+    to the mirror half, z_end -0.034, while the switch said +1): the blister's solves and a
+    sweep of it all rise."""
+    from morphoshell.workflows.sweeps import sweep
+
+    for G in (0.005, 0.2):
+        eq = solve(Problem("central_growth", {"G": G}, h=0.02, geometry="disc"), nodes=60)
+        assert eq.z[-1] > 0.03 and eq.solver.details["switches"][0]["direction"] == 1.0
+    table = sweep(Problem("central_growth", {"G": 0.2}, h=0.02, geometry="disc"),
+                  {"G": [0.005, 0.02, 0.2], "h": [0.01, 0.02]}, nodes=60,
+                  workers=1).to_dataframe()
+    assert (table["z_end"] > 0.03).all(), table[["G", "h", "z_end"]]

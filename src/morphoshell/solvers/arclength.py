@@ -266,8 +266,10 @@ class Arclength:
             A branch point (:meth:`locate_change`), or :meth:`start` at one.
         direction : float
             +1 or −1: the two halves of the other branch (mirror images at a
-            pitchfork); +1 where the largest entry of φ's shape part is
-            positive.
+            pitchfork); +1 the half along which the far end rises (z at the
+            shell's end grows: the same half whatever the parameters, so that
+            a sweep's rows and solve() agree), or where that does not change,
+            the half where the largest entry of φ's shape part grows.
 
         Returns
         -------
@@ -293,9 +295,19 @@ class Arclength:
         if size < MIN_ORTHOGONAL * self.norm(v, 0.0):
             raise ValueError(f"the null vector at {point.tau:.6g} of the way is the branch's "
                              f"own tangent: a fold, not a branch point")
-        shape = np.where(self.kkt.x_mask, phi, 0.0)
-        sign = np.copysign(1.0, direction) * np.copysign(1.0, shape[np.argmax(np.abs(shape))])
+        sign = np.copysign(1.0, direction) * self._rising(point, phi)
         return replace(point, t=sign * phi / size, t_tau=sign * phi_tau / size)
+
+    def _rising(self, point: ArcPoint, phi: np.ndarray) -> float:
+        """+1 if the far end's z rises along ``phi`` from ``point`` (central difference),
+        else −1; where it does not change, the sign of φ's largest shape entry."""
+        step = 1e-6 / max(np.max(np.abs(phi)), 1e-300)
+        z = [self.equilibrium(replace(point, u=self.kkt.moved(point.u, e * phi))).z[-1]
+             for e in (step, -step)]
+        if abs(z[0] - z[1]) > 1e-12:
+            return 1.0 if z[0] > z[1] else -1.0
+        shape = np.where(self.kkt.x_mask, phi, 0.0)
+        return float(np.copysign(1.0, shape[np.argmax(np.abs(shape))]))
 
     def null_vector(self, point: ArcPoint) -> tuple[np.ndarray, float]:
         """(φ, change): the unit eigenvector of the KKT matrix at ``point`` whose eigenvalue
@@ -526,6 +538,25 @@ def snap_through(arc: Arclength, fold: ArcPoint, direction: float = 1.0,
         replace(before, converged=False))
 
 
+def _onward(arc: Arclength, point: ArcPoint, ds: float, target: float,
+            max_points: int = 200) -> ArcPoint:
+    """``point``'s branch followed by arclength steps while stable and τ grows, to τ ≥
+    ``target``: the last such point."""
+    for _ in range(max_points):
+        if point.tau >= target or ds < MIN_STEP:
+            break
+        new = arc.correct(point, ds)
+        if new is None or arc.turned(point, new):
+            ds /= 2
+            continue
+        if not new.inertia.stable or new.t_tau <= 0 or new.tau > 1:
+            break
+        point = new
+        if new.iterations <= EASY:
+            ds = min(GROWTH * ds, MAX_STEP)
+    return point
+
+
 def _descend(arc: Arclength, point: ArcPoint, mode: np.ndarray, overshoot: float,
              before: Equilibrium, *, downhill: bool,
              lower: bool) -> tuple[Equilibrium, float] | None:
@@ -609,7 +640,7 @@ def cross_fold(solver: DirectSolver, eq: Equilibrium, line: ParameterLine, tau: 
             eq_s, snap = snap_through(arc, arc.locate_fold(point, ds), 1.0)
             return eq_s, snap.tau_after, snap
         if switch and point.inertia.stable and not new.inertia.stable:
-            return switch_stable(arc, arc.locate_change(point, ds), ds)
+            return switch_stable(arc, arc.locate_change(point, ds), ds, reach)
         if new.tau >= min(1.0, tau + reach) and new.inertia.stable:
             if new.tau > 1:
                 new = arc.at_tau(point, 1.0) or new
@@ -624,9 +655,11 @@ def cross_fold(solver: DirectSolver, eq: Equilibrium, line: ParameterLine, tau: 
                        arc.equilibrium(point))
 
 
-def switch_stable(arc: Arclength, bp: ArcPoint, ds: float) -> tuple:
+def switch_stable(arc: Arclength, bp: ArcPoint, ds: float, reach: float = 0.0) -> tuple:
     """(equilibrium, τ, Switch): the stable half of the other branch through the located
-    branch point ``bp`` (where the branch loses its stability), one step ``ds`` past it.
+    branch point ``bp`` (where the branch loses its stability), one step ``ds`` past it and
+    on by arclength steps while stable to τ + ``reach`` (a solve goes on by natural steps
+    from there: close to the point the two halves are too close for them to keep to one).
 
     The half that is stable there and goes on to larger τ (a supercritical
     bifurcation), +1 first (:meth:`Arclength.switch`).  Where neither does
@@ -650,11 +683,13 @@ def switch_stable(arc: Arclength, bp: ArcPoint, ds: float) -> tuple:
             break
         first = arc.first_step(other, ds)
         if first is not None and first.inertia.stable and first.t_tau > 0:
-            eq = arc.equilibrium(first)
+            last = _onward(arc, first, ds, bp.tau + reach)
+            eq = arc.equilibrium(last)
             log.debug("switched branches at tau = %.6g (direction %+g)", bp.tau, direction)
-            return eq, float(first.tau), Switch(float(bp.tau), float(first.tau), direction,
-                                                float(before.energy), float(eq.energy))
+            return eq, float(last.tau), Switch(float(bp.tau), float(last.tau), direction,
+                                               float(before.energy), float(eq.energy))
     phi = arc.null_vector(bp)[0]      # (converged or not: any part along it descends)
+    phi *= arc._rising(bp, phi)
     for direction in (1.0, -1.0):
         found = _descend(arc, bp, direction * phi, BUCKLE_OVERSHOOT, before, downhill=False,
                          lower=False)
