@@ -186,7 +186,7 @@ class Switch:
             return (f"buckled {where}: minimised from there down its unstable mode "
                     f"({self.direction:+g}) to a stable state at {self.tau_after:.6g} {energy}")
         return f"switched branches {where}, to the stable half {self.direction:+g} of the " \
-               f"other {energy}"
+               f"other, followed to {self.tau_after:.6g} {energy}"
 
     def to_dict(self) -> dict:
         """Plain numbers (JSON)."""
