@@ -382,3 +382,19 @@ def test_the_switched_half_is_the_one_whose_rim_rises():
                   {"G": [0.005, 0.02, 0.2], "h": [0.01, 0.02]}, nodes=60,
                   workers=1).to_dataframe()
     assert (table["z_end"] > 0.03).all(), table[["G", "h", "z_end"]]
+
+
+def test_a_barely_grown_thin_annulus_buckles_by_a_tiny_amount():
+    """(make fuzz) An annulus cut beyond the grown centre (G = 0.1, w = 0.1, Sigma = 1/3,
+    h = 1e-4: energies of 1e-20) loses stability at lambda = 0.16 where neither half of the
+    other branch can be followed; minimised down its unstable mode it buckles by 3e-5 (its
+    unknowns), which the snap-through's test of having left the point (1e-3) refused:
+    Continuation_Failed.  A certified minimum there is off the unstable point whatever its
+    distance; the two meshes agree on it as the scheme's fourth order says (energy 1.4e-6
+    apart, 6e-8 between 200 and 399 nodes; z_end 4e-7)."""
+    annulus = Problem("central_growth", {"G": 0.1, "w": 0.1}, h=1e-4, cut=1 / 3,
+                      geometry="disc")
+    a, b = solve(annulus, nodes=100), solve(annulus, nodes=200)
+    assert a.solver.details["switches"][0]["descent"]
+    assert abs(a.energy - b.energy) < 3e-6 * b.energy and b.z[-1] > 1e-4
+    assert abs(a.z[-1] - b.z[-1]) < 1e-6 * b.z[-1]

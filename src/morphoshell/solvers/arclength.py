@@ -581,14 +581,19 @@ def _descend(arc: Arclength, point: ArcPoint, mode: np.ndarray, overshoot: float
                 eq = arc.solver.solve(arc.line.at(tau), x0=x0, anchors=arc.q)
             except SolverError:
                 continue
-            if _moved(eq, before) and (eq.energy < before.energy or not lower):
+            # a snap lands far away and lower; a buckle off a branch point (whose own state
+            # is unstable there, so never certified) may be tiny: a barely grown thin annulus
+            # buckled by 3e-5
+            if eq.energy < before.energy and _moved(eq, before) if lower else \
+                    _moved(eq, before, 1e-9):
                 return eq, float(tau)
     return None
 
 
-def _moved(eq: Equilibrium, before: Equilibrium) -> bool:
-    """Whether ``eq`` left the fold's state (it did not just slide back onto it)."""
-    return bool(np.max(np.abs(eq.x - before.x)) > 1e-3)
+def _moved(eq: Equilibrium, before: Equilibrium, tol: float = 1e-3) -> bool:
+    """Whether ``eq`` left the state ``before`` by more than ``tol`` (it did not just slide
+    back onto it)."""
+    return bool(np.max(np.abs(eq.x - before.x)) > tol)
 
 
 def branch_ended(tau: float, why: str, last: Equilibrium | None) -> SolverError:
