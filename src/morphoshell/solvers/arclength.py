@@ -581,11 +581,11 @@ def _descend(arc: Arclength, point: ArcPoint, mode: np.ndarray, overshoot: float
                 eq = arc.solver.solve(arc.line.at(tau), x0=x0, anchors=arc.q)
             except SolverError:
                 continue
-            # a snap lands far away and lower; a buckle off a branch point (whose own state
-            # is unstable there, so never certified) may be tiny: a barely grown thin annulus
-            # buckled by 3e-5
-            if eq.energy < before.energy and _moved(eq, before) if lower else \
-                    _moved(eq, before, 1e-9):
+            if lower:      # a snap lands far away and lower
+                landed = eq.energy < before.energy and _moved(eq, before)
+            else:          # a buckle off a branch point (whose own state is unstable there,
+                landed = _moved(eq, before, 1e-9)   # never certified) may be tiny: 3e-5
+            if landed:
                 return eq, float(tau)
     return None
 
