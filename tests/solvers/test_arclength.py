@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from morphoshell import SolverError, solve
+from morphoshell import Problem, SolverError, solve
 from morphoshell.io.problem_files import load_problem
 from morphoshell.solvers import arclength
 from morphoshell.solvers.arclength import Arclength, snap_through
@@ -149,7 +149,7 @@ def test_snap_through_lands_lower_or_fails_by_name(fold100, monkeypatch):
     arc, prev, ds, fold = fold100
     eq, snap = snap_through(arc, fold)
     assert eq.converged and snap.tau == fold.tau and snap.tau_after > fold.tau
-    assert snap.energy_after < snap.energy_before
+    assert snap.energy_landed < snap.energy_before and snap.energy_after < snap.energy_before
     monkeypatch.setattr(arclength, "_moved", lambda eq, before: False)
     with pytest.raises(SolverError) as err:
         snap_through(arc, fold)
@@ -157,6 +157,27 @@ def test_snap_through_lands_lower_or_fails_by_name(fold100, monkeypatch):
     last = err.value.last_iterate
     assert last is not None and not last.converged
     assert abs(last.energy - snap.energy_before) < 1e-12
+
+
+def test_a_small_snap_is_judged_at_the_folds_own_tau():
+    """A thin sphere's free edge curls over at a fold (make fuzz's reproducer: h = 4.4e-4,
+    ψ at the edge jumps by 2.2 rad): the snap releases 1.7e-10 C R², while the energy grows
+    by 1.7e-7 over the 1e-3 in τ past the fold where the landing is solved, so comparing
+    the landing with the fold across τ refused it (``Snap_Through_Failed``). Judged at the
+    fold's τ, the solve snaps, at the same fold and to the same end on 300 and 400 nodes
+    (the fold to 2e-4 in τ, the energy to 1e-5 relative; 800 nodes: fold 0.829448,
+    energy 7.977922e-5 C R², 7.5e-7 relative from 400's)."""
+    problem = Problem("anisotropic", {"f0": -0.278375609690089}, h=4.3723617825288633e-4,
+                      cut=0.02)
+    ends = []
+    for nodes in (300, 400):
+        eq = solve(problem, nodes=nodes)
+        (snap,) = eq.solver.details["snaps"]
+        assert abs(snap["tau"] - 0.829448) < 2e-4
+        released = snap["energy_before"] - snap["energy_landed"]
+        assert 1e-10 < released < 3e-10 < snap["energy_after"] - snap["energy_before"]
+        ends.append(eq.energy)
+    assert abs(ends[0] - ends[1]) < 1e-5 * ends[1] and abs(ends[1] - 7.977922e-5) < 1e-10
 
 
 def test_fold_location_survives_a_failed_corrector(volvox):

@@ -130,18 +130,24 @@ class Snap:
     tau_after : float
         Where the snapped equilibrium was solved (just past the fold).
     energy_before, energy_after : float
-        The energies at the fold and after the snap (C R²).
+        The energies at the fold and of the snapped equilibrium, at ``tau_after`` (C R²).
+    energy_landed : float
+        The energy of the snapped equilibrium's branch at the fold's τ: below
+        ``energy_before`` by the energy the snap releases (``energy_after``, at another
+        τ, may be higher: the energy grows along the path).
     """
 
     tau: float
     tau_after: float
     energy_before: float
     energy_after: float
+    energy_landed: float
 
     def describe(self) -> str:
         """One line for ``solver.details["path"]``."""
-        return (f"snapped through a fold at {self.tau:.6g} of the way (energy "
-                f"{self.energy_before:.6g} -> {self.energy_after:.6g} C R^2)")
+        return (f"snapped through a fold at {self.tau:.6g} of the way (energy there "
+                f"{self.energy_before:.6g} -> {self.energy_landed:.6g} C R^2; "
+                f"{self.energy_after:.6g} at {self.tau_after:.6g})")
 
     def to_dict(self) -> dict:
         """Plain numbers (JSON)."""
@@ -528,10 +534,11 @@ def snap_through(arc: Arclength, fold: ArcPoint, direction: float = 1.0,
     found = _descend(arc, fold, fold.t, np.copysign(overshoot, direction), before,
                      downhill=True, lower=True)
     if found is not None:
-        eq, tau = found
+        eq, tau, landed = found
         log.debug("snap-through at tau = %.6g: energy %.6g -> %.6g", fold.tau, before.energy,
-                  eq.energy)
-        return eq, Snap(float(fold.tau), float(tau), float(before.energy), float(eq.energy))
+                  landed.energy)
+        return eq, Snap(float(fold.tau), float(tau), float(before.energy), float(eq.energy),
+                        float(landed.energy))
     raise SolverError(
         f"no stable equilibrium found past the fold at {fold.tau:.6g} of the way: "
         f"{explain(SNAP_FAILED)}; the fold's state is attached", SNAP_FAILED,
@@ -559,13 +566,14 @@ def _onward(arc: Arclength, point: ArcPoint, ds: float, target: float,
 
 def _descend(arc: Arclength, point: ArcPoint, mode: np.ndarray, overshoot: float,
              before: Equilibrium, *, downhill: bool,
-             lower: bool) -> tuple[Equilibrium, float] | None:
-    """(equilibrium, τ): a stable state minimised from ``point`` moved along ``mode``, at
-    τ + ``overshoot`` (raised up to 64-fold while the descent returns to ``point``'s state);
-    None if none is found.
+             lower: bool) -> tuple[Equilibrium, float, Equilibrium | None] | None:
+    """(equilibrium, τ, landed): a stable state minimised from ``point`` moved along
+    ``mode``, at τ + ``overshoot`` (raised up to 64-fold while the descent returns to
+    ``point``'s state); None if none is found.
 
     ``downhill`` turns ``mode`` to where the energy falls there; ``lower``
-    also asks for an energy below ``before``'s (a snap-through's landing).
+    also asks for an energy below ``before``'s at ``point``'s τ (a snap-through's
+    landing, ``landed``: :func:`_landed`; None without ``lower``).
     """
     mask = arc.kkt.x_mask
     for factor in (1, 4, 16, 64):
@@ -581,13 +589,29 @@ def _descend(arc: Arclength, point: ArcPoint, mode: np.ndarray, overshoot: float
                 eq = arc.solver.solve(arc.line.at(tau), x0=x0, anchors=arc.q)
             except SolverError:
                 continue
-            if lower:      # a snap lands far away and lower
-                landed = eq.energy < before.energy and _moved(eq, before)
-            else:          # a buckle off a branch point (whose own state is unstable there,
-                landed = _moved(eq, before, 1e-9)   # never certified) may be tiny: 3e-5
-            if landed:
-                return eq, float(tau)
+            if lower:      # a snap lands far away and lower, at the fold's own τ
+                landed = _landed(arc, eq, point.tau, before)
+                if landed is not None:
+                    return eq, float(tau), landed
+            elif _moved(eq, before, 1e-9):   # a buckle off a branch point (whose own state
+                return eq, float(tau), None  # is unstable there, never certified): 3e-5
     return None
+
+
+def _landed(arc: Arclength, eq: Equilibrium, tau: float,
+            before: Equilibrium) -> Equilibrium | None:
+    """``eq``'s branch followed back to τ = ``tau`` (``before``'s), if it lies lower than
+    ``before`` there and away from it; else None.
+
+    Energies compare at one τ only: along a path they change by dE/dτ Δτ, which can
+    outweigh the drop of a small snap (a thin shell's edge curling over: 2·10⁻¹⁰ C R²
+    against 1.7·10⁻⁷ for Δτ = 10⁻³).
+    """
+    try:
+        back = arc.solver.solve(arc.line.at(tau), warm_start=eq, anchors=arc.q)
+    except SolverError:
+        return None
+    return back if back.energy < before.energy and _moved(back, before) else None
 
 
 def _moved(eq: Equilibrium, before: Equilibrium, tol: float = 1e-3) -> bool:
@@ -699,7 +723,7 @@ def switch_stable(arc: Arclength, bp: ArcPoint, ds: float, reach: float = 0.0) -
         found = _descend(arc, bp, direction * phi, BUCKLE_OVERSHOOT, before, downhill=False,
                          lower=False)
         if found is not None:
-            eq, tau = found
+            eq, tau, _ = found
             log.debug("buckled at tau = %.6g (direction %+g)", bp.tau, direction)
             return eq, tau, Switch(float(bp.tau), tau, direction, float(before.energy),
                                    float(eq.energy), descent=True)
