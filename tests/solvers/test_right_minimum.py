@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from morphoshell import Problem, SolverError, solve
+from morphoshell.solvers import routes
 from morphoshell.solvers.continuation import neutral_problem
 from morphoshell.numerics.mesh import MIN_POLE_CELL, graded_mesh
 
@@ -133,6 +134,42 @@ def test_rtol_refines_until_met_or_raises():
         solve(problem, nodes=50, rtol=1e-15, max_nodes=400)
     assert exc.value.status == "Tolerance_Not_Met" and "does not meet rtol = 1e-15" in str(exc.value)
     assert exc.value.last_iterate.solver.nodes == 393     # 50 -> 99 -> 197 -> 393 nodes
+
+
+THIN_RIM = Problem("anisotropic", {"f0": -0.278375609690089}, h=4.3723617825288633e-4,
+                   cut=0.02)
+
+
+def test_rtol_retries_a_failed_continuation_on_finer_meshes():
+    """make fuzz's thin sphere, whose rim curls over: on 200 nodes the rim folds a second
+    time, where no landing is found (``Snap_Through_Failed``; 300, 400 and 800 nodes snap
+    once, tests/solvers/test_arclength.py). With rtol the solve retries on 399 nodes, says
+    so, and ends where 800 nodes end (7.977922e-5 C R²); without it, or with no finer mesh
+    allowed, the named error."""
+    for options in ({}, {"rtol": 1e-3, "max_nodes": 300}):
+        with pytest.raises(SolverError) as exc:
+            solve(THIN_RIM, nodes=200, **options)
+        assert exc.value.status == "Snap_Through_Failed" and "before" not in str(exc.value)
+    eq = solve(THIN_RIM, nodes=200, rtol=1e-3)
+    assert "on 399 nodes after Snap_Through_Failed on 200 nodes (retried for rtol)" in \
+        eq.solver.details["path"]
+    assert eq.error.meets(1e-3) and abs(eq.energy - 7.977922e-5) < 1e-5 * eq.energy
+
+
+def test_rtol_retries_a_few_times_then_names_each_failure(monkeypatch):
+    """At most MESH_RETRIES finer meshes (8 times the nodes), and the error lists them."""
+    tried = []
+
+    def failing(solver, problem, anchors, switch):
+        tried.append(solver.nodes)
+        raise SolverError("no landing", "Snap_Through_Failed")
+    monkeypatch.setattr(routes, "continue_to", failing)
+    with pytest.raises(SolverError) as exc:
+        solve(Problem("uniform", {"k": 0.5}, h=0.1, cut=0.3), nodes=20, rtol=1e-6)
+    assert tried == [20, 39, 77, 153] and exc.value.status == "Snap_Through_Failed"
+    assert str(exc.value) == ("no landing (on 153 nodes; before: Snap_Through_Failed on 20 "
+                              "nodes, Snap_Through_Failed on 39 nodes, Snap_Through_Failed "
+                              "on 77 nodes)")
 
 
 def test_bvp_runs_within_its_time_budget():

@@ -40,8 +40,9 @@ def _common(p: argparse.ArgumentParser) -> None:
                    metavar="TOLERANCE",
                    help="direct method: refine the mesh (doubling the cells) until the error "
                         "estimate meets TOLERANCE (energy relative to itself, edge values in units "
-                        "of R and radians), or fail with exit status 3; without it the "
-                        "estimate is only reported")
+                        "of R and radians), or fail with exit status 3; a continuation that "
+                        "fails for want of a finer mesh is retried on finer ones; without it "
+                        "the estimate is only reported")
     p.add_argument("--no-continuation", dest="continuation", action="store_false",
                    help="direct method: one cold solve from the undeformed shell instead of "
                         "continuation from the family's stress-free parameters (faster, but "

@@ -22,6 +22,7 @@ from dataclasses import replace
 
 from ..model.problem import Problem
 from ..numerics.mesh import mesh_spec
+from ..numerics.status import BRANCH_ENDED, CONTINUATION_FAILED, SNAP_FAILED
 from .continuation import continue_to
 from .direct import BUILDS, MAX_NODES, DirectSolver, check_nodes
 from .refinement import refine
@@ -41,6 +42,13 @@ DIRECT_OPTIONS = ("stages", "linear_solver", "tol", "max_iter", "stability", "ip
 BVP_OPTIONS = ("tol", "bc_tol", "pole_offset", "max_nodes", "homotopy_steps", "max_seconds")
 SHOOTING_OPTIONS = ("segments", "integrator", "atol", "tol", "pole_offset", "homotopy_steps",
                     "max_evaluations", "max_growth", "max_segments", "max_condition", "points")
+
+#: With ``rtol``, meshes twice as fine (up to 8 times the nodes) on which :func:`solve` retries
+#: a continuation that failed with a status whose remedy is a finer mesh: on thin shells a
+#: free edge's boundary layer that curls over folds on coarse meshes where it does not on
+#: fine ones (h = 1e-4: folds at 400 and 800 nodes find no landing, 1600 and 3200 agree).
+MESH_RETRIES = 3
+RETRIED = (CONTINUATION_FAILED, SNAP_FAILED, BRANCH_ENDED)
 
 #: Direct solvers kept by :func:`solve` (least recently used dropped first).
 #: A solver of 400 nodes holds a few MB.
@@ -140,7 +148,8 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
         estimate meets this relative tolerance (energy relative to itself,
         edge values in units of R and radians), or raise.  Every direct
         result carries its estimate (``Equilibrium.error``), from the mesh with
-        half the cells.
+        half the cells.  With ``rtol`` a continuation that fails for want of
+        a finer mesh is retried on finer ones (:data:`MESH_RETRIES`).
     **options
         direct: ``stages``, ``linear_solver``, ``tol``, ``max_iter``,
         ``stability``, ``ipopt_options`` (see :class:`DirectSolver`), and
@@ -191,9 +200,36 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
         eq = replace(eq, solver=replace(eq.solver, details={**eq.solver.details,
                                                             "path": "warm start"}))
     elif continuation:
-        eq = continue_to(solver, problem, anchors, switch=True)
+        eq = _continued(solver, problem, anchors, options, rtol, max_nodes)
     else:
         eq = solver.solve(problem, anchors=anchors)
         eq = replace(eq, solver=replace(eq.solver, details={**eq.solver.details, "path": "cold"}))
     return refine(eq, lambda n: direct_solver(problem, n, anchors, **options), rtol, anchors,
                   max_nodes)
+
+
+def _continued(solver: DirectSolver, problem: Problem, anchors, options: dict,
+               rtol: float | None, max_nodes: int) -> Equilibrium:
+    """:func:`continue_to` on ``solver``'s mesh; with ``rtol``, a failure in :data:`RETRIED`
+    is retried on meshes twice as fine (:data:`MESH_RETRIES`, within ``max_nodes``), and
+    the path says where it failed."""
+    failed = []
+    while True:
+        try:
+            eq = continue_to(solver, problem, anchors, switch=True)
+            break
+        except SolverError as exc:
+            finer = 2 * (solver.nodes - 1) + 1
+            if rtol is None or exc.status not in RETRIED or len(failed) == MESH_RETRIES \
+                    or finer > min(max_nodes, MAX_NODES):
+                if not failed:
+                    raise
+                raise SolverError(f"{exc} (on {solver.nodes} nodes; before: "
+                                  f"{', '.join(failed)})", exc.status, exc.last_iterate) from exc
+            failed.append(f"{exc.status} on {solver.nodes} nodes")
+            solver = direct_solver(problem, finer, anchors, **options)
+    if failed:
+        path = f"{eq.solver.details.get('path', '')}, on {solver.nodes} nodes after " \
+               f"{', '.join(failed)} (retried for rtol)"
+        eq = replace(eq, solver=replace(eq.solver, details={**eq.solver.details, "path": path}))
+    return eq
