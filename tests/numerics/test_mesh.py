@@ -141,6 +141,27 @@ def test_a_kink_no_longer_costs_the_order():
     assert abs(E[1] / E[-1] - 1) < 1e-5
 
 
+def test_a_thin_shells_kink_gets_its_layers_nodes():
+    """make fuzz's thin sphere (h = 1e-4; the ramp kinks at Σ + s0 = 0.3125, answered by
+    layers of width δ = 0.0054 on each side): one node within 2δ of the kink on 200
+    nodes, where ψ was 4e-3 rad off, the height z_end 4.3e-7 (1.25 times its error
+    estimate) and the energy 5.8e-4 relative; now 4 nodes, z_end 1.2e-8 off (a 30th of
+    the estimate) and the energy 4e-5, against 797 nodes. A thick shell's mesh is
+    unchanged: its kink needs only the node (the free edge's top-up vanishes there)."""
+    problem = Problem("local_relaxation", {"F0": 0.0546875, "s0": 0.28125}, h=1e-4,
+                      cut=0.03125, opening=0.125)
+    s = problem.cut + (problem.end - problem.cut) * mesh_spec(problem, 200, 2).nodes_t()
+    kink, delta = problem.cut + 0.28125, boundary_layer_width(1e-4)
+    assert np.sum(np.abs(s - kink) < 2 * delta) >= 4
+    fine, eq = solve(problem, nodes=797), solve(problem, nodes=200)
+    assert abs(eq.z[-1] - fine.z[-1]) < eq.error.errors["z_end"] / 10
+    assert abs(eq.energy / fine.energy - 1) < 1e-4
+    thick = mesh_spec(problem.with_updates(h=0.05), 200, 2)
+    assert np.array_equal(thick.nodes_t(), graded_mesh(
+        199, 1.0, thick.start, thick.end, thick.width, q=thick.q, edge_scale=thick.edge_scale,
+        knots=tuple(k.t for k in thick.knots), knot_widths=(None,)))
+
+
 def test_lower_gamma_matches_scipy():
     # the mesh's own incomplete gamma (so that meshing does not import scipy.special)
     from scipy.special import gamma, gammainc

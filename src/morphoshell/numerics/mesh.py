@@ -141,7 +141,8 @@ def pole_exponent(stages: int) -> float:
 def graded_mesh(cells: int, length: float, start: str, end: str, width: float,
                 ratio: float = 6.0, pole_width: float = 0.05, q: float = 2.0,
                 edge_scale: float | None = None, knots: tuple[float, ...] = (),
-                knot_widths: tuple[float | None, ...] = ()) -> np.ndarray:
+                knot_widths: tuple[float | None, ...] = (),
+                kinks: tuple[float, ...] = ()) -> np.ndarray:
     """Nodes t_0 = 0 < … < t_N = 1 of a smoothly graded mesh.
 
     The node density (per unit of t) is
@@ -185,8 +186,15 @@ def graded_mesh(cells: int, length: float, start: str, end: str, width: float,
     knot_widths : tuple of float or None
         Per knot (in units of the length): refine around it on this scale,
         adding KNOT_REFINEMENT exp(−|t − t_j|/w_j) to the density (the
-        steps of width σ of the Volvox profiles); None adds nothing (a kink
-        needs only the node).
+        steps of width σ of the Volvox profiles); None adds nothing.
+    kinks : tuple of float
+        Knots where a profile kinks (``local_relaxation``'s ramp).  A kink
+        needs only the node on a thick shell, but a thin one answers it with a
+        layer of width δ on each side, as at a free edge: where the free edge's
+        layer gets the top-up b (thin shells), the kink gets b/2 per side,
+        (b/2ℓ_b) exp(−|t − t_j|/ℓ_b) (a thin sphere at h = 1e-4 had 4e-3 rad
+        of error in ψ there on 200 nodes, 1.25 times its edge height's error
+        estimate; docs/solution.md).
     """
     if cells < 2:
         raise ValueError(f"need at least 2 cells, got {cells}")
@@ -194,9 +202,21 @@ def graded_mesh(cells: int, length: float, start: str, end: str, width: float,
     if np.any(np.diff(bounds) <= 0):
         raise ValueError(f"mesh knots {knots} must lie strictly inside (0, 1) and differ")
     widths = dict(zip(knots, knot_widths))
-    bumps = tuple((k, widths[k] / length) for k in bounds[1:-1] if widths.get(k) is not None)
+    bumps = tuple((k, widths[k] / length, KNOT_REFINEMENT) for k in bounds[1:-1]
+                  if widths.get(k) is not None)
+    ell_b = LAYER_DECAY * width / length
+    layer = _layer_share(ratio, width / length)
+    if layer > 0:
+        bumps += tuple((k, ell_b, layer / (2 * ell_b)) for k in kinks)
     return _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge_scale,
                            bounds, bumps)
+
+
+def _layer_share(ratio: float, width: float) -> float:
+    """The top-up b of a free edge's layer (:func:`graded_mesh`): the share of the nodes
+    (relative to the interior's) that ``ratio`` alone leaves below LAYER_SHARE, for the
+    layer width ``width`` relative to the length."""
+    return max(0.0, LAYER_SHARE - (ratio - 1) * 3 * width)
 
 
 def lower_gamma(a: float, x) -> np.ndarray:
@@ -239,7 +259,7 @@ def _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge
     """Nodes equidistributing the density of :func:`graded_mesh`, with nodes at ``bounds``."""
     ell = 3 * width / length
     ell_b = LAYER_DECAY * width / length
-    layer = max(0.0, LAYER_SHARE - (ratio - 1) * ell)
+    layer = _layer_share(ratio, width / length)
     ell_c = None if edge_scale is None else edge_scale / length
     small_edge = ell_c is not None and ell_c < ell / 3
 
@@ -261,10 +281,9 @@ def _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge
             return out
         return _pole_density(d, q, pole_width)
 
-    def bump(x, c, w):
-        # ∫₀^x KNOT_REFINEMENT exp(−|u − c|/w) du
-        return KNOT_REFINEMENT * w * (np.sign(x - c) * -np.expm1(-np.abs(x - c) / w)
-                                      - np.expm1(-c / w))
+    def bump(x, c, w, a):
+        # ∫₀^x a exp(−|u − c|/w) du
+        return a * w * (np.sign(x - c) * -np.expm1(-np.abs(x - c) / w) - np.expm1(-c / w))
 
     # the far end's whole cumulative density: a constant of W for the current
     # q (q may drop below), computed once per q rather than per evaluation
@@ -278,16 +297,16 @@ def _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge
         pole = _pole_on_grid(q, pole_width) if grid else None
         out = (x + (pole[0] if grid and start == "pole" else cumulative(x, start)) + end_total[q]
                - (pole[1] if grid and end == "pole" else cumulative(1 - x, end)))
-        for c, w in bumps:
-            out = out + bump(x, c, w)
+        for c, w, a in bumps:
+            out = out + bump(x, c, w, a)
         return out
 
     def dW(x, grid=False):
         pole = _pole_on_grid(q, pole_width) if grid else None
         out = (1 + (pole[2] if grid and start == "pole" else density(x, start))
                + (pole[3] if grid and end == "pole" else density(1 - x, end)))
-        for c, w in bumps:
-            out = out + KNOT_REFINEMENT * np.exp(-np.abs(x - c) / w)
+        for c, w, a in bumps:
+            out = out + a * np.exp(-np.abs(x - c) / w)
         return out
 
     # Nodes within ~1e-16 of the far end are not representable (s ≈ π there,
@@ -483,7 +502,9 @@ class MeshSpec:
         """The mesh t_0 = 0 < … < t_N = 1."""
         return graded_mesh(self.nodes - 1, 1.0, self.start, self.end, self.width, q=self.q,
                            edge_scale=self.edge_scale, knots=tuple(k.t for k in self.knots),
-                           knot_widths=tuple(k.width for k in self.knots))
+                           knot_widths=tuple(k.width for k in self.knots),
+                           kinks=tuple(k.t for k in self.knots
+                                       if k.source == "breakpoint" and k.width is None))
 
 
 def _octave(x: float) -> float:
