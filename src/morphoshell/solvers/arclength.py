@@ -44,7 +44,7 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from ..numerics.bordered import BorderedKKT, Inertia, KKTState
+from ..numerics.bordered import BorderedKKT, Inertia
 from ..numerics.status import BRANCH_ENDED, SNAP_FAILED, explain
 from .direct import DirectSolver
 from .paths import ParameterLine
@@ -240,8 +240,14 @@ class Arclength:
     def _around(self, tau: float) -> tuple:
         """(D(τ + h), D(τ − h), h): the data for the bordering column's central difference
         (:meth:`BorderedKKT.state`), h scaled so that p moves by about 1e-5."""
-        h = DIFFERENCE / max(1.0, float(np.max(np.abs(self._dp))))
+        h = self._around_p(tau)[2]
         return self._data(tau + h), self._data(tau - h), h
+
+    def _around_p(self, tau: float) -> tuple:
+        """(p(τ + h), p(τ − h), h): :meth:`_around`'s parameters
+        (:meth:`BorderedKKT.column`)."""
+        h = DIFFERENCE / max(1.0, float(np.max(np.abs(self._dp))))
+        return self.parameters(tau + h), self.parameters(tau - h), h
 
     def norm(self, t: np.ndarray, t_tau: float) -> float:
         """The continuation's norm of (u part over the unknowns, τ part)."""
@@ -357,13 +363,15 @@ class Arclength:
             ds /= 2
         return None
 
-    def _point(self, u, tau, state, iterations, c, c_tau) -> ArcPoint:
+    def _point(self, u, tau, iterations, c, c_tau) -> ArcPoint:
         """The converged (u, τ) with its tangent (oriented along the border row c, c_τ) and
         inertia, from the system there."""
-        state = self.kkt.with_column(state, u, self._around(tau))
-        t, t_tau = self.kkt.solve(state, np.zeros_like(state.rhs), c, c_tau, 1.0)
+        Z = self.kkt.iterate_around(u, self.parameters(tau), self.q, self._around_p(tau))[0]
+        Z[:, 0] = 0.0                                   # K⁻¹ 0: the tangent's right-hand side
+        t, t_tau = self.kkt.eliminate(Z, c, c_tau, 1.0)
         scale = self.norm(t, t_tau)
-        return ArcPoint(tau, u, t / scale, t_tau / scale, self.kkt.inertia(state), iterations)
+        inertia = self.kkt.inertia(self.kkt.state(u, self._data(tau)))
+        return ArcPoint(tau, u, t / scale, t_tau / scale, inertia, iterations)
 
     def at_tau(self, prev: ArcPoint, tau: float) -> ArcPoint | None:
         """The point of the branch at the parameter ``tau`` next to ``prev`` (τ fixed: a
@@ -377,32 +385,31 @@ class Arclength:
         return self._point(*found, self._weight * prev.t, prev.t_tau)
 
     def _newton(self, u, tau, c, c_tau, row):
-        """Newton's iterations on (F = 0, row = 0): (u, τ, state, iterations) or None."""
+        """Newton's iterations on (F = 0, row = 0): (u, τ, iterations) or None."""
         # the bordering column at the predictor, kept through the iterations (a chord in it:
-        # the solution does not depend on it); the system there is the first iteration's
-        state = self.kkt.state(u, self._data(tau), self._around(tau))
-        column = state.F_tau
-        last = np.inf
+        # the solution does not depend on it)
+        last, column = np.inf, None
         for it in range(MAX_CORRECTOR + 1):
             if it:
-                state = self.kkt.state(u, self._data(tau))
+                Z, _, error = self.kkt.iterate(u, self.parameters(tau), self.q, column)
+            else:
+                Z, _, error, column = self.kkt.iterate_around(u, self.parameters(tau), self.q,
+                                                              self._around_p(tau))
             residual = row(u, tau)
-            if self._converged(state, last) and abs(residual) <= 1e-12:
-                return u, tau, state, it
-            if not np.isfinite(state.error) or (it >= 2 and state.error > last) \
-                    or it == MAX_CORRECTOR:
+            if self._converged(error, last) and abs(residual) <= 1e-12:
+                return u, tau, it
+            if not np.isfinite(error) or (it >= 2 and error > last) or it == MAX_CORRECTOR:
                 return None
-            du, dtau = self.kkt.solve(state, state.rhs, c, c_tau, -residual, column)
+            du, dtau = self.kkt.eliminate(Z, c, c_tau, -residual)
             if not np.all(np.isfinite(du)) or not np.isfinite(dtau):
                 return None
-            u, tau, last = self.kkt.moved(u, du), tau + dtau, state.error
+            u, tau, last = self.kkt.moved(u, du), tau + dtau, error
         return None
 
-    def _converged(self, state: KKTState, last: float) -> bool:
+    def _converged(self, error: float, last: float) -> bool:
         """Within ``tol``, or within ``acceptable_tol`` once a step no longer cut the error
         tenfold (the round-off floor of thin shells, as the Newton back end)."""
-        return state.error <= self.tol or \
-            state.error <= self.acceptable_tol and state.error > 0.1 * last
+        return error <= self.tol or error <= self.acceptable_tol and error > 0.1 * last
 
     # -- results ------------------------------------------------------------------------
     def equilibrium(self, point: ArcPoint, stats: SolverStats | None = None) -> Equilibrium:
