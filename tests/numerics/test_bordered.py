@@ -116,3 +116,26 @@ def test_block_elimination_solves_the_bordered_system(branch):
     A = np.block([[K, state.F_tau[:, None]], [c[None, :], np.array([[0.3]])]])
     residual = A @ np.append(du, dtau) - np.append(b, 0.7)
     assert np.max(np.abs(residual)) < 1e-8 * np.max(np.abs(A)) * np.max(np.abs(np.append(du, dtau)))
+
+
+def test_the_fused_iteration_is_state_and_solve_to_the_bit(branch):
+    """:meth:`BorderedKKT.iterate_around` and :meth:`~BorderedKKT.iterate` (one buffered
+    call each) give the column, the step and the KKT error that :meth:`~BorderedKKT.state`
+    and :meth:`~BorderedKKT.solve` give from Python, bit for bit: correctors switched to
+    them without changing any branch (next to the first fold, and at a stable point)."""
+    folds = [i for i, pt in enumerate(branch.points) if pt.event == "fold"]
+    for pt in (branch.points[folds[0] - 1], branch.points[3]):
+        arc = Arclength(solver_of(pt.equilibrium), branch.line)
+        kkt = bordered_kkt(arc.solver)
+        u = kkt.pack(pt.equilibrium.x, pt.equilibrium.lam_g)
+        state = kkt.state(u, arc._data(pt.tau), arc._around(pt.tau))
+        Z, rhs, error, column = kkt.iterate_around(u, arc.parameters(pt.tau), arc.q,
+                                                   arc._around_p(pt.tau))
+        assert np.array_equal(column, state.F_tau) and np.array_equal(rhs, state.rhs)
+        assert error == state.error
+        c = np.linspace(-1.0, 1.0, len(rhs))
+        expected = kkt.solve(state, state.rhs, c, 0.3, 0.7)
+        for got in (kkt.eliminate(Z, c, 0.3, 0.7),
+                    kkt.eliminate(kkt.iterate(u, arc.parameters(pt.tau), arc.q, column)[0],
+                                  c, 0.3, 0.7)):
+            assert np.array_equal(got[0], expected[0]) and got[1] == expected[1]

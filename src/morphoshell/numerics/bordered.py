@@ -159,14 +159,6 @@ class BorderedKKT:
                      - np.asarray(self._rhs(uk, plus, w)[0]).ravel()) / (2 * h)
         return KKTState(K, np.asarray(rhs).ravel(), F_tau, self._error(dual, primal, l1), w)
 
-    def with_column(self, state: KKTState, u: np.ndarray, around: tuple) -> KKTState:
-        """``state`` with the bordering column F_τ at u from ``around`` (as :meth:`state`)."""
-        uk = ca.DM(u.tolist())
-        plus, minus, h = around
-        F_tau = (np.asarray(self._rhs(uk, minus, state.w)[0]).ravel()
-                 - np.asarray(self._rhs(uk, plus, state.w)[0]).ravel()) / (2 * h)
-        return KKTState(state.K, state.rhs, F_tau, state.error, state.w)
-
     def solve(self, state: KKTState, b: np.ndarray, c: np.ndarray, c_tau: float,
               beta: float, column: np.ndarray | None = None) -> tuple[np.ndarray, float]:
         """(du, dτ) solving ``[K F_τ; cᵀ c_τ] [du; dτ] = [b; β]`` by block elimination.
