@@ -194,12 +194,12 @@ class BorderedKKT:
 
     # -- fused: a corrector's iterations in one call each -------------------------------
     def iterate(self, u: np.ndarray, p: np.ndarray, q: np.ndarray,
-                column: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+                column: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
         """The system at u for parameters p (anchors q) and its solves, in one call:
         (Z = K⁻¹ [rhs, ``column``], rhs, the KKT error), as :meth:`state` and :meth:`solve`
         give them, to the bit.  From Python, converting u, K and the solutions between
-        NumPy and CasADi cost three times the factorisation (a corrector on the thin
-        disc: 3.4 ms, of which conversions 2).
+        NumPy and CasADi cost more than the factorisation (docs/benchmarks.md, "The
+        fused corrector").
 
         Returns
         -------
