@@ -150,7 +150,7 @@ STATUSES: Mapping[str, str] = MappingProxyType({
         "continuation=True)) or refine the mesh",
     CONTINUATION_FAILED:
         "the step fell below its minimum or the steps ran out (a fold of the branch?): try a "
-        "finer mesh, or continue from a nearer solution",
+        "finer mesh (rtol, --rtol: retried on finer ones), or continue from a nearer solution",
     TOLERANCE_NOT_MET:
         "raise max_nodes, loosen rtol, or use more stages (a higher order)",
     # branches (morphoshell.solvers.arclength)
@@ -159,10 +159,12 @@ STATUSES: Mapping[str, str] = MappingProxyType({
         "its inertia says",
     SNAP_FAILED:
         "the shell snaps through at a fold, but no stable equilibrium of lower energy was found "
-        "past it: try a finer mesh, or follow the branch (morphoshell continue) to see where it goes",
+        "past it: try a finer mesh (rtol, --rtol: retried on finer ones), or follow the branch "
+        "(morphoshell continue) to see where it goes",
     BRANCH_ENDED:
         "the pseudo-arclength step fell below its minimum or the points ran out before the end "
-        "of the path: a cusp or a branch point? try a smaller --max-step or a finer mesh",
+        "of the path: a cusp or a branch point? try a smaller --max-step or a finer mesh (a "
+        "solve: rtol, --rtol, retries on finer ones)",
     # the boundary-value reference: solve_bvp's four outcomes, then the route's own
     BVP_CONVERGED: "solve_bvp met tol on the collocation residuals and bc_tol at the ends",
     BVP_MAX_NODES:
