@@ -245,7 +245,7 @@ class Arclength:
 
     def _around_p(self, tau: float) -> tuple:
         """(p(τ + h), p(τ − h), h): :meth:`_around`'s parameters
-        (:meth:`BorderedKKT.column`)."""
+        (:meth:`BorderedKKT.iterate_around`)."""
         h = DIFFERENCE / max(1.0, float(np.max(np.abs(self._dp))))
         return self.parameters(tau + h), self.parameters(tau - h), h
 
