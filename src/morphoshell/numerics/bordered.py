@@ -13,12 +13,14 @@ the bordered system
 nonsingular at a simple fold.  Here u = (x, λ) in the cell order of the Newton
 back end (:mod:`morphoshell.numerics.cell_order`), and K is that back end's
 quasi-definite system (:meth:`Discretisation.newton_system`): its solution is
-Newton's step on the KKT conditions, and its LDLᵀ gives the inertia, so one
-factorisation per point gives the step, the tangent and the stability.  The
+Newton's step on the KKT conditions, and its LDLᵀ gives the inertia.  The
 system is solved by block elimination (two right-hand sides for one
 factorisation): a point close to a fold makes K ill-conditioned, but Newton's
 iteration recomputes the residual exactly, and a fold is located without
-solving at it (:mod:`morphoshell.solvers.arclength`).
+solving at it (:mod:`morphoshell.solvers.arclength`).  A corrector's iteration
+is one call (:meth:`BorderedKKT.iterate`: the cell data, K, its LDLᵀ and both
+solves inside CasADi, read into NumPy memory); from Python the conversions
+between CasADi and NumPy had cost more than the arithmetic.
 
 The stability of an equilibrium is the inertia of the reduced Hessian (the
 Hessian of the Lagrangian on the tangent space of the constraints): by
