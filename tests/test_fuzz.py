@@ -33,7 +33,9 @@ from hypothesis import strategies as st
 
 from morphoshell import Problem, SolverError, solve
 from morphoshell.io.problem_files import example_path
-from morphoshell.solvers.direct import DirectSolver
+from morphoshell.solvers.arclength import Arclength
+from morphoshell.solvers.branches import follow_branch
+from morphoshell.solvers.direct import DirectSolver, solver_of
 from morphoshell.solvers.routes import RETRIED
 from morphoshell.numerics.mesh import mesh_spec
 
@@ -267,6 +269,45 @@ def test_a_cold_newton_solve_is_the_cold_ipopt_solve(problem, nodes, stages):
     REFUSED.append(f"cold: Newton first {a.energy:.6g}, Ipopt alone {b.energy:.6g}: {problem!r} "
                    f"({nodes} nodes, {stages} stages)")
     assert a.energy <= b.energy * (1 + 1e-9), f"{problem}: Newton's steps to a higher minimum"
+
+
+#: Branches followed per run of make fuzz (each a few tenths of a second on 40 nodes).
+BRANCH_EXAMPLES = max(4, settings.default.max_examples // 8)
+
+
+@settings(max_examples=BRANCH_EXAMPLES)
+@given(problems())
+def test_a_branch_records_every_change_of_its_stability(problem):
+    """follow_branch on 40 nodes, on random problems: every change of the number of negative
+    eigenvalues between neighbouring points is an event at one of them, τ turns exactly at
+    the folds, and every ordinary point, re-evaluated by BorderedKKT.state (the Python
+    path, apart from the correctors' fused calls), meets the KKT tolerance and has the
+    recorded inertia; a branch stable all the way ends where solve() does."""
+    try:
+        branch = follow_branch(problem, nodes=40, max_points=600)
+    except (SolverError, ValueError) as exc:
+        COUNTS[f"branch: refused ({getattr(exc, 'status', type(exc).__name__)})"] += 1
+        return
+    pts = branch.points
+    COUNTS["branch: followed"] += 1
+    COUNTS["branch: events"] += len(branch.events)
+    for a, b in zip(pts, pts[1:]):
+        if a.negative_eigenvalues != b.negative_eigenvalues:
+            assert a.event or b.event, f"{problem}: stability changes at {b.tau} unrecorded"
+    for i in range(1, len(pts) - 1):
+        turns = (pts[i].tau - pts[i - 1].tau) * (pts[i + 1].tau - pts[i].tau) < 0
+        assert turns == (pts[i].event == "fold"), f"{problem}: tau turns at {pts[i].tau}?"
+    arc = Arclength(solver_of(pts[0].equilibrium), branch.line, pts[0].equilibrium.anchors)
+    for pt in pts[1::max(1, len(pts) // 5)]:
+        if pt.event:
+            continue
+        state = arc.kkt.state(arc.kkt.pack(pt.equilibrium.x, pt.equilibrium.lam_g),
+                              arc._data(pt.tau))
+        assert state.error <= arc.acceptable_tol, f"{problem}: KKT error {state.error:.2g}"
+        assert arc.kkt.inertia(state).negative == pt.negative_eigenvalues, problem
+    if all(pt.stable for pt in pts):
+        eq = solve(problem, nodes=40)
+        assert np.max(np.abs(eq.x - pts[-1].equilibrium.x)) < 1e-7, problem
 
 
 # --------------------------------------------------------------------------

@@ -13,7 +13,9 @@ previous solution, with adaptive step sizes:
 * a step that fails, needs many Newton iterations, or moves the solution far
   more than the previous steps, or turns the tangent somewhere by more than a
   quarter turn (a jump to another branch, or into a loop) is retried at a
-  quarter of its size;
+  quarter of its size; so is a first step (none before it to compare with)
+  that strays from the branch's tangent at its start by more than the
+  tangent's prediction itself;
 * easy steps double the next one.
 
 Parameters that the family does not list in ``neutral`` (the thickness, the
@@ -30,7 +32,7 @@ import numpy as np
 
 from ..model.problem import Problem
 from ..numerics.status import CONTINUATION_FAILED, SNAP_FAILED, explain
-from .arclength import Switch, cross_fold
+from .arclength import Arclength, Switch, cross_fold
 from .direct import DirectSolver
 from .paths import ParameterLine, neutral_problem
 from .results import Equilibrium, SolverError
@@ -234,15 +236,44 @@ def _solve_at(solver: DirectSolver, problem: Problem, eq: Equilibrium,
         return None
 
 
-def _rejection(new: Equilibrium | None, eq: Equilibrium, change, rate) -> str:
+def _tangent(solver: DirectSolver, eq: Equilibrium, line: ParameterLine, tau: float,
+             anchors) -> np.ndarray | None:
+    """The branch's direction in x at the solution ``eq`` (at ``tau`` on ``line``): K⁻¹ F_τ
+    (:meth:`BorderedKKT.iterate_around`, one call), or None where it is not finite.
+
+    The jump test of later steps compares each with the steps before; the first has only
+    this: a tiny cap near a pole, nearly flat, bends one way from the stress-free shell
+    and as stably the other, 1 % higher in energy, and a first step of a quarter landed on
+    the other (fuzzing: an anisotropic shell, h = 1e-3, 0.005 R wide)."""
+    arc = Arclength(solver, line, anchors)
+    u = arc.kkt.pack(eq.x, eq.lam_g)
+    Z = arc.kkt.iterate_around(u, arc.parameters(tau), arc.q, arc._around_p(tau))[0]
+    dx = arc.kkt.unpack(arc.kkt.moved(np.zeros_like(u), Z[:, 1]))[0]
+    # (x at rest to first order: nothing to judge by)
+    return dx if np.all(np.isfinite(dx)) and np.any(dx) else None
+
+
+def _off_tangent(dx: np.ndarray, tangent: np.ndarray) -> bool:
+    """Whether the step dx strayed from the tangent's prediction (the tangent times the
+    least-squares factor) by more than the prediction's own size (max norms): its branch
+    bends within the step, or it is another branch."""
+    dtau = (dx @ tangent) / (tangent @ tangent)
+    return bool(np.max(np.abs(dx - dtau * tangent)) > np.max(np.abs(dtau * tangent)))
+
+
+def _rejection(new: Equilibrium | None, eq: Equilibrium, change, rate,
+               tangent: np.ndarray | None = None) -> str:
     """Why the step from ``eq`` to ``new`` is retried smaller ("" if it is taken).
 
     ``change`` is the step's max |Δx| per unit of τ, ``rate`` the largest of
-    the steps before (None before the first).
+    the steps before (None before the first); before the first, ``tangent`` is
+    the branch's direction at ``eq`` (:func:`_tangent`), and a step that strays from
+    it (:func:`_off_tangent`) jumped.
     """
     if new is None:
         return "failed"
-    jumped = rate is not None and change > JUMP_FACTOR * rate \
+    jumped = rate is None and tangent is not None and _off_tangent(new.x - eq.x, tangent) \
+        or rate is not None and change > JUMP_FACTOR * rate \
         or np.max(np.abs(new.psi - eq.psi)) > MAX_TURN
     if jumped:
         return "jumped"
@@ -263,11 +294,14 @@ def _follow(solver, eq, problem, anchors, first_step, max_steps, origin, snap=Fa
     line = ParameterLine.between(eq.problem, problem)
     run = _Progress(float(first_step))
     name = problem.name or problem.family
+    # the first step's only jump test (:func:`_tangent`); after a crossing the shell is next to
+    # a fold or branch point, where K is nearly singular and the tangent says little
+    tangent = _tangent(solver, eq, line, run.tau, anchors)
     while run.tau < 1:
         if snap and run.step < MIN_STEP and len(run.snaps) < MAX_SNAPS \
                 and run.steps + run.rejected < max_steps and not run.stuck:
             try:
-                eq = _crossed(solver, eq, line, run, anchors, first_step, switch)
+                eq, tangent = _crossed(solver, eq, line, run, anchors, first_step, switch), None
                 continue
             except SolverError as exc:
                 if exc.status == SNAP_FAILED:
@@ -282,7 +316,7 @@ def _follow(solver, eq, problem, anchors, first_step, max_steps, origin, snap=Fa
         trial = min(1.0, run.tau + run.step)
         new = _solve_at(solver, line.at(trial), eq, anchors)
         change = None if new is None else np.max(np.abs(new.x - eq.x)) / (trial - run.tau)
-        why = _rejection(new, eq, change, run.rate)
+        why = _rejection(new, eq, change, run.rate, tangent)
         if why:
             log.debug("continuation to %s: step to tau = %.4g retried smaller (%s)", name, trial,
                       why)
@@ -291,7 +325,7 @@ def _follow(solver, eq, problem, anchors, first_step, max_steps, origin, snap=Fa
         log.debug("continuation to %s: tau = %.4g reached in %d iterations", name, trial,
                   new.solver.iterations)
         run.accept(trial, change, new.solver.iterations)
-        eq = new
+        eq, tangent = new, None
     return run, eq
 
 
