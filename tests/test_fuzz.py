@@ -11,6 +11,10 @@ Properties (issue "The right minimum or an error"):
   do, against a cold minimisation from a tilted start on the finer mesh);
 * a cold solve (Newton's steps first) is the cold Ipopt solve: the same
   outcome, the same minimum;
+* a branch (follow_branch, 40 nodes) records every change of its stability as
+  an event, turns in τ exactly at its folds, has points that meet the KKT
+  tolerance and their recorded inertia when re-evaluated apart from the
+  correctors, and, stable all the way, ends where solve() ends;
 * bad command-line input (of solve, continue and sweep; and of estimate, fit,
   campaign and ablate, drawn by tests/fuzz_bad_inputs.py) exits 2 with one
   line naming the item, no traceback, no raw warning, no file left behind,
@@ -18,8 +22,8 @@ Properties (issue "The right minimum or an error"):
 
 A problem may also be refused with a SolverError naming its status ("the right
 minimum or an error"); that is counted, not failed.  ``make test`` runs a small
-derandomised budget (profile "ci"); ``make fuzz`` runs 1500 random problems and
-3000 bad command lines (profile "fuzz") and prints the counts.
+derandomised budget (profile "ci"); ``make fuzz`` runs 1500 random problems, 187
+branches and 3000 bad command lines (profile "fuzz") and prints the counts.
 """
 import collections
 import math
