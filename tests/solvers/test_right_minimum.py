@@ -220,3 +220,24 @@ def test_error_estimate_of_a_shell_whose_steps_are_not_yet_resolved():
     limit = solve(problem, nodes=1600).estimated_values()
     actual = abs(eq.estimated_values()["z_end"] - limit["z_end"])
     assert actual <= eq.error.errors["z_end"], (actual, eq.error.errors["z_end"])
+
+
+def test_a_refinement_that_cannot_carry_the_solution_over_continues_on_the_finer_mesh(
+        monkeypatch):
+    """Where the solution interpolated onto the finer mesh leaves Ipopt short of a solution
+    (make fuzz: a thin sphere's curled rim, 797 -> 1593 nodes, Maximum_Iterations_Exceeded),
+    rtol's refinement reaches the finer mesh by continuation, as solve() does there, and
+    says so; forced here on the toy sphere, which then ends where solve() on 99 nodes does."""
+    from morphoshell.solvers import refinement
+    problem = Problem("uniform", {"k": 0.5}, h=0.1, cut=0.3)
+    carried = refinement.solve_from
+
+    def failing(solver, problem, eq, anchors=()):
+        if solver.nodes > eq.solver.nodes:
+            raise SolverError("no", "Maximum_Iterations_Exceeded")
+        return carried(solver, problem, eq, anchors)
+    monkeypatch.setattr(refinement, "solve_from", failing)
+    eq = solve(problem, nodes=50, rtol=1e-5, max_nodes=99)
+    assert eq.solver.nodes == 99 and "(99 nodes by continuation: carried over, " \
+        "Maximum_Iterations_Exceeded)" in eq.solver.details["path"]
+    assert np.max(np.abs(eq.x - solve(problem, nodes=99).x)) < 1e-12

@@ -17,6 +17,7 @@ import numpy as np
 
 from ..model.problem import Problem
 from ..numerics.status import TOLERANCE_NOT_MET, explain
+from .continuation import continue_to
 from .direct import MAX_NODES, DirectSolver
 from .results import ESTIMATED, Equilibrium, ErrorEstimate, SolverError
 
@@ -52,6 +53,18 @@ def solve_from(solver: DirectSolver, problem: Problem, eq: Equilibrium, anchors=
     """
     x0 = solver.carried(eq, problem.parameter_vector(), anchors)
     return solver.solve(problem, x0=x0, anchors=anchors)
+
+
+def _finer(solver: DirectSolver, problem: Problem, eq: Equilibrium, anchors) -> tuple:
+    """(``eq`` carried onto the finer ``solver`` by :func:`solve_from`, ""), or where that
+    fails, (``problem`` by continuation on it, as :func:`~morphoshell.solvers.routes.solve`
+    reaches it, a note for the path): a thin sphere's curled rim, interpolated from 797
+    nodes onto 1593, left Ipopt 500 iterations from a solution."""
+    try:
+        return solve_from(solver, problem, eq, anchors), ""
+    except SolverError as exc:
+        note = f" ({solver.nodes} nodes by continuation: carried over, {exc.status})"
+        return continue_to(solver, problem, anchors, switch=True), note
 
 
 def level_errors(fine: dict, coarse: dict, coarser: dict | None, order: int) -> dict:
@@ -148,7 +161,7 @@ def refine(eq: Equilibrium, solver_for: Callable[[int], DirectSolver], rtol: flo
         except SolverError:
             coarser = None        # two levels only
     est = estimate(eq, reference, order, note, coarser)
-    path = eq.solver.details.get("path", "")
+    path, notes = eq.solver.details.get("path", ""), ""
     first = nodes
     while rtol is not None and not est.meets(rtol):
         finer_nodes = 2 * (nodes - 1) + 1
@@ -159,11 +172,12 @@ def refine(eq: Equilibrium, solver_for: Callable[[int], DirectSolver], rtol: flo
                 f"rtol = {rtol:g} within {min(max_nodes, MAX_NODES)} nodes: "
                 f"{explain(TOLERANCE_NOT_MET)}; the finest solution is attached",
                 TOLERANCE_NOT_MET, replace(eq, error=est))
-        finer = solve_from(solver_for(finer_nodes), problem, eq, anchors)
+        finer, how = _finer(solver_for(finer_nodes), problem, eq, anchors)
+        notes += how
         est = estimate(finer, eq, order, coarser=reference)
         eq, reference, nodes = finer, eq, finer_nodes
     if nodes != first:
         details = {**eq.solver.details, "path": f"{path}, then refined from {first} to {nodes} "
-                                               f"nodes for rtol = {rtol:g}"}
+                                               f"nodes for rtol = {rtol:g}{notes}"}
         eq = replace(eq, solver=replace(eq.solver, details=details))
     return replace(eq, error=est)
