@@ -225,7 +225,7 @@ def test_error_estimate_of_a_shell_whose_steps_are_not_yet_resolved():
 def test_a_refinement_that_cannot_carry_the_solution_over_continues_on_the_finer_mesh(
         monkeypatch):
     """Where the solution interpolated onto the finer mesh leaves Ipopt short of a solution
-    (make fuzz: a thin sphere's curled rim, 797 -> 1593 nodes, Maximum_Iterations_Exceeded),
+    (make fuzz: a thin sphere's curled rim, 1593 -> 3185 nodes, Maximum_Iterations_Exceeded),
     rtol's refinement reaches the finer mesh by continuation, as solve() does there, and
     says so; forced here on the toy sphere, which then ends where solve() on 99 nodes does."""
     from morphoshell.solvers import refinement

@@ -58,8 +58,8 @@ def solve_from(solver: DirectSolver, problem: Problem, eq: Equilibrium, anchors=
 def _finer(solver: DirectSolver, problem: Problem, eq: Equilibrium, anchors) -> tuple:
     """(``eq`` carried onto the finer ``solver`` by :func:`solve_from`, ""), or where that
     fails, (``problem`` by continuation on it, as :func:`~morphoshell.solvers.routes.solve`
-    reaches it, a note for the path): a thin sphere's curled rim, interpolated from 797
-    nodes onto 1593, left Ipopt 500 iterations from a solution."""
+    reaches it, a note for the path): a thin sphere's curled rim, interpolated from 1593
+    nodes onto 3185, left Ipopt 500 iterations from a solution."""
     try:
         return solve_from(solver, problem, eq, anchors), ""
     except SolverError as exc:
