@@ -142,7 +142,7 @@ def _with_rtol(problem, exc, **kwargs) -> str:
     if exc.status not in RETRIED:
         return ""
     try:
-        eq = solve(problem, rtol=0.1, **kwargs)
+        eq = solve(problem, rtol=0.1, max_nodes=3200, **kwargs)     # (at most ~20 s)
     except SolverError as again:
         COUNTS["refused: not solved with rtol either"] += 1
         return f"; with rtol too: {again.status}"
