@@ -291,6 +291,8 @@ def test_a_branch_records_every_change_of_its_stability(problem):
         branch = follow_branch(problem, nodes=40, max_points=600)
     except (SolverError, ValueError) as exc:
         COUNTS[f"branch: refused ({getattr(exc, 'status', type(exc).__name__)})"] += 1
+        if isinstance(exc, SolverError):          # (ValueError: stress-free already)
+            REFUSED.append(f"branch of {problem!r} ({exc.status})")
         return
     pts = branch.points
     COUNTS["branch: followed"] += 1
