@@ -130,7 +130,7 @@ def test_the_fused_iteration_is_state_and_solve_to_the_bit(branch):
         u = kkt.pack(pt.equilibrium.x, pt.equilibrium.lam_g)
         state = kkt.state(u, arc._data(pt.tau), arc._around(pt.tau))
         Z, rhs, error, column = kkt.iterate_around(u, arc.parameters(pt.tau), arc.q,
-                                                   arc._around_p(pt.tau))
+                                                   arc.around_parameters(pt.tau))
         assert np.array_equal(column, state.F_tau) and np.array_equal(rhs, state.rhs)
         assert error == state.error
         c = np.linspace(-1.0, 1.0, len(rhs))

@@ -192,9 +192,8 @@ def graded_mesh(cells: int, length: float, start: str, end: str, width: float,
         needs only the node on a thick shell, but a thin one answers it with a
         layer of width δ on each side, as at a free edge: where the free edge's
         layer gets the top-up b (thin shells), the kink gets b/2 per side,
-        (b/2ℓ_b) exp(−|t − t_j|/ℓ_b) (a thin sphere at h = 1e-4 had 4e-3 rad
-        of error in ψ there on 200 nodes, 1.25 times its edge height's error
-        estimate; docs/solution.md).
+        (b/2ℓ_b) exp(−|t − t_j|/ℓ_b) (without them a thin sphere's error outgrew
+        its estimate; docs/solution.md).
     """
     if cells < 2:
         raise ValueError(f"need at least 2 cells, got {cells}")

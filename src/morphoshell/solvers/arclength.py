@@ -240,10 +240,10 @@ class Arclength:
     def _around(self, tau: float) -> tuple:
         """(D(τ + h), D(τ − h), h): the data for the bordering column's central difference
         (:meth:`BorderedKKT.state`), h scaled so that p moves by about 1e-5."""
-        h = self._around_p(tau)[2]
+        h = self.around_parameters(tau)[2]
         return self._data(tau + h), self._data(tau - h), h
 
-    def _around_p(self, tau: float) -> tuple:
+    def around_parameters(self, tau: float) -> tuple:
         """(p(τ + h), p(τ − h), h): :meth:`_around`'s parameters
         (:meth:`BorderedKKT.iterate_around`)."""
         h = DIFFERENCE / max(1.0, float(np.max(np.abs(self._dp))))
@@ -366,7 +366,8 @@ class Arclength:
     def _point(self, u, tau, iterations, c, c_tau) -> ArcPoint:
         """The converged (u, τ) with its tangent (oriented along the border row c, c_τ) and
         inertia, from the system there."""
-        Z = self.kkt.iterate_around(u, self.parameters(tau), self.q, self._around_p(tau))[0]
+        Z = self.kkt.iterate_around(u, self.parameters(tau), self.q,
+                                    self.around_parameters(tau))[0]
         Z[:, 0] = 0.0                                   # K⁻¹ 0: the tangent's right-hand side
         t, t_tau = self.kkt.eliminate(Z, c, c_tau, 1.0)
         scale = self.norm(t, t_tau)
@@ -393,8 +394,8 @@ class Arclength:
             if it:
                 Z, _, error = self.kkt.iterate(u, self.parameters(tau), self.q, column)
             else:
-                Z, _, error, column = self.kkt.iterate_around(u, self.parameters(tau), self.q,
-                                                              self._around_p(tau))
+                Z, _, error, column = self.kkt.iterate_around(
+                    u, self.parameters(tau), self.q, self.around_parameters(tau))
             residual = row(u, tau)
             if self._converged(error, last) and abs(residual) <= 1e-12:
                 return u, tau, it

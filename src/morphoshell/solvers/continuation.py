@@ -247,7 +247,7 @@ def _tangent(solver: DirectSolver, eq: Equilibrium, line: ParameterLine, tau: fl
     the other (fuzzing: an anisotropic shell, h = 1e-3, 0.005 R wide)."""
     arc = Arclength(solver, line, anchors)
     u = arc.kkt.pack(eq.x, eq.lam_g)
-    Z = arc.kkt.iterate_around(u, arc.parameters(tau), arc.q, arc._around_p(tau))[0]
+    Z = arc.kkt.iterate_around(u, arc.parameters(tau), arc.q, arc.around_parameters(tau))[0]
     dx = arc.kkt.unpack(arc.kkt.moved(np.zeros_like(u), Z[:, 1]))[0]
     # (x at rest to first order: nothing to judge by)
     return dx if np.all(np.isfinite(dx)) and np.any(dx) else None
