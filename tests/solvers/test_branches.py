@@ -84,6 +84,42 @@ def test_branch_points_are_located_to_1e8(blister):
         assert (below.inertia.negative, above.inertia.negative) == (k, k + 1)
 
 
+def test_bisection_trials_start_on_the_brackets_line(blister, monkeypatch):
+    """Locating a branch point, each trial after the first bracket starts from the line
+    between the bracket's two points: its KKT error there shrinks with the bracket's
+    square, below the tolerance after a dozen halvings (from the tangent it stays at
+    5e-4: the step's), and one Newton step follows.  The point found is where bisection
+    with full correctors finds it, to 1e-10 in lambda, with the same inertia."""
+    a = follow_branch(blister, nodes=60)
+    i = _events(a, "branch_point")[0]
+    before = a.points[i - 1]
+    arc = Arclength(solver_of(a.end.equilibrium), a.line)
+    prev = arc.start(before.equilibrium, before.tau)
+    ds = 2 * (a.points[i].tau - before.tau) / prev.t_tau
+    new = arc.correct(prev, ds)
+    assert new.inertia.negative == prev.inertia.negative + 1
+    first, iterate = [], arc.kkt.iterate_around
+
+    def recorded(*args):
+        out = iterate(*args)
+        first.append(out[2])
+        return out
+    monkeypatch.setattr(arc.kkt, "iterate_around", recorded)
+    point, = arc.locate_changes(prev, new, ds)
+    assert len(first) > 25 and max(first[-15:]) < arc.tol
+
+    lo, hi, ref = 0.0, ds, None               # the bisection with full correctors
+    while (hi - lo) * abs(prev.t_tau) > 1e-11:
+        mid = 0.5 * (lo + hi)
+        trial = arc.correct(prev, mid)
+        if trial.inertia.negative == prev.inertia.negative:
+            lo = mid
+        else:
+            hi, ref = mid, trial
+    assert abs(point.tau - ref.tau) < 1e-10
+    assert (point.inertia.negative, ref.inertia.negative) == (1, 1)
+
+
 def test_a_branch_stays_on_its_path_in_order(blister):
     """Points in the order of the branch: without folds, λ grows from 0 to 1 and no event
     lies past the path's end (60 nodes put a branch point just past λ = 1)."""

@@ -22,7 +22,7 @@ two points are located, not just noticed:
   the step (Brent's method; τ is stationary there, so an arclength located to
   1e-9 puts τ within round-off);
 * a *branch point* where the inertia changes without a fold: by bisection on
-  s until τ is known to 1e-9.
+  s until τ is known to :data:`BRANCH_TOL`.
 
 At a simple branch point another branch crosses.  :meth:`Arclength.switch`
 starts on it: the tangents of both branches there span the null space of
@@ -341,17 +341,30 @@ class Arclength:
     def correct(self, prev: ArcPoint, ds: float) -> ArcPoint | None:
         """The point at arclength ``ds`` from ``prev`` along its tangent, or None (no
         convergence)."""
-        c, c_tau = self._weight * prev.t, prev.t_tau
-        u = self.kkt.moved(prev.u, ds * prev.t)
-        tau = prev.tau + ds * prev.t_tau
-        base = self.kkt.free(prev.u)
+        found = self._corrected(prev, ds)
+        return None if found is None else self._point(*found, *self._border(prev))
+
+    def _border(self, prev: ArcPoint) -> tuple[np.ndarray, float]:
+        """The border row (c, c_τ) of the steps from ``prev``: its tangent, weighted."""
+        return self._weight * prev.t, prev.t_tau
+
+    def _arclength(self, prev: ArcPoint, u: np.ndarray, tau: float) -> float:
+        """The arclength coordinate of (u, τ) along ``prev``'s tangent (the border row)."""
+        c, c_tau = self._border(prev)
+        return float(c @ (self.kkt.free(u) - self.kkt.free(prev.u)) + c_tau * (tau - prev.tau))
+
+    def _corrected(self, prev: ArcPoint, ds: float, guess: tuple | None = None):
+        """Newton's (u, τ, iterations) at arclength ``ds`` from ``prev``, or None; from
+        ``guess`` = (u, τ) if given (after one step at least: a guess within the
+        tolerance is still that far off), else from ``prev``'s tangent."""
+        c, c_tau = self._border(prev)
+        steps = 0 if guess is None else 1
+        if guess is None:
+            guess = self.kkt.moved(prev.u, ds * prev.t), prev.tau + ds * prev.t_tau
 
         def row(u, tau):
-            return c @ (self.kkt.free(u) - base) + c_tau * (tau - prev.tau) - ds
-        found = self._newton(u, tau, c, c_tau, row)
-        if found is None:
-            return None
-        return self._point(*found, c, c_tau)
+            return self._arclength(prev, u, tau) - ds
+        return self._newton(*guess, c, c_tau, row, steps)
 
     def first_step(self, start: ArcPoint, ds: float) -> ArcPoint | None:
         """The point at arclength ``ds`` from ``start``, the step halved until the corrector
@@ -385,8 +398,9 @@ class Arclength:
             return None
         return self._point(*found, self._weight * prev.t, prev.t_tau)
 
-    def _newton(self, u, tau, c, c_tau, row):
-        """Newton's iterations on (F = 0, row = 0): (u, τ, iterations) or None."""
+    def _newton(self, u, tau, c, c_tau, row, steps: int = 0):
+        """Newton's iterations on (F = 0, row = 0): (u, τ, iterations) or None; converged
+        only after at least ``steps`` steps."""
         # the bordering column at the predictor, kept through the iterations (a chord in it:
         # the solution does not depend on it)
         last, column = np.inf, None
@@ -397,7 +411,7 @@ class Arclength:
                 Z, _, error, column = self.kkt.iterate_around(
                     u, self.parameters(tau), self.q, self.around_parameters(tau))
             residual = row(u, tau)
-            if self._converged(error, last) and abs(residual) <= 1e-12:
+            if it >= steps and self._converged(error, last) and abs(residual) <= 1e-12:
                 return u, tau, it
             if not np.isfinite(error) or (it >= 2 and error > last) or it == MAX_CORRECTOR:
                 return None
@@ -458,12 +472,13 @@ class Arclength:
             return min(found.values(), key=lambda point: abs(point.t_tau))
         return found.get(s) or self.correct(prev, s)
 
-    def locate_change(self, prev: ArcPoint, ds: float) -> ArcPoint:
+    def locate_change(self, prev: ArcPoint, ds: float, new: ArcPoint | None = None) -> ArcPoint:
         """The point between ``prev`` and arclength ``ds`` where the inertia changes (a
         branch point): bisection on s until τ is known to :data:`BRANCH_TOL`, relatively
         below τ = :data:`BRANCH_SCALE` (a thin shell's first branch point lies at τ ∝ h²,
-        4e-7 for a disc at h = 1e-4)."""
-        return self._bisect_change(prev, ds)[0]
+        4e-7 for a disc at h = 1e-4).  ``new``, the point at ``ds`` if known, starts the
+        trials nearer (:meth:`_bisect_change`)."""
+        return self._bisect_change(prev, ds, new)[0]
 
     def locate_changes(self, prev: ArcPoint, new: ArcPoint, ds: float) -> list[ArcPoint]:
         """Every branch point between ``prev`` and ``new`` (arclength ``ds``): one per
@@ -475,29 +490,55 @@ class Arclength:
         for _ in range(2 * abs(new.inertia.negative - prev.inertia.negative) + 2):
             if prev.inertia.negative == new.inertia.negative or left <= 0:
                 break
-            change, s = self._bisect_change(prev, left)
+            change, s = self._bisect_change(prev, left, new)
             if change is None or change.inertia.negative == prev.inertia.negative:
                 break
             out.append(change)
             prev, left = change, left - s
         return out
 
-    def _bisect_change(self, prev: ArcPoint, ds: float) -> tuple[ArcPoint | None, float]:
+    def _bisect_change(self, prev: ArcPoint, ds: float,
+                       new: ArcPoint | None = None) -> tuple[ArcPoint | None, float]:
         """(the first point past the change of inertia within arclength ``ds`` of ``prev``,
-        its arclength from ``prev``) (:meth:`locate_change`)."""
+        its arclength from ``prev``) (:meth:`locate_change`).
+
+        A trial needs only its inertia: the tangent is solved for the located point
+        alone.  Once a point beyond the change is known, each trial starts from the
+        line between the bracket's two points, whose error shrinks with the bracket's
+        square: the late trials converge at their first evaluation.
+        """
         lo, hi = 0.0, ds
-        point = None
-        tol = BRANCH_TOL * min(1.0, abs(prev.tau) / BRANCH_SCALE)
+        ends = {"lo": (prev.u, prev.tau), "hi": None if new is None else (new.u, new.tau)}
+        found, tol = None, BRANCH_TOL * min(1.0, abs(prev.tau) / BRANCH_SCALE)
         while (hi - lo) * max(abs(prev.t_tau), 1e-3) > tol and hi - lo > 1e-14:
             mid = 0.5 * (lo + hi)
-            trial = self.correct(prev, mid)
+            trial = self._trial(prev, mid, ends)
             if trial is None:
                 break
-            if trial.inertia.negative == prev.inertia.negative:
-                lo = mid
+            if trial[3].negative == prev.inertia.negative:
+                lo, ends["lo"] = mid, trial[:2]
             else:
-                hi, point = mid, trial
-        return point or self.correct(prev, hi), hi
+                hi, ends["hi"], found = mid, trial[:2], trial
+        if found is None:
+            return self.correct(prev, hi), hi
+        return self._point(*found[:3], *self._border(prev)), hi
+
+    def _trial(self, prev: ArcPoint, s: float, ends: dict) -> tuple | None:
+        """(u, τ, iterations, inertia) of the point at arclength ``s`` from ``prev``, from
+        the line between the bracket's ends (where both are known) or ``prev``'s tangent;
+        None where neither converges."""
+        found = None
+        if ends["hi"] is not None:
+            a, b = ends["lo"], ends["hi"]
+            sa, sb = (self._arclength(prev, *end) for end in (a, b))
+            w = (s - sa) / (sb - sa) if sb != sa else 0.5
+            guess = (a[0] + w * (b[0] - a[0]), a[1] + w * (b[1] - a[1]))
+            found = self._corrected(prev, s, guess)
+        found = found or self._corrected(prev, s)
+        if found is None:
+            return None
+        u, tau, _ = found
+        return (*found, self.kkt.inertia(self.kkt.state(u, self._data(tau))))
 
 
 class _NoPoint(Exception):
@@ -677,7 +718,7 @@ def cross_fold(solver: DirectSolver, eq: Equilibrium, line: ParameterLine, tau: 
             eq_s, snap = snap_through(arc, arc.locate_fold(point, ds), 1.0)
             return eq_s, snap.tau_after, snap
         if switch and point.inertia.stable and not new.inertia.stable:
-            return switch_stable(arc, arc.locate_change(point, ds), ds, reach)
+            return switch_stable(arc, arc.locate_change(point, ds, new), ds, reach)
         if new.tau >= min(1.0, tau + reach) and new.inertia.stable:
             if new.tau > 1:
                 new = arc.at_tau(point, 1.0) or new
