@@ -32,7 +32,22 @@ def test_a_negative_number_in_exponent_form_is_a_value(capsys):
     assert "-1e9 must be a finite number in [-100, 100]" in err and "expected 2" not in err
     assert main(["solve", "x.toml", "--rtol", "-inf"]) == 2     # (fuzz: "expected one argument")
     err = capsys.readouterr().err
-    assert "--rtol: -inf must be a finite number in (0, 1)" in err, err
+    assert "--rtol: -inf must be a finite number in [1e-10, 1)" in err, err
+
+
+def test_rtol_refines_within_max_nodes_and_says_how_to_go_further(capsys):
+    """An rtol below the solvers' tolerance is refused at once (it had refined silently to
+    100 353 nodes, 22 s); --max-nodes bounds the refinement, and the failure names it."""
+    toy = str(ROOT / "problems" / "toy2_ablation.toml")
+    assert main(["solve", toy, "--rtol", "1e-14"]) == 2
+    assert "--rtol: 1e-14 must be a finite number in [1e-10, 1)" in capsys.readouterr().err
+    assert main(["solve", toy, "--max-nodes", "400"]) == 2
+    assert "give --rtol too" in capsys.readouterr().err
+    assert main(["solve", toy, "--nodes", "50", "--rtol", "1e-10", "--max-nodes", "30"]) == 2
+    assert "--max-nodes 30 is below the first mesh's 50 nodes" in capsys.readouterr().err
+    assert main(["solve", toy, "--nodes", "50", "--rtol", "1e-10", "--max-nodes", "200"]) == 3
+    err = capsys.readouterr().err
+    assert "Tolerance_Not_Met" in err and "within 200 nodes" in err and "--max-nodes" in err, err
 
 
 def test_a_k_range_the_shells_cannot_have_is_refused_at_once(capsys):

@@ -131,9 +131,11 @@ def test_rtol_refines_until_met_or_raises():
     assert eq.error.meets(1e-7) and eq.solver.nodes > 50
     assert "refined from 50" in eq.solver.details["path"]
     with pytest.raises(SolverError) as exc:
-        solve(problem, nodes=50, rtol=1e-15, max_nodes=400)
-    assert exc.value.status == "Tolerance_Not_Met" and "does not meet rtol = 1e-15" in str(exc.value)
+        solve(problem, nodes=50, rtol=1e-10, max_nodes=400)
+    assert exc.value.status == "Tolerance_Not_Met" and "does not meet rtol = 1e-10" in str(exc.value)
     assert exc.value.last_iterate.solver.nodes == 393     # 50 -> 99 -> 197 -> 393 nodes
+    with pytest.raises(ValueError, match=r"rtol = 1e-11 must be a number in \[1e-10, 1\)"):
+        solve(problem, nodes=50, rtol=1e-11)          # below the solvers' tolerance: refused
 
 
 THIN_RIM = Problem("anisotropic", {"f0": -0.278375609690089}, h=4.3723617825288633e-4,

@@ -17,6 +17,7 @@ _SET_HELP = ("override a problem or solver entry, repeatable: h, theory, family,
 
 def _common(p: argparse.ArgumentParser) -> None:
     from ..solvers.direct import MAX_NODES
+    from ..solvers.routes import MIN_RTOL
 
     p.add_argument("problem", metavar="PROBLEM.toml",
                    help="problem file (`morphoshell example NAME` prints one to start from)")
@@ -36,13 +37,16 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--linear-solver", default="mumps", choices=LINEAR_SOLVERS, metavar="NAME",
                    help="Ipopt's linear solver for the direct method: mumps (default, bundled) "
                         "or an HSL solver such as ma27/ma57 if libhsl.so is installed")
-    p.add_argument("--rtol", type=real(0, 1, open_lo=True, open_hi=True), default=None,
+    p.add_argument("--rtol", type=real(MIN_RTOL, 1, open_hi=True), default=None,
                    metavar="TOLERANCE",
-                   help="direct method: refine the mesh (doubling the cells) until the error "
-                        "estimate meets TOLERANCE (energy relative to itself, edge values in units "
-                        "of R and radians), or fail with exit status 3; a continuation that "
-                        "fails for want of a finer mesh is retried on finer ones; without it "
-                        "the estimate is only reported")
+                   help=f"direct method: refine the mesh (doubling the cells) until the error "
+                        f"estimate meets TOLERANCE in [{MIN_RTOL:g}, 1) (energy relative to "
+                        f"itself, edge values in units of R and radians), or fail with exit "
+                        f"status 3; a continuation that fails for want of a finer mesh is "
+                        f"retried on finer ones; without it the estimate is only reported")
+    p.add_argument("--max-nodes", type=integer(5, MAX_NODES), default=None, metavar="N",
+                   help=f"direct method with --rtol: the finest mesh it may refine to (default "
+                        f"{MAX_NODES}; each doubling about doubles the time)")
     p.add_argument("--no-continuation", dest="continuation", action="store_false",
                    help="direct method: one cold solve from the undeformed shell instead of "
                         "continuation from the family's stress-free parameters (faster, but "
@@ -88,9 +92,17 @@ def _load(args):
     if method == "direct":
         options = {"stages": stages, "linear_solver": args.linear_solver, "rtol": args.rtol,
                    "continuation": args.continuation}
+        if args.max_nodes is not None:
+            if args.rtol is None:
+                raise ValueError("--max-nodes bounds the refinement of --rtol: give --rtol too")
+            if args.max_nodes < nodes:
+                raise ValueError(f"--max-nodes {args.max_nodes} is below the first mesh's "
+                                 f"{nodes} nodes")
+            options["max_nodes"] = args.max_nodes
     else:
-        if args.rtol is not None or not args.continuation:
-            raise ValueError("--rtol and --no-continuation are options of the direct method")
+        if args.rtol is not None or not args.continuation or args.max_nodes is not None:
+            raise ValueError("--rtol, --max-nodes and --no-continuation are options of the "
+                             "direct method")
         options = {}
     return problem, method, nodes, options
 

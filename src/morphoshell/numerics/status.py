@@ -152,7 +152,8 @@ STATUSES: Mapping[str, str] = MappingProxyType({
         "the step fell below its minimum or the steps ran out (a fold of the branch?): try a "
         "finer mesh (rtol, --rtol: retried on finer ones), or continue from a nearer solution",
     TOLERANCE_NOT_MET:
-        "raise max_nodes, loosen rtol, or use more stages (a higher order)",
+        "raise max_nodes (--max-nodes on the command line), loosen rtol, or use more stages "
+        "(a higher order)",
     # branches (morphoshell.solvers.arclength)
     ARCLENGTH_CONVERGED:
         "a point of a branch, F = 0 to tol by the bordered Newton corrector; stable or not as "

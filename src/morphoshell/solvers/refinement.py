@@ -170,7 +170,8 @@ def refine(eq: Equilibrium, solver_for: Callable[[int], DirectSolver], rtol: flo
             raise SolverError(
                 f"the error estimate {err:.3g} of {key} (at {nodes} nodes) does not meet "
                 f"rtol = {rtol:g} within {min(max_nodes, MAX_NODES)} nodes: "
-                f"{explain(TOLERANCE_NOT_MET)}; the finest solution is attached",
+                f"{explain(TOLERANCE_NOT_MET)}; the finest solution is the error's "
+                f"last_iterate",
                 TOLERANCE_NOT_MET, replace(eq, error=est))
         finer, how = _finer(solver_for(finer_nodes), problem, eq, anchors)
         notes += how

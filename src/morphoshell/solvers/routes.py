@@ -29,7 +29,7 @@ from .refinement import refine
 from .results import Equilibrium, NotAMinimumError, SolverError, SolverStats
 
 __all__ = ["solve", "direct_solver", "cache_info", "clear_cache", "SOLVER_CACHE_SIZE",
-           "METHODS", "DIRECT_OPTIONS", "BVP_OPTIONS", "SHOOTING_OPTIONS",
+           "METHODS", "DIRECT_OPTIONS", "BVP_OPTIONS", "SHOOTING_OPTIONS", "MIN_RTOL",
            # re-exported for convenience
            "DirectSolver", "Equilibrium", "SolverError", "NotAMinimumError", "SolverStats"]
 
@@ -48,6 +48,8 @@ SHOOTING_OPTIONS = ("segments", "integrator", "atol", "tol", "pole_offset", "hom
 #: free edge's boundary layer that curls over folds on coarse meshes where it does not on
 #: fine ones (h = 1e-4: folds at 400 and 800 nodes find no landing, 1600 and 3200 agree).
 MESH_RETRIES = 3
+#: The smallest ``rtol``: estimates below the solvers' own tolerance (1e-10) are round-off.
+MIN_RTOL = 1e-10
 RETRIED = (CONTINUATION_FAILED, SNAP_FAILED, BRANCH_ENDED)
 
 #: Direct solvers kept by :func:`solve` (least recently used dropped first).
@@ -191,8 +193,10 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
             return solve_shooting(problem, guess=warm_start, **options)
         from .bvp import solve_bvp
         return solve_bvp(problem, nodes=nodes, guess=warm_start, **options)
-    if rtol is not None and not (isinstance(rtol, (int, float)) and 0 < rtol < 1):
-        raise ValueError(f"rtol = {rtol!r} must be a number in (0, 1)")
+    if rtol is not None and not (isinstance(rtol, (int, float)) and MIN_RTOL <= rtol < 1):
+        raise ValueError(f"rtol = {rtol!r} must be a number in [{MIN_RTOL:g}, 1): the error "
+                         f"estimate compares solutions converged to the solver's own "
+                         f"tolerance, 1e-10")
     max_nodes = check_nodes(options.pop("max_nodes", MAX_NODES))
     solver = direct_solver(problem, nodes, anchors, **options)
     if warm_start is not None:
