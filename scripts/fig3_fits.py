@@ -49,8 +49,10 @@ COLORS = {"flat": "C0", "undeformed": "C1", "unstressed": "C2", "free": "k"}
 
 
 def _stages(result) -> list:
-    """Early, mid and late timepoints: first, middle and last of the sequence."""
-    tps = result.timepoints
+    """Early, mid and late timepoints: first, middle and last of those fitted (a campaign
+    of a few timepoints of a long sequence draws its own, not empty panels)."""
+    fitted = {tp for tp, _ in result.records}
+    tps = [tp for tp in result.timepoints if tp.name in fitted] or result.timepoints
     return [tps[0], tps[len(tps) // 2], tps[-1]]
 
 
@@ -168,13 +170,17 @@ def _panel_O(df, truth: dict | None, out: Path) -> None:
     free = df[(df.variant == "free") & (df.status == "ok")]
     if len(free):
         _free_kappa1(ax, free)
-    if truth is not None:
-        t = [tp["pseudotime"] for tp in truth["timepoints"]]
-        ax.plot(t, [tp["parameters"]["kappa1"] for tp in truth["timepoints"]], ":",
-                color="C3", label="generating κ₁ (synthetic)")
+    if truth is not None:       # over the fitted pseudotimes (a short campaign: not the rest)
+        span = (free.pseudotime.min(), free.pseudotime.max()) if len(free) else (-np.inf, np.inf)
+        points = [tp for tp in truth["timepoints"] if span[0] <= tp["pseudotime"] <= span[1]]
+        ax.plot([tp["pseudotime"] for tp in points],
+                [tp["parameters"]["kappa1"] for tp in points], ":", color="C3",
+                label="generating κ₁ (synthetic)")
     ax.set_xlabel("pseudotime")
     ax.set_ylabel("κ₁ · R")
-    ax.legend(fontsize=6, loc="upper center", bbox_to_anchor=(0.5, -0.22), ncol=2, frameon=False)
+    # one column below the axes: two columns of these labels are wider than a column of a
+    # journal page, and constrained layout then collapses the axes
+    ax.legend(fontsize=6, loc="upper center", bbox_to_anchor=(0.5, -0.22), ncol=1, frameon=False)
     if len(free):
         inset = ax.inset_axes([0.62, 0.12, 0.35, 0.35])
         inset.plot(free.pseudotime, free.f1, "o-", ms=2, color="k")
