@@ -178,6 +178,33 @@ def test_solve_snaps_through_the_fold_to_the_cold_and_branch_solution(volvox):
         assert abs(eq.r[-1] - r) < 1e-8 and abs(eq.z[-1] - z) < 1e-8
 
 
+@pytest.mark.parametrize("kind", ["fold", "branch_point"])
+def test_a_target_just_past_an_event_is_solved_at_itself(volvox, blister, branch60, kind):
+    """A target within the landing's overshoot past a fold (10^-6 in lambda) or a branch
+    point (10^-4): the snap or switch had landed past lambda = 1, and solve() returned that
+    state, at extrapolated parameters (energy 4e-6 off), and the quasi-static walk never
+    reached lambda = 1 (user audit).  Now both end at the target itself, stable, where a
+    warm solve there ends and where the followed branch ends."""
+    if kind == "fold":
+        base, nodes = volvox, 60
+        event = next(pt for pt in branch60.events if pt.event == "fold")
+        line = ParameterLine.between(branch60.line.source, volvox)
+        target = line.at(event.tau * (1 + 1e-6))
+    else:
+        base, nodes = blister, 60
+        event = follow_branch(blister, nodes=nodes).events[0]
+        target = blister.with_updates(G=blister.params["G"] * event.tau * (1 + 1e-4))
+    eq = solve(target, nodes=nodes)
+    crossed = eq.solver.details["snaps" if kind == "fold" else "switches"]
+    assert len(crossed) == 1 and crossed[0]["tau_after"] > 1      # the landing was past it
+    assert eq.problem == target and eq.converged          # (a direct solve: a certified minimum)
+    again = solver_of(eq).solve(target, warm_start=eq)
+    assert abs(eq.energy - again.energy) < 1e-12 * abs(eq.energy)
+    walk = follow_branch(target, nodes=nodes, follow="stable")
+    assert walk.end.tau == 1 and walk.end.stable and walk.end.equilibrium.problem == target
+    assert abs(walk.end.energy - eq.energy) < 1e-9 * abs(eq.energy)
+
+
 def test_no_stable_way_past_the_fold_is_a_named_error(volvox, monkeypatch):
     """When every descent from the fold slides back onto the fold's state (forced:
     ``_moved`` says so), solve() and the quasi-static walk raise Snap_Through_Failed with

@@ -393,7 +393,7 @@ class _Walk:
             fold = self.arc.locate_fold(point, ds)
             self.record(fold, "fold", negative=min(point.inertia.negative, new.inertia.negative))
             if self.follow == "stable" and point.inertia.stable:
-                return self._snap(fold), False
+                return self._snap(fold)
         elif new.inertia.negative != point.inertia.negative:
             before = point
             for change in self.arc.locate_changes(point, new, ds):
@@ -405,7 +405,7 @@ class _Walk:
                 self.record(change, "branch_point",
                             negative=min(before.inertia.negative, change.inertia.negative))
                 if self.follow == "stable" and before.inertia.stable and change.tau < 1:
-                    return self._switch(change, ds), False
+                    return self._switch(change, ds)
                 before = change
         for end in self.ends:
             if min(point.tau, new.tau) < end <= max(point.tau, new.tau) and \
@@ -416,22 +416,33 @@ class _Walk:
         self.record(new)
         return new, False
 
-    def _switch(self, bp: ArcPoint, ds: float) -> ArcPoint:
+    def _switch(self, bp: ArcPoint, ds: float) -> tuple[ArcPoint, bool]:
         """Where the branch loses its stability at ``bp``: on along the stable half of the
-        other branch through it (a shell loaded slowly follows it), from its first point."""
+        other branch through it (a shell loaded slowly follows it), from its first point
+        (:meth:`_landing`)."""
         eq, tau, switch = switch_stable(self.arc, bp, ds)
         self.switches.append(switch)
-        start = self.arc.start(eq, tau, 1.0)
-        self.record(start, eq=eq)
-        return start
+        return self._landing(eq, tau, "")
 
-    def _snap(self, fold: ArcPoint) -> ArcPoint:
-        """Snap through at ``fold``; the walk goes on from the snapped equilibrium."""
+    def _snap(self, fold: ArcPoint) -> tuple[ArcPoint, bool]:
+        """Snap through at ``fold``; the walk goes on from the snapped equilibrium
+        (:meth:`_landing`)."""
         eq, snap = snap_through(self.arc, fold, 1.0)
         self.snaps.append(snap)
-        start = self.arc.start(eq, snap.tau_after, 1.0)
-        self.record(start, "snap", eq)
-        return start
+        return self._landing(eq, snap.tau_after, "snap")
+
+    def _landing(self, eq: Equilibrium, tau: float, event: str) -> tuple[ArcPoint, bool]:
+        """(the point the walk goes on from, whether done): ``eq`` at ``tau``, recorded; a
+        landing past the path's end (a fold or branch point within the overshoot before
+        τ = 1) is at extrapolated parameters, so its branch is solved at τ = 1 and ends
+        the walk."""
+        done = tau >= 1.0
+        if done:
+            eq, tau = self.arc.solver.solve(self.arc.line.at(1.0), warm_start=eq,
+                                            anchors=self.arc.q), 1.0
+        start = self.arc.start(eq, tau, 1.0)
+        self.record(start, event, eq)
+        return start, done
 
     def _ended(self, point: ArcPoint, why: str):
         return branch_ended(point.tau, why, self.arc.equilibrium(point))

@@ -334,6 +334,9 @@ def _crossed(solver, eq, line, run: _Progress, anchors, first_step, switch) -> E
     (or the stable way on), certified by a warm solve; ``run`` restarts there (a new branch:
     no jump rate yet)."""
     eq, tau, event = cross_fold(solver, eq, line, run.tau, anchors, switch=switch)
+    # a landing just past the target (a fold or branch point within its overshoot before
+    # τ = 1) is at extrapolated parameters: its branch is solved at the target itself
+    tau = min(tau, 1.0)
     eq = solver.solve(line.at(tau), warm_start=eq, anchors=anchors)
     if event is not None:
         log.info("continuation to %s: %s", line.problem.name or line.problem.family,
