@@ -138,6 +138,28 @@ def test_rtol_refines_until_met_or_raises():
         solve(problem, nodes=50, rtol=1e-11)          # below the solvers' tolerance: refused
 
 
+def test_a_thin_shells_error_is_relative_to_its_own_energy(caplog):
+    """At h = 1e-6 a shell's energy (~h^3) lies far below the fixed floor of 1e-12 that the
+    relative error was divided by: 100 nodes gave an energy 80 % off with a "relative"
+    estimate of 4e-5, and rtol = 1e-3 accepted it (user audit).  With the floor scaled by
+    h^3 the estimate says 13, a warning names the coarse mesh, and rtol refines to the
+    energy of the unrelaxed sphere (k = 0: its bending energy, less the cut's tiny
+    release) to 1e-4."""
+    import logging
+
+    from morphoshell.mechanics import asymptotics
+
+    h, cut = 1e-6, 0.3
+    problem = Problem("uniform", {"k": 0.0}, h=h, cut=cut, theory="classical")
+    reference = h**3 / 8 * 2 * np.pi * (1 + np.cos(cut)) + asymptotics.energy_released(h, 0.0, cut)
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        coarse = solve(problem, nodes=100)
+    assert abs(coarse.energy / reference - 1) > 0.5 and coarse.error.relative()["energy"] > 1
+    assert "the mesh is too coarse" in caplog.text
+    fine = solve(problem, nodes=100, rtol=1e-3)
+    assert abs(fine.energy / reference - 1) < 1e-4 and fine.error.meets(1e-3)
+
+
 THIN_RIM = Problem("anisotropic", {"f0": -0.278375609690089}, h=4.3723617825288633e-4,
                    cut=0.02)
 
