@@ -119,6 +119,13 @@ def test_held_from_holds_one_variants_first_fit_in_the_others(serial, data, tmp_
     again = campaign(data[0], ("unstressed",), method="gradient", workers=1, out=out,
                      nodes=NODES, timepoints=("t01", "t02"), held_from="flat")
     assert again.timing["computed"] == 0
+    # resumed without held_from: the held fits are not reused (they were, and the summary
+    # showed fits 5x worse than a fresh run's; user audit), and the refits are a fresh run's
+    unheld = campaign(data[0], ("unstressed",), method="gradient", workers=1, out=out,
+                      nodes=NODES, timepoints=("t01", "t02"))
+    assert unheld.timing["computed"] == 2
+    for tp in ("t01", "t02"):
+        assert unheld.record(tp, "unstressed") == serial.record(tp, "unstressed")
     # nothing holds them: the source's fit is not run
     alone = campaign(data[0], ("free",), method="gradient", workers=1, out=out, nodes=NODES,
                      timepoints=("t01", "t02"), held_from="undeformed")

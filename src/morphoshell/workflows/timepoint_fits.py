@@ -152,6 +152,14 @@ def _settings(task: CampaignTask, tp: Timepoint, prev: dict | None) -> dict:
     return settings
 
 
+def _reusable(stored: dict | None, settings: dict) -> bool:
+    """Whether a stored record was made with ``settings``: every entry the same, and held
+    values from the same source or from none (``held_from`` is in ``settings`` only when
+    set: a record held from another fit is not reusable by a run that holds nothing)."""
+    return stored is not None and stored.get("held_from") == settings.get("held_from") \
+        and all(stored.get(key) == value for key, value in settings.items())
+
+
 def _start_problem(params: dict) -> Problem:
     """A start problem from fitted parameters, moved just inside the fit's bounds."""
     p = dict(params)
@@ -224,8 +232,7 @@ def fit_variant(task: CampaignTask) -> list[dict]:
         path = result_path(out, tp.name, task.variant)
         settings = _settings(task, tp, prev)
         stored = read_record(path)
-        if stored is not None and all(stored.get(key) == value
-                                      for key, value in settings.items()):
+        if _reusable(stored, settings):
             rec = stored
             report.append({"timepoint": tp.name, "seconds": 0.0, "computed": False,
                            "status": rec["status"]})
