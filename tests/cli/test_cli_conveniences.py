@@ -199,3 +199,22 @@ def test_progress_bars_show_on_a_terminal_unless_quiet(monkeypatch):
     monkeypatch.setattr("sys.stderr", io.StringIO())         # not a terminal: no bar
     assert progress(items) is items
     assert progress(items, enabled=True) is not items
+
+
+def test_outputs_have_the_permissions_of_a_new_file(tmp_path, capsys):
+    """Outputs are written beside their target by mkstemp (mode 0600) and renamed: they kept
+    that mode, unreadable to colleagues on a shared disk whatever the umask (user audit)."""
+    import os
+
+    old = os.umask(0o022)
+    try:
+        out = [tmp_path / "eq.json", tmp_path / "eq.csv"]
+        assert main(["solve", str(example_path("toy1_sphere")), "--nodes", "20",
+                     "--json", str(out[0]), "--csv", str(out[1])]) == 0
+        os.umask(0o027)
+        out.append(tmp_path / "again.json")
+        assert main(["solve", str(example_path("toy1_sphere")), "--nodes", "20",
+                     "--json", str(out[2])]) == 0
+    finally:
+        os.umask(old)
+    assert [p.stat().st_mode & 0o777 for p in out] == [0o644, 0o644, 0o640]

@@ -74,6 +74,8 @@ class Outputs:
             return []
         import tempfile     # here only: a run without outputs needs none of its imports
 
+        from .._runtime.files import as_new_file
+
         temps: list[tuple[Path, Path]] = []
         try:
             for path, write in self._staged:
@@ -83,6 +85,7 @@ class Outputs:
                 temps.append((Path(tmp), path))
                 write(Path(tmp))
             for tmp, path in temps:
+                as_new_file(tmp)
                 os.replace(tmp, path)
         except BaseException:
             for tmp, _ in temps:

@@ -35,6 +35,7 @@ from typing import Sequence
 import numpy as np
 
 from .._runtime import interrupts, lifeline
+from .._runtime.files import as_new_file
 from ..fitting import BOUNDS, FitError, FitResult, fit, volvox_spec
 from ..io import Midline, average
 from ..io.timepoints import Timepoint
@@ -122,10 +123,7 @@ def write_atomic(path: Path, text: str) -> None:
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)
-        # mkstemp makes the file private: give it the permissions of a new file
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
+        as_new_file(tmp)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

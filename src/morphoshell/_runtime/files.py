@@ -1,0 +1,16 @@
+"""Files written all or nothing: a temporary file beside the target, then a rename."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+__all__ = ["as_new_file"]
+
+
+def as_new_file(tmp: str | Path) -> None:
+    """Give ``tmp``, a temporary file from :func:`tempfile.mkstemp` (private: mode 0600),
+    the permissions of a new file under the umask, before it is renamed to its target:
+    results on a shared disk are readable by the colleagues the umask admits."""
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)
