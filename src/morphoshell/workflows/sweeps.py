@@ -26,7 +26,10 @@ warm-started from the previous one, so a point costs about one warm solve
   :data:`~morphoshell.solvers.continuation.HARD_STEP` Newton iterations (a sign of a
   jump to another branch) is split in two, recursively (at most
   :data:`MAX_SPLITS` times), as :class:`morphoshell.inverse.recoil_model.RecoilModel` does;
-  the last resort is continuation again.
+  the last resort is continuation again.  Where the shell is bistable the warm path
+  can keep to another stable state than ``solve()``'s route: after a snap or switch the
+  next point is reached by continuation, and a chunk whose last point is another state
+  than continuation reaches there is solved again by continuation at every point.
 * **Meshes.** Every point is solved on the mesh :func:`solve` and
   :func:`~morphoshell.mechanics.ablation.ablate` would use
   (:func:`morphoshell.numerics.mesh.mesh_spec`, graded for the point's h and cut, the
@@ -274,6 +277,10 @@ class _Chunk:
     estimate: tuple[bool, ...]
 
 
+#: Largest difference of x (max norm) between two solutions of one state: warm solves and
+#: solve()'s route agree to 1e-10 on one branch (docs/sweeps.md).
+OTHER_STATE = 1e-6
+
 #: Solvers of this worker process, by (structure, mesh, options): one build per mesh.
 _SOLVERS: dict = {}
 #: Bound of the worker's solver cache (least recently built dropped first); a
@@ -300,16 +307,25 @@ class _Shell:
     options: Mapping[str, Any]
     last: tuple | None = None       # (problem, anchors, eq)
     iterations: int = 0
+    #: Every point by ``solve()``'s route (continuation), none warm: where the warm path
+    #: and ``solve()``'s end on different stable states (:func:`_left_solves_branch`).
+    verify: bool = False
+    #: The last point's continuation snapped or switched branches: the next point's route
+    #: may not (its own path from the stress-free parameters has no fold), and a warm step
+    #: would stay on the branch the snap landed on.
+    crossed: bool = False
 
     def solver(self, problem: Problem, anchors: tuple, nodes: int | None = None) -> DirectSolver:
         return _solver(problem, nodes or self.nodes, anchors, self.options)
 
     def advance(self, problem: Problem, anchors: tuple) -> tuple[Equilibrium, str]:
-        """The equilibrium of ``problem``, from the last one if there is one; (eq, path)."""
+        """The equilibrium of ``problem``, from the last one if there is one and its branch
+        is ``solve()``'s (:attr:`verify`, :attr:`crossed`); (eq, path)."""
         solver = self.solver(problem, anchors)
         last, self.last, self.iterations = self.last, None, 0
         eq = None
-        if last is not None and last[0].structure == problem.structure:
+        if last is not None and last[0].structure == problem.structure and not self.verify \
+                and not self.crossed:
             path = "warm"
             try:
                 start = last[2]
@@ -325,6 +341,7 @@ class _Shell:
         if eq is None:
             eq = self._count(continue_to(solver, problem, anchors, switch=True))    # (as solve)
             path = "continuation"
+        self.crossed = _crossed(eq)
         self.last = (problem, anchors, eq)
         return eq, path
 
@@ -350,6 +367,11 @@ class _Shell:
         m_eq, n1 = self._step(solver, a, a_anchors, a_eq, *mid, depth + 1)
         eq, n2 = self._step(solver, *mid, m_eq, b, b_anchors, depth + 1)
         return eq, n1 + n2
+
+
+def _crossed(eq: Equilibrium) -> bool:
+    """Whether ``eq``'s continuation snapped through a fold or switched branches."""
+    return bool(eq.solver.details.get("snaps") or eq.solver.details.get("switches"))
 
 
 def _midpoint(a: Problem, b: Problem, a_anchors, b_anchors):
@@ -401,11 +423,50 @@ def _estimate(shells: Sequence[tuple[_Shell, Problem, tuple, Equilibrium]], meas
 
 
 def _run_chunk(chunk: _Chunk) -> list[tuple[int, dict]]:
-    """Solve one chunk in order, each point warm-started from the previous one (a task)."""
+    """Solve one chunk in order, each point warm-started from the previous one (a task);
+    again by ``solve()``'s route at every point where the warm path ended on another
+    stable state than that route (:func:`_left_solves_branch`)."""
+    rows, shells = _solve_chunk(chunk, verify=False)
+    if _left_solves_branch(rows, shells):
+        rows, _ = _solve_chunk(chunk, verify=True)
+    return rows
+
+
+def _left_solves_branch(rows: list[tuple[int, dict]], shells: Sequence[_Shell]) -> bool:
+    """Whether the chunk's last point, reached warm, is another state than ``solve()``'s
+    route reaches there (continuation from the stress-free parameters).
+
+    Where a shell is bistable the two can differ, both stable: a sweep of κ₁ from −8
+    stayed on the state its first point snapped to up to κ₁ = 3, where ``solve()`` ends
+    on the other (energies 0.027 against 0.018).  :attr:`_Shell.crossed` keeps to the
+    route after a snap; this catches the rest at one continuation per chunk.
+    """
+    if len(rows) < 2 or rows[-1][1]["path"] in ("continuation", "failed"):
+        return False
+    for shell in shells:
+        if shell.last is None:
+            continue
+        problem, anchors, eq = shell.last
+        try:
+            route = continue_to(shell.solver(problem, anchors), problem, anchors, switch=True)
+        except SolverError:
+            return True
+        if np.max(np.abs(route.x - eq.x)) > OTHER_STATE:
+            log.info("sweep: the warm path to %s ended on another state than solve()'s "
+                     "(bistable): the chunk again by continuation at every point",
+                     problem.params)
+            return True
+    return False
+
+
+def _solve_chunk(chunk: _Chunk, verify: bool) -> tuple[list[tuple[int, dict]], tuple]:
+    """The rows of one chunk and its two shells (:func:`_run_chunk`); with ``verify`` every
+    point by continuation."""
     base = Problem(**chunk.base)
     options = dict(chunk.options)
     order = 2 * options.get("stages", 2)
-    post_shell, pre_shell = _Shell(chunk.nodes, options), _Shell(chunk.nodes, options)
+    post_shell = _Shell(chunk.nodes, options, verify=verify)
+    pre_shell = _Shell(chunk.nodes, options, verify=verify)
     names = ABLATE_COLUMNS if chunk.ablate else SOLVE_COLUMNS
     estimated = ESTIMATED_ABLATION if chunk.ablate else SOLVE_COLUMNS
     rows, intact, intact_key = [], None, None
@@ -428,7 +489,7 @@ def _run_chunk(chunk: _Chunk) -> list[tuple[int, dict]]:
                        path="failed", message=str(exc).splitlines()[0])
         row["seconds"] = time.perf_counter() - t0
         rows.append((index, row))
-    return rows
+    return rows, (pre_shell, post_shell)
 
 
 def _solve_point(row: dict, problem: Problem, shell: _Shell, estimate: bool,
