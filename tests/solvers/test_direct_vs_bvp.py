@@ -10,7 +10,7 @@ second order, the issue's specification) and two-stage Gauss collocation
 import numpy as np
 import pytest
 
-from morphoshell import Problem, solve
+from morphoshell import NotAMinimumError, Problem, solve
 
 #: (stages, meshes, order, agreement demanded on the finest mesh)
 SCHEMES = {
@@ -105,3 +105,18 @@ def test_bvp_is_converged_and_consistent(runs):
     assert np.all(np.diff(bvp.s) > 0)
     d = direct[max(direct)]
     assert abs((d.z[-1] - d.z[0]) - (bvp.z[-1] - bvp.z[0])) < 1e-6
+
+
+@pytest.mark.parametrize("method", ["bvp", "shooting"])
+def test_a_reference_routes_saddle_is_refused_by_its_inertia(method):
+    """The Euler-Lagrange equations hold at any stationary shape: past its buckling the
+    blister disc's reference routes returned the flat disc, a saddle (7.6x the dome's
+    energy), as a converged solution (user audit).  The inertia of the direct
+    discretisation at it refuses it, naming its four negative eigenvalues (follow_branch
+    counts the same on the flat branch); a stable solution is certified so."""
+    disc = Problem("central_growth", {"G": 0.05, "w": 0.3}, h=0.02, geometry="disc")
+    with pytest.raises(NotAMinimumError, match="has 4 negative and 0 zero eigenvalues") as exc:
+        solve(disc, nodes=100, method=method)
+    assert exc.value.last_iterate.solver.method == method
+    eq = solve(CASES["volvox cut"], nodes=100, method=method)
+    assert eq.solver.details["minimum"].startswith("certified by the inertia")

@@ -387,6 +387,16 @@ class Arclength:
         inertia = self.kkt.inertia(self.kkt.state(u, self._data(tau)))
         return ArcPoint(tau, u, t / scale, t_tau / scale, inertia, iterations)
 
+    def stationary(self, x: np.ndarray, tau: float) -> ArcPoint | None:
+        """The stationary point of the energy at τ next to the shape ``x`` (this mesh's
+        unknowns; multipliers from zero) by Newton's iterations, with its inertia; None
+        if they do not converge.  Unlike a solve it does not minimise: a saddle stays a
+        saddle, and its inertia says so (another route's shape checked here)."""
+        zero = np.zeros(self.kkt.order.hi - self.kkt.order.lo)
+        u = self.kkt.pack(x, np.zeros(self.kkt.m))
+        found = self._newton(u, tau, zero, 1.0, lambda u, t: t - tau)
+        return None if found is None else self._point(*found, zero, 1.0)
+
     def at_tau(self, prev: ArcPoint, tau: float) -> ArcPoint | None:
         """The point of the branch at the parameter ``tau`` next to ``prev`` (τ fixed: a
         natural-parameter step from ``prev``'s tangent), or None."""

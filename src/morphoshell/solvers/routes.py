@@ -22,11 +22,12 @@ from dataclasses import replace
 
 from ..model.problem import Problem
 from ..numerics.mesh import mesh_spec
-from ..numerics.status import BRANCH_ENDED, CONTINUATION_FAILED, SNAP_FAILED
+from ..numerics.status import (BRANCH_ENDED, CONTINUATION_FAILED, NOT_A_MINIMUM, SNAP_FAILED,
+                               explain)
 from .continuation import continue_to
 from .direct import BUILDS, MAX_NODES, DirectSolver, check_nodes
 from .refinement import refine
-from .results import Equilibrium, NotAMinimumError, SolverError, SolverStats
+from .results import Equilibrium, NotAMinimumError, SolverError, SolverStats, unconverged
 
 __all__ = ["solve", "direct_solver", "cache_info", "clear_cache", "SOLVER_CACHE_SIZE",
            "METHODS", "DIRECT_OPTIONS", "BVP_OPTIONS", "SHOOTING_OPTIONS", "MIN_RTOL",
@@ -173,7 +174,9 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
     SolverError
         No converged, stable, physical answer (Ipopt's or solve_bvp's status;
         ``"Meridian_Crosses_Axis"``, ``"Continuation_Failed"``,
-        ``"Tolerance_Not_Met"``), with the last iterate attached.
+        ``"Tolerance_Not_Met"``), with the last iterate attached;
+        :class:`NotAMinimumError` for a saddle (for the reference routes: by the
+        inertia of the direct discretisation there, ``solver.details["minimum"]``).
 
     Examples
     --------
@@ -190,9 +193,11 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
             raise ValueError("anchors and rtol are options of the direct method only")
         if method == "shooting":
             from .shooting import solve_shooting
-            return solve_shooting(problem, guess=warm_start, **options)
-        from .bvp import solve_bvp
-        return solve_bvp(problem, nodes=nodes, guess=warm_start, **options)
+            eq = solve_shooting(problem, guess=warm_start, **options)
+        else:
+            from .bvp import solve_bvp
+            eq = solve_bvp(problem, nodes=nodes, guess=warm_start, **options)
+        return _minimum(eq, nodes)
     if rtol is not None and not (isinstance(rtol, (int, float)) and MIN_RTOL <= rtol < 1):
         raise ValueError(f"rtol = {rtol!r} must be a number in [{MIN_RTOL:g}, 1): the error "
                          f"estimate compares solutions converged to the solver's own "
@@ -210,6 +215,39 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
         eq = replace(eq, solver=replace(eq.solver, details={**eq.solver.details, "path": "cold"}))
     return refine(eq, lambda n: direct_solver(problem, n, anchors, **options), rtol, anchors,
                   max_nodes)
+
+
+def _minimum(eq: Equilibrium, nodes: int) -> Equilibrium:
+    """A reference route's solution ``eq`` if it is a minimum of the energy, else
+    NotAMinimumError: the inertia of the direct discretisation (on ``nodes`` nodes) at
+    its stationary point next to ``eq``'s shape (:meth:`Arclength.stationary`).
+
+    The Euler–Lagrange equations the reference routes solve hold at every stationary
+    shape: on the blister disc past its buckling both returned the flat disc, a saddle
+    with four negative eigenvalues and 7.6 times the dome's energy.  The routes' values
+    are kept (they are the independent reference); only their stability comes from
+    the direct discretisation (``solver.details["minimum"]``).
+    """
+    from .arclength import Arclength
+    from .paths import ParameterLine
+
+    problem, route = eq.problem, eq.solver.method
+    solver = direct_solver(problem, nodes, ())
+    arc = Arclength(solver, ParameterLine.between(problem, problem))
+    point = arc.stationary(solver.carried(eq, problem.parameter_vector()), 1.0)
+    if point is None:       # undecided: said, not guessed
+        note = f"not checked: Newton's iterations of the direct discretisation from it " \
+               f"did not converge on {nodes} nodes"
+    elif not point.inertia.stable:
+        raise NotAMinimumError(
+            f"the {route} route converged to a stationary shape that is not a minimum: the "
+            f"direct discretisation's reduced Hessian there (on {nodes} nodes) has "
+            f"{point.inertia.negative} negative and {point.inertia.zero} zero eigenvalues: "
+            f"{explain(NOT_A_MINIMUM)}. The {route} solution is attached (.last_iterate)",
+            NOT_A_MINIMUM, unconverged(eq))
+    else:
+        note = f"certified by the inertia of the direct discretisation on {nodes} nodes"
+    return replace(eq, solver=replace(eq.solver, details={**eq.solver.details, "minimum": note}))
 
 
 def _continued(solver: DirectSolver, problem: Problem, anchors, options: dict,
