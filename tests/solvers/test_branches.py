@@ -461,3 +461,14 @@ def test_a_barely_grown_thin_annulus_buckles_by_a_tiny_amount():
     assert a.solver.details["switches"][0]["descent"]
     assert abs(a.energy - b.energy) < 3e-6 * b.energy and b.z[-1] > 1e-4
     assert abs(a.z[-1] - b.z[-1]) < 1e-6 * b.z[-1]
+
+
+def test_a_cut_shells_z_end_is_its_height_above_the_first_point():
+    """z_end of a branch is what a sweep and an error estimate call z_end, the far end's
+    height above the first point; it had been z there in solve's gauge, 1 - cos(cut) more
+    on a cut shell (user audit)."""
+    problem = Problem("uniform", {"k": 0.5}, h=0.3, cut=0.3)
+    end = follow_branch(problem, nodes=40).end
+    eq = solve(problem, nodes=40)
+    assert abs(eq.z[0] - (1 - np.cos(0.3))) < 1e-12             # the gauge: not 0 here
+    assert abs(end.z_end - eq.estimated_values()["z_end"]) < 1e-9

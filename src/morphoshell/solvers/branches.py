@@ -64,7 +64,8 @@ class BranchPoint:
     energy : float
         Total energy (C R²).
     r_end, z_end, psi_end : float
-        The far end's r and z (units of R; z in :func:`solve`'s gauge) and ψ (rad).
+        The far end's r and height above the first point (units of R; as
+        ``Equilibrium.estimated_values`` and a sweep's ``z_end``) and ψ (rad).
     negative_eigenvalues : int
         Of the reduced Hessian: 0 for a stable equilibrium; at a fold or
         branch point, the fewer of its two sides'.
@@ -343,7 +344,8 @@ class _Walk:
         stable = bool(point.inertia.stable) if negative is None else False
         negative = int(point.inertia.negative) if negative is None else int(negative)
         self.points.append(BranchPoint(
-            tau, self.arc.line.values(tau), float(eq.energy), float(eq.r[-1]), float(eq.z[-1]),
+            tau, self.arc.line.values(tau), float(eq.energy), float(eq.r[-1]),
+            float(eq.z[-1] - eq.z[0]),
             float(eq.psi[-1]), negative, stable, event, eq))
 
     def run(self, start: Equilibrium) -> None:
