@@ -31,6 +31,26 @@ def test_table_reading_units_and_extras(tmp_path):
     assert b.R_um == 38.0
 
 
+def test_a_misspelt_optional_column_is_named_and_a_semicolon_table_explained(tmp_path,
+                                                                              caplog):
+    """Other columns are kept and ignored; one that looks like an optional column is named
+    with the one it resembles (V_um_s: its recoil velocities, and so E/mu, had vanished
+    without a word; user audit).  A table separated by ';' says so."""
+    import logging
+
+    path = tmp_path / "t.csv"
+    header = HEADER.replace("V_um_per_s", "V_um_s").replace("sigma_rotation_deg", "sigma_rot")
+    path.write_text(f"{header}\nA,40,11,8,0.5,15,1.5,0.9,2,first\n")
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        a, = I.read_measurements(path)
+    assert a.V_um_per_s is None and a.extra["V_um_s"] == "0.9"
+    assert "column 'V_um_s' is not read (did you mean 'V_um_per_s'?)" in caplog.text
+    assert "'note'" not in caplog.text and "sigma_rot'" not in caplog.text   # (not near enough)
+    path.write_text(f"{HEADER.replace(',', ';')}\nA;40;11;8;0.5;15;1.5;0.9;2;first\n")
+    with pytest.raises(I.MeasurementError, match="separated by ';', not ','"):
+        I.read_measurements(path)
+
+
 @pytest.mark.parametrize("row, named", [
     ("A,40,-11,8,0.5,15,1.5,,,",
      "row 1 (line 2, embryo 'A'), column 'H_um': -11.0 must be positive"),

@@ -18,6 +18,8 @@ of R and angles in radians, the units of the shell theory
 from __future__ import annotations
 
 import csv
+import difflib
+import logging
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,6 +28,8 @@ from typing import Mapping
 import numpy as np
 
 from ..model.problem import MIN_THICKNESS
+
+log = logging.getLogger(__name__)
 
 __all__ = [
     "MEASURES", "REQUIRED_COLUMNS", "OPTIONAL_COLUMNS", "MEASURE_COLUMN", "ERROR_COLUMN", "UNITS",
@@ -268,8 +272,17 @@ def _check_header(path: Path, header: list[str], line_no: int) -> None:
         raise MeasurementError(f"{path}: column(s) {repeated} appear more than once")
     missing = [c for c in REQUIRED_COLUMNS if c not in header]
     if missing:
+        hint = "; the columns are separated by ';', not ','" if len(header) == 1 \
+            and ";" in header[0] else ""
         raise MeasurementError(f"{path}: missing column(s) {missing} (line {line_no} is "
-                               f"the header; required: {', '.join(REQUIRED_COLUMNS)})")
+                               f"the header; required: {', '.join(REQUIRED_COLUMNS)}{hint})")
+    for column in header:
+        if column not in _KNOWN:
+            near = difflib.get_close_matches(column, [c for c in OPTIONAL_COLUMNS
+                                                      if c not in header], n=1, cutoff=0.7)
+            if near:    # kept and ignored, silently, would drop the errors or E/μ it feeds
+                log.warning("%s: column %r is not read (did you mean %r?)", path, column,
+                            near[0])
 
 
 def _where(path: Path, n: int, line_no: int, label: str) -> str:
