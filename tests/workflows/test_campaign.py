@@ -85,6 +85,12 @@ def test_resume_redoes_only_the_missing_result_bit_identically(serial, data, tmp
     assert missing.read_bytes() == before
     for path in serial.out.glob("t*.json"):
         assert (out / path.name).read_bytes() == path.read_bytes(), path.name
+    # a run on a subset keeps the folder's summary whole (it had kept only its own rows)
+    part = campaign(data[0], ("flat",), method="gradient", workers=1, out=out, nodes=NODES,
+                    timepoints=("t01",))
+    assert part.timing["computed"] == 0 and len(part.records) == 1
+    assert (out / "campaign_summary.csv").read_bytes() == \
+        (serial.out / "campaign_summary.csv").read_bytes()
 
 
 def test_held_from_holds_one_variants_first_fit_in_the_others(serial, data, tmp_path):

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import argparse
-import math
 from pathlib import Path
 
 from ._args import add_executor, integer, reworded
@@ -125,11 +124,12 @@ def _campaign(args) -> int:
     t = result.timing
     unfinished = result.unfinished()
     failed = sum(why == "failed" for *_, why in unfinished)
-    per = t["fit_seconds"] / t["computed"] if t["computed"] else math.nan
-    print(f"campaign of {len(result.timepoints)} timepoints x {len(result.variants)} variants "
-          f"({args.method}, {args.nodes} nodes) on {t['workers']} worker(s) ({t['backend']}): "
-          f"{t['computed']} fits in {t['seconds']:.3g} s ({per:.3g} s per fit), "
-          f"{sum(not f['computed'] for f in t['fits'])} reused, {failed} failed")
+    per = f" ({t['fit_seconds'] / t['computed']:.3g} s per fit)" if t["computed"] else ""
+    print(f"campaign of {_count(len(result.timepoints), 'timepoint')} x "
+          f"{_count(len(result.variants), 'variant')} ({args.method}, {args.nodes} nodes) on "
+          f"{t['workers']} worker(s) ({t['backend']}): {_count(t['computed'], 'fit')} in "
+          f"{t['seconds']:.3g} s{per}, {sum(not f['computed'] for f in t['fits'])} reused, "
+          f"{failed} failed")
     df = result.to_dataframe()
     if len(df):
         table = df.pivot(index=["timepoint", "pseudotime"], columns="variant", values="E_fit")
@@ -138,6 +138,10 @@ def _campaign(args) -> int:
     print(f"  wrote {result.out}/<timepoint>_<variant>.json and {result.out / SUMMARY}")
     print(_verdict(unfinished, len(result.records), args.allow_failures))
     return 3 if unfinished and not args.allow_failures else 0
+
+
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}{'s' * (n != 1)}"
 
 
 def _verdict(unfinished: list, fits: int, allowed: bool) -> str:

@@ -31,7 +31,8 @@ from .._runtime.console import progress
 from ..fitting import FIT_NODES, METHODS, VARIANTS, check_midline, volvox_spec
 from ..io import Midline
 from ..io.timepoints import Timepoint, read_timepoints
-from .campaign_results import SUMMARY, CampaignResult, read_record, read_records, result_path
+from .campaign_results import (SUMMARY, CampaignResult, load_campaign, read_record, read_records,
+                               result_path)
 from .executor import SerialExecutor, backend_name, open_executor
 from .timepoint_fits import CampaignTask, first_start, fit_variant, write_atomic
 
@@ -185,7 +186,9 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
         "seconds": seconds, "workers": 1 if backend == "serial" else workers,
         "backend": backend, "computed": len(done),
         "fit_seconds": float(sum(r["seconds"] for r in done)), "fits": fits})
-    write_atomic(out / SUMMARY, result.to_dataframe().to_csv(index=False))
+    # every fit in the folder, not only this run's: a run on a subset had replaced the
+    # summary of the whole campaign by its own rows (the folder's settings are one run's)
+    write_atomic(out / SUMMARY, load_campaign(out, data_dir).to_dataframe().to_csv(index=False))
     return result
 
 
