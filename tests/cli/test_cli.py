@@ -119,7 +119,9 @@ def test_ablate_reports_observables(tmp_path, capsys):
 
 def test_ablate_needs_a_cut(capsys):
     assert main(["ablate", str(TOY2), "--set", "cut=0"]) == 2
-    assert "an ablation needs a cut > 0" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert f"{TOY2}: cut (Sigma) = 0.0: an ablation needs a cut > 0" in err      # the file,
+    assert "--set cut=" in err                                                  # and the remedy
 
 
 def test_asymptotics_command(tmp_path):

@@ -112,5 +112,8 @@ def _sphere(args) -> int:
     for key, value in out.items():
         unit = " / R" if key == "k_star" else " R"
         print(f"  {key:18s} = {'none' if value is None else format(value, '.15g') + unit}")
+    if out["k_star"] is not None:        # (what it is: the printout had not said)
+        print("  (k_star: the second k at which f's O(h^2) correction vanishes, the first "
+              "being k = 1)")
     _write(args, {"h": args.h, "k": args.k, "c10": args.c10, "c01": args.c01, **out})
     return 0

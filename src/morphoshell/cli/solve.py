@@ -187,7 +187,8 @@ def _ablate(args) -> int:
 
     problem, method, nodes, options = _load(args)
     if not problem.cut > 0:
-        raise ValueError(f"cut (Sigma) = {problem.cut!r}: an ablation needs a cut > 0")
+        raise ValueError(f"{args.problem}: cut (Sigma) = {problem.cut!r}: an ablation needs a "
+                         f"cut > 0 (set it in the file's [problem] table or with --set cut=0.15)")
     ab = ablate(problem, nodes=nodes, method=method, **options)
     print(f"{_label(problem)}: ablation of cut Sigma = {problem.cut:g} rad "
           f"({method}, {len(ab.post.s)} points)")

@@ -195,8 +195,10 @@ def undeformed_geometry(h: float, k: float) -> UndeformedGeometry:
     h0 = brentq(residual, lo, hi, xtol=1e-300, rtol=4 * np.finfo(float).eps, maxiter=200)
     if abs(k) * h0 / 2 >= 1:
         raise ValueError(
-            f"intrinsic configuration degenerates: |k| h0/2 = {abs(k) * h0 / 2!r} >= 1 "
-            f"for h = {h!r}, k = {k!r}")
+            f"k = {k!r}: the intrinsic configuration degenerates for h = {h!r}: |k| h0/2 = "
+            f"{abs(k) * h0 / 2:.6g} >= 1, where h0 = {h0:.6g} is the intrinsic thickness that "
+            f"keeps the shell's volume (the intrinsic radius 1/|k| within half of it); "
+            f"|k| must stay below {2 / h0:.6g}")
     a = a_of(h0)
     # r± = 1 ± h/2 (module docstring), so h⁺ = 1 + h/2 − a, h⁻ = a − 1 + h/2.
     return UndeformedGeometry(h=h, k=k, a=a, h0=h0,
