@@ -77,3 +77,20 @@ def test_campaign_selections_name_their_option(tmp_path, capsys):
     assert err.count("\n") == 1 and "--embryo-errors free: ['free'] not among --variants flat" \
         in err, err
     assert not out.exists()
+
+
+def test_set_names_every_family_and_refuses_a_key_twice(capsys):
+    """--set's help lists the parameters of every packaged family from the registry (the
+    blister's central_growth had been missing); a key set twice is refused, as a sweep
+    refuses it (the last had won silently); an unknown key's message names the solver's."""
+    from morphoshell.cli._args import family_keys
+    from morphoshell.model.profiles import FAMILIES
+
+    listed = family_keys()
+    assert all(f"{name}:" in listed for name in FAMILIES) and "central_growth: G, w" in listed
+    assert "volvox: f1..f5, kappa1..kappa4, s1..s4, sigma" in listed
+    toy = str(ROOT / "problems" / "toy1_sphere.toml")
+    assert main(["solve", toy, "--set", "k=0.5", "--set", "k=1"]) == 2
+    assert "--set 'k=1': k is set more than once" in capsys.readouterr().err
+    assert main(["solve", toy, "--set", "K=0.5"]) == 2
+    assert "and the solver's ['nodes', 'method', 'stages']" in capsys.readouterr().err

@@ -92,6 +92,8 @@ k = 0.0
     ("[problem]\nh = 0.3\n", "[problem] needs 'family'"),
     ("[problem]\nfamily = 'uniform'\nh = 0.3\nthickness = 2\n", "unknown key(s) ['thickness'] in [problem]"),
     ("[problem]\nfamily = 'uniform'\nh = 0.3\n[mesh]\nnodes = 3\n", "unknown table(s) ['mesh']"),
+    ("family = 'uniform'\nh = 0.3\n[parameters]\nk = 0.0\n",
+     "key(s) ['family', 'h'] outside any table; is the [problem] line above them missing?"),
     ("[problem]\nfamily = 'uniform'\nh = '0.3'\n", "thickness h = '0.3' must be a real number"),
     ("[problem]\nfamily = 3\nh = 0.3\n", "family = 3 must be a string"),
     (GOOD + "[solver]\nnodes = 2\n", "nodes = 2 must be an integer in [5, 102400]"),

@@ -9,7 +9,7 @@ from typing import Callable, Mapping
 from ._outputs import output_path
 
 __all__ = ["integer", "real", "micrometres", "add_outputs", "TRACE_OPTIONS", "problem_and_settings",
-           "reworded", "LINEAR_SOLVERS"]
+           "reworded", "LINEAR_SOLVERS", "family_keys"]
 
 #: Ipopt's linear solvers: MUMPS is bundled with CasADi; the HSL ones (ma27 …)
 #: load only from the user's libhsl.so, SPRAL and Pardiso from their libraries.
@@ -23,6 +23,27 @@ TRACE_OPTIONS = {r"\bpixel_size_um\b": "--pixel-size", r"\bradius_um\b": "--radi
                  r"\broi=": "--roi ",
                  r"\bwith format '(\w+)' or none": r"with --format \1 or none",
                  r"\bthe pixel size and the radius R\b": "--pixel-size and --radius-um"}
+
+
+def family_keys() -> str:
+    """Each packaged family's parameters for a --set help: ``"uniform: k; …; volvox: f1..f5,
+    kappa1..kappa4, s1..s4, sigma; …"`` (numbered runs shortened), from the registry, so
+    that a new family is listed (the blister's G, w had not been)."""
+    from ..model.profiles import FAMILIES
+
+    def runs(names):
+        out, groups = [], {}
+        for name in names:
+            m = re.fullmatch(r"([a-z_]+)(\d+)", name)
+            if m:
+                groups.setdefault(m[1], []).append(int(m[2]))
+                if len(groups[m[1]]) == 1:
+                    out.append(m[1])
+            else:
+                out.append(name)
+        return [f"{n}{min(groups[n])}..{n}{max(groups[n])}" if len(groups.get(n, ())) > 1
+                else f"{n}{groups[n][0]}" if n in groups else n for n in out]
+    return "; ".join(f"{f.name}: {', '.join(runs(f.parameters))}" for f in FAMILIES.values())
 
 
 def reworded(message: str, options: Mapping[str, str]) -> str:

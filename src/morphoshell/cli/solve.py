@@ -4,15 +4,11 @@ from __future__ import annotations
 import argparse
 
 from ..io.problem_files import METHODS
-from ._args import LINEAR_SOLVERS, add_outputs, integer, problem_and_settings, real
+from ._args import LINEAR_SOLVERS, add_outputs, family_keys, integer, problem_and_settings, real
 from ._outputs import Outputs
 
 __all__ = ["register"]
 
-_SET_HELP = ("override a problem or solver entry, repeatable: h, theory, family, cut (Sigma), "
-             "opening (P), nodes, stages, method, or a parameter of the problem's family "
-             "(uniform: k; anisotropic: f0; local_relaxation: F0, s0; volvox: f1..f5, "
-             "kappa1..kappa4, s1..s4, sigma)")
 
 
 def _common(p: argparse.ArgumentParser) -> None:
@@ -22,7 +18,9 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("problem", metavar="PROBLEM.toml",
                    help="problem file (`morphoshell example NAME` prints one to start from)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help=_SET_HELP)
+                   help=f"override a problem or solver entry, once each: h, theory, family, "
+                        f"cut (Sigma), opening (P), nodes, stages, method, or a parameter of "
+                        f"the problem's family ({family_keys()})")
     p.add_argument("--method", choices=METHODS, default=None,
                    help="direct energy minimisation (default), or a reference route: bvp "
                         "(collocation of the Euler-Lagrange equations) or shooting (multiple "

@@ -3,17 +3,11 @@ from __future__ import annotations
 
 import math
 
-from ._args import LINEAR_SOLVERS, add_executor, add_outputs, integer
+from ._args import LINEAR_SOLVERS, add_executor, add_outputs, family_keys, integer
 from ._outputs import Outputs
 
 __all__ = ["register", "parse_axes"]
 
-_SET_HELP = ("KEY=VALUE overrides a problem entry; KEY=a,b,c (a list) or KEY=start:stop:num "
-             "(num values from start to stop, both included) makes KEY an axis of the sweep. "
-             "Repeatable. Keys: h, theory, cut (Sigma), opening (P), a parameter of the "
-             "problem's family (uniform: k; anisotropic: f0; local_relaxation: F0, s0; volvox: "
-             "f1..f5, kappa1..kappa4, s1..s4, sigma), and as plain overrides family, nodes, "
-             "stages")
 
 
 def register(sub) -> None:
@@ -38,7 +32,12 @@ def register(sub) -> None:
     p.add_argument("problem", metavar="PROBLEM.toml",
                    help="problem file (`morphoshell example NAME` prints one to start from)")
     p.add_argument("--set", dest="overrides", action="append", default=[],
-                   metavar="KEY=VALUES", help=_SET_HELP)
+                   metavar="KEY=VALUES",
+                   help=f"KEY=VALUE overrides a problem entry; KEY=a,b,c (a list) or "
+                        f"KEY=start:stop:num (num values from start to stop, both included) "
+                        f"makes KEY an axis of the sweep. Repeatable. Keys: h, theory, cut "
+                        f"(Sigma), opening (P), a parameter of the problem's family "
+                        f"({family_keys()}), and as plain overrides family, nodes, stages")
     p.add_argument("--ablate", action="store_true",
                    help="ablate at every point (cut > 0) and report the recoil observables "
                         "instead of the equilibrium")

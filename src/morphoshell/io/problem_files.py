@@ -116,6 +116,10 @@ def load_problem(path: str | Path) -> tuple[Problem, Settings]:
     except tomllib.TOMLDecodeError as exc:
         raise ProblemFileError(f"{path}: not valid TOML: {exc}") from None
     unknown = sorted(set(data) - {"problem", "parameters", "solver"})
+    loose = [k for k in unknown if not isinstance(data[k], dict)]
+    if loose:       # keys before any table: its header line is missing, not a table unknown
+        raise ProblemFileError(f"{path}: key(s) {loose} outside any table; is the [problem] "
+                               f"line above them missing?")
     if unknown:
         raise ProblemFileError(f"{path}: unknown table(s) {unknown}; "
                                f"expected [problem], [parameters], [solver]")
@@ -290,6 +294,8 @@ def parse_overrides(items: Iterable[str]) -> dict[str, Any]:
         if key in ALIASES:
             log.warning("--set %s: %r is deprecated, call it %r", item, key, ALIASES[key])
             key = ALIASES[key]
+        if key in out:      # (the last had won, silently; a sweep refused it)
+            raise ProblemFileError(f"--set {item!r}: {key} is set more than once")
         if key in _WORDS:
             out[key] = value
             continue
@@ -332,7 +338,7 @@ def apply_overrides(problem: Problem, overrides: Mapping[str, Any]) -> Problem:
     unknown = sorted(set(overrides) - valid)
     if unknown:
         raise ProblemFileError(f"--set: unknown key(s) {unknown} for family {family.name!r}; "
-                               f"valid: {sorted(valid)}")
+                               f"valid: {sorted(valid)}, and the solver's {list(SOLVER_KEYS)}")
     try:
         return problem.with_updates(**overrides)
     except ValueError as exc:
