@@ -6,7 +6,7 @@ from pathlib import Path
 from ._args import TRACE_OPTIONS, add_outputs, integer, micrometres, reworded
 from ._outputs import Outputs
 from ._profiles import (add_profile_options, profile_json, profile_names, profile_plot_path,
-                        profile_table, run_profiles)
+                        profile_table, refit_lines, run_profiles)
 
 __all__ = ["register"]
 
@@ -177,14 +177,18 @@ def _fit(args) -> int:
     print(result.summary())
     print(f"  E_fit = {result.E_fit:.6g} R over {N_FIT} points; {result.inner_solves} inner "
           f"solves, {result.seconds:.2f} s")
-    profiles = run_profiles(args, spec, midline, result, names) if names else {}
-    if profiles:
+    before, profiles = result, {}
+    if names:
+        result, profiles = run_profiles(args, spec, midline, result, names)
+        if result is not before:        # (the fit was not its minimum: the refit is the fit)
+            print(refit_lines(before, result))
+            limit = EVALUATION_LIMITS["gradient"][1]      # (the refit's: profile_intervals)
         print(profile_table(result, profiles))
     out = Outputs()
     out.add(args.json, lambda path: write_json(path, {**result.to_dict(),
                                                       "midline_file": str(args.midline),
-                                                      **(profile_json(profiles) if profiles
-                                                         else {})}))
+                                                      **(profile_json(profiles, before, result)
+                                                         if profiles else {})}))
     out.add(args.csv, lambda path: write_csv(path, {
         "parameter": list(result.fitted),
         "value": [result.parameters[n] for n in result.fitted],
@@ -199,5 +203,5 @@ def _fit(args) -> int:
         out.add(profile_plot_path(args), lambda path: save(figure, path))
     for path in out.commit():
         print(f"  wrote {path}")
-    print(stop_line(result, limit))
+    print(stop_line(result, limit, before if result is not before else None))
     return 0 if result.converged else 3
