@@ -106,6 +106,35 @@ def test_a_profile_below_the_fit_moves_the_fit_there_and_profiles_again(three, m
                for p in profiles.values())
 
 
+def test_profile_refits_count_on_a_progress_bar(three, monkeypatch):
+    """A profile of all 13 parameters takes minutes of refits that showed nothing: a bar
+    (console.counter, on a terminal only) plans points refits per profile, is labelled with
+    the profile under way and counts each refit."""
+    import contextlib
+    import types
+
+    import morphoshell.fitting.profiles as profiles_module
+
+    spec, data, result, _ = three
+    bars = []
+
+    @contextlib.contextmanager
+    def counter(total=None, *, desc="", unit="it", enabled=None):
+        bar = types.SimpleNamespace(total=total, unit=unit, n=0, labels=[desc],
+                                    refresh=lambda: None)
+        bar.update = lambda n=1: setattr(bar, "n", bar.n + n)
+        bar.set_description = bar.labels.append
+        bars.append(bar)
+        yield bar
+
+    monkeypatch.setattr(profiles_module, "counter", counter)
+    _, profiles = profiled_fit(spec, data, ["f1", "s2"], result=result, points=4)
+    [bar] = bars
+    assert (bar.total, bar.unit) == (8, "refit")
+    assert bar.labels == ["profiles: the fit refitted", "profile of f1", "profile of s2"]
+    assert bar.n == sum(len(p.values) - 1 for p in profiles.values())
+
+
 def test_rethresholding_scales_the_interval(three):
     _, _, _, profiles = three
     p = profiles["f1"]
@@ -240,6 +269,32 @@ def test_fit_command_reports_the_lower_fit_its_profile_found(midline_csv, tmp_pa
     assert last.startswith(f"Gradient fit (the profiles' refit from the fit's end at E_fit "
                            f"{replaced['E_fit']:.4g} R) converged after "), last
     assert last.endswith(f" at E_fit {data['E_fit']:.4g} R"), last
+
+
+def test_fit_command_shows_progress_on_a_terminal_only(midline_csv, monkeypatch, capsys):
+    """Nelder-Mead's evaluations and the profiles' refits draw bars on a terminal's standard
+    error (a 17 s Nelder-Mead fit on a terminal showed nothing, even with -v), and none where
+    standard error is a file or a pipe."""
+    import io
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    argv = ["fit", str(midline_csv), "--variant", "flat", "--nodes", str(NODES), *HELD,
+            "--method", "nelder-mead", "--max-evaluations", "5", "--profile", "f1",
+            "--profile-points", "2"]
+    with monkeypatch.context() as patched:
+        term = Terminal()
+        patched.setattr("sys.stderr", term)
+        main(argv)
+    shown = term.getvalue()
+    assert "Nelder-Mead:" in shown and "/5 [" in shown and "evaluation" in shown
+    assert "profile of f1:" in shown and "refit" in shown
+    capsys.readouterr()
+    main(argv)                                      # (capsys: not a terminal)
+    err = capsys.readouterr().err
+    assert "Nelder-Mead:" not in err and "refit" not in err and "\r" not in err
 
 
 @pytest.mark.parametrize("names, said", [

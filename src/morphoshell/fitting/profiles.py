@@ -57,6 +57,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from .._runtime.console import counter
 from ..numerics.status import FIT_NOT_MINIMUM
 from ..solvers.direct import solver_of
 from ..solvers.results import Equilibrium, SolverError
@@ -468,7 +469,7 @@ def _refit_checked(opt: _Optimum, name: str, walked: tuple, value: float, method
 
 
 def _walk(opt: _Optimum, name: str, steps: list[float], direction: float, step: float,
-          threshold: float, method: str, tol: float) -> tuple[list, list, list, str, tuple]:
+          threshold: float, method: str, tol: float, bar) -> tuple[list, list, list, str, tuple]:
     """Refit at each of ``steps`` outward from θ̂, each from the last one's end
     (:func:`_refit_checked`).
 
@@ -476,8 +477,9 @@ def _walk(opt: _Optimum, name: str, steps: list[float], direction: float, step: 
     :data:`EXTEND_STEPS`) while the objective stays below ``threshold`` and
     the bound is not reached; stops at a refit that fails (its objective
     NaN) or lies beyond :data:`STOP_MARGIN` times the threshold's height.
-    Returns values, objectives, converged flags, a note and the lowest refit
-    (objective, spec, θ, state; None without one), where a lower optimum may lie.
+    Each refit counts one on the progress bar ``bar``.  Returns values,
+    objectives, converged flags, a note and the lowest refit (objective, spec,
+    θ, state; None without one), where a lower optimum may lie.
     """
     lo, hi = opt.spec.bounds.get(name, (-np.inf, np.inf))
     walked = (opt.spec, opt.theta.copy(), opt.eq)
@@ -487,6 +489,7 @@ def _walk(opt: _Optimum, name: str, steps: list[float], direction: float, step: 
     while plan and not (objective and objective[-1] > beyond):
         value = plan.pop(0)
         out, failure = _refit_checked(opt, name, walked, value, method, tol, jump)
+        bar.update()
         values.append(value)
         if out is None:
             # (the next step would start from a state no refit reached: stop here)
@@ -536,9 +539,10 @@ def _crossing(values: list, objective: list, start: tuple[float, float], directi
 
 
 def _profile(opt: _Optimum, data, name: str, points: int, span, method: str, tol: float,
-             confidence: float, noise) -> tuple[Profile, tuple | None]:
+             confidence: float, noise, bar) -> tuple[Profile, tuple | None]:
     """The profile of ``name`` about the optimum ``opt`` (see :func:`profile`), and its
-    lowest refit (:func:`_walk`)."""
+    lowest refit (:func:`_walk`; its refits counted on the progress bar ``bar``)."""
+    bar.set_description(f"profile of {name}")
     sigma2, source = noise_variance(data, opt.S, len(opt.theta), noise)
     dof = noise_dof(data, source)
     q = threshold_quantile(confidence, dof)
@@ -546,8 +550,8 @@ def _profile(opt: _Optimum, data, name: str, points: int, span, method: str, tol
     threshold = opt.S + sigma2 * q
     j = opt.spec.fitted.index(name)
     value = float(opt.theta[j])
-    vb, sb, cb, note_b, low_b = _walk(opt, name, below, -1.0, step, threshold, method, tol)
-    va, sa, ca, note_a, low_a = _walk(opt, name, above, 1.0, step, threshold, method, tol)
+    vb, sb, cb, note_b, low_b = _walk(opt, name, below, -1.0, step, threshold, method, tol, bar)
+    va, sa, ca, note_a, low_a = _walk(opt, name, above, 1.0, step, threshold, method, tol, bar)
     values = np.array([*vb[::-1], value, *va])
     objective = np.array([*sb[::-1], opt.S, *sa])
     notes = [n for n in (note_b, note_a, _unconverged_crossing(name, vb, sb, cb, threshold),
@@ -642,18 +646,26 @@ def profiled_fit(spec: FitSpec, data, names: Sequence[str] | None = None, *,
     noise_variance(data, 1.0, len(spec.fitted), noise)      # (checks it before any work)
     points_ = as_points(data)
     check_midline(spec, points_)
-    opt = _optimum(spec, points_, result, method, nodes, tol)
     spans = span if isinstance(span, Mapping) else {n: span for n in names}
-    return _about_minimum(opt, method, tol, lambda opt: {
-        n: _profile(opt, data, n, points, spans.get(n), method, tol, confidence, noise)
-        for n in names})
+    # (a bar of the planned refits, on a terminal: a profile of all 13 parameters takes
+    # minutes, and its refits are many small gradient fits that show nothing)
+    with counter(len(names) * points, desc="profiles: the fit refitted", unit="refit") as bar:
+        opt = _optimum(spec, points_, result, method, nodes, tol)
+        return _about_minimum(opt, method, tol, bar, lambda opt: {
+            n: _profile(opt, data, n, points, spans.get(n), method, tol, confidence, noise, bar)
+            for n in names})
 
 
-def _about_minimum(opt: _Optimum, method: str, tol: float, run) -> tuple:
+def _about_minimum(opt: _Optimum, method: str, tol: float, bar, run) -> tuple:
     """``run(opt)``'s profiles (each with its lowest refit), again about the fit from the
     lowest refit while one lies lower than the optimum (at most :data:`MAX_RECENTRINGS`
-    times): the fit and the profiles of :func:`profiled_fit`."""
+    times; the progress bar ``bar`` plans their refits again): the fit and the profiles
+    of :func:`profiled_fit`."""
+    planned = bar.total
     for recentrings in range(MAX_RECENTRINGS + 1):
+        if recentrings:
+            bar.total += planned
+            bar.refresh()
         out = run(opt)
         profiles = {n: p for n, (p, _) in out.items()}
         lowest = min((low for _, low in out.values() if low is not None),
