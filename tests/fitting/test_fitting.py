@@ -291,6 +291,13 @@ def test_fit_start_takes_the_parameters_and_refuses_a_cut_shell(midline_csv, tmp
     assert (problem["name"], problem["h"]) == ("", 0.13)
 
 
+def test_fit_help_gives_the_range_of_nodes(capsys):
+    """--nodes accepts 20 to 3200 (bilevel.FIT_NODES): --help says so."""
+    assert main(["fit", "--help"]) == 0
+    assert "mesh nodes of the inner solves, 20 to 3200 (default 200)" in \
+        " ".join(capsys.readouterr().out.split())
+
+
 def test_fit_command_names_a_midline_of_the_wrong_scale(midline_csv, tmp_path, capsys):
     small = tmp_path / "small.csv"
     m = Midline.from_csv(midline_csv)

@@ -7,6 +7,7 @@ coarse mesh: nearly linear at the noise of 10⁻³ R, so the profile intervals s
 be the Gauss–Newton ones.
 """
 import json
+import re
 
 import numpy as np
 import pytest
@@ -244,6 +245,9 @@ def test_fit_command_writes_profile_intervals(midline_csv, tmp_path, capsys, met
     assert png.stat().st_size > 10_000
     printed = capsys.readouterr().out
     assert "profile intervals (95 %, gradient refits" in printed and "GN +-" in printed
+    # (units: f1 a stretch, s2 a breakpoint)
+    assert re.search(r"\n  f1 .*\] \(dimensionless\)  GN \+-", printed), printed
+    assert re.search(r"\n  s2 .*\] R  GN \+-", printed), printed
 
 
 def test_fit_command_reports_the_lower_fit_its_profile_found(midline_csv, tmp_path, capsys):

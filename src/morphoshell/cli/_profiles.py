@@ -29,7 +29,7 @@ def add_profile_options(p) -> None:
                         "lower than the fit means the fit was not at its minimum: the lower "
                         "refit becomes the fit, as the terminal and the JSON (replaced_fit) say")
     p.add_argument("--profile-points", dest="profile_points", type=integer(2, 1000), default=20,
-                   metavar="N", help="refits per profile (default 20)")
+                   metavar="N", help="refits per profile, 2 to 1000 (default 20)")
     p.add_argument("--profile-noise", dest="profile_noise", default="auto",
                    choices=("auto", "residual", "traces"),
                    help="the noise variance of the threshold: from the fit's residual, or from "
@@ -120,7 +120,8 @@ def profile_table(result, profiles: dict) -> str:
         lo, hi = p.interval
         se = result.standard_errors.get(name, math.nan)
         gn = f"+-{1.96 * se:.3g}" if math.isfinite(se) else "(on a constraint)"
-        lines.append(f"  {name:8s} {p.fitted_value: .6g}  [{lo: .6g}, {hi: .6g}]  GN {gn}"
+        unit = f" {result.unit(name)}".rstrip()
+        lines.append(f"  {name:8s} {p.fitted_value: .6g}  [{lo: .6g}, {hi: .6g}]{unit}  GN {gn}"
                      + ("  not determined by the data" if p.flat else "")
                      + (f"  ({p.note})" if p.note else ""))
     return "\n".join(lines)

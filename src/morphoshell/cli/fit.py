@@ -64,7 +64,8 @@ def register(sub) -> None:
                         "geometry is refused); default: the family's illustrative values, "
                         "h = 0.15, P = 0.3")
     p.add_argument("--nodes", type=integer(*FIT_NODES), default=200, metavar="N",
-                   help="mesh nodes of the inner solves (default 200)")
+                   help=f"mesh nodes of the inner solves, {FIT_NODES[0]} to {FIT_NODES[1]} "
+                        f"(default 200)")
     limits = "; ".join(f"{m}: {unit} (default {n})" for m, (unit, n) in EVALUATION_LIMITS.items())
     p.add_argument("--max-evaluations", dest="max_evaluations", type=integer(1, 10**9),
                    default=None, metavar="N",
