@@ -218,3 +218,38 @@ def test_outputs_have_the_permissions_of_a_new_file(tmp_path, capsys):
     finally:
         os.umask(old)
     assert [p.stat().st_mode & 0o777 for p in out] == [0o644, 0o644, 0o640]
+
+
+def test_counted_progress_bars_show_on_a_terminal_of_the_main_process_only(monkeypatch):
+    """counter(): a bar counted by hand (Nelder-Mead's evaluations, the profiles' refits),
+    shown when progress() would be, and not in a worker process (a campaign's workers share
+    its terminal: one bar each would garble it)."""
+    import io
+    import multiprocessing
+
+    from morphoshell._runtime.console import configure, counter
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    term = Terminal()
+    monkeypatch.setattr("sys.stderr", term)
+    with counter(5, desc="fits", unit="fit") as bar:
+        bar.update(3)
+        assert bar.n == 3                                    # a tqdm bar
+    assert "fits:" in term.getvalue() and "/5" in term.getvalue()
+    restore = configure(-1)                                  # --quiet
+    try:
+        with counter(5) as bar:
+            assert not hasattr(bar, "n")
+    finally:
+        restore()
+    with monkeypatch.context() as worker:
+        worker.setattr(multiprocessing, "parent_process", lambda: object())
+        with counter(5) as bar:
+            assert not hasattr(bar, "n")
+            bar.update(2)                                    # (does nothing)
+    monkeypatch.setattr("sys.stderr", io.StringIO())         # not a terminal
+    with counter(5) as bar:
+        assert not hasattr(bar, "n")

@@ -33,6 +33,39 @@ def test_a_fit_near_a_fold_of_the_branch_is_not_converged(blowup, converged):
     assert r.stop == ("Fit_Converged" if converged else "Fit_Near_Fold")
 
 
+def test_the_summary_gives_every_parameter_its_unit_and_directions_as_sums():
+    """Fitted values printed without units ('kappa1 = 1.37765 ± 0.12', though every printed
+    quantity carries its unit) and poorly identified directions as a Python dict ("{'f2':
+    0.695, ...}"): now the family's units (stretches dimensionless, curvatures 1/R,
+    breakpoints R) and a sum of the parameters."""
+    import re
+    from types import SimpleNamespace
+
+    from morphoshell.fitting.results import fit_result
+
+    spec = volvox_spec("free")
+    k = len(spec.fitted)
+    rng = np.random.default_rng(2)
+    u, sv, vt = np.linalg.svd(rng.normal(size=(200, k)), full_matrices=False)
+    sv[-1] = 1e-5 * sv[0]                       # one direction the data hardly see
+    theta = spec.theta0                         # (off every constraint)
+    J = u @ np.diag(sv) @ vt / np.maximum(np.abs(theta), 1e-2)   # (fit_result scales by θ)
+    eq = SimpleNamespace(problem=spec.base)
+    inner = SimpleNamespace(solve=lambda theta: eq, residuals=lambda eq: np.full(200, 1e-3),
+                            jacobian=lambda eq, theta: J, data=np.zeros((100, 2)), n=100,
+                            solves=1)
+    lines = fit_result("gradient", spec, inner, theta, 5, 0.1, True, "").summary().split("\n")
+    units = {"f": "(dimensionless)", "kappa": "1/R", "s": "R"}
+    for name in spec.fitted:
+        [line] = [x for x in lines if x.startswith(f"  {name} ")]
+        assert line.endswith(" " + units[name.rstrip("12345")]) and " ± " in line, line
+    [poor] = [x for x in lines if "poorly identified" in x]
+    assert "{" not in poor and "'" not in poor, poor
+    assert re.search(r"poorly identified: -?\d\.\d+ \w+ [+-] \d\.\d+ \w+ [+-] \d\.\d+ \w+ "
+                     r"\+ \.\.\. \(parameters relative to their size; singular value 1e-05 of "
+                     r"the largest\)$", poor), poor
+
+
 def test_a_fit_that_ends_on_a_constraint_says_so_and_gives_no_errors_there():
     """Data whose s3 lies 0.6 sigma above s2: the fit (gaps of at least sigma) ends on
     s3 - s2 = sigma, a constrained optimum, and says so; s2 and s3 get no standard errors

@@ -122,6 +122,17 @@ def _ended(method="gradient", stop="Fit_Converged", converged=False, its=42, E_f
      "KKT fit failed from moved boxes after 42 iterations at E_fit 0.0123 R, not converged: "
      "the fit within the last boxes stands; go on from it with --start FIT.json (its --json "
      "output), or another --method"),
+    (_ended("gradient", "Fit_Not_Minimum"), 200,
+     "Gradient fit ended short of its minimum after 42 evaluations at E_fit 0.0123 R, not "
+     "converged: a profile's refit lies lower (the profiles' notes say where); fit again from "
+     "it with --start FIT.json (its --json output), or another --method"),
 ])
 def test_the_last_line_names_every_way_a_fit_ends(result, limit, line):
     assert stop_line(result, limit) == line
+
+
+def test_the_last_line_names_the_fit_a_profiles_refit_went_on_from():
+    refit, fit = _ended(converged=True, its=12, E_fit=0.01215), _ended(E_fit=0.01236)
+    assert stop_line(refit, 200, fit) == (
+        "Gradient fit (the profiles' refit from the fit's end at E_fit 0.01236 R) converged "
+        "after 12 evaluations at E_fit 0.01215 R")

@@ -256,6 +256,48 @@ def test_fit_command_refuses_bad_input(midline_csv, args, named, capsys):
     assert named in err and "Traceback" not in err
 
 
+def test_fit_start_takes_the_parameters_and_refuses_a_cut_shell(midline_csv, tmp_path, capsys):
+    """--start takes the Volvox parameters, h and opening of a problem or result file; one
+    whose problem no fit has (a cut, as the JSON of morphoshell ablate: a shell with a hole at
+    the pole was fitted to an intact trace, E_fit 48 times normal, 'converged'; another
+    theory) is refused in one line naming the file and the entry, before any work."""
+    held = [f"--set={n}={TRUE.params[n]}" for n in TRUE.family_obj.parameters
+            if n not in THREE and n not in ("kappa1", "sigma")]
+    first, out = tmp_path / "first.json", tmp_path / "fit.json"
+    fit_argv = ["fit", str(midline_csv), "--variant", "flat", "--nodes", str(NODES), *held]
+    assert main([*fit_argv, "--set", "h=0.14", "--json", str(first)]) == 0
+    ablation = tmp_path / "ablation.json"
+    assert main(["ablate", str(first), "--set", "cut=0.15", "--nodes", "40",
+                 "--json", str(ablation)]) == 0
+    capsys.readouterr()
+    assert main([*fit_argv, "--start", str(ablation), "--json", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"--start {ablation}: problem.cut = 0.15: " in err
+    assert "intact (cut = 0)" in err and not out.exists()
+    toml = tmp_path / "start.toml"
+    toml.write_text('[problem]\nfamily = "volvox"\ntheory = "classical"\nh = 0.15\n'
+                    'opening = 0.3\n')
+    assert main([*fit_argv, "--start", str(toml), "--json", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"--start {toml}: [problem] theory = 'classical': " in err and not out.exists()
+    # a fit's JSON or a problem file: its parameters and h go on, the rest is a fit's own
+    assert main([*fit_argv, "--start", str(first), "--json", str(out)]) == 0
+    problem = json.loads(out.read_text())["problem"]
+    assert (problem["cut"], problem["h"], problem["theory"]) == (0.0, 0.14, "large_bending")
+    toml.write_text('[problem]\nfamily = "volvox"\nname = "stage5"\nh = 0.13\n'
+                    'opening = 0.3\n[parameters]\nf1 = 0.85\n')
+    assert main([*fit_argv, "--start", str(toml), "--json", str(out)]) == 0
+    problem = json.loads(out.read_text())["problem"]
+    assert (problem["name"], problem["h"]) == ("", 0.13)
+
+
+def test_fit_help_gives_the_range_of_nodes(capsys):
+    """--nodes accepts 20 to 3200 (bilevel.FIT_NODES): --help says so."""
+    assert main(["fit", "--help"]) == 0
+    assert "mesh nodes of the inner solves, 20 to 3200 (default 200)" in \
+        " ".join(capsys.readouterr().out.split())
+
+
 def test_fit_command_names_a_midline_of_the_wrong_scale(midline_csv, tmp_path, capsys):
     small = tmp_path / "small.csv"
     m = Midline.from_csv(midline_csv)

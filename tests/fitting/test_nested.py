@@ -90,3 +90,41 @@ def test_a_gradient_fit_that_stalls_short_of_a_stationary_point_is_not_converged
     # out of evaluations (max_nfev) it says so
     _, evaluations, converged, _, stop = fitting.gradient_fit(spec, Inner(False), 1e-10, 1)
     assert evaluations == 1 and not converged and stop == "Maximum_Evaluations_Exceeded"
+
+
+def test_nelder_mead_counts_its_evaluations_on_a_progress_bar(monkeypatch):
+    """Thousands of evaluations (the default limit is 20 000; minutes at 200 nodes) were
+    silent on a terminal: a bar (console.counter, shown on a terminal only) counts every
+    evaluation against the limit, the start's included."""
+    import contextlib
+    import types
+
+    import morphoshell.fitting.nested as fitting
+
+    bars = []
+
+    @contextlib.contextmanager
+    def counter(total=None, *, desc="", unit="it", enabled=None):
+        bars.append(types.SimpleNamespace(total=total, desc=desc, unit=unit, n=0))
+        bars[-1].update = lambda n=1: setattr(bars[-1], "n", bars[-1].n + n)
+        yield bars[-1]
+
+    target = np.array([1.0, 2.0])
+
+    class Inner:
+        n = 2
+
+        def solve(self, theta, trial=False):
+            return np.asarray(theta, dtype=float)
+
+        def residuals(self, eq):
+            return np.concatenate([eq - target, [0.0, 0.0]])
+
+    monkeypatch.setattr(fitting, "counter", counter)
+    spec = types.SimpleNamespace(theta0=np.array([0.0, 0.0]), problem=lambda theta: None,
+                                 box=lambda: (np.full(2, -np.inf), np.full(2, np.inf)))
+    theta, evaluations, converged, _, _ = fitting.nelder_mead_fit(spec, Inner(), 1e-12, 300)
+    assert converged and theta == pytest.approx(target, abs=1e-4)
+    [bar] = bars
+    assert (bar.total, bar.desc, bar.unit) == (300, "Nelder-Mead", "evaluation")
+    assert bar.n == evaluations + 1 and evaluations > 50

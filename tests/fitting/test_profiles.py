@@ -7,13 +7,15 @@ coarse mesh: nearly linear at the noise of 10⁻³ R, so the profile intervals s
 be the Gauss–Newton ones.
 """
 import json
+import re
 
 import numpy as np
 import pytest
 
 from morphoshell.cli import main
 from morphoshell.fitting import (fit, noise_dof, noise_variance, profile, profile_intervals,
-                                 synthetic_midline, threshold_quantile, volvox_spec)
+                                 profiled_fit, synthetic_midline, threshold_quantile,
+                                 volvox_spec)
 from morphoshell.io import Midline
 
 from fitting_cases import NODES, THREE, TRUE, three_parameter_spec
@@ -24,7 +26,8 @@ def three():
     spec = three_parameter_spec()
     data = synthetic_midline(TRUE, spec.base, nodes=NODES, noise=1e-3, seed=3)
     result = fit(spec, data, "gradient", nodes=NODES)
-    profiles = profile_intervals(spec, data, THREE, result=result, points=6)
+    found, profiles = profiled_fit(spec, data, THREE, result=result, points=6)
+    assert found is result              # (at its minimum: the fit stands)
     return spec, data, result, profiles
 
 
@@ -52,6 +55,85 @@ def test_a_determined_parameter_has_the_gauss_newton_interval(three):
         # a nearly linear problem: the same interval within a few per cent
         for half in (p.fitted_value - lo, hi - p.fitted_value):
             assert 0.9 < half / gn < 1.1, (name, half, gn)
+
+
+def test_a_fit_short_of_its_minimum_is_replaced_by_the_profiles_refit(three):
+    """The profiles' refit goes on from the fit's end; where it lies lower the fit had not
+    reached its minimum (the synthetic t02 embryo 1, free, 60 nodes: 'converged' at E_fit
+    0.01236 R, κ₁ 1.295, while the profile's minimum was 0.01215 R at 1.417 and the JSON held
+    both), and the lower refit is the fit the profiles are about: its parameters are the
+    profiles' fitted values, its E_fit² their least objective."""
+    spec, data, full, _ = three
+    short = fit(spec, data, "gradient", nodes=NODES, max_iterations=2)
+    assert short.E_fit > 2 * full.E_fit                  # (far from the minimum)
+    found, profiles = profiled_fit(spec, data, ["f1"], result=short, points=4)
+    assert found is not short and found.converged
+    assert found.E_fit == pytest.approx(full.E_fit, rel=1e-4)
+    assert "had not reached its minimum (E_fit " in found.message
+    p = profiles["f1"]
+    assert found.parameters["f1"] == p.fitted_value
+    assert p.S_min == pytest.approx(found.E_fit ** 2, rel=1e-9) and not p.below_fit
+    assert set(found.standard_errors) == set(THREE)
+
+
+def test_a_profile_below_the_fit_moves_the_fit_there_and_profiles_again(three, monkeypatch):
+    """A refit with one parameter held can lie below the optimum the profiles started from
+    (here made so: the optimum's own refit gets one evaluation): all the parameters are fitted
+    again from the lowest refit and the profiles computed about that fit.  Without another
+    round (MAX_RECENTRINGS = 0) the fit is flagged as not the minimum, and each profile says
+    where it went lower."""
+    import morphoshell.fitting.profiles as profiles_module
+
+    spec, data, full, _ = three
+    short = fit(spec, data, "gradient", nodes=NODES, max_iterations=2)
+    real, calls = profiles_module.fit_moving_boxes, []
+
+    def first_weak(run, spec_, inner, tol, max_iterations):
+        calls.append(spec_)
+        return real(run, spec_, inner, tol, 1 if len(calls) == 1 else max_iterations)
+
+    monkeypatch.setattr(profiles_module, "fit_moving_boxes", first_weak)
+    found, profiles = profiled_fit(spec, data, ["f1", "s2"], result=short, points=4)
+    assert found.converged and found.E_fit == pytest.approx(full.E_fit, rel=1e-4)
+    for name, p in profiles.items():
+        assert not p.below_fit and p.note == "", name
+        assert p.fitted_value == found.parameters[name], name
+    calls.clear()
+    monkeypatch.setattr(profiles_module, "MAX_RECENTRINGS", 0)
+    found, profiles = profiled_fit(spec, data, ["f1", "s2"], result=short, points=4)
+    assert not found.converged and found.stop == "Fit_Not_Minimum"
+    assert "it is not the minimum" in found.message
+    assert all(p.below_fit and "found a lower objective (E_fit " in p.note
+               for p in profiles.values())
+
+
+def test_profile_refits_count_on_a_progress_bar(three, monkeypatch):
+    """A profile of all 13 parameters takes minutes of refits that showed nothing: a bar
+    (console.counter, on a terminal only) plans points refits per profile, is labelled with
+    the profile under way and counts each refit."""
+    import contextlib
+    import types
+
+    import morphoshell.fitting.profiles as profiles_module
+
+    spec, data, result, _ = three
+    bars = []
+
+    @contextlib.contextmanager
+    def counter(total=None, *, desc="", unit="it", enabled=None):
+        bar = types.SimpleNamespace(total=total, unit=unit, n=0, labels=[desc],
+                                    refresh=lambda: None)
+        bar.update = lambda n=1: setattr(bar, "n", bar.n + n)
+        bar.set_description = bar.labels.append
+        bars.append(bar)
+        yield bar
+
+    monkeypatch.setattr(profiles_module, "counter", counter)
+    _, profiles = profiled_fit(spec, data, ["f1", "s2"], result=result, points=4)
+    [bar] = bars
+    assert (bar.total, bar.unit) == (8, "refit")
+    assert bar.labels == ["profiles: the fit refitted", "profile of f1", "profile of s2"]
+    assert bar.n == sum(len(p.values) - 1 for p in profiles.values())
 
 
 def test_rethresholding_scales_the_interval(three):
@@ -163,6 +245,60 @@ def test_fit_command_writes_profile_intervals(midline_csv, tmp_path, capsys, met
     assert png.stat().st_size > 10_000
     printed = capsys.readouterr().out
     assert "profile intervals (95 %, gradient refits" in printed and "GN +-" in printed
+    # (units: f1 a stretch, s2 a breakpoint)
+    assert re.search(r"\n  f1 .*\] \(dimensionless\)  GN \+-", printed), printed
+    assert re.search(r"\n  s2 .*\] R  GN \+-", printed), printed
+
+
+def test_fit_command_reports_the_lower_fit_its_profile_found(midline_csv, tmp_path, capsys):
+    """A fit short of its minimum (here: stopped after 2 evaluations) whose profile's refit
+    goes lower: the terminal says so and prints the refit, which is the fit (JSON parameters,
+    E_fit and standard errors the refit's, what it replaced under replaced_fit) and decides
+    the last line and the exit status."""
+    out = tmp_path / "fit.json"
+    assert main(["fit", str(midline_csv), "--variant", "flat", "--nodes", str(NODES), *HELD,
+                 "--max-evaluations", "2", "--profile", "f1", "--profile-points", "4",
+                 "--json", str(out)]) == 0
+    data = json.loads(out.read_text())
+    p = data["profiles"]["f1"]
+    assert data["parameters"]["f1"] == p["fitted_value"] and data["converged"]
+    assert data["E_fit"] == pytest.approx(np.sqrt(p["S_min"]), rel=1e-9)
+    replaced = data["replaced_fit"]
+    assert replaced["E_fit"] > 2 * data["E_fit"] and not replaced["converged"]
+    assert replaced["parameters"]["f1"] != data["parameters"]["f1"]
+    printed = capsys.readouterr().out
+    assert "the profiles' refit went on from the fit's end to a lower E_fit" in printed
+    assert printed.count("FitResult(gradient, flat") == 2      # the fit, then the refit
+    last = printed.splitlines()[-1]
+    assert last.startswith(f"Gradient fit (the profiles' refit from the fit's end at E_fit "
+                           f"{replaced['E_fit']:.4g} R) converged after "), last
+    assert last.endswith(f" at E_fit {data['E_fit']:.4g} R"), last
+
+
+def test_fit_command_shows_progress_on_a_terminal_only(midline_csv, monkeypatch, capsys):
+    """Nelder-Mead's evaluations and the profiles' refits draw bars on a terminal's standard
+    error (a 17 s Nelder-Mead fit on a terminal showed nothing, even with -v), and none where
+    standard error is a file or a pipe."""
+    import io
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    argv = ["fit", str(midline_csv), "--variant", "flat", "--nodes", str(NODES), *HELD,
+            "--method", "nelder-mead", "--max-evaluations", "5", "--profile", "f1",
+            "--profile-points", "2"]
+    with monkeypatch.context() as patched:
+        term = Terminal()
+        patched.setattr("sys.stderr", term)
+        main(argv)
+    shown = term.getvalue()
+    assert "Nelder-Mead:" in shown and "/5 [" in shown and "evaluation" in shown
+    assert "profile of f1:" in shown and "refit" in shown
+    capsys.readouterr()
+    main(argv)                                      # (capsys: not a terminal)
+    err = capsys.readouterr().err
+    assert "Nelder-Mead:" not in err and "refit" not in err and "\r" not in err
 
 
 @pytest.mark.parametrize("names, said", [

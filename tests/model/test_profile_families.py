@@ -34,3 +34,19 @@ def test_the_blister_example_refuses_a_bad_growth_before_any_work(capsys):
     assert main(["solve", str(example_path("blister")), "--set", "G=-2"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "G = -2" in err[0]
+
+
+def test_every_packaged_family_gives_each_parameter_a_unit():
+    """A fit prints each value with its unit (FitResult.unit): the families say which, and a
+    unit of a name that is no parameter is refused when the family is registered."""
+    from morphoshell.model.profiles import FAMILIES, ProfileFamily, register_family
+
+    for name in ("uniform", "anisotropic", "local_relaxation", "central_growth", "volvox"):
+        family = FAMILIES[name]
+        assert set(family.units) == set(family.parameters), name
+        assert set(family.units.values()) <= {"R", "1/R", "1"}, name
+    uniform = FAMILIES["uniform"]
+    with pytest.raises(ValueError, match=r"gives units of \['kk'\], which are not among"):
+        register_family(ProfileFamily("stray_units", ("k",), {"k": 0.0}, uniform.build,
+                                      units={"kk": "1/R"}))
+    assert "stray_units" not in FAMILIES

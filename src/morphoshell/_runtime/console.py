@@ -7,17 +7,20 @@ scripts call :func:`configure` (``--verbose``/``--quiet``); in your own
 programs the standard ``logging`` configuration applies, e.g.
 ``logging.getLogger("morphoshell").setLevel(logging.INFO)``.
 
-Progress bars (:func:`progress`, tqdm on standard error) are shown for long
-jobs when standard error is a terminal and morphoshell's warnings are not
-silenced (``--quiet``).
+Progress bars (:func:`progress` over an iterable, :func:`counter` counted by
+hand; tqdm on standard error) are shown for long jobs when standard error is a
+terminal, morphoshell's warnings are not silenced (``--quiet``) and the process
+is not a worker of another (a campaign's fits draw one bar, in the campaign's
+process, not one per worker on the same terminal).
 """
 from __future__ import annotations
 
 import logging
 import sys
-from typing import Any, Callable, Iterable, TypeVar
+from contextlib import contextmanager
+from typing import Any, Callable, Iterable, Iterator, TypeVar
 
-__all__ = ["configure", "progress", "LOGGER", "verbosity_level", "run_script"]
+__all__ = ["configure", "progress", "counter", "LOGGER", "verbosity_level", "run_script"]
 
 #: The package's root logger name.
 LOGGER = "morphoshell"
@@ -86,6 +89,18 @@ def run_script(parser, argv, run: Callable[[Any], int]) -> int:
         restore()
 
 
+def _shown(enabled: bool | None) -> bool:
+    """Whether a progress bar is drawn: ``enabled``, or by default when standard error is
+    a terminal, the ``morphoshell`` logger shows warnings and this is no worker process."""
+    if enabled is not None:
+        return enabled
+    import multiprocessing
+
+    return (logging.getLogger(LOGGER).isEnabledFor(logging.WARNING)
+            and hasattr(sys.stderr, "isatty") and sys.stderr.isatty()
+            and multiprocessing.parent_process() is None)
+
+
 def progress(iterable: Iterable[T], *, total: int | None = None, desc: str = "",
              unit: str = "it", enabled: bool | None = None) -> Iterable[T]:
     """``iterable`` with a progress bar on standard error (tqdm).
@@ -98,15 +113,61 @@ def progress(iterable: Iterable[T], *, total: int | None = None, desc: str = "",
     desc, unit : str
         Label of the bar and of its items.
     enabled : bool, optional
-        Default: when standard error is a terminal and the ``morphoshell``
-        logger shows warnings (not ``--quiet``).
+        Default: when standard error is a terminal, the ``morphoshell``
+        logger shows warnings (not ``--quiet``) and this is no worker process.
     """
-    if enabled is None:
-        enabled = (logging.getLogger(LOGGER).isEnabledFor(logging.WARNING)
-                   and hasattr(sys.stderr, "isatty") and sys.stderr.isatty())
-    if not enabled:
+    if not _shown(enabled):
         return iterable
     from tqdm import tqdm
 
     return tqdm(iterable, total=total, desc=desc, unit=unit, leave=False, file=sys.stderr,
                 dynamic_ncols=True)
+
+
+class _NoBar:
+    """What :func:`counter` gives when no bar is shown: its methods do nothing."""
+
+    total = 0
+
+    def update(self, n: int = 1) -> None:
+        """Nothing (a bar would count ``n`` more)."""
+
+    def set_description(self, desc: str) -> None:
+        """Nothing (a bar would relabel itself)."""
+
+    def refresh(self) -> None:
+        """Nothing (a bar would redraw itself)."""
+
+
+@contextmanager
+def counter(total: int | None = None, *, desc: str = "", unit: str = "it",
+            enabled: bool | None = None) -> Iterator[Any]:
+    """A progress bar counted by hand, ``bar.update(n)``: for work that is no iterable (an
+    optimiser's evaluations, made through its callbacks).
+
+    Parameters
+    ----------
+    total : int, optional
+        What the count goes to (the bar may be told a new ``total`` on the way).
+    desc, unit : str
+        Label of the bar and of what it counts.
+    enabled : bool, optional
+        As :func:`progress`.
+
+    Yields
+    ------
+    tqdm or a stand-in
+        Its ``update``, ``set_description`` and ``refresh``; without a bar they do
+        nothing.  The bar is closed, leaving no line, when the block ends.
+    """
+    if not _shown(enabled):
+        yield _NoBar()
+        return
+    from tqdm import tqdm
+
+    bar = tqdm(total=total, desc=desc, unit=unit, leave=False, file=sys.stderr,
+               dynamic_ncols=True)
+    try:
+        yield bar
+    finally:
+        bar.close()

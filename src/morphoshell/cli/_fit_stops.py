@@ -13,7 +13,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from ..numerics.status import (FIT_CONVERGED, FIT_MOVED_BOXES_FAILED, FIT_NEAR_FOLD,
-                               FIT_NOT_STATIONARY, FIT_ON_BOX_EDGES, FIT_STALLED,
+                               FIT_NOT_MINIMUM, FIT_NOT_STATIONARY, FIT_ON_BOX_EDGES, FIT_STALLED,
                                MAXIMUM_EVALUATIONS_EXCEEDED, MAXIMUM_ITERATIONS_EXCEEDED,
                                SOLVE_SUCCEEDED, SOLVED_TO_ACCEPTABLE_LEVEL, explain)
 
@@ -32,7 +32,7 @@ _START = "--start FIT.json"
 _ELSEWHERE = f"start nearer the data with {_START} (a fit of a neighbouring stage)"
 
 
-def stop_line(result: FitResult, limit: int) -> str:
+def stop_line(result: FitResult, limit: int, refit_of: FitResult | None = None) -> str:
     """One line: how ``result`` ended and, unless it converged, what to try.
 
     Parameters
@@ -42,6 +42,9 @@ def stop_line(result: FitResult, limit: int) -> str:
     limit : int
         The evaluation limit it ran with (``--max-evaluations`` or the
         method's default, :data:`morphoshell.fitting.bilevel.EVALUATION_LIMITS`).
+    refit_of : FitResult, optional
+        The fit whose end ``result`` went on from (``--profile``'s refit, where it
+        found a lower E_fit): the line says so.
 
     Returns
     -------
@@ -51,6 +54,8 @@ def stop_line(result: FitResult, limit: int) -> str:
         from a gradient fit with --start FIT.json".
     """
     name, unit = NAMES.get(result.method, (result.method, "iterations"))
+    if refit_of is not None:
+        name += f" (the profiles' refit from the fit's end at E_fit {refit_of.E_fit:.4g} R)"
     its = f"{result.outer_iterations} {unit}"
     at = f"at E_fit {result.E_fit:.4g} R"
     if result.converged:
@@ -90,6 +95,10 @@ def _not_converged(result: FitResult, its: str, limit: int) -> tuple[str, str, s
                                  "the fit within the last boxes stands",
                                  f"go on from it with {_START} (its --json output), or another "
                                  f"--method"),
+        FIT_NOT_MINIMUM: (f"ended short of its minimum after {its}",
+                          "a profile's refit lies lower (the profiles' notes say where)",
+                          f"fit again from it with {_START} (its --json output), or another "
+                          f"--method"),
     }
     return table.get(stop, (f"stopped after {its}", stop,
                             explain(stop) if stop != FIT_CONVERGED else "see its message"))

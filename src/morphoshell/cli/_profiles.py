@@ -15,7 +15,7 @@ from ._args import integer
 from ._outputs import output_path
 
 __all__ = ["add_profile_options", "profile_names", "profile_plot_path", "run_profiles",
-           "profile_table", "profile_json"]
+           "profile_table", "profile_json", "refit_lines"]
 
 
 def add_profile_options(p) -> None:
@@ -25,9 +25,11 @@ def add_profile_options(p) -> None:
                         "comma-separated (e.g. kappa1,f1), or 'all': each stepped over a grid "
                         "around its fitted value, the others refitted at every step (by the "
                         "gradient method, whatever --method); a side "
-                        "that does not close is null (not determined by the data)")
+                        "that does not close is null (not determined by the data). A refit "
+                        "lower than the fit means the fit was not at its minimum: the lower "
+                        "refit becomes the fit, as the terminal and the JSON (replaced_fit) say")
     p.add_argument("--profile-points", dest="profile_points", type=integer(2, 1000), default=20,
-                   metavar="N", help="refits per profile (default 20)")
+                   metavar="N", help="refits per profile, 2 to 1000 (default 20)")
     p.add_argument("--profile-noise", dest="profile_noise", default="auto",
                    choices=("auto", "residual", "traces"),
                    help="the noise variance of the threshold: from the fit's residual, or from "
@@ -78,18 +80,29 @@ def _data_with_spread(path, points):
     return Midline(points[:, 0], points[:, 1], avg.spread, avg.n_traces, avg.source)
 
 
-def run_profiles(args, spec, midline, result, names: list[str]) -> dict:
-    """The profiles of ``names`` about the fit ``result``, refitted by the gradient method.
+def run_profiles(args, spec, midline, result, names: list[str]) -> tuple:
+    """The fit the profiles of ``names`` are about, and the profiles, refitted by the gradient
+    method (:func:`morphoshell.fitting.profiled_fit`): ``result``, or the lower fit a refit
+    found (then ``result`` was not the minimum; the profiles' intervals are about the lower).
 
     Whatever the fit's method: with the Volvox model's at most 13 parameters a KKT refit is
     the gradient refit's Gauss-Newton steps and an NLP after them, and a KKT fit's profiles
     took 2.8 times as long for the same intervals (docs/benchmarks.md, "Profile intervals").
     """
-    from ..fitting import profile_intervals
+    from ..fitting import profiled_fit
 
     data = _data_with_spread(args.midline, midline.points)
-    return profile_intervals(spec, data, names, result=result, points=args.profile_points,
-                             method="gradient", nodes=args.nodes, noise=args.profile_noise)
+    return profiled_fit(spec, data, names, result=result, points=args.profile_points,
+                        method="gradient", nodes=args.nodes, noise=args.profile_noise)
+
+
+def refit_lines(before, after) -> str:
+    """What the terminal says when the profiles' refit replaced the fit ``before`` by the lower
+    ``after``: why, and the new fit (:meth:`FitResult.summary`)."""
+    return (f"  the profiles' refit went on from the fit's end to a lower E_fit, "
+            f"{after.E_fit:.6g} R (the fit: {before.E_fit:.6g} R), so the fit had not reached "
+            f"its minimum; the fit is that refit, the intervals are about it:\n{after.summary()}\n  E_fit = "
+            f"{after.E_fit:.6g} R over {len(after.data)} points")
 
 
 def _dof(p) -> str:
@@ -107,15 +120,26 @@ def profile_table(result, profiles: dict) -> str:
         lo, hi = p.interval
         se = result.standard_errors.get(name, math.nan)
         gn = f"+-{1.96 * se:.3g}" if math.isfinite(se) else "(on a constraint)"
-        lines.append(f"  {name:8s} {p.fitted_value: .6g}  [{lo: .6g}, {hi: .6g}]  GN {gn}"
+        unit = f" {result.unit(name)}".rstrip()
+        lines.append(f"  {name:8s} {p.fitted_value: .6g}  [{lo: .6g}, {hi: .6g}]{unit}  GN {gn}"
                      + ("  not determined by the data" if p.flat else "")
                      + (f"  ({p.note})" if p.note else ""))
     return "\n".join(lines)
 
 
-def profile_json(profiles: dict) -> dict:
-    """The fit JSON's entries: ``profile_intervals`` ({name: [low, high]}, null where open)
-    and ``profiles`` (each profile's grid, objective and threshold)."""
+def profile_json(profiles: dict, before=None, after=None) -> dict:
+    """The fit JSON's entries: ``profile_intervals`` ({name: [low, high]}, null where open),
+    ``profiles`` (each profile's grid, objective and threshold) and, where the profiles'
+    refit replaced the fit ``before`` by ``after``, ``replaced_fit``: what ``before`` was."""
     out = {n: p.to_dict() for n, p in profiles.items()}
-    return {"profile_intervals": {n: d["interval"] for n, d in out.items()},
-            "profiles": out}
+    entries = {"profile_intervals": {n: d["interval"] for n, d in out.items()},
+               "profiles": out}
+    if before is not None and after is not before:
+        entries["replaced_fit"] = {
+            "note": "the profiles' refit went on from this fit's end to a lower E_fit: it had "
+                    "not reached its minimum, and the parameters, E_fit and standard errors "
+                    "above are the refit's",
+            "method": before.method, "E_fit": before.E_fit, "converged": before.converged,
+            "outer_iterations": before.outer_iterations,
+            "parameters": {n: before.parameters[n] for n in before.fitted}}
+    return entries

@@ -6,7 +6,7 @@ from pathlib import Path
 from ._args import TRACE_OPTIONS, add_outputs, integer, micrometres, reworded
 from ._outputs import Outputs
 from ._profiles import (add_profile_options, profile_json, profile_names, profile_plot_path,
-                        profile_table, run_profiles)
+                        profile_table, refit_lines, run_profiles)
 
 __all__ = ["register"]
 
@@ -58,10 +58,14 @@ def register(sub) -> None:
                    help="hold a Volvox parameter (f1..f5, kappa1..kappa4, s1..s4) at a value, "
                         "or set h, opening or sigma (never fitted)")
     p.add_argument("--start", type=Path, default=None, metavar="PARAMS.json",
-                   help="start from the parameters of a previous fit (or any result JSON); "
-                        "default: the family's illustrative values, h = 0.15, P = 0.3")
+                   help="start from the Volvox parameters, h and opening of a previous fit's "
+                        "JSON (or of any result JSON or problem file of an intact Volvox shell; "
+                        "one with a cut, as morphoshell ablate writes, or another theory or "
+                        "geometry is refused); default: the family's illustrative values, "
+                        "h = 0.15, P = 0.3")
     p.add_argument("--nodes", type=integer(*FIT_NODES), default=200, metavar="N",
-                   help="mesh nodes of the inner solves (default 200)")
+                   help=f"mesh nodes of the inner solves, {FIT_NODES[0]} to {FIT_NODES[1]} "
+                        f"(default 200)")
     limits = "; ".join(f"{m}: {unit} (default {n})" for m, (unit, n) in EVALUATION_LIMITS.items())
     p.add_argument("--max-evaluations", dest="max_evaluations", type=integer(1, 10**9),
                    default=None, metavar="N",
@@ -75,18 +79,46 @@ def register(sub) -> None:
     p.set_defaults(run=_fit)
 
 
+#: Why a start whose problem has another value of these is not a start of a fit: every fit
+#: models an intact shell (a traced embryo, not one cut at its pole) in the theory and on the
+#: geometry it is solved in; neither --set nor the fit can change them.
+_FIXED = {"cut": "a fit's shell is intact (cut = 0), this one is cut at the pole (as "
+                 "morphoshell ablate writes): start from the JSON of the fit it ablated",
+          "theory": "a fit solves the 'large_bending' theory",
+          "geometry": "a fit's shell is a sphere ('sphere')"}
+
+
+def _fit_problem():
+    """The problem every fit starts from unless --start gives parameters: the family's
+    illustrative values, h = 0.15, P = 0.3 (the paper's)."""
+    from ..model.problem import Problem
+    return Problem("volvox", h=0.15, opening=0.3)
+
+
+def _start_of(path: Path):
+    """The fit's problem with the Volvox parameters, h and opening of the problem or result
+    file ``path``; ProblemFileError naming the file and the entry where its problem is not
+    a fit's (:data:`_FIXED`), so that nothing else of it reaches the fit unseen."""
+    from ..io.problem_files import ProblemFileError, load_problem
+
+    start, _ = load_problem(path)
+    if start.family != "volvox":
+        raise ProblemFileError(f"--start {path}: a {start.family!r} problem, not volvox")
+    base = _fit_problem()
+    for key, why in _FIXED.items():
+        value = getattr(start, key)
+        if value != getattr(base, key):
+            entry = f"problem.{key}" if path.suffix.lower() == ".json" else f"[problem] {key}"
+            raise ProblemFileError(f"--start {path}: {entry} = {value!r}: {why}")
+    return base.with_updates(h=start.h, opening=start.opening, **start.params)
+
+
 def _start_problem(args):
     """The start problem and the held values, from --start and --set (checked)."""
     from ..fitting import volvox_spec
-    from ..io.problem_files import ProblemFileError, load_problem, parse_overrides
-    from ..model.problem import Problem
+    from ..io.problem_files import ProblemFileError, parse_overrides
 
-    base = Problem("volvox", h=0.15, opening=0.3)
-    if args.start is not None:
-        start, _ = load_problem(args.start)
-        if start.family != "volvox":
-            raise ProblemFileError(f"--start {args.start}: a {start.family!r} problem, not volvox")
-        base = start
+    base = _fit_problem() if args.start is None else _start_of(args.start)
     overrides = parse_overrides(args.overrides)
     base_keys = {k: overrides.pop(k) for k in ("h", "opening", "sigma") if k in overrides}
     unknown = sorted(set(overrides) - set(base.family_obj.parameters))
@@ -146,14 +178,18 @@ def _fit(args) -> int:
     print(result.summary())
     print(f"  E_fit = {result.E_fit:.6g} R over {N_FIT} points; {result.inner_solves} inner "
           f"solves, {result.seconds:.2f} s")
-    profiles = run_profiles(args, spec, midline, result, names) if names else {}
-    if profiles:
+    before, profiles = result, {}
+    if names:
+        result, profiles = run_profiles(args, spec, midline, result, names)
+        if result is not before:        # (the fit was not its minimum: the refit is the fit)
+            print(refit_lines(before, result))
+            limit = EVALUATION_LIMITS["gradient"][1]      # (the refit's: profile_intervals)
         print(profile_table(result, profiles))
     out = Outputs()
     out.add(args.json, lambda path: write_json(path, {**result.to_dict(),
                                                       "midline_file": str(args.midline),
-                                                      **(profile_json(profiles) if profiles
-                                                         else {})}))
+                                                      **(profile_json(profiles, before, result)
+                                                         if profiles else {})}))
     out.add(args.csv, lambda path: write_csv(path, {
         "parameter": list(result.fitted),
         "value": [result.parameters[n] for n in result.fitted],
@@ -168,5 +204,5 @@ def _fit(args) -> int:
         out.add(profile_plot_path(args), lambda path: save(figure, path))
     for path in out.commit():
         print(f"  wrote {path}")
-    print(stop_line(result, limit))
+    print(stop_line(result, limit, before if result is not before else None))
     return 0 if result.converged else 3

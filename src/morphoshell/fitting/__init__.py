@@ -21,6 +21,6 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
                        "TURN_LENGTH", "POLE_SLACK", "MAX_MEAN_STRETCH", "POLE_ANGLE", "POLE_ARC",
                        "SCALE_HINT"],
     "bilevel": ["fit", "METHODS", "FIT_NODES", "EVALUATION_LIMITS"],
-    "profiles": ["Profile", "profile", "profile_intervals", "noise_variance", "noise_dof",
-                 "threshold_quantile"],
+    "profiles": ["Profile", "profile", "profile_intervals", "profiled_fit", "noise_variance",
+                 "noise_dof", "threshold_quantile"],
 })

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .._runtime.console import counter
 from ..numerics.status import (FIT_CONVERGED, FIT_NOT_STATIONARY, FIT_STALLED,
                                MAXIMUM_EVALUATIONS_EXCEEDED)
 from ..solvers.results import SolverError
@@ -76,6 +77,8 @@ def nelder_mead_fit(spec: FitSpec, inner: InnerProblem, tol: float,
     seen.  A simplex can collapse before the minimum: the search restarts
     around its best point (at most :data:`NM_RESTARTS` simplices) while a
     restart improves E_fit by 1 % and E_fit is above 10⁻⁶ of the start's.
+    On a terminal a progress bar counts the evaluations against the limit
+    (thousands of them, minutes at 200 nodes: :func:`morphoshell._runtime.console.counter`).
 
     Parameters
     ----------
@@ -102,24 +105,35 @@ def nelder_mead_fit(spec: FitSpec, inner: InnerProblem, tol: float,
         ``"Fit_Converged"``, or ``"Maximum_Evaluations_Exceeded"`` when the
         evaluations ran out.
     """
+    budget = max_iterations or NM_EVALUATIONS
+    with counter(budget, desc="Nelder-Mead", unit="evaluation") as bar:
+        worst = [1.0]
+
+        def E(theta):
+            bar.update()
+            if not _feasible(spec, theta):
+                return 10 * worst[0]
+            try:
+                res = inner.residuals(inner.solve(theta))
+            except SolverError:
+                return 10 * worst[0]
+            value = float(np.sqrt(res @ res))
+            worst[0] = max(worst[0], value)
+            return value
+
+        theta, evaluations, out = _restarted_simplices(E, spec, tol, budget)
+    # (scipy's Nelder-Mead fails only by running out of evaluations or iterations)
+    stop = FIT_CONVERGED if out.success else MAXIMUM_EVALUATIONS_EXCEEDED
+    return theta, evaluations, bool(out.success), str(out.message), stop
+
+
+def _restarted_simplices(E, spec: FitSpec, tol: float, budget: int) -> tuple:
+    """Nelder–Mead on ``E`` from ``spec.theta0``, restarted around its best point (see
+    :func:`nelder_mead_fit`): the best θ, the evaluations, the last simplex's result."""
     from scipy.optimize import minimize
-
-    worst = [1.0]
-
-    def E(theta):
-        if not _feasible(spec, theta):
-            return 10 * worst[0]
-        try:
-            res = inner.residuals(inner.solve(theta))
-        except SolverError:
-            return 10 * worst[0]
-        value = float(np.sqrt(res @ res))
-        worst[0] = max(worst[0], value)
-        return value
 
     lo, hi = spec.box()
     bounds = list(zip(np.where(np.isfinite(lo), lo, None), np.where(np.isfinite(hi), hi, None)))
-    budget = max_iterations or NM_EVALUATIONS
     theta, evaluations, best = spec.theta0, 0, np.inf
     start = E(theta)
     # A simplex can collapse before the minimum: restart around the best point,
@@ -135,9 +149,7 @@ def nelder_mead_fit(spec: FitSpec, inner: InnerProblem, tol: float,
         theta, best = out.x, min(best, float(out.fun))
         if not improved or best < 1e-6 * start or evaluations >= budget:
             break
-    # (scipy's Nelder-Mead fails only by running out of evaluations or iterations)
-    stop = FIT_CONVERGED if out.success else MAXIMUM_EVALUATIONS_EXCEEDED
-    return theta, evaluations, bool(out.success), str(out.message), stop
+    return theta, evaluations, out
 
 
 class _Stalled(Exception):

@@ -51,22 +51,25 @@ Lengths in units of R.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, replace
 from typing import Mapping, Sequence
 
 import numpy as np
 
+from .._runtime.console import counter
+from ..numerics.status import FIT_NOT_MINIMUM
 from ..solvers.direct import solver_of
 from ..solvers.results import Equilibrium, SolverError
 from .bilevel import check_options, fit, fit_moving_boxes, method_run
 from .inner import InnerProblem
 from .midline_checks import as_points, check_midline
-from .results import FitResult
+from .results import FitResult, fit_result
 from .spec import FitSpec
 
-__all__ = ["Profile", "profile", "profile_intervals", "noise_variance", "noise_dof",
-           "threshold_quantile", "STOP_MARGIN", "JUMP_MARGIN", "PROFILE_METHODS",
-           "NOISE_SOURCES", "SPAN_FACTOR", "EXTEND_STEPS"]
+__all__ = ["Profile", "profile", "profile_intervals", "profiled_fit", "noise_variance",
+           "noise_dof", "threshold_quantile", "STOP_MARGIN", "JUMP_MARGIN", "PROFILE_METHODS",
+           "NOISE_SOURCES", "SPAN_FACTOR", "EXTEND_STEPS", "LOWER", "MAX_RECENTRINGS"]
 
 #: Methods of a profile's refits (Nelder–Mead is far too slow for 20 refits).
 PROFILE_METHODS = ("gradient", "kkt")
@@ -91,6 +94,16 @@ STOP_MARGIN = 1.5
 #: κ₁ and f₁ profiles (scripts/bench_profiles.py) the refits that the retry lowered lay at
 #: 3.2–15 threshold heights (to 1.1–1.7), those it left alone at 1.6–2.1.
 JUMP_MARGIN = 2.5
+#: A refit whose objective lies below the fit's by more than this fraction of it found a lower
+#: minimum: the fit had not reached its own.  The refits stop at a relative change of E_fit²
+#: of ``tol`` (10⁻⁸) and a fit at 10⁻¹⁰, so two ends of one minimum agree to about 10⁻⁸; this
+#: is a hundred times that, and still far below anything the intervals see (the threshold's
+#: height is 2 % of S_min with σ² from the residual of 100 points).
+LOWER = 1e-6
+#: A profile whose refit lies lower than the optimum (by :data:`LOWER`) moves the optimum
+#: there (a fit of all the parameters from that refit's end) and the profiles are computed
+#: again about it, at most this many times; a profile still lower then keeps its note.
+MAX_RECENTRINGS = 2
 
 
 @dataclass(frozen=True, eq=False)
@@ -156,6 +169,13 @@ class Profile:
     def determined(self) -> bool:
         """Whether the data determine the parameter (the interval is closed)."""
         return not self.flat
+
+    @property
+    def below_fit(self) -> bool:
+        """Whether a refit lies lower than the fit at :attr:`fitted_value` (by :data:`LOWER`):
+        that fit is not the minimum (:attr:`note` says where)."""
+        at = self.objective[int(np.searchsorted(self.values, self.fitted_value))]
+        return bool(self.S_min < (1 - LOWER) * at)
 
     def summary(self) -> str:
         """One line: the parameter, its interval and whether the data determine it."""
@@ -278,15 +298,25 @@ def noise_variance(data, S_min: float, k: int, source: str | float = "auto") -> 
 
 @dataclass
 class _Optimum:
-    """The profile's own refit of the fit: spec (boxes around θ̂), θ̂, S_min, its state."""
+    """The profile's own refit of the fit: spec (boxes around θ̂), θ̂, S_min, its state, and
+    the fit the profiles are about (the given one, or the refit where it lies lower)."""
 
     spec: FitSpec
     theta: np.ndarray
     S: float
     eq: Equilibrium
     inner: InnerProblem
-    errors: Mapping[str, float]
-    sigma2_gn: float
+    fit: FitResult
+
+    @property
+    def errors(self) -> Mapping[str, float]:
+        """The fit's Gauss–Newton standard errors (the grid's span)."""
+        return self.fit.standard_errors
+
+    @property
+    def sigma2_gn(self) -> float:
+        """The fit's Gauss–Newton σ², E_fit²/(2N − k)."""
+        return float(self.fit.E_fit) ** 2 / max(len(self.fit.residuals) - len(self.theta), 1)
 
 
 def _optimum(spec: FitSpec, data: np.ndarray, result: FitResult | None, method: str,
@@ -295,7 +325,9 @@ def _optimum(spec: FitSpec, data: np.ndarray, result: FitResult | None, method: 
 
     Refitting from the result (a few evaluations) makes θ̂ and S_min those of
     the mesh and tolerance every step of the profile uses, so that the profile's
-    minimum sits at θ̂ whatever method or mesh gave the result.
+    minimum sits at θ̂ whatever method or mesh gave the result.  Where the refit
+    lies lower than the result (by :data:`LOWER`) the result had not reached its
+    minimum, and the refit is the fit the profiles are about (:func:`_refitted`).
     """
     if result is None:
         result = fit(spec, data, method, nodes=nodes, tol=tol)
@@ -310,12 +342,29 @@ def _optimum(spec: FitSpec, data: np.ndarray, result: FitResult | None, method: 
     # and a stalled refit eight of them: docs/benchmarks.md, "Profile intervals");
     # another branch is tried by the retry from the optimum (_refit_checked).
     inner.snap_trials = False
-    start, theta, _, _, _, _ = fit_moving_boxes(method_run(method), start, inner, tol, None)
+    return _refitted(inner, start, result, method, tol)
+
+
+def _refitted(inner: InnerProblem, start: FitSpec, before: FitResult, method: str,
+              tol: float) -> _Optimum:
+    """Every fitted parameter refitted from ``start`` (the inner problem restarted there): the
+    optimum, whose fit is ``before`` unless the refit lies lower (by :data:`LOWER`).
+
+    A lower refit is a new :class:`FitResult` (its parameters, E_fit and Gauss–Newton
+    errors), its message saying which fit it went on from.
+    """
+    t0 = time.perf_counter()
+    end, theta, its, ok, msg, stop = fit_moving_boxes(method_run(method), start, inner, tol, None)
     eq = inner.solve(theta)
     res = inner.residuals(eq)
     S = float(res @ res)
-    return _Optimum(start, theta, S, eq, inner, result.standard_errors,
-                    float(result.E_fit) ** 2 / max(len(res) - len(theta), 1))
+    found = before
+    if S < (1 - LOWER) * float(before.E_fit) ** 2:
+        msg = (f"the profiles' {method} refit of a {before.method} fit that had not reached its "
+               f"minimum (E_fit {before.E_fit:.6g} R, lowered to {np.sqrt(S):.6g} R): {msg}")
+        found = fit_result(method, end, inner, theta, its,
+                           before.seconds + time.perf_counter() - t0, ok, msg, stop)
+    return _Optimum(end, theta, S, eq, inner, found)
 
 
 def _nodes_of(eq: Equilibrium) -> int | None:
@@ -420,7 +469,7 @@ def _refit_checked(opt: _Optimum, name: str, walked: tuple, value: float, method
 
 
 def _walk(opt: _Optimum, name: str, steps: list[float], direction: float, step: float,
-          threshold: float, method: str, tol: float) -> tuple[list, list, list, str]:
+          threshold: float, method: str, tol: float, bar) -> tuple[list, list, list, str, tuple]:
     """Refit at each of ``steps`` outward from θ̂, each from the last one's end
     (:func:`_refit_checked`).
 
@@ -428,24 +477,29 @@ def _walk(opt: _Optimum, name: str, steps: list[float], direction: float, step: 
     :data:`EXTEND_STEPS`) while the objective stays below ``threshold`` and
     the bound is not reached; stops at a refit that fails (its objective
     NaN) or lies beyond :data:`STOP_MARGIN` times the threshold's height.
-    Returns values, objectives, converged flags and a note.
+    Each refit counts one on the progress bar ``bar``.  Returns values,
+    objectives, converged flags, a note and the lowest refit (objective, spec,
+    θ, state; None without one), where a lower optimum may lie.
     """
     lo, hi = opt.spec.bounds.get(name, (-np.inf, np.inf))
     walked = (opt.spec, opt.theta.copy(), opt.eq)
-    values, objective, converged = [], [], []
+    values, objective, converged, lowest = [], [], [], None
     plan, extra = list(steps), 0
     beyond, jump = (opt.S + margin * (threshold - opt.S) for margin in (STOP_MARGIN, JUMP_MARGIN))
     while plan and not (objective and objective[-1] > beyond):
         value = plan.pop(0)
         out, failure = _refit_checked(opt, name, walked, value, method, tol, jump)
+        bar.update()
         values.append(value)
         if out is None:
             # (the next step would start from a state no refit reached: stop here)
             objective.append(np.nan)
             converged.append(False)
             return (values, objective, converged,
-                    f"the refit at {name} = {value:.6g} failed: {failure}")
+                    f"the refit at {name} = {value:.6g} failed: {failure}", lowest)
         walked = out[:3]
+        if lowest is None or out[3] < lowest[0]:
+            lowest = (out[3], *walked)
         objective.append(out[3])
         converged.append(out[4])
         bound = lo if direction < 0 else hi
@@ -453,7 +507,7 @@ def _walk(opt: _Optimum, name: str, steps: list[float], direction: float, step: 
             extra += 1
             nxt = value + direction * step * 2 ** extra
             plan.append(max(nxt, lo) if direction < 0 else min(nxt, hi))
-    return values, objective, converged, ""
+    return values, objective, converged, "", lowest
 
 
 def _crossing(values: list, objective: list, start: tuple[float, float], direction: float,
@@ -485,8 +539,10 @@ def _crossing(values: list, objective: list, start: tuple[float, float], directi
 
 
 def _profile(opt: _Optimum, data, name: str, points: int, span, method: str, tol: float,
-             confidence: float, noise) -> Profile:
-    """The profile of ``name`` about the optimum ``opt`` (see :func:`profile`)."""
+             confidence: float, noise, bar) -> tuple[Profile, tuple | None]:
+    """The profile of ``name`` about the optimum ``opt`` (see :func:`profile`), and its
+    lowest refit (:func:`_walk`; its refits counted on the progress bar ``bar``)."""
+    bar.set_description(f"profile of {name}")
     sigma2, source = noise_variance(data, opt.S, len(opt.theta), noise)
     dof = noise_dof(data, source)
     q = threshold_quantile(confidence, dof)
@@ -494,23 +550,27 @@ def _profile(opt: _Optimum, data, name: str, points: int, span, method: str, tol
     threshold = opt.S + sigma2 * q
     j = opt.spec.fitted.index(name)
     value = float(opt.theta[j])
-    vb, sb, cb, note_b = _walk(opt, name, below, -1.0, step, threshold, method, tol)
-    va, sa, ca, note_a = _walk(opt, name, above, 1.0, step, threshold, method, tol)
+    vb, sb, cb, note_b, low_b = _walk(opt, name, below, -1.0, step, threshold, method, tol, bar)
+    va, sa, ca, note_a, low_a = _walk(opt, name, above, 1.0, step, threshold, method, tol, bar)
     values = np.array([*vb[::-1], value, *va])
     objective = np.array([*sb[::-1], opt.S, *sa])
     notes = [n for n in (note_b, note_a, _unconverged_crossing(name, vb, sb, cb, threshold),
                          _unconverged_crossing(name, va, sa, ca, threshold)) if n]
     S_min = float(np.nanmin(objective))
-    if S_min < opt.S * (1 - 1e-6):
+    if S_min < opt.S * (1 - LOWER):
         # (the fit was not at the minimum: the threshold from the profile's own)
         where = float(values[int(np.nanargmin(objective))])
-        notes.append(f"a refit at {name} = {where:.6g} found a lower objective than the fit's")
+        notes.append(f"a refit at {name} = {where:.6g} found a lower objective (E_fit "
+                     f"{np.sqrt(S_min):.6g} R) than the fit's ({np.sqrt(opt.S):.6g} R): the fit "
+                     f"is not the minimum")
         threshold = S_min + sigma2 * q
     interval = (_crossing(vb, sb, (value, opt.S), -1.0, threshold, S_min),
                 _crossing(va, sa, (value, opt.S), 1.0, threshold, S_min))
+    lowest = min((low for low in (low_b, low_a) if low is not None), key=lambda low: low[0],
+                 default=None)
     return Profile(name, value, values, objective, np.array([*cb[::-1], True, *ca]),
                    interval, float(threshold), S_min, sigma2, source, confidence,
-                   not all(np.isfinite(interval)), method, "; ".join(notes), dof)
+                   not all(np.isfinite(interval)), method, "; ".join(notes), dof), lowest
 
 
 def _unconverged_crossing(name: str, values: list, objective: list, converged: list,
@@ -546,6 +606,94 @@ def _check(spec: FitSpec, names: Sequence[str], points: int, method: str,
     check_options(nodes, tol, None)
 
 
+def profiled_fit(spec: FitSpec, data, names: Sequence[str] | None = None, *,
+                 result: FitResult | None = None, points: int = 20, span=None,
+                 method: str = "gradient", nodes: int | None = None,
+                 confidence: float = 0.95, noise: str | float = "auto",
+                 tol: float = 1e-8) -> tuple[FitResult, dict[str, Profile]]:
+    """Profiles of several fitted parameters, and the fit they are about.
+
+    The fit is refitted once on the profiles' inner problem (by ``method``, from
+    its end); each profile starts from there.  Where that refit lies lower than
+    ``result`` (by :data:`LOWER`), ``result`` had not reached its minimum: the
+    refit is the fit, a new :class:`FitResult` whose message says so.  Where a
+    profile's refit lies lower than the fit, all the parameters are fitted again
+    from there and the profiles computed again about that fit (at most
+    :data:`MAX_RECENTRINGS` times; a profile lower still keeps a note and
+    :attr:`Profile.below_fit`).  So the profiles' minimum is the returned fit's
+    parameters and E_fit, and the intervals are about it.
+
+    Parameters
+    ----------
+    spec, data, names, result, points, span, method, nodes, confidence, noise, tol
+        As :func:`profile_intervals`.
+
+    Returns
+    -------
+    fit : FitResult
+        ``result`` (or, without one, the fit by ``method``), or the lower refit
+        the profiles found: ``fit is result`` tells which.
+    profiles : dict
+        :class:`Profile` by name, in the order of ``names``.
+    """
+    names = list(spec.fitted if names is None else names)
+    if nodes is None:
+        nodes = (_nodes_of(result.equilibrium) if result is not None else None) or 200
+    _check(spec, names, points, method, confidence, nodes, tol)
+    if result is not None and tuple(result.fitted) != tuple(spec.fitted):
+        raise ValueError(f"the result fitted {list(result.fitted)}, the spec "
+                         f"{list(spec.fitted)}: not a fit of this spec")
+    noise_variance(data, 1.0, len(spec.fitted), noise)      # (checks it before any work)
+    points_ = as_points(data)
+    check_midline(spec, points_)
+    spans = span if isinstance(span, Mapping) else {n: span for n in names}
+    # (a bar of the planned refits, on a terminal: a profile of all 13 parameters takes
+    # minutes, and its refits are many small gradient fits that show nothing)
+    with counter(len(names) * points, desc="profiles: the fit refitted", unit="refit") as bar:
+        opt = _optimum(spec, points_, result, method, nodes, tol)
+        return _about_minimum(opt, method, tol, bar, lambda opt: {
+            n: _profile(opt, data, n, points, spans.get(n), method, tol, confidence, noise, bar)
+            for n in names})
+
+
+def _about_minimum(opt: _Optimum, method: str, tol: float, bar, run) -> tuple:
+    """``run(opt)``'s profiles (each with its lowest refit), again about the fit from the
+    lowest refit while one lies lower than the optimum (at most :data:`MAX_RECENTRINGS`
+    times; the progress bar ``bar`` plans their refits again): the fit and the profiles
+    of :func:`profiled_fit`."""
+    planned = bar.total
+    for recentrings in range(MAX_RECENTRINGS + 1):
+        if recentrings:
+            bar.total += planned
+            bar.refresh()
+        out = run(opt)
+        profiles = {n: p for n, (p, _) in out.items()}
+        lowest = min((low for _, low in out.values() if low is not None),
+                     key=lambda low: low[0], default=None)
+        if lowest is None or lowest[0] >= (1 - LOWER) * opt.S:
+            return opt.fit, profiles
+        if recentrings == MAX_RECENTRINGS:
+            return _not_minimum(opt.fit, lowest[0], profiles), profiles
+        # a lower minimum than the fit's: fit everything again from there, and profile
+        # about that fit (the intervals of a profile about a point that is not its
+        # minimum are neither the fit's nor the minimum's)
+        _, lower, theta, eq = lowest
+        start = lower.recentred(theta) if lower.ordered else replace(lower,
+                                                                     base=lower.problem(theta))
+        opt.inner.restart(start, eq)
+        opt = _refitted(opt.inner, start, opt.fit, method, tol)
+
+
+def _not_minimum(found: FitResult, S: float, profiles: dict[str, Profile]) -> FitResult:
+    """``found``, not converged: a profile's refit lies at ``S``, lower still after
+    :data:`MAX_RECENTRINGS` fits from the lowest refits."""
+    where = ", ".join(n for n, p in profiles.items() if p.below_fit)
+    return replace(found, converged=False, stop=FIT_NOT_MINIMUM, message=(
+        f"{found.message}; but the profile of {where} found a lower objective (E_fit "
+        f"{np.sqrt(S):.6g} R) than the fit's: it is not the minimum (refitted from the "
+        f"lowest refit at most MAX_RECENTRINGS = {MAX_RECENTRINGS} times)").lstrip("; "))
+
+
 def profile_intervals(spec: FitSpec, data, names: Sequence[str] | None = None, *,
                       result: FitResult | None = None, points: int = 20, span=None,
                       method: str = "gradient", nodes: int | None = None,
@@ -554,7 +702,8 @@ def profile_intervals(spec: FitSpec, data, names: Sequence[str] | None = None, *
     """Profiles of several fitted parameters about one fit (see :func:`profile`).
 
     The fit is refitted once on the profiles' inner problem; each profile
-    starts from there.
+    starts from there.  Where a refit lies lower than ``result``, the profiles
+    are about the lower fit (:func:`profiled_fit`, which returns it too).
 
     Parameters
     ----------
@@ -572,20 +721,9 @@ def profile_intervals(spec: FitSpec, data, names: Sequence[str] | None = None, *
     dict
         :class:`Profile` by name, in the order of ``names``.
     """
-    names = list(spec.fitted if names is None else names)
-    if nodes is None:
-        nodes = (_nodes_of(result.equilibrium) if result is not None else None) or 200
-    _check(spec, names, points, method, confidence, nodes, tol)
-    if result is not None and tuple(result.fitted) != tuple(spec.fitted):
-        raise ValueError(f"the result fitted {list(result.fitted)}, the spec "
-                         f"{list(spec.fitted)}: not a fit of this spec")
-    noise_variance(data, 1.0, len(spec.fitted), noise)      # (checks it before any work)
-    points_ = as_points(data)
-    check_midline(spec, points_)
-    opt = _optimum(spec, points_, result, method, nodes, tol)
-    spans = span if isinstance(span, Mapping) else {n: span for n in names}
-    return {n: _profile(opt, data, n, points, spans.get(n), method, tol, confidence, noise)
-            for n in names}
+    return profiled_fit(spec, data, names, result=result, points=points, span=span,
+                        method=method, nodes=nodes, confidence=confidence, noise=noise,
+                        tol=tol)[1]
 
 
 def profile(spec: FitSpec, data, name: str, *, result: FitResult | None = None,

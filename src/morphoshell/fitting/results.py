@@ -128,19 +128,31 @@ class FitResult:
                 f"converged={self.converged})")
 
     def summary(self) -> str:
-        """A few lines: the result, every fitted parameter with its standard error, the
-        constraints it ends on and the poorly identified directions."""
+        """A few lines: the result, every fitted parameter with its standard error and unit,
+        the constraints it ends on and the poorly identified directions (as sums of the
+        parameters, e.g. ``0.718 kappa1 + 0.585 f2 + 0.195 f4``)."""
         lines = [repr(self)]
         for n in self.fitted:
-            e = self.standard_errors[n]
-            lines.append(f"  {n:8s} = {self.parameters[n]: .6g} "
-                         + (f"± {e:.2g}" if np.isfinite(e) else "(on a constraint)"))
+            e, unit = self.standard_errors[n], self.unit(n)
+            value = f"{self.parameters[n]: .6g}"
+            lines.append(f"  {n:8s} = " + (f"{value} ± {e:.2g} {unit}".rstrip() if np.isfinite(e)
+                                          else f"{value} {unit} (on a constraint)"))
         for c in self.constrained:
             lines.append(f"  on the constraint {c}")
         for d in self.poorly_identified:
-            lines.append(f"  poorly identified: {d['direction']} (singular value "
-                         f"{d['singular_value']:.2g})")
+            lines.append(f"  poorly identified: {_combination(d['direction'], len(self.fitted))} "
+                         f"(parameters relative to their size; singular value "
+                         f"{d['singular_value']:.2g} of the largest)")
         return "\n".join(lines)
+
+    def unit(self, name: str) -> str:
+        """How the unit of parameter ``name`` is printed: ``"1/R"``, ``"R"``,
+        ``"(dimensionless)"`` (the family's :attr:`~morphoshell.model.profiles.ProfileFamily.units`;
+        h and the opening are lengths), or ``""`` where the family gives none."""
+        units = {"h": "R", "opening": "R", "cut": "R",
+                 **self.equilibrium.problem.family_obj.units}
+        unit = units.get(name, "")
+        return "(dimensionless)" if unit == "1" else unit
 
     @property
     def pinned(self) -> tuple[str, ...]:
@@ -179,6 +191,14 @@ class FitResult:
                 "fitted_midline": {"r": self.model[:, 0].tolist(), "z": self.model[:, 1].tolist()},
                 "note": "standard errors are Gauss-Newton lower bounds: the residuals of a "
                         "traced midline are correlated"}
+
+
+def _combination(direction: dict, k: int) -> str:
+    """A direction {name: component} written as a sum, ``0.864 kappa3 - 0.471 kappa4 ...``
+    (``+ ...`` where it lists fewer than all ``k`` fitted parameters)."""
+    text = " ".join(f"{'-' if v < 0 else '+'} {abs(v):g} {n}" for n, v in direction.items())
+    text = text[2:] if text.startswith("+ ") else "-" + text[2:]      # (no sign before the first)
+    return text + (" + ..." if len(direction) < k else "")
 
 
 def fit_result(method: str, spec: FitSpec, inner: InnerProblem, theta: np.ndarray,

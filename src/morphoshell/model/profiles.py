@@ -100,6 +100,11 @@ class ProfileFamily:
         the change (None for a kink).  The direct solver's mesh puts a node
         at each (and refines on the width's scale), following them as the
         parameters change, so the scheme keeps its order.
+    units : mapping
+        The unit of each parameter, as :data:`morphoshell.solvers.results.FIELD_UNITS`
+        writes them: ``"R"`` (lengths in units of R), ``"1/R"`` (curvatures), ``"1"``
+        (dimensionless); what a fit prints beside a value.  A parameter without one
+        is printed without.
     """
 
     name: str
@@ -111,6 +116,7 @@ class ProfileFamily:
     neutral: Mapping[str, float] = field(default_factory=dict)
     pre_ablation: Mapping[str, float] = field(default_factory=dict)
     breakpoints: Callable | None = None
+    units: Mapping[str, str] = field(default_factory=dict)
     _function: dict = field(default_factory=dict, repr=False, compare=False)
 
     def function(self, points: int | None = None) -> ca.Function:
@@ -294,6 +300,10 @@ def register_family(family: ProfileFamily) -> ProfileFamily:
     missing = set(family.parameters) - set(family.defaults)
     if missing:
         raise ValueError(f"family {family.name!r} lacks defaults for {sorted(missing)}")
+    stray = set(family.units) - set(family.parameters)
+    if stray:
+        raise ValueError(f"family {family.name!r} gives units of {sorted(stray)}, which are "
+                         f"not among its parameters {list(family.parameters)}")
     FAMILIES[family.name] = family
     return family
 
@@ -367,16 +377,19 @@ def _load_plugin(name: str) -> None:
 
 register_family(ProfileFamily(
     "uniform", ("k",), {"k": 0.0}, _uniform, _validate_uniform,
-    description="f0 = 1, kappa_s0 = kappa_phi0 = k (toy problems 1 and 2)", neutral={"k": 1.0}))
+    description="f0 = 1, kappa_s0 = kappa_phi0 = k (toy problems 1 and 2)", neutral={"k": 1.0},
+    units={"k": "1/R"}))
 register_family(ProfileFamily(
     "anisotropic", ("f0",), {"f0": 0.1}, _anisotropic, _validate_anisotropic,
-    description="f_s0 = 1 + f0 = 1/f_phi0, kappa0 = 1 (toy problem 3)", neutral={"f0": 0.0}))
+    description="f_s0 = 1 + f0 = 1/f_phi0, kappa0 = 1 (toy problem 3)", neutral={"f0": 0.0},
+    units={"f0": "1"}))
 register_family(ProfileFamily(
     "local_relaxation", ("F0", "s0"), {"F0": 0.35, "s0": 0.2}, _local_relaxation,
     _validate_local_relaxation,
     description="f0 = 1 + F0 (cut + s0 - s)/s0 near the cut, kappa0 = 1 (fast relaxation)",
     # The relaxation is an active response to the cut: the intact shell has none.
-    neutral={"F0": 0.0}, pre_ablation={"F0": 0.0}, breakpoints=_local_relaxation_breakpoints))
+    neutral={"F0": 0.0}, pre_ablation={"F0": 0.0}, breakpoints=_local_relaxation_breakpoints,
+    units={"F0": "1", "s0": "R"}))
 register_family(ProfileFamily(
     "central_growth", ("G", "w"), {"G": 0.2, "w": 0.3}, _central_growth,
     _validate_central_growth,
@@ -384,7 +397,7 @@ register_family(ProfileFamily(
                 "centre, which buckles (the blister)",
     # stress-free as a flat disc (geometry = "disc"), which it stays, by mirror symmetry,
     # on an unstable branch past its first branch point
-    neutral={"G": 0.0}))
+    neutral={"G": 0.0}, units={"G": "1", "w": "R"}))
 register_family(ProfileFamily(
     "volvox",
     ("f1", "f2", "f3", "f4", "f5", "kappa1", "kappa2", "kappa3", "kappa4",
@@ -397,5 +410,8 @@ register_family(ProfileFamily(
     _volvox, _validate_volvox,
     description="13-parameter Volvox inversion model, smoothing width sigma",
     neutral={**{f"f{i}": 1.0 for i in range(1, 6)}, **{f"kappa{i}": 1.0 for i in range(1, 5)}},
-    breakpoints=_volvox_breakpoints))
+    breakpoints=_volvox_breakpoints,
+    # stretches f, curvatures kappa (units of 1/R), breakpoints s and smoothing width (of R)
+    units={**{f"f{i}": "1" for i in range(1, 6)}, **{f"kappa{i}": "1/R" for i in range(1, 5)},
+           **{f"s{i}": "R" for i in range(1, 5)}, "sigma": "R"}))
 

@@ -42,7 +42,7 @@ __all__ = ["STATUSES", "BVP_STATUSES", "SolverError", "NotAMinimumError", "expla
            "SHOOTING_ILL_CONDITIONED", "SHOOTING_NOT_CONVERGED", "SHOOTING_INTEGRATION_FAILED",
            "FIT_SADDLE", "FIT_NOT_REPRODUCED", "GAUSS_NEWTON_STOPPED", "FIT_CONVERGED",
            "MAXIMUM_EVALUATIONS_EXCEEDED", "FIT_STALLED", "FIT_NOT_STATIONARY", "FIT_NEAR_FOLD",
-           "FIT_ON_BOX_EDGES", "FIT_MOVED_BOXES_FAILED", "STEP_NOT_SPLITTABLE"]
+           "FIT_ON_BOX_EDGES", "FIT_MOVED_BOXES_FAILED", "FIT_NOT_MINIMUM", "STEP_NOT_SPLITTABLE"]
 
 # -- Ipopt (morphoshell.numerics.ipopt; the KKT fit's NLP) ------------------------------
 SOLVE_SUCCEEDED = "Solve_Succeeded"
@@ -87,6 +87,7 @@ FIT_NOT_STATIONARY = "Fit_Not_Stationary"
 FIT_NEAR_FOLD = "Fit_Near_Fold"
 FIT_ON_BOX_EDGES = "Fit_On_Box_Edges"
 FIT_MOVED_BOXES_FAILED = "Fit_Moved_Boxes_Failed"
+FIT_NOT_MINIMUM = "Fit_Not_Minimum"
 STEP_NOT_SPLITTABLE = "Step_Not_Splittable"
 
 #: Every status a route can report, and what it means (for a failure, what to try).  Each
@@ -225,6 +226,10 @@ STATUSES: Mapping[str, str] = MappingProxyType({
     FIT_MOVED_BOXES_FAILED:
         "the fit from moved boxes failed, so the fit within the last boxes stands, "
         "unconverged: start again from it, or use another method",
+    FIT_NOT_MINIMUM:
+        "a profile's refit (one parameter held) lies lower than the fit, and the fits from "
+        "there did not settle it: the fit is not the minimum; fit again from it, or use "
+        "another method",
     # sweeps (morphoshell.workflows.sweeps)
     STEP_NOT_SPLITTABLE:
         "a failed sweep step has no midpoint to split it at (breakpoints keep their order)",
