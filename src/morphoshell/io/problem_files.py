@@ -115,19 +115,7 @@ def load_problem(path: str | Path) -> tuple[Problem, Settings]:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ProblemFileError(f"{path}: not valid TOML: {exc}") from None
-    unknown = sorted(set(data) - {"problem", "parameters", "solver"})
-    loose = [k for k in unknown if not isinstance(data[k], dict)]
-    if loose:       # keys before any table: its header line is missing, not a table unknown
-        raise ProblemFileError(f"{path}: key(s) {loose} outside any table; is the [problem] "
-                               f"line above them missing?")
-    if unknown:
-        raise ProblemFileError(f"{path}: unknown table(s) {unknown}; "
-                               f"expected [problem], [parameters], [solver]")
-    for table in ("problem", "parameters", "solver"):
-        if table in data and not isinstance(data[table], dict):
-            raise ProblemFileError(f"{path}: '{table}' must be a table ([{table}])")
-    if "problem" not in data:
-        raise ProblemFileError(f"{path}: missing the [problem] table")
+    _check_tables(path, data)
     prob = _dealias(dict(data["problem"]), f"{path}: [problem]")
     unknown = sorted(set(prob) - _PROBLEM_KEYS)
     if unknown:
@@ -277,6 +265,23 @@ def _method(value: Any) -> str:
     if value not in METHODS:
         raise ValueError(f"method = {value!r} must be one of {list(METHODS)}")
     return value
+
+
+def _check_tables(path: Path, data: dict) -> None:
+    """A problem file's tables: [problem], optionally [parameters] and [solver], no other."""
+    unknown = sorted(set(data) - {"problem", "parameters", "solver"})
+    loose = [k for k in unknown if not isinstance(data[k], dict)]
+    if loose:       # keys before any table: its header line is missing, not a table unknown
+        raise ProblemFileError(f"{path}: key(s) {loose} outside any table; is the [problem] "
+                               f"line above them missing?")
+    if unknown:
+        raise ProblemFileError(f"{path}: unknown table(s) {unknown}; "
+                               f"expected [problem], [parameters], [solver]")
+    for table in ("problem", "parameters", "solver"):
+        if table in data and not isinstance(data[table], dict):
+            raise ProblemFileError(f"{path}: '{table}' must be a table ([{table}])")
+    if "problem" not in data:
+        raise ProblemFileError(f"{path}: missing the [problem] table")
 
 
 def parse_overrides(items: Iterable[str]) -> dict[str, Any]:
