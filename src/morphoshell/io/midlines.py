@@ -89,8 +89,8 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from .roi_sets import is_roi_set, read_set_traces
-from .traces import (Midline, MidlineError, Trace, check_axis, check_choice, check_positive,
-                     read_trace)
+from .trace_checks import MidlineError, check_axis, check_choice, check_positive
+from .traces import Midline, Trace, read_trace
 
 if TYPE_CHECKING:       # scipy is imported on use (CLI start-up)
     from scipy.interpolate import CubicSpline

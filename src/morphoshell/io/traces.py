@@ -53,8 +53,10 @@ curves differ slightly between control points.)
 
 Errors
 ------
-Bad files and options raise :class:`MidlineError` (a ``ValueError``) with one
-line naming the file and the line, point or option, before any fitting.
+Bad files and options raise :class:`~morphoshell.io.trace_checks.MidlineError`
+(a ``ValueError``) with one line naming the file and the line, point or
+option, before any fitting; the checks of curves and options are
+:mod:`morphoshell.io.trace_checks`.
 """
 from __future__ import annotations
 
@@ -66,6 +68,8 @@ from typing import Sequence
 import numpy as np
 
 from .._runtime.validate import real
+from .trace_checks import (MidlineError, check_axis, check_choice, check_extent, check_positive,
+                           image_scale, one_curve)
 
 __all__ = ["FORMATS", "MidlineError", "Trace", "Midline", "read_trace", "to_image", "write_trace",
            "pixel_trace", "roi_kind", "roi_points", "image_scale", "ZIP_MAGIC"]
@@ -81,17 +85,6 @@ _XY_HEADER = ("x", "y")
 ZIP_MAGIC = b"PK\x03\x04"
 _PIXEL_DUMP = ("this is a pixel list (x, y, value) from Analyze › Tools › Save XY Coordinates, "
                "not a line: save the line selection with File › Save As › XY Coordinates")
-#: A step longer than _GAP_STEPS median steps and _GAP_FRACTION of the trace joins two curves.
-_GAP_STEPS, _GAP_FRACTION = 10.0, 0.05
-#: How far (units of R) an aligned midline may stray to r < 0: noise near the pole, no more.
-_AXIS_SLACK = 0.05
-#: How far (units of R) a trace may reach from its first point: a Volvox midline lies within
-#: about 2 R of its pole; farther is a trace in other units (at 1e300 the spline overflowed).
-_MAX_EXTENT = 20.0
-
-
-class MidlineError(ValueError):
-    """A trace file or option that cannot be used; the message names the file and line or option."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -178,7 +171,7 @@ class Midline:
         header, values, where, comments = _table(path, _read_bytes(path), "csv")
         if len(values) < 4:         # (as a trace: read_trace)
             raise MidlineError(f"{path}: {len(values)} points; a midline needs at least 4")
-        _check_extent(str(path), values[:, :2], where, _IN_PIXELS)
+        check_extent(str(path), values[:, :2], where, _IN_PIXELS)
         check_axis(str(path), values[:, :2], where, _SWAPPED)
         meta = [tuple(part.strip() for part in c.partition("=")[::2]) for c in comments]
         sources = tuple(value for key, value in meta if key == "source")
@@ -229,8 +222,8 @@ def read_trace(path: str | Path, format: str | None = None, *, pixel_size_um: fl
             if value is not None:
                 raise MidlineError(f"{path}: csv traces are in units of R: {name} does not apply")
         _, values, where, _ = _table(path, data, fmt)
-        _check_extent(str(path), values[:, :2], where, _IN_PIXELS)
-        points, where = _one_curve(path, values[:, :2], where, "R")
+        check_extent(str(path), values[:, :2], where, _IN_PIXELS)
+        points, where = one_curve(path, values[:, :2], where, "R")
         check_axis(str(path), points, where, _SWAPPED)
         return Trace(points, str(path), fmt, tuple(where))
     scale = image_scale(path, fmt, pixel_size_um, radius_um)
@@ -271,9 +264,9 @@ def pixel_trace(source: str, fmt: str, pixels: np.ndarray, where: Sequence[str],
         Not one simple curve of at least 4 distinct points, or points more
         than 20 R from the first (a wrong scale).
     """
-    pixels, where = _one_curve(source, pixels, list(where), "px")
+    pixels, where = one_curve(source, pixels, list(where), "px")
     # (relative to the first point: the image origin is anywhere)
-    _check_extent(source, (pixels - pixels[0]) * scale, where,
+    check_extent(source, (pixels - pixels[0]) * scale, where,
                   "check the pixel size and the radius R")
     if spline:
         pixels = _imagej_spline(pixels)     # each point labelled by the control point before it
@@ -461,185 +454,10 @@ def _imagej_spline(control: np.ndarray) -> np.ndarray:
     return CubicSpline(t, control, bc_type="natural")(fine)
 
 
-# --------------------------------------------------------------------------- scale and checks
-
-def image_scale(path, fmt: str, pixel_size_um, radius_um) -> float:
-    """Units of R per pixel, from the two scale options (MidlineError naming a missing one).
-
-    Parameters
-    ----------
-    path : str or Path
-        The file, for messages.
-    fmt : str
-        Its format, for messages.
-    pixel_size_um, radius_um : float or None
-        µm per pixel and the embryo radius R in µm.
-
-    Returns
-    -------
-    float
-    """
-    options = {"pixel_size_um": (pixel_size_um, "µm per pixel"),
-               "radius_um": (radius_um, "the embryo radius R in µm")}
-    missing = [f"{name} ({meaning})" for name, (value, meaning) in options.items() if value is None]
-    if missing:
-        raise MidlineError(f"{path}: {fmt} coordinates are in pixels: pass "
-                           f"{' and '.join(missing)} to convert them to units of R")
-    pixel_size, radius = (check_positive(name, value, f"{path}: ")
-                          for name, (value, _) in options.items())
-    return pixel_size / radius
-
-
-def check_choice(value, choices: Sequence[str], what: str) -> str:
-    """``value`` if it is one of ``choices``.
-
-    Parameters
-    ----------
-    value
-        The option given.
-    choices : sequence of str
-        The options allowed (:data:`FORMATS`, the sections, ...).
-    what : str
-        The option's name, for the message.
-
-    Returns
-    -------
-    str
-        ``value``.
-
-    Raises
-    ------
-    MidlineError
-        "unknown {what} ...; choose one of [...]".
-    """
-    if value not in choices:
-        raise MidlineError(f"unknown {what} {value!r}; choose one of {list(choices)}")
-    return value
-
-
-def check_positive(name: str, value, prefix: str = "") -> float:
-    """``value`` as a float if it is a finite positive real number.
-
-    Parameters
-    ----------
-    name : str
-        The option's name, for the message.
-    value
-        The option given.
-    prefix : str
-        Put before the message (the file, ``"{path}: "``), or nothing.
-
-    Returns
-    -------
-    float
-
-    Raises
-    ------
-    MidlineError
-        Not a real number, not finite, or not positive.
-    """
-    try:
-        value = real(name, value)
-    except ValueError as exc:
-        raise MidlineError(f"{prefix}{exc}") from None
-    if value <= 0:
-        raise MidlineError(f"{prefix}{name} = {value!r} must be positive")
-    return value
-
-
-def _one_curve(path, points: np.ndarray, where: list[str], unit: str):
-    """Points without repeats and their labels; MidlineError unless they make one simple curve."""
-    keep = np.r_[True, np.any(np.diff(points, axis=0) != 0, axis=1)]
-    points, where = points[keep], [w for w, k in zip(where, keep) if k]
-    if len(points) < 4:
-        raise MidlineError(f"{path}: {len(points)} distinct points; a midline needs at least 4")
-    steps = np.hypot(*np.diff(points, axis=0).T)
-    median = float(np.median(steps))
-    gaps = np.flatnonzero(steps > max(_GAP_STEPS * median, _GAP_FRACTION * steps.sum()))
-    if len(gaps):
-        i = gaps[0]
-        raise MidlineError(f"{path}: {where[i]} to {where[i + 1]}: a step of {steps[i]:.4g} {unit} "
-                           f"({steps[i] / median:.0f} median steps): the trace is not one curve "
-                           f"(two pieces, or points out of order)")
-    with np.errstate(over="ignore", invalid="ignore"):     # (coordinates near 1e300)
-        crossing = _first_crossing(points, _GAP_STEPS * median)
-    if crossing is not None:
-        i, j = crossing
-        raise MidlineError(f"{path}: the segment {where[i]} to {where[i + 1]} crosses the segment "
-                           f"{where[j]} to {where[j + 1]}: the trace intersects itself")
-    return points, where
-
-
-def _first_crossing(points: np.ndarray, apart: float, chunk: int = 32) -> tuple[int, int] | None:
-    """(i, j), i < j, of two segments of the polyline that cross, ``apart`` along it; i smallest.
-
-    Segments closer than ``apart`` along the polyline may cross: noise at the
-    scale of the point spacing makes such small loops.  Only chunks of
-    consecutive segments whose bounding boxes overlap are compared, which
-    makes the check about linear in the number of points for a curve.
-    """
-    a, d = points[:-1], np.diff(points, axis=0)
-    along = np.r_[0.0, np.cumsum(np.hypot(*d.T))]             # polyline length at each point
-    starts = np.arange(0, len(a), chunk)
-    lo = np.minimum.reduceat(np.minimum(a, a + d), starts)
-    hi = np.maximum.reduceat(np.maximum(a, a + d), starts)
-    boxes_meet = np.all((lo[:, None] <= hi[None]) & (lo[None] <= hi[:, None]), axis=-1)
-
-    def cross(u, v):
-        return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
-
-    found = []
-    for p, q in np.argwhere(np.triu(boxes_meet)):
-        i = np.arange(starts[p], min(starts[p] + chunk, len(a)))[:, None]
-        j = np.arange(starts[q], min(starts[q] + chunk, len(a)))[None, :]
-        # ends of segment j on opposite sides of segment i, and vice versa (touching is not crossing)
-        hit = ((cross(d[i], a[j] - a[i]) * cross(d[i], a[j] + d[j] - a[i]) < 0)
-               & (cross(d[j], a[i] - a[j]) * cross(d[j], a[i] + d[i] - a[j]) < 0)
-               & (along[j] - along[i + 1] >= apart))
-        if hit.any():
-            k, m = np.argwhere(hit)[0]
-            found.append((int(i[k, 0]), int(j[0, m])))
-    return min(found) if found else None
-
-
 #: The likely cause of a csv midline that crosses the axis: a column z from the pole runs
 #: along the axis, where a column r may not.
 _SWAPPED = ": are its columns r and z swapped?"
 _IN_PIXELS = "a trace in pixels is read with format 'xy', 'fiji-xy' or 'roi' and a scale"
-
-
-def _check_extent(source: str, points: np.ndarray, where, hint: str) -> None:
-    """MidlineError if a point lies more than _MAX_EXTENT R from the first (wrong units)."""
-    reach = np.hypot(*(points - points[0]).T)
-    if len(points) and reach.max() > _MAX_EXTENT:
-        i = int(np.argmax(reach > _MAX_EXTENT))
-        raise MidlineError(f"{source}: {where[i]}: {reach[i]:.4g} R from the first point; a "
-                           f"midline lies within {_MAX_EXTENT:g} R of its pole ({hint})")
-
-
-def check_axis(source: str, points: np.ndarray, where, hint: str = "") -> None:
-    """Refuse a model-gauge midline that goes to r < 0 by more than noise.
-
-    Parameters
-    ----------
-    source : str
-        The file, for the message.
-    points : ndarray, shape (n, 2)
-        (r, z) in units of R.
-    where : sequence of str, length n
-        Where each point is in the file ("line 7"), for the message.
-    hint : str
-        Appended to the message: the likely cause.
-
-    Raises
-    ------
-    MidlineError
-        At the first point with r below −0.05 R (noise near the pole, no more).
-    """
-    bad = np.flatnonzero(points[:, 0] < -_AXIS_SLACK)
-    if len(bad):
-        raise MidlineError(f"{source}: {where[bad[0]]}: r = {points[bad[0], 0]:.4g} < 0: the "
-                           f"midline crosses the axis (the model gauge has r >= 0){hint}")
 
 
 # --------------------------------------------------------------------------- writing
