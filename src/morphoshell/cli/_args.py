@@ -8,8 +8,8 @@ from typing import Callable, Mapping
 
 from ._outputs import output_path
 
-__all__ = ["integer", "real", "micrometres", "add_outputs", "TRACE_OPTIONS", "problem_and_settings",
-           "reworded", "LINEAR_SOLVERS"]
+__all__ = ["integer", "real", "micrometres", "add_outputs", "TRACE_OPTIONS", "FORMAT_HELP",
+           "problem_and_settings", "reworded", "LINEAR_SOLVERS"]
 
 #: Ipopt's linear solvers: MUMPS is bundled with CasADi; the HSL ones (ma27 …)
 #: load only from the user's libhsl.so, SPRAL and Pardiso from their libraries.
@@ -23,6 +23,14 @@ TRACE_OPTIONS = {r"\bpixel_size_um\b": "--pixel-size", r"\bradius_um\b": "--radi
                  r"\broi=": "--roi ",
                  r"\bwith format '(\w+)' or none": r"with --format \1 or none",
                  r"\bthe pixel size and the radius R\b": "--pixel-size and --radius-um"}
+
+
+#: What the --format names mean (io.traces, io.trace_text), for the help of fit and average.
+FORMAT_HELP = ("csv: a midline in units of R, header r,z (pole first); xy: image pixels x, y "
+               "(y down), a header x,y or none, cells separated by commas, tabs or spaces, "
+               "after a row-number column if any (a Fiji Results table); fiji-xy: Fiji's "
+               "File > Save As > XY Coordinates (no header, x<TAB>y), read as xy; roi: an "
+               "ImageJ .roi file or a ROI Manager set RoiSet.zip")
 
 
 def reworded(message: str, options: Mapping[str, str]) -> str:

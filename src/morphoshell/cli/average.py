@@ -12,7 +12,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from ._args import TRACE_OPTIONS, add_outputs, micrometres, reworded
+from ._args import FORMAT_HELP, TRACE_OPTIONS, add_outputs, micrometres, reworded
 from ._outputs import Outputs
 
 __all__ = ["register", "OUTLIER_RATIO"]
@@ -48,7 +48,8 @@ def register(sub) -> None:
                         "x,y CSV; need --pixel-size and --radius-um) or midline CSVs of r,z "
                         "(units of R)")
     p.add_argument("--format", choices=FORMATS, default=None,
-                   help="file format of every TRACE (default: from each file's content)")
+                   help=f"file format of every TRACE (default: from each file's content). "
+                        f"{FORMAT_HELP}")
     p.add_argument("--pixel-size", dest="pixel_size", type=micrometres, default=None,
                    metavar="UM", help="image traces: micrometres per pixel "
                    "(Fiji: Image > Properties > Pixel width); required with --radius-um")

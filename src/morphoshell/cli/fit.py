@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ._args import TRACE_OPTIONS, add_outputs, integer, micrometres, reworded
+from ._args import FORMAT_HELP, TRACE_OPTIONS, add_outputs, integer, micrometres, reworded
 from ._outputs import Outputs
 from ._profiles import (add_profile_options, profile_json, profile_names, profile_plot_path,
                         profile_table, run_profiles)
@@ -32,7 +32,7 @@ def register(sub) -> None:
                    "R, pole first), or an image trace: CSV of x,y, Fiji XY coordinates, an "
                    "ImageJ .roi or a ROI Manager set RoiSet.zip (with --roi)")
     p.add_argument("--format", choices=FORMATS, default=None,
-                   help="file format (default: from the content)")
+                   help=f"file format (default: from the content). {FORMAT_HELP}")
     p.add_argument("--pixel-size", dest="pixel_size", type=micrometres,
                    default=None, metavar="UM", help="image traces: micrometres per pixel "
                    "(Fiji: Image > Properties > Pixel width; 1 if the trace was exported in "

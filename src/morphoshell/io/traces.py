@@ -23,9 +23,12 @@ Formats
 ``csv``      header ``r,z`` (or ``r,z,spread``), units of R, model gauge,
              posterior pole first; lines starting with ``#`` are comments.
              :meth:`Midline.to_csv` writes it.
-``xy``       header ``x,y``, comma-separated image pixels, y pointing down.
+``xy``       image pixels x, y, y pointing down: a header ``x,y`` (any case;
+             after a row-number column, as Fiji's Results table and pandas
+             write it) or none, cells separated by commas, tabs or spaces.
 ``fiji-xy``  Fiji's *File › Save As › XY Coordinates…* of a line selection:
-             no header, ``x<TAB>y`` per line, y pointing down.  Fiji writes
+             no header, ``x<TAB>y`` per line, y pointing down; read as xy
+             (the name says where it comes from).  Fiji writes
              calibrated units if the image is spatially calibrated: then pass
              ``pixel_size_um=1`` (for µm).  The three-column file of
              *Analyze › Tools › Save XY Coordinates…* lists the pixels of an
@@ -33,12 +36,14 @@ Formats
 ``roi``      an ImageJ ``.roi`` file (via ``roifile``) of a segmented, freehand
              or straight line, y pointing down.
 
-The format is inferred from the content when not given: the ROI magic
-``Iout``, else the header line (``r,z`` → csv, ``x,y`` → xy, numbers →
-fiji-xy).  Image coordinates need ``pixel_size_um`` (µm per pixel) and
-``radius_um`` (R in µm): a pixel (x, y) becomes (x, −y)·pixel_size_um/radius_um.
-y is flipped so that the trace's frame is right-handed; the aligned midline
-does not depend on it (a mirror image of a section aligns to the same half).
+The text forms accepted and refused (semicolons, decimal commas, images,
+UTF-16) are :mod:`morphoshell.io.trace_text`'s.  The format is inferred from
+the content when not given: the ROI magic ``Iout``, else the header line
+(``r,z`` → csv, ``x,y`` → xy, numbers → fiji-xy).  Image coordinates need
+``pixel_size_um`` (µm per pixel) and ``radius_um`` (R in µm): a pixel (x, y)
+becomes (x, −y)·pixel_size_um/radius_um.  y is flipped so that the trace's
+frame is right-handed; the aligned midline does not depend on it (a mirror
+image of a section aligns to the same half).
 
 Spline-fit ROIs
 ---------------
@@ -70,6 +75,7 @@ import numpy as np
 from .._runtime.validate import real
 from .trace_checks import (MidlineError, check_axis, check_choice, check_extent, check_positive,
                            image_scale, one_curve)
+from .trace_text import ZIP_MAGIC, read_bytes, read_table, text_format
 
 __all__ = ["FORMATS", "MidlineError", "Trace", "Midline", "read_trace", "to_image", "write_trace",
            "pixel_trace", "roi_kind", "roi_points", "image_scale", "ZIP_MAGIC"]
@@ -78,13 +84,6 @@ __all__ = ["FORMATS", "MidlineError", "Trace", "Midline", "read_trace", "to_imag
 FORMATS = ("csv", "xy", "fiji-xy", "roi")
 #: Points per control interval at which a spline-fit ROI is evaluated.
 SPLINE_SUBDIVISIONS = 32
-
-_CSV_HEADERS = (("r", "z"), ("r", "z", "spread"))
-_XY_HEADER = ("x", "y")
-#: The first bytes of a zip file (an ImageJ ROI Manager set, :mod:`morphoshell.io.roi_sets`).
-ZIP_MAGIC = b"PK\x03\x04"
-_PIXEL_DUMP = ("this is a pixel list (x, y, value) from Analyze › Tools › Save XY Coordinates, "
-               "not a line: save the line selection with File › Save As › XY Coordinates")
 
 
 @dataclass(frozen=True, eq=False)
@@ -168,7 +167,7 @@ class Midline:
     def from_csv(cls, path: str | Path) -> "Midline":
         """Read what :meth:`to_csv` wrote (points as they are, not resampled)."""
         path = Path(path)
-        header, values, where, comments = _table(path, _read_bytes(path), "csv")
+        header, values, where, comments = read_table(path, read_bytes(path), "csv")
         if len(values) < 4:         # (as a trace: read_trace)
             raise MidlineError(f"{path}: {len(values)} points; a midline needs at least 4")
         check_extent(str(path), values[:, :2], where, _IN_PIXELS)
@@ -215,13 +214,14 @@ def read_trace(path: str | Path, format: str | None = None, *, pixel_size_um: fl
     """
     path = Path(path)
     fmt = None if format is None else check_choice(format, FORMATS, "format")
-    data = _read_bytes(path)
-    fmt = fmt or _sniff(path, data)
+    data = read_bytes(path)
+    if fmt is None:
+        fmt = "roi" if data[:4] in (b"Iout", ZIP_MAGIC) else text_format(path, data)
     if fmt == "csv":
         for name, value in (("pixel_size_um", pixel_size_um), ("radius_um", radius_um)):
             if value is not None:
                 raise MidlineError(f"{path}: csv traces are in units of R: {name} does not apply")
-        _, values, where, _ = _table(path, data, fmt)
+        _, values, where, _ = read_table(path, data, fmt)
         check_extent(str(path), values[:, :2], where, _IN_PIXELS)
         points, where = one_curve(path, values[:, :2], where, "R")
         check_axis(str(path), points, where, _SWAPPED)
@@ -231,7 +231,7 @@ def read_trace(path: str | Path, format: str | None = None, *, pixel_size_um: fl
     if fmt == "roi":
         pixels, where, spline = roi_points(str(path), _roi_of(path, data))
     else:
-        _, pixels, where, _ = _table(path, data, fmt)
+        _, pixels, where, _ = read_table(path, data, fmt)
     return pixel_trace(str(path), fmt, pixels, where, scale, spline)
 
 
@@ -272,114 +272,6 @@ def pixel_trace(source: str, fmt: str, pixels: np.ndarray, where: Sequence[str],
         pixels = _imagej_spline(pixels)     # each point labelled by the control point before it
         where = [where[min(k // SPLINE_SUBDIVISIONS, len(where) - 1)] for k in range(len(pixels))]
     return Trace(pixels * [scale, -scale], source, fmt, tuple(where))
-
-
-def _read_bytes(path: Path) -> bytes:
-    try:
-        return path.read_bytes()
-    except OSError as exc:
-        raise MidlineError(f"{path}: cannot read: {exc.strerror}") from None
-
-
-def _text(path: Path, data: bytes) -> list[tuple[int, str]]:
-    """(line number, stripped text) of every line; MidlineError if not UTF-8."""
-    if data[:4] == ZIP_MAGIC:       # (was "line 1: not UTF-8 text (byte 11)")
-        raise MidlineError(f"{path}: a zip file (an ImageJ ROI Manager set?), not text: read it "
-                           f"with format 'roi' or none")
-    try:
-        text = data.decode("utf-8-sig")     # Excel writes a byte-order mark
-    except UnicodeDecodeError as exc:
-        line = data[:exc.start].count(b"\n") + 1
-        raise MidlineError(f"{path}: line {line}: not UTF-8 text (byte {exc.start})") from None
-    return [(i, line.strip()) for i, line in enumerate(text.splitlines(), 1)]
-
-
-def _cells(line: str) -> list[str]:
-    return line.split(",") if "," in line else line.split()
-
-
-def _is_number(cell: str) -> bool:
-    try:
-        float(cell)
-    except ValueError:
-        return False
-    return True
-
-
-def _sniff(path: Path, data: bytes) -> str:
-    """The format of a file from its content."""
-    if data[:4] in (b"Iout", ZIP_MAGIC):        # (a zip: refused by the roi reader, named)
-        return "roi"
-    content = [(i, s) for i, s in _text(path, data) if s and not s.startswith("#")]
-    if not content:
-        raise MidlineError(f"{path}: empty file: no points")
-    i, first = content[0]
-    names = tuple(c.strip().lower() for c in _cells(first))
-    if names in _CSV_HEADERS:
-        return "csv"
-    if names == _XY_HEADER:
-        return "xy"
-    if all(_is_number(c) for c in names):
-        return "fiji-xy"
-    if {"x", "y"} <= set(names):
-        raise MidlineError(f"{path}: line {i}: columns {first!r}: {_PIXEL_DUMP}")
-    raise MidlineError(f"{path}: line {i}: unrecognised header {first!r}; expected 'r,z' (csv), "
-                       f"'x,y' (xy) or no header with x<TAB>y (fiji-xy)")
-
-
-def _table(path: Path, data: bytes, fmt: str):
-    """Header, values (n, k), where (n,) and ``#`` comments of a text trace."""
-    lines = _text(path, data)
-    comments = [s[1:].strip() for _, s in lines if s.startswith("#")]
-    body = [(i, s) for i, s in lines if s and not s.startswith("#")]
-    if not body:
-        raise MidlineError(f"{path}: empty file: no points")
-    header, separator, body = _header(path, body, fmt)
-    values = np.empty((len(body), len(header)))
-    for k, (i, text) in enumerate(body):
-        values[k] = _row(path, i, text.split(separator), header)
-    return header, values, [f"line {i}" for i, _ in body], comments
-
-
-def _header(path: Path, body: list[tuple[int, str]], fmt: str):
-    """Column names, cell separator and the data lines of a text trace's non-comment lines.
-
-    fiji-xy has no header (columns x, y split at whitespace); csv and xy have
-    one, comma-separated.  A pixel list (three numbers, or x and y among more
-    named columns) is refused with the export that gives a line.
-    """
-    if fmt == "fiji-xy":
-        first = body[0][1].split()
-        if len(first) >= 3 and all(_is_number(c) for c in first):
-            raise MidlineError(f"{path}: line {body[0][0]}: {len(first)} columns: {_PIXEL_DUMP}")
-        return ("x", "y"), None, body
-    (i, text), rows = body[0], body[1:]
-    header = tuple(c.strip().lower() for c in text.split(","))
-    expected = _CSV_HEADERS if fmt == "csv" else (_XY_HEADER,)
-    if header not in expected:
-        if {"x", "y"} <= set(header) and len(header) > 2:
-            raise MidlineError(f"{path}: line {i}: columns {text!r}: {_PIXEL_DUMP}")
-        raise MidlineError(f"{path}: line {i}: header {text!r} is not "
-                           f"{' or '.join(repr(','.join(h)) for h in expected)} (format {fmt!r})")
-    return header, ",", rows
-
-
-def _row(path: Path, line: int, cells: list[str], header: tuple[str, ...]) -> list[float]:
-    """The finite numbers of one data line, one per column of ``header``."""
-    if len(cells) != len(header):
-        raise MidlineError(f"{path}: line {line}: {len(cells)} values, expected {len(header)} "
-                           f"({', '.join(header)})")
-    row = []
-    for j, cell in enumerate(cells):
-        where = f"{path}: line {line}, column {j + 1} ({header[j]})"
-        try:
-            value = float(cell)
-        except ValueError:
-            raise MidlineError(f"{where}: {cell.strip()!r} is not a number") from None
-        if not math.isfinite(value):
-            raise MidlineError(f"{where}: {cell.strip()} is not finite")
-        row.append(value)
-    return row
 
 
 def _roi_of(path: Path, data: bytes):
