@@ -2,9 +2,10 @@
 
 Problem files (TOML) and their overrides, the packaged examples and the writers
 of results (:mod:`.problem_files`); trace files of midlines from Fiji/ImageJ and
-CSV (:mod:`.traces`; their checks, :mod:`.trace_checks`) and ImageJ's ROI
-Manager sets (:mod:`.roi_sets`), and their geometry: alignment to the model
-gauge, resampling and averaging (:mod:`.midlines`); the tables of ablation
+CSV (:mod:`.traces`; their text forms, :mod:`.trace_text`; their checks,
+:mod:`.trace_checks`) and ImageJ's ROI Manager sets (:mod:`.roi_sets`), and
+their geometry: noise and binning (:mod:`.trace_noise`), alignment to the
+model gauge, resampling and averaging (:mod:`.midlines`); the tables of ablation
 measurements (:mod:`.measurements`) and of an inversion sequence's timepoints
 (:mod:`.timepoints`).  Every reader names the file and the offending entry.
 """
