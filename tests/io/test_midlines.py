@@ -49,7 +49,9 @@ def test_round_trip(tmp_path, fmt, section, tol):
     if fmt != "csv":
         aligned = ml.align(tr.read_trace(path, **SCALE), section)
         assert aligned.section == section
-        assert abs(math.degrees(aligned.axis_angle) - 37.0) < 1e3 * tol
+        # (the half section's model error tilts its axis by 0.11°)
+        assert abs(math.degrees(aligned.axis_angle) - 37.0) < (0.2 if section == "half"
+                                                               else 1e3 * tol)
 
 
 def test_whole_section_equals_its_half(tmp_path):
@@ -151,7 +153,7 @@ def _vertices(tmp_path, n):
 def test_segmented_line_vertices_are_not_binned(tmp_path, caplog):
     """A Fiji segmented line holds its clicked vertices only: binning them cut the folds off
     (the fit then "converged" to a smooth C at a better E_fit).  Read as the spline through
-    them, 15 and 20 vertices give the dense trace's midline within 0.0086 and 0.0104 R rms
+    them, 15 and 20 vertices give the dense trace's midline within 0.0085 and 0.0103 R rms
     (the spline between vertices 0.36 and 0.26 R apart, at folds of radius ~0.08 R); binned,
     0.083 and 0.028 R.  0.015 R lies between; the dense trace is binned as before."""
     with caplog.at_level(logging.INFO, logger="morphoshell.io"):
@@ -200,8 +202,10 @@ def test_traces_too_sparse_for_a_shape_are_refused(tmp_path, section, points, fi
 def test_noisy_half_sections_are_aligned_or_refused(tmp_path):
     """A half section's axis was the spline's tangent at its first point: 0.05-0.17 R off with
     0.05-0.5 px of noise, silently.  Now fitted near the pole: at 0.1 px (σ = 5e-4 R) 8 traces
-    lie 0.0059 R rms from the truth (within the 0.01 R a standard error of the axis may move
-    them); at 0.5 px each is refused, naming the uncertainty and the remedy."""
+    lie 0.0055 R rms from the truth, the farthest 0.012 R (within the 0.01 R a standard error
+    of the axis may move them, 0.01 R rms asserted); at 0.5 px each is refused, naming the
+    uncertainty and the remedy.  The old tangent put the 0.1 px ones 0.04-0.42 R off (0.20 R
+    rms)."""
     errors = []
     for seed in range(8):
         path = write(tmp_path, "fiji-xy", points=half(801), section="half",
