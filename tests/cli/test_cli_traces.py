@@ -100,8 +100,8 @@ def test_a_rim_traced_short_is_told_the_rule_not_section_half(fiji_xy, capsys, t
     err = _refused(["fit", str(short), "--variant", "free", "--pixel-size", str(PIXEL_UM),
                     "--radius-um", str(RADIUS_UM)], capsys, tmp_path,
                    "the pole is taken at half the trace's length, so both rims must be traced "
-                   "to their ends")
-    assert "pass --section half" not in err
+                   "to their ends", "rms from their mirror average (at most 0.05 R)")
+    assert "pass --section half" not in err and "max_asymmetry" not in err
 
 
 def _stopped_fit(monkeypatch):

@@ -25,7 +25,9 @@ TRACE_OPTIONS = {r"\bpixel_size_um\b": "--pixel-size", r"\bradius_um\b": "--radi
                  r"\bsection='(\w+)'": r"--section \1", r"\broi='([^']*)'": r"--roi \1",
                  r"\broi=": "--roi ",
                  r"\bwith format '(\w+)' or none": r"with --format \1 or none",
-                 r"\bthe pixel size and the radius R\b": "--pixel-size and --radius-um"}
+                 r"\bthe pixel size and the radius R\b": "--pixel-size and --radius-um",
+                 # (the command line has no option for it)
+                 r"\(max_asymmetry = ([0-9.e+-]+)\)": r"(at most \1 R)"}
 
 
 #: What --section means, and its caveats (io.midlines), for the help of fit and average.
