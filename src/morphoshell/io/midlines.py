@@ -281,7 +281,18 @@ def align(trace: Trace, section: str = "auto", *, flip: bool = False,
     -------
     Alignment
         ``points`` of shape (m, 2): the trace's own points for a half
-        section, max(1024, 2n) mirror-averaged points for a whole one.
+        section (binned if noisy, :mod:`morphoshell.io.trace_noise`), the
+        first moved onto the fitted pole; max(1024, 2n) mirror-averaged
+        points for a whole one.
+
+    Raises
+    ------
+    MidlineError
+        Fewer points than :data:`MIN_POINTS`; a whole section whose halves
+        differ by more than ``max_asymmetry``; a half section whose axis is
+        uncertain (or with fewer than 6 points within 0.4 R of its pole);
+        either named for its scale instead when its halves are far from a
+        midline's 2-4 R; a midline that crosses the axis.
     """
     section = check_choice(section, SECTIONS, "section")
     max_asymmetry = check_positive("max_asymmetry", max_asymmetry)
