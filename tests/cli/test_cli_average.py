@@ -45,6 +45,8 @@ def test_the_average_of_the_shipped_traces_is_the_shipped_average(tmp_path, caps
     assert (tmp_path / "a.png").stat().st_size > 10_000
     printed = capsys.readouterr().out
     assert "outlier" not in printed
+    for trace in TRACES:            # what the reader did to each trace, printed
+        assert re.search(f"note: {re.escape(trace)}: noise .* averaged in bins of 4", printed)
     # the row it prints is one a campaign's data folder reads (read_timepoints checks files)
     from morphoshell.io import read_timepoints
 
@@ -93,7 +95,10 @@ def test_a_roi_manager_set_adds_every_line_roi(tmp_path, capsys):
     (["--pixel-size", "0.3", "--radius-um", "40,41"], "--radius-um has 2 radii for 5 TRACE"),
     (["--pixel-size", "0.3"], "--pixel-size and --radius-um go together"),
     (["--traces"], "--traces writes the traces' midlines beside the --csv file"),
-    (["--pixel-size", "3", "--radius-um", "40"], "is --pixel-size 3 the size of a pixel"),
+    # 10 times too large: the points, 0.12 R apart, are too sparse to bin, and the halves
+    # differ by their noise; the scale is named first
+    (["--pixel-size", "3", "--radius-um", "40"], "its halves are 29.6 R long, where a midline's "
+                                                 "half is about 2-4 R (its halves differ by "),
     (["--radius-um", "-4"], "argument --radius-um: -4 must be a finite number in (0, 1e+06] um"),
 ])
 def test_bad_options_are_one_line_and_write_nothing(tmp_path, capsys, argv, said):

@@ -27,8 +27,10 @@ def fiji_xy(tmp_path_factory):
 def _refused(argv, capsys, tmp_path, *named):
     out = tmp_path / "fit.json"
     assert main([*argv, "--json", str(out)]) == 2
-    err = capsys.readouterr().err
+    captured = capsys.readouterr()
+    err = captured.err
     assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert "note:" not in captured.out            # (the reader's notes: once a trace is accepted)
     for word in named:
         assert word in err, err
     assert not out.exists()
@@ -85,7 +87,77 @@ def test_messages_name_the_command_line_options(fiji_xy, capsys, tmp_path):
     rows = fiji_xy.read_text().splitlines()
     asymmetric.write_text("\n".join(rows[len(rows) // 2 - 40:]) + "\n")
     _refused(["fit", str(asymmetric), "--variant", "free", "--pixel-size", str(PIXEL_UM),
-              "--radius-um", str(RADIUS_UM)], capsys, tmp_path, "pass --section half")
+              "--radius-um", str(RADIUS_UM)], capsys, tmp_path,
+             "only a trace that starts at the pole is a half section (--section half)")
+
+
+def test_a_rim_traced_short_is_told_the_rule_not_section_half(fiji_xy, capsys, tmp_path):
+    """One rim traced 6 % short was told "if it is a half section, pole first, pass --section
+    half", which was wrong: the pole is taken at half the trace's length."""
+    rows = fiji_xy.read_text().splitlines()
+    short = tmp_path / "short.txt"
+    short.write_text("\n".join(rows[int(0.06 * len(rows)):]) + "\n")
+    err = _refused(["fit", str(short), "--variant", "free", "--pixel-size", str(PIXEL_UM),
+                    "--radius-um", str(RADIUS_UM)], capsys, tmp_path,
+                   "the pole is taken at half the trace's length, so both rims must be traced "
+                   "to their ends", "rms from their mirror average (at most 0.05 R)")
+    assert "pass --section half" not in err and "max_asymmetry" not in err
+
+
+def _stopped_fit(monkeypatch):
+    """fit's fitting replaced by a stop (exit 3) that keeps the midline it was given."""
+    import morphoshell.fitting as fitting
+    from morphoshell.fitting import FitError
+    seen = []
+
+    def fake_fit(spec, midline, *args, **kwargs):
+        seen.append(midline)
+        raise FitError("stopped here", "Maximum_Iterations_Exceeded")
+
+    monkeypatch.setattr(fitting, "fit", fake_fit)
+    return seen
+
+
+def test_fit_prints_what_the_reader_did_to_the_trace(fiji_xy, capsys, tmp_path, monkeypatch):
+    """Binning a dense trace and reading a segmented line's vertices as a spline were silent,
+    even with -v; now a note says so (stdout), once the trace is accepted."""
+    _stopped_fit(monkeypatch)
+    scale = ["--pixel-size", str(PIXEL_UM), "--radius-um", str(RADIUS_UM)]
+    rows = fiji_xy.read_text().splitlines()
+    vertices = tmp_path / "vertices.txt"
+    vertices.write_text("\n".join(rows[::len(rows) // 19]) + "\n")
+    for path, note in ((fiji_xy, "averaged in bins of 4"),
+                       (vertices, "20 points 0.2"),
+                       (vertices, "the midline between them is the cubic spline through them")):
+        assert main(["fit", str(path), "--variant", "flat", *scale]) == 3
+        out = capsys.readouterr().out
+        assert f"note: {path}: " in out and note in out, out
+
+
+def test_a_noisy_half_section_is_refused_naming_whole_sections(capsys, tmp_path):
+    """--section half took the axis from the first points' tangent: any real noise misplaced
+    the midline, silently, or gave "the midline crosses the axis"."""
+    import sys
+    sys.path.insert(0, str(ROOT / "tests" / "io"))
+    from reference_midline import SCALE, half, write
+
+    path = write(tmp_path, "fiji-xy", points=half(801), section="half", angle_deg=20.0,
+                 offset_px=(500.0, 500.0), noise_px=0.5, seed=1)
+    scale = ["--pixel-size", str(SCALE["pixel_size_um"]), "--radius-um", str(SCALE["radius_um"])]
+    err = _refused(["fit", str(path), "--variant", "flat", "--section", "half", *scale], capsys,
+                   tmp_path, "the axis of this half section is uncertain",
+                   "trace the whole section, rim to rim through the pole (--section whole)")
+    assert "section='whole'" not in err
+
+
+def test_section_help_states_the_rules(capsys):
+    for command in ("fit", "average"):
+        assert main([command, "--help"]) == 0
+        text = " ".join(capsys.readouterr().out.split())
+        assert "the pole is taken at half the trace's length, so trace both rims to their " \
+               "ends" in text
+        assert "trace whole sections where you can" in text
+        assert "Save As > XY Coordinates (no header, x<TAB>y), read as xy" in text
 
 
 def test_fit_help_says_image_traces_need_the_scale(capsys):

@@ -2,29 +2,43 @@
 
 The reference midline and its trace files: reference_midline.py.
 """
+import logging
 import math
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from morphoshell.io import midlines as ml
+from morphoshell.io import trace_noise
 from morphoshell.io import traces as tr
 from morphoshell.io import Midline, MidlineError
 from reference_midline import S_MAX, SCALE, SIGMA, TRUTH, half, shape, truth, write
 
+#: The shipped synthetic embryo 1 at t02: a whole section, 473 points 1.5 px apart, ½ px noise.
+EMBRYO = Path(__file__).resolve().parents[2] / "data" / "synthetic_inversion" / "t02" / \
+    "synthetic_embryo1.csv"
+EMBRYO_SCALE = {"pixel_size_um": 0.3, "radius_um": 41.7078}
+
 
 # ------------------------------------------------------------------ round trips
+
+#: A half section's axis is fitted to z = t + a r² + b r⁴ within 0.4 R of the pole; the bulge
+#: of the reference shape (r = sin s (1 + 0.1 cos 3s)) puts higher powers of r there, which tilt
+#: the clean axis by 2e-3 rad: 2.4e-3 R rms, 3.5e-3 R at the rim (1.5e-4 R rms for the Volvox
+#: example's equilibrium, a sphere-like pole).
+HALF_BIAS = 4e-3
+
 
 @pytest.mark.parametrize("fmt, section, tol", [
     ("csv", "half", 1e-6),
     ("xy", "whole", 1e-6), ("fiji-xy", "whole", 1e-6), ("roi", "whole", 1e-6),
-    ("xy", "half", 1e-6), ("fiji-xy", "half", 1e-6),
-    # float32 coordinates of .roi files (~3e-5 px at 600 px) tilt the tangent at the pole, on
-    # which a half section's axis rests, by ~3e-5 px / 0.6 px spacing: 2e-4 R at the rim.
-    ("roi", "half", 5e-4),
+    ("xy", "half", HALF_BIAS), ("fiji-xy", "half", HALF_BIAS), ("roi", "half", HALF_BIAS),
 ])
 def test_round_trip(tmp_path, fmt, section, tol):
-    """801 points per half (spacing 0.003 R): spline error ~1e-10, far below tol."""
+    """801 points per half (spacing 0.003 R): spline error ~1e-10, far below tol; a half
+    section's axis errs by its fit's model (HALF_BIAS)."""
     placement = {} if fmt == "csv" else {"angle_deg": 37.0, "offset_px": (612.5, 433.25),
                                          "section": section}
     path = write(tmp_path, fmt, **placement)
@@ -35,7 +49,9 @@ def test_round_trip(tmp_path, fmt, section, tol):
     if fmt != "csv":
         aligned = ml.align(tr.read_trace(path, **SCALE), section)
         assert aligned.section == section
-        assert abs(math.degrees(aligned.axis_angle) - 37.0) < 1e3 * tol
+        # (the half section's model error tilts its axis by 0.11°)
+        assert abs(math.degrees(aligned.axis_angle) - 37.0) < (0.2 if section == "half"
+                                                               else 1e3 * tol)
 
 
 def test_whole_section_equals_its_half(tmp_path):
@@ -47,7 +63,7 @@ def test_whole_section_equals_its_half(tmp_path):
                                  section="half", **SCALE)
     model_half = ml.load_midline(write(tmp_path, "csv", "model"))
     assert np.abs(whole.points - model_half.points).max() < 1e-6
-    assert np.abs(image_half.points - model_half.points).max() < 1e-6
+    assert np.abs(image_half.points - model_half.points).max() < HALF_BIAS
     assert whole.points[0] == pytest.approx([0.0, 0.0], abs=1e-12)
     assert np.all(whole.r >= 0) and whole.z[-1] > 0
 
@@ -116,6 +132,115 @@ def test_pole_height_is_fitted_not_one_noisy_point(tmp_path, monkeypatch):
     clean = ml.load_midline(write(tmp_path, "xy", "clean", points=half(335), angle_deg=37.0,
                                   offset_px=(600.0, 400.0)), **SCALE)
     assert abs(np.mean(clean.z[10:] - TRUTH[10:, 1])) < 1e-5
+
+
+def _rms(a, b):
+    return float(np.sqrt(np.mean(np.sum((a - b) ** 2, axis=1))))
+
+
+def _vertices(tmp_path, n):
+    """A segmented line along the embryo's trace: n vertices at equal steps of its length,
+    as Fiji's XY Coordinates writes them (tab-separated, no header, 2 decimals)."""
+    dense = np.loadtxt(EMBRYO, delimiter=",", comments="#", skiprows=4)
+    s = np.r_[0.0, np.cumsum(np.hypot(*np.diff(dense, axis=0).T))]
+    t = np.linspace(0.0, s[-1], n)
+    path = tmp_path / f"vertices{n}.txt"
+    np.savetxt(path, np.column_stack([np.interp(t, s, dense[:, 0]), np.interp(t, s, dense[:, 1])]),
+               fmt="%.2f", delimiter="\t")
+    return path
+
+
+def test_segmented_line_vertices_are_not_binned(tmp_path, caplog):
+    """A Fiji segmented line holds its clicked vertices only: binning them cut the folds off
+    (the fit then "converged" to a smooth C at a better E_fit).  Read as the spline through
+    them, 15 and 20 vertices give the dense trace's midline within 0.0085 and 0.0103 R rms
+    (the spline between vertices 0.36 and 0.26 R apart, at folds of radius ~0.08 R); binned,
+    0.083 and 0.028 R.  0.015 R lies between; the dense trace is binned as before."""
+    with caplog.at_level(logging.INFO, logger="morphoshell.io"):
+        dense = ml.load_midline(EMBRYO, **EMBRYO_SCALE)
+        for n in (15, 20):
+            assert _rms(ml.load_midline(_vertices(tmp_path, n), **EMBRYO_SCALE).points,
+                        dense.points) < 0.015
+    assert "noise ≈ 0.0036 R at a point spacing of 0.011 R: the 471 points between the ends " \
+           "averaged in bins of 4 (119 points" in caplog.text
+    for n in (15, 20):
+        assert re.search(f"vertices{n}.txt: {n} points 0.[23]\\d R apart \\(vertices of a segmented "
+                         f"line\\?\\): the midline between them is the cubic spline", caplog.text)
+
+
+def test_bins_are_never_longer_than_max_bin():
+    """Points 0.1 R apart are not binned, whatever their noise; at 0.045 R apart bins hold 3
+    points (0.15 R), where the noise asks for 4; the note says what remains."""
+    rng = np.random.default_rng(2)
+    for step, sigma, k, wanted in ((0.1, 0.01, 1, 2), (0.045, 0.02, 3, 4)):
+        phi = np.arange(0.0, 3.0, step)
+        circle = np.column_stack([np.cos(phi), np.sin(phi)])
+        binning = trace_noise.bin_noisy(circle + rng.normal(0, sigma, circle.shape))
+        assert (binning.k, binning.wanted) == (k, wanted)
+    assert "bins of 4, longer than 0.15 R, would cut the folds" in binning.note("t.txt")
+
+
+@pytest.mark.parametrize("section, points, first", [
+    ("whole", half(8), 1),
+    # a half section's axis needs 6 points within 0.4 R of the pole
+    ("half", shape(np.r_[np.linspace(0.0, 0.38, 6), 0.9, 1.5]), 0),
+])
+def test_traces_too_sparse_for_a_shape_are_refused(tmp_path, section, points, first):
+    """At 10-12 vertices a whole section's midline was 0.06-0.07 R rms off (module docstring):
+    15 points of a whole section, 8 of a half are read, one fewer refused."""
+    pixels = tr.to_image(points, radius_px=200.0, section=section, offset_px=(400.0, 400.0))
+    path = tmp_path / "trace.txt"
+    np.savetxt(path, pixels, delimiter="\t")
+    assert ml.align(tr.read_trace(path, **SCALE), section).section == section
+    np.savetxt(path, pixels[first:len(pixels) - 1 + first], delimiter="\t")
+    n = len(pixels) - 1
+    with pytest.raises(MidlineError, match=f"trace.txt: {n} distinct points; a {section} "
+                                           f"section needs at least {n + 1} to hold the shape"):
+        ml.align(tr.read_trace(path, **SCALE), section)
+
+
+def test_noisy_half_sections_are_aligned_or_refused(tmp_path):
+    """A half section's axis was the spline's tangent at its first point: 0.05-0.17 R off with
+    0.05-0.5 px of noise, silently.  Now fitted near the pole: at 0.1 px (σ = 5e-4 R) 8 traces
+    lie 0.0055 R rms from the truth, the farthest 0.012 R (within the 0.01 R a standard error
+    of the axis may move them, 0.01 R rms asserted); at 0.5 px each is refused, naming the
+    uncertainty and the remedy.  The old tangent put the 0.1 px ones 0.04-0.42 R off (0.20 R
+    rms)."""
+    errors = []
+    for seed in range(8):
+        path = write(tmp_path, "fiji-xy", points=half(801), section="half",
+                     angle_deg=-50.0 + 23 * seed, offset_px=(500.0, 500.0), noise_px=0.1,
+                     seed=seed)
+        errors.append(_rms(ml.load_midline(path, section="half", **SCALE).points, TRUTH))
+    assert math.sqrt(np.mean(np.square(errors))) < 0.01
+    for seed in range(8):
+        path = write(tmp_path, "fiji-xy", points=half(801), section="half",
+                     angle_deg=-50.0 + 23 * seed, offset_px=(500.0, 500.0), noise_px=0.5,
+                     seed=seed)
+        with pytest.raises(MidlineError, match=r"trace.txt: the axis of this half section is "
+                                               r"uncertain: .* moves the midline by 0\.0\d+ R rms "
+                                               r"\(more than 0.01 R\): trace the whole section"):
+            ml.load_midline(path, section="half", **SCALE)
+
+
+def test_half_section_noise_is_at_least_the_traces(tmp_path):
+    """The points near the pole are few (10 bins of 4 here): their residuals can understate the
+    noise.  Of 40 seeded half sections of 267 points with ½ px noise, this one's did, and it
+    was accepted 0.059 R rms off; with the trace's noise as the floor all 40 are refused."""
+    path = write(tmp_path, "fiji-xy", points=half(267), section="half", angle_deg=285.0,
+                 offset_px=(500.0, 500.0), noise_px=0.5, seed=15)
+    with pytest.raises(MidlineError, match="the axis of this half section is uncertain"):
+        ml.load_midline(path, section="half", **SCALE)
+
+
+def test_a_trace_far_off_scale_is_refused_for_its_scale_not_its_shape():
+    """The embryo read 10 times too large (pixel size 3 µm): its points lie 0.12 R apart, too
+    sparse to bin, and their noise made the halves differ; the message blamed the rims."""
+    trace = tr.read_trace(EMBRYO, pixel_size_um=3.0, radius_um=EMBRYO_SCALE["radius_um"])
+    with pytest.raises(MidlineError, match=r"synthetic_embryo1.csv: its halves are 28\.4 R long, "
+                                           r"where a midline's half is about 2-4 R \(its halves "
+                                           r"differ by .*\): check the pixel size and the radius R"):
+        ml.align(trace)
 
 
 def test_average_estimates_mean_and_spread():
@@ -193,7 +318,7 @@ def test_binning_noisy_points_keeps_them_on_the_curve():
     circle = rho * np.column_stack([np.cos(phi), np.sin(phi)])
     radii, k = [], None
     for _ in range(300):
-        binned = ml._bin_noisy(circle + rng.normal(0, sigma, circle.shape))
+        binned = trace_noise.bin_noisy(circle + rng.normal(0, sigma, circle.shape)).points
         k = (len(circle) - 2) / (len(binned) - 2)
         radii.append(np.hypot(*binned[2:-2].T))     # (the end bins have one-sided neighbours)
     radii = np.concatenate(radii)
@@ -220,7 +345,9 @@ def test_resample_names_a_point_that_is_not_finite():
 
 def test_half_section_passed_as_whole_is_refused(tmp_path):
     path = write(tmp_path, "fiji-xy", section="half", angle_deg=37.0)
-    with pytest.raises(MidlineError, match=r"trace.txt: the halves .* pass section='half'"):
+    with pytest.raises(MidlineError, match=r"trace.txt: the halves .*: the pole is taken at half "
+                                           r"the trace's length, so both rims must be traced "
+                                           r"to their ends .* \(section='half'\)"):
         ml.load_midline(path, **SCALE)
 
 

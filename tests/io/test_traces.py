@@ -121,6 +121,74 @@ def test_two_pieces_and_self_intersection(tmp_path):
             tr.read_trace(path, **SCALE)
 
 
+# ------------------------------------------------------------------ text forms
+
+PIXELS = 200 * half(20) + 300
+ROWS = [(f"{x:.3f}", f"{y:.3f}") for x, y in PIXELS]
+
+
+def _joined(sep, header=None, index=None, end=""):
+    """The rows joined by ``sep``, under ``header``, after row numbers from ``index``."""
+    lines = [] if header is None else [header]
+    for k, row in enumerate(ROWS):
+        cells = ([str(index + k)] if index is not None else []) + list(row)
+        lines.append(sep.join(cells) + end)
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize("name, content", [
+    ("tab_header.txt", _joined("\t", "X\tY")),                  # was "header 'X\tY' is not 'x,y'"
+    ("spaces.txt", _joined("  ", "x y")),
+    ("spaces_bare.txt", _joined(" ")),
+    ("no_header.csv", _joined(",")),                              # was "1 values, expected 2"
+    ("fiji_results.csv", _joined(",", " ,X,Y", index=1)),        # was "this is a pixel list"
+    ("pandas.csv", _joined(",", ",x,y", index=0)),
+    ("fiji_results.txt", _joined("\t", " \tX\tY", index=1)),    # the empty name is stripped
+    ("trailing.csv", _joined(",", "X,Y,", end=",")),              # was "this is a pixel list"
+    ("quoted.csv", _joined(",", '"x","y"')),
+])
+def test_text_forms_that_are_read(tmp_path, name, content):
+    """Tab-, space- and comma-separated pixels, with or without a header, after row numbers."""
+    trace = tr.read_trace(_file(tmp_path, name, content), **SCALE)
+    assert np.abs(trace.points - np.round(PIXELS, 3) * [0.005, -0.005]).max() < 1e-12
+    assert trace.where[0] == ("line 1" if content[0].isdigit() else "line 2")
+
+
+@pytest.mark.parametrize("name, content, message", [
+    ("semicolons.csv", "x;y\n1,5;2,5\n", "line 1: cells separated by ';' (a spreadsheet with "
+                                          "decimal commas?)"),
+    ("decimal_tabs.txt", "1,5\t2,5\n3,5\t4,5\n", "line 1: numbers with decimal commas ('1,5')"),
+    ("decimal_rows.txt", "x\ty\n1,5\t2,5\n", "line 2, column 1 (x): '1,5' is not a number: a "
+                                               "decimal comma?"),
+    ("row_numbers.csv", " ,X,Y\n1,0,0\n2,1,1\n4,2,3\n5,3,6\n", "line 4: the first column, "
+                                                              "without a name, holds 4 where a "
+                                                              "row number would be 3"),
+    ("image.png", b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR", "image.png: an image (PNG), not a trace"),
+    ("image.tif", b"II*\x00\x08\x00\x00\x00", "image.tif: an image (TIFF), not a trace"),
+    ("utf16.csv", "x,y\n1,2\n".encode("utf-16"), "utf16.csv: UTF-16 text: save it as UTF-8"),
+    ("utf16be.csv", "x,y\n1,2\n".encode("utf-16-be"), "utf16be.csv: UTF-16 text"),
+])
+def test_text_forms_that_are_refused_say_what_they_are(tmp_path, name, content, message):
+    """One line naming the file, what it found and (for text) the forms accepted."""
+    path = _file(tmp_path, name, content)
+    with pytest.raises(MidlineError) as exc:
+        tr.read_trace(path, **SCALE)
+    assert message in str(exc.value) and str(path) in str(exc.value)
+    if name.endswith(("semicolons.csv", "tabs.txt")):
+        assert "separated by commas, tabs or spaces" in str(exc.value)
+
+
+def test_fiji_xy_and_xy_read_alike(tmp_path):
+    """--format fiji-xy of an x,y CSV said "line 4: 1 values, expected 2 (x, y)"."""
+    path = _file(tmp_path, "header.csv", "# a comment\n\n" + _joined(",", "x,y"))
+    both = [tr.read_trace(path, fmt, **SCALE) for fmt in ("xy", "fiji-xy")]
+    assert np.array_equal(both[0].points, both[1].points) and both[0].where[0] == "line 4"
+    bare = _file(tmp_path, "bare.csv", _joined(","))            # units unknown without r,z
+    with pytest.raises(MidlineError, match="bare.csv: line 1: no header: a csv trace starts with "
+                                           "the line 'r,z'"):
+        tr.read_trace(bare, "csv")
+
+
 @pytest.mark.parametrize("options, message", [
     ({}, "pass pixel_size_um (µm per pixel) and radius_um (the embryo radius R in µm)"),
     ({"radius_um": 50.0}, "pass pixel_size_um (µm per pixel) to convert"),

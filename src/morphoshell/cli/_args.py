@@ -2,14 +2,17 @@
 from __future__ import annotations
 
 import argparse
+import logging
 import math
 import re
-from typing import Callable, Mapping
+from contextlib import contextmanager
+from typing import Callable, Iterator, Mapping
 
 from ._outputs import output_path
 
-__all__ = ["integer", "real", "micrometres", "add_outputs", "TRACE_OPTIONS", "problem_and_settings",
-           "reworded", "LINEAR_SOLVERS", "family_keys"]
+__all__ = ["integer", "real", "micrometres", "add_outputs", "TRACE_OPTIONS", "FORMAT_HELP",
+           "SECTION_HELP", "problem_and_settings", "reworded", "reader_notes", "LINEAR_SOLVERS",
+           "family_keys"]
 
 #: Ipopt's linear solvers: MUMPS is bundled with CasADi; the HSL ones (ma27 …)
 #: load only from the user's libhsl.so, SPRAL and Pardiso from their libraries.
@@ -22,7 +25,25 @@ TRACE_OPTIONS = {r"\bpixel_size_um\b": "--pixel-size", r"\bradius_um\b": "--radi
                  r"\bsection='(\w+)'": r"--section \1", r"\broi='([^']*)'": r"--roi \1",
                  r"\broi=": "--roi ",
                  r"\bwith format '(\w+)' or none": r"with --format \1 or none",
-                 r"\bthe pixel size and the radius R\b": "--pixel-size and --radius-um"}
+                 r"\bthe pixel size and the radius R\b": "--pixel-size and --radius-um",
+                 # (the command line has no option for it)
+                 r"\(max_asymmetry = ([0-9.e+-]+)\)": r"(at most \1 R)"}
+
+
+#: What --section means, and its caveats (io.midlines), for the help of fit and average.
+SECTION_HELP = ("whole: rim to rim through the posterior pole, mirror-averaged into a half; the "
+                "pole is taken at half the trace's length, so trace both rims to their ends. "
+                "half: from the pole (the first point) to a rim; its axis rests on the points "
+                "within 0.4 R of the pole only, so noise tilts it: a half section whose axis's "
+                "standard error moves the midline by more than 0.01 R rms is refused (from "
+                "0.1-0.2 px of noise on an embryo of R = 140 px): trace whole sections where "
+                "you can. Default (auto): whole for image traces, half for r,z CSVs")
+#: What the --format names mean (io.traces, io.trace_text), for the help of fit and average.
+FORMAT_HELP = ("csv: a midline in units of R, header r,z (pole first); xy: image pixels x, y "
+               "(y down), a header x,y or none, cells separated by commas, tabs or spaces, "
+               "after a row-number column if any (a Fiji Results table); fiji-xy: Fiji's "
+               "File > Save As > XY Coordinates (no header, x<TAB>y), read as xy; roi: an "
+               "ImageJ .roi file or a ROI Manager set RoiSet.zip")
 
 
 def family_keys() -> str:
@@ -67,6 +88,42 @@ def reworded(message: str, options: Mapping[str, str]) -> str:
     for pattern, option in options.items():
         message = re.sub(pattern, option, message)
     return message
+
+
+@contextmanager
+def reader_notes() -> Iterator[list[str]]:
+    """The notes of the trace readers (INFO of ``morphoshell.io``), collected, not shown.
+
+    What alignment did to a trace (bins, a spline through sparse points, a half
+    section's axis and its error) is a note at INFO, which the terminal shows
+    only with ``-v``; a command that reads traces prints these notes itself,
+    once its checks have passed, so that a refused trace still gets its one
+    line.  Records above INFO pass on as usual.
+
+    Yields
+    ------
+    list of str
+        The notes, reworded for the command line, filled as they come.
+    """
+    logger, notes = logging.getLogger("morphoshell.io"), []
+
+    class Collect(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            if record.levelno == logging.INFO:
+                notes.append(reworded(record.getMessage(), TRACE_OPTIONS))
+            else:
+                logging.getLogger("morphoshell").handle(record)
+
+    handler, saved = Collect(logging.DEBUG), (logger.level, logger.propagate)
+    logger.addHandler(handler)
+    logger.setLevel(logging.INFO)
+    logger.propagate = False
+    try:
+        yield notes
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(saved[0])
+        logger.propagate = saved[1]
 
 
 def integer(lo: int, hi: int) -> Callable[[str], int]:

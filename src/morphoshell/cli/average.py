@@ -12,7 +12,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from ._args import TRACE_OPTIONS, add_outputs, micrometres, reworded
+from ._args import (FORMAT_HELP, SECTION_HELP, TRACE_OPTIONS, add_outputs, micrometres,
+                    reader_notes, reworded)
 from ._outputs import Outputs
 
 __all__ = ["register", "OUTLIER_RATIO"]
@@ -48,7 +49,8 @@ def register(sub) -> None:
                         "x,y CSV; need --pixel-size and --radius-um) or midline CSVs of r,z "
                         "(units of R)")
     p.add_argument("--format", choices=FORMATS, default=None,
-                   help="file format of every TRACE (default: from each file's content)")
+                   help=f"file format of every TRACE (default: from each file's content). "
+                        f"{FORMAT_HELP}")
     p.add_argument("--pixel-size", dest="pixel_size", type=micrometres, default=None,
                    metavar="UM", help="image traces: micrometres per pixel "
                    "(Fiji: Image > Properties > Pixel width); required with --radius-um")
@@ -60,8 +62,7 @@ def register(sub) -> None:
                    help="in a ROI Manager set: the line ROI to take, by name or position "
                         "(from 1), or all (default): every line ROI is a trace")
     p.add_argument("--section", choices=SECTIONS, default="auto",
-                   help="each image trace is a whole mid-sagittal section (rim to rim) or a "
-                        "half (pole to rim); default: whole for images")
+                   help=f"what an image trace covers. {SECTION_HELP}")
     p.add_argument("--traces", dest="write_traces", action="store_true",
                    help="also write each trace's midline beside the --csv file, named "
                         "<average>_<trace>.csv (the timepoints.csv column traces, for "
@@ -87,21 +88,24 @@ def _check_options(args) -> list[float | None]:
 
 
 def _load(args, radii) -> list:
-    """Every trace's midline (N_FIT points), checked as `fit` checks a midline."""
+    """Every trace's midline (N_FIT points), checked as `fit` checks a midline; the readers'
+    notes printed once all are accepted."""
     from ..fitting import N_FIT, check_midline, volvox_spec
     from ..io import MidlineError, load_midlines
     from ..io.roi_sets import is_roi_set
 
-    spec, midlines = volvox_spec("free"), []
+    spec, midlines, notes = volvox_spec("free"), [], []
     for path, radius in zip(args.traces, radii):
         try:
             roi = args.roi
             if roi is None and args.format in (None, "roi") and is_roi_set(path):
                 roi = "all"
-            found = load_midlines(path, args.format, n=N_FIT, section=args.section,
-                                  pixel_size_um=args.pixel_size, radius_um=radius, roi=roi)
+            with reader_notes() as found_notes:
+                found = load_midlines(path, args.format, n=N_FIT, section=args.section,
+                                      pixel_size_um=args.pixel_size, radius_um=radius, roi=roi)
         except MidlineError as exc:
             raise MidlineError(reworded(str(exc), TRACE_OPTIONS)) from None
+        notes += found_notes
         hint = (f"is --pixel-size {args.pixel_size:g} the size of a pixel in µm, and "
                 f"--radius-um {radius:g} this embryo's radius R in µm?" if radius is not None
                 else "are its r and z in units of R (a trace in pixels needs --pixel-size and "
@@ -112,6 +116,8 @@ def _load(args, radii) -> list:
     if len(midlines) < 2:
         raise ValueError(f"{len(midlines)} trace in {', '.join(map(str, args.traces))}: an "
                          f"average needs at least 2 (fit a single trace with `morphoshell fit`)")
+    for note in notes:
+        print(f"note: {note}")
     return midlines
 
 

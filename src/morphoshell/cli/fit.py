@@ -3,7 +3,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ._args import TRACE_OPTIONS, add_outputs, integer, micrometres, reworded
+from ._args import (FORMAT_HELP, SECTION_HELP, TRACE_OPTIONS, add_outputs, integer, micrometres,
+                    reader_notes, reworded)
 from ._outputs import Outputs
 from ._profiles import (add_profile_options, profile_json, profile_names, profile_plot_path,
                         profile_table, refit_lines, run_profiles)
@@ -32,7 +33,7 @@ def register(sub) -> None:
                    "R, pole first), or an image trace: CSV of x,y, Fiji XY coordinates, an "
                    "ImageJ .roi or a ROI Manager set RoiSet.zip (with --roi)")
     p.add_argument("--format", choices=FORMATS, default=None,
-                   help="file format (default: from the content)")
+                   help=f"file format (default: from the content). {FORMAT_HELP}")
     p.add_argument("--pixel-size", dest="pixel_size", type=micrometres,
                    default=None, metavar="UM", help="image traces: micrometres per pixel "
                    "(Fiji: Image > Properties > Pixel width; 1 if the trace was exported in "
@@ -46,8 +47,7 @@ def register(sub) -> None:
                         "there (from 1), or all: the average of every line ROI (the traces of "
                         "one stage); default: the set's only line ROI. Other ROIs are skipped")
     p.add_argument("--section", choices=SECTIONS, default="auto",
-                   help="an image trace is a whole mid-sagittal section (rim to rim through the "
-                        "posterior pole) or a half (pole to rim); default: whole for images")
+                   help=f"what an image trace covers. {SECTION_HELP}")
     p.add_argument("--variant", choices=VARIANTS, required=True,
                    help="posterior intrinsic curvature kappa1: flat (0), undeformed (1), "
                         "unstressed (1/f1), free (fitted)")
@@ -136,15 +136,18 @@ def load_checked(args, spec, n: int):
     """The midline of ``args.midline`` (n points), refused unless ``spec``'s shell can fit it.
 
     The messages name the command line's options; a wrong length says which
-    ones set the scale (ValueError, exit status 2, before any work).
+    ones set the scale (ValueError, exit status 2, before any work).  What the
+    reader did to the trace (bins, a spline through sparse points, a half
+    section's axis) is printed as notes once the midline is accepted.
     """
     from ..fitting import check_midline
     from ..io import MidlineError, load_midline
 
     try:
-        midline = load_midline(args.midline, args.format, n=n, section=args.section,
-                               pixel_size_um=args.pixel_size, radius_um=args.radius_um,
-                               roi=args.roi)
+        with reader_notes() as notes:
+            midline = load_midline(args.midline, args.format, n=n, section=args.section,
+                                   pixel_size_um=args.pixel_size, radius_um=args.radius_um,
+                                   roi=args.roi)
     except MidlineError as exc:
         raise MidlineError(reworded(str(exc), TRACE_OPTIONS)) from None
     if args.pixel_size is not None:          # (an image trace: the loader required both)
@@ -155,6 +158,8 @@ def load_checked(args, spec, n: int):
         hint = ("are its r and z in units of R, the embryo's radius (a trace in pixels needs "
                 "--format xy with --pixel-size and --radius-um)?")
     check_midline(spec, midline, f"{args.midline}: the midline", scale_hint=hint)
+    for note in notes:
+        print(f"note: {note}")
     return midline
 
 

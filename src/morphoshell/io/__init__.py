@@ -2,11 +2,12 @@
 
 Problem files (TOML) and their overrides, the packaged examples and the writers
 of results (:mod:`.problem_files`); trace files of midlines from Fiji/ImageJ and
-CSV (:mod:`.traces`) and ImageJ's ROI Manager sets (:mod:`.roi_sets`), and their
-geometry: alignment to the model gauge, resampling and averaging
-(:mod:`.midlines`); the tables of ablation measurements
-(:mod:`.measurements`) and of an inversion sequence's timepoints (:mod:`.timepoints`).
-Every reader names the file and the offending entry.
+CSV (:mod:`.traces`; their text forms, :mod:`.trace_text`; their checks,
+:mod:`.trace_checks`) and ImageJ's ROI Manager sets (:mod:`.roi_sets`), and
+their geometry: noise and binning (:mod:`.trace_noise`), alignment to the
+model gauge, resampling and averaging (:mod:`.midlines`); the tables of ablation
+measurements (:mod:`.measurements`) and of an inversion sequence's timepoints
+(:mod:`.timepoints`).  Every reader names the file and the offending entry.
 """
 
 import lazy_loader
@@ -17,8 +18,8 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
         "apply_overrides", "split_overrides", "settings_from", "to_jsonable", "write_json",
         "write_csv", "METHODS", "SOLVER_KEYS", "ALIASES", "examples", "example_path",
         "example_text", "EXAMPLES_DIR", "problem_of_record"],
-    "traces": ["FORMATS", "MidlineError", "Trace", "Midline", "read_trace", "to_image",
-        "write_trace"],
+    "traces": ["FORMATS", "Trace", "Midline", "read_trace", "to_image", "write_trace"],
+    "trace_checks": ["MidlineError"],
     "midlines": ["SECTIONS", "Alignment", "align", "resample", "load_midline", "load_midlines",
         "average", "trace_distances"],
     "measurements": ["MEASURES", "REQUIRED_COLUMNS", "OPTIONAL_COLUMNS", "MEASURE_COLUMN",

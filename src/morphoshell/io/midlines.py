@@ -29,7 +29,8 @@ traced:
 
 ``"whole"``  rim to rim through the posterior pole.  The pole is taken at
              mid-arclength (a section traced from rim to rim has halves of
-             equal length), and the axis is the line that best maps the point
+             equal length: both rims must be traced to their ends, or the
+             pole moves), and the axis is the line that best maps the point
              at arclength L/2 + σ onto the mirror image of the one at L/2 − σ,
              0 < σ ≤ L/2: least squares of the mismatch across the curve,
              with the mismatch along it weighted 1/100 (noise makes the
@@ -49,13 +50,29 @@ traced:
              halves differ by more than ``max_asymmetry`` (rms, units of R)
              is refused.
 ``"half"``   pole to rim, the pole first.  A regular pole of an axisymmetric
-             surface has its tangent perpendicular to the axis, so the axis
-             is the normal to the trace at its first point and r grows along
-             the trace's first tangent.  That tangent is the end slope of the
-             interpolating spline: exact for clean (synthetic) data, but it
-             rests on the first few points, so noise σ at point spacing h
-             tilts the axis by ~σ/h radians (tens of degrees for pixel noise
-             on a dense trace).  Trace whole sections from real images.
+             surface has its tangent perpendicular to the axis, and the
+             midline is even about it: in the frame of the axis,
+             z = t + a r² + b r⁴ near the pole.  That is fitted, by least
+             squares across the curve, to the points within 0.4 R of
+             arclength of the first (inside the posterior region, which
+             reaches s₁ ≈ 0.5-0.75 R; at least 6 points), for the axis's
+             direction and the pole's height t; the pole's place along the
+             curve is the first point (an error δ there tilts the axis by
+             only δκ, κ ≈ 1/R).  The spline's tangent at the first point,
+             the estimate before, rested on the first few points: noise σ at
+             point spacing h tilted it by ~σ/h (the midline 0.05-0.17 R rms
+             off for 0.05-0.5 px of noise).  The fit's error is still that of
+             one side of the pole only: its standard error (from the
+             residuals, their noise at least the trace's) moves the midline
+             by that angle times the points' rms distance from the pole, and
+             a half section where that exceeds 0.01 R is refused, naming the
+             error (on synthetic half sections from 0.1-0.2 px of noise at
+             R = 140-200 px); of 420 seeded ones (0.02-1 px of noise), the
+             195 accepted lay within 0.021 R rms of the truth, 13 beyond
+             0.01 R.  Clean, the fit's model errs by 1.5e-4 R
+             rms on the Volvox example's equilibrium and 2.4e-3 R on the
+             tests' bulged reference shape.  Trace whole sections where you
+             can: their axis rests on both halves (0.15° for ½ px of noise).
 ``"auto"``   csv → half; image formats → whole.  Shape alone cannot tell: a
              circular arc traced from pole to rim is mirror-symmetric about
              its middle exactly as a whole section of a cup is, so a half
@@ -65,22 +82,26 @@ traced:
 The axis points toward the anterior, taken to be the side of the pole where
 the rims are (z_rim > 0, true until late inversion); ``flip=True`` reverses it.
 
-Noise and arclength
--------------------
-Noise σ on points at spacing h lengthens a curve through them by a fraction
-~(σ/h)² (80 % for half-pixel noise on a one-pixel freehand trace), and
-unevenly, which moves equally spaced points along the curve.  So alignment
-first estimates σ (fourth differences across the curve) and, if σ/h exceeds
-1/20, averages the interior points in bins of k consecutive ones, the least
-k that brings the ratio below 1/20 (noise σ/√k at spacing kh); the end
-points are kept.  A bin's mean lies inside a curved line, by ½κ(k² − 1)h²/12,
-so each mean is moved back out by that amount, with the curvature from its
-neighbouring means.  Clean traces are left as they are.  What noise still
-leaves along the curve, :func:`average` removes by resampling the mean of the
-traces in its own arclength.
+Noise and sparse points
+-----------------------
+Alignment works on the points of :func:`morphoshell.io.trace_noise.bin_noisy`:
+noisy dense points averaged in bins (noise lengthens a curve through them,
+unevenly), points of a segmented line (more than 0.075 R apart) taken as
+they are, the curve between them the spline through them.  What alignment
+did to a trace's points is logged at INFO on this module's logger (the
+command line prints it as a note).  A trace of fewer points than a midline
+needs to hold its shape is refused: a whole section needs
+:data:`MIN_POINTS` ``["whole"]`` = 15, a half section 8.  Measured on the
+synthetic inversion traces, vertices at about equal steps along them give
+a midline 0.06-0.07 R rms (the median) from the dense trace's with 10-12
+points, a third of them refused as asymmetric, 0.03 R with 15, 0.015 R with
+20 and 0.005 R with 30.  What noise still leaves along the curve,
+:func:`average` removes by resampling the mean of the traces in its own
+arclength.
 """
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -89,13 +110,14 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from .roi_sets import is_roi_set, read_set_traces
-from .traces import (Midline, MidlineError, Trace, check_axis, check_choice, check_positive,
-                     read_trace)
+from .trace_checks import MidlineError, check_axis, check_choice, check_positive
+from .trace_noise import Binning, bin_noisy
+from .traces import Midline, Trace, read_trace
 
 if TYPE_CHECKING:       # scipy is imported on use (CLI start-up)
     from scipy.interpolate import CubicSpline
 
-__all__ = ["SECTIONS", "Alignment", "align", "resample", "load_midline", "load_midlines", "average",
+__all__ = ["SECTIONS", "MIN_POINTS", "Alignment", "align", "resample", "load_midline", "load_midlines", "average",
            "trace_distances"]
 
 #: What a trace covers (see the module docstring).
@@ -106,9 +128,20 @@ _MIRROR_SAMPLES, _ALONG_WEIGHT = 200, 0.01
 #: Arclength (units of R) from the pole of a whole section over which its height is fitted,
 #: and the even powers of arclength fitted there: 1, s², s⁴ (:func:`_pole_height`).
 _POLE_WINDOW, _POLE_TERMS = 0.3, 3
-#: Largest ratio of point noise to point spacing that alignment leaves as it is (module docstring).
-_NOISE_PER_STEP = 0.05
+#: Fewest distinct points of a trace that can hold a midline's shape, by section (module
+#: docstring).
+MIN_POINTS = {"whole": 15, "half": 8}
+#: A half section's axis is fitted to its points within _HALF_WINDOW (units of R) of the pole,
+#: inside the posterior region (to s₁ ≈ 0.5-0.75 R), at least _HALF_POINTS of them; it is
+#: refused when one standard error of the axis's direction moves the midline by more than
+#: _MAX_AXIS_ERROR rms (module docstring).
+_HALF_WINDOW, _HALF_POINTS, _MAX_AXIS_ERROR = 0.4, 6, 0.01
+#: Lengths (units of R) of a half midline beyond which a trace refused for its shape is refused
+#: for its scale instead: a Volvox midline's half is about 2-4 R (fitting.intrinsic_lengths).
+_HALF_LENGTHS = (1.0, 6.0)
 _GAUSS_X, _GAUSS_W = np.polynomial.legendre.leggauss(8)
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True, eq=False)
@@ -248,7 +281,18 @@ def align(trace: Trace, section: str = "auto", *, flip: bool = False,
     -------
     Alignment
         ``points`` of shape (m, 2): the trace's own points for a half
-        section, max(1024, 2n) mirror-averaged points for a whole one.
+        section (binned if noisy, :mod:`morphoshell.io.trace_noise`), the
+        first moved onto the fitted pole; max(1024, 2n) mirror-averaged
+        points for a whole one.
+
+    Raises
+    ------
+    MidlineError
+        Fewer points than :data:`MIN_POINTS`; a whole section whose halves
+        differ by more than ``max_asymmetry``; a half section whose axis is
+        uncertain (or with fewer than 6 points within 0.4 R of its pole);
+        either named for its scale instead when its halves are far from a
+        midline's 2-4 R; a midline that crosses the axis.
     """
     section = check_choice(section, SECTIONS, "section")
     max_asymmetry = check_positive("max_asymmetry", max_asymmetry)
@@ -256,69 +300,121 @@ def align(trace: Trace, section: str = "auto", *, flip: bool = False,
         if section == "whole" or flip:
             raise MidlineError(f"{trace.source}: csv traces are half midlines in the model gauge: "
                                f"section='whole' and flip do not apply")
+        _check_count(trace, "half")
         return Alignment(trace.points, "half", math.nan, trace.points[0], 0.0)
-    points = _bin_noisy(trace.points)
-    curve = _Curve.through(points)
-    if section == "half":
-        pole, e_r = curve(0.0), curve(0.0, tangent=True)
-        e_z = _anterior(np.array([-e_r[1], e_r[0]]), pole, [curve(curve.length)], flip)
-        points, asymmetry = _gauge(points, pole, e_r, e_z), 0.0
-        where = trace.where if len(points) == len(trace.where) else [
+    kind = "half" if section == "half" else "whole"
+    _check_count(trace, kind)
+    binning = bin_noisy(trace.points)
+    if kind == "half":
+        try:
+            pole, e_r, e_z, points, axis_note = _half(trace.source, binning, flip)
+        except MidlineError as exc:
+            _check_scale(trace, 1, "its axis is uncertain")
+            raise exc from None
+        asymmetry = 0.0
+        where = trace.where if binning.k == 1 else [
             f"point {k + 1} after binning" for k in range(len(points))]
     else:
-        pole, e_r, e_z, points, asymmetry = _whole(curve, len(points), flip)
+        pole, e_r, e_z, points, asymmetry = _whole(_Curve.through(binning.points),
+                                                   len(binning.points), flip)
         if asymmetry > max_asymmetry:
+            _check_scale(trace, 2, f"its halves differ by {asymmetry:.3g} R rms")
             raise MidlineError(f"{trace.source}: the halves of this whole section differ by "
                                f"{asymmetry:.3g} R rms from their mirror average (max_asymmetry = "
-                               f"{max_asymmetry:g}): if it is a half section, pole first, pass "
-                               f"section='half'")
+                               f"{max_asymmetry:g}): the pole is taken at half the trace's "
+                               f"length, so both rims must be traced to their ends (one traced "
+                               f"short moves the pole); only a trace that starts at the pole is a "
+                               f"half section (section='half')")
         where = [f"{f:.0%} of the way from the pole" for f in np.linspace(0, 1, len(points))]
+        axis_note = None
     check_axis(trace.source, points, where)
-    return Alignment(points, "half" if section == "half" else "whole",
-                     math.atan2(-e_z[0], e_z[1]), pole, asymmetry)
+    for note in (binning.note(trace.source), axis_note):
+        if note:
+            log.info(note)
+    return Alignment(points, kind, math.atan2(-e_z[0], e_z[1]), pole, asymmetry)
 
 
-def _bin_noisy(points: np.ndarray) -> np.ndarray:
-    """The points, or, if noisy for their spacing, their interior averaged in bins of k.
+def _check_count(trace: Trace, kind: str) -> None:
+    """MidlineError if the trace has fewer points than :data:`MIN_POINTS` asks for its section."""
+    if len(trace.points) < MIN_POINTS[kind]:
+        raise MidlineError(f"{trace.source}: {len(trace.points)} distinct points; a {kind} "
+                           f"section needs at least {MIN_POINTS[kind]} to hold the shape of a "
+                           f"midline (a half section {MIN_POINTS['half']}, a whole one "
+                           f"{MIN_POINTS['whole']}): trace it with more points, one at every fold")
 
-    σ is estimated from the fourth differences across the curve (their
-    median; Gaussian noise gives them variance 70 σ², a smooth curve O(h⁴));
-    k is the least making σ/√k ≤ _NOISE_PER_STEP·k·h.  The means are moved out by
-    the curvature bias of averaging along a curve.  Shape (m, 2), m ≤ n.
+
+def _check_scale(trace: Trace, halves: int, also: str) -> None:
+    """Before refusing a trace for its shape: MidlineError naming the scale instead if its
+    halves are far longer or shorter than a Volvox midline's (about 2-4 R).
+
+    At a wrong scale the shape's tests mislead (points of a trace 10 times too large lie
+    0.1 R apart, too sparse to bin, and their noise makes the halves differ); a fit names a
+    scale 1.5-2 times off precisely (``fitting.check_midline``), after alignment.
     """
-    if len(points) < 12:
-        return points
-    chord = points[4:] - points[:-4]
-    across = chord[:, ::-1] * [1.0, -1.0] / np.linalg.norm(chord, axis=1, keepdims=True)
-    wiggle = np.abs(np.sum(np.diff(points, n=4, axis=0) * across, axis=1))
-    sigma = float(np.median(wiggle)) / (0.6745 * math.sqrt(70.0))
-    step = float(np.median(np.hypot(*np.diff(points, axis=0).T)))
-    k = math.ceil((sigma / (_NOISE_PER_STEP * step)) ** (2 / 3))
-    bins = (len(points) - 2) // k
-    if k <= 1 or bins < 4:
-        return points
-    groups = np.array_split(points[1:-1], bins)
-    out = np.vstack([points[:1], [b.mean(axis=0) for b in groups], points[-1:]])
-    # A bin's mean lies inside the curve: by ½ c''(s̄) (k² − 1) h²/12, c'' = κ n the
-    # curvature vector (Taylor: the positions s̄ + (i − (k − 1)/2) h average c(s̄) and
-    # half the variance times c'').  At the folds of a Volvox midline that is as large as the
-    # noise of an average of a few traces, and the same in every data set, so it would bias
-    # the fitted curvatures (κ₁).  It is removed, with c'' from the three-point difference of
-    # the means (which adds a little to their noise).
-    c2 = _second_derivative(out)
-    # the spacing from chords of 4 steps: noise lengthens single steps, and with them the
-    # correction
-    h = float(np.median(np.linalg.norm(chord, axis=1))) / 4
-    var = (np.array([len(b) for b in groups]) ** 2 - 1) * h ** 2 / 12
-    out[1:-1] -= 0.5 * var[:, None] * c2
-    return out
+    half = float(np.sum(np.hypot(*np.diff(trace.points, axis=0).T))) / halves
+    if not _HALF_LENGTHS[0] <= half <= _HALF_LENGTHS[1]:
+        raise MidlineError(f"{trace.source}: {'its halves are' if halves == 2 else 'it is'} "
+                           f"{half:.3g} R long, where a midline's half is about 2-4 R ({also}): "
+                           f"check the pixel size and the radius R")
 
 
-def _second_derivative(points: np.ndarray) -> np.ndarray:
-    """c'' with respect to arclength at the interior points (m − 2, 2), from chords to their neighbours."""
-    a, b = points[1:-1] - points[:-2], points[2:] - points[1:-1]
-    d1, d2 = np.linalg.norm(a, axis=1)[:, None], np.linalg.norm(b, axis=1)[:, None]
-    return 2 * (b / d2 - a / d1) / (d1 + d2)
+def _half(source: str, binning: Binning, flip: bool):
+    """Pole, e_r, e_z, the points in the model gauge and a note of a half section (refused if
+    its axis is uncertain beyond :data:`_MAX_AXIS_ERROR`)."""
+    points = binning.points
+    # the noise of the points fitted is at least the trace's (a median over all its points, a
+    # steadier estimate than the residuals of the few near the pole), unless the points are
+    # too sparse for that estimate (trace_noise)
+    floor = 0.0 if binning.sparse or binning.n < 12 else binning.sigma / math.sqrt(binning.k)
+    pole, e_r, e_z, error, noise, used = _half_axis(source, points, floor)
+    e_z = _anterior(e_z, pole, [points[-1]], flip)
+    gauge = _gauge(points, pole, e_r, e_z)
+    gauge[0] = 0.0                  # the first point, a noisy pole, at the fitted one
+    moved = error * float(np.sqrt(np.mean(np.sum(gauge ** 2, axis=1))))
+    what = (f"fitted to its {used} points within {_HALF_WINDOW:g} R of the pole (noise ≈ "
+            f"{noise:.2g} R), the axis's direction has a standard error of "
+            f"{math.degrees(error):.2g}°, which moves the midline by {moved:.2g} R rms")
+    if moved > _MAX_AXIS_ERROR:
+        raise MidlineError(f"{source}: the axis of this half section is uncertain: {what} (more "
+                           f"than {_MAX_AXIS_ERROR:g} R): trace the whole section, rim to rim "
+                           f"through the pole (section='whole'), whose axis rests on both halves")
+    return pole, e_r, e_z, gauge, f"{source}: a half section: {what}"
+
+
+def _half_axis(source: str, points: np.ndarray, floor: float):
+    """Pole, e_r, e_z (sign free), standard error of the axis's direction (radians), noise and
+    points used, from a least-squares fit z = t + a r² + b r⁴ near the first point; the noise
+    is that of the fit's residuals, at least ``floor``.
+
+    The pole is the first point moved by t along the axis: its position along
+    the curve rests on where the trace starts (an error δ there tilts the axis
+    by δκ, κ ≈ 1/R near the pole), its height on the fit (module docstring).
+    """
+    s = np.r_[0.0, np.cumsum(np.hypot(*np.diff(points, axis=0).T))]
+    near = points[s <= _HALF_WINDOW] - points[0]
+    if len(near) < _HALF_POINTS:
+        raise MidlineError(f"{source}: {len(near)} points within {_HALF_WINDOW:g} R of the pole; "
+                           f"the axis of a half section is fitted to the points there and needs "
+                           f"{_HALF_POINTS}: trace more points near the pole, or the whole section "
+                           f"(section='whole')")
+    # start: the principal direction of the points, toward the last of them
+    direction = np.linalg.svd(near - near.mean(axis=0))[2][0]
+    direction *= 1.0 if direction @ near[-1] >= 0 else -1.0
+
+    def misfit(p):
+        e_r = np.array([math.cos(p[0]), math.sin(p[0])])
+        r, z = near @ e_r, near @ [-e_r[1], e_r[0]]
+        return z - (p[1] + p[2] * r ** 2 + p[3] * r ** 4)
+
+    from scipy.optimize import least_squares
+    fit = least_squares(misfit, [math.atan2(direction[1], direction[0]), 0.0, 0.0, 0.0],
+                        xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    noise = max(math.sqrt(2 * fit.cost / max(len(near) - 4, 1)), floor)
+    covariance = np.linalg.pinv(fit.jac.T @ fit.jac) * noise ** 2
+    angle, t = fit.x[:2]
+    e_r = np.array([math.cos(angle), math.sin(angle)])
+    e_z = np.array([-e_r[1], e_r[0]])
+    return (points[0] + t * e_z, e_r, e_z, math.sqrt(covariance[0, 0]), noise, len(near))
 
 
 def _gauge(points, pole, e_r, e_z) -> np.ndarray:

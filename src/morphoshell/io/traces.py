@@ -23,9 +23,12 @@ Formats
 ``csv``      header ``r,z`` (or ``r,z,spread``), units of R, model gauge,
              posterior pole first; lines starting with ``#`` are comments.
              :meth:`Midline.to_csv` writes it.
-``xy``       header ``x,y``, comma-separated image pixels, y pointing down.
+``xy``       image pixels x, y, y pointing down: a header ``x,y`` (any case;
+             after a row-number column, as Fiji's Results table and pandas
+             write it) or none, cells separated by commas, tabs or spaces.
 ``fiji-xy``  Fiji's *File › Save As › XY Coordinates…* of a line selection:
-             no header, ``x<TAB>y`` per line, y pointing down.  Fiji writes
+             no header, ``x<TAB>y`` per line, y pointing down; read as xy
+             (the name says where it comes from).  Fiji writes
              calibrated units if the image is spatially calibrated: then pass
              ``pixel_size_um=1`` (for µm).  The three-column file of
              *Analyze › Tools › Save XY Coordinates…* lists the pixels of an
@@ -33,12 +36,14 @@ Formats
 ``roi``      an ImageJ ``.roi`` file (via ``roifile``) of a segmented, freehand
              or straight line, y pointing down.
 
-The format is inferred from the content when not given: the ROI magic
-``Iout``, else the header line (``r,z`` → csv, ``x,y`` → xy, numbers →
-fiji-xy).  Image coordinates need ``pixel_size_um`` (µm per pixel) and
-``radius_um`` (R in µm): a pixel (x, y) becomes (x, −y)·pixel_size_um/radius_um.
-y is flipped so that the trace's frame is right-handed; the aligned midline
-does not depend on it (a mirror image of a section aligns to the same half).
+The text forms accepted and refused (semicolons, decimal commas, images,
+UTF-16) are :mod:`morphoshell.io.trace_text`'s.  The format is inferred from
+the content when not given: the ROI magic ``Iout``, else the header line
+(``r,z`` → csv, ``x,y`` → xy, numbers → fiji-xy).  Image coordinates need
+``pixel_size_um`` (µm per pixel) and ``radius_um`` (R in µm): a pixel (x, y)
+becomes (x, −y)·pixel_size_um/radius_um.  y is flipped so that the trace's
+frame is right-handed; the aligned midline does not depend on it (a mirror
+image of a section aligns to the same half).
 
 Spline-fit ROIs
 ---------------
@@ -53,8 +58,10 @@ curves differ slightly between control points.)
 
 Errors
 ------
-Bad files and options raise :class:`MidlineError` (a ``ValueError``) with one
-line naming the file and the line, point or option, before any fitting.
+Bad files and options raise :class:`~morphoshell.io.trace_checks.MidlineError`
+(a ``ValueError``) with one line naming the file and the line, point or
+option, before any fitting; the checks of curves and options are
+:mod:`morphoshell.io.trace_checks`.
 """
 from __future__ import annotations
 
@@ -66,6 +73,9 @@ from typing import Sequence
 import numpy as np
 
 from .._runtime.validate import real
+from .trace_checks import (MidlineError, check_axis, check_choice, check_extent, check_positive,
+                           image_scale, one_curve)
+from .trace_text import ZIP_MAGIC, read_bytes, read_table, text_format
 
 __all__ = ["FORMATS", "MidlineError", "Trace", "Midline", "read_trace", "to_image", "write_trace",
            "pixel_trace", "roi_kind", "roi_points", "image_scale", "ZIP_MAGIC"]
@@ -74,24 +84,6 @@ __all__ = ["FORMATS", "MidlineError", "Trace", "Midline", "read_trace", "to_imag
 FORMATS = ("csv", "xy", "fiji-xy", "roi")
 #: Points per control interval at which a spline-fit ROI is evaluated.
 SPLINE_SUBDIVISIONS = 32
-
-_CSV_HEADERS = (("r", "z"), ("r", "z", "spread"))
-_XY_HEADER = ("x", "y")
-#: The first bytes of a zip file (an ImageJ ROI Manager set, :mod:`morphoshell.io.roi_sets`).
-ZIP_MAGIC = b"PK\x03\x04"
-_PIXEL_DUMP = ("this is a pixel list (x, y, value) from Analyze › Tools › Save XY Coordinates, "
-               "not a line: save the line selection with File › Save As › XY Coordinates")
-#: A step longer than _GAP_STEPS median steps and _GAP_FRACTION of the trace joins two curves.
-_GAP_STEPS, _GAP_FRACTION = 10.0, 0.05
-#: How far (units of R) an aligned midline may stray to r < 0: noise near the pole, no more.
-_AXIS_SLACK = 0.05
-#: How far (units of R) a trace may reach from its first point: a Volvox midline lies within
-#: about 2 R of its pole; farther is a trace in other units (at 1e300 the spline overflowed).
-_MAX_EXTENT = 20.0
-
-
-class MidlineError(ValueError):
-    """A trace file or option that cannot be used; the message names the file and line or option."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -175,10 +167,10 @@ class Midline:
     def from_csv(cls, path: str | Path) -> "Midline":
         """Read what :meth:`to_csv` wrote (points as they are, not resampled)."""
         path = Path(path)
-        header, values, where, comments = _table(path, _read_bytes(path), "csv")
+        header, values, where, comments = read_table(path, read_bytes(path), "csv")
         if len(values) < 4:         # (as a trace: read_trace)
             raise MidlineError(f"{path}: {len(values)} points; a midline needs at least 4")
-        _check_extent(str(path), values[:, :2], where, _IN_PIXELS)
+        check_extent(str(path), values[:, :2], where, _IN_PIXELS)
         check_axis(str(path), values[:, :2], where, _SWAPPED)
         meta = [tuple(part.strip() for part in c.partition("=")[::2]) for c in comments]
         sources = tuple(value for key, value in meta if key == "source")
@@ -222,15 +214,16 @@ def read_trace(path: str | Path, format: str | None = None, *, pixel_size_um: fl
     """
     path = Path(path)
     fmt = None if format is None else check_choice(format, FORMATS, "format")
-    data = _read_bytes(path)
-    fmt = fmt or _sniff(path, data)
+    data = read_bytes(path)
+    if fmt is None:
+        fmt = "roi" if data[:4] in (b"Iout", ZIP_MAGIC) else text_format(path, data)
     if fmt == "csv":
         for name, value in (("pixel_size_um", pixel_size_um), ("radius_um", radius_um)):
             if value is not None:
                 raise MidlineError(f"{path}: csv traces are in units of R: {name} does not apply")
-        _, values, where, _ = _table(path, data, fmt)
-        _check_extent(str(path), values[:, :2], where, _IN_PIXELS)
-        points, where = _one_curve(path, values[:, :2], where, "R")
+        _, values, where, _ = read_table(path, data, fmt)
+        check_extent(str(path), values[:, :2], where, _IN_PIXELS)
+        points, where = one_curve(path, values[:, :2], where, "R")
         check_axis(str(path), points, where, _SWAPPED)
         return Trace(points, str(path), fmt, tuple(where))
     scale = image_scale(path, fmt, pixel_size_um, radius_um)
@@ -238,7 +231,7 @@ def read_trace(path: str | Path, format: str | None = None, *, pixel_size_um: fl
     if fmt == "roi":
         pixels, where, spline = roi_points(str(path), _roi_of(path, data))
     else:
-        _, pixels, where, _ = _table(path, data, fmt)
+        _, pixels, where, _ = read_table(path, data, fmt)
     return pixel_trace(str(path), fmt, pixels, where, scale, spline)
 
 
@@ -271,122 +264,14 @@ def pixel_trace(source: str, fmt: str, pixels: np.ndarray, where: Sequence[str],
         Not one simple curve of at least 4 distinct points, or points more
         than 20 R from the first (a wrong scale).
     """
-    pixels, where = _one_curve(source, pixels, list(where), "px")
+    pixels, where = one_curve(source, pixels, list(where), "px")
     # (relative to the first point: the image origin is anywhere)
-    _check_extent(source, (pixels - pixels[0]) * scale, where,
+    check_extent(source, (pixels - pixels[0]) * scale, where,
                   "check the pixel size and the radius R")
     if spline:
         pixels = _imagej_spline(pixels)     # each point labelled by the control point before it
         where = [where[min(k // SPLINE_SUBDIVISIONS, len(where) - 1)] for k in range(len(pixels))]
     return Trace(pixels * [scale, -scale], source, fmt, tuple(where))
-
-
-def _read_bytes(path: Path) -> bytes:
-    try:
-        return path.read_bytes()
-    except OSError as exc:
-        raise MidlineError(f"{path}: cannot read: {exc.strerror}") from None
-
-
-def _text(path: Path, data: bytes) -> list[tuple[int, str]]:
-    """(line number, stripped text) of every line; MidlineError if not UTF-8."""
-    if data[:4] == ZIP_MAGIC:       # (was "line 1: not UTF-8 text (byte 11)")
-        raise MidlineError(f"{path}: a zip file (an ImageJ ROI Manager set?), not text: read it "
-                           f"with format 'roi' or none")
-    try:
-        text = data.decode("utf-8-sig")     # Excel writes a byte-order mark
-    except UnicodeDecodeError as exc:
-        line = data[:exc.start].count(b"\n") + 1
-        raise MidlineError(f"{path}: line {line}: not UTF-8 text (byte {exc.start})") from None
-    return [(i, line.strip()) for i, line in enumerate(text.splitlines(), 1)]
-
-
-def _cells(line: str) -> list[str]:
-    return line.split(",") if "," in line else line.split()
-
-
-def _is_number(cell: str) -> bool:
-    try:
-        float(cell)
-    except ValueError:
-        return False
-    return True
-
-
-def _sniff(path: Path, data: bytes) -> str:
-    """The format of a file from its content."""
-    if data[:4] in (b"Iout", ZIP_MAGIC):        # (a zip: refused by the roi reader, named)
-        return "roi"
-    content = [(i, s) for i, s in _text(path, data) if s and not s.startswith("#")]
-    if not content:
-        raise MidlineError(f"{path}: empty file: no points")
-    i, first = content[0]
-    names = tuple(c.strip().lower() for c in _cells(first))
-    if names in _CSV_HEADERS:
-        return "csv"
-    if names == _XY_HEADER:
-        return "xy"
-    if all(_is_number(c) for c in names):
-        return "fiji-xy"
-    if {"x", "y"} <= set(names):
-        raise MidlineError(f"{path}: line {i}: columns {first!r}: {_PIXEL_DUMP}")
-    raise MidlineError(f"{path}: line {i}: unrecognised header {first!r}; expected 'r,z' (csv), "
-                       f"'x,y' (xy) or no header with x<TAB>y (fiji-xy)")
-
-
-def _table(path: Path, data: bytes, fmt: str):
-    """Header, values (n, k), where (n,) and ``#`` comments of a text trace."""
-    lines = _text(path, data)
-    comments = [s[1:].strip() for _, s in lines if s.startswith("#")]
-    body = [(i, s) for i, s in lines if s and not s.startswith("#")]
-    if not body:
-        raise MidlineError(f"{path}: empty file: no points")
-    header, separator, body = _header(path, body, fmt)
-    values = np.empty((len(body), len(header)))
-    for k, (i, text) in enumerate(body):
-        values[k] = _row(path, i, text.split(separator), header)
-    return header, values, [f"line {i}" for i, _ in body], comments
-
-
-def _header(path: Path, body: list[tuple[int, str]], fmt: str):
-    """Column names, cell separator and the data lines of a text trace's non-comment lines.
-
-    fiji-xy has no header (columns x, y split at whitespace); csv and xy have
-    one, comma-separated.  A pixel list (three numbers, or x and y among more
-    named columns) is refused with the export that gives a line.
-    """
-    if fmt == "fiji-xy":
-        first = body[0][1].split()
-        if len(first) >= 3 and all(_is_number(c) for c in first):
-            raise MidlineError(f"{path}: line {body[0][0]}: {len(first)} columns: {_PIXEL_DUMP}")
-        return ("x", "y"), None, body
-    (i, text), rows = body[0], body[1:]
-    header = tuple(c.strip().lower() for c in text.split(","))
-    expected = _CSV_HEADERS if fmt == "csv" else (_XY_HEADER,)
-    if header not in expected:
-        if {"x", "y"} <= set(header) and len(header) > 2:
-            raise MidlineError(f"{path}: line {i}: columns {text!r}: {_PIXEL_DUMP}")
-        raise MidlineError(f"{path}: line {i}: header {text!r} is not "
-                           f"{' or '.join(repr(','.join(h)) for h in expected)} (format {fmt!r})")
-    return header, ",", rows
-
-
-def _row(path: Path, line: int, cells: list[str], header: tuple[str, ...]) -> list[float]:
-    """The finite numbers of one data line, one per column of ``header``."""
-    if len(cells) != len(header):
-        raise MidlineError(f"{path}: line {line}: {len(cells)} values, expected {len(header)} "
-                           f"({', '.join(header)})")
-    row = []
-    for j, cell in enumerate(cells):
-        where = f"{path}: line {line}, column {j + 1} ({header[j]})"
-        try:
-            value = float(cell)
-        except ValueError:
-            raise MidlineError(f"{where}: {cell.strip()!r} is not a number") from None
-        if not math.isfinite(value):
-            raise MidlineError(f"{where}: {cell.strip()} is not finite")
-        row.append(value)
-    return row
 
 
 def _roi_of(path: Path, data: bytes):
@@ -461,185 +346,10 @@ def _imagej_spline(control: np.ndarray) -> np.ndarray:
     return CubicSpline(t, control, bc_type="natural")(fine)
 
 
-# --------------------------------------------------------------------------- scale and checks
-
-def image_scale(path, fmt: str, pixel_size_um, radius_um) -> float:
-    """Units of R per pixel, from the two scale options (MidlineError naming a missing one).
-
-    Parameters
-    ----------
-    path : str or Path
-        The file, for messages.
-    fmt : str
-        Its format, for messages.
-    pixel_size_um, radius_um : float or None
-        µm per pixel and the embryo radius R in µm.
-
-    Returns
-    -------
-    float
-    """
-    options = {"pixel_size_um": (pixel_size_um, "µm per pixel"),
-               "radius_um": (radius_um, "the embryo radius R in µm")}
-    missing = [f"{name} ({meaning})" for name, (value, meaning) in options.items() if value is None]
-    if missing:
-        raise MidlineError(f"{path}: {fmt} coordinates are in pixels: pass "
-                           f"{' and '.join(missing)} to convert them to units of R")
-    pixel_size, radius = (check_positive(name, value, f"{path}: ")
-                          for name, (value, _) in options.items())
-    return pixel_size / radius
-
-
-def check_choice(value, choices: Sequence[str], what: str) -> str:
-    """``value`` if it is one of ``choices``.
-
-    Parameters
-    ----------
-    value
-        The option given.
-    choices : sequence of str
-        The options allowed (:data:`FORMATS`, the sections, ...).
-    what : str
-        The option's name, for the message.
-
-    Returns
-    -------
-    str
-        ``value``.
-
-    Raises
-    ------
-    MidlineError
-        "unknown {what} ...; choose one of [...]".
-    """
-    if value not in choices:
-        raise MidlineError(f"unknown {what} {value!r}; choose one of {list(choices)}")
-    return value
-
-
-def check_positive(name: str, value, prefix: str = "") -> float:
-    """``value`` as a float if it is a finite positive real number.
-
-    Parameters
-    ----------
-    name : str
-        The option's name, for the message.
-    value
-        The option given.
-    prefix : str
-        Put before the message (the file, ``"{path}: "``), or nothing.
-
-    Returns
-    -------
-    float
-
-    Raises
-    ------
-    MidlineError
-        Not a real number, not finite, or not positive.
-    """
-    try:
-        value = real(name, value)
-    except ValueError as exc:
-        raise MidlineError(f"{prefix}{exc}") from None
-    if value <= 0:
-        raise MidlineError(f"{prefix}{name} = {value!r} must be positive")
-    return value
-
-
-def _one_curve(path, points: np.ndarray, where: list[str], unit: str):
-    """Points without repeats and their labels; MidlineError unless they make one simple curve."""
-    keep = np.r_[True, np.any(np.diff(points, axis=0) != 0, axis=1)]
-    points, where = points[keep], [w for w, k in zip(where, keep) if k]
-    if len(points) < 4:
-        raise MidlineError(f"{path}: {len(points)} distinct points; a midline needs at least 4")
-    steps = np.hypot(*np.diff(points, axis=0).T)
-    median = float(np.median(steps))
-    gaps = np.flatnonzero(steps > max(_GAP_STEPS * median, _GAP_FRACTION * steps.sum()))
-    if len(gaps):
-        i = gaps[0]
-        raise MidlineError(f"{path}: {where[i]} to {where[i + 1]}: a step of {steps[i]:.4g} {unit} "
-                           f"({steps[i] / median:.0f} median steps): the trace is not one curve "
-                           f"(two pieces, or points out of order)")
-    with np.errstate(over="ignore", invalid="ignore"):     # (coordinates near 1e300)
-        crossing = _first_crossing(points, _GAP_STEPS * median)
-    if crossing is not None:
-        i, j = crossing
-        raise MidlineError(f"{path}: the segment {where[i]} to {where[i + 1]} crosses the segment "
-                           f"{where[j]} to {where[j + 1]}: the trace intersects itself")
-    return points, where
-
-
-def _first_crossing(points: np.ndarray, apart: float, chunk: int = 32) -> tuple[int, int] | None:
-    """(i, j), i < j, of two segments of the polyline that cross, ``apart`` along it; i smallest.
-
-    Segments closer than ``apart`` along the polyline may cross: noise at the
-    scale of the point spacing makes such small loops.  Only chunks of
-    consecutive segments whose bounding boxes overlap are compared, which
-    makes the check about linear in the number of points for a curve.
-    """
-    a, d = points[:-1], np.diff(points, axis=0)
-    along = np.r_[0.0, np.cumsum(np.hypot(*d.T))]             # polyline length at each point
-    starts = np.arange(0, len(a), chunk)
-    lo = np.minimum.reduceat(np.minimum(a, a + d), starts)
-    hi = np.maximum.reduceat(np.maximum(a, a + d), starts)
-    boxes_meet = np.all((lo[:, None] <= hi[None]) & (lo[None] <= hi[:, None]), axis=-1)
-
-    def cross(u, v):
-        return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
-
-    found = []
-    for p, q in np.argwhere(np.triu(boxes_meet)):
-        i = np.arange(starts[p], min(starts[p] + chunk, len(a)))[:, None]
-        j = np.arange(starts[q], min(starts[q] + chunk, len(a)))[None, :]
-        # ends of segment j on opposite sides of segment i, and vice versa (touching is not crossing)
-        hit = ((cross(d[i], a[j] - a[i]) * cross(d[i], a[j] + d[j] - a[i]) < 0)
-               & (cross(d[j], a[i] - a[j]) * cross(d[j], a[i] + d[i] - a[j]) < 0)
-               & (along[j] - along[i + 1] >= apart))
-        if hit.any():
-            k, m = np.argwhere(hit)[0]
-            found.append((int(i[k, 0]), int(j[0, m])))
-    return min(found) if found else None
-
-
 #: The likely cause of a csv midline that crosses the axis: a column z from the pole runs
 #: along the axis, where a column r may not.
 _SWAPPED = ": are its columns r and z swapped?"
 _IN_PIXELS = "a trace in pixels is read with format 'xy', 'fiji-xy' or 'roi' and a scale"
-
-
-def _check_extent(source: str, points: np.ndarray, where, hint: str) -> None:
-    """MidlineError if a point lies more than _MAX_EXTENT R from the first (wrong units)."""
-    reach = np.hypot(*(points - points[0]).T)
-    if len(points) and reach.max() > _MAX_EXTENT:
-        i = int(np.argmax(reach > _MAX_EXTENT))
-        raise MidlineError(f"{source}: {where[i]}: {reach[i]:.4g} R from the first point; a "
-                           f"midline lies within {_MAX_EXTENT:g} R of its pole ({hint})")
-
-
-def check_axis(source: str, points: np.ndarray, where, hint: str = "") -> None:
-    """Refuse a model-gauge midline that goes to r < 0 by more than noise.
-
-    Parameters
-    ----------
-    source : str
-        The file, for the message.
-    points : ndarray, shape (n, 2)
-        (r, z) in units of R.
-    where : sequence of str, length n
-        Where each point is in the file ("line 7"), for the message.
-    hint : str
-        Appended to the message: the likely cause.
-
-    Raises
-    ------
-    MidlineError
-        At the first point with r below −0.05 R (noise near the pole, no more).
-    """
-    bad = np.flatnonzero(points[:, 0] < -_AXIS_SLACK)
-    if len(bad):
-        raise MidlineError(f"{source}: {where[bad[0]]}: r = {points[bad[0], 0]:.4g} < 0: the "
-                           f"midline crosses the axis (the model gauge has r >= 0){hint}")
 
 
 # --------------------------------------------------------------------------- writing

@@ -1,0 +1,204 @@
+"""Checks of traced curves and of the options that read them.
+
+The trace readers (:mod:`morphoshell.io.traces`, :mod:`morphoshell.io.roi_sets`)
+and the alignment (:mod:`morphoshell.io.midlines`) refuse what cannot be a
+midline with :class:`MidlineError`, one line naming the file and the line,
+point or option: an option that is not a choice or not positive, a scale
+missing, points that are not one simple curve, that reach farther than a
+midline can from its pole, or a midline that crosses the axis.
+"""
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from .._runtime.validate import real
+
+__all__ = ["MidlineError", "image_scale", "check_choice", "check_positive", "one_curve",
+           "check_extent", "check_axis"]
+
+#: A step longer than _GAP_STEPS median steps and _GAP_FRACTION of the trace joins two curves.
+_GAP_STEPS, _GAP_FRACTION = 10.0, 0.05
+#: How far (units of R) an aligned midline may stray to r < 0: noise near the pole, no more.
+_AXIS_SLACK = 0.05
+#: How far (units of R) a trace may reach from its first point: a Volvox midline lies within
+#: about 2 R of its pole; farther is a trace in other units (at 1e300 the spline overflowed).
+_MAX_EXTENT = 20.0
+
+
+class MidlineError(ValueError):
+    """A trace file or option that cannot be used; the message names the file and line or option."""
+
+
+def image_scale(path, fmt: str, pixel_size_um, radius_um) -> float:
+    """Units of R per pixel, from the two scale options (MidlineError naming a missing one).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file, for messages.
+    fmt : str
+        Its format, for messages.
+    pixel_size_um, radius_um : float or None
+        µm per pixel and the embryo radius R in µm.
+
+    Returns
+    -------
+    float
+    """
+    options = {"pixel_size_um": (pixel_size_um, "µm per pixel"),
+               "radius_um": (radius_um, "the embryo radius R in µm")}
+    missing = [f"{name} ({meaning})" for name, (value, meaning) in options.items() if value is None]
+    if missing:
+        raise MidlineError(f"{path}: {fmt} coordinates are in pixels: pass "
+                           f"{' and '.join(missing)} to convert them to units of R")
+    pixel_size, radius = (check_positive(name, value, f"{path}: ")
+                          for name, (value, _) in options.items())
+    return pixel_size / radius
+
+
+def check_choice(value, choices: Sequence[str], what: str) -> str:
+    """``value`` if it is one of ``choices``.
+
+    Parameters
+    ----------
+    value
+        The option given.
+    choices : sequence of str
+        The options allowed (:data:`FORMATS`, the sections, ...).
+    what : str
+        The option's name, for the message.
+
+    Returns
+    -------
+    str
+        ``value``.
+
+    Raises
+    ------
+    MidlineError
+        "unknown {what} ...; choose one of [...]".
+    """
+    if value not in choices:
+        raise MidlineError(f"unknown {what} {value!r}; choose one of {list(choices)}")
+    return value
+
+
+def check_positive(name: str, value, prefix: str = "") -> float:
+    """``value`` as a float if it is a finite positive real number.
+
+    Parameters
+    ----------
+    name : str
+        The option's name, for the message.
+    value
+        The option given.
+    prefix : str
+        Put before the message (the file, ``"{path}: "``), or nothing.
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    MidlineError
+        Not a real number, not finite, or not positive.
+    """
+    try:
+        value = real(name, value)
+    except ValueError as exc:
+        raise MidlineError(f"{prefix}{exc}") from None
+    if value <= 0:
+        raise MidlineError(f"{prefix}{name} = {value!r} must be positive")
+    return value
+
+
+def one_curve(path, points: np.ndarray, where: list[str], unit: str):
+    """Points without repeats and their labels; MidlineError unless they make one simple curve."""
+    keep = np.r_[True, np.any(np.diff(points, axis=0) != 0, axis=1)]
+    points, where = points[keep], [w for w, k in zip(where, keep) if k]
+    if len(points) < 4:
+        raise MidlineError(f"{path}: {len(points)} distinct points; a midline needs at least 4")
+    steps = np.hypot(*np.diff(points, axis=0).T)
+    median = float(np.median(steps))
+    gaps = np.flatnonzero(steps > max(_GAP_STEPS * median, _GAP_FRACTION * steps.sum()))
+    if len(gaps):
+        i = gaps[0]
+        raise MidlineError(f"{path}: {where[i]} to {where[i + 1]}: a step of {steps[i]:.4g} {unit} "
+                           f"({steps[i] / median:.0f} median steps): the trace is not one curve "
+                           f"(two pieces, or points out of order)")
+    with np.errstate(over="ignore", invalid="ignore"):     # (coordinates near 1e300)
+        crossing = _first_crossing(points, _GAP_STEPS * median)
+    if crossing is not None:
+        i, j = crossing
+        raise MidlineError(f"{path}: the segment {where[i]} to {where[i + 1]} crosses the segment "
+                           f"{where[j]} to {where[j + 1]}: the trace intersects itself")
+    return points, where
+
+
+def _first_crossing(points: np.ndarray, apart: float, chunk: int = 32) -> tuple[int, int] | None:
+    """(i, j), i < j, of two segments of the polyline that cross, ``apart`` along it; i smallest.
+
+    Segments closer than ``apart`` along the polyline may cross: noise at the
+    scale of the point spacing makes such small loops.  Only chunks of
+    consecutive segments whose bounding boxes overlap are compared, which
+    makes the check about linear in the number of points for a curve.
+    """
+    a, d = points[:-1], np.diff(points, axis=0)
+    along = np.r_[0.0, np.cumsum(np.hypot(*d.T))]             # polyline length at each point
+    starts = np.arange(0, len(a), chunk)
+    lo = np.minimum.reduceat(np.minimum(a, a + d), starts)
+    hi = np.maximum.reduceat(np.maximum(a, a + d), starts)
+    boxes_meet = np.all((lo[:, None] <= hi[None]) & (lo[None] <= hi[:, None]), axis=-1)
+
+    def cross(u, v):
+        return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+
+    found = []
+    for p, q in np.argwhere(np.triu(boxes_meet)):
+        i = np.arange(starts[p], min(starts[p] + chunk, len(a)))[:, None]
+        j = np.arange(starts[q], min(starts[q] + chunk, len(a)))[None, :]
+        # ends of segment j on opposite sides of segment i, and vice versa (touching is not crossing)
+        hit = ((cross(d[i], a[j] - a[i]) * cross(d[i], a[j] + d[j] - a[i]) < 0)
+               & (cross(d[j], a[i] - a[j]) * cross(d[j], a[i] + d[i] - a[j]) < 0)
+               & (along[j] - along[i + 1] >= apart))
+        if hit.any():
+            k, m = np.argwhere(hit)[0]
+            found.append((int(i[k, 0]), int(j[0, m])))
+    return min(found) if found else None
+
+
+def check_extent(source: str, points: np.ndarray, where, hint: str) -> None:
+    """MidlineError if a point lies more than _MAX_EXTENT R from the first (wrong units)."""
+    reach = np.hypot(*(points - points[0]).T)
+    if len(points) and reach.max() > _MAX_EXTENT:
+        i = int(np.argmax(reach > _MAX_EXTENT))
+        raise MidlineError(f"{source}: {where[i]}: {reach[i]:.4g} R from the first point; a "
+                           f"midline lies within {_MAX_EXTENT:g} R of its pole ({hint})")
+
+
+def check_axis(source: str, points: np.ndarray, where, hint: str = "") -> None:
+    """Refuse a model-gauge midline that goes to r < 0 by more than noise.
+
+    Parameters
+    ----------
+    source : str
+        The file, for the message.
+    points : ndarray, shape (n, 2)
+        (r, z) in units of R.
+    where : sequence of str, length n
+        Where each point is in the file ("line 7"), for the message.
+    hint : str
+        Appended to the message: the likely cause.
+
+    Raises
+    ------
+    MidlineError
+        At the first point with r below −0.05 R (noise near the pole, no more).
+    """
+    bad = np.flatnonzero(points[:, 0] < -_AXIS_SLACK)
+    if len(bad):
+        raise MidlineError(f"{source}: {where[bad[0]]}: r = {points[bad[0], 0]:.4g} < 0: the "
+                           f"midline crosses the axis (the model gauge has r >= 0){hint}")
