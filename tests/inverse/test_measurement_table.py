@@ -89,3 +89,17 @@ def test_bad_tables(tmp_path, text, named):
     assert named in str(info.value)
     with pytest.raises(I.MeasurementError, match="no such file"):
         I.read_measurements(tmp_path / "missing.csv")
+
+
+def test_equal_estimates_get_equal_intervals():
+    """Every summary's bootstrap draws the same resamples of the embryos: rotation's
+    asymptotic and Kelvin estimates are equal, and so are their intervals (they had their
+    own streams: [-0.118, 0.027] against [-0.118, 0.023]; user audits)."""
+    from pathlib import Path
+
+    from morphoshell import estimate
+
+    data = Path(__file__).resolve().parents[2] / "data" / "synthetic_ablations.csv"
+    est = estimate(data, methods=("leading_order", "kelvin"))
+    a, b = est.summary["rotation_asymptotic"], est.summary["rotation_kelvin"]
+    assert a.mean == b.mean and a.interval == b.interval
