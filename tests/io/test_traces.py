@@ -219,3 +219,14 @@ def test_bad_roi_files(tmp_path):
         with pytest.raises(MidlineError) as exc:
             tr.read_trace(tmp_path / name, **SCALE)
         assert f"{name}: {message}" in str(exc.value)
+
+
+def test_a_pixel_trace_where_a_midline_is_read_points_to_average(tmp_path):
+    """A campaign's folder lists midlines in units of R (format csv); a trace in pixels there
+    had only been told its header is not 'r,z' (user audit): the message says what it is
+    and the command that makes a midline of it."""
+    path = _file(tmp_path, "trace.csv", "X,Y\n" + "\n".join(r.replace("\t", ",")
+                                                          for r in GOOD_ROWS) + "\n")
+    with pytest.raises(MidlineError, match=r"a trace in image pixels \(header 'X,Y'\), where a "
+                                           r"midline in units of R .* `morphoshell average"):
+        tr.read_trace(path, "csv")

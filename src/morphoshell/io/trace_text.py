@@ -215,6 +215,11 @@ def _header(path: Path, body: list[tuple[int, str]], fmt: str):
     if names not in expected:
         if {"x", "y"} <= set(names) and len(names) > 2:
             raise MidlineError(f"{path}: line {i}: columns {text!r}: {_PIXEL_DUMP}")
+        if names == _XY_HEADER and fmt == "csv":    # (a campaign's folder lists midlines)
+            raise MidlineError(f"{path}: line {i}: a trace in image pixels (header {text!r}), "
+                               f"where a midline in units of R (header 'r,z') is read: "
+                               f"`morphoshell average TRACE... --pixel-size ... --radius-um "
+                               f"... --csv MIDLINE.csv` writes one")
         raise MidlineError(f"{path}: line {i}: header {text!r} is not "
                            f"{' or '.join(repr(','.join(h)) for h in expected)} (format "
                            f"{fmt!r}); {_FORMS}")
