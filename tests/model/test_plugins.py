@@ -115,3 +115,28 @@ def test_a_callable_entry_point_returns_the_family(tmp_path, monkeypatch):
     monkeypatch.syspath_prepend(str(tmp_path))
     monkeypatch.setattr(profiles, "FAMILIES", dict(profiles.FAMILIES))
     assert Problem("made", {"k": 0.5}).family_obj.name == "made"
+
+
+def test_a_plugins_own_error_is_its_own(tmp_path, monkeypatch, capsys):
+    """An exception raised in a plugin family's code is reported as the plugin's, naming its
+    entry point, not as a bug of morphoshell (user audit); exit status 1 as for a bug."""
+    from morphoshell.cli import main
+
+    fake_install(tmp_path, "oops_family",
+                 "from morphoshell.model.profiles import FAMILIES, ProfileFamily\n"
+                 "def _validate(v, cut, end):\n"
+                 "    return v['ww']\n"
+                 "u = FAMILIES['uniform']\n"
+                 "FAMILY = ProfileFamily('oops', u.parameters, u.defaults, u.build, _validate,\n"
+                 "                       neutral=u.neutral)\n",
+                 "[morphoshell.families]\noops = oops_family:FAMILY\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr(profiles, "FAMILIES", dict(profiles.FAMILIES))
+    monkeypatch.delitem(sys.modules, "oops_family", raising=False)
+    path = tmp_path / "oops.toml"
+    path.write_text('[problem]\nfamily = "oops"\nh = 0.1\ncut = 0.3\n')
+    assert main(["solve", str(path), "--nodes", "20"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("morphoshell: internal error in the plugin family 'oops' (entry point "
+                          "'oops_family:FAMILY' of 'morphoshell.families'): KeyError: 'ww'"), err
+    assert "a bug in morphoshell" not in err

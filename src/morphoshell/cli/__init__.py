@@ -100,6 +100,23 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+def _plugin_of(exc: BaseException) -> str:
+    """The plugin family in whose code ``exc`` was raised (its innermost frame of a module
+    that an entry point of ``morphoshell.families`` names), or ""."""
+    import traceback
+
+    from ..model.profiles import ENTRY_POINT_GROUP, _entry_points
+
+    packages = {ep.value.split(":")[0].split(".")[0]: (name, ep.value)
+                for name, ep in _entry_points().items()}
+    for frame, _ in reversed(list(traceback.walk_tb(exc.__traceback__))):
+        top = str(frame.f_globals.get("__name__", "")).split(".")[0]
+        if top in packages:
+            name, value = packages[top]
+            return f"the plugin family {name!r} (entry point {value!r} of {ENTRY_POINT_GROUP!r})"
+    return ""
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line on ``argv`` (default ``sys.argv[1:]``); return the exit status.
 
@@ -148,6 +165,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 130
         if os.environ.get("MORPHOSHELL_DEBUG"):
             raise
+        plugin = _plugin_of(exc)
+        if plugin:      # not ours to fix: say whose it is
+            print(f"morphoshell: internal error in {plugin}: {type(exc).__name__}: {exc}. "
+                  f"Please report it to the plugin's authors (set MORPHOSHELL_DEBUG=1 for the "
+                  f"traceback)", file=sys.stderr)
+            return 1
         print(f"morphoshell: internal error (a bug in morphoshell {__version__}): "
               f"{type(exc).__name__}: {exc}. Please report it with the command line at "
               f"{ISSUES_URL} (set MORPHOSHELL_DEBUG=1 for the traceback)", file=sys.stderr)
