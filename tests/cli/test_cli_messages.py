@@ -94,3 +94,19 @@ def test_set_names_every_family_and_refuses_a_key_twice(capsys):
     assert "--set 'k=1': k is set more than once" in capsys.readouterr().err
     assert main(["solve", toy, "--set", "K=0.5"]) == 2
     assert "and the solver's ['nodes', 'method', 'stages']" in capsys.readouterr().err
+
+
+def test_a_header_only_midline_has_no_points(tmp_path, capsys):
+    """A midline file of its header alone was an internal error (IndexError, exit 1) in fit and
+    average (audit 3, #6); now exit 2 naming the file, as an empty file is."""
+    (tmp_path / "rz.csv").write_text("r,z\n")
+    (tmp_path / "xy.csv").write_text("x,y\n\n")
+    trace = str(ROOT / "data" / "synthetic_inversion" / "t02" / "synthetic_embryo1_midline.csv")
+    scale = ["--pixel-size", "0.3", "--radius-um", "41.7"]
+    for argv, name in ((["fit", str(tmp_path / "rz.csv"), "--variant", "free"], "rz.csv"),
+                       (["fit", str(tmp_path / "xy.csv"), "--variant", "free", *scale], "xy.csv"),
+                       (["average", trace, str(tmp_path / "rz.csv")], "rz.csv")):
+        assert main([*argv, "--json", str(tmp_path / "out.json")]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"{name}: no points: only the header" in err, err
+        assert not (tmp_path / "out.json").exists()
