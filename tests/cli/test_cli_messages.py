@@ -110,3 +110,20 @@ def test_a_header_only_midline_has_no_points(tmp_path, capsys):
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and f"{name}: no points: only the header" in err, err
         assert not (tmp_path / "out.json").exists()
+
+
+def test_fit_values_it_cannot_take_are_named_with_their_option(tmp_path, capsys):
+    """--set sigma=0.3 (in sigma's range) gave SciPy's "Each lower bound must be strictly less
+    than each upper bound" (#8), --set f1=5 (bounds 0.5-2) ran to E_fit 16.5 R (#10) and
+    --set opening=3.2 blamed the cut (#14, audit 3): now exit 2 before any work, naming the
+    option, the value and why."""
+    midline = str(ROOT / "data" / "synthetic_inversion" / "t02" / "synthetic_average.csv")
+    for value, said in (("sigma=0.3", "--set sigma=0.3: sigma = 0.3 leaves no room for s2"),
+                        ("f1=5", "--set f1=5: f1 = 5 lies outside the fit's bounds [0.5, 2]"),
+                        ("opening=3.2", "--set opening=3.2: opening (P) = 3.2 is larger than "
+                                        "the shell")):
+        assert main(["fit", midline, "--variant", "free", "--set", value,
+                     "--json", str(tmp_path / "fit.json")]) == 2
+        captured = capsys.readouterr()
+        assert captured.err.count("\n") == 1 and said in captured.err, captured.err
+        assert "E_fit" not in captured.out and not list(tmp_path.iterdir())

@@ -114,12 +114,17 @@ def _start_of(path: Path):
 
 
 def _start_problem(args):
-    """The start problem and the held values, from --start and --set (checked)."""
-    from ..fitting import volvox_spec
+    """The start problem and the held values, from --start and --set (checked).
+
+    A refusal names the options that gave the values it is about: ``--set NAME=VALUE``
+    as typed, or ``--start FILE`` (:attr:`morphoshell.fitting.SpecError.names`).
+    """
+    from ..fitting import SpecError, volvox_spec
     from ..io.problem_files import ProblemFileError, parse_overrides
 
     base = _fit_problem() if args.start is None else _start_of(args.start)
-    overrides = parse_overrides(args.overrides)
+    given = parse_overrides(args.overrides)
+    overrides = dict(given)
     base_keys = {k: overrides.pop(k) for k in ("h", "opening", "sigma") if k in overrides}
     unknown = sorted(set(overrides) - set(base.family_obj.parameters))
     if unknown:
@@ -127,9 +132,23 @@ def _start_problem(args):
                                f"{list(base.family_obj.parameters)}, h, opening")
     try:
         base = base.with_updates(**base_keys)
+    except ValueError as exc:       # (h, opening and sigma come from --set alone)
+        raise ProblemFileError(f"{_options(base_keys, given, None)}: {exc}") from None
+    try:
         return volvox_spec(args.variant, base, hold=overrides)
+    except SpecError as exc:
+        raise ProblemFileError(f"{_options(exc.names, given, args.start)}: {exc}") from None
     except ValueError as exc:
         raise ProblemFileError(f"--set/--start: {exc}") from None
+
+
+def _options(names, given: dict, start: Path | None) -> str:
+    """The options that gave the values of ``names``: ``--set NAME=VALUE`` for those set, and
+    ``--start FILE`` for the others when a start file gave them."""
+    named = [f"--set {n}={given[n]:g}" for n in names if n in given]
+    if start is not None and any(n not in given for n in names):
+        named.append(f"--start {start}")
+    return ", ".join(named) or "--set/--start"
 
 
 def load_checked(args, spec, n: int):
