@@ -6,8 +6,8 @@ from pathlib import Path
 from ._args import (FORMAT_HELP, SECTION_HELP, TRACE_OPTIONS, add_outputs, integer, micrometres,
                     reader_notes, reworded)
 from ._outputs import Outputs
-from ._profiles import (add_profile_options, profile_json, profile_names, profile_plot_path,
-                        profile_table, refit_lines, run_profiles)
+from ._profiles import (add_profile_options, profile_data, profile_json, profile_names,
+                        profile_plot_path, profile_table, refit_lines, run_profiles)
 
 __all__ = ["register"]
 
@@ -189,8 +189,9 @@ def _fit(args) -> int:
     from ._fit_stops import failure_hint, stop_line
 
     spec = _start_problem(args)
-    names = profile_names(args.profile, spec)        # (a bad name: exit 2, before any work)
+    names = profile_names(args.profile, spec, args)  # (a bad name: exit 2, before any work)
     midline = load_checked(args, spec, N_FIT)
+    data = profile_data(args, spec, midline) if names else None
     unit, default = EVALUATION_LIMITS[args.method]
     limit = args.max_evaluations or default
     try:
@@ -204,7 +205,7 @@ def _fit(args) -> int:
           f"solves, {result.seconds:.2f} s")
     before, profiles = result, {}
     if names:
-        result, profiles = run_profiles(args, spec, midline, result, names)
+        result, profiles = run_profiles(args, spec, data, result, names)
         if result is not before:        # (the fit was not its minimum: the refit is the fit)
             print(refit_lines(before, result))
             limit = EVALUATION_LIMITS["gradient"][1]      # (the refit's: profile_intervals)
