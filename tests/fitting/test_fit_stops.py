@@ -136,3 +136,30 @@ def test_the_last_line_names_the_fit_a_profiles_refit_went_on_from():
     assert stop_line(refit, 200, fit) == (
         "Gradient fit (the profiles' refit from the fit's end at E_fit 0.01236 R) converged "
         "after 12 evaluations at E_fit 0.01215 R")
+
+
+@pytest.mark.parametrize("result, line", [
+    (_ended("gradient", "Fit_Stalled", its=54, E_fit=10.19),
+     "Gradient fit stopped at its best point after 54 evaluations at E_fit 10.19 R, not "
+     "converged: E_fit is far above what the model leaves of a traced midline (0.005-0.03 R): "
+     "check the input: its orientation (pole first? z flipped?), its scale (--pixel-size and "
+     "--radius-um; a CSV's r, z in units of R), its axis (--section) and any --set values "
+     "first; if it is right, trial points in a row failed their inner solve (a fold of the "
+     "branch?); start nearer the data with --start FIT.json (a fit of a neighbouring stage), "
+     "or --method nelder-mead"),
+    (_ended("gradient", converged=True, its=64, E_fit=0.217),
+     "Gradient fit converged after 64 evaluations at E_fit 0.217 R; E_fit is far above what "
+     "the model leaves of a traced midline (0.005-0.03 R): check the input: its orientation "
+     "(pole first? z flipped?), its scale (--pixel-size and --radius-um; a CSV's r, z in units "
+     "of R), its axis (--section) and any --set values"),
+    (_ended("gradient", "Fit_Not_Stationary", E_fit=0.099),
+     "Gradient fit stalled short of a stationary point after 42 evaluations at E_fit 0.099 R, "
+     "not converged: trial points near it were rejected (a fold of the branch?); start nearer "
+     "the data with --start FIT.json (a fit of a neighbouring stage), or --method nelder-mead"),
+])
+def test_a_fit_far_above_traced_midlines_points_at_the_input(result, line):
+    """A z-flipped CSV (10.2 R), a radius 10 % off (0.69 R), f1 held at 5 (16.5 R) ended
+    blaming "a fold of the branch?" alone (audit 3, #10); above IMPLAUSIBLE_E_FIT = 0.1 R the
+    line names the input's orientation, scale and axis first, and keeps the fold's remedy
+    (stalls at folds on right data reach 0.24-0.67 R)."""
+    assert stop_line(result, 200) == line
