@@ -163,3 +163,34 @@ def test_a_fit_far_above_traced_midlines_points_at_the_input(result, line):
     line names the input's orientation, scale and axis first, and keeps the fold's remedy
     (stalls at folds on right data reach 0.24-0.67 R)."""
     assert stop_line(result, 200) == line
+
+
+def test_the_outputs_say_how_the_fit_was_made_and_how_it_ended(midline_csv, tmp_path, capsys):
+    """`fit --json` recorded neither nodes nor the start nor the limit, and `solve` re-solved
+    it at 200 nodes; `fit --csv` of a fit stopped short looked like a converged one's (audit
+    3, #11).  The CSV stays one table pandas reads as it is."""
+    import json
+
+    import pandas as pd
+
+    out, table = tmp_path / "fit.json", tmp_path / "fit.csv"
+    assert _fit(midline_csv, "--max-evaluations", "2", "--json", str(out),
+                "--csv", str(table)) == 3
+    record = json.loads(out.read_text())
+    assert record["solver"] == {"nodes": NODES, "stages": 2, "method": "direct"}
+    settings = record["settings"]
+    assert settings["nodes"] == NODES and settings["max_evaluations"] == 2
+    assert settings["evaluation_limit"] == 2 and settings["start"] is None
+    assert settings["section"] == "auto" and settings["pixel_size_um"] is None
+    assert settings["set"] == {n: TRUE.params[n] for n in TRUE.family_obj.parameters
+                               if n not in THREE and n not in ("kappa1", "sigma")}
+    assert settings["midline_file"] == str(midline_csv) and settings["method"] == "gradient"
+    df = pd.read_csv(table)
+    assert list(df.columns) == ["parameter", "value", "standard_error", "E_fit", "converged",
+                                "stop"]
+    assert sorted(df.parameter) == sorted(THREE) and df.converged.dtype == bool
+    assert not df.converged.any() and set(df.stop) == {"Maximum_Evaluations_Exceeded"}
+    assert (df.E_fit == record["E_fit"]).all()
+    capsys.readouterr()
+    assert main(["solve", str(out)]) == 0               # (the JSON as a problem file)
+    assert f"direct solution, {NODES} nodes" in capsys.readouterr().out
