@@ -127,3 +127,14 @@ def test_fit_values_it_cannot_take_are_named_with_their_option(tmp_path, capsys)
         captured = capsys.readouterr()
         assert captured.err.count("\n") == 1 and said in captured.err, captured.err
         assert "E_fit" not in captured.out and not list(tmp_path.iterdir())
+    # a start file's value is named by the file, beside the --set that made it unusable
+    start = tmp_path / "start.toml"
+    start.write_text('[problem]\nfamily = "volvox"\nh = 0.15\nopening = 0.3\n'
+                     '[parameters]\nf1 = 5.0\n')
+    for extra, said in (([], f"--start {start}: the start f1 = 5.0 lies outside its bounds "
+                             f"(0.5, 2)"),
+                        (["--set", "f1=1", "--set", "sigma=0.3"],
+                         f"--set sigma=0.3, --start {start}: sigma = 0.3 leaves no room")):
+        assert main(["fit", midline, "--variant", "free", "--start", str(start), *extra]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and said in err, err
