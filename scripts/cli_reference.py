@@ -41,8 +41,11 @@ Conventions shared by all commands:
   every continuation step), `-q`/`--quiet` only errors, and no progress bars.
   Long jobs show a progress bar when standard error is a terminal.
 * **Exit status**: 0 success, 2 bad input (one line, nothing written),
-  3 solver failure (nothing written), 1 a bug (with where to report it),
-  130 interrupted ([Solution routes and guarantees](solution.md#exit-statuses-of-the-command-line)).
+  3 a solver failed (nothing written) or fits did not converge (`fit` writes its
+  result, marked `"converged": false`; `campaign` writes every fit's record and
+  the summary, and names the fits on its last line), 1 a bug (with where to
+  report it), 130 interrupted
+  ([Solution routes and guarantees](solution.md#exit-statuses-of-the-command-line)).
 * **Gauges**: `solve` reports z in the solver's gauge, `ablate` in the far-end
   gauge ([Observables and gauges](observables.md)).
 """

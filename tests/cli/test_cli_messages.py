@@ -94,3 +94,47 @@ def test_set_names_every_family_and_refuses_a_key_twice(capsys):
     assert "--set 'k=1': k is set more than once" in capsys.readouterr().err
     assert main(["solve", toy, "--set", "K=0.5"]) == 2
     assert "and the solver's ['nodes', 'method', 'stages']" in capsys.readouterr().err
+
+
+def test_a_header_only_midline_has_no_points(tmp_path, capsys):
+    """A midline file of its header alone was an internal error (IndexError, exit 1) in fit and
+    average (audit 3, #6); now exit 2 naming the file, as an empty file is."""
+    (tmp_path / "rz.csv").write_text("r,z\n")
+    (tmp_path / "xy.csv").write_text("x,y\n\n")
+    trace = str(ROOT / "data" / "synthetic_inversion" / "t02" / "synthetic_embryo1_midline.csv")
+    scale = ["--pixel-size", "0.3", "--radius-um", "41.7"]
+    for argv, name in ((["fit", str(tmp_path / "rz.csv"), "--variant", "free"], "rz.csv"),
+                       (["fit", str(tmp_path / "xy.csv"), "--variant", "free", *scale], "xy.csv"),
+                       (["average", trace, str(tmp_path / "rz.csv")], "rz.csv")):
+        assert main([*argv, "--json", str(tmp_path / "out.json")]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"{name}: no points: only the header" in err, err
+        assert not (tmp_path / "out.json").exists()
+
+
+def test_fit_values_it_cannot_take_are_named_with_their_option(tmp_path, capsys):
+    """--set sigma=0.3 (in sigma's range) gave SciPy's "Each lower bound must be strictly less
+    than each upper bound" (#8), --set f1=5 (bounds 0.5-2) ran to E_fit 16.5 R (#10) and
+    --set opening=3.2 blamed the cut (#14, audit 3): now exit 2 before any work, naming the
+    option, the value and why."""
+    midline = str(ROOT / "data" / "synthetic_inversion" / "t02" / "synthetic_average.csv")
+    for value, said in (("sigma=0.3", "--set sigma=0.3: sigma = 0.3 leaves no room for s2"),
+                        ("f1=5", "--set f1=5: f1 = 5 lies outside the fit's bounds [0.5, 2]"),
+                        ("opening=3.2", "--set opening=3.2: opening (P) = 3.2 is larger than "
+                                        "the shell")):
+        assert main(["fit", midline, "--variant", "free", "--set", value,
+                     "--json", str(tmp_path / "fit.json")]) == 2
+        captured = capsys.readouterr()
+        assert captured.err.count("\n") == 1 and said in captured.err, captured.err
+        assert "E_fit" not in captured.out and not list(tmp_path.iterdir())
+    # a start file's value is named by the file, beside the --set that made it unusable
+    start = tmp_path / "start.toml"
+    start.write_text('[problem]\nfamily = "volvox"\nh = 0.15\nopening = 0.3\n'
+                     '[parameters]\nf1 = 5.0\n')
+    for extra, said in (([], f"--start {start}: the start f1 = 5.0 lies outside its bounds "
+                             f"(0.5, 2)"),
+                        (["--set", "f1=1", "--set", "sigma=0.3"],
+                         f"--set sigma=0.3, --start {start}: sigma = 0.3 leaves no room")):
+        assert main(["fit", midline, "--variant", "free", "--start", str(start), *extra]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and said in err, err

@@ -75,3 +75,72 @@ def test_a_start_outside_a_bound_by_ipopts_relaxation_is_projected_onto_it(varia
         volvox_spec(variant, START.with_updates(f2=0.4999))
     inside = volvox_spec(variant, START.with_updates(f2=0.5 + 1e-9))
     assert inside.base.params["f2"] == 0.5 + 1e-9          # inside: untouched
+
+
+DEFAULTS = Problem("volvox", h=0.15, opening=0.3)       # s1..s4 = 1.3, 1.6, 1.9, 2.3
+
+
+def test_a_held_value_outside_the_bounds_is_refused_naming_them():
+    """--set f1=5 (bounds 0.5-2) ran 4 s to E_fit 16.5 R (audit 3, #10); a value an earlier
+    fit left on its bound, outside by Ipopt's relaxation, is still held."""
+    from morphoshell.fitting import SpecError
+    from morphoshell.fitting.spec import BOUND_SLACK
+
+    for name, value, said in (("f1", 5.0, r"f1 = 5 lies outside the fit's bounds \[0\.5, 2\]"),
+                              ("kappa2", -16.0, r"kappa2 = -16 lies outside the fit's bounds "
+                                                r"\[-15, 15\]")):
+        with pytest.raises(SpecError, match=said) as exc:
+            volvox_spec("free", DEFAULTS, hold={name: value})
+        assert exc.value.names == (name,)
+    held = volvox_spec("flat", DEFAULTS, hold={"f1": 2 * (1 + 0.5 * BOUND_SLACK)})
+    assert held.base.params["f1"] == 2 * (1 + 0.5 * BOUND_SLACK) and "f1" not in held.fitted
+
+
+def test_a_sigma_that_leaves_a_breakpoint_no_box_is_refused_naming_the_largest():
+    """sigma = 0.3 (in its range [0.001, 0.5]) gave SciPy's "Each lower bound must be strictly
+    less than each upper bound" after the set-up (audit 3, #8): s2 is 0.3 from both
+    neighbours.  The message names the breakpoint and the largest sigma they allow."""
+    from morphoshell.fitting import SpecError
+
+    with pytest.raises(SpecError, match=r"sigma = 0\.3 leaves no room for s2 \(0\.3 from s1, "
+                                        r"0\.3 from s3\).* sigma must be below 0\.3") as exc:
+        volvox_spec("free", DEFAULTS.with_updates(sigma=0.3))
+    assert exc.value.names == ("sigma", "s1", "s2", "s3")
+    spec = volvox_spec("free", DEFAULTS.with_updates(sigma=0.299))
+    assert all(lo < hi for lo, hi in spec.bounds.values())
+    # held, s2 needs no box; held neighbours closer than sigma break the ordering
+    assert volvox_spec("free", DEFAULTS.with_updates(sigma=0.3), hold={"s2": 1.6}).bounds
+    with pytest.raises(SpecError, match=r"s2 and s3, held, 0\.3 apart.* below 0\.3"):
+        volvox_spec("free", DEFAULTS.with_updates(sigma=0.35), hold={"s2": 1.6, "s3": 1.9})
+
+
+@given(st.lists(st.floats(0.01, 1.0), min_size=5, max_size=5), st.floats(0.001, 0.5),
+       st.lists(st.booleans(), min_size=4, max_size=4))
+@settings(max_examples=200, deadline=None)
+def test_sigma_is_refused_exactly_when_a_fitted_box_would_have_no_width(gaps, sigma, held):
+    """Either every fitted breakpoint's box has room (what SciPy needs) and held ones are
+    sigma apart, or the spec is refused with a limit that sigma reaches and just below
+    which it is accepted."""
+    from morphoshell.fitting import SpecError
+
+    s = np.cumsum(gaps)
+    opening = np.pi - s[-1]
+    if not 0 <= opening < np.pi - 0.2:
+        return
+    names = ("s1", "s2", "s3", "s4")
+    base = DEFAULTS.with_updates(opening=float(opening), **dict(zip(names, s[:-1].tolist())))
+    hold = {n: base.params[n] for n, h in zip(names, held) if h}
+    try:
+        spec = volvox_spec("free", base.with_updates(sigma=sigma), hold=hold)
+    except SpecError as exc:
+        limit = float(str(exc).split("sigma must be below ")[1].split(",")[0])
+        assert sigma >= limit * (1 - 1e-3)
+        below = 0.999 * limit
+        if below >= 0.001:
+            volvox_spec("free", base.with_updates(sigma=below), hold=hold)
+        return
+    assert all(hi - lo > 0 for n, (lo, hi) in spec.bounds.items() if n in names)
+    fixed, points = [True, *held, True], [0.0, *s]     # the pole, s1..s4, the shell's end
+    for j in range(5):                                   # each pair of neighbours
+        if fixed[j] and fixed[j + 1]:
+            assert points[j + 1] - points[j] >= sigma * (1 - 1e-9)

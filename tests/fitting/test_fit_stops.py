@@ -136,3 +136,61 @@ def test_the_last_line_names_the_fit_a_profiles_refit_went_on_from():
     assert stop_line(refit, 200, fit) == (
         "Gradient fit (the profiles' refit from the fit's end at E_fit 0.01236 R) converged "
         "after 12 evaluations at E_fit 0.01215 R")
+
+
+@pytest.mark.parametrize("result, line", [
+    (_ended("gradient", "Fit_Stalled", its=54, E_fit=10.19),
+     "Gradient fit stopped at its best point after 54 evaluations at E_fit 10.19 R, not "
+     "converged: E_fit is far above what the model leaves of a traced midline (0.005-0.03 R): "
+     "check the input: its orientation (pole first? z flipped?), its scale (--pixel-size and "
+     "--radius-um; a CSV's r, z in units of R), its axis (--section) and any --set values "
+     "first; if it is right, trial points in a row failed their inner solve (a fold of the "
+     "branch?); start nearer the data with --start FIT.json (a fit of a neighbouring stage), "
+     "or --method nelder-mead"),
+    (_ended("gradient", converged=True, its=64, E_fit=0.217),
+     "Gradient fit converged after 64 evaluations at E_fit 0.217 R; E_fit is far above what "
+     "the model leaves of a traced midline (0.005-0.03 R): check the input: its orientation "
+     "(pole first? z flipped?), its scale (--pixel-size and --radius-um; a CSV's r, z in units "
+     "of R), its axis (--section) and any --set values"),
+    (_ended("gradient", "Fit_Not_Stationary", E_fit=0.099),
+     "Gradient fit stalled short of a stationary point after 42 evaluations at E_fit 0.099 R, "
+     "not converged: trial points near it were rejected (a fold of the branch?); start nearer "
+     "the data with --start FIT.json (a fit of a neighbouring stage), or --method nelder-mead"),
+])
+def test_a_fit_far_above_traced_midlines_points_at_the_input(result, line):
+    """A z-flipped CSV (10.2 R), a radius 10 % off (0.69 R), f1 held at 5 (16.5 R) ended
+    blaming "a fold of the branch?" alone (audit 3, #10); above IMPLAUSIBLE_E_FIT = 0.1 R the
+    line names the input's orientation, scale and axis first, and keeps the fold's remedy
+    (stalls at folds on right data reach 0.24-0.67 R)."""
+    assert stop_line(result, 200) == line
+
+
+def test_the_outputs_say_how_the_fit_was_made_and_how_it_ended(midline_csv, tmp_path, capsys):
+    """`fit --json` recorded neither nodes nor the start nor the limit, and `solve` re-solved
+    it at 200 nodes; `fit --csv` of a fit stopped short looked like a converged one's (audit
+    3, #11).  The CSV stays one table pandas reads as it is."""
+    import json
+
+    import pandas as pd
+
+    out, table = tmp_path / "fit.json", tmp_path / "fit.csv"
+    assert _fit(midline_csv, "--max-evaluations", "2", "--json", str(out),
+                "--csv", str(table)) == 3
+    record = json.loads(out.read_text())
+    assert record["solver"] == {"nodes": NODES, "stages": 2, "method": "direct"}
+    settings = record["settings"]
+    assert settings["nodes"] == NODES and settings["max_evaluations"] == 2
+    assert settings["evaluation_limit"] == 2 and settings["start"] is None
+    assert settings["section"] == "auto" and settings["pixel_size_um"] is None
+    assert settings["set"] == {n: TRUE.params[n] for n in TRUE.family_obj.parameters
+                               if n not in THREE and n not in ("kappa1", "sigma")}
+    assert settings["midline_file"] == str(midline_csv) and settings["method"] == "gradient"
+    df = pd.read_csv(table)
+    assert list(df.columns) == ["parameter", "value", "standard_error", "E_fit", "converged",
+                                "stop"]
+    assert sorted(df.parameter) == sorted(THREE) and df.converged.dtype == bool
+    assert not df.converged.any() and set(df.stop) == {"Maximum_Evaluations_Exceeded"}
+    assert (df.E_fit == record["E_fit"]).all()
+    capsys.readouterr()
+    assert main(["solve", str(out)]) == 0               # (the JSON as a problem file)
+    assert f"direct solution, {NODES} nodes" in capsys.readouterr().out

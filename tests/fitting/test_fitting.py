@@ -292,10 +292,16 @@ def test_fit_start_takes_the_parameters_and_refuses_a_cut_shell(midline_csv, tmp
 
 
 def test_fit_help_gives_the_range_of_nodes(capsys):
-    """--nodes accepts 20 to 3200 (bilevel.FIT_NODES): --help says so."""
+    """--nodes accepts 20 to 3200 (bilevel.FIT_NODES): --help says so.  A campaign's fits
+    accept the same (it stopped at 2000, its --help silent on it: audit 3, #14)."""
     assert main(["fit", "--help"]) == 0
     assert "mesh nodes of the inner solves, 20 to 3200 (default 200)" in \
         " ".join(capsys.readouterr().out.split())
+    assert main(["campaign", "--help"]) == 0
+    assert "mesh nodes of the inner solves, 20 to 3200 as for morphoshell fit (default 200)" \
+        in " ".join(capsys.readouterr().out.split())
+    assert main(["campaign", "no_such_folder", "--nodes", "3201"]) == 2
+    assert "argument --nodes: 3201 must lie in [20, 3200]" in capsys.readouterr().err
 
 
 def test_fit_command_names_a_midline_of_the_wrong_scale(midline_csv, tmp_path, capsys):

@@ -314,6 +314,52 @@ def test_fit_command_refuses_bad_profile_names(midline_csv, tmp_path, capsys, na
     assert not out.exists()
 
 
+@pytest.mark.parametrize("argv, said", [
+    # a single trace: refused after the fit had run (its result lost), in the library's words
+    (["--profile", "f1", "--profile-noise", "traces"],
+     "--profile-noise traces: {midline} is not an average of several traces"),
+    # options of the profiles without --profile did nothing, silently
+    (["--profile-plot", "{tmp}/p.png"], "--profile-plot {tmp}/p.png without --profile NAMES"),
+    (["--profile-points", "4", "--profile-noise", "residual"],
+     "--profile-points 4, --profile-noise residual without --profile NAMES"),
+])
+def test_profile_options_that_cannot_apply_are_refused_before_the_fit(
+        midline_csv, tmp_path, capsys, monkeypatch, argv, said):
+    """(audit 3, #9 and #14): exit 2, one line naming the options and the file, no fit."""
+    import morphoshell.fitting as fitting
+
+    def no_fit(*args, **kwargs):
+        raise AssertionError("the fit ran before the refusal")
+    monkeypatch.setattr(fitting, "fit", no_fit)
+    out = tmp_path / "fit.json"
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
+    assert main(["fit", str(midline_csv), "--variant", "flat", "--nodes", str(NODES), *HELD,
+                 *argv, "--json", str(out)]) == 2
+    err = capsys.readouterr().err
+    said = said.replace("{midline}", str(midline_csv)).replace("{tmp}", str(tmp_path))
+    assert said in err and err.count("\n") == 1, err
+    if "traces:" in said:
+        assert "morphoshell average" in err          # (what the file needs to be)
+    assert not list(tmp_path.iterdir())
+
+
+def test_profile_noise_traces_takes_an_average_with_its_spread(tmp_path):
+    """The check before the fit lets an average CSV (n_traces > 1, a spread column) through."""
+    from argparse import Namespace
+
+    from pathlib import Path
+
+    from morphoshell.cli._profiles import profile_data
+    from morphoshell.fitting import volvox_spec
+    from morphoshell.io import load_midline
+
+    path = Path(__file__).parents[2] / "data" / "synthetic_inversion" / "t02" / "synthetic_average.csv"
+    midline = load_midline(path, n=100)
+    args = Namespace(midline=path, profile_noise="traces")
+    data = profile_data(args, volvox_spec("free"), midline)
+    assert data.n_traces == 5 and data.spread is not None
+
+
 def test_a_crossing_decided_by_an_unconverged_refit_is_noted():
     """An unconverged refit's objective lies above the profile: where it is the first point
     past the threshold, the interval may reach further, and the profile says so."""

@@ -18,6 +18,8 @@ from morphoshell.io.problem_files import ProblemFileError, apply_overrides, load
     ({"cut": 2.0, "opening": 1.2}, "cut (Sigma) = 2.0 is larger than the shell"),
     ({"cut": -0.1}, "cut (Sigma) = -0.1 must be non-negative"),
     ({"opening": -0.3}, "opening (P) = -0.3 must be non-negative"),
+    # was "cut (Sigma) = 0.0 is larger than the shell" (audit 3, #14)
+    ({"opening": 3.2}, "opening (P) = 3.2 is larger than the shell: the sphere's meridian is"),
     ({"cut": math.inf}, "cut (Sigma) = inf must be finite"),
     ({"theory": "kirchhoff"}, "unknown theory 'kirchhoff'"),
     ({"family": "nonesuch"}, "unknown profile family 'nonesuch'"),

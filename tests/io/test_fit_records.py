@@ -70,3 +70,28 @@ def test_ablate_refuses_a_fit_json_whose_copies_disagree(tmp_path, capsys):
 def test_a_failed_fit_has_no_fitted_shell():
     with pytest.raises(ValueError, match="the fit failed"):
         fitted_problem({"status": "failed", "message": "FitError: x"}, "t05_free.json")
+
+
+def test_a_fit_json_re_solves_at_the_fits_nodes(tmp_path):
+    """`morphoshell solve fit.json` solved a shape fitted at 100 nodes at the default 200
+    (audit 3, #11): a fit's JSON records its [solver] table, a campaign's record its nodes;
+    a solve's JSON reports its solve (not settings) and keeps the defaults."""
+    from morphoshell.io.problem_files import ProblemFileError, Settings, load_problem
+
+    cases = {"fit": ({"fitted": ["kappa2"], "solver": {"nodes": 100, "stages": 2,
+                                                       "method": "direct"}}, 100),
+             "campaign": ({"fitted": ["kappa2"], "nodes": 60}, 60),
+             "old_fit": ({"fitted": ["kappa2"]}, 200),
+             "solve": ({"solver": {"method": "direct", "nodes": 80, "iterations": 5}}, 200)}
+    for name, (entries, nodes) in cases.items():
+        path = tmp_path / f"{name}.json"
+        path.write_text(json.dumps(_record(**entries)))
+        problem, settings = load_problem(path)
+        assert problem == FITTED and settings == Settings(nodes=nodes), name
+    path = tmp_path / "tampered.json"
+    path.write_text(json.dumps(_record(fitted=[], solver={"nodes": 3})))
+    with pytest.raises(ProblemFileError, match=r"tampered\.json: solver: nodes = 3"):
+        load_problem(path)
+    path.write_text(json.dumps(_record(fitted=[], solver={"nodes": 100, "tol": 1})))
+    with pytest.raises(ProblemFileError, match=r"unknown key\(s\) \['tol'\] in 'solver'"):
+        load_problem(path)

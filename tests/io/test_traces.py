@@ -66,6 +66,9 @@ def test_midline_csv_round_trip(tmp_path):
     assert back.n_traces == 3 and back.source == mean.source
     trace = tr.read_trace(tmp_path / "mean.csv")                # the same file as a trace
     assert trace.format == "csv" and np.array_equal(trace.points, mean.points)
+    (tmp_path / "empty.csv").write_text("# n_traces = 3\nr,z,spread\n")  # (a campaign's reader)
+    with pytest.raises(MidlineError, match="empty.csv: no points: only the header 'r,z,spread'"):
+        Midline.from_csv(tmp_path / "empty.csv")
 
 
 # ------------------------------------------------------------------ bad input
@@ -87,6 +90,13 @@ JUMP = "\n".join(GOOD_ROWS[:6] + ["5000\t5000"] + GOOD_ROWS[6:]) + "\n"
     ("ragged.csv", "r,z\n0,0\n1,2,3\n", "ragged.csv: line 3: 3 values, expected 2 (r, z)"),
     ("nan.txt", "1\t2\nnan\t3\n4\t5\n6\t7\n", "nan.txt: line 2, column 1 (x): nan is not finite"),
     ("few.txt", "1\t2\n3\t4\n5\t6\n", "few.txt: 3 distinct points; a midline needs at least 4"),
+    # a header alone, or with blank lines, used to be an IndexError (audit 3, #6)
+    ("header_only.csv", "r,z\n", "header_only.csv: no points: only the header 'r,z' (line 1)"),
+    ("spread_only.csv", "# n_traces = 3\nr,z,spread\n\n\n", "no points: only the header "
+                                                            "'r,z,spread' (line 2)"),
+    ("xy_only.csv", "x,y\n", "xy_only.csv: no points: only the header 'x,y'"),
+    ("index_only.csv", " ,X,Y\n\n", "index_only.csv: no points: only the header ',X,Y'"),
+    ("one.csv", "x,y\n1,2\n", "one.csv: 1 distinct point; a midline needs at least 4"),
     ("latin1.csv", b"x,y\n1,2\n3,4\n# caf\xe9\n", "latin1.csv: line 4: not UTF-8"),
     ("dump.txt", "10\t20\t255\n11\t20\t254\n", "dump.txt: line 1: 3 columns: this is a pixel list"),
     ("area.csv", " ,X,Y,Value\n1,10,20,255\n", "area.csv: line 1: columns ',X,Y,Value': this is"),

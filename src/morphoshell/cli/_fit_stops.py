@@ -6,7 +6,9 @@ key of :data:`morphoshell.numerics.status.STATUSES`), after how many
 evaluations, at which E_fit, and, when it did not converge, the options that
 may help (``--max-evaluations``, ``--start``, ``--set``, ``--method``).
 A fit that fails (the KKT fit raises) ends with the error line instead:
-:func:`failure_hint` is what that line says to try.
+:func:`failure_hint` is what that line says to try.  A fit that ends far above what
+the model gives any traced midline (:data:`IMPLAUSIBLE_E_FIT`) points at the input
+first: its orientation, scale and axis.
 """
 from __future__ import annotations
 
@@ -20,12 +22,26 @@ from ..numerics.status import (FIT_CONVERGED, FIT_MOVED_BOXES_FAILED, FIT_NEAR_F
 if TYPE_CHECKING:
     from ..fitting import FitResult
 
-__all__ = ["stop_line", "failure_hint", "NAMES"]
+__all__ = ["stop_line", "failure_hint", "NAMES", "IMPLAUSIBLE_E_FIT", "INPUT_CHECK"]
 
 #: How the last line names each method, and what its iteration count counts.
 NAMES = {"nelder-mead": ("Nelder-Mead", "evaluations"),
          "gradient": ("Gradient fit", "evaluations"),
          "kkt": ("KKT fit", "iterations")}
+
+#: E_fit (R) above which a fit's last line points at the input before the fit.  E_fit is the
+#: root of the sum of 100 squared distances: 0.1 R is 0.01 R rms a point, 0.4 µm at R = 40 µm,
+#: more than a pixel.  Fits of traced midlines end at 0.005-0.02 R (the synthetic averages
+#: 0.0046-0.012, single noisy image traces 0.012, 24-point sparse traces 0.02), the worst
+#: variant of a late stage at 0.031 (flat, t06); wrong input ends at 0.2-16 R (z flipped 10.2,
+#: a half section tilted by rounding 6.6, the radius 10 % off 0.69, f1 held at 5 16.5).  Stalls
+#: at a fold from far starts on right data reach 0.24-0.67 R too (t06 from the defaults, t08
+#: with t01's held values): above the threshold the line names both, the input first.
+IMPLAUSIBLE_E_FIT = 0.1
+#: What to check of an input whose fit ends above IMPLAUSIBLE_E_FIT.
+INPUT_CHECK = ("check the input: its orientation (pole first? z flipped?), its scale "
+               "(--pixel-size and --radius-um; a CSV's r, z in units of R), its axis "
+               "(--section) and any --set values")
 
 _START = "--start FIT.json"
 #: Where a stalled fit (near a fold of the branch) may do better.
@@ -58,12 +74,23 @@ def stop_line(result: FitResult, limit: int, refit_of: FitResult | None = None) 
         name += f" (the profiles' refit from the fit's end at E_fit {refit_of.E_fit:.4g} R)"
     its = f"{result.outer_iterations} {unit}"
     at = f"at E_fit {result.E_fit:.4g} R"
+    far = _far_above(result.E_fit)
     if result.converged:
         ipopt = result.stop in (SOLVE_SUCCEEDED, SOLVED_TO_ACCEPTABLE_LEVEL)
         return f"{name} converged after {its} {at}" + (f" (Ipopt: {result.stop})" if ipopt
-                                                       else "")
+                                                       else "") + (f"; {far}" if far else "")
     what, why, remedy = _not_converged(result, its, limit)
-    return f"{name} {what} {at}, not converged: " + (f"{why}; {remedy}" if why else remedy)
+    tail = f"{why}; {remedy}" if why else remedy
+    return f"{name} {what} {at}, not converged: " + (f"{far} first; if it is right, {tail}"
+                                                     if far else tail)
+
+
+def _far_above(E_fit: float) -> str:
+    """What the last line says of an E_fit above :data:`IMPLAUSIBLE_E_FIT` ("" below it)."""
+    if not E_fit > IMPLAUSIBLE_E_FIT:
+        return ""
+    return (f"E_fit is far above what the model leaves of a traced midline (0.005-0.03 R): "
+            f"{INPUT_CHECK}")
 
 
 def _not_converged(result: FitResult, its: str, limit: int) -> tuple[str, str, str]:

@@ -1,8 +1,9 @@
 """``morphoshell fit --profile``: profile-likelihood intervals of the fitted parameters.
 
-The options (checked before any work: an unknown name, or one the variant does
-not fit, exits with status 2 and one line), the table printed beside the
-Gauss–Newton errors and the JSON entries of the profiles
+The options (checked before any work: an unknown name, one the variant does
+not fit, a --profile-* option without --profile, or noise from traces the
+midline file does not hold exits with status 2 and one line), the table
+printed beside the Gauss–Newton errors and the JSON entries of the profiles
 (:mod:`morphoshell.fitting.profiles`); :mod:`morphoshell.plotting.profiles`
 draws them.
 """
@@ -14,8 +15,12 @@ from pathlib import Path
 from ._args import integer
 from ._outputs import output_path
 
-__all__ = ["add_profile_options", "profile_names", "profile_plot_path", "run_profiles",
-           "profile_table", "profile_json", "refit_lines"]
+__all__ = ["add_profile_options", "profile_names", "profile_plot_path", "profile_data",
+           "run_profiles", "profile_table", "profile_json", "refit_lines"]
+
+#: The defaults of --profile-points and --profile-noise (their options default to None, so
+#: that one given without --profile is seen and refused rather than ignored).
+_DEFAULTS = {"profile_points": 20, "profile_noise": "auto"}
 
 
 def add_profile_options(p) -> None:
@@ -28,21 +33,28 @@ def add_profile_options(p) -> None:
                         "that does not close is null (not determined by the data). A refit "
                         "lower than the fit means the fit was not at its minimum: the lower "
                         "refit becomes the fit, as the terminal and the JSON (replaced_fit) say")
-    p.add_argument("--profile-points", dest="profile_points", type=integer(2, 1000), default=20,
-                   metavar="N", help="refits per profile, 2 to 1000 (default 20)")
-    p.add_argument("--profile-noise", dest="profile_noise", default="auto",
+    p.add_argument("--profile-points", dest="profile_points", type=integer(2, 1000), default=None,
+                   metavar="N", help="refits per profile, 2 to 1000 (default 20); with --profile")
+    p.add_argument("--profile-noise", dest="profile_noise", default=None,
                    choices=("auto", "residual", "traces"),
                    help="the noise variance of the threshold: from the fit's residual, or from "
-                        "the spread of the traces an averaged midline CSV records (n_traces > 1); "
-                        "auto: traces when the file has them")
+                        "the spread of the traces an averaged midline CSV records (n_traces > 1, "
+                        "as morphoshell average writes it); auto (default): traces when the file "
+                        "has them; with --profile")
     p.add_argument("--profile-plot", dest="profile_plot", type=output_path("plot"), default=None,
                    metavar="OUT.png", help="draw the profiles (default with --plot: beside it, "
-                                           "named *_profiles)")
+                                           "named *_profiles); with --profile")
 
 
-def profile_names(text: str | None, spec) -> list[str]:
-    """The names of ``--profile`` (ValueError: unknown, or not fitted by ``spec``)."""
+def profile_names(text: str | None, spec, args=None) -> list[str]:
+    """The names of ``--profile`` (ValueError: unknown, or not fitted by ``spec``; without
+    --profile, a --profile-* option given in ``args``, which would do nothing)."""
     if text is None:
+        given = [f"--{k.replace('_', '-')} {getattr(args, k)}" for k in ("profile_plot", *_DEFAULTS)
+                 if getattr(args, k, None) is not None]
+        if given:
+            raise ValueError(f"{', '.join(given)} without --profile NAMES: there are no "
+                             f"profiles (name the parameters to profile, or 'all')")
         return []
     if text.strip() == "all":
         return list(spec.fitted)
@@ -68,6 +80,28 @@ def profile_plot_path(args) -> Path | None:
     return args.plot.with_name(f"{args.plot.stem}_profiles{args.plot.suffix}")
 
 
+def profile_data(args, spec, midline):
+    """The data the profiles refit: the midline's points, with the spread of the traces where
+    the file is an average (:func:`_data_with_spread`).
+
+    Checked before the fit, so that ``--profile-noise traces`` on a file that is not an
+    average is refused before any work (it had been refused after the fit, whose result was
+    lost, in the library's words).
+    """
+    from ..fitting import noise_variance
+
+    data = _data_with_spread(args.midline, midline.points)
+    try:
+        noise_variance(data, 1.0, len(spec.fitted), _option(args, "profile_noise"))
+    except ValueError:
+        raise ValueError(f"--profile-noise traces: {args.midline} is not an average of several "
+                         f"traces with their spread (a CSV of r,z,spread with n_traces > 1): "
+                         f"average the stage's traces with morphoshell average TRACE... --csv "
+                         f"AVERAGE.csv and fit that, or take the noise from the fit's residual "
+                         f"(--profile-noise residual)") from None
+    return data
+
+
 def _data_with_spread(path, points):
     """The fitted points with the spread of an averaged midline CSV, if the file has one."""
     from ..io import Midline
@@ -80,7 +114,7 @@ def _data_with_spread(path, points):
     return Midline(points[:, 0], points[:, 1], avg.spread, avg.n_traces, avg.source)
 
 
-def run_profiles(args, spec, midline, result, names: list[str]) -> tuple:
+def run_profiles(args, spec, data, result, names: list[str]) -> tuple:
     """The fit the profiles of ``names`` are about, and the profiles, refitted by the gradient
     method (:func:`morphoshell.fitting.profiled_fit`): ``result``, or the lower fit a refit
     found (then ``result`` was not the minimum; the profiles' intervals are about the lower).
@@ -91,9 +125,15 @@ def run_profiles(args, spec, midline, result, names: list[str]) -> tuple:
     """
     from ..fitting import profiled_fit
 
-    data = _data_with_spread(args.midline, midline.points)
-    return profiled_fit(spec, data, names, result=result, points=args.profile_points,
-                        method="gradient", nodes=args.nodes, noise=args.profile_noise)
+    return profiled_fit(spec, data, names, result=result,
+                        points=_option(args, "profile_points"), method="gradient",
+                        nodes=args.nodes, noise=_option(args, "profile_noise"))
+
+
+def _option(args, key: str):
+    """A --profile-* option's value, or its default (:data:`_DEFAULTS`) when not given."""
+    value = getattr(args, key)
+    return _DEFAULTS[key] if value is None else value
 
 
 def refit_lines(before, after) -> str:

@@ -67,7 +67,8 @@ def register(sub) -> None:
                    help="fit only these timepoints (names from timepoints.csv, e.g. "
                         "t01,t02,t03: a short campaign); default all")
     p.add_argument("--nodes", type=integer(*CAMPAIGN_NODES), default=200, metavar="N",
-                   help="mesh nodes of the inner solves (default 200)")
+                   help=f"mesh nodes of the inner solves, {CAMPAIGN_NODES[0]} to "
+                        f"{CAMPAIGN_NODES[1]} as for morphoshell fit (default 200)")
     p.add_argument("--embryo-errors", nargs="?", type=_variants, const=True, default=False,
                    metavar="V1,V2",
                    help="also fit the average of a timepoint's traces (the optional 'traces' "

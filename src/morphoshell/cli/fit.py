@@ -6,8 +6,8 @@ from pathlib import Path
 from ._args import (FORMAT_HELP, SECTION_HELP, TRACE_OPTIONS, add_outputs, integer, micrometres,
                     reader_notes, reworded)
 from ._outputs import Outputs
-from ._profiles import (add_profile_options, profile_json, profile_names, profile_plot_path,
-                        profile_table, refit_lines, run_profiles)
+from ._profiles import (add_profile_options, profile_data, profile_json, profile_names,
+                        profile_plot_path, profile_table, refit_lines, run_profiles)
 
 __all__ = ["register"]
 
@@ -72,8 +72,10 @@ def register(sub) -> None:
                    help=f"stop the fit after N steps of its method ({limits}); a fit that "
                         f"goes on from moved breakpoint boxes gets N anew for each run")
     add_outputs(p, json="write the fit (parameters by name, standard errors, E_fit, both "
-                        "midlines) as JSON; usable as a problem file",
-                csv="write the fitted parameters with their standard errors as CSV",
+                        "midlines, the options that made it under 'settings') as JSON; usable "
+                        "as a problem file, solved at the fit's --nodes",
+                csv="write the fitted parameters with their standard errors as CSV, every row "
+                    "with the fit's E_fit (R), converged (True/False) and stop (how it ended)",
                 plot="write the fitted shell over the data")
     add_profile_options(p)
     p.set_defaults(run=_fit)
@@ -114,12 +116,17 @@ def _start_of(path: Path):
 
 
 def _start_problem(args):
-    """The start problem and the held values, from --start and --set (checked)."""
-    from ..fitting import volvox_spec
+    """The start problem and the held values, from --start and --set (checked).
+
+    A refusal names the options that gave the values it is about: ``--set NAME=VALUE``
+    as typed, or ``--start FILE`` (:attr:`morphoshell.fitting.SpecError.names`).
+    """
+    from ..fitting import SpecError, volvox_spec
     from ..io.problem_files import ProblemFileError, parse_overrides
 
     base = _fit_problem() if args.start is None else _start_of(args.start)
-    overrides = parse_overrides(args.overrides)
+    given = parse_overrides(args.overrides)
+    overrides = dict(given)
     base_keys = {k: overrides.pop(k) for k in ("h", "opening", "sigma") if k in overrides}
     unknown = sorted(set(overrides) - set(base.family_obj.parameters))
     if unknown:
@@ -127,9 +134,23 @@ def _start_problem(args):
                                f"{list(base.family_obj.parameters)}, h, opening")
     try:
         base = base.with_updates(**base_keys)
+    except ValueError as exc:       # (h, opening and sigma come from --set alone)
+        raise ProblemFileError(f"{_options(base_keys, given, None)}: {exc}") from None
+    try:
         return volvox_spec(args.variant, base, hold=overrides)
+    except SpecError as exc:
+        raise ProblemFileError(f"{_options(exc.names, given, args.start)}: {exc}") from None
     except ValueError as exc:
         raise ProblemFileError(f"--set/--start: {exc}") from None
+
+
+def _options(names, given: dict, start: Path | None) -> str:
+    """The options that gave the values of ``names``: ``--set NAME=VALUE`` for those set, and
+    ``--start FILE`` for the others when a start file gave them."""
+    named = [f"--set {n}={given[n]:g}" for n in names if n in given]
+    if start is not None and any(n not in given for n in names):
+        named.append(f"--start {start}")
+    return ", ".join(named) or "--set/--start"
 
 
 def load_checked(args, spec, n: int):
@@ -163,6 +184,42 @@ def load_checked(args, spec, n: int):
     return midline
 
 
+#: The stages (Gauss points per cell) of a fit's inner solves (fitting.inner builds its
+#: meshes with mesh_spec(problem, nodes, 2)): the [solver] table of its JSON says so.
+_INNER_STAGES = 2
+
+
+def fit_record(args, limit: int) -> dict:
+    """What the fit JSON records of how the fit was made, beside the result.
+
+    ``solver``: the [solver] table of the JSON as a problem file (``morphoshell solve
+    FIT.json`` re-solves at the fit's nodes, not the default 200); ``settings``: the
+    options that made it (the midline and how it was read, the start, the held values,
+    the method, nodes and evaluation limit), so that a result says how it was made.
+    """
+    from ..io.problem_files import parse_overrides
+
+    return {"midline_file": str(args.midline),
+            "solver": {"nodes": args.nodes, "stages": _INNER_STAGES, "method": "direct"},
+            "settings": {"midline_file": str(args.midline), "format": args.format,
+                         "roi": args.roi, "section": args.section,
+                         "pixel_size_um": args.pixel_size, "radius_um": args.radius_um,
+                         "variant": args.variant, "method": args.method, "nodes": args.nodes,
+                         "max_evaluations": args.max_evaluations, "evaluation_limit": limit,
+                         "start": None if args.start is None else str(args.start),
+                         "set": parse_overrides(args.overrides)}}
+
+
+def csv_columns(result) -> dict:
+    """The fit CSV: a row per fitted parameter, and on every row how the fit ended (E_fit in
+    R, converged, stop), so that ``pandas.read_csv`` reads it as it is and an unconverged
+    fit's table does not pass for a converged one's."""
+    return {"parameter": list(result.fitted),
+            "value": [result.parameters[n] for n in result.fitted],
+            "standard_error": [result.standard_errors[n] for n in result.fitted],
+            "E_fit": result.E_fit, "converged": result.converged, "stop": result.stop}
+
+
 def _fit(args) -> int:
     from ..fitting import EVALUATION_LIMITS, N_FIT, fit
     from ..io.problem_files import write_csv, write_json
@@ -170,8 +227,9 @@ def _fit(args) -> int:
     from ._fit_stops import failure_hint, stop_line
 
     spec = _start_problem(args)
-    names = profile_names(args.profile, spec)        # (a bad name: exit 2, before any work)
+    names = profile_names(args.profile, spec, args)  # (a bad name: exit 2, before any work)
     midline = load_checked(args, spec, N_FIT)
+    data = profile_data(args, spec, midline) if names else None
     unit, default = EVALUATION_LIMITS[args.method]
     limit = args.max_evaluations or default
     try:
@@ -185,20 +243,16 @@ def _fit(args) -> int:
           f"solves, {result.seconds:.2f} s")
     before, profiles = result, {}
     if names:
-        result, profiles = run_profiles(args, spec, midline, result, names)
+        result, profiles = run_profiles(args, spec, data, result, names)
         if result is not before:        # (the fit was not its minimum: the refit is the fit)
             print(refit_lines(before, result))
             limit = EVALUATION_LIMITS["gradient"][1]      # (the refit's: profile_intervals)
         print(profile_table(result, profiles))
     out = Outputs()
-    out.add(args.json, lambda path: write_json(path, {**result.to_dict(),
-                                                      "midline_file": str(args.midline),
-                                                      **(profile_json(profiles, before, result)
-                                                         if profiles else {})}))
-    out.add(args.csv, lambda path: write_csv(path, {
-        "parameter": list(result.fitted),
-        "value": [result.parameters[n] for n in result.fitted],
-        "standard_error": [result.standard_errors[n] for n in result.fitted]}))
+    out.add(args.json, lambda path: write_json(path, {
+        **result.to_dict(), **fit_record(args, limit),
+        **(profile_json(profiles, before, result) if profiles else {})}))
+    out.add(args.csv, lambda path: write_csv(path, csv_columns(result)))
     from ..plotting import fit_axes, plot_fit, plot_profiles, save
     if args.plot:
         shell, residual = fit_axes(pyplot=False)

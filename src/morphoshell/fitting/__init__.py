@@ -14,7 +14,7 @@ import lazy_loader
 
 # Every public name of the subpackage, imported from its module on first use.
 __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
-    "spec": ["FitSpec", "volvox_spec", "breakpoint_bounds", "VARIANTS", "BOUNDS"],
+    "spec": ["FitSpec", "SpecError", "volvox_spec", "breakpoint_bounds", "VARIANTS", "BOUNDS"],
     "inner": ["model_midline", "synthetic_midline", "N_FIT"],
     "results": ["FitResult", "FitError"],
     "midline_checks": ["intrinsic_lengths", "check_midline", "LENGTH_SLACK", "MAX_TURN",

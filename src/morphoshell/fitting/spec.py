@@ -32,8 +32,8 @@ import numpy as np
 
 from ..model.problem import Problem
 
-__all__ = ["FitSpec", "volvox_spec", "breakpoint_bounds", "VARIANTS", "BOUNDS", "EDGE_RTOL",
-           "PUSH_SHARE", "VOLVOX_BREAKPOINTS", "BOUND_SLACK"]
+__all__ = ["FitSpec", "SpecError", "volvox_spec", "breakpoint_bounds", "VARIANTS", "BOUNDS",
+           "EDGE_RTOL", "PUSH_SHARE", "VOLVOX_BREAKPOINTS", "BOUND_SLACK", "ROOM_RTOL"]
 
 #: Hypotheses on the posterior intrinsic curvature κ₁ (see the module docstring).
 VARIANTS = ("flat", "undeformed", "unstressed", "free")
@@ -53,6 +53,26 @@ BOUND_SLACK = 1e-6
 #: against its edge, when the other did not (:meth:`FitSpec.recentred`; tuned by the moves
 #: the synthetic campaign's fits needed: halves crept, all of it made neighbours take turns).
 PUSH_SHARE = 0.75
+#: A fitted breakpoint whose box (:func:`breakpoint_bounds`) is narrower than this fraction of
+#: the shell's length has none: round-off of s_{i+1} − s_i − σ (4e-17 for the defaults' gaps
+#: of 0.3 and σ = 0.3) left boxes that SciPy accepted but no fit could move in.
+ROOM_RTOL = 1e-9
+
+
+class SpecError(ValueError):
+    """A start, held value or σ that the fit cannot take (raised before any work).
+
+    Attributes
+    ----------
+    names : tuple of str
+        The parameters the message is about, so that a caller can name where
+        their values came from (the command line: ``--set NAME=VALUE`` or
+        ``--start FILE``).
+    """
+
+    def __init__(self, message: str, names=()):
+        super().__init__(message)
+        self.names = tuple(names)
 
 
 @dataclass(frozen=True)
@@ -340,7 +360,8 @@ def _projected(name: str, value: float, bounds) -> float:
     edge = lo if value < lo else hi
     if abs(value - edge) <= BOUND_SLACK * max(1.0, abs(edge)):
         return float(edge)
-    raise ValueError(f"the start {name} = {value!r} lies outside its bounds ({lo:g}, {hi:g})")
+    raise SpecError(f"the start {name} = {value!r} lies outside its bounds ({lo:g}, {hi:g})",
+                    (name,))
 
 
 def volvox_spec(variant: str, start: Problem | None = None, hold: Mapping[str, float] = (),
@@ -378,9 +399,12 @@ def volvox_spec(variant: str, start: Problem | None = None, hold: Mapping[str, f
     Raises
     ------
     ValueError
-        An unknown variant, a start of another family, κ₁ held by the
-        ``unstressed`` variant or held at another value than the ``flat`` or
-        ``undeformed`` one's.
+        An unknown variant, a start of another family.
+    SpecError
+        κ₁ held by the ``unstressed`` variant or held at another value than
+        the ``flat`` or ``undeformed`` one's; a held stretch or curvature
+        outside :data:`BOUNDS`; a σ that leaves a fitted breakpoint no box or
+        two held ones closer than σ (:func:`_check_room`).
     """
     if variant not in VARIANTS:
         raise ValueError(f"variant = {variant!r} must be one of {list(VARIANTS)}")
@@ -388,12 +412,14 @@ def volvox_spec(variant: str, start: Problem | None = None, hold: Mapping[str, f
     if start.family != "volvox":
         raise ValueError(f"the Volvox fit needs a 'volvox' problem, got {start.family!r}")
     hold, tied = _variant_holds_and_ties(variant, hold)
+    _check_held(hold)
     params = {**start.params, **hold}
     if variant == "unstressed":
         params["kappa1"] = 1 / params["f1"]
     base = start.with_updates(**params)
     fitted = tuple(n for n in base.family_obj.parameters
                    if n not in hold and n not in tied and n != "sigma")
+    _check_room(base, fitted if breakpoint_boxes else ())
     bounds = _volvox_bounds(base, fitted, breakpoint_boxes)
     return FitSpec(base, fitted, tied, bounds, variant,
                    VOLVOX_BREAKPOINTS if breakpoint_boxes else ())
@@ -412,13 +438,73 @@ def _variant_holds_and_ties(variant: str, hold: Mapping[str, float]) -> tuple[di
     fixed = {"flat": 0.0, "undeformed": 1.0}.get(variant)
     if fixed is not None:
         if hold.setdefault("kappa1", fixed) != fixed:
-            raise ValueError(f"the {variant} variant holds kappa1 = {fixed:g}, not "
-                             f"{hold['kappa1']:g}: hold kappa1 in the free variant instead")
+            raise SpecError(f"the {variant} variant holds kappa1 = {fixed:g}, not "
+                            f"{hold['kappa1']:g}: hold kappa1 in the free variant instead",
+                            ("kappa1",))
     elif variant == "unstressed":
         if "kappa1" in hold:
-            raise ValueError("the unstressed variant ties kappa1 = 1/f1: it cannot be held")
+            raise SpecError("the unstressed variant ties kappa1 = 1/f1: it cannot be held",
+                            ("kappa1",))
         tied["kappa1"] = (lambda p: 1 / p["f1"], lambda p: {"f1": -1 / p["f1"] ** 2})
     return hold, tied
+
+
+def _check_held(hold: Mapping[str, float]) -> None:
+    """SpecError for a held stretch or curvature outside :data:`BOUNDS` (by more than
+    :data:`BOUND_SLACK`, which a value from an earlier fit on its bound may be).
+
+    The bounds are the range of cell shapes the fit considers; a value held outside is none
+    of them: ``f1 = 5`` (a posterior cell five times its length) ran to E_fit 16.5 R.
+    """
+    for name, value in hold.items():
+        kind = "f" if name.startswith("f") else "kappa" if name.startswith("kappa") else None
+        if kind is None:
+            continue
+        lo, hi = BOUNDS[kind]
+        slack = BOUND_SLACK * max(1.0, abs(lo), abs(hi))
+        if not lo - slack <= value <= hi + slack:
+            what = "stretches f1..f5" if kind == "f" else "curvatures kappa1..kappa4 (1/R)"
+            raise SpecError(f"{name} = {value:g} lies outside the fit's bounds [{lo:g}, {hi:g}] "
+                            f"of the {what}: a held value must be one the fit could reach",
+                            (name,))
+
+
+def _check_room(base: Problem, fitted: Sequence[str]) -> None:
+    """SpecError unless σ leaves every breakpoint of ``fitted`` a box and keeps held ones apart.
+
+    The fit keeps the breakpoints σ apart and σ from the pole and the shell's
+    end (:func:`breakpoint_bounds`; the KKT fit's constraints).  A fitted
+    breakpoint whose neighbours on both sides lie σ or less away has a box of
+    no width (SciPy: "Each lower bound must be strictly less than each upper
+    bound", after the whole set-up); two held neighbours closer than σ break
+    the constraint whatever the fit does.  The message gives the largest σ
+    that these breakpoints allow.
+    """
+    sigma, end = float(base.params["sigma"]), base.end
+    points = ([("the pole", 0.0, False)]
+              + [(n, float(base.params[n]), n in fitted) for n in VOLVOX_BREAKPOINTS]
+              + [("the shell's end", end, False)])
+    tol = ROOM_RTOL * end
+    limits, cramped, names = [], [], set()
+    for (a, sa, fa), (b, sb, fb), (c, sc, fc) in zip(points, points[1:], points[2:]):
+        if fb:          # (a box needs room on one side at least)
+            limits.append(max(sb - sa, sc - sb))
+            if sigma >= limits[-1] - tol:
+                cramped.append(f"{b} ({sb - sa:.4g} from {a}, {sc - sb:.4g} from {c})")
+                names.update({b, a, c})
+    for (a, sa, fa), (b, sb, fb) in zip(points, points[1:]):
+        if not (fa or fb) and {a, b} & set(VOLVOX_BREAKPOINTS):
+            limits.append(sb - sa)
+            if sb - sa < sigma - tol:
+                cramped.append(f"{a} and {b}, held, {sb - sa:.4g} apart")
+                names.update({a, b})
+    if cramped:
+        values = ", ".join(f"{base.params[n]:.4g}" for n in VOLVOX_BREAKPOINTS)
+        raise SpecError(f"sigma = {sigma:g} leaves no room for {'; '.join(cramped)}: the fit "
+                        f"keeps the breakpoints sigma apart, and sigma from the pole and the "
+                        f"shell's end (L - P = {end:.4g}); with s1..s4 = {values} sigma must be "
+                        f"below {min(limits):.4g}, or the breakpoints further apart",
+                        ("sigma", *(n for n in VOLVOX_BREAKPOINTS if n in names)))
 
 
 def _volvox_bounds(base: Problem, fitted: tuple[str, ...],

@@ -102,7 +102,7 @@ def load_problem(path: str | Path) -> tuple[Problem, Settings]:
     """
     path = Path(path)
     if path.suffix.lower() == ".json":
-        return _problem_from_json(path), Settings()
+        return _problem_from_json(path)
     try:
         # utf-8-sig: a byte-order mark, as some Windows editors write, is not an error
         text = path.read_text(encoding="utf-8-sig")
@@ -142,8 +142,9 @@ def load_problem(path: str | Path) -> tuple[Problem, Settings]:
     return problem, settings
 
 
-def _problem_from_json(path: Path) -> Problem:
-    """The problem of a result JSON (``solve --json``, ``fit --json``): its "problem" entry."""
+def _problem_from_json(path: Path) -> tuple[Problem, Settings]:
+    """The problem of a result JSON (``solve --json``, ``fit --json``): its "problem" entry,
+    and the settings of a fit's (:func:`_fit_settings`)."""
     import json
 
     try:
@@ -156,9 +157,29 @@ def _problem_from_json(path: Path) -> Problem:
         raise ProblemFileError(f"{path}: no 'problem' entry: expected the JSON written by "
                                f"morphoshell solve/ablate/fit --json")
     try:
-        return problem_of_record(data, str(path))
+        return problem_of_record(data, str(path)), _fit_settings(path, data)
     except ValueError as exc:
         raise ProblemFileError(str(exc)) from None
+
+
+def _fit_settings(path: Path, data: Mapping[str, Any]) -> Settings:
+    """The [solver] table a fit's JSON records of its inner solves (``solver``: nodes, stages,
+    method), so that re-solving the fit solves it as it was fitted (it was solved at 200
+    nodes whatever the fit's), or a campaign's record its ``nodes``; defaults for other
+    results, whose ``solver`` reports a solve, and for fits written before it was recorded."""
+    table = data.get("solver")
+    if "fitted" not in data:
+        return Settings()
+    if not isinstance(table, Mapping):
+        table = {"nodes": data["nodes"]} if "nodes" in data else {}
+    unknown = sorted(set(table) - set(SOLVER_KEYS))
+    if unknown:
+        raise ValueError(f"{path}: unknown key(s) {unknown} in 'solver'; valid: "
+                         f"{sorted(SOLVER_KEYS)}")
+    try:
+        return settings_from(table)
+    except ValueError as exc:
+        raise ValueError(f"{path}: solver: {exc}") from None
 
 
 

@@ -117,10 +117,11 @@ def check_positive(name: str, value, prefix: str = "") -> float:
 
 def one_curve(path, points: np.ndarray, where: list[str], unit: str):
     """Points without repeats and their labels; MidlineError unless they make one simple curve."""
-    keep = np.r_[True, np.any(np.diff(points, axis=0) != 0, axis=1)]
+    keep = np.r_[True, np.any(np.diff(points, axis=0) != 0, axis=1)][:len(points)]
     points, where = points[keep], [w for w, k in zip(where, keep) if k]
     if len(points) < 4:
-        raise MidlineError(f"{path}: {len(points)} distinct points; a midline needs at least 4")
+        count = "1 distinct point" if len(points) == 1 else f"{len(points)} distinct points"
+        raise MidlineError(f"{path}: {count}; a midline needs at least 4")
     steps = np.hypot(*np.diff(points, axis=0).T)
     median = float(np.median(steps))
     gaps = np.flatnonzero(steps > max(_GAP_STEPS * median, _GAP_FRACTION * steps.sum()))
@@ -172,8 +173,10 @@ def _first_crossing(points: np.ndarray, apart: float, chunk: int = 32) -> tuple[
 
 def check_extent(source: str, points: np.ndarray, where, hint: str) -> None:
     """MidlineError if a point lies more than _MAX_EXTENT R from the first (wrong units)."""
+    if not len(points):         # (nothing to measure; the count is one_curve's to refuse)
+        return
     reach = np.hypot(*(points - points[0]).T)
-    if len(points) and reach.max() > _MAX_EXTENT:
+    if reach.max() > _MAX_EXTENT:
         i = int(np.argmax(reach > _MAX_EXTENT))
         raise MidlineError(f"{source}: {where[i]}: {reach[i]:.4g} R from the first point; a "
                            f"midline lies within {_MAX_EXTENT:g} R of its pole ({hint})")

@@ -14,9 +14,9 @@ units of R), as Fiji, a spreadsheet or a script writes them.  Accepted:
 
 Refused with a message naming the file, the line and the forms above: cells
 separated by semicolons (a spreadsheet with decimal commas), a pixel list
-(x, y, value), another header, a ragged or non-numeric row; and files that
-are not text: an image or a PDF (by their first bytes), UTF-16 text (save as
-UTF-8), a zip (an ImageJ ROI Manager set, read by :mod:`morphoshell.io.roi_sets`).
+(x, y, value), another header, a header without points, a ragged or
+non-numeric row; and files that are not text: an image or a PDF (by their
+first bytes), UTF-16 text (save as UTF-8), a zip (an ImageJ ROI Manager set, read by :mod:`morphoshell.io.roi_sets`).
 """
 from __future__ import annotations
 
@@ -184,7 +184,10 @@ def read_table(path: Path, data: bytes, fmt: str):
         Naming the file and line: see the module docstring.
     """
     comments, body = _content(path, data)
+    first = body[0]
     header, delimiter, index, body = _header(path, body, fmt)
+    if not body:            # (a header alone: the readers' checks would index no points)
+        raise MidlineError(f"{path}: no points: only the header {first[1]!r} (line {first[0]})")
     values = np.empty((len(body), len(header) + index))
     for k, (i, text) in enumerate(body):
         values[k] = _row(path, i, _cells(text, delimiter), ("row number",) * index + header)

@@ -133,6 +133,9 @@ class Problem:
         if opening < 0:
             raise ValueError(f"opening (P) = {opening!r} must be non-negative")
         end = geo.length - opening
+        if not opening < geo.length:     # (else the cut was blamed: "cut = 0.0 is larger ...")
+            raise ValueError(f"opening (P) = {opening!r} is larger than the shell: the "
+                             f"{geo.name}'s meridian is {geo.length:.6g} long (units of R)")
         if not cut < end:
             raise ValueError(
                 f"cut (Sigma) = {cut!r} is larger than the shell: with opening P = {opening!r} "

@@ -40,8 +40,10 @@ __all__ = ["campaign", "CampaignInterrupted", "CAMPAIGN_NODES", "SETTINGS"]
 
 #: The file in a campaign's folder that records its settings (:func:`campaign`'s ``force``).
 SETTINGS = "campaign_settings.json"
-#: Mesh nodes a campaign accepts (and its --nodes): a fit's lower limit, and a cap on its cost.
-CAMPAIGN_NODES = (FIT_NODES[0], 2000)
+#: Mesh nodes a campaign accepts (and its --nodes): a fit's (:data:`FIT_NODES`), since its fits
+#: are fits.  It was capped at 2000 for the cost, which the user chooses with the timepoints
+#: and variants as much as with the nodes; the commands' ranges differed for no other reason.
+CAMPAIGN_NODES = FIT_NODES
 
 
 class CampaignInterrupted(KeyboardInterrupt):
