@@ -105,10 +105,10 @@ def _plugin_of(exc: BaseException) -> str:
     that an entry point of ``morphoshell.families`` names), or ""."""
     import traceback
 
-    from ..model.profiles import ENTRY_POINT_GROUP, _entry_points
+    from ..model.profiles import ENTRY_POINT_GROUP, family_entry_points
 
     packages = {ep.value.split(":")[0].split(".")[0]: (name, ep.value)
-                for name, ep in _entry_points().items()}
+                for name, ep in family_entry_points().items()}
     for frame, _ in reversed(list(traceback.walk_tb(exc.__traceback__))):
         top = str(frame.f_globals.get("__name__", "")).split(".")[0]
         if top in packages:

@@ -39,7 +39,7 @@ from .._runtime.compiled import PointEvaluator
 from .._runtime.validate import lookup
 
 __all__ = ["Profiles", "ProfileFamily", "FAMILIES", "register_family", "get_family",
-           "available_families", "ENTRY_POINT_GROUP"]
+           "available_families", "ENTRY_POINT_GROUP", "family_entry_points"]
 
 log = logging.getLogger(__name__)
 
@@ -331,7 +331,7 @@ def get_family(name: "str | ProfileFamily") -> ProfileFamily:
     return lookup(available_families(), name, "profile family")
 
 
-def _entry_points() -> dict:
+def family_entry_points() -> dict:
     """Entry points of :data:`ENTRY_POINT_GROUP`, by name (the first of a duplicated name)."""
     from importlib.metadata import entry_points
 
@@ -350,12 +350,12 @@ def available_families() -> dict[str, "ProfileFamily | str"]:
         name → the :class:`ProfileFamily`, or for a plugin not loaded yet
         the entry point's value (``"module:attribute"``).
     """
-    return {**{n: ep.value for n, ep in _entry_points().items()}, **FAMILIES}
+    return {**{n: ep.value for n, ep in family_entry_points().items()}, **FAMILIES}
 
 
 def _load_plugin(name: str) -> None:
     """Load and register the plugin family ``name``, if an entry point provides it."""
-    ep = _entry_points().get(name)
+    ep = family_entry_points().get(name)
     if ep is None:
         return
     where = f"plugin family {name!r} (entry point {ep.value!r} of {ENTRY_POINT_GROUP!r})"
