@@ -277,6 +277,32 @@ def test_the_switched_tangent_leaves_the_branch_across_it(blister, flat_disc):
         switch_branch(flat_disc, 0, 0)
 
 
+@pytest.mark.parametrize("call, error, match", [
+    # accepted, then a Branch_Ended after the work (user audit)
+    (lambda b: switch_branch(b, 0, 1, max_step=-1), ValueError, r"max_step = -1 must lie in \(0, 1\]"),
+    (lambda b: switch_branch(b, 0, 1, max_step=0), ValueError, r"max_step = 0 must lie in"),
+    (lambda b: switch_branch(b, 0, 1, max_points=1), ValueError,
+     r"max_points = 1 must be an integer in \[2, 100000\]"),
+    (lambda b: follow_branch(b.problem, nodes=60, max_points=-5), ValueError,
+     r"max_points = -5 must be an integer in \[2, 100000\]"),
+    (lambda b: follow_branch(b.problem, nodes=60, max_step=True), ValueError,
+     r"max_step = True must be a real number"),
+    (lambda b: follow_branch(b.problem.describe(), nodes=60), TypeError,
+     r"problem = \{.*must be a morphoshell Problem"),
+    # True == 1 passed for a direction; a float index raised a raw TypeError of a list
+    (lambda b: switch_branch(b, 0, True), ValueError, r"direction = True must be \+1 or -1"),
+    (lambda b: switch_branch(b, 1.0), TypeError, r"at = 1.0 must be an integer"),
+    (lambda b: switch_branch(b.points, 0), TypeError, r"branch must be a Branch"),
+])
+def test_bad_walk_arguments_are_named_before_any_work(flat_disc, call, error, match):
+    from morphoshell.solvers.routes import cache_info
+
+    builds = cache_info()["builds"]
+    with pytest.raises(error, match=match):
+        call(flat_disc)
+    assert cache_info()["builds"] == builds
+
+
 def test_a_fold_is_no_branch_point_to_switch_at(branch60):
     from morphoshell.solvers.direct import solver_of
 

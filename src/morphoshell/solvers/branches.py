@@ -31,15 +31,17 @@ from typing import Any
 
 import numpy as np
 
+from .._runtime.validate import integer, within
 from ..model.problem import Problem
 from .arclength import (EASY, GROWTH, MAX_STEP, MIN_STEP, ArcPoint, Arclength, Snap, Switch,
                         branch_ended, snap_through, switch_stable)
 from .continuation import continue_to
+from .options import check_direct_options, check_problem
 from .paths import ParameterLine, neutral_problem
 from .results import Equilibrium
 
 __all__ = ["Branch", "BranchPoint", "follow_branch", "switch_branch", "continuation_path",
-           "EVENTS", "FOLLOW", "COLUMNS"]
+           "EVENTS", "FOLLOW", "COLUMNS", "MAX_POINTS"]
 
 #: What a point of a branch can be besides an ordinary one.
 EVENTS = ("fold", "branch_point", "snap")
@@ -49,6 +51,8 @@ FOLLOW = ("branch", "stable")
 COLUMNS = ("energy", "r_end", "z_end", "psi_end", "stable", "negative_eigenvalues", "event")
 #: The path parameter may leave [0, 1] by this much before the branch counts as lost.
 TAU_MARGIN = 0.5
+#: Most points a branch may be given (``max_points``; the command line's --max-points).
+MAX_POINTS = 100_000
 
 
 @dataclass(frozen=True)
@@ -200,9 +204,9 @@ def follow_branch(problem: Problem, param: str | None = None, to: float | None =
         The connected branch through its folds, or the quasi-static path with
         snap-throughs (module docstring).
     max_step : float
-        Largest pseudo-arclength step (norm of (x, τ), x by its root mean square).
+        Largest pseudo-arclength step (norm of (x, τ), x by its root mean square), in (0, 1].
     max_points : int
-        Most points before giving up.
+        Most points before giving up, in [2, :data:`MAX_POINTS`].
     anchors : sequence of float
         Mesh anchors (as :func:`solve`).
 
@@ -214,18 +218,22 @@ def follow_branch(problem: Problem, param: str | None = None, to: float | None =
     Raises
     ------
     ValueError
-        An unknown parameter or ``follow``, or a family without stress-free
-        parameters to start from.
+        An unknown parameter or ``follow``, ``max_step`` or ``max_points`` out of
+        its range, or a family without stress-free parameters to start from
+        (before any work).
+    TypeError
+        ``problem`` not a Problem.
     SolverError
         ``"Branch_Ended"`` when the steps fail or leave the path, with the
         last point attached; ``"Snap_Through_Failed"``.
     """
     from .routes import direct_solver
 
+    check_problem(problem)
     if follow not in FOLLOW:
         raise ValueError(f"follow = {follow!r} must be one of {list(FOLLOW)}")
-    if not 0 < max_step <= 1:
-        raise ValueError(f"max_step = {max_step!r} must be in (0, 1]")
+    _check_walk(max_step, max_points)
+    check_direct_options(stages=stages)
     t0 = time.perf_counter()
     solver = direct_solver(problem, nodes, anchors, stages=stages)
     line, start = _path(solver, problem, param, to, anchors)
@@ -266,18 +274,27 @@ def switch_branch(branch: Branch, at: int, direction: float = 1.0, *,
     Raises
     ------
     ValueError
-        ``at`` beyond the branch's branch points, or ``direction`` not ±1,
-        or the point not a simple branch point (:meth:`Arclength.switch`).
+        ``at`` beyond the branch's branch points, ``direction`` not ±1 (a bool
+        is not), ``max_step`` or ``max_points`` out of range (all before any
+        work), or the point not a simple branch point (:meth:`Arclength.switch`).
+    TypeError
+        ``branch`` not a Branch, or ``at`` not an integer.
     SolverError
         ``"Branch_Ended"`` when the steps fail or leave the path.
     """
     from .direct import solver_of
 
+    if not isinstance(branch, Branch):
+        raise TypeError(f"branch must be a Branch (from follow_branch), got {type(branch).__name__}")
+    if isinstance(at, (bool, np.bool_)) or not isinstance(at, (int, np.integer)):
+        raise TypeError(f"at = {at!r} must be an integer: which branch point (0 for the first)")
     points = [pt for pt in branch.points if pt.event == "branch_point"]
     if not -len(points) <= at < len(points):
         raise ValueError(f"at = {at!r}: the branch has {len(points)} branch point(s)")
-    if direction not in (1, -1):
+    # (True == 1: a bool would pass for a direction)
+    if isinstance(direction, (bool, np.bool_)) or direction not in (1, -1):
         raise ValueError(f"direction = {direction!r} must be +1 or -1")
+    _check_walk(max_step, max_points)
     t0 = time.perf_counter()
     origin = points[at]
     arc = Arclength(solver_of(origin.equilibrium), branch.line, origin.equilibrium.anchors)
@@ -285,6 +302,13 @@ def switch_branch(branch: Branch, at: int, direction: float = 1.0, *,
     walk.switched(origin, direction)
     return Branch(branch.problem, branch.line, branch.parameter, "branch", tuple(walk.points),
                   (), time.perf_counter() - t0, origin.tau, float(direction))
+
+
+def _check_walk(max_step, max_points) -> None:
+    """ValueError unless ``max_step`` ∈ (0, 1] and ``max_points`` ∈ [2, :data:`MAX_POINTS`]
+    (a branch has its start and one more point at least)."""
+    within("max_step", max_step, 0.0, 1.0, open_lo=True)
+    integer("max_points", max_points, 2, MAX_POINTS)
 
 
 def continuation_path(problem: Problem, param: str | None = None, to: float | None = None,
