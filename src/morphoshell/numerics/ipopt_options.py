@@ -4,20 +4,16 @@ Ipopt's option table dumped on standard output, after the transcription is built
 
 Ipopt checks its options when CasADi creates the solver and loads a linear solver's
 library only when it first solves.  :func:`check_ipopt_options` therefore creates and
-solves a one-unknown problem with the options (a few milliseconds), with file
-descriptor 1 redirected, since Ipopt prints its refusals there; a refusal is
+solves a one-unknown problem with the options (a few milliseconds), with standard
+output redirected, since Ipopt prints its refusals there; a refusal is
 re-raised naming the option, its value and what Ipopt accepts.  An option set
 that passed is remembered (per process); the defaults are never probed.
 """
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import io
-import os
 import re
-import sys
-import tempfile
 from typing import Any, Mapping
 
 import casadi as ca
@@ -135,34 +131,12 @@ def _reason(error: str, printed: str) -> str:
 
 @contextlib.contextmanager
 def _stdout_captured():
-    """Yield a list whose item receives what is printed meanwhile: through Python's
-    ``sys.stdout`` (CasADi's Python module sends Ipopt's messages there) and to file
-    descriptor 1 (C code printing directly)."""
+    """Yield a list whose item receives what is printed meanwhile through Python's
+    ``sys.stdout``, where CasADi's Python module sends Ipopt's messages."""
     printed = [""]
     text = io.StringIO()
-    with contextlib.redirect_stdout(text):
-        try:
-            fd = sys.__stdout__.fileno() if sys.__stdout__ is not None else 1
-            saved = os.dup(fd)
-        except (OSError, ValueError, AttributeError):   # no descriptor to redirect
-            yield printed
-            printed[0] = text.getvalue()
-            return
-        with tempfile.TemporaryFile() as tmp:
-            os.dup2(tmp.fileno(), fd)
-            try:
-                yield printed
-            finally:
-                _flush_c_stdio()
-                os.dup2(saved, fd)
-                os.close(saved)
-                tmp.seek(0)
-                printed[0] = text.getvalue() + tmp.read().decode(errors="replace")
-
-
-def _flush_c_stdio() -> None:
-    """fflush(NULL): C's buffered output goes to the redirected descriptor, not after it."""
     try:
-        ctypes.CDLL(None).fflush(None)
-    except (OSError, AttributeError):     # (no C library by that name: nothing buffered)
-        pass
+        with contextlib.redirect_stdout(text):
+            yield printed
+    finally:
+        printed[0] = text.getvalue()
