@@ -2,25 +2,18 @@
 value (a TypeError for an argument of the wrong kind), instead of a late solver status
 that blames something else, or a tolerance ignored.
 
-The ranges of the tolerances were measured (docs/solution.md, "Options and their
-ranges"), on toy problem 2 (h = 0.1 to 0.3, k = 0 and 0.5, a pole or a cut Σ = 0.3),
-Volvox (h = 0.15, P = 0.3) and an anisotropic shell (h = 0.01, f0 = 0.1):
+The ranges of the tolerances were measured (docs/benchmarks.md, "solvers/options.py"):
 
-* direct ``tol`` ∈ (0, :data:`MAX_DIRECT_TOL`]: up to 1e-4 the equilibrium moves by
-  1e-8 of its energy or less; at 1e-3 by 3e-5 to 8e-5, as much as the discretisation
-  error at 200 nodes (so the error estimate would measure the stopping test), and at 1
-  by 2 %, where Ipopt may accept the undeformed start.  Tiny values are harmless (the
-  back ends stop at their round-off floor).
-* bvp ``tol``, ``bc_tol`` and shooting ``tol`` ∈ :data:`REFERENCE_TOL`: solve_bvp at
-  1e-2 returned an energy 19 % off (a pole, h = 0.1); at 1e-3, scipy's default, 3e-5 at
-  most.  At 1e-12 and below it refined to its ``max_nodes`` for 30-60 s on every test
-  problem and failed (scipy floors tol at 100 ε anyway); shooting stalled at a residual
-  of 2e-11.
-* shooting ``atol`` ∈ :data:`ATOL` and ``rtol`` ∈ :data:`RTOL` (solve_ivp's): 1e-3 and
-  1e-4 left residuals above the default ``tol``; atol 1e-20 took 12 s for the same answer.
-* ``pole_offset`` ε ∈ :data:`POLE_OFFSET`: the series at a pole is its leading order, so
-  ε = 0.1 costs 3e-5 of the energy (0.3: 2 %); at 1e-8 solve_bvp ran out of time, at
-  1e-10 shooting too.
+* direct ``tol`` ∈ (0, :data:`MAX_DIRECT_TOL`]: at 1e-3 the solver stops as far from the
+  equilibrium as the discretisation error of 200 nodes, at 1 it may accept the undeformed
+  start; tiny values are harmless (the back ends stop at their round-off floor).
+* bvp ``tol``, ``bc_tol`` and shooting ``tol`` ∈ :data:`REFERENCE_TOL`: solve_bvp at 1e-2
+  put an energy 19 % off; below 1e-11 it refines to ``max_nodes`` for a minute and fails
+  (scipy floors tol at 100 ε anyway), and shooting stalls above it.
+* shooting ``atol`` ∈ :data:`ATOL` and ``rtol`` ∈ :data:`RTOL` (solve_ivp's): looser ones
+  leave residuals above the default ``tol``; a tighter atol only takes longer.
+* ``pole_offset`` ε ∈ :data:`POLE_OFFSET`: the leading-order series at a pole covers
+  s < ε, 3e-5 of the energy off at 0.1; at 1e-8 solve_bvp runs out of time.
 """
 from __future__ import annotations
 
