@@ -29,6 +29,9 @@ def test_solve_writes_json_and_plot(tmp_path, capsys):
     for key in ("r", "z", "psi"):
         assert len(data[key]) == len(s)
     assert np.isfinite(data["energy"]) and data["energy"] > 0
+    # units, as a sweep's JSON has them: every field's (also at the edges), the energy's
+    assert set(data["units"]) >= set(data["edge_start"]) | {"energy", "h", "cut", "opening"}
+    assert data["units"]["M_s"] == "C R" and data["units"]["energy"] == "C R^2"
     assert png.stat().st_size > 10_000
     assert "energy" in capsys.readouterr().out
 

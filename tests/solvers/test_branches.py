@@ -303,6 +303,25 @@ def test_bad_walk_arguments_are_named_before_any_work(flat_disc, call, error, ma
     assert cache_info()["builds"] == builds
 
 
+def test_a_branch_ends_at_its_target_exactly_and_says_so_in_a_line():
+    """0.5 + 1 (0.1 - 0.5) = 0.09999999999999998: BranchPoint.values said so at lambda = 1
+    (user audit); repr(Branch) was a dump of every point (12-80 kB)."""
+    problem = Problem("uniform", {"k": 0.5}, h=0.3, cut=0.5, name="toy2")
+    line = ParameterLine.along(problem, "cut", 0.1)
+    assert line.a + 1.0 * (line.b - line.a) != line.b          # (the case in point)
+    assert line.values(1.0) == {"cut": 0.1} and line.values(0.0) == {"cut": 0.5}
+    assert line.values(0.5) == {"cut": 0.5 + 0.5 * (0.1 - 0.5)}
+    branch = follow_branch(problem, "cut", 0.1, nodes=40)
+    assert branch.end.tau == 1.0 and branch.end.values == {"cut": 0.1}
+    assert branch.end.values["cut"] == branch.end.equilibrium.problem.cut
+    text = repr(branch)
+    assert "\n" not in text and len(text) < 300, text
+    assert text == (f"Branch('toy2', cut: 0.5 -> 0.1, follow='branch', {len(branch.points)} points, "
+                    f"lambda in [0, 1], cut in [0.1, 0.5], events: none, 0 snaps)")
+    assert branch.to_dict()["units"]["cut"] == "R"
+    assert branch.to_dataframe().attrs["units"]["cut"] == "R"
+
+
 def test_a_fold_is_no_branch_point_to_switch_at(branch60):
     from morphoshell.solvers.direct import solver_of
 

@@ -41,7 +41,7 @@ from .paths import ParameterLine, neutral_problem
 from .results import Equilibrium
 
 __all__ = ["Branch", "BranchPoint", "follow_branch", "switch_branch", "continuation_path",
-           "EVENTS", "FOLLOW", "COLUMNS", "MAX_POINTS"]
+           "EVENTS", "FOLLOW", "COLUMNS", "MAX_POINTS", "UNITS", "PARAMETER_UNITS"]
 
 #: What a point of a branch can be besides an ordinary one.
 EVENTS = ("fold", "branch_point", "snap")
@@ -53,6 +53,11 @@ COLUMNS = ("energy", "r_end", "z_end", "psi_end", "stable", "negative_eigenvalue
 TAU_MARGIN = 0.5
 #: Most points a branch may be given (``max_points``; the command line's --max-points).
 MAX_POINTS = 100_000
+#: Units of a branch's columns (its table's ``attrs`` and its JSON), the parameter's aside.
+UNITS = {"lambda": "1", "energy": "C R^2", "r_end": "R", "z_end": "R", "psi_end": "rad",
+         "negative_eigenvalues": "1"}
+#: Units of the parameters continued in whose unit is known (as a sweep's columns).
+PARAMETER_UNITS = {"h": "R", "cut": "R", "opening": "R", "k": "1/R"}
 
 
 @dataclass(frozen=True)
@@ -130,6 +135,33 @@ class Branch:
     direction: float = 1.0
     switches: tuple = ()
 
+    def __repr__(self) -> str:
+        """One line: the problem, the path, how many points over which λ (and parameter) range,
+        the events and snaps (the default repr listed every point: 12-80 kB)."""
+        taus = [pt.tau for pt in self.points]
+        parts = [repr(self.problem.name or self.problem.family),
+                 f"{self.parameter}: {self.line.a[0]:g} -> {self.line.b[0]:g}"
+                 if self.parameter is not None else "from the stress-free parameters",
+                 f"follow={self.follow!r}", f"{len(self.points)} points",
+                 f"lambda in [{min(taus, default=0):.6g}, {max(taus, default=0):.6g}]"]
+        if self.parameter is not None:
+            values = [pt.values[self.parameter] for pt in self.points]
+            parts.append(f"{self.parameter} in [{min(values):.6g}, {max(values):.6g}]")
+        counts = {e: sum(pt.event == e for pt in self.points) for e in EVENTS}
+        parts.append("events: " + (", ".join(f"{n} {e}" for e, n in counts.items() if n)
+                                   or "none"))
+        parts.append(f"{len(self.snaps)} snaps")
+        if self.origin is not None:
+            parts.append(f"switched at lambda = {self.origin:.6g}, direction {self.direction:+g}")
+        return f"Branch({', '.join(parts)})"
+
+    def units(self) -> dict[str, str]:
+        """The columns' units (:data:`UNITS`; the parameter's from :data:`PARAMETER_UNITS`)."""
+        known = {self.parameter: PARAMETER_UNITS[self.parameter]} \
+            if self.parameter in PARAMETER_UNITS else {}
+        return {"lambda": UNITS["lambda"], **known, **{k: v for k, v in UNITS.items()
+                                                      if k != "lambda"}}
+
     @property
     def events(self) -> list[BranchPoint]:
         """The points that are events (folds, branch points, snaps), in order."""
@@ -166,17 +198,15 @@ class Branch:
         df = pd.DataFrame(self.columns())
         if equilibria:
             df["equilibrium"] = [pt.equilibrium for pt in self.points]
-        df.attrs.update(units={"lambda": "1", "energy": "C R^2", "r_end": "R", "z_end": "R",
-                               "psi_end": "rad"},
-                        problem=self.problem.describe(), follow=self.follow,
+        df.attrs.update(units=self.units(), problem=self.problem.describe(), follow=self.follow,
                         path=dict(zip(self.line.names, zip(self.line.a.tolist(),
                                                            self.line.b.tolist()))))
         return df
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain data (JSON): the problem, the path, the points' table and the snaps."""
+        """Plain data (JSON): the problem, the path, the points' table, its units and the snaps."""
         return {"problem": self.problem.describe(), "parameter": self.parameter,
-                "follow": self.follow,
+                "follow": self.follow, "units": self.units(),
                 "path": {n: [float(a), float(b)] for n, a, b in zip(self.line.names, self.line.a,
                                                                     self.line.b)},
                 "points": self.columns(), "snaps": [s.to_dict() for s in self.snaps],
