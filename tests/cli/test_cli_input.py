@@ -115,9 +115,11 @@ def test_solver_keys_and_family_through_set(capsys, tmp_path):
 
 
 def test_a_failed_solve_writes_nothing(capsys, tmp_path):
+    # (a missing HSL library was the failure here: it is bad input now, refused when parsed)
     out, png = tmp_path / "a.json", tmp_path / "a.png"
-    assert main(["solve", TOY2, "--linear-solver", "ma27", "--json", str(out),
+    assert main(["solve", TOY2, "--method", "shooting", "--set", "h=1e-4", "--json", str(out),
                  "--plot", str(png)]) == 3
+    assert "Shooting_Ill_Conditioned" in capsys.readouterr().err
     assert not out.exists() and not png.exists()
     assert list(tmp_path.iterdir()) == []
 
