@@ -160,6 +160,11 @@ def run(only: list[str] | None = None) -> dict[str, dict]:
     """Run the cases (all, or those named) and return their numbers."""
     results = {}
     env = dict(os.environ, PYTHONHASHSEED="0")
+    # the commands run in a temporary folder: a relative PYTHONPATH (PYTHONPATH=src) would
+    # find nothing there, and they would run whatever morphoshell is installed instead
+    if env.get("PYTHONPATH"):
+        env["PYTHONPATH"] = os.pathsep.join(str(Path(p).resolve())
+                                            for p in env["PYTHONPATH"].split(os.pathsep) if p)
     with tempfile.TemporaryDirectory() as d:
         for name, (argv, paths) in cases(Path(d)).items():
             if only and name not in only:

@@ -29,6 +29,9 @@ def test_solve_writes_json_and_plot(tmp_path, capsys):
     for key in ("r", "z", "psi"):
         assert len(data[key]) == len(s)
     assert np.isfinite(data["energy"]) and data["energy"] > 0
+    # units, as a sweep's JSON has them: every field's (also at the edges), the energy's
+    assert set(data["units"]) >= set(data["edge_start"]) | {"energy", "h", "cut", "opening"}
+    assert data["units"]["M_s"] == "C R" and data["units"]["energy"] == "C R^2"
     assert png.stat().st_size > 10_000
     assert "energy" in capsys.readouterr().out
 
@@ -153,8 +156,12 @@ def test_sphere_command(tmp_path):
     assert data["k_star"] == pytest.approx((11 + 3.5) / (5 + 0.5), rel=1e-14)
 
 
-def test_missing_hsl_solver_is_explained(capsys):
-    # the PyPI wheel has no HSL library: the failure must say why
-    assert main(["solve", str(TOY2), "--linear-solver", "ma27"]) == 3
-    err = capsys.readouterr().err
-    assert "Invalid_Option" in err and "libhsl.so" in err
+def test_missing_hsl_solver_is_explained(capfd):
+    # the PyPI wheel has no HSL library: refused when parsed (bad input, exit 2), saying why,
+    # with nothing of Ipopt's on standard output (its option table was dumped there)
+    assert main(["solve", str(TOY2), "--linear-solver", "ma27"]) == 2
+    out, err = capfd.readouterr()
+    assert "--linear-solver: 'ma27': Ipopt cannot load it" in err and "libhsl.so" in err
+    assert out == ""
+    assert main(["solve", str(TOY2), "--linear-solver", "ma27x"]) == 2
+    assert "'ma27x': choose one of ['mumps'" in capfd.readouterr().err

@@ -79,6 +79,21 @@ def test_one_parameter_has_its_own_column(tmp_path):
                                               abs=1e-14)
 
 
+def test_the_path_ends_exactly_at_the_target_with_units(tmp_path):
+    """0.3 + 1 (0.01 - 0.3) = 0.010000000000000009: the last row said so (user audit); the
+    JSON had no units, as a sweep's has."""
+    paths = {k: tmp_path / f"h.{k}" for k in ("csv", "json")}
+    assert main(["continue", str(example_path("toy2_ablation")), "--param", "h", "--to", "0.01",
+                 "--nodes", "60", "--csv", str(paths["csv"]), "--json", str(paths["json"])]) == 0
+    with paths["csv"].open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert rows[-1]["lambda"] == "1.0" and rows[-1]["h"] == "0.01" and rows[0]["h"] == "0.3"
+    doc = json.loads(paths["json"].read_text())
+    assert doc["points"]["h"][-1] == 0.01
+    assert doc["units"] == {"lambda": "1", "h": "R", "energy": "C R^2", "r_end": "R",
+                            "z_end": "R", "psi_end": "rad", "negative_eigenvalues": "1"}
+
+
 @pytest.mark.parametrize("args, named", [
     (["--param", "h"], "--param and --to go together"),
     (["--to", "0.2"], "--param and --to go together"),

@@ -5,6 +5,7 @@ it: the ODE and boundary conditions it solves, the integral it was derived
 from, a numerical BVP solution, or scipy's own Kelvin functions.
 """
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -276,6 +277,35 @@ def test_small_cut_forms_huge_sigma_are_finite():
     p = A.predictions(1e-12, 0.0, 3.0)
     assert p["rotation_small_cut"] == pytest.approx(p["rotation"], rel=1e-9)
     assert p["displacement_small_cut"] == pytest.approx(p["displacement"], rel=1e-9)
+
+
+@pytest.mark.parametrize("h, cut", [(1e-19, 0.5), (1e-300, 0.5), (0.01, 1e-300), (0.01, 1e-200),
+                                    (5e-324, 3.0)])
+def test_small_cut_forms_are_their_limits_where_kelvin_functions_fail(h, cut):
+    """ς beyond 1e9 gave NaN (h < 3e-19 at Σ = 0.5), below 1e-154 NaN with a RuntimeWarning
+    (the CLI printed nan and exited 0): their limits there, finite, without warnings."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        rot = A.rotation_small_cut(h, 0.5, cut)
+        disp = A.displacement_small_cut(h, 0.5, cut)
+    assert math.isfinite(rot) and math.isfinite(disp)
+    varsigma = A._varsigma(h, cut)
+    if varsigma > 1:     # rotation() and displacement(), h's subnormal rounding aside
+        assert rot == pytest.approx(math.sqrt(1.5) * math.sqrt(h) * 0.5, rel=1e-15, abs=0)
+        assert disp == pytest.approx(0.5 * h * 0.5, rel=1e-15, abs=5e-324)
+    else:     # ϱ ≈ √3 ς √h (1 − k); d ≈ ς² (ln(2/ς) − γ) h |1 − k| underflows to 0
+        assert rot == pytest.approx(math.sqrt(3) * varsigma * math.sqrt(h) * 0.5, rel=1e-15, abs=0)
+        assert disp == 0.0
+
+
+def test_small_cut_forms_are_continuous_at_their_limits():
+    """Each side of VARSIGMA_LIMITS, by the Kelvin forms and by the limits: equal to round-off."""
+    lo, hi = A.VARSIGMA_LIMITS
+    for v in (lo, hi):
+        sides = np.array([v * (1 - 1e-12), v * (1 + 1e-12)])
+        sP, D, sN = A._small_cut_parts(sides)
+        assert sP[0] / D[0] == pytest.approx(sP[1] / D[1], rel=1e-11, abs=0)
+        assert sN[0] / D[0] == pytest.approx(sN[1] / D[1], rel=1e-11, abs=0)
 
 
 def _linear_small_cut_bvp(sigma, k, length=40.0):

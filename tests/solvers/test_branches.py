@@ -304,6 +304,51 @@ def test_the_switched_tangent_leaves_the_branch_across_it(blister, flat_disc):
         switch_branch(flat_disc, 0, 0)
 
 
+@pytest.mark.parametrize("call, error, match", [
+    # accepted, then a Branch_Ended after the work (user audit)
+    (lambda b: switch_branch(b, 0, 1, max_step=-1), ValueError, r"max_step = -1 must lie in \(0, 1\]"),
+    (lambda b: switch_branch(b, 0, 1, max_step=0), ValueError, r"max_step = 0 must lie in"),
+    (lambda b: switch_branch(b, 0, 1, max_points=1), ValueError,
+     r"max_points = 1 must be an integer in \[2, 100000\]"),
+    (lambda b: follow_branch(b.problem, nodes=60, max_points=-5), ValueError,
+     r"max_points = -5 must be an integer in \[2, 100000\]"),
+    (lambda b: follow_branch(b.problem, nodes=60, max_step=True), ValueError,
+     r"max_step = True must be a real number"),
+    (lambda b: follow_branch(b.problem.describe(), nodes=60), TypeError,
+     r"problem = \{.*must be a morphoshell Problem"),
+    # True == 1 passed for a direction; a float index raised a raw TypeError of a list
+    (lambda b: switch_branch(b, 0, True), ValueError, r"direction = True must be \+1 or -1"),
+    (lambda b: switch_branch(b, 1.0), TypeError, r"at = 1.0 must be an integer"),
+    (lambda b: switch_branch(b.points, 0), TypeError, r"branch must be a Branch"),
+])
+def test_bad_walk_arguments_are_named_before_any_work(flat_disc, call, error, match):
+    from morphoshell.solvers.routes import cache_info
+
+    builds = cache_info()["builds"]
+    with pytest.raises(error, match=match):
+        call(flat_disc)
+    assert cache_info()["builds"] == builds
+
+
+def test_a_branch_ends_at_its_target_exactly_and_says_so_in_a_line():
+    """0.5 + 1 (0.1 - 0.5) = 0.09999999999999998: BranchPoint.values said so at lambda = 1
+    (user audit); repr(Branch) was a dump of every point (12-80 kB)."""
+    problem = Problem("uniform", {"k": 0.5}, h=0.3, cut=0.5, name="toy2")
+    line = ParameterLine.along(problem, "cut", 0.1)
+    assert line.a + 1.0 * (line.b - line.a) != line.b          # (the case in point)
+    assert line.values(1.0) == {"cut": 0.1} and line.values(0.0) == {"cut": 0.5}
+    assert line.values(0.5) == {"cut": 0.5 + 0.5 * (0.1 - 0.5)}
+    branch = follow_branch(problem, "cut", 0.1, nodes=40)
+    assert branch.end.tau == 1.0 and branch.end.values == {"cut": 0.1}
+    assert branch.end.values["cut"] == branch.end.equilibrium.problem.cut
+    text = repr(branch)
+    assert "\n" not in text and len(text) < 300, text
+    assert text == (f"Branch('toy2', cut: 0.5 -> 0.1, follow='branch', {len(branch.points)} points, "
+                    f"lambda in [0, 1], cut in [0.1, 0.5], events: none, 0 snaps)")
+    assert branch.to_dict()["units"]["cut"] == "R"
+    assert branch.to_dataframe().attrs["units"]["cut"] == "R"
+
+
 def test_a_fold_is_no_branch_point_to_switch_at(branch60):
     from morphoshell.solvers.direct import solver_of
 

@@ -8,6 +8,7 @@ import pytest
 from morphoshell import Problem, SolverError, solve
 from morphoshell.solvers import routes
 from morphoshell.solvers.continuation import neutral_problem
+from morphoshell.model.problem import MIN_CUT, MIN_SHELL_LENGTH
 from morphoshell.numerics.mesh import MIN_POLE_CELL, graded_mesh
 
 SPURIOUS = [
@@ -98,6 +99,43 @@ def test_a_shell_shorter_than_its_thickness_is_refused():
 def test_shells_below_the_minimum_length_are_named():
     with pytest.raises(ValueError, match="is shorter than 0.001"):
         Problem("anisotropic", h=0.1, cut=1.57, opening=np.pi - 1.5705)
+
+
+def test_a_shell_of_exactly_the_minimum_length_is_accepted():
+    """L − P − Σ is computed: 1e-3 to round-off (1.1e-13 relative short here), and was
+    refused as shorter than 0.001."""
+    p = Problem("uniform", {"k": 0.0}, h=1e-4, cut=0.5, opening=np.pi - 0.5 - MIN_SHELL_LENGTH)
+    assert p.end - p.cut == pytest.approx(MIN_SHELL_LENGTH, rel=1e-12)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"cut": 1e-300}, r"cut \(Sigma\) = 1e-300 must be 0 \(a pole\) or at least 0.0001"),
+    ({"cut": MIN_CUT / 2}, r"cut \(Sigma\) = 5e-05 must be 0"),
+    ({"cut": -MIN_CUT}, r"cut \(Sigma\) = -0.0001 must be non-negative"),
+    ({"cut": 0.3, "opening": 1e-20}, r"opening \(P\) = 1e-20 must be 0 \(a pole\) or at least"),
+])
+def test_cuts_and_openings_below_the_smallest_are_named(kwargs, match):
+    """Cuts of 1e-20 ... 1e-300 failed with unrelated statuses (Continuation_Failed,
+    Meridian_Crosses_Axis, Restoration_Failed) and raw CasADi warnings (user audit)."""
+    with pytest.raises(ValueError, match=match):
+        Problem("uniform", {"k": 0.0}, h=0.3, **kwargs)
+
+
+def test_an_opening_of_a_disc_is_no_edge_near_the_axis():
+    assert Problem("central_growth", h=0.02, geometry="disc", opening=MIN_CUT / 10).opening > 0
+
+
+@pytest.mark.parametrize("problem", [
+    Problem("uniform", {"k": 0.0}, h=0.3, cut=MIN_CUT),
+    Problem("uniform", {"k": 0.0}, h=0.3, cut=0.3, opening=MIN_CUT),
+    Problem("anisotropic", {"f0": -0.1}, h=0.05, cut=MIN_CUT),
+    Problem("volvox", h=0.15, cut=MIN_CUT, opening=0.3),
+    # the first to fail below it (at 1e-7, 200 nodes; docs/benchmarks.md)
+    Problem("central_growth", {"G": 0.1, "w": 0.3}, h=0.05, geometry="disc", cut=MIN_CUT),
+], ids=lambda p: f"{p.family} cut={p.cut:g} opening={p.opening:g}")
+def test_the_smallest_cut_solves(problem):
+    eq = solve(problem)
+    assert eq.converged and eq.r.min() >= 0 and eq.s[0] == problem.cut
 
 
 @pytest.mark.parametrize("nodes", [51200])

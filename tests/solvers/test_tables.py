@@ -37,6 +37,18 @@ def test_equilibrium_dataframe_has_one_row_per_point_and_units(eq):
     json.dumps(df.attrs)                       # plain data: serialisable as it is
 
 
+def test_the_json_carries_units_as_a_sweeps_does(eq, ablation):
+    from morphoshell.solvers.results import Equilibrium
+
+    units = eq.to_dict()["units"]
+    assert units == {"energy": "C R^2", "h": "R", "cut": "R", "opening": "R", **FIELD_UNITS}
+    assert set(units) >= set(eq.to_dict()["edge_start"])
+    assert ablation.to_dict()["units"] == {"h": "R", "cut": "R", **UNITS}
+    # the docstring said the moments were in units of C
+    assert FIELD_UNITS["M_s"] == FIELD_UNITS["M_phi"] == "C R"
+    assert "∂e/∂K_a (units of C R)" in Equilibrium.__doc__
+
+
 def test_equilibrium_xarray_has_s_as_coordinate_and_the_problem_in_attrs(eq, tmp_path):
     xr = pytest.importorskip("xarray")
     ds = eq.to_xarray()

@@ -6,7 +6,7 @@ from typing import Any, Mapping, TypeVar
 
 import numpy as np
 
-__all__ = ["real", "lookup"]
+__all__ = ["real", "lookup", "within", "integer"]
 
 T = TypeVar("T")
 
@@ -19,6 +19,27 @@ def real(name: str, value: Any) -> float:
     if not math.isfinite(value):
         raise ValueError(f"{name} = {value!r} must be finite")
     return value
+
+
+def within(name: str, value: Any, lo: float, hi: float, *, open_lo: bool = False,
+           why: str = "") -> float:
+    """``value`` as a finite float in [lo, hi] ((lo, hi] with ``open_lo``), or ValueError
+    naming it, the interval and (``why``) the reason for it."""
+    number = real(name, value)
+    if not (lo < number if open_lo else lo <= number) or not number <= hi:
+        interval = f"{'(' if open_lo else '['}{lo:g}, {hi:g}]"
+        raise ValueError(f"{name} = {value!r} must lie in {interval}" + (f": {why}" if why else ""))
+    return number
+
+
+def integer(name: str, value: Any, lo: int, hi: int | None = None) -> int:
+    """``value`` as an int in [lo, hi] (no upper bound without ``hi``), or ValueError naming it
+    (bools and floats are not integers)."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo \
+            or hi is not None and value > hi:
+        bound = f"in [{lo}, {hi}]" if hi is not None else f">= {lo}"
+        raise ValueError(f"{name} = {value!r} must be an integer {bound}")
+    return int(value)
 
 
 def lookup(registry: Mapping[str, T], name: str, what: str) -> T:

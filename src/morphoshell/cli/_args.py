@@ -11,12 +11,8 @@ from typing import Callable, Iterator, Mapping
 from ._outputs import output_path
 
 __all__ = ["integer", "real", "micrometres", "add_outputs", "TRACE_OPTIONS", "FORMAT_HELP",
-           "SECTION_HELP", "problem_and_settings", "reworded", "reader_notes", "LINEAR_SOLVERS",
+           "SECTION_HELP", "problem_and_settings", "reworded", "reader_notes", "linear_solver",
            "family_keys"]
-
-#: Ipopt's linear solvers: MUMPS is bundled with CasADi; the HSL ones (ma27 …)
-#: load only from the user's libhsl.so, SPRAL and Pardiso from their libraries.
-LINEAR_SOLVERS = ("mumps", "ma27", "ma57", "ma77", "ma86", "ma97", "spral", "pardisomkl")
 
 
 #: The Python arguments that the messages of morphoshell.io name, as the command line spells
@@ -156,6 +152,21 @@ def real(lo: float = -math.inf, hi: float = math.inf, *, open_lo: bool = False,
         return value
     parse.__name__ = "number"
     return parse
+
+
+def linear_solver(text: str) -> str:
+    """One of Ipopt's linear solvers that Ipopt can load here (the HSL ones only with the
+    user's libhsl.so): refused at parse time, before the problem file is read."""
+    from ..numerics.ipopt_options import check_ipopt_options
+
+    try:
+        check_ipopt_options(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc).replace("linear_solver = ", "", 1)) from None
+    return text
+
+
+linear_solver.__name__ = "linear solver"
 
 
 def micrometres(text: str) -> float:

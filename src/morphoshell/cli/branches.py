@@ -11,7 +11,7 @@ __all__ = ["register"]
 def register(sub) -> None:
     """Add ``morphoshell continue`` to the subcommands ``sub``."""
     from ..solvers.arclength import MAX_STEP
-    from ..solvers.branches import FOLLOW
+    from ..solvers.branches import FOLLOW, MAX_POINTS
     from ..solvers.direct import MAX_NODES
 
     p = sub.add_parser(
@@ -47,7 +47,7 @@ def register(sub) -> None:
                    help="Gauss points per cell: order 2S (default: the file's, else 2)")
     p.add_argument("--max-step", type=real(0, 1, open_lo=True), default=MAX_STEP, metavar="DS",
                    help=f"largest pseudo-arclength step (default {MAX_STEP})")
-    p.add_argument("--max-points", type=integer(2, 100_000), default=2000, metavar="N",
+    p.add_argument("--max-points", type=integer(2, MAX_POINTS), default=2000, metavar="N",
                    help="give up after this many points (default 2000; exit status 3)")
     p.add_argument("--switch", type=integer(0, 1000), default=0, metavar="N",
                    help="also follow the branches through the first N branch points, both "

@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 
 from ..io.problem_files import METHODS
-from ._args import LINEAR_SOLVERS, add_outputs, family_keys, integer, problem_and_settings, real
+from ._args import add_outputs, family_keys, integer, linear_solver, problem_and_settings, real
 from ._outputs import Outputs
 
 __all__ = ["register"]
@@ -32,7 +32,7 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--stages", type=int, choices=(1, 2, 3), default=None, metavar="S",
                    help="Gauss points per cell of the direct solver: order 2S (default: the "
                         "file's [solver] stages, else 2)")
-    p.add_argument("--linear-solver", default="mumps", choices=LINEAR_SOLVERS, metavar="NAME",
+    p.add_argument("--linear-solver", default="mumps", type=linear_solver, metavar="NAME",
                    help="Ipopt's linear solver for the direct method: mumps (default, bundled) "
                         "or an HSL solver such as ma27/ma57 if libhsl.so is installed")
     p.add_argument("--rtol", type=real(MIN_RTOL, 1, open_hi=True), default=None,

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import math
 
-from ._args import LINEAR_SOLVERS, add_executor, add_outputs, family_keys, integer
+from ._args import add_executor, add_outputs, family_keys, integer, linear_solver
 from ._outputs import Outputs
 
 __all__ = ["register", "parse_axes"]
@@ -46,7 +46,7 @@ def register(sub) -> None:
                         f"200)")
     p.add_argument("--stages", type=int, choices=(1, 2, 3), default=None, metavar="S",
                    help="Gauss points per cell: order 2S (default: the file's, else 2)")
-    p.add_argument("--linear-solver", default="mumps", choices=LINEAR_SOLVERS, metavar="NAME",
+    p.add_argument("--linear-solver", default="mumps", type=linear_solver, metavar="NAME",
                    help="Ipopt's linear solver (default mumps, bundled)")
     p.add_argument("--errors", choices=ERRORS, default="ends",
                    help="where to estimate discretisation errors (two coarser meshes per "

@@ -108,8 +108,10 @@ class Ablation:
         return {k: getattr(self, k) for k in (*RECOIL, "energy_released", "energy_removed")}
 
     def to_dict(self, arrays: bool = True) -> dict:
-        """JSON-ready: problem, observables and both equilibria (optionally with arrays)."""
+        """JSON-ready: problem, observables, their units (:data:`UNITS`, the problem's lengths in
+        R) and both equilibria (optionally with arrays)."""
         return {"problem": self.problem.describe(), **self.observables(),
+                "units": {"h": "R", "cut": "R", **UNITS},
                 "pre": self.pre.to_dict(arrays), "post": self.post.to_dict(arrays)}
 
     def to_dataframe(self):

@@ -35,7 +35,7 @@ from ..model.energy import boundary_layer_width
 __all__ = [
     "f_shell_exact", "f_shell_asymptotic", "f_bulk_asymptotic", "k_star",
     "delta", "opening", "rotation", "displacement", "b_inner", "kelvin_k",
-    "rotation_small_cut", "displacement_small_cut", "energy_released",
+    "rotation_small_cut", "displacement_small_cut", "VARSIGMA_LIMITS", "energy_released",
     "recoil_velocity", "predictions", "ENERGY_UNITS",
     "InnerSolution", "inner_solution", "inner_problem", "inner_recoil", "INNER_LENGTH",
 ]
@@ -335,6 +335,13 @@ def kelvin_k(order: int, x):
     return _out(value.real), _out(value.imag)
 
 
+#: ς below and above which the small-cut forms take their limits ς → 0 and ς → ∞: the
+#: Kelvin functions overflow below ς ≈ 1e-154 and give NaN above 1e9 (at Σ = 0.5: h < 3e-19),
+#: and the limits equal the forms to round-off here (relative corrections 1.6 ς² and
+#: 3.8/ς²: 2e-16 and 4e-16).
+VARSIGMA_LIMITS = (1e-8, 1e8)
+
+
 def _small_cut_parts(varsigma: np.ndarray):
     """ς|K₁|², the denominator D and the displacement numerator ςN.
 
@@ -345,18 +352,35 @@ def _small_cut_parts(varsigma: np.ndarray):
         N  = ker₁(kei₀ − ker₀) − kei₁(kei₀ + ker₀).
 
     All three are quadratic in the Kelvin functions, so the common factor of
-    :func:`_kelvin_scaled` cancels in the ratios.
+    :func:`_kelvin_scaled` cancels in the ratios.  Outside :data:`VARSIGMA_LIMITS`
+    they are replaced by their limits, as (ςP, 1, ςN): ςP/D → 1/√2 and ςN/D → 1/√2 as
+    ς → ∞ (the leading-order rotation and displacement); ςP/D → ς and
+    ςN/D → √2 ς² (ln(2/ς) − γ) as ς → 0, from ker₀ ≈ −ln(ς/2) − γ, kei₀ ≈ −π/4
+    and ker₁ ≈ kei₁ ≈ −1/(√2 ς).
     """
-    K0, K1 = _kelvin_scaled(varsigma)
+    varsigma = np.asarray(varsigma, dtype=float)
+    lo, hi = VARSIGMA_LIMITS
+    small, large = varsigma < lo, varsigma > hi
+    clipped = np.clip(varsigma, lo, hi)
+    K0, K1 = _kelvin_scaled(clipped)
     ker0, kei0, ker1, kei1 = K0.real, K0.imag, K1.real, K1.imag
     P = ker1**2 + kei1**2
-    D = P + _SQRT2 * varsigma * (ker1 * (ker0 + kei0) + kei1 * (kei0 - ker0))
+    D = P + _SQRT2 * clipped * (ker1 * (ker0 + kei0) + kei1 * (kei0 - ker0))
     N = ker1 * (kei0 - ker0) - kei1 * (kei0 + ker0)
-    return varsigma * P, D, varsigma * N
+    sP, sN = clipped * P, clipped * N
+    if not (np.any(small) or np.any(large)):
+        return sP, D, sN
+    v = np.clip(varsigma, np.finfo(float).tiny, lo)      # (ς = 0 underflowed: its limit 0)
+    with np.errstate(under="ignore"):
+        lead = _SQRT2 * v**2 * (np.log(2 / v) - np.euler_gamma)
+    sP = np.where(small, varsigma, np.where(large, 1 / _SQRT2, sP))
+    sN = np.where(small, lead, np.where(large, 1 / _SQRT2, sN))
+    return sP, np.where(small | large, 1.0, D), sN
 
 
 def _varsigma(h: np.ndarray, Sigma: np.ndarray) -> np.ndarray:
-    sigma = Sigma / boundary_layer_width(h)
+    with np.errstate(divide="ignore"):      # δ underflowed to 0 (h < 2e-323): σ = ∞, its limit
+        sigma = Sigma / boundary_layer_width(h)
     return 3**0.25 * sigma / _SQRT2
 
 
@@ -368,7 +392,10 @@ def rotation_small_cut(h, k, cut):
         ϱ ~ δ b(σ) = √3 ς (ker₁²ς + kei₁²ς) / D(ς) · √h (1 − k),
 
     with σ = Σ/δ, ς = 3^{1/4}σ/√2 and D as in :func:`_small_cut_parts`.  It
-    tends to 0 as σ → 0 and to :func:`rotation` as σ → ∞.
+    tends to 0 as σ → 0 and to :func:`rotation` as σ → ∞; outside
+    :data:`VARSIGMA_LIMITS` (at Σ = 0.5: h < 7.5e-17; or Σ ≲ 1e-8 δ), where the Kelvin
+    functions over- or underflow, it is that limit's leading-order value (√3 ς √h (1 − k)
+    as ς → 0), equal to the formula to round-off there.
     """
     h = _positive("h", h)
     k = _finite("k", k)
@@ -385,7 +412,9 @@ def displacement_small_cut(h, k, cut):
         d = ς [ker₁(kei₀ − ker₀) − kei₁(kei₀ + ker₀)] / (√2 D(ς)) · h |1 − k|,
 
     all Kelvin functions at ς = 3^{1/4}σ/√2.  It tends to 0 as σ → 0 and to
-    :func:`displacement` as σ → ∞.
+    :func:`displacement` as σ → ∞; outside :data:`VARSIGMA_LIMITS` it is that
+    limit's leading-order value (ς² (ln(2/ς) − γ) h |1 − k| as ς → 0), as
+    :func:`rotation_small_cut`.
     """
     h = _positive("h", h)
     k = _finite("k", k)

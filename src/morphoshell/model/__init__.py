@@ -18,7 +18,8 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "geometry": ["Geometry", "SPHERE", "DISC", "GEOMETRIES", "get_geometry"],
     "layouts": ["VectorLayout", "BASE_PARAMETERS", "parameter_layout", "INTRINSIC", "CELL_DATA",
         "BVP_STATE"],
-    "problem": ["Problem", "Structure", "BASE_KEYS", "MIN_SHELL_LENGTH", "MIN_THICKNESS"],
+    "problem": ["Problem", "Structure", "BASE_KEYS", "MIN_SHELL_LENGTH", "MIN_THICKNESS",
+        "MIN_CUT"],
     "profiles": ["Profiles", "ProfileFamily", "FAMILIES", "register_family", "get_family",
         "available_families", "ENTRY_POINT_GROUP"],
 })

@@ -27,7 +27,7 @@ from .geometry import Geometry, get_geometry
 from .layouts import VectorLayout, parameter_layout
 from .profiles import ProfileFamily, Profiles, get_family
 
-__all__ = ["Problem", "Structure", "BASE_KEYS", "MIN_SHELL_LENGTH", "MIN_THICKNESS"]
+__all__ = ["Problem", "Structure", "BASE_KEYS", "MIN_SHELL_LENGTH", "MIN_THICKNESS", "MIN_CUT"]
 
 #: Thinnest shell accepted, h = H/R: below it the bending energy (∝ h³) falls under the
 #: solvers' round-off relative to the stretching energy, and Ipopt fails (h = 1e-12:
@@ -37,6 +37,18 @@ MIN_THICKNESS = 1e-6
 #: Shortest shell L − P − Σ accepted (units of R): shorter shells bring the
 #: energy scale down to the solver's round-off floor, where Ipopt fails.
 MIN_SHELL_LENGTH = 1e-3
+
+#: Smallest positive cut Σ, and opening P of a closed meridian, accepted (units of R): a
+#: free edge that close to the axis fails with statuses that name something else
+#: (Continuation_Failed, Meridian_Crosses_Axis, Restoration_Failed; raw CasADi warnings
+#: at 1e-300).  At 200 nodes every problem measured solved down to 3e-7 and the first
+#: failed at 1e-7; finer meshes fail at larger cuts (5e-5 at 1600 nodes): docs/benchmarks.md,
+#: "model/problem.py".  0 is a pole.
+MIN_CUT = 1e-4
+
+#: Relative tolerance of the comparisons with the bounds of lengths: a shell exactly
+#: MIN_SHELL_LENGTH long, L − P − Σ computed, is that long to round-off.
+_ROUND_OFF = 1e-9
 
 #: Keys of a problem other than the family's parameters (``--set`` names).
 BASE_KEYS = ("h", "theory", "cut", "opening")
@@ -91,9 +103,12 @@ class Problem:
     h : float
         Relative thickness, 0 < h < 1.
     cut : float
-        Σ ≥ 0, arclength of the ablation around the pole s = 0.
+        Σ, arclength of the ablation around the pole s = 0: 0 (a pole) or at
+        least :data:`MIN_CUT` = 1e-4 (smaller cuts fail in the solvers).
     opening : float
-        P ≥ 0, arclength of the opening at the far end.
+        P, arclength of the opening at the far end: 0 or, on a closed meridian
+        (a sphere), at least :data:`MIN_CUT`.  The shell L − P − Σ is at least
+        :data:`MIN_SHELL_LENGTH` = 1e-3 long.
     theory : str or Theory
         ``"large_bending"`` (default) or ``"classical"`` (η → 0 coefficients);
         bound at creation like the family.
@@ -128,27 +143,7 @@ class Problem:
                              f"to the radius)")
         cut = real("cut (Sigma)", self.cut)
         opening = real("opening (P)", self.opening)
-        if cut < 0:
-            raise ValueError(f"cut (Sigma) = {cut!r} must be non-negative")
-        if opening < 0:
-            raise ValueError(f"opening (P) = {opening!r} must be non-negative")
-        end = geo.length - opening
-        if not opening < geo.length:     # (else the cut was blamed: "cut = 0.0 is larger ...")
-            raise ValueError(f"opening (P) = {opening!r} is larger than the shell: the "
-                             f"{geo.name}'s meridian is {geo.length:.6g} long (units of R)")
-        if not cut < end:
-            raise ValueError(
-                f"cut (Sigma) = {cut!r} is larger than the shell: with opening P = {opening!r} "
-                f"the {geo.name} ends at s = {end:.6g}")
-        if end - cut < MIN_SHELL_LENGTH:
-            raise ValueError(
-                f"the shell s in [cut, L - opening] = [{cut!r}, {end:.6g}] is shorter than "
-                f"{MIN_SHELL_LENGTH:g} (units of R): that is a ring, not a shell")
-        if end - cut < h:
-            raise ValueError(
-                f"the shell s in [cut, L - opening] = [{cut!r}, {end:.6g}] is {end - cut:.3g} "
-                f"long, shorter than its thickness h = {h!r} (units of R): the thin-shell "
-                f"theory of this model needs a shell longer than thick")
+        end = _shell_end(cut, opening, h, geo)
         if not isinstance(self.params, Mapping):
             raise ValueError(f"params must be a mapping of names to numbers, got {self.params!r}")
         unknown = sorted(set(self.params) - set(fam.parameters))
@@ -265,3 +260,34 @@ class Problem:
         return {"name": self.name, "family": self.family, "params": dict(self.params),
                 "h": self.h, "cut": self.cut, "opening": self.opening,
                 "theory": self.theory, "geometry": self.geometry}
+
+
+def _shell_end(cut: float, opening: float, h: float, geo: Geometry) -> float:
+    """L − P, the far end, with the cut and the opening checked (ValueError naming them)."""
+    for name, value in (("cut (Sigma)", cut), ("opening (P)", opening)):
+        if value < 0:
+            raise ValueError(f"{name} = {value!r} must be non-negative")
+    if cut != 0 and not cut >= MIN_CUT:
+        raise ValueError(f"cut (Sigma) = {cut!r} must be 0 (a pole) or at least {MIN_CUT:g} "
+                         f"(units of R): the solvers fail on smaller cuts")
+    if opening != 0 and geo.closed and not opening >= MIN_CUT:
+        raise ValueError(f"opening (P) = {opening!r} must be 0 (a pole) or at least "
+                         f"{MIN_CUT:g} (units of R): the solvers fail on smaller openings")
+    end = geo.length - opening
+    if not opening < geo.length:     # (else the cut was blamed: "cut = 0.0 is larger ...")
+        raise ValueError(f"opening (P) = {opening!r} is larger than the shell: the "
+                         f"{geo.name}'s meridian is {geo.length:.6g} long (units of R)")
+    if not cut < end:
+        raise ValueError(
+            f"cut (Sigma) = {cut!r} is larger than the shell: with opening P = {opening!r} "
+            f"the {geo.name} ends at s = {end:.6g}")
+    if end - cut < MIN_SHELL_LENGTH * (1 - _ROUND_OFF):
+        raise ValueError(
+            f"the shell s in [cut, L - opening] = [{cut!r}, {end:.6g}] is shorter than "
+            f"{MIN_SHELL_LENGTH:g} (units of R): that is a ring, not a shell")
+    if end - cut < h:
+        raise ValueError(
+            f"the shell s in [cut, L - opening] = [{cut!r}, {end:.6g}] is {end - cut:.3g} "
+            f"long, shorter than its thickness h = {h!r} (units of R): the thin-shell "
+            f"theory of this model needs a shell longer than thick")
+    return end

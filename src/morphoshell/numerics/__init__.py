@@ -7,7 +7,8 @@ the parameter data at the Gauss points (:mod:`.parameter_data`), assembled by
 index gathers (:mod:`.gathers`); it builds the KKT (Newton) system in cell order
 (:mod:`.cell_order`, :mod:`.newton_assembly`), the KKT residual's derivatives
 (:mod:`.kkt_derivatives`) and the shape as expressions (:mod:`.shape`);
-:mod:`.ipopt` and :mod:`.newton` solve it, and :mod:`.status` is the table of
+:mod:`.ipopt` and :mod:`.newton` solve it (:mod:`.ipopt_options` checks Ipopt's
+options before a build), and :mod:`.status` is the table of
 how a solve can end, with the error every route raises.
 """
 

@@ -31,15 +31,17 @@ from typing import Any
 
 import numpy as np
 
+from .._runtime.validate import integer, within
 from ..model.problem import Problem
 from .arclength import (EASY, GROWTH, MAX_STEP, MIN_STEP, ArcPoint, Arclength, Snap, Switch,
                         branch_ended, snap_through, switch_stable)
 from .continuation import continue_to
+from .options import check_direct_options, check_problem
 from .paths import ParameterLine, neutral_problem
 from .results import Equilibrium
 
 __all__ = ["Branch", "BranchPoint", "follow_branch", "switch_branch", "continuation_path",
-           "EVENTS", "FOLLOW", "COLUMNS"]
+           "EVENTS", "FOLLOW", "COLUMNS", "MAX_POINTS", "UNITS", "PARAMETER_UNITS"]
 
 #: What a point of a branch can be besides an ordinary one.
 EVENTS = ("fold", "branch_point", "snap")
@@ -49,6 +51,13 @@ FOLLOW = ("branch", "stable")
 COLUMNS = ("energy", "r_end", "z_end", "psi_end", "stable", "negative_eigenvalues", "event")
 #: The path parameter may leave [0, 1] by this much before the branch counts as lost.
 TAU_MARGIN = 0.5
+#: Most points a branch may be given (``max_points``; the command line's --max-points).
+MAX_POINTS = 100_000
+#: Units of a branch's columns (its table's ``attrs`` and its JSON), the parameter's aside.
+UNITS = {"lambda": "1", "energy": "C R^2", "r_end": "R", "z_end": "R", "psi_end": "rad",
+         "negative_eigenvalues": "1"}
+#: Units of the parameters continued in whose unit is known (as a sweep's columns).
+PARAMETER_UNITS = {"h": "R", "cut": "R", "opening": "R", "k": "1/R"}
 
 
 @dataclass(frozen=True)
@@ -127,6 +136,33 @@ class Branch:
     direction: float = 1.0
     switches: tuple = ()
 
+    def __repr__(self) -> str:
+        """One line: the problem, the path, how many points over which λ (and parameter) range,
+        the events and snaps (the default repr listed every point: 12-80 kB)."""
+        taus = [pt.tau for pt in self.points]
+        parts = [repr(self.problem.name or self.problem.family),
+                 f"{self.parameter}: {self.line.a[0]:g} -> {self.line.b[0]:g}"
+                 if self.parameter is not None else "from the stress-free parameters",
+                 f"follow={self.follow!r}", f"{len(self.points)} points",
+                 f"lambda in [{min(taus, default=0):.6g}, {max(taus, default=0):.6g}]"]
+        if self.parameter is not None:
+            values = [pt.values[self.parameter] for pt in self.points]
+            parts.append(f"{self.parameter} in [{min(values):.6g}, {max(values):.6g}]")
+        counts = {e: sum(pt.event == e for pt in self.points) for e in EVENTS}
+        parts.append("events: " + (", ".join(f"{n} {e}" for e, n in counts.items() if n)
+                                   or "none"))
+        parts.append(f"{len(self.snaps)} snaps")
+        if self.origin is not None:
+            parts.append(f"switched at lambda = {self.origin:.6g}, direction {self.direction:+g}")
+        return f"Branch({', '.join(parts)})"
+
+    def units(self) -> dict[str, str]:
+        """The columns' units (:data:`UNITS`; the parameter's from :data:`PARAMETER_UNITS`)."""
+        known = {self.parameter: PARAMETER_UNITS[self.parameter]} \
+            if self.parameter in PARAMETER_UNITS else {}
+        return {"lambda": UNITS["lambda"], **known, **{k: v for k, v in UNITS.items()
+                                                      if k != "lambda"}}
+
     @property
     def events(self) -> list[BranchPoint]:
         """The points that are events (folds, branch points, snaps), in order."""
@@ -163,17 +199,15 @@ class Branch:
         df = pd.DataFrame(self.columns())
         if equilibria:
             df["equilibrium"] = [pt.equilibrium for pt in self.points]
-        df.attrs.update(units={"lambda": "1", "energy": "C R^2", "r_end": "R", "z_end": "R",
-                               "psi_end": "rad"},
-                        problem=self.problem.describe(), follow=self.follow,
+        df.attrs.update(units=self.units(), problem=self.problem.describe(), follow=self.follow,
                         path=dict(zip(self.line.names, zip(self.line.a.tolist(),
                                                            self.line.b.tolist()))))
         return df
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain data (JSON): the problem, the path, the points' table and the snaps."""
+        """Plain data (JSON): the problem, the path, the points' table, its units and the snaps."""
         return {"problem": self.problem.describe(), "parameter": self.parameter,
-                "follow": self.follow,
+                "follow": self.follow, "units": self.units(),
                 "path": {n: [float(a), float(b)] for n, a, b in zip(self.line.names, self.line.a,
                                                                     self.line.b)},
                 "points": self.columns(), "snaps": [s.to_dict() for s in self.snaps],
@@ -201,9 +235,9 @@ def follow_branch(problem: Problem, param: str | None = None, to: float | None =
         The connected branch through its folds, or the quasi-static path with
         snap-throughs (module docstring).
     max_step : float
-        Largest pseudo-arclength step (norm of (x, τ), x by its root mean square).
+        Largest pseudo-arclength step (norm of (x, τ), x by its root mean square), in (0, 1].
     max_points : int
-        Most points before giving up.
+        Most points before giving up, in [2, :data:`MAX_POINTS`].
     anchors : sequence of float
         Mesh anchors (as :func:`solve`).
 
@@ -215,18 +249,22 @@ def follow_branch(problem: Problem, param: str | None = None, to: float | None =
     Raises
     ------
     ValueError
-        An unknown parameter or ``follow``, or a family without stress-free
-        parameters to start from.
+        An unknown parameter or ``follow``, ``max_step`` or ``max_points`` out of
+        its range, or a family without stress-free parameters to start from
+        (before any work).
+    TypeError
+        ``problem`` not a Problem.
     SolverError
         ``"Branch_Ended"`` when the steps fail or leave the path, with the
         last point attached; ``"Snap_Through_Failed"``.
     """
     from .routes import direct_solver
 
+    check_problem(problem)
     if follow not in FOLLOW:
         raise ValueError(f"follow = {follow!r} must be one of {list(FOLLOW)}")
-    if not 0 < max_step <= 1:
-        raise ValueError(f"max_step = {max_step!r} must be in (0, 1]")
+    _check_walk(max_step, max_points)
+    check_direct_options(stages=stages)
     t0 = time.perf_counter()
     solver = direct_solver(problem, nodes, anchors, stages=stages)
     line, start = _path(solver, problem, param, to, anchors)
@@ -267,18 +305,27 @@ def switch_branch(branch: Branch, at: int, direction: float = 1.0, *,
     Raises
     ------
     ValueError
-        ``at`` beyond the branch's branch points, or ``direction`` not ±1,
-        or the point not a simple branch point (:meth:`Arclength.switch`).
+        ``at`` beyond the branch's branch points, ``direction`` not ±1 (a bool
+        is not), ``max_step`` or ``max_points`` out of range (all before any
+        work), or the point not a simple branch point (:meth:`Arclength.switch`).
+    TypeError
+        ``branch`` not a Branch, or ``at`` not an integer.
     SolverError
         ``"Branch_Ended"`` when the steps fail or leave the path.
     """
     from .direct import solver_of
 
+    if not isinstance(branch, Branch):
+        raise TypeError(f"branch must be a Branch (from follow_branch), got {type(branch).__name__}")
+    if isinstance(at, (bool, np.bool_)) or not isinstance(at, (int, np.integer)):
+        raise TypeError(f"at = {at!r} must be an integer: which branch point (0 for the first)")
     points = [pt for pt in branch.points if pt.event == "branch_point"]
     if not -len(points) <= at < len(points):
         raise ValueError(f"at = {at!r}: the branch has {len(points)} branch point(s)")
-    if direction not in (1, -1):
+    # (True == 1: a bool would pass for a direction)
+    if isinstance(direction, (bool, np.bool_)) or direction not in (1, -1):
         raise ValueError(f"direction = {direction!r} must be +1 or -1")
+    _check_walk(max_step, max_points)
     t0 = time.perf_counter()
     origin = points[at]
     arc = Arclength(solver_of(origin.equilibrium), branch.line, origin.equilibrium.anchors)
@@ -286,6 +333,13 @@ def switch_branch(branch: Branch, at: int, direction: float = 1.0, *,
     walk.switched(origin, direction)
     return Branch(branch.problem, branch.line, branch.parameter, "branch", tuple(walk.points),
                   (), time.perf_counter() - t0, origin.tau, float(direction))
+
+
+def _check_walk(max_step, max_points) -> None:
+    """ValueError unless ``max_step`` ∈ (0, 1] and ``max_points`` ∈ [2, :data:`MAX_POINTS`]
+    (a branch has its start and one more point at least)."""
+    within("max_step", max_step, 0.0, 1.0, open_lo=True)
+    integer("max_points", max_points, 2, MAX_POINTS)
 
 
 def continuation_path(problem: Problem, param: str | None = None, to: float | None = None,

@@ -51,6 +51,7 @@ from ..model.layouts import BVP_STATE, INTRINSIC
 from ..model.problem import Problem, Structure
 from ..numerics.mesh import graded_mesh
 from ..numerics.status import BVP_STATUSES, POLE_ANALYSIS_FAILED, TIME_LIMIT_EXCEEDED, explain
+from .options import check_bvp_options
 from .results import FIELDS, Equilibrium, SolverError, SolverStats
 
 __all__ = ["solve_bvp", "pontryagin_functions", "pole_solutions", "pole_state",
@@ -364,7 +365,12 @@ def solve_bvp(problem: Problem, nodes: int = 400, *, tol: float = 1e-8, bc_tol: 
         :data:`morphoshell.numerics.status.STATUSES`), ran out of time
         (``"Time_Limit_Exceeded"``), or a pole is not regular
         (``"Pole_Analysis_Failed"``).
+    ValueError
+        An option out of its range (``tol`` and ``bc_tol`` in [1e-11, 1e-3],
+        ``pole_offset`` in [1e-6, 0.1]: :mod:`morphoshell.solvers.options`), before any work.
     """
+    check_bvp_options(problem, nodes, tol=tol, bc_tol=bc_tol, guess=guess, pole_offset=pole_offset,
+                      max_nodes=max_nodes, homotopy_steps=homotopy_steps, max_seconds=max_seconds)
     t0 = time.perf_counter()
     steps = 1 if guess is not None else max(1, int(homotopy_steps))
     current = guess

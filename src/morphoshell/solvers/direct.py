@@ -27,6 +27,7 @@ from ..numerics.ipopt import IpoptBackend
 from ..numerics.mesh import MeshSpec, pole_exponent
 from ..numerics.newton import NewtonBackend
 from ..numerics.status import MERIDIAN_CROSSES_AXIS, NOT_A_MINIMUM, explain
+from .options import check_direct_options
 from .results import (FIELDS, Equilibrium, NotAMinimumError, Quadrature, SolverError, SolverStats,
                       unconverged)
 
@@ -113,7 +114,10 @@ class DirectSolver:
         Grading when no ``mesh`` is given (see :func:`default_mesh`).  The
         mesh stays valid for any h, Σ and P: they are NLP parameters.
     linear_solver, max_iter, stability, ipopt_options
-        Passed to :class:`morphoshell.numerics.ipopt.IpoptBackend`.
+        Passed to :class:`morphoshell.numerics.ipopt.IpoptBackend`: a linear solver of
+        :data:`~morphoshell.numerics.ipopt_options.LINEAR_SOLVERS` that Ipopt can load,
+        ``max_iter`` ≥ 1, and options that Ipopt accepts, all checked before the build
+        (:func:`~morphoshell.numerics.ipopt_options.check_ipopt_options`).
     newton : bool
         Solves first try :class:`morphoshell.numerics.newton.NewtonBackend`: Newton
         steps certified by their own factorisation, several times faster than
@@ -125,12 +129,19 @@ class DirectSolver:
         :mod:`morphoshell.numerics.newton`, "Cold starts"), so Ipopt is set up only
         when needed.
     tol : float
+        In (0, 1e-4] (:data:`~morphoshell.solvers.options.MAX_DIRECT_TOL`, measured there):
         Ipopt's convergence tolerance (on the scaled KKT error) at N = 800;
         it grows like the square of the number of points on finer meshes, as
         does the round-off floor of the discrete gradient.  So does the tolerance of Ipopt's
         iterative refinement of each linear solve (``residual_ratio_max``,
         Ipopt's 1e-10 up to 800 points, at most :data:`RESIDUAL_RATIO_CAP`).
         The status is kept in ``Equilibrium.solver.status``.
+
+    Raises
+    ------
+    ValueError
+        An option out of its range, or one that Ipopt refuses, named with its
+        value (:func:`~morphoshell.solvers.options.check_direct_options`).
     """
 
     def __init__(self, structure: Structure, nodes: int = 200, *, stages: int = 2,
@@ -139,12 +150,13 @@ class DirectSolver:
                  linear_solver: str = "mumps", tol: float = 1e-10, max_iter: int = 500,
                  stability: str = "auto", ipopt_options: Mapping[str, Any] | None = None,
                  newton: bool = True):
+        # every option before the mesh and the transcription are built
+        check_direct_options(stages=stages, linear_solver=linear_solver, tol=tol,
+                             max_iter=max_iter, stability=stability, ipopt_options=ipopt_options)
         if mesh is None:
             check_nodes(nodes)
             mesh = default_mesh(structure, int(nodes), stages, grading_width, domain_length,
                                 edge_scale)
-        if isinstance(stages, bool) or stages not in (1, 2, 3):
-            raise ValueError(f"stages = {stages!r} must be 1, 2 or 3")
         t0 = time.perf_counter()
         self.structure = structure
         self.mesh = mesh

@@ -108,7 +108,12 @@ class ParameterLine:
         return self.problem.with_updates(**dict(zip(self.names, self.a + tau * (self.b - self.a))))
 
     def values(self, tau: float) -> dict[str, float]:
-        """The moving parameters' values at τ."""
+        """The moving parameters' values at τ: the ends' own at τ = 0 and 1, as :meth:`at`
+        (a + 1·(b − a) is not b in floating point: h = 0.010000000000000009 for 0.01)."""
+        if tau == 1:
+            return dict(zip(self.names, self.b.tolist()))
+        if tau == 0:
+            return dict(zip(self.names, self.a.tolist()))
         return dict(zip(self.names, (self.a + tau * (self.b - self.a)).tolist()))
 
     @property

@@ -19,7 +19,7 @@ from ..numerics.status import NotAMinimumError, SolverError
 
 __all__ = ["Equilibrium", "SolverStats", "SolverError", "NotAMinimumError", "FIELDS", "unconverged",
            "Quadrature", "ErrorEstimate", "ESTIMATED", "ENERGY_FLOOR", "energy_floor", "FIELD_UNITS",
-           "FIELD_NAMES"]
+           "FIELD_NAMES", "JSON_UNITS"]
 
 
 #: Nodal arrays of an :class:`Equilibrium`, in order.
@@ -33,6 +33,10 @@ FIELD_UNITS = {"s": "R", "r": "R", "z": "R", "psi": "rad", "f_s": "1", "f_phi": 
                "kappa_s": "1/R", "kappa_phi": "1/R", "E_s": "1", "E_phi": "1",
                "K_s": "1/R", "K_phi": "1/R", "N_s": "C", "N_phi": "C", "M_s": "C R",
                "M_phi": "C R", "eta": "1", "e": "C"}
+
+#: Units of :meth:`Equilibrium.to_dict` (the form of a sweep's ``units``): the energy, the
+#: problem's lengths and the fields, also those of ``edge_start`` and ``edge_end``.
+JSON_UNITS = {"energy": "C R^2", "h": "R", "cut": "R", "opening": "R", **FIELD_UNITS}
 
 #: What each of :data:`FIELDS` is (the ``long_name`` of :meth:`Equilibrium.to_xarray`).
 FIELD_NAMES = {
@@ -205,7 +209,7 @@ class Equilibrium:
     E_s, E_phi, K_s, K_phi : ndarray, shape (N,)
         Strains (Materials and Methods, Eq. 6).
     N_s, N_phi, M_s, M_phi : ndarray, shape (N,)
-        Resultants ∂e/∂E_a and ∂e/∂K_a (units of C).
+        Resultants ∂e/∂E_a (units of C) and ∂e/∂K_a (units of C R).
     eta : ndarray, shape (N,)
         Large-bending parameter η(s).
     e : ndarray, shape (N,)
@@ -429,9 +433,10 @@ class Equilibrium:
         return xr.Dataset(data, coords=coords, attrs=attrs)
 
     def to_dict(self, arrays: bool = True) -> dict:
-        """JSON-ready: problem, energy, solver and (optionally) the nodal arrays."""
+        """JSON-ready: problem, energy, solver, units (:data:`JSON_UNITS`) and (optionally)
+        the nodal arrays."""
         out = {"problem": self.problem.describe(), "converged": self.converged,
-               "energy": self.energy, "solver": self.solver.to_dict(),
+               "energy": self.energy, "units": dict(JSON_UNITS), "solver": self.solver.to_dict(),
                "error_estimate": None if self.error is None else self.error.to_dict(),
                "edge_start": self.edge("start"), "edge_end": self.edge("end")}
         if arrays:

@@ -26,6 +26,7 @@ from ..numerics.status import (BRANCH_ENDED, CONTINUATION_FAILED, NOT_A_MINIMUM,
                                explain)
 from .continuation import continue_to
 from .direct import BUILDS, MAX_NODES, DirectSolver, check_nodes
+from .options import check_guess, check_problem
 from .refinement import refine
 from .results import Equilibrium, NotAMinimumError, SolverError, SolverStats, unconverged
 
@@ -177,6 +178,10 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
         ``"Tolerance_Not_Met"``), with the last iterate attached;
         :class:`NotAMinimumError` for a saddle (for the reference routes: by the
         inertia of the direct discretisation there, ``solver.details["minimum"]``).
+    ValueError, TypeError
+        Bad input, named with its value before any work: an option out of its
+        range (:mod:`morphoshell.solvers.options`) or refused by Ipopt, a
+        ``problem`` that is not a Problem, a ``warm_start`` that is not an Equilibrium.
 
     Examples
     --------
@@ -185,6 +190,8 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
     >>> round(float(eq.psi[0]), 6)
     0.821866
     """
+    check_problem(problem)
+    check_guess(warm_start)
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; choose one of {list(METHODS)}")
     _check_options(method, options)

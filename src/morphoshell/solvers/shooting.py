@@ -100,6 +100,7 @@ from .bvp import (initial_state, neutral_path, pole_caps, pole_costates, pole_so
 from ..numerics.status import (SHOOTING_ILL_CONDITIONED, SHOOTING_INTEGRATION_FAILED,
                                SHOOTING_NOT_CONVERGED, SHOOTING_SUCCEEDED, TIME_LIMIT_EXCEEDED,
                                explain)
+from .options import check_shooting_options
 from .results import Equilibrium, SolverError, SolverStats, unconverged
 
 __all__ = ["solve_shooting", "ILL_CONDITIONED", "NOT_CONVERGED", "INTEGRATION_FAILED",
@@ -235,12 +236,18 @@ def solve_shooting(problem: Problem, *, segments: int | None = None, integrator:
         integration failure; within a homotopy it belongs to that step's
         parameters (see its ``problem``).
     ValueError
-        ``segments`` too small or not an integer; ``max_growth`` ≤ 1.
+        ``segments`` too small or not an integer; ``max_growth`` ≤ 1; a tolerance
+        or ``pole_offset`` out of its range (``tol`` in [1e-11, 1e-3], ``atol`` in
+        [1e-16, 1e-6], ``rtol`` in [1e-14, 1e-6], ``pole_offset`` in [1e-6, 0.1]:
+        :mod:`morphoshell.solvers.options`), before any work.
     """
+    check_shooting_options(problem, segments=segments, integrator=integrator, rtol=rtol, atol=atol,
+                           tol=tol, pole_offset=pole_offset, guess=guess,
+                           homotopy_steps=homotopy_steps, max_evaluations=max_evaluations,
+                           max_growth=max_growth, max_segments=max_segments,
+                           max_condition=max_condition, points=points, max_seconds=max_seconds)
     t0 = time.perf_counter()
     end_pole = problem.structure.end == "pole"
-    if not max_growth > 1:
-        raise ValueError(f"max_growth = {max_growth!r} must exceed 1")
     a, b = _interval(problem, pole_offset)
     delta = boundary_layer_width(problem.h)
     need = max(math.ceil((b - a) / (delta * math.log(max_growth))), 1 + end_pole)

@@ -92,6 +92,7 @@ from ..numerics.status import STEP_NOT_SPLITTABLE
 from ..numerics.mesh import mesh_spec
 from ..solvers.continuation import HARD_STEP, continue_to
 from ..solvers.direct import DirectSolver, check_nodes, solver_of
+from ..solvers.options import check_direct_options
 from ..solvers.observables import RECOIL, recoil
 from ..solvers.refinement import half_mesh, level_errors, solve_from
 from ..solvers.results import ESTIMATED, Equilibrium, SolverError
@@ -638,10 +639,8 @@ def _check_arguments(problem: Problem, nodes: int, errors: str, options: Mapping
     if errors not in ERRORS:
         raise ValueError(f"errors = {errors!r} must be one of {list(ERRORS)}")
     nodes = check_nodes(nodes)
-    stages = options.get("stages", 2)
-    if isinstance(stages, bool) or stages not in (1, 2, 3):
-        raise ValueError(f"stages = {stages!r} must be 1, 2 or 3")
-    return nodes, stages
+    check_direct_options(**options)       # (a linear solver Ipopt cannot load: before the workers)
+    return nodes, options.get("stages", 2)
 
 
 def _default_workers(solves: int, chunks: int) -> int:

@@ -1,0 +1,96 @@
+"""Bad arguments of the routes fail before any work, naming the argument and its value
+(a user audit found raw CasADi RuntimeErrors with Ipopt's option table on stdout,
+AttributeErrors, tolerances silently ignored and 30-s runs blamed on a boundary layer)."""
+import math
+
+import pytest
+
+from morphoshell import Problem, solve
+from morphoshell.numerics.ipopt_options import check_ipopt_options
+from morphoshell.solvers import routes
+from morphoshell.solvers.options import MAX_DIRECT_TOL, POLE_OFFSET, REFERENCE_TOL
+
+TOY2 = Problem("uniform", {"k": 0.0}, h=0.1, cut=0.3)
+POLE = Problem("uniform", {"k": 0.0}, h=0.1)
+
+NAN = float("nan")
+
+
+def _refused(capfd, error, match, *args, **kwargs):
+    """``solve(*args, **kwargs)`` raises ``error`` matching ``match`` without building a
+    solver and without printing anything (Ipopt printed its option table on stdout)."""
+    builds = routes.cache_info()["builds"]
+    capfd.readouterr()
+    with pytest.raises(error, match=match):
+        solve(*args, **kwargs)
+    assert routes.cache_info()["builds"] == builds
+    assert capfd.readouterr().out == ""
+
+
+@pytest.mark.parametrize("kwargs, error, match", [
+    ({"linear_solver": "ma27x"}, ValueError, r"linear_solver = 'ma27x': choose one of \['mumps'"),
+    # the wheel has no libhsl.so: Ipopt would fail with Invalid_Option at its first solve
+    ({"linear_solver": "ma27"}, ValueError, r"linear_solver = 'ma27': Ipopt cannot load it.*"
+                                            r"libhsl\.so"),
+    ({"ipopt_options": {"tol": -1}}, ValueError,
+     r"ipopt_options: tol = -1 is refused by Ipopt: .*valid: 0 < \(1e-08\) <= \+inf"),
+    ({"ipopt_options": {"tolx": 1}}, ValueError, r"tolx = 1 is refused by Ipopt: No such IPOPT "
+                                                 r"option: tolx"),
+    ({"ipopt_options": {"max_iter": "a"}}, ValueError, r"max_iter = 'a' .*must be an integer"),
+    ({"ipopt_options": {"mu_strategy": "x"}}, ValueError, r"valid: monotone, adaptive"),
+    ({"ipopt_options": [("tol", 1e-8)]}, TypeError, r"ipopt_options = \[.*must be a mapping"),
+    ({"warm_start": 42}, TypeError, r"warm_start = 42 must be an Equilibrium"),
+])
+def test_bad_direct_arguments_are_named_before_any_work(capfd, kwargs, error, match):
+    _refused(capfd, error, match, TOY2, nodes=50, **kwargs)
+
+
+def test_a_problem_that_is_no_problem_is_named(capfd):
+    _refused(capfd, TypeError, r"problem = \{'family': 'uniform'\} must be a morphoshell Problem",
+             {"family": "uniform"})
+
+
+@pytest.mark.parametrize("tol", [NAN, -1.0, 0.0, 1e6, 2 * MAX_DIRECT_TOL, True])
+def test_a_direct_tolerance_out_of_range_is_named(capfd, tol):
+    # nan, -1 and 0 were ignored; 1e6 returned the undeformed shell as Newton_Converged
+    _refused(capfd, ValueError, f"tol = {tol!r} must", TOY2, nodes=50, tol=tol)
+
+
+def test_tolerances_at_their_bounds_are_accepted():
+    assert math.isfinite(solve(TOY2, nodes=50, tol=MAX_DIRECT_TOL).energy)
+    assert math.isfinite(solve(TOY2, method="bvp", tol=REFERENCE_TOL[1]).energy)
+
+
+@pytest.mark.parametrize("method, kwargs, match", [
+    # tol = -1 ran 30 s and then blamed a boundary layer; nan and pole_offset = -1 failed
+    # with messages about bc_tol and a singular Jacobian
+    ("bvp", {"tol": -1.0}, r"tol = -1.0 must lie in \[1e-11, 0.001\]"),
+    ("bvp", {"tol": NAN}, r"tol = nan must be finite"),
+    ("bvp", {"bc_tol": 1.0}, r"bc_tol = 1.0 must lie in"),
+    ("bvp", {"pole_offset": -1.0}, r"pole_offset = -1.0 must lie in \[1e-06, 0.1\]"),
+    ("bvp", {"homotopy_steps": 0}, r"homotopy_steps = 0 must be an integer >= 1"),
+    ("bvp", {"max_seconds": 0}, r"max_seconds = 0 must be positive"),
+    ("shooting", {"tol": 1e-14}, r"tol = 1e-14 must lie in"),
+    ("shooting", {"atol": 0}, r"atol = 0 must lie in \[1e-16, 1e-06\]"),
+    ("shooting", {"pole_offset": 2 * POLE_OFFSET[1]}, r"pole_offset = 0.2 must lie in"),
+    ("shooting", {"integrator": "RK45"}, r"integrator = 'RK45' must be one of"),
+    ("shooting", {"segments": NAN}, r"segments = nan must be finite"),
+    ("shooting", {"points": 1}, r"points = 1 must be an integer >= 2"),
+    ("shooting", {"warm_start": "x"}, r"warm_start = 'x' must be an Equilibrium"),
+])
+def test_bad_reference_options_are_named_before_any_work(capfd, method, kwargs, match):
+    _refused(capfd, (ValueError, TypeError), match, POLE, method=method, **kwargs)
+
+
+def test_a_pole_offset_must_leave_the_shell_near_the_pole():
+    short = Problem("uniform", {"k": 0.0}, h=1e-3, opening=math.pi - 0.05)    # 0.05 long
+    with pytest.raises(ValueError, match="pole_offset = 0.01 must be at most a tenth of the "
+                                         "shell's length 0.05"):
+        solve(short, method="bvp", pole_offset=0.01)
+
+
+def test_ipopt_options_it_accepts_pass_and_bundled_solvers_load():
+    check_ipopt_options("mumps", {"mu_strategy": "adaptive", "max_iter": 100})
+    check_ipopt_options("spral")
+    with pytest.raises(TypeError, match="the key 1 must be the name of an Ipopt option"):
+        check_ipopt_options("mumps", {1: 2})
