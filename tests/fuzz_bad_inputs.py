@@ -14,6 +14,8 @@ from pathlib import Path
 
 from hypothesis import strategies as st
 
+from morphoshell.workflows.campaigns import CAMPAIGN_NODES
+
 ROOT = Path(__file__).resolve().parents[1]
 TABLE = str(ROOT / "data" / "synthetic_ablations.csv")
 DATA_DIR = ROOT / "data" / "synthetic_inversion"
@@ -266,7 +268,8 @@ def _campaign(draw, tmp: Path) -> tuple[list[str], str]:
             st.sampled_from(["flat,flat", ",", "flat;free"])))], "--variants"),
         "method": lambda: (["--method", draw(_typo(["nelder-mead", "gradient", "kkt"]))],
                            "--method"),
-        "nodes": lambda: (["--nodes", draw(_integer(20, 2000))], "--nodes"),
+        # (the campaign's range, not a copy of it: it grew to the fit's, and 2002 ran)
+        "nodes": lambda: (["--nodes", draw(_integer(*CAMPAIGN_NODES))], "--nodes"),
         "workers": lambda: (["--workers", draw(_integer(1, 4096))], "--workers"),
         "held-from": lambda: (["--held-from", draw(_typo(["flat", "undeformed", "free"]))],
                               "--held-from"),
@@ -309,8 +312,8 @@ def _ablate(draw, tmp: Path) -> tuple[list[str], str]:
         "nodes": lambda: (["--nodes", draw(_integer(5, 102400))], "--nodes"),
         "stages": lambda: (["--stages", draw(st.sampled_from(["0", "4", "2.0", "x"]))],
                            "--stages"),
-        "rtol": lambda: (["--rtol", draw(_number(["0", "1", "-1e-6", "2"], hi=1.0 - 1e-16))],
-                         "--rtol"),
+        "rtol": lambda: (["--rtol", draw(_number(["0", "1", "-1e-6", "2", "1e-14"],
+                                                 hi=1.0 - 1e-16))], "--rtol"),
         "direct only": lambda: (["--method", draw(st.sampled_from(["bvp", "shooting"])),
                                  *draw(st.sampled_from([["--rtol", "1e-6"],
                                                         ["--no-continuation"]]))],
