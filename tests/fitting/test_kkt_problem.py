@@ -81,7 +81,7 @@ def test_a_kkt_start_on_a_bound_stays_an_equilibrium(monkeypatch):
     base = three_parameter_spec()
     # the start value of s2 is its box's lower edge (and the truth lies inside)
     spec = replace(base, bounds={**base.bounds, "s2": (START.params["s2"], 1.9)})
-    data = synthetic_midline(TRUE, spec.base, nodes=NODES)
+    data = synthetic_midline(TRUE, nodes=NODES)
     violations = []
     solve = KKTProblem.solve
 

@@ -128,3 +128,48 @@ def test_nelder_mead_counts_its_evaluations_on_a_progress_bar(monkeypatch):
     [bar] = bars
     assert (bar.total, bar.desc, bar.unit) == (300, "Nelder-Mead", "evaluation")
     assert bar.n == evaluations + 1 and evaluations > 50
+
+
+def test_a_gradient_fit_whose_mesh_moves_starts_again_from_its_end_on_the_new_one():
+    """A solve that moves the inner problem to a new mesh changes E_fit under
+    least_squares: here every point costs 100 more on the new mesh, so that each trial
+    after the move lies above the best cost of the old one and is rejected, and the fit
+    used to stop by xtol where the mesh moved, "converged" (the synthetic t02 embryo's
+    free fit at 60 nodes: E_fit 0.0124 R for 0.0122 R).  The fit starts again from that
+    end, on the new mesh, and goes on to that mesh's minimum."""
+    import types
+
+    import morphoshell.fitting.nested as fitting
+
+    target = np.array([1.0, 2.0])
+
+    class Inner:
+        n = 2
+
+        def __init__(self):
+            self.solver = types.SimpleNamespace(mesh="old")
+
+        def solve(self, theta, trial=False):
+            theta = np.asarray(theta, dtype=float)
+            if theta[0] > 0.5 and self.solver.mesh == "old":   # (too far for the old mesh)
+                self.solver = types.SimpleNamespace(mesh="new")
+            return theta, self.solver.mesh
+
+        def residuals(self, eq):
+            theta, mesh = eq
+            return np.concatenate([theta - target, [0.0, 10.0 if mesh == "new" else 0.0]])
+
+        def jacobian(self, eq, theta):
+            return np.vstack([np.eye(2), np.zeros((2, 2))])
+
+        def keep(self, theta, eq):
+            pass
+
+    spec = types.SimpleNamespace(theta0=np.array([0.0, 0.0]),
+                                 box=lambda: (np.full(2, -np.inf), np.full(2, np.inf)))
+    inner = Inner()
+    theta, evaluations, converged, message, stop = fitting.gradient_fit(spec, inner, 1e-10, 200)
+    assert inner.solver.mesh == "new"
+    assert converged and stop == "Fit_Converged", message
+    assert theta == pytest.approx(target, abs=1e-8)
+

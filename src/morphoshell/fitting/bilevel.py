@@ -17,8 +17,9 @@ constraint.  Three methods, one interface, :func:`fit`:
                  KKT conditions as constraints (:mod:`morphoshell.fitting.kkt`).
 
 :func:`fit` checks its options and the data, runs the method, moves the
-breakpoints' boxes while the fit ends on one of their edges, and returns a
-:class:`morphoshell.fitting.results.FitResult`.
+breakpoints' boxes while the fit ends on one of their edges, goes on from the
+end's own mesh while it ends on another (:meth:`InnerProblem.own_mesh`), and
+returns a :class:`morphoshell.fitting.results.FitResult`.
 """
 from __future__ import annotations
 
@@ -29,7 +30,7 @@ import numpy as np
 
 from .._runtime.validate import real
 from ..numerics.status import FIT_MOVED_BOXES_FAILED, FIT_ON_BOX_EDGES
-from ..solvers.results import Equilibrium
+from ..solvers.results import Equilibrium, SolverError
 from .inner import InnerProblem
 from .kkt import kkt_fit
 from .kkt_problem import KKT_ITERATIONS
@@ -46,9 +47,9 @@ METHODS = ("nelder-mead", "gradient", "kkt")
 #: Mesh nodes a fit accepts (the command line's --nodes too): fewer cells cannot hold the
 #: Volvox model's breakpoints and steps.
 FIT_NODES = (20, 3200)
-#: :func:`fit` moves the breakpoints' boxes at most this many times.  Each move lets a
-#: breakpoint go PUSH_SHARE of the way to its neighbour or halfway (a bound on the work:
-#: each move is a fit of its own).
+#: :func:`fit` moves the breakpoints' boxes, or goes on from the end's own mesh, at most
+#: this many times in all.  Each move lets a breakpoint go PUSH_SHARE of the way to its
+#: neighbour or halfway (a bound on the work: each move is a fit of its own).
 MAX_RECENTRES = 12
 #: What ``max_iterations`` counts for each method, and its default: Nelder–Mead's function
 #: evaluations in all; the gradient fit's residual evaluations (least_squares' max_nfev);
@@ -71,7 +72,11 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
     the data are checked first (:func:`morphoshell.fitting.midline_checks.check_midline`);
     a fit that ends with a breakpoint on an edge of its box (not a constraint
     of the fit: :meth:`morphoshell.fitting.spec.FitSpec.on_box_edges`) goes on
-    from boxes moved around its end, at most :data:`MAX_RECENTRES` times.
+    from boxes moved around its end, and one that converged on a mesh built for
+    other breakpoints goes on from its end's own (the one a refit from the
+    result builds: :meth:`morphoshell.fitting.inner.InnerProblem.own_mesh`;
+    not Nelder–Mead, whose every run is a new simplex), at most
+    :data:`MAX_RECENTRES` times in all (:func:`fit_moving_boxes`).
 
     Parameters
     ----------
@@ -131,8 +136,10 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
     check_midline(spec, data)
     t0 = time.perf_counter()
     inner = InnerProblem(spec, data, nodes, start)
-    spec, theta, iterations, ok, msg, stop = fit_moving_boxes(method_run(method), spec, inner,
-                                                              tol, max_iterations)
+    # (Nelder-Mead does not go on from its end's own mesh: each run from there is a new
+    # simplex, thousands of evaluations; the golden set's fit, 5 s, ran for over 20 minutes)
+    spec, theta, iterations, ok, msg, stop = fit_moving_boxes(
+        method_run(method), spec, inner, tol, max_iterations, own_mesh=method != "nelder-mead")
     return fit_result(method, spec, inner, theta, iterations, time.perf_counter() - t0, ok, msg,
                       stop)
 
@@ -145,51 +152,104 @@ def method_run(method: str) -> Callable:
 
 
 def fit_moving_boxes(run: Callable, spec: FitSpec, inner: InnerProblem, tol: float,
-                     max_iterations: int | None
+                     max_iterations: int | None, own_mesh: bool = True
                      ) -> tuple[FitSpec, np.ndarray, int, bool, str, str]:
-    """``run`` (a method), again from moved boxes while it ends on a breakpoint's box edge.
+    """``run`` (a method), again from moved boxes while it ends on a breakpoint's box edge,
+    and on θ's own mesh while it ends on another one.
 
     The breakpoints' boxes order them for methods that take bounds, not
     constraints; their edges are not the fit's: a fit that ends on one goes
     on from boxes moved around its end (:meth:`FitSpec.recentred`), from
-    the state it reached.  Returns the last spec, θ, the outer iterations in
-    all, whether it converged, its message and how it ended (``stop``); a
-    failure (FitError) after a move leaves the fit within the last boxes
-    standing, unconverged (``"Fit_Moved_Boxes_Failed"``), and a breakpoint
-    still on an edge after :data:`MAX_RECENTRES` moves ends it unconverged
+    the state it reached.  The inner solves' mesh has its knots at the
+    breakpoints but their places in the mesh of the problem it was built for
+    (:meth:`InnerProblem.own_mesh`); a fit started at θ, a refit from the
+    result, builds θ's own, and on a coarse mesh the two E_fit differ by more
+    than the fit's tolerance (a minimum of the one is not of the other): a fit
+    that converged on another mesh goes on from θ's own.  Where the fits on two or
+    more meshes each end where another is θ's own (a knot's place jumps where
+    they end), the lowest of those ends stands.  Not with ``own_mesh=False``.
+
+    Returns the last spec, θ, the outer iterations in all, whether it
+    converged, its message and how it ended (``stop``); a failure (FitError)
+    after a move leaves the fit within the last boxes standing, unconverged
+    (``"Fit_Moved_Boxes_Failed"``), and a breakpoint still on an edge, or a
+    mesh not θ's own, after :data:`MAX_RECENTRES` moves ends it unconverged
     (``"Fit_On_Box_Edges"``).
     """
-    iterations, moved, last = 0, [], spec      # (last: the spec before the last move)
+    iterations, moved, remeshed, last = 0, [], 0, spec   # (last: the spec before the last move)
+    why = ""            # why the fit went on the last time
+    ends: list = []     # the ends inside their boxes on another mesh: (mesh, E_fit², state, end)
     while True:
         try:
             theta, its, ok, msg, stop = run(spec, inner, tol, max_iterations)
         except FitError as exc:
-            if not moved:
+            if not (moved or remeshed):
                 raise
             # the fit within the last boxes stands, reported as unconverged (an
             # NLP from moved boxes can run out of iterations where the last did not)
             iterations += int(getattr(exc, "iterations", 0) or 0)
             spec = inner.spec = last
             ok, stop, msg = False, FIT_MOVED_BOXES_FAILED, (
-                f"{msg}; but {moved[-1]} rested on the edge of their boxes, and the fit from "
-                f"moved boxes failed: {exc}")
+                f"{msg}; but {why}, and the fit from moved boxes failed: {exc}")
             break
         iterations += its
-        edges = spec.on_box_edges(theta)
+        # (a run that did not converge stops there, whatever its mesh)
+        edges, own = spec.on_box_edges(theta), not (ok and own_mesh) or inner.on_own_mesh(theta)
+        if not edges and own:
+            break
         if not edges:
-            break
-        if len(moved) == MAX_RECENTRES:
+            lowest = _lowest_of_cycle(ends, inner, (spec, theta, ok, msg, stop))
+            if lowest is not None:
+                spec, theta, ok, msg, stop = lowest
+                break
+        why = (f"{', '.join(edges)} rested on the edge of their boxes" if edges else
+               "it ended on another problem's mesh")
+        if len(moved) + remeshed == MAX_RECENTRES:
             ok, stop, msg = False, FIT_ON_BOX_EDGES, (
-                f"{msg}; but {', '.join(edges)} still rest on the edge of their boxes after "
-                f"{MAX_RECENTRES} moves (FitSpec.on_box_edges): the optimum may lie beyond")
+                f"{msg}; but {why} still after {MAX_RECENTRES} moves of its boxes or mesh "
+                f"(FitSpec.on_box_edges, InnerProblem.own_mesh): the optimum may lie beyond")
             break
-        moved.append(", ".join(edges))
-        inner.eq, last = inner.solve(theta), spec
+        if edges:
+            moved.append(", ".join(edges))
+        else:
+            remeshed += 1
+        try:
+            inner.eq, last = inner.solve(theta) if own else inner.remesh(theta), spec
+        except SolverError as exc:       # (the end stands, on the mesh it reached)
+            msg = f"{msg}; its end's own mesh failed to solve it ({exc})"
+            break
         spec = inner.spec = spec.recentred(theta)
         inner.warm = True            # (the KKT fit goes on from this state)
-    if moved:
-        msg = f"{msg} (after moving the breakpoints' boxes {len(moved)} times: {'; '.join(moved)})"
+    went = ([f"moving the breakpoints' boxes {len(moved)} times: {'; '.join(moved)}"] * bool(moved)
+            + [f"going on from its end's own mesh {remeshed} times"] * bool(remeshed))
+    if went:
+        msg = f"{msg} (after {', and '.join(went)})"
     return spec, theta, iterations, ok, msg, stop
+
+
+def _lowest_of_cycle(ends: list, inner: InnerProblem, end: tuple) -> tuple | None:
+    """The lowest end of a cycle of meshes, or None (and ``end`` recorded in ``ends``).
+
+    ``end`` = (spec, θ, converged, message, stop) of a run that ended inside
+    its boxes on a mesh that is not θ's own.  When a run has already ended on
+    θ's own mesh, the runs since went round meshes whose fits each end where
+    another is θ's own: the lowest of their ends, made current again (its
+    mesh, spec and state), ends the fit.
+    """
+    spec, theta = end[:2]
+    eq = inner.solve(theta)
+    res = inner.residuals(eq)
+    ends.append((inner.solver.mesh, float(res @ res), eq, end))
+    own = inner.own_mesh(theta)
+    first = next((i for i, item in enumerate(ends) if item[0] == own), None)
+    if first is None:
+        return None
+    _, _, eq, (spec, theta, ok, msg, stop) = min(ends[first:], key=lambda item: item[1])
+    inner.spec = spec
+    inner.keep(theta, eq)
+    return spec, theta, ok, (f"{msg}; the fits on {len(ends) - first} meshes each end where "
+                             f"another is its end's own (a knot's place jumps there): the "
+                             f"lowest end stands"), stop
 
 
 def check_options(nodes, tol, max_iterations) -> None:
