@@ -24,9 +24,11 @@ from ..model.problem import Problem
 from ..numerics.mesh import mesh_spec
 from ..numerics.status import (BRANCH_ENDED, CONTINUATION_FAILED, NOT_A_MINIMUM, SNAP_FAILED,
                                explain)
+from .arclength import Arclength
 from .continuation import continue_to
 from .direct import BUILDS, MAX_NODES, DirectSolver, check_nodes
 from .options import check_guess, check_problem
+from .paths import ParameterLine
 from .refinement import refine
 from .results import Equilibrium, NotAMinimumError, SolverError, SolverStats, unconverged
 
@@ -235,9 +237,6 @@ def _minimum(eq: Equilibrium, nodes: int) -> Equilibrium:
     are kept (they are the independent reference); only their stability comes from
     the direct discretisation (``solver.details["minimum"]``).
     """
-    from .arclength import Arclength
-    from .paths import ParameterLine
-
     problem, route = eq.problem, eq.solver.method
     solver = direct_solver(problem, nodes, ())
     arc = Arclength(solver, ParameterLine.between(problem, problem))
