@@ -38,3 +38,27 @@ def test_the_first_step_keeps_to_the_branch_out_of_the_stress_free_shell(monkeyp
     monkeypatch.setattr(continuation, "_tangent", lambda *args: None)
     jumped = solve(cap, nodes=40)
     assert abs(jumped.psi[0] - 3.8065) < 1e-4 and jumped.energy > 1.009 * eq.energy
+
+
+def test_a_later_step_keeps_to_the_branch_where_a_stretch_hides_its_turn(monkeypatch):
+    """A cap 1e-3 R wide at the pole of a thin shell (h = 1e-4) stays flat until it buckles
+    near f0 = 0.013, to the side the sphere's curvature favours; a step from 0.011 to 0.026
+    landed on the mirror side (ψ at the edge 3.85 instead of 2.43, 0.15 % higher) at 4× the
+    rate of max |Δx| before, which the stretch f, moving with f0, dominated (make fuzz's
+    mesh property found it). Judged by the turn of ψ against its own rate the step is
+    retried smaller and the solve ends where pseudo-arclength steps end (no natural steps);
+    without that test it ends on the mirror side."""
+    import numpy as np
+    from morphoshell import solve
+    from morphoshell.solvers import continuation
+    from morphoshell.solvers.branches import follow_branch
+
+    cap = Problem("anisotropic", {"f0": 0.2421875}, h=1e-4, cut=np.pi - 1e-3)
+    branch = follow_branch(cap, nodes=40)
+    assert all(pt.stable for pt in branch.points)
+    eq = solve(cap, nodes=40)
+    assert np.max(np.abs(eq.x - branch.end.equilibrium.x)) < 1e-9
+    assert abs(eq.psi[0] - 2.4276) < 1e-4
+    monkeypatch.setattr(continuation, "JUMP_TURN", np.inf)
+    jumped = solve(cap, nodes=40)
+    assert abs(jumped.psi[0] - 3.8548) < 1e-4 and jumped.energy > 1.001 * eq.energy

@@ -46,8 +46,16 @@ HARD_STEP = 15
 #: ... and one that needs at most this many lets the next step grow.
 EASY_STEP = 5
 #: A step whose solution moves more than this many times the previous rate
-#: (change per unit of the path parameter) is taken for a branch jump.
+#: (change per unit of the path parameter) is taken for a branch jump.  The
+#: rate is kept for x and for the tangent ψ apart: x mixes angles with
+#: stretches, and a stretch moving with the parameter can hide a jump of the
+#: shape (fuzzing: a cap 1e-3 R wide, h = 1e-4, flat until it buckles at
+#: f0 ≈ 0.013, whose step from 0.011 to 0.026 turned ψ by 0.2 rad to the
+#: mirror side, 0.15 % higher in energy, at 4× the rate of x before).
 JUMP_FACTOR = 8.0
+#: ... but a turn of ψ below this (radians) is not taken for a jump whatever
+#: its rate (ψ at rest to round-off has no rate to compare with).
+JUMP_TURN = 0.05
 #: Smallest step of the path parameter τ ∈ [0, 1] before giving up.
 MIN_STEP = 1e-4
 #: A step that turns the tangent ψ at some point by more than this (radians)
@@ -200,7 +208,7 @@ class _Progress:
 
     step: float
     tau: float = 0.0
-    rate: float | None = None      # largest change of x per unit of τ so far
+    rate: np.ndarray | None = None  # largest (max |Δx|, max |Δψ|) per unit of τ so far
     steps: int = 0
     rejected: int = 0
     iterations: int = 0
@@ -217,11 +225,11 @@ class _Progress:
         self.rejected += 1
         self.step /= 4
 
-    def accept(self, trial: float, change: float, iterations: int) -> None:
+    def accept(self, trial: float, change: np.ndarray, iterations: int) -> None:
         """A step to τ = ``trial``; an easy one doubles the next."""
         self.steps += 1
         self.iterations += iterations
-        self.rate = change if self.rate is None else max(self.rate, change)
+        self.rate = change if self.rate is None else np.maximum(self.rate, change)
         self.tau = trial
         if iterations <= EASY_STEP:
             self.step *= 2
@@ -261,20 +269,28 @@ def _off_tangent(dx: np.ndarray, tangent: np.ndarray) -> bool:
     return bool(np.max(np.abs(dx - dtau * tangent)) > np.max(np.abs(dtau * tangent)))
 
 
+def _change(new: Equilibrium, eq: Equilibrium, dtau: float) -> np.ndarray:
+    """(max |Δx|, max |Δψ|) from ``eq`` to ``new`` per unit of τ (the jump test's rates)."""
+    return np.array([np.max(np.abs(new.x - eq.x)), np.max(np.abs(new.psi - eq.psi))]) / dtau
+
+
 def _rejection(new: Equilibrium | None, eq: Equilibrium, change, rate,
                tangent: np.ndarray | None = None) -> str:
     """Why the step from ``eq`` to ``new`` is retried smaller ("" if it is taken).
 
-    ``change`` is the step's max |Δx| per unit of τ, ``rate`` the largest of
-    the steps before (None before the first); before the first, ``tangent`` is
+    ``change`` is the step's (max |Δx|, max |Δψ|) per unit of τ (:func:`_change`),
+    ``rate`` the largest of the steps before (None before the first); a turn of ψ
+    below :data:`JUMP_TURN` does not count.  Before the first, ``tangent`` is
     the branch's direction at ``eq`` (:func:`_tangent`), and a step that strays from
     it (:func:`_off_tangent`) jumped.
     """
     if new is None:
         return "failed"
+    turn = np.max(np.abs(new.psi - eq.psi))
     jumped = rate is None and tangent is not None and _off_tangent(new.x - eq.x, tangent) \
-        or rate is not None and change > JUMP_FACTOR * rate \
-        or np.max(np.abs(new.psi - eq.psi)) > MAX_TURN
+        or rate is not None and (change[0] > JUMP_FACTOR * rate[0]
+                                 or turn > JUMP_TURN and change[1] > JUMP_FACTOR * rate[1]) \
+        or turn > MAX_TURN
     if jumped:
         return "jumped"
     if new.solver.iterations > HARD_STEP:
@@ -315,7 +331,7 @@ def _follow(solver, eq, problem, anchors, first_step, max_steps, origin, snap=Fa
                 f"{run.stuck}", CONTINUATION_FAILED, eq)
         trial = min(1.0, run.tau + run.step)
         new = _solve_at(solver, line.at(trial), eq, anchors)
-        change = None if new is None else np.max(np.abs(new.x - eq.x)) / (trial - run.tau)
+        change = None if new is None else _change(new, eq, trial - run.tau)
         why = _rejection(new, eq, change, run.rate, tangent)
         if why:
             log.debug("continuation to %s: step to tau = %.4g retried smaller (%s)", name, trial,
