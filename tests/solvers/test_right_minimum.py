@@ -68,6 +68,18 @@ def test_a_meridian_crossing_the_axis_is_refused():
     assert exc.value.last_iterate.r.min() < 0 or exc.value.last_iterate.quadrature_points()[1].min() < 0
 
 
+def test_a_hole_that_closes_is_named():
+    """A thick shell (h = 0.3) with a small hole (cut 0.01) closes it under a stretch f0 = 0.3:
+    its edge reaches the axis at 0.91 of the way, past which the meridian crosses it. The
+    refusal says that the hole closes (the audit's message named only a fold or the mesh);
+    a wider cut (0.03) stays open and solves."""
+    with pytest.raises(SolverError) as exc:
+        solve(Problem("anisotropic", {"f0": 0.3}, h=0.3, cut=0.01), nodes=200)
+    assert "the cut edge (s = 0.01) reaches the axis: the hole closes" in str(exc.value)
+    eq = solve(Problem("anisotropic", {"f0": 0.3}, h=0.3, cut=0.03), nodes=200)
+    assert eq.r[0] > 0
+
+
 @pytest.mark.parametrize("kwargs", [{"cut": 3.138}, {"cut": 1.57, "opening": 1.568},
                                     {"cut": 1.0, "opening": 2.1316}])
 @pytest.mark.parametrize("nodes", [200, 800])

@@ -94,6 +94,16 @@ def _to_points(v: np.ndarray, points: PointData) -> np.ndarray:
     return b
 
 
+def _closing(eq: Equilibrium, crossing: tuple[float, float]) -> str:
+    """What a crossing at the cut edge means: the hole closes (the edge reaches the axis),
+    which the model, having no contact with the axis, cannot follow; "" elsewhere."""
+    if eq.s[0] <= 0 or crossing[1] > eq.s[0] + 1e-9 * (eq.s[-1] - eq.s[0]):
+        return ""
+    return (f"; here the cut edge (s = {eq.s[0]:.6g}) reaches the axis: the hole closes, "
+            f"which the model (no contact with the axis) cannot follow: a wider cut, a thinner "
+            f"shell or a smaller intrinsic stretch or curvature keeps it open")
+
+
 class DirectSolver:
     """Direct energy minimisation for one structure and mesh, built once.
 
@@ -252,8 +262,9 @@ class DirectSolver:
         if crossing is not None:
             raise SolverError(
                 f"Ipopt converged ({res.status}) to r = {crossing[0]:.3g} at s = "
-                f"{crossing[1]:.6g}: {explain(MERIDIAN_CROSSES_AXIS)}. The iterate is attached "
-                f"(.last_iterate)", MERIDIAN_CROSSES_AXIS, unconverged(eq))
+                f"{crossing[1]:.6g}: {explain(MERIDIAN_CROSSES_AXIS)}{_closing(eq, crossing)}. "
+                f"The iterate is attached (.last_iterate)", MERIDIAN_CROSSES_AXIS,
+                unconverged(eq))
         if not res.is_minimum:
             raise NotAMinimumError(
                 f"Ipopt converged ({res.status}) to a stationary point where Ipopt needs an "
