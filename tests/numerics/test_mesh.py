@@ -244,3 +244,26 @@ def test_a_pole_s_share_on_the_bracketing_grid_is_read_from_its_table_to_the_bit
     assert len(seen) == 2
     for W_table, W_direct, dW_table, dW_direct in seen:
         assert np.array_equal(W_table, W_direct) and np.array_equal(dW_table, dW_direct)
+
+
+def test_a_narrow_segment_is_halved_with_the_mesh_and_its_error_estimated(monkeypatch):
+    """``local_relaxation``'s ramp 0.02 R wide (a kink knot at Σ + s0) held one cell at 30
+    and at 60 nodes: the half mesh did not refine it and the estimate (2e-4 of the energy)
+    missed its error (6e-3; a user audit). It now holds a power of two of the cells that
+    halves with them, and the estimate bounds the error against 3200 nodes (whose own error
+    is ~1e-8 of it). Without the least count the 60-node estimate is blind again."""
+    from morphoshell.numerics import mesh
+    from morphoshell.solvers.routes import clear_cache
+
+    p = Problem("local_relaxation", {"F0": 0.5, "s0": 0.02}, h=0.1, cut=0.3)
+    reference = solve(p, nodes=3200).energy
+    clear_cache()                           # (solvers are cached with their meshes)
+    with monkeypatch.context() as m:
+        m.setattr(mesh, "SEGMENT_CELLS", 10**9)
+        blind = solve(p, nodes=60)
+        clear_cache()
+    assert abs(blind.energy - reference) > 10 * blind.error.errors["energy"]
+    for nodes, cells in ((60, 2), (120, 4)):
+        eq = solve(p, nodes=nodes)
+        assert np.sum(eq.s < 0.3 + 0.02 - 1e-12) == 2 * cells    # points (2 a cell) before it
+        assert abs(eq.energy - reference) <= eq.error.errors["energy"]
