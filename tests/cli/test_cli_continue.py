@@ -157,3 +157,31 @@ def test_switch_beyond_the_branch_points_is_a_note():
     with contextlib.redirect_stdout(out):
         assert main(["continue", str(FOLD), "--nodes", "40", "--switch", "2"]) == 0
     assert "note: --switch 2: the branch has 0 branch point(s)" in out.getvalue()
+
+
+def test_a_failed_switch_exits_3_and_keeps_the_branches_followed(tmp_path, capsys,
+                                                                  monkeypatch):
+    """A switch that fails after the main branch's work (a point not a simple branch point,
+    or its steps ending) exited 2, as bad input, and wrote nothing (a user audit): it is
+    named, the main branch and the halves that were followed are written, and the exit
+    status is a solver failure's, 3."""
+    from morphoshell.solvers import branches
+    from morphoshell.solvers.results import SolverError
+
+    real = branches.switch_branch
+
+    def half(branch, at, direction=1.0, **kwargs):
+        if direction < 0:
+            raise SolverError("the branch ended at 0.5 of the way (test)", "Branch_Ended")
+        return real(branch, at, direction, **kwargs)
+
+    monkeypatch.setattr(branches, "switch_branch", half)
+    out = tmp_path / "b.csv"
+    assert main(["continue", str(example_path("blister")), "--nodes", "40", "--switch", "1",
+                 "--csv", str(out)]) == 3
+    captured = capsys.readouterr()
+    assert "switch at branch point 1- failed: the branch ended" in captured.out
+    assert "1 switch(es) of branches failed: 1-" in captured.err
+    with out.open() as fh:
+        names = {r["branch"] for r in csv.DictReader(fh)}
+    assert names == {"main", "1+"}

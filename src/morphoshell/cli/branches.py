@@ -1,6 +1,7 @@
 """``morphoshell continue``: a branch of equilibria with its stability, folds and snap-throughs."""
 from __future__ import annotations
 
+import sys
 
 from ._args import add_outputs, integer, problem_and_settings, real
 from ._outputs import Outputs
@@ -99,7 +100,7 @@ def _continue(args) -> int:
                            follow=args.follow, max_step=args.max_step,
                            max_points=args.max_points)
     _report(problem, branch)
-    switched = _switched(args, branch)
+    switched, failed = _switched(args, branch)
     out = Outputs()
     out.add(args.json, lambda path: write_json(path, _document(branch, switched)))
     out.add(args.csv, lambda path: write_csv(path, _csv_columns(branch, switched)))
@@ -109,6 +110,10 @@ def _continue(args) -> int:
         out.add(args.plot, lambda path: save(fig, path))
     for path in out.commit():
         print(f"  wrote {path}")
+    if failed:
+        print(f"morphoshell: {len(failed)} switch(es) of branches failed: {', '.join(failed)} "
+              f"(the branches that were followed are written)", file=sys.stderr)
+        return 3
     return 0
 
 
@@ -126,6 +131,9 @@ def _report(problem, branch) -> None:
               f"z_end = {pt.z_end:.6g} R, energy = {pt.energy:.6g} C R^2")
     for event in (*branch.snaps, *branch.switches):
         print(f"  {event.describe()}")
+    if branch.remeshed:
+        print(f"  mesh rebuilt for the parameters at lambda = "
+              f"{', '.join(f'{t:.6g}' for t in branch.remeshed)} (its knots moved with them)")
     print(f"  {_end_line(branch.end)}")
 
 
@@ -138,24 +146,31 @@ def _end_line(end) -> str:
             f"{end.energy:.10g} C R^2")
 
 
-def _switched(args, branch) -> list[tuple[str, object]]:
+def _switched(args, branch) -> tuple[list[tuple[str, object]], list[str]]:
     """(name, branch) of both halves of the branches through the first ``--switch`` branch
-    points, reported as they are followed."""
+    points, reported as they are followed, and the names of those that failed (after the
+    main branch's work: named and counted, not taken for bad input)."""
     from ..solvers.branches import switch_branch
+    from ..solvers.results import SolverError
 
     count = sum(pt.event == "branch_point" for pt in branch.points)
     if args.switch > count:
         print(f"note: --switch {args.switch}: the branch has {count} branch point(s)")
-    out = []
+    out, failed = [], []
     for k in range(min(args.switch, count)):
         for direction, sign in ((1, "+"), (-1, "-")):
-            other = switch_branch(branch, k, direction, max_step=args.max_step,
-                                  max_points=args.max_points)
+            try:
+                other = switch_branch(branch, k, direction, max_step=args.max_step,
+                                      max_points=args.max_points)
+            except (SolverError, ValueError) as exc:     # (ValueError: not a simple point)
+                print(f"  switch at branch point {k + 1}{sign} failed: {exc}")
+                failed.append(f"{k + 1}{sign}")
+                continue
             print(f"  switched at branch point {k + 1}{sign} (lambda = {other.origin:.10g}): "
                   f"{len(other.points)} points, {len(other.events) - 1} more event(s), "
                   f"{_end_line(other.end)}")
             out.append((f"{k + 1}{sign}", other))
-    return out
+    return out, failed
 
 
 def _csv_columns(branch, switched) -> dict:

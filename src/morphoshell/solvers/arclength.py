@@ -217,14 +217,16 @@ class Arclength:
         p(τ) = p_a + τ (p_b − p_a).
     anchors : sequence of float
         Mesh anchors, as for :meth:`DirectSolver.solve` (held fixed).
+    at : float
+        The τ where the mesh is checked to hold (a mesh rebuilt along the line).
     """
 
-    def __init__(self, solver: DirectSolver, line: ParameterLine, anchors=()):
+    def __init__(self, solver: DirectSolver, line: ParameterLine, anchors=(), at: float = 0.0):
         self.solver, self.line = solver, line
         self.kkt = bordered_kkt(solver)
         d = solver.disc
         self._p0, self._dp = line.source.parameter_vector(), line.direction
-        self.q = d.check_anchors(self._p0, anchors)
+        self.q = d.check_anchors(self.parameters(at), anchors)
         mask = self.kkt.x_mask
         self._weight = np.where(mask, 1.0 / mask.sum(), 0.0)
         self.tol, self.acceptable_tol = solver.tol, solver.backend.acceptable_tol

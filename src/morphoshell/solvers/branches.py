@@ -39,6 +39,7 @@ from .continuation import continue_to
 from .options import check_direct_options, check_problem
 from .paths import ParameterLine, neutral_problem
 from .results import Equilibrium
+from .routes import direct_solver
 
 __all__ = ["Branch", "BranchPoint", "follow_branch", "switch_branch", "continuation_path",
            "EVENTS", "FOLLOW", "COLUMNS", "MAX_POINTS", "UNITS", "PARAMETER_UNITS"]
@@ -51,6 +52,14 @@ FOLLOW = ("branch", "stable")
 COLUMNS = ("energy", "r_end", "z_end", "psi_end", "stable", "negative_eigenvalues", "event")
 #: The path parameter may leave [0, 1] by this much before the branch counts as lost.
 TAU_MARGIN = 0.5
+#: A step that stretches or squeezes a cell of its mesh by more than this factor
+#: (relative to the mesh as a whole) is taken on a mesh rebuilt at the step's start.
+#: Breakpoints and the opening move the knots of the mesh with the parameters while
+#: the nodes between stay: continued far enough, a knot passes its neighbour and the
+#: discrete energy is that of a folded mesh, whose inertia is no stability (a user
+#: audit: s1 continued from 0.65 to 1 reported three branch points and an end with 12
+#: negative eigenvalues, a strict minimum on its own mesh).
+REMESH = 2.0
 #: Most points a branch may be given (``max_points``; the command line's --max-points).
 MAX_POINTS = 100_000
 #: Units of a branch's columns (its table's ``attrs`` and its JSON), the parameter's aside.
@@ -123,6 +132,9 @@ class Branch:
     switches : tuple of Switch
         ``follow="stable"``: where the branch lost its stability at a branch
         point and the walk went on along the stable half of the other branch.
+    remeshed : tuple of float
+        The λ where the walk went on on a mesh rebuilt for the parameters there
+        (:data:`REMESH`); the points after each are on the new mesh.
     """
 
     problem: Problem
@@ -135,6 +147,7 @@ class Branch:
     origin: float | None = None
     direction: float = 1.0
     switches: tuple = ()
+    remeshed: tuple = ()
 
     def __repr__(self) -> str:
         """One line: the problem, the path, how many points over which λ (and parameter) range,
@@ -154,6 +167,8 @@ class Branch:
         parts.append(f"{len(self.snaps)} snaps")
         if self.origin is not None:
             parts.append(f"switched at lambda = {self.origin:.6g}, direction {self.direction:+g}")
+        if self.remeshed:
+            parts.append(f"mesh rebuilt at lambda = {', '.join(f'{t:.6g}' for t in self.remeshed)}")
         return f"Branch({', '.join(parts)})"
 
     def units(self) -> dict[str, str]:
@@ -214,7 +229,8 @@ class Branch:
                 "seconds": self.seconds,
                 **({"origin": self.origin, "direction": self.direction}
                    if self.origin is not None else {}),
-                **({"switches": [s.to_dict() for s in self.switches]} if self.switches else {})}
+                **({"switches": [s.to_dict() for s in self.switches]} if self.switches else {}),
+                **({"remeshed": list(self.remeshed)} if self.remeshed else {})}
 
 
 def follow_branch(problem: Problem, param: str | None = None, to: float | None = None, *,
@@ -258,8 +274,6 @@ def follow_branch(problem: Problem, param: str | None = None, to: float | None =
         ``"Branch_Ended"`` when the steps fail or leave the path, with the
         last point attached; ``"Snap_Through_Failed"``.
     """
-    from .routes import direct_solver
-
     check_problem(problem)
     if follow not in FOLLOW:
         raise ValueError(f"follow = {follow!r} must be one of {list(FOLLOW)}")
@@ -271,7 +285,8 @@ def follow_branch(problem: Problem, param: str | None = None, to: float | None =
     walk = _Walk(Arclength(solver, line, anchors), follow, max_step, max_points)
     walk.run(start)
     return Branch(line.problem, line, param, follow, tuple(walk.points), tuple(walk.snaps),
-                  time.perf_counter() - t0, switches=tuple(walk.switches))
+                  time.perf_counter() - t0, switches=tuple(walk.switches),
+                  remeshed=tuple(walk.remeshed))
 
 
 def switch_branch(branch: Branch, at: int, direction: float = 1.0, *,
@@ -328,11 +343,13 @@ def switch_branch(branch: Branch, at: int, direction: float = 1.0, *,
     _check_walk(max_step, max_points)
     t0 = time.perf_counter()
     origin = points[at]
-    arc = Arclength(solver_of(origin.equilibrium), branch.line, origin.equilibrium.anchors)
+    arc = Arclength(solver_of(origin.equilibrium), branch.line, origin.equilibrium.anchors,
+                    at=origin.tau)
     walk = _Walk(arc, "branch", max_step, max_points, ends=(0.0, 1.0))
     walk.switched(origin, direction)
     return Branch(branch.problem, branch.line, branch.parameter, "branch", tuple(walk.points),
-                  (), time.perf_counter() - t0, origin.tau, float(direction))
+                  (), time.perf_counter() - t0, origin.tau, float(direction),
+                  remeshed=tuple(walk.remeshed))
 
 
 def _check_walk(max_step, max_points) -> None:
@@ -384,6 +401,8 @@ class _Walk:
         self.points: list[BranchPoint] = []
         self.snaps: list[Snap] = []
         self.switches: list[Switch] = []
+        self.remeshed: list[float] = []
+        self._cells: np.ndarray | None = None     # widths where the mesh was built (first point)
 
     def record(self, point: ArcPoint, event: str = "", eq: Equilibrium | None = None,
                negative: int | None = None) -> None:
@@ -430,7 +449,12 @@ class _Walk:
             if len(self.points) >= self.max_points:
                 raise self._ended(point, f"{self.max_points} points")
             new = self.arc.correct(point, ds)
-            if new is None or self.arc.turned(point, new):
+            if not (new is None or self.arc.turned(point, new) or self._holds(new)):
+                moved = self._remeshed(point)
+                if moved is not None:           # (the step again, on the new mesh)
+                    point = moved
+                    continue
+            if new is None or self.arc.turned(point, new) or not self._holds(new):
                 ds /= 2
                 if ds < MIN_STEP:
                     raise self._ended(point, "the step fell below its minimum")
@@ -441,6 +465,38 @@ class _Walk:
             if done:
                 return
             ds = min(GROWTH * ds, self.max_step) if new.iterations <= EASY else ds
+
+    def _widths(self, tau: float) -> np.ndarray:
+        """The cells' widths in s of the walk's mesh at ``tau``."""
+        return np.diff(self.arc.solver.disc.nodes(self.arc.parameters(tau), self.arc.q))
+
+    def _holds(self, new: ArcPoint) -> bool:
+        """Whether the mesh at ``new`` has no cell stretched or squeezed by :data:`REMESH`
+        from where it was built (scaled as a whole: a longer shell's cells all grow)."""
+        if self._cells is None:
+            self._cells = self._widths(self.points[0].tau)
+        ratio = self._widths(new.tau) / self._cells
+        ratio = ratio / np.median(ratio)
+        return bool(ratio.min() > 1 / REMESH and ratio.max() < REMESH)
+
+    def _remeshed(self, point: ArcPoint) -> ArcPoint | None:
+        """``point`` carried onto a mesh rebuilt for the parameters there (its stationary
+        point by Newton's iterations, a saddle staying a saddle), the walk's arc that
+        mesh's; None where it stays there already or the iterations fail."""
+        if self.remeshed and self.remeshed[-1] == point.tau:
+            return None
+        solver, line = self.arc.solver, self.arc.line
+        problem = line.at(point.tau)
+        fresh = direct_solver(problem, solver.nodes, tuple(self.arc.q), stages=solver.stages)
+        arc = Arclength(fresh, line, self.arc.q, at=point.tau)
+        x = fresh.carried(self.arc.equilibrium(point), problem.parameter_vector(), arc.q)
+        found = arc.stationary(x, point.tau)
+        if found is None:
+            return None
+        moved = arc.start(arc.equilibrium(found), point.tau, 1.0 if point.t_tau >= 0 else -1.0)
+        self.arc, self.remeshed = arc, [*self.remeshed, point.tau]
+        self._cells = self._widths(point.tau)
+        return moved
 
     def _advance(self, point: ArcPoint, new: ArcPoint, ds: float) -> tuple[ArcPoint, bool]:
         """Record the events between ``point`` and ``new`` and ``new`` itself (or the end at
