@@ -47,6 +47,25 @@ def test_folds_do_not_depend_on_the_step(volvox, branch60):
     assert finer.end.tau == 1 and abs(finer.end.r_end - branch60.end.r_end) < 1e-9
 
 
+@pytest.mark.parametrize("max_step", [0.05, 0.5, 1.0])
+def test_a_pair_of_folds_within_one_large_step_is_found(volvox, branch60, max_step,
+                                                        monkeypatch):
+    """The folds at λ = 0.5465 and 0.5460 bound a loop narrower than a large step: at
+    --max-step 0.05 one step crossed both, t_τ kept its sign and they were missed (a user
+    audit: four folds of six, no word). Steps that go back in τ against both tangents or
+    turn by more than 26° are retried at half: the six folds at every largest step, to 1e-8
+    of the default step's. Without the turn test, 0.05 finds four again."""
+    from morphoshell.solvers import branches
+
+    a = [pt.tau for pt in branch60.events]
+    coarse = follow_branch(volvox, nodes=60, max_step=max_step)
+    assert [pt.event for pt in coarse.events] == ["fold"] * 6
+    assert np.max(np.abs(np.subtract(a, [pt.tau for pt in coarse.events]))) < 1e-8
+    if max_step == 0.05:
+        monkeypatch.setattr(branches, "SMOOTH_COS", -1.0)
+        assert len(follow_branch(volvox, nodes=60, max_step=max_step).events) == 4
+
+
 def test_inertia_changes_by_one_exactly_at_each_fold(branch60):
     """At every fold the points next to it on the branch have k and k ± 1 negative
     eigenvalues (the fold itself: the fewer, and not stable); and 1e-6 of arclength either

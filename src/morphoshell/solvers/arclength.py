@@ -451,10 +451,13 @@ class Arclength:
                                      {"path": "pseudo-arclength continuation"})
         return self.solver.equilibrium(problem, x, lam, p, self.q, D, stats, converged=True)
 
+    def cos(self, prev: ArcPoint, new: ArcPoint) -> float:
+        """The cosine of the angle between the two points' tangents (the continuation's norm)."""
+        return float(self._weight @ (prev.t * new.t) + prev.t_tau * new.t_tau)
+
     def turned(self, prev: ArcPoint, new: ArcPoint) -> bool:
         """Whether the step from ``prev`` to ``new`` turned too sharply (a branch jump?)."""
-        cos = self._weight @ (prev.t * new.t) + prev.t_tau * new.t_tau
-        if cos < MIN_COS:
+        if self.cos(prev, new) < MIN_COS:
             return True
         layout = self.solver.disc.layout
         dpsi = layout.split(self.kkt.unpack(new.u)[0])[1] - \

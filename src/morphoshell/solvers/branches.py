@@ -60,6 +60,12 @@ TAU_MARGIN = 0.5
 #: audit: s1 continued from 0.65 to 1 reported three branch points and an end with 12
 #: negative eigenvalues, a strict minimum on its own mesh).
 REMESH = 2.0
+#: A step whose tangent turns by more than this angle (its cosine below) is retried at
+#: half, down to a SMOOTH_SHRINK-th of the largest step: a pair of folds within one step
+#: leaves t_τ's sign as it was, and was missed at --max-step 0.05 (a user audit: the fold
+#: shell's folds at λ = 0.54653 and 0.54596, where the steps turned by 30-43°).
+SMOOTH_COS = 0.9
+SMOOTH_SHRINK = 16
 #: Most points a branch may be given (``max_points``; the command line's --max-points).
 MAX_POINTS = 100_000
 #: Units of a branch's columns (its table's ``attrs`` and its JSON), the parameter's aside.
@@ -454,7 +460,7 @@ class _Walk:
                 if moved is not None:           # (the step again, on the new mesh)
                     point = moved
                     continue
-            if new is None or self.arc.turned(point, new) or not self._holds(new):
+            if self._retry(point, new, ds):
                 ds /= 2
                 if ds < MIN_STEP:
                     raise self._ended(point, "the step fell below its minimum")
@@ -465,6 +471,17 @@ class _Walk:
             if done:
                 return
             ds = min(GROWTH * ds, self.max_step) if new.iterations <= EASY else ds
+
+    def _retry(self, point: ArcPoint, new: ArcPoint | None, ds: float) -> bool:
+        """Whether the step from ``point`` to ``new`` is retried at half: it failed, turned
+        sharply (a jump?), leaves a mesh that does not hold, moved τ against both its ends'
+        tangents, or turned by more than :data:`SMOOTH_COS`'s angle while it may still
+        shrink to a :data:`SMOOTH_SHRINK`-th of the largest: two folds within one step
+        cancel in the sign of t_τ, and the step goes back in τ between them, or turns."""
+        if new is None or self.arc.turned(point, new) or not self._holds(new):
+            return True
+        back = (new.tau - point.tau) * point.t_tau < 0 and (new.tau - point.tau) * new.t_tau < 0
+        return back or self.arc.cos(point, new) < SMOOTH_COS and ds > self.max_step / SMOOTH_SHRINK
 
     def _widths(self, tau: float) -> np.ndarray:
         """The cells' widths in s of the walk's mesh at ``tau``."""
