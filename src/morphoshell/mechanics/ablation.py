@@ -38,6 +38,7 @@ from .._runtime.tables import html_table, problem_attrs, problem_rows, xarray_mo
 from ..model.problem import Problem
 from ..solvers.direct import solver_of
 from ..solvers.observables import RECOIL, recoil, state_at
+from ..solvers.options import check_guess, check_problem
 from ..solvers.parametric import parametric
 from ..solvers.results import FIELD_NAMES, FIELD_UNITS, FIELDS, Equilibrium
 from ..solvers.routes import solve
@@ -223,7 +224,14 @@ def ablate(problem: Problem, nodes: int = 200, method: str = "direct",
     Returns
     -------
     Ablation
+
+    Raises
+    ------
+    TypeError
+        A ``problem`` that is not a Problem or a ``pre`` that is not an Equilibrium.
     """
+    check_problem(problem)
+    check_guess(pre, "pre")
     if not problem.cut > 0:
         raise ValueError(f"cut (Sigma) = {problem.cut!r}: an ablation needs a cut > 0")
     intact = intact_problem(problem)
