@@ -2,6 +2,7 @@
 path from the stress-free parameters folds at lambda = 0.8723 and snaps through."""
 import csv
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -104,6 +105,9 @@ def test_the_path_ends_exactly_at_the_target_with_units(tmp_path):
     (["--nodes", "2"], "--nodes"),
     (["--follow", "sideways"], "--follow"),
     (["--max-step", "0"], "--max-step"),
+    # a user audit: --from was ignored with --param, exit 0
+    (["--from", "neutral", "--param", "h", "--to", "0.2"], "--from neutral and --param h are "
+                                                           "two paths"),
 ])
 def test_bad_input_exits_2_with_one_line_and_no_output(args, named, tmp_path, capsys):
     out = tmp_path / "x.csv"
@@ -111,6 +115,21 @@ def test_bad_input_exits_2_with_one_line_and_no_output(args, named, tmp_path, ca
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and named in err, err
     assert not out.exists()
+
+
+def test_very_verbose_lists_every_step(tmp_path, capsys):
+    """-vv shows each pseudo-arclength step: lambda, the parameters, the step size, Newton
+    iterations and the inertia (a user audit: the README promised them, none came).  Each
+    ordinary point of the CSV but the first (the start) is an accepted step's."""
+    out = tmp_path / "x.csv"
+    assert main(["continue", str(FOLD), "--nodes", "40", "--csv", str(out), "-vv"]) == 0
+    steps = [line for line in capsys.readouterr().err.splitlines()
+             if line.startswith("morphoshell [branches]: lambda = ")]
+    assert re.fullmatch(r"morphoshell \[branches\]: lambda = \S+: step \S+, "
+                        r"\d+ Newton iterations, \d+ negative and \d+ zero eigenvalues", steps[0])
+    with out.open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(steps) >= sum(row["event"] == "" for row in rows) - 1
 
 
 def test_a_branch_that_runs_out_of_points_exits_3_naming_the_status(tmp_path, capsys):

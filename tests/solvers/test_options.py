@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from morphoshell import Problem, solve
+from morphoshell import DirectSolver, Problem, solve
 from morphoshell.numerics.ipopt_options import check_ipopt_options
 from morphoshell.solvers import routes
 from morphoshell.solvers.options import MAX_DIRECT_TOL, POLE_OFFSET, REFERENCE_TOL
@@ -40,6 +40,10 @@ def _refused(capfd, error, match, *args, **kwargs):
     ({"ipopt_options": {"mu_strategy": "x"}}, ValueError, r"valid: monotone, adaptive"),
     ({"ipopt_options": [("tol", 1e-8)]}, TypeError, r"ipopt_options = \[.*must be a mapping"),
     ({"warm_start": 42}, TypeError, r"warm_start = 42 must be an Equilibrium"),
+    # a user audit: "'float' object is not iterable", and a string taken as True
+    ({"anchors": 1.0}, TypeError, r"anchors = 1.0 must be a sequence of material points s"),
+    ({"anchors": ["0.5"]}, TypeError, r"anchors = \['0.5'\] must be a sequence of material"),
+    ({"continuation": "no"}, TypeError, r"continuation = 'no' must be True or False"),
 ])
 def test_bad_direct_arguments_are_named_before_any_work(capfd, kwargs, error, match):
     _refused(capfd, error, match, TOY2, nodes=50, **kwargs)
@@ -94,3 +98,12 @@ def test_ipopt_options_it_accepts_pass_and_bundled_solvers_load():
     check_ipopt_options("spral")
     with pytest.raises(TypeError, match="the key 1 must be the name of an Ipopt option"):
         check_ipopt_options("mumps", {1: 2})
+
+
+def test_a_direct_solver_of_a_problem_instead_of_its_structure_is_named():
+    # a user audit: AttributeError: 'str' object has no attribute 'length'
+    builds = routes.cache_info()["builds"]
+    with pytest.raises(TypeError, match=r"structure must be a Structure, a Problem's "
+                                        r"\.structure \(pass problem\.structure\), not a Problem"):
+        DirectSolver(TOY2, nodes=50)
+    assert routes.cache_info()["builds"] == builds

@@ -6,7 +6,7 @@ from typing import Any, Mapping, TypeVar
 
 import numpy as np
 
-__all__ = ["real", "lookup", "within", "integer"]
+__all__ = ["real", "lookup", "within", "integer", "flag"]
 
 T = TypeVar("T")
 
@@ -40,6 +40,14 @@ def integer(name: str, value: Any, lo: int, hi: int | None = None) -> int:
         bound = f"in [{lo}, {hi}]" if hi is not None else f">= {lo}"
         raise ValueError(f"{name} = {value!r} must be an integer {bound}")
     return int(value)
+
+
+def flag(name: str, value: Any) -> bool:
+    """``value`` as a bool, or TypeError naming it: a string such as "no" is true and
+    would silently mean the opposite (a user audit: ``continuation="no"`` continued)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name} = {value!r} must be True or False")
+    return bool(value)
 
 
 def lookup(registry: Mapping[str, T], name: str, what: str) -> T:

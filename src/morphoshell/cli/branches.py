@@ -27,7 +27,7 @@ def register(sub) -> None:
                     "(the pole at the origin); lengths in R, energies in C R^2.")
     p.add_argument("problem", metavar="PROBLEM.toml",
                    help="problem file (`morphoshell example NAME` prints one to start from)")
-    p.add_argument("--from", dest="source", choices=("neutral",), default="neutral",
+    p.add_argument("--from", dest="source", choices=("neutral",), default=None,
                    help="the path from the family's stress-free parameters (default; not "
                         "with --param)")
     p.add_argument("--param", default=None, metavar="NAME",
@@ -72,6 +72,10 @@ def _load(args):
     if (args.param is None) != (args.to is None):
         raise ValueError("--param and --to go together (one parameter from the file's value "
                          "to VALUE); without them the path runs from the stress-free parameters")
+    if args.source is not None and args.param is not None:     # (it was ignored)
+        raise ValueError(f"--from {args.source} and --param {args.param} are two paths: the "
+                         f"one from the stress-free parameters, or the one parameter's; "
+                         f"give one")
     problem, settings = problem_and_settings(args.problem, args.overrides)
     if args.param is not None:
         try:

@@ -258,7 +258,7 @@ def check_options(nodes, tol, max_iterations) -> None:
         return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
 
     lo, hi = FIT_NODES
-    if not (integer(nodes) and lo <= nodes <= hi):     # (5 nodes: "4 cells cannot hold ...")
+    if not (integer(nodes) and lo <= nodes <= hi):     # (5 nodes: too few for the Volvox knots)
         raise ValueError(f"nodes = {nodes!r} must be an integer from {lo} to {hi}")
     if real("tol", tol) < 1e-15 or tol >= 1:     # (scipy: below eps ends no iteration)
         raise ValueError(f"tol = {tol!r} must lie in [1e-15, 1)")

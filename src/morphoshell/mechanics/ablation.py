@@ -29,7 +29,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import casadi as ca
 import numpy as np
@@ -38,11 +38,13 @@ from .._runtime.tables import html_table, problem_attrs, problem_rows, xarray_mo
 from ..model.problem import Problem
 from ..solvers.direct import solver_of
 from ..solvers.observables import RECOIL, recoil, state_at
+from ..solvers.options import check_guess, check_problem
 from ..solvers.parametric import parametric
 from ..solvers.results import FIELD_NAMES, FIELD_UNITS, FIELDS, Equilibrium
 from ..solvers.routes import solve
 
-__all__ = ["Ablation", "ablate", "edge_state", "intact_problem", "recoil_jacobian", "UNITS"]
+__all__ = ["Ablation", "ablate", "edge_state", "intact_problem", "recoil_jacobian",
+           "RecoilJacobian", "UNITS"]
 
 #: Units of the observables of an :class:`Ablation` (lengths in units of R).
 UNITS = {"opening": "R", "rotation": "rad", "displacement": "R", "radial_displacement": "R",
@@ -223,7 +225,14 @@ def ablate(problem: Problem, nodes: int = 200, method: str = "direct",
     Returns
     -------
     Ablation
+
+    Raises
+    ------
+    TypeError
+        A ``problem`` that is not a Problem or a ``pre`` that is not an Equilibrium.
     """
+    check_problem(problem)
+    check_guess(pre, "pre")
     if not problem.cut > 0:
         raise ValueError(f"cut (Sigma) = {problem.cut!r}: an ablation needs a cut > 0")
     intact = intact_problem(problem)
@@ -252,7 +261,29 @@ def recoil_function() -> ca.Function:
     return ca.Function("recoil", [pre, post], [y, ca.jacobian(y, ca.vertcat(pre, post))])
 
 
-def recoil_jacobian(ablation: Ablation, wrt: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+class RecoilJacobian(NamedTuple):
+    """The recoil observables of an ablation and their derivatives (:func:`recoil_jacobian`).
+
+    Unpacks as ``values, jacobian``.  Row i of both is the observable ``rows[i]``
+    (:data:`~morphoshell.solvers.observables.RECOIL`: opening, rotation, displacement,
+    radial and axial displacement; ``energy_released`` is not among them); column j of
+    ``jacobian`` is the j-th parameter of ``wrt``.
+    """
+
+    values: np.ndarray
+    jacobian: np.ndarray
+
+    rows = RECOIL      # (a class attribute, not a field: the pair still unpacks)
+
+    def row(self, name: str) -> tuple[float, np.ndarray]:
+        """The value of the observable ``name`` (of :attr:`rows`) and its gradient over ``wrt``."""
+        if name not in self.rows:
+            raise ValueError(f"row = {name!r}: choose one of {list(self.rows)}")
+        i = self.rows.index(name)
+        return float(self.values[i]), self.jacobian[i]
+
+
+def recoil_jacobian(ablation: Ablation, wrt: Sequence[str]) -> RecoilJacobian:
     """Exact derivatives of the recoil observables of a direct ablation.
 
     Both equilibria depend on the parameters (through the implicit function
@@ -271,9 +302,10 @@ def recoil_jacobian(ablation: Ablation, wrt: Sequence[str]) -> tuple[np.ndarray,
 
     Returns
     -------
-    values : ndarray, shape (5,)
-        :data:`~morphoshell.solvers.observables.RECOIL` in order.
-    jacobian : ndarray, shape (5, len(wrt))
+    RecoilJacobian
+        ``values`` (shape (5,)) and ``jacobian`` (shape (5, len(wrt))), rows in the order
+        of :data:`~morphoshell.solvers.observables.RECOIL` (``.rows``; ``.row(name)``
+        picks one): unpacks as ``values, jacobian``.
     """
     wrt = tuple(wrt)
     if "cut" in wrt:
@@ -296,4 +328,4 @@ def recoil_jacobian(ablation: Ablation, wrt: Sequence[str]) -> tuple[np.ndarray,
         states.append(value)
         jacs.append(full)
     y, dy = recoil_function()(*states)
-    return np.asarray(y).ravel(), np.asarray(dy) @ np.vstack(jacs)
+    return RecoilJacobian(np.asarray(y).ravel(), np.asarray(dy) @ np.vstack(jacs))

@@ -27,7 +27,7 @@ from .geometry import Geometry, get_geometry
 from .layouts import VectorLayout, parameter_layout
 from .profiles import ProfileFamily, Profiles, get_family
 
-__all__ = ["Problem", "Structure", "BASE_KEYS", "MIN_SHELL_LENGTH", "MIN_THICKNESS", "MIN_CUT"]
+__all__ = ["Problem", "Params", "Structure", "BASE_KEYS", "MIN_SHELL_LENGTH", "MIN_THICKNESS", "MIN_CUT"]
 
 #: Thinnest shell accepted, h = H/R: below it the bending energy (∝ h³) falls under the
 #: solvers' round-off relative to the stretching energy, and Ipopt fails (h = 1e-12:
@@ -87,6 +87,33 @@ class Structure:
         return parameter_layout(self.family)
 
 
+class Params(dict):
+    """A problem's parameter values, read-only.
+
+    A Problem is checked once, when it is created: a user audit set
+    ``p.params["k"] = 50`` on a checked problem (η = 7.5), and its solve failed
+    only inside the continuation, naming an intermediate η.  A dict otherwise, so that
+    it compares, prints, pickles (process pools) and serialises as one; hashable, so
+    that an equal Problem hashes equal.
+    """
+
+    __slots__ = ()
+
+    def _refuse(self, *args, **kwargs):
+        """Refused: the values are read-only (TypeError)."""
+        raise TypeError("a Problem's params are read-only (it was checked with them): make "
+                        "a changed copy with problem.with_updates(parameter=value)")
+
+    __setitem__ = __delitem__ = __ior__ = _refuse
+    update = pop = popitem = clear = setdefault = _refuse
+
+    def __hash__(self) -> int:
+        return hash(tuple(sorted(self.items())))
+
+    def __reduce__(self):
+        return type(self), (dict(self),)
+
+
 @dataclass(frozen=True)
 class Problem:
     """An axisymmetric morphoelastic shell problem.
@@ -116,6 +143,11 @@ class Problem:
         Undeformed meridian, ``"sphere"`` by default.
     name : str
         Label used in outputs.
+
+    Notes
+    -----
+    A Problem is immutable and hashable: ``params`` is read-only (:class:`Params`), and
+    :meth:`with_updates` makes a changed copy, checked anew.
     """
 
     family: str = "uniform"
@@ -131,6 +163,8 @@ class Problem:
     geometry_obj: Geometry = field(init=False, repr=False)
 
     def __post_init__(self):
+        if not isinstance(self.name, str):
+            raise TypeError(f"name = {self.name!r} must be a string (a label for outputs)")
         fam = get_family(self.family)
         geo = get_geometry(self.geometry)
         theory = get_theory(self.theory)
@@ -153,7 +187,7 @@ class Problem:
         values = {n: real(f"parameter {n}", self.params.get(n, fam.defaults[n]))
                   for n in fam.parameters}
         fam.validate(values, cut, end)
-        for k, v in (("h", h), ("cut", cut), ("opening", opening), ("params", values)):
+        for k, v in (("h", h), ("cut", cut), ("opening", opening), ("params", Params(values))):
             object.__setattr__(self, k, v)
         self._check_intrinsic(fam, geo)
 

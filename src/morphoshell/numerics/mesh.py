@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 from typing import NamedTuple
 
@@ -35,7 +35,15 @@ log = logging.getLogger(__name__)
 
 __all__ = ["boundary_layer_width", "pole_exponent", "graded_mesh", "shell_points",
            "knot_shapes", "mapped_points", "MeshSpec",
-           "mesh_spec", "knot_for", "Knot", "breakpoints", "lower_gamma"]
+           "mesh_spec", "knot_for", "Knot", "breakpoints", "lower_gamma", "MeshTooCoarse"]
+
+
+class MeshTooCoarse(ValueError):
+    """Too few cells for the mesh's knots: every segment between knots needs a cell.
+
+    A ValueError of its own, so that the error estimate can skip a coarse level
+    that cannot hold the knots while a user's own mesh is refused.
+    """
 
 
 #: Smallest mean cell (units of R) of a mesh: a shorter shell gets fewer nodes
@@ -331,7 +339,7 @@ def _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge
     while n.sum() < cells:
         n[np.argmax(share - n)] += 1
     if n.sum() > cells:
-        raise ValueError(f"{cells} cells cannot hold {len(bounds) - 2} mesh knots")
+        raise MeshTooCoarse(f"{cells} cells cannot hold {len(bounds) - 2} mesh knots")
     target = np.concatenate([np.linspace(Wb[j], Wb[j + 1], n[j] + 1)[:-1] for j in range(len(n))]
                             + [[Wb[-1]]])
     t = _invert(W, dW, target)
@@ -517,7 +525,36 @@ class MeshSpec:
     knots: tuple[Knot, ...] = ()
 
     def nodes_t(self) -> np.ndarray:
-        """The mesh t_0 = 0 < … < t_N = 1."""
+        """The mesh t_0 = 0 < … < t_N = 1.
+
+        Raises
+        ------
+        MeshTooCoarse
+            Too few nodes for the knots, naming ``nodes`` and the fewest that hold them.
+        """
+        try:
+            return self._graded()
+        except MeshTooCoarse:
+            raise MeshTooCoarse(
+                f"nodes = {self.nodes} is too few for this shell's {len(self.knots)} mesh "
+                f"knots (the family's breakpoints and the anchors, each a node with a cell "
+                f"between): the fewest nodes that hold them are {self.least_nodes()}") from None
+
+    def least_nodes(self) -> int:
+        """The fewest nodes (at least 5) whose mesh holds the knots.
+
+        Each segment between knots needs a cell, but the node density decides how many a
+        segment gets, so the least is found by trying (meshes of a few nodes: milliseconds).
+        """
+        for nodes in range(5, self.nodes + 2 * len(self.knots) + 64):
+            try:
+                replace(self, nodes=nodes)._graded()
+                return nodes
+            except MeshTooCoarse:
+                continue
+        return self.nodes + 1      # (not reached: a cell per segment is enough well before)
+
+    def _graded(self) -> np.ndarray:
         return graded_mesh(self.nodes - 1, 1.0, self.start, self.end, self.width, q=self.q,
                            edge_scale=self.edge_scale, knots=tuple(k.t for k in self.knots),
                            knot_widths=tuple(k.width for k in self.knots),

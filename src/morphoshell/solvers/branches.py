@@ -25,6 +25,7 @@ a branch as a table.
 """
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -40,6 +41,8 @@ from .options import check_direct_options, check_problem
 from .paths import ParameterLine, neutral_problem
 from .results import Equilibrium
 from .routes import direct_solver
+
+log = logging.getLogger(__name__)
 
 __all__ = ["Branch", "BranchPoint", "follow_branch", "switch_branch", "continuation_path",
            "EVENTS", "FOLLOW", "COLUMNS", "MAX_POINTS", "UNITS", "PARAMETER_UNITS"]
@@ -458,9 +461,12 @@ class _Walk:
             if not (new is None or self.arc.turned(point, new) or self._holds(new)):
                 moved = self._remeshed(point)
                 if moved is not None:           # (the step again, on the new mesh)
+                    log.debug("mesh rebuilt for the parameters at lambda = %.6g", point.tau)
                     point = moved
                     continue
-            if self._retry(point, new, ds):
+            rejected = self._retry(point, new, ds)
+            self._log_step(point, new, ds, rejected)
+            if rejected:
                 ds /= 2
                 if ds < MIN_STEP:
                     raise self._ended(point, "the step fell below its minimum")
@@ -514,6 +520,25 @@ class _Walk:
         self.arc, self.remeshed = arc, [*self.remeshed, point.tau]
         self._cells = self._widths(point.tau)
         return moved
+
+    def _log_step(self, point: ArcPoint, new: ArcPoint | None, ds: float,
+                  rejected: bool) -> None:
+        """Each pseudo-arclength step at DEBUG (``-vv``): where it went, its size, the
+        corrector's Newton iterations and the inertia, or why it is retried halved, to
+        follow a walk that misses an event or crawls (user audit)."""
+        if not log.isEnabledFor(logging.DEBUG):
+            return
+        if rejected:
+            log.debug("step %.3g from lambda = %.6g %s: halved", ds, point.tau,
+                      "did not converge" if new is None
+                      else "turned, went back in lambda or left its mesh")
+            return
+        values = self.arc.line.values(new.tau)
+        # (one parameter's value; the path from the stress-free parameters moves many)
+        where = "".join(f" ({k} = {v:.6g})" for k, v in values.items() if len(values) == 1)
+        log.debug("lambda = %.6g%s: step %.3g, %d Newton iterations, %d negative and %d "
+                  "zero eigenvalues", new.tau, where, ds, new.iterations,
+                  new.inertia.negative, new.inertia.zero)
 
     def _advance(self, point: ArcPoint, new: ArcPoint, ds: float) -> tuple[ArcPoint, bool]:
         """Record the events between ``point`` and ``new`` and ``new`` itself (or the end at

@@ -152,6 +152,8 @@ class DirectSolver:
     ValueError
         An option out of its range, or one that Ipopt refuses, named with its
         value (:func:`~morphoshell.solvers.options.check_direct_options`).
+    TypeError
+        A ``structure`` that is not a Structure (a Problem, say).
     """
 
     def __init__(self, structure: Structure, nodes: int = 200, *, stages: int = 2,
@@ -161,6 +163,9 @@ class DirectSolver:
                  stability: str = "auto", ipopt_options: Mapping[str, Any] | None = None,
                  newton: bool = True):
         # every option before the mesh and the transcription are built
+        if not isinstance(structure, Structure):
+            raise TypeError(f"structure must be a Structure, a Problem's .structure (pass "
+                            f"problem.structure), not a {type(structure).__name__}")
         check_direct_options(stages=stages, linear_solver=linear_solver, tol=tol,
                              max_iter=max_iter, stability=stability, ipopt_options=ipopt_options)
         if mesh is None:

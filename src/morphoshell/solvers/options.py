@@ -17,6 +17,7 @@ The ranges of the tolerances were measured (docs/benchmarks.md, "solvers/options
 """
 from __future__ import annotations
 
+from numbers import Real
 from typing import Any
 
 from .._runtime.validate import integer, real, within
@@ -24,7 +25,7 @@ from ..model.problem import Problem
 from ..numerics.ipopt_options import check_ipopt_options
 from .results import Equilibrium
 
-__all__ = ["check_problem", "check_guess", "check_direct_options", "check_bvp_options",
+__all__ = ["check_problem", "check_guess", "check_anchors", "check_direct_options", "check_bvp_options",
            "check_shooting_options", "MAX_DIRECT_TOL", "REFERENCE_TOL", "ATOL", "RTOL",
            "POLE_OFFSET", "STABILITY", "INTEGRATORS"]
 
@@ -57,6 +58,16 @@ def check_guess(guess: Any, name: str = "warm_start") -> None:
     if guess is not None and not isinstance(guess, Equilibrium):
         raise TypeError(f"{name} = {_short(guess)} must be an Equilibrium (a previous "
                         f"solution) or None")
+
+
+def check_anchors(anchors: Any) -> tuple:
+    """``anchors`` as a tuple, or TypeError unless it is a sequence of real numbers (a single
+    number is not: ``anchors=1.0`` raised "'float' object is not iterable")."""
+    if isinstance(anchors, (str, bytes)) or not hasattr(anchors, "__len__") or \
+            any(isinstance(s, bool) or not isinstance(s, Real) for s in anchors):
+        raise TypeError(f"anchors = {_short(anchors)} must be a sequence of material points s "
+                        f"(numbers), e.g. (0.5,)")
+    return tuple(anchors)
 
 
 def check_direct_options(*, stages: Any = 2, linear_solver: Any = "mumps", tol: Any = 1e-10,

@@ -17,6 +17,7 @@ from typing import Callable
 import numpy as np
 
 from ..model.problem import Problem
+from ..numerics.mesh import MeshTooCoarse
 from ..numerics.status import TOLERANCE_NOT_MET, explain
 from .continuation import continue_to
 from .direct import MAX_NODES, DirectSolver
@@ -137,6 +138,24 @@ def _warn_if_coarse(est: ErrorEstimate, nodes: int) -> None:
                     "relative" if key == "energy" else "R or rad", nodes)
 
 
+def _coarse_level(solver_for: Callable[[int], DirectSolver], nodes: int, problem: Problem,
+                  eq: Equilibrium, anchors) -> tuple[Equilibrium | None, str]:
+    """(``problem`` on ``nodes`` nodes from ``eq``, "") for the estimate, or (None, why not).
+
+    A level is unavailable where it has too few nodes, does not converge, or cannot hold
+    the mesh's knots: a Volvox shell's 4 knots fit 20 nodes but not their quarter mesh of
+    5, and the 20-node solve stands with the estimate of the levels there are (user audit).
+    """
+    if nodes < 5:
+        return None, "too few nodes to halve"
+    try:
+        return solve_from(solver_for(nodes), problem, eq, anchors), ""
+    except SolverError as exc:
+        return None, f"the half mesh ({nodes} nodes) did not converge ({exc.status})"
+    except MeshTooCoarse:
+        return None, f"the half mesh ({nodes} nodes) cannot hold the mesh's knots"
+
+
 def refine(eq: Equilibrium, solver_for: Callable[[int], DirectSolver], rtol: float | None,
            anchors=(), max_nodes: int = MAX_NODES) -> Equilibrium:
     """``eq`` with its error estimate, refined until it meets ``rtol`` (if given).
@@ -168,20 +187,11 @@ def refine(eq: Equilibrium, solver_for: Callable[[int], DirectSolver], rtol: flo
     """
     problem, nodes = eq.problem, eq.solver.nodes
     order = 2 * solver_for(nodes).stages
-    reference, coarser, note = None, None, ""
-    if half_mesh(nodes) >= 5:
-        try:
-            reference = solve_from(solver_for(half_mesh(nodes)), problem, eq, anchors)
-        except SolverError as exc:
-            note = f"the half mesh ({half_mesh(nodes)} nodes) did not converge ({exc.status})"
-    else:
-        note = "too few nodes to halve"
-    if reference is not None and half_mesh(half_mesh(nodes)) >= 5:
-        try:
-            coarser = solve_from(solver_for(half_mesh(half_mesh(nodes))), problem, reference,
-                                 anchors)
-        except SolverError:
-            coarser = None        # two levels only
+    reference, note = _coarse_level(solver_for, half_mesh(nodes), problem, eq, anchors)
+    coarser = None        # (two levels only where the quarter mesh is unavailable)
+    if reference is not None:
+        coarser, _ = _coarse_level(solver_for, half_mesh(half_mesh(nodes)), problem,
+                                   reference, anchors)
     est = estimate(eq, reference, order, note, coarser)
     if rtol is None and not est.note:
         _warn_if_coarse(est, nodes)

@@ -313,7 +313,14 @@ class Equilibrium:
         -------
         dict
             Float by field of :data:`FIELDS`.
+
+        Raises
+        ------
+        ValueError
+            ``which`` neither "start" nor "end" (any other word gave the end's values).
         """
+        if which not in ("start", "end"):
+            raise ValueError(f"which = {which!r} must be 'start' or 'end'")
         i = 0 if which == "start" else -1
         return {k: float(getattr(self, k)[i]) for k in FIELDS}
 

@@ -20,6 +20,7 @@ from typing import Any, Mapping
 
 from dataclasses import replace
 
+from .._runtime.validate import flag
 from ..model.problem import Problem
 from ..numerics.mesh import mesh_spec
 from ..numerics.status import (BRANCH_ENDED, CONTINUATION_FAILED, NOT_A_MINIMUM, SNAP_FAILED,
@@ -27,7 +28,7 @@ from ..numerics.status import (BRANCH_ENDED, CONTINUATION_FAILED, NOT_A_MINIMUM,
 from .arclength import Arclength
 from .continuation import continue_to
 from .direct import BUILDS, MAX_NODES, DirectSolver, check_nodes
-from .options import check_guess, check_problem
+from .options import check_anchors, check_guess, check_problem
 from .paths import ParameterLine
 from .refinement import refine
 from .results import Equilibrium, NotAMinimumError, SolverError, SolverStats, unconverged
@@ -183,7 +184,8 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
     ValueError, TypeError
         Bad input, named with its value before any work: an option out of its
         range (:mod:`morphoshell.solvers.options`) or refused by Ipopt, a
-        ``problem`` that is not a Problem, a ``warm_start`` that is not an Equilibrium.
+        ``problem`` that is not a Problem, a ``warm_start`` that is not an Equilibrium,
+        ``anchors`` that are not a sequence of numbers, a ``continuation`` that is not a bool.
 
     Examples
     --------
@@ -194,6 +196,8 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
     """
     check_problem(problem)
     check_guess(warm_start)
+    anchors = check_anchors(anchors)
+    continuation = flag("continuation", continuation)
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; choose one of {list(METHODS)}")
     _check_options(method, options)

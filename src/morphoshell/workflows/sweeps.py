@@ -89,7 +89,7 @@ from ..mechanics.ablation import edge_state, intact_problem
 from ..model.problem import BASE_KEYS, Problem
 from ..model.profiles import ENTRY_POINT_GROUP, FAMILIES
 from ..numerics.status import STEP_NOT_SPLITTABLE
-from ..numerics.mesh import mesh_spec
+from ..numerics.mesh import MeshTooCoarse, mesh_spec
 from ..solvers.continuation import HARD_STEP, continue_to
 from ..solvers.direct import DirectSolver, check_nodes, solver_of
 from ..solvers.options import check_direct_options
@@ -415,7 +415,7 @@ def _estimate(shells: Sequence[tuple[_Shell, Problem, tuple, Equilibrium]], meas
         try:
             eqs = [solve_from(shell.solver(p, anchors, nodes), p, eq, anchors)
                    for (shell, p, anchors, _), eq in zip(shells, eqs)]
-        except SolverError:
+        except (SolverError, MeshTooCoarse):     # (a Volvox shell's knots: not on 5 nodes)
             break
         levels.append(measure(eqs))
     if len(levels) < 2:

@@ -1,0 +1,49 @@
+"""Problem: immutable once checked, hashable, its name a string (model/problem.py)."""
+import pickle
+
+import pytest
+
+from morphoshell import Problem
+from morphoshell.model.problem import Params
+
+
+def _problem(**params):
+    return Problem("uniform", {"k": 0.0, **params}, h=0.3, cut=0.3)
+
+
+@pytest.mark.parametrize("mutate", [
+    lambda p: p.params.__setitem__("k", 50.0),
+    lambda p: p.params.update(k=50.0),
+    lambda p: p.params.pop("k"),
+    lambda p: p.params.__delitem__("k"),
+    lambda p: p.params.setdefault("x", 1.0),
+    lambda p: p.params.clear(),
+])
+def test_a_checked_problems_params_cannot_change(mutate):
+    """A user audit set p.params["k"] = 50 (η = 7.5) on a checked Problem; its solve then
+    failed inside the continuation, naming an intermediate η.  The change is refused and
+    the values stay; with_updates makes a changed copy, checked anew."""
+    p = _problem()
+    with pytest.raises(TypeError, match=r"params are read-only .*with_updates"):
+        mutate(p)
+    assert p.params == {"k": 0.0}
+    assert p.with_updates(k=0.5).params == {"k": 0.5}
+    with pytest.raises(ValueError, match="abs"):
+        p.with_updates(k=50.0)
+
+
+def test_problems_hash_equal_when_equal_and_params_stay_a_dict():
+    """Hashable (frozen): equal problems hash equal; the params still compare, print,
+    pickle (to worker processes) and serialise as a plain dict."""
+    p, q = _problem(), _problem()
+    assert p == q and hash(p) == hash(q) and len({p, q, _problem(k=0.5)}) == 2
+    assert isinstance(p.params, dict) and repr(p.params) == "{'k': 0.0}"
+    back = pickle.loads(pickle.dumps(p.params))
+    assert type(back) is Params and back == p.params
+    assert "params={'k': 0.0}" in repr(p)
+
+
+@pytest.mark.parametrize("name", [5, None, b"x"])
+def test_a_name_that_is_not_a_string_is_refused(name):
+    with pytest.raises(TypeError, match=rf"^name = {name!r} must be a string"):
+        Problem("uniform", {"k": 0.0}, h=0.3, name=name)
