@@ -11,8 +11,9 @@
   stability at branch points, and the branches through the first two
   (``switch_branch``, both halves): branches_blister.png.
 
-Draws the diagrams with the shapes at the events (``plot_branch``), prints the events,
-writes to --out (default docs/figures).
+Draws the diagrams with the shapes at the events (``plot_branch``, in its journal style: the
+figures ``morphoshell continue --plot`` writes), prints the events, writes to --out (default
+docs/figures).
 
 Usage: python scripts/fig_branches.py [--out DIR] [--nodes N] [--blister-nodes N]
 """
@@ -35,7 +36,7 @@ def main(argv=None) -> int:
 
     from morphoshell import follow_branch
     from morphoshell.io.problem_files import load_problem
-    from morphoshell.plotting import paper_style, plot_branch, save
+    from morphoshell.plotting import plot_branch, save
 
     problem, _ = load_problem(ROOT / "tests" / "data" / "volvox_fold.toml")
     args.out.mkdir(parents=True, exist_ok=True)
@@ -43,8 +44,7 @@ def main(argv=None) -> int:
         branch = follow_branch(problem, nodes=args.nodes, follow=follow)
         print(f"{follow}: {len(branch.points)} points in {branch.seconds:.2f} s; events "
               + ", ".join(f"{pt.event} at {pt.tau:.7f}" for pt in branch.events))
-        with paper_style():
-            save(plot_branch(branch), args.out / f"{name}.png")
+        save(plot_branch(branch), args.out / f"{name}.png")
     blister(args.out, args.blister_nodes)
     print(f"wrote {args.out}/branches_volvox.png, branches_volvox_stable.png and "
           f"branches_blister.png")
@@ -55,7 +55,7 @@ def blister(out: Path, nodes: int) -> None:
     """The blister's flat branch and the branches through its first two branch points."""
     from morphoshell import follow_branch, switch_branch
     from morphoshell.io.problem_files import example_path, load_problem
-    from morphoshell.plotting import paper_style, plot_branch, save
+    from morphoshell.plotting import plot_branch, save
 
     flat = follow_branch(load_problem(example_path("blister"))[0], nodes=nodes)
     switched = [switch_branch(flat, k, d) for k in (0, 1) for d in (1, -1)]
@@ -65,8 +65,7 @@ def blister(out: Path, nodes: int) -> None:
               f"({b.end.negative_eigenvalues}), psi_end {b.end.psi_end:.6f}, energy "
               f"{b.end.energy:.6g}; events " + ", ".join(f"{pt.event} at {pt.tau:.7f}"
                                                          for pt in b.events))
-    with paper_style():
-        save(plot_branch(flat, switched=switched), out / "branches_blister.png")
+    save(plot_branch(flat, switched=switched), out / "branches_blister.png")
 
 
 if __name__ == "__main__":

@@ -187,3 +187,105 @@ def test_profile_figure_is_journal_sized_and_shows_every_kind_of_refit(tmp_path)
         assert box.x0 <= drawn.x0 and drawn.x1 <= box.x1 and box.y0 <= drawn.y0
         assert min(t.get_fontsize() for t in _texts(one)) >= MIN_FONT_SIZE
         assert all("\n" not in ax.get_title() for ax in one.axes)
+
+
+@pytest.fixture(scope="module")
+def blister():
+    """The blister's flat branch (60 nodes) and both halves of the branches through its
+    first two branch points: the most crowded diagram of the docs."""
+    from morphoshell import follow_branch, switch_branch
+    from morphoshell.io.problem_files import load_problem
+    from morphoshell.io.problem_files import example_path
+
+    flat = follow_branch(load_problem(example_path("blister"))[0], nodes=60)
+    return flat, [switch_branch(flat, k, d) for k in (0, 1) for d in (1, -1)]
+
+
+@pytest.mark.parametrize("shapes, width", [(True, 7.0), (False, SINGLE_COLUMN)])
+def test_bifurcation_diagram_is_in_the_journal_style(blister, shapes, width, tmp_path):
+    """plot_branch (continue --plot): two journal columns with the shapes, one without; every
+    text >= 7 pt and inside the figure; a one-line title naming the problem, a caption with
+    the parameters, the path and the mesh; the PDF's fonts TrueType (no Type 3)."""
+    from morphoshell.plotting import plot_branch
+    flat, switched = blister
+    fig = plot_branch(flat, switched=switched, shapes=shapes)
+    assert fig.get_figwidth() == pytest.approx(width)
+    diagram = fig.axes[0]
+    assert diagram.get_title() == "blister: central_growth, large-bending, disc"
+    caption = get_caption(diagram)
+    for part in ("h = 0.02", "G = 0.2", "λ from the stress-free parameters",
+                 "direct method, 60 nodes", "branches switched to at branch points"):
+        assert part in caption, part
+    assert _outside_figure(fig, tmp_path) == []
+    # after the drawing, which makes the tick labels
+    assert min(t.get_fontsize() for t in _texts(fig)) >= MIN_FONT_SIZE
+    legends = [*fig.legends, *(ax.get_legend() for ax in fig.axes if ax.get_legend())]
+    assert len(legends) == 1
+    box, drawn = fig.bbox, legends[0].get_window_extent()
+    assert box.x0 <= drawn.x0 and drawn.x1 <= box.x1 and box.y0 <= drawn.y0
+    save(fig, tmp_path / "branch.pdf")
+    assert b"/Type3" not in (tmp_path / "branch.pdf").read_bytes()
+
+
+#: Machado, Oliveira & Fernandes (2009), severity 1.0: linear RGB -> linear RGB as seen
+#: with protanopia and deuteranopia.
+MACHADO = {"protanopia": np.array([[0.152286, 1.052583, -0.204868],
+                                   [0.114503, 0.786281, 0.099216],
+                                   [-0.003882, -0.048116, 1.051998]]),
+           "deuteranopia": np.array([[0.367322, 0.860646, -0.227968],
+                                     [0.280085, 0.672501, 0.047413],
+                                     [-0.011820, 0.042940, 0.968881]])}
+
+
+def _seen(colour, matrix) -> np.ndarray:
+    """sRGB of ``colour`` as seen through ``matrix`` (applied in linear RGB)."""
+    from matplotlib.colors import to_rgb
+    c = np.array(to_rgb(colour))
+    linear = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+    seen = np.clip(matrix @ linear, 0.0, 1.0)
+    return np.where(seen <= 0.0031308, 12.92 * seen, 1.055 * seen ** (1 / 2.4) - 0.055)
+
+
+def test_the_diagrams_colours_stay_apart_with_red_green_colour_blindness():
+    """Every two colours of a diagram (the main branch's two, the events', the switched
+    branches') differ by >= 0.2 in sRGB (Euclidean, channels in [0, 1]) as seen with
+    protanopia and deuteranopia.  The threshold: the old palette's tab:green and
+    tab:orange came to 0.097 (one colour), tab:orange and tab:olive to 0.18 (user audit);
+    the Okabe-Ito colours' closest pairs are 0.20 (reddish purple against bluish green and
+    blue), against about 0.8 for colours told apart at a glance."""
+    from itertools import combinations
+
+    from morphoshell.plotting.branches import BRANCH_STYLE, EVENT_MARKERS, SWITCHED_COLOURS
+    colours = [*(s["color"] for s in BRANCH_STYLE.values()),
+               *(c for _, c, _ in EVENT_MARKERS.values()), *SWITCHED_COLOURS]
+    assert len(set(colours)) == len(colours)
+    for name, matrix in MACHADO.items():
+        for a, b in combinations(colours, 2):
+            distance = np.linalg.norm(_seen(a, matrix) - _seen(b, matrix))
+            assert distance >= 0.2, (name, a, b, distance)
+
+
+def test_each_switched_branch_has_a_marker_of_its_own(blister):
+    """The cue that needs no colour: the lines of the branch from one branch point carry one
+    marker (both halves, stable and unstable parts), different from the other branch's and
+    from the events' markers, and the legend shows it."""
+    from morphoshell.plotting import plot_branch
+    from morphoshell.plotting.branches import EVENT_MARKERS
+    flat, switched = blister
+    diagram = plot_branch(flat, switched=switched, shapes=False).axes[0]
+    drawn = [ln for ln in diagram.get_lines()          # (lines, not the events' markers)
+             if len(ln.get_xdata()) > 1 and ln.get_linestyle() != "None"]
+    by_origin = {}
+    for branch in switched:
+        ys = set(np.round(branch.columns()["psi_end"], 12))
+        for ln in drawn:
+            if set(np.round(ln.get_ydata(), 12)) <= ys and ln.get_marker() not in ("None", ""):
+                by_origin.setdefault(branch.origin, set()).add(ln.get_marker())
+    assert len(by_origin) == 2 and all(len(m) == 1 for m in by_origin.values())
+    markers = [m.pop() for m in by_origin.values()]
+    assert len(set(markers)) == 2
+    assert not set(markers) & {m for m, _, _ in EVENT_MARKERS.values()}
+    legend = diagram.figure.legends[0]
+    shown = {h.get_marker() for h, t in zip(legend.legend_handles, legend.get_texts())
+             if t.get_text().startswith("branch from")}
+    assert shown == set(markers)

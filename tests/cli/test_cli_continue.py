@@ -204,3 +204,21 @@ def test_a_failed_switch_exits_3_and_keeps_the_branches_followed(tmp_path, capsy
     with out.open() as fh:
         names = {r["branch"] for r in csv.DictReader(fh)}
     assert names == {"main", "1+"}
+
+
+def test_plot_is_a_journal_figure_with_truetype_fonts_and_one_column_without_shapes(tmp_path):
+    """`continue --plot` writes the journal-style figure: in a PDF the fonts are TrueType (no
+    Type 3, which journals refuse); two columns (7 in) with the shapes, one (3.4 in) with
+    --no-plot-shapes: the PNG's width in pixels at the 300 dpi of `save`."""
+    import struct
+
+    problem = example_path("blister")
+    pdf, wide, narrow = tmp_path / "b.pdf", tmp_path / "wide.png", tmp_path / "narrow.png"
+    assert main(["continue", str(problem), "--nodes", "40", "--plot", str(pdf)]) == 0
+    # (matplotlib embeds its TrueType fonts as CID-keyed TrueType: CIDFontType2)
+    assert b"/Type3" not in pdf.read_bytes() and b"/CIDFontType2" in pdf.read_bytes()
+    for path, extra in ((wide, []), (narrow, ["--no-plot-shapes"])):
+        assert main(["continue", str(problem), "--nodes", "40", "--plot", str(path),
+                     *extra]) == 0
+    width = {p: struct.unpack(">I", p.read_bytes()[16:20])[0] for p in (wide, narrow)}
+    assert width == {wide: 7.0 * 300, narrow: 3.4 * 300}

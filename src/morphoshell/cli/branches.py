@@ -57,6 +57,9 @@ def register(sub) -> None:
                         "point's number and +/-")
     p.add_argument("--plot-y", choices=("psi_end", "r_end", "z_end", "energy"),
                    default="psi_end", help="the observable of the diagram (default psi_end)")
+    p.add_argument("--no-plot-shapes", dest="plot_shapes", action="store_false",
+                   help="draw the diagram alone, one journal column wide (default: with the "
+                        "shapes at the start, the events and the end below it, two columns)")
     add_outputs(p, json="write the branch (problem, path, points, snaps; with --switch the "
                         "switched branches) as JSON",
                 csv="write one row per point: lambda, the parameter, energy, r_end, z_end, "
@@ -110,7 +113,8 @@ def _continue(args) -> int:
     out.add(args.csv, lambda path: write_csv(path, _csv_columns(branch, switched)))
     if args.plot:
         from ..plotting import plot_branch, save
-        fig = plot_branch(branch, y=args.plot_y, switched=[b for _, b in switched])
+        fig = plot_branch(branch, y=args.plot_y, shapes=args.plot_shapes,
+                          switched=[b for _, b in switched])
         out.add(args.plot, lambda path: save(fig, path))
     for path in out.commit():
         print(f"  wrote {path}")

@@ -6,6 +6,12 @@ unstable parts dashed (thin, grey), folds, branch points and snap-throughs
 marked, and the shells at the events and at the ends beside it, so that the
 diagram and the shapes it stands for are read together.  Lengths in units of
 R, energies in C R².
+
+Drawn in the journal style (:mod:`.style`): two columns wide with the shapes,
+one without; the title names the problem, the caption the path, the
+parameters and the mesh.  Colours are the Okabe–Ito palette, which stays
+distinguishable with red–green colour blindness, and every switched branch
+also has a marker of its own, so that no branch is told apart by colour alone.
 """
 from __future__ import annotations
 
@@ -15,24 +21,36 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure, SubFigure
 
-from .shells import plot_cross_section
-from .style import DOUBLE_COLUMN
+from .shells import plot_cross_section, problem_caption, problem_title
+from .style import (DOUBLE_COLUMN, MIN_FONT_SIZE, SINGLE_COLUMN, add_caption, journal_figure,
+                    styled)
 
 __all__ = ["plot_branch", "BRANCH_STYLE", "EVENT_MARKERS", "AXIS_LABELS", "MAX_SHAPES",
-           "SWITCHED_COLOURS"]
+           "SWITCHED_COLOURS", "SWITCHED_MARKERS", "OKABE_ITO", "branch_caption"]
 
 #: Most shells drawn beside a diagram (start, events, end): more would be too small to read.
 MAX_SHAPES = 8
 
-#: Lines of the diagram: stable and unstable parts.
+#: The Okabe–Ito colours (Okabe & Ito 2008, without its black and its yellow, too light
+#: on white): distinct with protanopia and deuteranopia as well as with normal vision.
+OKABE_ITO = {"orange": "#E69F00", "sky blue": "#56B4E9", "bluish green": "#009E73",
+             "blue": "#0072B2", "vermillion": "#D55E00", "reddish purple": "#CC79A7"}
+#: Lines of the diagram: stable and unstable parts (a grey dark enough to stay apart from
+#: the bluish green of a switched branch with red–green colour blindness).
 BRANCH_STYLE = {"stable": {"color": "k", "ls": "-", "lw": 1.2},
-                "unstable": {"color": "0.45", "ls": "--", "lw": 0.9}}
+                "unstable": {"color": "0.35", "ls": "--", "lw": 0.9}}
 #: Markers of the events: (marker, colour, legend entry).
-EVENT_MARKERS = {"fold": ("o", "tab:red", "fold"),
-                 "branch_point": ("D", "tab:purple", "branch point"),
-                 "snap": ("v", "tab:blue", "after a snap-through")}
-#: Colours of the branches switched to at branch points (:func:`switch_branch`), by origin.
-SWITCHED_COLOURS = ("tab:green", "tab:orange", "tab:cyan", "tab:olive", "tab:pink", "tab:brown")
+EVENT_MARKERS = {"fold": ("o", OKABE_ITO["vermillion"], "fold"),
+                 "branch_point": ("D", OKABE_ITO["reddish purple"], "branch point"),
+                 "snap": ("v", OKABE_ITO["blue"], "after a snap-through")}
+#: Colours of the branches switched to at branch points (:func:`switch_branch`), by origin:
+#: the Okabe–Ito colours the events leave.
+SWITCHED_COLOURS = (OKABE_ITO["bluish green"], OKABE_ITO["orange"], OKABE_ITO["sky blue"])
+#: Markers along the switched branches, by origin: the cue that does not need colour (none
+#: is an event's marker).  With the colours cycling, the first six origins differ in both.
+SWITCHED_MARKERS = ("s", "X", "P", "*", "^", ">")
+#: Spacing of the markers along a switched branch (a fraction of the axes' diagonal).
+MARK_EVERY = 0.08
 #: Axis labels of the branch table's columns.
 AXIS_LABELS = {"lambda": r"path fraction $\lambda$", "energy": r"energy $E$ ($C R^2$)",
                "r_end": r"$r$ at the far end ($R$)", "z_end": r"$z$ at the far end ($R$)",
@@ -41,7 +59,8 @@ AXIS_LABELS = {"lambda": r"path fraction $\lambda$", "energy": r"energy $E$ ($C 
 
 
 def plot_branch(branch, *, y: str = "psi_end", x: str | None = None, shapes: bool = True,
-                fig: Figure | None = None, switched: Sequence = ()) -> Figure:
+                fig: Figure | None = None, switched: Sequence = (), title: str | None = "auto",
+                caption: str | None = "auto") -> Figure:
     """A bifurcation diagram of ``branch``, with the shapes at its events beside it.
 
     Parameters
@@ -59,12 +78,22 @@ def plot_branch(branch, *, y: str = "psi_end", x: str | None = None, shapes: boo
         Draw the cross-sections at the start, the events and the end below
         the diagram (at most :data:`MAX_SHAPES`).
     fig : Figure, optional
-        Drawn into (new, outside pyplot, two journal columns wide, if None).
+        Drawn into.  If None, a new figure in the journal style, outside
+        pyplot: two journal columns wide with the shapes
+        (:data:`~morphoshell.plotting.DOUBLE_COLUMN`), one without
+        (:data:`~morphoshell.plotting.SINGLE_COLUMN`).
     switched : sequence of Branch
         Branches followed from ``branch``'s branch points
         (:func:`morphoshell.solvers.branches.switch_branch`): drawn in one
-        colour per branch point (:data:`SWITCHED_COLOURS`), solid where
-        stable, their ends first among the shapes.
+        colour and marker per branch point (:data:`SWITCHED_COLOURS`,
+        :data:`SWITCHED_MARKERS`), solid where stable, their ends first
+        among the shapes.
+    title : str or None
+        One line over the diagram; "auto": the problem (name, family,
+        theory); None: none.
+    caption : str or None
+        Under the diagram; "auto": the path, the parameters and the mesh
+        (:func:`branch_caption`); None: none.
 
     Returns
     -------
@@ -77,41 +106,78 @@ def plot_branch(branch, *, y: str = "psi_end", x: str | None = None, shapes: boo
             numeric = [k for k in table if k not in ("stable", "event")]
             raise ValueError(f"{what} = {name!r}: choose one of {numeric}")
     if fig is None:
-        height = (0.85 if shapes else 0.5) * DOUBLE_COLUMN
-        fig = Figure(figsize=(DOUBLE_COLUMN, height), layout="constrained")
-    coloured = list(zip(switched, _switched_colours(switched)))
-    if not shapes:
-        _diagrams(fig.add_subplot(), table, coloured, x, y)
-        return fig
-    top, bottom = fig.subfigures(2, 1, height_ratios=(1.2, 1))
-    _diagrams(top.add_subplot(), table, coloured, x, y)
-    _shapes(bottom, branch, coloured)
+        width = DOUBLE_COLUMN if shapes else SINGLE_COLUMN
+        fig = journal_figure(width, (0.85 if shapes else 1.0) * width, pyplot=False)
+    styles = list(zip(switched, _switched_styles(switched)))
+    with styled(fig):
+        if shapes:
+            top, bottom = fig.subfigures(2, 1, height_ratios=(1.2, 1))
+            ax = top.add_subplot()
+            _shapes(bottom, branch, styles)
+        else:
+            ax = fig.add_subplot()
+        _diagrams(ax, table, styles, x, y, beside=shapes)
+        if title:
+            ax.set_title(problem_title(branch.problem) if title == "auto" else title)
+        if caption:
+            add_caption(ax, branch_caption(branch, switched) if caption == "auto" else caption)
     return fig
 
 
-def _switched_colours(switched: Sequence) -> list[str]:
-    """One colour per branch point of origin (both halves of its branch alike)."""
+def branch_caption(branch, switched: Sequence = ()) -> str:
+    """What a diagram's title leaves out: the path, the parameters, the method and mesh.
+
+    The parameters are those of the path's end (τ = 1, ``branch.problem``).
+    """
+    if branch.parameter:
+        path = (f"continued in {branch.parameter} from {branch.line.a[0]:g} to "
+                f"{branch.line.b[0]:g}")
+    else:
+        path = "λ from the stress-free parameters (0) to these (1)"
+    path += (", the connected branch" if branch.follow == "branch"
+             else ", the quasi-static path, snapping through at folds")
+    solver = branch.points[0].equilibrium.solver
+    parts = [problem_caption(branch.problem), path,
+             f"{solver.method} method, {solver.nodes} nodes"]
+    if switched:
+        parts.append("in colour, with markers: the branches switched to at branch points")
+    return "; ".join(parts)
+
+
+def _switched_styles(switched: Sequence) -> list[tuple[str, str]]:
+    """(colour, marker) per branch point of origin (both halves of its branch alike)."""
     origins = list(dict.fromkeys(b.origin for b in switched))
-    return [SWITCHED_COLOURS[origins.index(b.origin) % len(SWITCHED_COLOURS)] for b in switched]
+    return [(SWITCHED_COLOURS[k % len(SWITCHED_COLOURS)],
+             SWITCHED_MARKERS[k % len(SWITCHED_MARKERS)])
+            for k in (origins.index(b.origin) for b in switched)]
 
 
-def _diagrams(ax: Axes, table: dict, coloured: list, x: str, y: str) -> None:
-    """The branch's diagram (:func:`_diagram`) over the switched ones, each in its colour."""
-    for other, colour in coloured:
-        _line(ax, other.columns(), x, y, colour)
+def _diagrams(ax: Axes, table: dict, styles: list, x: str, y: str, *, beside: bool) -> None:
+    """The branch's diagram (:func:`_diagram`) over the switched ones, each in its style.
+
+    The legend goes beside the axes (``beside``: the two-column figure has
+    the width) or under the caption (one column).
+    """
+    for other, style in styles:
+        _line(ax, other.columns(), x, y, *style)
     _diagram(ax, table, x, y)
-    for origin, colour in dict((b.origin, c) for b, c in coloured).items():
-        ax.plot([], [], color=colour, lw=1.2, label=f"branch from λ = {origin:.4g}")
-    if coloured:         # (beside: inside, the switched branches leave no empty corner)
-        ax.legend(loc="center left", bbox_to_anchor=(1.0, 0.5), fontsize="small", frameon=False)
+    for origin, (colour, marker) in dict((b.origin, s) for b, s in styles).items():
+        ax.plot([], [], color=colour, marker=marker, lw=1.2,
+                label=f"branch from λ = {origin:.4g}")
+    # one legend, never over the lines: beside them in two columns, below the caption in one
+    if beside:
+        ax.legend(loc="center left", bbox_to_anchor=(1.0, 0.5))
+    else:
+        ax.figure.legend(*ax.get_legend_handles_labels(), loc="outside lower center", ncols=2)
 
 
-def _line(ax: Axes, table: dict, x: str, y: str, colour: str) -> None:
-    """A switched branch: solid where stable, dashed where not, in its colour."""
+def _line(ax: Axes, table: dict, x: str, y: str, colour: str, marker: str) -> None:
+    """A switched branch: solid where stable, dashed where not, in its colour and marker."""
     xs, ys = np.asarray(table[x], float), np.asarray(table[y], float)
     for i0, i1, is_stable in _runs(np.asarray(table["stable"], bool), list(table["event"])):
         style = {**BRANCH_STYLE["stable" if is_stable else "unstable"], "color": colour}
-        ax.plot(xs[i0:i1 + 1], ys[i0:i1 + 1], **style)
+        ax.plot(xs[i0:i1 + 1], ys[i0:i1 + 1], marker=marker, markevery=MARK_EVERY,
+                ms=3.5, **style)
 
 
 def _diagram(ax: Axes, table: dict, x: str, y: str) -> None:
@@ -137,7 +203,6 @@ def _diagram(ax: Axes, table: dict, x: str, y: str) -> None:
         ax.plot([], [], **BRANCH_STYLE["unstable"], label="unstable")
     ax.set_xlabel(AXIS_LABELS.get(x, x))
     ax.set_ylabel(AXIS_LABELS.get(y, y))
-    ax.legend(loc="best", fontsize="small", frameon=False)
 
 
 def _runs(stable: np.ndarray, events: Sequence[str]) -> list[tuple[int, int, bool]]:
@@ -162,11 +227,11 @@ def _runs(stable: np.ndarray, events: Sequence[str]) -> list[tuple[int, int, boo
 
 def _shapes(fig: SubFigure, branch, switched: list) -> None:
     """Small cross-sections of the shell at the start, the switched branches' ends, each event
-    and the end."""
+    and the end; their titles and ticks in :data:`MIN_FONT_SIZE`, the smallest legible."""
     later = [pt for pt in branch.points[1:-1] if pt.event] + [branch.points[-1]]
     shown = [(branch.points[0], "start", "k")]
     shown += [(b.end, f"from λ = {b.origin:.4g} ({'+' if b.direction > 0 else '−'})", colour)
-              for b, colour in switched]
+              for b, (colour, _) in switched]
     shown += [(pt, *(EVENT_MARKERS[pt.event][2:0:-1] if pt.event else ("end", "k")))
               for pt in later]
     shown = shown[:MAX_SHAPES]
@@ -178,14 +243,15 @@ def _shapes(fig: SubFigure, branch, switched: list) -> None:
         state = ("marginal" if pt.event in ("fold", "branch_point") else
                  "stable" if pt.stable else f"unstable ({pt.negative_eigenvalues})")
         plot_cross_section(pt.equilibrium, ax, title=None, legend=False, color=colour)
-        ax.set_title(f"{what}, λ = {pt.tau:.4g}\n{state}", fontsize="x-small")
+        # two short lines: one long line ran past the figure's edge
+        ax.set_title(f"{what}\nλ = {pt.tau:.4g}, {state}", fontsize=MIN_FONT_SIZE)
         ax.set_aspect("equal", adjustable="box")
         ax.set(xlim=limits[0], ylim=limits[1], xlabel="", ylabel="")
-        ax.tick_params(labelsize="x-small")
+        ax.tick_params(labelsize=MIN_FONT_SIZE)
     for ax in axes[len(shown):]:
         ax.set_axis_off()
-    fig.supxlabel(r"$r/R$", fontsize="small")
-    fig.supylabel(r"$z/R$", fontsize="small")
+    fig.supxlabel(r"$r/R$")
+    fig.supylabel(r"$z/R$")
 
 
 def _limits(eqs) -> tuple[tuple[float, float], tuple[float, float]]:

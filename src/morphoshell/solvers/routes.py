@@ -26,6 +26,7 @@ from ..numerics.mesh import mesh_spec
 from ..numerics.status import (BRANCH_ENDED, CONTINUATION_FAILED, NOT_A_MINIMUM, SNAP_FAILED,
                                explain)
 from .arclength import Arclength
+from .contact import warn_if_walls_overlap
 from .continuation import continue_to
 from .direct import BUILDS, MAX_NODES, DirectSolver, check_nodes
 from .options import check_anchors, check_guess, check_problem
@@ -171,7 +172,9 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
     -------
     Equilibrium
         Converged, stable and physical; a direct one with its error estimate
-        (``error``) and how it was reached (``solver.details["path"]``).
+        (``error``) and how it was reached (``solver.details["path"]``).  The
+        model has no self-contact: a shape whose walls pass through each other
+        is returned with a logged warning (:mod:`morphoshell.solvers.contact`).
 
     Raises
     ------
@@ -210,7 +213,9 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
         else:
             from .bvp import solve_bvp
             eq = solve_bvp(problem, nodes=nodes, guess=warm_start, **options)
-        return _minimum(eq, nodes)
+        eq = _minimum(eq, nodes)
+        warn_if_walls_overlap(eq)
+        return eq
     if rtol is not None and not (isinstance(rtol, (int, float)) and MIN_RTOL <= rtol < 1):
         raise ValueError(f"rtol = {rtol!r} must be a number in [{MIN_RTOL:g}, 1): the error "
                          f"estimate compares solutions converged to the solver's own "
@@ -226,8 +231,10 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
     else:
         eq = solver.solve(problem, anchors=anchors)
         eq = replace(eq, solver=replace(eq.solver, details={**eq.solver.details, "path": "cold"}))
-    return refine(eq, lambda n: direct_solver(problem, n, anchors, **options), rtol, anchors,
-                  max_nodes)
+    eq = refine(eq, lambda n: direct_solver(problem, n, anchors, **options), rtol, anchors,
+                max_nodes)
+    warn_if_walls_overlap(eq)       # (a minimum of the model, but not a physical shape)
+    return eq
 
 
 def _minimum(eq: Equilibrium, nodes: int) -> Equilibrium:

@@ -1,0 +1,115 @@
+"""Self-contact: where a solved shell's walls come closer than their thickness.
+
+The model has no self-contact: its energy is that of the sheet alone, and
+nothing keeps two parts of the sheet apart.  A shell that folds far enough
+(an inverting Volvox, a deep invagination) can therefore reach minima whose
+walls pass through each other — the midlines need not cross, only come
+closer than the sheet's thickness.  Such a shape is a true minimum of the
+model but not a physical shape; :func:`wall_contact` finds the closest
+approach of the walls and :func:`warn_if_walls_overlap` says so (documentation:
+"Solution", self-contact).
+
+Distances are between the solution's points (nodes and Gauss points) in the
+meridian half-plane (r, z): the closest points of two rings of a surface of
+revolution lie at the same azimuth.  Lengths in units of R.
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from .results import Equilibrium
+
+__all__ = ["WallContact", "wall_contact", "warn_if_walls_overlap", "FAR"]
+
+log = logging.getLogger(__name__)
+
+#: Material points more than this many thicknesses h apart along s are on different walls.
+#: Within one bend the walls cannot touch unless the bend's radius is below h/2 (its
+#: inner face then folds into itself, which is not contact), and such a U-turn spans
+#: π h/2 ≈ 1.6 h of midline; 3 h leaves a margin for stretched or compressed midlines.
+FAR = 3.0
+
+
+@dataclass(frozen=True)
+class WallContact:
+    """The closest approach of two walls of a shell.
+
+    Attributes
+    ----------
+    s : (float, float)
+        The two material points (s, undeformed arclength, R), more than
+        :data:`FAR` h apart along s.
+    distance : float
+        Between their midline points (R).
+    thickness : float
+        The sum of the two walls' half deformed thicknesses h/(2 f_s f_φ) (R):
+        the distance below which the walls overlap.
+    """
+
+    s: tuple[float, float]
+    distance: float
+    thickness: float
+
+    @property
+    def overlaps(self) -> bool:
+        """The walls pass through each other: closer than their thickness."""
+        return self.distance < self.thickness
+
+    def describe(self) -> str:
+        """One line: where, how close, and against what thickness."""
+        a, b = self.s
+        return (f"material points s = {a:.4g} and {b:.4g} ({b - a:.3g} R apart along s) are "
+                f"{self.distance:.3g} R apart, less than the walls' thickness there "
+                f"({self.thickness:.3g} R)")
+
+
+def wall_contact(eq: Equilibrium) -> WallContact | None:
+    """The closest approach of points of ``eq`` more than :data:`FAR` h apart along s,
+    measured against the walls' thickness; None if no such points are within it.
+
+    Parameters
+    ----------
+    eq : Equilibrium
+
+    Returns
+    -------
+    WallContact or None
+        The pair whose distance is the smallest fraction of their walls'
+        thickness (an overlap, :attr:`WallContact.overlaps`), or None where
+        the walls stay at least their thickness apart.
+    """
+    from scipy.spatial import cKDTree
+
+    points = np.column_stack([eq.r, eq.z])
+    half = eq.problem.h / (eq.f_s * eq.f_phi) / 2
+    if not (np.all(np.isfinite(points)) and np.all(np.isfinite(half))):
+        return None
+    # only pairs within the largest possible overlap distance: O(N log N), not O(N²)
+    pairs = cKDTree(points).query_pairs(2 * float(np.max(half)), output_type="ndarray")
+    if not len(pairs):
+        return None
+    i, j = pairs.T
+    pairs = pairs[np.abs(eq.s[i] - eq.s[j]) > FAR * eq.problem.h]
+    if not len(pairs):
+        return None
+    i, j = pairs.T
+    distance = np.hypot(*(points[i] - points[j]).T)
+    thickness = half[i] + half[j]
+    k = int(np.argmin(distance / thickness))
+    if distance[k] >= thickness[k]:
+        return None
+    a, b = sorted((float(eq.s[i[k]]), float(eq.s[j[k]])))
+    return WallContact((a, b), float(distance[k]), float(thickness[k]))
+
+
+def warn_if_walls_overlap(eq: Equilibrium) -> WallContact | None:
+    """A warning where the walls of ``eq`` overlap (:func:`wall_contact`); returns the contact."""
+    contact = wall_contact(eq)
+    if contact is not None:
+        log.warning("the shell's walls pass through each other: %s; the model has no "
+                    "self-contact, so this shape is a minimum of the model but not a physical "
+                    "one", contact.describe())
+    return contact
