@@ -138,6 +138,32 @@ def test_a_corrected_pseudotime_updates_the_stored_records_and_refits_nothing(da
     assert campaign(folder, ["flat"], workers=1, out=out, nodes=NODES).timing["computed"] == 0
 
 
+def test_records_name_their_versions_and_a_resume_with_others_says_so(data, tmp_path, caplog):
+    """A reused fit from another version was indistinguishable from a new one."""
+    import json
+    import logging
+
+    import morphoshell
+    from morphoshell.workflows import campaign
+
+    out = tmp_path / "out"
+    first = campaign(data[0], ["flat"], workers=1, out=out, nodes=NODES, timepoints=["t01"])
+    assert first.record("t01", "flat")["provenance"]["morphoshell"] == morphoshell.__version__
+    path = out / "campaign_settings.json"
+    settings = json.loads(path.read_text())
+    assert settings["provenance"]["morphoshell"] == morphoshell.__version__
+    settings["provenance"]["morphoshell"] = "0.0.1"
+    path.write_text(json.dumps(settings))
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        again = campaign(data[0], ["flat"], workers=1, out=out, nodes=NODES, timepoints=["t01"])
+    assert again.timing["computed"] == 0
+    assert f"morphoshell 0.0.1 -> {morphoshell.__version__}" in caplog.text
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        campaign(data[0], ["flat"], workers=1, out=out, nodes=NODES, timepoints=["t01"])
+    assert "other versions" not in caplog.text
+
+
 def test_a_folder_from_before_the_labels_left_the_digest_is_reused(data, tmp_path):
     """Records written before the pseudotime and versions were left out of the chaining
     digest (``previous`` over the whole record, no ``provenance``) are reused, not refitted."""
