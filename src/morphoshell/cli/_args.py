@@ -209,7 +209,7 @@ def problem_and_settings(path, overrides):
 
     problem, settings = load_problem(path)
     problem_over, solver_over = split_overrides(parse_overrides(overrides))
-    problem = apply_overrides(problem, problem_over)
+    problem = apply_overrides(problem, problem_over, str(path))
     try:
         settings = settings_from(solver_over, settings)
     except ValueError as exc:
