@@ -26,7 +26,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Iterator, Sequence
 
-from .._runtime import lifeline
+from .._runtime import interrupts, lifeline
 from .._runtime.interrupts import interrupted
 from .._runtime.console import progress
 from ..fitting import FIT_NODES, METHODS, VARIANTS, check_midline, volvox_spec
@@ -65,8 +65,8 @@ class CampaignInterrupted(KeyboardInterrupt):
     """
 
     def __init__(self, done: int, total: int, out: Path):
-        super().__init__(f"interrupted: {done} of {total} fits done (in {out}), resume with "
-                         f"the same command")
+        super().__init__(f"{interrupts.reason()}: {done} of {total} fits done (in {out}), "
+                         f"resume with the same command")
         self.done, self.total, self.out = done, total, out
 
 
