@@ -38,7 +38,8 @@ Conventions shared by all commands:
   all or nothing ([Results as tables](tables.md)).
 * **Messages** go through Python's `logging` (logger `morphoshell`) to standard
   error: `-v`/`--verbose` shows progress notes (twice: debugging detail, e.g.
-  every continuation step), `-q`/`--quiet` only errors, and no progress bars.
+  every continuation step), `-q`/`--quiet` only errors and results (the tables a
+  command prints): no warnings, `note:` lines or progress bars.
   Long jobs show a progress bar when standard error is a terminal.
 * **Exit status**: 0 success, 2 bad input (one line, nothing written),
   3 a solver failed (nothing written) or fits did not converge (`fit` writes its

@@ -114,3 +114,12 @@ def test_one_trace_is_no_average(tmp_path, capsys):
                  "--csv", str(tmp_path / "a.csv")]) == 2
     assert "an average needs at least 2" in capsys.readouterr().err
     assert not list(tmp_path.iterdir())
+
+
+def test_quiet_prints_the_result_without_notes(capsys):
+    """-q is "errors and results only": the readers' `note:` lines went on regardless (user
+    audit 5); the table of the traces is the command's result and stays."""
+    assert main(["average", "-q", *TRACES[:3], *_scale(_radii()[:3])]) == 0
+    captured = capsys.readouterr()
+    assert "note:" not in captured.out and captured.err == ""
+    assert "3 traces, 100 points each" in captured.out

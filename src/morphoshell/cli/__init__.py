@@ -10,8 +10,9 @@ workers stopped).  Every output is validated before any work and written all or
 nothing (:mod:`morphoshell.cli._outputs`).
 
 ``-v``/``--verbose`` (twice: debugging detail) and ``-q``/``--quiet`` (errors
-only, no progress bars) set the level of the standard ``logging`` logger
-``"morphoshell"``; they go before or after the command.
+and results only: no warnings, ``note:`` lines or progress bars) set the level
+of the standard ``logging`` logger ``"morphoshell"``; they go before or after
+the command.
 """
 from __future__ import annotations
 
@@ -55,8 +56,8 @@ def _add_verbosity(p: argparse.ArgumentParser, top: bool) -> None:
     group.add_argument("-v", "--verbose", action="count", help="show progress notes "
                        "(twice: debugging detail, e.g. every continuation step)",
                        **({"default": 0} if top else default))
-    group.add_argument("-q", "--quiet", action="store_true", help="show errors only: no "
-                       "warnings, notes or progress bars", **default)
+    group.add_argument("-q", "--quiet", action="store_true", help="show errors and results "
+                       "only: no warnings, notes or progress bars", **default)
 
 
 #: The module registering each command.

@@ -13,7 +13,7 @@ import re
 from pathlib import Path
 
 from ._args import (FORMAT_HELP, SECTION_HELP, TRACE_OPTIONS, add_outputs, micrometres,
-                    reader_notes, reworded)
+                    note, reader_notes, reworded)
 from ._outputs import Outputs
 
 __all__ = ["register", "OUTLIER_RATIO"]
@@ -116,8 +116,8 @@ def _load(args, radii) -> list:
     if len(midlines) < 2:
         raise ValueError(f"{len(midlines)} trace in {', '.join(map(str, args.traces))}: an "
                          f"average needs at least 2 (fit a single trace with `morphoshell fit`)")
-    for note in notes:
-        print(f"note: {note}")
+    for text in notes:
+        note(text)
     return midlines
 
 
