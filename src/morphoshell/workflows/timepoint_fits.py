@@ -35,7 +35,7 @@ from typing import Sequence
 import numpy as np
 
 from .._runtime import interrupts, lifeline
-from .._runtime.files import as_new_file
+from .._runtime.files import as_new_file, replace_named
 from ..fitting import BOUNDS, FitError, FitResult, fit, volvox_spec
 from ..io import Midline, average
 from ..io.timepoints import Timepoint
@@ -141,7 +141,7 @@ def write_atomic(path: Path, text: str) -> None:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)
         as_new_file(tmp)
-        os.replace(tmp, path)
+        replace_named(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
