@@ -123,3 +123,21 @@ def test_quiet_prints_the_result_without_notes(capsys):
     captured = capsys.readouterr()
     assert "note:" not in captured.out and captured.err == ""
     assert "3 traces, 100 points each" in captured.out
+
+
+def test_the_average_records_the_scale_it_was_made_with(tmp_path, capsys):
+    """The average's file named its traces but not the --pixel-size and --radius-um that
+    scaled them: it could not be reproduced from its file (user audit 5)."""
+    import morphoshell
+
+    radii = _radii()[:3]
+    out = tmp_path / "t02" / "average.csv"
+    out.parent.mkdir()
+    assert main(["average", *TRACES[:3], *_scale(radii), "--csv", str(out), "--traces"]) == 0
+    for path in (out, *out.parent.glob("average_*.csv")):
+        comments = [line for line in path.read_text().splitlines() if line.startswith("#")]
+        assert "# pixel_size_um = 0.3" in comments and "# section = whole" in comments
+        assert [f"# radius_um = {t}: {float(r):.10g}" for t, r in zip(TRACES, radii)] == \
+            [c for c in comments if c.startswith("# radius_um")]
+        assert f"# morphoshell = {morphoshell.__version__}" in comments
+    assert Midline.from_csv(out).n_traces == 3           # (the reader skips them)

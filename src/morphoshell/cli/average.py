@@ -68,8 +68,9 @@ def register(sub) -> None:
                         "<average>_<trace>.csv (the timepoints.csv column traces, for "
                         "the campaign's jackknife errors)")
     add_outputs(p, json="write the average, the traces' midlines and their distances as JSON",
-                csv="write the average midline (r, z, spread; n_traces and sources as # "
-                    "comments), as a campaign's timepoints.csv lists it",
+                csv="write the average midline (r, z, spread; n_traces, sources, --section, "
+                    "--pixel-size, --radius-um and the version as # comments), as a "
+                    "campaign's timepoints.csv lists it",
                 plot="draw the traces over their average, and their distances along it")
     p.set_defaults(run=_average)
 
@@ -135,6 +136,19 @@ def _trace_names(midlines) -> list[str]:
     return names
 
 
+def _how_made(args, radii: list) -> list[str]:
+    """The ``key = value`` comments of the written midlines that say how they were made: the
+    scale of each TRACE file (an average could not be reproduced from its file) and the
+    package version."""
+    from .. import __version__
+
+    lines = [f"morphoshell = {__version__}", f"section = {args.section}"]
+    if args.pixel_size is not None:
+        lines.append(f"pixel_size_um = {args.pixel_size:.10g}")
+        lines += [f"radius_um = {path}: {radius:.10g}" for path, radius in zip(args.traces, radii)]
+    return lines
+
+
 def _average(args) -> int:
     import numpy as np
 
@@ -154,13 +168,14 @@ def _average(args) -> int:
         flag = "  <- an outlier: check its scale and path" if name in outliers else ""
         print(f"  {name:30s} {d:.3g}{flag}")
     out = Outputs()
-    out.add(args.csv, mean.to_csv)
+    made = _how_made(args, radii)
+    out.add(args.csv, lambda path: mean.to_csv(path, made))
     written = {}
     if args.write_traces:
         for name, m in zip(names, midlines):
             path = args.csv.with_name(f"{args.csv.stem}_{name}.csv")
             written[name] = path
-            out.add(path, m.to_csv)
+            out.add(path, lambda path, m=m: m.to_csv(path, made))
     out.add(args.json, lambda path: _write_json(path, mean, midlines, names, rms, written))
     out.add(args.plot, lambda path: _plot(path, mean, midlines, names))
     for path in out.commit():
