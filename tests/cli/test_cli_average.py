@@ -69,6 +69,8 @@ def test_a_trace_at_the_wrong_scale_is_named_an_outlier(tmp_path, capsys):
         assert main(["average", *TRACES[:n], *_scale(radii[:n])]) == 0
         last = capsys.readouterr().out.strip().splitlines()[-1]
         assert last.startswith("morphoshell average: 1 outlier (synthetic_embryo3)"), last
+        # (what to do: the average written includes it)
+        assert "the average includes it: check the scale (--radius-um" in last
 
 
 def test_a_roi_manager_set_adds_every_line_roi(tmp_path, capsys):

@@ -185,7 +185,9 @@ def _average(args) -> int:
     if outliers:
         print(f"morphoshell average: {len(outliers)} outlier{'s' * (len(outliers) > 1)} "
               f"({', '.join(outliers)}): more than {OUTLIER_RATIO:g} times the median "
-              f"distance {median:.3g} R from the traces' median")
+              f"distance {median:.3g} R from the traces' median; the average includes "
+              f"{'them' if len(outliers) > 1 else 'it'}: check the scale (--radius-um, "
+              f"--pixel-size) and path, then rerun, leaving out a trace that does not belong")
     return 0
 
 
