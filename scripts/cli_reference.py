@@ -38,13 +38,14 @@ Conventions shared by all commands:
   all or nothing ([Results as tables](tables.md)).
 * **Messages** go through Python's `logging` (logger `morphoshell`) to standard
   error: `-v`/`--verbose` shows progress notes (twice: debugging detail, e.g.
-  every continuation step), `-q`/`--quiet` only errors, and no progress bars.
+  every continuation step), `-q`/`--quiet` only errors and results (the tables a
+  command prints): no warnings, `note:` lines or progress bars.
   Long jobs show a progress bar when standard error is a terminal.
 * **Exit status**: 0 success, 2 bad input (one line, nothing written),
   3 a solver failed (nothing written) or fits did not converge (`fit` writes its
   result, marked `"converged": false`; `campaign` writes every fit's record and
   the summary, and names the fits on its last line), 1 a bug (with where to
-  report it), 130 interrupted
+  report it), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM, handled as Ctrl-C)
   ([Solution routes and guarantees](solution.md#exit-statuses-of-the-command-line)).
 * **Gauges**: `solve` reports z in the solver's gauge, `ablate` in the far-end
   gauge ([Observables and gauges](observables.md)).

@@ -69,6 +69,8 @@ def test_a_trace_at_the_wrong_scale_is_named_an_outlier(tmp_path, capsys):
         assert main(["average", *TRACES[:n], *_scale(radii[:n])]) == 0
         last = capsys.readouterr().out.strip().splitlines()[-1]
         assert last.startswith("morphoshell average: 1 outlier (synthetic_embryo3)"), last
+        # (what to do: the average written includes it)
+        assert "the average includes it: check the scale (--radius-um" in last
 
 
 def test_a_roi_manager_set_adds_every_line_roi(tmp_path, capsys):
@@ -114,3 +116,30 @@ def test_one_trace_is_no_average(tmp_path, capsys):
                  "--csv", str(tmp_path / "a.csv")]) == 2
     assert "an average needs at least 2" in capsys.readouterr().err
     assert not list(tmp_path.iterdir())
+
+
+def test_quiet_prints_the_result_without_notes(capsys):
+    """-q is "errors and results only": the readers' `note:` lines went on regardless (user
+    audit 5); the table of the traces is the command's result and stays."""
+    assert main(["average", "-q", *TRACES[:3], *_scale(_radii()[:3])]) == 0
+    captured = capsys.readouterr()
+    assert "note:" not in captured.out and captured.err == ""
+    assert "3 traces, 100 points each" in captured.out
+
+
+def test_the_average_records_the_scale_it_was_made_with(tmp_path, capsys):
+    """The average's file named its traces but not the --pixel-size and --radius-um that
+    scaled them: it could not be reproduced from its file (user audit 5)."""
+    import morphoshell
+
+    radii = _radii()[:3]
+    out = tmp_path / "t02" / "average.csv"
+    out.parent.mkdir()
+    assert main(["average", *TRACES[:3], *_scale(radii), "--csv", str(out), "--traces"]) == 0
+    for path in (out, *out.parent.glob("average_*.csv")):
+        comments = [line for line in path.read_text().splitlines() if line.startswith("#")]
+        assert "# pixel_size_um = 0.3" in comments and "# section = whole" in comments
+        assert [f"# radius_um = {t}: {float(r):.10g}" for t, r in zip(TRACES, radii)] == \
+            [c for c in comments if c.startswith("# radius_um")]
+        assert f"# morphoshell = {morphoshell.__version__}" in comments
+    assert Midline.from_csv(out).n_traces == 3           # (the reader skips them)

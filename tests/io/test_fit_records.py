@@ -95,3 +95,39 @@ def test_a_fit_json_re_solves_at_the_fits_nodes(tmp_path):
     path.write_text(json.dumps(_record(fitted=[], solver={"nodes": 100, "tol": 1})))
     with pytest.raises(ProblemFileError, match=r"unknown key\(s\) \['tol'\] in 'solver'"):
         load_problem(path)
+
+
+def test_an_unconverged_fit_is_read_with_a_warning(caplog):
+    """A fit that stopped short was ablated as if it were the fitted shell (user audit 5)."""
+    import logging
+
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        fitted_problem(_record(fitted=["kappa2"], converged=True, E_fit=0.005), "good.json")
+    assert not caplog.records
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        fitted_problem(_record(fitted=["kappa2"], converged=False, E_fit=11.26,
+                               message="stopped"), "t07_flat.json")
+    assert "t07_flat.json: the fit did not converge (E_fit = 11.26 R: stopped)" in caplog.text
+
+
+def test_ablate_of_an_unconverged_fit_warns_and_its_json_names_the_source(tmp_path, capsys):
+    path = tmp_path / "short.json"
+    path.write_text(json.dumps(_record(fitted=["kappa2"], converged=False, E_fit=0.0134,
+                                       message="out of evaluations")))
+    out = tmp_path / "ablation.json"
+    assert main(["ablate", str(path), "--set", "cut=0.15", "--nodes", "40",
+                 "--json", str(out)]) == 0
+    captured = capsys.readouterr()
+    assert f"{path}: the fit did not converge" in captured.err
+    assert "E_fit = 0.0134 R, NOT converged" in captured.out
+    assert json.loads(out.read_text())["source"] == {
+        "file": str(path), "E_fit": 0.0134, "converged": False, "message": "out of evaluations"}
+
+
+def test_a_problem_that_an_override_makes_invalid_names_the_file_too():
+    """The t07 fit's curvature with a cut failed as '--set: abs(eta) = 1 ...', blaming the
+    command line for the file's value."""
+    from morphoshell.io.problem_files import ProblemFileError, apply_overrides
+
+    with pytest.raises(ProblemFileError, match=r"^t07_flat\.json with --set h=5\.0: "):
+        apply_overrides(FITTED, {"h": 5.0}, "t07_flat.json")

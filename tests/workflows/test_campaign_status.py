@@ -115,6 +115,78 @@ def test_resume_redoes_the_fits_downstream_of_a_changed_fit(data, tmp_path):
     assert changed.record("t02", "flat")["previous"] != first.record("t02", "flat")["previous"]
 
 
+def test_a_corrected_pseudotime_updates_the_stored_records_and_refits_nothing(data, tmp_path):
+    """The pseudotime is an input of no fit: a correction in timepoints.csv reuses every fit,
+    and every record then holds the new value (the summary's), not the old one."""
+    import json
+    import shutil
+
+    from morphoshell.workflows import campaign
+
+    folder = tmp_path / "data"
+    shutil.copytree(data[0], folder)
+    out = tmp_path / "out"
+    campaign(folder, ["flat"], workers=1, out=out, nodes=NODES)
+    table = folder / "timepoints.csv"
+    text = table.read_text()
+    assert ",0.05," in text
+    table.write_text(text.replace(",0.05,", ",0.07,"))
+    again = campaign(folder, ["flat"], workers=1, out=out, nodes=NODES)
+    assert again.timing["computed"] == 0
+    assert again.record("t02", "flat")["pseudotime"] == 0.07
+    assert json.loads((out / "t02_flat.json").read_text())["pseudotime"] == 0.07
+    assert campaign(folder, ["flat"], workers=1, out=out, nodes=NODES).timing["computed"] == 0
+
+
+def test_records_name_their_versions_and_a_resume_with_others_says_so(data, tmp_path, caplog):
+    """A reused fit from another version was indistinguishable from a new one."""
+    import json
+    import logging
+
+    import morphoshell
+    from morphoshell.workflows import campaign
+
+    out = tmp_path / "out"
+    first = campaign(data[0], ["flat"], workers=1, out=out, nodes=NODES, timepoints=["t01"])
+    assert first.record("t01", "flat")["provenance"]["morphoshell"] == morphoshell.__version__
+    path = out / "campaign_settings.json"
+    settings = json.loads(path.read_text())
+    assert settings["provenance"]["morphoshell"] == morphoshell.__version__
+    settings["provenance"]["morphoshell"] = "0.0.1"
+    path.write_text(json.dumps(settings))
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        again = campaign(data[0], ["flat"], workers=1, out=out, nodes=NODES, timepoints=["t01"])
+    assert again.timing["computed"] == 0
+    assert f"morphoshell 0.0.1 -> {morphoshell.__version__}" in caplog.text
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        campaign(data[0], ["flat"], workers=1, out=out, nodes=NODES, timepoints=["t01"])
+    assert "other versions" not in caplog.text
+
+
+def test_a_folder_from_before_the_labels_left_the_digest_is_reused(data, tmp_path):
+    """Records written before the pseudotime and versions were left out of the chaining
+    digest (``previous`` over the whole record, no ``provenance``) are reused, not refitted."""
+    import json
+
+    from morphoshell.workflows import campaign
+    from morphoshell.workflows.timepoint_fits import _digest
+
+    out = tmp_path / "out"
+    campaign(data[0], ["flat"], workers=1, out=out, nodes=NODES)
+    prev = None
+    for name in ("t01", "t02", "t03"):          # rewritten as the old format wrote them
+        path = out / f"{name}_flat.json"
+        rec = json.loads(path.read_text())
+        rec.pop("provenance")
+        rec["previous"] = None if prev is None else _digest(prev, ())
+        path.write_text(json.dumps(rec, indent=1, sort_keys=True) + "\n")
+        prev = rec
+    again = campaign(data[0], ["flat"], workers=1, out=out, nodes=NODES)
+    assert again.timing["computed"] == 0
+    assert campaign(data[0], ["flat"], workers=1, out=out, nodes=NODES).timing["computed"] == 0
+
+
 def test_a_folder_that_becomes_unwritable_ends_with_a_named_error(data, tmp_path, monkeypatch,
                                                                    capsys):
     """(Simulated: tests may run as root, whom a read-only folder does not stop.)"""

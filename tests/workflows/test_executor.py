@@ -95,3 +95,37 @@ def test_a_ctrl_c_dropped_in_a_serial_task_stops_the_next_one():
     finally:
         signal.signal(signal.SIGINT, previous)
     assert ran == [0]
+
+
+_SCRIPT = """
+import sys
+from morphoshell.workflows.executor import _check_main_guard
+{call}
+print("passed")
+"""
+
+
+@pytest.mark.parametrize("call, refused", [
+    ('_check_main_guard("spawn")', True),                          # the docs' script, unguarded
+    ('if __name__ == "__main__":\n    _check_main_guard("spawn")', False),
+    ('_check_main_guard("fork")', False),                          # fork imports nothing
+])
+def test_a_script_that_starts_workers_outside_the_main_guard_is_told_on_one_line(
+        tmp_path, call, refused):
+    """Spawned workers import the script: unguarded, each would start the work again, and
+    the script died in 299 lines of Dask and multiprocessing tracebacks (user audit 5)."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = tmp_path / "script.py"
+    script.write_text(_SCRIPT.format(call=call))
+    src = str(Path(__file__).resolve().parents[2] / "src")
+    run = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                         env={**os.environ, "PYTHONPATH": src}, timeout=120)
+    if refused:
+        last = run.stderr.strip().splitlines()[-1]
+        assert run.returncode == 1 and last.startswith("RuntimeError: ")
+        assert f"{script}, line 4: " in last and 'if __name__ == "__main__":' in last
+    else:
+        assert run.returncode == 0 and run.stdout.strip() == "passed", run.stderr

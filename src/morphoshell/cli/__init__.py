@@ -5,12 +5,14 @@ value or file, before any work starts, and no output written) or a file that
 cannot be written (named); 3 when a
 solver fails (Ipopt's or the BVP solver's status in the message); 1 only for
 a bug in morphoshell (the message says where to report it); 130 when
-interrupted.  Every output is validated before any work and written all or
+interrupted (Ctrl-C), 143 when terminated (SIGTERM, handled as Ctrl-C: one line,
+workers stopped).  Every output is validated before any work and written all or
 nothing (:mod:`morphoshell.cli._outputs`).
 
 ``-v``/``--verbose`` (twice: debugging detail) and ``-q``/``--quiet`` (errors
-only, no progress bars) set the level of the standard ``logging`` logger
-``"morphoshell"``; they go before or after the command.
+and results only: no warnings, ``note:`` lines or progress bars) set the level
+of the standard ``logging`` logger ``"morphoshell"``; they go before or after
+the command.
 """
 from __future__ import annotations
 
@@ -54,8 +56,8 @@ def _add_verbosity(p: argparse.ArgumentParser, top: bool) -> None:
     group.add_argument("-v", "--verbose", action="count", help="show progress notes "
                        "(twice: debugging detail, e.g. every continuation step)",
                        **({"default": 0} if top else default))
-    group.add_argument("-q", "--quiet", action="store_true", help="show errors only: no "
-                       "warnings, notes or progress bars", **default)
+    group.add_argument("-q", "--quiet", action="store_true", help="show errors and results "
+                       "only: no warnings, notes or progress bars", **default)
 
 
 #: The module registering each command.
@@ -120,11 +122,11 @@ def _plugin_of(exc: BaseException) -> str:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line on ``argv`` (default ``sys.argv[1:]``); return the exit status.
 
-    0 success, 2 bad input, 3 solver failure, 1 a bug, 130 interrupted (see
-    the module's docstring); messages go to standard error.
+    0 success, 2 bad input, 3 solver failure, 1 a bug, 130 interrupted, 143
+    terminated (see the module's docstring); messages go to standard error.
     """
     from .._runtime.console import configure
-    from .._runtime.interrupts import check, interrupted, noted
+    from .._runtime.interrupts import check, exit_status, interrupted, noted, reason
     from ..io.problem_files import ProblemFileError
     from ..solvers.results import SolverError
 
@@ -150,8 +152,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"morphoshell: solver failed{status}: {exc}", file=sys.stderr)
         return 3
     except KeyboardInterrupt:
-        print("morphoshell: interrupted", file=sys.stderr)
-        return 130
+        print(f"morphoshell: {reason()}", file=sys.stderr)
+        return exit_status()
     except BrokenPipeError:   # `morphoshell example NAME | head`: the reader left; not a bug
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
@@ -161,8 +163,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except Exception as exc:  # a bug: say so, and where to report it
         if interrupted(exc):      # Ctrl-C within CasADi: a SystemError caused by it
-            print("morphoshell: interrupted", file=sys.stderr)
-            return 130
+            print(f"morphoshell: {reason()}", file=sys.stderr)
+            return exit_status()
         if os.environ.get("MORPHOSHELL_DEBUG"):
             raise
         plugin = _plugin_of(exc)

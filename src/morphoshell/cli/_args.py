@@ -122,6 +122,13 @@ def reader_notes() -> Iterator[list[str]]:
         logger.propagate = saved[1]
 
 
+def note(text: str) -> None:
+    """Print ``note: text`` on standard output, unless ``-q`` (the ``morphoshell`` logger
+    shows errors only): a note is a remark on the work, not its result."""
+    if logging.getLogger("morphoshell").isEnabledFor(logging.WARNING):
+        print(f"note: {text}")
+
+
 def integer(lo: int, hi: int) -> Callable[[str], int]:
     """An integer in [lo, hi]."""
     def parse(text: str) -> int:
@@ -209,7 +216,7 @@ def problem_and_settings(path, overrides):
 
     problem, settings = load_problem(path)
     problem_over, solver_over = split_overrides(parse_overrides(overrides))
-    problem = apply_overrides(problem, problem_over)
+    problem = apply_overrides(problem, problem_over, str(path))
     try:
         settings = settings_from(solver_over, settings)
     except ValueError as exc:

@@ -74,7 +74,7 @@ class Outputs:
             return []
         import tempfile     # here only: a run without outputs needs none of its imports
 
-        from .._runtime.files import as_new_file
+        from .._runtime.files import as_new_file, replace_named
 
         temps: list[tuple[Path, Path]] = []
         try:
@@ -86,7 +86,7 @@ class Outputs:
                 write(Path(tmp))
             for tmp, path in temps:
                 as_new_file(tmp)
-                os.replace(tmp, path)
+                replace_named(tmp, path)
         except BaseException:
             for tmp, _ in temps:
                 tmp.unlink(missing_ok=True)

@@ -13,7 +13,7 @@ import re
 from pathlib import Path
 
 from ._args import (FORMAT_HELP, SECTION_HELP, TRACE_OPTIONS, add_outputs, micrometres,
-                    reader_notes, reworded)
+                    note, reader_notes, reworded)
 from ._outputs import Outputs
 
 __all__ = ["register", "OUTLIER_RATIO"]
@@ -68,8 +68,9 @@ def register(sub) -> None:
                         "<average>_<trace>.csv (the timepoints.csv column traces, for "
                         "the campaign's jackknife errors)")
     add_outputs(p, json="write the average, the traces' midlines and their distances as JSON",
-                csv="write the average midline (r, z, spread; n_traces and sources as # "
-                    "comments), as a campaign's timepoints.csv lists it",
+                csv="write the average midline (r, z, spread; n_traces, sources, --section, "
+                    "--pixel-size, --radius-um and the version as # comments), as a "
+                    "campaign's timepoints.csv lists it",
                 plot="draw the traces over their average, and their distances along it")
     p.set_defaults(run=_average)
 
@@ -116,8 +117,8 @@ def _load(args, radii) -> list:
     if len(midlines) < 2:
         raise ValueError(f"{len(midlines)} trace in {', '.join(map(str, args.traces))}: an "
                          f"average needs at least 2 (fit a single trace with `morphoshell fit`)")
-    for note in notes:
-        print(f"note: {note}")
+    for text in notes:
+        note(text)
     return midlines
 
 
@@ -133,6 +134,19 @@ def _trace_names(midlines) -> list[str]:
         raise ValueError(f"two traces have the same name {repeated[0]!r} (files of one name in "
                          f"different folders?): rename one")
     return names
+
+
+def _how_made(args, radii: list) -> list[str]:
+    """The ``key = value`` comments of the written midlines that say how they were made: the
+    scale of each TRACE file (an average could not be reproduced from its file) and the
+    package version."""
+    from .. import __version__
+
+    lines = [f"morphoshell = {__version__}", f"section = {args.section}"]
+    if args.pixel_size is not None:
+        lines.append(f"pixel_size_um = {args.pixel_size:.10g}")
+        lines += [f"radius_um = {path}: {radius:.10g}" for path, radius in zip(args.traces, radii)]
+    return lines
 
 
 def _average(args) -> int:
@@ -154,13 +168,14 @@ def _average(args) -> int:
         flag = "  <- an outlier: check its scale and path" if name in outliers else ""
         print(f"  {name:30s} {d:.3g}{flag}")
     out = Outputs()
-    out.add(args.csv, mean.to_csv)
+    made = _how_made(args, radii)
+    out.add(args.csv, lambda path: mean.to_csv(path, made))
     written = {}
     if args.write_traces:
         for name, m in zip(names, midlines):
             path = args.csv.with_name(f"{args.csv.stem}_{name}.csv")
             written[name] = path
-            out.add(path, m.to_csv)
+            out.add(path, lambda path, m=m: m.to_csv(path, made))
     out.add(args.json, lambda path: _write_json(path, mean, midlines, names, rms, written))
     out.add(args.plot, lambda path: _plot(path, mean, midlines, names))
     for path in out.commit():
@@ -170,7 +185,9 @@ def _average(args) -> int:
     if outliers:
         print(f"morphoshell average: {len(outliers)} outlier{'s' * (len(outliers) > 1)} "
               f"({', '.join(outliers)}): more than {OUTLIER_RATIO:g} times the median "
-              f"distance {median:.3g} R from the traces' median")
+              f"distance {median:.3g} R from the traces' median; the average includes "
+              f"{'them' if len(outliers) > 1 else 'it'}: check the scale (--radius-um, "
+              f"--pixel-size) and path, then rerun, leaving out a trace that does not belong")
     return 0
 
 

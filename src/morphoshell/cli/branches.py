@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import sys
 
-from ._args import add_outputs, integer, problem_and_settings, real
+from ._args import add_outputs, integer, note, problem_and_settings, real
 from ._outputs import Outputs
 
 __all__ = ["register"]
@@ -91,8 +91,7 @@ def _load(args):
     else:
         ParameterLine.between(source, problem)      # (refuses another structure)
     if settings.method != "direct":
-        print(f"note: continuation uses the direct method (the file asks for "
-              f"{settings.method!r})")
+        note(f"continuation uses the direct method (the file asks for {settings.method!r})")
     nodes = settings.nodes if args.nodes is None else args.nodes
     stages = settings.stages if args.stages is None else args.stages
     return problem, nodes, stages
@@ -163,7 +162,7 @@ def _switched(args, branch) -> tuple[list[tuple[str, object]], list[str]]:
 
     count = sum(pt.event == "branch_point" for pt in branch.points)
     if args.switch > count:
-        print(f"note: --switch {args.switch}: the branch has {count} branch point(s)")
+        note(f"--switch {args.switch}: the branch has {count} branch point(s)")
     out, failed = [], []
     for k in range(min(args.switch, count)):
         for direction, sign in ((1, "+"), (-1, "-")):

@@ -109,6 +109,7 @@ _OPTIONS = {r"^embryo_errors\b": "--embryo-errors", r"^held_from\b": "--held-fro
 def _campaign(args) -> int:
     import sys
 
+    from .._runtime.interrupts import exit_status
     from ..workflows import SUMMARY, CampaignInterrupted, campaign
 
     try:
@@ -117,9 +118,9 @@ def _campaign(args) -> int:
                           resume=args.resume, nodes=args.nodes, timepoints=args.timepoints,
                           embryo_errors=args.embryo_errors, held_from=args.held_from,
                           force=args.force)
-    except CampaignInterrupted as exc:      # Ctrl-C: how far it got, on one line
+    except CampaignInterrupted as exc:      # Ctrl-C or SIGTERM: how far it got, on one line
         print(f"morphoshell: {exc}", file=sys.stderr)
-        return 130
+        return exit_status()
     except ValueError as exc:               # (refused before any work: name the options)
         raise ValueError(reworded(str(exc), _OPTIONS)) from None
     t = result.timing

@@ -4,7 +4,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ._args import (FORMAT_HELP, SECTION_HELP, TRACE_OPTIONS, add_outputs, integer, micrometres,
-                    reader_notes, reworded)
+                    note, reader_notes, reworded)
 from ._outputs import Outputs
 from ._profiles import (add_profile_options, profile_data, profile_json, profile_names,
                         profile_plot_path, profile_table, refit_lines, run_profiles)
@@ -179,8 +179,8 @@ def load_checked(args, spec, n: int):
         hint = ("are its r and z in units of R, the embryo's radius (a trace in pixels needs "
                 "--format xy with --pixel-size and --radius-um)?")
     check_midline(spec, midline, f"{args.midline}: the midline", scale_hint=hint)
-    for note in notes:
-        print(f"note: {note}")
+    for text in notes:
+        note(text)
     return midline
 
 

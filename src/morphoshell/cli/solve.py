@@ -179,6 +179,20 @@ def _ablation_lines(ab) -> list[str]:
                  f"energy_post - (energy_pre - energy_removed), {sign}")]
 
 
+def _fit_of(path) -> dict | None:
+    """The source of a fit's JSON (:func:`morphoshell.io.problem_files.fit_source`: a warning
+    if it did not converge), or None for a problem file or another result."""
+    import json
+    from pathlib import Path
+
+    from ..io.problem_files import fit_source
+
+    if Path(path).suffix.lower() != ".json":
+        return None
+    # (load_problem has read and checked it)
+    return fit_source(json.loads(Path(path).read_text(encoding="utf-8-sig")), str(path))
+
+
 def _ablate(args) -> int:
     from ..mechanics.ablation import ablate
     from ..io.problem_files import write_csv, write_json
@@ -187,15 +201,21 @@ def _ablate(args) -> int:
     if not problem.cut > 0:
         raise ValueError(f"{args.problem}: cut (Sigma) = {problem.cut!r}: an ablation needs a "
                          f"cut > 0 (set it in the file's [problem] table or with --set cut=0.15)")
+    source = _fit_of(args.problem)
     ab = ablate(problem, nodes=nodes, method=method, **options)
     print(f"{_label(problem)}: ablation of cut Sigma = {problem.cut:g} rad "
           f"({method}, {len(ab.post.s)} points)")
+    if source is not None:
+        print(f"  shape of the fit in {source['file']}: E_fit = {source['E_fit']:.6g} R, "
+              f"{'converged' if source['converged'] else 'NOT converged'}")
     for label, eq in (("pre-ablation", ab.pre), ("post-ablation", ab.post)):
         print(f"  {label}:")
         _report_quality(eq)
     print("\n".join(_ablation_lines(ab)))
     out = Outputs()
-    out.add(args.json, lambda path: write_json(path, ab.to_dict()))
+    # (the shape's source: a reader of the JSON alone could not tell a fit that stopped short)
+    out.add(args.json, lambda path: write_json(
+        path, {**ab.to_dict(), **({"source": source} if source is not None else {})}))
     out.add(args.csv, lambda path: write_csv(path, {**problem.describe()["params"],
                                                     "h": problem.h, "cut": problem.cut,
                                                     # "opening" is the observable o below

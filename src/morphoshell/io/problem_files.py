@@ -55,7 +55,7 @@ else:  # pragma: no cover - exercised on Python 3.10 only
 __all__ = ["ProblemFileError", "Settings", "load_problem", "parse_overrides", "apply_overrides",
            "split_overrides", "settings_from", "to_jsonable", "write_json", "write_csv", "METHODS",
            "SOLVER_KEYS", "ALIASES", "examples", "example_path", "example_text", "EXAMPLES_DIR",
-           "problem_of_record"]
+           "problem_of_record", "fit_source"]
 
 log = logging.getLogger(__name__)
 
@@ -240,6 +240,40 @@ def problem_of_record(record: Mapping[str, Any], where: str = "the record") -> P
     return problem
 
 
+def fit_source(record: Mapping[str, Any], where: str = "the fit's record"
+               ) -> dict[str, Any] | None:
+    """Where a fitted shape comes from, with a warning when its fit did not converge.
+
+    A fit that stopped short (out of evaluations, near a fold) still has a
+    shell, but not the fitted one: ablating it as if it were was silent.
+
+    Parameters
+    ----------
+    record : mapping
+        A result's JSON or a campaign's record.
+    where : str
+        The file, for the warning and the source.
+
+    Returns
+    -------
+    dict or None
+        ``file``, ``E_fit`` (units of R), ``converged`` and ``message`` of a
+        fit's record (it has ``fitted``); None for other results.
+    """
+    if "fitted" not in record:
+        return None
+    source = {"file": where, "E_fit": record.get("E_fit"),
+              "converged": bool(record.get("converged", False)),
+              "message": record.get("message", "")}
+    if not source["converged"]:
+        e_fit = source["E_fit"]
+        log.warning("%s: the fit did not converge (E_fit = %s R: %s): its shell is where the "
+                    "fit stopped, not the fitted one", where,
+                    f"{e_fit:.4g}" if isinstance(e_fit, (int, float)) else e_fit,
+                    source["message"] or "no message")
+    return source
+
+
 def _dealias(table: dict, where: str) -> dict:
     """``table`` with deprecated key names (:data:`ALIASES`) renamed, with a warning each."""
     for old, new in ALIASES.items():
@@ -348,11 +382,14 @@ def split_overrides(overrides: Mapping[str, Any]) -> tuple[dict, dict]:
     return {k: v for k, v in overrides.items() if k not in SOLVER_KEYS}, solver
 
 
-def apply_overrides(problem: Problem, overrides: Mapping[str, Any]) -> Problem:
+def apply_overrides(problem: Problem, overrides: Mapping[str, Any],
+                    where: str | None = None) -> Problem:
     """Problem with ``--set`` overrides applied; unknown keys name the valid ones.
 
     A new ``family`` starts from its defaults; the other overrides may then
-    set its parameters.
+    set its parameters.  ``where`` is the problem's file: a problem the
+    overrides make invalid is named by it and them (the fault may be the
+    file's values as much as the new ones).
     """
     from ..model.profiles import get_family
 
@@ -368,7 +405,10 @@ def apply_overrides(problem: Problem, overrides: Mapping[str, Any]) -> Problem:
     try:
         return problem.with_updates(**overrides)
     except ValueError as exc:
-        raise ProblemFileError(f"--set: {exc}") from None
+        # (the file's values with the new ones: e.g. a fit's curvature with a cut)
+        given = " ".join(f"{k}={v}" for k, v in overrides.items())
+        raise ProblemFileError(f"{where} with --set {given}: {exc}" if where else
+                               f"--set: {exc}") from None
 
 
 def examples() -> dict[str, str]:

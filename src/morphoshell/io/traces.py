@@ -155,11 +155,12 @@ class Midline:
         """(r, z) as an array of shape (N, 2)."""
         return np.column_stack([self.r, self.z])
 
-    def to_csv(self, path: str | Path) -> None:
-        """Write the ``csv`` format, with n_traces and sources as ``#`` comments."""
+    def to_csv(self, path: str | Path, comments: Sequence[str] = ()) -> None:
+        """Write the ``csv`` format, with n_traces, sources and ``comments`` (``key = value``
+        lines that :meth:`from_csv` skips: how the midline was made) as ``#`` comments."""
         columns = [self.r, self.z] + ([self.spread] if self.spread is not None else [])
         lines = [f"# n_traces = {self.n_traces}", *(f"# source = {s}" for s in self.source),
-                 ",".join(("r", "z", "spread")[:len(columns)])]
+                 *(f"# {c}" for c in comments), ",".join(("r", "z", "spread")[:len(columns)])]
         lines += [",".join(f"{v:.17g}" for v in row) for row in zip(*columns)]
         Path(path).write_text("\n".join(lines) + "\n", encoding="utf-8")
 

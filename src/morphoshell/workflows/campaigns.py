@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import json
+import logging
 import os
 import time
 from contextlib import contextmanager
@@ -25,7 +26,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Iterator, Sequence
 
-from .._runtime import lifeline
+from .._runtime import interrupts, lifeline
 from .._runtime.interrupts import interrupted
 from .._runtime.console import progress
 from ..fitting import FIT_NODES, METHODS, VARIANTS, check_midline, volvox_spec
@@ -34,9 +35,12 @@ from ..io.timepoints import Timepoint, read_timepoints
 from .campaign_results import (SUMMARY, CampaignResult, load_campaign, read_record, read_records,
                                result_path)
 from .executor import SerialExecutor, backend_name, open_executor
-from .timepoint_fits import CampaignTask, first_start, fit_variant, write_atomic
+from .timepoint_fits import (CampaignTask, first_start, fit_variant, record_provenance,
+                             write_atomic)
 
 __all__ = ["campaign", "CampaignInterrupted", "CAMPAIGN_NODES", "SETTINGS"]
+
+log = logging.getLogger(__name__)
 
 #: The file in a campaign's folder that records its settings (:func:`campaign`'s ``force``).
 SETTINGS = "campaign_settings.json"
@@ -61,8 +65,8 @@ class CampaignInterrupted(KeyboardInterrupt):
     """
 
     def __init__(self, done: int, total: int, out: Path):
-        super().__init__(f"interrupted: {done} of {total} fits done (in {out}), resume with "
-                         f"the same command")
+        super().__init__(f"{interrupts.reason()}: {done} of {total} fits done (in {out}), "
+                         f"resume with the same command")
         self.done, self.total, self.out = done, total, out
 
 
@@ -226,6 +230,7 @@ def _check_settings(out: Path, settings: dict, force: bool) -> dict:
     recorded = read_record(path) if path.is_file() else None
     if recorded is None or force:
         return settings
+    _note_versions(path, recorded.get("provenance"))
     for key, value in settings.items():
         if recorded.get(key, value) != value:
             option = {"data": "DATA_DIR", "start": "start"}.get(key, "--" + key.replace("_", "-"))
@@ -234,6 +239,18 @@ def _check_settings(out: Path, settings: dict, force: bool) -> dict:
                 f"{value!r} ({option}): choose another --out, or --force to record the new "
                 f"settings and refit its fits as they come")
     return settings
+
+
+def _note_versions(path: Path, recorded: dict | None) -> None:
+    """Warn when the folder's campaign was run with other package versions: its stored fits
+    are reused (their records say which versions made them), which may not be wanted."""
+    now = record_provenance()
+    changed = [f"{k} {(recorded or {}).get(k, 'unknown')} -> {v}" for k, v in now.items()
+               if k in ("morphoshell", "casadi", "numpy") and (recorded or {}).get(k) != v]
+    if changed:
+        log.warning("%s: the folder's fits were made with other versions (%s); they are "
+                    "reused as they are (resume=False, --no-resume, refits them)",
+                    path, ", ".join(changed))
 
 
 def _read_data(data_dir, start) -> tuple[Timepoint, ...]:
@@ -332,7 +349,8 @@ def _run(executor, tasks: list[CampaignTask], source: CampaignTask | None, out: 
     """
     # only now: a scheduler that does not answer must leave no folder and delete no results
     out.mkdir(parents=True, exist_ok=True)
-    write_atomic(out / SETTINGS, json.dumps(settings, indent=1, sort_keys=True) + "\n")
+    write_atomic(out / SETTINGS, json.dumps({**settings, "provenance": record_provenance()},
+                                            indent=1, sort_keys=True) + "\n")
     if not resume:
         for tp in timepoints:
             for v in variants:

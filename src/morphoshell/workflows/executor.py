@@ -20,9 +20,12 @@ progress bar on a terminal.
 """
 from __future__ import annotations
 
+import ast
 import concurrent.futures as cf
 import logging
+import multiprocessing
 import os
+import sys
 from contextlib import contextmanager
 from typing import Any, Callable, Iterable, Iterator
 
@@ -116,6 +119,7 @@ def open_executor(workers: int | None = None, scheduler: str | None = None) -> I
                 raise ValueError("--scheduler needs Dask: pip install 'morphoshell[dask]'") \
                     from None
             log.info("Dask is not installed: a local pool of %d processes", workers)
+            _check_main_guard(multiprocessing.get_start_method())
             with _process_pool(workers) as pool:
                 yield pool
             return
@@ -123,6 +127,7 @@ def open_executor(workers: int | None = None, scheduler: str | None = None) -> I
             with _remote(scheduler) as executor:
                 yield executor
             return
+        _check_main_guard(dask_start_method())
         with _local_cluster(workers) as executor:
             yield executor
     finally:
@@ -131,6 +136,60 @@ def open_executor(workers: int | None = None, scheduler: str | None = None) -> I
                 os.environ.pop(k, None)
             else:
                 os.environ[k] = v
+
+
+def dask_start_method() -> str:
+    """How a Dask ``LocalCluster`` starts its worker processes (Dask's default: spawn)."""
+    import dask
+
+    return str(dask.config.get("distributed.worker.multiprocessing-method", "spawn"))
+
+
+def _check_main_guard(method: str) -> None:
+    """RuntimeError, on one line, when worker processes that import the main script
+    (``method`` not ``fork``) are started by that script's top-level code outside
+    ``if __name__ == "__main__":``.
+
+    Each such worker would run the script again on import, and multiprocessing refuses
+    that in the worker ("an attempt has been made to start a new process before the
+    current process has finished its bootstrapping phase"): the script got a cascade of
+    Dask and multiprocessing tracebacks (299 lines) that did not name the cause.
+    """
+    main = sys.modules.get("__main__")
+    spec = getattr(main, "__spec__", None)
+    # (a package's __main__, `python -m package`, is not run again by the workers)
+    if method == "fork" or (spec is not None and spec.name.rpartition(".")[2] == "__main__"):
+        return
+    script = getattr(main, "__file__", None)
+    frame = sys._getframe(1)
+    while frame is not None:
+        if (frame.f_code.co_name == "<module>" and frame.f_globals.get("__name__") == "__main__"
+                and script and os.path.abspath(frame.f_code.co_filename) == os.path.abspath(script)):
+            break
+        frame = frame.f_back
+    if frame is None or _guarded(script, frame.f_lineno):
+        return
+    raise RuntimeError(
+        f"{script}, line {frame.f_lineno}: starts worker processes outside "
+        f"'if __name__ == \"__main__\":'; each worker imports the script and would run it "
+        f"again: put the call under that guard (or use workers=1)")
+
+
+def _guarded(script: str, line: int) -> bool:
+    """Whether ``line`` of ``script`` lies in an ``if __name__ == "__main__":`` block (True
+    when the script cannot be read: no refusal on a guess)."""
+    try:
+        tree = ast.parse(open(script, encoding="utf-8").read())
+    except (OSError, SyntaxError, ValueError):
+        return True
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and node.lineno <= line <= (node.end_lineno or line):
+            names = {getattr(n, "id", getattr(n, "value", None))
+                     for n in (node.test.left, *node.test.comparators)} \
+                if isinstance(node.test, ast.Compare) else set()
+            if names == {"__name__", "__main__"}:
+                return True
+    return False
 
 
 @contextmanager

@@ -19,7 +19,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ..io.problem_files import problem_of_record
+from ..io.problem_files import fit_source, problem_of_record
 from ..mechanics.ablation import Ablation, edge_state, intact_problem, recoil_jacobian
 from ..model.problem import Problem
 from ..numerics.mesh import mesh_spec
@@ -67,11 +67,18 @@ def fitted_problem(record: dict, where: str = "the fit's record") -> Problem:
     ValueError
         A failed fit's record, or one whose two copies of the parameters
         disagree (the entry named).
+
+    Notes
+    -----
+    A fit that did not converge is read with a warning
+    (:func:`morphoshell.io.problem_files.fit_source`): its shell is where the
+    fit stopped.
     """
     if record.get("status", "ok") != "ok":
         raise ValueError(f"{where}: the fit failed ({record.get('message', 'no message')}): "
                          f"it has no fitted shell")
     problem = problem_of_record(record, where)
+    fit_source(record, where)       # (a warning if the fit did not converge)
     if "timepoint" in record and "variant" in record:
         problem = replace(problem, name=f"{record['timepoint']}_{record['variant']}")
     return problem

@@ -35,7 +35,7 @@ from typing import Sequence
 import numpy as np
 
 from .._runtime import interrupts, lifeline
-from .._runtime.files import as_new_file
+from .._runtime.files import as_new_file, replace_named
 from ..fitting import BOUNDS, FitError, FitResult, fit, volvox_spec
 from ..io import Midline, average
 from ..io.timepoints import Timepoint
@@ -48,7 +48,8 @@ from .campaign_results import read_record, result_path
 from .fitted_shapes import fitted_state
 from .start_candidates import Candidate, best_start, other_candidates
 
-__all__ = ["CampaignTask", "fit_variant", "first_start", "write_atomic", "HELD", "FOLD_GAIN"]
+__all__ = ["CampaignTask", "fit_variant", "first_start", "write_atomic", "record_provenance",
+           "HELD", "FOLD_GAIN"]
 
 #: Parameters fitted at the first timepoint and held after (all variants but ``free``).
 HELD = ("f1", "kappa3", "kappa4")
@@ -105,9 +106,25 @@ def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def _digest(record: dict) -> str:
-    """SHA-256 of a record as JSON (sorted keys: the same record, the same digest)."""
-    return hashlib.sha256(json.dumps(record, sort_keys=True).encode()).hexdigest()
+#: Entries of a record that label its fit but do not change it: left out of the digest that
+#: chains a fit to the previous one (``previous``), so that a corrected pseudotime or another
+#: package version updates the labels of stored fits instead of refitting every later one.
+_LABELS = ("pseudotime", "provenance")
+
+
+def _digest(record: dict, labels: Sequence[str] = _LABELS) -> str:
+    """SHA-256 of a record as JSON without its ``labels`` (sorted keys: the same record, the
+    same digest).  ``labels=()`` gives the digest of folders written before :data:`_LABELS`."""
+    kept = {k: v for k, v in record.items() if k not in labels}
+    return hashlib.sha256(json.dumps(kept, sort_keys=True).encode()).hexdigest()
+
+
+def record_provenance() -> dict[str, str]:
+    """The versions a campaign's fit was made with (no date: a resumed campaign writes the
+    same bytes as an uninterrupted one)."""
+    from ..io.problem_files import provenance
+
+    return {k: v for k, v in provenance().items() if k != "written"}
 
 
 def write_atomic(path: Path, text: str) -> None:
@@ -124,7 +141,7 @@ def write_atomic(path: Path, text: str) -> None:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)
         as_new_file(tmp)
-        os.replace(tmp, path)
+        replace_named(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
@@ -225,13 +242,17 @@ def fit_variant(task: CampaignTask) -> list[dict]:
     out = Path(task.out)
     report = []
     prev = first = None     # the records the next fit starts from / holds f1, κ3, κ4 of
+    legacy = None           # the digest of ``prev`` as a folder before _LABELS chained it
     lifeline.watch(task.owner)
     for tp in task.timepoints:
         path = result_path(out, tp.name, task.variant)
         settings = _settings(task, tp, prev)
         stored = read_record(path)
-        if _reusable(stored, settings):
-            rec = stored
+        relabelled = _relabelled(stored, tp, settings, legacy)
+        if _reusable(relabelled, settings):
+            rec = relabelled
+            if rec != stored:   # a record never disagrees with timepoints.csv (the summary)
+                write_atomic(path, json.dumps(rec, indent=1, sort_keys=True) + "\n")
             report.append({"timepoint": tp.name, "seconds": 0.0, "computed": False,
                            "status": rec["status"]})
         else:
@@ -242,13 +263,26 @@ def fit_variant(task: CampaignTask) -> list[dict]:
             interrupts.check()
             # sort_keys and full float precision: the same fit writes the same bytes
             write_atomic(path, json.dumps(rec, indent=1, sort_keys=True) + "\n")
-            rec = json.loads(path.read_text(encoding="utf-8"))
+            rec = stored = json.loads(path.read_text(encoding="utf-8"))
             report.append({"timepoint": tp.name, "seconds": time.perf_counter() - t0,
                            "computed": True, "status": rec["status"]})
         if rec["status"] == "ok":
-            prev = rec
+            prev, legacy = rec, _digest(stored, ())
             first = first or rec
     return report
+
+
+def _relabelled(stored: dict | None, tp: Timepoint, settings: dict, legacy: str | None
+                ) -> dict | None:
+    """A stored record with its labels brought up to date: the pseudotime of ``tp`` (an
+    input of no fit: timepoints.csv may correct it), and a ``previous`` digest of the
+    format before :data:`_LABELS` (``legacy``) replaced by the current one."""
+    if stored is None:
+        return None
+    rec = dict(stored, pseudotime=tp.pseudotime)
+    if legacy is not None and rec.get("previous") == legacy:
+        rec["previous"] = settings["previous"]
+    return rec
 
 
 def _failed(rec: dict, exc: BaseException) -> dict:
@@ -294,7 +328,7 @@ def _fit_one(task: CampaignTask, tp: Timepoint, prev: dict | None, first: dict |
     hold = {n: fixed[n] for n in HELD} if fixed else {}
     rec = {"label": "fit of the Volvox model (morphoshell.campaign)",
            "timepoint": tp.name, "pseudotime": tp.pseudotime, "variant": task.variant,
-           **settings, "started_from": origin, "held": hold}
+           "provenance": record_provenance(), **settings, "started_from": origin, "held": hold}
     if source is not None and fixed is None:
         return {**rec, "status": "failed",
                 "message": f"the held values come from the {source['variant']} fit of "
