@@ -93,6 +93,7 @@ def test_bad_tables_exit_2(header, rows, named, capsys, tmp_path):
     (["--k-range", "1", "0"], "--k-range 1 0: LO must be smaller than HI"),
     (["--k-range", "0", "nan"], "argument --k-range: nan must be a finite number"),
     (["--bootstrap", "-1"], "argument --bootstrap: -1 must lie in"),
+    (["--bootstrap", "1"], "argument --bootstrap: 1: too few resamples to estimate the 2.5 %"),
     (["--mu-min", "0"], "argument --mu-min: 0 must be a finite number in (0, 1e+06] Pa s"),
     (["--theory", "kirchhoff"], "argument --theory: invalid choice"),
 ])
@@ -102,3 +103,24 @@ def test_bad_options_exit_2(args, named, capsys, tmp_path):
 
 def test_missing_file_exits_2(capsys, tmp_path):
     _bad(["estimate", str(tmp_path / "nope.csv")], capsys, tmp_path, "nope.csv: no such file")
+
+
+def test_an_empty_sigma_cell_is_named_and_keeps_the_weighted_summary(tmp_path, capsys):
+    """User audit: one empty sigma_* cell made that embryo's k_combined a plain mean unseen,
+    dropped its k_*_error keys and the weighted summary from the terminal and the JSON.  Now
+    the embryo's note names the column, the keys are null, and the weighted summary is over
+    the embryos with errors, saying how many."""
+    rows = [*GOOD, "C,41,11,9,0.6,16,1.6,0.95,0.3,,0.2,"]
+    out = tmp_path / "out.json"
+    assert main(["estimate", _table(tmp_path, rows), "--workers", "1", "--bootstrap", "0",
+                 "--json", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "C: plain mean of rotation, displacement, not weighted: no sigma_rotation_deg" in text
+    assert "inverse-variance weighted:" in text and "over the 2 of 3 embryos" in text
+    data = json.loads(out.read_text())
+    a, _, c = data["embryos"]
+    assert set(a) == set(c) and c["k_rotation_numerical_error"] is None
+    assert any("sigma_rotation_deg" in n for n in c["notes"])
+    combined = data["summary"]["combined"]
+    assert combined["weighted_n"] == 2 and isinstance(combined["weighted_mean"], float)
+    assert data["summary"]["opening_kelvin"]["weighted_mean"] is None     # (none: null, kept)

@@ -317,7 +317,7 @@ def test_fit_command_refuses_bad_profile_names(midline_csv, tmp_path, capsys, na
 @pytest.mark.parametrize("argv, said", [
     # a single trace: refused after the fit had run (its result lost), in the library's words
     (["--profile", "f1", "--profile-noise", "traces"],
-     "--profile-noise traces: {midline} is not an average of several traces"),
+     "--profile-noise traces: {midline}: the midline holds no spread"),
     # options of the profiles without --profile did nothing, silently
     (["--profile-plot", "{tmp}/p.png"], "--profile-plot {tmp}/p.png without --profile NAMES"),
     (["--profile-points", "4", "--profile-noise", "residual"],

@@ -63,10 +63,35 @@ def test_the_bootstrap_draws_in_bounded_chunks_with_the_same_intervals(monkeypat
     x, V, X = rng.normal(size=37), rng.uniform(0.5, 1, 37), rng.uniform(0.1, 1, 37)
 
     def intervals():
-        return (summarise(x, bootstrap=3001, rng=np.random.default_rng([0, 1])).interval,
-                fit_velocity(V, X, bootstrap=3001, rng=np.random.default_rng([0, 2])).interval)
+        return (summarise(x, bootstrap=3001, rng=np.random.default_rng([0, 1]))
+                .bootstrap_interval,
+                fit_velocity(V, X, bootstrap=3001, rng=np.random.default_rng([0, 2]))
+                .bootstrap_interval)
     whole = intervals()
     monkeypatch.setattr(S, "RESAMPLE_CHUNK", 37 * 4 + 5)
     assert intervals() == whole
     sizes = [idx.size for idx in S.resamples(np.random.default_rng(0), 37, 3001)]
     assert max(sizes) <= 37 * 4 + 5 and sum(sizes) == 37 * 3001
+
+
+def test_the_slopes_interval_holds_its_coverage_with_few_embryos():
+    """User audit: the percentile bootstrap's "95 %" interval of E/μ held the truth in 48 % of
+    tables of 2 embryos and 83 % of 5 (for n = 2 it is the range of two slopes).  The t
+    interval E/μ ± t₀.₉₇₅(n − 1) SE is exact for errors of constant variance: over 2000
+    tables (seeded) its coverage lies within 0.02 of 0.95, four Monte-Carlo standard errors
+    (√(0.95 · 0.05/2000) = 0.005).  With the audit's relative scatter, V = 0.6 X (1 + 0.15 ε),
+    the errors grow with X and the interval is approximate: measured 0.93-0.95
+    (scripts/check_interval_coverage.py), so at least 0.91 here."""
+    from morphoshell.inverse import fit_velocity
+
+    for n in (2, 3, 5):
+        rng = np.random.default_rng([11, n])
+        hits = {"constant": 0, "relative": 0}
+        for _ in range(2000):
+            X = rng.uniform(1.0, 2.6, n)
+            for kind, V in (("constant", 0.6 * X + 0.15 * rng.normal(size=n)),
+                            ("relative", 0.6 * X * (1 + 0.15 * rng.normal(size=n)))):
+                lo, hi = fit_velocity(V, X, bootstrap=0).interval
+                hits[kind] += lo <= 0.6 <= hi
+        assert abs(hits["constant"] / 2000 - 0.95) <= 0.02, (n, hits)
+        assert hits["relative"] / 2000 >= 0.91, (n, hits)

@@ -377,3 +377,51 @@ def test_a_midline_file_of_three_points_is_refused_as_a_trace_is(tmp_path):
     path.write_text("r,z\n0,0\n0.5,0.1\n1,0.3\n", encoding="utf-8")
     with pytest.raises(MidlineError, match=r"average.csv: 3 points; a midline needs at least 4"):
         Midline.from_csv(path)
+
+
+# ------------------------------------------------------------------ averages read back
+
+def _average_csv(path, rows: int) -> np.ndarray:
+    """An average of 5 traces at ``rows`` rows (a quarter circle, spread 10⁻³ sin(πt/2) at the
+    fraction t of its arclength, 0 at the pole) written as morphoshell average does; the
+    spread as a function of t."""
+    t = np.linspace(0.0, 1.0, rows)
+    Midline(np.sin(t * np.pi / 2), 1 - np.cos(t * np.pi / 2), 1e-3 * np.sin(t * np.pi / 2), 5,
+            ("a.csv", "b.csv")).to_csv(path)
+    return lambda t: 1e-3 * np.sin(t * np.pi / 2)
+
+
+@pytest.mark.parametrize("rows", [100, 150, 60])
+def test_load_midline_keeps_an_averages_spread_and_n_traces(tmp_path, rows):
+    """The loader the docs show keeps what an average's CSV holds: its n_traces, and its spread
+    moved onto the n points by the fraction of arclength (user audit: it returned n_traces 1
+    and no spread, so a fit's profiles took their noise from the residual, silently).  At
+    n = rows the spread is the file's exactly; otherwise it is interpolated linearly between
+    rows h = 1/149 or 1/59 apart, whose error for 10⁻³ sin(πt/2) is at most
+    h²/8 · max|f''| = 10⁻³ (π/2)² h²/8 ≤ 9 × 10⁻⁸ R: atol 10⁻⁷ R."""
+    path = tmp_path / "average.csv"
+    spread_at = _average_csv(path, rows)
+    m = ml.load_midline(path, n=100)
+    assert m.n_traces == 5 and m.spread is not None and m.spread.shape == (100,)
+    if rows == 100:
+        assert np.array_equal(m.spread, Midline.from_csv(path).spread)
+    np.testing.assert_allclose(m.spread, spread_at(np.linspace(0, 1, 100)), rtol=0, atol=1e-7)
+    [one] = ml.load_midlines(path, n=100)
+    assert one.n_traces == 5 and np.array_equal(one.spread, m.spread)
+
+
+def test_a_single_trace_csv_has_no_spread(tmp_path):
+    path = tmp_path / "trace.csv"
+    t = np.linspace(0.0, 1.0, 50)
+    Midline(np.sin(t), 1 - np.cos(t)).to_csv(path)
+    m = ml.load_midline(path, n=100)
+    assert m.spread is None and m.n_traces == 1
+
+
+def test_an_average_is_not_averaged_again(tmp_path):
+    """An average's CSV read as a trace keeps n_traces, so that averaging it with traces is
+    refused (it was averaged as if it were one trace, its spread and count lost)."""
+    path = tmp_path / "average.csv"
+    _average_csv(path, 100)
+    with pytest.raises(MidlineError, match="already an average of 5 traces"):
+        ml.average(ml.load_midlines(path) + ml.load_midlines(path))

@@ -81,37 +81,28 @@ def profile_plot_path(args) -> Path | None:
 
 
 def profile_data(args, spec, midline):
-    """The data the profiles refit: the midline's points, with the spread of the traces where
-    the file is an average (:func:`_data_with_spread`).
+    """The data the profiles refit: the midline as the loader read it, an average with the
+    spread of its traces (:func:`morphoshell.io.load_midline` keeps them, resampled onto the
+    fitted points whatever the file's rows).
 
     Checked before the fit, so that ``--profile-noise traces`` on a file that is not an
     average is refused before any work (it had been refused after the fit, whose result was
     lost, in the library's words).
     """
-    from ..fitting import noise_variance
+    from ..fitting import traces_missing
 
-    data = _data_with_spread(args.midline, midline.points)
-    try:
-        noise_variance(data, 1.0, len(spec.fitted), _option(args, "profile_noise"))
-    except ValueError:
-        raise ValueError(f"--profile-noise traces: {args.midline} is not an average of several "
-                         f"traces with their spread (a CSV of r,z,spread with n_traces > 1): "
-                         f"average the stage's traces with morphoshell average TRACE... --csv "
-                         f"AVERAGE.csv and fit that, or take the noise from the fit's residual "
-                         f"(--profile-noise residual)") from None
-    return data
-
-
-def _data_with_spread(path, points):
-    """The fitted points with the spread of an averaged midline CSV, if the file has one."""
-    from ..io import Midline
-    try:
-        avg = Midline.from_csv(path)
-    except Exception:            # (not a midline CSV: an image trace, a .roi, ...)
-        return points
-    if avg.spread is None or avg.n_traces < 2 or len(avg.r) != len(points):
-        return points
-    return Midline(points[:, 0], points[:, 1], avg.spread, avg.n_traces, avg.source)
+    missing = traces_missing(midline)
+    if _option(args, "profile_noise") == "traces" and missing:
+        raise ValueError(f"--profile-noise traces: {args.midline}: the midline holds {missing}, "
+                         f"so there is no spread of traces to take the noise from: average the "
+                         f"stage's traces with morphoshell average TRACE... --csv AVERAGE.csv "
+                         f"and fit that, or take the noise from the fit's residual "
+                         f"(--profile-noise residual)")
+    if _option(args, "profile_noise") == "auto" and missing:
+        print(f"note: --profile-noise auto: the midline holds {missing}: sigma^2 from the fit's "
+              f"residual, whose intervals are lower bounds on traced data (an average of "
+              f"traces, morphoshell average TRACE... --csv AVERAGE.csv, gives calibrated ones)")
+    return midline
 
 
 def run_profiles(args, spec, data, result, names: list[str]) -> tuple:
@@ -123,11 +114,14 @@ def run_profiles(args, spec, data, result, names: list[str]) -> tuple:
     the gradient refit's Gauss-Newton steps and an NLP after them, and a KKT fit's profiles
     took 2.8 times as long for the same intervals (docs/benchmarks.md, "Profile intervals").
     """
-    from ..fitting import profiled_fit
+    from ..fitting import profiled_fit, traces_missing
 
+    noise = _option(args, "profile_noise")
+    if noise == "auto":     # (resolved here: profile_data has said so in the CLI's words)
+        noise = "residual" if traces_missing(data) else "traces"
     return profiled_fit(spec, data, names, result=result,
                         points=_option(args, "profile_points"), method="gradient",
-                        nodes=args.nodes, noise=_option(args, "profile_noise"))
+                        nodes=args.nodes, noise=noise)
 
 
 def _option(args, key: str):

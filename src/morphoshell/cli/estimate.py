@@ -39,14 +39,31 @@ paper's choice (leading order for o, Kelvin for rho and d). A measure that no
 k in --k-range produces gives null and a reason ("outside the range", "not
 monotonic"). Errors propagate to k to first order. The combined k of an
 embryo is the inverse-variance weighted mean of its numerical rho and d
-estimates (their mean without errors). E/mu (1/s) is the least-squares slope
+estimates (their plain mean, with a note naming the empty sigma column, when an
+error is missing). E/mu (1/s) is the least-squares slope
 through the origin of V against H^(5/2) R^(-3/2) |1 - k|; E >= (E/mu) mu_min
 (Pa) and the bending modulus E H^3 (J, mean H).
 
-JSON: embryos (k_<measure>_<method>[_error], k_combined, notes), summary (n,
-mean, std, bootstrap 95% interval of the mean, per estimate and combined) and,
-with velocities, E_over_mu, E_over_mu_standard_error, E_lower_bound_Pa,
+95% intervals are Student's t (of the mean; of the slope with n - 1 degrees
+of freedom): the percentile bootstrap's, in the JSON beside them, hold the
+truth in only 50-84% of tables of 2-5 embryos.
+
+JSON: embryos (k_<measure>_<method>_error, k_combined, notes; null where there
+is none), summary (n, mean, std, interval_95, bootstrap_interval_95, the
+inverse-variance weighted mean over the weighted_n embryos with errors, per
+estimate and combined) and, with velocities, E_over_mu,
+E_over_mu_standard_error, E_over_mu_interval_95, E_lower_bound_Pa,
 bending_modulus_lower_bound_J. CSV: the per-embryo table."""
+
+
+def _resamples(text: str) -> int:
+    """--bootstrap: 0, or from MIN_BOOTSTRAP to 1 000 000 resamples."""
+    from ..inverse.summaries import check_bootstrap
+    value = integer(0, 1_000_000)(text)
+    try:
+        return check_bootstrap(value)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc).replace("bootstrap = ", "")) from None
 
 
 def register(sub) -> None:
@@ -66,8 +83,11 @@ def register(sub) -> None:
                                               "to the stress-free k = 1); |k| < 2/h of the "
                                               "thickest shell (a sheet cannot curve with a "
                                               "radius below its half-thickness)")
-    p.add_argument("--bootstrap", type=integer(0, 1_000_000), default=2000, metavar="N",
-                   help="bootstrap resamples of the 95%% intervals (default 2000; 0: none)")
+    p.add_argument("--bootstrap", type=_resamples, default=2000, metavar="N",
+                   help="resamples of the percentile bootstrap 95%% intervals written beside "
+                        "the Student's t ones in the JSON (default 2000; 0: none; at least 40, "
+                        "to estimate the 2.5%% and 97.5%% quantiles); the bootstrap covers "
+                        "less than 95%% with few embryos (docs/inverse.md)")
     p.add_argument("--seed", type=integer(0, 2**32 - 1), default=0, metavar="S",
                    help="seed of the bootstrap (default 0)")
     p.add_argument("--nodes", type=integer(20, 3200), default=60, metavar="N",

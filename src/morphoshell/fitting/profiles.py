@@ -33,6 +33,11 @@ in JSON) and the parameter *not determined by the data* (:attr:`Profile.flat`).
               mean(spread²)/n over the points off the pole: the noise of the
               average alone, free of model error.
 
+``auto`` (the default) takes the traces when the data have them, else the residual, and
+logs which (a warning for the residual: data that lost an average's spread on the way fall
+back to it); each :class:`Profile` records it (``sigma2_source``, ``dof``).  The noise is
+:mod:`morphoshell.fitting.profile_noise`'s.
+
 The errors of a traced midline are correlated along it: each trace is
 aligned, scaled and drawn as a whole, so most of its error moves many points
 at once.  The 2N residuals are then far from 2N independent pieces of
@@ -64,17 +69,18 @@ from ..solvers.results import Equilibrium, SolverError
 from .bilevel import check_options, fit, fit_moving_boxes, method_run
 from .inner import InnerProblem
 from .midline_checks import as_points, check_midline
+from .profile_noise import (NOISE_SOURCES, log_noise, noise_dof, noise_variance,
+                            threshold_quantile, traces_missing)
 from .results import FitResult, fit_result
 from .spec import FitSpec
 
 __all__ = ["Profile", "profile", "profile_intervals", "profiled_fit", "noise_variance",
-           "noise_dof", "threshold_quantile", "STOP_MARGIN", "JUMP_MARGIN", "PROFILE_METHODS",
-           "NOISE_SOURCES", "SPAN_FACTOR", "EXTEND_STEPS", "LOWER", "MAX_RECENTRINGS"]
+           "traces_missing", "noise_dof", "threshold_quantile", "STOP_MARGIN", "JUMP_MARGIN",
+           "PROFILE_METHODS", "NOISE_SOURCES", "SPAN_FACTOR", "EXTEND_STEPS", "LOWER",
+           "MAX_RECENTRINGS"]
 
 #: Methods of a profile's refits (Nelder–Mead is far too slow for 20 refits).
 PROFILE_METHODS = ("gradient", "kkt")
-#: Where σ² comes from (module docstring); "auto": ``traces`` when the data have them.
-NOISE_SOURCES = ("auto", "residual", "traces")
 #: The default grid reaches this many times the linear interval's half-width
 #: (√(χ²₁ σ²/σ²_GN) Gauss–Newton errors) on either side: room for a profile twice as
 #: wide as the linearisation says before the grid is extended.
@@ -223,77 +229,6 @@ class Profile:
         import pandas as pd
         return pd.DataFrame({"value": self.values, "objective": self.objective,
                              "converged": self.converged}).rename_axis(self.name)
-
-
-def threshold_quantile(confidence: float, dof: float = math.inf) -> float:
-    """q of the threshold S_min + σ² q: χ²₁(confidence), or F(1, dof) for an estimated σ².
-
-    F(1, ν) is the square of Student's t with ν degrees of freedom: the
-    likelihood-ratio statistic with σ² replaced by an estimate of ν degrees
-    of freedom (module docstring).  It tends to χ²₁ as ν grows.
-    """
-    from scipy.stats import chi2, f
-
-    if math.isfinite(dof):
-        return float(f.ppf(confidence, 1, dof))
-    return float(chi2.ppf(confidence, 1))
-
-
-def noise_dof(data, source: str) -> float:
-    """The degrees of freedom of σ² from ``source`` (:func:`noise_variance`).
-
-    n − 1 for σ² from the spread of n traces (their errors are correlated
-    along each trace: module docstring); inf otherwise (χ²₁).
-    """
-    return float(getattr(data, "n_traces", 1) - 1) if source == "traces" else math.inf
-
-
-def noise_variance(data, S_min: float, k: int, source: str | float = "auto") -> tuple[float, str]:
-    """σ², the noise variance of one coordinate of one data point, and where it came from.
-
-    Parameters
-    ----------
-    data : Midline or array_like (N, 2)
-        The fitted midline; a :class:`morphoshell.io.Midline` averaged from
-        n > 1 traces carries their spread.
-    S_min : float
-        The fit's objective E_fit² (units of R²).
-    k : int
-        The fitted parameters.
-    source : {"auto", "residual", "traces"} or float
-        ``residual``: S_min/(2N − k); ``traces``: mean(spread²)/n_traces over
-        the points off the pole (the pole is the gauge's origin: no spread);
-        ``auto``: traces when the data have them, else residual; a number: σ²
-        itself (``"given"``).
-
-    Returns
-    -------
-    sigma2 : float
-    source : str
-
-    Raises
-    ------
-    ValueError
-        An unknown source, ``traces`` for data without a spread, or a σ²
-        that is not a positive number.
-    """
-    if not isinstance(source, str):
-        if not (np.isfinite(source) and source > 0):
-            raise ValueError(f"sigma2 = {source!r} must be a positive number")
-        return float(source), "given"
-    if source not in NOISE_SOURCES:
-        raise ValueError(f"noise = {source!r} must be one of {list(NOISE_SOURCES)} or a number")
-    spread = getattr(data, "spread", None)
-    n_traces = getattr(data, "n_traces", 1)
-    has_traces = spread is not None and n_traces > 1 and np.any(np.asarray(spread) > 0)
-    if source == "traces" and not has_traces:
-        raise ValueError("noise = 'traces' needs an average of several traces with their "
-                         "spread (a Midline with spread and n_traces > 1)")
-    if source == "traces" or (source == "auto" and has_traces):
-        spread = np.asarray(spread, dtype=float)
-        return float(np.mean(spread[spread > 0] ** 2) / n_traces), "traces"
-    n = len(as_points(data))
-    return float(S_min) / max(2 * n - k, 1), "residual"
 
 
 @dataclass
@@ -644,6 +579,7 @@ def profiled_fit(spec: FitSpec, data, names: Sequence[str] | None = None, *,
         raise ValueError(f"the result fitted {list(result.fitted)}, the spec "
                          f"{list(spec.fitted)}: not a fit of this spec")
     noise_variance(data, 1.0, len(spec.fitted), noise)      # (checks it before any work)
+    log_noise(data, noise)
     points_ = as_points(data)
     check_midline(spec, points_)
     spans = span if isinstance(span, Mapping) else {n: span for n in names}

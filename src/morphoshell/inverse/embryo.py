@@ -17,7 +17,7 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from ..io.measurements import MEASURES, UNITS, Measurement, to_physical
+from ..io.measurements import ERROR_COLUMN, MEASURES, UNITS, Measurement, to_physical
 from ..mechanics import asymptotics
 from .inversion import (ASYMPTOTIC, DEFAULT_K_RANGE, METHODS, SYMBOL, Curve, Estimate,
                         check_curvature, check_k_range, forward_map, invert)
@@ -70,8 +70,7 @@ class EmbryoEstimate:
                      "sigma_inner": m.cut / asymptotics.delta(m.h)}
         for (measure, method), e in self.estimates.items():
             out[f"k_{measure}_{method}"] = e.k
-            if m.error(measure) is not None:
-                out[f"k_{measure}_{method}_error"] = e.error
+            out[f"k_{measure}_{method}_error"] = e.error    # (null without sigma: same keys)
         out["k_combined"] = self.combined.k
         out["k_combined_error"] = self.combined.error
         out["notes"] = self.notes
@@ -90,7 +89,12 @@ def _combine(estimates: Sequence[Estimate]) -> Estimate:
         w = np.array([1 / e.error**2 for e in ok])
         k = float(np.dot(w, [e.k for e in ok]) / w.sum())
         return Estimate("combined", "numerical", k, float(1 / math.sqrt(w.sum())))
-    return Estimate("combined", "numerical", float(np.mean([e.k for e in ok])))
+    # (a weighted mean of the estimates with errors alone would drop the others' k: the plain
+    # mean keeps both, and the note says so, since the column mixes the two otherwise unseen)
+    missing = [ERROR_COLUMN[e.measure] for e in ok if not e.error]
+    return Estimate("combined", "numerical", float(np.mean([e.k for e in ok])),
+                    note=f"plain mean of {', '.join(e.measure for e in ok)}, not weighted: "
+                         f"no {' or '.join(missing)} (empty cell), so no error")
 
 
 def _formatter(measure: str, R_um: float) -> Callable[[float], str]:

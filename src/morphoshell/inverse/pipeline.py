@@ -32,7 +32,7 @@ from .inversion import (ASYMPTOTIC, DEFAULT_K_RANGE, GRID_STEP, K_TOL, METHODS, 
 from .recoil_model import NODES, RecoilModel
 from .recoil_velocity import MU_MIN, VelocityFit, fit_velocity, velocity_scale
 from .result import InverseResult
-from .summaries import BOOTSTRAP, SEED, Spread, summarise
+from .summaries import BOOTSTRAP, SEED, Spread, check_bootstrap, summarise
 
 log = logging.getLogger(__name__)
 
@@ -62,9 +62,7 @@ def _check_settings(methods, k_range, mu_min, bootstrap) -> tuple[float, float]:
     k_range = check_k_range(k_range)
     if not (isinstance(mu_min, (int, float)) and math.isfinite(mu_min) and mu_min > 0):
         raise ValueError(f"mu_min = {mu_min!r} must be a positive number (Pa s)")
-    if isinstance(bootstrap, bool) or not isinstance(bootstrap, (int, np.integer)) \
-            or bootstrap < 0:
-        raise ValueError(f"bootstrap = {bootstrap!r} must be a non-negative integer")
+    check_bootstrap(bootstrap)
     return k_range
 
 

@@ -18,7 +18,7 @@ from typing import Sequence
 import numpy as np
 
 from ..mechanics import asymptotics
-from .summaries import BOOTSTRAP, SEED, resamples
+from .summaries import BOOTSTRAP, SEED, check_bootstrap, resamples, t_quantile
 
 __all__ = ["MU_MIN", "velocity_scale", "elastic_bounds", "VelocityFit", "fit_velocity"]
 
@@ -66,9 +66,13 @@ def elastic_bounds(E_over_mu: float, mu_min: float = MU_MIN, H_um: float = 11.0)
 class VelocityFit:
     """Least squares through the origin of V against its scaling X = H^{5/2}R^{−3/2}|1 − k|.
 
-    E/μ = ΣXV/ΣX² (1/s), standard error √(Σr²/(n − 1)/ΣX²), bootstrap 95 %
-    interval over embryos; the bounds E ≥ (E/μ) μ_min and E H³ with the mean
-    H of the table.
+    E/μ = ΣXV/ΣX² (1/s), standard error SE = √(Σr²/(n − 1)/ΣX²), 95 % interval
+    E/μ ± t₀.₉₇₅(n − 1) SE: the least-squares slope's t interval (a regression
+    through the origin has n − 1 residual degrees of freedom; e.g. Draper & Smith,
+    *Applied Regression Analysis*, 3rd ed. 1998, §3.13); the percentile bootstrap
+    over embryos beside it (``bootstrap_interval``), which covers less with few
+    embryos (documentation: "Inverse estimates", "Summaries"); the bounds
+    E ≥ (E/μ) μ_min and E H³ with the mean H of the table.
     """
 
     E_over_mu: float
@@ -82,6 +86,7 @@ class VelocityFit:
     E_lower_bound_Pa: float
     bending_modulus_lower_bound_J: float
     excluded: tuple[str, ...] = ()
+    bootstrap_interval: tuple[float, float] | None = None
 
     def __str__(self) -> str:
         se = "" if self.standard_error is None else f" +- {self.standard_error:.3f}"
@@ -94,6 +99,9 @@ class VelocityFit:
         """JSON-ready: E/μ (1/s) with its error and interval, the bounds on E (Pa) and E H³ (J)."""
         return {"E_over_mu": self.E_over_mu, "E_over_mu_standard_error": self.standard_error,
                 "E_over_mu_interval_95": None if self.interval is None else list(self.interval),
+                "E_over_mu_interval_method": "student_t",
+                "E_over_mu_bootstrap_interval_95":
+                    None if self.bootstrap_interval is None else list(self.bootstrap_interval),
                 "E_lower_bound_Pa": self.E_lower_bound_Pa,
                 "bending_modulus_lower_bound_J": self.bending_modulus_lower_bound_J,
                 "mu_min_Pa_s": self.mu_min_Pa_s, "H_mean_um": self.H_mean_um,
@@ -145,7 +153,8 @@ def fit_velocity(V: Sequence[float], X: Sequence[float], *, mu_min: float = MU_M
     embryos : sequence of str, length n, optional
         Labels (default: 0, 1, …).
     bootstrap : int
-        Resamples of the interval (0: none; none either for n < 2).
+        Resamples of the bootstrap interval beside the t interval (0: none, else at least
+        :data:`morphoshell.inverse.summaries.MIN_BOOTSTRAP`); no interval for n < 2.
     rng : numpy.random.Generator, optional
         Draws the resamples (default: seeded with :data:`morphoshell.inverse.summaries.SEED`).
     excluded : sequence of str
@@ -158,9 +167,10 @@ def fit_velocity(V: Sequence[float], X: Sequence[float], *, mu_min: float = MU_M
     Raises
     ------
     ValueError
-        For unequal lengths, all-zero X, or a value that is not finite (named
-        by its embryo).
+        For unequal lengths, all-zero X, a value that is not finite (named
+        by its embryo), or a bad ``bootstrap``.
     """
+    bootstrap = check_bootstrap(bootstrap)
     V, X = np.asarray(V, dtype=float), np.asarray(X, dtype=float)
     if V.size == 0 or V.size != X.size or not np.any(X):
         raise ValueError("fit_velocity needs equally many velocities and scales, not all zero")
@@ -169,8 +179,10 @@ def fit_velocity(V: Sequence[float], X: Sequence[float], *, mu_min: float = MU_M
     slope = float(X @ V / sxx)
     n = V.size
     se = float(math.sqrt(np.sum((V - slope * X) ** 2) / (n - 1) / sxx)) if n >= 2 else None
-    interval = _bootstrap_slopes(V, X, bootstrap, rng) if bootstrap and n >= 2 else None
+    interval = None if se is None else (slope - t_quantile(n) * se, slope + t_quantile(n) * se)
+    boot = _bootstrap_slopes(V, X, bootstrap, rng) if bootstrap and n >= 2 else None
     bounds = elastic_bounds(slope, mu_min, H_mean_um)
     return VelocityFit(slope, se, interval, tuple(embryos or [str(i) for i in range(n)]),
                        tuple(map(float, X)), tuple(map(float, V)), float(mu_min),
-                       float(H_mean_um), **bounds, excluded=tuple(excluded))
+                       float(H_mean_um), **bounds, excluded=tuple(excluded),
+                       bootstrap_interval=boot)

@@ -23,6 +23,15 @@ from .summaries import Spread
 __all__ = ["InverseResult"]
 
 
+def _weighted(c) -> str:
+    """The weighted summary's line: its value, over how many of the embryos, or why none."""
+    if c.weighted_mean is None:
+        return "none (no embryo's combined k has an error: an error column is empty)"
+    over = "" if c.weighted_n == c.n else (f" (over the {c.weighted_n} of {c.n} embryos whose "
+                                           f"combined k has an error)")
+    return f"{c.weighted_mean:.4f} +- {c.weighted_error:.4f}{over}"
+
+
 def _column_unit(column: str) -> str:
     """Unit of a column of :meth:`InverseResult.table`."""
     if column.startswith("k_"):
@@ -85,29 +94,30 @@ class InverseResult:
 
     def _summary_lines(self) -> list[str]:
         """The summaries over embryos, and the E/μ fit."""
-        lines = ["summary over embryos (k in units of 1/R): mean +- std [bootstrap 95% "
+        lines = ["summary over embryos (k in units of 1/R): mean +- std [Student's t 95% "
                  "interval of the mean]:"]
         for m in MEASURES:
             for meth in ("numerical", "asymptotic", "inner"):
                 lines.append(f"  k from {m:12s} {meth:10s}  {self.summary[f'{m}_{meth}']}")
         c = self.summary["combined"]
         lines.append(f"  <k> from rotation + displacement (numerical): {c}")
-        if c.weighted_mean is not None:
-            lines.append(f"      inverse-variance weighted: {c.weighted_mean:.4f} +- "
-                         f"{c.weighted_error:.4f}")
+        lines.append(f"      inverse-variance weighted: {_weighted(c)}")
         if self.velocity is not None:
             lines.append(f"recoil velocities: {self.velocity}")
         return lines
 
     def _note_lines(self) -> list[str]:
-        """Why estimates are missing: the measures no k in the range gives, and failures."""
+        """Why estimates are missing (the measures no k in the range gives, and failures),
+        and combined k's that are plain means (an error missing)."""
         notes = [f"  {e.measurement.embryo}: {m}, {meth}: {est.note}" for e in self.embryos
                  for (m, meth), est in e.estimates.items()
                  if meth != "asymptotic" and est.status in ("outside_range", "not_monotonic",
                                                             "failed")]
-        if not notes:
-            return []
-        return ["no estimate (measures that no k in the range produces, or failures):", *notes]
+        lines = ["no estimate (measures that no k in the range produces, or failures):",
+                 *notes] if notes else []
+        plain = [f"  {e.measurement.embryo}: {e.combined.note}" for e in self.embryos
+                 if e.combined.k is not None and e.combined.note]
+        return lines + (["combined k without weights:", *plain] if plain else [])
 
     def to_dict(self) -> dict:
         """The JSON document (see ``morphoshell estimate --help``)."""

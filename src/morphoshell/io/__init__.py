@@ -20,7 +20,7 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
         "example_text", "EXAMPLES_DIR", "problem_of_record"],
     "traces": ["FORMATS", "Trace", "Midline", "read_trace", "to_image", "write_trace"],
     "trace_checks": ["MidlineError"],
-    "midlines": ["SECTIONS", "Alignment", "align", "resample", "load_midline", "load_midlines",
+    "midlines": ["SECTIONS", "Alignment", "align", "resample", "resample_spread", "load_midline", "load_midlines",
         "average", "trace_distances"],
     "measurements": ["MEASURES", "REQUIRED_COLUMNS", "OPTIONAL_COLUMNS", "MEASURE_COLUMN",
         "ERROR_COLUMN", "UNITS", "MeasurementError", "Measurement", "read_measurements",

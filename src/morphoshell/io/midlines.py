@@ -117,8 +117,8 @@ from .traces import Midline, Trace, read_trace
 if TYPE_CHECKING:       # scipy is imported on use (CLI start-up)
     from scipy.interpolate import CubicSpline
 
-__all__ = ["SECTIONS", "MIN_POINTS", "Alignment", "align", "resample", "load_midline", "load_midlines", "average",
-           "trace_distances"]
+__all__ = ["SECTIONS", "MIN_POINTS", "Alignment", "align", "resample", "load_midline",
+           "load_midlines", "resample_spread", "average", "trace_distances"]
 
 #: What a trace covers (see the module docstring).
 SECTIONS = ("auto", "whole", "half")
@@ -538,7 +538,11 @@ def load_midline(path: str | Path, format: str | None = None, *, n: int = 100,
     -------
     Midline
         n points (r, z each of shape (n,)); for one trace spread None and
-        n_traces 1, for several their :func:`average`.
+        n_traces 1, for several their :func:`average`; for a csv average
+        (``r,z,spread`` and ``# n_traces``, as :meth:`Midline.to_csv` and
+        ``morphoshell average --csv`` write it) its n_traces and its spread
+        resampled onto the n points (:func:`resample_spread`), so that a fit's
+        profiles take their noise from the traces as the command line's do.
 
     Raises
     ------
@@ -567,7 +571,8 @@ def load_midlines(path: str | Path, format: str | None = None, *, n: int = 100,
     list of Midline
         One per trace (one for a trace file, the chosen line ROIs' for a
         set), each of n points, spread None, n_traces 1, its source the
-        trace's (for a set's ROI ``"PATH, ROI 'NAME'"``).
+        trace's (for a set's ROI ``"PATH, ROI 'NAME'"``); a csv average keeps
+        its n_traces and its spread (:func:`load_midline`).
     """
     n = _count("n", n, 2)
     check_choice(section, SECTIONS, "section")
@@ -583,8 +588,36 @@ def load_midlines(path: str | Path, format: str | None = None, *, n: int = 100,
     for trace in traces:
         half = align(trace, section, flip=flip, max_asymmetry=max_asymmetry).points
         r, z = resample(half, n).T
-        midlines.append(Midline(r, z, None, 1, (trace.source,)))
+        midlines.append(Midline(r, z, resample_spread(trace.spread, n), trace.n_traces,
+                                (trace.source,)))
     return midlines
+
+
+def resample_spread(spread, n: int) -> np.ndarray | None:
+    """An average's spread at its N rows, at n points equally spaced in arclength.
+
+    Row i of an average lies at the fraction i/(N − 1) of its arclength (:func:`average`),
+    as point j of the resampled midline at j/(n − 1), so the spread goes across by that
+    fraction, interpolated linearly (exact near the pole, where it grows linearly from 0).
+
+    Parameters
+    ----------
+    spread : array_like, shape (N,), or None
+        Units of R.
+    n : int
+        Points wanted.
+
+    Returns
+    -------
+    ndarray, shape (n,), or None
+        The spread itself when N = n; None for None.
+    """
+    if spread is None:
+        return None
+    spread = np.asarray(spread, dtype=float)
+    if len(spread) == n:
+        return spread
+    return np.interp(np.linspace(0.0, 1.0, n), np.linspace(0.0, 1.0, len(spread)), spread)
 
 
 def average(midlines: Sequence[Midline]) -> Midline:

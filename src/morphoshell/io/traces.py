@@ -101,12 +101,20 @@ class Trace:
         One of :data:`FORMATS`.
     where : tuple of str, length n
         Where each point is in the file ("line 7", "point 3"), for messages.
+    spread : ndarray, shape (rows,), or None
+        csv ``r,z,spread`` only (an average, as :meth:`Midline.to_csv` writes
+        it): the spread column, one value per row of the file, row i at the
+        fraction i/(rows − 1) of the average's arclength.
+    n_traces : int
+        The ``# n_traces`` comment of a csv (1 without one): traces averaged.
     """
 
     points: np.ndarray
     source: str
     format: str
     where: tuple[str, ...]
+    spread: np.ndarray | None = None
+    n_traces: int = 1
 
 
 @dataclass(frozen=True, eq=False)
@@ -173,16 +181,24 @@ class Midline:
             raise MidlineError(f"{path}: {len(values)} points; a midline needs at least 4")
         check_extent(str(path), values[:, :2], where, _IN_PIXELS)
         check_axis(str(path), values[:, :2], where, _SWAPPED)
-        meta = [tuple(part.strip() for part in c.partition("=")[::2]) for c in comments]
-        sources = tuple(value for key, value in meta if key == "source")
-        counts = [value for key, value in meta if key == "n_traces"] or ["1"]
-        try:
-            n_traces = int(counts[-1])
-        except ValueError:
-            raise MidlineError(f"{path}: comment 'n_traces = {counts[-1]}' is not an "
-                               f"integer") from None
-        spread = values[:, 2] if len(header) == 3 else None
+        spread, n_traces, sources = _csv_average(path, header, values, comments)
         return cls(values[:, 0], values[:, 1], spread, n_traces, sources or (str(path),))
+
+
+def _csv_average(path: Path, header, values: np.ndarray,
+                 comments) -> tuple[np.ndarray | None, int, tuple[str, ...]]:
+    """What a csv midline holds beside its points: the spread column (None without one), the
+    ``# n_traces`` comment (1 without one) and the ``# source`` comments, as
+    :meth:`Midline.to_csv` writes them (MidlineError: an n_traces that is not an integer)."""
+    meta = [tuple(part.strip() for part in c.partition("=")[::2]) for c in comments]
+    sources = tuple(value for key, value in meta if key == "source")
+    counts = [value for key, value in meta if key == "n_traces"] or ["1"]
+    try:
+        n_traces = int(counts[-1])
+    except ValueError:
+        raise MidlineError(f"{path}: comment 'n_traces = {counts[-1]}' is not an "
+                           f"integer") from None
+    return (values[:, 2] if len(header) == 3 else None), n_traces, sources
 
 
 # --------------------------------------------------------------------------- reading
@@ -203,7 +219,8 @@ def read_trace(path: str | Path, format: str | None = None, *, pixel_size_um: fl
     Returns
     -------
     Trace
-        Repeated consecutive points dropped.
+        Repeated consecutive points dropped; a csv average's spread and
+        n_traces kept (:attr:`Trace.spread`).
 
     Raises
     ------
@@ -222,11 +239,14 @@ def read_trace(path: str | Path, format: str | None = None, *, pixel_size_um: fl
         for name, value in (("pixel_size_um", pixel_size_um), ("radius_um", radius_um)):
             if value is not None:
                 raise MidlineError(f"{path}: csv traces are in units of R: {name} does not apply")
-        _, values, where, _ = read_table(path, data, fmt)
+        header, values, where, comments = read_table(path, data, fmt)
         check_extent(str(path), values[:, :2], where, _IN_PIXELS)
+        # (an average's spread and n_traces are read here, so that every loader keeps them:
+        # a loader that dropped them took a fit's noise from its residual, silently)
+        spread, n_traces, _ = _csv_average(path, header, values, comments)
         points, where = one_curve(path, values[:, :2], where, "R")
         check_axis(str(path), points, where, _SWAPPED)
-        return Trace(points, str(path), fmt, tuple(where))
+        return Trace(points, str(path), fmt, tuple(where), spread, n_traces)
     scale = image_scale(path, fmt, pixel_size_um, radius_um)
     spline = False
     if fmt == "roi":

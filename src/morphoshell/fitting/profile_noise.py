@@ -1,0 +1,129 @@
+"""The noise variance σ² of a profile's threshold, and the threshold's quantile.
+
+σ² of one coordinate of one point of the data comes from the fit's residual or from the
+spread of the traces an averaged midline holds; with σ² from n traces the threshold takes
+F(1, n − 1) instead of χ²₁ (:mod:`morphoshell.fitting.profiles`, module docstring, for
+why and the coverage each gives).  Split from the profiles so that where σ² came from is
+decided, and said, in one place.
+"""
+from __future__ import annotations
+
+import logging
+import math
+
+import numpy as np
+
+from .midline_checks import as_points
+
+__all__ = ["NOISE_SOURCES", "threshold_quantile", "noise_dof", "traces_missing",
+           "noise_variance", "log_noise"]
+
+log = logging.getLogger(__name__)
+
+#: Where σ² comes from; "auto": ``traces`` when the data have them.
+NOISE_SOURCES = ("auto", "residual", "traces")
+
+
+def threshold_quantile(confidence: float, dof: float = math.inf) -> float:
+    """q of the threshold S_min + σ² q: χ²₁(confidence), or F(1, dof) for an estimated σ².
+
+    F(1, ν) is the square of Student's t with ν degrees of freedom: the
+    likelihood-ratio statistic with σ² replaced by an estimate of ν degrees
+    of freedom (:mod:`morphoshell.fitting.profiles`).  It tends to χ²₁ as ν grows.
+    """
+    from scipy.stats import chi2, f
+
+    if math.isfinite(dof):
+        return float(f.ppf(confidence, 1, dof))
+    return float(chi2.ppf(confidence, 1))
+
+
+def noise_dof(data, source: str) -> float:
+    """The degrees of freedom of σ² from ``source`` (:func:`noise_variance`).
+
+    n − 1 for σ² from the spread of n traces (their errors are correlated
+    along each trace: :mod:`morphoshell.fitting.profiles`); inf otherwise (χ²₁).
+    """
+    return float(getattr(data, "n_traces", 1) - 1) if source == "traces" else math.inf
+
+
+def traces_missing(data) -> str:
+    """What keeps σ² from coming from the traces of ``data``, "" when nothing does: "no
+    spread (a single trace, or an array of points)", "n_traces = 1, not an average of
+    several traces" or "a spread of zero everywhere" (:func:`noise_variance`)."""
+    spread = getattr(data, "spread", None)
+    if spread is None:
+        return "no spread (a single trace, or an array of points)"
+    n_traces = getattr(data, "n_traces", 1)
+    if n_traces < 2:
+        return f"n_traces = {n_traces}, not an average of several traces"
+    if not np.any(np.asarray(spread) > 0):
+        return "a spread of zero everywhere"
+    return ""
+
+
+def noise_variance(data, S_min: float, k: int, source: str | float = "auto") -> tuple[float, str]:
+    """σ², the noise variance of one coordinate of one data point, and where it came from.
+
+    Parameters
+    ----------
+    data : Midline or array_like (N, 2)
+        The fitted midline; a :class:`morphoshell.io.Midline` averaged from
+        n > 1 traces carries their spread.
+    S_min : float
+        The fit's objective E_fit² (units of R²).
+    k : int
+        The fitted parameters.
+    source : {"auto", "residual", "traces"} or float
+        ``residual``: S_min/(2N − k); ``traces``: mean(spread²)/n_traces over
+        the points off the pole (the pole is the gauge's origin: no spread);
+        ``auto``: traces when the data have them, else residual; a number: σ²
+        itself (``"given"``).
+
+    Returns
+    -------
+    sigma2 : float
+    source : str
+
+    Raises
+    ------
+    ValueError
+        An unknown source, ``traces`` for data without a spread, or a σ²
+        that is not a positive number.
+    """
+    if not isinstance(source, str):
+        if not (np.isfinite(source) and source > 0):
+            raise ValueError(f"sigma2 = {source!r} must be a positive number")
+        return float(source), "given"
+    if source not in NOISE_SOURCES:
+        raise ValueError(f"noise = {source!r} must be one of {list(NOISE_SOURCES)} or a number")
+    missing = traces_missing(data)
+    if source == "traces" and missing:
+        raise ValueError(f"noise = 'traces' needs an average of several traces with their "
+                         f"spread (a Midline with spread and n_traces > 1); the data hold "
+                         f"{missing}")
+    if source == "traces" or (source == "auto" and not missing):
+        spread = np.asarray(data.spread, dtype=float)
+        return float(np.mean(spread[spread > 0] ** 2) / data.n_traces), "traces"
+    n = len(as_points(data))
+    return float(S_min) / max(2 * n - k, 1), "residual"
+
+
+def log_noise(data, noise) -> None:
+    """Log where ``noise="auto"`` takes σ² from: a warning when from the residual, whose
+    intervals cover about half as often as the traces' (:mod:`morphoshell.fitting.profiles`),
+    since data that
+    lost their spread on the way (an array of an average's points) fall back to it
+    unseen; the choice is recorded in each :attr:`Profile.sigma2_source` too."""
+    if noise != "auto":
+        return
+    missing = traces_missing(data)
+    if missing:
+        log.warning("profiles: sigma^2 from the fit's residual with chi2_1 (noise='auto'; the "
+                    "data hold %s): such intervals are lower bounds on traced data; fit the "
+                    "Midline of an average of traces (morphoshell.io.load_midline of its CSV "
+                    "keeps the spread and n_traces), or pass noise='residual' to choose it",
+                    missing)
+    else:
+        log.info("profiles: sigma^2 from the spread of %d traces, F(1, %d)",
+                 data.n_traces, data.n_traces - 1)
