@@ -66,3 +66,17 @@ def test_ordinary_examples_are_not_flagged(name, caplog):
         eq = solve(problem, nodes=100)
     assert wall_contact(eq) is None
     assert not [r for r in caplog.records if r.name.endswith("contact")]
+
+
+def test_close_pairs_by_all_distances_are_the_k_d_trees(monkeypatch):
+    """The two ways of finding close pairs (all distances in blocks, so that a solve does
+    not import scipy; a k-d tree above BRUTE_POINTS) find the same pairs, across blocks."""
+    import numpy as np
+
+    from morphoshell.solvers import contact
+
+    points = np.random.default_rng(3).random((1300, 2))
+    brute = {tuple(p) for p in contact._close_pairs(points, 0.01)}
+    monkeypatch.setattr(contact, "BRUTE_POINTS", 0)
+    tree = {tuple(p) for p in contact._close_pairs(points, 0.01)}
+    assert brute == tree and len(brute) > 100
