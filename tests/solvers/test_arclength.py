@@ -12,8 +12,9 @@ import pytest
 
 from morphoshell import Problem, SolverError, solve
 from morphoshell.io.problem_files import load_problem
-from morphoshell.solvers import arclength
-from morphoshell.solvers.arclength import Arclength, snap_through
+from morphoshell.solvers import arclength, crossings
+from morphoshell.solvers.arclength import Arclength
+from morphoshell.solvers.crossings import snap_through
 from morphoshell.solvers.continuation import continue_to
 from morphoshell.solvers.paths import ParameterLine, neutral_problem
 from morphoshell.solvers.routes import direct_solver
@@ -150,7 +151,7 @@ def test_snap_through_lands_lower_or_fails_by_name(fold100, monkeypatch):
     eq, snap = snap_through(arc, fold)
     assert eq.converged and snap.tau == fold.tau and snap.tau_after > fold.tau
     assert snap.energy_landed < snap.energy_before and snap.energy_after < snap.energy_before
-    monkeypatch.setattr(arclength, "_moved", lambda eq, before: False)
+    monkeypatch.setattr(crossings, "_moved", lambda eq, before: False)
     with pytest.raises(SolverError) as err:
         snap_through(arc, fold)
     assert err.value.status == "Snap_Through_Failed"
@@ -235,9 +236,9 @@ def test_the_walk_past_a_stall_stops_where_it_reaches_the_target_unstable(monkey
         def equilibrium(self, point):
             return f"state at {point.tau:.3f}"
 
-    monkeypatch.setattr(arclength, "Arclength", Branch)
+    monkeypatch.setattr(crossings, "Arclength", Branch)
     with pytest.raises(SolverError) as info:
-        arclength.cross_fold(None, None, None, 0.9)
+        crossings.cross_fold(None, None, None, 0.9)
     assert info.value.status == "Branch_Ended"
     assert max(asked) <= 1 + arclength.MAX_STEP and len(asked) < 30
     assert info.value.last_iterate.startswith("state at 0.9")

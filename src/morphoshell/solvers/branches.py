@@ -34,9 +34,9 @@ import numpy as np
 
 from .._runtime.validate import integer, within
 from ..model.problem import Problem
-from .arclength import (EASY, GROWTH, MAX_STEP, MIN_STEP, ArcPoint, Arclength, Snap, Switch,
-                        branch_ended, snap_through, switch_stable)
+from .arclength import EASY, GROWTH, MAX_STEP, MIN_STEP, ArcPoint, Arclength, Snap, Switch
 from .continuation import continue_to
+from .crossings import branch_ended, snap_through, switch_stable
 from .options import check_direct_options, check_problem
 from .paths import ParameterLine, neutral_problem
 from .results import Equilibrium

@@ -32,7 +32,8 @@ import numpy as np
 
 from ..model.problem import Problem
 from ..numerics.status import CONTINUATION_FAILED, SNAP_FAILED, explain
-from .arclength import Arclength, Switch, cross_fold
+from .arclength import Arclength, Switch
+from .crossings import cross_fold
 from .direct import DirectSolver
 from .paths import ParameterLine, neutral_problem
 from .results import Equilibrium, SolverError
@@ -81,12 +82,12 @@ class Path:
     iterations : int
         Newton (or Ipopt) iterations of every step.
     snaps : tuple of Snap
-        The snap-throughs crossed on the way (:func:`morphoshell.solvers.arclength.snap_through`).
+        The snap-throughs crossed on the way (:func:`morphoshell.solvers.crossings.snap_through`).
     origin : str
         Where a continuation started.
     switches : tuple of Switch
         The switches of branches at branch points where the branch lost its
-        stability (:func:`morphoshell.solvers.arclength.cross_fold`).
+        stability (:func:`morphoshell.solvers.crossings.cross_fold`).
     """
 
     kind: str
@@ -304,7 +305,7 @@ def _follow(solver, eq, problem, anchors, first_step, max_steps, origin, snap=Fa
 
     With ``snap``, a stall of the step (a fold of the branch, where natural
     continuation cannot go on) is crossed as the shell would cross it
-    (:func:`morphoshell.solvers.arclength.cross_fold`; with ``switch`` also a
+    (:func:`morphoshell.solvers.crossings.cross_fold`; with ``switch`` also a
     branch point where the branch loses its stability).
     """
     line = ParameterLine.between(eq.problem, problem)
