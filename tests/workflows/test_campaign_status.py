@@ -89,6 +89,32 @@ def test_a_folder_with_other_settings_is_refused_unless_forced(data, tmp_path, c
     assert list(summary.nodes) == [NODES + 20]                              # refitted
 
 
+def test_a_moved_data_folder_reuses_the_fits_of_its_unchanged_files(data, tmp_path, caplog):
+    """A data folder moved (or copied) with its content was refused on resume (a user
+    audit: only its absolute path differed; --force then reused every fit): each fit's
+    record holds its files' names in the folder and their sha256, so the same files reuse
+    their fits, with a warning naming both folders, and a changed one is refitted."""
+    import shutil
+
+    from morphoshell.workflows import campaign
+
+    first, moved, out = tmp_path / "first", tmp_path / "moved", tmp_path / "out"
+    shutil.copytree(data[0], first)
+    kwargs = dict(timepoints=("t01", "t02"), nodes=NODES, workers=1, out=out)
+    assert campaign(first, ["flat"], **kwargs).timing["computed"] == 2
+    before = {p.name: p.read_bytes() for p in out.glob("t0*_flat.json")}
+    shutil.move(first, moved)
+    with caplog.at_level("WARNING"):
+        result = campaign(moved, ["flat"], **kwargs)
+    assert f"read {first.resolve()}" in caplog.text and str(moved.resolve()) in caplog.text
+    assert {p.name: p.read_bytes() for p in out.glob("t0*_flat.json")} == before
+    assert result.timing["computed"] == 0
+    from morphoshell.workflows import read_timepoints
+    midline = moved / read_timepoints(moved)[1].midline
+    midline.write_text(midline.read_text() + "\n")             # (a byte more: t02 only)
+    assert campaign(moved, ["flat"], **kwargs).timing["computed"] == 1
+
+
 def test_resume_redoes_the_fits_downstream_of_a_changed_fit(data, tmp_path):
     """t01's data change: t01 is refitted, and so are t02 and t03, which started from it."""
     import shutil

@@ -231,8 +231,14 @@ def _check_settings(out: Path, settings: dict, force: bool) -> dict:
     if recorded is None or force:
         return settings
     _note_versions(path, recorded.get("provenance"))
+    if recorded.get("data", settings["data"]) != settings["data"]:
+        # (each fit's record holds its files' names within the folder and their sha256:
+        # a moved or copied folder's unchanged files reuse their fits, changed ones refit)
+        log.warning("%s: the folder's campaign read %s; its fits whose files are the same in "
+                    "%s are reused, the others refitted", path, recorded["data"],
+                    settings["data"])
     for key, value in settings.items():
-        if recorded.get(key, value) != value:
+        if key != "data" and recorded.get(key, value) != value:
             option = {"data": "DATA_DIR", "start": "start"}.get(key, "--" + key.replace("_", "-"))
             raise ValueError(
                 f"{path}: the folder holds a campaign with {key} = {recorded.get(key)!r}, not "
