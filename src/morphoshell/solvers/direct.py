@@ -126,7 +126,8 @@ class DirectSolver:
     linear_solver, max_iter, stability, ipopt_options
         Passed to :class:`morphoshell.numerics.ipopt.IpoptBackend`: a linear solver of
         :data:`~morphoshell.numerics.ipopt_options.LINEAR_SOLVERS` that Ipopt can load,
-        ``max_iter`` ≥ 1, and options that Ipopt accepts, all checked before the build
+        ``max_iter`` ≥ 1 (Ipopt's iterations, not the Newton back end's, below), and
+        options that Ipopt accepts, all checked before the build
         (:func:`~morphoshell.numerics.ipopt_options.check_ipopt_options`).
     newton : bool
         Solves first try :class:`morphoshell.numerics.newton.NewtonBackend`: Newton
