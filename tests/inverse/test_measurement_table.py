@@ -51,10 +51,28 @@ def test_a_misspelt_optional_column_is_named_and_a_semicolon_table_explained(tmp
         I.read_measurements(path)
 
 
+@pytest.mark.parametrize("spelling", ["NA", "na", "N/A", "#N/A", "NaN", "nan", "NULL", "None",
+                                      " NA "])
+def test_missing_value_spellings_read_as_an_empty_cell(tmp_path, spelling):
+    """``NA`` was refused ("'NA' is not a number") where an empty cell is a missing measure
+    (user audit 5, finding 11b): lab tables from R, pandas or Excel write it so.  The rows
+    must equal those of the table with empty cells, field by field."""
+    empty = tmp_path / "empty.csv"
+    empty.write_text(f"{HEADER}\nA,40,11,8,,15,1.5,,,first\n")
+    spelt = tmp_path / "spelt.csv"
+    spelt.write_text(f"{HEADER}\nA,40,11,8,{spelling},15,1.5,{spelling},{spelling},first\n")
+    assert I.read_measurements(spelt) == I.read_measurements(empty)
+    spelt.write_text(f"{HEADER}\nA,{spelling},11,8,0.5,15,1.5,,,\n")      # required: named
+    with pytest.raises(I.MeasurementError, match="column 'R_um': the cell is empty"):
+        I.read_measurements(spelt)
+
+
 @pytest.mark.parametrize("row, named", [
     ("A,40,-11,8,0.5,15,1.5,,,",
      "row 1 (line 2, embryo 'A'), column 'H_um': -11.0 must be positive"),
-    ("A,40,11,8,nan,15,1.5,,,", "column 'opening_um': nan must be a finite number"),
+    ("A,40,11,8,inf,15,1.5,,,", "column 'opening_um': inf must be a finite number"),
+    ("A,40,11,8,0.5,15,n.a.,,,", "column 'displacement_um': 'n.a.' is not a number (a missing "
+                                 "value is an empty cell or #N/A, N/A, NA, NAN, NONE, NULL)"),
     ("A,40,11,8,0.5,190,1.5,,,", "column 'rotation_deg': 190.0 must lie in (-180, 180)"),
     ("A,40,11,81,0.5,15,1.5,,,", "column 'hole_diameter_um': the hole (81.0 um) is larger"),
     ("A,40,11,8,0.5,15,abc,,,", "column 'displacement_um': 'abc' is not a number"),

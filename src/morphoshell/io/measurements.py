@@ -33,7 +33,7 @@ log = logging.getLogger(__name__)
 
 __all__ = [
     "MEASURES", "REQUIRED_COLUMNS", "OPTIONAL_COLUMNS", "MEASURE_COLUMN", "ERROR_COLUMN", "UNITS",
-    "MeasurementError", "Measurement", "read_measurements", "to_dimensionless", "to_physical",
+    "MISSING", "MeasurementError", "Measurement", "read_measurements", "to_dimensionless", "to_physical",
 ]
 
 #: The recoil measures, in the order of every vector of the inverse estimates.
@@ -51,6 +51,11 @@ ERROR_COLUMN = {m: f"sigma_{c}" for m, c in MEASURE_COLUMN.items()}
 UNITS = {"opening": "um", "rotation": "deg", "displacement": "um"}
 
 _KNOWN = frozenset(REQUIRED_COLUMNS) | frozenset(OPTIONAL_COLUMNS)
+
+#: The spellings of a missing value in a table's cell (any case), as an empty cell: what
+#: spreadsheets, R and pandas write for one (``#N/A`` is Excel's).  Not ``-`` or ``0``,
+#: which may be values.
+MISSING = frozenset({"", "na", "n/a", "#n/a", "nan", "null", "none"})
 
 
 # --------------------------------------------------------------------------
@@ -234,11 +239,15 @@ class Measurement:
 # the table
 # --------------------------------------------------------------------------
 
-def _number(text: str) -> float:
+def _number(text: str) -> float | None:
+    """The number in a cell; None for a missing value (:data:`MISSING`)."""
+    if text.lower() in MISSING:
+        return None
     try:
         return float(text)
     except ValueError:
-        raise ValueError(f"{text!r} is not a number") from None
+        raise ValueError(f"{text!r} is not a number (a missing value is an empty cell or "
+                         f"{', '.join(sorted(m.upper() for m in MISSING if m))})") from None
 
 
 def _read_text(path: Path) -> str:
@@ -303,7 +312,7 @@ def _row(path: Path, header: list[str], n: int, line_no: int, cells: list[str]) 
     for column, cell in zip(header, cells):
         if column in _KNOWN and column != "embryo":
             try:
-                values[column] = _number(cell) if cell else None
+                values[column] = _number(cell)
             except ValueError as exc:
                 raise MeasurementError(f"{where}, column {column!r}: {exc}") from None
     try:
@@ -318,8 +327,10 @@ def read_measurements(path: str | Path) -> tuple[Measurement, ...]:
 
     The header names the columns (:data:`REQUIRED_COLUMNS`, optionally
     :data:`OPTIONAL_COLUMNS`; others are kept in ``extra``).  Lines starting
-    with ``#`` (before or between rows) are comments; an empty cell is a
-    missing value (allowed for the measures, velocity and errors).
+    with ``#`` (before or between rows) are comments; an empty cell, and
+    ``NA``, ``N/A``, ``#N/A``, ``NaN``, ``null`` or ``None`` in any case
+    (:data:`MISSING`, what spreadsheets, R and pandas write), is a missing
+    value (allowed for the measures, velocity and errors).
 
     Parameters
     ----------
@@ -335,7 +346,7 @@ def read_measurements(path: str | Path) -> tuple[Measurement, ...]:
     ------
     MeasurementError
         Naming the file, row (with its line and embryo) and column: a missing
-        or repeated column, a non-numeric, NaN or out-of-range cell, a hole
+        or repeated column, a non-numeric, infinite or out-of-range cell, a hole
         larger than the shell, a repeated embryo label, an empty file.
     """
     path = Path(path)
