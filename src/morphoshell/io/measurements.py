@@ -322,6 +322,44 @@ def _row(path: Path, header: list[str], n: int, line_no: int, cells: list[str]) 
                                exc.why) from None
 
 
+#: Rows with a rotation from which a table whose every rotation lies within ±π is noted as
+#: perhaps in radians (:func:`_note_radians`).
+RADIANS_ROWS = 5
+
+
+def _note_radians(path: Path, rows: tuple[Measurement, ...]) -> None:
+    """Warn (a note, not a refusal) when the rotations look like radians in a column of degrees.
+
+    The rule: at least :data:`RADIANS_ROWS` rows hold a rotation and every one lies within
+    ±π.  Any rotation in radians does (|ϱ| < 180° is |ϱ| < π rad), so the rule notes every
+    such table of that size.  In degrees it needs each embryo's edge to turn by less than
+    π° = 0.055 rad, where the leading order ϱ = √(3h/2)(1 − k) (docs, inverse.md) gives
+    0.27–0.67 rad (16–38°) at k = 0 for h = H/R between 0.05 and 0.3: every embryo of the
+    table would need k within 0.2 of 1 (an edge that hardly recoils) at once.  Fewer rows
+    are not noted: one or two such embryos are plausible.
+    """
+    held = [(m.row or i, m.rotation_deg) for i, m in enumerate(rows, 1)
+            if m.rotation_deg is not None]
+    if len(held) < RADIANS_ROWS or any(abs(v) > math.pi for _, v in held):
+        return
+    largest = max(abs(v) for _, v in held)
+    log.warning("%s: column 'rotation_deg', rows %s: every rotation lies within ±π (largest "
+                "|rotation| %.3g): radians in a column of degrees? So small a recoil in every "
+                "embryo is rare (degrees = radians × 57.3); read as degrees", path,
+                _row_ranges([n for n, _ in held]), largest)
+
+
+def _row_ranges(rows: list[int]) -> str:
+    """Row numbers as runs: ``1-4, 6, 8-9``."""
+    runs: list[list[int]] = []
+    for n in rows:
+        if runs and n == runs[-1][-1] + 1:
+            runs[-1].append(n)
+        else:
+            runs.append([n])
+    return ", ".join(f"{r[0]}-{r[-1]}" if len(r) > 1 else f"{r[0]}" for r in runs)
+
+
 def read_measurements(path: str | Path) -> tuple[Measurement, ...]:
     """Read a measurement table (CSV, one row per embryo; see :class:`Measurement`).
 
@@ -330,7 +368,10 @@ def read_measurements(path: str | Path) -> tuple[Measurement, ...]:
     with ``#`` (before or between rows) are comments; an empty cell, and
     ``NA``, ``N/A``, ``#N/A``, ``NaN``, ``null`` or ``None`` in any case
     (:data:`MISSING`, what spreadsheets, R and pandas write), is a missing
-    value (allowed for the measures, velocity and errors).
+    value (allowed for the measures, velocity and errors).  A table of at
+    least :data:`RADIANS_ROWS` rotations, all within ±π, is read as it is
+    with a warning naming the column and rows: radians in a column of
+    degrees? (the rule: :func:`_note_radians`).
 
     Parameters
     ----------
@@ -364,4 +405,5 @@ def read_measurements(path: str | Path) -> tuple[Measurement, ...]:
                                    f"the label {m.embryo!r} is also row {seen[m.embryo]}'s")
         seen[m.embryo] = n
         out.append(m)
+    _note_radians(path, tuple(out))
     return tuple(out)
