@@ -97,7 +97,7 @@ def register(sub) -> None:
                    help="processes sharing the embryos (default: one per core); the "
                         "estimates do not depend on it")
     add_outputs(p, json="write every estimate, the summary and the E/mu fit as JSON",
-                csv="write the per-embryo estimates as CSV",
+                csv="write the per-embryo estimates as CSV (units: docs, 'Results as tables')",
                 plot="write Fig. 2 J (and K with velocities)")
     p.set_defaults(run=_estimate)
 
