@@ -294,3 +294,31 @@ def test_a_failed_kkt_fit_is_done_by_the_gradient_method_and_says_so(data, tmp_p
     again = campaign(data[0], ["flat"], method="kkt", workers=1, out=tmp_path / "out",
                      nodes=NODES, timepoints=["t01"])
     assert again.timing["computed"] == 0
+
+
+def test_the_settings_file_records_the_run_and_the_summary_its_units(data, tmp_path):
+    """campaign_settings.json recorded data, method, nodes and start but not the variants,
+    timepoints, held_from and embryo_errors, and the summary's DataFrame had empty attrs
+    (user audit 5, finding 10).  The run's settings are recorded, not checked: a second run
+    with other ones into the same folder is no error and reuses the fit."""
+    import json
+
+    from morphoshell.workflows import campaign
+
+    out = tmp_path / "out"
+    first = campaign(data[0], ["flat"], workers=1, out=out, nodes=NODES, timepoints=["t01"])
+    settings = json.loads((out / "campaign_settings.json").read_text())
+    assert settings["last_run"] == {"variants": ["flat"], "timepoints": ["t01"],
+                                    "held_from": None, "embryo_errors": []}
+    df = first.to_dataframe()
+    units = df.attrs["units"]
+    assert (units["E_fit"], units["kappa1"], units["se_kappa1"], units["f1"], units["s2"]) == \
+        ("R", "1/R", "1/R", "1", "R")
+    assert units["variant"] == "" and df.attrs["settings"]["nodes"] == NODES
+    again = campaign(data[0], ["flat"], workers=1, out=out, nodes=NODES, timepoints=["t01"],
+                     held_from="flat")
+    assert again.timing["computed"] == 0
+    assert json.loads((out / "campaign_settings.json").read_text())["last_run"]["held_from"] \
+        == "flat"
+    header = (out / "campaign_summary.csv").read_text().splitlines()[0]
+    assert header.startswith("timepoint,pseudotime,variant")     # (no unit lines: read_csv)
