@@ -11,8 +11,9 @@ import lazy_loader
 
 # Every public name of the subpackage, imported from its module on first use.
 __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
-    "bvp": ["solve_bvp", "pontryagin_functions", "pole_solutions", "pole_state", "pole_costates",
+    "bvp": ["solve_bvp", "pontryagin_functions", "pole_state", "pole_costates",
         "pole_caps", "initial_state", "to_equilibrium", "neutral_path"],
+    "poles": ["pole_solutions", "PoleSolution", "weakly_singular"],
     "continuation": ["continue_to", "continue_between", "Path"],
     "paths": ["ParameterLine", "neutral_problem"],
     "arclength": ["Arclength", "ArcPoint", "Snap"],
