@@ -157,3 +157,18 @@ def test_the_kept_crossing_is_the_models_own():
     assert r.min() > -1e-7
     d = np.minimum(s, np.pi - s)
     assert d[r < 0].max() < 1e-6
+
+
+def test_a_crossing_beyond_the_pole_zone_names_h_and_the_bvp_route():
+    """h = 0.9, k = 2: the end pole's local solution (β₁ = 0.44) itself crosses the axis out
+    to 5e-4 R (fitted at the BVP's start), beyond POLE_ZONE; the direct route stops there,
+    and its refusal says so in one line naming h and the route that solves it (BVP:
+    energy 1.3658)."""
+    from morphoshell import SolverError
+    with pytest.raises(SolverError) as exc:
+        solve(Problem("uniform", {"k": 2.0}, h=0.9))
+    message = str(exc.value)
+    assert "\n" not in message
+    assert "from the end pole, whose local solution ~ s^0.4" in message
+    assert 'weakly singular' in message and "(h = 0.9)" in message
+    assert 'method="bvp"' in message

@@ -28,7 +28,7 @@ from ..numerics.ipopt import IpoptBackend
 from ..numerics.mesh import MeshSpec, pole_exponent
 from ..numerics.newton import NewtonBackend
 from ..numerics.status import MERIDIAN_CROSSES_AXIS, NOT_A_MINIMUM, explain
-from .options import check_direct_options
+from .options import check_direct_options, check_direct_thickness
 from .poles import weakly_singular
 from .results import (FIELDS, Equilibrium, NotAMinimumError, Quadrature, SolverError, SolverStats,
                       unconverged)
@@ -112,6 +112,21 @@ def _closing(eq: Equilibrium, crossing: tuple[float, float]) -> str:
     return (f"; here the cut edge (s = {eq.s[0]:.6g}) reaches the axis: the hole closes, "
             f"which the model (no contact with the axis) cannot follow: a wider cut, a thinner "
             f"shell or a smaller intrinsic stretch or curvature keeps it open")
+
+
+def _singular_pole(eq: Equilibrium, crossing: tuple[float, float]) -> str:
+    """What a crossing near a weakly singular pole but beyond :data:`POLE_ZONE` may mean: the
+    model's own local solution crossing the axis that far out (h = 0.9, k = 2: out to
+    5e-4 R), which the reference routes, starting ε from the pole, do not look at; "" else."""
+    problem, s = eq.problem, crossing[1]
+    for where, beta in weakly_singular(problem).items():
+        d = s - problem.cut if where == "start" else problem.end - s
+        if d <= 100 * POLE_ZONE:
+            return (f"; here {d:.2g} R from the {where} pole, whose local solution ~ s^"
+                    f"{beta:.3g} is weakly singular and may itself cross the axis that far "
+                    f"out on a shell this thick (h = {problem.h:g}): method=\"bvp\" (--method "
+                    f"bvp) starts {POLE_ZONE:g} R off the pole and solves such shells")
+    return ""
 
 
 class DirectSolver:
@@ -248,6 +263,7 @@ class DirectSolver:
             Ipopt converged to a saddle (``"Not_A_Minimum"``).
         """
         self.check(problem)
+        check_direct_thickness(problem)
         p = problem.parameter_vector()
         q = self.disc.check_anchors(p, anchors)
         origin = None
@@ -277,7 +293,8 @@ class DirectSolver:
         if crossing is not None:
             raise SolverError(
                 f"Ipopt converged ({res.status}) to r = {crossing[0]:.3g} at s = "
-                f"{crossing[1]:.6g}: {explain(MERIDIAN_CROSSES_AXIS)}{_closing(eq, crossing)}. "
+                f"{crossing[1]:.6g}: {explain(MERIDIAN_CROSSES_AXIS)}{_closing(eq, crossing)}"
+                f"{_singular_pole(eq, crossing)}. "
                 f"The iterate is attached (.last_iterate)", MERIDIAN_CROSSES_AXIS,
                 unconverged(eq))
         if not res.is_minimum:
