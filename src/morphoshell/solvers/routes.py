@@ -29,7 +29,7 @@ from .arclength import Arclength
 from .contact import warn_if_walls_overlap
 from .continuation import continue_to
 from .direct import BUILDS, MAX_NODES, DirectSolver, check_nodes
-from .options import check_anchors, check_guess, check_problem
+from .options import check_anchors, check_guess, check_problem, thin_shell_note
 from .paths import ParameterLine
 from .refinement import half_mesh, refine, solve_from
 from .results import Equilibrium, NotAMinimumError, SolverError, SolverStats, unconverged
@@ -226,6 +226,19 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
                          f"estimate compares solutions converged to the solver's own "
                          f"tolerance, 1e-10")
     max_nodes = check_nodes(options.pop("max_nodes", MAX_NODES))
+    try:
+        return _direct(problem, nodes, warm_start, anchors, continuation, rtol, max_nodes,
+                       options)
+    except SolverError as exc:
+        note = thin_shell_note(problem)
+        if not note or note in str(exc) or isinstance(exc, NotAMinimumError):
+            raise
+        raise SolverError(f"{exc}{note}", exc.status, exc.last_iterate) from exc
+
+
+def _direct(problem, nodes, warm_start, anchors, continuation, rtol, max_nodes,
+            options) -> Equilibrium:
+    """The direct route of :func:`solve`, its arguments checked."""
     solver = direct_solver(problem, nodes, anchors, **options)
     if warm_start is not None:
         eq = solver.solve(problem, warm_start=warm_start, anchors=anchors)
