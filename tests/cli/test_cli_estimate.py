@@ -64,8 +64,8 @@ def _bad(argv, capsys, tmp_path, named):
 @pytest.mark.parametrize("rows, named", [
     (["A,40,11,8,0.5,15,1.5,0.9,0.3,2,0.2,", "B,38,-12,10,,17,1.7,1.0,0.3,2,0.2,"],
      "row 2 (line 3, embryo 'B'), column 'H_um': -12.0 must be positive"),
-    (["A,40,11,8,0.5,NaN,1.5,0.9,0.3,2,0.2,"], "row 1 (line 2, embryo 'A'), column "
-                                               "'rotation_deg': nan must be a finite"),
+    (["A,40,11,8,0.5,Inf,1.5,0.9,0.3,2,0.2,"], "row 1 (line 2, embryo 'A'), column "
+                                               "'rotation_deg': inf must be a finite"),
     (["A,40,11,8,0.5,-180,1.5,0.9,0.3,2,0.2,"], "column 'rotation_deg': -180.0 must lie in "
                                                 "(-180, 180) degrees"),
     (["A,40,11,80.5,0.5,15,1.5,0.9,0.3,2,0.2,"], "column 'hole_diameter_um': the hole (80.5 um)"
@@ -73,7 +73,7 @@ def _bad(argv, capsys, tmp_path, named):
     (["A,40,11,8,0.5,15,1.5,fast,0.3,2,0.2,"], "column 'V_um_per_s': 'fast' is not a number"),
     (["A,40,11,8,0.5,15,-0.1,0.9,0.3,2,0.2,"], "column 'displacement_um': -0.1 must be "
                                                "non-negative"),
-], ids=["negative H", "NaN rotation", "rotation -180", "hole too large", "non-numeric",
+], ids=["negative H", "infinite rotation", "rotation -180", "hole too large", "non-numeric",
         "negative d"])
 def test_bad_cells_exit_2_naming_row_and_column(rows, named, capsys, tmp_path):
     _bad(["estimate", _table(tmp_path, rows)], capsys, tmp_path, named)

@@ -51,10 +51,28 @@ def test_a_misspelt_optional_column_is_named_and_a_semicolon_table_explained(tmp
         I.read_measurements(path)
 
 
+@pytest.mark.parametrize("spelling", ["NA", "na", "N/A", "#N/A", "NaN", "nan", "NULL", "None",
+                                      " NA "])
+def test_missing_value_spellings_read_as_an_empty_cell(tmp_path, spelling):
+    """``NA`` was refused ("'NA' is not a number") where an empty cell is a missing measure
+    (user audit 5, finding 11b): lab tables from R, pandas or Excel write it so.  The rows
+    must equal those of the table with empty cells, field by field."""
+    empty = tmp_path / "empty.csv"
+    empty.write_text(f"{HEADER}\nA,40,11,8,,15,1.5,,,first\n")
+    spelt = tmp_path / "spelt.csv"
+    spelt.write_text(f"{HEADER}\nA,40,11,8,{spelling},15,1.5,{spelling},{spelling},first\n")
+    assert I.read_measurements(spelt) == I.read_measurements(empty)
+    spelt.write_text(f"{HEADER}\nA,{spelling},11,8,0.5,15,1.5,,,\n")      # required: named
+    with pytest.raises(I.MeasurementError, match="column 'R_um': the cell is empty"):
+        I.read_measurements(spelt)
+
+
 @pytest.mark.parametrize("row, named", [
     ("A,40,-11,8,0.5,15,1.5,,,",
      "row 1 (line 2, embryo 'A'), column 'H_um': -11.0 must be positive"),
-    ("A,40,11,8,nan,15,1.5,,,", "column 'opening_um': nan must be a finite number"),
+    ("A,40,11,8,inf,15,1.5,,,", "column 'opening_um': inf must be a finite number"),
+    ("A,40,11,8,0.5,15,n.a.,,,", "column 'displacement_um': 'n.a.' is not a number (a missing "
+                                 "value is an empty cell or #N/A, N/A, NA, NAN, NONE, NULL)"),
     ("A,40,11,8,0.5,190,1.5,,,", "column 'rotation_deg': 190.0 must lie in (-180, 180)"),
     ("A,40,11,81,0.5,15,1.5,,,", "column 'hole_diameter_um': the hole (81.0 um) is larger"),
     ("A,40,11,8,0.5,15,abc,,,", "column 'displacement_um': 'abc' is not a number"),
@@ -103,3 +121,34 @@ def test_equal_estimates_get_equal_intervals():
     est = estimate(data, methods=("leading_order", "kelvin"))
     a, b = est.summary["rotation_asymptotic"], est.summary["rotation_kelvin"]
     assert a.mean == b.mean and a.interval == b.interval
+
+
+def _table(path, rotations):
+    """A table of one row per rotation (None: an empty cell), the other cells plausible."""
+    rows = [f"E{i},40,11,8,0.5,{'' if r is None else r},1.5,,," for i, r in enumerate(rotations)]
+    path.write_text("\n".join([HEADER, *rows]) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("rotations, noted", [
+    ([0.34, 0.27, -0.05, None, 0.43, 3.1], "rows 1-3, 5-6: every rotation lies within ±π"),
+    ([0.34, 0.27, -0.05, 0.43, 3.1], "rows 1-5: every rotation"),
+    ([0.34, 0.27, 0.05, 0.43], None),                  # four rows: too few to tell
+    ([0.34, 0.27, 0.05, 0.43, 3.2], None),             # one beyond pi: degrees
+    ([15.3, 19.3, 12.4, 20.4, 24.8], None),            # the synthetic table's range
+])
+def test_rotations_that_look_like_radians_are_noted(tmp_path, caplog, rotations, noted):
+    """Rotations entered in radians (every one < 1 degree) gave k near 0.45 without a word
+    (user audit 5, finding 11e): a warning names the column and the rows; the rule (at least
+    5 rotations, all within pi) is _note_radians's docstring.  The values are read as they
+    are: a note, not a refusal."""
+    import logging
+
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        rows = I.read_measurements(_table(tmp_path / "t.csv", rotations))
+    assert [m.rotation_deg for m in rows] == rotations
+    if noted is None:
+        assert "rotation_deg" not in caplog.text
+    else:
+        assert f"t.csv: column 'rotation_deg', {noted}" in caplog.text
+        assert "radians in a column of degrees?" in caplog.text

@@ -164,6 +164,42 @@ def test_text_forms_that_are_read(tmp_path, name, content):
     assert trace.where[0] == ("line 1" if content[0].isdigit() else "line 2")
 
 
+def test_named_columns_in_another_order_are_read_by_name(tmp_path):
+    """An honest header ``y,x`` was refused as a pixel list (x, y, value) and ``z,r,spread`` as
+    an unrecognised header (user audit 5, finding 11a): the names say which column is which.
+    Exact equality: the same numbers are only moved between columns."""
+    swapped = "\n".join(["Y,X", *(f"{y},{x}" for x, y in ROWS)]) + "\n"
+    trace = tr.read_trace(_file(tmp_path, "yx.csv", swapped), **SCALE)
+    plain = tr.read_trace(_file(tmp_path, "xy.csv", _joined(",", "x,y")), **SCALE)
+    assert trace.format == "xy" and np.array_equal(trace.points, plain.points)
+    mid = Midline(half(20)[:, 0], half(20)[:, 1], np.linspace(0.0, 0.01, 20), 3)
+    mid.to_csv(tmp_path / "rz.csv")
+    lines = (tmp_path / "rz.csv").read_text().splitlines()
+    rows = [line.split(",") for line in lines if not line.startswith("#")]
+    (tmp_path / "zr.csv").write_text("\n".join(
+        [line for line in lines if line.startswith("#")]
+        + [",".join((z, spread, r)) for r, z, spread in rows]) + "\n")
+    assert rows[0] == ["r", "z", "spread"]
+    for read in (Midline.from_csv(tmp_path / "zr.csv"), tr.read_trace(tmp_path / "zr.csv")):
+        assert np.array_equal(read.spread, mid.spread) and read.n_traces == 3
+    back = Midline.from_csv(tmp_path / "zr.csv")
+    assert np.array_equal(back.r, mid.r) and np.array_equal(back.z, mid.z)
+
+
+@pytest.mark.parametrize("name, content, message", [
+    ("yxv.csv", "y,x,value\n1,2,3\n", "columns 'y,x,value': this is a pixel list"),
+    ("zq.csv", "r,q\n0,0\n1,1\n", "unrecognised header 'r,q'; a trace file has a header 'x,y' "
+                                   "(pixels) or 'r,z' (units of R), in any order"),
+])
+def test_other_headers_say_what_was_found_and_expected(tmp_path, name, content, message):
+    """A third column, or a name that is not x, y, r, z or spread, is still refused in one line
+    naming the header found and the ones read."""
+    path = _file(tmp_path, name, content)
+    with pytest.raises(MidlineError) as exc:
+        tr.read_trace(path, **({} if "r," in content else SCALE))
+    assert message in str(exc.value) and str(path) in str(exc.value)
+
+
 @pytest.mark.parametrize("name, content, message", [
     ("semicolons.csv", "x;y\n1,5;2,5\n", "line 1: cells separated by ';' (a spreadsheet with "
                                           "decimal commas?)"),

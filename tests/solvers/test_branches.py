@@ -573,3 +573,22 @@ def test_the_blister_buckles_on_a_fine_mesh_too(blister):
     assert "buckled" in fine.solver.details["path"]
     assert fine.energy == pytest.approx(coarse.energy, rel=1e-7)
     assert fine.z[-1] - fine.z[0] == pytest.approx(coarse.z[-1] - coarse.z[0], rel=1e-6)
+
+
+def test_a_continuation_that_fails_on_a_fine_mesh_is_solved_from_a_coarser_one(blister,
+                                                                              monkeypatch):
+    """The blister's crossing of its branch point fails from 800 nodes (its modes crowd),
+    where a solve refined for rtol reaches 3185: solve() continues on a coarser mesh and
+    solves on its own from there, saying so. The 800-node dome is the 400-node one to 1e-8
+    (both estimates ~1e-9 relative; 1600 and 3200 nodes: 7.9262731748e-7 C R^2, the same
+    rising half). Without the coarser mesh the solve fails."""
+    from morphoshell.solvers import routes
+
+    fine, coarse = solve(blister, nodes=800), solve(blister, nodes=400)
+    assert "(on 800 it failed), then solved on 800 nodes from there" in \
+        fine.solver.details["path"]
+    assert fine.energy == pytest.approx(coarse.energy, rel=1e-8)
+    assert fine.z[-1] - fine.z[0] == pytest.approx(coarse.z[-1] - coarse.z[0], rel=1e-6)
+    monkeypatch.setattr(routes, "COARSEST", 10**6)
+    with pytest.raises(SolverError):
+        solve(blister, nodes=800)

@@ -120,3 +120,55 @@ def test_a_reference_routes_saddle_is_refused_by_its_inertia(method):
     assert exc.value.last_iterate.solver.method == method
     eq = solve(CASES["volvox cut"], nodes=100, method=method)
     assert eq.solver.details["minimum"].startswith("certified by the inertia")
+
+
+@pytest.mark.parametrize("k", [0.8, 0.0])
+def test_a_thick_sphere_solves_by_the_default_route_as_by_the_reference(k):
+    """Closed spheres at h = 0.8 (user audit: the default solve failed for k = 0.8, 0.5, 0 with
+    "crosses the axis next to a pole", BVP and shooting solved them).  On the way from the
+    stress-free k = 1 the poles are weakly singular (β₁ ≈ 0.75 < 1), and the model's own
+    solution r = c s + C₁ s^β₁ (C₁ < 0) crosses the axis for s ≲ 1e-7 R, which the graded mesh
+    resolves (the BVP's local solution at its start, continued inwards, crosses at 9e-8 R for
+    k = 0.8; the discrete r < 0 at s ≤ 1.7e-7).  The direct route keeps such a crossing
+    (poles.weakly_singular, direct.POLE_ZONE) and lands on the reference's equilibrium.
+
+    Tolerances: energies measured 8e-11 apart (of 0.0326) and 4e-11 (of 0.804), the BVP's
+    own tolerance 1e-8 bounds them: rel 1e-8.  The widest radius agrees to 2e-10 (1e-7
+    allowed, the BVP's tolerance on its fields); the end's height z to 7e-9, the BVP
+    stopping ε = 1e-4 short of the pole (ψ ≈ π there: z misses ≈ ε²/2 = 5e-9; 2e-8 allowed).
+    """
+    p = Problem("uniform", {"k": k}, h=0.8)
+    eq = solve(p)
+    ref = solve(p, method="bvp")
+    assert eq.energy == pytest.approx(ref.energy, rel=1e-8)
+    assert eq.r.max() == pytest.approx(ref.r.max(), abs=1e-7)
+    assert eq.z[-1] == pytest.approx(ref.z[-1], abs=2e-8)
+    assert eq.solver.nodes == 200
+
+
+def test_the_kept_crossing_is_the_models_own():
+    """At h = 0.8, k = 0.8 the direct solution does go below the axis at its first Gauss
+    points (so the test above exercises the kept crossing), by no more than the local
+    solution: measured r = −1.1e-8 at s ≤ 1.7e-7 on 200 nodes; the local solution fitted at
+    the BVP's start reaches −9.3e-9 at s < 9e-8.  Bounds: |r| below 1e-7, within 1e-6 of a pole."""
+    eq = solve(Problem("uniform", {"k": 0.8}, h=0.8))
+    s, r = eq.quadrature_points()
+    assert r.min() < 0
+    assert r.min() > -1e-7
+    d = np.minimum(s, np.pi - s)
+    assert d[r < 0].max() < 1e-6
+
+
+def test_a_crossing_beyond_the_pole_zone_names_h_and_the_bvp_route():
+    """h = 0.9, k = 2: the end pole's local solution (β₁ = 0.44) itself crosses the axis out
+    to 5e-4 R (fitted at the BVP's start), beyond POLE_ZONE; the direct route stops there,
+    and its refusal says so in one line naming h and the route that solves it (BVP:
+    energy 1.3658)."""
+    from morphoshell import SolverError
+    with pytest.raises(SolverError) as exc:
+        solve(Problem("uniform", {"k": 2.0}, h=0.9))
+    message = str(exc.value)
+    assert "\n" not in message
+    assert "from the end pole, whose local solution ~ s^0.4" in message
+    assert 'weakly singular' in message and "(h = 0.9)" in message
+    assert 'method="bvp"' in message

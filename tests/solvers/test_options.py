@@ -107,3 +107,51 @@ def test_a_direct_solver_of_a_problem_instead_of_its_structure_is_named():
                                         r"\.structure \(pass problem\.structure\), not a Problem"):
         DirectSolver(TOY2, nodes=50)
     assert routes.cache_info()["builds"] == builds
+
+
+THIN = Problem("uniform", {"k": 0.0}, h=1e-5, cut=0.5)
+
+
+@pytest.mark.parametrize("problem", [THIN, Problem("uniform", {"k": 0.0}, h=1e-5)],
+                         ids=["cut", "closed"])
+def test_a_direct_failure_on_a_shell_too_thin_for_it_names_h_and_bvp(problem):
+    """h = 1e-5 is a valid Problem (MIN_THICKNESS = 1e-6; the BVP route solves it) but the
+    direct route failed on it with Restoration_Failed, Continuation_Failed or
+    Error_In_Step_Computation on every mesh and option, naming only the mesh (user
+    audit).  The failure keeps its status and now names h, the thinnest shell the route
+    solves from its default start and the route that solves it.  (Not refused up front:
+    100 nodes refined by rtol solve a classical h = 1e-6 shell, test_right_minimum.)"""
+    from morphoshell import SolverError
+    with pytest.raises(SolverError) as exc:
+        solve(problem)
+    assert exc.value.status in ("Restoration_Failed", "Continuation_Failed")
+    assert "(h = 1e-05) than 2e-05" in str(exc.value) and 'method="bvp"' in str(exc.value)
+
+
+def test_the_direct_solver_itself_names_it():
+    """ablate, sweep, continue and fits call DirectSolver.solve, not solve() (on the mesh
+    solve() grades for h = 1e-5; a mesh graded for h = 0.1 happened to solve it cold)."""
+    from morphoshell import SolverError
+    from morphoshell.numerics.mesh import mesh_spec
+    solver = DirectSolver(THIN.structure, mesh=mesh_spec(THIN, 200, 2))
+    with pytest.raises(SolverError, match=r'\(h = 1e-05\) than 2e-05.*method="bvp"'):
+        solver.solve(THIN)
+
+
+@pytest.mark.parametrize("cut, nodes", [(0.5, 200), (0.0, 200), (0.5, 800), (0.0, 800)])
+def test_the_thinnest_shell_the_direct_route_takes_solves(cut, nodes):
+    """At h = MIN_DIRECT_THICKNESS = 2e-5 the audit's shells solve on 200 and 800 nodes (1.5e-5
+    failed closed on 800: Restoration_Failed).  Energies measured 1.178896e-14 (cut 0.5)
+    and 1.256637e-14 (closed) on 800 and 1600 nodes, 200 nodes within 2e-5 relative of
+    them (its discretisation error): 1e-4 allowed."""
+    eq = solve(Problem("uniform", {"k": 0.0}, h=2e-5, cut=cut), nodes=nodes)
+    assert eq.energy == pytest.approx(1.178896e-14 if cut else 1.256637e-14, rel=1e-4)
+
+
+def test_the_bvp_route_solves_the_thinnest_accepted_shell():
+    """The route the refusal names solves h = 1e-6 (MIN_THICKNESS), cut 0.5 (6 s): the
+    documented range of Problem is what works.  Energy measured 1.474419e-18, the
+    bending energy's h³ times that of h = 1e-5 (1.473921e-15, the audit's BVP value) to
+    3.4e-4 (the boundary layer's share shrinks like √h): 1e-3 allowed."""
+    eq = solve(Problem("uniform", {"k": 0.0}, h=1e-6, cut=0.5), method="bvp")
+    assert eq.energy == pytest.approx(1.473921e-15 * 1e-3, rel=1e-3)

@@ -89,6 +89,32 @@ def test_a_folder_with_other_settings_is_refused_unless_forced(data, tmp_path, c
     assert list(summary.nodes) == [NODES + 20]                              # refitted
 
 
+def test_a_moved_data_folder_reuses_the_fits_of_its_unchanged_files(data, tmp_path, caplog):
+    """A data folder moved (or copied) with its content was refused on resume (a user
+    audit: only its absolute path differed; --force then reused every fit): each fit's
+    record holds its files' names in the folder and their sha256, so the same files reuse
+    their fits, with a warning naming both folders, and a changed one is refitted."""
+    import shutil
+
+    from morphoshell.workflows import campaign
+
+    first, moved, out = tmp_path / "first", tmp_path / "moved", tmp_path / "out"
+    shutil.copytree(data[0], first)
+    kwargs = dict(timepoints=("t01", "t02"), nodes=NODES, workers=1, out=out)
+    assert campaign(first, ["flat"], **kwargs).timing["computed"] == 2
+    before = {p.name: p.read_bytes() for p in out.glob("t0*_flat.json")}
+    shutil.move(first, moved)
+    with caplog.at_level("WARNING"):
+        result = campaign(moved, ["flat"], **kwargs)
+    assert f"read {first.resolve()}" in caplog.text and str(moved.resolve()) in caplog.text
+    assert {p.name: p.read_bytes() for p in out.glob("t0*_flat.json")} == before
+    assert result.timing["computed"] == 0
+    from morphoshell.workflows import read_timepoints
+    midline = moved / read_timepoints(moved)[1].midline
+    midline.write_text(midline.read_text() + "\n")             # (a byte more: t02 only)
+    assert campaign(moved, ["flat"], **kwargs).timing["computed"] == 1
+
+
 def test_resume_redoes_the_fits_downstream_of_a_changed_fit(data, tmp_path):
     """t01's data change: t01 is refitted, and so are t02 and t03, which started from it."""
     import shutil
@@ -268,3 +294,31 @@ def test_a_failed_kkt_fit_is_done_by_the_gradient_method_and_says_so(data, tmp_p
     again = campaign(data[0], ["flat"], method="kkt", workers=1, out=tmp_path / "out",
                      nodes=NODES, timepoints=["t01"])
     assert again.timing["computed"] == 0
+
+
+def test_the_settings_file_records_the_run_and_the_summary_its_units(data, tmp_path):
+    """campaign_settings.json recorded data, method, nodes and start but not the variants,
+    timepoints, held_from and embryo_errors, and the summary's DataFrame had empty attrs
+    (user audit 5, finding 10).  The run's settings are recorded, not checked: a second run
+    with other ones into the same folder is no error and reuses the fit."""
+    import json
+
+    from morphoshell.workflows import campaign
+
+    out = tmp_path / "out"
+    first = campaign(data[0], ["flat"], workers=1, out=out, nodes=NODES, timepoints=["t01"])
+    settings = json.loads((out / "campaign_settings.json").read_text())
+    assert settings["last_run"] == {"variants": ["flat"], "timepoints": ["t01"],
+                                    "held_from": None, "embryo_errors": []}
+    df = first.to_dataframe()
+    units = df.attrs["units"]
+    assert (units["E_fit"], units["kappa1"], units["se_kappa1"], units["f1"], units["s2"]) == \
+        ("R", "1/R", "1/R", "1", "R")
+    assert units["variant"] == "" and df.attrs["settings"]["nodes"] == NODES
+    again = campaign(data[0], ["flat"], workers=1, out=out, nodes=NODES, timepoints=["t01"],
+                     held_from="flat")
+    assert again.timing["computed"] == 0
+    assert json.loads((out / "campaign_settings.json").read_text())["last_run"]["held_from"] \
+        == "flat"
+    header = (out / "campaign_summary.csv").read_text().splitlines()[0]
+    assert header.startswith("timepoint,pseudotime,variant")     # (no unit lines: read_csv)

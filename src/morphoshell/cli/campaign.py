@@ -55,7 +55,8 @@ def register(sub) -> None:
                     "Writes OUT/<timepoint>_<variant>.json per fit (atomically: an interrupted "
                     "campaign resumes where it stopped, with identical results) and "
                     "OUT/campaign_summary.csv (E_fit in R and the parameters against "
-                    "pseudotime).")
+                    "pseudotime; units: docs, 'Results as tables'), and the settings in "
+                    "OUT/campaign_settings.json.")
     p.add_argument("data_dir", metavar="DATA_DIR",
                    help="folder with timepoints.csv (data/synthetic_inversion is a synthetic one)")
     p.add_argument("--variants", type=_variants, default=VARIANTS, metavar="V1,V2",

@@ -23,8 +23,9 @@ signed change of the hole's diameter), rotation_deg (rho, positive when the
 edge unfurls outwards, in (-180, 180)) and displacement_um (R d, a distance);
 optionally V_um_per_s (initial recoil velocity) and the measurement errors
 sigma_opening_um, sigma_rotation_deg, sigma_displacement_um (one standard
-deviation). Other columns are kept and ignored; an empty cell is a missing
-measure; lines starting with # are comments. The shell is nondimensionalised
+deviation). Other columns are kept and ignored; an empty cell (or NA, N/A,
+#N/A, NaN, null, None) is a missing measure; lines starting with # are
+comments. The shell is nondimensionalised
 by R: h = H/R, Sigma = arcsin(hole_diameter / 2R).
 
 The observables are those of `morphoshell ablate`: the post-ablation minus
@@ -96,7 +97,7 @@ def register(sub) -> None:
                    help="processes sharing the embryos (default: one per core); the "
                         "estimates do not depend on it")
     add_outputs(p, json="write every estimate, the summary and the E/mu fit as JSON",
-                csv="write the per-embryo estimates as CSV",
+                csv="write the per-embryo estimates as CSV (units: docs, 'Results as tables')",
                 plot="write Fig. 2 J (and K with velocities)")
     p.set_defaults(run=_estimate)
 

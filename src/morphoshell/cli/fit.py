@@ -75,7 +75,8 @@ def register(sub) -> None:
                         "midlines, the options that made it under 'settings') as JSON; usable "
                         "as a problem file, solved at the fit's --nodes",
                 csv="write the fitted parameters with their standard errors as CSV, every row "
-                    "with the fit's E_fit (R), converged (True/False) and stop (how it ended)",
+                    "with the fit's E_fit (R), converged (True/False) and stop (how it ended); "
+                    "units: docs, 'Results as tables'",
                 plot="write the fitted shell over the data")
     add_profile_options(p)
     p.set_defaults(run=_fit)

@@ -33,7 +33,7 @@ log = logging.getLogger(__name__)
 
 __all__ = [
     "MEASURES", "REQUIRED_COLUMNS", "OPTIONAL_COLUMNS", "MEASURE_COLUMN", "ERROR_COLUMN", "UNITS",
-    "MeasurementError", "Measurement", "read_measurements", "to_dimensionless", "to_physical",
+    "MISSING", "MeasurementError", "Measurement", "read_measurements", "to_dimensionless", "to_physical",
 ]
 
 #: The recoil measures, in the order of every vector of the inverse estimates.
@@ -51,6 +51,11 @@ ERROR_COLUMN = {m: f"sigma_{c}" for m, c in MEASURE_COLUMN.items()}
 UNITS = {"opening": "um", "rotation": "deg", "displacement": "um"}
 
 _KNOWN = frozenset(REQUIRED_COLUMNS) | frozenset(OPTIONAL_COLUMNS)
+
+#: The spellings of a missing value in a table's cell (any case), as an empty cell: what
+#: spreadsheets, R and pandas write for one (``#N/A`` is Excel's).  Not ``-`` or ``0``,
+#: which may be values.
+MISSING = frozenset({"", "na", "n/a", "#n/a", "nan", "null", "none"})
 
 
 # --------------------------------------------------------------------------
@@ -234,11 +239,15 @@ class Measurement:
 # the table
 # --------------------------------------------------------------------------
 
-def _number(text: str) -> float:
+def _number(text: str) -> float | None:
+    """The number in a cell; None for a missing value (:data:`MISSING`)."""
+    if text.lower() in MISSING:
+        return None
     try:
         return float(text)
     except ValueError:
-        raise ValueError(f"{text!r} is not a number") from None
+        raise ValueError(f"{text!r} is not a number (a missing value is an empty cell or "
+                         f"{', '.join(sorted(m.upper() for m in MISSING if m))})") from None
 
 
 def _read_text(path: Path) -> str:
@@ -303,7 +312,7 @@ def _row(path: Path, header: list[str], n: int, line_no: int, cells: list[str]) 
     for column, cell in zip(header, cells):
         if column in _KNOWN and column != "embryo":
             try:
-                values[column] = _number(cell) if cell else None
+                values[column] = _number(cell)
             except ValueError as exc:
                 raise MeasurementError(f"{where}, column {column!r}: {exc}") from None
     try:
@@ -313,13 +322,56 @@ def _row(path: Path, header: list[str], n: int, line_no: int, cells: list[str]) 
                                exc.why) from None
 
 
+#: Rows with a rotation from which a table whose every rotation lies within ±π is noted as
+#: perhaps in radians (:func:`_note_radians`).
+RADIANS_ROWS = 5
+
+
+def _note_radians(path: Path, rows: tuple[Measurement, ...]) -> None:
+    """Warn (a note, not a refusal) when the rotations look like radians in a column of degrees.
+
+    The rule: at least :data:`RADIANS_ROWS` rows hold a rotation and every one lies within
+    ±π.  Any rotation in radians does (|ϱ| < 180° is |ϱ| < π rad), so the rule notes every
+    such table of that size.  In degrees it needs each embryo's edge to turn by less than
+    π° = 0.055 rad, where the leading order ϱ = √(3h/2)(1 − k) (docs, inverse.md) gives
+    0.27–0.67 rad (16–38°) at k = 0 for h = H/R between 0.05 and 0.3: every embryo of the
+    table would need k within 0.2 of 1 (an edge that hardly recoils) at once.  Fewer rows
+    are not noted: one or two such embryos are plausible.
+    """
+    held = [(m.row or i, m.rotation_deg) for i, m in enumerate(rows, 1)
+            if m.rotation_deg is not None]
+    if len(held) < RADIANS_ROWS or any(abs(v) > math.pi for _, v in held):
+        return
+    largest = max(abs(v) for _, v in held)
+    log.warning("%s: column 'rotation_deg', rows %s: every rotation lies within ±π (largest "
+                "|rotation| %.3g): radians in a column of degrees? So small a recoil in every "
+                "embryo is rare (degrees = radians × 57.3); read as degrees", path,
+                _row_ranges([n for n, _ in held]), largest)
+
+
+def _row_ranges(rows: list[int]) -> str:
+    """Row numbers as runs: ``1-4, 6, 8-9``."""
+    runs: list[list[int]] = []
+    for n in rows:
+        if runs and n == runs[-1][-1] + 1:
+            runs[-1].append(n)
+        else:
+            runs.append([n])
+    return ", ".join(f"{r[0]}-{r[-1]}" if len(r) > 1 else f"{r[0]}" for r in runs)
+
+
 def read_measurements(path: str | Path) -> tuple[Measurement, ...]:
     """Read a measurement table (CSV, one row per embryo; see :class:`Measurement`).
 
     The header names the columns (:data:`REQUIRED_COLUMNS`, optionally
     :data:`OPTIONAL_COLUMNS`; others are kept in ``extra``).  Lines starting
-    with ``#`` (before or between rows) are comments; an empty cell is a
-    missing value (allowed for the measures, velocity and errors).
+    with ``#`` (before or between rows) are comments; an empty cell, and
+    ``NA``, ``N/A``, ``#N/A``, ``NaN``, ``null`` or ``None`` in any case
+    (:data:`MISSING`, what spreadsheets, R and pandas write), is a missing
+    value (allowed for the measures, velocity and errors).  A table of at
+    least :data:`RADIANS_ROWS` rotations, all within ±π, is read as it is
+    with a warning naming the column and rows: radians in a column of
+    degrees? (the rule: :func:`_note_radians`).
 
     Parameters
     ----------
@@ -335,7 +387,7 @@ def read_measurements(path: str | Path) -> tuple[Measurement, ...]:
     ------
     MeasurementError
         Naming the file, row (with its line and embryo) and column: a missing
-        or repeated column, a non-numeric, NaN or out-of-range cell, a hole
+        or repeated column, a non-numeric, infinite or out-of-range cell, a hole
         larger than the shell, a repeated embryo label, an empty file.
     """
     path = Path(path)
@@ -353,4 +405,5 @@ def read_measurements(path: str | Path) -> tuple[Measurement, ...]:
                                    f"the label {m.embryo!r} is also row {seen[m.embryo]}'s")
         seen[m.embryo] = n
         out.append(m)
+    _note_radians(path, tuple(out))
     return tuple(out)

@@ -5,8 +5,9 @@ units of R), as Fiji, a spreadsheet or a script writes them.  Accepted:
 
 * cells separated by commas, or by tabs or spaces (runs of them count as one);
 * a header line ``x,y`` (pixels) or ``r,z`` / ``r,z,spread`` (units of R), in
-  any case and quoted or not; pixels may also come without a header, as
-  Fiji's *File › Save As › XY Coordinates…* writes them;
+  any case and quoted or not, its columns in any order (``y,x``, ``z,r,spread``:
+  read by name); pixels may also come without a header, as Fiji's
+  *File › Save As › XY Coordinates…* writes them;
 * a first column of row numbers 1, 2, 3, … (or 0, 1, 2, …) under an empty
   header cell, as Fiji's Results table and pandas write it (``" ,X,Y"``);
 * a delimiter at the end of lines (``X,Y,``), a byte-order mark, CRLF line
@@ -43,8 +44,8 @@ _PIXEL_DUMP = ("this is a pixel list (x, y, value) from Analyze › Tools › Sa
 #: A number written with a decimal comma (European spreadsheet settings).
 _DECIMAL_COMMA = re.compile(r"[-+]?\d*,\d+([eE][-+]?\d+)?")
 #: The accepted forms, for messages.
-_FORMS = ("a trace file has a header 'x,y' (pixels) or 'r,z' (units of R), or none, and two "
-          "numbers x, y per line, separated by commas, tabs or spaces")
+_FORMS = ("a trace file has a header 'x,y' (pixels) or 'r,z' (units of R), in any order, or none, "
+          "and two numbers x, y per line, separated by commas, tabs or spaces")
 
 
 def read_bytes(path: Path) -> bytes:
@@ -144,9 +145,9 @@ def text_format(path: Path, data: bytes) -> str:
     _, body = _content(path, data)
     i, first = body[0]
     names = tuple(c.lower() for c in _cells(first, _delimiter(path, i, first)))
-    if names in _CSV_HEADERS:
+    if _named(names, _CSV_HEADERS):
         return "csv"
-    if names == _XY_HEADER or names == ("",) + _XY_HEADER:
+    if _named(names[1:] if names[:1] == ("",) else names, (_XY_HEADER,)):
         return "xy"
     if all(_is_number(c) for c in names):
         return "fiji-xy"
@@ -171,8 +172,11 @@ def read_table(path: Path, data: bytes, fmt: str):
     Returns
     -------
     header : tuple of str
-        The column names, lower case ("x", "y" for a file without a header).
+        The column names, lower case, in the order of :data:`_CSV_HEADERS` or
+        ("x", "y") whatever their order in the file ("x", "y" for a file
+        without a header).
     values : ndarray, shape (n, len(header))
+        The numbers, their columns in the order of ``header``.
     where : list of str
         "line i" of each row.
     comments : list of str
@@ -185,15 +189,26 @@ def read_table(path: Path, data: bytes, fmt: str):
     """
     comments, body = _content(path, data)
     first = body[0]
-    header, delimiter, index, body = _header(path, body, fmt)
+    names, delimiter, index, body = _header(path, body, fmt)
     if not body:            # (a header alone: the readers' checks would index no points)
         raise MidlineError(f"{path}: no points: only the header {first[1]!r} (line {first[0]})")
-    values = np.empty((len(body), len(header) + index))
-    for k, (i, text) in enumerate(body):
-        values[k] = _row(path, i, _cells(text, delimiter), ("row number",) * index + header)
+    values = np.empty((len(body), len(names) + index))
+    for k, (i, text) in enumerate(body):     # (messages name the columns as the file does)
+        values[k] = _row(path, i, _cells(text, delimiter), ("row number",) * index + names)
     if index:
         _check_row_numbers(path, values[:, 0], body)
-    return header, values[:, index:], [f"line {i}" for i, _ in body], comments
+    header = _named(names, _CSV_HEADERS + (_XY_HEADER,))
+    order = [names.index(c) for c in header]
+    return header, values[:, index:][:, order], [f"line {i}" for i, _ in body], comments
+
+
+def _named(names: tuple[str, ...], headers) -> tuple[str, ...] | None:
+    """The header of ``headers`` whose columns ``names`` are, in any order (None if none is):
+    an honest header is read by its names, so that ``y,x`` is not taken for ``x,y``."""
+    for header in headers:
+        if len(names) == len(header) and sorted(names) == sorted(header):
+            return header
+    return None
 
 
 def _header(path: Path, body: list[tuple[int, str]], fmt: str):
@@ -215,17 +230,17 @@ def _header(path: Path, body: list[tuple[int, str]], fmt: str):
     index = names[:1] == ("",) or (bool(rows) and len(_cells(rows[0][1], delimiter)) == len(names) + 1)
     names = names[1:] if names[:1] == ("",) else names
     expected = _CSV_HEADERS if fmt == "csv" else (_XY_HEADER,)
-    if names not in expected:
+    if not _named(names, expected):
         if {"x", "y"} <= set(names) and len(names) > 2:
             raise MidlineError(f"{path}: line {i}: columns {text!r}: {_PIXEL_DUMP}")
-        if names == _XY_HEADER and fmt == "csv":    # (a campaign's folder lists midlines)
+        if _named(names, (_XY_HEADER,)) and fmt == "csv":  # (a campaign's folder lists midlines)
             raise MidlineError(f"{path}: line {i}: a trace in image pixels (header {text!r}), "
                                f"where a midline in units of R (header 'r,z') is read: "
                                f"`morphoshell average TRACE... --pixel-size ... --radius-um "
                                f"... --csv MIDLINE.csv` writes one")
         raise MidlineError(f"{path}: line {i}: header {text!r} is not "
-                           f"{' or '.join(repr(','.join(h)) for h in expected)} (format "
-                           f"{fmt!r}); {_FORMS}")
+                           f"{' or '.join(repr(','.join(h)) for h in expected)} in any order "
+                           f"(format {fmt!r}); {_FORMS}")
     return names, delimiter, index, rows
 
 

@@ -20,10 +20,12 @@ and averaged, is :mod:`morphoshell.io.midlines`
 
 Formats
 -------
-``csv``      header ``r,z`` (or ``r,z,spread``), units of R, model gauge,
+``csv``      header ``r,z`` (or ``r,z,spread``; in any order, read by name),
+             units of R, model gauge,
              posterior pole first; lines starting with ``#`` are comments.
              :meth:`Midline.to_csv` writes it.
-``xy``       image pixels x, y, y pointing down: a header ``x,y`` (any case;
+``xy``       image pixels x, y, y pointing down: a header ``x,y`` (any case
+             and order;
              after a row-number column, as Fiji's Results table and pandas
              write it) or none, cells separated by commas, tabs or spaces.
 ``fiji-xy``  Fiji's *File › Save As › XY Coordinates…* of a line selection:

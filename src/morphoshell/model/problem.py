@@ -31,7 +31,9 @@ __all__ = ["Problem", "Params", "Structure", "BASE_KEYS", "MIN_SHELL_LENGTH", "M
 
 #: Thinnest shell accepted, h = H/R: below it the bending energy (∝ h³) falls under the
 #: solvers' round-off relative to the stretching energy, and Ipopt fails (h = 1e-12:
-#: Restoration_Failed) or meets NaN (1e-40) instead of saying so.
+#: Restoration_Failed) or meets NaN (1e-40) instead of saying so.  The BVP route solves
+#: down to here (h = 1e-6, cut 0.5: 6 s); the direct route from its default start down to
+#: 2e-5 (:data:`morphoshell.solvers.options.MIN_DIRECT_THICKNESS`; a failure below says so).
 MIN_THICKNESS = 1e-6
 
 #: Shortest shell L − P − Σ accepted (units of R): shorter shells bring the
@@ -128,7 +130,10 @@ class Problem:
     params : mapping
         Values of the family's parameters; missing ones take the defaults.
     h : float
-        Relative thickness, 0 < h < 1.
+        Relative thickness, in [:data:`MIN_THICKNESS`, 1) = [1e-6, 1), which
+        ``method="bvp"`` solves.  The direct route (the default) solves h ≥ 2e-5
+        (:data:`~morphoshell.solvers.options.MIN_DIRECT_THICKNESS`) from its default
+        start; its failures on thinner shells name h and ``method="bvp"``.
     cut : float
         Σ, arclength of the ablation around the pole s = 0: 0 (a pole) or at
         least :data:`MIN_CUT` = 1e-4 (smaller cuts fail in the solvers).

@@ -147,7 +147,7 @@ def pole_exponent(stages: int) -> float:
 
     With a local solution ~ s^β the first cells cost O(N^(−2qβ)) and the
     others sum to O(N^(−2S)) if qβ > S; β ≥ 0.7 in the problems of the paper
-    (the pole series of ``reference._PoleSolution`` shows it), so q = 2S leaves
+    (the exponents of :func:`morphoshell.solvers.poles.pole_solutions` show it), so q = 2S leaves
     a margin.
     """
     return 2.0 * stages

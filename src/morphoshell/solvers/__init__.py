@@ -11,8 +11,9 @@ import lazy_loader
 
 # Every public name of the subpackage, imported from its module on first use.
 __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
-    "bvp": ["solve_bvp", "pontryagin_functions", "pole_solutions", "pole_state", "pole_costates",
+    "bvp": ["solve_bvp", "pontryagin_functions", "pole_state", "pole_costates",
         "pole_caps", "initial_state", "to_equilibrium", "neutral_path"],
+    "poles": ["pole_solutions", "PoleSolution", "weakly_singular"],
     "continuation": ["continue_to", "continue_between", "Path"],
     "paths": ["ParameterLine", "neutral_problem"],
     "arclength": ["Arclength", "ArcPoint", "Snap"],
@@ -24,7 +25,8 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
         "midline_cells", "recoil", "RECOIL"],
     "options": ["check_problem", "check_guess", "check_direct_options", "check_bvp_options",
         "check_shooting_options", "MAX_DIRECT_TOL", "REFERENCE_TOL", "ATOL", "RTOL",
-        "POLE_OFFSET", "STABILITY", "INTEGRATORS"],
+        "POLE_OFFSET", "STABILITY", "INTEGRATORS", "MIN_DIRECT_THICKNESS",
+        "thin_shell_note"],
     "parametric": ["Parametric", "Sensitivities", "SolutionDerivative", "parametric"],
     "refinement": ["solve_from", "estimate", "level_errors", "refine", "half_mesh", "SAFETY",
         "COARSE"],

@@ -45,13 +45,13 @@ import casadi as ca
 import numpy as np
 import scipy.integrate
 
-from ..model.energy import (CACHE_SIZE, LOCAL_OUTPUTS, Strains, boundary_layer_width, density,
-                            intrinsic_function, local_function, strains, unpack_intrinsic)
-from ..model.layouts import BVP_STATE, INTRINSIC
+from ..model.energy import CACHE_SIZE, LOCAL_OUTPUTS, boundary_layer_width, local_function
+from ..model.layouts import BVP_STATE
 from ..model.problem import Problem, Structure
 from ..numerics.mesh import graded_mesh
-from ..numerics.status import BVP_STATUSES, POLE_ANALYSIS_FAILED, TIME_LIMIT_EXCEEDED, explain
+from ..numerics.status import BVP_STATUSES, TIME_LIMIT_EXCEEDED, explain
 from .options import check_bvp_options
+from .poles import PoleSolution, pole_solutions
 from .results import FIELDS, Equilibrium, SolverError, SolverStats
 
 __all__ = ["solve_bvp", "pontryagin_functions", "pole_solutions", "pole_state",
@@ -106,106 +106,7 @@ def pontryagin_functions(structure: Structure) -> dict[str, ca.Function]:
     return out
 
 
-@lru_cache(maxsize=1)
-def _pole_function() -> ca.Function:
-    """``(I, h) -> (Q, G, eps0)`` at a pole from the intrinsic data I.
-
-    ε = G w + eps0 with w = (r', r/s, ψ', ψ/s) and e = ½ εᵀ Q ε.  Family and
-    theory enter through I only, so one function serves every structure.
-    """
-    I, h = ca.SX.sym("I", len(INTRINSIC)), ca.SX.sym("h")
-    _, prof, _, coeffs = unpack_intrinsic(I)
-    w = ca.SX.sym("w", 4)
-    # ρ = 1 with r = r/s, and sin ψ ≈ ψ/s: the strains at the pole, exactly affine in w.
-    E = ca.vertcat(*strains(1, w[1], w[3], w[0], w[2], prof))
-    G = ca.substitute(ca.jacobian(E, w), w, ca.DM.zeros(4))
-    eps0 = ca.substitute(E, w, ca.DM.zeros(4))
-    Es = ca.SX.sym("E", 4)
-    Q = ca.hessian(density(Strains(*ca.vertsplit(Es)), h, coeffs), Es)[0]
-    return ca.Function("pole_data", [I, h], [Q, G, eps0])
-
-
-def pole_solutions(problem: Problem) -> dict:
-    """The local solutions at the poles of ``problem`` (keys "start" and/or "end").
-
-    The bounded solutions of the linearised problem at each pole (module doc,
-    "Boundary conditions"), from the quadratic form of the energy density
-    (Materials and Methods, Eq. 7) at the pole.
-
-    Returns
-    -------
-    dict
-        A local solution for each end of ``problem`` that is a pole.
-
-    Raises
-    ------
-    SolverError
-        Status ``"Pole_Analysis_Failed"`` when a pole has not two admissible
-        exponents.
-    """
-    st = problem.structure
-    p = problem.parameter_vector()
-    out = {}
-    for where, s_pole in (("start", problem.cut), ("end", problem.end)):
-        if getattr(st, where) == "pole":
-            I = intrinsic_function(st)(s_pole, p)
-            Q, G, eps0 = (np.asarray(v) for v in _pole_function()(I, problem.h))
-            out[where] = _PoleSolution(Q, G, eps0.ravel())
-    return out
-
-
-class _PoleSolution:
-    """Bounded local solution of the linearised problem at a pole (see module doc)."""
-
-    def __init__(self, Q: np.ndarray, G: np.ndarray, eps0: np.ndarray):
-        P = G[:, [0, 2]]   # coefficients of (r', ψ')
-        R = G[:, [1, 3]]   # coefficients of (r/s, ψ/s)
-        A, B, C = P.T @ Q @ P, P.T @ Q @ R - R.T @ Q @ P, R.T @ Q @ R
-
-        def M(beta):
-            return beta**2 * A + beta * B - C
-
-        # det M(β) as a quartic: exact coefficients from five samples.
-        x = np.arange(-2.0, 3.0)
-        roots = np.roots(np.polyfit(x, [np.linalg.det(M(v)) for v in x], 4))
-        pos = sorted(roots[roots.real > 1e-9], key=lambda z: (z.real, z.imag))
-        if len(pos) != 2:
-            raise SolverError(f"pole analysis found {len(pos)} admissible exponents "
-                              f"({roots}): {explain(POLE_ANALYSIS_FAILED)}", POLE_ANALYSIS_FAILED)
-        b1, b2 = pos
-        if abs(b1 - b2) < 1e-6 * max(1.0, abs(b1)):
-            # Double root (isotropic quadratic form): M(β) vanishes on a plane.
-            beta = float(np.real(b1 + b2) / 2)
-            _, _, vh = np.linalg.svd(M(beta))
-            modes = [(beta, vh[-1], "re"), (beta, vh[-2], "re")]
-        elif abs(b1.imag) > 1e-9:   # complex pair: real and imaginary parts of one mode
-            c = _null_vector(M(b1))
-            modes = [(b1, c, "re"), (b1, c, "im")]
-        else:
-            modes = [(float(b.real), _null_vector(M(float(b.real))).real, "re") for b in pos]
-        self.modes = modes
-        self.exponents = [complex(m[0]) for m in modes]
-        rhs = -(P - R).T @ Q @ eps0
-        self.c_p = np.linalg.lstsq(M(1.0), rhs, rcond=1e-12)[0]
-
-    def fit(self, s: float, r: float, psi: float) -> np.ndarray:
-        """Mode amplitudes C that reproduce (r, ψ) at distance s from the pole."""
-        basis = np.column_stack([self.evaluate(s, e)[0] - self.c_p * s for e in np.eye(2)])
-        return np.linalg.lstsq(basis, np.array([r, psi]) - self.c_p * s, rcond=None)[0]
-
-    def evaluate(self, s: float, C) -> tuple[np.ndarray, np.ndarray]:
-        """(r, ψ) and their derivatives at distance s from the pole."""
-        v = self.c_p * s
-        dv = self.c_p.copy()
-        for Cj, (beta, c, part) in zip(C, self.modes):
-            term = c * s**beta
-            dterm = c * beta * s ** (beta - 1)
-            v = v + Cj * (term.real if part == "re" else term.imag)
-            dv = dv + Cj * (dterm.real if part == "re" else dterm.imag)
-        return np.real(v), np.real(dv)
-
-
-def pole_state(pole: _PoleSolution, where: str, C, eps: float) -> tuple[float, float, float, float]:
+def pole_state(pole: PoleSolution, where: str, C, eps: float) -> tuple[float, float, float, float]:
     """(r, ψ, f_s, ψ') at distance ``eps`` from a pole on its local solution.
 
     Parameters
@@ -230,7 +131,7 @@ def pole_state(pole: _PoleSolution, where: str, C, eps: float) -> tuple[float, f
     return v[0], psi, dv[0] / np.cos(v[1]), dv[1]
 
 
-def pole_costates(problem: Problem, pole: _PoleSolution, where: str, C, eps: float) -> np.ndarray:
+def pole_costates(problem: Problem, pole: PoleSolution, where: str, C, eps: float) -> np.ndarray:
     """(λ_r, λ_ψ) that make the local solution's (f_s, ψ') optimal, at ``eps`` from the pole.
 
     Arguments as for :func:`pole_state`.
@@ -249,7 +150,7 @@ _GAUSS_U, _GAUSS_W = np.polynomial.legendre.leggauss(16)
 _GAUSS_U, _GAUSS_W = (_GAUSS_U + 1) / 2, _GAUSS_W / 2
 
 
-def pole_caps(problem: Problem, pole: _PoleSolution, where: str, C,
+def pole_caps(problem: Problem, pole: PoleSolution, where: str, C,
               eps: float) -> tuple[float, float]:
     """∫ L ds and ∫ f sin ψ ds over the ``eps`` next to a pole, on the local solution.
 
@@ -273,12 +174,6 @@ def pole_caps(problem: Problem, pole: _PoleSolution, where: str, C,
         L += wk * float(local(s_k, r_k, psi_k, f_k, u_k, p)[LOCAL_OUTPUTS.index("L")])
         dz += wk * f_k * np.sin(psi_k)
     return L, dz
-
-
-def _null_vector(M: np.ndarray) -> np.ndarray:
-    u, sv, vh = np.linalg.svd(M)
-    c = vh[-1].conj()
-    return c / np.linalg.norm(c)
 
 
 class _Vectorised:

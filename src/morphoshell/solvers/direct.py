@@ -14,6 +14,7 @@ methods can report as success) raises
 """
 from __future__ import annotations
 
+import logging
 import time
 import weakref
 from typing import Any, Mapping
@@ -27,11 +28,14 @@ from ..numerics.ipopt import IpoptBackend
 from ..numerics.mesh import MeshSpec, pole_exponent
 from ..numerics.newton import NewtonBackend
 from ..numerics.status import MERIDIAN_CROSSES_AXIS, NOT_A_MINIMUM, explain
-from .options import check_direct_options
+from .options import check_direct_options, thin_shell_note
+from .poles import weakly_singular
 from .results import (FIELDS, Equilibrium, NotAMinimumError, Quadrature, SolverError, SolverStats,
                       unconverged)
 
-__all__ = ["DirectSolver", "default_mesh", "solver_of", "check_nodes", "MAX_NODES"]
+__all__ = ["DirectSolver", "default_mesh", "solver_of", "check_nodes", "MAX_NODES", "POLE_ZONE"]
+
+log = logging.getLogger(__name__)
 
 #: Most mesh nodes a direct solver accepts: 102 400 nodes at order 4 take a
 #: couple of GB and about a minute to build and solve on one core.
@@ -48,6 +52,12 @@ MAX_NODES = 102400
 #: two decades below ``residual_ratio_singular`` (1e-5), where Ipopt would
 #: take the matrix for singular.
 RESIDUAL_RATIO_CAP = 1e-7
+
+#: Distance from a weakly singular pole (units of R) within which r < 0 is the model's own
+#: local solution and not refused (:meth:`DirectSolver._axis_crossing`): the reference
+#: routes' default pole offset ε, inside which they too take the local solution as it is.
+#: Measured crossings reach 1.8e-6 R (h = 0.95, k = 0.8); elsewhere r < 0 is refused.
+POLE_ZONE = 1e-4
 
 #: Counts every DirectSolver built in this process (see ``morphoshell.solvers.routes.cache_info``).
 BUILDS = {"count": 0}
@@ -104,6 +114,21 @@ def _closing(eq: Equilibrium, crossing: tuple[float, float]) -> str:
             f"shell or a smaller intrinsic stretch or curvature keeps it open")
 
 
+def _singular_pole(eq: Equilibrium, crossing: tuple[float, float]) -> str:
+    """What a crossing near a weakly singular pole but beyond :data:`POLE_ZONE` may mean: the
+    model's own local solution crossing the axis that far out (h = 0.9, k = 2: out to
+    5e-4 R), which the reference routes, starting ε from the pole, do not look at; "" else."""
+    problem, s = eq.problem, crossing[1]
+    for where, beta in weakly_singular(problem).items():
+        d = s - problem.cut if where == "start" else problem.end - s
+        if d <= 100 * POLE_ZONE:
+            return (f"; here {d:.2g} R from the {where} pole, whose local solution ~ s^"
+                    f"{beta:.3g} is weakly singular and may itself cross the axis that far "
+                    f"out on a shell this thick (h = {problem.h:g}): method=\"bvp\" (--method "
+                    f"bvp) starts {POLE_ZONE:g} R off the pole and solves such shells")
+    return ""
+
+
 class DirectSolver:
     """Direct energy minimisation for one structure and mesh, built once.
 
@@ -126,7 +151,8 @@ class DirectSolver:
     linear_solver, max_iter, stability, ipopt_options
         Passed to :class:`morphoshell.numerics.ipopt.IpoptBackend`: a linear solver of
         :data:`~morphoshell.numerics.ipopt_options.LINEAR_SOLVERS` that Ipopt can load,
-        ``max_iter`` ≥ 1, and options that Ipopt accepts, all checked before the build
+        ``max_iter`` ≥ 1 (Ipopt's iterations, not the Newton back end's, below), and
+        options that Ipopt accepts, all checked before the build
         (:func:`~morphoshell.numerics.ipopt_options.check_ipopt_options`).
     newton : bool
         Solves first try :class:`morphoshell.numerics.newton.NewtonBackend`: Newton
@@ -261,13 +287,14 @@ class DirectSolver:
                             self.build_seconds, res.details)
         eq = self.equilibrium(problem, res.x, res.lam_g, p, q, D, stats, converged=res.converged)
         if not res.converged:
-            raise SolverError(self.backend.failure_message(problem.name or problem.family, res),
-                              res.status, eq)
+            raise SolverError(self.backend.failure_message(problem.name or problem.family, res)
+                              + thin_shell_note(problem), res.status, eq)
         crossing = self._axis_crossing(eq)
         if crossing is not None:
             raise SolverError(
                 f"Ipopt converged ({res.status}) to r = {crossing[0]:.3g} at s = "
-                f"{crossing[1]:.6g}: {explain(MERIDIAN_CROSSES_AXIS)}{_closing(eq, crossing)}. "
+                f"{crossing[1]:.6g}: {explain(MERIDIAN_CROSSES_AXIS)}{_closing(eq, crossing)}"
+                f"{_singular_pole(eq, crossing)}. "
                 f"The iterate is attached (.last_iterate)", MERIDIAN_CROSSES_AXIS,
                 unconverged(eq))
         if not res.is_minimum:
@@ -315,17 +342,40 @@ class DirectSolver:
 
     @staticmethod
     def _axis_crossing(eq: Equilibrium) -> tuple[float, float] | None:
-        """(r, s) of the most negative r at the points or Gauss points, if any is negative.
+        """(r, s) of the most negative r at the points or Gauss points, if any is negative
+        outside :data:`POLE_ZONE` of a weakly singular pole.
 
         r < 0 puts material on the far side of the axis: the discrete energy,
         which sees r only through f_φ = r/ρ, does not forbid it, but the shell
-        cannot do it.
+        cannot do it.  Next to a pole whose local solution is weakly singular
+        (an exponent β₁ < 1: :func:`~morphoshell.solvers.poles.weakly_singular`)
+        the model's own solution r = c s + C₁ s^β₁ crosses the axis for s below
+        (|C₁|/c)^(1/(1 − β₁)) when C₁ < 0, and a mesh graded into the pole resolves
+        that (thick spheres: r = −1.1e-8 R at s ≤ 1.7e-7 R for h = 0.8, k = 0.8; the
+        reference routes, which start ε = 1e-4 from the pole, find the same energy
+        to 1e-10).  Such a crossing, far below any length the shell theory
+        describes, is kept (a note in the log); elsewhere, and next to a regular
+        pole, r < 0 is refused.
         """
         s_g, r_g = eq.quadrature_points()
         s = np.concatenate([eq.s, s_g])
         r = np.concatenate([eq.r, r_g])
-        i = int(np.argmin(r))
-        return (float(r[i]), float(s[i])) if r[i] < 0 else None
+        bad = r < 0
+        if not bad.any():
+            return None
+        problem = eq.problem
+        for where, beta in weakly_singular(problem).items():
+            d = s - problem.cut if where == "start" else problem.end - s
+            kept = bad & (d <= POLE_ZONE)
+            if kept.any():
+                log.info("r < 0 (down to %.2g R) within %.2g R of the %s pole: its local "
+                         "solution ~ s^%.3g is weakly singular and crosses the axis there; kept",
+                         r[kept].min(), d[kept].max(), where, beta)
+            bad &= ~kept
+        if not bad.any():
+            return None
+        i = int(np.argmin(np.where(bad, r, np.inf)))
+        return float(r[i]), float(s[i])
 
     def equilibrium(self, problem: Problem, x: np.ndarray, lam: np.ndarray, p: np.ndarray,
                     q: np.ndarray, D: np.ndarray, stats: SolverStats,

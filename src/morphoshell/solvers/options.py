@@ -27,7 +27,8 @@ from .results import Equilibrium
 
 __all__ = ["check_problem", "check_guess", "check_anchors", "check_direct_options", "check_bvp_options",
            "check_shooting_options", "MAX_DIRECT_TOL", "REFERENCE_TOL", "ATOL", "RTOL",
-           "POLE_OFFSET", "STABILITY", "INTEGRATORS"]
+           "POLE_OFFSET", "STABILITY", "INTEGRATORS", "MIN_DIRECT_THICKNESS",
+           "thin_shell_note"]
 
 #: Largest ``tol`` of the direct route (Ipopt's and Newton's, at 800 points).
 MAX_DIRECT_TOL = 1e-4
@@ -39,6 +40,16 @@ ATOL = (1e-16, 1e-6)
 RTOL = (1e-14, 1e-6)
 #: Range of ε, the distance from a pole at which the reference routes start (units of R).
 POLE_OFFSET = (1e-6, 0.1)
+#: Thinnest shell the direct route solves from its default start (h = H/R).  Its objective
+#: is the energy over h³, so stretching weighs 1/h² against bending (4e9 at h = 1.5e-5):
+#: below this Ipopt stops with Restoration_Failed or Error_In_Step_Computation on the
+#: meshes of 200 nodes and up, from continuation and cold (uniform k = 0, cut 0.5 and
+#: closed: 2e-5 solved at 200, 800 and 1600 nodes, with rtol and cold; 1.5e-5 failed
+#: closed at 800 nodes; 1e-5 on every mesh), while 100 nodes refined by warm starts
+#: (rtol) still solve a classical shell at 1e-6.  A failure below it says so
+#: (:func:`thin_shell_note`).  The BVP route solves down to
+#: :data:`~morphoshell.model.problem.MIN_THICKNESS` (h = 1e-6 cut 0.5: 6 s).
+MIN_DIRECT_THICKNESS = 2e-5
 #: How the direct route certifies a minimum (:class:`morphoshell.numerics.ipopt.IpoptBackend`).
 STABILITY = ("auto", "exact", "off")
 #: The shooting route's integrators (stiff-capable methods of ``solve_ivp``).
@@ -51,6 +62,18 @@ def check_problem(problem: Any, name: str = "problem") -> Problem:
         raise TypeError(f"{name} = {_short(problem)} must be a morphoshell Problem, e.g. "
                         f"Problem('uniform', {{'k': 0.5}}, h=0.1)")
     return problem
+
+
+def thin_shell_note(problem: Problem) -> str:
+    """What to add to a direct failure on a shell thinner than :data:`MIN_DIRECT_THICKNESS`
+    ("" otherwise): the route's limit and the route that solves it.  Not a refusal: a
+    coarse mesh refined by warm starts (``nodes=100, rtol=1e-3``) solves a classical
+    shell at h = 1e-6 (tests/solvers/test_right_minimum.py)."""
+    if problem.h >= MIN_DIRECT_THICKNESS:
+        return ""
+    return (f"; the shell is thinner (h = {problem.h:g}) than {MIN_DIRECT_THICKNESS:g}, below "
+            f"which the direct route fails on most meshes (stretching outweighs bending by "
+            f"1/h^2): method=\"bvp\" (--method bvp) solves shells down to h = 1e-6")
 
 
 def check_guess(guess: Any, name: str = "warm_start") -> None:

@@ -29,9 +29,9 @@ from .arclength import Arclength
 from .contact import warn_if_walls_overlap
 from .continuation import continue_to
 from .direct import BUILDS, MAX_NODES, DirectSolver, check_nodes
-from .options import check_anchors, check_guess, check_problem
+from .options import check_anchors, check_guess, check_problem, thin_shell_note
 from .paths import ParameterLine
-from .refinement import refine
+from .refinement import half_mesh, refine, solve_from
 from .results import Equilibrium, NotAMinimumError, SolverError, SolverStats, unconverged
 
 __all__ = ["solve", "direct_solver", "cache_info", "clear_cache", "SOLVER_CACHE_SIZE",
@@ -57,6 +57,9 @@ MESH_RETRIES = 3
 #: The smallest ``rtol``: estimates below the solvers' own tolerance (1e-10) are round-off.
 MIN_RTOL = 1e-10
 RETRIED = (CONTINUATION_FAILED, SNAP_FAILED, BRANCH_ENDED)
+#: Coarsest mesh on which :func:`solve` continues a problem whose continuation failed on
+#: its own mesh, to solve it there from the coarse solution (:func:`_from_coarser`).
+COARSEST = 100
 
 #: Direct solvers kept by :func:`solve` (least recently used dropped first).
 #: A solver of 400 nodes holds a few MB.
@@ -157,7 +160,9 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
         edge values in units of R and radians), or raise.  Every direct
         result carries its estimate (``Equilibrium.error``), from the mesh with
         half the cells.  With ``rtol`` a continuation that fails for want of
-        a finer mesh is retried on finer ones (:data:`MESH_RETRIES`).
+        a finer mesh is retried on finer ones (:data:`MESH_RETRIES`); one that
+        fails so on a fine mesh is continued on a coarser one and solved on its
+        own from there (:data:`COARSEST`).
     **options
         direct: ``stages``, ``linear_solver``, ``tol``, ``max_iter``,
         ``stability``, ``ipopt_options`` (see :class:`DirectSolver`), and
@@ -221,6 +226,19 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
                          f"estimate compares solutions converged to the solver's own "
                          f"tolerance, 1e-10")
     max_nodes = check_nodes(options.pop("max_nodes", MAX_NODES))
+    try:
+        return _direct(problem, nodes, warm_start, anchors, continuation, rtol, max_nodes,
+                       options)
+    except SolverError as exc:
+        note = thin_shell_note(problem)
+        if not note or note in str(exc) or isinstance(exc, NotAMinimumError):
+            raise
+        raise SolverError(f"{exc}{note}", exc.status, exc.last_iterate) from exc
+
+
+def _direct(problem, nodes, warm_start, anchors, continuation, rtol, max_nodes,
+            options) -> Equilibrium:
+    """The direct route of :func:`solve`, its arguments checked."""
     solver = direct_solver(problem, nodes, anchors, **options)
     if warm_start is not None:
         eq = solver.solve(problem, warm_start=warm_start, anchors=anchors)
@@ -281,6 +299,10 @@ def _continued(solver: DirectSolver, problem: Problem, anchors, options: dict,
             finer = 2 * (solver.nodes - 1) + 1
             if rtol is None or exc.status not in RETRIED or len(failed) == MESH_RETRIES \
                     or finer > min(max_nodes, MAX_NODES):
+                coarse = _from_coarser(solver, problem, anchors, options) \
+                    if exc.status in RETRIED and not failed else None
+                if coarse is not None:
+                    return coarse
                 if not failed:
                     raise
                 raise SolverError(f"{exc} (on {solver.nodes} nodes; before: "
@@ -292,3 +314,28 @@ def _continued(solver: DirectSolver, problem: Problem, anchors, options: dict,
                f"{', '.join(failed)} (retried for rtol)"
         eq = replace(eq, solver=replace(eq.solver, details={**eq.solver.details, "path": path}))
     return eq
+
+
+def _from_coarser(solver: DirectSolver, problem: Problem, anchors,
+                  options: dict) -> Equilibrium | None:
+    """``problem`` continued on a coarser mesh (half, then a quarter of ``solver``'s cells,
+    down to :data:`COARSEST` nodes) and solved from there on ``solver``'s, as a refinement
+    does; None if that fails too.
+
+    On fine meshes a branch point's modes crowd together and its crossing can fail where
+    it works on coarse ones (the packaged blister continued at 200-800 nodes and failed at
+    1600, where a solve refined for rtol reaches 3185 nodes)."""
+    coarse = half_mesh(solver.nodes)
+    while coarse >= COARSEST:
+        try:
+            start = continue_to(direct_solver(problem, coarse, anchors, **options), problem,
+                                anchors, switch=True)
+            eq = solve_from(solver, problem, start, anchors)
+        except SolverError:
+            coarse = half_mesh(coarse)
+            continue
+        path = (f"{start.solver.details.get('path', '')} on {coarse} nodes (on "
+                f"{solver.nodes} it failed), then solved on {solver.nodes} nodes from there")
+        return replace(eq, solver=replace(eq.solver, details={**eq.solver.details,
+                                                             "path": path}))
+    return None

@@ -16,14 +16,18 @@ from typing import Iterable
 
 from ..fitting import VARIANTS
 from ..io.timepoints import Timepoint, read_timepoints
+from ..model.profiles import get_family
 
-__all__ = ["CampaignResult", "load_campaign", "RESULT_SUFFIX", "SUMMARY", "result_path",
-           "read_record", "read_records"]
+__all__ = ["CampaignResult", "load_campaign", "RESULT_SUFFIX", "SUMMARY", "SETTINGS",
+           "result_path", "read_record", "read_records", "column_unit"]
 
 #: Result files are ``<timepoint>_<variant>.json``.
 RESULT_SUFFIX = ".json"
 #: The summary table in the output folder.
 SUMMARY = "campaign_summary.csv"
+#: The file in the output folder that records the campaign's settings
+#: (:func:`morphoshell.workflows.campaigns.campaign`'s ``force``).
+SETTINGS = "campaign_settings.json"
 #: Parameters of a record that are the problem's geometry, not the Volvox family's.
 _GEOMETRY = ("h", "cut", "opening")
 
@@ -72,13 +76,20 @@ class CampaignResult:
             errors; NaN for parameters not fitted at that timepoint), and
             with ``embryo_errors`` ``se_embryo_<name>`` (the jackknife over
             the traces) and ``embryo_t95`` (their 95 % interval is ± this many).
+            ``df.attrs`` holds ``units`` (column → unit, :func:`column_unit`;
+            the summary CSV has none, so that ``pandas.read_csv`` reads it as
+            it is) and ``settings`` (the folder's :data:`SETTINGS`; empty
+            without one).
         """
         import pandas as pd
 
         rows = [_summary_row(tp, v, self.records[(tp.name, v)])
                 for tp in self.timepoints for v in self.variants
                 if (tp.name, v) in self.records]
-        return pd.DataFrame(rows)
+        df = pd.DataFrame(rows)
+        df.attrs.update(units={str(c): column_unit(str(c)) for c in df.columns},
+                        settings=read_record(self.out / SETTINGS) or {})
+        return df
 
     def unfinished(self) -> list[tuple[str, str, str]]:
         """The fits that failed or did not converge: (timepoint, variant, "failed" or
@@ -116,6 +127,19 @@ def _summary_row(tp: Timepoint, variant: str, rec: dict) -> dict:
         row.update({f"se_embryo_{n}": _number(embryo.get(n)) for n in names})
         row["embryo_t95"] = rec.get("embryo_t95", float("nan"))   # (none: no errors)
     return row
+
+
+def column_unit(column: str) -> str:
+    """The unit of a column of the campaign summary: ``R`` (E_fit, breakpoints s and the
+    smoothing width), ``1/R`` (curvatures κ), ``1`` (stretches f, ``embryo_t95``); a
+    standard error's is its parameter's; ``""`` for labels, flags and settings.  The
+    pseudotime is in the unit of ``timepoints.csv``: ``"as timepoints.csv"``."""
+    params = get_family("volvox").units
+    for prefix in ("se_embryo_", "se_"):
+        if column.startswith(prefix) and column[len(prefix):] in params:
+            return params[column[len(prefix):]]
+    return {**params, "E_fit": "R", "embryo_t95": "1",
+            "pseudotime": "as timepoints.csv"}.get(column, "")
 
 
 def _number(value) -> float:

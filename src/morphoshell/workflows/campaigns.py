@@ -32,8 +32,8 @@ from .._runtime.console import progress
 from ..fitting import FIT_NODES, METHODS, VARIANTS, check_midline, volvox_spec
 from ..io import Midline
 from ..io.timepoints import Timepoint, read_timepoints
-from .campaign_results import (SUMMARY, CampaignResult, load_campaign, read_record, read_records,
-                               result_path)
+from .campaign_results import (SETTINGS, SUMMARY, CampaignResult, load_campaign, read_record,
+                               read_records, result_path)
 from .executor import SerialExecutor, backend_name, open_executor
 from .timepoint_fits import (CampaignTask, first_start, fit_variant, record_provenance,
                              write_atomic)
@@ -42,8 +42,6 @@ __all__ = ["campaign", "CampaignInterrupted", "CAMPAIGN_NODES", "SETTINGS"]
 
 log = logging.getLogger(__name__)
 
-#: The file in a campaign's folder that records its settings (:func:`campaign`'s ``force``).
-SETTINGS = "campaign_settings.json"
 #: Mesh nodes a campaign accepts (and its --nodes): a fit's (:data:`FIT_NODES`), since its fits
 #: are fits.  It was capped at 2000 for the cost, which the user chooses with the timepoints
 #: and variants as much as with the nodes; the commands' ranges differed for no other reason.
@@ -173,6 +171,10 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
         workers = min(len(variants), os.cpu_count() or 1)
     recorded = _check_settings(out, _folder_settings(data_dir, method, nodes, start),
                                force)
+    # (recorded, not checked: a folder holds runs of other variants, timepoints and held values)
+    recorded = {**recorded, "last_run": {
+        "variants": list(variants), "timepoints": [tp.name for tp in timepoints],
+        "held_from": held_from, "embryo_errors": [v for v in variants if v in jackknifed]}}
     tasks = [CampaignTask(str(Path(data_dir).resolve()), timepoints, v, method, int(nodes),
                           str(out.resolve()), dict(start) if start else None, v in jackknifed,
                           owner=lifeline.owner())
@@ -213,11 +215,14 @@ def _interruptible(out: Path, timepoints: tuple[Timepoint, ...],
 
 
 def _folder_settings(data_dir, method: str, nodes: int, start: dict | None) -> dict:
-    """The settings a campaign's folder records (:data:`SETTINGS`): what all its fits share.
+    """The settings a campaign's folder records (:data:`SETTINGS`) and checks: what all its
+    fits share.
 
     Not ``held_from``, which the ``free`` variant never has: a folder may hold a
     campaign's variants with and without held values (the summary's
-    ``held_from`` column says which), and their source's fit is reused.
+    ``held_from`` column says which), and their source's fit is reused.  The file
+    also records, unchecked, the last run's variants, timepoints, ``held_from`` and
+    ``embryo_errors`` (``last_run``).
     """
     return {"data": str(Path(data_dir).resolve()), "method": method, "nodes": int(nodes),
             "start": dict(start) if start else None}
@@ -231,8 +236,14 @@ def _check_settings(out: Path, settings: dict, force: bool) -> dict:
     if recorded is None or force:
         return settings
     _note_versions(path, recorded.get("provenance"))
+    if recorded.get("data", settings["data"]) != settings["data"]:
+        # (each fit's record holds its files' names within the folder and their sha256:
+        # a moved or copied folder's unchanged files reuse their fits, changed ones refit)
+        log.warning("%s: the folder's campaign read %s; its fits whose files are the same in "
+                    "%s are reused, the others refitted", path, recorded["data"],
+                    settings["data"])
     for key, value in settings.items():
-        if recorded.get(key, value) != value:
+        if key != "data" and recorded.get(key, value) != value:
             option = {"data": "DATA_DIR", "start": "start"}.get(key, "--" + key.replace("_", "-"))
             raise ValueError(
                 f"{path}: the folder holds a campaign with {key} = {recorded.get(key)!r}, not "
