@@ -11,8 +11,9 @@ corrected by Newton's method on
     F(u, τ) = 0,     tᵀ(w − w_prev) − Δs = 0,
 
 the bordered KKT system of :mod:`morphoshell.numerics.bordered`, nonsingular
-at a simple fold.  The norm weighs x's entries by 1/n_x (their mean square)
-against τ, and leaves the multipliers out.
+at a simple fold.  The norm weighs x's entries by 1/n_x (their mean square),
+capped next to a pole by their share of its area (:func:`norm_weights`), against
+τ, and leaves the multipliers out.
 
 At every point the inertia of the reduced Hessian says whether the equilibrium
 is stable (a minimum) or how many directions lower its energy.  Events between
@@ -78,6 +79,10 @@ NULL_ITERATIONS, NULL_TOL = 10, 1e-8
 #: At a fold the null vector is the branch's own tangent: a null vector whose part
 #: orthogonal to the tangent is smaller than this is no branch point's.
 MIN_ORTHOGONAL = 1e-3
+#: The radius of the cap round a pole whose area bounds the weights of the norm there
+#: (:func:`norm_weights`): the width of the mesh's grading toward a pole
+#: (:func:`morphoshell.numerics.mesh.graded_mesh`'s ``pole_width``).
+POLE_CAP = 0.01
 
 
 @dataclass(frozen=True)
@@ -195,6 +200,29 @@ def bordered_kkt(solver: DirectSolver) -> BorderedKKT:
     return solver._bordered
 
 
+def norm_weights(kkt: BorderedKKT, points) -> np.ndarray:
+    """The weights of the continuation's norm over the system's unknowns u[lo:hi].
+
+    Each of x's n entries weighs 1/n (the mean square), except next to a pole, where
+    an entry of a cell weighs at most the cell's share of the pole's cap of radius
+    :data:`POLE_CAP` (Δs d / (3S ℓ²), d the cell's distance from the pole): where
+    f_s⁰ ≠ f_φ⁰ the stretches there are singular, f_s ~ d^(β−1) (β = 0.13 at f0 = −0.62
+    in the anisotropic family), and the mesh, graded toward the pole, puts ever more
+    entries ever nearer to it; their mean square grows without bound with the mesh
+    (and so does ∫f_s² ds for β < 1/2), their area-weighted mean ∫f_s² ρ ds does not.
+    The multipliers weigh nothing; the weights sum to 1.
+    """
+    S, cells, lo, hi = kkt.order.stages, kkt.order.cells, kkt.order.lo, kkt.order.hi
+    nodes = points.s[::S]
+    ds, mid = np.diff(nodes), 0.5 * (nodes[1:] + nodes[:-1])
+    poles = [end for end, pole in ((nodes[0], kkt.order.start_pole),
+                                   (nodes[-1], kkt.order.end_pole)) if pole]
+    d = np.min([np.abs(mid - end) for end in poles], axis=0) if poles else np.inf
+    cap = np.minimum(1.0 / kkt.x_mask.sum(), ds * d / (3 * S * POLE_CAP ** 2))
+    w = np.append(np.repeat(cap, 4 * S), [cap[-1], cap[-1]])[lo:hi] * kkt.x_mask
+    return w / w.sum()
+
+
 class Arclength:
     """Pseudo-arclength continuation of one solver's equilibria along a parameter line.
 
@@ -216,8 +244,7 @@ class Arclength:
         d = solver.disc
         self._p0, self._dp = line.source.parameter_vector(), line.direction
         self.q = d.check_anchors(self.parameters(at), anchors)
-        mask = self.kkt.x_mask
-        self._weight = np.where(mask, 1.0 / mask.sum(), 0.0)
+        self._weight = norm_weights(self.kkt, d.point_data(self.parameters(at), self.q))
         self.tol, self.acceptable_tol = solver.tol, solver.backend.acceptable_tol
 
     # -- parameters and data ----------------------------------------------------
