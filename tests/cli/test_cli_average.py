@@ -73,6 +73,23 @@ def test_a_trace_at_the_wrong_scale_is_named_an_outlier(tmp_path, capsys):
         assert "the average includes it: check the scale (--radius-um" in last
 
 
+def test_drop_outliers_averages_the_other_traces(tmp_path, capsys):
+    """--drop-outliers leaves the named outlier out (a user audit: `average && campaign`
+    fitted an average with a trace at the wrong scale, the flat fit's E_fit doubled): the
+    average is the one of the other four traces to the bit, and its comments name it."""
+    radii = _radii()
+    radii[2] = radii[1]
+    out, clean = tmp_path / "dropped.csv", tmp_path / "clean.csv"
+    assert main(["average", *TRACES, *_scale(radii), "--drop-outliers", "--csv", str(out)]) == 0
+    assert "left out of the average: synthetic_embryo3 (4 traces kept)" in capsys.readouterr().out
+    others = [t for k, t in enumerate(TRACES) if k != 2]
+    assert main(["average", *others, *_scale([r for k, r in enumerate(radii) if k != 2]),
+                 "--csv", str(clean)]) == 0
+    dropped, kept = Midline.from_csv(out), Midline.from_csv(clean)
+    assert dropped.n_traces == 4 and np.array_equal(dropped.points, kept.points)
+    assert "# dropped_outliers = synthetic_embryo3" in out.read_text()
+
+
 def test_a_roi_manager_set_adds_every_line_roi(tmp_path, capsys):
     import sys
 

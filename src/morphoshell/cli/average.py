@@ -67,6 +67,9 @@ def register(sub) -> None:
                    help="also write each trace's midline beside the --csv file, named "
                         "<average>_<trace>.csv (the timepoints.csv column traces, for "
                         "the campaign's jackknife errors)")
+    p.add_argument("--drop-outliers", dest="drop_outliers", action="store_true",
+                   help="leave the traces named outliers out of the average (their names "
+                        "go into its # comments); without it they are averaged in and named")
     add_outputs(p, json="write the average, the traces' midlines and their distances as JSON",
                 csv="write the average midline (r, z, spread; n_traces, sources, --section, "
                     "--pixel-size, --radius-um and the version as # comments), as a "
@@ -167,8 +170,13 @@ def _average(args) -> int:
     for name, d in zip(names, rms):
         flag = "  <- an outlier: check its scale and path" if name in outliers else ""
         print(f"  {name:30s} {d:.3g}{flag}")
-    out = Outputs()
     made = _how_made(args, radii)
+    if outliers and args.drop_outliers:
+        kept = [m for m, n in zip(midlines, names) if n not in outliers]
+        mean = average(kept)
+        made.append(f"dropped_outliers = {', '.join(outliers)}")
+        print(f"  left out of the average: {', '.join(outliers)} ({len(kept)} traces kept)")
+    out = Outputs()
     out.add(args.csv, lambda path: mean.to_csv(path, made))
     written = {}
     if args.write_traces:
@@ -182,12 +190,13 @@ def _average(args) -> int:
         print(f"  wrote {path}")
     if args.csv is not None:
         _row_hint(args.csv, list(written.values()))
-    if outliers:
+    if outliers and not args.drop_outliers:
         print(f"morphoshell average: {len(outliers)} outlier{'s' * (len(outliers) > 1)} "
               f"({', '.join(outliers)}): more than {OUTLIER_RATIO:g} times the median "
               f"distance {median:.3g} R from the traces' median; the average includes "
               f"{'them' if len(outliers) > 1 else 'it'}: check the scale (--radius-um, "
-              f"--pixel-size) and path, then rerun, leaving out a trace that does not belong")
+              f"--pixel-size) and path, then rerun, leaving out a trace that does not belong "
+              f"(--drop-outliers)")
     return 0
 
 
