@@ -179,7 +179,8 @@ def _guarded(script: str, line: int) -> bool:
     """Whether ``line`` of ``script`` lies in an ``if __name__ == "__main__":`` block (True
     when the script cannot be read: no refusal on a guess)."""
     try:
-        tree = ast.parse(open(script, encoding="utf-8").read())
+        with open(script, encoding="utf-8") as fh:
+            tree = ast.parse(fh.read())
     except (OSError, SyntaxError, ValueError):
         return True
     for node in ast.walk(tree):
