@@ -7,7 +7,8 @@ CSV (:mod:`.traces`; their text forms, :mod:`.trace_text`; their checks,
 their geometry: noise and binning (:mod:`.trace_noise`), alignment to the
 model gauge, resampling and averaging (:mod:`.midlines`); the tables of ablation
 measurements (:mod:`.measurements`) and of an inversion sequence's timepoints
-(:mod:`.timepoints`).  Every reader names the file and the offending entry.
+(:mod:`.timepoints`); saved equilibria read back (:mod:`.equilibria`).  Every reader
+names the file and the offending entry.
 """
 
 import lazy_loader
@@ -27,4 +28,5 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
         "to_dimensionless", "to_physical"],
     "timepoints": ["Timepoint", "read_timepoints"],
     "roi_sets": ["read_roi_set", "choose_rois", "read_set_traces"],
+    "equilibria": ["load_equilibrium", "equilibrium_of_record"],
 })

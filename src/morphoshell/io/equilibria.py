@@ -1,0 +1,93 @@
+"""Saved equilibria read back: the JSON of ``solve --json`` (:meth:`Equilibrium.to_dict`).
+
+A saved result holds its problem, its energy, how it was solved and every field at
+its points, but not the unknowns and multipliers of its mesh: read back, it is like
+another route's result (a BVP solution).  It plots, tabulates and gives its
+observables as it did, and as a ``warm_start`` it is carried onto the solver's mesh
+(interpolated in s: Newton then converges on its branch in a few iterations).  Its
+error estimate is not restored (``error`` None): re-solve for one.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from ..solvers.results import FIELDS, Equilibrium, SolverStats
+from .problem_files import problem_of_record
+
+__all__ = ["load_equilibrium", "equilibrium_of_record"]
+
+#: Entries of a saved solver block that are :class:`SolverStats` fields (the rest are details).
+_STATS = ("method", "iterations", "seconds", "status", "nodes", "build_seconds")
+
+
+def equilibrium_of_record(record: Mapping[str, Any], where: str = "the record") -> Equilibrium:
+    """The :class:`Equilibrium` of a saved result's record (:meth:`Equilibrium.to_dict`).
+
+    Parameters
+    ----------
+    record : mapping
+        With ``problem``, ``energy``, ``solver`` and the arrays of :data:`FIELDS`
+        (written by ``solve --json`` or ``to_dict(arrays=True)``).
+    where : str
+        The file or record, for messages.
+
+    Returns
+    -------
+    Equilibrium
+        Without mesh unknowns (``x`` None) or error estimate.
+
+    Raises
+    ------
+    ValueError
+        No problem, a missing or non-numeric field, fields of different lengths, or
+        points s not increasing (the entry named).
+    """
+    problem = problem_of_record(record, where)
+    missing = [k for k in (*FIELDS, "energy") if k not in record]
+    if missing:
+        raise ValueError(f"{where}: no {', '.join(missing)}: a result saved without its "
+                         f"arrays (to_dict(arrays=False)) cannot be read back")
+    fields = {}
+    for key in FIELDS:
+        try:
+            fields[key] = np.asarray(record[key], dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"{where}: {key} is not a list of numbers") from None
+    lengths = {len(v) for v in fields.values()}
+    if len(lengths) != 1 or not all(v.ndim == 1 for v in fields.values()):
+        raise ValueError(f"{where}: the fields have different lengths {sorted(lengths)}")
+    if not np.all(np.diff(fields["s"]) > 0):
+        raise ValueError(f"{where}: s must increase")
+    solver = dict(record.get("solver") or {})
+    stats = SolverStats(str(solver.get("method", "direct")), int(solver.get("iterations", 0)),
+                        float(solver.get("seconds", 0.0)), str(solver.get("status", "unknown")),
+                        int(solver.get("nodes", len(fields["s"]))),
+                        float(solver.get("build_seconds", 0.0)),
+                        {k: v for k, v in solver.items() if k not in _STATS})
+    return Equilibrium(problem=problem, **fields, energy=float(record["energy"]), solver=stats,
+                       converged=bool(record.get("converged", True)))
+
+
+def load_equilibrium(path: str | Path) -> Equilibrium:
+    """The equilibrium saved by ``solve --json`` (or :meth:`Equilibrium.to_dict`) at ``path``.
+
+    Raises
+    ------
+    ValueError
+        An unreadable file, not JSON, or a record :func:`equilibrium_of_record` refuses
+        (the file named).
+    """
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8-sig"))
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot read the file ({exc.strerror})") from None
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ValueError(f"{path}: not valid JSON ({exc})") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: expected the JSON object written by morphoshell solve --json")
+    return equilibrium_of_record(data, str(path))
