@@ -592,3 +592,19 @@ def test_a_continuation_that_fails_on_a_fine_mesh_is_solved_from_a_coarser_one(b
     monkeypatch.setattr(routes, "COARSEST", 10**6)
     with pytest.raises(SolverError):
         solve(blister, nodes=800)
+
+
+def test_a_branch_whose_shown_shapes_overlap_says_so(volvox, caplog):
+    """The fold shell's end and its last two folds pass through themselves (walls 0.064 R
+    apart at h = 0.15; a user audit saw it in the docs' figures): the branch warns, naming
+    those λ, as solve() does; the blister's domes do not overlap and say nothing."""
+    from morphoshell import example_path, load_problem
+
+    with caplog.at_level("WARNING", logger="morphoshell.solvers.branches"):
+        follow_branch(volvox, nodes=60)
+    assert "at lambda = 0.545971, 0.546549, 1 have walls that pass through each other" \
+        in caplog.text
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="morphoshell.solvers.branches"):
+        follow_branch(load_problem(example_path("blister"))[0], nodes=40)
+    assert "pass through" not in caplog.text

@@ -35,6 +35,7 @@ import numpy as np
 from .._runtime.validate import integer, within
 from ..model.problem import Problem
 from .arclength import EASY, GROWTH, MAX_STEP, MIN_STEP, ArcPoint, Arclength, Snap, Switch
+from .contact import wall_contact
 from .continuation import continue_to
 from .crossings import branch_ended, snap_through, switch_stable
 from .options import check_direct_options, check_problem
@@ -293,9 +294,9 @@ def follow_branch(problem: Problem, param: str | None = None, to: float | None =
     line, start = _path(solver, problem, param, to, anchors)
     walk = _Walk(Arclength(solver, line, anchors), follow, max_step, max_points)
     walk.run(start)
-    return Branch(line.problem, line, param, follow, tuple(walk.points), tuple(walk.snaps),
-                  time.perf_counter() - t0, switches=tuple(walk.switches),
-                  remeshed=tuple(walk.remeshed))
+    return _checked(Branch(line.problem, line, param, follow, tuple(walk.points),
+                           tuple(walk.snaps), time.perf_counter() - t0,
+                           switches=tuple(walk.switches), remeshed=tuple(walk.remeshed)))
 
 
 def switch_branch(branch: Branch, at: int, direction: float = 1.0, *,
@@ -356,9 +357,22 @@ def switch_branch(branch: Branch, at: int, direction: float = 1.0, *,
                     at=origin.tau)
     walk = _Walk(arc, "branch", max_step, max_points, ends=(0.0, 1.0))
     walk.switched(origin, direction)
-    return Branch(branch.problem, branch.line, branch.parameter, "branch", tuple(walk.points),
-                  (), time.perf_counter() - t0, origin.tau, float(direction),
-                  remeshed=tuple(walk.remeshed))
+    return _checked(Branch(branch.problem, branch.line, branch.parameter, "branch",
+                           tuple(walk.points), (), time.perf_counter() - t0, origin.tau,
+                           float(direction), remeshed=tuple(walk.remeshed)))
+
+
+def _checked(branch: Branch) -> Branch:
+    """``branch``, with a warning where the shapes it shows (its events and its end: the
+    plot's panels) have walls that pass through each other (:mod:`.contact`; every point
+    would cost ~6 ms each, a third of the walk)."""
+    shown = [pt for pt in branch.points if pt.event] + [branch.end]
+    where = sorted({pt.tau for pt in shown if wall_contact(pt.equilibrium) is not None})
+    if where:
+        log.warning("the shapes of the branch at lambda = %s have walls that pass through "
+                    "each other: the model has no self-contact, so they are equilibria of the "
+                    "model but not physical shapes", ", ".join(f"{t:.6g}" for t in where))
+    return branch
 
 
 def _check_walk(max_step, max_points) -> None:
