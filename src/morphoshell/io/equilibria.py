@@ -9,14 +9,13 @@ error estimate is not restored (``error`` None): re-solve for one.
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
 
 from ..solvers.results import FIELDS, Equilibrium, SolverStats
-from .problem_files import problem_of_record
+from .problem_files import problem_of_record, read_json
 
 __all__ = ["load_equilibrium", "equilibrium_of_record"]
 
@@ -81,13 +80,7 @@ def load_equilibrium(path: str | Path) -> Equilibrium:
         An unreadable file, not JSON, or a record :func:`equilibrium_of_record` refuses
         (the file named).
     """
-    path = Path(path)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8-sig"))
-    except OSError as exc:
-        raise ValueError(f"{path}: cannot read the file ({exc.strerror})") from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ValueError(f"{path}: not valid JSON ({exc})") from None
+    data = read_json(path)
     if not isinstance(data, dict):
         raise ValueError(f"{path}: expected the JSON object written by morphoshell solve --json")
     return equilibrium_of_record(data, str(path))

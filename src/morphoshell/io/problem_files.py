@@ -142,17 +142,26 @@ def load_problem(path: str | Path) -> tuple[Problem, Settings]:
     return problem, settings
 
 
-def _problem_from_json(path: Path) -> tuple[Problem, Settings]:
-    """The problem of a result JSON (``solve --json``, ``fit --json``): its "problem" entry,
-    and the settings of a fit's (:func:`_fit_settings`)."""
+def read_json(path: Path) -> Any:
+    """The content of the JSON file ``path`` (a BOM allowed); ValueError naming the file
+    when it cannot be read or is not JSON."""
     import json
 
     try:
-        data = json.loads(path.read_text(encoding="utf-8-sig"))
+        return json.loads(Path(path).read_text(encoding="utf-8-sig"))
     except OSError as exc:
-        raise ProblemFileError(f"{path}: cannot read the file ({exc.strerror})") from None
+        raise ValueError(f"{path}: cannot read the file ({exc.strerror})") from None
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ProblemFileError(f"{path}: not valid JSON ({exc})") from None
+        raise ValueError(f"{path}: not valid JSON ({exc})") from None
+
+
+def _problem_from_json(path: Path) -> tuple[Problem, Settings]:
+    """The problem of a result JSON (``solve --json``, ``fit --json``): its "problem" entry,
+    and the settings of a fit's (:func:`_fit_settings`)."""
+    try:
+        data = read_json(path)
+    except ValueError as exc:
+        raise ProblemFileError(str(exc)) from None
     if not isinstance(data, dict) or not isinstance(data.get("problem"), dict):
         raise ProblemFileError(f"{path}: no 'problem' entry: expected the JSON written by "
                                f"morphoshell solve/ablate/fit --json")
