@@ -472,13 +472,15 @@ class _Walk:
             if len(self.points) >= self.max_points:
                 raise self._ended(point, f"{self.max_points} points")
             new = self.arc.correct(point, ds)
-            if not (new is None or self.arc.turned(point, new) or self._holds(new)):
+            failed = new is None or self.arc.turned(point, new)      # (turned: a jump?)
+            if not failed and not self._holds(new):
                 moved = self._remeshed(point)
                 if moved is not None:           # (the step again, on the new mesh)
                     log.debug("mesh rebuilt for the parameters at lambda = %.6g", point.tau)
                     point = moved
                     continue
-            rejected = self._retry(point, new, ds)
+                failed = True                   # (its mesh does not hold, and stays)
+            rejected = failed or self._folds_within(point, new, ds)
             self._log_step(point, new, ds, rejected)
             if rejected:
                 ds /= 2
@@ -492,14 +494,12 @@ class _Walk:
                 return
             ds = min(GROWTH * ds, self.max_step) if new.iterations <= EASY else ds
 
-    def _retry(self, point: ArcPoint, new: ArcPoint | None, ds: float) -> bool:
-        """Whether the step from ``point`` to ``new`` is retried at half: it failed, turned
-        sharply (a jump?), leaves a mesh that does not hold, moved τ against both its ends'
-        tangents, or turned by more than :data:`SMOOTH_COS`'s angle while it may still
-        shrink to a :data:`SMOOTH_SHRINK`-th of the largest: two folds within one step
-        cancel in the sign of t_τ, and the step goes back in τ between them, or turns."""
-        if new is None or self.arc.turned(point, new) or not self._holds(new):
-            return True
+    def _folds_within(self, point: ArcPoint, new: ArcPoint, ds: float) -> bool:
+        """Whether the step from ``point`` to ``new`` may hide a pair of folds, and is retried
+        at half: it moved τ against both its ends' tangents, or turned by more than
+        :data:`SMOOTH_COS`'s angle while it may still shrink to a :data:`SMOOTH_SHRINK`-th
+        of the largest (two folds within one step cancel in the sign of t_τ, and the step
+        goes back in τ between them, or turns)."""
         back = (new.tau - point.tau) * point.t_tau < 0 and (new.tau - point.tau) * new.t_tau < 0
         return back or self.arc.cos(point, new) < SMOOTH_COS and ds > self.max_step / SMOOTH_SHRINK
 
