@@ -34,6 +34,7 @@ from matplotlib.patches import PathPatch
 from matplotlib.path import Path as MplPath
 
 from ..model.problem import Problem
+from ..solvers.contact import half_thickness
 from ..solvers.results import Equilibrium
 from .style import add_caption, new_axes, styled
 
@@ -73,7 +74,7 @@ def sheet_outline(eq: Equilibrium) -> tuple[np.ndarray, np.ndarray]:
 
 def band_edges(eq: Equilibrium) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
     """(r, z) of the two edges of the sheet: the midline ± h/(2 f_s f_φ) along the normal."""
-    half = eq.problem.h / (eq.f_s * eq.f_phi) / 2
+    half = half_thickness(eq)
     # At a pole f_φ → f_s: the nodal values are finite by construction.
     nr, nz = -np.sin(eq.psi), np.cos(eq.psi)   # normal to the meridian (tangent (cos ψ, sin ψ))
     return (eq.r + half * nr, eq.z + half * nz), (eq.r - half * nr, eq.z - half * nz)

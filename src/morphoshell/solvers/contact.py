@@ -22,7 +22,7 @@ import numpy as np
 
 from .results import Equilibrium
 
-__all__ = ["WallContact", "wall_contact", "warn_if_walls_overlap", "FAR"]
+__all__ = ["WallContact", "wall_contact", "warn_if_walls_overlap", "half_thickness", "FAR"]
 
 log = logging.getLogger(__name__)
 
@@ -84,7 +84,7 @@ def wall_contact(eq: Equilibrium) -> WallContact | None:
         the walls stay at least their thickness apart.
     """
     points = np.column_stack([eq.r, eq.z])
-    half = eq.problem.h / (eq.f_s * eq.f_phi) / 2
+    half = half_thickness(eq)
     if not (np.all(np.isfinite(points)) and np.all(np.isfinite(half))):
         return None
     pairs = _close_pairs(points, 2 * float(np.max(half)))
@@ -102,6 +102,13 @@ def wall_contact(eq: Equilibrium) -> WallContact | None:
         return None
     a, b = sorted((float(eq.s[i[k]]), float(eq.s[j[k]])))
     return WallContact((a, b), float(distance[k]), float(thickness[k]))
+
+
+def half_thickness(eq: Equilibrium) -> np.ndarray:
+    """Half the deformed thickness at the points of ``eq``, h/(2 f_s f_φ) (an
+    incompressible sheet keeps its volume h ds·r), shape (N,), units of R: the band the
+    plots draw and the walls whose contact is looked for."""
+    return eq.problem.h / (eq.f_s * eq.f_phi) / 2
 
 
 def _close_pairs(points: np.ndarray, radius: float) -> np.ndarray:
