@@ -254,12 +254,15 @@ def _fit(args) -> int:
         **result.to_dict(), **fit_record(args, limit),
         **(profile_json(profiles, before, result) if profiles else {})}))
     out.add(args.csv, lambda path: write_csv(path, csv_columns(result)))
-    from ..plotting import fit_axes, plot_fit, plot_profiles, save
     if args.plot:
+        from ..plotting import fit_axes, plot_fit, save
+
         shell, residual = fit_axes(pyplot=False)
         ax = plot_fit(result, shell, residual_ax=residual, name=Path(args.midline).name)
         out.add(args.plot, lambda path: save(ax, path))
     if profiles and profile_plot_path(args) is not None:
+        from ..plotting import plot_profiles, save
+
         figure = plot_profiles(profiles, pyplot=False)
         out.add(profile_plot_path(args), lambda path: save(figure, path))
     for path in out.commit():
