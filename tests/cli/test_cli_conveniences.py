@@ -270,3 +270,22 @@ def test_a_fit_without_plots_imports_no_matplotlib(tmp_path):
                          check=True)
     assert (tmp_path / "fit.json").exists()
     assert out.stdout.strip().splitlines()[-1] == "False"
+
+
+def test_a_reader_that_leaves_the_pipe_does_not_lose_the_files(tmp_path):
+    # `morphoshell sweep ... --csv out.csv | head -1`: the table was printed before the files
+    # were written, and the closed pipe's BrokenPipeError ended the command without them
+    import subprocess
+    import sys
+    from pathlib import Path
+    toy2 = Path(__file__).resolve().parents[2] / "problems" / "toy2_ablation.toml"
+    out = tmp_path / "sweep.csv"
+    run = subprocess.Popen([sys.executable, "-c", "from morphoshell.cli import main; "
+                            "raise SystemExit(main())", "sweep", str(toy2), "--set",
+                            "k=0:1:5", "--nodes", "40", "--csv", str(out)],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    run.stdout.close()              # the reader left before the first line
+    err = run.stderr.read().decode()
+    assert run.wait(timeout=120) == 0, err
+    assert "Traceback" not in err and "Exception ignored" not in err, err
+    assert len(out.read_text().splitlines()) == 6

@@ -20,7 +20,8 @@ import sys
 from contextlib import contextmanager
 from typing import Any, Callable, Iterable, Iterator, TypeVar
 
-__all__ = ["configure", "progress", "counter", "LOGGER", "verbosity_level", "run_script"]
+__all__ = ["configure", "progress", "counter", "LOGGER", "verbosity_level", "run_script",
+           "reader_may_leave"]
 
 #: The package's root logger name.
 LOGGER = "morphoshell"
@@ -73,6 +74,53 @@ def configure(verbosity: int = 0, stream=None) -> Callable[[], None]:
         logger.removeHandler(handler)
         logger.setLevel(old_level)
     return restore
+
+
+class _LeavingReader:
+    """Standard output that a reader may leave (``morphoshell sweep ... | head``): from
+    the first write or flush that finds the pipe closed on, output goes to the null
+    device, so that the command goes on and writes its files."""
+
+    def __init__(self, stream):
+        self._stream = stream
+
+    def _guarded(self, action: Callable[[], Any]) -> Any:
+        try:
+            return action()
+        except BrokenPipeError:
+            import os
+
+            os.dup2(os.open(os.devnull, os.O_WRONLY), self._stream.fileno())
+            return None
+
+    def write(self, text: str) -> int:
+        self._guarded(lambda: self._stream.write(text))
+        return len(text)
+
+    def flush(self) -> None:
+        self._guarded(self._stream.flush)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._stream, name)
+
+
+@contextmanager
+def reader_may_leave() -> Iterator[None]:
+    """Standard output (the real one, with a file descriptor) made :class:`_LeavingReader`
+    within: a printed table used to raise BrokenPipeError when the reader of a pipe left,
+    and the command stopped before writing the --csv and --json it had solved for."""
+    stream = sys.stdout
+    try:
+        stream.fileno()
+    except (AttributeError, OSError, ValueError):     # (captured by a test or a notebook)
+        yield
+        return
+    sys.stdout = _LeavingReader(stream)
+    try:
+        yield
+        sys.stdout.flush()
+    finally:
+        sys.stdout = stream
 
 
 def run_script(parser, argv, run: Callable[[Any], int]) -> int:

@@ -125,7 +125,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     0 success, 2 bad input, 3 solver failure, 1 a bug, 130 interrupted, 143
     terminated (see the module's docstring); messages go to standard error.
     """
-    from .._runtime.console import configure
+    from .._runtime.console import configure, reader_may_leave
     from .._runtime.interrupts import check, exit_status, interrupted, noted, reason
     from ..io.problem_files import ProblemFileError
     from ..solvers.results import SolverError
@@ -139,7 +139,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from .._runtime.allocator import keep_large_blocks
     keep_large_blocks()     # big meshes: large arrays reused, not page-faulted anew (linear in N)
     try:
-        with noted():           # (Ctrl-C within an Ipopt solve: counted, see numerics.ipopt)
+        with noted(), reader_may_leave():      # (noted: Ctrl-C within Ipopt, numerics.ipopt)
             status = args.run(args)
             if status == 0:     # (a Ctrl-C CasADi dropped in a command that writes nothing;
                 check()         # one that reported its interruption returned 130)
@@ -154,7 +154,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"morphoshell: {reason()}", file=sys.stderr)
         return exit_status()
-    except BrokenPipeError:   # `morphoshell example NAME | head`: the reader left; not a bug
+    except BrokenPipeError:   # the reader left, written past reader_may_leave: not a bug
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
     except OSError as exc:     # a file or folder that cannot be read or written, named
