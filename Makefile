@@ -27,11 +27,13 @@ run: $(STAMP)
 ## of the held values (the fixed variants with f1, kappa3, kappa4 of the flat first fit, SI
 ## Fig. S2, and of the free first fit, which assumes no hypothesis) into
 ## out/campaign_held_flat and out/campaign_held_free, then Fig. 3 D-O and Fig. S2 into out/figures
+## (--allow-failures: a late stage's fit that does not converge, documented in docs/campaigns.md,
+## is shown in the figures as such, not a reason to stop before them)
 campaign: $(STAMP)
 	mkdir -p out  # (campaign --out creates its folder only inside an existing one)
-	$(BIN)/morphoshell campaign data/synthetic_inversion --method gradient --embryo-errors free --out out/campaign
-	$(BIN)/morphoshell campaign data/synthetic_inversion --method gradient --variants flat,undeformed,unstressed --held-from flat --out out/campaign_held_flat
-	$(BIN)/morphoshell campaign data/synthetic_inversion --method gradient --variants flat,undeformed,unstressed --held-from free --out out/campaign_held_free
+	$(BIN)/morphoshell campaign data/synthetic_inversion --method gradient --embryo-errors free --allow-failures --out out/campaign
+	$(BIN)/morphoshell campaign data/synthetic_inversion --method gradient --variants flat,undeformed,unstressed --held-from flat --allow-failures --out out/campaign_held_flat
+	$(BIN)/morphoshell campaign data/synthetic_inversion --method gradient --variants flat,undeformed,unstressed --held-from free --allow-failures --out out/campaign_held_free
 	$(BIN)/python scripts/fig3_fits.py --campaign out/campaign --held out/campaign_held_flat --held out/campaign_held_free --out out/figures
 
 ## test: the whole test suite (with a strict build of the docs, tests/test_docs.py, and a
