@@ -74,7 +74,7 @@ def test_clean_venv_install_example_and_plugin(tmp_path):
         metadata = z.read(info).decode()
     assert "morphoshell/py.typed" in names
     for example in ("toy1_sphere", "toy2_ablation", "toy3_anisotropic", "fast_relaxation",
-                    "volvox_inversion"):
+                    "volvox_inversion", "volvox_fold", "blister"):
         assert f"morphoshell/examples/{example}.toml" in names
     assert any(n.endswith(".dist-info/licenses/LICENSE") for n in names)
     assert "License-Expression: MIT" in metadata

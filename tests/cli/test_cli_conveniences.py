@@ -13,7 +13,7 @@ from morphoshell.io.problem_files import (ProblemFileError, example_path, exampl
                             parse_overrides)
 
 EXAMPLES = ("blister", "fast_relaxation", "toy1_sphere", "toy2_ablation", "toy3_anisotropic",
-            "volvox_inversion")
+            "volvox_fold", "volvox_inversion")
 
 
 # --------------------------------------------------------------------------
