@@ -274,3 +274,21 @@ def test_a_sweep_through_a_bistable_range_gives_solves_states(alone, monkeypatch
     for k, energy in zip(df["kappa1"], df["energy"]):
         expected = solve(volvox.with_updates(kappa1=k), nodes=60).energy
         assert abs(energy - expected) < 1e-9 * expected, (k, energy, expected)
+
+
+def test_a_sweep_across_a_moved_breakpoint_rebuilds_the_mesh_on_the_way():
+    """A Volvox breakpoint s2 swept from 1.4 to 1.8 moves its mesh knot past where the mesh
+    of 1.8 holds at 1.4: carrying the solution at 1.4 onto it raised ValueError ("the
+    mesh's anchors are too far from its knots"), taken for bad input (exit status 2)
+    after the work began (user audit).  The warm step is now split, each half on its own
+    end's mesh, as continue rebuilds its mesh; the rows are solve()'s (energies to 1e-10
+    relative: the same mesh and tolerance, from another start)."""
+    from morphoshell.io.problem_files import example_path, load_problem
+
+    volvox = load_problem(example_path("volvox_inversion"))[0]
+    df = sweep(volvox, {"s2": [1.4, 1.8]}, nodes=60, workers=1, errors="none").to_dataframe()
+    assert df["path"].tolist() == ["continuation", "split"]     # warm, not a fresh start
+    for s2, energy in zip(df["s2"], df["energy"]):
+        expected = solve(volvox.with_updates(s2=s2), nodes=60).energy
+        assert abs(energy - expected) < 1e-10 * expected, (s2, energy, expected)
+

@@ -36,10 +36,11 @@ warm-started from the previous one, so a point costs about one warm solve
   intact shell anchored at its s = Σ), so each row agrees with
   ``solve(point)`` or ``ablate(point)`` to the solver's tolerance, whatever the
   chunking and the number of workers.  The mesh changes only where a
-  rounded grading or anchor knot moves to the next octave; the solution is
-  then carried over by interpolation
-  (:func:`morphoshell.solvers.refinement.solve_from`).  Solvers are built once per
-  worker process and mesh (cached).
+  rounded grading or anchor knot moves to the next octave, or a breakpoint's
+  knot moves; the solution is then carried over by interpolation
+  (:func:`morphoshell.solvers.refinement.solve_from`), and where the new mesh
+  does not hold at the previous point, the step is split, each half on its own
+  end's mesh.  Solvers are built once per worker process and mesh (cached).
 * **Error estimates** need two more meshes per point (the half and the
   quarter mesh, as :func:`solve`'s estimate), which would triple a sweep's
   cost.  ``errors="ends"`` (default) estimates at both ends of the chunk
@@ -248,6 +249,8 @@ def _points(problem: Problem, axes: Mapping[str, tuple], ablate: bool, nodes: in
                 if key not in intact:       # the intact shell does not depend on the cut
                     intact[key] = intact_problem(p)
                 mesh_spec(intact[key], nodes, stages, (p.cut,))   # the rim must be a node
+            else:
+                mesh_spec(p, nodes, stages)       # (breakpoints too close to be nodes)
         except ValueError as exc:
             raise ValueError(f"sweep point {where}: {exc}") from None
         points.append(updates)
@@ -327,14 +330,9 @@ class _Shell:
         eq = None
         if last is not None and last[0].structure == problem.structure and not self.verify \
                 and not self.crossed:
-            path = "warm"
             try:
-                start = last[2]
-                if solver_of(start) is not solver:       # a new mesh: carry the solution over
-                    start = self._count(solve_from(solver, last[0], start, last[1]))
-                    path = "remesh"
-                eq, steps = self._step(solver, last[0], last[1], start, problem, anchors, 0)
-                path = "split" if steps > 1 else path
+                eq, steps, remeshed = self._step(*last, problem, anchors, 0)
+                path = "split" if steps > 1 else "remesh" if remeshed else "warm"
             except SolverError as exc:
                 self._count(exc.last_iterate)
                 log.debug("sweep: warm steps to %s failed (%s); continuation", problem.params,
@@ -351,23 +349,44 @@ class _Shell:
             self.iterations += eq.solver.iterations
         return eq
 
-    def _step(self, solver, a: Problem, a_anchors, a_eq, b: Problem, b_anchors,
-              depth: int) -> tuple[Equilibrium, int]:
-        """From a's solution to b: one warm step, or two halves (recursively); (eq, steps)."""
+    def _step(self, a: Problem, a_anchors, a_eq, b: Problem, b_anchors,
+              depth: int) -> tuple[Equilibrium, int, bool]:
+        """From a's solution to b on b's mesh: one warm step, or two halves (recursively),
+        each on its own end's mesh; (eq, steps, whether a solution was carried to a new mesh).
+
+        Where b's mesh is not a's, a's solution is carried onto it at a's parameters
+        (:func:`~morphoshell.solvers.refinement.solve_from`).  Where that mesh does not hold
+        there (a breakpoint moved past the place of its knot: ValueError from the mesh's
+        check, a Volvox s2 step of 0.1), the step is split: the first half ends on the
+        midpoint's own mesh, from which the second carries on, as ``continue`` rebuilds its
+        mesh for the parameters it has reached.
+        """
+        solver = self.solver(b, b_anchors)
+        carried = solver_of(a_eq) is not solver
         try:
+            if carried:     # (kept for the halves: usually b's mesh is the midpoint's too)
+                a_eq = self._count(solve_from(solver, a, a_eq, a_anchors))
             eq = self._count(solver.solve(b, warm_start=a_eq, anchors=b_anchors))
             if eq.solver.iterations <= HARD_STEP or depth >= MAX_SPLITS:
-                return eq, 1
-        except SolverError as exc:
-            self._count(exc.last_iterate)
+                return eq, 1, carried
+        except (SolverError, ValueError) as exc:     # (ValueError: the mesh does not hold)
+            if isinstance(exc, SolverError):
+                self._count(exc.last_iterate)
             if depth >= MAX_SPLITS:
-                raise
+                raise _unsplittable(exc, b) from exc
         mid = _midpoint(a, b, a_anchors, b_anchors)
         if mid is None:
             raise SolverError("no midpoint to split the step at", STEP_NOT_SPLITTABLE)
-        m_eq, n1 = self._step(solver, a, a_anchors, a_eq, *mid, depth + 1)
-        eq, n2 = self._step(solver, *mid, m_eq, b, b_anchors, depth + 1)
-        return eq, n1 + n2
+        m_eq, n1, c1 = self._step(a, a_anchors, a_eq, *mid, depth + 1)
+        eq, n2, c2 = self._step(*mid, m_eq, b, b_anchors, depth + 1)
+        return eq, n1 + n2, carried or c1 or c2
+
+
+def _unsplittable(exc: Exception, b: Problem) -> SolverError:
+    """The failure of a warm step that cannot be split further, as a SolverError."""
+    if isinstance(exc, SolverError):
+        return exc
+    return SolverError(f"warm steps to {b.params}: {exc}", STEP_NOT_SPLITTABLE)
 
 
 def _crossed(eq: Equilibrium) -> bool:
