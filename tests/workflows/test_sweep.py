@@ -274,3 +274,88 @@ def test_a_sweep_through_a_bistable_range_gives_solves_states(alone, monkeypatch
     for k, energy in zip(df["kappa1"], df["energy"]):
         expected = solve(volvox.with_updates(kappa1=k), nodes=60).energy
         assert abs(energy - expected) < 1e-9 * expected, (k, energy, expected)
+
+
+def test_a_sweep_across_a_moved_breakpoint_rebuilds_the_mesh_on_the_way():
+    """A Volvox breakpoint s2 swept from 1.4 to 1.8 moves its mesh knot past where the mesh
+    of 1.8 holds at 1.4: carrying the solution at 1.4 onto it raised ValueError ("the
+    mesh's anchors are too far from its knots"), taken for bad input (exit status 2)
+    after the work began (user audit).  The warm step is now split, each half on its own
+    end's mesh, as continue rebuilds its mesh; the rows are solve()'s (energies to 1e-10
+    relative: the same mesh and tolerance, from another start)."""
+    from morphoshell.io.problem_files import example_path, load_problem
+
+    volvox = load_problem(example_path("volvox_inversion"))[0]
+    df = sweep(volvox, {"s2": [1.4, 1.8]}, nodes=60, workers=1, errors="none").to_dataframe()
+    assert df["path"].tolist() == ["continuation", "split"]     # warm, not a fresh start
+    for s2, energy in zip(df["s2"], df["energy"]):
+        expected = solve(volvox.with_updates(s2=s2), nodes=60).energy
+        assert abs(energy - expected) < 1e-10 * expected, (s2, energy, expected)
+
+
+def test_units_of_every_axis_come_from_the_family():
+    from morphoshell.io.problem_files import example_path, load_problem
+
+    volvox = load_problem(example_path("volvox_inversion"))[0]
+    res = sweep(volvox, {"s1": [1.2, 1.3], "sigma": [0.05], "kappa1": [1.1], "f1": [0.9],
+                         "opening": [0.3]}, nodes=60, workers=1, errors="none")
+    units = res.to_dict()["units"]
+    assert {k: units[k] for k in ("s1", "sigma", "kappa1", "f1", "opening")} == \
+        {"s1": "R", "sigma": "R", "kappa1": "1/R", "f1": "1", "opening": "R"}
+    assert units["iterations"] == "1" and "theory" not in units
+
+
+def test_json_names_the_far_end_opening_axis_as_its_column():
+    """An ablation sweep's axis P is the column opening_P (opening is the observable o):
+    the JSON's axes called it opening, colliding with the observable (user audit)."""
+    res = sweep(TOY2, {"opening": [0.0, 0.3], "k": [0.0]}, ablate=True, nodes=30, workers=1,
+                errors="none")
+    d = res.to_dict()
+    assert list(d["axes"]) == ["opening_P", "k"] and "opening_P" in d["rows"][0]
+    assert d["units"]["opening_P"] == "R"
+    assert list(res.to_dataframe().attrs["axes"]) == ["opening_P", "k"]
+
+
+def test_progress_counts_points(monkeypatch):
+    """The bar counted chunks: a sweep of up to 31 points is one chunk, and sat at 0/1 to
+    the end (user audit).  It counts points, each as it is solved."""
+    from contextlib import contextmanager
+
+    from morphoshell.workflows import sweeps
+
+    seen = []
+
+    class Bar:
+        def update(self, n=1):
+            seen.append(n)
+
+    @contextmanager
+    def counter(total=None, desc="", unit="it", enabled=None):
+        seen.append((total, unit))
+        yield Bar()
+
+    monkeypatch.setattr(sweeps, "counter", counter)
+    sweep(TOY2, {"k": [0.0, 0.5, 1.0]}, nodes=30, workers=1, errors="none")
+    assert seen == [(3, "point"), 1, 1, 1]
+
+
+def test_cli_exits_3_when_a_point_failed_unless_failures_are_allowed(tmp_path, capsys):
+    """A sweep whose every point failed exited 0 (user audit); as a campaign, it exits 3
+    naming them on the last line, and writes the rows either way.  The messages advise
+    in a sweep's terms: it has neither --rtol nor --method bvp."""
+    path = _problem_file(tmp_path)
+    js = tmp_path / "fail.json"
+    args = ["sweep", str(path), "--set", "h=0.00001", "--set", "cut=1", "--set", "k=-20,20",
+            "--workers", "1", "--json", str(js)]
+    assert main(args) == 3
+    out = capsys.readouterr().out.strip().splitlines()
+    assert out[-1].startswith("of 2 points, 2 failed: k = -20, 20 (")
+    rows = json.loads(js.read_text())["rows"]
+    for row in rows:
+        assert row["path"] == "failed" and row["iterations"] > 0       # (was 0 after 53)
+        assert "--method bvp)" not in row["message"] and "--rtol" not in row["message"]
+        assert "morphoshell solve --method bvp" in row["message"]
+        assert "(k = " in row["message"]              # the problem named by its point
+    js.unlink()
+    assert main([*args, "--allow-failures"]) == 0 and js.exists()
+    assert "(--allow-failures: exit status 0)" in capsys.readouterr().out

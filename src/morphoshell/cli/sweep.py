@@ -22,8 +22,11 @@ def register(sub) -> None:
                     "axis values, then the energy (C R^2) and edge values (R, rad), or with "
                     "--ablate the recoil observables (opening R, rotation rad, displacement R, "
                     "energy released C R^2); each with its estimated error where estimated "
-                    "(--errors), the solver's status, the Newton iterations and the path. "
-                    "Failed points keep their row (NaN values and the status). The points are "
+                    "(--errors), the solver's status, the Newton iterations, the path, what "
+                    "its continuation crossed (event: snapped, switched) and whether the "
+                    "shell's walls pass through each other (walls_cross). Failed points keep "
+                    "their row (NaN values and the status); the exit status is then 3 "
+                    "(--allow-failures for 0). The points are "
                     "solved in chunks along the axis with the most values, each point warm-"
                     "started from the previous one (continuation from the stress-free "
                     "parameters at a chunk's first point), on the mesh `solve` and `ablate` "
@@ -60,6 +63,9 @@ def register(sub) -> None:
                    default=MAX_GRID, metavar="N",
                    help=f"refuse a grid of more points (default {MAX_GRID:,}: a grid's rows "
                         f"and its runtime grow with it); raise it to insist")
+    p.add_argument("--allow-failures", action="store_true",
+                   help="exit 0 even when points failed (default: exit status 3, naming them "
+                        "on the last line; their rows are written either way)")
     add_outputs(p, json="write the sweep (problem, axes, units, timing, rows) as JSON",
                 csv="write one row per point as CSV (units: docs, 'Sweeps')")
     p.set_defaults(run=_sweep)
@@ -175,6 +181,26 @@ def _sweep(args) -> int:
     result = sweep(problem, axes, ablate=args.ablate, nodes=nodes, workers=args.workers,
                    scheduler=args.scheduler, errors=args.errors, chunk_size=args.chunk_size,
                    stages=stages, linear_solver=args.linear_solver)
+    _print_table(result, problem, nodes, args)
+    out = Outputs()
+    out.add(args.csv, lambda path: write_csv(path, result.columns))
+    out.add(args.json, lambda path: write_json(path, result.to_dict()))
+    for path in out.commit():
+        print(f"  wrote {path}")
+    if result.failed:
+        print(_verdict(result, args.allow_failures))
+    return 3 if result.failed and not args.allow_failures else 0
+
+
+#: A flag column's value where a row has nothing to flag.
+_UNSET = {"event": "", "walls_cross": False}
+
+
+def _print_table(result, problem, nodes: int, args) -> None:
+    """The summary line and the table: the axes, the main values, the status and the flags
+    some row has (units in the headers)."""
+    import numpy as np
+
     t = result.timing
     what = "ablations" if args.ablate else "equilibria"
     shape = " x ".join(f"{len(v)} {k}" for k, v in result.axes.items())
@@ -187,15 +213,19 @@ def _sweep(args) -> int:
     df = result.to_dataframe()
     values = ["opening", "rotation", "displacement", "energy_released"] if args.ablate else \
         ["energy", "r_start", "psi_start", "r_end", "psi_end", "z_end"]
-    show = [*result.dims(), *values, "status"]
+    # (the flags where a row has one: solve() would have warned of it)
+    flags = [k for k in ("event", "walls_cross") if np.any(result.columns[k] != _UNSET[k])]
+    show = [*result.dims(), *values, "status", *flags]
     units = result.units
     df = df[show].rename(columns={c: f"{c} [{units[c]}]" for c in show if c in units
                                   and c not in ("iterations",)})
     print(df.to_string(max_rows=20, float_format=lambda v: f"{v:.6g}" if math.isfinite(v)
                        else "nan"))
-    out = Outputs()
-    out.add(args.csv, lambda path: write_csv(path, result.columns))
-    out.add(args.json, lambda path: write_json(path, result.to_dict()))
-    for path in out.commit():
-        print(f"  wrote {path}")
-    return 0
+
+
+def _verdict(result, allowed: bool) -> str:
+    """The last line of a sweep with failed points: how many, which (as campaign's)."""
+    tail = ("(--allow-failures: exit status 0)" if allowed else
+            "(their rows say why; exit status 3, --allow-failures for 0)")
+    return (f"of {len(result)} points, {result.failed} failed: "
+            f"{result.points(result.columns['message'] != '')} {tail}")

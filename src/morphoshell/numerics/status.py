@@ -42,7 +42,8 @@ __all__ = ["STATUSES", "BVP_STATUSES", "SolverError", "NotAMinimumError", "expla
            "SHOOTING_ILL_CONDITIONED", "SHOOTING_NOT_CONVERGED", "SHOOTING_INTEGRATION_FAILED",
            "FIT_SADDLE", "FIT_NOT_REPRODUCED", "GAUSS_NEWTON_STOPPED", "FIT_CONVERGED",
            "MAXIMUM_EVALUATIONS_EXCEEDED", "FIT_STALLED", "FIT_NOT_STATIONARY", "FIT_NEAR_FOLD",
-           "FIT_ON_BOX_EDGES", "FIT_MOVED_BOXES_FAILED", "FIT_NOT_MINIMUM", "STEP_NOT_SPLITTABLE"]
+           "FIT_ON_BOX_EDGES", "FIT_MOVED_BOXES_FAILED", "FIT_NOT_MINIMUM", "STEP_NOT_SPLITTABLE",
+           "RETRY_FINER"]
 
 # -- Ipopt (morphoshell.numerics.ipopt; the KKT fit's NLP) ------------------------------
 SOLVE_SUCCEEDED = "Solve_Succeeded"
@@ -89,6 +90,9 @@ FIT_ON_BOX_EDGES = "Fit_On_Box_Edges"
 FIT_MOVED_BOXES_FAILED = "Fit_Moved_Boxes_Failed"
 FIT_NOT_MINIMUM = "Fit_Not_Minimum"
 STEP_NOT_SPLITTABLE = "Step_Not_Splittable"
+
+#: The advice of a finer mesh in solve()'s terms (a sweep words it its way).
+RETRY_FINER = "rtol, --rtol: retried on finer ones"
 
 #: Every status a route can report, and what it means (for a failure, what to try).  Each
 #: line reads after the facts of a failure message: "... after 7 iterations: <line>".
@@ -151,7 +155,7 @@ STATUSES: Mapping[str, str] = MappingProxyType({
         "continuation=True)) or refine the mesh",
     CONTINUATION_FAILED:
         "the step fell below its minimum or the steps ran out (a fold of the branch?): try a "
-        "finer mesh (rtol, --rtol: retried on finer ones), or continue from a nearer solution",
+        f"finer mesh ({RETRY_FINER}), or continue from a nearer solution",
     TOLERANCE_NOT_MET:
         "raise max_nodes (--max-nodes on the command line), loosen rtol, or use more stages "
         "(a higher order)",
@@ -161,7 +165,7 @@ STATUSES: Mapping[str, str] = MappingProxyType({
         "its inertia says",
     SNAP_FAILED:
         "the shell snaps through at a fold, but no stable equilibrium of lower energy was found "
-        "past it: try a finer mesh (rtol, --rtol: retried on finer ones), or follow the branch "
+        f"past it: try a finer mesh ({RETRY_FINER}), or follow the branch "
         "(morphoshell continue) to see where it goes",
     BRANCH_ENDED:
         "the pseudo-arclength step fell below its minimum or the points ran out before the end "

@@ -28,7 +28,7 @@ from .results import Equilibrium
 __all__ = ["check_problem", "check_guess", "check_anchors", "check_direct_options", "check_bvp_options",
            "check_shooting_options", "MAX_DIRECT_TOL", "REFERENCE_TOL", "ATOL", "RTOL",
            "POLE_OFFSET", "STABILITY", "INTEGRATORS", "MIN_DIRECT_THICKNESS",
-           "thin_shell_note"]
+           "thin_shell_note", "BVP_ADVICE"]
 
 #: Largest ``tol`` of the direct route (Ipopt's and Newton's, at 800 points).
 MAX_DIRECT_TOL = 1e-4
@@ -64,6 +64,10 @@ def check_problem(problem: Any, name: str = "problem") -> Problem:
     return problem
 
 
+#: The advice of the boundary-value route in solve()'s terms (a sweep words it its way).
+BVP_ADVICE = 'method="bvp" (--method bvp)'
+
+
 def thin_shell_note(problem: Problem) -> str:
     """What to add to a direct failure on a shell thinner than :data:`MIN_DIRECT_THICKNESS`
     ("" otherwise): the route's limit and the route that solves it.  Not a refusal: a
@@ -73,7 +77,7 @@ def thin_shell_note(problem: Problem) -> str:
         return ""
     return (f"; the shell is thinner (h = {problem.h:g}) than {MIN_DIRECT_THICKNESS:g}, below "
             f"which the direct route fails on most meshes (stretching outweighs bending by "
-            f"1/h^2): method=\"bvp\" (--method bvp) solves shells down to h = 1e-6")
+            f"1/h^2): {BVP_ADVICE} solves shells down to h = 1e-6")
 
 
 def check_guess(guess: Any, name: str = "warm_start") -> None:

@@ -23,7 +23,8 @@ from .continuation import continue_to
 from .direct import MAX_NODES, DirectSolver
 from .results import ESTIMATED, Equilibrium, ErrorEstimate, SolverError, energy_floor
 
-__all__ = ["solve_from", "estimate", "level_errors", "refine", "half_mesh", "SAFETY", "COARSE"]
+__all__ = ["solve_from", "estimate", "level_errors", "refine", "half_mesh", "too_coarse", "coarse_level",
+           "SAFETY", "COARSE"]
 
 log = logging.getLogger(__name__)
 
@@ -124,21 +125,29 @@ def estimate(fine: Equilibrium, coarse: Equilibrium | None, order: int, note: st
                          energy_floor(fine.problem.h))
 
 
-def _warn_if_coarse(est: ErrorEstimate, nodes: int) -> None:
-    """A warning where an estimate exceeds :data:`COARSE`: the mesh does not resolve the
-    shell.  Not for the energy of a stress-free state, at round-off below its floor (an
-    intact shell before its fast relaxation: 1e-14 C R², its estimate 6e-12)."""
+def too_coarse(est: ErrorEstimate) -> tuple[str, float] | None:
+    """(the quantity, its relative error) where an estimate exceeds :data:`COARSE`, the
+    largest (:meth:`ErrorEstimate.relative`), else None: the mesh does not resolve the
+    shell.  Not the energy of a stress-free state, at round-off below its floor (an intact
+    shell before its fast relaxation: 1e-14 C R², its estimate 6e-12)."""
     rel = est.relative()
     if abs(est.values["energy"]) <= est.energy_floor:
         rel.pop("energy")
     key = max(rel, key=lambda k: rel[k] if np.isfinite(rel[k]) else np.inf)
-    if not rel[key] <= COARSE:
+    return None if rel[key] <= COARSE else (key, rel[key])
+
+
+def _warn_if_coarse(est: ErrorEstimate, nodes: int) -> None:
+    """A warning where an estimate exceeds :data:`COARSE` (:func:`too_coarse`)."""
+    worst = too_coarse(est)
+    if worst is not None:
+        key, rel = worst
         log.warning("the error estimate of %s is %.2g (%s) on %d nodes: the mesh is too "
-                    "coarse for this shell; refine it (rtol, --rtol)", key, rel[key],
+                    "coarse for this shell; refine it (rtol, --rtol)", key, rel,
                     "relative" if key == "energy" else "R or rad", nodes)
 
 
-def _coarse_level(solver_for: Callable[[int], DirectSolver], nodes: int, problem: Problem,
+def coarse_level(solver_for: Callable[[int], DirectSolver], nodes: int, problem: Problem,
                   eq: Equilibrium, anchors) -> tuple[Equilibrium | None, str]:
     """(``problem`` on ``nodes`` nodes from ``eq``, "") for the estimate, or (None, why not).
 
@@ -187,10 +196,10 @@ def refine(eq: Equilibrium, solver_for: Callable[[int], DirectSolver], rtol: flo
     """
     problem, nodes = eq.problem, eq.solver.nodes
     order = 2 * solver_for(nodes).stages
-    reference, note = _coarse_level(solver_for, half_mesh(nodes), problem, eq, anchors)
+    reference, note = coarse_level(solver_for, half_mesh(nodes), problem, eq, anchors)
     coarser = None        # (two levels only where the quarter mesh is unavailable)
     if reference is not None:
-        coarser, _ = _coarse_level(solver_for, half_mesh(half_mesh(nodes)), problem,
+        coarser, _ = coarse_level(solver_for, half_mesh(half_mesh(nodes)), problem,
                                    reference, anchors)
     est = estimate(eq, reference, order, note, coarser)
     if rtol is None and not est.note:

@@ -27,10 +27,10 @@ import multiprocessing
 import os
 import sys
 from contextlib import contextmanager
-from typing import Any, Callable, Iterable, Iterator
+from typing import Any, Callable, Iterable, Iterator, Sequence
 
 from .._runtime import interrupts
-from .._runtime.console import progress
+from .._runtime.console import counter
 
 __all__ = ["open_executor", "run", "SerialExecutor", "backend_name"]
 
@@ -321,7 +321,8 @@ def _level_kept(name: str) -> Iterator[logging.Logger]:
 
 
 def run(function: Callable[[Any], Any], tasks: Iterable[Any], executor: cf.Executor, *,
-        description: str = "tasks") -> Iterator[tuple[int, Any]]:
+        description: str = "tasks", sizes: Sequence[int] | None = None,
+        unit: str = "task") -> Iterator[tuple[int, Any]]:
     """Submit ``function(task)`` for every task; yield ``(index, result)`` as each completes.
 
     ``function`` must be importable by the workers (a module-level function)
@@ -338,6 +339,11 @@ def run(function: Callable[[Any], Any], tasks: Iterable[Any], executor: cf.Execu
         From :func:`open_executor`.
     description : str
         The progress bar's label.
+    sizes : sequence of int, optional
+        What each task counts for on the bar (default 1: the bar counts tasks), e.g.
+        a sweep's points per chunk, counted in ``unit``.
+    unit : str
+        What the bar counts.
 
     Yields
     ------
@@ -347,7 +353,11 @@ def run(function: Callable[[Any], Any], tasks: Iterable[Any], executor: cf.Execu
         ``function(task)``, in order of completion (not of ``tasks``).
     """
     tasks = list(tasks)
+    sizes = [1] * len(tasks) if sizes is None else list(sizes)
     futures = {executor.submit(function, task): i for i, task in enumerate(tasks)}
-    for future in progress(cf.as_completed(futures), total=len(tasks), desc=description,
-                           unit="task"):
-        yield futures[future], future.result()
+    with counter(total=sum(sizes), desc=description, unit=unit) as bar:
+        for future in cf.as_completed(futures):
+            i = futures[future]
+            result = future.result()
+            bar.update(sizes[i])
+            yield i, result

@@ -3,8 +3,8 @@
 :func:`morphoshell.workflows.sweeps.sweep` returns a :class:`SweepResult`:
 columns in the order of the Cartesian product of the axes (last axis
 fastest), the axes first, then the values, their error estimates and the
-bookkeeping (``status``, ``iterations``, ``path``, ``seconds``,
-``message``), built from the workers' rows by :func:`result_columns`.
+bookkeeping (``status``, ``iterations``, ``path``, ``event``, ``walls_cross``,
+``seconds``, ``message``), built from the workers' rows by :func:`result_columns`.
 Lengths in units of R, angles in radians, energies in C R².
 """
 from __future__ import annotations
@@ -19,10 +19,12 @@ import numpy as np
 from .._runtime.tables import problem_attrs, xarray_module
 from ..model.problem import Problem
 
-__all__ = ["SweepResult", "result_columns"]
+__all__ = ["SweepResult", "result_columns", "point_label"]
 
 #: The bookkeeping columns, last and in this order.
-_BOOK = ("status", "iterations", "path", "seconds", "message")
+_BOOK = ("status", "iterations", "path", "event", "walls_cross", "seconds", "message")
+#: A summary names at most this many points (and how many more).
+NAMED = 8
 
 @dataclass(frozen=True, eq=False)
 class SweepResult:
@@ -40,7 +42,8 @@ class SweepResult:
         Column name → ndarray (one entry per point): the axes (``opening`` is
         ``opening_P`` in ablation sweeps), the values, their ``*_error``
         estimates (NaN where not estimated or failed), then ``status``,
-        ``iterations``, ``path``, ``seconds`` and ``message``.
+        ``iterations``, ``path``, ``event``, ``walls_cross``, ``seconds`` and
+        ``message``.
     units : mapping
         Column → unit (lengths in units of R, angles in rad, energies in C R²).
     timing : mapping
@@ -80,6 +83,19 @@ class SweepResult:
         """The axes' names as columns and dimensions (``opening_P`` for ``opening`` in ablations)."""
         return tuple(_column_name(k, self.ablate) for k in self.axes)
 
+    def points(self, rows) -> str:
+        """The points of ``rows`` (indices or a boolean mask) in a line, e.g.
+        ``"kappa2 = -8, -7.5, -7"`` or ``"(F0, h) = (9, 0.001), (3, 0.001)"``; the first
+        :data:`NAMED` and how many more."""
+        index = np.flatnonzero(rows) if np.asarray(rows).dtype == bool else np.asarray(rows)
+        dims = self.dims()
+        values = [", ".join(_short(self.columns[d][i]) for d in dims) for i in index[:NAMED]]
+        if len(dims) > 1:
+            values = [f"({v})" for v in values]
+        more = f" and {len(index) - NAMED} more" if len(index) > NAMED else ""
+        names = dims[0] if len(dims) == 1 else f"({', '.join(dims)})"
+        return f"{names} = {', '.join(values)}{more}"
+
     def to_dataframe(self):
         """The sweep as a table: one row per point.
 
@@ -95,7 +111,8 @@ class SweepResult:
 
         df = pd.DataFrame({k: v for k, v in self.columns.items()})
         df.attrs.update(units=dict(self.units), problem=self.problem.describe(),
-                        axes={k: list(v) for k, v in self.axes.items()}, ablate=self.ablate,
+                        axes=dict(zip(self.dims(), map(list, self.axes.values()))),
+                        ablate=self.ablate,
                         timing=dict(self.timing))
         if self.ablate:
             df.attrs["gauge"] = _GAUGE
@@ -130,11 +147,13 @@ class SweepResult:
         return xr.Dataset(data, coords=coords, attrs=attrs)
 
     def to_dict(self) -> dict:
-        """JSON-ready: the base problem, the axes, the units, the timing and one dict per row."""
+        """JSON-ready: the base problem, the axes (named as their columns: ``opening_P`` in
+        ablations), the units, the timing and one dict per row."""
         names = list(self.columns)
         rows = [{k: _scalar(self.columns[k][i]) for k in names} for i in range(len(self))]
         return {"problem": self.problem.describe(), "ablate": self.ablate,
-                "axes": {k: [_scalar(v) for v in vals] for k, vals in self.axes.items()},
+                "axes": {d: [_scalar(v) for v in vals]
+                         for d, vals in zip(self.dims(), self.axes.values())},
                 "units": dict(self.units), "timing": dict(self.timing), "rows": rows}
 
 
@@ -148,6 +167,16 @@ def _scalar(v):
 
 def _column_name(axis: str, ablate: bool) -> str:
     return "opening_P" if ablate and axis == "opening" else axis
+
+
+def _short(value) -> str:
+    """An axis value as a summary writes it (6 significant digits; a theory by name)."""
+    return f"{value:.6g}" if isinstance(value, (float, int, np.number)) else str(value)
+
+
+def point_label(point: Mapping[str, Any], ablate: bool) -> str:
+    """A point of a sweep in words, its axes named as their columns: ``"k = 0.5, cut = 0.2"``."""
+    return ", ".join(f"{_column_name(k, ablate)} = {_short(v)}" for k, v in point.items())
 
 
 
@@ -169,9 +198,9 @@ def result_columns(axes: Mapping[str, tuple], rows: list[dict], ablate: bool
     -------
     dict
         Column name → ndarray, shape (len(rows),): the axes (float; object for
-        ``theory``), every key of the rows (``status``, ``path`` and
-        ``message`` str, ``iterations`` int, the rest float), then
-        ``status``, ``iterations``, ``path``, ``seconds``, ``message``.
+        ``theory``), every key of the rows (``status``, ``path``, ``event`` and
+        ``message`` str, ``iterations`` int, ``walls_cross`` bool, the rest
+        float), then the bookkeeping in the order of ``_BOOK``.
     """
     grid = list(product(*axes.values()))
     out: dict[str, np.ndarray] = {}
@@ -180,10 +209,12 @@ def result_columns(axes: Mapping[str, tuple], rows: list[dict], ablate: bool
                                                    dtype=object if name == "theory" else float)
     for key in rows[0]:
         values = [r[key] for r in rows]
-        if key in ("status", "path", "message"):
+        if key in ("status", "path", "event", "message"):
             out[key] = np.array(values, dtype=object).astype(str)
         elif key == "iterations":
             out[key] = np.array(values, dtype=int)
+        elif key == "walls_cross":
+            out[key] = np.array(values, dtype=bool)
         else:
             out[key] = np.array(values, dtype=float)
     # the bookkeeping last, in a fixed order

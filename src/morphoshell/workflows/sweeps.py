@@ -36,16 +36,21 @@ warm-started from the previous one, so a point costs about one warm solve
   intact shell anchored at its s = Σ), so each row agrees with
   ``solve(point)`` or ``ablate(point)`` to the solver's tolerance, whatever the
   chunking and the number of workers.  The mesh changes only where a
-  rounded grading or anchor knot moves to the next octave; the solution is
-  then carried over by interpolation
-  (:func:`morphoshell.solvers.refinement.solve_from`).  Solvers are built once per
-  worker process and mesh (cached).
+  rounded grading or anchor knot moves to the next octave, or a breakpoint's
+  knot moves; the solution is then carried over by interpolation
+  (:func:`morphoshell.solvers.refinement.solve_from`), and where the new mesh
+  does not hold at the previous point, the step is split, each half on its own
+  end's mesh.  Solvers are built once per worker process and mesh (cached).
 * **Error estimates** need two more meshes per point (the half and the
   quarter mesh, as :func:`solve`'s estimate), which would triple a sweep's
   cost.  ``errors="ends"`` (default) estimates at both ends of the chunk
   axis for every value of the other axes (the discretisation error varies
   smoothly along a line); ``"all"`` at every point; ``"none"`` nowhere.
   Rows without an estimate have NaN in the ``*_error`` columns.
+* **Caveats** that ``solve()`` warns of at each shell (walls that pass through
+  each other, an estimate above :data:`~morphoshell.solvers.refinement.COARSE`,
+  an estimate that cannot be made) the sweep says once, naming the points
+  (:mod:`morphoshell.workflows.sweep_notes`).
 * **Determinism.** The chunks depend on the sweep only, never on the number
   of workers, and are independent: the same sweep gives the same numbers on
   any number of workers.
@@ -53,7 +58,8 @@ warm-started from the previous one, so a point costs about one warm solve
 Columns (units in ``SweepResult.units``; lengths in units of R, angles in
 radians, energies in C R²)
 -------------------------------------------------------------------------
-The axes (in ablation sweeps the far-end opening P is ``opening_P``), then
+The axes (in ablation sweeps the far-end opening P is ``opening_P``; units as the
+family declares its parameters), then
 
 * solves: ``energy`` and the edge values ``r_start``, ``psi_start``,
   ``r_end``, ``psi_end`` and ``z_end`` (the last point's height above the
@@ -67,8 +73,10 @@ The axes (in ablation sweeps the far-end opening P is ``opening_P``), then
   failed point, whose values are NaN: failed points are never dropped),
   ``iterations`` (Newton iterations spent on the point, the intact and the cut
   shell together), ``path`` (``continuation``, ``warm``, ``split`` or
-  ``remesh``), ``seconds`` (wall time of the point in its worker) and
-  ``message`` (why a point failed).
+  ``remesh``), ``event`` (what the point's continuation crossed: ``snapped``,
+  ``switched``), ``walls_cross`` (the walls pass through each other:
+  :func:`~morphoshell.solvers.contact.wall_contact`), ``seconds`` (wall time of
+  the point in its worker) and ``message`` (why a point failed).
 """
 from __future__ import annotations
 
@@ -78,27 +86,31 @@ import os
 import time
 from contextlib import ExitStack
 from dataclasses import dataclass
+from functools import partial
 from itertools import product
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from .._runtime.console import progress
+from .._runtime.console import counter
 from ..mechanics.ablation import UNITS as ABLATION_UNITS
 from ..mechanics.ablation import edge_state, intact_problem
 from ..model.problem import BASE_KEYS, Problem
 from ..model.profiles import ENTRY_POINT_GROUP, FAMILIES
-from ..numerics.status import STEP_NOT_SPLITTABLE
-from ..numerics.mesh import MeshTooCoarse, mesh_spec
+from ..numerics.mesh import mesh_spec
+from ..numerics.status import RETRY_FINER, STEP_NOT_SPLITTABLE
 from ..solvers.continuation import HARD_STEP, continue_to
 from ..solvers.direct import DirectSolver, check_nodes, solver_of
-from ..solvers.options import check_direct_options
+from ..solvers.contact import wall_contact
+from ..solvers.options import BVP_ADVICE, check_direct_options
 from ..solvers.observables import RECOIL, recoil
-from ..solvers.refinement import half_mesh, level_errors, solve_from
-from ..solvers.results import ESTIMATED, Equilibrium, SolverError
+from ..solvers.refinement import (COARSE, coarse_level, half_mesh, level_errors, solve_from,
+                                  too_coarse)
+from ..solvers.results import ESTIMATED, Equilibrium, ErrorEstimate, SolverError, energy_floor
 from ..solvers.routes import DIRECT_OPTIONS, direct_solver
 from .executor import backend_name, open_executor, run
-from .sweep_results import SweepResult, result_columns
+from .sweep_notes import log_summary
+from .sweep_results import SweepResult, point_label, result_columns
 
 __all__ = ["sweep", "ERRORS", "MAX_SPLITS", "SOLVE_COLUMNS", "ABLATE_COLUMNS",
            "ESTIMATED_ABLATION", "UNITS", "chunk_plan"]
@@ -128,6 +140,8 @@ SOLVE_COLUMNS = ESTIMATED
 ABLATE_COLUMNS = (*RECOIL, "energy_released", "energy_removed")
 #: The ablation observables that get an error estimate.
 ESTIMATED_ABLATION = ("opening", "rotation", "displacement", "energy_released")
+#: ... of which these (R and rad, as solve()'s edge values) are checked against a coarse mesh.
+RECOIL_ESTIMATED = ("opening", "rotation", "displacement")
 #: Units of the columns (lengths in units of R, angles in rad, energies in C R²).
 UNITS = {"energy": "C R^2", "r_start": "R", "psi_start": "rad", "r_end": "R", "psi_end": "rad",
          "z_end": "R", **ABLATION_UNITS, "h": "R", "cut": "R", "opening_P": "R",
@@ -248,6 +262,8 @@ def _points(problem: Problem, axes: Mapping[str, tuple], ablate: bool, nodes: in
                 if key not in intact:       # the intact shell does not depend on the cut
                     intact[key] = intact_problem(p)
                 mesh_spec(intact[key], nodes, stages, (p.cut,))   # the rim must be a node
+            else:
+                mesh_spec(p, nodes, stages)       # (breakpoints too close to be nodes)
         except ValueError as exc:
             raise ValueError(f"sweep point {where}: {exc}") from None
         points.append(updates)
@@ -327,20 +343,19 @@ class _Shell:
         eq = None
         if last is not None and last[0].structure == problem.structure and not self.verify \
                 and not self.crossed:
-            path = "warm"
             try:
-                start = last[2]
-                if solver_of(start) is not solver:       # a new mesh: carry the solution over
-                    start = self._count(solve_from(solver, last[0], start, last[1]))
-                    path = "remesh"
-                eq, steps = self._step(solver, last[0], last[1], start, problem, anchors, 0)
-                path = "split" if steps > 1 else path
+                eq, steps, remeshed = self._step(*last, problem, anchors, 0)
+                path = "split" if steps > 1 else "remesh" if remeshed else "warm"
             except SolverError as exc:
                 self._count(exc.last_iterate)
                 log.debug("sweep: warm steps to %s failed (%s); continuation", problem.params,
                           exc.status)
         if eq is None:
-            eq = self._count(continue_to(solver, problem, anchors, switch=True))    # (as solve)
+            try:
+                eq = self._count(continue_to(solver, problem, anchors, switch=True))  # (as solve)
+            except SolverError as exc:
+                self._count(exc.last_iterate)      # (the row's iterations: not 0 after 53)
+                raise
             path = "continuation"
         self.crossed = _crossed(eq)
         self.last = (problem, anchors, eq)
@@ -351,28 +366,57 @@ class _Shell:
             self.iterations += eq.solver.iterations
         return eq
 
-    def _step(self, solver, a: Problem, a_anchors, a_eq, b: Problem, b_anchors,
-              depth: int) -> tuple[Equilibrium, int]:
-        """From a's solution to b: one warm step, or two halves (recursively); (eq, steps)."""
+    def _step(self, a: Problem, a_anchors, a_eq, b: Problem, b_anchors,
+              depth: int) -> tuple[Equilibrium, int, bool]:
+        """From a's solution to b on b's mesh: one warm step, or two halves (recursively),
+        each on its own end's mesh; (eq, steps, whether a solution was carried to a new mesh).
+
+        Where b's mesh is not a's, a's solution is carried onto it at a's parameters
+        (:func:`~morphoshell.solvers.refinement.solve_from`).  Where that mesh does not hold
+        there (a breakpoint moved past the place of its knot: ValueError from the mesh's
+        check, a Volvox s2 step of 0.1), the step is split: the first half ends on the
+        midpoint's own mesh, from which the second carries on, as ``continue`` rebuilds its
+        mesh for the parameters it has reached.
+        """
+        solver = self.solver(b, b_anchors)
+        carried = solver_of(a_eq) is not solver
         try:
+            if carried:     # (kept for the halves: usually b's mesh is the midpoint's too)
+                a_eq = self._count(solve_from(solver, a, a_eq, a_anchors))
             eq = self._count(solver.solve(b, warm_start=a_eq, anchors=b_anchors))
             if eq.solver.iterations <= HARD_STEP or depth >= MAX_SPLITS:
-                return eq, 1
-        except SolverError as exc:
-            self._count(exc.last_iterate)
+                return eq, 1, carried
+        except (SolverError, ValueError) as exc:     # (ValueError: the mesh does not hold)
+            if isinstance(exc, SolverError):
+                self._count(exc.last_iterate)
             if depth >= MAX_SPLITS:
-                raise
+                raise _unsplittable(exc, b) from exc
         mid = _midpoint(a, b, a_anchors, b_anchors)
         if mid is None:
             raise SolverError("no midpoint to split the step at", STEP_NOT_SPLITTABLE)
-        m_eq, n1 = self._step(solver, a, a_anchors, a_eq, *mid, depth + 1)
-        eq, n2 = self._step(solver, *mid, m_eq, b, b_anchors, depth + 1)
-        return eq, n1 + n2
+        m_eq, n1, c1 = self._step(a, a_anchors, a_eq, *mid, depth + 1)
+        eq, n2, c2 = self._step(*mid, m_eq, b, b_anchors, depth + 1)
+        return eq, n1 + n2, carried or c1 or c2
+
+
+def _unsplittable(exc: Exception, b: Problem) -> SolverError:
+    """The failure of a warm step that cannot be split further, as a SolverError."""
+    if isinstance(exc, SolverError):
+        return exc
+    return SolverError(f"warm steps to {b.params}: {exc}", STEP_NOT_SPLITTABLE)
 
 
 def _crossed(eq: Equilibrium) -> bool:
     """Whether ``eq``'s continuation snapped through a fold or switched branches."""
-    return bool(eq.solver.details.get("snaps") or eq.solver.details.get("switches"))
+    return bool(_events(eq))
+
+
+def _events(eq: Equilibrium) -> tuple[str, ...]:
+    """What ``eq``'s continuation crossed: ``"snapped"`` (a fold), ``"switched"`` (branches
+    at a branch point), both or neither (the row's ``event``)."""
+    details = eq.solver.details
+    return tuple(word for key, word in (("snaps", "snapped"), ("switches", "switched"))
+                 if details.get(key))
 
 
 def _midpoint(a: Problem, b: Problem, a_anchors, b_anchors):
@@ -399,35 +443,39 @@ def _measure(problem: Problem, pre: Equilibrium, post: Equilibrium) -> dict[str,
 
 
 def _estimate(shells: Sequence[tuple[_Shell, Problem, tuple, Equilibrium]], measure,
-              order: int) -> dict[str, float]:
-    """Error of each value of ``measure``: the half and quarter meshes, as ``solve()``'s estimate.
+              order: int) -> tuple[dict[str, float], str]:
+    """Error of each value of ``measure``: the half and quarter meshes, as ``solve()``'s
+    estimate; (errors, "") or (NaN errors, why there is no estimate).
 
-    :func:`morphoshell.solvers.refinement.level_errors`; NaN where a coarse mesh is
-    too small or does not converge.
+    :func:`morphoshell.solvers.refinement.level_errors` of the levels
+    :func:`~morphoshell.solvers.refinement.coarse_level` finds (the quarter mesh may be
+    missing, as in ``solve()``).
     """
     levels = [measure([eq for *_, eq in shells])]
     eqs = [eq for *_, eq in shells]
-    nodes = shells[0][0].nodes
+    nodes, note = shells[0][0].nodes, ""
     for _ in range(2):
-        nodes = half_mesh(nodes)
-        if nodes < 5:
+        nodes, found = half_mesh(nodes), []
+        for (shell, p, anchors, _), eq in zip(shells, eqs):
+            level, note = coarse_level(partial(shell.solver, p, anchors), nodes, p, eq, anchors)
+            if level is None:
+                break
+            found.append(level)
+        if len(found) < len(shells):
             break
-        try:
-            eqs = [solve_from(shell.solver(p, anchors, nodes), p, eq, anchors)
-                   for (shell, p, anchors, _), eq in zip(shells, eqs)]
-        except (SolverError, MeshTooCoarse):     # (a Volvox shell's knots: not on 5 nodes)
-            break
+        eqs = found
         levels.append(measure(eqs))
     if len(levels) < 2:
-        return {k: math.nan for k in levels[0]}
-    return level_errors(levels[0], levels[1], levels[2] if len(levels) > 2 else None, order)
+        return {k: math.nan for k in levels[0]}, note
+    return level_errors(levels[0], levels[1], levels[2] if len(levels) > 2 else None, order), ""
 
 
-def _run_chunk(chunk: _Chunk) -> list[tuple[int, dict]]:
+def _run_chunk(chunk: _Chunk, tick=None) -> list[tuple[int, dict]]:
     """Solve one chunk in order, each point warm-started from the previous one (a task);
     again by ``solve()``'s route at every point where the warm path ended on another
-    stable state than that route (:func:`_left_solves_branch`)."""
-    rows, shells = _solve_chunk(chunk, verify=False)
+    stable state than that route (:func:`_left_solves_branch`).  ``tick()`` after each
+    point of the first pass (a progress bar in this process)."""
+    rows, shells = _solve_chunk(chunk, verify=False, tick=tick)
     if _left_solves_branch(rows, shells):
         rows, _ = _solve_chunk(chunk, verify=True)
     return rows
@@ -460,9 +508,9 @@ def _left_solves_branch(rows: list[tuple[int, dict]], shells: Sequence[_Shell]) 
     return False
 
 
-def _solve_chunk(chunk: _Chunk, verify: bool) -> tuple[list[tuple[int, dict]], tuple]:
+def _solve_chunk(chunk: _Chunk, verify: bool, tick=None) -> tuple[list[tuple[int, dict]], tuple]:
     """The rows of one chunk and its two shells (:func:`_run_chunk`); with ``verify`` every
-    point by continuation."""
+    point by continuation; ``tick()`` after each point, if given."""
     base = Problem(**chunk.base)
     options = dict(chunk.options)
     order = 2 * options.get("stages", 2)
@@ -473,47 +521,77 @@ def _solve_chunk(chunk: _Chunk, verify: bool) -> tuple[list[tuple[int, dict]], t
     rows, intact, intact_key = [], None, None
     for (index, updates), estimate in zip(chunk.points, chunk.estimate):
         t0 = time.perf_counter()
-        problem = base.with_updates(**updates)
+        # (named by its point: the notes of its continuation, -v, and its messages say which)
+        problem = base.with_updates(
+            **updates, name=f"{base.name or base.family} ({point_label(updates, chunk.ablate)})")
         if chunk.ablate and intact_key != (key := {k: v for k, v in updates.items() if k != "cut"}):
             intact, intact_key = intact_problem(problem), key   # the same for every cut
         row: dict[str, Any] = {k: math.nan for k in names}
         row.update({f"{k}_error": math.nan for k in estimated})
-        row.update(status="", iterations=0, path="", message="")
+        row.update(status="", iterations=0, path="", event="", walls_cross=False, message="")
         try:
             if chunk.ablate:
-                post = _ablate_point(row, problem, intact, pre_shell, post_shell, estimate, order)
+                eqs = _ablate_point(row, problem, intact, pre_shell, post_shell, estimate, order)
             else:
-                post = _solve_point(row, problem, post_shell, estimate, order)
-            row["status"] = post.solver.status
+                eqs = _solve_point(row, problem, post_shell, estimate, order)
+            _flag(row, eqs)
         except SolverError as exc:
             row.update({k: math.nan for k in names}, status=exc.status,
-                       path="failed", message=str(exc).splitlines()[0])
+                       path="failed", message=_in_sweep_terms(str(exc).splitlines()[0]))
         row["seconds"] = time.perf_counter() - t0
         rows.append((index, row))
+        if tick is not None:
+            tick()
     return rows, (pre_shell, post_shell)
 
 
+def _flag(row: dict, eqs: Sequence[Equilibrium]) -> None:
+    """The row's status (the last shell's), ``event`` (what the continuations of its
+    shells crossed: :func:`_events`) and ``walls_cross`` (a shell's walls pass through
+    each other, which ``solve()`` warns of: :func:`~morphoshell.solvers.contact.wall_contact`)."""
+    row["status"] = eqs[-1].solver.status
+    row["event"] = ", ".join(dict.fromkeys(e for eq in eqs for e in _events(eq)))
+    row["walls_cross"] = any(wall_contact(eq) is not None for eq in eqs)
+
+
+#: Advice of the solvers' messages in a sweep's terms: a sweep has no rtol and no bvp method.
+_SWEEP_TERMS = ((RETRY_FINER, "more nodes: nodes=, --nodes"),
+                (BVP_ADVICE, 'solve() with method="bvp", point by point (morphoshell solve '
+                             '--method bvp; sweeps use the direct method),'))
+
+
+def _in_sweep_terms(message: str) -> str:
+    """A failure message with the options it advises that a sweep lacks put in its terms."""
+    for theirs, ours in _SWEEP_TERMS:
+        message = message.replace(theirs, ours)
+    return message
+
+
 def _solve_point(row: dict, problem: Problem, shell: _Shell, estimate: bool,
-                 order: int) -> Equilibrium:
-    """Solve one point of a chunk into ``row`` (values, path, iterations, errors); its equilibrium."""
+                 order: int) -> tuple[Equilibrium]:
+    """Solve one point of a chunk into ``row`` (values, path, iterations, errors); (its
+    equilibrium,)."""
     try:
         post, row["path"] = shell.advance(problem, ())
     finally:
         row["iterations"] += shell.iterations
     row.update(post.estimated_values())
     if estimate:
-        errors = _estimate([(shell, problem, (), post)],
-                           lambda eqs: eqs[0].estimated_values(), order)
+        errors, row["_unestimated"] = _estimate([(shell, problem, (), post)],
+                                                lambda eqs: eqs[0].estimated_values(), order)
         row.update({f"{k}_error": v for k, v in errors.items()})
-    return post
+        est = ErrorEstimate(errors, post.estimated_values(), shell.nodes,
+                            half_mesh(shell.nodes), order, energy_floor=energy_floor(problem.h))
+        row["_coarse"] = too_coarse(est) if not row["_unestimated"] else None
+    return (post,)
 
 
 def _ablate_point(row: dict, problem: Problem, intact: Problem, pre_shell: _Shell,
-                  post_shell: _Shell, estimate: bool, order: int) -> Equilibrium:
+                  post_shell: _Shell, estimate: bool, order: int) -> tuple[Equilibrium, ...]:
     """Ablate one point of a chunk into ``row``: the intact shell, then the cut one.
 
     The row's path is the most laborious of the two shells'.  Returns the
-    cut shell's equilibrium.
+    equilibria of the intact and the cut shell.
     """
     rim = (problem.cut,)
     try:
@@ -528,11 +606,16 @@ def _ablate_point(row: dict, problem: Problem, intact: Problem, pre_shell: _Shel
     paths = (pre_path, post_path)
     row["path"] = next(p for p in ("continuation", "split", "remesh", "warm") if p in paths)
     if estimate:
-        errors = _estimate([(pre_shell, intact, rim, pre), (post_shell, problem, (), post)],
-                           lambda eqs: {k: v for k, v in _measure(problem, *eqs).items()
-                                        if k in ESTIMATED_ABLATION}, order)
+        errors, row["_unestimated"] = _estimate(
+            [(pre_shell, intact, rim, pre), (post_shell, problem, (), post)],
+            lambda eqs: {k: v for k, v in _measure(problem, *eqs).items()
+                         if k in ESTIMATED_ABLATION}, order)
         row.update({f"{k}_error": v for k, v in errors.items()})
-    return post
+        # (the recoil in R and rad, as solve()'s edge values; energy_released has no scale)
+        recoil_errors = {k: errors[k] for k in RECOIL_ESTIMATED}
+        worst = max(recoil_errors, key=lambda k: recoil_errors[k])
+        row["_coarse"] = (worst, recoil_errors[worst]) if recoil_errors[worst] > COARSE else None
+    return pre, post
 
 
 # --------------------------------------------------------------------------
@@ -615,15 +698,16 @@ def sweep(problem: Problem, axes: Mapping[str, Sequence], *, ablate: bool = Fals
     t0 = time.perf_counter()
     results, backend = _run_tasks(tasks, n, workers, scheduler, f"sweep: {n} {what}")
     seconds = time.perf_counter() - t0
+    # (what the summary says of the rows, not columns: the errors' columns show it)
+    coarse = {i: c for i, row in enumerate(results) if (c := row.pop("_coarse", None))}
+    unestimated = {i: u for i, row in enumerate(results) if (u := row.pop("_unestimated", ""))}
     columns = result_columns(axes, results, ablate)
     timing = {"seconds": seconds, "workers": workers if scheduler is None else "scheduler",
               "backend": backend, "chunks": len(chunks), "chunk_axis": chunk_axis,
               "nodes": nodes, "errors": errors}
-    result = SweepResult(problem, axes, bool(ablate), columns, _units(columns), timing)
-    if result.failed:
-        statuses = sorted(set(columns["status"][columns["message"] != ""]))
-        log.warning("sweep: %d of %d points failed (%s); their rows keep the status",
-                    result.failed, n, ", ".join(statuses))
+    result = SweepResult(problem, axes, bool(ablate), columns,
+                         _units(columns, problem.family_obj.units), timing)
+    log_summary(result, coarse, unestimated)
     return result
 
 
@@ -684,20 +768,22 @@ def _run_tasks(tasks: list[_Chunk], n: int, workers: int | None, scheduler: str 
                              f": cannot connect ({exc})") from None
         backend = backend_name(executor)
         if backend == "serial":   # run() would solve every chunk before showing its bar
-            done = ((i, _run_chunk(t)) for i, t in enumerate(tasks))
-            done = progress(done, total=len(tasks), desc=desc, unit="chunk")
+            bar = stack.enter_context(counter(total=n, desc=desc, unit="point"))
+            done = ((i, _run_chunk(t, tick=bar.update)) for i, t in enumerate(tasks))
         else:
-            done = run(_run_chunk, tasks, executor, description=desc)
+            done = run(_run_chunk, tasks, executor, description=desc,
+                       sizes=[len(t.points) for t in tasks], unit="point")
         for _, rows in done:
             for index, row in rows:
                 results[index] = row
     return results, backend
 
 
-def _units(columns: Mapping[str, np.ndarray]) -> dict[str, str]:
-    """The units of the columns there are (:data:`UNITS`, their errors', k in 1/R)."""
-    units = {k: v for k, v in UNITS.items() if k in columns}
-    units.update({f"{k}_error": UNITS[k] for k in UNITS if f"{k}_error" in columns})
-    if "k" in columns:
-        units["k"] = "1/R"
+def _units(columns: Mapping[str, np.ndarray], family_units: Mapping[str, str]
+           ) -> dict[str, str]:
+    """The units of the columns there are: :data:`UNITS`, the family's parameters' (as
+    the family declares them), the errors' (their values')."""
+    known = {**UNITS, **family_units}     # (the axis opening, P, and the observable o: R)
+    units = {k: v for k, v in known.items() if k in columns}
+    units.update({f"{k}_error": known[k] for k in known if f"{k}_error" in columns})
     return units
