@@ -15,7 +15,7 @@ arithmetic leaves this set unchanged; ``compare`` prints each difference and exi
 
 Usage::
 
-    python scripts/golden.py record  [--file tests/golden/golden.json.gz]
+    python scripts/golden.py record  [--file tests/golden/golden.json.gz] [--only NAME ...]
     python scripts/golden.py compare [--file tests/golden/golden.json.gz] [--only NAME ...]
 
 The recording holds the machine it was made on (:func:`machine`): round-off of BLAS and
@@ -209,6 +209,8 @@ def main(argv=None) -> int:
     now = run(a.only)
     if a.action == "record":
         a.file.parent.mkdir(parents=True, exist_ok=True)
+        if a.only and a.file.exists():    # (the other cases as recorded: --only used to drop them)
+            now = {**load(a.file)["cases"], **now}
         text = json.dumps({"machine": machine(), "cases": now}, indent=0, sort_keys=True)
         a.file.write_bytes(gzip.compress(text.encode(), mtime=0))    # the same bytes each time
         print(f"recorded {sum(map(len, now.values()))} values in {a.file}")
