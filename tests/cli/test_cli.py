@@ -1,5 +1,6 @@
 """The command line, as scripts and users call it."""
 import json
+import math
 import re
 import subprocess
 import sys
@@ -138,6 +139,18 @@ def test_asymptotics_command(tmp_path):
                          "displacement_small_cut", "energy_released"}
     assert data["opening"] == pytest.approx(0.01 * 0.5 * np.sin(0.4), rel=1e-14)
     assert data["rotation"] == pytest.approx(A.rotation(0.01, 0.5), rel=1e-14)
+    # (audit: sphere's JSON had no units; the text output says them)
+    assert data["units"]["energy_released"] == "C R^2" and data["units"]["sigma"] == "1"
+    assert set(data["units"]) == set(data) - {"units", "provenance"}
+
+
+def test_asymptotics_prints_no_negative_zero(tmp_path, capsys):
+    """Audit: k = 1 (no release) printed "energy_released = -0 C R^2" (-(...) * 0)."""
+    out = tmp_path / "p.json"
+    assert main(["asymptotics", "--h", "0.01", "--k", "1", "--cut", "0.5",
+                 "--json", str(out)]) == 0
+    assert "-0 " not in capsys.readouterr().out
+    assert math.copysign(1, json.loads(out.read_text())["energy_released"]) == 1
 
 
 def test_asymptotics_rejects_bad_values(capsys):
@@ -154,6 +167,9 @@ def test_sphere_command(tmp_path):
     assert abs(data["f_bulk"] - data["f_asymptotic"]) < 1e-7
     assert abs(data["f_shell"] - data["f_shell_asymptotic"]) < 1e-8
     assert data["k_star"] == pytest.approx((11 + 3.5) / (5 + 0.5), rel=1e-14)
+    assert data["units"] == {"h": "R", "k": "1/R", "c10": "1", "c01": "1", "f_shell": "R",
+                             "f_shell_asymptotic": "R", "f_bulk": "R", "f_asymptotic": "R",
+                             "k_star": "1/R"}
 
 
 def test_missing_hsl_solver_is_explained(capfd):

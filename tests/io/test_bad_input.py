@@ -53,10 +53,17 @@ def test_unordered_breakpoints_are_rejected():
 
 
 def test_family_specific_values_are_rejected():
-    with pytest.raises(ValueError, match=r"f0 = -1.0 must exceed -1"):
-        Problem("anisotropic", {"f0": -1.0}, h=0.1)
-    with pytest.raises(ValueError, match=r"parameter s0 = 0.0 must be positive"):
-        Problem("local_relaxation", {"s0": 0.0}, h=0.1, cut=0.3)
+    # (audit: f0 = -1 was told "must exceed -1", f0 = -0.99 "must lie in [-0.9, 9]"; s0 = 0
+    # "must be positive", s0 = 100 "must lie in [0, 6.28319]": one bound each, 0 excluded)
+    for f0 in (-1.0, -0.99):
+        with pytest.raises(ValueError, match=rf"f0 = {f0!r} must lie in \[-0.9, 9\] "):
+            Problem("anisotropic", {"f0": f0}, h=0.1)
+    for s0 in (0.0, -0.1, 100.0):
+        with pytest.raises(ValueError, match=rf"parameter s0 = {s0!r} must lie in "
+                                             rf"\(0, 6.28319\] \(width"):
+            Problem("local_relaxation", {"s0": s0}, h=0.1, cut=0.3)
+    with pytest.raises(ValueError, match=r"F0 = -1.0 must lie in \[-0.9, 9\] "):
+        Problem("local_relaxation", {"F0": -1.0}, h=0.1, cut=0.3)
     with pytest.raises(ValueError, match=r"parameter f3 = -0.2 must be positive"):
         Problem("volvox", {"f3": -0.2}, h=0.15, opening=0.3)
 

@@ -22,8 +22,8 @@ def test_central_growth_is_a_gaussian_growth_of_a_flat_disc():
 
 @pytest.mark.parametrize("params, match", [
     ({"G": -0.95}, r"parameter G = -0.95 must lie in \[-0.9, 9\] \(intrinsic stretch 1 \+ G"),
-    ({"w": 0.0}, "parameter w = 0.0 must be positive"),
-    ({"w": 7.0}, r"parameter w = 7.0 must lie in \[0, 6.28319\] \(width of the grown region"),
+    ({"w": 0.0}, r"parameter w = 0.0 must lie in \(0, 6.28319\] \(width of the grown region"),
+    ({"w": 7.0}, r"parameter w = 7.0 must lie in \(0, 6.28319\] \(width of the grown region"),
 ])
 def test_central_growth_names_a_bad_parameter(params, match):
     with pytest.raises(ValueError, match=match):

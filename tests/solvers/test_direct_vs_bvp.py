@@ -172,3 +172,29 @@ def test_a_crossing_beyond_the_pole_zone_names_h_and_the_bvp_route():
     assert "from the end pole, whose local solution ~ s^0.4" in message
     assert 'weakly singular' in message and "(h = 0.9)" in message
     assert 'method="bvp"' in message
+    # (audit: it also advised a finer mesh, which only resolves the model's own crossing)
+    assert "refine the mesh" not in message and "does not help" in message
+    with pytest.raises(SolverError) as exc:       # the direct solve's own refusal, alike
+        solve(Problem("uniform", {"k": 2.0}, h=0.9), continuation=False)
+    message = str(exc.value)
+    assert exc.value.status == "Meridian_Crosses_Axis" and 'method="bvp"' in message
+    assert "refine the mesh" not in message and "continuation=True" not in message
+
+
+def test_a_continuation_stopped_by_a_crossing_at_a_singular_pole_leads_with_bvp():
+    """Audit: toy 2 at h = 0.3, k = 6 (|eta| = 0.9) fails by the direct route at every mesh:
+    past 0.94 of the way the far pole's own local solution crosses the axis 1.2e-4 R out
+    (1.03e-4 on 800 nodes), just beyond POLE_ZONE.  The message said "try a finer mesh ...
+    or refine the mesh", which does not help; it now leads with the bvp route, which
+    solves the shell (energy 0.991489622673 C R^2, measured; the BVP's tol 1e-8 bounds it)."""
+    from morphoshell import SolverError
+    problem = Problem("uniform", {"k": 6.0}, h=0.3, cut=0.3)
+    with pytest.raises(SolverError) as exc:
+        solve(problem)
+    message = str(exc.value)
+    assert exc.value.status == "Continuation_Failed"
+    lead = message.split("; the last solution reached", 1)[0]
+    assert 'past it, by arclength steps, the meridian crosses the axis' in lead
+    assert 'from the end pole' in lead and 'method="bvp"' in lead
+    assert "finer mesh (rtol" not in message and "refine the mesh" not in message
+    assert solve(problem, method="bvp").energy == pytest.approx(0.991489622673, rel=1e-8)

@@ -30,3 +30,41 @@ def test_nodes_too_few_for_the_knots_are_refused_naming_the_least():
                        r"knots .*: the fewest nodes that hold them are 6$"):
         solve(VOLVOX, nodes=5)
     solve(VOLVOX, nodes=6)
+
+
+@pytest.mark.parametrize("h", [0.3, 0.01])
+def test_a_stress_free_shell_needs_no_refinement(h, caplog):
+    """Audit: the stress-free sphere's discrete energy, the discretisation error of 0
+    (1.7e-12 C R^2 at h = 0.3 on 100 nodes, above the round-off floor 1e-12), read as a
+    relative error of 25, warned "too coarse" on 100 nodes and drove rtol = 1e-6 to 3185
+    (h = 0.3) and 6369 nodes (h = 0.01).  Its scale is the stretching energy h C R^2
+    (energy_floor): 200 nodes meet rtol = 1e-6 (measured worst 6e-11 of h, edges 1.3e-7),
+    and 100 nodes warn of nothing."""
+    import logging
+
+    from morphoshell.solvers.results import energy_floor
+
+    problem = Problem("uniform", {"k": 1.0}, h=h, cut=0.3)
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        coarse = solve(problem, nodes=100)
+    assert "too coarse" not in caplog.text
+    assert coarse.error.energy_floor == energy_floor(h, stress_free=True) == h
+    assert "of the energy scale" in coarse.error.summary()
+    eq = solve(problem, rtol=1e-6)
+    assert eq.solver.nodes == 200 and "refined" not in eq.solver.details.get("path", "")
+
+
+def test_a_stressed_shell_keeps_the_round_off_floor():
+    """Only the family's neutral parameters are stress-free: a shell a hair away from them
+    (k = 1 - 1e-3, energy 4e-8 C R^2) keeps the round-off floor, so its energy's relative
+    error stays relative to itself (and its estimates are unchanged)."""
+    from morphoshell.solvers.paths import stress_free
+    from morphoshell.solvers.results import ENERGY_FLOOR
+
+    near = Problem("uniform", {"k": 1 - 1e-3}, h=0.3, cut=0.3)
+    assert not stress_free(near) and stress_free(near.with_updates(k=1.0))
+    assert not stress_free(Problem("volvox", {}, h=0.15, opening=0.3))
+    eq = solve(near, nodes=100)
+    assert eq.error.energy_floor == ENERGY_FLOOR
+    assert eq.error.relative()["energy"] == eq.error.errors["energy"] / abs(eq.energy)
+    assert "of the energy," in eq.error.summary()

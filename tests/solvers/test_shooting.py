@@ -231,3 +231,55 @@ def test_shooting_through_solve_and_the_command_line(tmp_path, capsys):
     assert main(["solve", str(toy2), "--method", "shooting", "--set", "h=1e-4",
                  "--set", "theory=classical"]) == 3
     assert "Shooting_Ill_Conditioned" in capsys.readouterr().err
+
+
+def test_a_time_limit_at_the_first_evaluation_is_a_solver_error_with_the_start():
+    """Audit: the deadline passing at a solve's first evaluation (outside the iterations'
+    try) leaked the private, empty ``_TimeUp``.  A limit of 1 ns has passed by then."""
+    problem = CASES["uniform k=0"]
+    with pytest.raises(SolverError) as exc:
+        solve_shooting(problem, max_seconds=1e-9)
+    err = exc.value
+    assert err.status == "Time_Limit_Exceeded" and "max_seconds = 1e-09 s" in str(err)
+    assert "after 0 evaluations" in str(err)
+    last = err.last_iterate          # the initial guess (the undeformed shell), integrated
+    assert last is not None and last.converged is False and last.problem == problem
+    assert np.all(np.isfinite(last.r)) and np.allclose(last.psi[[0, -1]], last.s[[0, -1]],
+                                                       atol=1e-9)
+
+
+def test_a_time_limit_at_a_later_homotopy_step_keeps_that_steps_iterate(monkeypatch):
+    """The audit's case: the limit passing at the first evaluation of a later homotopy step
+    (or a ladder's retry).  The clock (faked, so the test does not depend on the machine)
+    jumps past the limit when the second step starts; its last iterate is the first step's
+    solution, integrated for the second step's parameters (the problem itself)."""
+    problem = CASES["uniform k=0"]
+    now, built = [0.0], []
+
+    class Stepped(shooting._Shooting):
+        def __init__(self, *args):
+            built.append(1)
+            if len(built) == 2:
+                now[0] = 1e6
+            super().__init__(*args)
+
+    monkeypatch.setattr(shooting, "time", type("Clock", (), {"perf_counter": lambda: now[0]}))
+    monkeypatch.setattr(shooting, "_Shooting", Stepped)
+    with pytest.raises(SolverError) as exc:
+        solve(problem, method="shooting", homotopy_steps=2, max_seconds=30)
+    err = exc.value
+    assert len(built) == 2 and err.status == "Time_Limit_Exceeded"
+    assert "max_seconds = 30 s" in str(err) and "method='shooting', max_seconds=" in str(err)
+    last = err.last_iterate
+    assert last.problem == problem and last.converged is False
+    # the first step (k = 0.5) solved: its solution is no longer the undeformed shell
+    assert last.solver.details["residual"] > 1e-6 and abs(last.psi[0] - last.s[0]) > 0.01
+
+
+def test_solve_passes_max_seconds_to_shooting():
+    """Audit: the time limit's message said "raise max_seconds", which solve() refused for
+    the shooting route."""
+    eq = solve(CASES["uniform k=0"], method="shooting", max_seconds=60)
+    assert eq.converged
+    with pytest.raises(SolverError, match="Time_Limit_Exceeded|time limit"):
+        solve(CASES["uniform k=0"], method="shooting", max_seconds=1e-9)

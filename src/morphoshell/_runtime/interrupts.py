@@ -27,7 +27,8 @@ import threading
 from contextlib import contextmanager
 from typing import Iterator
 
-__all__ = ["interrupted", "noted", "swallowed", "check", "Terminated", "exit_status", "reason"]
+__all__ = ["interrupted", "noted", "swallowed", "check", "Terminated", "exit_status", "reason",
+           "worker_start"]
 
 #: Ctrl-Cs (and SIGTERMs) received under :func:`noted` and not yet claimed by :func:`swallowed`.
 _received = [0]
@@ -105,6 +106,23 @@ def noted() -> Iterator[None]:
         if term == signal.SIG_DFL:
             signal.signal(signal.SIGTERM, signal.SIG_DFL)
         _received[0] = 0
+
+
+def worker_start() -> None:
+    """A pool worker's start (a pool's ``initializer``): Ctrl-C ignored, SIGTERM back to
+    its default.
+
+    Ctrl-C (SIGINT to the terminal's process group) is for the process that owns the
+    pool, which stops its workers; in a worker it interrupted CasADi mid-message
+    ("CasADi - " on the terminal).  A worker forked under :func:`noted` inherits its
+    SIGTERM handler, and ``multiprocessing.Pool`` ends its workers with SIGTERM even after
+    a successful run: each idle worker raised :class:`Terminated` and printed its
+    traceback ("Process ForkPoolWorker-2: ... Terminated", in about half the runs of
+    ``morphoshell estimate``, exit 0).  With the default a worker just ends.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if hasattr(signal, "SIGTERM"):
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def swallowed() -> bool:

@@ -59,11 +59,12 @@ def _thickness_and_curvature(p) -> None:
                    help="intrinsic curvature k, in units of 1/R")
 
 
-def _write(args, data: dict) -> None:
+def _write(args, data: dict, units: dict) -> None:
+    """The JSON (with a ``units`` table, as ``solve --json`` has) and the one-row CSV."""
     from ..io.problem_files import write_csv, write_json
 
     out = Outputs()
-    out.add(args.json, lambda path: write_json(path, data))
+    out.add(args.json, lambda path: write_json(path, {**data, "units": units}))
     out.add(args.csv, lambda path: write_csv(
         path, {k: (math.nan if v is None else v) for k, v in data.items()}))
     for path in out.commit():
@@ -73,6 +74,9 @@ def _write(args, data: dict) -> None:
 _UNITS = {"opening": "R", "rotation": "rad", "displacement": "R", "rotation_small_cut": "rad",
           "displacement_small_cut": "R", "energy_released": "C R^2", "delta": "R",
           "sigma": "(dimensionless: Sigma/delta)"}
+#: The inputs' units in the JSON ("1": dimensionless, as in ``solve --json``; the moduli:
+#: only their ratio matters).
+_INPUT_UNITS = {"h": "R", "k": "1/R", "cut": "rad", "c10": "1", "c01": "1"}
 
 
 def _asymptotics(args) -> int:
@@ -87,7 +91,9 @@ def _asymptotics(args) -> int:
           f"cut Sigma = {cut:g} rad")
     for key, value in out.items():
         print(f"  {key:22s} = {value:.10g} {_UNITS[key]}")
-    _write(args, {"h": args.h, "k": args.k, "cut": cut, **out})
+    _write(args, {"h": args.h, "k": args.k, "cut": cut, **out},
+           {**{k: _INPUT_UNITS[k] for k in ("h", "k", "cut")},
+            **{k: "1" if k == "sigma" else _UNITS[k] for k in out}})
     return 0
 
 
@@ -109,11 +115,13 @@ def _sphere(args) -> int:
         print(f"  (k_star: {exc})")
     print(f"toy problem 1, thickness h = {args.h:g} R, k = {args.k:g} / R, Mooney-Rivlin "
           f"C10 : C01 = {args.c10:g} : {args.c01:g} (moduli; only their ratio matters)")
+    units = {key: "1/R" if key == "k_star" else "R" for key in out}
     for key, value in out.items():
         unit = " / R" if key == "k_star" else " R"
         print(f"  {key:18s} = {'none' if value is None else format(value, '.15g') + unit}")
     if out["k_star"] is not None:        # (what it is: the printout had not said)
         print("  (k_star: the second k at which f's O(h^2) correction vanishes, the first "
               "being k = 1)")
-    _write(args, {"h": args.h, "k": args.k, "c10": args.c10, "c01": args.c01, **out})
+    _write(args, {"h": args.h, "k": args.k, "c10": args.c10, "c01": args.c01, **out},
+           {**{k: _INPUT_UNITS[k] for k in ("h", "k", "c10", "c01")}, **units})
     return 0

@@ -117,10 +117,7 @@ def _report_quality(eq) -> None:
         if eq.error.note:
             print(f"  error estimate  unavailable: {eq.error.note}")
         else:
-            rel = eq.error.relative()
-            edge = max(v for k, v in rel.items() if k != "energy")
-            print(f"  error estimate  {rel['energy']:.2g} of the energy, {edge:.2g} R or rad at "
-                  f"the edges (vs {eq.error.reference_nodes} nodes, order {eq.error.order})")
+            print(f"  error estimate  {eq.error.summary('C R^2')}")
 
 
 def _solve(args) -> int:

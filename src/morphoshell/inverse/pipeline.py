@@ -24,6 +24,7 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
+from .._runtime import interrupts
 from .._runtime.console import progress as _progress_bar
 from ..io.measurements import MEASURES, Measurement, read_measurements
 from .embryo import EmbryoEstimate, estimate_embryo
@@ -119,10 +120,12 @@ def _estimate_embryos(data: tuple[Measurement, ...], model: RecoilModel | None, 
         return tuple(estimate_embryo(m, model, k_range, methods)
                      for m in _progress_bar(data, **bar))
     # Embryos are independent (each starts from k = 1), so the result does not
-    # depend on how they are shared.  Forked workers inherit the built solvers.
+    # depend on how they are shared.  Forked workers inherit the built solvers (and
+    # the command line's signal handlers, which worker_start puts back).
     _WORKER.update(model=model, k_range=k_range, methods=tuple(methods))
     try:
-        with multiprocessing.get_context("fork").Pool(workers) as pool:
+        with multiprocessing.get_context("fork").Pool(
+                workers, initializer=interrupts.worker_start) as pool:
             return tuple(_progress_bar(pool.imap(_estimate_in_worker, data, chunksize=1),
                                        **bar))
     finally:

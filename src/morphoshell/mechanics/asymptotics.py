@@ -666,7 +666,8 @@ def energy_released(h, k, cut, units: str = "morphoshell"):
     k = _finite("k", k)
     cut = _angle("cut Sigma", cut)
     d = boundary_layer_width(h)
-    paper = -(3**1.75) * math.pi * d**5 * (k - 1) ** 2 * np.sin(cut)
+    # (0 − x, not −x: no negative zero at k = 1 or when δ⁵ underflows, printed "-0")
+    paper = 0.0 - 3**1.75 * math.pi * d**5 * (k - 1) ** 2 * np.sin(cut)
     return _out(paper if units == "paper" else 0.5 * h * paper)
 
 

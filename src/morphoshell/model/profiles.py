@@ -174,11 +174,13 @@ def _positive(values, *names):
             raise ValueError(f"parameter {n} = {values[n]!r} must be positive")
 
 
-def _within(values, lo, hi, *names, why=""):
-    """ValueError naming the first parameter outside [lo, hi] (``why`` says what the range means)."""
+def _within(values, lo, hi, *names, why="", open_lo=False):
+    """ValueError naming the first parameter outside [lo, hi], or (lo, hi] with ``open_lo``
+    (``why`` says what the range means)."""
     for n in names:
-        if not lo <= values[n] <= hi:
-            raise ValueError(f"parameter {n} = {values[n]!r} must lie in [{lo:g}, {hi:g}]{why}")
+        if not (lo < values[n] if open_lo else lo <= values[n]) or not values[n] <= hi:
+            raise ValueError(f"parameter {n} = {values[n]!r} must lie in "
+                             f"{'(' if open_lo else '['}{lo:g}, {hi:g}]{why}")
 
 
 #: Plausible ranges, so that absurd values are named before any solve starts:
@@ -202,8 +204,7 @@ def _validate_uniform(v, cut, end):
 
 
 def _validate_anisotropic(v, cut, end):
-    if not 1 + v["f0"] > 0:
-        raise ValueError(f"parameter f0 = {v['f0']!r} must exceed -1 (f_s0 = 1 + f0 > 0)")
+    # (one check, one bound: a separate "must exceed -1" named the wrong one for f0 = -1)
     lo, hi = STRETCH_RANGE
     _within(v, lo - 1, hi - 1, "f0", why=" (intrinsic stretch 1 + f0 between 1/10 and 10)")
 
@@ -215,11 +216,11 @@ def _central_growth(s, p, cut, end):
 
 
 def _validate_central_growth(v, cut, end):
-    _positive(v, "w")
     lo, hi = STRETCH_RANGE
     _within(v, lo - 1, hi - 1, "G", why=" (intrinsic stretch 1 + G at the centre between 1/10 "
                                          "and 10)")
-    _within(v, 0, 2 * np.pi, "w", why=" (width of the grown region, in units of R)")
+    _within(v, 0, 2 * np.pi, "w", open_lo=True,
+            why=" (width of the grown region, in units of R)")
 
 
 def _local_relaxation(s, p, cut, end):
@@ -231,12 +232,10 @@ def _local_relaxation(s, p, cut, end):
 
 
 def _validate_local_relaxation(v, cut, end):
-    _positive(v, "s0")
-    if not 1 + v["F0"] > 0:
-        raise ValueError(f"parameter F0 = {v['F0']!r} must exceed -1 (f0 = 1 + F0 > 0 at the cut)")
     lo, hi = STRETCH_RANGE
     _within(v, lo - 1, hi - 1, "F0", why=" (intrinsic stretch 1 + F0 between 1/10 and 10)")
-    _within(v, 0, 2 * np.pi, "s0", why=" (width of the relaxed region, in units of R)")
+    _within(v, 0, 2 * np.pi, "s0", open_lo=True,
+            why=" (width of the relaxed region, in units of R)")
 
 
 def _local_relaxation_breakpoints(p, cut, end):

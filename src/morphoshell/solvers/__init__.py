@@ -15,7 +15,7 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
         "pole_caps", "initial_state", "to_equilibrium", "neutral_path"],
     "poles": ["pole_solutions", "PoleSolution", "weakly_singular"],
     "continuation": ["continue_to", "continue_between", "Path"],
-    "paths": ["ParameterLine", "neutral_problem"],
+    "paths": ["ParameterLine", "neutral_problem", "stress_free"],
     "arclength": ["Arclength", "ArcPoint", "Snap"],
     "crossings": ["snap_through", "cross_fold"],
     "branches": ["Branch", "BranchPoint", "follow_branch", "switch_branch", "continuation_path",

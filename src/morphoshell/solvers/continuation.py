@@ -31,10 +31,10 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..model.problem import Problem
-from ..numerics.status import CONTINUATION_FAILED, SNAP_FAILED, explain
+from ..numerics.status import CONTINUATION_FAILED, MERIDIAN_CROSSES_AXIS, SNAP_FAILED, explain
 from .arclength import Arclength, Switch
 from .crossings import cross_fold
-from .direct import DirectSolver
+from .direct import DirectSolver, pole_crossing
 from .paths import ParameterLine, neutral_problem
 from .results import Equilibrium, SolverError
 
@@ -215,7 +215,8 @@ class _Progress:
     iterations: int = 0
     snaps: list = field(default_factory=list)
     switches: list = field(default_factory=list)
-    stuck: str = ""        # why crossing a stall failed, once it has
+    stuck: str = ""        # why crossing a stall failed, once it has (if not in remedy)
+    remedy: str = ""       # what to do instead, when that is not the generic remedy
 
     def exhausted(self, max_steps: int) -> bool:
         """Whether the steps ran out or the step fell below :data:`MIN_STEP`."""
@@ -323,13 +324,14 @@ def _follow(solver, eq, problem, anchors, first_step, max_steps, origin, snap=Fa
             except SolverError as exc:
                 if exc.status == SNAP_FAILED:
                     raise
-                run.stuck = f"; past it by arclength steps: {exc}"
+                run.remedy = _remedy(exc)       # (which says what exc says, shorter)
+                run.stuck = "" if run.remedy else f"; past it by arclength steps: {exc}"
         if run.exhausted(max_steps):
             raise SolverError(
                 f"continuation from {origin} stopped at {run.tau:.4g} of the way to {name!r} "
                 f"({run.steps} steps, {run.rejected} retried, step {run.step:.2g}): "
-                f"{explain(CONTINUATION_FAILED)}; the last solution reached is attached"
-                f"{run.stuck}", CONTINUATION_FAILED, eq)
+                f"{run.remedy or explain(CONTINUATION_FAILED)}; the last solution reached is "
+                f"attached{run.stuck}", CONTINUATION_FAILED, eq)
         trial = min(1.0, run.tau + run.step)
         new = _solve_at(solver, line.at(trial), eq, anchors)
         change = None if new is None else _change(new, eq, trial - run.tau)
@@ -344,6 +346,17 @@ def _follow(solver, eq, problem, anchors, first_step, max_steps, origin, snap=Fa
         run.accept(trial, change, new.solver.iterations)
         eq, tangent = new, None
     return run, eq
+
+
+def _remedy(exc: SolverError) -> str:
+    """What to do when the way past a stall failed with ``exc``, if not the generic remedy
+    (a finer mesh): past it the meridian crosses the axis next to a weakly singular pole,
+    where a finer mesh does not help and the bvp route solves the shell (toy 2 at h = 0.3,
+    k = 6, at every mesh)."""
+    if exc.status != MERIDIAN_CROSSES_AXIS or exc.last_iterate is None:
+        return ""
+    where = pole_crossing(exc.last_iterate)
+    return f"past it, by arclength steps, the meridian crosses the axis {where}" if where else ""
 
 
 def _crossed(solver, eq, line, run: _Progress, anchors, first_step, switch) -> Equilibrium:

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..model.problem import Problem
 
-__all__ = ["ParameterLine", "neutral_problem", "PATH_KEYS"]
+__all__ = ["ParameterLine", "neutral_problem", "stress_free", "PATH_KEYS"]
 
 #: Parameters of a problem that are not its family's but may move along a path.
 PATH_KEYS = ("h", "cut", "opening")
@@ -32,6 +32,14 @@ def neutral_problem(problem: Problem) -> Problem | None:
     if not neutral or all(problem.params[n] == v for n, v in neutral.items()):
         return None
     return problem.with_updates(**neutral)
+
+
+def stress_free(problem: Problem) -> bool:
+    """Whether ``problem`` is at its family's stress-free (``neutral``) parameters: its exact
+    equilibrium is the undeformed shell, of energy 0 (whatever h, the cut and the opening).
+    False for a family that lists none."""
+    neutral = {n: v for n, v in problem.family_obj.neutral.items() if n in problem.params}
+    return bool(neutral) and neutral_problem(problem) is None
 
 
 def _value(problem: Problem, name: str) -> float:

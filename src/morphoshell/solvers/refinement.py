@@ -21,10 +21,11 @@ from ..numerics.mesh import MeshTooCoarse
 from ..numerics.status import TOLERANCE_NOT_MET, explain
 from .continuation import continue_to
 from .direct import MAX_NODES, DirectSolver
+from .paths import stress_free
 from .results import ESTIMATED, Equilibrium, ErrorEstimate, SolverError, energy_floor
 
-__all__ = ["solve_from", "estimate", "level_errors", "refine", "half_mesh", "too_coarse", "coarse_level",
-           "SAFETY", "COARSE"]
+__all__ = ["solve_from", "estimate", "level_errors", "refine", "half_mesh", "too_coarse",
+           "coarse_level", "SAFETY", "COARSE"]
 
 log = logging.getLogger(__name__)
 
@@ -122,14 +123,14 @@ def estimate(fine: Equilibrium, coarse: Equilibrium | None, order: int, note: st
                               None if coarser is None else coarser.estimated_values(), order)
         ref = coarse.solver.nodes
     return ErrorEstimate(errors, values, fine.solver.nodes, ref, order, note,
-                         energy_floor(fine.problem.h))
+                         energy_floor(fine.problem.h, stress_free(fine.problem)))
 
 
 def too_coarse(est: ErrorEstimate) -> tuple[str, float] | None:
     """(the quantity, its relative error) where an estimate exceeds :data:`COARSE`, the
     largest (:meth:`ErrorEstimate.relative`), else None: the mesh does not resolve the
-    shell.  Not the energy of a stress-free state, at round-off below its floor (an intact
-    shell before its fast relaxation: 1e-14 C R², its estimate 6e-12)."""
+    shell.  Not for an energy below its floor (round-off, or a stress-free shell's
+    discretisation of 0: :func:`~morphoshell.solvers.results.energy_floor`)."""
     rel = est.relative()
     if abs(est.values["energy"]) <= est.energy_floor:
         rel.pop("energy")

@@ -47,7 +47,8 @@ DIRECT_OPTIONS = ("stages", "linear_solver", "tol", "max_iter", "stability", "ip
                   "max_nodes")
 BVP_OPTIONS = ("tol", "bc_tol", "pole_offset", "max_nodes", "homotopy_steps", "max_seconds")
 SHOOTING_OPTIONS = ("segments", "integrator", "atol", "tol", "pole_offset", "homotopy_steps",
-                    "max_evaluations", "max_growth", "max_segments", "max_condition", "points")
+                    "max_evaluations", "max_growth", "max_segments", "max_condition", "points",
+                    "max_seconds")
 
 #: With ``rtol``, meshes twice as fine (up to 8 times the nodes) on which :func:`solve` retries
 #: a continuation that failed with a status whose remedy is a finer mesh: on thin shells a

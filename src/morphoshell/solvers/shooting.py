@@ -156,6 +156,7 @@ class _Settings:
     max_condition: float
     points: int
     deadline: float = math.inf      # time.perf_counter() at which the solve gives up
+    seconds: float = math.inf       # (max_seconds, for the message)
 
 
 def solve_shooting(problem: Problem, *, segments: int | None = None, integrator: str = "LSODA",
@@ -231,10 +232,13 @@ def solve_shooting(problem: Problem, *, segments: int | None = None, integrator:
         (a priori, without a last iterate; or at the solution);
         :data:`NOT_CONVERGED` when the iterations stop short of ``tol``;
         :data:`INTEGRATION_FAILED` when the integration from the initial
-        guess fails.  ``.last_iterate`` (``converged=False``) is attached
+        guess fails; ``Time_Limit_Exceeded`` past ``max_seconds`` (whenever
+        it passes, the first evaluation of a homotopy step included).
+        ``.last_iterate`` (``converged=False``) is attached
         whenever there is one, i.e. except for the a-priori refusal and an
         integration failure; within a homotopy it belongs to that step's
-        parameters (see its ``problem``).
+        parameters (see its ``problem``); past the time limit it is the best
+        iterate so far (or the step's initial guess), integrated once more.
     ValueError
         ``segments`` too small or not an integer; ``max_growth`` ≤ 1; a tolerance
         or ``pole_offset`` out of its range (``tol`` in [1e-11, 1e-3], ``atol`` in
@@ -273,7 +277,8 @@ def solve_shooting(problem: Problem, *, segments: int | None = None, integrator:
             f"above max_growth = {max_growth:g}; use segments >= {need}, or the direct or bvp "
             f"route", ILL_CONDITIONED)
     opts = _Settings(int(segments), integrator, rtol, atol, tol, float(pole_offset),
-                     int(max_evaluations), max_condition, int(points), t0 + float(max_seconds))
+                     int(max_evaluations), max_condition, int(points), t0 + float(max_seconds),
+                     float(max_seconds))
 
     if guess is not None:
         ladder = [1]
@@ -512,14 +517,10 @@ class _Shooting:
         return np.concatenate(s_parts), np.concatenate(Y_parts, axis=1), end_energy
 
 
-def _solve_one(problem: Problem, guess: Equilibrium | None, opts: _Settings) -> Equilibrium:
-    """One shooting solve from ``guess``; raises SolverError (with the last iterate)."""
-    t0 = time.perf_counter()
-    sh = _Shooting(problem, opts)
-    name = problem.name or problem.family
-    cache: dict = {"history": []}
-
-    def evaluate(u):   # least_squares asks for residual and Jacobian separately
+def _evaluator(sh: "_Shooting", opts: _Settings, cache: dict):
+    """The residual and Jacobian at u, cached (least_squares asks for them separately);
+    raises :class:`_TimeUp` past the deadline and :class:`_Stalled` when stalled."""
+    def evaluate(u):
         if time.perf_counter() > opts.deadline:
             raise _TimeUp
         if cache.get("u") is None or not np.array_equal(cache["u"], u):
@@ -539,8 +540,12 @@ def _solve_one(problem: Problem, guess: Equilibrium | None, opts: _Settings) -> 
                     and min(history[-_STALL_WINDOW:]) > 0.5 * min(history[:-_STALL_WINDOW])):
                 raise _Stalled
         return cache
+    return evaluate
 
-    u0 = sh.initial(guess)
+
+def _iterate(evaluate, u0: np.ndarray, opts: _Settings, cache: dict,
+             name: str) -> tuple[np.ndarray, str]:
+    """Newton's (trust-region) iterations from ``u0``: the last iterate and how they ended."""
     if not np.all(np.isfinite(evaluate(u0)["res"])):
         raise SolverError(f"shooting on {name!r}: the integration from the initial guess failed: "
                           f"{explain(INTEGRATION_FAILED)}", INTEGRATION_FAILED)
@@ -551,20 +556,40 @@ def _solve_one(problem: Problem, guess: Equilibrium | None, opts: _Settings) -> 
                                            jac=lambda u: evaluate(u)["J"], method="trf",
                                            x_scale="jac", xtol=1e-10, ftol=1e-15, gtol=1e-15,
                                            max_nfev=opts.max_evaluations)
-        u, message = sol.x, sol.message
-    except _TimeUp:
-        raise SolverError(
-            f"shooting on {name!r} stopped at its time limit (max_seconds) after "
-            f"{len(cache['history'])} evaluations of its {opts.segments} segments: a thin "
-            f"shell's stiff boundary layer makes every integration slow; use the direct or "
-            f"bvp route (or raise max_seconds)", TIME_LIMIT_EXCEEDED) from None
+        return sol.x, sol.message
     except _Stalled:
-        u = cache["best"]
-        message = (f"stalled at residual {min(cache['history']):.3g} for {_STALL_WINDOW} "
-                   f"evaluations (a local minimum of the residual norm)")
+        return cache["best"], (f"stalled at residual {min(cache['history']):.3g} for "
+                               f"{_STALL_WINDOW} evaluations (a local minimum of the residual "
+                               f"norm)")
+
+
+def _time_up(problem: Problem, sh: "_Shooting", opts: _Settings, cache: dict, u0: np.ndarray,
+             t0: float) -> SolverError:
+    """The error of a solve past its deadline, with the best iterate so far (or the initial
+    guess) as its last iterate when one more integration there succeeds."""
+    name = problem.name or problem.family
     evaluations = len(cache["history"])
-    try:   # once more at the solution, densely, for the result
-        res, J, segs = sh.shoot(u, max_step=(sh.b - sh.a) / max(opts.points, 1))
+    try:
+        last = unconverged(_result(problem, sh, cache.get("best", u0), opts, "time limit",
+                                   evaluations, t0, dense=False)[0])
+    except SolverError:
+        last = None
+    return SolverError(
+        f"shooting on {name!r} stopped at its time limit (max_seconds = {opts.seconds:g} s) "
+        f"after {evaluations} evaluations of its {opts.segments} segments: a thin shell's "
+        f"stiff boundary layer makes every integration slow, and a loaded machine too; use "
+        f"the direct or bvp route (or raise max_seconds: solve(..., method='shooting', "
+        f"max_seconds=...))", TIME_LIMIT_EXCEEDED, last)
+
+
+def _result(problem: Problem, sh: "_Shooting", u: np.ndarray, opts: _Settings, message: str,
+            evaluations: int, t0: float, dense: bool = True) -> tuple[Equilibrium, str, float]:
+    """The equilibrium at the unknowns ``u`` (converged or not, see its status), its status
+    and its residual; integrated once more, densely (``dense``) for a result."""
+    name = problem.name or problem.family
+    max_step = (sh.b - sh.a) / max(opts.points, 1) if dense else np.inf
+    try:
+        res, J, segs = sh.shoot(u, max_step=max_step)
     except _IntegrationFailed as err:
         raise SolverError(f"shooting on {name!r}: the integration at the last iterate failed "
                           f"({err}): {explain(INTEGRATION_FAILED)}", INTEGRATION_FAILED) from None
@@ -581,16 +606,32 @@ def _solve_one(problem: Problem, guess: Equilibrium | None, opts: _Settings) -> 
                         0.0, details)
     eq = to_equilibrium(problem, s, Y, sh.p, sh.F["controls_vec"], sh.F["local"], end_energy,
                         stats, status == SHOOTING_SUCCEEDED)
-    if not converged:
+    return eq, status, residual
+
+
+def _solve_one(problem: Problem, guess: Equilibrium | None, opts: _Settings) -> Equilibrium:
+    """One shooting solve from ``guess``; raises SolverError (with the last iterate)."""
+    t0 = time.perf_counter()
+    sh = _Shooting(problem, opts)
+    name = problem.name or problem.family
+    cache: dict = {"history": []}
+    u0 = sh.initial(guess)
+    try:     # (the deadline may pass at the first evaluation, at u0, too)
+        u, message = _iterate(_evaluator(sh, opts, cache), u0, opts, cache, name)
+    except _TimeUp:
+        raise _time_up(problem, sh, opts, cache, u0, t0) from None
+    evaluations = len(cache["history"])
+    eq, status, residual = _result(problem, sh, u, opts, message, evaluations, t0)
+    if status == NOT_CONVERGED:
         raise SolverError(
             f"shooting did not converge on {name!r}: residual {residual:.3g} > tol = "
             f"{opts.tol:.3g} after {evaluations} evaluations ({message}); status {status}: "
             f"{explain(status)}; the last iterate is attached (.last_iterate)", status,
             unconverged(eq))
-    if condition > opts.max_condition:
+    if status == ILL_CONDITIONED:
         raise SolverError(
             f"shooting refused on {name!r}: the equilibrated shooting Jacobian has condition "
-            f"number {condition:.3g} > max_condition = {opts.max_condition:.3g}; use more "
-            f"segments, or the direct or bvp route; status {status}; the last iterate is "
-            f"attached (.last_iterate)", status, unconverged(eq))
+            f"number {eq.solver.details['condition']:.3g} > max_condition = "
+            f"{opts.max_condition:.3g}; use more segments, or the direct or bvp route; status "
+            f"{status}; the last iterate is attached (.last_iterate)", status, unconverged(eq))
     return eq

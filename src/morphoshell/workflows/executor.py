@@ -196,7 +196,7 @@ def _guarded(script: str, line: int) -> bool:
 @contextmanager
 def _process_pool(workers: int) -> Iterator[cf.Executor]:
     """A ``ProcessPoolExecutor``; left by an exception, its workers are killed at once."""
-    pool = cf.ProcessPoolExecutor(max_workers=workers, initializer=_ignore_interrupts)
+    pool = cf.ProcessPoolExecutor(max_workers=workers, initializer=interrupts.worker_start)
     try:
         yield pool
     except BaseException:
@@ -277,15 +277,6 @@ def _remote(scheduler: str) -> Iterator[cf.Executor]:
             dask_log.setLevel(logging.CRITICAL)
             executor.shutdown(wait=False)       # (the remote workers are its scheduler's)
             raise
-
-
-def _ignore_interrupts() -> None:
-    """A pool worker's start: Ctrl-C (SIGINT to the terminal's process group) is for the
-    process that owns the pool, which kills its workers; in a worker it interrupted CasADi
-    mid-message ("CasADi - " on the terminal)."""
-    import signal
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _worker_pids(cluster) -> list[int]:
