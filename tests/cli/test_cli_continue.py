@@ -136,7 +136,10 @@ def test_a_branch_that_runs_out_of_points_exits_3_naming_the_status(tmp_path, ca
     out = tmp_path / "x.csv"
     assert main(["continue", str(FOLD), "--nodes", "100", "--max-points", "5",
                  "--csv", str(out)]) == 3
-    assert "Branch_Ended" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    # the cause is known: the remedy is --max-points, not "a cusp or a branch point?" (audit)
+    assert "Branch_Ended" in err and "raise max_points (--max-points)" in err
+    assert "cusp" not in err
     assert not out.exists()
 
 

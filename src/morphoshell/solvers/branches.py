@@ -470,7 +470,8 @@ class _Walk:
         ds = self.max_step / 4
         while True:
             if len(self.points) >= self.max_points:
-                raise self._ended(point, f"{self.max_points} points")
+                raise self._ended(point, f"{self.max_points} points", "the points ran out: "
+                                  "raise max_points (--max-points) or max_step (--max-step)")
             new = self.arc.correct(point, ds)
             failed = new is None or self.arc.turned(point, new)      # (turned: a jump?)
             if not failed and not self._holds(new):
@@ -612,5 +613,5 @@ class _Walk:
         self.record(start, event, eq)
         return start, done
 
-    def _ended(self, point: ArcPoint, why: str):
-        return branch_ended(point.tau, why, self.arc.equilibrium(point))
+    def _ended(self, point: ArcPoint, why: str, remedy: str | None = None):
+        return branch_ended(point.tau, why, self.arc.equilibrium(point), remedy)

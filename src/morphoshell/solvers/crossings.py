@@ -168,10 +168,12 @@ def _moved(eq: Equilibrium, before: Equilibrium, tol: float = 1e-3) -> bool:
     return bool(np.max(np.abs(eq.x - before.x)) > tol)
 
 
-def branch_ended(tau: float, why: str, last: Equilibrium | None) -> SolverError:
-    """The error of a branch that ended at τ (``"Branch_Ended"``)."""
+def branch_ended(tau: float, why: str, last: Equilibrium | None,
+                 remedy: str | None = None) -> SolverError:
+    """The error of a branch that ended at τ (``"Branch_Ended"``), with the status's
+    explanation, or ``remedy`` where the cause is known."""
     return SolverError(f"the branch ended at {tau:.6g} of the way ({why}): "
-                       f"{explain(BRANCH_ENDED)}", BRANCH_ENDED, last)
+                       f"{remedy or explain(BRANCH_ENDED)}", BRANCH_ENDED, last)
 
 
 def cross_fold(solver: DirectSolver, eq: Equilibrium, line: ParameterLine, tau: float,
