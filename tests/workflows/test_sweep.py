@@ -222,6 +222,7 @@ def test_cli_sweep_writes_the_rows_of_the_api(tmp_path, capsys, ablations):
     (["cut=0.1:0.5"], r"--set 'cut=0\.1:0\.5': a range is start:stop:num"),
     (["cut=0.1:0.5:x"], r"the number of values 'x' is not an integer"),
     (["k=0,a"], r"--set 'k=a': k needs a number"),
+    (["k=0,,1"], r"--set 'k=0,,1': an empty value in the list '0,,1'"),
     (["nodes=20,40"], r"nodes cannot be a sweep axis"),
     (["q=1,2"], r"sweep axis 'q' is not a key"),
     (["k=0,1", "k=2"], r"k is set more than once"),
@@ -239,6 +240,17 @@ def test_cli_bad_axes_exit_2_with_one_line_and_no_file(tmp_path, capsys, items, 
     assert len(err.splitlines()) == 1 and err.startswith("morphoshell: error:"), err
     assert re.search(match, err), err
     assert not csv.exists()
+
+
+def test_a_deprecated_axis_name_warns_once(caplog):
+    """``--set Sigma=0.1,0.2`` warned of the alias once per value (audit)."""
+    import logging
+
+    from morphoshell.cli.sweep import parse_axes
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        axes, _ = parse_axes(["Sigma=0.1,0.2,0.3"])
+    assert axes == {"cut": [0.1, 0.2, 0.3]}
+    assert sum("deprecated" in r.getMessage() for r in caplog.records) == 1
 
 
 def test_a_sweep_past_a_branch_point_gives_solves_dome(blister):

@@ -120,9 +120,12 @@ def _axis(item: str, key: str, value: str, max_points: int) -> tuple[str, list]:
     if ":" in value:
         name, values = _range(item, key, value, max_points)
     else:
-        parsed = [parse_overrides([f"{key}={v}"]) for v in value.split(",")]
-        name = next(iter(parsed[0]))
-        values = [p[name] for p in parsed]
+        items = [v.strip() for v in value.split(",")]
+        if "" in items:
+            raise ProblemFileError(f"--set {item!r}: an empty value in the list {value!r}")
+        # (the first value resolves a deprecated alias, and warns of it, once for all)
+        name = next(iter(parse_overrides([f"{key}={items[0]}"])))
+        values = [parse_overrides([f"{name}={v}"])[name] for v in items]
     if name in SOLVER_KEYS or name in ("family", "geometry", "name"):
         raise ProblemFileError(f"--set {item!r}: {name} cannot be a sweep axis")
     return name, values
