@@ -10,3 +10,23 @@ def blister():
     ``blister``): the flat state is stationary by mirror symmetry but buckles; the stable
     state is a dome (a blister)."""
     return Problem("central_growth", {"G": 0.2}, h=0.02, geometry="disc")
+
+
+@pytest.fixture
+def recorded_bar():
+    """(seen, counter): a stand-in for ``morphoshell._runtime.console.counter`` that records
+    each bar's (total, unit) and every update's count in ``seen``."""
+    from contextlib import contextmanager
+
+    seen = []
+
+    class Bar:
+        def update(self, n=1):
+            seen.append(n)
+
+    @contextmanager
+    def counter(total=None, desc="", unit="it", enabled=None):
+        seen.append((total, unit))
+        yield Bar()
+
+    return seen, counter

@@ -131,23 +131,11 @@ def test_a_script_that_starts_workers_outside_the_main_guard_is_told_on_one_line
         assert run.returncode == 0 and run.stdout.strip() == "passed", run.stderr
 
 
-def test_the_bar_counts_what_each_task_is_worth(monkeypatch):
+def test_the_bar_counts_what_each_task_is_worth(monkeypatch, recorded_bar):
     """A sweep's bar counts points, each chunk worth its points (it counted chunks)."""
-    from contextlib import contextmanager
-
     from morphoshell.workflows import executor
 
-    seen = []
-
-    class Bar:
-        def update(self, n=1):
-            seen.append(n)
-
-    @contextmanager
-    def counter(total=None, desc="", unit="it", enabled=None):
-        seen.append((total, unit))
-        yield Bar()
-
+    seen, counter = recorded_bar
     monkeypatch.setattr(executor, "counter", counter)
     with open_executor(workers=1) as ex:
         assert dict(run(abs, [-1, -2], ex, sizes=[3, 5], unit="point")) == {0: 1, 1: 2}
