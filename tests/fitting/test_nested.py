@@ -173,3 +173,50 @@ def test_a_gradient_fit_whose_mesh_moves_starts_again_from_its_end_on_the_new_on
     assert converged and stop == "Fit_Converged", message
     assert theta == pytest.approx(target, abs=1e-8)
 
+
+
+def test_a_trial_that_moved_the_mesh_onto_another_branch_leaves_no_trace(monkeypatch):
+    """A trial whose solve moves the inner problem to a mesh of its own can land on another
+    branch of equilibria there; the inner problem then holds only that state, and every
+    later solve followed it (the synthetic campaign's unstressed t08: a trial jumped from
+    E_fit 0.042 to 0.67 R, the fit ended at 0.755 R, and the next four timepoints' fits
+    failed).  Such a trial, far above the best point (REMESH_JUMP), makes the best
+    point's state and mesh current again, and the fit goes on on its branch.  (Fails
+    without it: the fit ends on the other branch, its residual 10 off.)"""
+    import types
+
+    import morphoshell.fitting.nested as fitting
+
+    target = np.array([1.0, 2.0])
+
+    class Inner:
+        n = 2
+
+        def __init__(self):
+            self.mesh, self.branch, self.jumped = "old", "fit's", False
+
+        def solve(self, theta, trial=False):
+            theta = np.asarray(theta, dtype=float)
+            if trial and theta[0] > 0.5 and not self.jumped:  # (stale mesh: a mesh of its own)
+                self.mesh, self.branch, self.jumped = "new", "other", True
+            return theta, self.mesh, self.branch
+
+        def residuals(self, eq):
+            theta, _, branch = eq
+            return np.concatenate([theta - target, [0.0, 10.0 if branch == "other" else 0.0]])
+
+        def jacobian(self, eq, theta):
+            return np.vstack([np.eye(2), np.zeros((2, 2))])
+
+        def keep(self, theta, eq):
+            self.mesh, self.branch = eq[1], eq[2]
+
+    monkeypatch.setattr(fitting, "_mesh_of", lambda inner: inner.mesh)
+    spec = types.SimpleNamespace(theta0=np.array([0.0, 0.0]),
+                                 box=lambda: (np.full(2, -np.inf), np.full(2, np.inf)))
+    inner = Inner()
+    theta, _, converged, message, stop = fitting.gradient_fit(spec, inner, 1e-10, 200)
+    assert inner.jumped                      # (the case happened)
+    assert converged and stop == "Fit_Converged", message
+    assert theta == pytest.approx(target, abs=1e-8)
+    assert np.abs(inner.residuals(inner.solve(theta))).max() < 1e-8
