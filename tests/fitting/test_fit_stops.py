@@ -151,7 +151,8 @@ def test_the_last_line_names_the_fit_a_profiles_refit_went_on_from():
      "Gradient fit converged after 64 evaluations at E_fit 0.217 R; E_fit is far above what "
      "the model leaves of a traced midline (0.005-0.03 R): check the input: its orientation "
      "(pole first? z flipped?), its scale (--pixel-size and --radius-um; a CSV's r, z in units "
-     "of R), its axis (--section) and any --set values"),
+     "of R), its axis (--section) and any --set values; if it is right, the model may not "
+     "describe this shape (see the parameters on bounds and constraints)"),
     (_ended("gradient", "Fit_Not_Stationary", E_fit=0.099),
      "Gradient fit stalled short of a stationary point after 42 evaluations at E_fit 0.099 R, "
      "not converged: trial points near it were rejected (a fold of the branch?); start nearer "
@@ -185,6 +186,7 @@ def test_the_outputs_say_how_the_fit_was_made_and_how_it_ended(midline_csv, tmp_
     assert settings["set"] == {n: TRUE.params[n] for n in TRUE.family_obj.parameters
                                if n not in THREE and n not in ("kappa1", "sigma")}
     assert settings["midline_file"] == str(midline_csv) and settings["method"] == "gradient"
+    assert record["input_check"] is None               # (E_fit below IMPLAUSIBLE_E_FIT)
     df = pd.read_csv(table)
     assert list(df.columns) == ["parameter", "value", "standard_error", "E_fit", "converged",
                                 "stop"]
@@ -194,3 +196,19 @@ def test_the_outputs_say_how_the_fit_was_made_and_how_it_ended(midline_csv, tmp_
     capsys.readouterr()
     assert main(["solve", str(out)]) == 0               # (the JSON as a problem file)
     assert f"direct solution, {NODES} nodes" in capsys.readouterr().out
+
+
+def test_the_json_says_when_e_fit_is_far_above_traced_midlines(midline_csv, tmp_path,
+                                                                monkeypatch):
+    """The terminal's "check the input" verdict was only on the terminal: a script reading
+    the JSON saw a converged fit (audit 10, F8).  The JSON's input_check holds it."""
+    import json
+
+    import morphoshell.cli._fit_stops as stops
+    monkeypatch.setattr(stops, "IMPLAUSIBLE_E_FIT", 0.0)    # (every fit is far above now)
+    out = tmp_path / "fit.json"
+    _fit(midline_csv, "--max-evaluations", "2", "--json", str(out))
+    check = json.loads(out.read_text())["input_check"]
+    assert check.startswith("E_fit is far above what the model leaves of a traced midline")
+    assert check.endswith("the model may not describe this shape (see the parameters on "
+                          "bounds and constraints)")

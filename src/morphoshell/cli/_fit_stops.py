@@ -22,7 +22,8 @@ from ..numerics.status import (FIT_CONVERGED, FIT_MOVED_BOXES_FAILED, FIT_NEAR_F
 if TYPE_CHECKING:
     from ..fitting import FitResult
 
-__all__ = ["stop_line", "failure_hint", "NAMES", "IMPLAUSIBLE_E_FIT", "INPUT_CHECK"]
+__all__ = ["stop_line", "failure_hint", "far_above", "NAMES", "IMPLAUSIBLE_E_FIT",
+           "INPUT_CHECK"]
 
 #: How the last line names each method, and what its iteration count counts.
 NAMES = {"nelder-mead": ("Nelder-Mead", "evaluations"),
@@ -42,6 +43,10 @@ IMPLAUSIBLE_E_FIT = 0.1
 INPUT_CHECK = ("check the input: its orientation (pole first? z flipped?), its scale "
                "(--pixel-size and --radius-um; a CSV's r, z in units of R), its axis "
                "(--section) and any --set values")
+
+#: What a converged fit far above traced midlines may mean when its input is right.
+MISFIT = ("if it is right, the model may not describe this shape (see the parameters on "
+          "bounds and constraints)")
 
 _START = "--start FIT.json"
 #: Where a stalled fit (near a fold of the branch) may do better.
@@ -74,19 +79,23 @@ def stop_line(result: FitResult, limit: int, refit_of: FitResult | None = None) 
         name += f" (the profiles' refit from the fit's end at E_fit {refit_of.E_fit:.4g} R)"
     its = f"{result.outer_iterations} {unit}"
     at = f"at E_fit {result.E_fit:.4g} R"
-    far = _far_above(result.E_fit)
+    far = far_above(result.E_fit)
     if result.converged:
         ipopt = result.stop in (SOLVE_SUCCEEDED, SOLVED_TO_ACCEPTABLE_LEVEL)
         return f"{name} converged after {its} {at}" + (f" (Ipopt: {result.stop})" if ipopt
-                                                       else "") + (f"; {far}" if far else "")
+                                                       else "") + (f"; {far}; {MISFIT}" if far
+                                                                   else "")
     what, why, remedy = _not_converged(result, its, limit)
     tail = f"{why}; {remedy}" if why else remedy
     return f"{name} {what} {at}, not converged: " + (f"{far} first; if it is right, {tail}"
                                                      if far else tail)
 
 
-def _far_above(E_fit: float) -> str:
-    """What the last line says of an E_fit above :data:`IMPLAUSIBLE_E_FIT` ("" below it)."""
+def far_above(E_fit: float) -> str:
+    """What the last line (and the JSON's ``input_check``) says of an E_fit above
+    :data:`IMPLAUSIBLE_E_FIT` ("" below it).  Right input can end there too: a stall at a
+    fold, or a shape the model does not describe (:data:`MISFIT`: an audit's hand-made
+    bowl, three stretches on their bounds)."""
     if not E_fit > IMPLAUSIBLE_E_FIT:
         return ""
     return (f"E_fit is far above what the model leaves of a traced midline (0.005-0.03 R): "

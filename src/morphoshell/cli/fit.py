@@ -225,7 +225,7 @@ def _fit(args) -> int:
     from ..fitting import EVALUATION_LIMITS, N_FIT, fit
     from ..io.problem_files import write_csv, write_json
     from ..solvers.results import SolverError
-    from ._fit_stops import failure_hint, stop_line
+    from ._fit_stops import MISFIT, failure_hint, far_above, stop_line
 
     spec = _start_problem(args)
     names = profile_names(args.profile, spec, args)  # (a bad name: exit 2, before any work)
@@ -252,6 +252,8 @@ def _fit(args) -> int:
     out = Outputs()
     out.add(args.json, lambda path: write_json(path, {
         **result.to_dict(), **fit_record(args, limit),
+        "input_check": (f"{far_above(result.E_fit)}; {MISFIT}" if far_above(result.E_fit)
+                        else None),
         **(profile_json(profiles, before, result) if profiles else {})}))
     out.add(args.csv, lambda path: write_csv(path, csv_columns(result)))
     if args.plot:
