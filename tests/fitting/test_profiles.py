@@ -162,9 +162,37 @@ def test_a_breakpoint_between_equal_curvatures_is_not_determined():
     # changed (the mesh's knots follow s₁: the discretisation error changes, 1 % of E_fit²)
     assert s1.values[0] == pytest.approx(spec.bounds["s1"][0])
     assert np.ptp(s1.objective) <= 0.5 * (s1.threshold - s1.S_min)
-    assert "not determined by the data" in s1.summary()
+    assert "not determined by the data within its bounds" in s1.summary()
+    assert s1.open_sides() == ("bound", "bound")
     assert not profiles["f1"].flat and np.isfinite(profiles["f1"].interval).all()
     assert s1.to_dict()["interval"] == [None, None]
+
+
+def test_a_side_open_at_a_failed_refit_is_not_called_undetermined(monkeypatch):
+    """A side open because its refit failed (an audit's f1 at the model's |eta| < 1 limit:
+    the best-determined parameter of its fit) was flagged flat, "not determined by the
+    data"; it says "open where a refit failed", and flat stays for profiles that stay
+    below the threshold to a bound or the grid's end."""
+    import morphoshell.fitting.profiles as pr
+
+    truth = TRUE.with_updates(kappa2=0.0)
+    hold = {n: truth.params[n] for n in truth.family_obj.parameters
+            if n not in ("f1", "s1", "kappa1", "sigma")}
+    spec = volvox_spec("flat", truth.with_updates(f1=0.9), hold=hold)
+    data = synthetic_midline(truth, spec.base, nodes=40, noise=1e-3, seed=4)
+    checked = pr._refit_checked
+
+    def failing_below(opt, name, walked, value, *args):
+        if value < opt.theta[opt.spec.fitted.index(name)]:
+            return None, "abs(eta) = 1.0392 >= 1 at s = 1.47"
+        return checked(opt, name, walked, value, *args)
+
+    monkeypatch.setattr(pr, "_refit_checked", failing_below)
+    f1 = profile_intervals(spec, data, ["f1"], points=4, nodes=40)["f1"]
+    assert f1.interval[0] == -np.inf and np.isfinite(f1.interval[1])
+    assert f1.open_sides() == ("failed", "") and not f1.flat
+    assert "open where a refit failed" in f1.summary() and "not determined" not in f1.summary()
+    assert f1.to_dict()["open_sides"] == ["failed", None]
 
 
 def test_noise_from_the_traces_or_the_residual():

@@ -30,7 +30,8 @@ def add_profile_options(p) -> None:
                         "comma-separated (e.g. kappa1,f1), or 'all': each stepped over a grid "
                         "around its fitted value, the others refitted at every step (by the "
                         "gradient method, whatever --method); a side "
-                        "that does not close is null (not determined by the data). A refit "
+                        "that does not close is null (not determined by the data, or open "
+                        "where a refit failed). A refit "
                         "lower than the fit means the fit was not at its minimum: the lower "
                         "refit becomes the fit, as the terminal and the JSON (replaced_fit) say")
     p.add_argument("--profile-points", dest="profile_points", type=integer(2, 1000), default=None,
@@ -156,7 +157,7 @@ def profile_table(result, profiles: dict) -> str:
         gn = f"+-{1.96 * se:.3g}" if math.isfinite(se) else "(on a constraint)"
         unit = f" {result.unit(name)}".rstrip()
         lines.append(f"  {name:8s} {p.fitted_value: .6g}  [{lo: .6g}, {hi: .6g}]{unit}  GN {gn}"
-                     + ("  not determined by the data" if p.flat else "")
+                     + (f"  {p.verdict()}" if p.verdict() else "")
                      + (f"  ({p.note})" if p.note else ""))
     return "\n".join(lines)
 

@@ -144,7 +144,8 @@ class Profile:
         ``"residual"``, ``"traces"`` or ``"given"`` (:func:`noise_variance`).
     confidence : float
     flat : bool
-        The interval is open on a side: the data do not determine the parameter.
+        The profile stays below the threshold on a side up to the parameter's
+        bound or the grid's end: the data do not determine the parameter (there).
     method : str
         The refits' method.
     dof : float
@@ -153,6 +154,12 @@ class Profile:
     note : str
         What else a reader should know (a refit that failed, a lower
         objective than the fit's).
+    side_ends : (str, str)
+        How the walk below and above the fitted value ended: ``"failed"`` (a
+        refit failed: a side open there is open because the profile could not
+        be computed beyond, e.g. at the model's |η| < 1 limit, not because
+        the data do not determine it), ``"bound"`` (the parameter's bound) or
+        ``"grid"`` (the grid's end, or the threshold crossed).
     """
 
     name: str
@@ -170,6 +177,21 @@ class Profile:
     method: str
     note: str = ""
     dof: float = math.inf
+    side_ends: tuple[str, str] = ("grid", "grid")
+
+    def open_sides(self) -> tuple[str, str]:
+        """Why each side of the interval is open (:attr:`side_ends`), "" where it closes."""
+        return tuple("" if np.isfinite(v) else end
+                     for v, end in zip(self.interval, self.side_ends))
+
+    def verdict(self) -> str:
+        """What an open interval says: "not determined by the data" (:attr:`flat`),
+        "open where a refit failed" (the note says why), or "" (closed)."""
+        sides = self.open_sides()
+        if self.flat:
+            return "not determined by the data" + (" within its bounds" if "bound" in sides
+                                                   else "")
+        return "open where a refit failed" if "failed" in sides else ""
 
     @property
     def determined(self) -> bool:
@@ -188,8 +210,8 @@ class Profile:
         lo, hi = self.interval
         text = (f"  {self.name:8s} = {self.fitted_value: .6g}  "
                 f"[{lo: .6g}, {hi: .6g}] ({100 * self.confidence:g} % profile)")
-        if self.flat:
-            text += ": not determined by the data"
+        if self.verdict():
+            text += f": {self.verdict()}"
         return text + (f" ({self.note})" if self.note else "")
 
     def rethreshold(self, sigma2: float, source: str = "given",
@@ -208,7 +230,7 @@ class Profile:
         interval = (_crossing(*below, start, -1.0, threshold, self.S_min),
                     _crossing(*above, start, 1.0, threshold, self.S_min))
         return replace(self, interval=interval, threshold=float(threshold), sigma2=float(sigma2),
-                       sigma2_source=source, flat=not all(np.isfinite(interval)), dof=dof)
+                       sigma2_source=source, flat=_flat(interval, self.side_ends), dof=dof)
 
     def to_dict(self) -> dict:
         """JSON-ready (an open side of the interval is ``None``: JSON has no infinity)."""
@@ -222,6 +244,7 @@ class Profile:
                 "S_min": self.S_min, "sigma2": self.sigma2, "sigma2_source": self.sigma2_source,
                 "sigma2_dof": number(self.dof),
                 "confidence": self.confidence, "flat": self.flat, "method": self.method,
+                "open_sides": [end or None for end in self.open_sides()],
                 "note": self.note, "objective_units": "R^2"}
 
     def to_dataframe(self):
@@ -503,9 +526,26 @@ def _profile(opt: _Optimum, data, name: str, points: int, span, method: str, tol
                 _crossing(va, sa, (value, opt.S), 1.0, threshold, S_min))
     lowest = min((low for low in (low_b, low_a) if low is not None), key=lambda low: low[0],
                  default=None)
+    ends = tuple(_side_end(opt, name, v, note, d)
+                 for v, note, d in ((vb, note_b, -1.0), (va, note_a, 1.0)))
     return Profile(name, value, values, objective, np.array([*cb[::-1], True, *ca]),
                    interval, float(threshold), S_min, sigma2, source, confidence,
-                   not all(np.isfinite(interval)), method, "; ".join(notes), dof), lowest
+                   _flat(interval, ends), method, "; ".join(notes), dof, ends), lowest
+
+
+def _side_end(opt: _Optimum, name: str, values: list, failure: str, direction: float) -> str:
+    """How a side's walk (:func:`_walk`) ended: "failed", "bound" or "grid"."""
+    lo, hi = opt.spec.bounds.get(name, (-np.inf, np.inf))
+    if failure:
+        return "failed"
+    return "bound" if values and values[-1] == (lo if direction < 0 else hi) else "grid"
+
+
+def _flat(interval: tuple[float, float], ends: tuple[str, str]) -> bool:
+    """Whether a side is open where the profile ran to a bound or the grid's end below the
+    threshold: the data do not determine the parameter (a side open at a failed refit
+    says nothing either way, :meth:`Profile.verdict`)."""
+    return any(not np.isfinite(v) and end != "failed" for v, end in zip(interval, ends))
 
 
 def _unconverged_crossing(name: str, values: list, objective: list, converged: list,

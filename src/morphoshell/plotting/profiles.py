@@ -66,7 +66,9 @@ def plot_profile(profile, ax: Axes, *, legend: bool = True) -> Axes:
         ax.plot([p.fitted_value], [p.S_min], "o", color="k", ms=4, label="fit")
         ax.set_xlabel(parameter_label(p.name))
         ax.set_ylabel(r"$E_\mathrm{fit}^2$ ($R^2$)")
-        ax.set_title(parameter_label(p.name) + (": not determined" if p.flat else ""))
+        ax.set_title(parameter_label(p.name) + (": not determined" if p.flat else
+                                                ": open where a refit failed" if p.verdict()
+                                                else ""))
         if legend:
             ax.legend(frameon=False)
     return ax
