@@ -243,6 +243,18 @@ def test_a_trace_far_off_scale_is_refused_for_its_scale_not_its_shape():
         ml.align(trace)
 
 
+def test_a_noisy_dense_trace_is_measured_binned_not_raw(tmp_path):
+    """0.3 px of noise at 0.19 px spacing lengthens the raw polyline of a 2.56 R half section
+    to 7.5 R, 0.5 px to 12.1 R: refused as "12.1 R long ...: check the pixel size" (audit 10,
+    F5: 8.33 R).  Measured on the binned points (bins of 6: 2.64 R) it is refused for what is
+    wrong, its axis's uncertainty; a real scale error still is named (the test above)."""
+    path = write(tmp_path, "fiji-xy", points=half(2701), section="half", noise_px=0.5, seed=0)
+    with pytest.raises(MidlineError) as exc:
+        ml.load_midline(path, section="half", **SCALE)
+    assert "the axis of this half section is uncertain" in str(exc.value)
+    assert "R long" not in str(exc.value)
+
+
 def test_average_estimates_mean_and_spread():
     """K midlines with Gaussian noise σ per coordinate: mean within 5σ/√K, spread ≈ σ.
 

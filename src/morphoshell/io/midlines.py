@@ -110,7 +110,7 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from .roi_sets import is_roi_set, read_set_traces
-from .trace_checks import MidlineError, check_axis, check_choice, check_positive
+from .trace_checks import MidlineError, check_axis, check_choice, check_positive, noise_hint
 from .trace_noise import Binning, bin_noisy
 from .traces import Midline, Trace, read_trace
 
@@ -309,7 +309,7 @@ def align(trace: Trace, section: str = "auto", *, flip: bool = False,
         try:
             pole, e_r, e_z, points, axis_note = _half(trace.source, binning, flip)
         except MidlineError as exc:
-            _check_scale(trace, 1, "its axis is uncertain")
+            _check_scale(trace, binning, 1, "its axis is uncertain")
             raise exc from None
         asymmetry = 0.0
         where = trace.where if binning.k == 1 else [
@@ -318,7 +318,7 @@ def align(trace: Trace, section: str = "auto", *, flip: bool = False,
         pole, e_r, e_z, points, asymmetry = _whole(_Curve.through(binning.points),
                                                    len(binning.points), flip)
         if asymmetry > max_asymmetry:
-            _check_scale(trace, 2, f"its halves differ by {asymmetry:.3g} R rms")
+            _check_scale(trace, binning, 2, f"its halves differ by {asymmetry:.3g} R rms")
             raise MidlineError(f"{trace.source}: the halves of this whole section differ by "
                                f"{asymmetry:.3g} R rms from their mirror average (max_asymmetry = "
                                f"{max_asymmetry:g}): the pole is taken at half the trace's "
@@ -343,19 +343,24 @@ def _check_count(trace: Trace, kind: str) -> None:
                            f"{MIN_POINTS['whole']}): trace it with more points, one at every fold")
 
 
-def _check_scale(trace: Trace, halves: int, also: str) -> None:
+def _check_scale(trace: Trace, binning: Binning, halves: int, also: str) -> None:
     """Before refusing a trace for its shape: MidlineError naming the scale instead if its
     halves are far longer or shorter than a Volvox midline's (about 2-4 R).
 
     At a wrong scale the shape's tests mislead (points of a trace 10 times too large lie
     0.1 R apart, too sparse to bin, and their noise makes the halves differ); a fit names a
-    scale 1.5-2 times off precisely (``fitting.check_midline``), after alignment.
+    scale 1.5-2 times off precisely (``fitting.check_midline``), after alignment.  The length
+    is that of the binned points: noise larger than the point spacing lengthens the raw
+    polyline (0.3 px of noise at 0.19 px spacing tripled a 2.9 R half to 8.3 R), and where
+    the bins leave such noise the message names it rather than the scale.
     """
-    half = float(np.sum(np.hypot(*np.diff(trace.points, axis=0).T))) / halves
+    half = float(np.sum(np.hypot(*np.diff(binning.points, axis=0).T))) / halves
     if not _HALF_LENGTHS[0] <= half <= _HALF_LENGTHS[1]:
+        k = binning.k
+        noise = noise_hint(binning.sigma / math.sqrt(k), k * binning.spacing, "R")
         raise MidlineError(f"{trace.source}: {'its halves are' if halves == 2 else 'it is'} "
-                           f"{half:.3g} R long, where a midline's half is about 2-4 R ({also}): "
-                           f"check the pixel size and the radius R")
+                           f"{half:.3g} R long, where a midline's half is about 2-4 R ({also})"
+                           + (noise or ": check the pixel size and the radius R"))
 
 
 def _half(source: str, binning: Binning, flip: bool):
