@@ -73,6 +73,13 @@ traced:
              rms on the Volvox example's equilibrium and 2.4e-3 R on the
              tests' bulged reference shape.  Trace whole sections where you
              can: their axis rests on both halves (0.15° for ½ px of noise).
+             A half section traced rim first is aligned from its last point
+             when, aligned from its first, it crosses the axis and from its
+             last it does not (a note says so); otherwise its ends cannot be
+             told apart by shape (a circular arc reads the same from either
+             end; the local shape near an end, its fit's residual or its
+             curvature's slope, told a rim from a pole on clean traces only,
+             and not on the bulged reference shape) and it is taken as given.
 ``"auto"``   csv → half; image formats → whole.  Shape alone cannot tell: a
              circular arc traced from pole to rim is mirror-symmetric about
              its middle exactly as a whole section of a cup is, so a half
@@ -103,7 +110,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
 
@@ -292,7 +299,9 @@ def align(trace: Trace, section: str = "auto", *, flip: bool = False,
         differ by more than ``max_asymmetry``; a half section whose axis is
         uncertain (or with fewer than 6 points within 0.4 R of its pole);
         either named for its scale instead when its halves are far from a
-        midline's 2-4 R; a midline that crosses the axis.
+        midline's 2-4 R; a midline that crosses the axis (a half section:
+        from either end; from its first only, it is taken from its last,
+        traced rim first).
     """
     section = check_choice(section, SECTIONS, "section")
     max_asymmetry = check_positive("max_asymmetry", max_asymmetry)
@@ -306,14 +315,8 @@ def align(trace: Trace, section: str = "auto", *, flip: bool = False,
     _check_count(trace, kind)
     binning = bin_noisy(trace.points)
     if kind == "half":
-        try:
-            pole, e_r, e_z, points, axis_note = _half(trace.source, binning, flip)
-        except MidlineError as exc:
-            _check_scale(trace, binning, 1, "its axis is uncertain")
-            raise exc from None
+        pole, e_r, e_z, points, axis_note = _half_section(trace, binning, flip)
         asymmetry = 0.0
-        where = trace.where if binning.k == 1 else [
-            f"point {k + 1} after binning" for k in range(len(points))]
     else:
         pole, e_r, e_z, points, asymmetry = _whole(_Curve.through(binning.points),
                                                    len(binning.points), flip)
@@ -327,7 +330,7 @@ def align(trace: Trace, section: str = "auto", *, flip: bool = False,
                                f"half section (section='half')")
         where = [f"{f:.0%} of the way from the pole" for f in np.linspace(0, 1, len(points))]
         axis_note = None
-    check_axis(trace.source, points, where)
+        check_axis(trace.source, points, where)
     for note in (binning.note(trace.source), axis_note):
         if note:
             log.info(note)
@@ -361,6 +364,52 @@ def _check_scale(trace: Trace, binning: Binning, halves: int, also: str) -> None
         raise MidlineError(f"{trace.source}: {'its halves are' if halves == 2 else 'it is'} "
                            f"{half:.3g} R long, where a midline's half is about 2-4 R ({also})"
                            + (noise or ": check the pixel size and the radius R"))
+
+
+def _half_section(trace: Trace, binning: Binning, flip: bool):
+    """Pole, e_r, e_z, the points in the model gauge and a note of a half section, taken from
+    its last point if it was traced rim first.
+
+    A half section runs from the pole, on the axis, to a free rim.  Aligned
+    from its first point, a trace that starts at the rim can cross the axis
+    fitted there; if it does and, aligned from its last point, it does not,
+    the last point is its pole (a note says so), as a whole section is read
+    in either direction.  Where neither end crosses, the ends cannot be told
+    apart by the trace (a circular arc is the same from either end) and it
+    is taken as given.
+    """
+    crossing = _half_checked(trace, binning, flip)
+    if not isinstance(crossing, MidlineError):
+        return crossing
+    back = replace(trace, points=trace.points[::-1], where=trace.where[::-1])
+    other = _half_checked(back, replace(binning, points=binning.points[::-1]), flip)
+    if isinstance(other, MidlineError):
+        why = str(other).removeprefix(f"{trace.source}: ")
+        raise MidlineError(f"{crossing}; traced rim first? reversed, it is refused too: "
+                           f"{why}") from None
+    pole, e_r, e_z, points, note = other
+    where = str(crossing).removeprefix(f"{trace.source}: ").partition(": the midline")[0]
+    return pole, e_r, e_z, points, (
+        f"{trace.source}: traced rim first? from its first point the midline crosses the axis "
+        f"({where}), from its last it does not: the last point taken as the pole; "
+        f"{note.removeprefix(trace.source + ': ')}")
+
+
+def _half_checked(trace: Trace, binning: Binning, flip: bool):
+    """:func:`_half` of the trace as it runs, or the MidlineError of a midline that crosses the
+    axis from its first point (other refusals raised, named for the scale if it is off)."""
+    try:
+        pole, e_r, e_z, points, axis_note = _half(trace.source, binning, flip)
+    except MidlineError as exc:
+        _check_scale(trace, binning, 1, "its axis is uncertain")
+        raise exc from None
+    where = trace.where if binning.k == 1 else [
+        f"point {k + 1} after binning" for k in range(len(points))]
+    try:
+        check_axis(trace.source, points, where)
+    except MidlineError as exc:
+        return exc
+    return pole, e_r, e_z, points, axis_note
 
 
 def _half(source: str, binning: Binning, flip: bool):
