@@ -243,6 +243,64 @@ def test_a_trace_far_off_scale_is_refused_for_its_scale_not_its_shape():
         ml.align(trace)
 
 
+def test_a_noisy_dense_trace_is_measured_binned_not_raw(tmp_path):
+    """0.3 px of noise at 0.19 px spacing lengthens the raw polyline of a 2.56 R half section
+    to 7.5 R, 0.5 px to 12.1 R: refused as "12.1 R long ...: check the pixel size" (audit 10,
+    F5: 8.33 R).  Measured on the binned points (bins of 6: 2.64 R) it is refused for what is
+    wrong, its axis's uncertainty; a real scale error still is named (the test above)."""
+    path = write(tmp_path, "fiji-xy", points=half(2701), section="half", noise_px=0.5, seed=0)
+    with pytest.raises(MidlineError) as exc:
+        ml.load_midline(path, section="half", **SCALE)
+    assert "the axis of this half section is uncertain" in str(exc.value)
+    assert "R long" not in str(exc.value)
+
+
+def _bowl(n):
+    """A bowl (curvature 1.2, a fold of -6, then 1.8, 2.9 R long) at n points equally spaced in
+    arclength, pole first: from its rim, a circular arc of radius 0.56 R, the axis fitted there
+    is crossed by the rest of the midline."""
+    s = np.linspace(0.0, 2.9, 20001)
+    step = (1 + np.tanh((s[:, None] - [1.25, 1.45]) / 0.04)) / 2
+    kappa = 1.2 - 7.2 * step[:, 0] + 7.8 * step[:, 1]
+    psi = np.r_[0.0, np.cumsum((kappa[1:] + kappa[:-1]) / 2 * np.diff(s))]
+    steps = np.column_stack([np.cos(psi), np.sin(psi)])
+    points = np.vstack([[0.0, 0.0], np.cumsum((steps[1:] + steps[:-1]) / 2 * np.diff(s)[:, None],
+                                              axis=0)])
+    return points[np.linspace(0, len(s) - 1, n).round().astype(int)]
+
+
+def test_a_half_section_traced_rim_first_is_taken_from_its_pole(tmp_path, caplog):
+    """Traced rim first, a bowl's half section was aligned from its rim and refused as crossing
+    the axis (audit 10, F4); its other end, on the axis, is its pole: read from there, with a
+    note, as a whole section is read in either direction.  The midline is the pole-first one's
+    (the same points, the same bins; 1e-12 R: rounding of the reversed sums)."""
+    bowl = _bowl(1500)
+    forward = write(tmp_path, "fiji-xy", "forward", points=bowl, section="half", angle_deg=17.0,
+                    offset_px=(500.0, 700.0))
+    backward = tmp_path / "backward.txt"
+    backward.write_text("".join(forward.read_text().splitlines(keepends=True)[::-1]))
+    expected = ml.load_midline(forward, section="half", **SCALE).points
+    assert "traced rim first" not in caplog.text
+    with caplog.at_level(logging.INFO, logger=ml.__name__):
+        got = ml.load_midline(backward, section="half", **SCALE).points
+    assert np.abs(got - expected).max() < 1e-12
+    assert re.search(r"backward.txt: traced rim first\? from its first point the midline crosses "
+                     r"the axis \(line \d+: r = -0\.\d+ < 0\), from its last it does not: the "
+                     r"last point taken as the pole", caplog.text)
+
+
+def test_a_half_section_crossing_the_axis_from_both_ends_names_rim_first(tmp_path):
+    """A circular arc of 1.2 π crosses the axis fitted at either end: refused, the message
+    asking 'traced rim first?' and saying that reversed it is refused too."""
+    t = np.linspace(0.0, 1.2 * np.pi, 600)
+    arc = np.column_stack([np.sin(t), 1 - np.cos(t)])
+    path = write(tmp_path, "fiji-xy", points=arc, section="half", offset_px=(500.0, 700.0))
+    with pytest.raises(MidlineError, match=r"trace.txt: line \d+: r = -0\.\d+ < 0: the midline "
+                                           r"crosses the axis .*; traced rim first\? reversed, it "
+                                           r"is refused too: line \d+: r = -0\.\d+ < 0"):
+        ml.load_midline(path, section="half", **SCALE)
+
+
 def test_average_estimates_mean_and_spread():
     """K midlines with Gaussian noise σ per coordinate: mean within 5σ/√K, spread ≈ σ.
 

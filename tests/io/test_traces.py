@@ -54,6 +54,31 @@ def test_dense_noisy_trace_is_one_curve(tmp_path):
     assert len(tr.read_trace(path, **SCALE).points) == 1601
 
 
+def test_loops_of_noise_larger_than_the_spacing_are_not_crossings(tmp_path):
+    """½ px of noise at 0.19 px spacing (an automatic contour): its loops span 8-10 points, more
+    than the 10 median steps that were let cross, and each of these 4 traces was refused as
+    intersecting itself (audit 10, F5).  Loops of noise stay within ~10 σ of where they start
+    (trace_checks._JITTER); the loops of a curve that crosses itself do not."""
+    for seed in range(4):
+        path = write(tmp_path, "fiji-xy", points=half(2701), noise_px=0.5, seed=seed)
+        assert len(tr.read_trace(path, **SCALE).points) == 5401
+
+
+def test_a_noisy_trace_that_crosses_itself_is_refused_naming_the_noise(tmp_path):
+    """A figure of eight crosses itself however noisy; with noise larger than the point spacing
+    the message says so (it lengthens the trace and makes loops), and not without."""
+    s = np.linspace(-0.5, 2 * np.pi - 1, 4000)
+    loop = np.column_stack([np.sin(2 * s), np.sin(s)])          # 0.3 px apart at 200 px per R
+    path = write(tmp_path, "xy", "noisy", points=loop, section="half", noise_px=0.5, seed=0)
+    with pytest.raises(MidlineError, match=r"noisy.csv: .*crosses the segment .*intersects "
+                                           r"itself \(noise larger than the point spacing: ≈ "
+                                           r"0\.\d+ px at 0\.\d+ px: subsample or smooth"):
+        tr.read_trace(path, **SCALE)
+    path = write(tmp_path, "xy", "clean", points=loop, section="half")
+    with pytest.raises(MidlineError, match=r"clean.csv: .*intersects itself$"):
+        tr.read_trace(path, **SCALE)
+
+
 # ------------------------------------------------------------------ midline csv
 
 def test_midline_csv_round_trip(tmp_path):

@@ -73,6 +73,13 @@ traced:
              rms on the Volvox example's equilibrium and 2.4e-3 R on the
              tests' bulged reference shape.  Trace whole sections where you
              can: their axis rests on both halves (0.15° for ½ px of noise).
+             A half section traced rim first is aligned from its last point
+             when, aligned from its first, it crosses the axis and from its
+             last it does not (a note says so); otherwise its ends cannot be
+             told apart by shape (a circular arc reads the same from either
+             end; the local shape near an end, its fit's residual or its
+             curvature's slope, told a rim from a pole on clean traces only,
+             and not on the bulged reference shape) and it is taken as given.
 ``"auto"``   csv → half; image formats → whole.  Shape alone cannot tell: a
              circular arc traced from pole to rim is mirror-symmetric about
              its middle exactly as a whole section of a cup is, so a half
@@ -103,14 +110,14 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
 from .roi_sets import is_roi_set, read_set_traces
-from .trace_checks import MidlineError, check_axis, check_choice, check_positive
+from .trace_checks import MidlineError, check_axis, check_choice, check_positive, noise_hint
 from .trace_noise import Binning, bin_noisy
 from .traces import Midline, Trace, read_trace
 
@@ -292,7 +299,9 @@ def align(trace: Trace, section: str = "auto", *, flip: bool = False,
         differ by more than ``max_asymmetry``; a half section whose axis is
         uncertain (or with fewer than 6 points within 0.4 R of its pole);
         either named for its scale instead when its halves are far from a
-        midline's 2-4 R; a midline that crosses the axis.
+        midline's 2-4 R; a midline that crosses the axis (a half section:
+        from either end; from its first only, it is taken from its last,
+        traced rim first).
     """
     section = check_choice(section, SECTIONS, "section")
     max_asymmetry = check_positive("max_asymmetry", max_asymmetry)
@@ -306,19 +315,13 @@ def align(trace: Trace, section: str = "auto", *, flip: bool = False,
     _check_count(trace, kind)
     binning = bin_noisy(trace.points)
     if kind == "half":
-        try:
-            pole, e_r, e_z, points, axis_note = _half(trace.source, binning, flip)
-        except MidlineError as exc:
-            _check_scale(trace, 1, "its axis is uncertain")
-            raise exc from None
+        pole, e_r, e_z, points, axis_note = _half_section(trace, binning, flip)
         asymmetry = 0.0
-        where = trace.where if binning.k == 1 else [
-            f"point {k + 1} after binning" for k in range(len(points))]
     else:
         pole, e_r, e_z, points, asymmetry = _whole(_Curve.through(binning.points),
                                                    len(binning.points), flip)
         if asymmetry > max_asymmetry:
-            _check_scale(trace, 2, f"its halves differ by {asymmetry:.3g} R rms")
+            _check_scale(trace, binning, 2, f"its halves differ by {asymmetry:.3g} R rms")
             raise MidlineError(f"{trace.source}: the halves of this whole section differ by "
                                f"{asymmetry:.3g} R rms from their mirror average (max_asymmetry = "
                                f"{max_asymmetry:g}): the pole is taken at half the trace's "
@@ -327,7 +330,7 @@ def align(trace: Trace, section: str = "auto", *, flip: bool = False,
                                f"half section (section='half')")
         where = [f"{f:.0%} of the way from the pole" for f in np.linspace(0, 1, len(points))]
         axis_note = None
-    check_axis(trace.source, points, where)
+        check_axis(trace.source, points, where)
     for note in (binning.note(trace.source), axis_note):
         if note:
             log.info(note)
@@ -343,19 +346,70 @@ def _check_count(trace: Trace, kind: str) -> None:
                            f"{MIN_POINTS['whole']}): trace it with more points, one at every fold")
 
 
-def _check_scale(trace: Trace, halves: int, also: str) -> None:
+def _check_scale(trace: Trace, binning: Binning, halves: int, also: str) -> None:
     """Before refusing a trace for its shape: MidlineError naming the scale instead if its
     halves are far longer or shorter than a Volvox midline's (about 2-4 R).
 
     At a wrong scale the shape's tests mislead (points of a trace 10 times too large lie
     0.1 R apart, too sparse to bin, and their noise makes the halves differ); a fit names a
-    scale 1.5-2 times off precisely (``fitting.check_midline``), after alignment.
+    scale 1.5-2 times off precisely (``fitting.check_midline``), after alignment.  The length
+    is that of the binned points: noise larger than the point spacing lengthens the raw
+    polyline (0.3 px of noise at 0.19 px spacing tripled a 2.9 R half to 8.3 R), and where
+    the bins leave such noise the message names it rather than the scale.
     """
-    half = float(np.sum(np.hypot(*np.diff(trace.points, axis=0).T))) / halves
+    half = float(np.sum(np.hypot(*np.diff(binning.points, axis=0).T))) / halves
     if not _HALF_LENGTHS[0] <= half <= _HALF_LENGTHS[1]:
+        k = binning.k
+        noise = noise_hint(binning.sigma / math.sqrt(k), k * binning.spacing, "R")
         raise MidlineError(f"{trace.source}: {'its halves are' if halves == 2 else 'it is'} "
-                           f"{half:.3g} R long, where a midline's half is about 2-4 R ({also}): "
-                           f"check the pixel size and the radius R")
+                           f"{half:.3g} R long, where a midline's half is about 2-4 R ({also})"
+                           + (noise or ": check the pixel size and the radius R"))
+
+
+def _half_section(trace: Trace, binning: Binning, flip: bool):
+    """Pole, e_r, e_z, the points in the model gauge and a note of a half section, taken from
+    its last point if it was traced rim first.
+
+    A half section runs from the pole, on the axis, to a free rim.  Aligned
+    from its first point, a trace that starts at the rim can cross the axis
+    fitted there; if it does and, aligned from its last point, it does not,
+    the last point is its pole (a note says so), as a whole section is read
+    in either direction.  Where neither end crosses, the ends cannot be told
+    apart by the trace (a circular arc is the same from either end) and it
+    is taken as given.
+    """
+    crossing = _half_checked(trace, binning, flip)
+    if not isinstance(crossing, MidlineError):
+        return crossing
+    back = replace(trace, points=trace.points[::-1], where=trace.where[::-1])
+    other = _half_checked(back, replace(binning, points=binning.points[::-1]), flip)
+    if isinstance(other, MidlineError):
+        why = str(other).removeprefix(f"{trace.source}: ")
+        raise MidlineError(f"{crossing}; traced rim first? reversed, it is refused too: "
+                           f"{why}") from None
+    pole, e_r, e_z, points, note = other
+    where = str(crossing).removeprefix(f"{trace.source}: ").partition(": the midline")[0]
+    return pole, e_r, e_z, points, (
+        f"{trace.source}: traced rim first? from its first point the midline crosses the axis "
+        f"({where}), from its last it does not: the last point taken as the pole; "
+        f"{note.removeprefix(trace.source + ': ')}")
+
+
+def _half_checked(trace: Trace, binning: Binning, flip: bool):
+    """:func:`_half` of the trace as it runs, or the MidlineError of a midline that crosses the
+    axis from its first point (other refusals raised, named for the scale if it is off)."""
+    try:
+        pole, e_r, e_z, points, axis_note = _half(trace.source, binning, flip)
+    except MidlineError as exc:
+        _check_scale(trace, binning, 1, "its axis is uncertain")
+        raise exc from None
+    where = trace.where if binning.k == 1 else [
+        f"point {k + 1} after binning" for k in range(len(points))]
+    try:
+        check_axis(trace.source, points, where)
+    except MidlineError as exc:
+        return exc
+    return pole, e_r, e_z, points, axis_note
 
 
 def _half(source: str, binning: Binning, flip: bool):

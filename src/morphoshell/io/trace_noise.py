@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["MAX_BIN", "NOISE_PER_STEP", "Binning", "bin_noisy"]
+__all__ = ["MAX_BIN", "NOISE_PER_STEP", "Binning", "bin_noisy", "noise_estimate"]
 
 #: Largest ratio of point noise to point spacing that alignment leaves as it is.
 NOISE_PER_STEP = 0.05
@@ -108,7 +108,7 @@ class Binning:
 def bin_noisy(points: np.ndarray) -> Binning:
     """The points, or, if noisy for their spacing, their interior averaged in bins of k.
 
-    σ is estimated from the fourth differences across the curve (their
+    σ is estimated (:func:`noise_estimate`) from the fourth differences across the curve (their
     median; Gaussian noise gives them variance 70 σ², a smooth curve O(h⁴));
     k is the least making σ/√k ≤ NOISE_PER_STEP·k·h (h the median step), and at most
     MAX_BIN over the spacing along the curve.
@@ -128,13 +128,7 @@ def bin_noisy(points: np.ndarray) -> Binning:
     step = float(np.median(np.hypot(*np.diff(points, axis=0).T))) if n > 1 else math.nan
     if n < 12:
         return Binning(points, n, math.nan, step, 1, 1)
-    chord = points[4:] - points[:-4]
-    # the spacing from chords of 4 steps: noise lengthens single steps, and with them the
-    # bins' lengths and the correction below
-    h = float(np.median(np.linalg.norm(chord, axis=1))) / 4
-    across = chord[:, ::-1] * [1.0, -1.0] / np.linalg.norm(chord, axis=1, keepdims=True)
-    wiggle = np.abs(np.sum(np.diff(points, n=4, axis=0) * across, axis=1))
-    sigma = float(np.median(wiggle)) / (0.6745 * math.sqrt(70.0))
+    sigma, h = noise_estimate(points)
     wanted = math.ceil((sigma / (NOISE_PER_STEP * step)) ** (2 / 3))
     k = min(wanted, math.floor(MAX_BIN / h))
     bins = (n - 2) // max(k, 1)
@@ -152,6 +146,21 @@ def bin_noisy(points: np.ndarray) -> Binning:
     var = (np.array([len(b) for b in groups]) ** 2 - 1) * h ** 2 / 12
     out[1:-1] -= 0.5 * var[:, None] * c2
     return Binning(out, n, sigma, h, k, wanted)
+
+
+def noise_estimate(points: np.ndarray) -> tuple[float, float]:
+    """σ, the noise per coordinate, and h, the spacing along the curve, of at least 12 points.
+
+    σ from the median of the fourth differences across the curve (Gaussian
+    noise gives them variance 70 σ², a smooth curve O(h⁴)); h a quarter of the
+    median chord of 4 steps (noise lengthens single steps, and with them the
+    bins' lengths and their curvature correction).  In the points' units.
+    """
+    chord = points[4:] - points[:-4]
+    h = float(np.median(np.linalg.norm(chord, axis=1))) / 4
+    across = chord[:, ::-1] * [1.0, -1.0] / np.linalg.norm(chord, axis=1, keepdims=True)
+    wiggle = np.abs(np.sum(np.diff(points, n=4, axis=0) * across, axis=1))
+    return float(np.median(wiggle)) / (0.6745 * math.sqrt(70.0)), h
 
 
 def _second_derivative(points: np.ndarray) -> np.ndarray:
