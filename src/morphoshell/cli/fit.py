@@ -205,7 +205,8 @@ def fit_record(args, limit: int) -> dict:
     ``solver``: the [solver] table of the JSON as a problem file (``morphoshell solve
     FIT.json`` re-solves at the fit's nodes, not the default 200); ``settings``: the
     options that made it (the midline and how it was read, the start, the held values,
-    the method, nodes and evaluation limit), so that a result says how it was made.
+    the method, nodes and evaluation limit; ``multi_start: true`` with --multi-start), so
+    that a result says how it was made.
     """
     from ..io.problem_files import parse_overrides
 
@@ -217,8 +218,9 @@ def fit_record(args, limit: int) -> dict:
                          "variant": args.variant, "method": args.method, "nodes": args.nodes,
                          "max_evaluations": args.max_evaluations, "evaluation_limit": limit,
                          "start": None if args.start is None else str(args.start),
-                         "multi_start": args.multi_start,
-                         "set": parse_overrides(args.overrides)}}
+                         "set": parse_overrides(args.overrides),
+                         # (only when given: a single fit's JSON stays as it was)
+                         **({"multi_start": True} if args.multi_start else {})}}
 
 
 def csv_columns(result) -> dict:
