@@ -468,16 +468,18 @@ def test_a_fit_that_stops_unconverged_is_continued_once_from_where_it_stopped(
     that one counts."""
     import dataclasses
 
+    from morphoshell.fitting import multistart
     from morphoshell.workflows import timepoint_fits as module
 
     real, calls = module.fit, []
 
-    def first_stops_short(spec, midline, method, nodes, start):
-        r = real(spec, midline, method, nodes=nodes, start=start)
+    def first_stops_short(spec, midline, method, nodes, start, **kw):
+        r = real(spec, midline, method, nodes=nodes, start=start, **kw)
         calls.append((start, r))
         return dataclasses.replace(r, converged=False) if len(calls) == 1 else r
 
     monkeypatch.setattr(module, "fit", first_stops_short)
+    monkeypatch.setattr(multistart, "fit", first_stops_short)    # (continue_once's)
     tps = read_timepoints(data[0])
     task = module.CampaignTask(str(data[0]), tps, "free", "gradient", NODES, str(serial.out), None,
                         True)
@@ -510,6 +512,7 @@ def test_a_fit_near_a_fold_or_whose_continuation_fails_is_kept_as_it_is(serial, 
     is kept even at a fold."""
     import dataclasses
 
+    from morphoshell.fitting import multistart
     from morphoshell.workflows import timepoint_fits as module
     from morphoshell.solvers.results import SolverError
 
@@ -517,7 +520,7 @@ def test_a_fit_near_a_fold_or_whose_continuation_fails_is_kept_as_it_is(serial, 
     assert first.near_fold is (case == "near a fold")
     calls = []
 
-    def stub(spec, midline, method, nodes, start):
+    def stub(spec, midline, method, nodes, start, **_):
         calls.append(start)
         if len(calls) == 1:
             return first
@@ -526,6 +529,7 @@ def test_a_fit_near_a_fold_or_whose_continuation_fails_is_kept_as_it_is(serial, 
         return dataclasses.replace(_unconverged(serial, True), E_fit=0.999 * first.E_fit)
 
     monkeypatch.setattr(module, "fit", stub)
+    monkeypatch.setattr(multistart, "fit", stub)                 # (continue_once's)
     task = module.CampaignTask(str(data[0]), read_timepoints(data[0]), "free", "gradient", NODES,
                         str(serial.out), None)
     r, continued = module._fit_on(task, {}, None, None, None)
@@ -536,8 +540,9 @@ def test_a_fit_near_a_fold_or_whose_continuation_fails_is_kept_as_it_is(serial, 
     if case == "continued onto a fold":      # unless the fold fits far better
         calls.clear()
         far = dataclasses.replace(_unconverged(serial, True), E_fit=0.12 * first.E_fit)
-        monkeypatch.setattr(module, "fit", lambda *a, **k: first if not calls.append(1)
-                            and len(calls) == 1 else far)
+        again = lambda *a, **k: first if not calls.append(1) and len(calls) == 1 else far
+        monkeypatch.setattr(module, "fit", again)
+        monkeypatch.setattr(multistart, "fit", again)
         r, continued = module._fit_on(task, {}, None, None, None)
         assert continued and r.E_fit == far.E_fit and not r.converged and r.near_fold
         assert r.message.startswith("continued once after")

@@ -8,6 +8,7 @@ import pytest
 
 from morphoshell.cli import main
 from morphoshell.fitting import FitError
+from morphoshell.fitting import multistart
 
 NODES = 60
 
@@ -28,6 +29,7 @@ def spoiled(monkeypatch):
             return dataclasses.replace(result, converged=False, message="spoiled by the test")
         return result
     monkeypatch.setattr(tf, "fit", fit)
+    monkeypatch.setattr(multistart, "fit", fit)       # (continue_once's)
     return spoiled
 
 
@@ -285,6 +287,7 @@ def test_a_failed_kkt_fit_is_done_by_the_gradient_method_and_says_so(data, tmp_p
             raise FitError("made up for the test", "Fit_Saddle")
         return real(spec, data, method, **kw)
     monkeypatch.setattr(tf, "fit", fit)
+    monkeypatch.setattr(multistart, "fit", fit)       # (continue_once's)
     result = campaign(data[0], ["flat"], method="kkt", workers=1, out=tmp_path / "out",
                       nodes=NODES, timepoints=["t01"])
     rec = result.record("t01", "flat")

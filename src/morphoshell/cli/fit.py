@@ -63,6 +63,15 @@ def register(sub) -> None:
                         "one with a cut, as morphoshell ablate writes, or another theory or "
                         "geometry is refused); default: the family's illustrative values, "
                         "h = 0.15, P = 0.3")
+    p.add_argument("--multi-start", dest="multi_start", action="store_true",
+                   help="fit from several starts and keep the lowest E_fit: --start (if "
+                        "given), the family's defaults and a few fixed changes of them "
+                        "(kappa2 = -3, -6, and a late stage's breakpoints), all with the "
+                        "variant's ties and the --set values; each start that stops short "
+                        "is continued once from its end. Prints (and the JSON records under "
+                        "'starts') every start's E_fit, converged and constraints. A "
+                        "variant's fit ends in a local minimum that depends on its start: "
+                        "compare variants' E_fit after --multi-start")
     p.add_argument("--nodes", type=integer(*FIT_NODES), default=200, metavar="N",
                    help=f"mesh nodes of the inner solves, {FIT_NODES[0]} to {FIT_NODES[1]} "
                         f"(default 200)")
@@ -196,7 +205,8 @@ def fit_record(args, limit: int) -> dict:
     ``solver``: the [solver] table of the JSON as a problem file (``morphoshell solve
     FIT.json`` re-solves at the fit's nodes, not the default 200); ``settings``: the
     options that made it (the midline and how it was read, the start, the held values,
-    the method, nodes and evaluation limit), so that a result says how it was made.
+    the method, nodes and evaluation limit; ``multi_start: true`` with --multi-start), so
+    that a result says how it was made.
     """
     from ..io.problem_files import parse_overrides
 
@@ -208,7 +218,9 @@ def fit_record(args, limit: int) -> dict:
                          "variant": args.variant, "method": args.method, "nodes": args.nodes,
                          "max_evaluations": args.max_evaluations, "evaluation_limit": limit,
                          "start": None if args.start is None else str(args.start),
-                         "set": parse_overrides(args.overrides)}}
+                         "set": parse_overrides(args.overrides),
+                         # (only when given: a single fit's JSON stays as it was)
+                         **({"multi_start": True} if args.multi_start else {})}}
 
 
 def csv_columns(result) -> dict:
@@ -222,10 +234,9 @@ def csv_columns(result) -> dict:
 
 
 def _fit(args) -> int:
-    from ..fitting import EVALUATION_LIMITS, N_FIT, fit
+    from ..fitting import EVALUATION_LIMITS, N_FIT
     from ..io.problem_files import write_csv, write_json
-    from ..solvers.results import SolverError
-    from ._fit_stops import MISFIT, failure_hint, far_above, stop_line
+    from ._fit_stops import MISFIT, far_above, stop_line
 
     spec = _start_problem(args)
     names = profile_names(args.profile, spec, args)  # (a bad name: exit 2, before any work)
@@ -233,15 +244,12 @@ def _fit(args) -> int:
     data = profile_data(args, spec, midline) if names else None
     unit, default = EVALUATION_LIMITS[args.method]
     limit = args.max_evaluations or default
-    try:
-        result = fit(spec, midline, args.method, nodes=args.nodes,
-                     max_iterations=args.max_evaluations)
-    except SolverError as exc:
-        hint = failure_hint(exc.status, limit, unit, args.start is not None)
-        raise type(exc)(f"{str(exc).rstrip('.')}. {hint}", exc.status, exc.last_iterate) from None
+    result, starts = _run_fit(args, spec, midline, limit, unit)
     print(result.summary())
     print(f"  E_fit = {result.E_fit:.6g} R over {N_FIT} points; {result.inner_solves} inner "
           f"solves, {result.seconds:.2f} s")
+    if starts is not None:
+        print(f"  starts (--multi-start; * the lowest E_fit, the fit above):\n{starts.table()}")
     before, profiles = result, {}
     if names:
         result, profiles = run_profiles(args, spec, data, result, names)
@@ -254,6 +262,7 @@ def _fit(args) -> int:
         **result.to_dict(), **fit_record(args, limit),
         "input_check": (f"{far_above(result.E_fit)}; {MISFIT}" if far_above(result.E_fit)
                         else None),
+        **(starts.to_dict() if starts is not None else {}),
         **(profile_json(profiles, before, result) if profiles else {})}))
     out.add(args.csv, lambda path: write_csv(path, csv_columns(result)))
     if args.plot:
@@ -269,5 +278,40 @@ def _fit(args) -> int:
         out.add(profile_plot_path(args), lambda path: save(figure, path))
     for path in out.commit():
         print(f"  wrote {path}")
+    if starts is None:
+        _local_minimum_note(result)
     print(stop_line(result, limit, before if result is not before else None))
     return 0 if result.converged else 3
+
+
+def _run_fit(args, spec, midline, limit: int, unit: str):
+    """(the fit, the :class:`~morphoshell.fitting.multistart.MultiStartFit` or None): one
+    fit, or with --multi-start the lowest of several; a failure's message says what to try."""
+    from ..fitting import fit, multi_start_fit
+    from ..solvers.results import SolverError
+    from ._fit_stops import failure_hint
+
+    try:
+        if args.multi_start:
+            starts = multi_start_fit(spec, midline, args.method, nodes=args.nodes,
+                                     max_iterations=args.max_evaluations)
+            return starts.result, starts
+        return fit(spec, midline, args.method, nodes=args.nodes,
+                   max_iterations=args.max_evaluations), None
+    except SolverError as exc:
+        hint = failure_hint(exc.status, limit, unit, args.start is not None)
+        raise type(exc)(f"{str(exc).rstrip('.')}. {hint}", exc.status, exc.last_iterate) from None
+
+
+def _local_minimum_note(result) -> None:
+    """A note when a fixed variant's fit ends with a parameter on a bound and breakpoints on
+    constraints: the sign of a poor local minimum that another start avoids (audit: the
+    unstressed fit of a traced sine-perturbed sphere at 0.041 R from the defaults, kappa4 on
+    its bound; 0.018 R from a multi-start)."""
+    from ..fitting.multistart import local_minimum_signs
+
+    bounds, breakpoints = local_minimum_signs(result)
+    if bounds:
+        note(f"{', '.join(bounds)} on a bound and {', '.join(breakpoints)} on constraints: this "
+             f"may be a local minimum of the {result.variant} variant; before comparing "
+             f"variants' E_fit, fit with --multi-start")

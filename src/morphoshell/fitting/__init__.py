@@ -6,7 +6,8 @@ KKT-constrained NLP (paper, Supplementary, "Fitting of the morphoelastic theory"
 :mod:`.spec` says what is fitted, :mod:`.inner` solves the inner problem,
 :mod:`.nested` and :mod:`.kkt` (with :mod:`.kkt_problem`) are the methods,
 :mod:`.bilevel` is the front door :func:`~morphoshell.fitting.bilevel.fit`,
-:mod:`.results` what it returns, :mod:`.midline_checks` what it refuses and
+:mod:`.results` what it returns, :mod:`.multistart` a fit from several starts (the
+lowest of its local minima), :mod:`.midline_checks` what it refuses and
 :mod:`.profiles` what the data determine (profile-likelihood intervals, their noise
 from :mod:`.profile_noise`).
 """
@@ -22,6 +23,7 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
                        "TURN_LENGTH", "POLE_SLACK", "MAX_MEAN_STRETCH", "POLE_ANGLE", "POLE_ARC",
                        "SCALE_HINT"],
     "bilevel": ["fit", "METHODS", "FIT_NODES", "EVALUATION_LIMITS"],
+    "multistart": ["multi_start_fit", "MultiStartFit", "MULTI_STARTS"],
     "profiles": ["Profile", "profile", "profile_intervals", "profiled_fit"],
     "profile_noise": ["noise_variance", "traces_missing", "noise_dof", "threshold_quantile"],
 })

@@ -7,7 +7,9 @@ start on, and which timepoints are fitted decides where the later ones end
 each fit starts from the candidate with the lowest E_fit at its start
 (:func:`best_start`): the previous fit (its parameters and its equilibrium:
 its branch), the campaign's start or the family's defaults with the held
-values, and a small deterministic multi-start (:data:`MULTI_STARTS`).  The
+values, and a small deterministic multi-start
+(:data:`morphoshell.fitting.multistart.MULTI_STARTS`, which ``morphoshell fit
+--multi-start`` fits from too).  The
 candidates are ranked by E_fit of their starting shape, on the previous
 fit's branch for the previous fit and on the physical branch (continuation
 from the stress-free parameters, crossing snap-throughs) on a coarse mesh
@@ -20,9 +22,9 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..fitting import volvox_spec
 from ..fitting.inner import InnerProblem
 from ..fitting.midline_checks import as_points
+from ..fitting.multistart import MULTI_STARTS, start_specs
 from ..model.problem import Problem
 from ..solvers.results import Equilibrium, SolverError
 
@@ -31,16 +33,6 @@ __all__ = ["Candidate", "best_start", "other_candidates", "MULTI_STARTS", "RANK_
 #: Mesh nodes of the solves that rank the candidates without a state: their E_fit differ by
 #: far more than a coarse mesh's error (a candidate that wins is then fitted on the fit's mesh).
 RANK_NODES = 60
-#: The deterministic multi-start: the family's defaults (with the held values) changed so.
-#: The bend region's curvature κ₂ and the breakpoints of the model's later stages (the
-#: synthetic sequence's mid-inversion keyframe), where chains from early fits stall; the
-#: latter with κ₂ = −6, not the defaults' −9, whose |η| reaches 1 when f₁ is held below
-#: about 0.8 (the fixed variants after the first timepoint), so that start was left out
-#: just where it was needed (the synthetic campaign's unstressed t10-t12).
-MULTI_STARTS = ({"kappa2": -3.0}, {"kappa2": -6.0},
-                {"kappa2": -6.0, "s1": 0.75, "s2": 1.38, "s3": 1.78, "s4": 2.35})
-
-
 @dataclass(frozen=True)
 class Candidate:
     """A start of a fit: where from (``started_from``), its spec and its state (or None).
@@ -62,17 +54,7 @@ def other_candidates(variant: str, hold: Mapping[str, float], start: Problem | N
     ``origin`` names ``start`` (``"start"`` or ``"family defaults"``).  A start that the
     variant's bounds or the held values do not admit is left out.
     """
-    base = start or Problem("volvox", h=0.15, opening=0.3)
-    changes = [(origin, {}), *((f"multi-start {', '.join(f'{k} = {v:g}' for k, v in c.items())}",
-                                c) for c in MULTI_STARTS)]
-    out = []
-    for label, change in changes:
-        try:
-            problem = base.with_updates(**change) if change else start
-            out.append(Candidate(label, volvox_spec(variant, start=problem, hold=hold)))
-        except ValueError:
-            continue
-    return out
+    return [Candidate(label, spec) for label, spec in start_specs(variant, hold, start, origin)]
 
 
 def best_start(candidates: Sequence[Candidate], data, nodes: int

@@ -36,7 +36,8 @@ import numpy as np
 
 from .._runtime import interrupts, lifeline
 from .._runtime.files import as_new_file, replace_named
-from ..fitting import BOUNDS, FitError, FitResult, fit, volvox_spec
+from ..fitting import FitError, FitResult, fit, volvox_spec
+from ..fitting.multistart import FOLD_GAIN, continue_once, start_from
 from ..io import Midline, average
 from ..io.timepoints import Timepoint
 from ..model.problem import Problem
@@ -53,11 +54,6 @@ __all__ = ["CampaignTask", "fit_variant", "first_start", "write_atomic", "record
 
 #: Parameters fitted at the first timepoint and held after (all variants but ``free``).
 HELD = ("f1", "kappa3", "kappa4")
-#: A continuation that ends near a fold replaces the fit it continued only if it lowers E_fit
-#: by more than this fraction (``_fit_on``).
-FOLD_GAIN = 0.1
-#: A fitted value this close to a bound is moved inside it before it starts the next fit.
-_MARGIN = 1e-6
 #: What a fit that fails with one of these records as its message (the campaign goes on).
 _FIT_FAILURES = (FitError, SolverError, ValueError)
 
@@ -177,16 +173,7 @@ def _reusable(stored: dict | None, settings: dict) -> bool:
 
 def _start_problem(params: dict) -> Problem:
     """A start problem from fitted parameters, moved just inside the fit's bounds."""
-    p = dict(params)
-    h, opening = p.pop("h", 0.15), p.pop("opening", 0.3)
-    p.pop("cut", None)
-    for n, v in p.items():
-        kind = "f" if n.startswith("f") else "kappa" if n.startswith("kappa") else None
-        if kind is not None:
-            lo, hi = BOUNDS[kind]
-            span = (hi - lo) * _MARGIN
-            p[n] = float(min(max(v, lo + span), hi - span))
-    return Problem("volvox", p, h=h, opening=opening)
+    return start_from(params)
 
 
 def first_start(params: dict | None) -> Problem | None:
@@ -455,19 +442,7 @@ def _fit_on(task: CampaignTask, hold: dict, spec, data, start) -> tuple[FitResul
     if first.converged or first.near_fold:
         return first, False
     again = volvox_spec(task.variant, start=_start_problem(first.parameters), hold=hold)
-    try:
-        r = fit(again, data, task.method, nodes=task.nodes, start=first.equilibrium)
-    except _FIT_FAILURES as exc:
-        return replace(first, message=f"{first.message}; continuing it failed: "
-                                      f"{type(exc).__name__}: {exc}"), False
-    if r.near_fold and r.E_fit > (1 - FOLD_GAIN) * first.E_fit:
-        return replace(first, message=f"{first.message}; continuing it crept onto a fold of "
-                                      f"the branch (E_fit {r.E_fit:.6g} R), so it is kept "
-                                      f"where it stopped"), False
-    return replace(r, outer_iterations=first.outer_iterations + r.outer_iterations,
-                   inner_solves=first.inner_solves + r.inner_solves,
-                   seconds=first.seconds + r.seconds,
-                   message=f"continued once after: {first.message}; then: {r.message}"), True
+    return continue_once(first, again, data, task.method, task.nodes)
 
 
 def _fit_falling_back(task: CampaignTask, spec, data, start) -> FitResult:
