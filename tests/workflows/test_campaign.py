@@ -628,7 +628,9 @@ def test_a_step_restarts_from_the_stress_free_parameters_only_when_its_state_fai
     """A start state near a fold fails its solves (SolverError): the step is fitted again
     from the physical branch.  A failed KKT fit (FitError) has already started again
     from the reduced optimum: the gradient method fits it from the same state, and if that
-    fails too it is recorded as failed without a cold refit."""
+    fails too it is not refitted cold from that start.  Then the other starts are tried
+    (:func:`_fit_from_others`, from the physical branch each), and when all fail the record
+    is failed with the first start's error."""
     from morphoshell.workflows import timepoint_fits as module
     from morphoshell.fitting import FitError
     from morphoshell.solvers.results import SolverError
@@ -644,9 +646,12 @@ def test_a_step_restarts_from_the_stress_free_parameters_only_when_its_state_fai
     task = module.CampaignTask(str(data[0]), tps, "flat", "kkt", NODES, str(serial.out), None)
     prev = serial.record("t01", "flat")
     rec = module._fit_one(task, tps[1], prev, prev, module._settings(task, tps[1], prev))
-    assert len(starts) == calls and starts[0] is not None
+    others = rec["other_starts"]
+    assert others and all(o["status"] == "failed" for o in others)
+    first = starts[:calls]                  # (the best start's, then the others')
+    assert first[0] is not None and all(s is None for s in starts[calls:])
     if error == "SolverError":      # refitted once from the physical branch
-        assert starts[1] is None
+        assert first[1] is None and len(starts) == calls + len(others)
     else:                           # the gradient method from the same state, no cold refit
-        assert starts[1] is starts[0]
+        assert first[1] is first[0] and len(starts) == calls + 2 * len(others)
     assert rec["status"] == "failed" and rec["message"] == f"{error}: failed"
