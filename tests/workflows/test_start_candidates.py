@@ -143,6 +143,7 @@ def test_a_fit_that_did_not_converge_is_tried_from_the_other_starts(monkeypatch)
     tried = []
 
     def fake(task, hold, spec, data, state, rec):
+        assert task.method == "gradient"        # (whatever the campaign's)
         tried.append(spec)
         if spec == "e":
             raise ValueError("no")
@@ -151,7 +152,8 @@ def test_a_fit_that_did_not_converge_is_tried_from_the_other_starts(monkeypatch)
     monkeypatch.setattr(tf, "_fit_or_restart", fake)
     rec = {"started_from": "a"}
     others = [Candidate(o, o) for o in ("e", "b", "c", "d")]
-    best, _ = tf._fit_from_others(None, {}, None, others, results["a"], False, rec)
+    task = tf.CampaignTask("data", [], "unstressed", "kkt", 60, "out", None)
+    best, _ = tf._fit_from_others(task, {}, None, others, results["a"], False, rec)
     assert best is results["c"] and rec["started_from"] == "c"
     assert tried == ["e", "b", "c"]                  # (d not tried: c converged)
     assert [t["status"] for t in rec["other_starts"]] == ["failed", "ok", "ok"]

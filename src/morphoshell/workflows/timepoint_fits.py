@@ -378,15 +378,19 @@ def _fit_from_others(task: CampaignTask, hold: dict, data, others: list[Candidat
 
     The start's E_fit ranks starts only roughly: the synthetic campaign's unstressed
     t10 from the previous fit (E_fit 0.39 R at the start) stalled at a fold of the
-    branch, while from a multi-start (7.6 R at the start) it converged at 0.0041 R.
+    branch, while from the late-stage multi-start (7.6 R at the start) it converged at
+    0.032 R.  The other starts are fitted by the gradient method whatever the
+    campaign's: a KKT fit from a far start fails or falls back to it (the KKT fit's
+    routes), and so tried the KKT campaign with held values took 365 s instead of about
+    half that (flat t07-t09, a hopeless hypothesis there, tried from every start).
     Each fit tried is recorded in ``rec["other_starts"]``; ``started_from`` names the
-    winner's start.
+    winner's start (a winner of another method says so: ``fitted_by``).
     """
-    tried = []
+    tried, gradient = [], replace(task, method="gradient")
     for c in others:
         scratch = {"started_from": c.origin}
         try:
-            r, cont = _fit_or_restart(task, hold, c.spec, data, c.state, scratch)
+            r, cont = _fit_or_restart(gradient, hold, c.spec, data, c.state, scratch)
         except _FIT_FAILURES as exc:
             tried.append({"from": c.origin, "status": "failed",
                           "message": f"{type(exc).__name__}: {exc}"})
