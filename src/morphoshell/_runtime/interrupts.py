@@ -87,8 +87,9 @@ def reason() -> str:
 @contextmanager
 def noted() -> Iterator[None]:
     """Count the Ctrl-Cs in the block (for :func:`swallowed`); they still raise
-    ``KeyboardInterrupt``, and a SIGTERM raises :class:`Terminated`.  Only where Python's default handler is in force, in the main
-    thread (a notebook's kernel, or a program's own handler, keeps its own)."""
+    ``KeyboardInterrupt``, and a SIGTERM raises :class:`Terminated`.  Only where Python's
+    default handler is in force, in the main thread (a notebook's kernel, or a program's
+    own handler, keeps its own)."""
     if (threading.current_thread() is not threading.main_thread()
             or signal.getsignal(signal.SIGINT) is not signal.default_int_handler):
         yield

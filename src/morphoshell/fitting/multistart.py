@@ -24,8 +24,8 @@ from .midline_checks import as_points, check_midline
 from .results import FitError, FitResult
 from .spec import BOUNDS, VARIANTS, VOLVOX_BREAKPOINTS, FitSpec, volvox_spec
 
-__all__ = ["MULTI_STARTS", "FOLD_GAIN", "MultiStartFit", "multi_start_fit", "start_specs", "SAME_MINIMUM",
-           "start_from", "continue_once", "local_minimum_signs"]
+__all__ = ["MULTI_STARTS", "FOLD_GAIN", "SAME_MINIMUM", "MultiStartFit", "multi_start_fit",
+           "start_specs", "start_from", "continue_once", "local_minimum_signs"]
 
 #: The deterministic multi-start: the family's defaults (with the held values) changed so.
 #: The bend region's curvature κ₂ and the breakpoints of the model's later stages (the
