@@ -3,6 +3,7 @@ family's defaults and the multi-start, each with the fit's held values; the tabl
 start; and the sign of a poor local minimum that ``morphoshell fit`` notes without it."""
 import dataclasses
 import json
+import re
 
 
 import pytest
@@ -135,6 +136,10 @@ def test_the_command_line_prints_and_records_every_start(tmp_path, data, capsys)
     text = capsys.readouterr().out
     assert "starts (--multi-start" in text and "may be a local minimum" not in text
     rec = json.loads(out.read_text())
+    # the time of all the starts, not the winner's alone (which the line above it gives)
+    every = re.search(r"--multi-start, (\d+) fits in ([0-9.]+) s", text)
+    assert every and int(every.group(1)) == len(rec["starts"])
+    assert float(every.group(2)) >= rec["seconds"]
     assert rec["settings"]["multi_start"] is True
     assert [row["from"] for row in rec["starts"]][0] == "family defaults"
     assert rec["started_from"] in [row["from"] for row in rec["starts"]]

@@ -249,7 +249,8 @@ def _fit(args) -> int:
     print(f"  E_fit = {result.E_fit:.6g} R over {N_FIT} points; {result.inner_solves} inner "
           f"solves, {result.seconds:.2f} s")
     if starts is not None:
-        print(f"  starts (--multi-start; * the lowest E_fit, the fit above):\n{starts.table()}")
+        print(f"  starts (--multi-start, {len(starts.starts)} fits in {starts.seconds:.1f} s; * the "
+              f"lowest E_fit, the fit above):\n{starts.table()}")
     before, profiles = result, {}
     if names:
         result, profiles = run_profiles(args, spec, data, result, names)

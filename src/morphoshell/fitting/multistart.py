@@ -14,6 +14,7 @@ stops unconverged once from its end (:func:`continue_once`).
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, replace
 from typing import Mapping
 
@@ -132,11 +133,14 @@ class MultiStartFit:
         One row per start, in the order fitted: ``{"from", "E_fit" (R),
         "converged", "constrained" (list of str), "continued" (bool)}``, or
         ``{"from", "E_fit": None, "failed": message}`` for a fit that failed.
+    seconds : float
+        Wall-clock time of all the starts' fits (``result.seconds`` is the winner's).
     """
 
     result: FitResult
     winner: str
     starts: tuple[dict, ...]
+    seconds: float = 0.0
 
     def table(self) -> str:
         """The starts as text lines, the winner marked with ``*``."""
@@ -197,7 +201,7 @@ def multi_start_fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int
     check_options(nodes, 1e-10, max_iterations)
     data = as_points(data)
     check_midline(spec, data)     # (refused before any work, not as every start's failure)
-    best, winner, rows, error = None, "", [], None
+    best, winner, rows, error, t0 = None, "", [], None, time.perf_counter()
     for label, s in _starts(spec):
         try:
             r, continued = _fit_continued(s, data, method, nodes, max_iterations)
@@ -211,7 +215,7 @@ def multi_start_fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int
             best, winner = r, label
     if best is None:
         raise error
-    return MultiStartFit(best, winner, tuple(rows))
+    return MultiStartFit(best, winner, tuple(rows), time.perf_counter() - t0)
 
 
 def _starts(spec: FitSpec) -> list[tuple[str, FitSpec]]:
