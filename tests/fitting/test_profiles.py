@@ -457,3 +457,23 @@ def test_a_refit_that_jumps_is_tried_again_from_the_optimum(monkeypatch):
     results["opt spec"] = None          # both failed: the first failure's message
     out, failure = profiles._refit_checked(opt, "k", walked, 1.0, "gradient", 1e-8, jump)
     assert out is None and failure == "no"
+
+
+def test_an_unconverged_refit_beyond_the_threshold_says_the_interval_may_reach_further():
+    """The refit where a side first exceeds the threshold did not converge: its objective
+    bounds the profile from above, so the interval may reach further there (an audit's
+    kappa1 read [-0.01, 1.03] where a cold refit put the right end near 1.6, said only in a
+    note); the verdict column says so."""
+    from morphoshell.fitting.profiles import Profile
+
+    values = np.array([-0.96, -0.09, 0.78, 1.64, 2.5])
+    objective = np.array([4.0, 3.5, 3.0, 3.7, 5.0])
+    converged = np.array([True, True, True, False, True])
+    p = Profile("kappa1", 0.78, values, objective, converged, (-0.3, 1.03), 3.2, 3.0, 1.0,
+                "residual", 0.95, False, "gradient")
+    assert p.uncertain_sides() == (False, True)
+    assert p.verdict() == ("may reach further above (the refit beyond the threshold did not "
+                           "converge)")
+    assert "may reach further above" in p.summary()
+    converged[3] = True
+    assert p.uncertain_sides() == (False, False) and p.verdict() == ""

@@ -184,14 +184,32 @@ class Profile:
         return tuple("" if np.isfinite(v) else end
                      for v, end in zip(self.interval, self.side_ends))
 
+    def uncertain_sides(self) -> tuple[bool, bool]:
+        """Whether the refit where each side first exceeds the threshold did not converge:
+        its objective bounds the profile's from above there, so the interval may reach
+        further on that side (an audit's κ₁: [−0.01, 1.03] where a cold refit put the
+        right end near 1.6)."""
+        j = int(np.searchsorted(self.values, self.fitted_value))
+        out = []
+        for side in (range(j - 1, -1, -1), range(j + 1, len(self.values))):
+            above = [i for i in side if self.objective[i] > self.threshold]
+            out.append(bool(above) and not self.converged[above[0]])
+        return tuple(out)
+
     def verdict(self) -> str:
-        """What an open interval says: "not determined by the data" (:attr:`flat`),
-        "open where a refit failed" (the note says why), or "" (closed)."""
+        """What the interval's ends say: "not determined by the data" (:attr:`flat`),
+        "open where a refit failed" (the note says why), "may reach further below/above"
+        (:meth:`uncertain_sides`), or "" (closed by converged refits)."""
         sides = self.open_sides()
         if self.flat:
             return "not determined by the data" + (" within its bounds" if "bound" in sides
                                                    else "")
-        return "open where a refit failed" if "failed" in sides else ""
+        words = ["open where a refit failed"] if "failed" in sides else []
+        further = [w for w, u in zip(("below", "above"), self.uncertain_sides()) if u]
+        if further:
+            words.append(f"may reach further {' and '.join(further)} (the refit beyond the "
+                         f"threshold did not converge)")
+        return "; ".join(words)
 
     @property
     def determined(self) -> bool:

@@ -66,9 +66,7 @@ def plot_profile(profile, ax: Axes, *, legend: bool = True) -> Axes:
         ax.plot([p.fitted_value], [p.S_min], "o", color="k", ms=4, label="fit")
         ax.set_xlabel(parameter_label(p.name))
         ax.set_ylabel(r"$E_\mathrm{fit}^2$ ($R^2$)")
-        ax.set_title(parameter_label(p.name) + (": not determined" if p.flat else
-                                                ": open where a refit failed" if p.verdict()
-                                                else ""))
+        ax.set_title(parameter_label(p.name) + _short_verdict(p))
         if legend:
             ax.legend(frameon=False)
     return ax
@@ -111,3 +109,12 @@ def plot_profiles(profiles: Mapping, *, pyplot: bool = True) -> Figure:
         fig.legend(kinds.values(), kinds.keys(), loc="outside lower center",
                    ncols=len(kinds) if cols > 1 else 3, frameon=False)
     return fig
+
+
+def _short_verdict(p) -> str:
+    """A panel title's words for :meth:`~morphoshell.fitting.profiles.Profile.verdict`."""
+    if p.flat:
+        return ": not determined"
+    if "failed" in p.open_sides():
+        return ": open where a refit failed"
+    return ": may reach further" if any(p.uncertain_sides()) else ""
