@@ -98,11 +98,9 @@ they are, the curve between them the spline through them.  What alignment
 did to a trace's points is logged at INFO on this module's logger (the
 command line prints it as a note).  A trace of fewer points than a midline
 needs to hold its shape is refused: a whole section needs
-:data:`MIN_POINTS` ``["whole"]`` = 15, a half section 8.  Measured on the
-synthetic inversion traces, vertices at about equal steps along them give
-a midline 0.06-0.07 R rms (the median) from the dense trace's with 10-12
-points, a third of them refused as asymmetric, 0.03 R with 15, 0.015 R with
-20 and 0.005 R with 30.  What noise still leaves along the curve,
+:data:`MIN_POINTS` ``["whole"]`` = 15, a half section 8: with fewer vertices a
+midline lies several times farther from the dense trace's and many are refused
+as asymmetric (docs/benchmarks.md, "Traced midlines").  What noise still leaves along the curve,
 :func:`average` removes by resampling the mean of the traces in its own
 arclength.
 """

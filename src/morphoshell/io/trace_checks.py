@@ -23,9 +23,9 @@ __all__ = ["MidlineError", "image_scale", "check_choice", "check_positive", "one
 _GAP_STEPS, _GAP_FRACTION = 10.0, 0.05
 #: A crossing of two segments closes a loop; one that stays within _JITTER σ of where it
 #: starts (σ the trace's noise, trace_noise.noise_estimate) is the noise's, not the curve's.
-#: Measured on seeded traces of a 2.9 R curve at 133 px per R (0.05-1 px point spacing,
-#: 0.3-1 px noise, 10 each): the loops of noise reach 5.5-10.5 σ, whatever the spacing; a
-#: curve that crosses itself closes a loop as large as the curve (tests/io/test_traces.py).
+#: Loops of noise stay within about 10 σ whatever the point spacing, a curve that crosses
+#: itself closes a loop as large as the curve: 20 σ lies between with room on both sides
+#: (docs/benchmarks.md, "Traced midlines"; tests/io/test_traces.py).
 _JITTER = 20.0
 #: How far (units of R) an aligned midline may stray to r < 0: noise near the pole, no more.
 _AXIS_SLACK = 0.05

@@ -22,18 +22,10 @@ corners between them read as noise, and bins of their neighbours cut the
 folds off.  Whatever the estimate, bins are therefore never longer than
 :data:`MAX_BIN` (k h ≤ 0.15 R), and points more than half of it apart are
 not binned at all: the midline between them is the cubic spline through
-them, vertices kept.  The bound is measured: the 60 synthetic inversion
-traces (½ px noise, 1.5 px spacing) subsampled at 15-200 points about equally
-spaced along them, with 0, 1 or 2 px of noise added, loaded with bins as
-before, without bins, and with bins bounded so, against the dense traces'
-midlines (rms, the median over the 60).  Up to 50 points bins made the
-midline worse (15 points: 0.088 R against 0.035 R without; 20: 0.075 against
-0.013 R; 30: 0.028 against 0.005 R; and 2-3 of 60 refused as asymmetric),
-from 100 points with noise better (100 points, 2 px: 0.012 against 0.021 R;
-200 points, 1 px: 0.005 against 0.011 R).  With the bound, sparse traces are
-read without bins, 100 points with noise nearly as well as before (0.014 R
-at 2 px) and 200 points and the dense traces themselves (bins of 4 points,
-0.045 R) exactly as before.
+them, vertices kept.  On subsampled synthetic traces, bins made sparse
+traces' midlines worse and noisy dense ones' better; with the bound, sparse
+traces are read without bins and dense ones as before (docs/benchmarks.md,
+"Traced midlines").
 """
 from __future__ import annotations
 

@@ -32,7 +32,7 @@ __all__ = ["Problem", "Params", "Structure", "BASE_KEYS", "MIN_SHELL_LENGTH", "M
 #: Thinnest shell accepted, h = H/R: below it the bending energy (∝ h³) falls under the
 #: solvers' round-off relative to the stretching energy, and Ipopt fails (h = 1e-12:
 #: Restoration_Failed) or meets NaN (1e-40) instead of saying so.  The BVP route solves
-#: down to here (h = 1e-6, cut 0.5: 6 s); the direct route from its default start down to
+#: down to here; the direct route from its default start down to
 #: 2e-5 (:data:`morphoshell.solvers.options.MIN_DIRECT_THICKNESS`; a failure below says so).
 MIN_THICKNESS = 1e-6
 
@@ -43,7 +43,7 @@ MIN_SHELL_LENGTH = 1e-3
 #: Smallest positive cut Σ, and opening P of a closed meridian, accepted (units of R): a
 #: free edge that close to the axis fails with statuses that name something else
 #: (Continuation_Failed, Meridian_Crosses_Axis, Restoration_Failed; raw CasADi warnings
-#: at 1e-300).  At 200 nodes every problem measured solved down to 3e-7 and the first
+#: at 1e-300).  At 200 nodes every problem tried solved down to 3e-7 and the first
 #: failed at 1e-7; finer meshes fail at larger cuts (5e-5 at 1600 nodes): docs/benchmarks.md,
 #: "model/problem.py".  0 is a pole.
 MIN_CUT = 1e-4

@@ -8,7 +8,7 @@ remembers its style, and the plot functions draw into it in that style
 
 A figure says what it shows in two places: a one-line title (the problem:
 name, family, theory) and a caption under the axes (parameters, method,
-what was measured, see :func:`add_caption`), so that the title never wraps
+what the data are, see :func:`add_caption`), so that the title never wraps
 or runs past the figure's edge.
 """
 from __future__ import annotations

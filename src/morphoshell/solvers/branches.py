@@ -364,8 +364,8 @@ def switch_branch(branch: Branch, at: int, direction: float = 1.0, *,
 
 def _checked(branch: Branch) -> Branch:
     """``branch``, with a warning where the shapes it shows (its events and its end: the
-    plot's panels) have walls that pass through each other (:mod:`.contact`; every point
-    would cost ~6 ms each, a third of the walk)."""
+    plot's panels) have walls that pass through each other (:mod:`.contact`; checking
+    every point would cost a third of the walk: docs/benchmarks.md, "solvers/branches.py")."""
     shown = [pt for pt in branch.points if pt.event] + [branch.end]
     where = sorted({pt.tau for pt in shown if wall_contact(pt.equilibrium) is not None})
     if where:

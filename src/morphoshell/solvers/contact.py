@@ -70,7 +70,7 @@ class WallContact:
 
 def wall_contact(eq: Equilibrium) -> WallContact | None:
     """The closest approach of points of ``eq`` more than :data:`FAR` h apart along s,
-    measured against the walls' thickness; None if no such points are within it.
+    compared with the walls' thickness; None if no such points are within it.
 
     Parameters
     ----------

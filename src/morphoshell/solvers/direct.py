@@ -57,7 +57,8 @@ RESIDUAL_RATIO_CAP = 1e-7
 #: Distance from a weakly singular pole (units of R) within which r < 0 is the model's own
 #: local solution and not refused (:meth:`DirectSolver._axis_crossing`): the reference
 #: routes' default pole offset ε, inside which they too take the local solution as it is.
-#: Measured crossings reach 1.8e-6 R (h = 0.95, k = 0.8); elsewhere r < 0 is refused.
+#: The thick spheres' crossings lie far inside it (docs/benchmarks.md, "solvers/direct.py");
+#: elsewhere r < 0 is refused.
 POLE_ZONE = 1e-4
 
 #: Counts every DirectSolver built in this process (see ``morphoshell.solvers.routes.cache_info``).
@@ -184,7 +185,7 @@ class DirectSolver:
         :mod:`morphoshell.numerics.newton`, "Cold starts"), so Ipopt is set up only
         when needed.
     tol : float
-        In (0, 1e-4] (:data:`~morphoshell.solvers.options.MAX_DIRECT_TOL`, measured there):
+        In (0, 1e-4] (:data:`~morphoshell.solvers.options.MAX_DIRECT_TOL`, which says why):
         Ipopt's convergence tolerance (on the scaled KKT error) at N = 800;
         it grows like the square of the number of points on finer meshes, as
         does the round-off floor of the discrete gradient.  So does the tolerance of Ipopt's

@@ -2,7 +2,7 @@
 value (a TypeError for an argument of the wrong kind), instead of a late solver status
 that blames something else, or a tolerance ignored.
 
-The ranges of the tolerances were measured (docs/benchmarks.md, "solvers/options.py"):
+The ranges of the tolerances, and why (the runs: docs/benchmarks.md, "solvers/options.py"):
 
 * direct ``tol`` ∈ (0, :data:`MAX_DIRECT_TOL`]: at 1e-3 the solver stops as far from the
   equilibrium as the discretisation error of 200 nodes, at 1 it may accept the undeformed
@@ -48,7 +48,7 @@ POLE_OFFSET = (1e-6, 0.1)
 #: closed at 800 nodes; 1e-5 on every mesh), while 100 nodes refined by warm starts
 #: (rtol) still solve a classical shell at 1e-6.  A failure below it says so
 #: (:func:`thin_shell_note`).  The BVP route solves down to
-#: :data:`~morphoshell.model.problem.MIN_THICKNESS` (h = 1e-6 cut 0.5: 6 s).
+#: :data:`~morphoshell.model.problem.MIN_THICKNESS`.
 MIN_DIRECT_THICKNESS = 2e-5
 #: How the direct route certifies a minimum (:class:`morphoshell.numerics.ipopt.IpoptBackend`).
 STABILITY = ("auto", "exact", "off")

@@ -88,14 +88,12 @@ def energy_floor(h: float, stress_free: bool = False) -> float:
     A stress-free shell (``stress_free``: its family's neutral parameters,
     :func:`morphoshell.solvers.paths.stress_free`) has energy 0, and its discrete energy
     is the discretisation error of that zero: the stretching energy (C/2) h E² of the
-    strains E by which the mesh misrepresents the undeformed shell (measured ∝ h: 1.7e-12
-    at h = 0.3, 9.6e-15 at 0.01, 1.2e-16 C R² at 10⁻⁴ on 100 nodes, falling 64-fold per
-    doubling).  Relative to the round-off floor it read as errors of 25 (2500 %) and
-    drove rtol to thousands of nodes for a shape exact on 200.  Its scale is the
-    stretching energy of a unit strain, h (C R²): the relative error is then the squared
-    strain error, at most 2e-7 on 50 nodes and 6e-11 on 200 for h from 0.3 to 10⁻⁴.  (A
-    stressed shell's scale cannot be h: a thin one's bending energy, ∝ h³, would be
-    deflated by h⁻².)
+    strains E by which the mesh misrepresents the undeformed shell, ∝ h.  Relative to the
+    round-off floor it read as errors of many times the energy and drove rtol to
+    thousands of nodes for a shape exact on 200.  Its scale is the stretching energy of a
+    unit strain, h (C R²): the relative error is then the squared strain error, tiny on
+    any mesh (docs/benchmarks.md, "solvers/results.py").  (A stressed shell's scale
+    cannot be h: a thin one's bending energy, ∝ h³, would be deflated by h⁻².)
     """
     if stress_free:
         return float(h)

@@ -381,8 +381,8 @@ def _fit_from_others(task: CampaignTask, hold: dict, data, others: list[Candidat
     branch, while from the late-stage multi-start (7.6 R at the start) it converged at
     0.032 R.  The other starts are fitted by the gradient method whatever the
     campaign's: a KKT fit from a far start fails or falls back to it (the KKT fit's
-    routes), and so tried the KKT campaign with held values took 365 s instead of about
-    half that (flat t07-t09, a hopeless hypothesis there, tried from every start).
+    routes), and a hopeless hypothesis tried from every start by KKT doubled a
+    campaign's time (docs/benchmarks.md, "Campaigns").
     Each fit tried is recorded in ``rec["other_starts"]``; ``started_from`` names the
     winner's start (a winner of another method says so: ``fitted_by``).
     """
