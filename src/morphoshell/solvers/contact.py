@@ -114,7 +114,7 @@ def half_thickness(eq: Equilibrium) -> np.ndarray:
 def _close_pairs(points: np.ndarray, radius: float) -> np.ndarray:
     """The pairs (i, j), i < j, of ``points`` (shape (n, 2)) closer than ``radius``, shape
     (k, 2): all distances in blocks of rows up to :data:`BRUTE_POINTS` points (no scipy
-    import in a solve: 0.1-0.4 s of a fresh process), a k-d tree above (O(n log n))."""
+    import in a solve: a fresh process's start-up time), a k-d tree above (O(n log n))."""
     if len(points) > BRUTE_POINTS:
         from scipy.spatial import cKDTree
 
