@@ -258,11 +258,10 @@ def _fit(args) -> int:
             print(refit_lines(before, result))
             limit = EVALUATION_LIMITS["gradient"][1]      # (the refit's: profile_intervals)
         print(profile_table(result, profiles))
-    out = Outputs()
+    out, far = Outputs(), far_above(result.E_fit)
     out.add(args.json, lambda path: write_json(path, {
         **result.to_dict(), **fit_record(args, limit),
-        "input_check": (f"{far_above(result.E_fit)}; {MISFIT}" if far_above(result.E_fit)
-                        else None),
+        "input_check": f"{far}; {MISFIT}" if far else None,
         **(starts.to_dict() if starts is not None else {}),
         **(profile_json(profiles, before, result) if profiles else {})}))
     out.add(args.csv, lambda path: write_csv(path, csv_columns(result)))
