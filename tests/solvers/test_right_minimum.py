@@ -262,6 +262,25 @@ def test_bvp_runs_within_its_time_budget():
     assert exc.value.status == "Time_Limit_Exceeded"
 
 
+def test_bvp_time_out_keeps_its_last_iterate(monkeypatch):
+    # A clock that ticks once per reading makes the time-out land after a
+    # fixed number of solve_bvp callbacks, whatever the machine's speed.
+    from morphoshell.solvers import bvp
+    problem = Problem("uniform", {"k": 0.0}, h=0.3, cut=0.3)
+    converged = solve(problem, method="bvp")
+    ticks = iter(range(10**9))
+    monkeypatch.setattr(bvp, "time", type("Clock", (), {"perf_counter": lambda: next(ticks)}))
+    with pytest.raises(SolverError) as exc:
+        solve(problem, method="bvp", max_seconds=12)
+    last = exc.value.last_iterate
+    assert exc.value.status == "Time_Limit_Exceeded" and "last iterate is attached" in str(exc.value)
+    assert last is not None and not last.converged and last.solver.status == "Time_Limit_Exceeded"
+    # an iterate on a whole mesh from the cut to the pole's offset, near the
+    # converged energy (0.0398 C R^2 here; the iterates differ from it at 1e-8)
+    assert last.s[0] == pytest.approx(0.3) and last.s[-1] == pytest.approx(np.pi - 1e-4)
+    assert last.energy == pytest.approx(converged.energy, rel=1e-3)
+
+
 def test_neutral_problem():
     p = Problem("volvox", h=0.15, opening=0.3)
     n = neutral_problem(p)

@@ -52,7 +52,7 @@ from ..numerics.mesh import graded_mesh
 from ..numerics.status import BVP_STATUSES, TIME_LIMIT_EXCEEDED, explain
 from .options import check_bvp_options
 from .poles import PoleSolution, pole_solutions
-from .results import FIELDS, Equilibrium, SolverError, SolverStats
+from .results import FIELDS, Equilibrium, SolverError, SolverStats, unconverged
 
 __all__ = ["solve_bvp", "pontryagin_functions", "pole_solutions", "pole_state",
            "pole_costates", "pole_caps", "initial_state", "to_equilibrium", "neutral_path"]
@@ -216,7 +216,11 @@ MAX_SECONDS = 30.0
 
 
 class _OutOfTime(Exception):
-    pass
+    """Raised inside ``solve_bvp``'s callback; carries the last iterate (or None)."""
+
+    def __init__(self, last: Equilibrium | None = None):
+        super().__init__()
+        self.last = last
 
 
 def solve_bvp(problem: Problem, nodes: int = 400, *, tol: float = 1e-8, bc_tol: float | None = None,
@@ -258,7 +262,9 @@ def solve_bvp(problem: Problem, nodes: int = 400, *, tol: float = 1e-8, bc_tol: 
     SolverError
         ``solve_bvp`` did not converge (``.status`` is its message, a key of
         :data:`morphoshell.numerics.status.STATUSES`), ran out of time
-        (``"Time_Limit_Exceeded"``), or a pole is not regular
+        (``"Time_Limit_Exceeded"``; ``.last_iterate`` is the last iterate
+        on a whole mesh, or the previous homotopy step's solution), or a
+        pole is not regular
         (``"Pole_Analysis_Failed"``).
     ValueError
         An option out of its range (``tol`` and ``bc_tol`` in [1e-11, 1e-3],
@@ -275,11 +281,13 @@ def solve_bvp(problem: Problem, nodes: int = 400, *, tol: float = 1e-8, bc_tol: 
         try:
             current, iters = _solve_one(sub, nodes, tol, bc_tol if bc_tol is not None else tol,
                                         current, pole_offset, max_nodes, deadline)
-        except _OutOfTime:
+        except _OutOfTime as out:
+            last = out.last if out.last is not None else current
             raise SolverError(
                 f"solve_bvp on {problem.name or problem.family!r} ran out of its time budget "
-                f"({max_seconds:g} s; max_seconds=...): {explain(TIME_LIMIT_EXCEEDED)}",
-                TIME_LIMIT_EXCEEDED) from None
+                f"({max_seconds:g} s; max_seconds=...): {explain(TIME_LIMIT_EXCEEDED)}"
+                + ("; the last iterate is attached (.last_iterate)" if last is not None else ""),
+                TIME_LIMIT_EXCEEDED, None if last is None else unconverged(last)) from None
         total_iters += iters
     seconds = time.perf_counter() - t0
     st = current.solver
@@ -317,10 +325,16 @@ def _solve_one(problem: Problem, nodes: int, tol: float, bc_tol: float,
     y0 = initial_state(s, geo, guess, costates, p)
     n_unknown = 2 * (start_pole + end_pole)
 
-    # solve_bvp passes the unknowns q only when there are some (poles).
+    # solve_bvp passes the unknowns q only when there are some (poles).  Its
+    # iterates are not returned on a time-out, so the last one seen on a whole
+    # mesh (a call from a to b; the others are at collocation points) is kept.
+    seen = {}
+
     def fun(x, y, *q):
         if time.perf_counter() > deadline:
-            raise _OutOfTime
+            raise _OutOfTime(equilibrium(**seen, status=TIME_LIMIT_EXCEEDED) if seen else None)
+        if x[0] == a and x[-1] == b:
+            seen.update(x=x.copy(), y=y.copy(), q=np.array(q[0] if q else ()))
         return rhs(x, y, p)
 
     def fun_jac(x, y, *q):
@@ -366,17 +380,19 @@ def _solve_one(problem: Problem, nodes: int, tol: float, bc_tol: float,
         q0 += list(poles["start"].fit(eps, y0[ir, 0], y0[ip, 0]))
     if end_pole:
         q0 += list(poles["end"].fit(eps, y0[ir, -1], np.pi - y0[ip, -1]))
+    def equilibrium(x, y, q, status, niter=0, rms=None, converged=False):
+        details = {"max_rms_residual": float(np.max(rms)) if rms is not None and rms.size else 0.0,
+                   "pole_offset": eps}
+        end_energy = pole_integrals("end", q[-2:])[0] if end_pole else 0.0
+        stats = SolverStats("bvp", niter, time.perf_counter() - t0, status, len(x), 0.0, details)
+        return to_equilibrium(problem, x, y, p, controls, local, end_energy, stats, converged)
+
     t0 = time.perf_counter()
     sol = scipy.integrate.solve_bvp(fun, bc, s, y0, p=np.array(q0) if q0 else None,
                                     fun_jac=fun_jac, tol=tol, bc_tol=bc_tol, max_nodes=max_nodes)
-    seconds = time.perf_counter() - t0
-    details = {"max_rms_residual": float(np.max(sol.rms_residuals)) if sol.rms_residuals.size else 0.0,
-               "pole_offset": eps}
-    end_energy = pole_integrals("end", sol.p[-2:])[0] if end_pole else 0.0
     status = BVP_STATUSES[sol.status]     # scipy's message for it, as a key of the table
-    eq = to_equilibrium(problem, sol.x, sol.y, p, controls, local, end_energy,
-                         SolverStats("bvp", int(sol.niter), seconds, status, len(sol.x), 0.0,
-                                     details), sol.status == 0)
+    eq = equilibrium(sol.x, sol.y, sol.p if sol.p is not None else np.zeros(0), status,
+                     int(sol.niter), sol.rms_residuals, sol.status == 0)
     if sol.status != 0:
         raise SolverError(f"solve_bvp failed on {problem.name or problem.family!r}: {sol.message} "
                           f"(status {sol.status}): {explain(status)}; the last iterate is attached "
