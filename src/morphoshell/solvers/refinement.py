@@ -154,9 +154,11 @@ def derived_errors(measure: Callable[..., dict], *fine: Equilibrium) -> tuple[di
     values = measure(*fine)
     for eq in fine:
         if eq.error is None or not eq.error.levels:
+            name = eq.problem.name or eq.problem.family
             why = (eq.error.note if eq.error is not None and eq.error.note else
-                   f"the {eq.solver.method} solution of {eq.problem.name or eq.problem.family}"
-                   f" carries no coarser levels")
+                   f"the {eq.solver.method} route makes no error estimate (the direct one does)"
+                   if eq.solver.method != "direct" else
+                   f"the solution of {name} carries no coarser levels (one from solve() does)")
             return {k: float("nan") for k in values}, why
     depth = min(len(eq.error.levels) for eq in fine)
     levels = [measure(*(eq.error.levels[i] for eq in fine)) for i in range(depth)]
