@@ -134,6 +134,12 @@ class ErrorEstimate:
         Why there is no estimate, if there is none (errors are then NaN).
     energy_floor : float
         The smallest energy scale of relative errors (C R²; :func:`energy_floor`).
+    levels : tuple of Equilibrium
+        The coarser solutions compared with: the half mesh's, then the quarter mesh's
+        where there is one (empty without an estimate).  Kept so that a quantity derived
+        from the solution, such as an ablation's observables, is estimated from the same
+        levels (:func:`morphoshell.solvers.refinement.derived_errors`) without solving
+        them again; neither written out nor compared.
     """
 
     errors: Mapping[str, float]
@@ -143,6 +149,7 @@ class ErrorEstimate:
     order: int
     note: str = ""
     energy_floor: float = ENERGY_FLOOR
+    levels: tuple = field(default=(), repr=False, compare=False)
 
     def relative(self) -> dict[str, float]:
         """Errors relative to their scale: the energy to max(|𝓔|, ``energy_floor``), edge

@@ -94,7 +94,7 @@ import numpy as np
 
 from .._runtime.console import counter
 from ..mechanics.ablation import UNITS as ABLATION_UNITS
-from ..mechanics.ablation import edge_state, intact_problem
+from ..mechanics.ablation import intact_problem, measure
 from ..model.problem import BASE_KEYS, Problem
 from ..model.profiles import ENTRY_POINT_GROUP, FAMILIES
 from ..numerics.mesh import mesh_spec
@@ -103,7 +103,7 @@ from ..solvers.continuation import HARD_STEP, continue_to
 from ..solvers.direct import DirectSolver, check_nodes, solver_of
 from ..solvers.contact import wall_contact
 from ..solvers.options import BVP_ADVICE, check_direct_options
-from ..solvers.observables import RECOIL, recoil
+from ..solvers.observables import RECOIL
 from ..solvers.refinement import (COARSE, coarse_level, half_mesh, level_errors, solve_from,
                                   too_coarse)
 from ..solvers.results import ESTIMATED, Equilibrium, ErrorEstimate, SolverError, energy_floor
@@ -433,13 +433,9 @@ def _midpoint(a: Problem, b: Problem, a_anchors, b_anchors):
 
 
 def _measure(problem: Problem, pre: Equilibrium, post: Equilibrium) -> dict[str, float]:
-    """The observables of :class:`~morphoshell.mechanics.ablation.Ablation` (as ``ablate`` measures them)."""
-    sigma = problem.cut
-    obs = recoil(edge_state(pre, sigma), edge_state(post, sigma))
-    removed = pre.energy_between(pre.s[0], sigma)
-    return {**{k: float(obs[k]) for k in RECOIL},
-            "energy_released": float(post.energy - (pre.energy - removed)),
-            "energy_removed": float(removed)}
+    """The observables of :class:`~morphoshell.mechanics.ablation.Ablation`, as ``ablate``
+    measures them (:func:`~morphoshell.mechanics.ablation.measure`)."""
+    return measure(problem.cut, pre, post)
 
 
 def _estimate(shells: Sequence[tuple[_Shell, Problem, tuple, Equilibrium]], measure,
