@@ -331,10 +331,10 @@ def test_json_names_the_far_end_opening_axis_as_its_column():
 def test_progress_counts_points(monkeypatch, recorded_bar):
     """The bar counted chunks: a sweep of up to 31 points is one chunk, and sat at 0/1 to
     the end (user audit).  It counts points, each as it is solved."""
-    from morphoshell.workflows import sweeps
+    from morphoshell.workflows import sweep_runs
 
     seen, counter = recorded_bar
-    monkeypatch.setattr(sweeps, "counter", counter)
+    monkeypatch.setattr(sweep_runs, "counter", counter)
     sweep(TOY2, {"k": [0.0, 0.5, 1.0]}, nodes=30, workers=1, errors="none")
     assert seen == [(3, "point"), 1, 1, 1]
 
