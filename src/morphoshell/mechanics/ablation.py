@@ -152,10 +152,7 @@ class Ablation:
         """
         if self.errors is None:
             return {}
-        neutral = stress_free(self.pre.problem) and stress_free(self.problem)
-        scales = _scales(self.observables(), 1.0 if neutral else SCALE_FLOOR,
-                         energy_floor(self.problem.h, neutral))
-        return {k: float(v / scales[k]) for k, v in self.errors.items()}
+        return relative_errors(self.observables(), self.errors, self.pre.problem, self.problem)
 
     def to_dict(self, arrays: bool = True) -> dict:
         """JSON-ready: problem, observables, their units (:data:`UNITS`, the problem's lengths in
@@ -339,6 +336,30 @@ def _measured(problem: Problem, pre: Equilibrium, post: Equilibrium) -> Ablation
     errors, note = derived_errors(lambda a, b: measure(problem.cut, a, b), pre, post)
     return Ablation(problem=problem, pre=pre, post=post,
                     **measure(problem.cut, pre, post), errors=errors, error_note=note)
+
+
+def relative_errors(values: Mapping[str, float], errors: Mapping[str, float], intact: Problem,
+                    problem: Problem) -> dict[str, float]:
+    """``errors`` of an ablation's observables ``values`` relative to their scales
+    (:meth:`Ablation.relative_errors`, which says which; shared with sweeps).
+
+    Parameters
+    ----------
+    values : mapping
+        Every observable (:func:`measure`).
+    errors : mapping
+        Absolute errors of some of them.
+    intact, problem : Problem
+        The shell before and after the cut.
+
+    Returns
+    -------
+    dict
+        Dimensionless, by key of ``errors``.
+    """
+    neutral = stress_free(intact) and stress_free(problem)
+    scales = _scales(values, 1.0 if neutral else SCALE_FLOOR, energy_floor(problem.h, neutral))
+    return {k: float(v / scales[k]) for k, v in errors.items()}
 
 
 def _scales(values: Mapping[str, float], floor: float, energy: float) -> dict[str, float]:
