@@ -245,3 +245,24 @@ def test_traces_over_their_average_show_each_ones_distance_from_the_others():
     assert rms.argmax() == 3 and rms[3] > 10 * np.median(rms)
     assert "(far)" in get_caption(bottom)
     plt.close(fig)
+
+
+def test_plot_fit_of_a_fit_read_back_says_what_it_lacks():
+    """A fit read back from its JSON has no equilibrium to draw: said, not an AttributeError."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from morphoshell.fitting import FitResult, volvox_spec
+    from morphoshell.fitting.results import fit_result
+    from morphoshell.plotting import plot_fit
+
+    spec = volvox_spec("free")
+    eq = SimpleNamespace(problem=spec.base)
+    inner = SimpleNamespace(solve=lambda theta: eq, residuals=lambda eq: np.full(200, 1e-3),
+                            jacobian=lambda eq, theta: np.eye(200, len(spec.fitted)),
+                            data=np.ones((100, 2)), n=100, solves=1)
+    back = FitResult.from_dict(fit_result("gradient", spec, inner, spec.theta0, 5, 0.1, True,
+                                          "").to_dict())
+    with pytest.raises(ValueError, match="fit read back from its JSON .*solve result.problem"):
+        plot_fit(back)
