@@ -266,3 +266,24 @@ def test_plots_on_a_callers_panel_stay_inside_it():
     assert "recoil at s" in get_caption(ax)
     assert ax.get_legend().get_window_extent().x0 > ax.get_window_extent().x1
     plt.close(ax.figure)
+
+
+def test_plot_fit_of_a_fit_read_back_says_what_it_lacks():
+    """A fit read back from its JSON has no equilibrium to draw: said, not an AttributeError."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from morphoshell.fitting import FitResult, volvox_spec
+    from morphoshell.fitting.results import fit_result
+    from morphoshell.plotting import plot_fit
+
+    spec = volvox_spec("free")
+    eq = SimpleNamespace(problem=spec.base)
+    inner = SimpleNamespace(solve=lambda theta: eq, residuals=lambda eq: np.full(200, 1e-3),
+                            jacobian=lambda eq, theta: np.eye(200, len(spec.fitted)),
+                            data=np.ones((100, 2)), n=100, solves=1)
+    back = FitResult.from_dict(fit_result("gradient", spec, inner, spec.theta0, 5, 0.1, True,
+                                          "").to_dict())
+    with pytest.raises(ValueError, match="fit read back from its JSON .*solve result.problem"):
+        plot_fit(back)

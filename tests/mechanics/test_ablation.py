@@ -34,6 +34,23 @@ def test_recoil_jacobian_names_its_rows_and_still_unpacks():
         result.row("energy_released")
 
 
+def test_an_ablation_pickles_and_its_derivatives_survive():
+    """A user audit: ablate's result did not pickle (its equilibria's problems and solvers).
+    Unpickled, its observables and recoil_jacobian (which needs both states' solvers,
+    rebuilt from their meshes) are the original's, to the bit."""
+    import pickle
+
+    import numpy as np
+
+    from morphoshell.mechanics.ablation import recoil_jacobian
+
+    ab = ablate(Problem("uniform", {"k": 0.5}, h=0.2, cut=0.3), nodes=50)
+    back = pickle.loads(pickle.dumps(ab))
+    assert back.problem == ab.problem and back.observables() == ab.observables()
+    for a, b in zip(recoil_jacobian(back, ["k", "h"]), recoil_jacobian(ab, ["k", "h"])):
+        assert np.array_equal(a, b)
+
+
 # --------------------------------------------------------------------------
 # the observables' error estimates (audit 8, F5)
 # --------------------------------------------------------------------------

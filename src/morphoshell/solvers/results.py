@@ -290,6 +290,18 @@ class Equilibrium:
     #: keep solvers alive); see :func:`morphoshell.solvers.direct.solver_of`.
     source: Any = field(default=None, repr=False)
 
+    def __getstate__(self) -> dict:
+        """Pickled with every field, but the weak reference to its solver replaced by
+        :func:`_released` (a weak reference does not pickle, and a solver stays in its
+        process): the mesh and stages stay, so :func:`morphoshell.solvers.direct.solver_of`
+        builds a solver of the same mesh where one is needed, as for a result whose solver
+        was garbage-collected, and warm starts, observables and derivatives of the
+        unpickled result are those of the original."""
+        state = dict(self.__dict__)
+        if self.source is not None:
+            state["source"] = (_released, *self.source[1:])
+        return state
+
     def __repr__(self) -> str:
         return (f"Equilibrium({self.problem.name or self.problem.family!r}, "
                 f"energy={self.energy:.10g}, points={len(self.s)}, method={self.solver.method!r}, "
@@ -480,6 +492,12 @@ class Equilibrium:
         if arrays:
             out.update({k: getattr(self, k).tolist() for k in FIELDS})
         return out
+
+
+def _released() -> None:
+    """The solver reference of an unpickled result (:meth:`Equilibrium.__getstate__`): like a
+    dead weak reference, it gives None."""
+    return None
 
 
 def unconverged(eq: Equilibrium) -> Equilibrium:
