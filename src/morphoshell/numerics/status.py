@@ -41,7 +41,7 @@ __all__ = ["STATUSES", "BVP_STATUSES", "SolverError", "NotAMinimumError", "expla
            "BVP_SINGULAR_JACOBIAN", "BVP_BOUNDARY_CONDITIONS", "SHOOTING_SUCCEEDED",
            "SHOOTING_ILL_CONDITIONED", "SHOOTING_NOT_CONVERGED", "SHOOTING_INTEGRATION_FAILED",
            "FIT_SADDLE", "FIT_NOT_REPRODUCED", "GAUSS_NEWTON_STOPPED", "FIT_CONVERGED",
-           "MAXIMUM_EVALUATIONS_EXCEEDED", "FIT_STALLED", "FIT_NOT_STATIONARY", "FIT_NEAR_FOLD",
+           "MAXIMUM_EVALUATIONS_EXCEEDED", "FIT_STALLED", "NOT_COMPUTED", "FIT_NOT_STATIONARY", "FIT_NEAR_FOLD",
            "FIT_ON_BOX_EDGES", "FIT_MOVED_BOXES_FAILED", "FIT_NOT_MINIMUM", "STEP_NOT_SPLITTABLE",
            "RETRY_FINER"]
 
@@ -90,6 +90,8 @@ FIT_ON_BOX_EDGES = "Fit_On_Box_Edges"
 FIT_MOVED_BOXES_FAILED = "Fit_Moved_Boxes_Failed"
 FIT_NOT_MINIMUM = "Fit_Not_Minimum"
 STEP_NOT_SPLITTABLE = "Step_Not_Splittable"
+# a sweep's row that an interrupt left out (a partial file)
+NOT_COMPUTED = "Not_Computed"
 
 #: The advice of a finer mesh in solve()'s terms (a sweep words it its way).
 RETRY_FINER = "rtol, --rtol: retried on finer ones"
@@ -215,6 +217,9 @@ STATUSES: Mapping[str, str] = MappingProxyType({
     MAXIMUM_EVALUATIONS_EXCEEDED:
         "the evaluations ran out (max_iterations) before the tolerance was met: raise "
         "max_iterations, or start nearer the optimum (from a gradient fit's parameters)",
+    NOT_COMPUTED:
+        "not computed: the sweep was interrupted before this point (its partial file keeps the "
+        "rest; the same sweep with --resume computes it)",
     FIT_STALLED:
         "the gradient fit stopped at its best point: trial points in a row failed their inner "
         "solve (a fold of the branch?): start nearer the data, or use Nelder-Mead",

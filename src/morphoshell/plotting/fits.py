@@ -91,7 +91,7 @@ def plot_fit(result, ax: Axes | None = None, *, residual_ax: Axes | None = None,
                          "its JSON (load_fit) does not hold: solve result.problem for it")
     if ax is None:
         ax, residual_ax = fit_axes()
-    problem = result.problem
+    problem = result.equilibrium.problem
     if caption == "auto":
         caption = _fit_caption(result) if title == "auto" else None
     if title == "auto":

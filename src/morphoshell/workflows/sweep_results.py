@@ -18,6 +18,7 @@ import numpy as np
 
 from .._runtime.tables import problem_attrs, xarray_module
 from ..model.problem import Problem
+from ..numerics.status import NOT_COMPUTED
 
 __all__ = ["SweepResult", "result_columns", "point_label", "NOT_COMPUTED"]
 
@@ -25,9 +26,6 @@ __all__ = ["SweepResult", "result_columns", "point_label", "NOT_COMPUTED"]
 _BOOK = ("status", "iterations", "path", "event", "walls_cross", "seconds", "message")
 #: A summary names at most this many points (and how many more).
 NAMED = 8
-#: The status of a row an interrupted sweep did not compute
-#: (:class:`~morphoshell.workflows.sweep_runs.SweepInterrupted`).
-NOT_COMPUTED = "Not_Computed"
 
 @dataclass(frozen=True, eq=False)
 class SweepResult:
