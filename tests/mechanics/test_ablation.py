@@ -1,4 +1,6 @@
 """ablate's arguments and recoil_jacobian's result (mechanics/ablation.py)."""
+import logging
+
 import pytest
 
 from morphoshell import Problem, SolverError, ablate, solve
@@ -145,3 +147,16 @@ def test_rtol_refines_both_states_until_the_observables_meet_it():
                                           "0.05 within 300 nodes") as info:
         ablate(SMALL, rtol=0.05, max_nodes=300)
     assert info.value.status == "Tolerance_Not_Met"
+
+
+def test_a_stress_free_caps_energy_is_not_read_as_unresolved(caplog):
+    # audit 12: the fast-relaxation example (the intact shell stress-free, the cut one
+    # not) warned that its removed cap's energy, 1e-15 C R^2 of a zero, was 58 % off:
+    # its scale was the round-off floor, not the intact shell's stress-free floor h
+    p = Problem("local_relaxation", {"F0": 0.35, "s0": 0.2}, h=0.3, cut=0.3)
+    with caplog.at_level(logging.WARNING, logger="morphoshell.mechanics.ablation"):
+        ab = ablate(p)
+    assert not [r for r in caplog.records if r.name == "morphoshell.mechanics.ablation"]
+    rel = ab.relative_errors()
+    assert abs(ab.energy_removed) < 1e-13 and rel["energy_removed"] < 1e-9
+    assert max(rel.values()) < 1e-5      # every observable resolved (1e-8-1e-7 by refinement)

@@ -178,9 +178,11 @@ def _ablation_lines(ab) -> list[str]:
     sign = (f"negative: the cut released {-delta:.4g} C R^2" if delta < 0 else
             "positive: the remaining shell gained energy, not a release (an active response?)"
             if delta > 0 else "zero")
-    head = (f"  observables +- their estimated errors (vs {ab.pre.error.reference_nodes} and "
-            f"{ab.post.error.reference_nodes} nodes; relative: lengths to d, others to "
-            f"themselves):" if errors and not ab.error_note else
+    pre, post = ab.pre.error.reference_nodes, ab.post.error.reference_nodes
+    levels = (f"both states on {pre} nodes and on half that" if pre == post else
+              f"the states on {pre} (before the cut) and {post} nodes (after) and on half that")
+    head = (f"  observables +- their estimated errors (from {levels}; relative: lengths to d, "
+            f"others to themselves):" if errors and not ab.error_note else
             f"  observables (error estimates unavailable: {ab.error_note or 'none made'}):")
     return [head, *(line(k, v, UNITS[k]) for k, v in recoil.items()),
             line("energy_pre", ab.pre.energy, "C R^2", "the intact shell, before the cut"),
