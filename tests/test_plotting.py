@@ -245,3 +245,45 @@ def test_traces_over_their_average_show_each_ones_distance_from_the_others():
     assert rms.argmax() == 3 and rms[3] > 10 * np.median(rms)
     assert "(far)" in get_caption(bottom)
     plt.close(fig)
+
+
+def test_plots_on_a_callers_panel_stay_inside_it():
+    # API audit 11: on a panel of the caller's grid the legend was drawn beside
+    # it (over the next panel) and the caption under it (over the panel below)
+    ab = ablate(Problem("uniform", {"k": 0.5}, h=0.1, cut=0.4), nodes=60)
+    fig, axs = plt.subplots(2, 2, figsize=(7, 6))
+    panels = [plot_ablation(ab, ax=axs[0, 0]),
+              plot_cross_section([ab.pre, ab.post], ax=axs[0, 1])]
+    fig.canvas.draw()
+    for ax in panels:
+        assert get_caption(ax) == ""
+        legend, box = ax.get_legend().get_window_extent(), ax.get_window_extent()
+        assert box.x0 <= legend.x0 and legend.x1 <= box.x1 and box.y0 <= legend.y0 <= legend.y1 <= box.y1
+    plt.close(fig)
+    # on its own figure: the caption under the axes and the legend beside them
+    ax = plot_ablation(ab)
+    ax.figure.canvas.draw()
+    assert "recoil at s" in get_caption(ax)
+    assert ax.get_legend().get_window_extent().x0 > ax.get_window_extent().x1
+    plt.close(ax.figure)
+
+
+def test_plot_fit_of_a_fit_read_back_says_what_it_lacks():
+    """A fit read back from its JSON has no equilibrium to draw: said, not an AttributeError."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from morphoshell.fitting import FitResult, volvox_spec
+    from morphoshell.fitting.results import fit_result
+    from morphoshell.plotting import plot_fit
+
+    spec = volvox_spec("free")
+    eq = SimpleNamespace(problem=spec.base)
+    inner = SimpleNamespace(solve=lambda theta: eq, residuals=lambda eq: np.full(200, 1e-3),
+                            jacobian=lambda eq, theta: np.eye(200, len(spec.fitted)),
+                            data=np.ones((100, 2)), n=100, solves=1)
+    back = FitResult.from_dict(fit_result("gradient", spec, inner, spec.theta0, 5, 0.1, True,
+                                          "").to_dict())
+    with pytest.raises(ValueError, match="fit read back from its JSON .*solve result.problem"):
+        plot_fit(back)

@@ -103,3 +103,20 @@ def test_a_ctrl_c_that_casadi_dropped_during_a_command_writes_nothing(default_ha
     monkeypatch.setattr(routes, "solve", solve)     # (without a Ctrl-C: written, exit 0)
     assert main(["solve", "problems/toy1_sphere.toml", "--nodes", "40",
                  "--json", str(out)]) == 0 and out.exists()
+
+
+def test_casadis_own_line_of_a_ctrl_c_is_dropped_from_stderr(default_handler, capsys):
+    """Ctrl-C within Ipopt printed CasADi's `WARNING("KeyboardInterruptException")` line above
+    the command's own one-line message (user audit 9).  Under noted() it is dropped, written
+    as CasADi writes it (in pieces, through sys.stderr); its other lines and the rest pass."""
+    import sys
+
+    pieces = ["CasADi - ", "2026", "-", "11", " WARNING(\"", "KeyboardInterruptException",
+              "\") [", ".../ipopt_nlp.cpp:132", "]\n", "morphoshell: interrupted", "\n",
+              "Cas", "ADi - 2026 WARNING(\"other\")\n", "50%\r"]
+    with noted():
+        for piece in pieces:
+            sys.stderr.write(piece)
+    assert capsys.readouterr().err == ("morphoshell: interrupted\n"
+                                       "CasADi - 2026 WARNING(\"other\")\n50%\r")
+    assert "Quiet" not in type(sys.stderr).__name__       # (restored)

@@ -121,6 +121,31 @@ def test_ablate_reports_observables(tmp_path, capsys):
     assert "(energy_post - (energy_pre - energy_removed), negative: the cut released " in printed
 
 
+def test_ablate_prints_and_writes_each_observables_error(tmp_path, capsys):
+    """Audit 8, F5: the observables had no estimate of their own.  Each is printed with its
+    estimated error (+- absolute, relative) and written to the JSON and CSV, equal to
+    Ablation.errors (printed to 2 digits)."""
+    import csv
+
+    from morphoshell.mechanics.ablation import OBSERVABLES
+
+    out, table = tmp_path / "a.json", tmp_path / "a.csv"
+    assert main(["ablate", str(TOY2), "--nodes", "100", "--json", str(out),
+                 "--csv", str(table)]) == 0
+    data = json.loads(out.read_text())
+    assert set(data["errors"]) == set(data["relative_errors"]) == set(OBSERVABLES)
+    assert data["error_note"] == ""
+    printed = dict(re.findall(r"^  (\w+) += \S+ [^+\n]*\+- (\S+) ",
+                              capsys.readouterr().out, re.M))
+    assert set(printed) == set(OBSERVABLES)
+    for k in OBSERVABLES:
+        assert data["relative_errors"][k] < 1e-4          # (toy problem 2 on 100 nodes: 1e-5)
+        assert float(printed[k]) == pytest.approx(data["errors"][k], rel=0.05)
+    with open(table, newline="") as f:
+        row = next(csv.DictReader(f))
+    assert all(float(row[f"{k}_error"]) == data["errors"][k] for k in OBSERVABLES)
+
+
 def test_ablate_needs_a_cut(capsys):
     assert main(["ablate", str(TOY2), "--set", "cut=0"]) == 2
     err = capsys.readouterr().err

@@ -388,39 +388,6 @@ def test_profile_noise_traces_takes_an_average_with_its_spread(tmp_path):
     assert data.n_traces == 5 and data.spread is not None
 
 
-def test_a_crossing_decided_by_an_unconverged_refit_is_noted():
-    """An unconverged refit's objective lies above the profile: where it is the first point
-    past the threshold, the interval may reach further, and the profile says so."""
-    from morphoshell.fitting.profiles import _unconverged_crossing
-    values, objective = [0.1, 0.2, 0.3], [1.0, 2.0, 9.0]
-    assert _unconverged_crossing("k", values, objective, [True, True, True], 3.0) == ""
-    note = _unconverged_crossing("k", values, objective, [True, True, False], 3.0)
-    assert "k = 0.3" in note and "did not converge" in note
-    # (an unconverged refit below the threshold does not decide the crossing)
-    assert _unconverged_crossing("k", values, objective, [True, False, True], 3.0) == ""
-
-
-def test_a_crossing_about_a_refit_below_the_fit_is_a_number():
-    """A refit lower than the fit by more than the threshold's height (σ² from the residual
-    of a replicate in scripts/check_profile_coverage.py): the fitted value lies outside its
-    threshold, and the crossing interpolated 0/0 (NaN and a RuntimeWarning).  Now the
-    crossing is found outward from the steps below the threshold, in √(S − S_min)."""
-    import warnings
-
-    from morphoshell.fitting.profiles import _crossing
-    start = (0.0, 4.0)                      # the fit: S = 4, the profile's least S = 1
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        # above: the fit's side rises from S = 1 at 1.0 to 9 at 3.0; threshold 5 (r = 2)
-        assert _crossing([1.0, 2.0, 3.0], [1.0, 2.0, 9.0], start, 1.0, 5.0, 1.0) == \
-            pytest.approx(2.0 + (2.0 - 1.0) / (np.sqrt(8.0) - 1.0))
-        # below: never below the threshold 2: the side ends at the fitted value
-        assert _crossing([-1.0, -2.0], [6.0, 8.0], start, -1.0, 2.0, 1.0) == 0.0
-        # the usual case is unchanged: the start is the minimum, r = √(S − 4)
-        assert _crossing([1.0, 2.0], [5.0, 13.0], start, 1.0, 8.0, 4.0) == \
-            pytest.approx(1.0 + (2.0 - 1.0) / (3.0 - 1.0))
-
-
 def test_a_refit_that_jumps_is_tried_again_from_the_optimum(monkeypatch):
     """A refit continued from the last step can end on another branch, far above the profile
     (the synthetic t05's κ₁ at 1.09: 13.8 threshold heights, 1.12 from the optimum).  Above

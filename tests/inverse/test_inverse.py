@@ -349,3 +349,18 @@ def test_inner_opening_matches_thin_shell_numerics():
                 nodes=800)
     assert ab.opening / inner["opening"] == pytest.approx(1.0, abs=A.delta(h))
     assert ab.rotation / inner["rotation"] == pytest.approx(1.0, abs=A.delta(h))
+
+
+def test_a_run_without_numerical_estimates_shows_only_the_methods_run():
+    # the README's call: only the asymptotic forms; the text and repr had put
+    # "null (rotation + displacement, numerical)" first, a method not run
+    result = I.estimate(str(TABLE), methods=("leading_order", "kelvin"))
+    assert repr(result) == ("InverseResult(14 embryos, methods leading_order, kelvin: no "
+                            "combined <k> (it needs 'numerical'))")
+    text = str(result)
+    assert " numerical  " not in text and "inner" not in text     # no summary rows of them
+    assert "k from rotation     asymptotic  -0.042 +- 0.143" in text
+    assert "none (it combines the numerical estimates; add 'numerical' to methods)" in text
+    # an embryo's row: the asymptotic k alone, not "null (-0.119)"
+    assert next(line for line in text.splitlines() if "S01" in line).split()[3:6] == [
+        "null", "-0.119", "+0.041"]

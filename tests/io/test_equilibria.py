@@ -26,7 +26,28 @@ def test_a_saved_solution_reads_back_field_for_field(saved):
     for key in FIELDS:
         assert np.array_equal(getattr(back, key), getattr(eq, key)), key
     assert back.solver.status == eq.solver.status and back.solver.nodes == eq.solver.nodes
-    assert back.x is None and back.error is None              # not saved: said in the docs
+    assert back.x is None                                     # not saved: said in the docs
+    assert back.error == eq.error and back.to_dict() == eq.to_dict()
+
+
+def test_a_saved_error_estimate_is_kept_also_one_that_was_unavailable(saved):
+    """to_dict writes error_estimate, which the reader dropped (a user audit): it is
+    rebuilt as written, also an unavailable one (NaN errors, null in a file, and its note),
+    and on a stress-free shell with that shell's energy floor."""
+    import math
+    from dataclasses import replace
+
+    from morphoshell.io.problem_files import to_jsonable
+    from morphoshell.solvers.refinement import estimate
+
+    eq = saved[0]
+    none = replace(eq, error=estimate(eq, None, 4, "the half mesh failed"))
+    back = equilibrium_of_record(json.loads(json.dumps(to_jsonable(none.to_dict()))))
+    assert back.error.note == "the half mesh failed"
+    assert all(map(math.isnan, back.error.errors.values()))
+    flat = solve(SHELL.with_updates(k=1.0), nodes=40)             # (stress free: floor h)
+    back = equilibrium_of_record(json.loads(json.dumps(flat.to_dict())))
+    assert back.error == flat.error and back.error.energy_floor == SHELL.h
 
 
 def test_a_saved_solution_starts_a_solve_on_its_branch(saved):
@@ -61,6 +82,17 @@ def test_a_broken_record_is_refused_naming_the_entry(saved, change, said):
     change(record)
     with pytest.raises(ValueError, match=said):
         equilibrium_of_record(record, "x.json")
+
+
+def test_a_fits_record_is_named_as_one(tmp_path):
+    """A user audit: a fit's JSON was refused as "a result saved without its arrays
+    (to_dict(arrays=False))", which points the wrong way."""
+    path = tmp_path / "fit.json"
+    path.write_text(json.dumps({"problem": SHELL.describe(), "parameters": {"k": 1.5},
+                                "E_fit": 1e-3, "fitted": ["k"]}))
+    with pytest.raises(ValueError, match=r"fit.json is a fit's record \(keys parameters, "
+                                         r"E_fit\).*load_fit.*fitted_problem"):
+        load_equilibrium(path)
 
 
 def test_a_file_that_is_not_a_result_is_named(tmp_path):

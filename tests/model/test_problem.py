@@ -47,3 +47,30 @@ def test_problems_hash_equal_when_equal_and_params_stay_a_dict():
 def test_a_name_that_is_not_a_string_is_refused(name):
     with pytest.raises(TypeError, match=rf"^name = {name!r} must be a string"):
         Problem("uniform", {"k": 0.0}, h=0.3, name=name)
+
+
+@pytest.mark.parametrize("problem", [
+    Problem("uniform", {"k": 0.0}, h=0.3, cut=0.3),
+    Problem("volvox", h=0.15, opening=0.3, theory="classical", name="v"),
+    Problem("central_growth", {"G": 0.2}, h=0.02, geometry="disc"),
+])
+def test_a_problem_pickles_as_its_declaration(problem):
+    """A user audit: pickle.dumps(Problem(...)) failed (its family object holds CasADi
+    functions, the sphere a lambda), so no process pool could take a problem.  It pickles
+    by name and comes back equal, bound to this process's registered objects."""
+    back = pickle.loads(pickle.dumps(problem))
+    assert back == problem and hash(back) == hash(problem) and repr(back) == repr(problem)
+    assert back.family_obj is problem.family_obj and back.geometry_obj is problem.geometry_obj
+    assert back.theory_obj is problem.theory_obj and type(back.params) is Params
+
+
+def test_a_problem_of_an_unregistered_family_is_refused_by_pickle_naming_it():
+    """By name another process would rebuild another problem (or none): said on pickling."""
+    from dataclasses import replace
+
+    from morphoshell.model.profiles import get_family
+
+    fam = replace(get_family("uniform"), _function={})     # (a copy, not the registered one)
+    with pytest.raises(pickle.PicklingError, match="its family 'uniform' is not the one "
+                                                   "registered under that name"):
+        pickle.dumps(Problem(fam, {"k": 0.0}, h=0.3))

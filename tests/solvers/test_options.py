@@ -32,6 +32,10 @@ def _refused(capfd, error, match, *args, **kwargs):
     # the wheel has no libhsl.so: Ipopt would fail with Invalid_Option at its first solve
     ({"linear_solver": "ma27"}, ValueError, r"linear_solver = 'ma27': Ipopt cannot load it.*"
                                             r"libhsl\.so"),
+    # ma97 without libhsl.so crashed Ipopt's probe (a segmentation fault): refused first
+    ({"linear_solver": "ma97"}, ValueError, r"linear_solver = 'ma97': Ipopt cannot load it "
+                                            r"\(libhsl\.so: cannot open"),
+    ({"linear_solver": "pardiso"}, ValueError, r"'pardiso': Ipopt cannot load it \(libpardiso"),
     ({"ipopt_options": {"tol": -1}}, ValueError,
      r"ipopt_options: tol = -1 is refused by Ipopt: .*valid: 0 < \(1e-08\) <= \+inf"),
     ({"ipopt_options": {"tolx": 1}}, ValueError, r"tolx = 1 is refused by Ipopt: No such IPOPT "

@@ -68,3 +68,18 @@ def test_a_stressed_shell_keeps_the_round_off_floor():
     assert eq.error.energy_floor == ENERGY_FLOOR
     assert eq.error.relative()["energy"] == eq.error.errors["energy"] / abs(eq.energy)
     assert "of the energy," in eq.error.summary()
+
+
+def test_derived_errors_of_the_estimated_values_are_the_estimate_itself():
+    """derived_errors is estimate's estimator applied to any measure of the kept levels: on
+    the edge values and energy it gives the solution's own errors to the bit (and after a
+    refinement by rtol too, whose levels refine_once chains)."""
+    from morphoshell.solvers.refinement import derived_errors
+
+    for eq in (solve(Problem("uniform", {"k": 0.0}, h=0.3, cut=0.3), nodes=50),
+               solve(Problem("uniform", {"k": 0.0}, h=0.3, cut=0.3), nodes=25, rtol=1e-7)):
+        errors, note = derived_errors(lambda e: e.estimated_values(), eq)
+        assert note == "" and errors == dict(eq.error.errors)
+        assert [lv.solver.nodes for lv in eq.error.levels] == \
+            [(eq.solver.nodes - 1) // 2 + 1, (eq.solver.nodes - 1) // 4 + 1]
+        assert all(lv.error is None for lv in eq.error.levels)   # (no chain of meshes)

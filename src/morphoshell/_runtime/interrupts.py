@@ -19,10 +19,16 @@ the work stops as on Ctrl-C (a campaign's workers killed, its one-line message)
 and the command line ends with exit status 143 (:func:`exit_status`).  Before,
 the process died at once with Python's ``resource_tracker`` warning of leaked
 semaphores and no word of what was done.
+
+CasADi also says so itself when Ipopt swallows a Ctrl-C: ``CasADi - <date>
+WARNING("KeyboardInterruptException") [.../ipopt_nlp.cpp:132]`` on standard error, a line
+above the command's own one-line message that reads like a fault.  Under :func:`noted`
+that line is dropped (:class:`_QuietStderr`); CasADi's other messages pass.
 """
 from __future__ import annotations
 
 import signal
+import sys
 import threading
 from contextlib import contextmanager
 from typing import Iterator
@@ -35,6 +41,51 @@ _received = [0]
 #: Whether a SIGTERM arrived under the last :func:`noted` (kept after it: the command line
 #: reads it once the work has unwound).
 _terminated = [False]
+
+
+#: What CasADi writes when Ctrl-C reaches it within Ipopt (the line :func:`noted` drops).
+CASADI_NOTE = 'WARNING("KeyboardInterruptException")'
+#: How CasADi's lines on standard error begin.
+_CASADI = "CasADi - "
+
+
+class _QuietStderr:
+    """Standard error without CasADi's line of a Ctrl-C it swallowed (:data:`CASADI_NOTE`).
+
+    CasADi writes through Python's ``sys.stderr`` in pieces (``"CasADi - <date>
+    WARNING(\""``, ``"KeyboardInterruptException"``, ...); a line that begins
+    ``"CasADi - "`` (or a write that may begin one) is held to its end and dropped if it
+    is that note.  Everything else passes at once (a progress bar's ``\\r`` updates are
+    not delayed).
+    """
+
+    def __init__(self, stream):
+        self._stream = stream
+        self._held = ""
+
+    def write(self, text: str) -> int:
+        n, text, self._held = len(text), self._held + text, ""
+        if not (text.startswith(_CASADI) or _CASADI.startswith(text)):
+            self._stream.write(text)
+            return n
+        line, newline, rest = text.partition("\n")
+        if not newline:
+            self._held = line
+        elif CASADI_NOTE not in line:
+            self._stream.write(line + newline)
+        if rest:
+            self.write(rest)
+        return n
+
+    def release(self):
+        """The stream, with a line held unfinished written out."""
+        if self._held:
+            self._stream.write(self._held)
+            self._held = ""
+        return self._stream
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
 
 
 class Terminated(KeyboardInterrupt):
@@ -87,7 +138,8 @@ def reason() -> str:
 @contextmanager
 def noted() -> Iterator[None]:
     """Count the Ctrl-Cs in the block (for :func:`swallowed`); they still raise
-    ``KeyboardInterrupt``, and a SIGTERM raises :class:`Terminated`.  Only where Python's
+    ``KeyboardInterrupt``, and a SIGTERM raises :class:`Terminated`; CasADi's own line of
+    a Ctrl-C is dropped from ``sys.stderr`` (:class:`_QuietStderr`).  Only where Python's
     default handler is in force, in the main thread (a notebook's kernel, or a program's
     own handler, keeps its own)."""
     if (threading.current_thread() is not threading.main_thread()
@@ -100,9 +152,12 @@ def noted() -> Iterator[None]:
     term = signal.getsignal(signal.SIGTERM) if hasattr(signal, "SIGTERM") else None
     if term == signal.SIG_DFL:
         signal.signal(signal.SIGTERM, _count_and_raise)
+    quiet = sys.stderr = _QuietStderr(sys.stderr)
     try:
         yield
     finally:
+        if sys.stderr is quiet:     # (else replaced in the block: left as it is)
+            sys.stderr = quiet.release()
         signal.signal(signal.SIGINT, signal.default_int_handler)
         if term == signal.SIG_DFL:
             signal.signal(signal.SIGTERM, signal.SIG_DFL)

@@ -31,7 +31,9 @@ def register(sub) -> None:
                     "started from the previous one (continuation from the stress-free "
                     "parameters at a chunk's first point), on the mesh `solve` and `ablate` "
                     "would use; chunks run in parallel (Dask if installed, else a process "
-                    "pool) and the numbers do not depend on the number of workers.")
+                    "pool) and the numbers do not depend on the number of workers. Ctrl-C "
+                    "(or SIGTERM) writes the points of the chunks finished, marked partial, "
+                    "and exits 130 (143); --resume computes the rest.")
     p.add_argument("problem", metavar="PROBLEM.toml",
                    help="problem file (`morphoshell example NAME` prints one to start from)")
     p.add_argument("--set", dest="overrides", action="append", default=[],
@@ -68,6 +70,10 @@ def register(sub) -> None:
                         "on the last line; their rows are written either way)")
     add_outputs(p, json="write the sweep (problem, axes, units, timing, rows) as JSON",
                 csv="write one row per point as CSV (units: docs, 'Sweeps')")
+    p.add_argument("--resume", action="store_true",
+                   help="complete an interrupted sweep: keep the points of the --json file "
+                        "(else --csv) that it wrote, marked partial, and compute only the "
+                        "others (refused if made with other settings; no file: all points)")
     p.set_defaults(run=_sweep)
 
 
@@ -162,7 +168,7 @@ def _range(item: str, key: str, value: str, max_points: int) -> tuple[str, list]
 def _sweep(args) -> int:
     from ..io.problem_files import (ProblemFileError, apply_overrides, load_problem, settings_from,
                                     split_overrides, write_csv, write_json)
-    from ..workflows.sweeps import sweep
+    from ..workflows.sweeps import SweepInterrupted, sweep
 
     problem, settings = load_problem(args.problem)
     axes, scalars = parse_axes(args.overrides, args.max_points)
@@ -181,9 +187,13 @@ def _sweep(args) -> int:
     nodes = settings.nodes if args.nodes is None else args.nodes
     stages = settings.stages if args.stages is None else args.stages
     # every point is validated before any work (ValueError naming it: exit status 2)
-    result = sweep(problem, axes, ablate=args.ablate, nodes=nodes, workers=args.workers,
-                   scheduler=args.scheduler, errors=args.errors, chunk_size=args.chunk_size,
-                   stages=stages, linear_solver=args.linear_solver)
+    try:
+        result = sweep(problem, axes, ablate=args.ablate, nodes=nodes, workers=args.workers,
+                       scheduler=args.scheduler, errors=args.errors, chunk_size=args.chunk_size,
+                       stages=stages, linear_solver=args.linear_solver,
+                       resume=_resume_file(args))
+    except SweepInterrupted as exc:         # Ctrl-C or SIGTERM: how far it got, on one line
+        return _interrupted(exc, args)
     _print_table(result, problem, nodes, args)
     out = Outputs()
     out.add(args.csv, lambda path: write_csv(path, result.columns))
@@ -193,6 +203,38 @@ def _sweep(args) -> int:
     if result.failed:
         print(_verdict(result, args.allow_failures))
     return 3 if result.failed and not args.allow_failures else 0
+
+
+def _resume_file(args):
+    """The file --resume reads: the --json file if there is one, else the --csv file (None
+    without --resume); ValueError without either option."""
+    if not args.resume:
+        return None
+    given = [path for path in (args.json, args.csv) if path is not None]
+    if not given:
+        raise ValueError("--resume needs the --csv or --json file of the interrupted sweep")
+    return next((path for path in given if path.exists()), given[0])
+
+
+def _interrupted(exc, args) -> int:
+    """Write the points of an interrupted sweep, marked partial, and say so on one line
+    (as campaign's); the exit status of an interruption (130, 143 after SIGTERM)."""
+    import sys
+
+    from .._runtime import interrupts
+
+    interrupts.swallowed()      # (claimed: the outputs' commit would raise it again)
+    out = Outputs()
+    if exc.done:        # (nothing computed: an earlier file stays as it was)
+        out.add(args.csv, exc.write)
+        out.add(args.json, exc.write)
+    paths = out.commit()
+    where = (f"; kept in {' and '.join(map(str, paths))}, marked partial: the same command "
+             f"with --resume computes the rest" if paths else
+             "; not kept: no --csv or --json" if exc.done else
+             "; no chunk finished: no file written")
+    print(f"morphoshell: {exc}{where}", file=sys.stderr)
+    return interrupts.exit_status()
 
 
 #: A flag column's value where a row has nothing to flag.
@@ -207,12 +249,14 @@ def _print_table(result, problem, nodes: int, args) -> None:
     t = result.timing
     what = "ablations" if args.ablate else "equilibria"
     shape = " x ".join(f"{len(v)} {k}" for k, v in result.axes.items())
-    per = t["seconds"] / len(result)
+    computed = len(result) - t["restored"]
+    per = t["seconds"] / max(computed, 1)
     workers = "a Dask scheduler" if args.scheduler else \
         f"{t['workers']} {'worker' if t['workers'] == 1 else 'workers'} ({t['backend']})"
+    kept = f", {t['restored']} restored by --resume" if t["restored"] else ""
     print(f"{problem.name or problem.family}: sweep of {len(result)} {what} ({shape}), "
           f"{nodes} nodes, in {t['chunks']} chunks along {t['chunk_axis']} on {workers}: "
-          f"{t['seconds']:.3g} s, {per * 1e3:.3g} ms per point; {result.failed} failed")
+          f"{t['seconds']:.3g} s, {per * 1e3:.3g} ms per point{kept}; {result.failed} failed")
     df = result.to_dataframe()
     values = ["opening", "rotation", "displacement", "energy_released"] if args.ablate else \
         ["energy", "r_start", "psi_start", "r_end", "psi_end", "z_end"]

@@ -18,7 +18,7 @@ import lazy_loader
 __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "spec": ["FitSpec", "SpecError", "volvox_spec", "breakpoint_bounds", "VARIANTS", "BOUNDS"],
     "inner": ["model_midline", "synthetic_midline", "N_FIT"],
-    "results": ["FitResult", "FitError"],
+    "results": ["FitResult", "FitError", "load_fit"],
     "midline_checks": ["intrinsic_lengths", "check_midline", "LENGTH_SLACK", "MAX_TURN",
                        "TURN_LENGTH", "POLE_SLACK", "MAX_MEAN_STRETCH", "POLE_ANGLE", "POLE_ARC",
                        "SCALE_HINT"],

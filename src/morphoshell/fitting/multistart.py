@@ -26,7 +26,8 @@ from .results import FitError, FitResult
 from .spec import BOUNDS, VARIANTS, VOLVOX_BREAKPOINTS, FitSpec, volvox_spec
 
 __all__ = ["MULTI_STARTS", "FOLD_GAIN", "SAME_MINIMUM", "MultiStartFit", "multi_start_fit",
-           "start_specs", "start_from", "continue_once", "local_minimum_signs"]
+           "start_specs", "other_starts", "start_from", "continue_once",
+           "local_minimum_signs"]
 
 #: The deterministic multi-start: the family's defaults (with the held values) changed so.
 #: The bend region's curvature κ₂ and the breakpoints of the model's later stages (the
@@ -218,13 +219,23 @@ def multi_start_fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int
     return MultiStartFit(best, winner, tuple(rows), time.perf_counter() - t0)
 
 
-def _starts(spec: FitSpec) -> list[tuple[str, FitSpec]]:
-    """(label, spec) of :func:`multi_start_fit`'s starts: ``spec``, then the defaults' and
-    the multi-start's with its held values, h, opening and σ (``spec`` is not fitted twice)."""
+def other_starts(spec: FitSpec, also_hold: Mapping[str, float] = ()
+                 ) -> list[tuple[str, FitSpec]]:
+    """(label, spec) of the starts other than ``spec``'s own: the family's defaults
+    (``"family defaults"``) and :data:`MULTI_STARTS` from them, each with ``spec``'s variant,
+    held values and ``also_hold``, h, opening and σ (:func:`start_specs`; a profile's refit
+    holds one more parameter: :mod:`morphoshell.fitting.profile_retry`)."""
     base = spec.base
     defaults = Problem("volvox", {"sigma": base.params["sigma"]}, h=base.h,
                        opening=base.opening)
-    others = start_specs(spec.variant, _held(spec), defaults, "family defaults")
+    return start_specs(spec.variant, {**_held(spec), **dict(also_hold)}, defaults,
+                       "family defaults")
+
+
+def _starts(spec: FitSpec) -> list[tuple[str, FitSpec]]:
+    """(label, spec) of :func:`multi_start_fit`'s starts: ``spec``, then the defaults' and
+    the multi-start's with its held values, h, opening and σ (``spec`` is not fitted twice)."""
+    others = other_starts(spec)
     if others and others[0][0] == "family defaults" and _same(others[0][1], spec):
         return others
     return [("start", spec), *others]

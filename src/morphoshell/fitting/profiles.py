@@ -5,7 +5,9 @@ the linearised problem at the optimum.  A *profile* (Venzon & Moolgavkar 1988;
 Raue et al. 2009) asks the nonlinear question instead: step one parameter θⱼ
 over a grid around its fitted value, fit all the others again at each step
 (warm-started from the neighbouring step's result; a refit far above the
-profile, or failed, again from the optimum), and record the least-squares
+profile, or failed, again from the optimum; one that decides a crossing without
+having converged from other starts, :mod:`morphoshell.fitting.profile_retry`,
+which also refines a crossing within a side's first steps), and record the least-squares
 objective S(θⱼ) = E_fit²(θⱼ) (units of R²; the fit energy of the paper,
 Supplementary, "Fitting of the morphoelastic theory to the average cell sheet
 midlines of Volvox inversion").  With Gaussian residuals of variance σ² the
@@ -71,6 +73,8 @@ from .inner import InnerProblem
 from .midline_checks import as_points, check_midline
 from .profile_noise import (NOISE_SOURCES, log_noise, noise_dof, noise_variance,
                             threshold_quantile, traces_missing)
+from .profile_retry import (Retry, crossing, needs_retry, refine_crossing, retried, started_at,
+                            unconverged_crossing)
 from .results import FitResult, fit_result
 from .spec import FitSpec
 
@@ -90,8 +94,9 @@ SPAN_FACTOR = 2.0
 EXTEND_STEPS = 4
 #: A side's walk ends at the first refit whose objective lies beyond S_min + STOP_MARGIN
 #: (threshold − S_min): its interval ends before that refit, and the refits further out
-#: cannot move it (:func:`_crossing` takes the first crossing) while they are the slowest and
-#: fail most (far from the data; 8 of the 13 s of a 20-point κ₁ profile of the synthetic t05).
+#: cannot move it (:func:`~morphoshell.fitting.profile_retry.crossing` takes the first
+#: crossing) while they are the slowest and fail most (far from the data; 8 of the 13 s of a
+#: 20-point κ₁ profile of the synthetic t05).
 #: The profile stays long enough to rethreshold with up to STOP_MARGIN times the σ².
 STOP_MARGIN = 1.5
 #: A refit whose objective lies beyond S_min + JUMP_MARGIN (threshold − S_min), or that
@@ -160,6 +165,9 @@ class Profile:
         be computed beyond, e.g. at the model's |η| < 1 limit, not because
         the data do not determine it), ``"bound"`` (the parameter's bound) or
         ``"grid"`` (the grid's end, or the threshold crossed).
+    retries : tuple of Retry
+        The refits beyond the threshold that did not converge, fitted again from other
+        starts (:mod:`morphoshell.fitting.profile_retry`: which start won).
     """
 
     name: str
@@ -178,6 +186,7 @@ class Profile:
     note: str = ""
     dof: float = math.inf
     side_ends: tuple[str, str] = ("grid", "grid")
+    retries: tuple[Retry, ...] = ()
 
     def open_sides(self) -> tuple[str, str]:
         """Why each side of the interval is open (:attr:`side_ends`), "" where it closes."""
@@ -245,8 +254,8 @@ class Profile:
         below = (self.values[:j][::-1].tolist(), self.objective[:j][::-1].tolist())
         above = (self.values[j + 1:].tolist(), self.objective[j + 1:].tolist())
         start = (self.fitted_value, float(self.objective[j]))
-        interval = (_crossing(*below, start, -1.0, threshold, self.S_min),
-                    _crossing(*above, start, 1.0, threshold, self.S_min))
+        interval = (crossing(*below, start, -1.0, threshold, self.S_min),
+                    crossing(*above, start, 1.0, threshold, self.S_min))
         return replace(self, interval=interval, threshold=float(threshold), sigma2=float(sigma2),
                        sigma2_source=source, flat=_flat(interval, self.side_ends), dof=dof)
 
@@ -263,7 +272,8 @@ class Profile:
                 "sigma2_dof": number(self.dof),
                 "confidence": self.confidence, "flat": self.flat, "method": self.method,
                 "open_sides": [end or None for end in self.open_sides()],
-                "note": self.note, "objective_units": "R^2"}
+                "note": self.note, "retries": [r.to_dict() for r in self.retries],
+                "objective_units": "R^2"}
 
     def to_dataframe(self):
         """The profile as a table: value, objective, converged (pandas)."""
@@ -308,7 +318,7 @@ def _optimum(spec: FitSpec, data: np.ndarray, result: FitResult | None, method: 
     if result is None:
         result = fit(spec, data, method, nodes=nodes, tol=tol)
     theta = np.array([result.parameters[n] for n in spec.fitted], dtype=float)
-    start = spec.recentred(theta) if spec.ordered else replace(spec, base=spec.problem(theta))
+    start = started_at(spec, theta)
     same = _nodes_of(result.equilibrium) == nodes      # (else a new mesh, continued to)
     inner = InnerProblem(start, data, nodes, result.equilibrium if same else None,
                          solver_of(result.equilibrium) if same else None)
@@ -444,38 +454,62 @@ def _refit_checked(opt: _Optimum, name: str, walked: tuple, value: float, method
     return out, ("" if out is not None else failure)
 
 
+def _refit_retried(opt: _Optimum, name: str, walked: tuple, value: float, method: str,
+                   tol: float, margins: tuple[float, float], retries: list | None, bar,
+                   before: list = ()) -> tuple:
+    """:func:`_refit_checked` (``margins``: its jump and the threshold), and a refit that
+    decides the crossing without having converged (``before``: the side's objectives so
+    far; :func:`~morphoshell.fitting.profile_retry.needs_retry`) fitted again from other
+    starts (:func:`~morphoshell.fitting.profile_retry.retried`), recorded in ``retries``
+    (None: no retry); one count on the progress bar ``bar``."""
+    jump, threshold = margins
+    out, failure = _refit_checked(opt, name, walked, value, method, tol, jump)
+    bar.update()
+    if retries is not None and needs_retry(out, threshold, before):
+        out, retry = retried(opt.spec, name, value, out, threshold, opt.inner.data,
+                             opt.inner.nodes, tol)
+        retries.extend([retry] if retry is not None else [])
+    return out, failure
+
+
 def _walk(opt: _Optimum, name: str, steps: list[float], direction: float, step: float,
-          threshold: float, method: str, tol: float, bar) -> tuple[list, list, list, str, tuple]:
+          threshold: float, method: str, tol: float, bar, retries: list
+          ) -> tuple[list, list, list, str, tuple]:
     """Refit at each of ``steps`` outward from θ̂, each from the last one's end
-    (:func:`_refit_checked`).
+    (:func:`_refit_retried`).
 
     Goes on beyond the planned steps (each twice the last, at most
     :data:`EXTEND_STEPS`) while the objective stays below ``threshold`` and
     the bound is not reached; stops at a refit that fails (its objective
-    NaN) or lies beyond :data:`STOP_MARGIN` times the threshold's height.
-    Each refit counts one on the progress bar ``bar``.  Returns values,
-    objectives, converged flags, a note and the lowest refit (objective, spec,
-    θ, state; None without one), where a lower optimum may lie.
+    NaN) or lies beyond :data:`STOP_MARGIN` times the threshold's height; then
+    refines a crossing within the first two steps
+    (:func:`~morphoshell.fitting.profile_retry.refine_crossing`).  Each refit counts
+    one on the progress bar ``bar``; retries from other starts are added to ``retries``.
+    Returns values, objectives, converged flags, a note and the lowest refit
+    (objective, spec, θ, state; None without one), where a lower optimum may lie.
     """
     lo, hi = opt.spec.bounds.get(name, (-np.inf, np.inf))
     walked = (opt.spec, opt.theta.copy(), opt.eq)
-    values, objective, converged, lowest = [], [], [], None
+    values, objective, converged, ends, note = [], [], [], [], ""
     plan, extra = list(steps), 0
     beyond, jump = (opt.S + margin * (threshold - opt.S) for margin in (STOP_MARGIN, JUMP_MARGIN))
+
+    def refit(end, value, retry=None):
+        return _refit_retried(opt, name, end, value, method, tol, (jump, threshold), retry,
+                              bar, objective)
     while plan and not (objective and objective[-1] > beyond):
         value = plan.pop(0)
-        out, failure = _refit_checked(opt, name, walked, value, method, tol, jump)
-        bar.update()
+        out, failure = refit(walked, value, retries)
         values.append(value)
         if out is None:
             # (the next step would start from a state no refit reached: stop here)
             objective.append(np.nan)
             converged.append(False)
-            return (values, objective, converged,
-                    f"the refit at {name} = {value:.6g} failed: {failure}", lowest)
+            ends.append(None)
+            note = f"the refit at {name} = {value:.6g} failed: {failure}"
+            break
         walked = out[:3]
-        if lowest is None or out[3] < lowest[0]:
-            lowest = (out[3], *walked)
+        ends.append(walked)
         objective.append(out[3])
         converged.append(out[4])
         bound = lo if direction < 0 else hi
@@ -483,35 +517,13 @@ def _walk(opt: _Optimum, name: str, steps: list[float], direction: float, step: 
             extra += 1
             nxt = value + direction * step * 2 ** extra
             plan.append(max(nxt, lo) if direction < 0 else min(nxt, hi))
-    return values, objective, converged, "", lowest
-
-
-def _crossing(values: list, objective: list, start: tuple[float, float], direction: float,
-              threshold: float, S_min: float) -> float:
-    """Where the profile first crosses ``threshold`` walking out from ``start`` (θ̂ and its
-    objective; ``values`` outward); ±inf (``direction``) if it never does.
-
-    Interpolated linearly in √(S − S_min), S_min the profile's least objective,
-    between the last step below and the first above: exact for a quadratic
-    profile (a linear problem), whatever the grid's step, where interpolating S
-    itself put the crossing inside by up to a step.  Where θ̂ itself lies above
-    the threshold (a refit found an objective lower than the fit's by more than
-    the threshold's height: rethresholded with a small σ²), the crossing is the
-    first outward from the steps below it, and a side without any ends at θ̂
-    (at θ̂ the interpolation divided 0 by 0).
-    """
-    last_v, S_start = start
-    below = S_start <= threshold
-    last_r, target = (np.sqrt(max(S - S_min, 0.0)) for S in (S_start, threshold))
-    for v, s in zip(values, objective):
-        if not np.isfinite(s):
-            break
-        r = np.sqrt(max(s - S_min, 0.0))
-        if s > threshold and below:
-            return float(last_v + (v - last_v) * (target - last_r) / (r - last_r))
-        below = below or s <= threshold
-        last_v, last_r = v, r
-    return direction * np.inf if below else float(start[0])
+    refine_crossing((values, objective, converged, ends),
+                    (float(opt.theta[opt.spec.fitted.index(name)]), opt.S,
+                     (opt.spec, opt.theta.copy(), opt.eq)),
+                    threshold, len(steps), lambda end, value: refit(end, value)[0])
+    lowest = min(((S, *end) for S, end in zip(objective, ends) if end is not None),
+                 key=lambda low: low[0], default=None)
+    return values, objective, converged, note, lowest
 
 
 def _profile(opt: _Optimum, data, name: str, points: int, span, method: str, tol: float,
@@ -526,12 +538,16 @@ def _profile(opt: _Optimum, data, name: str, points: int, span, method: str, tol
     threshold = opt.S + sigma2 * q
     j = opt.spec.fitted.index(name)
     value = float(opt.theta[j])
-    vb, sb, cb, note_b, low_b = _walk(opt, name, below, -1.0, step, threshold, method, tol, bar)
-    va, sa, ca, note_a, low_a = _walk(opt, name, above, 1.0, step, threshold, method, tol, bar)
+    retries: list[Retry] = []
+    vb, sb, cb, note_b, low_b = _walk(opt, name, below, -1.0, step, threshold, method, tol, bar,
+                                      retries)
+    va, sa, ca, note_a, low_a = _walk(opt, name, above, 1.0, step, threshold, method, tol, bar,
+                                      retries)
     values = np.array([*vb[::-1], value, *va])
     objective = np.array([*sb[::-1], opt.S, *sa])
-    notes = [n for n in (note_b, note_a, _unconverged_crossing(name, vb, sb, cb, threshold),
-                         _unconverged_crossing(name, va, sa, ca, threshold)) if n]
+    notes = [n for n in (note_b, note_a, unconverged_crossing(name, vb, sb, cb, threshold),
+                         unconverged_crossing(name, va, sa, ca, threshold),
+                         *(r.note(name) for r in retries)) if n]
     S_min = float(np.nanmin(objective))
     if S_min < opt.S * (1 - LOWER):
         # (the fit was not at the minimum: the threshold from the profile's own)
@@ -540,15 +556,16 @@ def _profile(opt: _Optimum, data, name: str, points: int, span, method: str, tol
                      f"{np.sqrt(S_min):.6g} R) than the fit's ({np.sqrt(opt.S):.6g} R): the fit "
                      f"is not the minimum")
         threshold = S_min + sigma2 * q
-    interval = (_crossing(vb, sb, (value, opt.S), -1.0, threshold, S_min),
-                _crossing(va, sa, (value, opt.S), 1.0, threshold, S_min))
+    interval = (crossing(vb, sb, (value, opt.S), -1.0, threshold, S_min),
+                crossing(va, sa, (value, opt.S), 1.0, threshold, S_min))
     lowest = min((low for low in (low_b, low_a) if low is not None), key=lambda low: low[0],
                  default=None)
     ends = tuple(_side_end(opt, name, v, note, d)
                  for v, note, d in ((vb, note_b, -1.0), (va, note_a, 1.0)))
     return Profile(name, value, values, objective, np.array([*cb[::-1], True, *ca]),
                    interval, float(threshold), S_min, sigma2, source, confidence,
-                   _flat(interval, ends), method, "; ".join(notes), dof, ends), lowest
+                   _flat(interval, ends), method, "; ".join(notes), dof, ends,
+                   tuple(retries)), lowest
 
 
 def _side_end(opt: _Optimum, name: str, values: list, failure: str, direction: float) -> str:
@@ -564,20 +581,6 @@ def _flat(interval: tuple[float, float], ends: tuple[str, str]) -> bool:
     threshold: the data do not determine the parameter (a side open at a failed refit
     says nothing either way, :meth:`Profile.verdict`)."""
     return any(not np.isfinite(v) and end != "failed" for v, end in zip(interval, ends))
-
-
-def _unconverged_crossing(name: str, values: list, objective: list, converged: list,
-                          threshold: float) -> str:
-    """A note when the refit where a side first exceeds the threshold did not converge.
-
-    An unconverged refit's objective lies above the profile's (the others not
-    at their best), so the interval may reach further on that side.
-    """
-    above = [i for i, S in enumerate(objective) if S > threshold]
-    if not above or converged[above[0]]:
-        return ""
-    return (f"the refit at {name} = {values[above[0]]:.6g}, where the profile first exceeds "
-            f"the threshold, did not converge: the interval may reach further on that side")
 
 
 def _check(spec: FitSpec, names: Sequence[str], points: int, method: str,
@@ -672,8 +675,7 @@ def _about_minimum(opt: _Optimum, method: str, tol: float, bar, run) -> tuple:
         # about that fit (the intervals of a profile about a point that is not its
         # minimum are neither the fit's nor the minimum's)
         _, lower, theta, eq = lowest
-        start = lower.recentred(theta) if lower.ordered else replace(lower,
-                                                                     base=lower.problem(theta))
+        start = started_at(lower, theta)
         opt.inner.restart(start, eq)
         opt = _refitted(opt.inner, start, opt.fit, method, tol)
 

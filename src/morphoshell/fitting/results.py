@@ -12,23 +12,35 @@ least-squares fit can creep onto a fold, where a tiny E_fit gain buys a large
 change of shape and the standard errors collapse.  Such a fit is reported as
 not converged (:data:`FOLD_RATIO`).
 
+A fit's record (:meth:`FitResult.to_dict`, the JSON of ``morphoshell fit --json``) reads
+back as a FitResult with :func:`load_fit` (:meth:`FitResult.from_dict`), without the
+fitted equilibrium, which the record does not hold.
+
 Lengths and E_fit in units of R.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Mapping
 
 import numpy as np
 
-from ..numerics.status import FIT_CONVERGED, FIT_NEAR_FOLD
+from ..io.problem_files import problem_of_record, read_json
+from ..numerics.status import FIT_CONVERGED, FIT_NEAR_FOLD, IPOPT_UNKNOWN
 from ..solvers.results import Equilibrium, SolverError
 
 if TYPE_CHECKING:
+    from ..model.problem import Problem
     from .inner import InnerProblem
     from .spec import FitSpec
 
-__all__ = ["FitResult", "FitError", "fit_result", "FOLD_RATIO"]
+__all__ = ["FitResult", "FitError", "fit_result", "load_fit", "FOLD_RATIO"]
+
+#: Entries of a fit's record (:meth:`FitResult.to_dict`) that :meth:`FitResult.from_dict` needs.
+_RECORD_KEYS = ("problem", "parameters", "fitted", "standard_errors", "correlation",
+                "poorly_identified", "E_fit", "method", "variant", "converged",
+                "data_midline", "fitted_midline")
 
 #: A fit whose scaled Jacobian has its second singular value below this fraction of the
 #: first sits near a fold of the inner branch (module docstring) and is not converged
@@ -76,8 +88,8 @@ class FitResult:
         The fit energy (units of R).
     residuals : ndarray, shape (2N,)
         r − R then z − Z at the N points.
-    equilibrium : Equilibrium
-        The fitted shape.
+    equilibrium : Equilibrium or None
+        The fitted shape; None for a fit read back from its record (:func:`load_fit`).
     data, model : ndarray, shape (N, 2)
         The data midline and the fitted midline (r, z).
     outer_iterations : int
@@ -99,6 +111,8 @@ class FitResult:
         ``"Fit_Not_Stationary"``, ``"Fit_Near_Fold"``, ``"Fit_On_Box_Edges"``
         or ``"Fit_Moved_Boxes_Failed"``.  Not in :meth:`to_dict` (its
         ``converged`` and ``message`` say it).
+    problem : Problem
+        The fitted shell (the equilibrium's problem, if not given).
     """
 
     method: str
@@ -120,6 +134,63 @@ class FitResult:
     message: str = ""
     constrained: tuple[str, ...] = ()
     stop: str = FIT_CONVERGED
+    problem: Problem | None = None
+
+    def __post_init__(self):
+        if self.problem is None:    # (None too where a test's stand-in has no problem)
+            object.__setattr__(self, "problem", getattr(self.equilibrium, "problem", None))
+
+    @classmethod
+    def from_dict(cls, record: Mapping[str, Any], where: str = "the record") -> "FitResult":
+        """The fit of its record (:meth:`to_dict`, ``morphoshell fit --json``, a campaign's).
+
+        Everything :meth:`to_dict` writes comes back (standard errors and correlations
+        that JSON writes as null, on constraints, as NaN), so that ``to_dict()`` gives
+        the record again.  What it does not write: the ``equilibrium`` (None: solve
+        ``problem`` for one), the ``residuals`` (the fitted minus the data midline, to
+        round-off) and ``stop`` (as written, if the record has it; else
+        ``"Fit_Converged"``, or ``"Unknown"`` for a fit that did not converge: its
+        ``message`` says how it ended).
+
+        Parameters
+        ----------
+        record : mapping
+            A fit's record.
+        where : str
+            The file or record, for messages.
+
+        Returns
+        -------
+        FitResult
+
+        Raises
+        ------
+        ValueError
+            A failed fit's record, a missing entry, a problem its parameters disagree
+            with (:func:`~morphoshell.io.problem_files.problem_of_record`), or
+            midlines that are not lists of numbers (the entry named).
+        """
+        if record.get("status", "ok") != "ok":
+            raise ValueError(f"{where}: the fit failed ({record.get('message', 'no message')}): "
+                             f"it has no result")
+        missing = [k for k in _RECORD_KEYS if k not in record]
+        if missing:
+            raise ValueError(f"{where}: no {', '.join(missing)}: not a fit's record (the JSON "
+                             f"of morphoshell fit --json or FitResult.to_dict())")
+        problem = problem_of_record(record, where)
+        data, model = (_midline(record, key, where) for key in ("data_midline", "fitted_midline"))
+        converged = bool(record["converged"])
+        return cls(str(record.get("fitted_by", record["method"])), str(record["variant"]),
+                   tuple(record["fitted"]), dict(record["parameters"]),
+                   {n: np.nan if e is None else float(e)
+                    for n, e in record["standard_errors"].items()},
+                   np.array(record["correlation"], dtype=float),
+                   list(record["poorly_identified"]), float(record["E_fit"]),
+                   np.concatenate([model[:, 0] - data[:, 0], model[:, 1] - data[:, 1]]), None,
+                   data, model, int(record.get("outer_iterations", 0)),
+                   int(record.get("inner_solves", 0)), float(record.get("seconds", 0.0)),
+                   converged, str(record.get("message", "")), tuple(record.get("constrained", ())),
+                   str(record.get("stop", FIT_CONVERGED if converged else IPOPT_UNKNOWN)), problem)
 
     def __repr__(self) -> str:
         return (f"FitResult({self.method}, {self.variant}, E_fit={self.E_fit:.6g} R, "
@@ -150,7 +221,7 @@ class FitResult:
         ``"(dimensionless)"`` (the family's :attr:`~morphoshell.model.profiles.ProfileFamily.units`;
         h and the opening are lengths), or ``""`` where the family gives none."""
         units = {"h": "R", "opening": "R", "cut": "R",
-                 **self.equilibrium.problem.family_obj.units}
+                 **self.problem.family_obj.units}
         unit = units.get(name, "")
         return "(dimensionless)" if unit == "1" else unit
 
@@ -175,8 +246,7 @@ class FitResult:
     def to_dict(self) -> dict:
         """JSON-ready: the problem, the fitted parameters with standard errors and
         correlations, the fit energy E_fit (units of R) and the solver's report."""
-        p = self.equilibrium.problem
-        return {"problem": p.describe(), "parameters": dict(self.parameters),
+        return {"problem": self.problem.describe(), "parameters": dict(self.parameters),
                 "fitted": list(self.fitted),
                 # (none on a constraint: JSON has no NaN)
                 "standard_errors": {n: (float(e) if np.isfinite(e) else None)
@@ -191,6 +261,36 @@ class FitResult:
                 "fitted_midline": {"r": self.model[:, 0].tolist(), "z": self.model[:, 1].tolist()},
                 "note": "standard errors are Gauss-Newton lower bounds: the residuals of a "
                         "traced midline are correlated"}
+
+
+def load_fit(path: str | Path) -> FitResult:
+    """The fit saved by ``morphoshell fit --json`` (or :meth:`FitResult.to_dict`) at ``path``.
+
+    Returns
+    -------
+    FitResult
+        Without its equilibrium (:meth:`FitResult.from_dict`).
+
+    Raises
+    ------
+    ValueError
+        An unreadable file, not JSON, or a record :meth:`FitResult.from_dict` refuses
+        (the file named).
+    """
+    record = read_json(path)
+    if not isinstance(record, dict):
+        raise ValueError(f"{path}: expected the JSON object written by morphoshell fit --json")
+    return FitResult.from_dict(record, str(path))
+
+
+def _midline(record: Mapping[str, Any], key: str, where: str) -> np.ndarray:
+    """The midline ``record[key]`` ({"r": [...], "z": [...]}) as an array of shape (N, 2)."""
+    try:
+        points = np.column_stack([np.asarray(record[key][c], dtype=float) for c in "rz"])
+    except (KeyError, TypeError, ValueError):
+        raise ValueError(f"{where}: {key} must hold lists of numbers r and z of one "
+                         f"length") from None
+    return points
 
 
 def _combination(direction: dict, k: int) -> str:

@@ -68,8 +68,27 @@ class InverseResult:
     def __repr__(self) -> str:
         c = self.summary["combined"]
         v = "" if self.velocity is None else f", E_over_mu={self.velocity.E_over_mu:.4g}"
-        return (f"InverseResult({len(self.embryos)} embryos, <k> = "
-                f"{format_k(c.mean)} (rotation + displacement, numerical){v})")
+        k = (f"<k> = {format_k(c.mean)} (rotation + displacement, numerical)"
+             if self._ran("numerical") else
+             f"methods {', '.join(self.settings['methods'])}: no combined <k> (it needs "
+             f"'numerical')")
+        return f"InverseResult({len(self.embryos)} embryos, {k}{v})"
+
+    def _ran(self, kind: str) -> bool:
+        """Whether the run's methods include ``kind`` ("numerical", "inner" or "asymptotic":
+        any of leading_order and kelvin); results without the setting ran them all."""
+        methods = self.settings.get("methods")
+        if methods is None:
+            return True
+        return (kind in methods if kind != "asymptotic"
+                else bool({"leading_order", "kelvin"} & set(methods)))
+
+    def _cell(self, e: EmbryoEstimate, m: str) -> str:
+        """An embryo's k from measure ``m``: numerical (asymptotic), or the one that ran."""
+        num, asym = format_k(e.k(m)), format_k(e.k(m, "asymptotic"))
+        if not self._ran("asymptotic"):
+            return f"{num:>16s}"
+        return f"{num:>6s} ({asym:>6s})" if self._ran("numerical") else f"{asym:>16s}"
 
     def __str__(self) -> str:
         return "\n".join([*self._embryo_lines(), *self._summary_lines(), *self._note_lines()])
@@ -77,16 +96,18 @@ class InverseResult:
     def _embryo_lines(self) -> list[str]:
         """The settings and a row per embryo: k from each measure, and combined."""
         s = self.settings
+        asymptotic = "leading order for o, Kelvin for rho and d"
+        shown = (f"numerical; asymptotic in parentheses: {asymptotic}"
+                 if self._ran("numerical") and self._ran("asymptotic") else
+                 "numerical" if self._ran("numerical") else f"asymptotic: {asymptotic}")
         lines = [f"{len(self.embryos)} embryos; toy problem 2, {s['theory']} theory, "
                  f"k in [{s['k_range'][0]:g}, {s['k_range'][1]:g}]",
-                 "k per embryo, in units of 1/R (numerical; asymptotic in parentheses: "
-                 "leading order for o, Kelvin for rho and d):",
+                 f"k per embryo, in units of 1/R ({shown}):",
                  f"  {'embryo':10s} {'h':>6s} {'cut':>6s} "
                  + " ".join(f"{'k_' + SYMBOL[m]:>16s}" for m in MEASURES) + f" {'k_combined':>11s}"]
         lines.append(f"  {'':10s} {'H/R':>6s} {'rad':>6s}")
         for e in self.embryos:
-            cells = [f"{format_k(e.k(m)):>6s} ({format_k(e.k(m, 'asymptotic')):>6s})"
-                     for m in MEASURES]
+            cells = [self._cell(e, m) for m in MEASURES]
             lines.append(f"  {e.measurement.embryo:10s} {e.measurement.h:6.3f} "
                          f"{e.measurement.cut:6.3f} " + " ".join(cells)
                          + f" {format_k(e.combined.k):>11s}")
@@ -97,11 +118,15 @@ class InverseResult:
         lines = ["summary over embryos (k in units of 1/R): mean +- std [Student's t 95% "
                  "interval of the mean]:"]
         for m in MEASURES:
-            for meth in ("numerical", "asymptotic", "inner"):
+            for meth in filter(self._ran, ("numerical", "asymptotic", "inner")):
                 lines.append(f"  k from {m:12s} {meth:10s}  {self.summary[f'{m}_{meth}']}")
         c = self.summary["combined"]
-        lines.append(f"  <k> from rotation + displacement (numerical): {c}")
-        lines.append(f"      inverse-variance weighted: {_weighted(c)}")
+        if self._ran("numerical"):
+            lines.append(f"  <k> from rotation + displacement (numerical): {c}")
+            lines.append(f"      inverse-variance weighted: {_weighted(c)}")
+        else:
+            lines.append("  <k> from rotation + displacement: none (it combines the numerical "
+                         "estimates; add 'numerical' to methods)")
         if self.velocity is not None:
             lines.append(f"recoil velocities: {self.velocity}")
         return lines

@@ -5,16 +5,18 @@ its points, but not the unknowns and multipliers of its mesh: read back, it is l
 another route's result (a BVP solution).  It plots, tabulates and gives its
 observables as it did, and as a ``warm_start`` it is carried onto the solver's mesh
 (interpolated in s: Newton then converges on its branch in a few iterations).  Its
-error estimate is not restored (``error`` None): re-solve for one.
+error estimate is restored as written (the estimated values are the result's own).
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
 
-from ..solvers.results import FIELDS, Equilibrium, SolverStats
+from ..solvers.paths import stress_free
+from ..solvers.results import FIELDS, Equilibrium, ErrorEstimate, SolverStats, energy_floor
 from .problem_files import problem_of_record, read_json
 
 __all__ = ["load_equilibrium", "equilibrium_of_record"]
@@ -37,14 +39,18 @@ def equilibrium_of_record(record: Mapping[str, Any], where: str = "the record") 
     Returns
     -------
     Equilibrium
-        Without mesh unknowns (``x`` None) or error estimate.
+        Without mesh unknowns (``x`` None); with its error estimate if it was saved.
 
     Raises
     ------
     ValueError
-        No problem, a missing or non-numeric field, fields of different lengths, or
-        points s not increasing (the entry named).
+        A fit's record, no problem, a missing or non-numeric field, fields of different
+        lengths, or points s not increasing (the entry named).
     """
+    if "parameters" in record and "E_fit" in record:
+        raise ValueError(f"{where} is a fit's record (keys parameters, E_fit), not an "
+                         f"equilibrium's: read it with morphoshell.fitting.load_fit, or its "
+                         f"shell with morphoshell.workflows.fitted_problem")
     problem = problem_of_record(record, where)
     missing = [k for k in (*FIELDS, "energy") if k not in record]
     if missing:
@@ -67,8 +73,27 @@ def equilibrium_of_record(record: Mapping[str, Any], where: str = "the record") 
                         int(solver.get("nodes", len(fields["s"]))),
                         float(solver.get("build_seconds", 0.0)),
                         {k: v for k, v in solver.items() if k not in _STATS})
-    return Equilibrium(problem=problem, **fields, energy=float(record["energy"]), solver=stats,
-                       converged=bool(record.get("converged", True)))
+    eq = Equilibrium(problem=problem, **fields, energy=float(record["energy"]), solver=stats,
+                     converged=bool(record.get("converged", True)))
+    error = record.get("error_estimate")
+    return eq if error is None else replace(eq, error=_error_estimate(error, eq, where))
+
+
+def _error_estimate(record: Mapping[str, Any], eq: Equilibrium, where: str) -> ErrorEstimate:
+    """The :class:`ErrorEstimate` of a saved ``error_estimate`` (:meth:`ErrorEstimate.to_dict`):
+    the errors as written (None, JSON's NaN, back to NaN), the estimated values those of
+    ``eq`` and the energy's floor of its problem, as :func:`~morphoshell.solvers.refinement.
+    estimate` gives them."""
+    try:
+        errors = {k: float("nan") if v is None else float(v)
+                  for k, v in dict(record["errors"]).items()}
+        return ErrorEstimate(errors, eq.estimated_values(), int(record["nodes"]),
+                             int(record["reference_nodes"]), int(record["order"]),
+                             str(record.get("note", "")),
+                             energy_floor(eq.problem.h, stress_free(eq.problem)))
+    except (KeyError, TypeError, ValueError):
+        raise ValueError(f"{where}: error_estimate is not the record of an error estimate "
+                         f"(errors, nodes, reference_nodes, order)") from None
 
 
 def load_equilibrium(path: str | Path) -> Equilibrium:

@@ -39,7 +39,7 @@ import math
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -491,10 +491,12 @@ def write_json(path: str | Path, data: Mapping[str, Any]) -> Path:
     return path
 
 
-def write_csv(path: str | Path, columns: Mapping[str, Any]) -> Path:
+def write_csv(path: str | Path, columns: Mapping[str, Any], comments: Sequence[str] = ()
+              ) -> Path:
     """Write equal-length columns (scalars repeat) as CSV with a header row.
 
-    Non-finite values are written as empty cells.
+    Non-finite values are written as empty cells; ``comments`` are lines written before
+    the header, each after ``"# "``.
     """
     import csv
 
@@ -505,6 +507,7 @@ def write_csv(path: str | Path, columns: Mapping[str, Any]) -> Path:
         if len(a) not in (1, n):
             raise ValueError(f"column {k!r} has {len(a)} rows, expected {n}")
     with path.open("w", newline="") as f:
+        f.writelines(f"# {line}\n" for line in comments)
         w = csv.writer(f)
         w.writerow(list(arrays))
         for i in range(n):

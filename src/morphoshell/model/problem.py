@@ -16,16 +16,17 @@ with a message naming it before any work starts.
 """
 from __future__ import annotations
 
+import pickle
 from dataclasses import dataclass, field, replace
 from typing import Mapping
 
 import numpy as np
 
 from .._runtime.validate import real
-from .coefficients import Theory, get_theory
-from .geometry import Geometry, get_geometry
+from .coefficients import THEORIES, Theory, get_theory
+from .geometry import GEOMETRIES, Geometry, get_geometry
 from .layouts import VectorLayout, parameter_layout
-from .profiles import ProfileFamily, Profiles, get_family
+from .profiles import FAMILIES, ProfileFamily, Profiles, get_family
 
 __all__ = ["Problem", "Params", "Structure", "BASE_KEYS", "MIN_SHELL_LENGTH", "MIN_THICKNESS", "MIN_CUT"]
 
@@ -152,7 +153,9 @@ class Problem:
     Notes
     -----
     A Problem is immutable and hashable: ``params`` is read-only (:class:`Params`), and
-    :meth:`with_updates` makes a changed copy, checked anew.
+    :meth:`with_updates` makes a changed copy, checked anew.  It pickles (process pools)
+    as its declaration, which the receiving process checks anew and binds to its own
+    registered family, theory and geometry of those names (:meth:`__reduce__`).
     """
 
     family: str = "uniform"
@@ -195,6 +198,30 @@ class Problem:
         for k, v in (("h", h), ("cut", cut), ("opening", opening), ("params", Params(values))):
             object.__setattr__(self, k, v)
         self._check_intrinsic(fam, geo)
+
+    def __reduce__(self):
+        """Pickled as the constructor's arguments: the family, theory and geometry by name.
+
+        Their objects hold CasADi functions and lambdas, which do not pickle; the
+        unpickled problem is created anew and binds the registered objects of those
+        names in its process (``family_obj`` etc. re-derived, values checked again).
+
+        Raises
+        ------
+        pickle.PicklingError
+            The family, theory or geometry is not the one registered under its name
+            (passed as an object, or registered again since): by name, another process
+            would rebuild a different problem.
+        """
+        for key, registry in (("family", FAMILIES), ("theory", THEORIES),
+                              ("geometry", GEOMETRIES)):
+            if registry.get(getattr(self, key)) is not getattr(self, f"{key}_obj"):
+                raise pickle.PicklingError(
+                    f"cannot pickle problem {self.name or self.family!r}: its {key} "
+                    f"{getattr(self, key)!r} is not the one registered under that name, and a "
+                    f"problem pickles its {key} by name: register it (in every process)")
+        return type(self), (self.family, dict(self.params), self.h, self.cut, self.opening,
+                            self.theory, self.geometry, self.name)
 
     # -- derived -----------------------------------------------------------
     @property

@@ -8,10 +8,15 @@ solves a one-unknown problem with the options (a few milliseconds), with standar
 output redirected, since Ipopt prints its refusals there; a refusal is
 re-raised naming the option, its value and what Ipopt accepts.  An option set
 that passed is remembered (per process); the defaults are never probed.
+
+A solver whose library cannot be loaded at all is refused before the probe: Ipopt's
+ma97 without ``libhsl.so`` crashes the process (a segmentation fault) instead of
+returning ``Invalid_Option`` as the other HSL solvers do.
 """
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import io
 import re
 from typing import Any, Mapping
@@ -29,6 +34,9 @@ __all__ = ["LINEAR_SOLVERS", "BUNDLED_SOLVERS", "check_ipopt_options"]
 LINEAR_SOLVERS = ("mumps", "ma27", "ma57", "ma77", "ma86", "ma97", "spral", "pardiso")
 #: The linear solvers that need no library of the user's.
 BUNDLED_SOLVERS = ("mumps", "spral")
+#: Ipopt's option naming the library a solver loads at run time, and the names it tries by
+#: default (Ipopt 3.14: ``libhsl.so``, then ``libcoinhsl.so``).
+_LIBRARIES = {"hsllib": ("libhsl.so", "libcoinhsl.so"), "pardisolib": ("libpardiso.so",)}
 
 #: Option sets (linear solver, options) that passed :func:`check_ipopt_options`.
 _PASSED: set = set()
@@ -80,7 +88,8 @@ def check_ipopt_options(linear_solver: Any = "mumps",
         said = _refusal({name: value})
         if said:
             raise ValueError(f"ipopt_options: {name} = {value!r} is refused by Ipopt: {said}")
-    said = _refusal({"linear_solver": linear_solver, **ipopt_options})
+    said = (_missing_library(linear_solver, ipopt_options)
+            or _refusal({"linear_solver": linear_solver, **ipopt_options}))
     if said and linear_solver not in BUNDLED_SOLVERS:
         raise ValueError(
             f"linear_solver = {linear_solver!r}: Ipopt cannot load it ({said}): the HSL solvers "
@@ -90,6 +99,23 @@ def check_ipopt_options(linear_solver: Any = "mumps",
         raise ValueError(f"ipopt_options = {dict(ipopt_options)!r} are refused by Ipopt "
                          f"together: {said}")
     _PASSED.add(key)
+
+
+def _missing_library(linear_solver: str, options: Mapping[str, Any]) -> str:
+    """Why the library of a solver that Ipopt loads at run time cannot be loaded, or ""
+    (bundled, or loadable: the probe then decides)."""
+    if linear_solver in BUNDLED_SOLVERS:
+        return ""
+    option = "pardisolib" if linear_solver == "pardiso" else "hsllib"
+    names = (options[option],) if option in options else _LIBRARIES[option]
+    reasons = []
+    for name in names:
+        try:
+            ctypes.CDLL(str(name))
+            return ""
+        except OSError as exc:
+            reasons.append(str(exc))
+    return "; ".join(reasons)
 
 
 def _refusal(options: Mapping[str, Any]) -> str:

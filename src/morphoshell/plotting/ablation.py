@@ -21,7 +21,7 @@ from matplotlib.patches import Patch
 
 from .shells import (band_edges, band_path, draw_shell, far_end_shift, mirrored,
                      finish_shell_axes, problem_caption, problem_title)
-from .style import new_axes, styled
+from .style import made_here, new_axes, styled
 
 __all__ = ["plot_ablation", "plot_ablation_overlay", "ABLATION_STYLE", "recoil_caption"]
 
@@ -65,9 +65,11 @@ def plot_ablation(ablation, ax: Axes | None = None, *, title: str | None = "auto
         ablated problem; None: no title.
     caption : str or None
         Under the axes; "auto": with an automatic title, the problem's
-        parameters and the recoil observables (:func:`recoil_caption`), else none.
+        parameters and the recoil observables (:func:`recoil_caption`), else none;
+        none on a caller's ``ax`` (it would fall on the panels below).
     legend : bool
-        Legend (pre, post, cut) beside the axes.
+        Legend (pre, post, cut) beside the axes; inside them on a caller's ``ax``,
+        whose figure has no room beside it.
     mark_rim : bool
         Mark the rim s = Σ before and after the cut.
     midline_only : bool
@@ -86,7 +88,7 @@ def plot_ablation(ablation, ax: Axes | None = None, *, title: str | None = "auto
         ax = new_axes(legend=bool(legend))
     if caption == "auto":
         caption = (f"{problem_caption(ablation.problem)}; {recoil_caption(ablation)}"
-                   if title == "auto" else None)
+                   if title == "auto" and made_here(ax) else None)
     style = normalize_kwargs(style, Line2D)
     with styled(ax):
         handles = [_draw_state(ax, ablation, key, colors[i] if colors else None, midline_only,
@@ -139,7 +141,8 @@ def _outline(eq, shift: float, **props) -> LineCollection:
 
 
 def _legend(ax: Axes, states: list[dict], mark_rim: bool) -> None:
-    """Beside the axes: each state as its band with its midline over it, and the cut's edge."""
+    """Beside the axes (inside a caller's): each state as its band with its midline over it,
+    and the cut's edge."""
     handles, labels = [], []
     for state in states:
         line = state["midline"]
@@ -158,8 +161,9 @@ def _legend(ax: Axes, states: list[dict], mark_rim: bool) -> None:
         handler_map[rims] = HandlerTuple(ndivide=None, pad=0.3)
         handles.append(rims)
         labels.append("cut edge s = Σ")
-    ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
-              frameon=False, handler_map=handler_map)
+    where = ({"loc": "upper left", "bbox_to_anchor": (1.02, 1.0), "borderaxespad": 0.0}
+             if made_here(ax) else {"loc": "best"})
+    ax.legend(handles, labels, frameon=False, handler_map=handler_map, **where)
 
 
 def plot_ablation_overlay(ablation, ax: Axes | None = None, *, pixels: int = 500,

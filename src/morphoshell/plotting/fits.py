@@ -80,10 +80,18 @@ def plot_fit(result, ax: Axes | None = None, *, residual_ax: Axes | None = None,
     -------
     Axes
         The overlay's axes.
+
+    Raises
+    ------
+    ValueError
+        A fit without its equilibrium (read back by :func:`morphoshell.fitting.load_fit`).
     """
+    if result.equilibrium is None:
+        raise ValueError("plot_fit draws the fitted equilibrium, which a fit read back from "
+                         "its JSON (load_fit) does not hold: solve result.problem for it")
     if ax is None:
         ax, residual_ax = fit_axes()
-    problem = result.equilibrium.problem
+    problem = result.problem
     if caption == "auto":
         caption = _fit_caption(result) if title == "auto" else None
     if title == "auto":

@@ -36,7 +36,7 @@ from matplotlib.path import Path as MplPath
 from ..model.problem import Problem
 from ..solvers.contact import half_thickness
 from ..solvers.results import Equilibrium
-from .style import add_caption, new_axes, styled
+from .style import add_caption, made_here, new_axes, styled
 
 __all__ = ["sheet_outline", "far_end_shift", "problem_label", "problem_title",
            "problem_caption", "plot_cross_section", "finish_shell_axes", "draw_shell",
@@ -247,7 +247,8 @@ def _describe(eqs: Sequence[Equilibrium]) -> tuple[str, str, list[str]]:
 def finish_shell_axes(ax: Axes, title: str | None, legend: bool | str,
                       caption: str | None = None) -> Axes:
     """Cross-section axes: equal aspect, lengths in units of R, a one-line title,
-    the caption under the axes, the legend beside them (or ``"inside"``)."""
+    the caption under the axes, the legend beside them (or ``"inside"``; inside on a
+    caller's axes, :func:`~morphoshell.plotting.style.made_here`)."""
     # equal scales by shrinking the box, not by widening the data limits: limits
     # set at drawing time, after the layout, give new tick labels the layout
     # made no room for, and the z label was pushed off the figure
@@ -258,7 +259,7 @@ def finish_shell_axes(ax: Axes, title: str | None, legend: bool | str,
         ax.set_title(title)
     if caption:
         add_caption(ax, caption)
-    if legend == "inside":  # where it covers the fewest points (a narrow figure)
+    if legend == "inside" or (legend and not made_here(ax)):  # the fewest points covered
         ax.legend(loc="best", frameon=False)
     elif legend:
         # beside the axes, never over the shell
@@ -300,9 +301,11 @@ def plot_cross_section(eqs: Equilibrium | Sequence[Equilibrium], ax: Axes | None
     caption : str or None
         Under the axes; "auto": with an automatic title, what it leaves out
         that the results share (h, cut, parameters; method and mesh), else
-        none (a caller who titles a panel describes it).
+        none (a caller who titles a panel describes it); none on a caller's
+        ``ax`` either (it would fall on the panels below).
     legend : bool or "auto"
-        Legend beside the axes (outside the shells); "auto": for several results or
+        Legend beside the axes (outside the shells; inside them on a caller's
+        ``ax``, whose figure has no room beside it); "auto": for several results or
         when ``labels`` are given.
     **style
         Line properties of the midlines (``color``, ``lw``, ``ls``, ``alpha``,
@@ -331,10 +334,10 @@ def plot_cross_section(eqs: Equilibrium | Sequence[Equilibrium], ax: Axes | None
     auto_title, auto_caption, auto_labels = _describe(eqs)
     if len(eqs) == 1:
         auto_labels = [problem_label(eqs[0].problem)]
-    if caption == "auto":
-        caption = auto_caption if title == "auto" else None
     if ax is None:
         ax = new_axes(legend=bool(legend))
+    if caption == "auto":
+        caption = auto_caption if title == "auto" and made_here(ax) else None
     style = normalize_kwargs(style, Line2D)
     with styled(ax):
         for i, (eq, label) in enumerate(zip(eqs, labels or auto_labels)):

@@ -25,8 +25,8 @@ from matplotlib.text import Text
 from matplotlib.transforms import ScaledTranslation
 
 __all__ = ["SINGLE_COLUMN", "DOUBLE_COLUMN", "MIN_FONT_SIZE", "PAPER_RC", "paper_style",
-           "styled", "journal_figure", "new_axes", "add_caption", "get_caption", "label_panel",
-           "save"]
+           "styled", "journal_figure", "new_axes", "made_here", "add_caption", "get_caption",
+           "label_panel", "save"]
 
 #: Figure widths of journals (inches): one column and the full page width.
 SINGLE_COLUMN = 3.4
@@ -54,6 +54,8 @@ PAPER_RC: dict[str, Any] = {
 _STYLED = "_morphoshell_paper_style"
 #: gid of a caption's text, by which :func:`get_caption` finds it.
 _CAPTION = "morphoshell-caption"
+#: The gid of the axes :func:`new_axes` makes (:func:`made_here`).
+_OWN_AXES = "morphoshell-axes"
 #: Width of a character in ems (DejaVu Sans, mixed text): to break captions into lines.
 _EM_PER_CHAR = 0.55
 
@@ -140,7 +142,17 @@ def new_axes(figsize: tuple[float, float] | None = None, *, legend: bool = False
     width, height = figsize or (SINGLE_COLUMN, (0.78 if legend else 0.95) * SINGLE_COLUMN)
     fig = journal_figure(width, height, pyplot=pyplot)
     with paper_style():   # the ticks' and labels' fonts are fixed when the axes are made
-        return fig.add_subplot()
+        ax = fig.add_subplot()
+    ax.set_gid(_OWN_AXES)
+    return ax
+
+
+def made_here(ax: Axes) -> bool:
+    """Whether :func:`new_axes` made ``ax``: its figure has room for a legend beside it and
+    a caption under it.  A caller's axes (a panel of their grid) has not: the plots then put
+    their legend inside and leave out the automatic caption, which would fall on the
+    neighbouring panels."""
+    return ax.get_gid() == _OWN_AXES
 
 
 def wrap_items(text: str, width: int, sep: str = ", ") -> str:

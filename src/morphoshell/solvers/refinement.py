@@ -6,7 +6,9 @@ solution stays on the fine one's branch), and returns an
 :class:`~morphoshell.solvers.results.ErrorEstimate`: the difference, a bound for
 any order of convergence.  :func:`refine` doubles the
 cells until the estimate meets a relative tolerance, as ``solve_bvp``'s
-``tol`` does, reusing each level as the next one's reference.
+``tol`` does, reusing each level as the next one's reference.  The estimate keeps the
+coarser solutions, and :func:`derived_errors` estimates quantities derived from
+solutions (an ablation's observables) from those same levels.
 """
 from __future__ import annotations
 
@@ -24,8 +26,8 @@ from .direct import MAX_NODES, DirectSolver
 from .paths import stress_free
 from .results import ESTIMATED, Equilibrium, ErrorEstimate, SolverError, energy_floor
 
-__all__ = ["solve_from", "estimate", "level_errors", "refine", "half_mesh", "too_coarse",
-           "coarse_level", "SAFETY", "COARSE"]
+__all__ = ["solve_from", "estimate", "level_errors", "derived_errors", "refine", "refine_once",
+           "half_mesh", "too_coarse", "coarse_level", "SAFETY", "COARSE"]
 
 log = logging.getLogger(__name__)
 
@@ -122,8 +124,46 @@ def estimate(fine: Equilibrium, coarse: Equilibrium | None, order: int, note: st
         errors = level_errors(values, coarse.estimated_values(),
                               None if coarser is None else coarser.estimated_values(), order)
         ref = coarse.solver.nodes
+    levels = tuple(eq for eq in (coarse, coarser) if eq is not None) if coarse else ()
     return ErrorEstimate(errors, values, fine.solver.nodes, ref, order, note,
-                         energy_floor(fine.problem.h, stress_free(fine.problem)))
+                         energy_floor(fine.problem.h, stress_free(fine.problem)), levels)
+
+
+def derived_errors(measure: Callable[..., dict], *fine: Equilibrium) -> tuple[dict, str]:
+    """Error estimates of quantities derived from direct solutions, made as their own.
+
+    ``measure(*fine)`` is evaluated again on the coarser levels that the solutions'
+    estimates kept (:attr:`ErrorEstimate.levels`: the half, then the quarter mesh), level
+    by level, and the values are differenced by :func:`level_errors`: the estimate
+    :func:`estimate` makes of the energy and the edge values, with no further solve.
+
+    Parameters
+    ----------
+    measure : callable
+        ``(*equilibria) -> {name: float}``, e.g. an ablation's observables of its
+        pre- and post-ablation states.
+    *fine : Equilibrium
+        The solutions, each with its estimate (``error``).
+
+    Returns
+    -------
+    (dict, str)
+        The estimated absolute error of each value of ``measure`` (units as its values)
+        and "", or NaN errors and why there are none.
+    """
+    values = measure(*fine)
+    for eq in fine:
+        if eq.error is None or not eq.error.levels:
+            name = eq.problem.name or eq.problem.family
+            why = (eq.error.note if eq.error is not None and eq.error.note else
+                   f"the {eq.solver.method} route makes no error estimate (the direct one does)"
+                   if eq.solver.method != "direct" else
+                   f"the solution of {name} carries no coarser levels (one from solve() does)")
+            return {k: float("nan") for k in values}, why
+    depth = min(len(eq.error.levels) for eq in fine)
+    levels = [measure(*(eq.error.levels[i] for eq in fine)) for i in range(depth)]
+    return level_errors(values, levels[0], levels[1] if depth > 1 else None,
+                        fine[0].error.order), ""
 
 
 def too_coarse(est: ErrorEstimate) -> tuple[str, float] | None:
@@ -205,24 +245,51 @@ def refine(eq: Equilibrium, solver_for: Callable[[int], DirectSolver], rtol: flo
     est = estimate(eq, reference, order, note, coarser)
     if rtol is None and not est.note:
         _warn_if_coarse(est, nodes)
+    eq = replace(eq, error=est)
     path, notes = eq.solver.details.get("path", ""), ""
     first = nodes
-    while rtol is not None and not est.meets(rtol):
-        finer_nodes = 2 * (nodes - 1) + 1
-        if finer_nodes > min(max_nodes, MAX_NODES):
-            key, err = est.worst()
+    while rtol is not None and not eq.error.meets(rtol):
+        if 2 * (nodes - 1) + 1 > min(max_nodes, MAX_NODES):
+            key, err = eq.error.worst()
             raise SolverError(
                 f"the error estimate {err:.3g} of {key} (at {nodes} nodes) does not meet "
                 f"rtol = {rtol:g} within {min(max_nodes, MAX_NODES)} nodes: "
                 f"{explain(TOLERANCE_NOT_MET)}; the finest solution is the error's "
                 f"last_iterate",
-                TOLERANCE_NOT_MET, replace(eq, error=est))
-        finer, how = _finer(solver_for(finer_nodes), problem, eq, anchors)
+                TOLERANCE_NOT_MET, eq)
+        eq, how = refine_once(eq, solver_for, anchors)
         notes += how
-        est = estimate(finer, eq, order, coarser=reference)
-        eq, reference, nodes = finer, eq, finer_nodes
+        nodes = eq.solver.nodes
     if nodes != first:
         details = {**eq.solver.details, "path": f"{path}, then refined from {first} to {nodes} "
                                                f"nodes for rtol = {rtol:g}{notes}"}
         eq = replace(eq, solver=replace(eq.solver, details=details))
-    return replace(eq, error=est)
+    return eq
+
+
+def refine_once(eq: Equilibrium, solver_for: Callable[[int], DirectSolver],
+                anchors=()) -> tuple[Equilibrium, str]:
+    """One step of :func:`refine`: ``eq``'s problem on the mesh with twice the cells.
+
+    Parameters
+    ----------
+    eq : Equilibrium
+        A direct solution with its estimate (``error``), whose first level (the half mesh)
+        becomes the new solution's quarter mesh.
+    solver_for : callable
+        ``nodes -> DirectSolver`` for the same structure and options.
+
+    Returns
+    -------
+    (Equilibrium, str)
+        The finer solution, carried over from ``eq`` (:func:`solve_from`), with its
+        estimate against ``eq``; and a note for the path where carrying over failed and
+        continuation reached it ("" otherwise).
+    """
+    solver = solver_for(2 * (eq.solver.nodes - 1) + 1)
+    finer, how = _finer(solver, eq.problem, eq, anchors)
+    levels = eq.error.levels if eq.error is not None else ()
+    # (the levels without their own estimates: a chain of them would keep every mesh alive)
+    est = estimate(finer, replace(eq, error=None), 2 * solver.stages,
+                   coarser=levels[0] if levels else None)
+    return replace(finer, error=est), how

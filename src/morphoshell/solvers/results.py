@@ -135,6 +135,12 @@ class ErrorEstimate:
         Why there is no estimate, if there is none (errors are then NaN).
     energy_floor : float
         The smallest energy scale of relative errors (C R²; :func:`energy_floor`).
+    levels : tuple of Equilibrium
+        The coarser solutions compared with: the half mesh's, then the quarter mesh's
+        where there is one (empty without an estimate).  Kept so that a quantity derived
+        from the solution, such as an ablation's observables, is estimated from the same
+        levels (:func:`morphoshell.solvers.refinement.derived_errors`) without solving
+        them again; neither written out nor compared.
     """
 
     errors: Mapping[str, float]
@@ -144,6 +150,7 @@ class ErrorEstimate:
     order: int
     note: str = ""
     energy_floor: float = ENERGY_FLOOR
+    levels: tuple = field(default=(), repr=False, compare=False)
 
     def relative(self) -> dict[str, float]:
         """Errors relative to their scale: the energy to max(|𝓔|, ``energy_floor``), edge
@@ -283,6 +290,18 @@ class Equilibrium:
     #: The direct solver that produced it (a weak reference: results do not
     #: keep solvers alive); see :func:`morphoshell.solvers.direct.solver_of`.
     source: Any = field(default=None, repr=False)
+
+    def __getstate__(self) -> dict:
+        """Pickled with every field, but the weak reference to its solver replaced by
+        :func:`_released` (a weak reference does not pickle, and a solver stays in its
+        process): the mesh and stages stay, so :func:`morphoshell.solvers.direct.solver_of`
+        builds a solver of the same mesh where one is needed, as for a result whose solver
+        was garbage-collected, and warm starts, observables and derivatives of the
+        unpickled result are those of the original."""
+        state = dict(self.__dict__)
+        if self.source is not None:
+            state["source"] = (_released, *self.source[1:])
+        return state
 
     def __repr__(self) -> str:
         return (f"Equilibrium({self.problem.name or self.problem.family!r}, "
@@ -495,6 +514,12 @@ class Equilibrium:
         if arrays:
             out.update({k: getattr(self, k).tolist() for k in FIELDS})
         return out
+
+
+def _released() -> None:
+    """The solver reference of an unpickled result (:meth:`Equilibrium.__getstate__`): like a
+    dead weak reference, it gives None."""
+    return None
 
 
 def unconverged(eq: Equilibrium) -> Equilibrium:

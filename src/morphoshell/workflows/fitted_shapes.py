@@ -20,12 +20,12 @@ from types import SimpleNamespace
 import numpy as np
 
 from ..io.problem_files import fit_source, problem_of_record
-from ..mechanics.ablation import Ablation, edge_state, intact_problem, recoil_jacobian
+from ..mechanics.ablation import Ablation, intact_problem, measure, recoil_jacobian
 from ..model.problem import Problem
 from ..numerics.mesh import mesh_spec
 from ..solvers.continuation import continue_between
 from ..solvers.direct import DirectSolver
-from ..solvers.observables import RECOIL, recoil
+from ..solvers.observables import RECOIL
 from ..solvers.refinement import solve_from
 from ..solvers.results import Equilibrium, SolverError
 from ..solvers.routes import solve
@@ -186,10 +186,8 @@ def numerical_ablation(problem: Problem, cut: float = CUT, *, nodes: int = 200,
             diff = float(np.max(np.abs(cold_eq.x - post.x)))
         except SolverError:
             cold_eq = None
-    obs = recoil(edge_state(pre, cut), edge_state(post, cut))
-    removed = pre.energy_between(pre.s[0], cut)
-    ab = Ablation(problem=target, pre=pre, post=post, **{k: float(obs[k]) for k in RECOIL},
-                  energy_released=post.energy - (pre.energy - removed), energy_removed=removed)
+    # (no error estimates: the continuation in Σ solves no coarser levels)
+    ab = Ablation(problem=target, pre=pre, post=post, **measure(cut, pre, post))
     return NumericalAblation(ab, steps, rejected, cold_eq, diff)
 
 

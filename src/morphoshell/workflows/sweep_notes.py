@@ -61,8 +61,10 @@ def summary(result: SweepResult, coarse: Mapping[int, tuple[str, float]],
     if coarse:
         rows = sorted(coarse)
         key, worst = max((coarse[i] for i in rows), key=lambda kv: kv[1])
-        lines.append((logging.WARNING, f"sweep: the error estimates exceed {COARSE:g} (R or "
-                      f"rad; the energy relative) at {len(rows)} of {n} points "
+        scale = ("relative to the observables" if result.ablate else
+                 "R or rad; the energy relative")
+        lines.append((logging.WARNING, f"sweep: the error estimates exceed {COARSE:g} ({scale}) "
+                      f"at {len(rows)} of {n} points "
                       f"({result.points(rows)}; the largest: {key} {worst:.2g}): the mesh is "
                       f"too coarse for these shells; refine it (nodes=, --nodes)"))
     if unestimated:

@@ -19,12 +19,15 @@ import numpy as np
 from .._runtime.tables import problem_attrs, xarray_module
 from ..model.problem import Problem
 
-__all__ = ["SweepResult", "result_columns", "point_label"]
+__all__ = ["SweepResult", "result_columns", "point_label", "NOT_COMPUTED"]
 
 #: The bookkeeping columns, last and in this order.
 _BOOK = ("status", "iterations", "path", "event", "walls_cross", "seconds", "message")
 #: A summary names at most this many points (and how many more).
 NAMED = 8
+#: The status of a row an interrupted sweep did not compute
+#: (:class:`~morphoshell.workflows.sweep_runs.SweepInterrupted`).
+NOT_COMPUTED = "Not_Computed"
 
 @dataclass(frozen=True, eq=False)
 class SweepResult:

@@ -84,7 +84,6 @@ import logging
 import math
 import os
 import time
-from contextlib import ExitStack
 from dataclasses import dataclass
 from functools import partial
 from itertools import product
@@ -92,9 +91,9 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from .._runtime.console import counter
+from .._runtime import lifeline
 from ..mechanics.ablation import UNITS as ABLATION_UNITS
-from ..mechanics.ablation import edge_state, intact_problem
+from ..mechanics.ablation import intact_problem, measure, relative_errors
 from ..model.problem import BASE_KEYS, Problem
 from ..model.profiles import ENTRY_POINT_GROUP, FAMILIES
 from ..numerics.mesh import mesh_spec
@@ -103,16 +102,17 @@ from ..solvers.continuation import HARD_STEP, continue_to
 from ..solvers.direct import DirectSolver, check_nodes, solver_of
 from ..solvers.contact import wall_contact
 from ..solvers.options import BVP_ADVICE, check_direct_options
-from ..solvers.observables import RECOIL, recoil
+from ..solvers.observables import RECOIL
 from ..solvers.refinement import (COARSE, coarse_level, half_mesh, level_errors, solve_from,
                                   too_coarse)
 from ..solvers.results import ESTIMATED, Equilibrium, ErrorEstimate, SolverError, energy_floor
 from ..solvers.routes import DIRECT_OPTIONS, direct_solver
-from .executor import backend_name, open_executor, run
 from .sweep_notes import log_summary
 from .sweep_results import SweepResult, point_label, result_columns
+from .sweep_runs import (SweepInterrupted, interruptible, restored, run_chunks, settings_record,
+                         whole_chunks)
 
-__all__ = ["sweep", "ERRORS", "MAX_SPLITS", "SOLVE_COLUMNS", "ABLATE_COLUMNS",
+__all__ = ["sweep", "SweepInterrupted", "ERRORS", "MAX_SPLITS", "SOLVE_COLUMNS", "ABLATE_COLUMNS",
            "ESTIMATED_ABLATION", "UNITS", "chunk_plan"]
 
 log = logging.getLogger(__name__)
@@ -140,8 +140,6 @@ SOLVE_COLUMNS = ESTIMATED
 ABLATE_COLUMNS = (*RECOIL, "energy_released", "energy_removed")
 #: The ablation observables that get an error estimate.
 ESTIMATED_ABLATION = ("opening", "rotation", "displacement", "energy_released")
-#: ... of which these (R and rad, as solve()'s edge values) are checked against a coarse mesh.
-RECOIL_ESTIMATED = ("opening", "rotation", "displacement")
 #: Units of the columns (lengths in units of R, angles in rad, energies in C R²).
 UNITS = {"energy": "C R^2", "r_start": "R", "psi_start": "rad", "r_end": "R", "psi_end": "rad",
          "z_end": "R", **ABLATION_UNITS, "h": "R", "cut": "R", "opening_P": "R",
@@ -292,6 +290,8 @@ class _Chunk:
     nodes: int
     options: Mapping[str, Any]
     estimate: tuple[bool, ...]
+    #: The sweep's process (:mod:`morphoshell._runtime.lifeline`): a worker ends when it has.
+    owner: tuple | None = None
 
 
 #: Largest difference of x (max norm) between two solutions of one state: warm solves and
@@ -433,13 +433,9 @@ def _midpoint(a: Problem, b: Problem, a_anchors, b_anchors):
 
 
 def _measure(problem: Problem, pre: Equilibrium, post: Equilibrium) -> dict[str, float]:
-    """The observables of :class:`~morphoshell.mechanics.ablation.Ablation` (as ``ablate`` measures them)."""
-    sigma = problem.cut
-    obs = recoil(edge_state(pre, sigma), edge_state(post, sigma))
-    removed = pre.energy_between(pre.s[0], sigma)
-    return {**{k: float(obs[k]) for k in RECOIL},
-            "energy_released": float(post.energy - (pre.energy - removed)),
-            "energy_removed": float(removed)}
+    """The observables of :class:`~morphoshell.mechanics.ablation.Ablation`, as ``ablate``
+    measures them (:func:`~morphoshell.mechanics.ablation.measure`)."""
+    return measure(problem.cut, pre, post)
 
 
 def _estimate(shells: Sequence[tuple[_Shell, Problem, tuple, Equilibrium]], measure,
@@ -475,6 +471,7 @@ def _run_chunk(chunk: _Chunk, tick=None) -> list[tuple[int, dict]]:
     again by ``solve()``'s route at every point where the warm path ended on another
     stable state than that route (:func:`_left_solves_branch`).  ``tick()`` after each
     point of the first pass (a progress bar in this process)."""
+    lifeline.watch(chunk.owner)     # (a pool's workers outlived a killed sweep, idle)
     rows, shells = _solve_chunk(chunk, verify=False, tick=tick)
     if _left_solves_branch(rows, shells):
         rows, _ = _solve_chunk(chunk, verify=True)
@@ -517,7 +514,6 @@ def _solve_chunk(chunk: _Chunk, verify: bool, tick=None) -> tuple[list[tuple[int
     post_shell = _Shell(chunk.nodes, options, verify=verify)
     pre_shell = _Shell(chunk.nodes, options, verify=verify)
     names = ABLATE_COLUMNS if chunk.ablate else SOLVE_COLUMNS
-    estimated = ESTIMATED_ABLATION if chunk.ablate else SOLVE_COLUMNS
     rows, intact, intact_key = [], None, None
     for (index, updates), estimate in zip(chunk.points, chunk.estimate):
         t0 = time.perf_counter()
@@ -526,9 +522,7 @@ def _solve_chunk(chunk: _Chunk, verify: bool, tick=None) -> tuple[list[tuple[int
             **updates, name=f"{base.name or base.family} ({point_label(updates, chunk.ablate)})")
         if chunk.ablate and intact_key != (key := {k: v for k, v in updates.items() if k != "cut"}):
             intact, intact_key = intact_problem(problem), key   # the same for every cut
-        row: dict[str, Any] = {k: math.nan for k in names}
-        row.update({f"{k}_error": math.nan for k in estimated})
-        row.update(status="", iterations=0, path="", event="", walls_cross=False, message="")
+        row = _blank_row(chunk.ablate)
         try:
             if chunk.ablate:
                 eqs = _ablate_point(row, problem, intact, pre_shell, post_shell, estimate, order)
@@ -543,6 +537,16 @@ def _solve_chunk(chunk: _Chunk, verify: bool, tick=None) -> tuple[list[tuple[int
         if tick is not None:
             tick()
     return rows, (pre_shell, post_shell)
+
+
+def _blank_row(ablate: bool) -> dict[str, Any]:
+    """A row before its point is solved: NaN values and errors, empty bookkeeping."""
+    names, estimated = ((ABLATE_COLUMNS, ESTIMATED_ABLATION) if ablate else
+                        (SOLVE_COLUMNS, SOLVE_COLUMNS))
+    row: dict[str, Any] = {k: math.nan for k in names}
+    row.update({f"{k}_error": math.nan for k in estimated})
+    row.update(status="", iterations=0, path="", event="", walls_cross=False, message="")
+    return row
 
 
 def _flag(row: dict, eqs: Sequence[Equilibrium]) -> None:
@@ -602,7 +606,8 @@ def _ablate_point(row: dict, problem: Problem, intact: Problem, pre_shell: _Shel
         post, post_path = post_shell.advance(problem, ())
     finally:
         row["iterations"] += post_shell.iterations
-    row.update(_measure(problem, pre, post))
+    values = _measure(problem, pre, post)
+    row.update(values)
     paths = (pre_path, post_path)
     row["path"] = next(p for p in ("continuation", "split", "remesh", "warm") if p in paths)
     if estimate:
@@ -611,10 +616,12 @@ def _ablate_point(row: dict, problem: Problem, intact: Problem, pre_shell: _Shel
             lambda eqs: {k: v for k, v in _measure(problem, *eqs).items()
                          if k in ESTIMATED_ABLATION}, order)
         row.update({f"{k}_error": v for k, v in errors.items()})
-        # (the recoil in R and rad, as solve()'s edge values; energy_released has no scale)
-        recoil_errors = {k: errors[k] for k in RECOIL_ESTIMATED}
-        worst = max(recoil_errors, key=lambda k: recoil_errors[k])
-        row["_coarse"] = (worst, recoil_errors[worst]) if recoil_errors[worst] > COARSE else None
+        # relative to the observables' scales, as ablate() warns (a tiny cut's d was 27 % off
+        # on 200 nodes where its error in R, 4e-8, passed)
+        rel = relative_errors(values, errors, intact, problem)
+        worst = max(rel, key=lambda k: rel[k])
+        row["_coarse"] = ((worst, rel[worst]) if rel[worst] > COARSE and not row["_unestimated"]
+                          else None)
     return pre, post
 
 
@@ -624,7 +631,8 @@ def _ablate_point(row: dict, problem: Problem, intact: Problem, pre_shell: _Shel
 
 def sweep(problem: Problem, axes: Mapping[str, Sequence], *, ablate: bool = False,
           nodes: int = 200, workers: int | None = None, scheduler: str | None = None,
-          errors: str = "ends", chunk_size: int | None = None, **options) -> SweepResult:
+          errors: str = "ends", chunk_size: int | None = None,
+          resume: str | os.PathLike | None = None, **options) -> SweepResult:
     """Solve or ablate ``problem`` at every point of the Cartesian product of ``axes``.
 
     Parameters
@@ -653,6 +661,9 @@ def sweep(problem: Problem, axes: Mapping[str, Sequence], *, ablate: bool = Fals
         Where to estimate discretisation errors (see the module docstring).
     chunk_size : int, optional
         Most points per task (default: see :func:`chunk_plan`).
+    resume : str or Path, optional
+        A partial sweep's file (:meth:`SweepInterrupted.write`, CSV or JSON): its finished
+        chunks are kept and only the others computed (none there: all are).
     **options
         Direct solver options: ``stages``, ``linear_solver``, ``tol``,
         ``max_iter``, ``stability``, ``ipopt_options``.
@@ -665,8 +676,12 @@ def sweep(problem: Problem, axes: Mapping[str, Sequence], *, ablate: bool = Fals
     Raises
     ------
     ValueError
-        A bad axis, value or option, or a point that is not a valid problem
-        (named), before any work.
+        A bad axis, value or option, a point that is not a valid problem (named), or a
+        ``resume`` file that is not a partial sweep with these settings (the setting
+        named), before any work.
+    SweepInterrupted
+        Ctrl-C (a ``KeyboardInterrupt``): the workers are stopped at once; it holds the
+        rows of the chunks finished (:mod:`morphoshell.workflows.sweep_runs`).
 
     Examples
     --------
@@ -680,9 +695,15 @@ def sweep(problem: Problem, axes: Mapping[str, Sequence], *, ablate: bool = Fals
     axes = _check_axes(problem, axes)
     points = _points(problem, axes, ablate, nodes, stages)
     chunk_axis, chunks = chunk_plan(axes, chunk_size)
-    n = len(points)
+    plan = {"chunks": len(chunks), "chunk_axis": chunk_axis, "nodes": nodes, "errors": errors}
+    n, blank = len(points), _blank_row(ablate)
+    settings = settings_record(problem, axes, ablate, nodes, errors, chunk_size,
+                               {**options, "stages": stages})
+    results = whole_chunks(restored(resume, settings, blank) if resume else {}, chunks, n)
+    chunks = [c for c in chunks if results[c[0]] is None]     # (the others restored)
+    todo = sum(map(len, chunks))
     if workers is None and scheduler is None and not os.environ.get("DASK_SCHEDULER_ADDRESS"):
-        workers = _default_workers(n * (2 if ablate else 1), len(chunks))
+        workers = _default_workers(todo * (2 if ablate else 1), len(chunks))
     parallel = scheduler is not None or os.environ.get("DASK_SCHEDULER_ADDRESS") or workers != 1
     if parallel and not _portable(problem):
         raise ValueError(f"family {problem.family!r} is registered only in this session: worker "
@@ -696,19 +717,29 @@ def sweep(problem: Problem, axes: Mapping[str, Sequence], *, ablate: bool = Fals
     log.info("sweep of %d %s (%s) in %d chunks along %s", n, what,
              " x ".join(f"{len(v)} {k}" for k, v in axes.items()), len(chunks), chunk_axis)
     t0 = time.perf_counter()
-    results, backend = _run_tasks(tasks, n, workers, scheduler, f"sweep: {n} {what}")
-    seconds = time.perf_counter() - t0
+    finish = partial(_finish, problem, axes, ablate, timing={"t0": t0, **plan})
+    with interruptible(results, blank, finish, settings):
+        backend = run_chunks(_run_chunk, tasks, results, workers, scheduler,
+                             f"sweep: {todo} {what}")
     # (what the summary says of the rows, not columns: the errors' columns show it)
     coarse = {i: c for i, row in enumerate(results) if (c := row.pop("_coarse", None))}
     unestimated = {i: u for i, row in enumerate(results) if (u := row.pop("_unestimated", ""))}
-    columns = result_columns(axes, results, ablate)
-    timing = {"seconds": seconds, "workers": workers if scheduler is None else "scheduler",
-              "backend": backend, "chunks": len(chunks), "chunk_axis": chunk_axis,
-              "nodes": nodes, "errors": errors}
-    result = SweepResult(problem, axes, bool(ablate), columns,
-                         _units(columns, problem.family_obj.units), timing)
+    result = _finish(problem, axes, ablate, results, timing={
+        "t0": t0, "workers": workers if scheduler is None else "scheduler",
+        "backend": backend, **plan, "restored": n - todo})
     log_summary(result, coarse, unestimated)
     return result
+
+
+def _finish(problem: Problem, axes: Mapping[str, tuple], ablate: bool, rows: list[dict],
+            timing: Mapping[str, Any]) -> SweepResult:
+    """The :class:`SweepResult` of ``rows`` (every point's, in the product's order), its
+    ``timing``'s ``t0`` (when the work began) replaced by the seconds since."""
+    columns = result_columns(axes, rows, ablate)
+    timing = {"seconds": time.perf_counter() - timing["t0"],
+              **{k: v for k, v in timing.items() if k != "t0"}}
+    return SweepResult(problem, axes, bool(ablate), columns,
+                       _units(columns, problem.family_obj.units), timing)
 
 
 def _check_arguments(problem: Problem, nodes: int, errors: str, options: Mapping
@@ -749,34 +780,8 @@ def _tasks(base: Mapping[str, Any], axes: Mapping[str, tuple], chunk_axis: str,
         estimate = tuple(errors == "all" or (errors == "ends" and w in (0, line - 1))
                          for w in where)
         tasks.append(_Chunk(base, tuple((i, points[i]) for i in rows), bool(ablate), nodes,
-                            dict(options), estimate))
+                            dict(options), estimate, lifeline.owner()))
     return tasks
-
-
-def _run_tasks(tasks: list[_Chunk], n: int, workers: int | None, scheduler: str | None,
-               desc: str) -> tuple[list[dict], str]:
-    """Every point's row, in the order of the product, and the executor's back end.
-
-    A scheduler that does not answer is bad input: ValueError naming it.
-    """
-    results: list = [None] * n
-    with ExitStack() as stack:
-        try:
-            executor = stack.enter_context(open_executor(workers, scheduler))
-        except OSError as exc:     # no scheduler there: bad input, named
-            raise ValueError(f"scheduler {scheduler or os.environ.get('DASK_SCHEDULER_ADDRESS')!r}"
-                             f": cannot connect ({exc})") from None
-        backend = backend_name(executor)
-        if backend == "serial":   # run() would solve every chunk before showing its bar
-            bar = stack.enter_context(counter(total=n, desc=desc, unit="point"))
-            done = ((i, _run_chunk(t, tick=bar.update)) for i, t in enumerate(tasks))
-        else:
-            done = run(_run_chunk, tasks, executor, description=desc,
-                       sizes=[len(t.points) for t in tasks], unit="point")
-        for _, rows in done:
-            for index, row in rows:
-                results[index] = row
-    return results, backend
 
 
 def _units(columns: Mapping[str, np.ndarray], family_units: Mapping[str, str]

@@ -1,0 +1,268 @@
+"""Where a profile's interval ends: its crossing, made sure where a refit stalled or the grid is
+coarse.
+
+A profile (:mod:`morphoshell.fitting.profiles`) refits the other parameters at each step
+of θⱼ from the neighbouring step's end; every refit's objective bounds the profile from
+above, so a refit that stops short of its minimum (not converged: out of evaluations, or
+stalled where its trial points fail) lies too high, and where it is the step that decides
+a crossing the interval comes out too narrow.  An audit's κ₁ (the ``free`` fit of a noisy
+forward solution, 100 nodes) read [−0.009, 1.03]: the refits at both neighbours of the
+optimum stalled above the threshold, where a fit with κ₁ held at 1.2 from the family's
+defaults converged below it and the right end lies near 1.6.
+
+Two remedies, both only where they are needed (an ordinary profile's refits all converge
+and its crossing lies several steps out: its numbers stay the same to the bit):
+
+* **Other starts** (:func:`retried`): a refit beyond the threshold that did not converge
+  is fitted again, with θⱼ held, from the starts a fit from several starts tries
+  (:func:`morphoshell.fitting.multistart.other_starts`: the family's defaults, κ₂ = −3
+  and −6, the late-stage start; those a campaign's fit also tries), in turn until the
+  lowest converges; the lowest objective is kept.  A retry that lands below the threshold
+  lets the walk go on outward from there, so the interval widens.  Each retry is recorded
+  (:class:`Retry`: which start won) in the profile's note and JSON.
+* **A coarse crossing refined** (:func:`refine_crossing`): where a side crosses the
+  threshold within its first two steps although its grid planned more, the profile is
+  far narrower than the Gauss–Newton error that set the step, and the crossing
+  interpolated across one step rests on two refits; one or two refits at the
+  interpolated crossing (false position) bracket it within a fraction of a step.
+
+Lengths in units of R.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+from typing import Callable
+
+import numpy as np
+
+from ..solvers.results import SolverError
+from .bilevel import fit
+from .multistart import other_starts
+from .results import FitError
+from .spec import VARIANTS, FitSpec
+
+__all__ = ["Retry", "RETRY_METHOD", "REFINEMENTS", "REFINE_PLANNED", "crossing", "retried",
+           "needs_retry", "refine_crossing", "started_at", "unconverged_crossing"]
+
+#: The retries' method whatever the profile's: a KKT fit from a far start fails or falls back
+#: to the gradient fit (as a campaign's fits from its other starts, which run by it too).
+RETRY_METHOD = "gradient"
+#: At most this many refits at the interpolated crossing on a side (:func:`refine_crossing`).
+REFINEMENTS = 2
+#: A side's crossing is refined only when its grid planned at least this many steps: a
+#: profile asked for with few points (the tests' 4 or 6) is coarse by choice, and a
+#: 20-point grid's side (10 steps, reaching twice the linear half-width) crosses near its
+#: fifth step where the profile is about as wide as the Gauss–Newton error says.
+REFINE_PLANNED = 4
+#: What a retry's fit that fails with one of these leaves in its table (the others go on).
+_FAILURES = (FitError, SolverError, ValueError)
+
+
+@dataclass(frozen=True)
+class Retry:
+    """A profile's refit that did not converge beyond the threshold, fitted again from other
+    starts.
+
+    Attributes
+    ----------
+    value : float
+        θⱼ, held.
+    S_before : float
+        The stalled refit's objective (units of R²).
+    winner : str
+        The start whose fit is kept (a row's ``"from"``), or ``""``: none lay lower, the
+        stalled refit stands.
+    S : float
+        The kept objective (units of R²).
+    converged : bool
+        Whether the kept refit converged.
+    starts : tuple of dict
+        One row per start fitted, in order: ``{"from", "E_fit" (R), "converged"}`` or
+        ``{"from", "E_fit": None, "failed": message}``.
+    seconds : float
+        Wall-clock time of the retry's fits.
+    """
+
+    value: float
+    S_before: float
+    winner: str
+    S: float
+    converged: bool
+    starts: tuple[dict, ...]
+    seconds: float = 0.0
+
+    def note(self, name: str) -> str:
+        """One clause for the profile's note: where, from which start, what it gave."""
+        head = (f"the refit at {name} = {self.value:.6g} did not converge (E_fit "
+                f"{np.sqrt(self.S_before):.6g} R) and was fitted again from "
+                f"{len(self.starts)} other starts")
+        if not self.winner:
+            return f"{head}: none lay lower"
+        state = "converged" if self.converged else "not converged"
+        return f"{head}: from the {self.winner} to E_fit {np.sqrt(self.S):.6g} R ({state})"
+
+    def to_dict(self) -> dict:
+        """JSON-ready (E_fit in R)."""
+        return {"value": self.value, "E_fit_before": float(np.sqrt(self.S_before)),
+                "kept": self.winner or None, "E_fit": float(np.sqrt(self.S)),
+                "converged": self.converged, "starts": [dict(row) for row in self.starts],
+                "seconds": self.seconds}
+
+
+def started_at(spec: FitSpec, theta) -> FitSpec:
+    """``spec`` started at θ (its breakpoints' boxes moved around θ where it orders them)."""
+    return spec.recentred(theta) if spec.ordered else replace(spec, base=spec.problem(theta))
+
+
+def needs_retry(out: tuple | None, threshold: float, objective: list) -> bool:
+    """Whether a profile's refit (:func:`morphoshell.fitting.profiles`' tuple: spec, θ,
+    state, objective, converged) decides its side's crossing without having converged: it
+    lies beyond the threshold, and no refit before it on the side (``objective``, outward)
+    does.  A converged refit there would move the crossing outward; one after the first
+    beyond cannot move it (:func:`crossing` takes the first)."""
+    return (out is not None and not out[4] and out[3] > threshold
+            and not any(S > threshold for S in objective))
+
+
+def retried(spec: FitSpec, name: str, value: float, out: tuple, threshold: float, data,
+            nodes: int, tol: float) -> tuple[tuple, Retry | None]:
+    """A stalled refit with ``name`` held at ``value`` fitted again from other starts: the
+    lowest of it and theirs, and the :class:`Retry` (None for a spec that is not a Volvox
+    variant's: the starts are the Volvox family's).
+
+    The starts (:func:`morphoshell.fitting.multistart.other_starts`, with ``spec``'s held
+    values and ``name`` = ``value``) are fitted in turn (:data:`RETRY_METHOD`, on
+    ``nodes`` nodes to ``tol``) until the lowest so far converged, as a campaign fits its
+    other starts, or lies below ``threshold``: the point is inside the interval then, and
+    a lower objective would move its crossing by a fraction of a step at most.  ``out`` is
+    the stalled refit's tuple (spec, θ, state, objective, converged); so is the one
+    returned, its spec ``spec`` started at its θ.
+    """
+    if spec.variant not in VARIANTS or spec.base.family != "volvox":
+        return out, None
+    j, before = spec.fitted.index(name), out[3]
+    t0, best, winner, rows = time.perf_counter(), None, "", []
+    for label, start in other_starts(spec, {name: value}):
+        try:
+            r = fit(start, data, RETRY_METHOD, nodes=nodes, tol=tol)
+        except _FAILURES as exc:
+            rows.append({"from": label, "E_fit": None, "failed": f"{type(exc).__name__}: {exc}"})
+            continue
+        rows.append({"from": label, "E_fit": float(r.E_fit), "converged": bool(r.converged)})
+        if float(r.E_fit) ** 2 < (before if best is None else float(best.E_fit) ** 2):
+            best, winner = r, label
+        if best is not None and (best.converged or float(best.E_fit) ** 2 <= threshold):
+            break
+    if best is not None:
+        theta = np.insert([best.parameters[n] for n in spec.fitted if n != name], j, value)
+        out = (started_at(spec, theta), theta, best.equilibrium, float(best.E_fit) ** 2,
+               bool(best.converged))
+    return out, Retry(float(value), before, winner, out[3], out[4], tuple(rows),
+                      time.perf_counter() - t0)
+
+
+def crossing(values: list, objective: list, start: tuple[float, float], direction: float,
+             threshold: float, S_min: float) -> float:
+    """Where the profile first crosses ``threshold`` walking out from ``start`` (θ̂ and its
+    objective; ``values`` outward); ±inf (``direction``) if it never does.
+
+    Interpolated linearly in √(S − S_min), S_min the profile's least objective,
+    between the last step below and the first above: exact for a quadratic
+    profile (a linear problem), whatever the grid's step, where interpolating S
+    itself put the crossing inside by up to a step.  Where θ̂ itself lies above
+    the threshold (a refit found an objective lower than the fit's by more than
+    the threshold's height: rethresholded with a small σ²), the crossing is the
+    first outward from the steps below it, and a side without any ends at θ̂
+    (at θ̂ the interpolation divided 0 by 0).
+    """
+    last_v, S_start = start
+    below = S_start <= threshold
+    last_r, target = (np.sqrt(max(S - S_min, 0.0)) for S in (S_start, threshold))
+    for v, s in zip(values, objective):
+        if not np.isfinite(s):
+            break
+        r = np.sqrt(max(s - S_min, 0.0))
+        if s > threshold and below:
+            return float(last_v + (v - last_v) * (target - last_r) / (r - last_r))
+        below = below or s <= threshold
+        last_v, last_r = v, r
+    return direction * np.inf if below else float(start[0])
+
+
+def _first_above(objective: list, threshold: float) -> int | None:
+    """The index of a side's first objective above ``threshold`` (None: none before the
+    side's end or a failed refit)."""
+    for i, s in enumerate(objective):
+        if not np.isfinite(s):
+            return None
+        if s > threshold:
+            return i
+    return None
+
+
+def refine_crossing(side: tuple[list, list, list, list], start: tuple, threshold: float,
+                    planned: int, refit: Callable) -> int:
+    """Refits at the interpolated crossing of a side that crosses within its first two
+    steps although its grid planned :data:`REFINE_PLANNED` or more: at most
+    :data:`REFINEMENTS`, each inserted into ``side`` where it belongs, each in the bracket
+    the last left (false position: for a smooth profile closer than the midpoint).
+
+    They are not retried from other starts (:func:`retried`: seconds each, for a fraction
+    of a step); a refit that fails, or did not converge and lies above the step beyond it,
+    is left out and ends the refinement.
+
+    Parameters
+    ----------
+    side : (values, objectives, converged, ends)
+        The side's walk, outward (lists, changed in place); ``ends[i]`` the state a refit
+        at ``values[i]`` ended in (spec, θ, state), the next refit's start.
+    start : (float, float, tuple)
+        θ̂, S_min and the optimum's state (spec, θ, state).
+    threshold : float
+    planned : int
+        The steps the grid planned on this side.
+    refit : callable
+        ``refit(end, value)``: the profile's refit at ``value`` from the state ``end``,
+        its tuple (spec, θ, state, objective, converged) or None if it failed.
+
+    Returns
+    -------
+    int
+        The refits made.
+    """
+    values, objective, converged, ends = side
+    i = _first_above(objective, threshold)
+    if i is None or i > 1 or planned < REFINE_PLANNED:
+        return 0
+    made = 0
+    while made < REFINEMENTS:
+        i = _first_above(objective, threshold)
+        prev = (start[0], start[1]) if i == 0 else (values[i - 1], objective[i - 1])
+        v = crossing([values[i]], [objective[i]], prev, 1.0, threshold, start[1])
+        if not min(prev[0], values[i]) < v < max(prev[0], values[i]):
+            break                   # (at an end of its step: a refit there adds nothing)
+        out = refit(start[2] if i == 0 else ends[i - 1], v)
+        made += 1
+        if out is None or (not out[4] and out[3] > objective[i]):
+            # (failed, or stalled above the step beyond it: above the profile, which rises
+            # outward to its crossing; the audit's κ₁ at 1.62, 0.0030916 R² where the
+            # retried 1.64 lies at 0.0030735, would have put the end at 1.599, not 1.620)
+            break
+        for items, item in zip(side, (v, out[3], out[4], out[:3])):
+            items.insert(i, item)
+    return made
+
+
+def unconverged_crossing(name: str, values: list, objective: list, converged: list,
+                         threshold: float) -> str:
+    """A note when the refit where a side first exceeds the threshold did not converge.
+
+    An unconverged refit's objective lies above the profile's (the others not
+    at their best), so the interval may reach further on that side.
+    """
+    above = [i for i, S in enumerate(objective) if S > threshold]
+    if not above or converged[above[0]]:
+        return ""
+    return (f"the refit at {name} = {values[above[0]]:.6g}, where the profile first exceeds "
+            f"the threshold, did not converge: the interval may reach further on that side")

@@ -1,0 +1,246 @@
+"""A profile's crossing made sure (fitting.profile_retry): a refit that decides it without
+having converged is fitted again from other starts, and the walk goes on where that lands
+below the threshold; a crossing within a side's first two steps is refined.
+
+The retries' fits and the walk's refits are faked where the test is about the bookkeeping
+(which start is kept, when the retries stop, where the walk goes): a real stalled refit
+takes a noisy 13-parameter fit (the audit's κ₁, 15 s at 100 nodes).
+"""
+import types
+
+import numpy as np
+import pytest
+
+from morphoshell.fitting import fit, profile, synthetic_midline, volvox_spec
+from morphoshell.fitting import profile_retry
+from morphoshell.fitting.profile_retry import (REFINE_PLANNED, crossing, needs_retry,
+                                               refine_crossing, retried, unconverged_crossing)
+from morphoshell.solvers.results import SolverError
+
+from fitting_cases import NODES, TRUE, three_parameter_spec
+
+
+def _fake_fit(E2_by_label, calls):
+    """A stand-in for bilevel.fit: E_fit² and convergence by the start's κ₂ (the multi-start
+    labels differ in it), the held values as the parameters."""
+    def fake(spec, data, method, *, nodes, tol):
+        label = spec.base.params["kappa2"]
+        calls.append(label)
+        E2, ok = E2_by_label[label]
+        if E2 is None:
+            raise SolverError("no branch", "Continuation_Failed")
+        return types.SimpleNamespace(E_fit=np.sqrt(E2), converged=ok,
+                                     parameters=dict(spec.base.params), equilibrium="eq")
+    return fake
+
+
+def test_a_stalled_refit_is_fitted_again_from_other_starts_and_the_lowest_kept(monkeypatch):
+    """The starts of a fit from several starts (family defaults, κ₂ = −3, −6, late stage),
+    with the held value: in turn until the lowest converged or lies below the threshold; the
+    lowest is kept and recorded (which start won), a start that fails is a row too."""
+    spec = volvox_spec("free")
+    j = spec.fitted.index("kappa1")
+    theta = spec.theta0
+    stalled = (spec, theta, "state", 10.0, False)             # threshold 5 below
+    defaults = spec.base.params["kappa2"]
+    E2, calls = {defaults: (8.0, False), -3.0: (None, False), -6.0: (4.0, False)}, []
+    monkeypatch.setattr(profile_retry, "fit", _fake_fit(E2, calls))
+    out, retry = retried(spec, "kappa1", 1.2, stalled, 5.0, "data", 100, 1e-8)
+    # (κ₂ = −6 lands below the threshold: the late-stage start, also κ₂ = −6, not tried)
+    assert calls == [defaults, -3.0, -6.0]
+    assert out[3] == pytest.approx(4.0) and not out[4] and out[2] == "eq"
+    assert out[1][j] == 1.2 and out[0].base.params["kappa1"] == 1.2
+    assert retry.winner == "multi-start kappa2 = -6" and retry.S_before == 10.0
+    assert [row["from"] for row in retry.starts] == ["family defaults",
+                                                     "multi-start kappa2 = -3",
+                                                     "multi-start kappa2 = -6"]
+    assert "failed" in retry.starts[1] and retry.to_dict()["kept"] == retry.winner
+    assert "from the multi-start kappa2 = -6 to E_fit 2 R (not converged)" in \
+        retry.note("kappa1")
+    # a converged start ends the retries, lower or not than the ones after it
+    calls.clear()
+    E2.update({defaults: (7.0, True)})
+    out, retry = retried(spec, "kappa1", 1.2, stalled, 5.0, "data", 100, 1e-8)
+    assert calls == [defaults] and out[3] == pytest.approx(7.0) and out[4]
+    # none lower than the stalled refit: it stands, every start tried
+    calls.clear()
+    E2.update({defaults: (12.0, True), -3.0: (11.0, False), -6.0: (13.0, False)})
+    out, retry = retried(spec, "kappa1", 1.2, stalled, 5.0, "data", 100, 1e-8)
+    assert out is stalled and len(calls) == 4 and retry.winner == ""
+    assert retry.note("kappa1").endswith("none lay lower")
+
+
+def test_only_the_unconverged_refit_that_decides_the_crossing_is_retried():
+    out = ("spec", "theta", "state", 6.0, False)
+    assert needs_retry(out, 5.0, [1.0, 3.0])
+    assert not needs_retry(out, 5.0, [1.0, 5.5])       # (after the first beyond: cannot move it)
+    assert not needs_retry(out[:4] + (True,), 5.0, [1.0])
+    assert not needs_retry(out[:3] + (4.0, False), 5.0, [1.0])
+    assert not needs_retry(None, 5.0, [])
+
+
+def _quartic(width, S_min=1.0, height=1.0):
+    """A profile S = S_min + height ((θ − 0)/width)⁴, crossing S_min + height at ±width: not
+    quadratic, so that √(S − S_min) interpolated across a coarse step misses its crossing."""
+    return lambda v: S_min + height * (v / width) ** 4
+
+
+def test_a_crossing_within_the_first_steps_is_refined():
+    """A side that crosses within its first two steps of a grid that planned ten: one or two
+    refits at the interpolated crossing, from the end of the step before it.  The audit's κ₁
+    crossed within its first step of 0.87 (the step was set by a Gauss-Newton error ten
+    times the profile's width)."""
+    S = _quartic(0.15)
+    calls = []
+
+    def refit(end, value):
+        calls.append((end, value))
+        return (f"end {value}", None, None, S(value), True)
+
+    side = ([0.1, 0.2], [S(0.1), S(0.2)], [True, True], ["end 0.1", "end 0.2"])
+    threshold = 2.0                    # (S_min 1 + height 1: crossing at 0.15)
+    coarse = crossing(side[0], side[1], (0.0, 1.0), 1.0, threshold, 1.0)
+    assert abs(coarse - 0.15) > 5e-3   # (the interpolation across the step misses it)
+    made = refine_crossing(side, (0.0, 1.0, "optimum"), threshold, 10, refit)
+    assert made == 2 and len(side[0]) == 4 and np.all(np.diff(side[0]) > 0)
+    assert calls[0][0] == "end 0.1"    # (from the step below the crossing)
+    fine = crossing(side[0], side[1], (0.0, 1.0), 1.0, threshold, 1.0)
+    # (two false-position steps of a quartic: within 1e-3 of the step's 0.1)
+    assert fine == pytest.approx(0.15, abs=1e-3)
+    # a grid asked for with few points is coarse by choice; a crossing at the third step
+    # is resolved already
+    for planned, values in ((REFINE_PLANNED - 1, [0.1, 0.2]), (10, [0.04, 0.08, 0.16])):
+        side = (list(values), [S(v) for v in values], [True] * len(values), list(values))
+        assert refine_crossing(side, (0.0, 1.0, "optimum"), threshold, planned, refit) == 0
+
+
+def test_a_refinement_that_stalls_above_the_step_beyond_is_left_out():
+    """A refit between the last step below and the first above that did not converge and
+    lies above the first above is above the profile (it rises to its crossing): left out
+    (the audit's κ₁ at 1.62 would have moved the end from 1.620 to 1.599)."""
+    side = ([0.1, 0.2], [1.2, 3.0], [True, True], ["end 0.1", "end 0.2"])
+    made = refine_crossing(side, (0.0, 1.0, "optimum"), 2.0, 10,
+                           lambda end, value: ("e", None, None, 3.5, False))
+    assert made == 1 and side[0] == [0.1, 0.2]
+    made = refine_crossing(side, (0.0, 1.0, "optimum"), 2.0, 10,
+                           lambda end, value: ("e", None, None, 2.5, False))
+    assert made == 2 and len(side[0]) == 4        # (below the step beyond: kept)
+
+
+@pytest.fixture(scope="module")
+def three():
+    spec = three_parameter_spec()
+    data = synthetic_midline(TRUE, spec.base, nodes=NODES, noise=1e-3, seed=3)
+    return spec, data, fit(spec, data, "gradient", nodes=NODES)
+
+
+def test_a_retry_below_the_threshold_lets_the_profile_go_on_outward(three, monkeypatch):
+    """The refit at the third step above stalls far above the threshold (the audit's κ₁ at
+    1.64: 10× the profile's height there); the retry from the family defaults lands on the
+    profile, below the threshold, so the walk goes on and the interval ends where the
+    profile crosses, two steps further, not within the stalled step; the profile records
+    the retry (JSON, note).  The walk's refits are faked: S = S_min + h ((θ − θ̂)/0.45)²
+    with the threshold's height h (σ² given), a quadratic whose crossing the √ interpolation
+    finds exactly."""
+    import morphoshell.fitting.profiles as profiles
+
+    spec, data, result = three
+    sigma2, step = 1e-8, 0.01
+    height = sigma2 * 3.841458820694124
+    j = spec.fitted.index("f1")
+
+    def true_S(opt, value):
+        return opt.S + height * ((value - opt.theta[j]) / (4.5 * step)) ** 2
+
+    def refit_checked(opt, name, walked, value, method, tol, jump):
+        theta = np.array(walked[1], dtype=float)
+        theta[j] = value
+        stalled = np.isclose(value - opt.theta[j], 3 * step)
+        S = opt.S + 10 * height if stalled else true_S(opt, value)
+        return (walked[0], theta, walked[2], S, not stalled), ""
+
+    def fake_fit(spec_, data_, method, *, nodes, tol):
+        value = spec_.base.params["f1"]
+        return types.SimpleNamespace(E_fit=np.sqrt(true_S(opt_of[0], value)),
+                                     converged=True, parameters=dict(spec_.base.params),
+                                     equilibrium=opt_of[0].eq)
+
+    opt_of = []
+    real_optimum = profiles._optimum
+    monkeypatch.setattr(profiles, "_optimum",
+                        lambda *a: opt_of.append(real_optimum(*a)) or opt_of[0])
+    monkeypatch.setattr(profiles, "_refit_checked", refit_checked)
+    monkeypatch.setattr(profile_retry, "fit", fake_fit)
+    p = profile(spec, data, "f1", result=result, points=20, span=10 * step, noise=sigma2)
+    lo, hi = p.interval
+    assert hi - p.fitted_value == pytest.approx(4.5 * step, rel=1e-6)
+    assert p.fitted_value - lo == pytest.approx(4.5 * step, rel=1e-6)
+    above = p.values > p.fitted_value
+    assert p.values[above][2] == pytest.approx(p.fitted_value + 3 * step)
+    assert p.converged.all() and p.verdict() == ""
+    [r] = p.retries
+    assert r.winner == "family defaults" and r.S_before > r.S
+    d = p.to_dict()["retries"][0]
+    assert d["kept"] == "family defaults" and d["converged"]
+    assert "was fitted again from 1 other starts: from the family defaults" in p.note
+
+
+def test_a_crossing_decided_by_an_unconverged_refit_is_noted():
+    """An unconverged refit's objective lies above the profile: where it is the first point
+    past the threshold, the interval may reach further, and the profile says so."""
+    values, objective = [0.1, 0.2, 0.3], [1.0, 2.0, 9.0]
+    assert unconverged_crossing("k", values, objective, [True, True, True], 3.0) == ""
+    note = unconverged_crossing("k", values, objective, [True, True, False], 3.0)
+    assert "k = 0.3" in note and "did not converge" in note
+    # (an unconverged refit below the threshold does not decide the crossing)
+    assert unconverged_crossing("k", values, objective, [True, False, True], 3.0) == ""
+
+
+def test_a_crossing_about_a_refit_below_the_fit_is_a_number():
+    """A refit lower than the fit by more than the threshold's height (σ² from the residual
+    of a replicate in scripts/check_profile_coverage.py): the fitted value lies outside its
+    threshold, and the crossing interpolated 0/0 (NaN and a RuntimeWarning).  Now the
+    crossing is found outward from the steps below the threshold, in √(S − S_min)."""
+    import warnings
+
+    start = (0.0, 4.0)                      # the fit: S = 4, the profile's least S = 1
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        # above: the fit's side rises from S = 1 at 1.0 to 9 at 3.0; threshold 5 (r = 2)
+        assert crossing([1.0, 2.0, 3.0], [1.0, 2.0, 9.0], start, 1.0, 5.0, 1.0) == \
+            pytest.approx(2.0 + (2.0 - 1.0) / (np.sqrt(8.0) - 1.0))
+        # below: never below the threshold 2: the side ends at the fitted value
+        assert crossing([-1.0, -2.0], [6.0, 8.0], start, -1.0, 2.0, 1.0) == 0.0
+        # the usual case is unchanged: the start is the minimum, r = √(S − 4)
+        assert crossing([1.0, 2.0], [5.0, 13.0], start, 1.0, 8.0, 4.0) == \
+            pytest.approx(1.0 + (2.0 - 1.0) / (3.0 - 1.0))
+
+
+
+
+def test_a_profile_narrower_than_its_grid_refines_its_crossings(three, monkeypatch):
+    """A profile four times narrower than the Gauss–Newton step planned for (the walk's
+    refits faked: S − S_min quartic in θ − θ̂, crossing at 1.5 steps on either side): each
+    side gets two refits at its interpolated crossing, and the interval ends within a
+    hundredth of a step of the profile's crossing, where across the step it missed by
+    eight hundredths."""
+    import morphoshell.fitting.profiles as profiles
+
+    spec, data, result = three
+    sigma2, step = 1e-8, 0.01
+    height = sigma2 * 3.841458820694124
+    j = spec.fitted.index("f1")
+
+    def refit_checked(opt, name, walked, value, method, tol, jump):
+        theta = np.array(walked[1], dtype=float)
+        theta[j] = value
+        S = opt.S + height * ((value - opt.theta[j]) / (1.5 * step)) ** 4
+        return (walked[0], theta, walked[2], S, True), ""
+
+    monkeypatch.setattr(profiles, "_refit_checked", refit_checked)
+    p = profile(spec, data, "f1", result=result, points=20, span=10 * step, noise=sigma2)
+    lo, hi = p.interval
+    for half in (hi - p.fitted_value, p.fitted_value - lo):
+        assert half == pytest.approx(1.5 * step, abs=0.01 * step)
+    # (the walk's two steps per side, one to the crossing and one beyond, and two refinements)
+    assert len(p.values) == 1 + 2 * (2 + 2) and not p.retries
