@@ -170,9 +170,9 @@ class Theory:
         eta = np.asarray(eta, dtype=float)
         if np.any(np.abs(eta) >= 1) or not np.all(np.isfinite(eta)):
             raise ValueError(f"eta must be finite with abs(eta) < 1, got {eta}")
-        # compiled where available, one evaluator for every number of points (a call
-        # on a row built CasADi a map each time: 3.5 ms at 200 points, ten times the
-        # rest of a result's fields)
+        # compiled where available, one evaluator for every number of points: a call
+        # on a row built CasADi a map each time, which cost more than the rest of a
+        # result's fields (docs/benchmarks.md, "Nodal fields at the scheme's order")
         if "f" not in self._cache:
             sym = ca.SX.sym("eta")
             self._cache["f"] = PointEvaluator(ca.Function(f"coefficients_{self.name}", [sym],

@@ -350,7 +350,7 @@ class Equilibrium:
         are weakly singular (docs/solution.md, "Three routes to one energy"): r,
         ψ and z converge with the mesh there, but the stretches, strains,
         resultants and energy density at the pole itself grow under refinement
-        (f_s 1.5 → 4.3 from 50 to 400 nodes at η = 0.3) and mean nothing as
+        (f_s 1.5 → 4.5 from 50 to 400 nodes at η = 0.3) and mean nothing as
         numbers; a free edge's values are regular.
 
         Returns
