@@ -26,6 +26,7 @@ from typing import Callable, NamedTuple
 import casadi as ca
 import numpy as np
 
+from .._runtime.compiled import PointEvaluator
 from .._runtime.validate import lookup
 
 __all__ = [
@@ -169,11 +170,15 @@ class Theory:
         eta = np.asarray(eta, dtype=float)
         if np.any(np.abs(eta) >= 1) or not np.all(np.isfinite(eta)):
             raise ValueError(f"eta must be finite with abs(eta) < 1, got {eta}")
+        # compiled where available, one evaluator for every number of points: a call
+        # on a row built CasADi a map each time, which cost more than the rest of a
+        # result's fields (docs/benchmarks.md, "Nodal fields at the scheme's order")
         if "f" not in self._cache:
             sym = ca.SX.sym("eta")
-            self._cache["f"] = ca.Function(f"coefficients_{self.name}", [sym], list(self(sym)))
-        out = self._cache["f"](eta.reshape(1, -1))
-        return Coefficients(*[np.asarray(v).reshape(eta.shape) for v in out])
+            self._cache["f"] = PointEvaluator(ca.Function(f"coefficients_{self.name}", [sym],
+                                                          list(self(sym))))
+        out = self._cache["f"](eta.ravel())
+        return Coefficients(*[v.reshape(eta.shape) for v in out])
 
 
 #: The registered theories by name (:func:`register_theory` adds one).

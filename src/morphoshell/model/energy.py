@@ -30,7 +30,7 @@ from .profiles import Profiles
 
 __all__ = ["Strains", "strains", "kinematics", "density", "pointwise", "intrinsic_function",
            "local_function", "LOCAL_OUTPUTS", "parameter_symbols", "boundary_layer_width",
-           "unpack_intrinsic", "CACHE_SIZE"]
+           "unpack_intrinsic", "optimal_controls", "intrinsic_values", "CACHE_SIZE"]
 
 #: Compiled functions kept per structure (least recently used are dropped).
 CACHE_SIZE = 32
@@ -193,6 +193,63 @@ def pointwise(r, psi, f_s, dpsi, I, h) -> dict:
     return {"L": 2 * ca.pi * rho * e, "e": e, **E._asdict(),
             **dict(zip(("N_s", "N_phi", "M_s", "M_phi"), ca.vertsplit(grads))),
             **kinematics(rho, r, psi, f_s, dpsi)}
+
+
+def optimal_controls(L, f, u, psi, lam_r, lam_psi):
+    """The controls (f_s, ψ') that make the Hamiltonian stationary, given the costates.
+
+    Pontryagin's principle for the optimal-control form of the energy, with states
+    (r, ψ), controls (f_s, u = ψ') and costates (λ_r, λ_ψ) (documentation: "Theory",
+    governing equations):
+
+        H = L + λ_r f_s cos ψ + λ_ψ u,    ∂H/∂(f_s, u) = 0.
+
+    H is quadratic in the controls, so they follow from a 2×2 linear solve.  The
+    boundary-value reference (:func:`morphoshell.solvers.bvp.pontryagin_functions`)
+    and the direct route's nodal fields (:mod:`morphoshell.numerics.cell_kernels`,
+    ``"node"``) both use this one formula.
+
+    Parameters
+    ----------
+    L : casadi.SX
+        The integrand L = 2πρe as an expression of the symbols ``f`` and ``u``.
+    f, u : casadi.SX
+        The symbols of f_s and ψ' in ``L``.
+    psi, lam_r, lam_psi : casadi.SX
+        ψ and the costates.
+
+    Returns
+    -------
+    H : casadi.SX
+        The Hamiltonian.
+    controls : casadi.SX, shape (2,)
+        (f_s, ψ'), free of ``f`` and ``u``.
+    """
+    H = L + lam_r * f * ca.cos(psi) + lam_psi * u
+    w = ca.vertcat(f, u)
+    Hw = ca.gradient(H, w)
+    A = ca.jacobian(Hw, w)  # independent of (f, u): H is quadratic in them
+    b = ca.substitute(Hw, w, ca.DM.zeros(2))
+    det = A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
+    return H, -ca.vertcat(A[1, 1] * b[0] - A[0, 1] * b[1],
+                          A[0, 0] * b[1] - A[1, 0] * b[0]) / det
+
+
+def intrinsic_values(theory, rho, profiles: dict) -> np.ndarray:
+    """:func:`intrinsic_function`'s data in numbers, from ρ and the profiles at some points.
+
+    ``profiles`` as :meth:`~morphoshell.model.problem.Problem.profiles` returns them (the
+    four profiles and η), the coefficients from ``theory``
+    (:meth:`~morphoshell.model.coefficients.Theory.evaluate`): the same quantities from
+    the problem's numerical evaluators, so that nothing is built per structure.
+
+    Returns
+    -------
+    ndarray, shape (len(INTRINSIC), N)
+        Rows in the order of :data:`~morphoshell.model.layouts.INTRINSIC`.
+    """
+    values = {"rho": rho, **profiles, **theory.evaluate(profiles["eta"])._asdict()}
+    return np.array([values[n] for n in INTRINSIC.names], dtype=float)
 
 
 @lru_cache(maxsize=CACHE_SIZE)

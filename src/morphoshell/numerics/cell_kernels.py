@@ -35,11 +35,12 @@ import numpy as np
 
 from .._runtime import IMPORTED_NS
 from .._runtime.compiled import CFLAGS, block_function, compiled_library, kernel_cache_dir, renamed
-from ..model.energy import LOCAL_OUTPUTS, pointwise
+from ..model.energy import LOCAL_OUTPUTS, optimal_controls, pointwise
 from ..model.layouts import CELL_DATA, INTRINSIC
 from .scheme import collocation
 
-__all__ = ["COMPILED_KERNELS", "BLOCKED_KERNELS", "NEWTON_EPSILON", "PACKAGE", "cell_functions",
+__all__ = ["COMPILED_KERNELS", "BLOCKED_KERNELS", "NEWTON_EPSILON", "PACKAGE", "NODE_OUTPUTS",
+           "cell_functions",
            "compiled_cell_functions", "kernel_cache_dir"]
 
 _log = logging.getLogger("morphoshell")
@@ -47,8 +48,8 @@ _log = logging.getLogger("morphoshell")
 #: Cell kernels that are compiled to C (the evaluations of Ipopt's callbacks
 #: and of results); the rest of :func:`cell_functions` stays in CasADi (the
 #: total energy of results comes from the fields).
-COMPILED_KERNELS = ("f", "g", "grad", "jac", "hess", "fields", "newton", "newton_rhs",
-                    "kkt_data")
+COMPILED_KERNELS = ("f", "g", "grad", "jac", "hess", "fields", "ends", "node", "newton",
+                    "newton_rhs", "kkt_data")
 
 #: Compiled kernels also compiled in blocks of cells, as ``<name>_block``
 #: (:func:`morphoshell._runtime.compiled.block_map`), used on meshes of at least
@@ -61,6 +62,10 @@ BLOCKED_KERNELS = ("newton_rhs",)
 #: Relative size ε of the (λ, λ) block −ε W⁻¹ of the Newton system
 #: (:meth:`morphoshell.numerics.discretisation.Discretisation.newton_system`).
 NEWTON_EPSILON = 1e-8
+
+#: Outputs of the ``"node"`` kernel of :func:`cell_functions`, in order: the controls
+#: f_s and ψ', then the shape-dependent :data:`~morphoshell.model.energy.LOCAL_OUTPUTS`.
+NODE_OUTPUTS = ("f_s", "dpsi", *LOCAL_OUTPUTS[:len(LOCAL_OUTPUTS) - len(INTRINSIC)])
 
 #: The package whose source the kernel index hashes (:func:`_kernel_index`): all of it,
 #: every subpackage, since the kernels are built from modules across the layers.
@@ -85,7 +90,8 @@ def cell_functions(stages: int) -> dict[str, ca.Function]:
         the upper triangle of ∇²(σ ℓ + λᵀg), row by row; ``"fields"`` the
         pointwise fields at the S Gauss points, one column each; ``"kkt"`` (z, D, λ)
         -> (∇ℓ + Jᵀλ, g) (4S + 2,) and ``"kkt_data"`` its ∂/∂D, dense;
-        ``"newton"`` and ``"newton_rhs"`` (:func:`_newton_cells`).
+        ``"newton"`` and ``"newton_rhs"`` (:func:`_newton_cells`); ``"ends"`` and
+        ``"node"``, the nodal fields (:func:`_node_functions`).
     """
     S = stages
     _, _, values, derivs, _, _ = collocation(S)
@@ -113,8 +119,10 @@ def cell_functions(stages: int) -> dict[str, ca.Function]:
     H = ca.hessian(sigma * ell + ca.dot(lam, g), z)[0]
     kkt = ca.vertcat(ca.gradient(ell, z) + ca.mtimes(ca.jacobian(g, z).T, lam), g)
     ku, lu = np.triu_indices(3 * S + 2)
+    scale = CELL_DATA.unpack(D[:n_D])["scale"]
     return {
         **_newton_cells(z, D, lam, kkt[:3 * S + 2], g, ca.substitute(H, sigma, 1.0)),
+        **_node_functions(z, D, lam, kkt, scale),
         "f": ca.Function("cell_f", [z, D], [ell]),
         "energy": ca.Function("cell_energy", [z, D], [energy]),
         "g": ca.Function("cell_g", [z, D], [g]),
@@ -127,6 +135,37 @@ def cell_functions(stages: int) -> dict[str, ca.Function]:
         "kkt": ca.Function("cell_kkt", [z, D, lam], [kkt]),
         "kkt_data": ca.Function("cell_kkt_data", [z, D, lam], [ca.densify(ca.jacobian(kkt, D))]),
     }
+
+
+def _node_functions(z, D, lam, kkt, scale) -> dict[str, ca.Function]:
+    """The kernels of the fields at the mesh nodes, to the scheme's order.
+
+    At the Gauss points f_s and ψ' converge at order 2S − 1 (3 at S = 2) and the
+    nodal r, ψ at order 2S; so do the costates at the nodes.  Those are the
+    multipliers of the continuity of r and ψ across a node, which the layout builds
+    in by sharing the node's unknowns: a cell's own share of the Lagrangian's
+    gradient in its end node's r and ψ, the same from either side at a solution
+    (their sum is the KKT residual).  ``"ends"`` ``(z, D, λ) -> (λ_r, λ_ψ at the
+    cell's first node, λ_r, λ_ψ at its last)`` gives them, in the energy's units
+    (the objective's scale divided out), signed as the costates of the
+    boundary-value reference (λ_r 2π times the radial force per radian, λ_ψ 2π times
+    minus the bending moment).  ``"node"`` ``((r, ψ, λ_r, λ_ψ), I, h) -> NODE_OUTPUTS``
+    solves Pontryagin's ∂H/∂(f_s, ψ') = 0 for the controls there
+    (:func:`~morphoshell.model.energy.optimal_controls`, as the boundary-value
+    reference does) and evaluates the pointwise fields of
+    :func:`~morphoshell.model.energy.pointwise` with them: fields of order 2S at the
+    nodes (documentation: "Solution routes", accuracy of the fields).  I is the node's
+    :data:`~morphoshell.model.layouts.INTRINSIC` data; off the axis only (ρ > 0).
+    """
+    S = lam.shape[0]
+    ends = ca.vertcat(kkt[0], kkt[S + 1], -kkt[S], -kkt[2 * S + 1]) / scale
+    y, I, h = ca.SX.sym("y", 4), ca.SX.sym("I", len(INTRINSIC)), ca.SX.sym("h")
+    f, u = ca.SX.sym("f_s"), ca.SX.sym("dpsi")
+    _, w = optimal_controls(pointwise(y[0], y[1], f, u, I, h)["L"], f, u, y[1], y[2], y[3])
+    point = pointwise(y[0], y[1], w[0], w[1], I, h)
+    return {"ends": ca.Function("cell_ends", [z, D, lam], [ends]),
+            "node": ca.Function("cell_node", [y, I, h], [ca.vertcat(
+                w, *[point[name] for name in NODE_OUTPUTS[2:]])])}
 
 
 def _newton_cells(z, D, lam, dual, g, H) -> dict[str, ca.Function]:

@@ -65,8 +65,9 @@ from .kkt_derivatives import KKTDerivatives
 from .mesh import Knot, check_monotone
 from .newton_assembly import newton_rhs, newton_system
 from .parameter_data import ParameterData
+from .cell_kernels import NODE_OUTPUTS
 from .scheme import (POLE_VALUES, Layout, PointData, collocation, integrate_numeric,
-                     integrate_symbolic, integration_operators, mesh_point_data)
+                     integrate_symbolic, integration_operators, mesh_point_data, reconstruction)
 from .shape import SymbolicShape, cell_state
 
 __all__ = ["Discretisation"]
@@ -77,9 +78,10 @@ _FIELDS_MAPS: dict = {}
 
 
 def _fields_map(kernel: ca.Function) -> ChunkedMap:
-    """``(cells, Z, D_c) -> [fields]``: the cell kernel ``kernel`` ("fields": pointwise fields
-    at the Gauss points from a cell's unknowns and data, one stacked output so that a solve
-    copies to NumPy once) over any number of cells, one evaluator per kernel and process
+    """``(cells, *inputs) -> [outputs]``: the cell kernel ``kernel`` (the results' "fields":
+    pointwise fields at the Gauss points from a cell's unknowns and data, one stacked output
+    so that a solve copies to NumPy once; "ends", "node": those at the nodes) over any number
+    of cells or nodes, one evaluator per kernel and process
     (:class:`~morphoshell._runtime.compiled.ChunkedMap`), where a map per mesh would cost
     every build its construction."""
     key = id(kernel)
@@ -219,6 +221,8 @@ class Discretisation:
         self._field_names = ("s", "ds", "weight", "r", "psi", "f_s", "dpsi", *LOCAL_OUTPUTS)
         self._points = (None, None)
         self._fields = _fields_map(self._cell["fields"])
+        self._ends = _fields_map(self._cell["ends"])
+        self._node = _fields_map(self._cell["node"])
 
     # -- the NLP ---------------------------------------------------------------
     def _built(self, name: str, build):
@@ -440,6 +444,79 @@ class Discretisation:
         out = self._fields(self.layout.cells, self.local_values(x), D)[0].reshape(
             -1, len(self._field_names)).T
         return dict(zip(self._field_names, out))
+
+    def node_fields(self, x: np.ndarray, lam: np.ndarray, D: np.ndarray, r: np.ndarray,
+                    psi: np.ndarray, I: np.ndarray, h: float) -> dict[str, np.ndarray]:
+        """The pointwise fields at the mesh nodes, from their state and costates.
+
+        The costates at a node are the mean of its two cells' (one at an end; the two
+        differ by the KKT residual), the controls f_s and ψ' there solve Pontryagin's
+        stationarity, and the fields follow pointwise
+        (:func:`~morphoshell.numerics.cell_kernels.cell_functions`, ``"ends"`` and
+        ``"node"``): order 2S, where Gauss-point values are of order 2S − 1 at best.
+
+        Parameters
+        ----------
+        x, lam : ndarray
+            The NLP's unknowns and multipliers.
+        D : ndarray
+            The cell data.
+        r, psi : ndarray, shape (N + 1,)
+            The state at the nodes.
+        I : ndarray, shape (len(INTRINSIC), N + 1)
+            The intrinsic data at the nodes
+            (:func:`~morphoshell.model.energy.intrinsic_values`).
+        h : float
+            The thickness.
+
+        Returns
+        -------
+        dict
+            :data:`~morphoshell.numerics.cell_kernels.NODE_OUTPUTS` by name, each (N + 1,);
+            not finite on the axis (ρ = 0), where the caller extrapolates.
+        """
+        cells, S = self.layout.cells, self.stages
+        ends = self._ends(cells, self.local_values(x), D, lam)[0].reshape(cells, 4).T
+        lam_nodes = np.empty((2, cells + 1))
+        lam_nodes[:, 0], lam_nodes[:, -1] = ends[:2, 0], ends[2:, -1]
+        lam_nodes[:, 1:-1] = 0.5 * (ends[2:, :-1] + ends[:2, 1:])
+        n = cells + 1
+        out = self._node(n, np.vstack([r, psi, lam_nodes]), I, np.full(n, float(h)))[0]
+        return dict(zip(NODE_OUTPUTS, out.reshape(n, len(NODE_OUTPUTS)).T))
+
+    def to_points(self, gauss: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+        """Fields at the points from their values at the Gauss points and at the nodes.
+
+        The nodes keep their values, the interior points of a cell take the
+        polynomial through the cell's two node values and its Gauss values, and a pole
+        (no value of its own) the polynomial through the cell's others
+        (:func:`~morphoshell.numerics.scheme.reconstruction`): within cells, never
+        across a node, where a profile may kink.
+
+        Parameters
+        ----------
+        gauss : ndarray, shape (F, cells S)
+        nodes : ndarray, shape (F, N + 1)
+
+        Returns
+        -------
+        ndarray, shape (F, points)
+        """
+        S, cells, lay = self.stages, self.layout.cells, self.layout
+        inner, start, end = reconstruction(S)
+        F = gauss.shape[0]
+        G = gauss.reshape(F, cells, S)
+        nodes = nodes.copy()
+        if lay.start_pole:      # (first, as the cell's interior points need it)
+            nodes[:, 0] = G[:, 0] @ start[1:-1] + nodes[:, 1] * start[-1]
+        if lay.end_pole:
+            nodes[:, -1] = nodes[:, -2] * end[0] + G[:, -1] @ end[1:-1]
+        data = np.concatenate([nodes[:, :-1, None], G, nodes[:, 1:, None]], axis=2)
+        out = np.empty((F, lay.points))
+        out[:, ::S] = nodes
+        for l in range(1, S):
+            out[:, l:-1:S] = data @ inner[l - 1]
+        return out
 
     def integrate_to_points(self, values: np.ndarray, p: np.ndarray | None = None, q=(), *,
                             ds: np.ndarray | None = None) -> np.ndarray:

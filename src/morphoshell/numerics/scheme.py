@@ -40,7 +40,8 @@ from typing import NamedTuple
 import casadi as ca
 import numpy as np
 
-__all__ = ["POLE_VALUES", "Layout", "collocation", "lagrange", "horner", "within_cells",
+__all__ = ["POLE_VALUES", "Layout", "collocation", "reconstruction", "lagrange", "horner",
+           "within_cells",
            "between", "PointData", "mesh_point_data", "integration_operators",
            "integrate_numeric", "integrate_symbolic"]
 
@@ -153,6 +154,33 @@ def collocation(stages: int):
     return tau, w, values, derivs, integrals, anti
 
 
+@lru_cache(maxsize=8)
+def reconstruction(stages: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Weights that put a field known at a cell's nodes and Gauss points at its other points.
+
+    A cell's data are the field at τ = 0, its S Gauss points and τ = 1 (S + 2 values,
+    in that order).  Its interior points τ = l/S (l = 1 … S − 1) take the polynomial
+    of degree S + 1 through all of them: within the cell, so never across a node, where
+    a profile may kink.  A pole, where the fields are not evaluated, takes the
+    polynomial of degree S through the cell's other S + 1 values.
+
+    Returns
+    -------
+    inner : ndarray, shape (S − 1, S + 2)
+        Weights of the interior points.
+    start, end : ndarray, shape (S + 2,)
+        Weights of the first and of the last node (zero on that node's own value).
+    """
+    tau = collocation(stages)[0]
+    data = np.concatenate([[0.0], tau, [1.0]])
+    inner = np.array([[lagrange(data, j)(l / stages) for j in range(stages + 2)]
+                      for l in range(1, stages)]).reshape(stages - 1, stages + 2)
+    start, end = np.zeros(stages + 2), np.zeros(stages + 2)
+    start[1:] = [lagrange(data[1:], j)(0.0) for j in range(stages + 1)]
+    end[:-1] = [lagrange(data[:-1], j)(1.0) for j in range(stages + 1)]
+    return inner, start, end
+
+
 def lagrange(points: np.ndarray, l: int) -> np.polynomial.Polynomial:
     """The l-th Lagrange basis polynomial on ``points``.
 
@@ -190,10 +218,6 @@ class PointData(NamedTuple):
         The undeformed shell there; ρ is exactly 0 at a pole.
     off : ndarray of bool (n,)
         The points off the axis (ρ > 0).
-    below, weight : ndarray (n,)
-        Linear interpolation from the Gauss points s_g (cell by cell): the value at s[j]
-        is v[below[j] − 1] + weight[j] (v[below[j]] − v[below[j] − 1]), extrapolated beyond
-        the first and last Gauss points.
     """
 
     s: np.ndarray
@@ -201,8 +225,6 @@ class PointData(NamedTuple):
     z0: np.ndarray
     psi0: np.ndarray
     off: np.ndarray
-    below: np.ndarray
-    weight: np.ndarray
 
 
 def mesh_point_data(nodes: np.ndarray, tau: np.ndarray, geometry, layout: Layout) -> PointData:
@@ -216,11 +238,7 @@ def mesh_point_data(nodes: np.ndarray, tau: np.ndarray, geometry, layout: Layout
     rho, z0, psi0 = geometry.numeric(s)
     # a pole is on the axis exactly, whatever sin(pi) rounds to
     rho[[0, -1]] = np.where([layout.start_pole, layout.end_pole], 0.0, rho[[0, -1]])
-    s_g = within_cells(nodes, tau, last=False)
-    # (np.minimum/np.maximum: np.clip's overhead is large on these short arrays)
-    below = np.minimum(np.maximum(np.searchsorted(s_g, s), 1), len(s_g) - 1)
-    weight = (s - s_g[below - 1]) / (s_g[below] - s_g[below - 1])
-    out = PointData(s, rho, z0, psi0, rho > 0, below, weight)
+    out = PointData(s, rho, z0, psi0, rho > 0)
     for a in out:
         a.flags.writeable = False
     return out

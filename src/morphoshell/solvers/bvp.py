@@ -45,7 +45,8 @@ import casadi as ca
 import numpy as np
 import scipy.integrate
 
-from ..model.energy import CACHE_SIZE, LOCAL_OUTPUTS, boundary_layer_width, local_function
+from ..model.energy import (CACHE_SIZE, LOCAL_OUTPUTS, boundary_layer_width, local_function,
+                            optimal_controls)
 from ..model.layouts import BVP_STATE
 from ..model.problem import Problem, Structure
 from ..numerics.mesh import graded_mesh
@@ -80,13 +81,8 @@ def pontryagin_functions(structure: Structure) -> dict[str, ca.Function]:
     r, psi, lr, lpsi = (y[_Y[n]] for n in ("r", "psi", "lam_r", "lam_psi"))
     f, u = ca.SX.sym("f_s"), ca.SX.sym("dpsi")
     L = local(s, r, psi, f, u, p)[LOCAL_OUTPUTS.index("L")]
-    H = L + lr * f * ca.cos(psi) + lpsi * u
+    H, wstar = optimal_controls(L, f, u, psi, lr, lpsi)
     w = ca.vertcat(f, u)
-    Hw = ca.gradient(H, w)
-    A = ca.jacobian(Hw, w)  # independent of (f, u): H is quadratic in them
-    b = ca.substitute(Hw, w, ca.DM.zeros(2))
-    det = A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
-    wstar = -ca.vertcat(A[1, 1] * b[0] - A[0, 1] * b[1], A[0, 0] * b[1] - A[1, 0] * b[0]) / det
     dH = ca.vertcat(ca.gradient(H, r), ca.gradient(H, psi))
     derivative = {"r": f * ca.cos(psi), "psi": u, "lam_r": -dH[0], "lam_psi": -dH[1],
                   "z": f * ca.sin(psi), "energy": L}

@@ -21,9 +21,9 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..model.energy import boundary_layer_width, kinematics
+from ..model.energy import boundary_layer_width, intrinsic_values, kinematics
 from ..model.problem import Problem, Structure
-from ..numerics import Discretisation, PointData
+from ..numerics import Discretisation
 from ..numerics.ipopt import IpoptBackend
 from ..numerics.mesh import MeshSpec, pole_exponent
 from ..numerics.newton import NewtonBackend
@@ -92,18 +92,6 @@ def default_mesh(structure: Structure, nodes: int, stages: int = 2,
     return MeshSpec(int(nodes), structure.start, structure.end, width / length,
                     None if edge_scale is None else float(edge_scale) / length,
                     pole_exponent(stages))
-
-
-def _to_points(v: np.ndarray, points: PointData) -> np.ndarray:
-    """Gauss-point values ``v`` (..., Gauss points) at the ``points``: piecewise linear in s,
-    extrapolated linearly beyond the first and last Gauss points; every row at once."""
-    # in place, with take: the bits of a + (b - a) * weight, without the temporaries
-    i = points.below
-    a, b = v.take(i - 1, axis=-1), v.take(i, axis=-1)
-    b -= a
-    b *= points.weight
-    b += a
-    return b
 
 
 def _closing(eq: Equilibrium, crossing: tuple[float, float]) -> str:
@@ -404,10 +392,13 @@ class DirectSolver:
                     converged: bool) -> Equilibrium:
         """The :class:`Equilibrium` of the NLP point (x, λ) at parameters p, anchors q (data D).
 
-        The fields at the points follow from the Gauss-point fields of the
-        transcription (stretches, curvatures, strains and resultants of
-        Materials and Methods, Eqs. 5-7), exact off the axis; the energy is
-        the Gauss rule of 2π ∫ e ρ ds.
+        The fields (stretches, curvatures, strains and resultants of Materials and
+        Methods, Eqs. 5-7) at the nodes follow pointwise from the nodal state and
+        costates (:meth:`~morphoshell.numerics.discretisation.Discretisation.node_fields`:
+        order 2S, as r, ψ), at a cell's interior points from the polynomial through its
+        nodal and Gauss-point values (:meth:`~morphoshell.numerics.discretisation.Discretisation.to_points`:
+        order 2S − 1), f_φ and κ_φ exactly from r, ψ off the axis; the energy is the
+        Gauss rule of 2π ∫ e ρ ds.
 
         Parameters
         ----------
@@ -428,20 +419,25 @@ class DirectSolver:
         Equilibrium
             On the N = (nodes − 1) × stages + 1 points of the mesh.
         """
-        d = self.disc
+        d, S = self.disc, self.stages
         gf = d.gauss_fields(x, D)
         pts = d.point_data(p, q)
         s, off = pts.s.copy(), pts.off
         # z(s_0) = z₀(s_0), then ∫ f_s sin ψ ds (the symbolic shape's formula, in numbers)
         z = pts.z0[0] + d.integrate_to_points(gf["f_s"] * np.sin(gf["psi"]), ds=gf["ds"])
         r, psi, _ = d.layout.split(x)
-        names = [k for k in FIELDS if k not in ("s", "r", "z", "psi")]
-        fields = dict(zip(names, _to_points(np.array([gf[k] for k in names]), pts)))
-        # Exact values off the axis (interpolation is only needed at a pole).
+        prof = problem.profiles(s)     # parameter-only: exact at the points
+        nodal = d.node_fields(x, lam, D, r[::S], psi[::S], intrinsic_values(
+            problem.theory_obj, pts.rho[::S], {k: v[::S] for k, v in prof.items()}), problem.h)
+        names = [k for k in FIELDS if k not in ("s", "r", "z", "psi", "eta")]
+        fields = dict(zip(names, d.to_points(np.array([gf[k] for k in names]),
+                                             np.array([nodal[k] for k in names]))))
+        # Exact values off the axis from r, ψ there (the same at the nodes; at a pole
+        # the stretches and curvatures are the cell's extrapolation).
         exact = kinematics(pts.rho[off], r[off], psi[off], fields["f_s"][off],
                            fields["kappa_s"][off] * fields["f_s"][off])
         fields["f_phi"][off], fields["kappa_phi"][off] = exact["f_phi"], exact["kappa_phi"]
-        fields["eta"] = problem.eta(s)   # parameter-only: exact at the points
+        fields["eta"] = prof["eta"]
         energy = float(np.sum(gf["weight"] * gf["ds"] * gf["L"]))
         return Equilibrium(problem=problem, s=s, r=r, z=z, psi=psi, **fields, energy=energy,
                            solver=stats, converged=converged, x=x, lam_g=lam,

@@ -15,6 +15,7 @@ import numpy as np
 
 from .._runtime.tables import html_table, problem_attrs, problem_rows, xarray_module
 from ..model.problem import Problem
+from ..numerics.mesh import breakpoints
 from ..numerics.status import NotAMinimumError, SolverError
 
 __all__ = ["Equilibrium", "SolverStats", "SolverError", "NotAMinimumError", "FIELDS", "unconverged",
@@ -349,7 +350,7 @@ class Equilibrium:
         are weakly singular (docs/solution.md, "Three routes to one energy"): r,
         ψ and z converge with the mesh there, but the stretches, strains,
         resultants and energy density at the pole itself grow under refinement
-        (f_s 1.5 → 4.3 from 50 to 400 nodes at η = 0.3) and mean nothing as
+        (f_s 1.5 → 4.5 from 50 to 400 nodes at η = 0.3) and mean nothing as
         numbers; a free edge's values are regular.
 
         Returns
@@ -370,6 +371,12 @@ class Equilibrium:
     def at(self, s: float) -> dict[str, float]:
         """Fields interpolated (cubic) at the undeformed arclength ``s``.
 
+        The cubic spline runs within the segment between the profile's breakpoints
+        that are points of the result (a direct solution's are nodes), never across
+        one: a field that kinks there (f_s where a profile kinks) would otherwise
+        spill its kink onto the points next to it.  At a breakpoint itself the value
+        is the point's.
+
         Returns
         -------
         dict
@@ -379,7 +386,22 @@ class Equilibrium:
 
         if not self.s[0] <= s <= self.s[-1]:
             raise ValueError(f"s = {s} lies outside the shell [{self.s[0]}, {self.s[-1]}]")
-        return {k: float(CubicSpline(self.s, getattr(self, k))(s)) for k in FIELDS}
+        lo, hi = self._segment(s)
+        return {k: float(CubicSpline(self.s[lo:hi], getattr(self, k)[lo:hi])(s)) for k in FIELDS}
+
+    def _segment(self, s: float) -> tuple[int, int]:
+        """The slice [lo, hi) of the points between the breakpoints around ``s`` (the whole
+        shell without breakpoints among the points; at least 4 points, or all)."""
+        cuts = [0, len(self.s)]
+        for b, _ in breakpoints(self.problem):
+            i = int(np.argmin(np.abs(self.s - b)))
+            if 0 < i < len(self.s) - 1 and abs(self.s[i] - b) <= 1e-12 * (1 + abs(b)):
+                cuts.append(i)
+        cuts = sorted(set(cuts))
+        k = min(int(np.searchsorted(cuts, np.searchsorted(self.s, s, side="right") - 1,
+                                    side="right")), len(cuts) - 1)
+        lo, hi = cuts[k - 1], cuts[k] + 1
+        return (lo, hi) if hi - lo >= 4 else (0, len(self.s))
 
     def quadrature_points(self) -> tuple[np.ndarray, np.ndarray]:
         """(s, r) at the Gauss points of a direct solution (empty for other routes).
