@@ -70,3 +70,18 @@ def test_at_beside_the_kink_from_each_side(kink, side):
         # nodes (the point moves within its cell, so single doublings scatter); across the
         # kink f_s and κ_s converged at order 2.2-2.7 (f_s off by 9e-6 at 200 nodes)
         assert np.log2(abs(e200 / e800)) / 2 >= 3.5, (field, side, e200, e800)
+
+
+def test_at_takes_an_array_of_points():
+    # API audit 11: at(array) raised numpy's "truth value of an array is ambiguous";
+    # an array gives each field at every point, equal to the scalar calls
+    eq = solve(Problem("local_relaxation", {"F0": 0.35, "s0": 0.2}, h=0.1, cut=0.3), nodes=60)
+    s = np.array([[eq.s[0], 0.5], [0.4999, eq.s[-1]]])          # across the kink at 0.5
+    fields = eq.at(s)
+    assert fields["f_s"].shape == (2, 2)
+    for idx in np.ndindex(s.shape):
+        assert {k: v[idx] for k, v in fields.items()} == eq.at(float(s[idx]))
+    with pytest.raises(ValueError, match=r"s = 4.0 lies outside the shell"):
+        eq.at([0.5, 4.0])
+    with pytest.raises(ValueError, match=r"s = 'x' must be a number or an array"):
+        eq.at("x")

@@ -368,7 +368,7 @@ class Equilibrium:
         i = 0 if which == "start" else -1
         return {k: float(getattr(self, k)[i]) for k in FIELDS}
 
-    def at(self, s: float) -> dict[str, float]:
+    def at(self, s) -> dict:
         """Fields interpolated (cubic) at the undeformed arclength ``s``.
 
         The cubic spline runs within the segment between the profile's breakpoints
@@ -377,27 +377,56 @@ class Equilibrium:
         spill its kink onto the points next to it.  At a breakpoint itself the value
         is the point's.
 
+        Parameters
+        ----------
+        s : float or array_like
+            Material points, within [s[0], s[-1]] (units of R).
+
         Returns
         -------
         dict
-            Float by field of :data:`FIELDS`.
+            By field of :data:`FIELDS`: a float for a scalar ``s``, else an array of
+            ``s``'s shape.
+
+        Raises
+        ------
+        ValueError
+            ``s`` not numbers, NaN or outside the shell (the first such value named).
         """
         from scipy.interpolate import CubicSpline
 
-        if not self.s[0] <= s <= self.s[-1]:
-            raise ValueError(f"s = {s} lies outside the shell [{self.s[0]}, {self.s[-1]}]")
-        lo, hi = self._segment(s)
-        return {k: float(CubicSpline(self.s[lo:hi], getattr(self, k)[lo:hi])(s)) for k in FIELDS}
+        try:
+            points = np.asarray(s, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"s = {s!r} must be a number or an array of numbers") from None
+        flat = points.ravel()
+        outside = flat[~((flat >= self.s[0]) & (flat <= self.s[-1]))]    # NaN too
+        if outside.size:
+            raise ValueError(f"s = {outside[0]} lies outside the shell [{self.s[0]}, "
+                             f"{self.s[-1]}]")
+        cuts = self._cuts()
+        segments = [self._segment(x, cuts) for x in flat]
+        values = np.empty((flat.size, len(FIELDS)))
+        for lo, hi in set(segments):
+            mine = [i for i, seg in enumerate(segments) if seg == (lo, hi)]
+            table = np.column_stack([getattr(self, k)[lo:hi] for k in FIELDS])
+            values[mine] = CubicSpline(self.s[lo:hi], table)(flat[mine])
+        if points.ndim == 0:
+            return {k: float(values[0, j]) for j, k in enumerate(FIELDS)}
+        return {k: values[:, j].reshape(points.shape) for j, k in enumerate(FIELDS)}
 
-    def _segment(self, s: float) -> tuple[int, int]:
-        """The slice [lo, hi) of the points between the breakpoints around ``s`` (the whole
-        shell without breakpoints among the points; at least 4 points, or all)."""
+    def _cuts(self) -> list[int]:
+        """The indices of the points that are the profile's breakpoints, with the ends."""
         cuts = [0, len(self.s)]
         for b, _ in breakpoints(self.problem):
             i = int(np.argmin(np.abs(self.s - b)))
             if 0 < i < len(self.s) - 1 and abs(self.s[i] - b) <= 1e-12 * (1 + abs(b)):
                 cuts.append(i)
-        cuts = sorted(set(cuts))
+        return sorted(set(cuts))
+
+    def _segment(self, s: float, cuts: list[int]) -> tuple[int, int]:
+        """The slice [lo, hi) of the points between the breakpoints (``cuts``) around ``s``
+        (the whole shell without breakpoints among the points; at least 4 points, or all)."""
         k = min(int(np.searchsorted(cuts, np.searchsorted(self.s, s, side="right") - 1,
                                     side="right")), len(cuts) - 1)
         lo, hi = cuts[k - 1], cuts[k] + 1
