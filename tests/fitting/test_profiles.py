@@ -444,3 +444,18 @@ def test_an_unconverged_refit_beyond_the_threshold_says_the_interval_may_reach_f
     assert "may reach further above" in p.summary()
     converged[3] = True
     assert p.uncertain_sides() == (False, False) and p.verdict() == ""
+
+
+def test_a_fit_read_back_from_its_json_profiles_as_the_fit(three, tmp_path):
+    # audit 12: profiled_fit(result=load_fit(path)) raised AttributeError on the
+    # equilibrium a saved fit does not hold; its solves now start afresh, and the
+    # profiles are those of the fit in memory (the same optimum, to its refit's tolerance)
+    from morphoshell.fitting import load_fit
+    from morphoshell.io.problem_files import write_json
+
+    spec, data, result, profiles = three
+    back = load_fit(write_json(tmp_path / "fit.json", result.to_dict()))
+    name = THREE[0]
+    found, again = profiled_fit(spec, data, [name], result=back, points=6, nodes=NODES)
+    assert found is back
+    assert again[name].interval == pytest.approx(profiles[name].interval, rel=1e-6)

@@ -353,9 +353,10 @@ def _refitted(inner: InnerProblem, start: FitSpec, before: FitResult, method: st
     return _Optimum(end, theta, S, eq, inner, found)
 
 
-def _nodes_of(eq: Equilibrium) -> int | None:
-    """The mesh nodes of a direct solution (None for another route's)."""
-    return None if eq.source is None else int(eq.source[1].nodes)
+def _nodes_of(eq: Equilibrium | None) -> int | None:
+    """The mesh nodes of a direct solution (None for another route's, or for none: a fit
+    read back from its JSON holds no equilibrium, and the profile's solves start afresh)."""
+    return None if eq is None or eq.source is None else int(eq.source[1].nodes)
 
 
 def _held(spec: FitSpec, name: str, theta: np.ndarray, value: float) -> FitSpec:
