@@ -222,7 +222,7 @@ def _with_k(row, k):
 
 @pytest.mark.parametrize("kind", ["csv", "json"])
 @pytest.mark.parametrize("edit, match", [
-    # a row moved off the grid (cut = 0.9 passed for the point it stood at)
+    # a row moved off the grid (audit 12: a cut edited to 0.9 passed for its old point)
     (lambda rows: [_with_k(rows[0], 0.9), *rows[1:]],
      r", row 1: k = 0\.9 is not a point of this sweep \(k = 0\.9 is none of its 6 values; "
      r"nearest 0\.8\): the file was edited or made by another sweep"),

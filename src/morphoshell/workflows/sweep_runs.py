@@ -10,7 +10,9 @@ As a campaign keeps its finished fits, the command line keeps these rows: it wri
 ``--csv`` and ``--json`` marked partial (:meth:`SweepInterrupted.write`), and
 ``sweep(..., resume=path)`` (``--resume``) reads such a file back (:func:`restored`) and
 computes only the chunks it lacks, once it has checked that the file was made with the
-same settings (:func:`settings_record`; ValueError naming the first that differs).
+same settings (:func:`settings_record`; ValueError naming the first that differs).  Each
+row is restored at the grid point of its coordinates (its axis columns), wherever it is in
+the file; a point without a row is computed again, a row off the grid refused.
 
 The unit kept is the chunk: its points are warm-started one from another, so a chunk
 computed again from its first point gives the rows of a sweep never interrupted, bit for
