@@ -7,6 +7,8 @@ The interruption is driven deterministically: the point function of the fourth p
 raises it (or sends the signal itself), with two points per chunk, so the first chunk is
 finished, the second cut short and the third not begun.
 """
+import csv
+import io
 import json
 import os
 import re
@@ -103,7 +105,10 @@ def test_resume_refuses_a_file_of_other_settings_or_a_complete_one(tmp_path, mon
             sweep(args.pop("problem"), args.pop("axes"), **args, resume=path)
     complete = tmp_path / "complete.csv"
     complete.write_text("k,energy\n0.0,1.0\n")
-    with pytest.raises(ValueError, match=r"complete\.csv: not a partial sweep"):
+    # (a complete file does not record every setting to be checked: refused, saying what to do)
+    with pytest.raises(ValueError, match=r"complete\.csv: a complete sweep, or none \(no "
+                                         r"'morphoshell sweep PARTIAL' mark\): nothing to resume"
+                                         r".* run without --resume to compute it again"):
         sweep(TOY2, AXES, **KW, resume=complete)
 
 
@@ -136,7 +141,7 @@ def test_cli_one_line_exit_status_partial_files_and_resume(tmp_path, capsys, mon
     pd.testing.assert_frame_equal(done.drop(columns="seconds"), whole.drop(columns="seconds"))
     assert "complete" not in json.loads(json_path.read_text())
     assert main([*args, "--resume"]) == 2       # nothing partial to resume
-    assert "not a partial sweep" in capsys.readouterr().err
+    assert "a complete sweep, or none" in capsys.readouterr().err
 
 
 def test_cli_resume_needs_an_output_file(tmp_path, capsys):
@@ -156,3 +161,110 @@ def test_workers_end_with_the_sweeps_process(monkeypatch):
     monkeypatch.setattr(SWEEPS.lifeline, "watch", watched.append)
     sweep(TOY2, {"k": [0.0, 0.5]}, nodes=30, workers=1, errors="none")
     assert watched == [lifeline.owner()]
+
+
+# --------------------------------------------------------------------------
+# rows restored by their coordinates (user audit 12: by their position, a partial file
+# with one row deleted gave 49 rows holding the next point's values, exit 0)
+# --------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def computed(tmp_path_factory, whole):
+    """A partial CSV and JSON holding every row of ``whole`` computed (three whole chunks),
+    with the settings an interrupted sweep records."""
+    mp = pytest.MonkeyPatch()
+    _stopping(mp)
+    with pytest.raises(SweepInterrupted) as info:
+        sweep(TOY2, AXES, **KW)
+    mp.undo()
+    full = SweepInterrupted(whole, len(whole), info.value.settings)
+    folder = tmp_path_factory.mktemp("computed")
+    return full.write(folder / "all.csv"), full.write(folder / "all.json")
+
+
+def _edited(path, tmp_path, edit):
+    """A copy of the partial file ``path`` whose rows (dicts, CSV text or JSON) are
+    ``edit(rows)``."""
+    out = tmp_path / f"edited{path.suffix}"
+    if path.suffix == ".json":
+        data = json.loads(path.read_text())
+        data["rows"] = edit(data["rows"])
+        out.write_text(json.dumps(data))
+        return out
+    lines = path.read_text().splitlines(keepends=True)
+    rows = edit(list(csv.DictReader(io.StringIO("".join(lines[2:])))))
+    text = io.StringIO()
+    writer = csv.DictWriter(text, fieldnames=list(rows[0]), lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    out.write_text("".join(lines[:2]) + text.getvalue())
+    return out
+
+
+@pytest.mark.parametrize("kind", ["csv", "json"])
+@pytest.mark.parametrize("edit, computed_k", [
+    (lambda rows: rows[:1] + rows[2:], [0.0, 0.4]),    # k = 0.4 deleted: its chunk again
+    (lambda rows: rows[::-1], []),                     # the rows in another order: all kept
+])
+def test_resume_restores_rows_at_their_coordinates(tmp_path, monkeypatch, whole, computed, kind,
+                                                   edit, computed_k):
+    path = _edited(computed[kind == "json"], tmp_path, edit)
+    calls = _stopping(monkeypatch, stop=lambda: None)
+    res = sweep(TOY2, AXES, **KW, resume=path)
+    assert calls == computed_k and res.timing["restored"] == 6 - len(computed_k)
+    _same_rows(res, whole)
+
+
+def _with_k(row, k):
+    """``row`` with its axis cell k set to ``k`` (as the file holds it: text in a CSV)."""
+    return {**row, "k": k if isinstance(row["k"], float) else repr(k)}
+
+
+@pytest.mark.parametrize("kind", ["csv", "json"])
+@pytest.mark.parametrize("edit, match", [
+    # a row moved off the grid (audit 12: a cut edited to 0.9 passed for its old point)
+    (lambda rows: [_with_k(rows[0], 0.9), *rows[1:]],
+     r", row 1: k = 0\.9 is not a point of this sweep \(k = 0\.9 is none of its 6 values; "
+     r"nearest 0\.8\): the file was edited or made by another sweep"),
+    # a value rounded by hand (or by a spreadsheet): not the grid's float, refused
+    (lambda rows: [rows[0], _with_k(rows[1], 0.4000001), *rows[2:]],
+     r", row 2: k = 0\.4 is not a point of this sweep \(k = 0\.4000001 is none"),
+    (lambda rows: [*rows, rows[3]], r", row 7: k = 1\.2 repeats row 4: delete one of them"),
+    (lambda rows: [{k: v for k, v in r.items() if k != "k"} for r in rows],
+     r", row 1 has no column 'k'"),
+    (lambda rows: [rows[0], {**rows[1], "energy": "banana"}, *rows[2:]],
+     r", row 2, column 'energy': 'banana' is not a number"),
+])
+def test_resume_refuses_a_row_not_at_a_point_of_the_grid(tmp_path, monkeypatch, computed, kind,
+                                                         edit, match):
+    path = _edited(computed[kind == "json"], tmp_path, edit)
+    monkeypatch.setattr(SWEEPS, "_run_chunk", lambda *a, **k: pytest.fail("work began"))
+    with pytest.raises(ValueError, match=re.escape(str(path)) + match):
+        sweep(TOY2, AXES, **KW, resume=path)
+
+
+@pytest.mark.parametrize("edit, match", [
+    (lambda lines: lines[:1] + lines[2:],
+     r"a partial sweep without its '# settings: \{\.\.\.\}' line \(line 2\): it cannot be "
+     r"checked against this sweep's settings; run without --resume"),
+    (lambda lines: [lines[0], lines[1][:40] + "\n", *lines[2:]],
+     r"a partial sweep whose settings line \(line 2\) is damaged"),
+    (lambda lines: [lines[0], "# settings: 3\n", *lines[2:]],
+     r"a partial sweep whose settings line \(line 2\) is damaged"),
+])
+def test_resume_names_a_missing_or_damaged_settings_line(tmp_path, computed, edit, match):
+    """It was called 'not a partial sweep' although its first line is the mark (audit 12)."""
+    path = tmp_path / "part.csv"
+    path.write_text("".join(edit(computed[0].read_text().splitlines(keepends=True))))
+    with pytest.raises(ValueError, match=re.escape(str(path)) + ": " + match):
+        sweep(TOY2, AXES, **KW, resume=path)
+
+
+def test_resume_names_a_partial_json_without_settings(tmp_path, computed):
+    data = json.loads(computed[1].read_text())
+    del data["settings"]
+    path = tmp_path / "part.json"
+    path.write_text(json.dumps(data))
+    with pytest.raises(ValueError, match=re.escape(str(path)) + r': a partial sweep without '
+                                                                r'its "settings"'):
+        sweep(TOY2, AXES, **KW, resume=path)

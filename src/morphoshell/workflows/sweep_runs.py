@@ -10,7 +10,9 @@ As a campaign keeps its finished fits, the command line keeps these rows: it wri
 ``--csv`` and ``--json`` marked partial (:meth:`SweepInterrupted.write`), and
 ``sweep(..., resume=path)`` (``--resume``) reads such a file back (:func:`restored`) and
 computes only the chunks it lacks, once it has checked that the file was made with the
-same settings (:func:`settings_record`; ValueError naming the first that differs).
+same settings (:func:`settings_record`; ValueError naming the first that differs).  Each
+row is restored at the grid point of its coordinates (its axis columns), wherever it is in
+the file; a point without a row is computed again, a row off the grid refused.
 
 The unit kept is the chunk: its points are warm-started one from another, so a chunk
 computed again from its first point gives the rows of a sweep never interrupted, bit for
@@ -27,13 +29,14 @@ import json
 import math
 import os
 from contextlib import ExitStack, contextmanager
+from itertools import product
 from pathlib import Path
 from typing import Any, Callable, Iterator, Mapping, Sequence
 
 from .._runtime import interrupts
 from .._runtime.console import counter
 from .executor import backend_name, open_executor, run
-from .sweep_results import NOT_COMPUTED, SweepResult
+from .sweep_results import NOT_COMPUTED, SweepResult, _column_name, point_label
 
 __all__ = ["run_chunks", "interruptible", "SweepInterrupted", "settings_record", "restored",
            "whole_chunks", "NOT_COMPUTED", "PARTIAL"]
@@ -154,9 +157,17 @@ def whole_chunks(kept: Mapping[int, dict], chunks: Sequence[Sequence[int]], n: i
     return rows
 
 
-def restored(path: str | Path, settings: Mapping[str, Any], blank: Mapping[str, Any]
-             ) -> dict[int, dict]:
-    """The rows a partial sweep file (:meth:`SweepInterrupted.write`) computed, by index.
+def restored(path: str | Path, settings: Mapping[str, Any], blank: Mapping[str, Any],
+             axes: Mapping[str, Sequence], ablate: bool) -> dict[int, dict]:
+    """The rows a partial sweep file (:meth:`SweepInterrupted.write`) computed, by their
+    index in this sweep's grid.
+
+    A row is put at its grid point by its coordinates, the values of its axis columns,
+    wherever it is in the file: a file whose rows were deleted (a failed point's, say)
+    gives the rows there are, and the points without one are computed again.  The
+    coordinates are compared exactly: the sweep writes every float as its ``repr`` (CSV;
+    JSON likewise), which reads back to the same float, so a value not equal to the bit
+    was edited, and a row meant for another point must not pass for it.
 
     Parameters
     ----------
@@ -166,46 +177,104 @@ def restored(path: str | Path, settings: Mapping[str, Any], blank: Mapping[str, 
         This sweep's settings (:func:`settings_record`), which the file's must equal.
     blank : mapping
         A row before its point is solved: the keys and types of a row.
+    axes : mapping
+        This sweep's axes (name → values, the product's order).
+    ablate : bool
+        Ablation sweep (the axis ``opening`` is the column ``opening_P``).
 
     Raises
     ------
     ValueError
-        The file is not a partial sweep (a complete one, say), or was made with other
-        settings (the first named, and its option), or lacks a column of a row.
+        The file is not a partial sweep (a complete one, say) or lacks its settings, was
+        made with other settings (the first named, and its option), or has a row that
+        lacks a column, has a cell that is not a value, is at coordinates that are not a
+        point of the grid or repeats another row's (the row and its coordinates named).
     """
     path = Path(path)
     if not path.exists():
         return {}
     recorded, rows = (_read_json if path.suffix.lower() == ".json" else _read_csv)(path)
     _check_settings(path, recorded, settings)
+    grid = _Grid(axes, ablate)
     keys = {**blank, "seconds": math.nan}
-    out = {}
+    out, rows_at = {}, {}
     for i, row in enumerate(rows):
-        missing = [k for k in keys if k not in row]
+        where = f"{path}, row {i + 1}"
+        missing = [k for k in (*grid.columns, *keys) if k not in row]
         if missing:
-            raise ValueError(f"{path}: row {i + 1} has no column {missing[0]!r}: not a sweep "
-                             f"of this version of morphoshell")
+            raise ValueError(f"{where} has no column {missing[0]!r}: not a sweep of this "
+                             f"version of morphoshell")
+        index = grid.index(row, where)
+        if index in rows_at:
+            raise ValueError(f"{where}: {grid.label(index)} repeats row {rows_at[index] + 1}: "
+                             f"delete one of them (a point without a row is computed again)")
+        rows_at[index] = i
         if row["status"] != NOT_COMPUTED:
-            out[i] = {k: _typed(row[k], like) for k, like in keys.items()}
+            out[index] = {k: _typed(row[k], like, f"{where}, column {k!r}")
+                          for k, like in keys.items()}
     return out
 
 
+class _Grid:
+    """A sweep's grid points by their coordinates, as a file's axis columns hold them."""
+
+    def __init__(self, axes: Mapping[str, Sequence], ablate: bool):
+        self.axes, self.ablate = axes, ablate
+        self.columns = [_column_name(name, ablate) for name in axes]
+        self.points = list(product(*axes.values()))
+        self.at = {point: i for i, point in enumerate(self.points)}
+
+    def label(self, index: int) -> str:
+        """Grid point ``index`` in words, as the sweep names its points."""
+        return point_label(dict(zip(self.axes, self.points[index])), self.ablate)
+
+    def index(self, row: Mapping[str, Any], where: str) -> int:
+        """The index of the grid point at ``row``'s coordinates; ValueError (``where``: the
+        file and the row) if they are not a point of the grid."""
+        point = tuple(_typed(row[column], values[0], f"{where}, column {column!r}")
+                      for column, values in zip(self.columns, self.axes.values()))
+        if point in self.at:
+            return self.at[point]
+        column, value, values = next((c, v, vals) for c, v, vals in
+                                     zip(self.columns, point, self.axes.values())
+                                     if v not in vals)
+        nearest = (f"; nearest {min(values, key=lambda v: abs(v - value))!r}"
+                   if isinstance(value, float) and math.isfinite(value) else "")
+        label = point_label(dict(zip(self.axes, point)), self.ablate)
+        raise ValueError(f"{where}: {label} is not a point of this sweep ({column} = {value!r} "
+                         f"is none of its {len(values)} values{nearest}): the file was edited "
+                         f"or made by another sweep; restore the row as the sweep wrote it, "
+                         f"or delete it (a point without a row is computed again)")
+
+
 def _not_partial(path: Path) -> ValueError:
-    return ValueError(f"{path}: not a partial sweep (a complete one has no "
-                      f"'{PARTIAL}' mark): nothing to resume; without --resume the sweep "
-                      f"is run again and overwrites it")
+    return ValueError(f"{path}: a complete sweep, or none (no '{PARTIAL}' mark): nothing to "
+                      f"resume, and a complete file does not record every setting its rows "
+                      f"depend on to be checked against this sweep's; run without --resume "
+                      f"to compute it again (it overwrites the file), or write elsewhere")
+
+
+def _no_settings(path: Path, what: str) -> ValueError:
+    return ValueError(f"{path}: a partial sweep {what}: it cannot be checked against this "
+                      f"sweep's settings; run without --resume to compute it again (it "
+                      f"overwrites the file)")
 
 
 def _read_csv(path: Path) -> tuple[dict, list[dict]]:
     """(settings, rows as text) of a partial sweep's CSV."""
     with open(path, newline="") as f:
         head, line = f.readline(), f.readline()
-        if not head.startswith(f"# {PARTIAL}:") or not line.startswith(f"# {SETTINGS}"):
+        if not head.startswith(f"# {PARTIAL}:"):
             raise _not_partial(path)
+        if not line.startswith(f"# {SETTINGS}"):
+            raise _no_settings(path, f"without its '# {SETTINGS}{{...}}' line (line 2)")
         try:
             recorded = json.loads(line[len(f"# {SETTINGS}"):])
         except ValueError:
-            raise ValueError(f"{path}: its settings line is not JSON") from None
+            recorded = None
+        if not isinstance(recorded, dict) or not recorded:
+            raise _no_settings(path, "whose settings line (line 2) is damaged (not a JSON "
+                                     "object of settings)")
         return recorded, list(csv.DictReader(f))
 
 
@@ -217,18 +286,28 @@ def _read_json(path: Path) -> tuple[dict, list[dict]]:
         raise ValueError(f"{path}: not JSON") from None
     if not isinstance(data, dict) or data.get("complete") is not False:
         raise _not_partial(path)
-    return data.get("settings") or {}, data.get("rows") or []
+    recorded = data.get("settings")
+    if not isinstance(recorded, dict) or not recorded:
+        raise _no_settings(path, "without its \"settings\" (or with them damaged)")
+    rows = data.get("rows")
+    if not isinstance(rows, list) or not all(isinstance(row, dict) for row in rows):
+        raise ValueError(f"{path}: a partial sweep whose \"rows\" are not a list of rows")
+    return recorded, rows
 
 
-def _typed(value, like):
-    """A row's value as read (CSV text, or JSON) with the type of ``like``; NaN for empty."""
+def _typed(value, like, where: str):
+    """A row's value as read (CSV text, or JSON) with the type of ``like``; NaN for empty;
+    ValueError naming ``where`` (the file, row and column) if it is not one."""
     if isinstance(like, bool):
         return value in (True, "True")
-    if isinstance(like, int):
-        return int(value)
     if isinstance(like, str):
         return str(value)
-    return math.nan if value in ("", None) else float(value)
+    try:
+        if isinstance(like, int):
+            return int(value)
+        return math.nan if value in ("", None) else float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{where}: {value!r} is not a number") from None
 
 
 def _check_settings(path: Path, recorded: Mapping, settings: Mapping) -> None:

@@ -663,7 +663,9 @@ def sweep(problem: Problem, axes: Mapping[str, Sequence], *, ablate: bool = Fals
         Most points per task (default: see :func:`chunk_plan`).
     resume : str or Path, optional
         A partial sweep's file (:meth:`SweepInterrupted.write`, CSV or JSON): its finished
-        chunks are kept and only the others computed (none there: all are).
+        chunks are kept and only the others computed (none there: all are).  Its rows are
+        restored at the grid points of their axis values, wherever they stand in the file
+        (a point without a row is computed again).
     **options
         Direct solver options: ``stages``, ``linear_solver``, ``tol``,
         ``max_iter``, ``stability``, ``ipopt_options``.
@@ -678,7 +680,7 @@ def sweep(problem: Problem, axes: Mapping[str, Sequence], *, ablate: bool = Fals
     ValueError
         A bad axis, value or option, a point that is not a valid problem (named), or a
         ``resume`` file that is not a partial sweep with these settings (the setting
-        named), before any work.
+        named) or has a row off the grid (the row named), before any work.
     SweepInterrupted
         Ctrl-C (a ``KeyboardInterrupt``): the workers are stopped at once; it holds the
         rows of the chunks finished (:mod:`morphoshell.workflows.sweep_runs`).
@@ -699,7 +701,7 @@ def sweep(problem: Problem, axes: Mapping[str, Sequence], *, ablate: bool = Fals
     n, blank = len(points), _blank_row(ablate)
     settings = settings_record(problem, axes, ablate, nodes, errors, chunk_size,
                                {**options, "stages": stages})
-    results = whole_chunks(restored(resume, settings, blank) if resume else {}, chunks, n)
+    results = whole_chunks(restored(resume, settings, blank, axes, ablate) if resume else {}, chunks, n)
     chunks = [c for c in chunks if results[c[0]] is None]     # (the others restored)
     todo = sum(map(len, chunks))
     if workers is None and scheduler is None and not os.environ.get("DASK_SCHEDULER_ADDRESS"):
