@@ -439,8 +439,9 @@ def test_an_unconverged_refit_beyond_the_threshold_says_the_interval_may_reach_f
     p = Profile("kappa1", 0.78, values, objective, converged, (-0.3, 1.03), 3.2, 3.0, 1.0,
                 "residual", 0.95, False, "gradient")
     assert p.uncertain_sides() == (False, True)
-    assert p.verdict() == ("may reach further above (the refit beyond the threshold did not "
-                           "converge)")
+    assert p.verdict() == ("may reach further above (the refit beyond the threshold at "
+                           "kappa1 = 1.64 did not converge)")
+    assert p.note == ""          # (said once, in the verdict, not again in a note)
     assert "may reach further above" in p.summary()
     converged[3] = True
     assert p.uncertain_sides() == (False, False) and p.verdict() == ""

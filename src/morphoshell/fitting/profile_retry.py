@@ -43,7 +43,7 @@ from .results import FitError
 from .spec import VARIANTS, FitSpec
 
 __all__ = ["Retry", "RETRY_METHOD", "REFINEMENTS", "REFINE_PLANNED", "crossing", "retried",
-           "needs_retry", "refine_crossing", "started_at", "unconverged_crossing"]
+           "needs_retry", "refine_crossing", "started_at"]
 
 #: The retries' method whatever the profile's: a KKT fit from a far start fails or falls back
 #: to the gradient fit (as a campaign's fits from its other starts, which run by it too).
@@ -94,13 +94,12 @@ class Retry:
 
     def note(self, name: str) -> str:
         """One clause for the profile's note: where, from which start, what it gave."""
-        head = (f"the refit at {name} = {self.value:.6g} did not converge (E_fit "
-                f"{np.sqrt(self.S_before):.6g} R) and was fitted again from "
-                f"{len(self.starts)} other starts")
+        head = (f"the refit at {name} = {self.value:.6g} (E_fit {np.sqrt(self.S_before):.6g} "
+                f"R) fitted again from {len(self.starts)} other starts")
         if not self.winner:
             return f"{head}: none lay lower"
         state = "converged" if self.converged else "not converged"
-        return f"{head}: from the {self.winner} to E_fit {np.sqrt(self.S):.6g} R ({state})"
+        return f"{head}: lowest {np.sqrt(self.S):.6g} R, from the {self.winner} ({state})"
 
     def to_dict(self) -> dict:
         """JSON-ready (E_fit in R)."""
@@ -252,17 +251,3 @@ def refine_crossing(side: tuple[list, list, list, list], start: tuple, threshold
         for items, item in zip(side, (v, out[3], out[4], out[:3])):
             items.insert(i, item)
     return made
-
-
-def unconverged_crossing(name: str, values: list, objective: list, converged: list,
-                         threshold: float) -> str:
-    """A note when the refit where a side first exceeds the threshold did not converge.
-
-    An unconverged refit's objective lies above the profile's (the others not
-    at their best), so the interval may reach further on that side.
-    """
-    above = [i for i, S in enumerate(objective) if S > threshold]
-    if not above or converged[above[0]]:
-        return ""
-    return (f"the refit at {name} = {values[above[0]]:.6g}, where the profile first exceeds "
-            f"the threshold, did not converge: the interval may reach further on that side")

@@ -73,8 +73,7 @@ from .inner import InnerProblem
 from .midline_checks import as_points, check_midline
 from .profile_noise import (NOISE_SOURCES, log_noise, noise_dof, noise_variance,
                             threshold_quantile, traces_missing)
-from .profile_retry import (Retry, crossing, needs_retry, refine_crossing, retried, started_at,
-                            unconverged_crossing)
+from .profile_retry import Retry, crossing, needs_retry, refine_crossing, retried, started_at
 from .results import FitResult, fit_result
 from .spec import FitSpec
 
@@ -198,11 +197,17 @@ class Profile:
         its objective bounds the profile's from above there, so the interval may reach
         further on that side (an audit's κ₁: [−0.01, 1.03] where a cold refit put the
         right end near 1.6)."""
+        return tuple(v is not None for v in self._unconverged_crossings())
+
+    def _unconverged_crossings(self) -> tuple[float | None, float | None]:
+        """Below and above: the value of the refit where the side first exceeds the
+        threshold, if it did not converge (:meth:`uncertain_sides`), else None."""
         j = int(np.searchsorted(self.values, self.fitted_value))
         out = []
         for side in (range(j - 1, -1, -1), range(j + 1, len(self.values))):
             above = [i for i in side if self.objective[i] > self.threshold]
-            out.append(bool(above) and not self.converged[above[0]])
+            out.append(float(self.values[above[0]]) if above and not self.converged[above[0]]
+                       else None)
         return tuple(out)
 
     def verdict(self) -> str:
@@ -214,10 +219,13 @@ class Profile:
             return "not determined by the data" + (" within its bounds" if "bound" in sides
                                                    else "")
         words = ["open where a refit failed"] if "failed" in sides else []
-        further = [w for w, u in zip(("below", "above"), self.uncertain_sides()) if u]
+        further = [(w, v) for w, v in zip(("below", "above"), self._unconverged_crossings())
+                   if v is not None]
         if further:
-            words.append(f"may reach further {' and '.join(further)} (the refit beyond the "
-                         f"threshold did not converge)")
+            at = " and ".join(f"{v:.6g}" for _, v in further)
+            words.append(f"may reach further {' and '.join(w for w, _ in further)} (the "
+                         f"refit{'s' * (len(further) > 1)} beyond the threshold at {self.name} "
+                         f"= {at} did not converge)")
         return "; ".join(words)
 
     @property
@@ -546,9 +554,8 @@ def _profile(opt: _Optimum, data, name: str, points: int, span, method: str, tol
                                       retries)
     values = np.array([*vb[::-1], value, *va])
     objective = np.array([*sb[::-1], opt.S, *sa])
-    notes = [n for n in (note_b, note_a, unconverged_crossing(name, vb, sb, cb, threshold),
-                         unconverged_crossing(name, va, sa, ca, threshold),
-                         *(r.note(name) for r in retries)) if n]
+    # (an unconverged crossing is the verdict's: Profile.uncertain_sides)
+    notes = [n for n in (note_b, note_a, *(r.note(name) for r in retries)) if n]
     S_min = float(np.nanmin(objective))
     if S_min < opt.S * (1 - LOWER):
         # (the fit was not at the minimum: the threshold from the profile's own)
