@@ -122,6 +122,14 @@ def test_fit_figure_has_the_residual_along_the_midline(volvox, tmp_path):
     assert _outside_figure(shell.figure, tmp_path) == []
 
 
+def test_fit_on_a_callers_panels_keeps_its_caption_off_the_panels_below(volvox):
+    # audit 12: plot_fit's caption fell under the caller's panel, over the next row
+    fig, axs = plt.subplots(2, 2, figsize=(7, 6))
+    plot_fit(_fake_fit(volvox), axs[0, 0], residual_ax=axs[1, 0])
+    assert get_caption(axs[1, 0]) == "" and get_caption(axs[0, 0]) == ""
+    plt.close(fig)
+
+
 def _estimates(ks):
     """An InverseResult's fields that plot_k_estimates reads: every estimate of embryo j is
     ks[j] (None with a side: no k in range)."""

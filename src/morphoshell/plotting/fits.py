@@ -13,7 +13,7 @@ import numpy as np
 from matplotlib.axes import Axes
 
 from .shells import finish_shell_axes, plot_cross_section, problem_title
-from .style import SINGLE_COLUMN, add_caption, journal_figure, styled
+from .style import SINGLE_COLUMN, add_caption, journal_figure, made_here, own_axes, styled
 
 __all__ = ["plot_fit", "fit_axes", "fit_residuals"]
 
@@ -49,7 +49,7 @@ def fit_axes(*, pyplot: bool = True) -> tuple[Axes, Axes]:
     fig = journal_figure(SINGLE_COLUMN, 1.12 * SINGLE_COLUMN, pyplot=pyplot)
     with styled(fig):
         shell, residual = fig.subplots(2, 1, height_ratios=(2.4, 1))
-    return shell, residual
+    return own_axes(shell), own_axes(residual)
 
 
 def plot_fit(result, ax: Axes | None = None, *, residual_ax: Axes | None = None,
@@ -72,7 +72,8 @@ def plot_fit(result, ax: Axes | None = None, *, residual_ax: Axes | None = None,
         One line; "auto": ``name`` (or the problem's), family and theory.
     caption : str or None
         Under the lowest panel; "auto": with an automatic title, the variant,
-        method, fitted parameters and E_fit.
+        method, fitted parameters and E_fit; none on a caller's axes (it would fall
+        on the panels below).
     **style
         Line properties of the fitted midline.
 
@@ -93,7 +94,8 @@ def plot_fit(result, ax: Axes | None = None, *, residual_ax: Axes | None = None,
         ax, residual_ax = fit_axes()
     problem = result.equilibrium.problem
     if caption == "auto":
-        caption = _fit_caption(result) if title == "auto" else None
+        lowest = residual_ax if residual_ax is not None else ax
+        caption = _fit_caption(result) if title == "auto" and made_here(lowest) else None
     if title == "auto":
         title = problem_title(problem, name)
     with styled(ax):

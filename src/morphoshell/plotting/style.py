@@ -25,7 +25,7 @@ from matplotlib.text import Text
 from matplotlib.transforms import ScaledTranslation
 
 __all__ = ["SINGLE_COLUMN", "DOUBLE_COLUMN", "MIN_FONT_SIZE", "PAPER_RC", "paper_style",
-           "styled", "journal_figure", "new_axes", "made_here", "add_caption", "get_caption",
+           "styled", "journal_figure", "new_axes", "made_here", "own_axes", "add_caption", "get_caption",
            "label_panel", "save"]
 
 #: Figure widths of journals (inches): one column and the full page width.
@@ -143,16 +143,21 @@ def new_axes(figsize: tuple[float, float] | None = None, *, legend: bool = False
     fig = journal_figure(width, height, pyplot=pyplot)
     with paper_style():   # the ticks' and labels' fonts are fixed when the axes are made
         ax = fig.add_subplot()
-    ax.set_gid(_OWN_AXES)
-    return ax
+    return own_axes(ax)
 
 
 def made_here(ax: Axes) -> bool:
-    """Whether :func:`new_axes` made ``ax``: its figure has room for a legend beside it and
-    a caption under it.  A caller's axes (a panel of their grid) has not: the plots then put
-    their legend inside and leave out the automatic caption, which would fall on the
-    neighbouring panels."""
+    """Whether the package made ``ax`` (:func:`new_axes`, :func:`own_axes`): its figure has
+    room for a legend beside it and a caption under it.  A caller's axes (a panel of their
+    grid) has not: the plots then put their legend inside and leave out the automatic
+    caption, which would fall on the neighbouring panels."""
     return ax.get_gid() == _OWN_AXES
+
+
+def own_axes(ax: Axes) -> Axes:
+    """``ax``, marked as a figure of the package's own (:func:`made_here`)."""
+    ax.set_gid(_OWN_AXES)
+    return ax
 
 
 def wrap_items(text: str, width: int, sep: str = ", ") -> str:
