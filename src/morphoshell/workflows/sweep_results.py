@@ -20,7 +20,7 @@ from .._runtime.tables import problem_attrs, xarray_module
 from ..model.problem import Problem
 from ..numerics.status import NOT_COMPUTED
 
-__all__ = ["SweepResult", "result_columns", "point_label", "NOT_COMPUTED"]
+__all__ = ["SweepResult", "result_columns", "point_label", "axis_column", "NOT_COMPUTED"]
 
 #: The bookkeeping columns, last and in this order.
 _BOOK = ("status", "iterations", "path", "event", "walls_cross", "seconds", "message")
@@ -82,7 +82,7 @@ class SweepResult:
 
     def dims(self) -> tuple[str, ...]:
         """The axes' names as columns and dimensions (``opening_P`` for ``opening`` in ablations)."""
-        return tuple(_column_name(k, self.ablate) for k in self.axes)
+        return tuple(axis_column(k, self.ablate) for k in self.axes)
 
     def points(self, rows) -> str:
         """The points of ``rows`` (indices or a boolean mask) in a line, e.g.
@@ -166,7 +166,9 @@ def _scalar(v):
     return v.item() if isinstance(v, np.generic) else v
 
 
-def _column_name(axis: str, ablate: bool) -> str:
+def axis_column(axis: str, ablate: bool) -> str:
+    """The table's column of a sweep's axis: in an ablation sweep the far-end opening P is
+    ``opening_P`` (``opening`` is the observable o there), the others their names."""
     return "opening_P" if ablate and axis == "opening" else axis
 
 
@@ -177,7 +179,7 @@ def _short(value) -> str:
 
 def point_label(point: Mapping[str, Any], ablate: bool) -> str:
     """A point of a sweep in words, its axes named as their columns: ``"k = 0.5, cut = 0.2"``."""
-    return ", ".join(f"{_column_name(k, ablate)} = {_short(v)}" for k, v in point.items())
+    return ", ".join(f"{axis_column(k, ablate)} = {_short(v)}" for k, v in point.items())
 
 
 
@@ -206,7 +208,7 @@ def result_columns(axes: Mapping[str, tuple], rows: list[dict], ablate: bool
     grid = list(product(*axes.values()))
     out: dict[str, np.ndarray] = {}
     for j, name in enumerate(axes):
-        out[_column_name(name, ablate)] = np.array([g[j] for g in grid],
+        out[axis_column(name, ablate)] = np.array([g[j] for g in grid],
                                                    dtype=object if name == "theory" else float)
     for key in rows[0]:
         values = [r[key] for r in rows]

@@ -36,7 +36,7 @@ from typing import Any, Callable, Iterator, Mapping, Sequence
 from .._runtime import interrupts
 from .._runtime.console import counter
 from .executor import backend_name, open_executor, run
-from .sweep_results import NOT_COMPUTED, SweepResult, _column_name, point_label
+from .sweep_results import NOT_COMPUTED, SweepResult, axis_column, point_label
 
 __all__ = ["run_chunks", "interruptible", "SweepInterrupted", "settings_record", "restored",
            "whole_chunks", "NOT_COMPUTED", "PARTIAL"]
@@ -220,7 +220,7 @@ class _Grid:
 
     def __init__(self, axes: Mapping[str, Sequence], ablate: bool):
         self.axes, self.ablate = axes, ablate
-        self.columns = [_column_name(name, ablate) for name in axes]
+        self.columns = [axis_column(name, ablate) for name in axes]
         self.points = list(product(*axes.values()))
         self.at = {point: i for i, point in enumerate(self.points)}
 
