@@ -20,6 +20,8 @@ Lengths and E_fit in units of R.
 """
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping
@@ -98,7 +100,7 @@ class FitResult:
     inner_solves : int
         Inner equilibrium solves.
     seconds : float
-        Wall time of the fit.
+        Wall time of the fit (NaN for a record read back without it: a campaign's).
     converged : bool
         Whether the method converged to a fit that is not near a fold.
     message : str
@@ -188,14 +190,15 @@ class FitResult:
                    list(record["poorly_identified"]), float(record["E_fit"]),
                    np.concatenate([model[:, 0] - data[:, 0], model[:, 1] - data[:, 1]]), None,
                    data, model, int(record.get("outer_iterations", 0)),
-                   int(record.get("inner_solves", 0)), float(record.get("seconds", 0.0)),
+                   int(record.get("inner_solves", 0)), float(record.get("seconds", math.nan)),
                    converged, str(record.get("message", "")), tuple(record.get("constrained", ())),
                    str(record.get("stop", FIT_CONVERGED if converged else IPOPT_UNKNOWN)), problem)
 
     def __repr__(self) -> str:
         return (f"FitResult({self.method}, {self.variant}, E_fit={self.E_fit:.6g} R, "
                 f"{len(self.fitted)} parameters, {self.outer_iterations} iterations, "
-                f"{self.inner_solves} inner solves, {self.seconds:.2f} s, "
+                f"{self.inner_solves} inner solves, "
+                f"{f'{self.seconds:.2f} s' if math.isfinite(self.seconds) else 'time not recorded'}, "
                 f"converged={self.converged})")
 
     def summary(self) -> str:
@@ -328,7 +331,7 @@ def fit_result(method: str, spec: FitSpec, inner: InnerProblem, theta: np.ndarra
     iterations : int
         Outer iterations.
     seconds : float
-        Wall time of the fit.
+        Wall time of the fit (NaN for a record read back without it: a campaign's).
     converged : bool
         Whether the method converged.
     message : str
