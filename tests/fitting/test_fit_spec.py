@@ -144,3 +144,9 @@ def test_sigma_is_refused_exactly_when_a_fitted_box_would_have_no_width(gaps, si
     for j in range(5):                                   # each pair of neighbours
         if fixed[j] and fixed[j + 1]:
             assert points[j + 1] - points[j] >= sigma * (1 - 1e-9)
+
+
+def test_a_start_that_is_not_a_problem_is_named():
+    # audit 12: volvox_spec("free", {"f1": 0.8}) raised AttributeError 'dict' ... 'family'
+    with pytest.raises(TypeError, match=r"start = \{'f1': 0.8\} must be a Problem"):
+        volvox_spec("free", {"f1": 0.8})

@@ -400,6 +400,8 @@ def volvox_spec(variant: str, start: Problem | None = None, hold: Mapping[str, f
     ------
     ValueError
         An unknown variant, a start of another family.
+    TypeError
+        A start that is not a :class:`Problem` (a mapping of parameters, say).
     SpecError
         κ₁ held by the ``unstressed`` variant or held at another value than
         the ``flat`` or ``undeformed`` one's; a held stretch or curvature
@@ -408,7 +410,10 @@ def volvox_spec(variant: str, start: Problem | None = None, hold: Mapping[str, f
     """
     if variant not in VARIANTS:
         raise ValueError(f"variant = {variant!r} must be one of {list(VARIANTS)}")
-    start = start or Problem("volvox", h=0.15, opening=0.3)
+    start = Problem("volvox", h=0.15, opening=0.3) if start is None else start
+    if not isinstance(start, Problem):
+        raise TypeError(f"start = {start!r} must be a Problem (Problem('volvox', params, h=..., "
+                        f"opening=...)); parameters to hold go in hold=")
     if start.family != "volvox":
         raise ValueError(f"the Volvox fit needs a 'volvox' problem, got {start.family!r}")
     hold, tied = _variant_holds_and_ties(variant, hold)
