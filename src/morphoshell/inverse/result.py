@@ -104,13 +104,14 @@ class InverseResult:
                  f"k in [{s['k_range'][0]:g}, {s['k_range'][1]:g}]",
                  f"k per embryo, in units of 1/R ({shown}):",
                  f"  {'embryo':10s} {'h':>6s} {'cut':>6s} "
-                 + " ".join(f"{'k_' + SYMBOL[m]:>16s}" for m in MEASURES) + f" {'k_combined':>11s}"]
+                 + " ".join(f"{'k_' + SYMBOL[m]:>16s}" for m in MEASURES)
+                 + (f" {'k_combined':>11s}" if self._ran("numerical") else "")]
         lines.append(f"  {'':10s} {'H/R':>6s} {'rad':>6s}")
         for e in self.embryos:
             cells = [self._cell(e, m) for m in MEASURES]
             lines.append(f"  {e.measurement.embryo:10s} {e.measurement.h:6.3f} "
                          f"{e.measurement.cut:6.3f} " + " ".join(cells)
-                         + f" {format_k(e.combined.k):>11s}")
+                         + (f" {format_k(e.combined.k):>11s}" if self._ran("numerical") else ""))
         return lines
 
     def _summary_lines(self) -> list[str]:
