@@ -373,3 +373,31 @@ def test_an_ablation_sweep_warns_where_ablate_does(caplog):
     warned = [r.getMessage() for r in caplog.records if r.getMessage().startswith("sweep: the error")]
     assert len(warned) == 1 and "relative to the observables" in warned[0]
     assert single.relative_errors()["displacement"] > 0.1     # ablate() warns of it too
+
+
+#: local_relaxation: the intact shell's kink stays at s0 = 0.2 for every cut.
+RELAX = Problem("local_relaxation", {"F0": 0.35, "s0": 0.2}, h=0.3, cut=0.3)
+
+
+def test_a_warm_step_whose_midpoint_has_no_mesh_is_split_around_it(monkeypatch):
+    """Where the mesh of a warm step's midpoint cannot be built (ValueError, as the rim at
+    a breakpoint's was), the step splits on or ends in continuation, as where a mesh does
+    not hold the solution carried onto it: the point keeps its row, the sweep its other
+    points (the ValueError had ended the sweep as bad input, exit status 2)."""
+    from morphoshell.workflows import sweeps
+
+    real, refused = sweeps._solver, []
+
+    def no_mesh_between(problem, nodes, anchors, options):
+        if anchors and 0.1 < anchors[0] < 0.3:
+            refused.append(anchors[0])
+            raise ValueError(f"no mesh for the anchor {anchors[0]}")
+        return real(problem, nodes, anchors, options)
+
+    monkeypatch.setattr(sweeps, "_solver", no_mesh_between)
+    # (the intact shell's warm step from the rim at 0.1 to 0.3 is split: RELAX, not TOY2)
+    df = sweep(RELAX, {"cut": [0.1, 0.3]}, ablate=True, nodes=100, workers=1,
+               errors="none").to_dataframe()
+    assert refused and df["status"].isin(SOLVED).all()
+    ab = ablate(RELAX.with_updates(cut=0.3), nodes=100)
+    assert abs(df["opening"][1] - ab.opening) < SAME_MESH
