@@ -379,6 +379,21 @@ def test_an_ablation_sweep_warns_where_ablate_does(caplog):
 RELAX = Problem("local_relaxation", {"F0": 0.35, "s0": 0.2}, h=0.3, cut=0.3)
 
 
+@pytest.mark.parametrize("cuts", [[0.1, 0.3], [0.199, 0.2, 0.2001]])
+def test_an_ablation_sweep_across_the_breakpoint_keeps_every_row(cuts):
+    """cut = 0.1, 0.3 died whole, exit status 2 and no rows ("anchors and breakpoints at
+    [0.2, 0.2] are too close together to be mesh nodes"; user audit): the warm step of the
+    intact shell, halved, put its rim onto s0; and cut = 0.2 or 0.2001 was refused before
+    any work.  Every row is now ablate()'s, on the same mesh (SAME_MESH)."""
+    df = sweep(RELAX, {"cut": cuts}, ablate=True, nodes=100, workers=1,
+               errors="none").to_dataframe()
+    assert df["status"].isin(SOLVED).all() and df["cut"].tolist() == cuts
+    for i, cut in enumerate(cuts):
+        ab = ablate(RELAX.with_updates(cut=cut), nodes=100)
+        for key in ("opening", "rotation", "displacement", "energy_released"):
+            assert abs(df[key][i] - getattr(ab, key)) < SAME_MESH, (cut, key)
+
+
 def test_a_warm_step_whose_midpoint_has_no_mesh_is_split_around_it(monkeypatch):
     """Where the mesh of a warm step's midpoint cannot be built (ValueError, as the rim at
     a breakpoint's was), the step splits on or ends in continuation, as where a mesh does
