@@ -5,8 +5,9 @@ import pytest
 
 from morphoshell import Problem, solve
 from morphoshell.model.energy import boundary_layer_width
-from morphoshell.numerics.mesh import (LAYER_DECAY, LAYER_SHARE, Knot, MeshSpec, graded_mesh, knot_for,
-                              mesh_spec, pole_exponent, shell_points)
+from morphoshell.numerics.mesh import (LAYER_DECAY, LAYER_SHARE, MIN_CELL, Knot, MeshSpec,
+                                       graded_mesh, knot_for, mesh_spec, pole_exponent,
+                                       shell_points)
 
 
 def test_pole_grading_follows_the_power_law():
@@ -216,14 +217,75 @@ def test_nodes_next_to_a_pole_converge_in_a_few_evaluations(monkeypatch):
                       + 2.3e-16 * np.abs(x) * np.where(np.isfinite(slope), slope, 0.0))
 
 
-def test_mesh_spec_refuses_knots_too_close_and_has_none_without_them():
+def test_mesh_spec_refuses_two_anchors_too_close_and_has_none_without_them():
     problem = Problem("uniform", {"k": 0.0}, h=0.1, cut=0.3)
     assert mesh_spec(problem, 50, 2).knots == ()
     assert [k.source for k in mesh_spec(problem, 50, 2, anchors=(1.0, 2.0)).knots] == \
         ["anchor", "anchor"]
-    with pytest.raises(ValueError, match=r"anchors and breakpoints at \[1.0, 1.0000001\] are "
-                                         r"too close together to be mesh nodes"):
+    with pytest.raises(ValueError, match=r"mesh knots anchor 0 at s = 1.0 and anchor 1 at "
+                                         r"s = 1.0000001 are closer than 2e-06 R"):
         mesh_spec(problem, 50, 2, anchors=(1.0, 1.0000001))
+    # (farther apart, but closer than the finest rounding parts them: one cell between)
+    spec = mesh_spec(problem, 50, 2, anchors=(1.0, 1.00001))
+    assert np.diff(np.searchsorted(spec.nodes_t(), [k.t for k in spec.knots])) == [1]
+
+
+#: The intact shell of an ablation of ``local_relaxation`` (F0 = 0: stress-free), whose
+#: kink stays at s0 = 0.2 (thin: the kink is graded), and the cut shell with its kink at
+#: Σ + s0 = 0.5.
+RELAX = Problem("local_relaxation", {"F0": 0.0, "s0": 0.2}, h=0.003, cut=0.0)
+RELAX_CUT = Problem("local_relaxation", {"F0": 0.35, "s0": 0.2}, h=0.3, cut=0.3)
+
+
+@pytest.mark.parametrize("gap", [0.0, 1e-6, -1e-6])
+def test_an_anchor_at_a_breakpoint_is_one_node_with_both_roles(gap):
+    """The rim s = Σ of a cut at s0 (user audit: "anchors and breakpoints at [0.2, 0.2] are
+    too close together to be mesh nodes", exit status 2): one knot, placed by the anchor
+    (the rim's state is read there), that is also the breakpoint (graded as its kink)."""
+    spec = mesh_spec(RELAX, 200, 2, anchors=(0.2 + gap,))
+    assert spec.knots == (Knot(spec.knots[0].t, "anchor", 0, None, (0,)),)
+    # the same mesh as the kink's alone: the same place and the kink's grading
+    assert np.array_equal(spec.nodes_t(), mesh_spec(RELAX, 200, 2).nodes_t())
+    # Volvox: a cut at a step s1 (of width sigma: the knot keeps its refinement)
+    volvox = Problem("volvox", {**{f"f{i}": 1.0 for i in range(1, 6)},
+                                **{f"kappa{i}": 1.0 for i in range(1, 5)},
+                                "s1": 0.65, "s2": 1.3, "s3": 1.8, "s4": 2.3, "sigma": 0.05},
+                     h=0.15, opening=0.3)
+    knots = mesh_spec(volvox, 400, 2, anchors=(0.65 + gap,)).knots
+    assert [(k.source, k.index, k.also) for k in knots] == \
+        [("anchor", 0, (0,)), ("breakpoint", 1, ()), ("breakpoint", 2, ()), ("breakpoint", 3, ())]
+    assert knots[0].width == knots[1].width is not None
+
+
+@pytest.mark.parametrize("nodes", [200, 1600])
+@pytest.mark.parametrize("gap", [1e-5, 1e-4, -3e-4])
+def test_knots_closer_than_the_rounding_each_get_a_node_with_cells_not_too_small(nodes, gap):
+    """An anchor 1e-4 from a breakpoint was refused (the rounding of knots cannot part
+    them); at their own places they are nodes, with as many of the segment's least cells
+    between as are no smaller than MIN_CELL: 32 cells of 3e-6 R (1e-4 apart, 800 nodes)
+    failed in Ipopt."""
+    spec = mesh_spec(RELAX, nodes, 2, anchors=(0.2 + gap,))
+    t = spec.nodes_t()
+    places = sorted(k.t for k in spec.knots)
+    assert places == sorted([0.2 / np.pi, (0.2 + gap) / np.pi]) and set(places) <= set(t)
+    between = np.diff(t[(t >= places[0]) & (t <= places[1])]) * np.pi
+    assert len(between) >= 1 and between.min() >= MIN_CELL * (1 - 1e-9) or len(between) == 1
+
+
+def test_a_kink_at_an_anchor_keeps_the_solution_and_one_merged_off_it_moves_it_by_eps_squared():
+    """The cut shell's kink Σ + s0 asked for as an anchor too: the same solution to the bit
+    (one node with both roles); an anchor 1e-6 off it (merged: the kink in a cell, 1e-6 from
+    its node) moves energy and edge values by about 5 ε² = 5e-12 (measured 4.7e-12 on 100 to
+    800 nodes: bound 2e-11); 1e-4 off (two nodes, three cells between) by no more than the
+    discretisation error (8e-8 at 100 nodes, against 200)."""
+    def values(eq):
+        return np.array([eq.energy, eq.r[0], eq.psi[0], eq.z[0]])
+    plain = values(solve(RELAX_CUT, nodes=100))
+    assert np.array_equal(values(solve(RELAX_CUT, nodes=100, anchors=(0.5,))), plain)
+    assert np.max(np.abs(values(solve(RELAX_CUT, nodes=100, anchors=(0.5 + 1e-6,))) - plain)) \
+        < 2e-11
+    assert np.max(np.abs(values(solve(RELAX_CUT, nodes=100, anchors=(0.5 + 1e-4,))) - plain)) \
+        < 2e-7
 
 
 @pytest.mark.parametrize("start, end", [("free", "pole"), ("pole", "free"), ("pole", "pole")])

@@ -373,3 +373,46 @@ def test_an_ablation_sweep_warns_where_ablate_does(caplog):
     warned = [r.getMessage() for r in caplog.records if r.getMessage().startswith("sweep: the error")]
     assert len(warned) == 1 and "relative to the observables" in warned[0]
     assert single.relative_errors()["displacement"] > 0.1     # ablate() warns of it too
+
+
+#: local_relaxation: the intact shell's kink stays at s0 = 0.2 for every cut.
+RELAX = Problem("local_relaxation", {"F0": 0.35, "s0": 0.2}, h=0.3, cut=0.3)
+
+
+@pytest.mark.parametrize("cuts", [[0.1, 0.3], [0.199, 0.2, 0.2001]])
+def test_an_ablation_sweep_across_the_breakpoint_keeps_every_row(cuts):
+    """cut = 0.1, 0.3 died whole, exit status 2 and no rows ("anchors and breakpoints at
+    [0.2, 0.2] are too close together to be mesh nodes"; user audit): the warm step of the
+    intact shell, halved, put its rim onto s0; and cut = 0.2 or 0.2001 was refused before
+    any work.  Every row is now ablate()'s, on the same mesh (SAME_MESH)."""
+    df = sweep(RELAX, {"cut": cuts}, ablate=True, nodes=100, workers=1,
+               errors="none").to_dataframe()
+    assert df["status"].isin(SOLVED).all() and df["cut"].tolist() == cuts
+    for i, cut in enumerate(cuts):
+        ab = ablate(RELAX.with_updates(cut=cut), nodes=100)
+        for key in ("opening", "rotation", "displacement", "energy_released"):
+            assert abs(df[key][i] - getattr(ab, key)) < SAME_MESH, (cut, key)
+
+
+def test_a_warm_step_whose_midpoint_has_no_mesh_is_split_around_it(monkeypatch):
+    """Where the mesh of a warm step's midpoint cannot be built (ValueError, as the rim at
+    a breakpoint's was), the step splits on or ends in continuation, as where a mesh does
+    not hold the solution carried onto it: the point keeps its row, the sweep its other
+    points (the ValueError had ended the sweep as bad input, exit status 2)."""
+    from morphoshell.workflows import sweeps
+
+    real, refused = sweeps._solver, []
+
+    def no_mesh_between(problem, nodes, anchors, options):
+        if anchors and 0.1 < anchors[0] < 0.3:
+            refused.append(anchors[0])
+            raise ValueError(f"no mesh for the anchor {anchors[0]}")
+        return real(problem, nodes, anchors, options)
+
+    monkeypatch.setattr(sweeps, "_solver", no_mesh_between)
+    # (the intact shell's warm step from the rim at 0.1 to 0.3 is split: RELAX, not TOY2)
+    df = sweep(RELAX, {"cut": [0.1, 0.3]}, ablate=True, nodes=100, workers=1,
+               errors="none").to_dataframe()
+    assert refused and df["status"].isin(SOLVED).all()
+    ab = ablate(RELAX.with_updates(cut=0.3), nodes=100)
+    assert abs(df["opening"][1] - ab.opening) < SAME_MESH

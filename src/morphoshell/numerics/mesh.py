@@ -157,7 +157,7 @@ def graded_mesh(cells: int, length: float, start: str, end: str, width: float,
                 ratio: float = 6.0, pole_width: float = 0.05, q: float = 2.0,
                 edge_scale: float | None = None, knots: tuple[float, ...] = (),
                 knot_widths: tuple[float | None, ...] = (),
-                kinks: tuple[float, ...] = ()) -> np.ndarray:
+                kinks: tuple[float, ...] = (), min_cell: float | None = None) -> np.ndarray:
     """Nodes t_0 = 0 < … < t_N = 1 of a smoothly graded mesh.
 
     The node density (per unit of t) is
@@ -209,6 +209,13 @@ def graded_mesh(cells: int, length: float, start: str, end: str, width: float,
         layer gets the top-up b (thin shells), the kink gets b/2 per side,
         (b/2ℓ_b) exp(−|t − t_j|/ℓ_b) (without them a thin sphere's error outgrew
         its estimate; docs/solution.md).
+    min_cell : float, optional
+        Smallest cell (in s, as ``length``) that the least cells of a segment
+        (:data:`SEGMENT_CELLS`) may make: a segment between knots gets at most
+        its length over ``min_cell`` of them (and one; the segments at the ends
+        are not bounded), where more would be too small for the solvers
+        (:data:`MIN_CELL`; two knots 1e-4 R apart got 32 cells of 3e-6 R at
+        800 nodes, and Ipopt failed).
     """
     if cells < 2:
         raise ValueError(f"need at least 2 cells, got {cells}")
@@ -222,8 +229,14 @@ def graded_mesh(cells: int, length: float, start: str, end: str, width: float,
     layer = _layer_share(ratio, width / length)
     if layer > 0:
         bumps += tuple((k, ell_b, layer / (2 * ell_b)) for k in kinks)
+    most = None
+    if min_cell is not None:
+        # (between knots only: the cells at an end are graded into it, at a pole far below
+        # min_cell by design)
+        most = np.floor(np.diff(bounds) * length / min_cell)
+        most[[0, -1]] = np.inf
     return _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge_scale,
-                           bounds, bumps)
+                           bounds, bumps, most)
 
 
 def _layer_share(ratio: float, width: float) -> float:
@@ -269,8 +282,9 @@ def lower_gamma(a: float, x) -> np.ndarray:
 
 
 def _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge_scale, bounds,
-                    bumps=()):
-    """Nodes equidistributing the density of :func:`graded_mesh`, with nodes at ``bounds``."""
+                    bumps=(), most=None):
+    """Nodes equidistributing the density of :func:`graded_mesh`, with nodes at ``bounds``
+    (``most``: the most least cells of each segment, see :func:`_segment_shares`)."""
     ell = 3 * width / length
     ell_b = LAYER_DECAY * width / length
     layer = _layer_share(ratio, width / length)
@@ -334,7 +348,7 @@ def _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge
             pole_width * (Wb[-1] / (cells * q * pole_width)) ** q < MIN_POLE_CELL:
         q = max(1.0, q - 0.5)
         Wb = W(bounds)
-    share = _segment_shares(np.diff(Wb) / Wb[-1] * cells, cells)
+    share = _segment_shares(np.diff(Wb) / Wb[-1] * cells, cells, most)
     n = np.maximum(1, np.floor(share).astype(int))
     while n.sum() < cells:
         n[np.argmax(share - n)] += 1
@@ -347,16 +361,25 @@ def _equidistribute(cells, length, start, end, width, ratio, pole_width, q, edge
     return t
 
 
-def _segment_shares(share: np.ndarray, cells: int) -> np.ndarray:
+def _least_cells(cells: int) -> float:
+    """The least cells of a segment between knots on a mesh of ``cells``
+    (:data:`SEGMENT_CELLS`)."""
+    return 2.0 ** max(0, math.floor(math.log2(cells / SEGMENT_CELLS)))
+
+
+def _segment_shares(share: np.ndarray, cells: int, most=None) -> np.ndarray:
     """Cells per segment (fractional): in proportion to its share of the density, but at
-    least the power of two of :data:`SEGMENT_CELLS`, taken from the others in proportion."""
-    least = 2.0 ** max(0, math.floor(math.log2(cells / SEGMENT_CELLS)))
+    least the power of two of :data:`SEGMENT_CELLS` (or the segment's ``most``, if fewer,
+    and one), taken from the others in proportion."""
+    least = np.full(len(share), _least_cells(cells))
+    if most is not None:
+        least = np.maximum(1.0, np.minimum(least, most))
     small = share < least
     if not small.any() or small.all():
         return share
     out = share.copy()
-    out[small] = least
-    out[~small] *= max(0.0, cells - least * small.sum()) / share[~small].sum()
+    out[small] = least[small]
+    out[~small] *= max(0.0, cells - least[small].sum()) / share[~small].sum()
     return out
 
 
@@ -492,6 +515,12 @@ class Knot(NamedTuple):
     source: str
     index: int
     width: float | None = None
+    #: Indices of the family's breakpoints that sit at this knot's material point too (an
+    #: anchor at a breakpoint, e.g. the rim s = Σ of a cut at ``local_relaxation``'s kink
+    #: s0): one node holds both roles, placed by this knot's own ``source`` (parameters
+    #: that move the breakpoint away from the anchor leave it inside a cell: a solver of
+    #: its own for them, as :func:`mesh_spec` builds, has it at a node again).
+    also: tuple[int, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -523,6 +552,9 @@ class MeshSpec:
     edge_scale: float | None
     q: float
     knots: tuple[Knot, ...] = ()
+    #: :data:`MIN_CELL` relative to the length: the smallest cell a segment between knots
+    #: is forced to (:func:`graded_mesh`'s ``min_cell``), or None (no bound).
+    min_cell: float | None = None
 
     def nodes_t(self) -> np.ndarray:
         """The mesh t_0 = 0 < … < t_N = 1.
@@ -558,8 +590,9 @@ class MeshSpec:
         return graded_mesh(self.nodes - 1, 1.0, self.start, self.end, self.width, q=self.q,
                            edge_scale=self.edge_scale, knots=tuple(k.t for k in self.knots),
                            knot_widths=tuple(k.width for k in self.knots),
-                           kinks=tuple(k.t for k in self.knots
-                                       if k.source == "breakpoint" and k.width is None))
+                           kinks=tuple(k.t for k in self.knots if k.width is None
+                                       and (k.source == "breakpoint" or k.also)),
+                           min_cell=self.min_cell)
 
 
 def _octave(x: float) -> float:
@@ -580,6 +613,13 @@ def knot_for(fraction: float, resolution: int = 2) -> float:
     return odds / (1 + odds)
 
 
+#: Knots closer than this (units of R) are one node (:func:`_merged`): a lone cell between
+#: them of 1e-6 R solved (Ipopt, where Newton failed), of 3e-7 R did not (local_relaxation,
+#: 100-1600 nodes).  Merged, a kink sits ε off its node, inside a cell whose Gauss rule does
+#: not see it, and the energy and edge values move by about 5 ε² (F0 = 0.35, s0 = 0.2:
+#: 4.8e-10 at ε = 1e-5, 2.8e-9 at 2.4e-5, at 100-800 nodes alike), 2e-11 at this bound,
+#: below the discretisation error up to 800 nodes.
+KNOT_MERGE = 2e-6
 #: Breakpoints closer than this (relative to the shell's length) to an end are
 #: not given a node: the segment between would be a sliver.
 END_MARGIN = 1e-3
@@ -609,12 +649,39 @@ def mesh_spec(problem, nodes: int, stages: int, anchors: tuple[float, ...] = ())
     for j, (s, w) in enumerate(breakpoints(problem)):
         if END_MARGIN < (s - problem.cut) / length < 1 - END_MARGIN:
             points.append((s, "breakpoint", j, None if w is None else _octave(w / length)))
-    points.sort()
+    points = _merged(sorted(points))
     fractions = [(s - problem.cut) / length for s, *_ in points]
     # (without knots there is nothing to round: the check costs a tenth of a cold solve)
-    ts = _knot_places(fractions, [s for s, *_ in points]) if points else []
-    knots = tuple(Knot(t, src, i, w) for t, (_, src, i, w) in zip(ts, points))
-    return MeshSpec(int(nodes), st.start, st.end, width, edge, pole_exponent(stages), knots)
+    ts = _knot_places(fractions, points) if points else []
+    knots = tuple(Knot(t, src, i, w, also) for t, (_, src, i, w, also) in zip(ts, points))
+    # bound the cells between knots only where it binds: a spec of its own per shell length
+    # would end the sharing of solvers (a sweep over the cut built every point's)
+    close = len(ts) > 1 and np.min(np.diff(ts)) * length < _least_cells(nodes - 1) * MIN_CELL
+    return MeshSpec(int(nodes), st.start, st.end, width, edge, pole_exponent(stages), knots,
+                    MIN_CELL / length if close else None)
+
+
+def _merged(points: list[tuple]) -> list[tuple]:
+    """The knots of ``points`` (s, source, index, width), sorted by s: an anchor and the
+    breakpoints within :data:`KNOT_MERGE` of it (or breakpoints within it of each other)
+    are one knot, placed by the anchor (or the first breakpoint), with the others'
+    indices in ``also`` and the finest refinement width: (s, source, index, width, also).
+    """
+    groups: list[list[tuple]] = []
+    for point in points:
+        group = groups[-1] if groups else []
+        if group and point[0] - group[-1][0] < KNOT_MERGE and \
+                sum(src == "anchor" for _, src, *_ in (*group, point)) <= 1:
+            group.append(point)
+        else:
+            groups.append([point])
+    knots = []
+    for group in groups:
+        head = next((g for g in group if g[1] == "anchor"), group[0])
+        widths = [g[3] for g in group if g[3] is not None]
+        knots.append((*head[:3], min(widths) if widths else None,
+                      tuple(g[2] for g in group if g is not head)))
+    return knots
 
 
 def _held_nodes(nodes: int, length: float) -> int:
@@ -633,10 +700,12 @@ def _held_nodes(nodes: int, length: float) -> int:
     return nodes
 
 
-def _knot_places(fractions: list[float], where: list[float]) -> list[float]:
-    """The knots' places in t for material points at ``fractions`` of the shell (``where``
-    in s, for the message): the coarsest rounding whose map is monotone with a margin
-    (slope at least half the plain one), so that the anchors may still move."""
+def _knot_places(fractions: list[float], points: list[tuple]) -> list[float]:
+    """The knots' places in t for material points at ``fractions`` of the shell (``points``
+    as from :func:`_merged`, for the message): the coarsest rounding whose map is monotone
+    with a margin (slope at least half the plain one), so that the anchors may still move;
+    else the fractions themselves (knots closer than the finest rounding can part: the
+    map is the plain one, and the mesh puts cells between them)."""
     probe = np.linspace(0, 1, 2001)
     for resolution in (2, 4, 8, 16, 64, 256):
         ts = [knot_for(f, resolution) for f in fractions]
@@ -644,8 +713,12 @@ def _knot_places(fractions: list[float], where: list[float]) -> list[float]:
                 np.min(np.diff(shell_points(probe, 0.0, 1.0, tuple(ts), fractions))) > \
                 0.5 * (probe[1] - probe[0]):
             return ts
-    raise ValueError(f"anchors and breakpoints at {where} are too close together to be mesh "
-                     f"nodes")
+    near = [j for j in range(len(points) - 1) if points[j + 1][0] - points[j][0] < KNOT_MERGE]
+    if not near:
+        return list(fractions)
+    pair = [f"{src} {i} at s = {s!r}" for s, src, i, *_ in points[near[0]:near[0] + 2]]
+    raise ValueError(f"mesh knots {pair[0]} and {pair[1]} are closer than {KNOT_MERGE:g} R: "
+                     f"two anchors cannot be one node, nor have a cell between them")
 
 
 def breakpoints(problem) -> list[tuple[float, float | None]]:

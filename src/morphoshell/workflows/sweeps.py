@@ -378,9 +378,12 @@ class _Shell:
         midpoint's own mesh, from which the second carries on, as ``continue`` rebuilds its
         mesh for the parameters it has reached.
         """
-        solver = self.solver(b, b_anchors)
-        carried = solver_of(a_eq) is not solver
+        carried = False
         try:
+            # (a midpoint's mesh may not hold its knots: split on, as where it does not hold
+            # a's solution)
+            solver = self.solver(b, b_anchors)
+            carried = solver_of(a_eq) is not solver
             if carried:     # (kept for the halves: usually b's mesh is the midpoint's too)
                 a_eq = self._count(solve_from(solver, a, a_eq, a_anchors))
             eq = self._count(solver.solve(b, warm_start=a_eq, anchors=b_anchors))
