@@ -217,8 +217,9 @@ def _ablate(args) -> int:
                          f"cut > 0 (set it in the file's [problem] table or with --set cut=0.15)")
     source = _fit_of(args.problem)
     ab = ablate(problem, nodes=nodes, method=method, **options)
-    print(f"{_label(problem)}: ablation of cut Sigma = {problem.cut:g} rad "
-          f"({method}, {len(ab.post.s)} points)")
+    mesh = (f"{ab.post.solver.nodes} nodes, " if method == "direct" else "")
+    print(f"{_label(problem)}: ablation of cut Sigma = {problem.cut:g} R (arclength) "
+          f"({method}, {mesh}{len(ab.post.s)} points)")
     if source is not None:
         print(f"  shape of the fit in {source['file']}: E_fit = {source['E_fit']:.6g} R, "
               f"{'converged' if source['converged'] else 'NOT converged'}")
