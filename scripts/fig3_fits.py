@@ -53,18 +53,45 @@ def _stages(result) -> list:
     of a few timepoints of a long sequence draws its own, not empty panels)."""
     fitted = {tp for tp, _ in result.records}
     tps = [tp for tp in result.timepoints if tp.name in fitted] or result.timepoints
-    return [tps[0], tps[len(tps) // 2], tps[-1]]
+    picked = [tps[0], tps[len(tps) // 2], tps[-1]]
+    # (two fitted timepoints drew the last one twice, as a third "stage": one row each)
+    return [tp for i, tp in enumerate(picked) if tp not in picked[:i]]
 
 
 def _inset(ax, rec: dict, variant: str) -> None:
     """The inset of a Fig. 3 D–L panel: the data (grey points) and the fitted midline."""
-    inset = ax.inset_axes([0.62, 0.02, 0.36, 0.36])
+    inset = ax.inset_axes(_free_box(ax))
     d, m = rec["data_midline"], rec["fitted_midline"]
     inset.plot(d["r"], d["z"], ".", ms=1.5, color="0.4")
     inset.plot(m["r"], m["z"], "-", lw=0.8, color=COLORS[variant])
     inset.set_aspect("equal")
     inset.set_xticks([])
     inset.set_yticks([])
+
+
+#: Places of a D-L panel's inset (axes fractions): the four corners and the cavity between
+#: the rims; the one the drawn shell crosses least is taken (one place covered the shell at
+#: early stages, another the cut at late ones).
+INSET_BOXES = ([0.68, 0.02, 0.3, 0.36], [0.02, 0.02, 0.3, 0.36], [0.38, 0.42, 0.24, 0.4],
+               [0.68, 0.62, 0.3, 0.36], [0.02, 0.62, 0.3, 0.36])
+#: A marker (the cut's rims) counts as this many of a line's points: never cover the cut.
+MARKER_WEIGHT = 50
+
+
+def _free_box(ax) -> list:
+    """Of :data:`INSET_BOXES`, the box with the fewest points of ``ax``'s lines in it."""
+    ax.get_xlim()       # (the pending autoscale applied: transLimits maps the drawn limits)
+    parts = [(ax.transLimits.transform(line.get_xydata()),
+              MARKER_WEIGHT if line.get_marker() not in ("None", "", None) else 1)
+             for line in ax.get_lines()]
+
+    def covered(box):
+        x0, y0, w, h = box
+        pad = 0.03
+        return sum(weight * int(np.sum((p[:, 0] > x0 - pad) & (p[:, 0] < x0 + w + pad)
+                                       & (p[:, 1] > y0 - pad) & (p[:, 1] < y0 + h + pad)))
+                   for p, weight in parts)
+    return min(INSET_BOXES, key=covered)
 
 
 def _panels_DL(result, stages, nodes: int, out: Path):
@@ -79,7 +106,12 @@ def _panels_DL(result, stages, nodes: int, out: Path):
     from morphoshell.workflows import (ablation_errors, fitted_problem, fitted_state,
                                        numerical_ablation)
 
-    fig, axes = plt.subplots(3, 3, figsize=(DOUBLE_COLUMN, DOUBLE_COLUMN), layout="constrained")
+    rows = len(stages)
+    if rows < 3:
+        print(f"fig3_D-L: {rows} fitted timepoint{'s' * (rows > 1)}, so {rows} row"
+              f"{'s' * (rows > 1)} of the figure's 3 stages", file=sys.stderr)
+    fig, axes = plt.subplots(rows, 3, figsize=(DOUBLE_COLUMN, DOUBLE_COLUMN * rows / 3),
+                             layout="constrained", squeeze=False)
     letters = iter("DEFGHIJKL")
     ablations, first_flat = {}, None
     for i, tp in enumerate(stages):

@@ -657,3 +657,20 @@ def test_a_step_restarts_from_the_stress_free_parameters_only_when_its_state_fai
     else:                           # the gradient method from the same state, no cold refit
         assert first[1] is first[0]
     assert rec["status"] == "failed" and rec["message"] == f"{error}: failed"
+
+
+def test_fig3_draws_each_fitted_stage_once():
+    # audit 13: a campaign of two timepoints drew the last one twice, as a third stage
+    from types import SimpleNamespace
+
+    spec = importlib.util.spec_from_file_location("fig3_fits", ROOT / "scripts" / "fig3_fits.py")
+    fig3 = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(fig3)
+    tps = [SimpleNamespace(name=f"t{i:02d}") for i in range(1, 13)]
+
+    def stages(names):
+        records = {(n, "flat"): {} for n in names}
+        return [tp.name for tp in fig3._stages(SimpleNamespace(records=records, timepoints=tps))]
+    assert stages(["t01", "t05"]) == ["t01", "t05"]
+    assert stages(["t03"]) == ["t03"]
+    assert stages(["t01", "t02", "t05", "t06"]) == ["t01", "t05", "t06"]
