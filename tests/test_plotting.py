@@ -134,6 +134,17 @@ def test_save_writes_300_dpi_png_and_pdf_and_keeps_the_figure(eqs, tmp_path):
     assert not plt.fignum_exists(ax.figure.number)
 
 
+def test_save_crops_an_empty_band_above_a_flat_shell_but_keeps_the_width(tmp_path):
+    # audit 13: a wide, flat shell at equal aspect left an inch of empty figure above it
+    ax = new_axes((3.4, 3.4))
+    ax.plot([-1.2, 1.2], [0.0, 0.5])
+    ax.set_aspect("equal", adjustable="box")
+    ax.set_title("a flat shell")
+    png = save(ax, tmp_path / "flat.png", close=True)[0]
+    width, height = Image.open(png).size
+    assert width == 1020 and height < 0.6 * 1020          # 3.4 in wide at 300 dpi
+
+
 def test_titles_and_legends_say_what_was_solved(eqs, ablation):
     changed = Problem("uniform", {"k": 0.5}, h=0.2, cut=0.3, opening=0.4,
                       theory="classical", name="demo")

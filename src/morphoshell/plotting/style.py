@@ -22,7 +22,7 @@ import matplotlib.pyplot as plt
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.text import Text
-from matplotlib.transforms import ScaledTranslation
+from matplotlib.transforms import Bbox, ScaledTranslation
 
 __all__ = ["SINGLE_COLUMN", "DOUBLE_COLUMN", "MIN_FONT_SIZE", "PAPER_RC", "paper_style",
            "styled", "journal_figure", "new_axes", "made_here", "own_axes", "add_caption", "get_caption",
@@ -242,6 +242,21 @@ def _settle_layout(fig: Figure) -> None:
             fig.draw_without_rendering()
 
 
+def _height_cropped(fig: Figure, pad: float = 0.04, band: float = 0.2) -> Bbox | None:
+    """The figure's box at its full width, cropped above or below where an empty band of
+    more than ``band`` inches lies between the drawn content (with ``pad`` inches of
+    margin) and the edge, or None: a wide, flat shell at equal aspect left an inch of
+    empty figure above it.  A journal's width is kept, and a figure that fills its height
+    keeps its size."""
+    width, height = fig.get_size_inches()
+    drawn = fig.get_tightbbox()
+    low = drawn.y0 - pad if drawn.y0 - pad > band else 0.0
+    high = drawn.y1 + pad if height - (drawn.y1 + pad) > band else height
+    if low == 0.0 and high == height:
+        return None
+    return Bbox([[0.0, low], [width, high]])
+
+
 def save(fig_or_ax, path: str | Path, formats: Sequence[str] | None = None, *,
          dpi: float = 300, close: bool = False, tight: bool | None = None) -> list[Path]:
     """Save a figure; returns the paths written.
@@ -277,9 +292,10 @@ def save(fig_or_ax, path: str | Path, formats: Sequence[str] | None = None, *,
     with styled(fig):
         if not tight:
             _settle_layout(fig)
+        box = "tight" if tight else _height_cropped(fig)
         for fmt in formats or [path.suffix.lstrip(".") or "png"]:
             target = path.with_suffix("." + fmt)
-            fig.savefig(target, dpi=dpi, bbox_inches="tight" if tight else None)
+            fig.savefig(target, dpi=dpi, bbox_inches=box)
             out.append(target)
     if close:
         plt.close(fig)
