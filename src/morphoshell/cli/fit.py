@@ -245,6 +245,8 @@ def _fit(args) -> int:
     unit, default = EVALUATION_LIMITS[args.method]
     limit = args.max_evaluations or default
     result, starts = _run_fit(args, spec, midline, limit, unit)
+    trace = _single_trace(args)
+    result = _trace_errors(result, trace, args)
     print(result.summary())
     print(f"  E_fit = {result.E_fit:.6g} R over {N_FIT} points; {result.inner_solves} inner "
           f"solves, {result.seconds:.2f} s")
@@ -255,6 +257,7 @@ def _fit(args) -> int:
     if names:
         result, profiles = run_profiles(args, spec, data, result, names)
         if result is not before:        # (the fit was not its minimum: the refit is the fit)
+            result = _trace_errors(result, trace, args)
             print(refit_lines(before, result))
             limit = EVALUATION_LIMITS["gradient"][1]      # (the refit's: profile_intervals)
         print(profile_table(result, profiles))
@@ -301,6 +304,40 @@ def _run_fit(args, spec, midline, limit: int, unit: str):
     except SolverError as exc:
         hint = failure_hint(exc.status, limit, unit, args.start is not None)
         raise type(exc)(f"{str(exc).rstrip('.')}. {hint}", exc.status, exc.last_iterate) from None
+
+
+def _single_trace(args):
+    """The image trace that the fitted midline was read from; None for a csv midline or an
+    average of several traces (whose errors the Gauss–Newton ones or the traces' spread give)."""
+    if args.pixel_size is None:
+        return None
+    from ..io.roi_sets import is_roi_set, read_set_traces
+    from ..io.traces import read_trace
+
+    scale = {"pixel_size_um": args.pixel_size, "radius_um": args.radius_um}
+    if args.format in (None, "roi") and is_roi_set(args.midline):
+        traces = read_set_traces(args.midline, args.roi, **scale)
+    else:
+        traces = [read_trace(args.midline, args.format, **scale)]
+    return traces[0] if len(traces) == 1 else None
+
+
+def _trace_errors(result, trace, args):
+    """``result`` with the standard errors of its one image trace's pixel noise carried
+    through the reader (:mod:`morphoshell.fitting.trace_errors`; the Gauss–Newton ones assume
+    independent residuals and were 1.3–1.8x too small), said in a note; as it is without a
+    trace or a Jacobian."""
+    if trace is None or result.jacobian is None:
+        return result
+    from ..fitting.trace_errors import TRACE_REPLICATES, with_trace_errors
+
+    section = "half" if args.section == "half" else "whole"     # (align's rule for images)
+    result, sigma = with_trace_errors(result, result.jacobian, trace, section)
+    pixels = sigma * args.radius_um / args.pixel_size
+    note(f"the ± are the errors of the trace's pixel noise (about {pixels:.2g} px) carried through its alignment and resampling, from "
+         f"{TRACE_REPLICATES} simulated re-tracings (not the Gauss–Newton errors, which take the "
+         f"midline's points as independent)")
+    return result
 
 
 def _local_minimum_note(result) -> None:

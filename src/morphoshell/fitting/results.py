@@ -115,6 +115,10 @@ class FitResult:
         ``converged`` and ``message`` say it).
     problem : Problem
         The fitted shell (the equilibrium's problem, if not given).
+    jacobian : ndarray, shape (2N, k), or None
+        The residuals' exact Jacobian at the fit (None for a record read back): the
+        sandwich errors of a fit to one image trace need it
+        (:mod:`morphoshell.fitting.trace_errors`).  Not in :meth:`to_dict`.
     """
 
     method: str
@@ -137,6 +141,7 @@ class FitResult:
     constrained: tuple[str, ...] = ()
     stop: str = FIT_CONVERGED
     problem: Problem | None = None
+    jacobian: np.ndarray | None = None
 
     def __post_init__(self):
         if self.problem is None:    # (None too where a test's stand-in has no problem)
@@ -372,7 +377,7 @@ def fit_result(method: str, spec: FitSpec, inner: InnerProblem, theta: np.ndarra
                        float(np.sqrt(res @ res)), res, eq, inner.data,
                        inner.data + np.column_stack([res[:inner.n], res[inner.n:]]),
                        iterations, inner.solves, seconds, converged, message,
-                       tuple(d for d, _ in active), stop)
+                       tuple(d for d, _ in active), stop, jacobian=J)
     if not result.near_fold:
         return result
     return replace(result, converged=False, stop=FIT_NEAR_FOLD, message=(
