@@ -138,3 +138,20 @@ def test_fit_values_it_cannot_take_are_named_with_their_option(tmp_path, capsys)
         assert main(["fit", midline, "--variant", "free", "--start", str(start), *extra]) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and said in err, err
+
+
+def test_campaign_names_the_files_it_wrote(tmp_path):
+    """It printed "wrote OUT/<timepoint>_<variant>.json" literally (audit 13, F10): now the
+    number of fit files and their names, the first and last of more than three."""
+    from types import SimpleNamespace
+
+    from morphoshell.cli.campaign import _written
+
+    def result(names, variants):
+        timepoints = [SimpleNamespace(name=n) for n in names]
+        return SimpleNamespace(out=tmp_path, timepoints=timepoints, variants=variants,
+                               records={(n, v): {} for n in names for v in variants})
+    assert _written(result(["t01"], ["flat", "free"])) == (
+        f"2 fit files in {tmp_path} (t01_flat.json, t01_free.json)")
+    assert _written(result(["t01", "t05"], ["flat", "free", "unstressed"])) == (
+        f"6 fit files in {tmp_path} (t01_flat.json, ..., t05_unstressed.json)")

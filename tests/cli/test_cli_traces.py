@@ -210,3 +210,50 @@ def test_fit_reads_a_roi_manager_set(tmp_path, capsys, monkeypatch):
         assert main(["fit", str(path), "--variant", "flat", "--roi", choice, *scale]) == 3
         assert seen[-1].n_traces == traces
     assert seen[-1].source == (f"{path}, ROI 'embryo3'",)
+
+
+def test_a_trace_drawn_out_and_back_is_refused_in_one_line(fiji_xy, capsys, tmp_path):
+    """The trace followed by its reverse (audit 13, F5) failed with "cannot convert float NaN
+    to integer"; now one line names the file and where it turns, before any work."""
+    rows = fiji_xy.read_text().splitlines()
+    path = tmp_path / "backforth.txt"
+    path.write_text("\n".join(rows + rows[::-1][1:]) + "\n")
+    err = _refused(["fit", str(path), "--variant", "free", "--pixel-size", str(PIXEL_UM),
+                    "--radius-um", str(RADIUS_UM)], capsys, tmp_path,
+                   f"{path}: the trace doubles back on itself at line {len(rows)} (arclength",
+                   "trace the midline once, from pole to rim")
+    assert "NaN" not in err
+
+
+def _mis_clicked(fiji_xy, tmp_path, lines=(61, 201, 331)):
+    """The synthetic trace with points clicked 39 px (0.27 R) off, as in audit 13, F6 (their
+    distances from the curve are a little less: part of the move is along it)."""
+    rows = fiji_xy.read_text().splitlines()
+    for k in lines:
+        x, y = map(float, rows[k - 1].split("\t"))
+        rows[k - 1] = f"{x + 25:.2f}\t{y - 30:.2f}"
+    path = tmp_path / "misclicked.txt"
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+def test_fit_names_outlier_points_and_drops_them_when_asked(fiji_xy, capsys, tmp_path,
+                                                            monkeypatch):
+    """Mis-clicks passed silently (audit 13, F6: E_fit five times the clean trace's); now a
+    warning names each by its line, in R and px, and the option that leaves them out, and
+    with that option a note says they were left out."""
+    _stopped_fit(monkeypatch)
+    path = _mis_clicked(fiji_xy, tmp_path)
+    scale = ["--pixel-size", str(PIXEL_UM), "--radius-um", str(RADIUS_UM)]
+    assert main(["fit", str(path), "--variant", "flat", *scale]) == 3
+    captured = capsys.readouterr()
+    assert (f"warning: {path}: 3 points far off the curve of their neighbours" in captured.err
+            and "line 61 (0.26 R = 38.3 px)" in captured.err and "line 331 (0.27 R" in captured.err
+            and "--drop-outlier-points" in captured.err), captured.err
+    assert main(["fit", str(path), "--variant", "flat", *scale, "--drop-outlier-points"]) == 3
+    captured = capsys.readouterr()
+    assert "warning" not in captured.err, captured.err
+    assert f"note: {path}: 3 points far off" in captured.out
+    assert "left out (--drop-outlier-points)" in captured.out
+    assert main(["fit", str(fiji_xy), "--variant", "flat", *scale]) == 3     # a clean trace
+    assert "far off the curve" not in str(capsys.readouterr())

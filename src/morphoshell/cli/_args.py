@@ -11,7 +11,7 @@ from typing import Callable, Iterator, Mapping
 from ._outputs import output_path
 
 __all__ = ["integer", "real", "micrometres", "add_outputs", "TRACE_OPTIONS", "FORMAT_HELP",
-           "SECTION_HELP", "problem_and_settings", "reworded", "reader_notes", "linear_solver",
+           "SECTION_HELP", "OUTLIER_POINTS_HELP", "problem_and_settings", "reworded", "reader_notes", "linear_solver",
            "family_keys"]
 
 
@@ -20,6 +20,7 @@ __all__ = ["integer", "real", "micrometres", "add_outputs", "TRACE_OPTIONS", "FO
 TRACE_OPTIONS = {r"\bpixel_size_um\b": "--pixel-size", r"\bradius_um\b": "--radius-um",
                  r"\bsection='(\w+)'": r"--section \1", r"\broi='([^']*)'": r"--roi \1",
                  r"\broi=": "--roi ",
+                 r"\bdrop_outlier_points=True\b": "--drop-outlier-points",
                  r"\bwith format '(\w+)' or none": r"with --format \1 or none",
                  r"\bthe pixel size and the radius R\b": "--pixel-size and --radius-um",
                  # (the command line has no option for it)
@@ -34,6 +35,10 @@ SECTION_HELP = ("whole: rim to rim through the posterior pole, mirror-averaged i
                 "standard error moves the midline by more than 0.01 R rms is refused (from "
                 "0.1-0.2 px of noise on an embryo of R = 140 px): trace whole sections where "
                 "you can. Default (auto): whole for image traces, half for r,z CSVs")
+#: What --drop-outlier-points does (io.trace_outliers), for the help of fit and average.
+OUTLIER_POINTS_HELP = ("leave out an image trace's isolated outlier points (mis-clicks: points "
+                       "more than 10 times the trace's noise off the curve of their neighbours, "
+                       "named in a note); without it they are kept and named in a warning")
 #: What the --format names mean (io.traces, io.trace_text), for the help of fit and average.
 FORMAT_HELP = ("csv: a midline in units of R, header r,z (pole first); xy: image pixels x, y "
                "(y down), a header x,y or none, cells separated by commas, tabs or spaces, "
@@ -94,7 +99,7 @@ def reader_notes() -> Iterator[list[str]]:
     section's axis and its error) is a note at INFO, which the terminal shows
     only with ``-v``; a command that reads traces prints these notes itself,
     once its checks have passed, so that a refused trace still gets its one
-    line.  Records above INFO pass on as usual.
+    line.  Records above INFO (outlier points) pass on, reworded.
 
     Yields
     ------
@@ -107,7 +112,8 @@ def reader_notes() -> Iterator[list[str]]:
         def emit(self, record: logging.LogRecord) -> None:
             if record.levelno == logging.INFO:
                 notes.append(reworded(record.getMessage(), TRACE_OPTIONS))
-            else:
+            else:           # (a warning names the command line's options too)
+                record.msg, record.args = reworded(record.getMessage(), TRACE_OPTIONS), ()
                 logging.getLogger("morphoshell").handle(record)
 
     handler, saved = Collect(logging.DEBUG), (logger.level, logger.propagate)

@@ -12,8 +12,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from ._args import (FORMAT_HELP, SECTION_HELP, TRACE_OPTIONS, add_outputs, micrometres,
-                    note, reader_notes, reworded)
+from ._args import (FORMAT_HELP, OUTLIER_POINTS_HELP, SECTION_HELP, TRACE_OPTIONS, add_outputs,
+                    micrometres, note, reader_notes, reworded)
 from ._outputs import Outputs
 
 __all__ = ["register", "OUTLIER_RATIO"]
@@ -63,6 +63,8 @@ def register(sub) -> None:
                         "(from 1), or all (default): every line ROI is a trace")
     p.add_argument("--section", choices=SECTIONS, default="auto",
                    help=f"what an image trace covers. {SECTION_HELP}")
+    p.add_argument("--drop-outlier-points", dest="drop_outlier_points", action="store_true",
+                   help=OUTLIER_POINTS_HELP)
     p.add_argument("--traces", dest="write_traces", action="store_true",
                    help="also write each trace's midline beside the --csv file, named "
                         "<average>_<trace>.csv (the timepoints.csv column traces, for "
@@ -106,7 +108,8 @@ def _load(args, radii) -> list:
                 roi = "all"
             with reader_notes() as found_notes:
                 found = load_midlines(path, args.format, n=N_FIT, section=args.section,
-                                      pixel_size_um=args.pixel_size, radius_um=radius, roi=roi)
+                                      pixel_size_um=args.pixel_size, radius_um=radius, roi=roi,
+                                      drop_outlier_points=args.drop_outlier_points)
         except MidlineError as exc:
             raise MidlineError(reworded(str(exc), TRACE_OPTIONS)) from None
         notes += found_notes
@@ -146,6 +149,8 @@ def _how_made(args, radii: list) -> list[str]:
     from .. import __version__
 
     lines = [f"morphoshell = {__version__}", f"section = {args.section}"]
+    if args.drop_outlier_points:        # (only when given: the shipped averages stay as they are)
+        lines.append("drop_outlier_points = true")
     if args.pixel_size is not None:
         lines.append(f"pixel_size_um = {args.pixel_size:.10g}")
         lines += [f"radius_um = {path}: {radius:.10g}" for path, radius in zip(args.traces, radii)]

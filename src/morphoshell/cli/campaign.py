@@ -138,9 +138,19 @@ def _campaign(args) -> int:
         table = df.pivot(index=["timepoint", "pseudotime"], columns="variant", values="E_fit")
         print("E_fit [R]:")
         print(table.to_string(float_format=lambda v: f"{v:.4g}"))
-    print(f"  wrote {result.out}/<timepoint>_<variant>.json and {result.out / SUMMARY}")
+    print(f"  wrote {_written(result)} and {result.out / SUMMARY}")
     print(_verdict(unfinished, len(result.records), args.allow_failures))
     return 3 if unfinished and not args.allow_failures else 0
+
+
+def _written(result) -> str:
+    """The fits' files, by name (the first and last of more than 3), in their folder."""
+    from ..workflows.campaign_results import result_path
+
+    names = [result_path(result.out, tp.name, v).name for tp in result.timepoints
+             for v in result.variants if (tp.name, v) in result.records]
+    shown = ", ".join(names) if len(names) <= 3 else f"{names[0]}, ..., {names[-1]}"
+    return f"{_count(len(names), 'fit file')} in {result.out} ({shown})"
 
 
 def _count(n: int, noun: str) -> str:

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ._args import (FORMAT_HELP, SECTION_HELP, TRACE_OPTIONS, add_outputs, integer, micrometres,
-                    note, reader_notes, reworded)
+from ._args import (FORMAT_HELP, OUTLIER_POINTS_HELP, SECTION_HELP, TRACE_OPTIONS, add_outputs,
+                    integer, micrometres, note, reader_notes, reworded)
 from ._outputs import Outputs
 from ._profiles import (add_profile_options, profile_data, profile_json, profile_names,
                         profile_plot_path, profile_table, refit_lines, run_profiles)
@@ -48,6 +48,8 @@ def register(sub) -> None:
                         "one stage); default: the set's only line ROI. Other ROIs are skipped")
     p.add_argument("--section", choices=SECTIONS, default="auto",
                    help=f"what an image trace covers. {SECTION_HELP}")
+    p.add_argument("--drop-outlier-points", dest="drop_outlier_points", action="store_true",
+                   help=OUTLIER_POINTS_HELP)
     p.add_argument("--variant", choices=VARIANTS, required=True,
                    help="posterior intrinsic curvature kappa1: flat (0), undeformed (1), "
                         "unstressed (1/f1), free (fitted)")
@@ -178,7 +180,7 @@ def load_checked(args, spec, n: int):
         with reader_notes() as notes:
             midline = load_midline(args.midline, args.format, n=n, section=args.section,
                                    pixel_size_um=args.pixel_size, radius_um=args.radius_um,
-                                   roi=args.roi)
+                                   roi=args.roi, drop_outlier_points=args.drop_outlier_points)
     except MidlineError as exc:
         raise MidlineError(reworded(str(exc), TRACE_OPTIONS)) from None
     if args.pixel_size is not None:          # (an image trace: the loader required both)
@@ -220,7 +222,8 @@ def fit_record(args, limit: int) -> dict:
                          "start": None if args.start is None else str(args.start),
                          "set": parse_overrides(args.overrides),
                          # (only when given: a single fit's JSON stays as it was)
-                         **({"multi_start": True} if args.multi_start else {})}}
+                         **({"multi_start": True} if args.multi_start else {}),
+                         **({"drop_outlier_points": True} if args.drop_outlier_points else {})}}
 
 
 def csv_columns(result) -> dict:

@@ -117,6 +117,7 @@ import numpy as np
 from .roi_sets import is_roi_set, read_set_traces
 from .trace_checks import MidlineError, check_axis, check_choice, check_positive, noise_hint
 from .trace_noise import Binning, bin_noisy
+from .trace_outliers import OUTLIER_SIGMAS, find_outliers
 from .traces import Midline, Trace, read_trace
 
 if TYPE_CHECKING:       # scipy is imported on use (CLI start-up)
@@ -269,7 +270,7 @@ def _count(name: str, value, minimum: int) -> int:
 # --------------------------------------------------------------------------- alignment
 
 def align(trace: Trace, section: str = "auto", *, flip: bool = False,
-          max_asymmetry: float = 0.05) -> Alignment:
+          max_asymmetry: float = 0.05, drop_outlier_points: bool = False) -> Alignment:
     """Bring a trace to the model gauge (rules in the module docstring).
 
     Parameters
@@ -281,6 +282,10 @@ def align(trace: Trace, section: str = "auto", *, flip: bool = False,
     max_asymmetry : float
         Largest rms distance (units of R) of the halves of a whole section
         from their mirror average.
+    drop_outlier_points : bool
+        Leave out an image trace's isolated outlier points
+        (:mod:`morphoshell.io.trace_outliers`; a note names them); without it
+        they are kept and a warning names them.
 
     Returns
     -------
@@ -312,6 +317,11 @@ def align(trace: Trace, section: str = "auto", *, flip: bool = False,
     kind = "half" if section == "half" else "whole"
     _check_count(trace, kind)
     binning = bin_noisy(trace.points)
+    if not binning.sparse:
+        trace = _outlier_points(trace, drop_outlier_points)
+        if len(trace.points) < binning.n:
+            _check_count(trace, kind)
+            binning = bin_noisy(trace.points)
     if kind == "half":
         pole, e_r, e_z, points, axis_note = _half_section(trace, binning, flip)
         asymmetry = 0.0
@@ -333,6 +343,27 @@ def align(trace: Trace, section: str = "auto", *, flip: bool = False,
         if note:
             log.info(note)
     return Alignment(points, kind, math.atan2(-e_z[0], e_z[1]), pole, asymmetry)
+
+
+def _outlier_points(trace: Trace, drop: bool) -> Trace:
+    """The trace, its outlier points named in a warning, or left out (``drop``) with a note."""
+    found = find_outliers(trace.points)
+    if not len(found):
+        return trace
+    listed = ", ".join(f"{trace.where[i]} ({d:.2g} R = {d / trace.scale:.3g} px)"
+                       for i, d in zip(found.index, found.distance))
+    what = (f"{trace.source}: {len(found)} point{'s' * (len(found) > 1)} far off the curve of "
+            f"{'their' if len(found) > 1 else 'its'} neighbours (beyond {OUTLIER_SIGMAS:g} times "
+            f"the trace's noise {found.sigma:.2g} R; mis-clicks?): {listed}")
+    if not drop:
+        log.warning(f"{what}; kept: they lengthen the midline and bias a fit; leave them out "
+                    f"with drop_outlier_points=True, or correct the trace")
+        return trace
+    log.info(f"{what}; left out (drop_outlier_points=True)")
+    keep = np.ones(len(trace.points), dtype=bool)
+    keep[found.index] = False
+    return replace(trace, points=trace.points[keep],
+                   where=tuple(w for w, k in zip(trace.where, keep) if k))
 
 
 def _check_count(trace: Trace, kind: str) -> None:
@@ -559,7 +590,7 @@ def _crossing(curve: _Curve, normal: np.ndarray, c: float) -> float:
 def load_midline(path: str | Path, format: str | None = None, *, n: int = 100,
                  section: str = "auto", flip: bool = False, pixel_size_um: float | None = None,
                  radius_um: float | None = None, max_asymmetry: float = 0.05,
-                 roi: str | int | None = None) -> Midline:
+                 roi: str | int | None = None, drop_outlier_points: bool = False) -> Midline:
     """Read, align and resample one trace, or the chosen traces of a ROI Manager set.
 
     :func:`load_midlines`; several traces of a set are averaged
@@ -585,6 +616,8 @@ def load_midline(path: str | Path, format: str | None = None, *, n: int = 100,
         ROI Manager sets only: the line ROI by name or position (from 1), or
         ``"all"`` to average every line ROI; None: the set's only line ROI
         (:mod:`morphoshell.io.roi_sets`).
+    drop_outlier_points : bool
+        Leave out image traces' isolated outlier points (:func:`align`).
 
     Returns
     -------
@@ -604,14 +637,16 @@ def load_midline(path: str | Path, format: str | None = None, *, n: int = 100,
     """
     midlines = load_midlines(path, format, n=n, section=section, flip=flip,
                              pixel_size_um=pixel_size_um, radius_um=radius_um,
-                             max_asymmetry=max_asymmetry, roi=roi)
+                             max_asymmetry=max_asymmetry, roi=roi,
+                             drop_outlier_points=drop_outlier_points)
     return midlines[0] if len(midlines) == 1 else average(midlines)
 
 
 def load_midlines(path: str | Path, format: str | None = None, *, n: int = 100,
                   section: str = "auto", flip: bool = False, pixel_size_um: float | None = None,
                   radius_um: float | None = None, max_asymmetry: float = 0.05,
-                  roi: str | int | None = None) -> list[Midline]:
+                  roi: str | int | None = None,
+                  drop_outlier_points: bool = False) -> list[Midline]:
     """The single-trace midlines of a file, each read, aligned and resampled, not averaged.
 
     :func:`morphoshell.io.traces.read_trace` (or, for an ImageJ ROI Manager
@@ -638,7 +673,8 @@ def load_midlines(path: str | Path, format: str | None = None, *, n: int = 100,
         traces = [read_trace(path, format, pixel_size_um=pixel_size_um, radius_um=radius_um)]
     midlines = []
     for trace in traces:
-        half = align(trace, section, flip=flip, max_asymmetry=max_asymmetry).points
+        half = align(trace, section, flip=flip, max_asymmetry=max_asymmetry,
+                     drop_outlier_points=drop_outlier_points).points
         r, z = resample(half, n).T
         midlines.append(Midline(r, z, resample_spread(trace.spread, n), trace.n_traces,
                                 (trace.source,)))

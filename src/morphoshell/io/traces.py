@@ -109,6 +109,8 @@ class Trace:
         fraction i/(rows − 1) of the average's arclength.
     n_traces : int
         The ``# n_traces`` comment of a csv (1 without one): traces averaged.
+    scale : float
+        Image formats: units of R per pixel (for messages in pixels); nan for csv.
     """
 
     points: np.ndarray
@@ -117,6 +119,7 @@ class Trace:
     where: tuple[str, ...]
     spread: np.ndarray | None = None
     n_traces: int = 1
+    scale: float = math.nan
 
 
 @dataclass(frozen=True, eq=False)
@@ -294,7 +297,7 @@ def pixel_trace(source: str, fmt: str, pixels: np.ndarray, where: Sequence[str],
     if spline:
         pixels = _imagej_spline(pixels)     # each point labelled by the control point before it
         where = [where[min(k // SPLINE_SUBDIVISIONS, len(where) - 1)] for k in range(len(pixels))]
-    return Trace(pixels * [scale, -scale], source, fmt, tuple(where))
+    return Trace(pixels * [scale, -scale], source, fmt, tuple(where), scale=scale)
 
 
 def _roi_of(path: Path, data: bytes):
