@@ -116,12 +116,14 @@ def _continue(args) -> int:
         fig = plot_branch(branch, y=args.plot_y, shapes=args.plot_shapes,
                           switched=[b for _, b in switched])
         out.add(args.plot, lambda path: save(fig, path))
-    for path in out.commit():
+    written = out.commit()
+    for path in written:
         print(f"  wrote {path}")
     if branch.ended is not None:
         print(f"morphoshell: the branch ended at lambda = {branch.ended.tau:.10g}, before the "
               f"path's end ({branch.ended.status}: past it the meridian crosses the axis; see "
-              f"the warning); the points up to there are written", file=sys.stderr)
+              f"the warning){'; the points up to there are written' * bool(written)}",
+              file=sys.stderr)
         return 3
     if failed:
         print(f"morphoshell: {len(failed)} switch(es) of branches failed: {', '.join(failed)} "
