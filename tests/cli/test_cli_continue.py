@@ -13,7 +13,7 @@ from morphoshell.io.problem_files import example_path
 FOLD = Path(__file__).resolve().parents[1] / "data" / "volvox_fold.toml"
 RIM = (0.3903, 0.4629)          # the cold solve's rim at lambda = 1 (issue 38)
 COLUMNS = ["lambda", "energy", "r_end", "z_end", "psi_end", "stable", "negative_eigenvalues",
-           "event"]
+           "event", "lambda_error"]
 
 
 @pytest.fixture(scope="module")
@@ -92,7 +92,8 @@ def test_the_path_ends_exactly_at_the_target_with_units(tmp_path):
     doc = json.loads(paths["json"].read_text())
     assert doc["points"]["h"][-1] == 0.01
     assert doc["units"] == {"lambda": "1", "h": "R", "energy": "C R^2", "r_end": "R",
-                            "z_end": "R", "psi_end": "rad", "negative_eigenvalues": "1"}
+                            "z_end": "R", "psi_end": "rad", "negative_eigenvalues": "1",
+                            "lambda_error": "1"}
 
 
 @pytest.mark.parametrize("args, named", [
@@ -225,3 +226,40 @@ def test_plot_is_a_journal_figure_with_truetype_fonts_and_one_column_without_sha
                      *extra]) == 0
     width = {p: struct.unpack(">I", p.read_bytes()[16:20])[0] for p in (wide, narrow)}
     assert width == {wide: 7.0 * 300, narrow: 3.4 * 300}
+
+
+def test_a_branch_that_crosses_the_axis_ends_there_written_with_status_3(tmp_path, capsys):
+    """A uniform cap (toy 1, h = 0.2, cut = 1) continued in k to 9.9 on 100 nodes (audit 14
+    F3): past k ≈ 8.55 its meridian crosses the axis; the branch ends at its last physical
+    point, the outputs are written (the JSON's `ended`), the summary says why, exit 3."""
+    csv_path, json_path = tmp_path / "cap.csv", tmp_path / "cap.json"
+    status = main(["continue", str(example_path("toy1_sphere")), "--set", "h=0.2", "--set",
+                   "cut=1.0", "--set", "k=1.0", "--param", "k", "--to", "9.9", "--nodes",
+                   "100", "--csv", str(csv_path), "--json", str(json_path)])
+    out, err = capsys.readouterr()
+    assert status == 3 and "Meridian_Crosses_Axis" in err
+    ended = json.loads(json_path.read_text())["ended"]
+    assert ended["status"] == "Meridian_Crosses_Axis" and 0.8 < ended["lambda"] < 0.9
+    with csv_path.open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert float(rows[-1]["lambda"]) == ended["lambda"]
+    assert "(Meridian_Crosses_Axis: the last physical state): stable" in out
+    folds = [r for r in rows if r["event"] == "fold"]
+    assert len(folds) == 4 and all(0 < float(r["lambda_error"]) < 1e-4 for r in folds)
+
+
+def test_folds_the_mesh_does_not_resolve_are_flagged(tmp_path, capsys, caplog):
+    """The anisotropic toy shell in f0 to 4.5 on 100 nodes (audit 14 F2): its two folds are
+    not on the half mesh; the summary and the CSV (`inf`) say so, a warning advises a finer
+    mesh; the exit status stays 0 (the branch itself was followed)."""
+    csv_path = tmp_path / "t3.csv"
+    status = main(["continue", str(example_path("toy3_anisotropic")), "--param", "f0", "--to",
+                   "4.5", "--nodes", "100", "--csv", str(csv_path)])
+    out = capsys.readouterr().out
+    assert status == 0
+    assert out.count("not resolved (not on the half mesh)") == 2
+    assert "does not resolve" in caplog.text and "--nodes 199" in caplog.text
+    with csv_path.open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert [r["lambda_error"] for r in rows if r["event"] == "fold"] == ["inf", "inf"]
+    assert all(r["lambda_error"] == "" for r in rows if not r["event"])

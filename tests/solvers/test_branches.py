@@ -608,3 +608,18 @@ def test_a_branch_whose_shown_shapes_overlap_says_so(volvox, caplog):
     with caplog.at_level("WARNING", logger="morphoshell.solvers.branches"):
         follow_branch(load_problem(example_path("blister"))[0], nodes=40)
     assert "pass through" not in caplog.text
+
+
+def test_a_branch_that_turns_back_off_the_path_says_so(volvox):
+    """Started at the everted branch's fold in κ₂ (-6.5738549 on 200 nodes, audit 14 F4), the
+    branch turns back along its unstable part and leaves the path beyond λ = -0.5: the
+    message names that fold and what helps, not a smaller step or a finer mesh (neither
+    happened nor helps)."""
+    at_fold = volvox.with_updates(kappa2=-6.573854)
+    with pytest.raises(SolverError) as ended:
+        follow_branch(at_fold, "kappa2", -8.0, nodes=200)
+    text = str(ended.value)
+    assert ended.value.status == "Branch_Ended" and "it left the path" in text
+    assert "turned back at the fold at lambda" in text and "(kappa2 = -6.57385)" in text
+    assert "beyond lambda = -0.5" in text and "--follow stable" in text
+    assert "smaller --max-step" not in text

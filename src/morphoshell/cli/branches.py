@@ -63,7 +63,8 @@ def register(sub) -> None:
     add_outputs(p, json="write the branch (problem, path, points, snaps; with --switch the "
                         "switched branches) as JSON",
                 csv="write one row per point: lambda, the parameter, energy, r_end, z_end, "
-                    "psi_end, stable, negative_eigenvalues, event",
+                    "psi_end, stable, negative_eigenvalues, event, lambda_error (an event's "
+                    "error estimate from the half mesh; inf: not resolved)",
                 plot="write the bifurcation diagram with the shapes at the events")
     p.set_defaults(run=_continue)
 
@@ -115,8 +116,15 @@ def _continue(args) -> int:
         fig = plot_branch(branch, y=args.plot_y, shapes=args.plot_shapes,
                           switched=[b for _, b in switched])
         out.add(args.plot, lambda path: save(fig, path))
-    for path in out.commit():
+    written = out.commit()
+    for path in written:
         print(f"  wrote {path}")
+    if branch.ended is not None:
+        print(f"morphoshell: the branch ended at lambda = {branch.ended.tau:.10g}, before the "
+              f"path's end ({branch.ended.status}: past it the meridian crosses the axis; see "
+              f"the warning){'; the points up to there are written' * bool(written)}",
+              file=sys.stderr)
+        return 3
     if failed:
         print(f"morphoshell: {len(failed)} switch(es) of branches failed: {', '.join(failed)} "
               f"(the branches that were followed are written)", file=sys.stderr)
@@ -135,20 +143,36 @@ def _report(problem, branch) -> None:
                                              f"{pt.values[branch.parameter]:.10g}"
                                              if branch.parameter else "")
         print(f"  {pt.event.replace('_', ' '):13s} at {where}: r_end = {pt.r_end:.6g} R, "
-              f"z_end = {pt.z_end:.6g} R, energy = {pt.energy:.6g} C R^2")
+              f"z_end = {pt.z_end:.6g} R, energy = {pt.energy:.6g} C R^2{_error(pt)}")
     for event in (*branch.snaps, *branch.switches):
         print(f"  {event.describe()}")
     if branch.remeshed:
         print(f"  mesh rebuilt for the parameters at lambda = "
               f"{', '.join(f'{t:.6g}' for t in branch.remeshed)} (its knots moved with them)")
-    print(f"  {_end_line(branch.end)}")
+    print(f"  {_end_line(branch)}")
 
 
-def _end_line(end) -> str:
-    """Where a branch ends: λ, stability and the far end's values."""
+def _error(pt) -> str:
+    """An event's λ error estimate from the half mesh, for its line ("" if none)."""
+    from ..solvers.refinement import COARSE
+
+    if pt.lambda_error == float("inf"):
+        return "; not resolved (not on the half mesh)"
+    if pt.lambda_error > COARSE:
+        return f"; not resolved (error in lambda {pt.lambda_error:.2g})"
+    if pt.lambda_error >= 0:
+        return f"; error in lambda {pt.lambda_error:.2g}"
+    return "; no error estimate (the half mesh holds no point before it)"
+
+
+def _end_line(branch) -> str:
+    """Where a branch ends: λ (and why, before the path's end), stability and the far
+    end's values."""
+    end = branch.end
     k = end.negative_eigenvalues
     state = "stable" if end.stable else f"unstable ({k} negative eigenvalue{'s' * (k != 1)})"
-    return (f"end at lambda = {end.tau:.10g}: {state}, r_end = {end.r_end:.10g} R, "
+    early = f" ({branch.ended.status}: the last physical state)" if branch.ended else ""
+    return (f"end at lambda = {end.tau:.10g}{early}: {state}, r_end = {end.r_end:.10g} R, "
             f"z_end = {end.z_end:.10g} R, psi_end = {end.psi_end:.10g} rad, energy = "
             f"{end.energy:.10g} C R^2")
 
@@ -175,7 +199,7 @@ def _switched(args, branch) -> tuple[list[tuple[str, object]], list[str]]:
                 continue
             print(f"  switched at branch point {k + 1}{sign} (lambda = {other.origin:.10g}): "
                   f"{len(other.points)} points, {len(other.events) - 1} more event(s), "
-                  f"{_end_line(other.end)}")
+                  f"{_end_line(other)}")
             out.append((f"{k + 1}{sign}", other))
     return out, failed
 
@@ -186,6 +210,10 @@ def _csv_columns(branch, switched) -> dict:
     tables = [("main", branch.columns())] + [(name, b.columns()) for name, b in switched]
     columns = {k: [v for _, t in tables for v in t[k]] for k in tables[0][1]}
     columns["stable"] = ["true" if s else "false" for s in columns["stable"]]
+    # (an event that the half mesh does not have: "inf", not the empty cell of "unchecked")
+    # (one type in the column: strings, as write_csv writes floats)
+    columns["lambda_error"] = ["inf" if e == float("inf") else repr(e) if e >= 0 else ""
+                               for e in columns["lambda_error"]]
     if switched:
         columns = {"branch": [name for name, t in tables for _ in t["lambda"]], **columns}
     return columns

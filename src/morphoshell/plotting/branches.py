@@ -102,8 +102,8 @@ def plot_branch(branch, *, y: str = "psi_end", x: str | None = None, shapes: boo
     table = branch.columns()
     x = x or (branch.parameter or "lambda")
     for name, what in ((x, "x"), (y, "y")):
-        if name not in table or name in ("stable", "event"):
-            numeric = [k for k in table if k not in ("stable", "event")]
+        if name not in table or name in ("stable", "event", "lambda_error"):
+            numeric = [k for k in table if k not in ("stable", "event", "lambda_error")]
             raise ValueError(f"{what} = {name!r}: choose one of {numeric}")
     if fig is None:
         width = DOUBLE_COLUMN if shapes else SINGLE_COLUMN
@@ -141,7 +141,22 @@ def branch_caption(branch, switched: Sequence = ()) -> str:
              f"{solver.method} method, {solver.nodes} nodes"]
     if switched:
         parts.append("in colour, with markers: the branches switched to at branch points")
+    parts += _warnings(branch)
     return "; ".join(parts)
+
+
+def _warnings(branch) -> list[str]:
+    """What the caption must say of a branch: where it ended early and why (its last point
+    the last physical state), and the events the mesh does not resolve."""
+    out = []
+    if branch.ended is not None:
+        out.append(f"ends at λ = {branch.ended.tau:.6g}: past it the meridian crosses the "
+                   f"axis ({branch.ended.status})")
+    if branch.unresolved:
+        kinds = sorted({pt.event.replace("_", " ") for pt in branch.unresolved})
+        out.append(f"not resolved by the mesh (artefacts?): the {' and '.join(kinds)}s at "
+                   f"λ = {', '.join(f'{pt.tau:.4g}' for pt in branch.unresolved)}")
+    return out
 
 
 def _switched_styles(switched: Sequence) -> list[tuple[str, str]]:

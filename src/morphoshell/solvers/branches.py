@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -35,25 +35,29 @@ import numpy as np
 from .._runtime.validate import integer, within
 from ..model.problem import Problem
 from .arclength import EASY, GROWTH, MAX_STEP, MIN_STEP, ArcPoint, Arclength, Snap, Switch
+from .branch_checks import Ending, crossing_end, event_errors, unresolved
 from .contact import wall_contact
 from .continuation import continue_to
 from .crossings import branch_ended, snap_through, switch_stable
 from .options import check_direct_options, check_problem
+from .refinement import COARSE, SAFETY
 from .paths import ParameterLine, neutral_problem
 from .results import Equilibrium
 from .routes import direct_solver
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Branch", "BranchPoint", "follow_branch", "switch_branch", "continuation_path",
-           "EVENTS", "FOLLOW", "COLUMNS", "MAX_POINTS", "UNITS", "PARAMETER_UNITS"]
+__all__ = ["Branch", "BranchPoint", "Ending", "follow_branch", "switch_branch",
+           "continuation_path", "EVENTS", "FOLLOW", "COLUMNS", "MAX_POINTS", "UNITS",
+           "PARAMETER_UNITS"]
 
 #: What a point of a branch can be besides an ordinary one.
 EVENTS = ("fold", "branch_point", "snap")
 #: The ways of following a path.
 FOLLOW = ("branch", "stable")
 #: The columns of a branch's table after the parameter's (units: docs, "Branches").
-COLUMNS = ("energy", "r_end", "z_end", "psi_end", "stable", "negative_eigenvalues", "event")
+COLUMNS = ("energy", "r_end", "z_end", "psi_end", "stable", "negative_eigenvalues", "event",
+           "lambda_error")
 #: The path parameter may leave [0, 1] by this much before the branch counts as lost.
 TAU_MARGIN = 0.5
 #: A step that stretches or squeezes a cell of its mesh by more than this factor
@@ -74,7 +78,7 @@ SMOOTH_SHRINK = 16
 MAX_POINTS = 100_000
 #: Units of a branch's columns (its table's ``attrs`` and its JSON), the parameter's aside.
 UNITS = {"lambda": "1", "energy": "C R^2", "r_end": "R", "z_end": "R", "psi_end": "rad",
-         "negative_eigenvalues": "1"}
+         "negative_eigenvalues": "1", "lambda_error": "1"}
 #: Units of the parameters continued in whose unit is known (as a sweep's columns).
 PARAMETER_UNITS = {"h": "R", "cut": "R", "opening": "R", "k": "1/R"}
 
@@ -104,6 +108,10 @@ class BranchPoint:
         "" or one of :data:`EVENTS`.
     equilibrium : Equilibrium
         The whole solution.
+    lambda_error : float
+        At a fold or branch point, the estimated error of its λ from the mesh with half
+        the cells (:func:`~morphoshell.solvers.branch_checks.event_errors`; ``inf``: not
+        there within reach, an artefact of the mesh); NaN elsewhere or not checked.
     """
 
     tau: float
@@ -116,6 +124,7 @@ class BranchPoint:
     stable: bool
     event: str
     equilibrium: Equilibrium = field(repr=False, compare=False)
+    lambda_error: float = float("nan")
 
 
 @dataclass(frozen=True)
@@ -145,6 +154,10 @@ class Branch:
     remeshed : tuple of float
         The λ where the walk went on on a mesh rebuilt for the parameters there
         (:data:`REMESH`); the points after each are on the new mesh.
+    ended : Ending or None
+        Why the branch ends before the path's end (its last point, the last physical
+        state: past it the meridian crosses the axis, which ``solve()`` refuses); None
+        where it reaches the end.
     """
 
     problem: Problem
@@ -158,6 +171,7 @@ class Branch:
     direction: float = 1.0
     switches: tuple = ()
     remeshed: tuple = ()
+    ended: Ending | None = None
 
     def __repr__(self) -> str:
         """One line: the problem, the path, how many points over which λ (and parameter) range,
@@ -179,6 +193,8 @@ class Branch:
             parts.append(f"switched at lambda = {self.origin:.6g}, direction {self.direction:+g}")
         if self.remeshed:
             parts.append(f"mesh rebuilt at lambda = {', '.join(f'{t:.6g}' for t in self.remeshed)}")
+        if self.ended is not None:
+            parts.append(f"ended at lambda = {self.ended.tau:.6g}: {self.ended.status}")
         return f"Branch({', '.join(parts)})"
 
     def units(self) -> dict[str, str]:
@@ -192,6 +208,12 @@ class Branch:
     def events(self) -> list[BranchPoint]:
         """The points that are events (folds, branch points, snaps), in order."""
         return [pt for pt in self.points if pt.event]
+
+    @property
+    def unresolved(self) -> list[BranchPoint]:
+        """The events that the mesh does not resolve (λ error estimate above
+        :data:`~morphoshell.solvers.refinement.COARSE`, or none on the half mesh)."""
+        return unresolved(self.points)
 
     @property
     def end(self) -> BranchPoint:
@@ -240,7 +262,10 @@ class Branch:
                 **({"origin": self.origin, "direction": self.direction}
                    if self.origin is not None else {}),
                 **({"switches": [s.to_dict() for s in self.switches]} if self.switches else {}),
-                **({"remeshed": list(self.remeshed)} if self.remeshed else {})}
+                **({"remeshed": list(self.remeshed)} if self.remeshed else {}),
+                **({"ended": self.ended.to_dict()} if self.ended is not None else {}),
+                **({"unresolved": [pt.tau for pt in self.unresolved]}
+                   if self.unresolved else {})}
 
 
 def follow_branch(problem: Problem, param: str | None = None, to: float | None = None, *,
@@ -295,8 +320,8 @@ def follow_branch(problem: Problem, param: str | None = None, to: float | None =
     walk = _Walk(Arclength(solver, line, anchors), follow, max_step, max_points)
     walk.run(start)
     return _checked(Branch(line.problem, line, param, follow, tuple(walk.points),
-                           tuple(walk.snaps), time.perf_counter() - t0,
-                           switches=tuple(walk.switches), remeshed=tuple(walk.remeshed)))
+                           tuple(walk.snaps), 0.0, switches=tuple(walk.switches),
+                           remeshed=tuple(walk.remeshed), ended=walk.ended), max_step, t0)
 
 
 def switch_branch(branch: Branch, at: int, direction: float = 1.0, *,
@@ -358,21 +383,49 @@ def switch_branch(branch: Branch, at: int, direction: float = 1.0, *,
     walk = _Walk(arc, "branch", max_step, max_points, ends=(0.0, 1.0))
     walk.switched(origin, direction)
     return _checked(Branch(branch.problem, branch.line, branch.parameter, "branch",
-                           tuple(walk.points), (), time.perf_counter() - t0, origin.tau,
-                           float(direction), remeshed=tuple(walk.remeshed)))
+                           tuple(walk.points), (), 0.0, origin.tau, float(direction),
+                           remeshed=tuple(walk.remeshed), ended=walk.ended), max_step, t0)
 
 
-def _checked(branch: Branch) -> Branch:
-    """``branch``, with a warning where the shapes it shows (its events and its end: the
-    plot's panels) have walls that pass through each other (:mod:`.contact`; checking
-    every point would cost a third of the walk: docs/benchmarks.md, "solvers/branches.py")."""
+def _checked(branch: Branch, max_step: float, t0: float) -> Branch:
+    """``branch`` with its events' λ errors from the half mesh
+    (:func:`~.branch_checks.event_errors`) and its time since ``t0``; a warning names the
+    events the mesh does not resolve, one where it ended early (:class:`Ending`), and one
+    where the shapes it shows (its events and its end: the plot's panels) have walls that
+    pass through each other (:mod:`.contact`; checking every point would cost a third of
+    the walk: docs/benchmarks.md, "solvers/branches.py")."""
+    branch = replace(branch, points=tuple(event_errors(list(branch.points), branch.line,
+                                                       max_step)))
     shown = [pt for pt in branch.points if pt.event] + [branch.end]
     where = sorted({pt.tau for pt in shown if wall_contact(pt.equilibrium) is not None})
     if where:
         log.warning("the shapes of the branch at lambda = %s have walls that pass through "
                     "each other: the model has no self-contact, so they are equilibria of the "
                     "model but not physical shapes", ", ".join(f"{t:.6g}" for t in where))
-    return branch
+    if branch.unresolved:
+        log.warning("%s", _unresolved_warning(branch))
+    if branch.ended is not None:
+        log.warning("%s", branch.ended.describe())
+    return replace(branch, seconds=time.perf_counter() - t0)
+
+
+def _where(line: ParameterLine, tau: float) -> str:
+    """``lambda = τ``, with the parameter's value where one moves."""
+    values = line.values(tau)
+    return f"lambda = {tau:.6g}" + "".join(f" ({k} = {v:.6g})" for k, v in values.items()
+                                           if len(values) == 1)
+
+
+def _unresolved_warning(branch: Branch) -> str:
+    """What the mesh does not resolve (:attr:`Branch.unresolved`), and what helps."""
+    nodes = branch.points[0].equilibrium.solver.nodes
+    events = "; ".join(f"{pt.event.replace('_', ' ')} at {_where(branch.line, pt.tau)}"
+                       for pt in branch.unresolved)
+    return (f"the mesh ({nodes} nodes) does not resolve the branch's {events}: on the mesh "
+            f"with half the cells each lies more than {COARSE / SAFETY:g} away in lambda or is "
+            f"not there, so it (and the unstable parts and snap-throughs it bounds) may be an "
+            f"artefact of the discretisation; follow the branch on a finer mesh (nodes, "
+            f"--nodes {2 * (nodes - 1) + 1} or more)")
 
 
 def _check_walk(max_step, max_points) -> None:
@@ -425,6 +478,7 @@ class _Walk:
         self.snaps: list[Snap] = []
         self.switches: list[Switch] = []
         self.remeshed: list[float] = []
+        self.ended: Ending | None = None
         self._cells: np.ndarray | None = None     # widths where the mesh was built (first point)
 
     def record(self, point: ArcPoint, event: str = "", eq: Equilibrium | None = None,
@@ -489,11 +543,41 @@ class _Walk:
                     raise self._ended(point, "the step fell below its minimum")
                 continue
             if not -TAU_MARGIN <= new.tau <= 1 + TAU_MARGIN:
-                raise self._ended(new, "it left the path")
-            point, done = self._advance(point, new, ds)
+                raise self._ended(new, "it left the path", self._left(new))
+            point, done = self._physical(point, new, ds)
             if done:
                 return
             ds = min(GROWTH * ds, self.max_step) if new.iterations <= EASY else ds
+
+    def _physical(self, point: ArcPoint, new: ArcPoint, ds: float) -> tuple[ArcPoint, bool]:
+        """:meth:`_advance` to ``new``, or where its meridian crosses the axis, which
+        ``solve()`` refuses (:func:`~.branch_checks.crossing_end`), to the last point of the
+        step that does not, where the branch ends (:attr:`ended`) unless a snap or switch
+        within the step leaves it first."""
+        eq = self.arc.equilibrium(new)
+        cut = crossing_end(self.arc, point, new, ds, eq)
+        if cut is None:
+            return self._advance(point, new, ds, eq)
+        last, s, self.ended = cut
+        if s <= 0:                              # (``point``, recorded, is the last)
+            return point, True
+        onward, done = self._advance(point, last, s)
+        if done or onward is not last:          # (the end reached, or a snap or switch first)
+            self.ended = None
+        return onward, done or onward is last
+
+    def _left(self, new: ArcPoint) -> str:
+        """What happened to a branch that left the path (beyond :data:`TAU_MARGIN` past an
+        end), and what helps: neither a smaller step nor a finer mesh."""
+        folds = [pt.tau for pt in self.points if pt.event == "fold"]
+        turned = (f"it turned back at the fold{'s' * (len(folds) > 1)} at "
+                  f"{', '.join(_where(self.arc.line, t) for t in folds)} and " if folds else "")
+        side = -TAU_MARGIN if new.tau < 0 else 1 + TAU_MARGIN
+        return (f"{turned}went on beyond lambda = {side:g}"
+                f" without reaching the path's end (lambda = 1): the branch does not reach it "
+                f"within {TAU_MARGIN:g} of the path's ends (a smaller step or a finer mesh does "
+                f"not change that); follow='stable' (--follow stable) snaps through at its "
+                f"folds, or continue to a value the branch reaches (beyond its turning points)")
 
     def _folds_within(self, point: ArcPoint, new: ArcPoint, ds: float) -> bool:
         """Whether the step from ``point`` to ``new`` may hide a pair of folds, and is retried
@@ -555,9 +639,11 @@ class _Walk:
                   "zero eigenvalues", new.tau, where, ds, new.iterations,
                   new.inertia.negative, new.inertia.zero)
 
-    def _advance(self, point: ArcPoint, new: ArcPoint, ds: float) -> tuple[ArcPoint, bool]:
-        """Record the events between ``point`` and ``new`` and ``new`` itself (or the end at
-        τ = 1, or the snap-through): (the next point to step from, whether done)."""
+    def _advance(self, point: ArcPoint, new: ArcPoint, ds: float,
+                 eq: Equilibrium | None = None) -> tuple[ArcPoint, bool]:
+        """Record the events between ``point`` and ``new`` and ``new`` itself (its
+        equilibrium ``eq`` if at hand), or the end at τ = 1, or the snap-through: (the next
+        point to step from, whether done)."""
         if np.sign(new.t_tau) != np.sign(point.t_tau):
             fold = self.arc.locate_fold(point, ds)
             self.record(fold, "fold", negative=min(point.inertia.negative, new.inertia.negative))
@@ -582,7 +668,7 @@ class _Walk:
                 last = self.arc.at_tau(point, end) or new
                 self.record(last)
                 return last, True
-        self.record(new)
+        self.record(new, eq=eq)
         return new, False
 
     def _switch(self, bp: ArcPoint, ds: float) -> tuple[ArcPoint, bool]:

@@ -34,7 +34,7 @@ from .results import (FIELDS, Equilibrium, NotAMinimumError, Quadrature, SolverE
                       unconverged)
 
 __all__ = ["DirectSolver", "default_mesh", "solver_of", "check_nodes", "MAX_NODES", "POLE_ZONE",
-           "pole_crossing"]
+           "pole_crossing", "axis_crossing", "crossing_why"]
 
 log = logging.getLogger(__name__)
 
@@ -126,6 +126,23 @@ def _singular_pole(eq: Equilibrium, crossing: tuple[float, float]) -> str:
                     f"which starts {POLE_ZONE:g} R off the pole and solves such shells (a "
                     f"finer mesh resolves the model's own crossing and does not help)")
     return ""
+
+
+def axis_crossing(eq: Equilibrium) -> tuple[float, float] | None:
+    """(r, s) where ``eq``'s meridian crosses the axis as the direct route refuses it (the
+    most negative r outside :data:`POLE_ZONE` of a weakly singular pole), else None: the
+    check :meth:`DirectSolver.solve` makes of every solution, for other routes' states
+    (the points of a branch)."""
+    return DirectSolver._axis_crossing(eq)
+
+
+def crossing_why(eq: Equilibrium, crossing: tuple[float, float]) -> str:
+    """Why ``eq``, crossing the axis at ``crossing`` (:func:`axis_crossing`), is refused, and
+    what helps: the message :meth:`DirectSolver.solve` gives (next to a weakly singular pole
+    the generic remedies do not help: bvp first)."""
+    pole = _singular_pole(eq, crossing)
+    return (f"the meridian crosses the axis {pole}" if pole else
+            f"{explain(MERIDIAN_CROSSES_AXIS)}{_closing(eq, crossing)}")
 
 
 def pole_crossing(eq: Equilibrium) -> str:
@@ -299,13 +316,10 @@ class DirectSolver:
                               + thin_shell_note(problem), res.status, eq)
         crossing = self._axis_crossing(eq)
         if crossing is not None:
-            # (next to a weakly singular pole the generic remedies do not help: bvp first)
-            pole = _singular_pole(eq, crossing)
-            why = (f"the meridian crosses the axis {pole}" if pole else
-                   f"{explain(MERIDIAN_CROSSES_AXIS)}{_closing(eq, crossing)}")
             raise SolverError(
                 f"Ipopt converged ({res.status}) to r = {crossing[0]:.3g} at s = "
-                f"{crossing[1]:.6g}: {why}. The iterate is attached (.last_iterate)",
+                f"{crossing[1]:.6g}: {crossing_why(eq, crossing)}. The iterate is attached "
+                f"(.last_iterate)",
                 MERIDIAN_CROSSES_AXIS, unconverged(eq))
         if not res.is_minimum:
             raise NotAMinimumError(

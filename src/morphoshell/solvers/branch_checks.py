@@ -1,0 +1,249 @@
+"""A branch's points checked as :func:`~morphoshell.solvers.routes.solve` checks its results.
+
+:func:`~morphoshell.solvers.branches.follow_branch` steps through states that ``solve()``
+would judge twice over: it refuses a meridian that crosses the axis, and it estimates
+the error of what it reports from the mesh with half the cells.  A branch is held to
+both:
+
+* *physicality*: :func:`crossing_end` finds where the walk's meridian starts to cross
+  the axis (:func:`~morphoshell.solvers.direct.axis_crossing`, the check ``solve()``
+  makes), and the branch ends there with an :class:`Ending` (``solve()`` refuses the
+  states beyond: a uniform cap continued in k crossed by 1.9e-3 R, labelled stable);
+* *resolution*: :func:`event_errors` re-locates each fold and branch point on the half
+  mesh, walking that mesh's branch from the fine one's point before the event, and
+  estimates the event's λ error as ``solve()`` estimates its values (:data:`SAFETY` times
+  the difference); an event the half mesh does not reproduce within :data:`COARSE` in λ
+  is not resolved, and a warning names it (the anisotropic toy shell continued in f0
+  showed three pairs of folds on 200 nodes, one on 100 and none on 400 or 800).
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..numerics.mesh import MeshTooCoarse
+from ..numerics.status import MERIDIAN_CROSSES_AXIS
+from .arclength import EVENT_TOL, GROWTH, MIN_STEP, ArcPoint, Arclength
+from .direct import DirectSolver, axis_crossing, crossing_why, solver_of
+from .refinement import COARSE, SAFETY, half_mesh, solve_from
+from .results import SolverError
+from .routes import direct_solver
+
+__all__ = ["Ending", "crossing_end", "event_errors", "unresolved", "REACH", "MAX_CHECK_STEPS"]
+
+log = logging.getLogger(__name__)
+
+#: How far in λ past a fine mesh's event the half mesh's branch is searched for it: an
+#: event found farther off has an estimate SAFETY · REACH above COARSE anyway.
+REACH = COARSE / SAFETY
+#: Most pseudo-arclength steps of the half mesh's walk to an event.
+MAX_CHECK_STEPS = 60
+
+
+@dataclass(frozen=True)
+class Ending:
+    """Why a branch ends before the path's end: a status and where.
+
+    Attributes
+    ----------
+    status : str
+        ``"Meridian_Crosses_Axis"`` (:mod:`morphoshell.numerics.status`).
+    tau : float
+        The λ of the branch's last point, the last physical state.
+    why : str
+        What lies beyond and what helps (``solve()``'s message for the state beyond).
+    """
+
+    status: str
+    tau: float
+    why: str
+
+    def describe(self) -> str:
+        """One line for a summary."""
+        return f"the branch ends at lambda = {self.tau:.10g} ({self.status}): past it {self.why}"
+
+    def to_dict(self) -> dict:
+        """Plain data (JSON)."""
+        return {"status": self.status, "lambda": self.tau, "why": self.why}
+
+
+def crossing_end(arc: Arclength, prev: ArcPoint, new: ArcPoint, ds: float,
+                 beyond=None) -> tuple[ArcPoint, float, Ending] | None:
+    """Where the step from ``prev`` to ``new`` (arclength ``ds``) starts to cross the axis.
+
+    ``beyond``, ``new``'s equilibrium if at hand, saves building it again.
+
+    Returns
+    -------
+    (ArcPoint, float, Ending) or None
+        None if ``new`` does not cross (:func:`axis_crossing`); else the last point of
+        the step that does not, by bisection on the arclength to :data:`EVENT_TOL` (``prev``
+        where none does), its arclength from ``prev``, and the ending there, with
+        ``solve()``'s message for the state beyond.
+    """
+    beyond = beyond if beyond is not None else arc.equilibrium(new)
+    crossing, tau = axis_crossing(beyond), new.tau
+    if crossing is None:
+        return None
+    lo, hi, last = 0.0, ds, prev
+    while hi - lo > EVENT_TOL:
+        mid = 0.5 * (lo + hi)
+        trial = arc.correct(prev, mid)
+        if trial is None:
+            break
+        eq = arc.equilibrium(trial)
+        found = axis_crossing(eq)
+        if found is None:
+            lo, last = mid, trial
+        else:
+            hi, beyond, crossing, tau = mid, eq, found, trial.tau
+    why = (f"r = {crossing[0]:.3g} R at s = {crossing[1]:.6g} (lambda = {tau:.10g}), which "
+           f"solve() refuses: {crossing_why(beyond, crossing)}")
+    return last, lo, Ending(MERIDIAN_CROSSES_AXIS, float(last.tau), why)
+
+
+def event_errors(points: list, line, max_step: float) -> list:
+    """``points`` with each fold's and branch point's λ error estimated on the half mesh.
+
+    Parameters
+    ----------
+    points : list of BranchPoint
+        A branch's points in order along it.
+    line : ParameterLine
+    max_step : float
+        The walk's largest step (the half mesh's walk takes the same).
+
+    Returns
+    -------
+    list of BranchPoint
+        As ``points``, ``lambda_error`` set at folds and branch points: SAFETY times the
+        distance in λ to the same event on the half mesh, ``inf`` where that mesh has
+        none within :data:`REACH`, NaN where it could not be checked (a point before the
+        event that the half mesh cannot hold, or its walk failing).
+    """
+    coarse: dict = {}
+    out = list(points)
+    for i, pt in enumerate(points):
+        if pt.event not in ("fold", "branch_point") or i == 0:
+            continue
+        tau = _relocate(points, i, line, coarse, max_step)
+        out[i] = replace(pt, lambda_error=SAFETY * abs(tau - pt.tau))
+    return out
+
+
+def unresolved(points: list) -> list:
+    """The events of ``points`` whose λ error estimate exceeds :data:`COARSE` (or that the
+    half mesh does not have)."""
+    return [pt for pt in points if pt.event and pt.lambda_error > COARSE]
+
+
+def _coarse_solver(fine: DirectSolver, cache: dict) -> DirectSolver | None:
+    """The solver of ``fine``'s mesh with half the cells (one per fine mesh), or None
+    where that mesh is too small."""
+    key = (fine.mesh, fine.stages)
+    if key not in cache:
+        nodes = half_mesh(fine.nodes)
+        cache[key] = None if nodes < 5 else DirectSolver(
+            fine.structure, mesh=replace(fine.mesh, nodes=nodes), stages=fine.stages)
+    return cache[key]
+
+
+def _coarse_arc(fine: DirectSolver, line, start, cache: dict) -> Arclength | None:
+    """The half mesh's :class:`Arclength` at ``start``: of ``fine``'s mesh with half the
+    cells, or where its knots have moved too far for that (a walk on rebuilt meshes:
+    ``REMESH`` in :mod:`.branches`), of the half mesh built for the parameters there;
+    None where neither holds."""
+    anchors = start.equilibrium.anchors
+    solver = _coarse_solver(fine, cache)
+    if solver is None:
+        return None
+    try:
+        return Arclength(solver, line, anchors, at=start.tau)
+    except (ValueError, MeshTooCoarse):
+        pass
+    try:
+        solver = direct_solver(line.at(start.tau), solver.nodes, anchors, stages=fine.stages)
+        return Arclength(solver, line, anchors, at=start.tau)
+    except (ValueError, MeshTooCoarse):
+        return None
+
+
+def _relocate(points: list, i: int, line, cache: dict, max_step: float) -> float:
+    """The λ of the event ``points[i]`` on the half mesh: from the nearest ordinary point
+    before it that the half mesh holds (a stationary point there by Newton's steps), its
+    branch walked toward the event until the same kind of event has happened as often as
+    on the fine mesh since that point; ``inf`` past :data:`REACH`, NaN where it fails."""
+    event = points[i]
+    for j in range(i - 1, max(i - 4, -1), -1):
+        start = points[j]
+        if start.event:
+            continue
+        arc = _coarse_arc(solver_of(start.equilibrium), line, start, cache)
+        if arc is None:
+            return float("nan")
+        solver = arc.solver
+        x = solver.carried(start.equilibrium, arc.parameters(start.tau), arc.q)
+        point = arc.stationary(x, start.tau)
+        if point is None and start.stable:
+            point = _minimised(arc, start)
+        if point is None:
+            log.debug("half mesh: no stationary point at lambda = %.6g", start.tau)
+            continue
+        if point.inertia.negative != start.negative_eigenvalues:
+            # (the half mesh's state there is another part of the branch, or another branch)
+            log.debug("half mesh at lambda = %.6g: %d negative eigenvalues, not %d", start.tau,
+                      point.inertia.negative, start.negative_eigenvalues)
+            return float("inf")
+        if (event.tau - start.tau) * point.t_tau < 0:       # (toward the event)
+            point = replace(point, t=-point.t, t_tau=-point.t_tau)
+        count = sum(pt.event == event.event for pt in points[j + 1:i + 1])
+        return _walk_to(arc, point, event, count, max_step)
+    return float("nan")
+
+
+def _minimised(arc: Arclength, start) -> ArcPoint | None:
+    """The stable ``start`` on ``arc``'s mesh as ``solve()``'s estimate finds it (minimised
+    from it: :func:`~.refinement.solve_from`), where Newton's steps from it do not converge
+    (the toy shell's fold region on 100 nodes, 0.14 R from the 200-node state); None if
+    that fails too."""
+    try:
+        eq = solve_from(arc.solver, arc.line.at(start.tau), start.equilibrium, arc.q)
+    except SolverError:
+        return None
+    return arc.start(eq, start.tau)
+
+
+def _walk_to(arc: Arclength, point: ArcPoint, event, count: int, max_step: float) -> float:
+    """The λ of the ``count``-th event of ``event``'s kind along ``arc``'s branch from
+    ``point`` (:func:`_relocate`)."""
+    ds = max_step / 4
+    for _ in range(MAX_CHECK_STEPS):
+        new = arc.correct(point, ds)
+        if new is None or arc.turned(point, new):
+            ds /= 2
+            if ds < MIN_STEP:
+                log.debug("half mesh: the walk to the %s at lambda = %.6g stalled at %.6g",
+                          event.event, event.tau, point.tau)
+                return float("nan")
+            continue
+        found = _events(arc, point, new, ds, event.event)
+        if len(found) >= count:
+            return float(found[count - 1].tau)
+        count -= len(found)
+        if abs(new.tau - event.tau) > REACH and abs(new.tau - event.tau) > abs(point.tau -
+                                                                               event.tau):
+            return float("inf")
+        point, ds = new, min(GROWTH * ds, max_step)
+    return float("inf")
+
+
+def _events(arc: Arclength, point: ArcPoint, new: ArcPoint, ds: float, kind: str) -> list:
+    """The located events of ``kind`` between ``point`` and ``new`` (as the walk finds them)."""
+    if kind == "fold":
+        return [arc.locate_fold(point, ds)] if np.sign(new.t_tau) != np.sign(point.t_tau) \
+            else []
+    if new.inertia.negative != point.inertia.negative:
+        return arc.locate_changes(point, new, ds)
+    return []

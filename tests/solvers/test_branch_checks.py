@@ -1,0 +1,76 @@
+"""A branch held to solve()'s checks (audit 14, F2 and F3): its events' λ against the half
+mesh, and its end where the meridian starts to cross the axis."""
+import logging
+
+import numpy as np
+import pytest
+
+from morphoshell import Problem, SolverError
+from morphoshell.io.problem_files import example_path, load_problem
+from morphoshell.numerics.status import MERIDIAN_CROSSES_AXIS
+from morphoshell.plotting.branches import branch_caption
+from morphoshell.solvers.branches import follow_branch
+from morphoshell.solvers.direct import axis_crossing
+from morphoshell.solvers.refinement import COARSE, SAFETY
+from morphoshell.solvers.routes import direct_solver
+
+
+@pytest.fixture(scope="module")
+def cap():
+    """A uniform cap (toy 1 with h = 0.2, cut = 1) continued in k to 9.9 on 100 nodes: four
+    folds near k = 4.1-4.5, and past k ≈ 8.55 its meridian crosses the axis next to the
+    weakly singular pole."""
+    problem = Problem("uniform", {"k": 1.0}, h=0.2, cut=1.0)
+    return follow_branch(problem, "k", 9.9, nodes=100)
+
+
+def test_folds_that_a_finer_mesh_does_not_have_are_flagged(caplog):
+    """The anisotropic toy shell in f0 to 4.5: on 100 nodes a pair of folds (f0 ≈ 2.64 and
+    2.83) that the 50-node mesh does not have near there, and that 400 nodes (the
+    independent route: refinement) does not have at all; both flagged, a warning names them."""
+    problem = load_problem(example_path("toy3_anisotropic"))[0]
+    with caplog.at_level(logging.WARNING, logger="morphoshell.solvers.branches"):
+        coarse = follow_branch(problem, "f0", 4.5, nodes=100)
+    folds = [pt for pt in coarse.events if pt.event == "fold"]
+    assert len(folds) == 2 and coarse.unresolved == folds
+    assert all(pt.lambda_error > COARSE for pt in folds)
+    warning = " ".join(r.getMessage() for r in caplog.records)
+    assert "does not resolve" in warning and "--nodes 199" in warning
+    assert all(f"f0 = {pt.values['f0']:.6g}" in warning for pt in folds)
+    fine = follow_branch(problem, "f0", 4.5, nodes=400)
+    assert not fine.events and all(pt.stable for pt in fine.points)
+
+
+def test_an_event_estimate_is_twice_its_distance_to_the_half_mesh_walks_event(cap):
+    """Each fold's ``lambda_error`` is SAFETY times its distance to the same fold on the
+    half mesh (50 nodes) found by a walk of its own there: the re-location walks that
+    mesh's branch, not a neighbour's.  (Both walks locate folds to 1e-9 in arclength: 1e-9
+    in the estimate's ~1e-7-3e-6.)"""
+    half = follow_branch(cap.line.at(0.0), "k", 9.9, nodes=50)
+    mine = [pt for pt in cap.events if pt.event == "fold"]
+    theirs = [pt for pt in half.events if pt.event == "fold"]
+    assert len(mine) == len(theirs) == 4
+    for a, b in zip(mine, theirs):
+        assert a.lambda_error == pytest.approx(SAFETY * abs(a.tau - b.tau), abs=1e-9)
+        assert 0 < a.lambda_error < 1e-4
+    assert not cap.unresolved
+    assert all(np.isnan(pt.lambda_error) for pt in cap.points if not pt.event)
+
+
+def test_a_branch_ends_where_its_meridian_crosses_the_axis(cap):
+    """The cap's branch ends, named, at its last point whose meridian does not cross the
+    axis (solve()'s own check holds at every point), and solve() there agrees: warm-started
+    from that end it converges at it, and a step of 1e-3 in λ beyond it is refused with the
+    same status."""
+    assert cap.ended is not None and cap.ended.status == MERIDIAN_CROSSES_AXIS
+    assert cap.end.tau == cap.ended.tau and 0.8 < cap.end.tau < 0.9
+    assert all(axis_crossing(pt.equilibrium) is None for pt in cap.points)
+    solver = direct_solver(cap.problem, 100)
+    end = cap.end.equilibrium
+    at = solver.solve(cap.line.at(cap.end.tau), warm_start=end)
+    assert at.energy == pytest.approx(end.energy, rel=1e-9)
+    with pytest.raises(SolverError) as beyond:
+        solver.solve(cap.line.at(cap.end.tau + 1e-3), warm_start=end)
+    assert beyond.value.status == MERIDIAN_CROSSES_AXIS
+    assert "Meridian_Crosses_Axis" in cap.to_dict()["ended"]["status"]
+    assert f"ends at λ = {cap.end.tau:.6g}" in branch_caption(cap)     # (the plot says so)
