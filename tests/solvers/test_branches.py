@@ -608,3 +608,35 @@ def test_a_branch_whose_shown_shapes_overlap_says_so(volvox, caplog):
     with caplog.at_level("WARNING", logger="morphoshell.solvers.branches"):
         follow_branch(load_problem(example_path("blister"))[0], nodes=40)
     assert "pass through" not in caplog.text
+
+
+@pytest.fixture(scope="module")
+def cap_branch():
+    """A uniform cap with a cut (toy 1, h = 0.05, cut 1) continued in k from 1 to 3 on 40
+    nodes: its far end is the pole (ψ = π, r = 0 at every point)."""
+    from morphoshell import example_path, load_problem
+
+    cap = load_problem(example_path("toy1_sphere"))[0].with_updates(h=0.05, cut=1.0, k=1.0)
+    return follow_branch(cap, "k", 3.0, nodes=40)
+
+
+def test_the_start_shape_is_checked_for_walls_that_cross(cap_branch, monkeypatch, caplog):
+    """The plot draws the branch's start; the walls' warning checked only the events and
+    the end (audit 14: the fold shell's own state at kappa2 = -8, crossed, passed without
+    a word).  Here only the start's walls cross (wall_contact stubbed): the warning names
+    lambda = 0."""
+    from morphoshell.solvers import branches
+
+    start = cap_branch.points[0].equilibrium
+    monkeypatch.setattr(branches, "wall_contact", lambda eq: "crossed" if eq is start else None)
+    with caplog.at_level("WARNING", logger="morphoshell.solvers.branches"):
+        branches._checked(cap_branch)
+    assert "the shapes of the branch at lambda = 0 have walls that pass through" in caplog.text
+
+
+def test_a_family_parameter_continued_in_has_the_familys_unit(volvox):
+    """kappa2 had no unit in the branch's units (JSON, plot), where a sweep gives the
+    family's declared 1/R (audit 14); h keeps R, the path fraction 1."""
+    units = follow_branch(volvox, "kappa2", -7.9, nodes=40).units()
+    assert units["kappa2"] == "1/R" and units["lambda"] == "1"
+    assert list(units)[:2] == ["lambda", "kappa2"]

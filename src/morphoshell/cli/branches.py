@@ -55,8 +55,11 @@ def register(sub) -> None:
                         "halves of each, to either end of the path (branch switching; "
                         "default 0); the CSV then has a column branch: main, or the branch "
                         "point's number and +/-")
-    p.add_argument("--plot-y", choices=("psi_end", "r_end", "z_end", "energy"),
-                   default="psi_end", help="the observable of the diagram (default psi_end)")
+    p.add_argument("--plot-y", choices=("auto", "psi_end", "r_end", "z_end", "energy"),
+                   default="auto", help="the observable of the diagram (default auto: the "
+                                        "first of psi_end, z_end, r_end, energy that varies "
+                                        "along the branch; z_end for a shell with a cut, "
+                                        "whose far end is the pole)")
     p.add_argument("--no-plot-shapes", dest="plot_shapes", action="store_false",
                    help="draw the diagram alone, one journal column wide (default: with the "
                         "shapes at the start, the events and the end below it, two columns)")

@@ -182,9 +182,11 @@ class Branch:
         return f"Branch({', '.join(parts)})"
 
     def units(self) -> dict[str, str]:
-        """The columns' units (:data:`UNITS`; the parameter's from :data:`PARAMETER_UNITS`)."""
-        known = {self.parameter: PARAMETER_UNITS[self.parameter]} \
-            if self.parameter in PARAMETER_UNITS else {}
+        """The columns' units (:data:`UNITS`; the parameter's from :data:`PARAMETER_UNITS` or,
+        a family's, as the family declares it: ``ProfileFamily.units``, as a sweep's)."""
+        declared = {**PARAMETER_UNITS, **self.problem.family_obj.units}
+        known = {self.parameter: declared[self.parameter]} \
+            if self.parameter in declared else {}
         return {"lambda": UNITS["lambda"], **known, **{k: v for k, v in UNITS.items()
                                                       if k != "lambda"}}
 
@@ -363,10 +365,12 @@ def switch_branch(branch: Branch, at: int, direction: float = 1.0, *,
 
 
 def _checked(branch: Branch) -> Branch:
-    """``branch``, with a warning where the shapes it shows (its events and its end: the
-    plot's panels) have walls that pass through each other (:mod:`.contact`; checking
-    every point would cost a third of the walk: docs/benchmarks.md, "solvers/branches.py")."""
-    shown = [pt for pt in branch.points if pt.event] + [branch.end]
+    """``branch``, with a warning where the shapes it shows (its start, its events and its
+    end: the plot's panels) have walls that pass through each other (:mod:`.contact`;
+    checking every point would cost a third of the walk: docs/benchmarks.md,
+    "solvers/branches.py").  The start too: the plot draws it, and a file's own state
+    (the fold shell at κ₂ = −8) was drawn crossed without a word (audit 14)."""
+    shown = [branch.points[0]] + [pt for pt in branch.points if pt.event] + [branch.end]
     where = sorted({pt.tau for pt in shown if wall_contact(pt.equilibrium) is not None})
     if where:
         log.warning("the shapes of the branch at lambda = %s have walls that pass through "
