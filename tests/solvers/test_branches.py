@@ -640,3 +640,16 @@ def test_a_family_parameter_continued_in_has_the_familys_unit(volvox):
     units = follow_branch(volvox, "kappa2", -7.9, nodes=40).units()
     assert units["kappa2"] == "1/R" and units["lambda"] == "1"
     assert list(units)[:2] == ["lambda", "kappa2"]
+
+
+def test_a_branch_that_stops_early_goes_with_its_error(volvox):
+    """The SolverError of a walk that stopped early (here max_points) carries the branch
+    followed up to there (it had only the last point), marked: ended says why, the JSON's
+    complete is False; a complete branch has neither key."""
+    with pytest.raises(SolverError) as info:
+        follow_branch(volvox, nodes=40, max_points=5)
+    part = info.value.branch
+    assert len(part.points) == 5 and "the points ran out" in part.ended
+    assert part.to_dict()["complete"] is False and part.to_dict()["ended"] == part.ended
+    whole = follow_branch(volvox, "kappa2", -7.9, nodes=40)
+    assert whole.ended == "" and "complete" not in whole.to_dict()

@@ -80,7 +80,8 @@ def plot_branch(branch, *, y: str = "auto", x: str | None = None, shapes: bool =
     y : str
         The observable: a column of the branch's table (``psi_end``,
         ``r_end``, ``z_end``, ``energy``); "auto" (default): the first of
-        :data:`Y_CANDIDATES` that varies along the branch (:func:`default_y`).
+        :data:`Y_CANDIDATES` that varies along the branch or the switched
+        ones (:func:`default_y`).
     x : str, optional
         ``"lambda"`` or the continued parameter (default: the parameter if
         the branch continues one, else λ).
@@ -111,7 +112,7 @@ def plot_branch(branch, *, y: str = "auto", x: str | None = None, shapes: bool =
     """
     table = branch.columns()
     x = x or (branch.parameter or "lambda")
-    y = default_y(branch) if y == "auto" else y
+    y = default_y(branch, switched) if y == "auto" else y
     for name, what in ((x, "x"), (y, "y")):
         if name not in table or name in ("stable", "event"):
             numeric = [k for k in table if k not in ("stable", "event")]
@@ -138,13 +139,15 @@ def plot_branch(branch, *, y: str = "auto", x: str | None = None, shapes: bool =
     return fig
 
 
-def default_y(branch) -> str:
-    """The first of :data:`Y_CANDIDATES` that varies along ``branch`` (by more than
-    :data:`CONSTANT`, relative): ``psi_end`` where the far end turns, ``z_end`` for a shell
-    with a cut (its far end is the pole); the last candidate if none varies."""
-    table = branch.columns()
+def default_y(branch, switched: Sequence = ()) -> str:
+    """The first of :data:`Y_CANDIDATES` that varies (by more than :data:`CONSTANT`,
+    relative) along ``branch`` and the ``switched`` branches drawn with it: ``psi_end``
+    where the far end turns (a blister's flat disc keeps ψ, the domes switched to from it
+    do not), ``z_end`` for a shell with a cut (its far end is the pole); the last
+    candidate if none varies."""
+    tables = [b.columns() for b in (branch, *switched)]
     for name in Y_CANDIDATES:
-        values = np.asarray(table[name], float)
+        values = np.concatenate([np.asarray(t[name], float) for t in tables])
         if np.ptp(values) > CONSTANT * max(1.0, float(np.max(np.abs(values)))):
             return name
     return Y_CANDIDATES[-1]
@@ -167,6 +170,9 @@ def branch_caption(branch, switched: Sequence = ()) -> str:
              f"{solver.method} method, {solver.nodes} nodes"]
     if switched:
         parts.append("in colour, with markers: the branches switched to at branch points")
+    if branch.ended:
+        # (why, in the JSON and the CSV: a caption of its length left the axes no room)
+        parts.append(f"PARTIAL: the walk stopped early at λ = {branch.end.tau:.4g}")
     return "; ".join(parts)
 
 

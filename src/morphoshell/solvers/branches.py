@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from .._runtime.interrupts import interrupted, reason
 from .._runtime.validate import integer, within
 from ..model.problem import Problem
 from .arclength import EASY, GROWTH, MAX_STEP, MIN_STEP, ArcPoint, Arclength, Snap, Switch
@@ -40,7 +41,7 @@ from .continuation import continue_to
 from .crossings import branch_ended, snap_through, switch_stable
 from .options import check_direct_options, check_problem
 from .paths import ParameterLine, neutral_problem
-from .results import Equilibrium
+from .results import Equilibrium, SolverError
 from .routes import direct_solver
 
 log = logging.getLogger(__name__)
@@ -145,6 +146,10 @@ class Branch:
     remeshed : tuple of float
         The λ where the walk went on on a mesh rebuilt for the parameters there
         (:data:`REMESH`); the points after each are on the new mesh.
+    ended : str
+        "" for a branch followed to its end; for the part followed before the walk
+        stopped early (the branch ended, ``max_points``, Ctrl-C or SIGTERM: the
+        exception's ``branch``), why it stopped.
     """
 
     problem: Problem
@@ -158,6 +163,7 @@ class Branch:
     direction: float = 1.0
     switches: tuple = ()
     remeshed: tuple = ()
+    ended: str = ""
 
     def __repr__(self) -> str:
         """One line: the problem, the path, how many points over which λ (and parameter) range,
@@ -242,7 +248,8 @@ class Branch:
                 **({"origin": self.origin, "direction": self.direction}
                    if self.origin is not None else {}),
                 **({"switches": [s.to_dict() for s in self.switches]} if self.switches else {}),
-                **({"remeshed": list(self.remeshed)} if self.remeshed else {})}
+                **({"remeshed": list(self.remeshed)} if self.remeshed else {}),
+                **({"complete": False, "ended": self.ended} if self.ended else {})}
 
 
 def follow_branch(problem: Problem, param: str | None = None, to: float | None = None, *,
@@ -284,7 +291,9 @@ def follow_branch(problem: Problem, param: str | None = None, to: float | None =
         ``problem`` not a Problem.
     SolverError
         ``"Branch_Ended"`` when the steps fail or leave the path, with the
-        last point attached; ``"Snap_Through_Failed"``.
+        last point attached; ``"Snap_Through_Failed"``.  Its ``branch`` (and that of
+        a ``KeyboardInterrupt``: Ctrl-C, SIGTERM) is the branch followed up to there,
+        its :attr:`Branch.ended` saying why it stopped (:func:`_walked`).
     """
     check_problem(problem)
     if follow not in FOLLOW:
@@ -295,10 +304,13 @@ def follow_branch(problem: Problem, param: str | None = None, to: float | None =
     solver = direct_solver(problem, nodes, anchors, stages=stages)
     line, start = _path(solver, problem, param, to, anchors)
     walk = _Walk(Arclength(solver, line, anchors), follow, max_step, max_points)
-    walk.run(start)
-    return _checked(Branch(line.problem, line, param, follow, tuple(walk.points),
-                           tuple(walk.snaps), time.perf_counter() - t0,
-                           switches=tuple(walk.switches), remeshed=tuple(walk.remeshed)))
+
+    def branch(ended: str = "") -> Branch:
+        return Branch(line.problem, line, param, follow, tuple(walk.points), tuple(walk.snaps),
+                      time.perf_counter() - t0, switches=tuple(walk.switches),
+                      remeshed=tuple(walk.remeshed), ended=ended)
+    _walked(walk, lambda: walk.run(start), branch)
+    return _checked(branch())
 
 
 def switch_branch(branch: Branch, at: int, direction: float = 1.0, *,
@@ -358,10 +370,13 @@ def switch_branch(branch: Branch, at: int, direction: float = 1.0, *,
     arc = Arclength(solver_of(origin.equilibrium), branch.line, origin.equilibrium.anchors,
                     at=origin.tau)
     walk = _Walk(arc, "branch", max_step, max_points, ends=(0.0, 1.0))
-    walk.switched(origin, direction)
-    return _checked(Branch(branch.problem, branch.line, branch.parameter, "branch",
-                           tuple(walk.points), (), time.perf_counter() - t0, origin.tau,
-                           float(direction), remeshed=tuple(walk.remeshed)))
+
+    def switched(ended: str = "") -> Branch:
+        return Branch(branch.problem, branch.line, branch.parameter, "branch",
+                      tuple(walk.points), (), time.perf_counter() - t0, origin.tau,
+                      float(direction), remeshed=tuple(walk.remeshed), ended=ended)
+    _walked(walk, lambda: walk.switched(origin, direction), switched)
+    return _checked(switched())
 
 
 def _checked(branch: Branch) -> Branch:
@@ -377,6 +392,21 @@ def _checked(branch: Branch) -> Branch:
                     "each other: the model has no self-contact, so they are equilibria of the "
                     "model but not physical shapes", ", ".join(f"{t:.6g}" for t in where))
     return branch
+
+
+def _walked(walk: "_Walk", run, branch) -> None:
+    """``run()`` the walk; where it stops early, the branch followed so far goes with the
+    exception as its ``branch`` (``branch(why)``, :attr:`Branch.ended` the first line of
+    the SolverError, or "interrupted" / "terminated (SIGTERM)"), so that the command line
+    writes it: an early stop's branch is a result (its folds located), and it had been
+    lost, 2000 points of it (audit 14)."""
+    try:
+        run()
+    except BaseException as exc:
+        if walk.points and (isinstance(exc, SolverError) or interrupted(exc)):
+            exc.branch = branch(str(exc).splitlines()[0] if isinstance(exc, SolverError)
+                                else reason())
+        raise
 
 
 def _check_walk(max_step, max_points) -> None:
