@@ -298,3 +298,22 @@ def test_plot_fit_of_a_fit_read_back_says_what_it_lacks():
                                           "").to_dict())
     with pytest.raises(ValueError, match="fit read back from its JSON .*solve result.problem"):
         plot_fit(back)
+
+
+def test_a_branch_diagram_defaults_to_an_observable_that_varies():
+    """A shell with a cut ends in its pole, ψ = π at every point: the default diagram (ψ at
+    the far end) was one flat line with the folds on it (audit 14).  The default is the
+    first of ψ, z, r and the energy that varies: z at the far end there, ψ for the fold
+    shell (whose far end turns); the x axis of a family's parameter carries its unit."""
+    from morphoshell import example_path, load_problem
+    from morphoshell.plotting import plot_branch
+    from morphoshell.plotting.branches import default_y
+    from morphoshell.solvers.branches import follow_branch
+
+    cap = load_problem(example_path("toy1_sphere"))[0].with_updates(h=0.05, cut=1.0, k=1.0)
+    branch = follow_branch(cap, "k", 3.0, nodes=40)
+    assert default_y(branch) == "z_end"
+    ax = plot_branch(branch, shapes=False).axes[0]
+    assert ax.get_ylabel().startswith(r"$z$ at the far end") and ax.get_xlabel() == "k ($1/R$)"
+    fold = load_problem(Path(__file__).parent / "data" / "volvox_fold.toml")[0]
+    assert default_y(follow_branch(fold, "kappa2", -7.9, nodes=40)) == "psi_end"

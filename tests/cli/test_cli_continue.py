@@ -133,15 +133,63 @@ def test_very_verbose_lists_every_step(tmp_path, capsys):
     assert len(steps) >= sum(row["event"] == "" for row in rows) - 1
 
 
-def test_a_branch_that_runs_out_of_points_exits_3_naming_the_status(tmp_path, capsys):
-    out = tmp_path / "x.csv"
+def test_a_branch_that_runs_out_of_points_exits_3_and_writes_its_part_marked(tmp_path,
+                                                                          capsys):
+    """The branch up to an early stop (here --max-points) is a result: it was lost, 2000
+    points and their folds (audit 14).  It is written, marked partial with why (the CSV's
+    first line, the JSON's complete/ended), the message names the files, the status is
+    still 3."""
+    out, doc = tmp_path / "x.csv", tmp_path / "x.json"
     assert main(["continue", str(FOLD), "--nodes", "100", "--max-points", "5",
-                 "--csv", str(out)]) == 3
+                 "--csv", str(out), "--json", str(doc)]) == 3
     err = capsys.readouterr().err
     # the cause is known: the remedy is --max-points, not "a cusp or a branch point?" (audit)
     assert "Branch_Ended" in err and "raise max_points (--max-points)" in err
     assert "cusp" not in err
-    assert not out.exists()
+    assert f"the 5 points followed to lambda = " in err
+    assert f"are kept in {doc} and {out}, marked partial" in err
+    head = out.read_text().splitlines()[0]
+    assert head.startswith("# morphoshell continue PARTIAL: the branch stopped early: the "
+                           "branch ended at") and "raise max_points" in head
+    import pandas as pd
+    assert len(pd.read_csv(out, comment="#")) == 5
+    data = json.loads(doc.read_text())
+    assert data["complete"] is False and "the points ran out" in data["ended"]["why"]
+    assert len(data["points"]["lambda"]) == 5
+
+
+@pytest.mark.parametrize("sig, status, word", [
+    ("SIGINT", 130, "interrupted"), ("SIGTERM", 143, r"terminated \(SIGTERM\)")])
+def test_an_interrupted_branch_writes_the_points_followed_marked_partial(
+        tmp_path, capsys, monkeypatch, sig, status, word):
+    """Ctrl-C or SIGTERM (the real signal, after 6 points) during the walk: the points
+    followed are written, marked partial, the one-line message names the files, and the
+    exit status is the interruption's (130, 143); nothing had been written (audit 14)."""
+    import os
+    import signal
+
+    from morphoshell.solvers import branches
+
+    real, calls = branches._Walk.record, []
+
+    def record(walk, *args, **kwargs):
+        real(walk, *args, **kwargs)
+        calls.append(1)
+        if len(calls) == 6:
+            os.kill(os.getpid(), getattr(signal, sig))
+
+    monkeypatch.setattr(branches._Walk, "record", record)
+    out, doc = tmp_path / "i.csv", tmp_path / "i.json"
+    assert main(["continue", str(FOLD), "--nodes", "40", "--csv", str(out),
+                 "--json", str(doc)]) == status
+    err = capsys.readouterr().err
+    assert re.fullmatch(rf"morphoshell: {word} after 6 points; the 6 points followed to "
+                        rf"lambda = \S+ are kept in {re.escape(str(doc))} and "
+                        rf"{re.escape(str(out))}, marked partial\n", err), err
+    assert re.match(rf"# morphoshell continue PARTIAL: the branch stopped early: {word}\n",
+                    out.read_text())
+    data = json.loads(doc.read_text())
+    assert data["complete"] is False and len(data["points"]["lambda"]) == 6
 
 
 def test_switch_follows_both_halves_of_the_branch_through_a_branch_point(tmp_path, capsys):

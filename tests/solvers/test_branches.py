@@ -623,3 +623,48 @@ def test_a_branch_that_turns_back_off_the_path_says_so(volvox):
     assert "turned back at the fold at lambda" in text and "(kappa2 = -6.57385)" in text
     assert "beyond lambda = -0.5" in text and "--follow stable" in text
     assert "smaller --max-step" not in text
+@pytest.fixture(scope="module")
+def cap_branch():
+    """A uniform cap with a cut (toy 1, h = 0.05, cut 1) continued in k from 1 to 3 on 40
+    nodes: its far end is the pole (ψ = π, r = 0 at every point)."""
+    from morphoshell import example_path, load_problem
+
+    cap = load_problem(example_path("toy1_sphere"))[0].with_updates(h=0.05, cut=1.0, k=1.0)
+    return follow_branch(cap, "k", 3.0, nodes=40)
+
+
+def test_the_start_shape_is_checked_for_walls_that_cross(cap_branch, monkeypatch, caplog):
+    """The plot draws the branch's start; the walls' warning checked only the events and
+    the end (audit 14: the fold shell's own state at kappa2 = -8, crossed, passed without
+    a word).  Here only the start's walls cross (wall_contact stubbed): the warning names
+    lambda = 0."""
+    from morphoshell.solvers import branches
+
+    start = cap_branch.points[0].equilibrium
+    monkeypatch.setattr(branches, "wall_contact", lambda eq: "crossed" if eq is start else None)
+    with caplog.at_level("WARNING", logger="morphoshell.solvers.branches"):
+        branches._checked(cap_branch, branches.MAX_STEP, 0.0)
+    assert "the shapes of the branch at lambda = 0 have walls that pass through" in caplog.text
+
+
+def test_a_family_parameter_continued_in_has_the_familys_unit(volvox):
+    """kappa2 had no unit in the branch's units (JSON, plot), where a sweep gives the
+    family's declared 1/R (audit 14); h keeps R, the path fraction 1."""
+    units = follow_branch(volvox, "kappa2", -7.9, nodes=40).units()
+    assert units["kappa2"] == "1/R" and units["lambda"] == "1"
+    assert list(units)[:2] == ["lambda", "kappa2"]
+
+
+def test_a_branch_that_stops_early_goes_with_its_error(volvox):
+    """The SolverError of a walk that stopped early (here max_points) carries the branch
+    followed up to there (it had only the last point), marked: ended says why, the JSON's
+    complete is False; a complete branch has neither key."""
+    with pytest.raises(SolverError) as info:
+        follow_branch(volvox, nodes=40, max_points=5)
+    part = info.value.branch
+    assert len(part.points) == 5 and "the points ran out" in part.ended.why
+    assert part.ended.stopped and part.ended.tau == part.end.tau
+    assert part.to_dict()["complete"] is False
+    assert part.to_dict()["ended"] == part.ended.to_dict()
+    whole = follow_branch(volvox, "kappa2", -7.9, nodes=40)
+    assert whole.ended is None and "complete" not in whole.to_dict()

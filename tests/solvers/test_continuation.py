@@ -62,3 +62,36 @@ def test_a_later_step_keeps_to_the_branch_where_a_stretch_hides_its_turn(monkeyp
     monkeypatch.setattr(continuation, "JUMP_TURN", np.inf)
     jumped = solve(cap, nodes=40)
     assert abs(jumped.psi[0] - 3.8548) < 1e-4 and jumped.energy > 1.001 * eq.energy
+
+
+def test_a_warm_solve_past_a_fold_says_it_left_the_warm_starts_branch(caplog):
+    """The fold shell warm-started at its first fold and solved 1e-6 past it lands on the
+    inverted branch, 0.0048 C R^2 lower, with Solve_Succeeded and no word (audit 14).  The
+    solve now says it left the warm start's branch (path, details["left_branch"] with the
+    energies, an INFO note); solved 1e-3 back along the stable branch it does not."""
+    import logging
+    from pathlib import Path
+
+    from morphoshell import solve
+    from morphoshell.io.problem_files import load_problem
+    from morphoshell.solvers.branches import follow_branch
+    from morphoshell.solvers.continuation import left_branch
+    from morphoshell.solvers.direct import solver_of
+
+    volvox = load_problem(Path(__file__).parents[1] / "data" / "volvox_fold.toml")[0]
+    branch = follow_branch(volvox, nodes=60)
+    fold = branch.events[0]
+    with caplog.at_level(logging.INFO, logger="morphoshell.solvers.routes"):
+        past = solve(branch.line.at(fold.tau + 1e-6), nodes=60, warm_start=fold.equilibrium)
+    jump = past.solver.details["left_branch"]
+    assert jump["energy_before"] == fold.energy and jump["energy_landed"] == past.energy
+    assert past.energy < fold.energy - 1e-3       # (the snap releases 0.0048 C R^2)
+    assert "left the warm start's branch" in past.solver.details["path"]
+    assert "left the warm start's branch" in caplog.text
+    back = solve(branch.line.at(fold.tau - 1e-3), nodes=60, warm_start=fold.equilibrium)
+    assert "left_branch" not in back.solver.details and back.solver.details["path"] == "warm start"
+    # an ordinary step along the branch is judged by its tangent alone
+    a, b = branch.points[1], branch.points[2]
+    solver = solver_of(a.equilibrium)
+    assert not left_branch(solver, a.equilibrium, solver.solve(b.equilibrium.problem,
+                                                               warm_start=a.equilibrium))

@@ -85,3 +85,34 @@ def test_at_takes_an_array_of_points():
         eq.at([0.5, 4.0])
     with pytest.raises(ValueError, match=r"s = 'x' must be a number or an array"):
         eq.at("x")
+
+
+def test_a_solve_aside_leaves_the_solver_as_it_was():
+    """A check's solve (a warm step solved back, continuation.left_branch) replaced a
+    Newton system kept for chord steps (two are kept, the least recently used replaced):
+    the next warm solve from that start evaluated its system anew, and its iterations and
+    last bits could depend on the check.  Within DirectSolver.aside() the kept systems and
+    their order of use are as before."""
+    import numpy as np
+
+    from morphoshell import Problem
+    from morphoshell.solvers.direct import DirectSolver
+
+    base = Problem("uniform", {"k": 0.2}, h=0.3, cut=0.3)
+    solver = DirectSolver(base.structure, 40)
+    a = solver.solve(base)
+    b = solver.solve(base.with_updates(k=0.6), warm_start=a)
+
+    def state():
+        return [(None if k.key is None else [v.copy() for v in k.key], k.used)
+                for k in solver._newton._kept]
+
+    before = state()
+    with solver.aside():
+        solver.solve(base, warm_start=b)
+    after = state()
+    assert [u for _, u in after] == [u for _, u in before]
+    assert all(all(np.array_equal(x, y) for x, y in zip(k1, k2))
+               for (k1, _), (k2, _) in zip(before, after))
+    solver.solve(base, warm_start=b)        # (without aside: a system replaced)
+    assert [u for _, u in state()] != [u for _, u in before]

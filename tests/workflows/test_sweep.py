@@ -277,10 +277,11 @@ def test_a_sweep_through_a_bistable_range_gives_solves_states(alone, monkeypatch
     than that route is solved again by it; each alone (the other switched off) suffices
     here.  Every row is solve()'s (energies to 1e-9)."""
     from morphoshell.io.problem_files import example_path, load_problem
-    from morphoshell.workflows import sweeps
+    from morphoshell.workflows import sweep_steps, sweeps
 
     if alone:
-        monkeypatch.setattr(sweeps, alone, lambda *args: False)
+        monkeypatch.setattr(sweep_steps if alone == "_crossed" else sweeps, alone,
+                            lambda *args: False)
     volvox = load_problem(example_path("volvox_inversion"))[0]
     df = sweep(volvox, {"kappa1": [-8.0, -4.0, 0.0, 2.0]}, nodes=60, workers=1,
                errors="none").to_dataframe()
@@ -399,9 +400,9 @@ def test_a_warm_step_whose_midpoint_has_no_mesh_is_split_around_it(monkeypatch):
     a breakpoint's was), the step splits on or ends in continuation, as where a mesh does
     not hold the solution carried onto it: the point keeps its row, the sweep its other
     points (the ValueError had ended the sweep as bad input, exit status 2)."""
-    from morphoshell.workflows import sweeps
+    from morphoshell.workflows import sweep_steps
 
-    real, refused = sweeps._solver, []
+    real, refused = sweep_steps._solver, []
 
     def no_mesh_between(problem, nodes, anchors, options):
         if anchors and 0.1 < anchors[0] < 0.3:
@@ -409,10 +410,33 @@ def test_a_warm_step_whose_midpoint_has_no_mesh_is_split_around_it(monkeypatch):
             raise ValueError(f"no mesh for the anchor {anchors[0]}")
         return real(problem, nodes, anchors, options)
 
-    monkeypatch.setattr(sweeps, "_solver", no_mesh_between)
+    monkeypatch.setattr(sweep_steps, "_solver", no_mesh_between)
     # (the intact shell's warm step from the rim at 0.1 to 0.3 is split: RELAX, not TOY2)
     df = sweep(RELAX, {"cut": [0.1, 0.3]}, ablate=True, nodes=100, workers=1,
                errors="none").to_dataframe()
     assert refused and df["status"].isin(SOLVED).all()
     ab = ablate(RELAX.with_updates(cut=0.3), nodes=100)
     assert abs(df["opening"][1] - ab.opening) < SAME_MESH
+
+
+def test_a_warm_path_that_jumps_past_a_fold_is_solved_and_flagged_as_solve_does(caplog):
+    """The fold shell swept in kappa2 towards -8: its warm path stayed on the everted
+    branch to -6.5 and at -7 (past the fold at -6.57) jumped to the inverted one, the
+    row's event empty, while solve() at -7, and the same row swept the other way, said
+    snapped (audit 14).  The jump is found, the point solved by solve()'s route: its
+    event is snapped, its energy solve()'s (to 1e-10 relative: the same mesh and route),
+    and the sweep's note names the point."""
+    from pathlib import Path
+
+    from morphoshell.io.problem_files import load_problem
+
+    fold = load_problem(Path(__file__).parents[1] / "data" / "volvox_fold.toml")[0]
+    with caplog.at_level(logging.INFO, logger="morphoshell.workflows.sweeps"):
+        df = sweep(fold, {"kappa2": [-6.0, -6.5, -7.0]}, nodes=40, workers=1,
+                   errors="none").to_dataframe()
+    assert df["event"].tolist() == ["", "", "snapped"]
+    assert df["path"].tolist() == ["continuation", "warm", "continuation"]
+    expected = solve(fold.with_updates(kappa2=-7.0), nodes=40)
+    assert expected.solver.details["snaps"]
+    assert abs(df["energy"][2] - expected.energy) < 1e-10 * expected.energy
+    assert "left its branch at 1 of 3 points (kappa2 = -7:" in caplog.text

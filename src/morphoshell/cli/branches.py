@@ -6,7 +6,10 @@ import sys
 from ._args import add_outputs, integer, note, problem_and_settings, real
 from ._outputs import Outputs
 
-__all__ = ["register"]
+__all__ = ["register", "PARTIAL"]
+
+#: The first line of the CSV of a branch that stopped early (then its points and why).
+PARTIAL = "morphoshell continue PARTIAL: the branch stopped early"
 
 
 def register(sub) -> None:
@@ -49,14 +52,18 @@ def register(sub) -> None:
     p.add_argument("--max-step", type=real(0, 1, open_lo=True), default=MAX_STEP, metavar="DS",
                    help=f"largest pseudo-arclength step (default {MAX_STEP})")
     p.add_argument("--max-points", type=integer(2, MAX_POINTS), default=2000, metavar="N",
-                   help="give up after this many points (default 2000; exit status 3)")
+                   help="give up after this many points (default 2000; exit status 3, the "
+                        "points followed written, marked partial)")
     p.add_argument("--switch", type=integer(0, 1000), default=0, metavar="N",
                    help="also follow the branches through the first N branch points, both "
                         "halves of each, to either end of the path (branch switching; "
                         "default 0); the CSV then has a column branch: main, or the branch "
                         "point's number and +/-")
-    p.add_argument("--plot-y", choices=("psi_end", "r_end", "z_end", "energy"),
-                   default="psi_end", help="the observable of the diagram (default psi_end)")
+    p.add_argument("--plot-y", choices=("auto", "psi_end", "r_end", "z_end", "energy"),
+                   default="auto", help="the observable of the diagram (default auto: the "
+                                        "first of psi_end, z_end, r_end, energy that varies "
+                                        "along the branch; z_end for a shell with a cut, "
+                                        "whose far end is the pole)")
     p.add_argument("--no-plot-shapes", dest="plot_shapes", action="store_false",
                    help="draw the diagram alone, one journal column wide (default: with the "
                         "shapes at the start, the events and the end below it, two columns)")
@@ -99,24 +106,23 @@ def _load(args):
 
 
 def _continue(args) -> int:
-    from ..io.problem_files import write_csv, write_json
+    from .._runtime.interrupts import interrupted
     from ..solvers.branches import follow_branch
+    from ..solvers.results import SolverError
 
     problem, nodes, stages = _load(args)
-    branch = follow_branch(problem, args.param, args.to, nodes=nodes, stages=stages,
-                           follow=args.follow, max_step=args.max_step,
-                           max_points=args.max_points)
+    try:
+        branch = follow_branch(problem, args.param, args.to, nodes=nodes, stages=stages,
+                               follow=args.follow, max_step=args.max_step,
+                               max_points=args.max_points)
+    except BaseException as exc:
+        partial = getattr(exc, "branch", None)
+        if partial is None or not (isinstance(exc, SolverError) or interrupted(exc)):
+            raise
+        return _ended_early(args, problem, exc, partial)
     _report(problem, branch)
     switched, failed = _switched(args, branch)
-    out = Outputs()
-    out.add(args.json, lambda path: write_json(path, _document(branch, switched)))
-    out.add(args.csv, lambda path: write_csv(path, _csv_columns(branch, switched)))
-    if args.plot:
-        from ..plotting import plot_branch, save
-        fig = plot_branch(branch, y=args.plot_y, shapes=args.plot_shapes,
-                          switched=[b for _, b in switched])
-        out.add(args.plot, lambda path: save(fig, path))
-    written = out.commit()
+    written = _write(args, branch, switched)
     for path in written:
         print(f"  wrote {path}")
     if branch.ended is not None:
@@ -130,6 +136,49 @@ def _continue(args) -> int:
               f"(the branches that were followed are written)", file=sys.stderr)
         return 3
     return 0
+
+
+def _write(args, branch, switched=()) -> list:
+    """Write the --json, --csv and --plot outputs of ``branch`` (and the switched ones); a
+    branch that stopped early (:attr:`Branch.ended`) is marked so in each: the JSON's
+    ``complete``/``ended``, the CSV's first line, the plot's caption."""
+    from ..io.problem_files import write_csv, write_json
+
+    stopped = branch.ended is not None and branch.ended.stopped
+    comments = (f"{PARTIAL}: {branch.ended.why}",) if stopped else ()
+    out = Outputs()
+    out.add(args.json, lambda path: write_json(path, _document(branch, switched)))
+    out.add(args.csv, lambda path: write_csv(path, _csv_columns(branch, switched),
+                                             comments=comments))
+    if args.plot:
+        from ..plotting import plot_branch, save
+        fig = plot_branch(branch, y=args.plot_y, shapes=args.plot_shapes,
+                          switched=[b for _, b in switched])
+        out.add(args.plot, lambda path: save(fig, path))
+    return out.commit()
+
+
+def _ended_early(args, problem, exc, branch) -> int:
+    """The branch of a walk that stopped early (the SolverError ``exc``: it ended, or the
+    points ran out; or Ctrl-C, SIGTERM) written, marked so, and the one-line message
+    naming the files; the exit status of the stop (3, or 130/143)."""
+    from .._runtime import interrupts
+    from ..solvers.results import SolverError
+
+    solver_failed = isinstance(exc, SolverError)
+    if not solver_failed:
+        interrupts.swallowed()      # (claimed: the outputs' commit would raise it again)
+    else:
+        _report(problem, branch)
+    paths = _write(args, branch)
+    where = (f"; the {len(branch.points)} points followed to lambda = {branch.end.tau:.6g} "
+             f"are kept in {' and '.join(map(str, paths))}, marked partial"
+             if paths else "")
+    if solver_failed:
+        raise SolverError(f"{exc}{where}", exc.status, exc.last_iterate) from exc
+    print(f"morphoshell: {interrupts.reason()} after {len(branch.points)} points{where}",
+          file=sys.stderr)
+    return interrupts.exit_status()
 
 
 def _report(problem, branch) -> None:
@@ -171,7 +220,8 @@ def _end_line(branch) -> str:
     end = branch.end
     k = end.negative_eigenvalues
     state = "stable" if end.stable else f"unstable ({k} negative eigenvalue{'s' * (k != 1)})"
-    early = f" ({branch.ended.status}: the last physical state)" if branch.ended else ""
+    early = ("" if branch.ended is None else f" (stopped early: {branch.ended.status})"
+             if branch.ended.stopped else f" ({branch.ended.status}: the last physical state)")
     return (f"end at lambda = {end.tau:.10g}{early}: {state}, r_end = {end.r_end:.10g} R, "
             f"z_end = {end.z_end:.10g} R, psi_end = {end.psi_end:.10g} rad, energy = "
             f"{end.energy:.10g} C R^2")
@@ -196,6 +246,8 @@ def _switched(args, branch) -> tuple[list[tuple[str, object]], list[str]]:
             except (SolverError, ValueError) as exc:     # (ValueError: not a simple point)
                 print(f"  switch at branch point {k + 1}{sign} failed: {exc}")
                 failed.append(f"{k + 1}{sign}")
+                if getattr(exc, "branch", None) is not None:    # (its part: written, marked)
+                    out.append((f"{k + 1}{sign}", exc.branch))
                 continue
             print(f"  switched at branch point {k + 1}{sign} (lambda = {other.origin:.10g}): "
                   f"{len(other.points)} points, {len(other.events) - 1} more event(s), "

@@ -83,6 +83,8 @@ and its step alone.
 from __future__ import annotations
 
 import time
+from contextlib import contextmanager
+from typing import Iterator
 
 import casadi as ca
 import numpy as np
@@ -292,6 +294,23 @@ class NewtonBackend:
         uk = self._point(key[0], key[1])
         K, *_, w = self._system(uk, data(), 1.0)
         return self._keep(key, K, w, uk)
+
+    @contextmanager
+    def unchanged(self) -> Iterator[None]:
+        """Solves within leave the systems kept for chord steps as they were (and their
+        order of use): a check's solve (a warm step solved back,
+        :func:`morphoshell.solvers.continuation.left_branch`) must not change which chord
+        step the next solve takes, its iterations or its last bits (a sweep's rows are
+        equal to the bit whatever the checks)."""
+        saved = [tuple(getattr(k, a) for a in _System.__slots__) for k in self._kept]
+        clock = self._clock
+        try:
+            yield
+        finally:
+            for kept, values in zip(self._kept, saved):
+                for name, value in zip(_System.__slots__, values):
+                    setattr(kept, name, value)
+            self._clock = clock
 
     def _point(self, x, lam) -> ca.DM:
         """u (cell order, a DM) of (x, λ)."""

@@ -26,7 +26,8 @@ from .style import (DOUBLE_COLUMN, MIN_FONT_SIZE, SINGLE_COLUMN, add_caption, jo
                     styled)
 
 __all__ = ["plot_branch", "BRANCH_STYLE", "EVENT_MARKERS", "AXIS_LABELS", "MAX_SHAPES",
-           "SWITCHED_COLOURS", "SWITCHED_MARKERS", "OKABE_ITO", "branch_caption"]
+           "SWITCHED_COLOURS", "SWITCHED_MARKERS", "OKABE_ITO", "branch_caption", "axis_label",
+           "default_y", "Y_CANDIDATES"]
 
 #: Most shells drawn beside a diagram (start, events, end): more would be too small to read.
 MAX_SHAPES = 8
@@ -51,6 +52,15 @@ SWITCHED_COLOURS = (OKABE_ITO["bluish green"], OKABE_ITO["orange"], OKABE_ITO["s
 SWITCHED_MARKERS = ("s", "X", "P", "*", "^", ">")
 #: Spacing of the markers along a switched branch (a fraction of the axes' diagonal).
 MARK_EVERY = 0.08
+#: The default diagram's observable: the first of these that varies along the branch
+#: (:func:`default_y`).  ψ at the far end separates a branch's parts best where it moves;
+#: a shell with a cut ends in its pole, where ψ = π and r = 0 at every point (audit 14:
+#: a cap's diagram was one flat line, its folds on it), and its height moves instead.
+Y_CANDIDATES = ("psi_end", "z_end", "r_end", "energy")
+#: A column varies along a branch if its range exceeds this, relative to its largest
+#: magnitude (at least 1): a pole's ψ and r are exact (range 0); a far end that moves,
+#: moves by far more than round-off (1e-3 R and rad on the audited shells).
+CONSTANT = 1e-9
 #: Axis labels of the branch table's columns.
 AXIS_LABELS = {"lambda": r"path fraction $\lambda$", "energy": r"energy $E$ ($C R^2$)",
                "r_end": r"$r$ at the far end ($R$)", "z_end": r"$z$ at the far end ($R$)",
@@ -58,7 +68,7 @@ AXIS_LABELS = {"lambda": r"path fraction $\lambda$", "energy": r"energy $E$ ($C 
                "negative_eigenvalues": "negative eigenvalues"}
 
 
-def plot_branch(branch, *, y: str = "psi_end", x: str | None = None, shapes: bool = True,
+def plot_branch(branch, *, y: str = "auto", x: str | None = None, shapes: bool = True,
                 fig: Figure | None = None, switched: Sequence = (), title: str | None = "auto",
                 caption: str | None = "auto") -> Figure:
     """A bifurcation diagram of ``branch``, with the shapes at its events beside it.
@@ -68,9 +78,10 @@ def plot_branch(branch, *, y: str = "psi_end", x: str | None = None, shapes: boo
     branch : Branch
         From :func:`morphoshell.solvers.branches.follow_branch`.
     y : str
-        The observable: a column of the branch's table (``psi_end``, the
-        default: the far end's rotation separates the branch's parts best;
-        ``r_end``, ``z_end``, ``energy``).
+        The observable: a column of the branch's table (``psi_end``,
+        ``r_end``, ``z_end``, ``energy``); "auto" (default): the first of
+        :data:`Y_CANDIDATES` that varies along the branch or the switched
+        ones (:func:`default_y`).
     x : str, optional
         ``"lambda"`` or the continued parameter (default: the parameter if
         the branch continues one, else λ).
@@ -101,6 +112,7 @@ def plot_branch(branch, *, y: str = "psi_end", x: str | None = None, shapes: boo
     """
     table = branch.columns()
     x = x or (branch.parameter or "lambda")
+    y = default_y(branch, switched) if y == "auto" else y
     for name, what in ((x, "x"), (y, "y")):
         if name not in table or name in ("stable", "event", "lambda_error"):
             numeric = [k for k in table if k not in ("stable", "event", "lambda_error")]
@@ -117,11 +129,28 @@ def plot_branch(branch, *, y: str = "psi_end", x: str | None = None, shapes: boo
         else:
             ax = fig.add_subplot()
         _diagrams(ax, table, styles, x, y, beside=shapes)
+        units = branch.units()
+        ax.set_xlabel(axis_label(x, units))
+        ax.set_ylabel(axis_label(y, units))
         if title:
             ax.set_title(problem_title(branch.problem) if title == "auto" else title)
         if caption:
             add_caption(ax, branch_caption(branch, switched) if caption == "auto" else caption)
     return fig
+
+
+def default_y(branch, switched: Sequence = ()) -> str:
+    """The first of :data:`Y_CANDIDATES` that varies (by more than :data:`CONSTANT`,
+    relative) along ``branch`` and the ``switched`` branches drawn with it: ``psi_end``
+    where the far end turns (a blister's flat disc keeps ψ, the domes switched to from it
+    do not), ``z_end`` for a shell with a cut (its far end is the pole); the last
+    candidate if none varies."""
+    tables = [b.columns() for b in (branch, *switched)]
+    for name in Y_CANDIDATES:
+        values = np.concatenate([np.asarray(t[name], float) for t in tables])
+        if np.ptp(values) > CONSTANT * max(1.0, float(np.max(np.abs(values)))):
+            return name
+    return Y_CANDIDATES[-1]
 
 
 def branch_caption(branch, switched: Sequence = ()) -> str:
@@ -149,7 +178,10 @@ def _warnings(branch) -> list[str]:
     """What the caption must say of a branch: where it ended early and why (its last point
     the last physical state), and the events the mesh does not resolve."""
     out = []
-    if branch.ended is not None:
+    if branch.ended is not None and branch.ended.stopped:
+        # (why, in the JSON and the CSV: a caption of its length left the axes no room)
+        out.append(f"PARTIAL: the walk stopped early at λ = {branch.end.tau:.4g}")
+    elif branch.ended is not None:
         out.append(f"ends at λ = {branch.ended.tau:.6g}: past it the meridian crosses the "
                    f"axis ({branch.ended.status})")
     if branch.unresolved:
@@ -216,8 +248,16 @@ def _diagram(ax: Axes, table: dict, x: str, y: str) -> None:
     ax.plot([], [], **BRANCH_STYLE["stable"], label="stable")
     if not stable[[e == "" for e in events]].all():
         ax.plot([], [], **BRANCH_STYLE["unstable"], label="unstable")
-    ax.set_xlabel(AXIS_LABELS.get(x, x))
-    ax.set_ylabel(AXIS_LABELS.get(y, y))
+
+
+def axis_label(name: str, units: dict) -> str:
+    """The label of the column ``name``: :data:`AXIS_LABELS`'s, else the name with its unit
+    from ``units`` (``Branch.units()``: a family's parameter, κ₂ in 1/R, had none; none
+    for a pure number, "1")."""
+    if name in AXIS_LABELS:
+        return AXIS_LABELS[name]
+    unit = units.get(name, "1")
+    return name if unit == "1" else f"{name} (${unit}$)"
 
 
 def _runs(stable: np.ndarray, events: Sequence[str]) -> list[tuple[int, int, bool]]:

@@ -49,19 +49,29 @@ class Ending:
     Attributes
     ----------
     status : str
-        ``"Meridian_Crosses_Axis"`` (:mod:`morphoshell.numerics.status`).
+        ``"Meridian_Crosses_Axis"`` (:mod:`morphoshell.numerics.status`): the branch ends
+        at its last physical state; or why the walk stopped early (its SolverError's
+        status, ``"Branch_Ended"``, or ``"Interrupted"``): the part followed.
     tau : float
-        The λ of the branch's last point, the last physical state.
+        The λ of the branch's last point.
     why : str
-        What lies beyond and what helps (``solve()``'s message for the state beyond).
+        What lies beyond and what helps (``solve()``'s message for the state beyond), or
+        why the walk stopped (its error's first line, "interrupted"...).
     """
 
     status: str
     tau: float
     why: str
 
+    @property
+    def stopped(self) -> bool:
+        """Whether the walk stopped early (the branch goes on), not at an unphysical state."""
+        return self.status != MERIDIAN_CROSSES_AXIS
+
     def describe(self) -> str:
         """One line for a summary."""
+        if self.stopped:
+            return f"the walk stopped early at lambda = {self.tau:.10g} ({self.status}): {self.why}"
         return f"the branch ends at lambda = {self.tau:.10g} ({self.status}): past it {self.why}"
 
     def to_dict(self) -> dict:

@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from .._runtime.interrupts import interrupted, reason
 from .._runtime.validate import integer, within
 from ..model.problem import Problem
 from .arclength import EASY, GROWTH, MAX_STEP, MIN_STEP, ArcPoint, Arclength, Snap, Switch
@@ -42,7 +43,7 @@ from .crossings import branch_ended, snap_through, switch_stable
 from .options import check_direct_options, check_problem
 from .refinement import COARSE, SAFETY
 from .paths import ParameterLine, neutral_problem
-from .results import Equilibrium
+from .results import Equilibrium, SolverError
 from .routes import direct_solver
 
 log = logging.getLogger(__name__)
@@ -155,9 +156,10 @@ class Branch:
         The λ where the walk went on on a mesh rebuilt for the parameters there
         (:data:`REMESH`); the points after each are on the new mesh.
     ended : Ending or None
-        Why the branch ends before the path's end (its last point, the last physical
-        state: past it the meridian crosses the axis, which ``solve()`` refuses); None
-        where it reaches the end.
+        Why the branch ends before the path's end: where its meridian would cross the
+        axis (its last point the last physical state, which ``solve()`` refuses past), or
+        where the walk stopped early (the branch ended, ``max_points``, Ctrl-C or SIGTERM:
+        the part followed, the exception's ``branch``); None where it reaches the end.
     """
 
     problem: Problem
@@ -198,9 +200,11 @@ class Branch:
         return f"Branch({', '.join(parts)})"
 
     def units(self) -> dict[str, str]:
-        """The columns' units (:data:`UNITS`; the parameter's from :data:`PARAMETER_UNITS`)."""
-        known = {self.parameter: PARAMETER_UNITS[self.parameter]} \
-            if self.parameter in PARAMETER_UNITS else {}
+        """The columns' units (:data:`UNITS`; the parameter's from :data:`PARAMETER_UNITS` or,
+        a family's, as the family declares it: ``ProfileFamily.units``, as a sweep's)."""
+        declared = {**PARAMETER_UNITS, **self.problem.family_obj.units}
+        known = {self.parameter: declared[self.parameter]} \
+            if self.parameter in declared else {}
         return {"lambda": UNITS["lambda"], **known, **{k: v for k, v in UNITS.items()
                                                       if k != "lambda"}}
 
@@ -264,6 +268,8 @@ class Branch:
                 **({"switches": [s.to_dict() for s in self.switches]} if self.switches else {}),
                 **({"remeshed": list(self.remeshed)} if self.remeshed else {}),
                 **({"ended": self.ended.to_dict()} if self.ended is not None else {}),
+                **({"complete": False} if self.ended is not None and self.ended.stopped
+                   else {}),
                 **({"unresolved": [pt.tau for pt in self.unresolved]}
                    if self.unresolved else {})}
 
@@ -307,7 +313,9 @@ def follow_branch(problem: Problem, param: str | None = None, to: float | None =
         ``problem`` not a Problem.
     SolverError
         ``"Branch_Ended"`` when the steps fail or leave the path, with the
-        last point attached; ``"Snap_Through_Failed"``.
+        last point attached; ``"Snap_Through_Failed"``.  Its ``branch`` (and that of
+        a ``KeyboardInterrupt``: Ctrl-C, SIGTERM) is the branch followed up to there,
+        its :attr:`Branch.ended` saying why it stopped (:func:`_walked`).
     """
     check_problem(problem)
     if follow not in FOLLOW:
@@ -318,10 +326,13 @@ def follow_branch(problem: Problem, param: str | None = None, to: float | None =
     solver = direct_solver(problem, nodes, anchors, stages=stages)
     line, start = _path(solver, problem, param, to, anchors)
     walk = _Walk(Arclength(solver, line, anchors), follow, max_step, max_points)
-    walk.run(start)
-    return _checked(Branch(line.problem, line, param, follow, tuple(walk.points),
-                           tuple(walk.snaps), 0.0, switches=tuple(walk.switches),
-                           remeshed=tuple(walk.remeshed), ended=walk.ended), max_step, t0)
+
+    def branch(ended: Ending | None = None) -> Branch:
+        return Branch(line.problem, line, param, follow, tuple(walk.points), tuple(walk.snaps),
+                      0.0, switches=tuple(walk.switches), remeshed=tuple(walk.remeshed),
+                      ended=ended if ended is not None else walk.ended)
+    _walked(walk, lambda: walk.run(start), branch)
+    return _checked(branch(), max_step, t0)
 
 
 def switch_branch(branch: Branch, at: int, direction: float = 1.0, *,
@@ -381,22 +392,28 @@ def switch_branch(branch: Branch, at: int, direction: float = 1.0, *,
     arc = Arclength(solver_of(origin.equilibrium), branch.line, origin.equilibrium.anchors,
                     at=origin.tau)
     walk = _Walk(arc, "branch", max_step, max_points, ends=(0.0, 1.0))
-    walk.switched(origin, direction)
-    return _checked(Branch(branch.problem, branch.line, branch.parameter, "branch",
-                           tuple(walk.points), (), 0.0, origin.tau, float(direction),
-                           remeshed=tuple(walk.remeshed), ended=walk.ended), max_step, t0)
+
+    def switched(ended: Ending | None = None) -> Branch:
+        return Branch(branch.problem, branch.line, branch.parameter, "branch",
+                      tuple(walk.points), (), 0.0, origin.tau, float(direction),
+                      remeshed=tuple(walk.remeshed),
+                      ended=ended if ended is not None else walk.ended)
+    _walked(walk, lambda: walk.switched(origin, direction), switched)
+    return _checked(switched(), max_step, t0)
 
 
 def _checked(branch: Branch, max_step: float, t0: float) -> Branch:
     """``branch`` with its events' λ errors from the half mesh
     (:func:`~.branch_checks.event_errors`) and its time since ``t0``; a warning names the
     events the mesh does not resolve, one where it ended early (:class:`Ending`), and one
-    where the shapes it shows (its events and its end: the plot's panels) have walls that
-    pass through each other (:mod:`.contact`; checking every point would cost a third of
-    the walk: docs/benchmarks.md, "solvers/branches.py")."""
+    where the shapes it shows (its start, its events and its end: the plot's panels) have
+    walls that pass through each other (:mod:`.contact`; checking every point would cost a
+    third of the walk: docs/benchmarks.md, "solvers/branches.py").  The start too: the plot
+    draws it, and a file's own state (the fold shell at κ₂ = −8) was drawn crossed without a
+    word (audit 14)."""
     branch = replace(branch, points=tuple(event_errors(list(branch.points), branch.line,
                                                        max_step)))
-    shown = [pt for pt in branch.points if pt.event] + [branch.end]
+    shown = [branch.points[0]] + [pt for pt in branch.points if pt.event] + [branch.end]
     where = sorted({pt.tau for pt in shown if wall_contact(pt.equilibrium) is not None})
     if where:
         log.warning("the shapes of the branch at lambda = %s have walls that pass through "
@@ -426,6 +443,24 @@ def _unresolved_warning(branch: Branch) -> str:
             f"not there, so it (and the unstable parts and snap-throughs it bounds) may be an "
             f"artefact of the discretisation; follow the branch on a finer mesh (nodes, "
             f"--nodes {2 * (nodes - 1) + 1} or more)")
+
+
+def _walked(walk: "_Walk", run, branch) -> None:
+    """``run()`` the walk; where it stops early, the branch followed so far goes with the
+    exception as its ``branch`` (``branch(ending)``, :attr:`Branch.ended` an :class:`Ending`
+    whose ``why`` is the first line of the SolverError, or "interrupted" / "terminated
+    (SIGTERM)"), so that the command line
+    writes it: an early stop's branch is a result (its folds located), and it had been
+    lost, 2000 points of it (audit 14)."""
+    try:
+        run()
+    except BaseException as exc:
+        if walk.points and (isinstance(exc, SolverError) or interrupted(exc)):
+            failed = isinstance(exc, SolverError)
+            exc.branch = branch(Ending(exc.status if failed else "Interrupted",
+                                       walk.points[-1].tau,
+                                       str(exc).splitlines()[0] if failed else reason()))
+        raise
 
 
 def _check_walk(max_step, max_points) -> None:

@@ -38,7 +38,8 @@ from .direct import DirectSolver, pole_crossing
 from .paths import ParameterLine, neutral_problem
 from .results import Equilibrium, SolverError
 
-__all__ = ["continue_to", "continue_between", "Path", "neutral_problem", "MAX_SNAPS"]
+__all__ = ["continue_to", "continue_between", "Path", "neutral_problem", "MAX_SNAPS",
+           "left_branch", "SAME_STATE"]
 
 log = logging.getLogger(__name__)
 
@@ -68,6 +69,19 @@ MIN_STEP = 1e-4
 MAX_TURN = np.pi / 2
 #: Snap-throughs :func:`continue_to` crosses on one path before it gives up.
 MAX_SNAPS = 8
+#: Largest change of x (max norm) between two solutions of one state: warm solves and
+#: solve()'s route agree to 1e-10 on one branch (docs/sweeps.md).
+SAME_STATE = 1e-6
+#: A warm solve whose change strays from its start's tangent by more than this fraction
+#: of the tangent's prediction is checked by a solve back (:func:`left_branch`): ordinary
+#: warm steps stray by 3-6 % (the fold shell's κ₂ steps of 0.5 on 200 nodes, 6 % next
+#: to its fold), the step past the fold by 106 %.
+STRAY = 0.25
+#: ... and left its start's branch where that solve back ends farther from the start than
+#: this fraction of the solve's own change: along one branch it returns to 1e-10 of the
+#: start; past the fold shell's fold it stays on the other branch, 2.2 from the start
+#: against a change of 2.2 (max norms of x).
+NOT_BACK = 0.5
 
 
 @dataclass(frozen=True)
@@ -263,12 +277,49 @@ def _tangent(solver: DirectSolver, eq: Equilibrium, line: ParameterLine, tau: fl
     return dx if np.all(np.isfinite(dx)) and np.any(dx) else None
 
 
-def _off_tangent(dx: np.ndarray, tangent: np.ndarray) -> bool:
+def _off_tangent(dx: np.ndarray, tangent: np.ndarray, fraction: float = 1.0) -> bool:
     """Whether the step dx strayed from the tangent's prediction (the tangent times the
-    least-squares factor) by more than the prediction's own size (max norms): its branch
-    bends within the step, or it is another branch."""
+    least-squares factor) by more than ``fraction`` of the prediction's own size (max
+    norms): its branch bends within the step, or it is another branch."""
     dtau = (dx @ tangent) / (tangent @ tangent)
-    return bool(np.max(np.abs(dx - dtau * tangent)) > np.max(np.abs(dtau * tangent)))
+    return bool(np.max(np.abs(dx - dtau * tangent)) > fraction * np.max(np.abs(dtau * tangent)))
+
+
+def left_branch(solver: DirectSolver, start: Equilibrium, new: Equilibrium) -> bool:
+    """Whether the warm solve from ``start`` to ``new`` (both on ``solver``'s mesh) left
+    ``start``'s branch: jumped past a fold or branch point to another stable state.
+
+    A warm solve just past a fold converges, to the branch beyond it, as any other
+    (the fold shell at λ = 0.8722622 + 10⁻⁶: Solve_Succeeded, 0.0048 C R² below the fold
+    state; a sweep's κ₂ step from −6.5 to −7, audit 14).  The test: a change that strays
+    from ``start``'s tangent by more than :data:`STRAY` of its prediction, or that took
+    more than :data:`HARD_STEP` iterations, is solved back at ``start``'s parameters from
+    ``new``; one branch's solve returns to ``start``, a jump stays on the other branch
+    (farther than :data:`NOT_BACK` of the change; a solve back that fails counts as not
+    returning).  A change below :data:`SAME_STATE`, or states of another mesh, are not
+    judged (False).  Costs one linear solve, and a warm solve where the change strays,
+    which leaves ``solver`` as it was (:meth:`DirectSolver.aside`).
+    """
+    if not (solver.made(start) and solver.made(new)):
+        return False
+    dx = new.x - start.x
+    moved = float(np.max(np.abs(dx)))
+    if moved <= SAME_STATE:
+        return False
+    if new.solver.iterations <= HARD_STEP:
+        try:
+            line = ParameterLine.between(start.problem, new.problem)
+        except ValueError:          # (another structure: nothing to compare along)
+            return False
+        tangent = _tangent(solver, start, line, 0.0, start.anchors) if line.names else None
+        if tangent is not None and not _off_tangent(dx, tangent, STRAY):
+            return False
+    try:
+        with solver.aside():        # (the next solve's chord step as without the check)
+            back = solver.solve(start.problem, warm_start=new, anchors=start.anchors)
+    except (SolverError, ValueError):
+        return True
+    return float(np.max(np.abs(back.x - start.x))) > NOT_BACK * moved
 
 
 def _change(new: Equilibrium, eq: Equilibrium, dtau: float) -> np.ndarray:

@@ -17,7 +17,8 @@ from __future__ import annotations
 import logging
 import time
 import weakref
-from typing import Any, Mapping
+from contextlib import contextmanager
+from typing import Any, Iterator, Mapping
 
 import numpy as np
 
@@ -328,6 +329,21 @@ class DirectSolver:
                 f"{explain(NOT_A_MINIMUM)}. The saddle is attached (.last_iterate)",
                 NOT_A_MINIMUM, unconverged(eq))
         return eq
+
+    @contextmanager
+    def aside(self) -> Iterator[None]:
+        """Solves within leave this solver as they found it: the Newton back end's systems
+        kept for chord steps (:meth:`NewtonBackend.unchanged`), so that a check's solve
+        does not change the next solve's iterations or last bits."""
+        newton = self._newton
+        if newton is None:
+            try:
+                yield
+            finally:
+                self._newton = None
+            return
+        with newton.unchanged():
+            yield
 
     def _warm(self, eq: Equilibrium, p: np.ndarray, q: np.ndarray) -> tuple:
         """(x₀, λ₀, origin) of the warm start ``eq``: its unknowns and multipliers, and its

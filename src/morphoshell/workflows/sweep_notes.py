@@ -13,7 +13,7 @@ flags (``walls_cross``, ``event``, the ``*_error`` columns, ``status``).
 from __future__ import annotations
 
 import logging
-from typing import Mapping
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -26,7 +26,8 @@ log = logging.getLogger("morphoshell.workflows.sweeps")
 
 
 def summary(result: SweepResult, coarse: Mapping[int, tuple[str, float]],
-            unestimated: Mapping[int, str]) -> list[tuple[int, str]]:
+            unestimated: Mapping[int, str], jumped: Sequence[int] = ()
+            ) -> list[tuple[int, str]]:
     """The lines a sweep logs about its rows: (logging level, line), warnings first.
 
     Parameters
@@ -37,12 +38,17 @@ def summary(result: SweepResult, coarse: Mapping[int, tuple[str, float]],
         (:func:`~morphoshell.solvers.refinement.too_coarse`).
     unestimated : mapping
         Row → why the estimate asked for there could not be made.
+    jumped : sequence of int
+        Rows whose warm path from the point before left its branch (past a fold or
+        branch point: :mod:`~morphoshell.workflows.sweep_steps`), solved by ``solve()``'s
+        route instead.
 
     Returns
     -------
     list of (int, str)
         Failed points, walls that cross, coarse meshes, missing estimates
-        (warnings), then snaps and switches (notes), each where there is one.
+        (warnings), then snaps and switches and the warm path's jumps (notes), each
+        where there is one.
     """
     c, n = result.columns, len(result)
     lines = []
@@ -79,11 +85,16 @@ def summary(result: SweepResult, coarse: Mapping[int, tuple[str, float]],
         if rows.any():
             lines.append((logging.INFO, f"sweep: the continuation to {rows.sum()} of {n} "
                           f"points {what} ({result.points(rows)}; column event)"))
+    if len(jumped):
+        lines.append((logging.INFO, f"sweep: the warm path from the point before left its "
+                      f"branch at {len(jumped)} of {n} points ({result.points(sorted(jumped))}: "
+                      f"a fold or branch point between the two), which are solved by solve()'s "
+                      f"route (column path: continuation; event: what that route crossed)"))
     return lines
 
 
 def log_summary(result: SweepResult, coarse: Mapping[int, tuple[str, float]],
-                unestimated: Mapping[int, str]) -> None:
+                unestimated: Mapping[int, str], jumped: Sequence[int] = ()) -> None:
     """Log the lines of :func:`summary`."""
-    for level, line in summary(result, coarse, unestimated):
+    for level, line in summary(result, coarse, unestimated, jumped):
         log.log(level, line)

@@ -26,6 +26,8 @@ warm-started from the previous one, so a point costs about one warm solve
   :data:`~morphoshell.solvers.continuation.HARD_STEP` Newton iterations (a sign of a
   jump to another branch) is split in two, recursively (at most
   :data:`MAX_SPLITS` times), as :class:`morphoshell.inverse.recoil_model.RecoilModel` does;
+  so is one that left its start's branch (past a fold: :mod:`.sweep_steps`), and where the
+  last split still does, the point is solved by continuation and the sweep notes it;
   the last resort is continuation again.  Where the shell is bistable the warm path
   can keep to another stable state than ``solve()``'s route: after a snap or switch the
   next point is reached by continuation, and a chunk whose last point is another state
@@ -98,17 +100,17 @@ from ..model.problem import BASE_KEYS, Problem
 from ..model.profiles import ENTRY_POINT_GROUP, FAMILIES
 from ..numerics.mesh import mesh_spec
 from ..numerics.status import RETRY_FINER, STEP_NOT_SPLITTABLE
-from ..solvers.continuation import HARD_STEP, continue_to
-from ..solvers.direct import DirectSolver, check_nodes, solver_of
+from ..solvers.continuation import SAME_STATE, continue_to
+from ..solvers.direct import check_nodes
 from ..solvers.contact import wall_contact
 from ..solvers.options import BVP_ADVICE, check_direct_options
 from ..solvers.observables import RECOIL
-from ..solvers.refinement import (COARSE, coarse_level, half_mesh, level_errors, solve_from,
-                                  too_coarse)
+from ..solvers.refinement import COARSE, coarse_level, half_mesh, level_errors, too_coarse
 from ..solvers.results import ESTIMATED, Equilibrium, ErrorEstimate, SolverError, energy_floor
-from ..solvers.routes import DIRECT_OPTIONS, direct_solver
+from ..solvers.routes import DIRECT_OPTIONS
 from .sweep_notes import log_summary
 from .sweep_results import SweepResult, point_label, result_columns
+from .sweep_steps import MAX_SPLITS, Shell, point_events
 from .sweep_runs import (SweepInterrupted, interruptible, restored, run_chunks, settings_record,
                          whole_chunks)
 
@@ -119,8 +121,6 @@ log = logging.getLogger(__name__)
 
 #: Where error estimates are computed (see the module docstring).
 ERRORS = ("ends", "all", "none")
-#: A failing warm step is halved at most this many times (16 sub-steps).
-MAX_SPLITS = 4
 #: Chunking: at least this many tasks when the product allows it (enough to keep
 #: 2, 3, 4 or 6 workers busy to the end) ...
 MIN_TASKS = 12
@@ -294,154 +294,13 @@ class _Chunk:
     owner: tuple | None = None
 
 
-#: Largest difference of x (max norm) between two solutions of one state: warm solves and
-#: solve()'s route agree to 1e-10 on one branch (docs/sweeps.md).
-OTHER_STATE = 1e-6
-
-#: Solvers of this worker process, by (structure, mesh, options): one build per mesh.
-_SOLVERS: dict = {}
-#: Bound of the worker's solver cache (least recently built dropped first); a
-#: sweep over one line needs about 15 (intact shells anchored at 12 knots).
-SOLVER_CACHE_SIZE = 48
-
-
-def _solver(problem: Problem, nodes: int, anchors: tuple, options: Mapping) -> DirectSolver:
-    spec = mesh_spec(problem, nodes, options.get("stages", 2), anchors)
-    key = (problem.structure, spec, tuple(sorted((k, repr(v)) for k, v in options.items())))
-    solver = _SOLVERS.get(key)
-    if solver is None:
-        solver = _SOLVERS[key] = direct_solver(problem, nodes, anchors, **options)
-        while len(_SOLVERS) > SOLVER_CACHE_SIZE:
-            _SOLVERS.pop(next(iter(_SOLVERS)))
-    return solver
-
-
-@dataclass
-class _Shell:
-    """One shell (intact or cut) followed along a chunk: the last solution reached."""
-
-    nodes: int
-    options: Mapping[str, Any]
-    last: tuple | None = None       # (problem, anchors, eq)
-    iterations: int = 0
-    #: Every point by ``solve()``'s route (continuation), none warm: where the warm path
-    #: and ``solve()``'s end on different stable states (:func:`_left_solves_branch`).
-    verify: bool = False
-    #: The last point's continuation snapped or switched branches: the next point's route
-    #: may not (its own path from the stress-free parameters has no fold), and a warm step
-    #: would stay on the branch the snap landed on.
-    crossed: bool = False
-
-    def solver(self, problem: Problem, anchors: tuple, nodes: int | None = None) -> DirectSolver:
-        return _solver(problem, nodes or self.nodes, anchors, self.options)
-
-    def advance(self, problem: Problem, anchors: tuple) -> tuple[Equilibrium, str]:
-        """The equilibrium of ``problem``, from the last one if there is one and its branch
-        is ``solve()``'s (:attr:`verify`, :attr:`crossed`); (eq, path)."""
-        solver = self.solver(problem, anchors)
-        last, self.last, self.iterations = self.last, None, 0
-        eq = None
-        if last is not None and last[0].structure == problem.structure and not self.verify \
-                and not self.crossed:
-            try:
-                eq, steps, remeshed = self._step(*last, problem, anchors, 0)
-                path = "split" if steps > 1 else "remesh" if remeshed else "warm"
-            except SolverError as exc:
-                self._count(exc.last_iterate)
-                log.debug("sweep: warm steps to %s failed (%s); continuation", problem.params,
-                          exc.status)
-        if eq is None:
-            try:
-                eq = self._count(continue_to(solver, problem, anchors, switch=True))  # (as solve)
-            except SolverError as exc:
-                self._count(exc.last_iterate)      # (the row's iterations: not 0 after 53)
-                raise
-            path = "continuation"
-        self.crossed = _crossed(eq)
-        self.last = (problem, anchors, eq)
-        return eq, path
-
-    def _count(self, eq: Equilibrium | None) -> Equilibrium | None:
-        if eq is not None:
-            self.iterations += eq.solver.iterations
-        return eq
-
-    def _step(self, a: Problem, a_anchors, a_eq, b: Problem, b_anchors,
-              depth: int) -> tuple[Equilibrium, int, bool]:
-        """From a's solution to b on b's mesh: one warm step, or two halves (recursively),
-        each on its own end's mesh; (eq, steps, whether a solution was carried to a new mesh).
-
-        Where b's mesh is not a's, a's solution is carried onto it at a's parameters
-        (:func:`~morphoshell.solvers.refinement.solve_from`).  Where that mesh does not hold
-        there (a breakpoint moved past the place of its knot: ValueError from the mesh's
-        check, a Volvox s2 step of 0.1), the step is split: the first half ends on the
-        midpoint's own mesh, from which the second carries on, as ``continue`` rebuilds its
-        mesh for the parameters it has reached.
-        """
-        carried = False
-        try:
-            # (a midpoint's mesh may not hold its knots: split on, as where it does not hold
-            # a's solution)
-            solver = self.solver(b, b_anchors)
-            carried = solver_of(a_eq) is not solver
-            if carried:     # (kept for the halves: usually b's mesh is the midpoint's too)
-                a_eq = self._count(solve_from(solver, a, a_eq, a_anchors))
-            eq = self._count(solver.solve(b, warm_start=a_eq, anchors=b_anchors))
-            if eq.solver.iterations <= HARD_STEP or depth >= MAX_SPLITS:
-                return eq, 1, carried
-        except (SolverError, ValueError) as exc:     # (ValueError: the mesh does not hold)
-            if isinstance(exc, SolverError):
-                self._count(exc.last_iterate)
-            if depth >= MAX_SPLITS:
-                raise _unsplittable(exc, b) from exc
-        mid = _midpoint(a, b, a_anchors, b_anchors)
-        if mid is None:
-            raise SolverError("no midpoint to split the step at", STEP_NOT_SPLITTABLE)
-        m_eq, n1, c1 = self._step(a, a_anchors, a_eq, *mid, depth + 1)
-        eq, n2, c2 = self._step(*mid, m_eq, b, b_anchors, depth + 1)
-        return eq, n1 + n2, carried or c1 or c2
-
-
-def _unsplittable(exc: Exception, b: Problem) -> SolverError:
-    """The failure of a warm step that cannot be split further, as a SolverError."""
-    if isinstance(exc, SolverError):
-        return exc
-    return SolverError(f"warm steps to {b.params}: {exc}", STEP_NOT_SPLITTABLE)
-
-
-def _crossed(eq: Equilibrium) -> bool:
-    """Whether ``eq``'s continuation snapped through a fold or switched branches."""
-    return bool(_events(eq))
-
-
-def _events(eq: Equilibrium) -> tuple[str, ...]:
-    """What ``eq``'s continuation crossed: ``"snapped"`` (a fold), ``"switched"`` (branches
-    at a branch point), both or neither (the row's ``event``)."""
-    details = eq.solver.details
-    return tuple(word for key, word in (("snaps", "snapped"), ("switches", "switched"))
-                 if details.get(key))
-
-
-def _midpoint(a: Problem, b: Problem, a_anchors, b_anchors):
-    """(problem, anchors) halfway between a and b, or None (a word differs, or invalid)."""
-    if a.structure != b.structure:
-        return None
-    try:
-        mid = a.with_updates(h=(a.h + b.h) / 2, cut=(a.cut + b.cut) / 2,
-                             opening=(a.opening + b.opening) / 2,
-                             **{k: (a.params[k] + b.params[k]) / 2 for k in a.params})
-    except ValueError:
-        return None
-    return mid, tuple((x + y) / 2 for x, y in zip(a_anchors, b_anchors))
-
-
 def _measure(problem: Problem, pre: Equilibrium, post: Equilibrium) -> dict[str, float]:
     """The observables of :class:`~morphoshell.mechanics.ablation.Ablation`, as ``ablate``
     measures them (:func:`~morphoshell.mechanics.ablation.measure`)."""
     return measure(problem.cut, pre, post)
 
 
-def _estimate(shells: Sequence[tuple[_Shell, Problem, tuple, Equilibrium]], measure,
+def _estimate(shells: Sequence[tuple[Shell, Problem, tuple, Equilibrium]], measure,
               order: int) -> tuple[dict[str, float], str]:
     """Error of each value of ``measure``: the half and quarter meshes, as ``solve()``'s
     estimate; (errors, "") or (NaN errors, why there is no estimate).
@@ -481,13 +340,13 @@ def _run_chunk(chunk: _Chunk, tick=None) -> list[tuple[int, dict]]:
     return rows
 
 
-def _left_solves_branch(rows: list[tuple[int, dict]], shells: Sequence[_Shell]) -> bool:
+def _left_solves_branch(rows: list[tuple[int, dict]], shells: Sequence[Shell]) -> bool:
     """Whether the chunk's last point, reached warm, is another state than ``solve()``'s
     route reaches there (continuation from the stress-free parameters).
 
     Where a shell is bistable the two can differ, both stable: a sweep of κ₁ from −8
     stayed on the state its first point snapped to up to κ₁ = 3, where ``solve()`` ends
-    on the other (energies 0.027 against 0.018).  :attr:`_Shell.crossed` keeps to the
+    on the other (energies 0.027 against 0.018).  :attr:`Shell.crossed` keeps to the
     route after a snap; this catches the rest at one continuation per chunk.
     """
     if len(rows) < 2 or rows[-1][1]["path"] in ("continuation", "failed"):
@@ -500,7 +359,7 @@ def _left_solves_branch(rows: list[tuple[int, dict]], shells: Sequence[_Shell]) 
             route = continue_to(shell.solver(problem, anchors), problem, anchors, switch=True)
         except SolverError:
             return True
-        if np.max(np.abs(route.x - eq.x)) > OTHER_STATE:
+        if np.max(np.abs(route.x - eq.x)) > SAME_STATE:
             log.info("sweep: the warm path to %s ended on another state than solve()'s "
                      "(bistable): the chunk again by continuation at every point",
                      problem.params)
@@ -514,8 +373,8 @@ def _solve_chunk(chunk: _Chunk, verify: bool, tick=None) -> tuple[list[tuple[int
     base = Problem(**chunk.base)
     options = dict(chunk.options)
     order = 2 * options.get("stages", 2)
-    post_shell = _Shell(chunk.nodes, options, verify=verify)
-    pre_shell = _Shell(chunk.nodes, options, verify=verify)
+    post_shell = Shell(chunk.nodes, options, verify=verify)
+    pre_shell = Shell(chunk.nodes, options, verify=verify)
     names = ABLATE_COLUMNS if chunk.ablate else SOLVE_COLUMNS
     rows, intact, intact_key = [], None, None
     for (index, updates), estimate in zip(chunk.points, chunk.estimate):
@@ -532,6 +391,8 @@ def _solve_chunk(chunk: _Chunk, verify: bool, tick=None) -> tuple[list[tuple[int
             else:
                 eqs = _solve_point(row, problem, post_shell, estimate, order)
             _flag(row, eqs)
+            # (the warm path jumped branches before this point: the sweep's note names it)
+            row["_jumped"] = pre_shell.jumped or post_shell.jumped
         except SolverError as exc:
             row.update({k: math.nan for k in names}, status=exc.status,
                        path="failed", message=_in_sweep_terms(str(exc).splitlines()[0]))
@@ -554,10 +415,10 @@ def _blank_row(ablate: bool) -> dict[str, Any]:
 
 def _flag(row: dict, eqs: Sequence[Equilibrium]) -> None:
     """The row's status (the last shell's), ``event`` (what the continuations of its
-    shells crossed: :func:`_events`) and ``walls_cross`` (a shell's walls pass through
+    shells crossed: :func:`point_events`) and ``walls_cross`` (a shell's walls pass through
     each other, which ``solve()`` warns of: :func:`~morphoshell.solvers.contact.wall_contact`)."""
     row["status"] = eqs[-1].solver.status
-    row["event"] = ", ".join(dict.fromkeys(e for eq in eqs for e in _events(eq)))
+    row["event"] = ", ".join(dict.fromkeys(e for eq in eqs for e in point_events(eq)))
     row["walls_cross"] = any(wall_contact(eq) is not None for eq in eqs)
 
 
@@ -574,7 +435,7 @@ def _in_sweep_terms(message: str) -> str:
     return message
 
 
-def _solve_point(row: dict, problem: Problem, shell: _Shell, estimate: bool,
+def _solve_point(row: dict, problem: Problem, shell: Shell, estimate: bool,
                  order: int) -> tuple[Equilibrium]:
     """Solve one point of a chunk into ``row`` (values, path, iterations, errors); (its
     equilibrium,)."""
@@ -593,8 +454,8 @@ def _solve_point(row: dict, problem: Problem, shell: _Shell, estimate: bool,
     return (post,)
 
 
-def _ablate_point(row: dict, problem: Problem, intact: Problem, pre_shell: _Shell,
-                  post_shell: _Shell, estimate: bool, order: int) -> tuple[Equilibrium, ...]:
+def _ablate_point(row: dict, problem: Problem, intact: Problem, pre_shell: Shell,
+                  post_shell: Shell, estimate: bool, order: int) -> tuple[Equilibrium, ...]:
     """Ablate one point of a chunk into ``row``: the intact shell, then the cut one.
 
     The row's path is the most laborious of the two shells'.  Returns the
@@ -726,14 +587,22 @@ def sweep(problem: Problem, axes: Mapping[str, Sequence], *, ablate: bool = Fals
     with interruptible(results, blank, finish, settings):
         backend = run_chunks(_run_chunk, tasks, results, workers, scheduler,
                              f"sweep: {todo} {what}")
-    # (what the summary says of the rows, not columns: the errors' columns show it)
-    coarse = {i: c for i, row in enumerate(results) if (c := row.pop("_coarse", None))}
-    unestimated = {i: u for i, row in enumerate(results) if (u := row.pop("_unestimated", ""))}
+    notes = _row_notes(results)
     result = _finish(problem, axes, ablate, results, timing={
         "t0": t0, "workers": workers if scheduler is None else "scheduler",
         "backend": backend, **plan, "restored": n - todo})
-    log_summary(result, coarse, unestimated)
+    log_summary(result, *notes)
     return result
+
+
+def _row_notes(rows: list[dict]) -> tuple[dict, dict, list]:
+    """What the summary says of the rows, not their columns (the errors' columns show it),
+    taken out of them: the rows whose estimate is too coarse, those without an estimate
+    asked for, and those whose warm path left its branch (:func:`log_summary`'s)."""
+    coarse = {i: c for i, row in enumerate(rows) if (c := row.pop("_coarse", None))}
+    unestimated = {i: u for i, row in enumerate(rows) if (u := row.pop("_unestimated", ""))}
+    jumped = [i for i, row in enumerate(rows) if row.pop("_jumped", False)]
+    return coarse, unestimated, jumped
 
 
 def _finish(problem: Problem, axes: Mapping[str, tuple], ablate: bool, rows: list[dict],
