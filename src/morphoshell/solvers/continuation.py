@@ -82,6 +82,11 @@ STRAY = 0.25
 #: start; past the fold shell's fold it stays on the other branch, 2.2 from the start
 #: against a change of 2.2 (max norms of x).
 NOT_BACK = 0.5
+#: A warm step that converged in this many Newton iterations or fewer is not checked by
+#: :func:`left_branch`: a jump past a fold is a long Newton path (12 and 17 iterations on
+#: the fold shell's κ₂ sweep, its ordinary steps 3-5), and checking every step cost a
+#: sweep of ablations about a third more (docs/benchmarks.md, "Sweeps").
+QUICK_STEP = 3
 
 
 @dataclass(frozen=True)
@@ -296,15 +301,15 @@ def left_branch(solver: DirectSolver, start: Equilibrium, new: Equilibrium) -> b
     more than :data:`HARD_STEP` iterations, is solved back at ``start``'s parameters from
     ``new``; one branch's solve returns to ``start``, a jump stays on the other branch
     (farther than :data:`NOT_BACK` of the change; a solve back that fails counts as not
-    returning).  A change below :data:`SAME_STATE`, or states of another mesh, are not
-    judged (False).  Costs one linear solve, and a warm solve where the change strays,
+    returning).  A change below :data:`SAME_STATE`, a step of at most :data:`QUICK_STEP`
+    Newton iterations, or states of another mesh, are not judged (False).  Costs one linear solve, and a warm solve where the change strays,
     which leaves ``solver`` as it was (:meth:`DirectSolver.aside`).
     """
     if not (solver.made(start) and solver.made(new)):
         return False
     dx = new.x - start.x
     moved = float(np.max(np.abs(dx)))
-    if moved <= SAME_STATE:
+    if moved <= SAME_STATE or new.solver.iterations <= QUICK_STEP:
         return False
     if new.solver.iterations <= HARD_STEP:
         try:
