@@ -164,6 +164,25 @@ def test_every_marker_kind_of_fig2J_is_in_its_legend(ks, off_scale):
     assert min(t.get_fontsize() for t in _texts(ax.figure)) >= MIN_FONT_SIZE
 
 
+def test_fig2J_on_a_callers_panel_keeps_its_legend_inside_and_names_only_methods_run():
+    # audit 13: the legend went under a caller's panel, over the next row, and named
+    # "numerical" for a run of the asymptotic forms alone
+    fig, axs = plt.subplots(2, 1, figsize=(7, 6))
+    result = _estimates([0.1, 0.2])
+    result.settings["methods"] = ["leading_order", "kelvin"]
+    result.summary["combined"] = SimpleNamespace(n=0, mean=None, std=None)   # (numerical's)
+    ax = plot_k_estimates(axs[0], result)
+    fig.canvas.draw()
+    legend, box = ax.get_legend().get_window_extent(), ax.get_window_extent()
+    assert box.y0 <= legend.y0 and legend.y1 <= box.y1
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert any("asymptotic" in label for label in labels)
+    assert not any("numerical" in label for label in labels)
+    plt.close(fig)
+    with pytest.raises(ValueError, match="legend = 'left'"):
+        plot_k_estimates(new_axes(pyplot=False), result, legend="left")
+
+
 def _profile(name, values, objective, converged, interval, flat=False):
     from morphoshell.fitting import Profile
     values = np.asarray(values, float)

@@ -12,7 +12,7 @@ from matplotlib.figure import Figure
 from matplotlib.legend_handler import HandlerTuple
 from matplotlib.lines import Line2D
 
-from .style import DOUBLE_COLUMN, MIN_FONT_SIZE, journal_figure, styled
+from .style import DOUBLE_COLUMN, MIN_FONT_SIZE, journal_figure, made_here, styled
 
 __all__ = ["plot_k_estimates", "plot_recoil_velocity", "figure_JK", "MEASURE_COLOURS",
            "OFF_SCALE_LABEL"]
@@ -29,7 +29,7 @@ _GAP = 2
 _MS, _MS_MEAN = 4.5, 7.0
 
 
-def plot_k_estimates(ax: Axes, result, truth=None, ylim=None, *, legend: str = "below") -> Axes:
+def plot_k_estimates(ax: Axes, result, truth=None, ylim=None, *, legend: str = "auto") -> Axes:
     """Estimates of k per embryo (paper Fig. 2 J).
 
     Three groups (o, ϱ, d), one column per embryo: open markers the paper's
@@ -48,9 +48,11 @@ def plot_k_estimates(ax: Axes, result, truth=None, ylim=None, *, legend: str = "
         Embryo → true k.
     ylim : (float, float), optional
         The k axis' range (default: from the result's k range).
-    legend : {"below", "figure"}
-        Under the axes, or under the whole figure (wider than the axes: for
-        a figure of several panels, :func:`figure_JK`).
+    legend : {"auto", "below", "inside", "figure"}
+        Under the axes, inside them, or under the whole figure (wider than the
+        axes: for a figure of several panels, :func:`figure_JK`); "auto": under
+        axes the package made (:func:`~morphoshell.plotting.new_axes`), inside a
+        caller's panel (under it, it fell on the panels below).
 
     Returns
     -------
@@ -59,6 +61,8 @@ def plot_k_estimates(ax: Axes, result, truth=None, ylim=None, *, legend: str = "
     """
     from ..inverse import MEASURES
 
+    if legend not in ("auto", "below", "inside", "figure"):
+        raise ValueError(f"legend = {legend!r}: use 'auto', 'below', 'inside' or 'figure'")
     n = len(result.embryos)
     lo, hi = result.settings["k_range"]
     ylim = ylim or (max(lo, -0.6) - 0.05, min(hi, 1.0) + 0.08)
@@ -124,11 +128,16 @@ def _reference_lines(ax: Axes, result) -> None:
 def _k_legend(ax: Axes, result, truth: bool, off_scale: bool, where: str) -> None:
     """Every marker kind, in grey (the colours are the measures, named above the groups)."""
     grey = dict(color="0.3", ls="none", mew=1.0)
-    entries = [(Line2D([], [], marker="o", mfc="white", ms=_MS, **grey),
-                "asymptotic (paper's formulas)"),
-               (Line2D([], [], marker="o", ms=_MS, **grey),
-                f"numerical (toy problem 2, {result.settings['theory'].replace('_', '-')})"),
-               (Line2D([], [], marker="o", ms=_MS_MEAN, **grey), "mean ± std")]
+    methods = set(result.settings.get("methods", ("leading_order", "kelvin", "numerical")))
+    entries = []
+    if methods & {"leading_order", "kelvin"}:
+        entries.append((Line2D([], [], marker="o", mfc="white", ms=_MS, **grey),
+                        "asymptotic (paper's formulas)"))
+    if "numerical" in methods:       # (a legend entry of a method not run misled, audit 13)
+        entries.append((Line2D([], [], marker="o", ms=_MS, **grey),
+                        f"numerical (toy problem 2, "
+                        f"{result.settings['theory'].replace('_', '-')})"))
+    entries.append((Line2D([], [], marker="o", ms=_MS_MEAN, **grey), "mean ± std"))
     if off_scale:
         entries.append(((Line2D([], [], marker="^", ms=_MS, **grey),
                          Line2D([], [], marker="v", ms=_MS, **grey)), OFF_SCALE_LABEL))
@@ -138,8 +147,12 @@ def _k_legend(ax: Axes, result, truth: bool, off_scale: bool, where: str) -> Non
     entries += list(zip(handles, labels))
     options = dict(ncol=3, handler_map={tuple: HandlerTuple(ndivide=None, pad=0.3)},
                    frameon=False, fontsize=MIN_FONT_SIZE, columnspacing=1.2)
+    if where == "auto":
+        where = "below" if made_here(ax) else "inside"
     if where == "figure":
         ax.figure.legend(*zip(*entries), loc="outside lower center", **options)
+    elif where == "inside":
+        ax.legend(*zip(*entries), loc="best", **{**options, "ncol": 1})
     else:
         ax.legend(*zip(*entries), loc="upper center", bbox_to_anchor=(0.5, -0.09),
                   borderaxespad=0.0, **options)
