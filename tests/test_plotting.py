@@ -317,3 +317,18 @@ def test_a_branch_diagram_defaults_to_an_observable_that_varies():
     assert ax.get_ylabel().startswith(r"$z$ at the far end") and ax.get_xlabel() == "k ($1/R$)"
     fold = load_problem(Path(__file__).parent / "data" / "volvox_fold.toml")[0]
     assert default_y(follow_branch(fold, "kappa2", -7.9, nodes=40)) == "psi_end"
+
+
+def test_an_event_the_mesh_does_not_resolve_has_an_open_marker():
+    # audit 14: unresolved folds were named in the caption only, drawn as resolved ones
+    from morphoshell.plotting.branches import _diagram
+
+    fig, ax = plt.subplots()
+    table = {"lambda": [0.0, 0.5, 1.0], "energy": [1.0, 2.0, 1.5], "stable": [True, False, True],
+             "event": ["", "fold", "fold"], "lambda_error": [float("nan"), 1e-8, float("inf")]}
+    _diagram(ax, table, "lambda", "energy")
+    folds = {line.get_label(): line.get_markerfacecolor() for line in ax.get_lines()
+             if line.get_label().startswith("fold")}
+    assert set(folds) == {"fold", "fold (not resolved by the mesh)"}
+    assert folds["fold (not resolved by the mesh)"] == "white" != folds["fold"]
+    plt.close(fig)

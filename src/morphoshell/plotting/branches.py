@@ -21,6 +21,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure, SubFigure
 
+from ..solvers.refinement import COARSE
 from .shells import plot_cross_section, problem_caption, problem_title
 from .style import (DOUBLE_COLUMN, MIN_FONT_SIZE, SINGLE_COLUMN, add_caption, journal_figure,
                     styled)
@@ -235,11 +236,16 @@ def _diagram(ax: Axes, table: dict, x: str, y: str) -> None:
     for i0, i1, is_stable in _runs(stable, events):
         style = BRANCH_STYLE["stable" if is_stable else "unstable"]
         ax.plot(xs[i0:i1 + 1], ys[i0:i1 + 1], **style)
+    # an event the half mesh does not reproduce (Branch.unresolved) is an open marker: it
+    # may be an artefact of the mesh (audit 14: toy 3's folds on 200 nodes)
+    loose = np.asarray(table.get("lambda_error", np.full(len(events), np.nan)), float) > COARSE
     for kind, (marker, colour, label) in EVENT_MARKERS.items():
-        at = [i for i, e in enumerate(events) if e == kind]
-        if at:
-            ax.plot(xs[at], ys[at], marker, color=colour, ms=5, ls="none", label=label,
-                    zorder=3)
+        for unresolved, face, name in ((False, colour, label),
+                                       (True, "white", f"{label} (not resolved by the mesh)")):
+            at = [i for i, e in enumerate(events) if e == kind and loose[i] == unresolved]
+            if at:
+                ax.plot(xs[at], ys[at], marker, color=colour, mfc=face, ms=5, ls="none",
+                        label=name, zorder=3)
     for i, event in enumerate(events):
         if event == "snap" and i > 0:       # the jump: from the fold to where it lands
             ax.annotate("", (xs[i], ys[i]), (xs[i - 1], ys[i - 1]),
