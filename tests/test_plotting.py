@@ -329,6 +329,6 @@ def test_an_event_the_mesh_does_not_resolve_has_an_open_marker():
     _diagram(ax, table, "lambda", "energy")
     folds = {line.get_label(): line.get_markerfacecolor() for line in ax.get_lines()
              if line.get_label().startswith("fold")}
-    assert set(folds) == {"fold", "fold (not resolved by the mesh)"}
-    assert folds["fold (not resolved by the mesh)"] == "white" != folds["fold"]
+    assert set(folds) == {"fold", "fold (unresolved)"}
+    assert folds["fold (unresolved)"] == "white" != folds["fold"]
     plt.close(fig)

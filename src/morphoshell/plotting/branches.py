@@ -236,12 +236,13 @@ def _diagram(ax: Axes, table: dict, x: str, y: str) -> None:
     for i0, i1, is_stable in _runs(stable, events):
         style = BRANCH_STYLE["stable" if is_stable else "unstable"]
         ax.plot(xs[i0:i1 + 1], ys[i0:i1 + 1], **style)
-    # an event the half mesh does not reproduce (Branch.unresolved) is an open marker: it
+    # an event the half mesh does not reproduce (Branch.unresolved: "unresolved" in the
+    # legend, the caption says by what) is an open marker: it
     # may be an artefact of the mesh (audit 14: toy 3's folds on 200 nodes)
     loose = np.asarray(table.get("lambda_error", np.full(len(events), np.nan)), float) > COARSE
     for kind, (marker, colour, label) in EVENT_MARKERS.items():
         for unresolved, face, name in ((False, colour, label),
-                                       (True, "white", f"{label} (not resolved by the mesh)")):
+                                       (True, "white", f"{label} (unresolved)")):
             at = [i for i, e in enumerate(events) if e == kind and loose[i] == unresolved]
             if at:
                 ax.plot(xs[at], ys[at], marker, color=colour, mfc=face, ms=5, ls="none",
