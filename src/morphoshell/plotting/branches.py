@@ -237,8 +237,8 @@ def _diagram(ax: Axes, table: dict, x: str, y: str) -> None:
         style = BRANCH_STYLE["stable" if is_stable else "unstable"]
         ax.plot(xs[i0:i1 + 1], ys[i0:i1 + 1], **style)
     # an event the half mesh does not reproduce (Branch.unresolved: "unresolved" in the
-    # legend, the caption says by what) is an open marker: it
-    # may be an artefact of the mesh (audit 14: toy 3's folds on 200 nodes)
+    # legend, the caption says by what) is an open marker: it may be an artefact of the
+    # mesh (audit 14: toy 3's folds on 200 nodes)
     loose = np.asarray(table.get("lambda_error", np.full(len(events), np.nan)), float) > COARSE
     for kind, (marker, colour, label) in EVENT_MARKERS.items():
         for unresolved, face, name in ((False, colour, label),
