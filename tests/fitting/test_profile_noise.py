@@ -88,3 +88,20 @@ def test_the_command_line_notes_a_fallback_to_the_residual(capsys):
     assert "note: --profile-noise auto: the midline holds no spread" in capsys.readouterr().out
     profile_data(Namespace(midline="x.csv", profile_noise=None), volvox_spec("free"), avg)
     assert capsys.readouterr().out == ""
+
+
+def test_a_single_traces_profile_noise_is_scaled_per_parameter():
+    # a single trace's ± are its re-tracings' sandwich errors, 1.3-1.8x the Gauss-Newton
+    # ones; its profiles took the residual's sigma^2 and stayed that much narrower than the
+    # errors printed beside them: the residual's sigma^2 is scaled per parameter
+    from morphoshell.fitting.profile_noise import (RETRACED, check_inflation, noise_variance,
+                                                   parameter_noise)
+    points = np.zeros((50, 2))
+    base, source = noise_variance(points, 2.0, 3, "residual")
+    sigma2, source, dof = parameter_noise(points, 2.0, 3, "residual", {"f1": 2.25}, "f1")
+    assert sigma2 == 2.25 * base and source == RETRACED
+    assert parameter_noise(points, 2.0, 3, "residual", {"f1": 2.25}, "s1")[:2] == (base,
+                                                                                  "residual")
+    assert parameter_noise(points, 2.0, 3, 0.5, {"f1": 2.25}, "f1")[:2] == (0.5, "given")
+    with pytest.raises(ValueError, match=r"inflation\['f1'\] = -1 must be a positive number"):
+        check_inflation({"f1": -1}, ["f1"])

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from ..fitting.profile_noise import RETRACED
 from ._args import integer
 from ._outputs import output_path
 
@@ -106,7 +107,7 @@ def profile_data(args, spec, midline):
     return midline
 
 
-def run_profiles(args, spec, data, result, names: list[str]) -> tuple:
+def run_profiles(args, spec, data, result, names: list[str], inflation=None) -> tuple:
     """The fit the profiles of ``names`` are about, and the profiles, refitted by the gradient
     method (:func:`morphoshell.fitting.profiled_fit`): ``result``, or the lower fit a refit
     found (then ``result`` was not the minimum; the profiles' intervals are about the lower).
@@ -122,7 +123,7 @@ def run_profiles(args, spec, data, result, names: list[str]) -> tuple:
         noise = "residual" if traces_missing(data) else "traces"
     return profiled_fit(spec, data, names, result=result,
                         points=_option(args, "profile_points"), method="gradient",
-                        nodes=args.nodes, noise=noise)
+                        nodes=args.nodes, noise=noise, inflation=inflation)
 
 
 def _option(args, key: str):
@@ -148,15 +149,20 @@ def _dof(p) -> str:
 def profile_table(result, profiles: dict) -> str:
     """The intervals beside the Gauss–Newton ±1.96 SE ones, one line a parameter."""
     first = next(iter(profiles.values()))
-    lines = [f"  profile intervals ({100 * first.confidence:g} %, {first.method} refits, sigma^2 = "
-             f"{first.sigma2:.3g} R^2 from the {first.sigma2_source}{_dof(first)}; Gauss-Newton "
-             f"+-1.96 SE beside):"]
+    retraced = first.sigma2_source == RETRACED
+    sigma2 = (f"sigma^2 from the fit's {first.sigma2_source}, per parameter (JSON); +-1.96 SE "
+              f"of the re-tracings beside" if retraced else
+              f"sigma^2 = {first.sigma2:.3g} R^2 from the {first.sigma2_source}{_dof(first)}; "
+              f"Gauss-Newton +-1.96 SE beside")
+    lines = [f"  profile intervals ({100 * first.confidence:g} %, {first.method} refits, "
+             f"{sigma2}):"]
     for name, p in profiles.items():
         lo, hi = p.interval
         se = result.standard_errors.get(name, math.nan)
         gn = f"+-{1.96 * se:.3g}" if math.isfinite(se) else "(on a constraint)"
         unit = f" {result.unit(name)}".rstrip()
-        lines.append(f"  {name:8s} {p.fitted_value: .6g}  [{lo: .6g}, {hi: .6g}]{unit}  GN {gn}"
+        lines.append(f"  {name:8s} {p.fitted_value: .6g}  [{lo: .6g}, {hi: .6g}]{unit}  "
+                     f"{'SE' if retraced else 'GN'} {gn}"
                      + (f"  {p.verdict()}" if p.verdict() else "")
                      + (f"  ({p.note})" if p.note else ""))
     return "\n".join(lines)

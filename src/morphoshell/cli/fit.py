@@ -1,6 +1,8 @@
 """``morphoshell fit``: the Volvox model fitted to a traced midline."""
 from __future__ import annotations
 
+import math
+
 from pathlib import Path
 
 from ._args import (FORMAT_HELP, OUTLIER_POINTS_HELP, SECTION_HELP, TRACE_OPTIONS, add_outputs,
@@ -249,6 +251,7 @@ def _fit(args) -> int:
     limit = args.max_evaluations or default
     result, starts = _run_fit(args, spec, midline, limit, unit)
     trace = _single_trace(args)
+    gauss_newton = result.standard_errors
     result = _trace_errors(result, trace, args)
     print(result.summary())
     print(f"  E_fit = {result.E_fit:.6g} R over {N_FIT} points; {result.inner_solves} inner "
@@ -258,7 +261,8 @@ def _fit(args) -> int:
               f"lowest E_fit, the fit above):\n{starts.table()}")
     before, profiles = result, {}
     if names:
-        result, profiles = run_profiles(args, spec, data, result, names)
+        result, profiles = run_profiles(args, spec, data, result, names,
+                                        _inflation(gauss_newton, result))
         if result is not before:        # (the fit was not its minimum: the refit is the fit)
             result = _trace_errors(result, trace, args)
             print(refit_lines(before, result))
@@ -341,6 +345,18 @@ def _trace_errors(result, trace, args):
          f"{TRACE_REPLICATES} simulated re-tracings (not the Gauss–Newton errors, which take the "
          f"midline's points as independent)")
     return result
+
+
+def _inflation(gauss_newton: dict, result) -> dict | None:
+    """Per parameter, (SE of the trace's re-tracings / Gauss–Newton SE)²: the factor on the
+    residual's σ² that puts a single trace's profile intervals on the errors printed beside
+    them (:func:`morphoshell.fitting.profile_noise.parameter_noise`); None where the errors
+    are the Gauss–Newton ones."""
+    if result.standard_errors is gauss_newton:
+        return None
+    return {name: (se / gauss_newton[name]) ** 2 for name, se in result.standard_errors.items()
+            if math.isfinite(se) and math.isfinite(gauss_newton.get(name, math.nan))
+            and gauss_newton[name] > 0}
 
 
 def _local_minimum_note(result) -> None:

@@ -71,8 +71,8 @@ from ..solvers.results import Equilibrium, SolverError
 from .bilevel import check_options, fit, fit_moving_boxes, method_run
 from .inner import InnerProblem
 from .midline_checks import as_points, check_midline
-from .profile_noise import (NOISE_SOURCES, log_noise, noise_dof, noise_variance,
-                            threshold_quantile, traces_missing)
+from .profile_noise import (NOISE_SOURCES, check_inflation, log_noise, noise_dof,
+                            noise_variance, parameter_noise, threshold_quantile, traces_missing)
 from .profile_retry import Retry, crossing, needs_retry, refine_crossing, retried, started_at
 from .results import FitResult, fit_result
 from .spec import FitSpec
@@ -536,12 +536,11 @@ def _walk(opt: _Optimum, name: str, steps: list[float], direction: float, step: 
 
 
 def _profile(opt: _Optimum, data, name: str, points: int, span, method: str, tol: float,
-             confidence: float, noise, bar) -> tuple[Profile, tuple | None]:
+             confidence: float, noise, bar, inflation=None) -> tuple[Profile, tuple | None]:
     """The profile of ``name`` about the optimum ``opt`` (see :func:`profile`), and its
     lowest refit (:func:`_walk`; its refits counted on the progress bar ``bar``)."""
     bar.set_description(f"profile of {name}")
-    sigma2, source = noise_variance(data, opt.S, len(opt.theta), noise)
-    dof = noise_dof(data, source)
+    sigma2, source, dof = parameter_noise(data, opt.S, len(opt.theta), noise, inflation, name)
     q = threshold_quantile(confidence, dof)
     below, above, step = _grid(opt, name, points, span, q, sigma2)
     threshold = opt.S + sigma2 * q
@@ -614,7 +613,8 @@ def profiled_fit(spec: FitSpec, data, names: Sequence[str] | None = None, *,
                  result: FitResult | None = None, points: int = 20, span=None,
                  method: str = "gradient", nodes: int | None = None,
                  confidence: float = 0.95, noise: str | float = "auto",
-                 tol: float = 1e-8) -> tuple[FitResult, dict[str, Profile]]:
+                 tol: float = 1e-8, inflation: Mapping[str, float] | None = None
+                 ) -> tuple[FitResult, dict[str, Profile]]:
     """Profiles of several fitted parameters, and the fit they are about.
 
     The fit is refitted once on the profiles' inner problem (by ``method``, from
@@ -631,6 +631,8 @@ def profiled_fit(spec: FitSpec, data, names: Sequence[str] | None = None, *,
     ----------
     spec, data, names, result, points, span, method, nodes, confidence, noise, tol
         As :func:`profile_intervals`.
+    inflation : mapping, optional
+        Name → factor on the residual's σ² (a single trace's, :func:`parameter_noise`).
 
     Returns
     -------
@@ -648,6 +650,7 @@ def profiled_fit(spec: FitSpec, data, names: Sequence[str] | None = None, *,
         raise ValueError(f"the result fitted {list(result.fitted)}, the spec "
                          f"{list(spec.fitted)}: not a fit of this spec")
     noise_variance(data, 1.0, len(spec.fitted), noise)      # (checks it before any work)
+    check_inflation(inflation, names)
     log_noise(data, noise)
     points_ = as_points(data)
     check_midline(spec, points_)
@@ -657,8 +660,8 @@ def profiled_fit(spec: FitSpec, data, names: Sequence[str] | None = None, *,
     with counter(len(names) * points, desc="profiles: the fit refitted", unit="refit") as bar:
         opt = _optimum(spec, points_, result, method, nodes, tol)
         return _about_minimum(opt, method, tol, bar, lambda opt: {
-            n: _profile(opt, data, n, points, spans.get(n), method, tol, confidence, noise, bar)
-            for n in names})
+            n: _profile(opt, data, n, points, spans.get(n), method, tol, confidence, noise, bar,
+                        inflation) for n in names})
 
 
 def _about_minimum(opt: _Optimum, method: str, tol: float, bar, run) -> tuple:

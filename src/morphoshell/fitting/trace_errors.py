@@ -24,7 +24,8 @@ and the sandwich (JᵀJ)⁻¹Jᵀ Σ J(JᵀJ)⁻¹ the parameters' (computed as 
 responses (JᵀJ)⁻¹Jᵀe_b).  On 39 replicate traces it matched the covariance of the reader's
 true errors (200 seeds) within 1–7 %; on 76, ±1.96 SE covered f₁ 0.93 and the others
 0.93–1.00, but κ₁ 0.83 and κ₂ 0.86 (κ₁'s estimate is skewed: a linearised error cannot
-cover it).  Profile thresholds still take σ² from the residual.
+cover it).  A single trace's profile thresholds take the residual's σ² times each parameter's
+(SE here / Gauss–Newton SE)² (:func:`morphoshell.fitting.profile_noise.parameter_noise`).
 """
 from __future__ import annotations
 
