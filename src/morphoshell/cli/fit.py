@@ -1,8 +1,6 @@
 """``morphoshell fit``: the Volvox model fitted to a traced midline."""
 from __future__ import annotations
 
-import math
-
 from pathlib import Path
 
 from ._args import (FORMAT_HELP, OUTLIER_POINTS_HELP, SECTION_HELP, TRACE_OPTIONS, add_outputs,
@@ -240,6 +238,7 @@ def csv_columns(result) -> dict:
 
 def _fit(args) -> int:
     from ..fitting import EVALUATION_LIMITS, N_FIT
+    from ..fitting.trace_errors import profile_inflation
     from ..io.problem_files import write_csv, write_json
     from ._fit_stops import MISFIT, far_above, stop_line
 
@@ -250,9 +249,9 @@ def _fit(args) -> int:
     unit, default = EVALUATION_LIMITS[args.method]
     limit = args.max_evaluations or default
     result, starts = _run_fit(args, spec, midline, limit, unit)
-    trace = _single_trace(args)
+    retraced = _retracings(result, _single_trace(args), args)
     gauss_newton = result.standard_errors
-    result = _trace_errors(result, trace, args)
+    result = _trace_errors(result, retraced)
     print(result.summary())
     print(f"  E_fit = {result.E_fit:.6g} R over {N_FIT} points; {result.inner_solves} inner "
           f"solves, {result.seconds:.2f} s")
@@ -261,10 +260,11 @@ def _fit(args) -> int:
               f"lowest E_fit, the fit above):\n{starts.table()}")
     before, profiles = result, {}
     if names:
-        result, profiles = run_profiles(args, spec, data, result, names,
-                                        _inflation(gauss_newton, result))
+        inflation = (profile_inflation(gauss_newton, result.standard_errors)
+                     if retraced is not None else None)
+        result, profiles = run_profiles(args, spec, data, result, names, inflation)
         if result is not before:        # (the fit was not its minimum: the refit is the fit)
-            result = _trace_errors(result, trace, args)
+            result = _trace_errors(result, retraced)    # (the same data: the same re-tracings)
             print(refit_lines(before, result))
             limit = EVALUATION_LIMITS["gradient"][1]      # (the refit's: profile_intervals)
         print(profile_table(result, profiles))
@@ -329,34 +329,30 @@ def _single_trace(args):
     return traces[0] if len(traces) == 1 else None
 
 
-def _trace_errors(result, trace, args):
-    """``result`` with the standard errors of its one image trace's pixel noise carried
-    through the reader (:mod:`morphoshell.fitting.trace_errors`; the Gauss–Newton ones assume
-    independent residuals and were 1.3–1.8x too small), said in a note; as it is without a
-    trace or a Jacobian."""
+def _retracings(result, trace, args):
+    """The data's errors from re-tracings of its one image trace
+    (:func:`morphoshell.fitting.trace_errors.reader_errors`), said in a note, or None without
+    a single trace or a Jacobian (the Gauss–Newton errors stand)."""
     if trace is None or result.jacobian is None:
-        return result
-    from ..fitting.trace_errors import TRACE_REPLICATES, with_trace_errors
+        return None
+    from ..fitting.trace_errors import TRACE_REPLICATES, reader_errors
 
     section = "half" if args.section == "half" else "whole"     # (align's rule for images)
-    result, sigma = with_trace_errors(result, result.jacobian, trace, section)
+    errors, sigma = reader_errors(result.data, trace, section)
     pixels = sigma * args.radius_um / args.pixel_size
     note(f"the ± are the errors of the trace's pixel noise (about {pixels:.2g} px) carried through its alignment and resampling, from "
          f"{TRACE_REPLICATES} simulated re-tracings (not the Gauss–Newton errors, which take the "
          f"midline's points as independent)")
-    return result
+    return errors
 
 
-def _inflation(gauss_newton: dict, result) -> dict | None:
-    """Per parameter, (SE of the trace's re-tracings / Gauss–Newton SE)²: the factor on the
-    residual's σ² that puts a single trace's profile intervals on the errors printed beside
-    them (:func:`morphoshell.fitting.profile_noise.parameter_noise`); None where the errors
-    are the Gauss–Newton ones."""
-    if result.standard_errors is gauss_newton:
-        return None
-    return {name: (se / gauss_newton[name]) ** 2 for name, se in result.standard_errors.items()
-            if math.isfinite(se) and math.isfinite(gauss_newton.get(name, math.nan))
-            and gauss_newton[name] > 0}
+def _trace_errors(result, retraced):
+    """``result`` with the sandwich errors of its trace's re-tracings (the Gauss–Newton ones
+    assume independent residuals and were 1.3–1.8x too small), or as it is without them."""
+    if retraced is None or result.jacobian is None:
+        return result
+    from ..fitting.trace_errors import with_trace_errors
+    return with_trace_errors(result, retraced)
 
 
 def _local_minimum_note(result) -> None:

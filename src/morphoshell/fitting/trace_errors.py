@@ -30,6 +30,7 @@ cover it).  A single trace's profile thresholds take the residual's σ² times e
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import Mapping
 
 import numpy as np
 
@@ -37,7 +38,8 @@ from ..io.midlines import align, resample
 from ..io.trace_noise import noise_estimate
 from ..io.traces import Trace, to_image
 
-__all__ = ["TRACE_REPLICATES", "reader_errors", "sandwich_errors", "with_trace_errors"]
+__all__ = ["TRACE_REPLICATES", "reader_errors", "sandwich_errors", "with_trace_errors",
+           "profile_inflation"]
 
 #: Synthetic re-tracings per fit: the standard errors' own relative error is about 1/√(2B),
 #: 7 % (about 1.5 s on the 470 points of a whole section at 133 px per R).
@@ -71,17 +73,18 @@ def reader_errors(data: np.ndarray, trace: Trace, section: str,
     sigma, _ = noise_estimate(trace.points)
     template = to_image(data, radius_px=1.0, section=section) * [1.0, -1.0]     # y up
     dense = resample(template, len(trace.points))
-    clean = _read(dense, section)
+    n = len(data)
+    clean = _read(dense, section, n)
     rng = np.random.default_rng(seed)
-    errors = [(_read(dense + rng.normal(0.0, sigma, dense.shape), section) - clean).T.ravel()
+    errors = [(_read(dense + rng.normal(0.0, sigma, dense.shape), section, n) - clean).T.ravel()
               for _ in range(replicates)]
     return np.array(errors), sigma
 
 
-def _read(points: np.ndarray, section: str) -> np.ndarray:
-    """The N = 100 point midline the reader makes of image points (units of R, y up)."""
+def _read(points: np.ndarray, section: str, n: int) -> np.ndarray:
+    """The ``n`` point midline the reader makes of image points (units of R, y up)."""
     trace = Trace(points, "re-tracing", "xy", tuple(f"point {i}" for i in range(len(points))))
-    return resample(align(trace, section).points, 100)
+    return resample(align(trace, section).points, n)
 
 
 def sandwich_errors(J: np.ndarray, errors: np.ndarray) -> np.ndarray:
@@ -102,24 +105,34 @@ def sandwich_errors(J: np.ndarray, errors: np.ndarray) -> np.ndarray:
     return np.atleast_2d(np.cov(responses, rowvar=False))
 
 
-def with_trace_errors(result, J: np.ndarray, trace: Trace, section: str,
-                      replicates: int = TRACE_REPLICATES):
-    """``result`` with its standard errors and correlation from the trace's noise (sandwich).
+def with_trace_errors(result, errors: np.ndarray):
+    """``result`` with its standard errors and correlation from the data's ``errors``
+    (:func:`reader_errors`: its trace's re-tracings) by the sandwich at its Jacobian.
 
-    Parameters that the Gauss–Newton errors left NaN (on a constraint) stay NaN.
+    The re-tracings depend on the data and the trace only, so one set serves the fit and a
+    refit of the same data (the profiles' lower fit).  Parameters that the Gauss–Newton
+    errors left NaN (on a constraint) stay NaN.
 
     Returns
     -------
-    result : FitResult
+    FitResult
         ``standard_errors`` and ``correlation`` replaced.
-    sigma : float
-        The trace's noise per coordinate, units of R.
     """
-    errors, sigma = reader_errors(result.data, trace, section, replicates)
-    cov = sandwich_errors(J, errors)
+    cov = sandwich_errors(result.jacobian, errors)
     se = np.sqrt(np.maximum(np.diag(cov), 0.0))
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov / np.outer(se, se)
     keep = {n: float("nan") for n, e in result.standard_errors.items() if not np.isfinite(e)}
     return replace(result, standard_errors={**dict(zip(result.fitted, se.tolist())), **keep},
-                   correlation=corr), sigma
+                   correlation=corr)
+
+
+def profile_inflation(gauss_newton: Mapping[str, float],
+                      sandwich: Mapping[str, float]) -> dict[str, float]:
+    """Per parameter, (sandwich SE / Gauss–Newton SE)²: the factor on the residual's σ² that
+    puts a single trace's profile intervals on the errors printed beside them
+    (:func:`morphoshell.fitting.profile_noise.parameter_noise`); parameters without both
+    errors (on a constraint) are left out."""
+    return {name: (se / gauss_newton[name]) ** 2 for name, se in sandwich.items()
+            if np.isfinite(se) and np.isfinite(gauss_newton.get(name, np.nan))
+            and gauss_newton[name] > 0}

@@ -20,7 +20,7 @@ from .inversion import SYMBOL
 from .recoil_velocity import VelocityFit
 from .summaries import Spread
 
-__all__ = ["InverseResult"]
+__all__ = ["InverseResult", "methods_ran"]
 
 
 def _weighted(c) -> str:
@@ -30,6 +30,17 @@ def _weighted(c) -> str:
     over = "" if c.weighted_n == c.n else (f" (over the {c.weighted_n} of {c.n} embryos whose "
                                            f"combined k has an error)")
     return f"{c.weighted_mean:.4f} +- {c.weighted_error:.4f}{over}"
+
+
+def methods_ran(settings: Mapping, kind: str) -> bool:
+    """Whether a run's methods (``settings["methods"]``) include ``kind`` ("numerical",
+    "inner" or "asymptotic": any of leading_order and kelvin); settings without them ran
+    them all."""
+    methods = settings.get("methods")
+    if methods is None:
+        return True
+    return (kind in methods if kind != "asymptotic"
+            else bool({"leading_order", "kelvin"} & set(methods)))
 
 
 def _column_unit(column: str) -> str:
@@ -75,13 +86,7 @@ class InverseResult:
         return f"InverseResult({len(self.embryos)} embryos, {k}{v})"
 
     def _ran(self, kind: str) -> bool:
-        """Whether the run's methods include ``kind`` ("numerical", "inner" or "asymptotic":
-        any of leading_order and kelvin); results without the setting ran them all."""
-        methods = self.settings.get("methods")
-        if methods is None:
-            return True
-        return (kind in methods if kind != "asymptotic"
-                else bool({"leading_order", "kelvin"} & set(methods)))
+        return methods_ran(self.settings, kind)
 
     def _cell(self, e: EmbryoEstimate, m: str) -> str:
         """An embryo's k from measure ``m``: numerical (asymptotic), or the one that ran."""

@@ -127,13 +127,14 @@ def _reference_lines(ax: Axes, result) -> None:
 
 def _k_legend(ax: Axes, result, truth: bool, off_scale: bool, where: str) -> None:
     """Every marker kind, in grey (the colours are the measures, named above the groups)."""
+    from ..inverse.result import methods_ran
+
     grey = dict(color="0.3", ls="none", mew=1.0)
-    methods = set(result.settings.get("methods", ("leading_order", "kelvin", "numerical")))
     entries = []
-    if methods & {"leading_order", "kelvin"}:
+    if methods_ran(result.settings, "asymptotic"):
         entries.append((Line2D([], [], marker="o", mfc="white", ms=_MS, **grey),
                         "asymptotic (paper's formulas)"))
-    if "numerical" in methods:       # (a legend entry of a method not run misled, audit 13)
+    if methods_ran(result.settings, "numerical"):   # (an entry of a method not run misled)
         entries.append((Line2D([], [], marker="o", ms=_MS, **grey),
                         f"numerical (toy problem 2, "
                         f"{result.settings['theory'].replace('_', '-')})"))
