@@ -112,6 +112,21 @@ def test_noiseless_round_trip_closed_forms_and_inner(k):
                 assert abs(est.k - k) < tol, (method, measure, est)
 
 
+def test_methods_not_run_leave_no_entries_or_notes():
+    # a column of nulls for a method that was not asked for read as its failure,
+    # and every embryo's notes said the combined k was missing
+    k = 0.3
+    e = I.estimate_embryo(_measurement({"opening": A.opening(H, k, SIGMA),
+                                        "rotation": A.rotation_small_cut(H, k, SIGMA),
+                                        "displacement": A.displacement_small_cut(H, k, SIGMA)}),
+                          methods=("kelvin",))
+    d = e.to_dict()
+    assert "k_rotation_kelvin" in d and "k_opening_kelvin" in d      # (no formula: null, noted)
+    assert not any(key.startswith(("k_combined", "k_rotation_numerical", "k_opening_inner",
+                                   "k_rotation_leading_order")) for key in d), sorted(d)
+    assert e.notes and not any("combined" in n or "not requested" in n for n in e.notes)
+
+
 def test_error_propagation_uses_the_exact_slope(model):
     p = model.evaluate(H, SIGMA, 0.05)
     m = _measurement({"opening": p.opening, "rotation": p.rotation,

@@ -23,7 +23,11 @@ from .inversion import (ASYMPTOTIC, DEFAULT_K_RANGE, METHODS, SYMBOL, Curve, Est
                         check_curvature, check_k_range, forward_map, invert)
 from .recoil_model import RecoilModel
 
-__all__ = ["EmbryoEstimate", "estimate_embryo", "format_k"]
+__all__ = ["EmbryoEstimate", "estimate_embryo", "format_k", "NOT_REQUESTED"]
+
+#: The note of the estimates of a method left out of ``methods`` (and of the combined k
+#: without ``numerical``): no entry in the JSON or the table, and no note.
+NOT_REQUESTED = "method not requested"
 
 
 def format_k(k: float | None) -> str:
@@ -60,19 +64,23 @@ class EmbryoEstimate:
     def notes(self) -> list[str]:
         """Why estimates are missing (``measure, method: reason``)."""
         out = [f"{m}, {meth}: {e.note}" for (m, meth), e in self.estimates.items()
-               if e.note and meth != "asymptotic" and e.note != "method not requested"]
-        return out + ([f"combined: {self.combined.note}"] if self.combined.note else [])
+               if e.note and meth != "asymptotic" and e.note != NOT_REQUESTED]
+        c = self.combined.note
+        return out + ([f"combined: {c}"] if c and c != NOT_REQUESTED else [])
 
     def to_dict(self) -> dict:
         """The JSON object of the embryo (keys ``k_<measure>_<method>`` …, ``notes``)."""
         m = self.measurement
         out: dict = {"embryo": m.embryo, "row": m.row, "h": m.h, "cut_rad": m.cut,
                      "sigma_inner": m.cut / asymptotics.delta(m.h)}
+        # (a method not run has no entry: a column of nulls read as its failure)
         for (measure, method), e in self.estimates.items():
-            out[f"k_{measure}_{method}"] = e.k
-            out[f"k_{measure}_{method}_error"] = e.error    # (null without sigma: same keys)
-        out["k_combined"] = self.combined.k
-        out["k_combined_error"] = self.combined.error
+            if e.note != NOT_REQUESTED:
+                out[f"k_{measure}_{method}"] = e.k
+                out[f"k_{measure}_{method}_error"] = e.error   # (null without sigma: same keys)
+        if self.combined.note != NOT_REQUESTED:
+            out["k_combined"] = self.combined.k
+            out["k_combined_error"] = self.combined.error
         out["notes"] = self.notes
         if m.extra:
             out["extra"] = dict(m.extra)
@@ -157,7 +165,8 @@ def estimate_embryo(m: Measurement, model: RecoilModel | None = None,
         Range of k searched.
     methods : sequence of str
         Subset of :data:`morphoshell.inverse.inversion.METHODS`; the others
-        get the status ``missing`` ("method not requested").
+        get the status ``missing`` (note :data:`NOT_REQUESTED`), and so does the
+        combined k without ``"numerical"``.
 
     Returns
     -------
@@ -186,12 +195,14 @@ def estimate_embryo(m: Measurement, model: RecoilModel | None = None,
         if method not in methods:
             for measure in MEASURES:
                 out[(measure, method)] = Estimate(measure, method, None, status="missing",
-                                                  note="method not requested")
+                                                  note=NOT_REQUESTED)
             continue
         curve = Curve(forward_map(method, m.h, m.cut, model))
         out |= _by_method(m, method, curve, k_range)
         seconds[method] = time.perf_counter() - t0
     for measure in MEASURES:
         out[(measure, "asymptotic")] = out[(measure, ASYMPTOTIC[measure])]
-    combined = _combine([out[("rotation", "numerical")], out[("displacement", "numerical")]])
+    combined = (_combine([out[("rotation", "numerical")], out[("displacement", "numerical")]])
+                if "numerical" in methods else
+                Estimate("combined", "numerical", None, status="missing", note=NOT_REQUESTED))
     return EmbryoEstimate(m, out, combined, seconds)
