@@ -83,3 +83,18 @@ def test_derived_errors_of_the_estimated_values_are_the_estimate_itself():
         assert [lv.solver.nodes for lv in eq.error.levels] == \
             [(eq.solver.nodes - 1) // 2 + 1, (eq.solver.nodes - 1) // 4 + 1]
         assert all(lv.error is None for lv in eq.error.levels)   # (no chain of meshes)
+
+
+def test_a_loose_tol_puts_the_solvers_stopping_error_into_the_estimate():
+    # audit 16: each level stops as far from its own discrete solution, so the
+    # levels' differences missed a cold solve's stopping error at tol = 1e-6
+    # (r_start 1.1e-10 off, estimate 4.2e-11).  The same mesh solved to the
+    # default tol is within 1e-12 of the discrete solution here, so its difference
+    # from the loose solve is the stopping error itself, which the estimate must cover
+    p = Problem("uniform", {"k": 0.0}, h=1e-3, cut=0.5)
+    loose = solve(p, nodes=800, tol=1e-6, continuation=False)
+    tight = solve(p, nodes=800, continuation=False)
+    a, b = loose.estimated_values(), tight.estimated_values()
+    assert abs(a["r_start"] - b["r_start"]) > 1e-11        # (the case shows the stopping error)
+    for key in a:
+        assert loose.error.errors[key] >= abs(a[key] - b[key]), key

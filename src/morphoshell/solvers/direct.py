@@ -29,7 +29,7 @@ from ..numerics.ipopt import IpoptBackend
 from ..numerics.mesh import MeshSpec, pole_exponent
 from ..numerics.newton import NewtonBackend
 from ..numerics.status import MERIDIAN_CROSSES_AXIS, NOT_A_MINIMUM, explain
-from .options import check_direct_options, thin_shell_note
+from .options import DIRECT_TOL, check_direct_options, thin_shell_note
 from .poles import weakly_singular
 from .results import (FIELDS, Equilibrium, NotAMinimumError, Quadrature, SolverError, SolverStats,
                       unconverged)
@@ -211,7 +211,7 @@ class DirectSolver:
     def __init__(self, structure: Structure, nodes: int = 200, *, stages: int = 2,
                  mesh: MeshSpec | None = None, grading_width: float | None = None,
                  domain_length: float | None = None, edge_scale: float | None = None,
-                 linear_solver: str = "mumps", tol: float = 1e-10, max_iter: int = 500,
+                 linear_solver: str = "mumps", tol: float = DIRECT_TOL, max_iter: int = 500,
                  stability: str = "auto", ipopt_options: Mapping[str, Any] | None = None,
                  newton: bool = True):
         # every option before the mesh and the transcription are built

@@ -27,9 +27,11 @@ from .results import Equilibrium
 
 __all__ = ["check_problem", "check_guess", "check_anchors", "check_direct_options", "check_bvp_options",
            "check_shooting_options", "MAX_DIRECT_TOL", "REFERENCE_TOL", "ATOL", "RTOL",
-           "POLE_OFFSET", "STABILITY", "INTEGRATORS", "MIN_DIRECT_THICKNESS",
+           "POLE_OFFSET", "STABILITY", "INTEGRATORS", "MIN_DIRECT_THICKNESS", "DIRECT_TOL",
            "thin_shell_note", "BVP_ADVICE"]
 
+#: Default ``tol`` of the direct route (Ipopt's and Newton's, at 800 points).
+DIRECT_TOL = 1e-10
 #: Largest ``tol`` of the direct route (Ipopt's and Newton's, at 800 points).
 MAX_DIRECT_TOL = 1e-4
 #: Range of the reference routes' tolerances: bvp ``tol`` and ``bc_tol``, shooting ``tol``.
@@ -97,7 +99,7 @@ def check_anchors(anchors: Any) -> tuple:
     return tuple(anchors)
 
 
-def check_direct_options(*, stages: Any = 2, linear_solver: Any = "mumps", tol: Any = 1e-10,
+def check_direct_options(*, stages: Any = 2, linear_solver: Any = "mumps", tol: Any = DIRECT_TOL,
                          max_iter: Any = 500, stability: Any = "auto",
                          ipopt_options: Any = None) -> None:
     """The direct route's options (:class:`~morphoshell.solvers.direct.DirectSolver`), or a

@@ -30,7 +30,7 @@ from .arclength import Arclength
 from .contact import warn_if_walls_overlap
 from .continuation import continue_to, left_branch
 from .direct import BUILDS, MAX_NODES, DirectSolver, check_nodes
-from .options import check_anchors, check_guess, check_problem, thin_shell_note
+from .options import DIRECT_TOL, check_anchors, check_guess, check_problem, thin_shell_note
 from .paths import ParameterLine
 from .refinement import half_mesh, refine, solve_from
 from .results import Equilibrium, NotAMinimumError, SolverError, SolverStats, unconverged
@@ -256,9 +256,20 @@ def _direct(problem, nodes, warm_start, anchors, continuation, rtol, max_nodes,
         eq = solver.solve(problem, anchors=anchors)
         eq = replace(eq, solver=replace(eq.solver, details={**eq.solver.details, "path": "cold"}))
     eq = refine(eq, lambda n: direct_solver(problem, n, anchors, **options), rtol, anchors,
-                max_nodes)
+                max_nodes, _polisher(problem, anchors, options))
     warn_if_walls_overlap(eq)       # (a minimum of the model, but not a physical shape)
     return eq
+
+
+def _polisher(problem: Problem, anchors, options: dict):
+    """For a ``tol`` looser than the default: a solution solved on to the default on its
+    own mesh, whose difference is its stopping error in the estimate
+    (:func:`~morphoshell.solvers.refinement.stopping_errors`); None otherwise."""
+    if options.get("tol", DIRECT_TOL) <= DIRECT_TOL:
+        return None
+    tight = {**options, "tol": DIRECT_TOL}
+    return lambda eq: direct_solver(problem, eq.solver.nodes, anchors, **tight).solve(
+        problem, warm_start=eq, anchors=anchors)
 
 
 def _warm(solver: DirectSolver, problem: Problem, start: Equilibrium, anchors) -> Equilibrium:
