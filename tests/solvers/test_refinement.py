@@ -98,3 +98,16 @@ def test_a_loose_tol_puts_the_solvers_stopping_error_into_the_estimate():
     assert abs(a["r_start"] - b["r_start"]) > 1e-11        # (the case shows the stopping error)
     for key in a:
         assert loose.error.errors[key] >= abs(a[key] - b[key]), key
+
+
+def test_a_loose_tols_stopping_error_reaches_an_ablations_observables():
+    # derived_errors adds the observables' stopping error as solve() adds the energy's:
+    # the same ablation solved to the default tol differs from the loose one by it
+    from morphoshell.mechanics.ablation import ablate
+
+    p = Problem("uniform", {"k": 0.0}, h=1e-3, cut=0.5)
+    loose = ablate(p, nodes=800, tol=1e-6, continuation=False)
+    tight = ablate(p, nodes=800, continuation=False)
+    assert loose.errors and not loose.error_note
+    for key, err in loose.errors.items():
+        assert err >= abs(getattr(loose, key) - getattr(tight, key)), key

@@ -26,8 +26,7 @@ from .direct import MAX_NODES, DirectSolver
 from .paths import stress_free
 from .results import ESTIMATED, Equilibrium, ErrorEstimate, SolverError, energy_floor
 
-__all__ = ["solve_from", "estimate", "level_errors", "stopping_errors", "derived_errors", "refine",
-           "refine_once",
+__all__ = ["solve_from", "estimate", "level_errors", "derived_errors", "refine", "refine_once",
            "half_mesh", "too_coarse", "coarse_level", "SAFETY", "COARSE"]
 
 log = logging.getLogger(__name__)
@@ -102,7 +101,7 @@ def level_errors(fine: dict, coarse: dict, coarser: dict | None, order: int) -> 
 
 def estimate(fine: Equilibrium, coarse: Equilibrium | None, order: int, note: str = "",
              coarser: Equilibrium | None = None,
-             stopping: dict | None = None) -> ErrorEstimate:
+             polished: Equilibrium | None = None) -> ErrorEstimate:
     """Error estimate of ``fine`` from the half-mesh solution ``coarse`` (None: unavailable).
 
     With the quarter-mesh solution ``coarser`` too, each error is
@@ -111,11 +110,12 @@ def estimate(fine: Equilibrium, coarse: Equilibrium | None, order: int, note: st
     two; fuzzing found a Volvox shell whose energy at 100 and 200 nodes agreed
     to 1.5e-11 while both were 3.6e-10 off), but then the coarser level still
     shows the size of the error, reduced at most by the design order.  Both
-    are multiplied by :data:`SAFETY`.  ``stopping``: the stopping error of
-    ``fine`` solved to a looser ``tol`` than the default (:func:`stopping_errors`),
-    added: the levels, each stopped as far from its own discrete solution, do not
-    show it (audit 16: a thin shell's ψ at the rim 1.3e-7 off at tol = 1e-6 on
-    1600 nodes, estimate 4.1e-8).
+    are multiplied by :data:`SAFETY`.  ``polished``: ``fine`` solved on to the
+    default ``tol`` on its own mesh, where it was solved to a looser one:
+    SAFETY |fine − polished|, its stopping error, is added, since the levels,
+    each stopped as far from its own discrete solution, do not show it (audit
+    16: a thin shell's ψ at the rim 1.3e-7 off at tol = 1e-6 on 1600 nodes,
+    estimated 4.1e-8 by the levels).
 
     Returns
     -------
@@ -130,11 +130,17 @@ def estimate(fine: Equilibrium, coarse: Equilibrium | None, order: int, note: st
         errors = level_errors(values, coarse.estimated_values(),
                               None if coarser is None else coarser.estimated_values(), order)
         ref = coarse.solver.nodes
-    if stopping is not None:
-        errors = {k: e + stopping[k] for k, e in errors.items()}
+    if polished is not None:
+        errors = _plus_stopping(errors, values, polished.estimated_values())
     levels = tuple(eq for eq in (coarse, coarser) if eq is not None) if coarse else ()
     return ErrorEstimate(errors, values, fine.solver.nodes, ref, order, note,
-                         energy_floor(fine.problem.h, stress_free(fine.problem)), levels)
+                         energy_floor(fine.problem.h, stress_free(fine.problem)), levels,
+                         polished)
+
+
+def _plus_stopping(errors: dict, values: dict, polished: dict) -> dict:
+    """``errors`` plus SAFETY |values − polished|: the stopping error of a loose ``tol``."""
+    return {k: e + SAFETY * abs(values[k] - polished[k]) for k, e in errors.items()}
 
 
 def derived_errors(measure: Callable[..., dict], *fine: Equilibrium) -> tuple[dict, str]:
@@ -170,8 +176,13 @@ def derived_errors(measure: Callable[..., dict], *fine: Equilibrium) -> tuple[di
             return {k: float("nan") for k in values}, why
     depth = min(len(eq.error.levels) for eq in fine)
     levels = [measure(*(eq.error.levels[i] for eq in fine)) for i in range(depth)]
-    return level_errors(values, levels[0], levels[1] if depth > 1 else None,
-                        fine[0].error.order), ""
+    errors = level_errors(values, levels[0], levels[1] if depth > 1 else None,
+                          fine[0].error.order)
+    if any(eq.error.polished is not None for eq in fine):
+        polished = measure(*(eq if eq.error.polished is None else eq.error.polished
+                             for eq in fine))
+        errors = _plus_stopping(errors, values, polished)
+    return errors, ""
 
 
 def too_coarse(est: ErrorEstimate) -> tuple[str, float] | None:
@@ -234,7 +245,7 @@ def refine(eq: Equilibrium, solver_for: Callable[[int], DirectSolver], rtol: flo
     polish : callable, optional
         ``eq -> eq`` solved on to the default tolerance on its mesh, for solutions
         solved to a looser ``tol``: its stopping error joins the estimate
-        (:func:`stopping_errors`).
+        (:func:`estimate`'s ``polished``).
 
     Returns
     -------
@@ -255,7 +266,8 @@ def refine(eq: Equilibrium, solver_for: Callable[[int], DirectSolver], rtol: flo
     if reference is not None:
         coarser, _ = coarse_level(solver_for, half_mesh(half_mesh(nodes)), problem,
                                    reference, anchors)
-    est = estimate(eq, reference, order, note, coarser, stopping_errors(polish, eq))
+    polished, why = _polished(polish, eq)
+    est = estimate(eq, None if why else reference, order, why or note, coarser, polished)
     if rtol is None and not est.note:
         _warn_if_coarse(est, nodes)
     eq = replace(eq, error=est)
@@ -280,19 +292,17 @@ def refine(eq: Equilibrium, solver_for: Callable[[int], DirectSolver], rtol: flo
     return eq
 
 
-def stopping_errors(polish: Callable[[Equilibrium], Equilibrium] | None,
-                    eq: Equilibrium) -> dict | None:
-    """SAFETY |eq − polish(eq)| for every estimated value: how far the solver stopped from
-    the discrete solution (None without ``polish``; NaN where ``polish`` fails: unknown,
-    not left out)."""
+def _polished(polish: Callable[[Equilibrium], Equilibrium] | None,
+              eq: Equilibrium) -> tuple[Equilibrium | None, str]:
+    """(``polish(eq)``, "") (None without ``polish``), or (None, why) where it fails: the
+    stopping error is then unknown, and so is the estimate."""
     if polish is None:
-        return None
-    values = eq.estimated_values()
+        return None, ""
     try:
-        exact = polish(eq).estimated_values()
-    except SolverError:
-        return {k: float("nan") for k in values}
-    return {k: SAFETY * abs(v - exact[k]) for k, v in values.items()}
+        return polish(eq), ""
+    except SolverError as exc:
+        return None, (f"solved to a looser tol than the default, it did not solve on to it "
+                      f"on its own mesh ({exc.status}): its stopping error is unknown")
 
 
 def refine_once(eq: Equilibrium, solver_for: Callable[[int], DirectSolver],
@@ -321,7 +331,7 @@ def refine_once(eq: Equilibrium, solver_for: Callable[[int], DirectSolver],
     finer, how = _finer(solver, eq.problem, eq, anchors)
     levels = eq.error.levels if eq.error is not None else ()
     # (the levels without their own estimates: a chain of them would keep every mesh alive)
-    est = estimate(finer, replace(eq, error=None), 2 * solver.stages,
-                   coarser=levels[0] if levels else None,
-                   stopping=stopping_errors(polish, finer))
+    polished, why = _polished(polish, finer)
+    est = estimate(finer, None if why else replace(eq, error=None), 2 * solver.stages, why,
+                   coarser=levels[0] if levels else None, polished=polished)
     return replace(finer, error=est), how

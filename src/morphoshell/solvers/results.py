@@ -141,6 +141,11 @@ class ErrorEstimate:
         from the solution, such as an ablation's observables, is estimated from the same
         levels (:func:`morphoshell.solvers.refinement.derived_errors`) without solving
         them again; neither written out nor compared.
+    polished : Equilibrium or None
+        This solution solved on to the default ``tol`` on its own mesh, where it was
+        solved to a looser one (its stopping error is in ``errors``, and
+        :func:`~morphoshell.solvers.refinement.derived_errors` adds a derived
+        quantity's); None otherwise.  Neither written out nor compared.
     """
 
     errors: Mapping[str, float]
@@ -151,6 +156,7 @@ class ErrorEstimate:
     note: str = ""
     energy_floor: float = ENERGY_FLOOR
     levels: tuple = field(default=(), repr=False, compare=False)
+    polished: Any = field(default=None, repr=False, compare=False)
 
     def relative(self) -> dict[str, float]:
         """Errors relative to their scale: the energy to max(|𝓔|, ``energy_floor``), edge
