@@ -264,7 +264,7 @@ def _direct(problem, nodes, warm_start, anchors, continuation, rtol, max_nodes,
 def _polisher(problem: Problem, anchors, options: dict):
     """For a ``tol`` looser than the default: a solution solved on to the default on its
     own mesh, whose difference is its stopping error in the estimate
-    (:func:`~morphoshell.solvers.refinement.stopping_errors`); None otherwise."""
+    (:func:`~morphoshell.solvers.refinement.estimate`'s ``polished``); None otherwise."""
     if options.get("tol", DIRECT_TOL) <= DIRECT_TOL:
         return None
     tight = {**options, "tol": DIRECT_TOL}
