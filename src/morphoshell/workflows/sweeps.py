@@ -566,7 +566,9 @@ def sweep(problem: Problem, axes: Mapping[str, Sequence], *, ablate: bool = Fals
     n, blank = len(points), _blank_row(ablate)
     settings = settings_record(problem, axes, ablate, nodes, errors, chunk_size,
                                {**options, "stages": stages})
-    results = whole_chunks(restored(resume, settings, blank, axes, ablate) if resume else {}, chunks, n)
+    kept = (restored(resume, settings, blank, axes, ablate,
+                     ABLATE_COLUMNS if ablate else SOLVE_COLUMNS) if resume else {})
+    results = whole_chunks(kept, chunks, n)
     chunks = [c for c in chunks if results[c[0]] is None]     # (the others restored)
     todo = sum(map(len, chunks))
     if workers is None and scheduler is None and not os.environ.get("DASK_SCHEDULER_ADDRESS"):
