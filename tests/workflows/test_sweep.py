@@ -254,6 +254,23 @@ def test_a_deprecated_axis_name_warns_once(caplog):
     assert sum("deprecated" in r.getMessage() for r in caplog.records) == 1
 
 
+def test_the_max_points_advice_is_the_whole_grids_size():
+    """A 100-value range beside 3 values of h, over --max-points 60: the range alone was
+    refused, advising --max-points 100, which the 300-point grid then exceeded (audit 17 F2).
+    The first refusal gives 300, which works; a huge range is still refused before any list
+    of values is made."""
+    from morphoshell.cli.sweep import parse_axes
+    from morphoshell.io.problem_files import ProblemFileError
+    items = ["k=1:3:100", "h=0.05,0.1,0.2"]
+    with pytest.raises(ProblemFileError, match=r"^--set: the grid has 300 points, more than "
+                                               r"60: give fewer values, or --max-points 300 "):
+        parse_axes(items, max_points=60)
+    axes, _ = parse_axes(items, max_points=300)
+    assert [len(v) for v in axes.values()] == [100, 3]
+    with pytest.raises(ProblemFileError, match=r"the grid has 3,000,000,000,000,000 points"):
+        parse_axes(["h=0.1,0.2,0.3", "k=0:1:1000000000000000"])
+
+
 def test_a_sweep_past_a_branch_point_gives_solves_dome(blister):
     """Past the blister disc's first branch point (G = 0.003) the flat disc is unstable: a
     sweep's point there falls back on continuation, which switches to the stable dome as

@@ -86,3 +86,19 @@ def test_points_are_named_by_every_axis():
     res = sweep(TOY2, {"k": [0.0, 0.5], "h": [0.2, 0.3]}, nodes=20, workers=1, errors="none")
     assert res.points([0, 3]) == "(k, h) = (0, 0.2), (0.5, 0.3)"
     assert res.points(np.array([False, True, False, False])) == "(k, h) = (0, 0.3)"
+
+
+def test_a_stress_free_point_is_judged_by_solves_energy_scale(caplog):
+    """At k = 1 the toy sphere is stress-free: its energy (2e-12 C R^2) is the discretisation
+    of zero, and solve() scales its error (1.5e-9) by h, 3e-8 of it, no warning.  The sweep
+    built its own estimate with the round-off floor and warned 'energy 6.6e+02 ... too
+    coarse' (audit 17 F1); it now takes solve()'s (refinement.error_estimate).  A truly
+    coarse mesh (12 nodes, k = 0.9 beside it: energy 3.3 of itself) still warns."""
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        sweep(TOY2, {"k": [1.0, 1.4], "h": [0.05, 0.1]}, nodes=60, workers=1)
+        assert _warnings(caplog) == []
+        solve(TOY2.with_updates(k=1.0, h=0.05), nodes=60)
+        assert _warnings(caplog) == []
+        sweep(TOY2.with_updates(h=0.03), {"k": [0.9, 1.0]}, nodes=12, workers=1, errors="all")
+    warnings = _warnings(caplog)
+    assert len(warnings) == 1 and "at 1 of 2 points (k = 0.9; the largest: energy" in warnings[0]

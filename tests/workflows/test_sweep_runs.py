@@ -215,6 +215,11 @@ def test_resume_restores_rows_at_their_coordinates(tmp_path, monkeypatch, whole,
     _same_rows(res, whole)
 
 
+def _nan(row):
+    """An empty value as the file holds it (CSV: no text, JSON: null)."""
+    return "" if isinstance(row["k"], str) else None
+
+
 def _with_k(row, k):
     """``row`` with its axis cell k set to ``k`` (as the file holds it: text in a CSV)."""
     return {**row, "k": k if isinstance(row["k"], float) else repr(k)}
@@ -234,6 +239,15 @@ def _with_k(row, k):
      r", row 1 has no column 'k'"),
     (lambda rows: [rows[0], {**rows[1], "energy": "banana"}, *rows[2:]],
      r", row 2, column 'energy': 'banana' is not a number"),
+    # cells other than the coordinates (audit 17 F6: restored and written back, exit 0)
+    (lambda rows: [rows[0], {**rows[1], "status": "Bogus_Status"}, *rows[2:]],
+     r", row 2, column 'status': 'Bogus_Status' is not a status of morphoshell "
+     r"\(numerics\.status\.STATUSES\): the file was edited"),
+    (lambda rows: [rows[0], {**rows[1], "energy": _nan(rows[1])}, *rows[2:]],
+     r", row 2, column 'energy': nan on a row that did not fail \(status Newton_Converged, "
+     r"no message\)"),
+    (lambda rows: [rows[0], {**rows[1], "walls_cross": "yes"}, *rows[2:]],
+     r", row 2, column 'walls_cross': 'yes' is not True or False"),
 ])
 def test_resume_refuses_a_row_not_at_a_point_of_the_grid(tmp_path, monkeypatch, computed, kind,
                                                          edit, match):
@@ -268,3 +282,99 @@ def test_resume_names_a_partial_json_without_settings(tmp_path, computed):
     with pytest.raises(ValueError, match=re.escape(str(path)) + r': a partial sweep without '
                                                                 r'its "settings"'):
         sweep(TOY2, AXES, **KW, resume=path)
+
+
+@pytest.mark.parametrize("cell, value, match", [
+    ("status", 5, r"column 'status': 5 is not text"),
+    ("iterations", 1.5, r"column 'iterations': 1\.5 is not a whole number"),
+    ("walls_cross", 0, r"column 'walls_cross': 0 is not True or False"),
+    ("energy", True, r"column 'energy': True is not a number"),
+])
+def test_resume_refuses_a_json_cell_of_another_type(tmp_path, computed, cell, value, match):
+    """JSON's types were cast: a status 5 read '5', iterations 1.5 read 1 (audit 17 F6)."""
+    path = _edited(computed[1], tmp_path, lambda rows: [{**rows[0], cell: value}, *rows[1:]])
+    with pytest.raises(ValueError, match=re.escape(str(path)) + ", row 1, " + match):
+        sweep(TOY2, AXES, **KW, resume=path)
+
+
+@pytest.mark.parametrize("kind", ["csv", "json"])
+def test_resume_reads_a_file_with_a_byte_order_mark(tmp_path, monkeypatch, whole, computed,
+                                                    kind):
+    """An editor's BOM before the mark read as 'a complete sweep ... no PARTIAL mark'."""
+    path = tmp_path / f"bom.{kind}"
+    path.write_bytes(b"\xef\xbb\xbf" + computed[kind == "json"].read_bytes())
+    monkeypatch.setattr(SWEEPS, "_run_chunk", lambda *a, **k: pytest.fail("work began"))
+    res = sweep(TOY2, AXES, **KW, resume=path)
+    assert res.timing["restored"] == 6
+    _same_rows(res, whole)
+
+
+@pytest.mark.parametrize("kind", ["csv", "json"])
+def test_resume_names_a_file_that_is_not_utf8(tmp_path, computed, kind):
+    """It said "'utf-8' codec can't decode byte 0xff in position 0", naming no file."""
+    path = tmp_path / f"latin.{kind}"
+    text = computed[kind == "json"].read_bytes()
+    path.write_bytes(text[:60] + b"\xff" + text[60:])
+    with pytest.raises(ValueError, match=re.escape(str(path)) + r": not UTF-8 text \(byte 0xff "
+                                                                r"at 60\)"):
+        sweep(TOY2, AXES, **KW, resume=path)
+
+
+def test_resume_names_a_csv_row_cut_short(tmp_path, computed):
+    """A file cut mid-row said "row 6, column 'iterations': None is not a number"."""
+    path = tmp_path / "cut.csv"
+    text = computed[0].read_text()
+    path.write_text(text[:text.rindex("Newton_Converged") + 3] + "\n")
+    with pytest.raises(ValueError, match=re.escape(str(path)) + r", row 6, column 'iterations': "
+                                                                r"the row is cut short"):
+        sweep(TOY2, AXES, **KW, resume=path)
+    path.write_text(text.rstrip("\n") + ",extra\n")
+    with pytest.raises(ValueError, match=re.escape(str(path)) + r", row 6: more cells than"):
+        sweep(TOY2, AXES, **KW, resume=path)
+
+
+def test_resume_names_what_is_not_a_partial_json(tmp_path, computed):
+    """A JSON list, or an object without "complete": false, was refused in the CSV's words
+    (no 'morphoshell sweep PARTIAL' mark)."""
+    path = tmp_path / "list.json"
+    path.write_text("[1, 2]")
+    with pytest.raises(ValueError, match=re.escape(str(path)) + r": not a sweep's JSON \(a list "
+                                                                r"at the top, not an object\)"):
+        sweep(TOY2, AXES, **KW, resume=path)
+    data = json.loads(computed[1].read_text())
+    del data["complete"]
+    path.write_text(json.dumps(data))
+    with pytest.raises(ValueError, match=r'a complete sweep, or none \(no "complete": false\)'):
+        sweep(TOY2, AXES, **KW, resume=path)
+
+
+def test_resume_calls_the_automatic_chunk_size_automatic(computed):
+    """It said 'chunk_size = 2, not None' (None is the automatic size)."""
+    with pytest.raises(ValueError, match=r"with chunk_size = 2, not automatic \(--chunk-size\)"):
+        sweep(TOY2, AXES, **{**KW, "chunk_size": None}, resume=computed[0])
+
+
+def test_cli_refuses_an_edited_status_exit_2(tmp_path, capsys, monkeypatch):
+    """On the command line: one line naming the file, the row and the column, exit 2, the
+    file left as it was."""
+    from morphoshell.io.problem_files import example_text
+
+    problem = tmp_path / "toy2.toml"
+    problem.write_text(example_text("toy2_ablation"))
+    path = tmp_path / "part.csv"
+    args = ["sweep", str(problem), "--set", "k=0,0.4,0.8,1.2,1.6,2", "--nodes", "30",
+            "--workers", "1", "--chunk-size", "2", "--csv", str(path)]
+    _stopping(monkeypatch)
+    assert main(args) == 130
+    monkeypatch.undo()
+    lines = path.read_text().splitlines(keepends=True)
+    assert lines[3].count("Newton_Converged") == 1         # row 1, computed
+    path.write_text("".join([*lines[:3], lines[3].replace("Newton_Converged", "Bogus_Status"),
+                             *lines[4:]]))
+    before = path.read_bytes()
+    capsys.readouterr()
+    assert main([*args, "--resume"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1, err
+    assert f"{path}, row 1, column 'status': 'Bogus_Status' is not a status" in err
+    assert path.read_bytes() == before

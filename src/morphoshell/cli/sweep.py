@@ -92,16 +92,20 @@ def parse_axes(items, max_points: int = MAX_GRID) -> tuple[dict, dict]:
     """
     from ..io.problem_files import ProblemFileError, parse_overrides
 
+    # the whole grid's size before any list is made, so that the advice is the number that
+    # works (one long axis had been refused alone, advising a --max-points that the grid
+    # then exceeded: audit 17 F2)
+    size = _grid_size(items)
+    if size > max_points:
+        raise ProblemFileError(f"--set: the grid has {size:,} points, more than "
+                               f"{max_points:,}: give fewer values, or --max-points {size} to "
+                               f"insist")
     axes: dict = {}
     scalars: dict = {}
     for item in items:
-        key, sep, value = item.partition("=")
-        key, value = key.strip(), value.strip()
-        if not sep or not key or not value:
-            raise ProblemFileError(f"--set {item!r}: expected KEY=VALUE, KEY=a,b,c or "
-                                   f"KEY=start:stop:num")
-        if "," in value or ":" in value:
-            name, values = _axis(item, key, value, max_points)
+        key, value = _split(item)
+        if _is_axis(value):
+            name, values = _axis(item, key, value)
             target = axes
         else:
             parsed = parse_overrides([item])
@@ -111,38 +115,38 @@ def parse_axes(items, max_points: int = MAX_GRID) -> tuple[dict, dict]:
         if name in axes or name in scalars:
             raise ProblemFileError(f"--set {item!r}: {name} is set more than once")
         target[name] = values
-    size = math.prod(len(v) for v in axes.values())
-    if size > max_points:
-        raise ProblemFileError(f"--set: the grid has {size:,} points, more than "
-                               f"{max_points:,}: give fewer values, or --max-points {size} to "
-                               f"insist")
     return axes, scalars
 
 
-def _axis(item: str, key: str, value: str, max_points: int) -> tuple[str, list]:
-    """(name, values) of an axis item: ``KEY=a,b,c`` or ``KEY=start:stop:num``."""
-    from ..io.problem_files import SOLVER_KEYS, ProblemFileError, parse_overrides
-
-    if ":" in value:
-        name, values = _range(item, key, value, max_points)
-    else:
-        items = [v.strip() for v in value.split(",")]
-        if "" in items:
-            raise ProblemFileError(f"--set {item!r}: an empty value in the list {value!r}")
-        # (the first value resolves a deprecated alias, and warns of it, once for all)
-        name = next(iter(parse_overrides([f"{key}={items[0]}"])))
-        values = [parse_overrides([f"{name}={v}"])[name] for v in items]
-    if name in SOLVER_KEYS or name in ("family", "geometry", "name"):
-        raise ProblemFileError(f"--set {item!r}: {name} cannot be a sweep axis")
-    return name, values
+def _grid_size(items) -> int:
+    """The number of points of the grid the ``--set`` items span (:func:`_count` of each axis)."""
+    values = [(item, _split(item)[1]) for item in items]
+    return math.prod(_count(item, value) for item, value in values if _is_axis(value))
 
 
-def _range(item: str, key: str, value: str, max_points: int) -> tuple[str, list]:
-    """(name, values) of ``KEY=start:stop:num``: ``num`` numbers, both ends included."""
-    import numpy as np
+def _split(item: str) -> tuple[str, str]:
+    """(key, value) of a ``--set`` item, or ``ProblemFileError`` naming it."""
+    from ..io.problem_files import ProblemFileError
 
-    from ..io.problem_files import ProblemFileError, parse_overrides
+    key, sep, value = item.partition("=")
+    key, value = key.strip(), value.strip()
+    if not sep or not key or not value:
+        raise ProblemFileError(f"--set {item!r}: expected KEY=VALUE, KEY=a,b,c or "
+                               f"KEY=start:stop:num")
+    return key, value
 
+
+def _is_axis(value: str) -> bool:
+    return "," in value or ":" in value
+
+
+def _count(item: str, value: str) -> int:
+    """How many values an axis item gives (``KEY=a,b,c`` or ``KEY=start:stop:num``),
+    without making them; ``ProblemFileError`` naming a malformed range."""
+    from ..io.problem_files import ProblemFileError
+
+    if ":" not in value:
+        return len(value.split(","))
     parts = [v.strip() for v in value.split(":")]
     if len(parts) != 3 or "," in value:
         raise ProblemFileError(f"--set {item!r}: a range is start:stop:num "
@@ -155,9 +159,35 @@ def _range(item: str, key: str, value: str, max_points: int) -> tuple[str, list]
     if num < 1:
         raise ProblemFileError(f"--set {item!r}: the number of values must be "
                                f"at least 1, got {num}")
-    if num > max_points:
-        raise ProblemFileError(f"--set {item!r}: {num:,} values, more than {max_points:,}: "
-                               f"give fewer, or --max-points {num} to insist")
+    return num
+
+
+def _axis(item: str, key: str, value: str) -> tuple[str, list]:
+    """(name, values) of an axis item: ``KEY=a,b,c`` or ``KEY=start:stop:num``."""
+    from ..io.problem_files import SOLVER_KEYS, ProblemFileError, parse_overrides
+
+    if ":" in value:
+        name, values = _range(item, key, value)
+    else:
+        items = [v.strip() for v in value.split(",")]
+        if "" in items:
+            raise ProblemFileError(f"--set {item!r}: an empty value in the list {value!r}")
+        # (the first value resolves a deprecated alias, and warns of it, once for all)
+        name = next(iter(parse_overrides([f"{key}={items[0]}"])))
+        values = [parse_overrides([f"{name}={v}"])[name] for v in items]
+    if name in SOLVER_KEYS or name in ("family", "geometry", "name"):
+        raise ProblemFileError(f"--set {item!r}: {name} cannot be a sweep axis")
+    return name, values
+
+
+def _range(item: str, key: str, value: str) -> tuple[str, list]:
+    """(name, values) of ``KEY=start:stop:num``: ``num`` numbers, both ends included."""
+    import numpy as np
+
+    from ..io.problem_files import ProblemFileError, parse_overrides
+
+    num = _count(item, value)
+    parts = [v.strip() for v in value.split(":")]
     ends = [parse_overrides([f"{key}={v}"]) for v in parts[:2]]
     name = next(iter(ends[0]))
     if not all(isinstance(e[name], float) for e in ends):

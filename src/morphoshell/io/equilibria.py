@@ -15,8 +15,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..solvers.paths import stress_free
-from ..solvers.results import FIELDS, Equilibrium, ErrorEstimate, SolverStats, energy_floor
+from ..solvers.refinement import error_estimate
+from ..solvers.results import FIELDS, Equilibrium, ErrorEstimate, SolverStats
 from .problem_files import problem_of_record, read_json
 
 __all__ = ["load_equilibrium", "equilibrium_of_record"]
@@ -82,15 +82,14 @@ def equilibrium_of_record(record: Mapping[str, Any], where: str = "the record") 
 def _error_estimate(record: Mapping[str, Any], eq: Equilibrium, where: str) -> ErrorEstimate:
     """The :class:`ErrorEstimate` of a saved ``error_estimate`` (:meth:`ErrorEstimate.to_dict`):
     the errors as written (None, JSON's NaN, back to NaN), the estimated values those of
-    ``eq`` and the energy's floor of its problem, as :func:`~morphoshell.solvers.refinement.
-    estimate` gives them."""
+    ``eq`` and the energy's floor of its problem, by :func:`~morphoshell.solvers.refinement.
+    error_estimate` as ``solve()``'s."""
     try:
         errors = {k: float("nan") if v is None else float(v)
                   for k, v in dict(record["errors"]).items()}
-        return ErrorEstimate(errors, eq.estimated_values(), int(record["nodes"]),
-                             int(record["reference_nodes"]), int(record["order"]),
-                             str(record.get("note", "")),
-                             energy_floor(eq.problem.h, stress_free(eq.problem)))
+        est = error_estimate(eq, errors, int(record["reference_nodes"]), int(record["order"]),
+                             str(record.get("note", "")))
+        return replace(est, nodes=int(record["nodes"]))
     except (KeyError, TypeError, ValueError):
         raise ValueError(f"{where}: error_estimate is not the record of an error estimate "
                          f"(errors, nodes, reference_nodes, order)") from None

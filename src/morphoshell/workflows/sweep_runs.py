@@ -35,6 +35,7 @@ from typing import Any, Callable, Iterator, Mapping, Sequence
 
 from .._runtime import interrupts
 from .._runtime.console import counter
+from ..numerics.status import STATUSES
 from .executor import backend_name, open_executor, run
 from .sweep_results import NOT_COMPUTED, SweepResult, axis_column, point_label
 
@@ -47,6 +48,9 @@ PARTIAL = "morphoshell sweep PARTIAL"
 SETTINGS = "settings: "
 #: The message of a row that a partial sweep did not compute.
 NOT_COMPUTED_MESSAGE = "not computed: the sweep was interrupted"
+#: What to do about a row that the sweep did not write so (a refusal says it).
+_EDITED = ("the file was edited or made by another sweep; restore the row as the sweep wrote "
+           "it, or delete it (a point without a row is computed again)")
 #: The command line's option of each setting (a refusal names it).
 _OPTIONS = {"ablate": "--ablate", "nodes": "--nodes", "errors": "--errors",
             "chunk_size": "--chunk-size", "stages": "--stages", "linear_solver": "--linear-solver",
@@ -158,7 +162,8 @@ def whole_chunks(kept: Mapping[int, dict], chunks: Sequence[Sequence[int]], n: i
 
 
 def restored(path: str | Path, settings: Mapping[str, Any], blank: Mapping[str, Any],
-             axes: Mapping[str, Sequence], ablate: bool) -> dict[int, dict]:
+             axes: Mapping[str, Sequence], ablate: bool,
+             values: Sequence[str] = ()) -> dict[int, dict]:
     """The rows a partial sweep file (:meth:`SweepInterrupted.write`) computed, by their
     index in this sweep's grid.
 
@@ -181,14 +186,20 @@ def restored(path: str | Path, settings: Mapping[str, Any], blank: Mapping[str, 
         This sweep's axes (name → values, the product's order).
     ablate : bool
         Ablation sweep (the axis ``opening`` is the column ``opening_P``).
+    values : sequence of str
+        The value columns, finite on a row that did not fail (one without a message).
 
     Raises
     ------
     ValueError
-        The file is not a partial sweep (a complete one, say) or lacks its settings, was
-        made with other settings (the first named, and its option), or has a row that
-        lacks a column, has a cell that is not a value, is at coordinates that are not a
-        point of the grid or repeats another row's (the row and its coordinates named).
+        The file is not UTF-8 text or not a partial sweep (a complete one, say) or lacks
+        its settings, was made with other settings (the first named, and its option), or
+        has a row that is cut short, lacks a column, has a cell that is not a value of
+        its column's type (a status outside :data:`~morphoshell.numerics.status.STATUSES`,
+        a non-finite value on a row that did not fail, a ``walls_cross`` neither True nor
+        False), is at coordinates that are not a point of the grid or repeats another
+        row's (the file, the row and the column named).  A text file may start with a
+        UTF-8 byte-order mark (an editor's).
     """
     path = Path(path)
     if not path.exists():
@@ -212,7 +223,22 @@ def restored(path: str | Path, settings: Mapping[str, Any], blank: Mapping[str, 
         if row["status"] != NOT_COMPUTED:
             out[index] = {k: _typed(row[k], like, f"{where}, column {k!r}")
                           for k, like in keys.items()}
+            _check_row(out[index], values, where)
     return out
+
+
+def _check_row(row: Mapping[str, Any], values: Sequence[str], where: str) -> None:
+    """ValueError (``where``: the file and the row) where a restored row is not one a sweep
+    writes: a status not of the table, a non-finite value on a row that did not fail (audit
+    17: both were restored and written back, the row not counted as failed)."""
+    if row["status"] not in STATUSES:
+        raise ValueError(f"{where}, column 'status': {row['status']!r} is not a status of "
+                         f"morphoshell (numerics.status.STATUSES): {_EDITED}")
+    if row["message"] == "":
+        bad = next((k for k in values if not math.isfinite(row[k])), None)
+        if bad is not None:
+            raise ValueError(f"{where}, column {bad!r}: {row[bad]!r} on a row that did not "
+                             f"fail (status {row['status']}, no message): {_EDITED}")
 
 
 class _Grid:
@@ -242,13 +268,11 @@ class _Grid:
                    if isinstance(value, float) and math.isfinite(value) else "")
         label = point_label(dict(zip(self.axes, point)), self.ablate)
         raise ValueError(f"{where}: {label} is not a point of this sweep ({column} = {value!r} "
-                         f"is none of its {len(values)} values{nearest}): the file was edited "
-                         f"or made by another sweep; restore the row as the sweep wrote it, "
-                         f"or delete it (a point without a row is computed again)")
+                         f"is none of its {len(values)} values{nearest}): {_EDITED}")
 
 
-def _not_partial(path: Path) -> ValueError:
-    return ValueError(f"{path}: a complete sweep, or none (no '{PARTIAL}' mark): nothing to "
+def _not_partial(path: Path, mark: str = f"'{PARTIAL}' mark") -> ValueError:
+    return ValueError(f"{path}: a complete sweep, or none (no {mark}): nothing to "
                       f"resume, and a complete file does not record every setting its rows "
                       f"depend on to be checked against this sweep's; run without --resume "
                       f"to compute it again (it overwrites the file), or write elsewhere")
@@ -260,9 +284,22 @@ def _no_settings(path: Path, what: str) -> ValueError:
                       f"overwrites the file)")
 
 
+def _not_utf8(path: Path, exc: UnicodeDecodeError) -> ValueError:
+    return ValueError(f"{path}: not UTF-8 text (byte {exc.object[exc.start]:#04x} at "
+                      f"{exc.start}): not a file that a sweep wrote")
+
+
 def _read_csv(path: Path) -> tuple[dict, list[dict]]:
     """(settings, rows as text) of a partial sweep's CSV."""
-    with open(path, newline="") as f:
+    try:
+        return _read_csv_text(path)
+    except UnicodeDecodeError as exc:
+        raise _not_utf8(path, exc) from None
+
+
+def _read_csv_text(path: Path) -> tuple[dict, list[dict]]:
+    # (utf-8-sig: an editor's byte-order mark hid the first line's mark, audit 17)
+    with open(path, newline="", encoding="utf-8-sig") as f:
         head, line = f.readline(), f.readline()
         if not head.startswith(f"# {PARTIAL}:"):
             raise _not_partial(path)
@@ -275,17 +312,35 @@ def _read_csv(path: Path) -> tuple[dict, list[dict]]:
         if not isinstance(recorded, dict) or not recorded:
             raise _no_settings(path, "whose settings line (line 2) is damaged (not a JSON "
                                      "object of settings)")
-        return recorded, list(csv.DictReader(f))
+        return recorded, [_whole(path, i, row) for i, row in enumerate(csv.DictReader(f))]
+
+
+def _whole(path: Path, i: int, row: dict) -> dict:
+    """CSV row ``i`` (from 0), or ValueError naming it if it has fewer cells than the header
+    (``csv`` fills them with None: it read as "None is not a number") or more."""
+    short = next((k for k, v in row.items() if v is None), None)
+    if short is not None:
+        raise ValueError(f"{path}, row {i + 1}, column {short!r}: the row is cut short (it "
+                         f"ends before this column): {_EDITED}")
+    if None in row:
+        raise ValueError(f"{path}, row {i + 1}: more cells than the header's columns: "
+                         f"{_EDITED}")
+    return row
 
 
 def _read_json(path: Path) -> tuple[dict, list[dict]]:
     """(settings, rows) of a partial sweep's JSON."""
     try:
-        data = json.loads(path.read_text())
+        data = json.loads(path.read_text(encoding="utf-8-sig"))
+    except UnicodeDecodeError as exc:
+        raise _not_utf8(path, exc) from None
     except ValueError:
         raise ValueError(f"{path}: not JSON") from None
-    if not isinstance(data, dict) or data.get("complete") is not False:
-        raise _not_partial(path)
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: not a sweep's JSON (a {type(data).__name__} at the top, "
+                         f"not an object): nothing to resume")
+    if data.get("complete") is not False:
+        raise _not_partial(path, '"complete": false')
     recorded = data.get("settings")
     if not isinstance(recorded, dict) or not recorded:
         raise _no_settings(path, "without its \"settings\" (or with them damaged)")
@@ -297,17 +352,26 @@ def _read_json(path: Path) -> tuple[dict, list[dict]]:
 
 def _typed(value, like, where: str):
     """A row's value as read (CSV text, or JSON) with the type of ``like``; NaN for empty;
-    ValueError naming ``where`` (the file, row and column) if it is not one."""
+    ValueError naming ``where`` (the file, row and column) if it is not one (a JSON
+    ``walls_cross`` "yes" read as False, ``iterations`` 1.5 as 1, a status 5 as '5')."""
     if isinstance(like, bool):
+        if not (isinstance(value, bool) or value in ("True", "False")):    # (not 0 or 1)
+            raise ValueError(f"{where}: {value!r} is not True or False")
         return value in (True, "True")
     if isinstance(like, str):
-        return str(value)
+        if not isinstance(value, str):
+            raise ValueError(f"{where}: {value!r} is not text")
+        return value
+    kind = "a whole number" if isinstance(like, int) else "a number"
+    # (JSON's true is an int to Python, and int() cuts 1.5 to 1)
+    if isinstance(value, bool) or (isinstance(like, int) and isinstance(value, float)):
+        raise ValueError(f"{where}: {value!r} is not {kind}")
     try:
         if isinstance(like, int):
             return int(value)
         return math.nan if value in ("", None) else float(value)
     except (TypeError, ValueError):
-        raise ValueError(f"{where}: {value!r} is not a number") from None
+        raise ValueError(f"{where}: {value!r} is not {kind}") from None
 
 
 def _check_settings(path: Path, recorded: Mapping, settings: Mapping) -> None:
@@ -318,13 +382,16 @@ def _check_settings(path: Path, recorded: Mapping, settings: Mapping) -> None:
         option = _OPTIONS.get(name[0], "--" + name[0].replace("_", "-"))
         if name[0] == "axes" and len(name) > 1:
             option = f"--set {name[1]}"
-        raise ValueError(f"{path}: a partial sweep with {'.'.join(name)} = {_short(theirs)}, "
-                         f"not {_short(ours)} ({option}): resume it with its settings, or run "
-                         f"without --resume to start again")
+        raise ValueError(f"{path}: a partial sweep with {'.'.join(name)} = "
+                         f"{_short(name, theirs)}, not {_short(name, ours)} ({option}): resume "
+                         f"it with its settings, or run without --resume to start again")
 
 
-def _short(value) -> str:
-    """A setting as a message shows it: a long list by its ends and length."""
+def _short(name: tuple, value) -> str:
+    """A setting as a message shows it: a long list by its ends and length, the automatic
+    chunk size as 'automatic' (it read "chunk_size = None")."""
+    if name == ("chunk_size",) and value is None:
+        return "automatic"
     if isinstance(value, list) and len(value) > 4:
         return f"[{value[0]!r}, ..., {value[-1]!r}] ({len(value)} values)"
     return repr(value)

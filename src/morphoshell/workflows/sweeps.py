@@ -105,8 +105,9 @@ from ..solvers.direct import check_nodes
 from ..solvers.contact import wall_contact
 from ..solvers.options import BVP_ADVICE, check_direct_options
 from ..solvers.observables import RECOIL
-from ..solvers.refinement import COARSE, coarse_level, half_mesh, level_errors, too_coarse
-from ..solvers.results import ESTIMATED, Equilibrium, ErrorEstimate, SolverError, energy_floor
+from ..solvers.refinement import (COARSE, coarse_level, error_estimate, half_mesh, level_errors,
+                                  too_coarse)
+from ..solvers.results import ESTIMATED, Equilibrium, SolverError
 from ..solvers.routes import DIRECT_OPTIONS
 from .sweep_notes import log_summary
 from .sweep_results import SweepResult, point_label, result_columns
@@ -448,8 +449,8 @@ def _solve_point(row: dict, problem: Problem, shell: Shell, estimate: bool,
         errors, row["_unestimated"] = _estimate([(shell, problem, (), post)],
                                                 lambda eqs: eqs[0].estimated_values(), order)
         row.update({f"{k}_error": v for k, v in errors.items()})
-        est = ErrorEstimate(errors, post.estimated_values(), shell.nodes,
-                            half_mesh(shell.nodes), order, energy_floor=energy_floor(problem.h))
+        # solve()'s estimate, its energy floor with it (h for a stress-free shell)
+        est = error_estimate(post, errors, half_mesh(shell.nodes), order)
         row["_coarse"] = too_coarse(est) if not row["_unestimated"] else None
     return (post,)
 
@@ -565,7 +566,9 @@ def sweep(problem: Problem, axes: Mapping[str, Sequence], *, ablate: bool = Fals
     n, blank = len(points), _blank_row(ablate)
     settings = settings_record(problem, axes, ablate, nodes, errors, chunk_size,
                                {**options, "stages": stages})
-    results = whole_chunks(restored(resume, settings, blank, axes, ablate) if resume else {}, chunks, n)
+    kept = (restored(resume, settings, blank, axes, ablate,
+                     ABLATE_COLUMNS if ablate else SOLVE_COLUMNS) if resume else {})
+    results = whole_chunks(kept, chunks, n)
     chunks = [c for c in chunks if results[c[0]] is None]     # (the others restored)
     todo = sum(map(len, chunks))
     if workers is None and scheduler is None and not os.environ.get("DASK_SCHEDULER_ADDRESS"):
