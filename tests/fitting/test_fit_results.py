@@ -3,9 +3,11 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from morphoshell import Problem
-from morphoshell.fitting import fit, volvox_spec
+from morphoshell.fitting import N_FIT, fit, volvox_spec
 
 
 @pytest.mark.parametrize("blowup, converged", [(1.0, True), (1e2, True), (1e6, False)])
@@ -165,3 +167,153 @@ def test_a_broken_fit_record_is_refused_naming_the_entry(pinned_fit, change, sai
     change(record)
     with pytest.raises(ValueError, match=said):
         FitResult.from_dict(record, "x.json")
+
+
+#: What an edit may put in place of an entry of a fit's JSON: other types, non-finite and
+#: negative numbers, ragged lists, a midline-like mapping.
+_JUNK = ["x", None, True, 5, -1.0, math.nan, math.inf, [], [1, 2], [[1, 2], [3]], {},
+         {"r": [1.0], "z": [1.0, 2.0]}]
+
+
+def _paths(value, path=()):
+    """Every path into a JSON value (keys; the first two and the last items of a list)."""
+    yield path
+    items = (value.items() if isinstance(value, dict) else
+             [(i, value[i]) for i in sorted({0, 1, len(value) - 1} & set(range(len(value))))]
+             if isinstance(value, list) else ())
+    for key, item in items:
+        yield from _paths(item, (*path, key))
+
+
+def _edited(record, edits):
+    """A deep copy of ``record`` with each (path, edit) of ``edits`` applied in turn: the
+    entry at the path dropped, shortened by its last item, lengthened by a copy of it
+    ("drop", "short", "long"), or replaced by the edit (an earlier edit may have removed
+    the path: then nothing)."""
+    import copy
+
+    record = copy.deepcopy(record)
+    for path, edit in edits:
+        if not path:
+            record = record if edit in ("drop", "short", "long") else copy.deepcopy(edit)
+            continue
+        parent = record
+        for key in path[:-1]:
+            parent = parent[key] if isinstance(parent, (dict, list)) and _has(parent, key) else None
+        if isinstance(parent, (dict, list)) and _has(parent, path[-1]):
+            _edit(parent, path[-1], edit)
+    return record
+
+
+def _has(container, key):
+    """Whether ``container`` (a dict or list) has the key or index."""
+    return key in container if isinstance(container, dict) else (
+        isinstance(key, int) and key < len(container))
+
+
+def _edit(parent, key, edit):
+    """Drop, shorten, lengthen or replace ``parent[key]`` (:func:`_edited`)."""
+    import copy
+
+    value = parent[key]
+    if edit == "drop":
+        del parent[key]
+    elif edit in ("short", "long"):
+        if isinstance(value, list) and value:
+            parent[key] = value[:-1] if edit == "short" else [*value, value[-1]]
+    else:
+        parent[key] = copy.deepcopy(edit)
+
+
+def _loads_or_names_the_file(file, record):
+    """Write ``record`` to ``file`` and read it with load_fit: it loads, or a ValueError of
+    one line starting with the file's name (no other exception, no warning)."""
+    import json
+    import warnings
+
+    from morphoshell.fitting import load_fit
+
+    file.write_text(json.dumps(record))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        try:
+            load_fit(file)
+        except ValueError as exc:
+            assert str(exc).startswith(f"{file}: ") and "\n" not in str(exc), str(exc)
+
+
+@pytest.fixture(scope="module")
+def saved_fit(pinned_fit, tmp_path_factory):
+    """(record, paths, folder): a small fit's JSON record (60 nodes; null errors and
+    correlations on its constraint), every path into it, and a folder for edited copies."""
+    from morphoshell.io.problem_files import to_jsonable
+
+    record = to_jsonable(pinned_fit[2].to_dict())
+    return record, list(_paths(record)), tmp_path_factory.mktemp("edited")
+
+
+_EDITS = ["drop", "short", "long", *_JUNK]
+
+
+def test_every_single_edit_of_a_fit_json_loads_or_is_refused_naming_the_file(saved_fit):
+    """Audit 17 F5: edits of a fit's JSON (a list for parameters, a string for E_fit, a
+    ragged correlation) gave raw TypeError/ValueError messages naming neither the file nor
+    the entry, and a bogus variant or method was read without complaint.  Each entry (86
+    paths) dropped, replaced by another type, NaN or inf, or cut or lengthened by one item
+    (1290 files): the fit loads, or a ValueError of one line names the file."""
+    record, paths, folder = saved_fit
+    for path in paths:
+        for edit in _EDITS:
+            _loads_or_names_the_file(folder / "edited fit.json", _edited(record, [(path, edit)]))
+
+
+@given(data=st.data())
+@settings(max_examples=300, deadline=None, derandomize=True, database=None)
+def test_several_edits_of_a_fit_json_load_or_are_refused_naming_the_file(saved_fit, data):
+    """One to three of those edits at once (:func:`test_every_single_edit_of_a_fit_json_
+    loads_or_is_refused_naming_the_file`), as a hand edit may make them."""
+    record, paths, folder = saved_fit
+    edits = data.draw(st.lists(st.tuples(st.sampled_from(paths), st.sampled_from(_EDITS)),
+                               min_size=1, max_size=3))
+    _loads_or_names_the_file(folder / "edited fit.json", _edited(record, edits))
+
+
+@pytest.mark.parametrize("edits, said", [
+    ([(("parameters",), [1, 2])], "parameters = [1, 2] must map names to numbers"),
+    ([(("E_fit",), "x")], "E_fit = 'x' must be a real number"),
+    ([(("standard_errors", "s2"), "x")], "standard_errors.s2 = 'x' must be a real number"),
+    ([(("correlation",), [[1, 2], [3]])], "correlation must be a 2 x 2 matrix"),
+    ([(("variant",), "bogus")], "unknown variant 'bogus'; choose one of"),
+    ([(("method",), 5)], "unknown method 5; choose one of"),
+    ([(("fitted",), ["s2", "nope"])], "fitted = ['s2', 'nope'] must be a list of distinct names"),
+    ([(("converged",), "yes")], "converged = 'yes' must be True or False"),
+    ([(("stop",), "Done")], "stop = 'Done' is not a status"),
+    ([(("problem", "params"), [1, 2])], "problem.params = [1, 2] must map names to numbers"),
+    ([(("correlation", 0, 1), 5)], "correlation[0][1] = 5 must lie in [-1, 1]"),
+    ([(("fitted_midline", "r"), [0.0])], "fitted_midline must hold lists of numbers r and z"),
+    ([(("data_midline", "r"), "short"), (("data_midline", "z"), "short")],
+     f"fitted_midline has {N_FIT} points, data_midline {N_FIT - 1}: expected one fitted point"),
+])
+def test_an_edited_fit_json_is_refused_naming_the_file_and_entry(saved_fit, edits, said):
+    """The messages of the audit's edits (and a few more): the file, the entry, what it must
+    be."""
+    import json
+
+    from morphoshell.fitting import load_fit
+
+    record, _, folder = saved_fit
+    file = folder / "fit.json"
+    file.write_text(json.dumps(_edited({**record, "stop": "Fit_Converged"}, edits)))
+    with pytest.raises(ValueError) as exc:
+        load_fit(file)
+    assert str(exc.value).startswith(f"{file}: {said}"), str(exc.value)
+
+
+def test_a_spec_has_a_label_its_record_reads_back_with():
+    """A fit's record is read back with a variant of LABELS only: a spec refuses others."""
+    import dataclasses
+
+    spec = volvox_spec("free")
+    assert dataclasses.replace(spec, variant="custom").variant == "custom"
+    with pytest.raises(ValueError, match=r"variant = 'bogus' must be one of \['flat'"):
+        dataclasses.replace(spec, variant="bogus")

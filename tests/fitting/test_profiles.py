@@ -332,6 +332,9 @@ def test_fit_command_shows_progress_on_a_terminal_only(midline_csv, monkeypatch,
 @pytest.mark.parametrize("names, said", [
     ("f1,kappa9", "unknown parameter(s) ['kappa9']"),
     ("kappa1", "['kappa1'] not fitted in the flat variant"),
+    # audit 17 F7: "unknown parameter(s) []" named nothing
+    ("", "--profile '': no parameter named; give one or more of ['f1'"),
+    (" , ", "--profile ' , ': no parameter named"),
 ])
 def test_fit_command_refuses_bad_profile_names(midline_csv, tmp_path, capsys, names, said):
     out = tmp_path / "fit.json"

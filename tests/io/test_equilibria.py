@@ -100,3 +100,25 @@ def test_a_file_that_is_not_a_result_is_named(tmp_path):
     path.write_text("{not json")
     with pytest.raises(ValueError, match="bad.json: not valid JSON"):
         load_equilibrium(path)
+
+
+@pytest.mark.parametrize("command, said", [
+    (["sweep", "--set", "k=1.5,2"],
+     r"x.json is a sweep's JSON \(keys axes, rows\), not an equilibrium's: .*morphoshell solve "
+     r"PROBLEM --set KEY=VALUE --json"),
+    (["continue", "--param", "k", "--to", "1.55"],
+     r"x.json is a branch's JSON \(keys parameter, points\), not an equilibrium's: .*"
+     r"follow_branch\(\.\.\.\)\.points\[i\]\.equilibrium"),
+])
+def test_a_sweeps_or_a_branchs_json_is_named_as_one(tmp_path, command, said):
+    """Audit 17 F5: the JSON of sweep and continue was refused as "a result saved without
+    its arrays (to_dict(arrays=False))"; it is a table of values, and the message says so
+    and where a shape comes from instead, as it does for a fit's."""
+    from morphoshell.cli import main
+    from morphoshell.io.problem_files import example_path
+
+    path = tmp_path / "x.json"
+    main([command[0], str(example_path("toy2_ablation")), *command[1:], "--nodes", "40",
+          "--json", str(path)])
+    with pytest.raises(ValueError, match=said):
+        load_equilibrium(path)

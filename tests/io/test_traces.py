@@ -141,6 +141,28 @@ def test_malformed_files(tmp_path, name, content, message):
     assert message in str(exc.value) and str(path) in str(exc.value)
 
 
+@pytest.mark.parametrize("name, rows, said", [
+    ("huge.txt", GOOD_ROWS[:6] + ["1e308\t545"] + GOOD_ROWS[6:],
+     r"line 7: \(1e\+308, 545\) px, a coordinate so far out that the trace's length overflows"),
+    ("huge.txt", ["1.7e308\t0", "-1.7e308\t0"] + GOOD_ROWS, r"line 1: \(1\.7e\+308, 0\) px"),
+    ("huge.csv", ["r,z", "1.7e308,0", "-1.7e308,0", "0,1", "0,2"],
+     r"line 3: inf R from the first point"),
+])
+def test_an_absurd_coordinate_is_refused_at_its_line_without_a_warning(tmp_path, name, rows,
+                                                                        said):
+    """Audit 17 F7: a pixel trace with one cell 1e308 leaked numpy's overflow RuntimeWarning
+    (the sum of its steps) and was refused as doubling back on itself; a trace whose length
+    overflows is refused naming the point, and a csv trace's distance beyond floats is inf
+    (refused by the extent check, without a warning)."""
+    import warnings
+
+    path = _file(tmp_path, name, "\n".join(rows) + "\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(MidlineError, match=f"{name}: {said}"):
+            tr.read_trace(path, **({} if name.endswith("csv") else SCALE))
+
+
 def test_pixel_dump_names_the_right_export(tmp_path):
     path = _file(tmp_path, "pixels.txt", "0\t0\t12\n1\t0\t13\n")
     with pytest.raises(MidlineError, match="File › Save As › XY Coordinates"):

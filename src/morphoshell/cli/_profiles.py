@@ -61,9 +61,12 @@ def profile_names(text: str | None, spec, args=None) -> list[str]:
     if text.strip() == "all":
         return list(spec.fitted)
     names = [n.strip() for n in text.split(",") if n.strip()]
+    if not names:           # ("unknown parameter(s) []" named nothing)
+        raise ValueError(f"--profile {text!r}: no parameter named; give one or more of "
+                         f"{list(spec.fitted)}, comma-separated, or 'all'")
     family = spec.base.family_obj.parameters
     unknown = [n for n in names if n not in family]
-    if unknown or not names:
+    if unknown:
         raise ValueError(f"--profile {text!r}: unknown parameter(s) {unknown}; valid: "
                          f"{list(spec.fitted)} or 'all'")
     held = [n for n in names if n not in spec.fitted]

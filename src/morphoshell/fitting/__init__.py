@@ -16,7 +16,8 @@ import lazy_loader
 
 # Every public name of the subpackage, imported from its module on first use.
 __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
-    "spec": ["FitSpec", "SpecError", "volvox_spec", "breakpoint_bounds", "VARIANTS", "BOUNDS"],
+    "spec": ["FitSpec", "SpecError", "volvox_spec", "breakpoint_bounds", "VARIANTS", "LABELS",
+             "BOUNDS"],
     "inner": ["model_midline", "synthetic_midline", "N_FIT"],
     "results": ["FitResult", "FitError", "load_fit"],
     "midline_checks": ["intrinsic_lengths", "check_midline", "LENGTH_SLACK", "MAX_TURN",

@@ -24,13 +24,15 @@ import math
 
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Mapping
+from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import numpy as np
 
+from .._runtime.validate import flag, integer, lookup, real, within
 from ..io.problem_files import problem_of_record, read_json
-from ..numerics.status import FIT_CONVERGED, FIT_NEAR_FOLD, IPOPT_UNKNOWN
+from ..numerics.status import FIT_CONVERGED, FIT_NEAR_FOLD, IPOPT_UNKNOWN, STATUSES
 from ..solvers.results import Equilibrium, SolverError
+from .spec import LABELS
 
 if TYPE_CHECKING:
     from ..model.problem import Problem
@@ -174,8 +176,10 @@ class FitResult:
         ------
         ValueError
             A failed fit's record, a missing entry, a problem its parameters disagree
-            with (:func:`~morphoshell.io.problem_files.problem_of_record`), or
-            midlines that are not lists of numbers (the entry named).
+            with (:func:`~morphoshell.io.problem_files.problem_of_record`), or an entry
+            that is not what :meth:`to_dict` writes (of another type, not finite, of
+            another length, an unknown method, variant or stop): one line naming
+            ``where``, the entry and what it must be.
         """
         if record.get("status", "ok") != "ok":
             raise ValueError(f"{where}: the fit failed ({record.get('message', 'no message')}): "
@@ -184,20 +188,16 @@ class FitResult:
         if missing:
             raise ValueError(f"{where}: no {', '.join(missing)}: not a fit's record (the JSON "
                              f"of morphoshell fit --json or FitResult.to_dict())")
+        fields = _record_fields(record, where)
         problem = problem_of_record(record, where)
-        data, model = (_midline(record, key, where) for key in ("data_midline", "fitted_midline"))
-        converged = bool(record["converged"])
-        return cls(str(record.get("fitted_by", record["method"])), str(record["variant"]),
-                   tuple(record["fitted"]), dict(record["parameters"]),
-                   {n: np.nan if e is None else float(e)
-                    for n, e in record["standard_errors"].items()},
-                   np.array(record["correlation"], dtype=float),
-                   list(record["poorly_identified"]), float(record["E_fit"]),
-                   np.concatenate([model[:, 0] - data[:, 0], model[:, 1] - data[:, 1]]), None,
-                   data, model, int(record.get("outer_iterations", 0)),
-                   int(record.get("inner_solves", 0)), float(record.get("seconds", math.nan)),
-                   converged, str(record.get("message", "")), tuple(record.get("constrained", ())),
-                   str(record.get("stop", FIT_CONVERGED if converged else IPOPT_UNKNOWN)), problem)
+        data, model = (_entry(record, key, where, _midline)
+                       for key in ("data_midline", "fitted_midline"))
+        if len(data) != len(model):
+            raise ValueError(f"{where}: fitted_midline has {len(model)} points, data_midline "
+                             f"{len(data)}: expected one fitted point for each data point")
+        return cls(**fields, residuals=np.concatenate([model[:, 0] - data[:, 0],
+                                                       model[:, 1] - data[:, 1]]),
+                   equilibrium=None, data=data, model=model, problem=problem)
 
     def __repr__(self) -> str:
         return (f"FitResult({self.method}, {self.variant}, E_fit={self.E_fit:.6g} R, "
@@ -291,14 +291,136 @@ def load_fit(path: str | Path) -> FitResult:
     return FitResult.from_dict(record, str(path))
 
 
-def _midline(record: Mapping[str, Any], key: str, where: str) -> np.ndarray:
-    """The midline ``record[key]`` ({"r": [...], "z": [...]}) as an array of shape (N, 2)."""
+def _record_fields(record: Mapping[str, Any], where: str) -> dict[str, Any]:
+    """The :class:`FitResult` fields a fit's record holds (but its problem and midlines),
+    each checked (:func:`_entry`): optional ones at their defaults when absent."""
+    from .bilevel import METHODS      # (bilevel imports this module)
+
+    def get(key, check, *args, default=None):
+        return _entry(record, key, where, check, *args) if key in record else default
+
+    parameters = get("parameters", _numbers)
+    fitted = get("fitted", _names, parameters)
+    converged = get("converged", flag)
+    return {"method": get("fitted_by" if "fitted_by" in record else "method", _one_of, METHODS),
+            "variant": get("variant", _one_of, LABELS), "fitted": fitted,
+            "parameters": parameters, "standard_errors": get("standard_errors", _errors, fitted),
+            "correlation": get("correlation", _matrix, len(fitted)),
+            "poorly_identified": get("poorly_identified", _directions, fitted),
+            "E_fit": get("E_fit", within, 0.0, math.inf), "converged": converged,
+            "outer_iterations": get("outer_iterations", integer, 0, default=0),
+            "inner_solves": get("inner_solves", integer, 0, default=0),
+            "seconds": get("seconds", _optional, default=math.nan),
+            "message": get("message", _text, default=""),
+            "constrained": get("constrained", _names, None, default=()),
+            "stop": get("stop", _status, default=FIT_CONVERGED if converged else IPOPT_UNKNOWN)}
+
+
+def _entry(record: Mapping[str, Any], key: str, where: str, check, *args) -> Any:
+    """``check(key, record[key], *args)``, its ValueError or TypeError (the checks of
+    :mod:`morphoshell._runtime.validate` and those below: one line naming the entry and
+    what it must be) as a ValueError naming ``where`` too."""
     try:
-        points = np.column_stack([np.asarray(record[key][c], dtype=float) for c in "rz"])
-    except (KeyError, TypeError, ValueError):
-        raise ValueError(f"{where}: {key} must hold lists of numbers r and z of one "
-                         f"length") from None
-    return points
+        return check(key, record[key], *args)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{where}: {exc}") from None
+
+
+def _numbers(key: str, value: Any, names: Sequence[str] | None = None) -> dict[str, float]:
+    """``value`` as {name: finite number}, its names among ``names`` if given."""
+    if not isinstance(value, Mapping) or names is not None and not set(value) <= set(names):
+        raise ValueError(f"{key} = {value!r} must map "
+                         f"{'names' if names is None else f'some of {list(names)}'} to numbers")
+    return {n: real(f"{key}.{n}", v) for n, v in value.items()}
+
+
+def _names(key: str, value: Any, known: Mapping | None) -> tuple[str, ...]:
+    """``value`` as a tuple of distinct strings, each a key of ``known`` (if given) and at
+    least one of them."""
+    if not (isinstance(value, (list, tuple)) and all(isinstance(n, str) for n in value)
+            and len(set(value)) == len(value)
+            and (known is None or value and set(value) <= set(known))):
+        of = "strings" if known is None else "names of 'parameters', at least one"
+        raise ValueError(f"{key} = {value!r} must be a list of distinct {of}")
+    return tuple(value)
+
+
+def _one_of(key: str, value: Any, choices: Sequence[str]) -> str:
+    """``value``, one of ``choices`` (:func:`~morphoshell._runtime.validate.lookup`'s
+    message)."""
+    lookup(dict.fromkeys(choices), value, key)
+    return value
+
+
+def _status(key: str, value: Any) -> str:
+    """``value``, a status of :data:`~morphoshell.numerics.status.STATUSES` (too many to
+    list in a message)."""
+    if not (isinstance(value, str) and value in STATUSES):
+        raise ValueError(f"{key} = {value!r} is not a status of morphoshell.numerics.status."
+                         f"STATUSES (e.g. {FIT_CONVERGED!r})")
+    return value
+
+
+def _text(key: str, value: Any) -> str:
+    """``value``, a string."""
+    if not isinstance(value, str):
+        raise ValueError(f"{key} = {value!r} must be a string")
+    return value
+
+
+def _null(value: Any) -> bool:
+    """Whether ``value`` is null or NaN: a number the fit has not (JSON writes NaN as null:
+    a constraint's standard errors and correlations, a campaign's time)."""
+    return value is None or isinstance(value, float) and math.isnan(value)
+
+
+def _optional(key: str, value: Any) -> float:
+    """``value``, a number >= 0, or NaN for null or NaN (:func:`_null`)."""
+    return math.nan if _null(value) else within(key, value, 0.0, math.inf)
+
+
+def _errors(key: str, value: Any, fitted: tuple[str, ...]) -> dict[str, float]:
+    """``value`` as {fitted parameter: standard error}: a number >= 0, NaN for null."""
+    if not isinstance(value, Mapping) or set(value) != set(fitted):
+        raise ValueError(f"{key} must map each fitted parameter ({', '.join(fitted)}) to a "
+                         f"number, or null on a constraint")
+    return {n: _optional(f"{key}.{n}", e) for n, e in value.items()}
+
+
+def _matrix(key: str, value: Any, k: int) -> np.ndarray:
+    """``value`` as a k x k array of correlations in [-1, 1] (NaN for null or NaN: on a
+    constraint)."""
+    if not (isinstance(value, list) and len(value) == k
+            and all(isinstance(row, list) and len(row) == k for row in value)):
+        raise ValueError(f"{key} must be a {k} x {k} matrix (a list of {k} rows of {k} "
+                         f"correlations or null, one per fitted parameter)")
+    # (|correlation| <= 1 up to the round-off of cov / outer(se, se): 1e-6 leaves room for an
+    # ill-conditioned covariance and still refuses an edit)
+    slack = 1 + 1e-6
+    return np.array([[math.nan if _null(c) else within(f"{key}[{i}][{j}]", c, -slack, slack)
+                      for j, c in enumerate(row)] for i, row in enumerate(value)],
+                     dtype=float).reshape(k, k)
+
+
+def _directions(key: str, value: Any, fitted: tuple[str, ...]) -> list[dict]:
+    """``value`` as a list of {"singular_value": number in [0, 1], "direction": {fitted
+    parameter: number}} (:attr:`FitResult.poorly_identified`)."""
+    if not (isinstance(value, list) and all(isinstance(d, Mapping) and {
+            "singular_value", "direction"} <= set(d) for d in value)):
+        raise ValueError(f"{key} must be a list of {{'singular_value': number, 'direction': "
+                         f"{{fitted parameter: number}}}}")
+    return [{"singular_value": within(f"{key}[{i}].singular_value", d["singular_value"], 0, 1),
+             "direction": _numbers(f"{key}[{i}].direction", d["direction"], fitted)}
+            for i, d in enumerate(value)]
+
+
+def _midline(key: str, value: Any) -> np.ndarray:
+    """The midline ``value`` ({"r": [...], "z": [...]}) as an array of shape (N, 2)."""
+    if not (isinstance(value, Mapping) and all(isinstance(value.get(c), list) for c in "rz")
+            and 0 < len(value["r"]) == len(value["z"])):
+        raise ValueError(f"{key} must hold lists of numbers r and z of one length")
+    return np.column_stack([[real(f"{key}.{c}[{i}]", v) for i, v in enumerate(value[c])]
+                            for c in "rz"])
 
 
 def _combination(direction: dict, k: int) -> str:

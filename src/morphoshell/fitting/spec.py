@@ -32,11 +32,14 @@ import numpy as np
 
 from ..model.problem import Problem
 
-__all__ = ["FitSpec", "SpecError", "volvox_spec", "breakpoint_bounds", "VARIANTS", "BOUNDS",
-           "EDGE_RTOL", "PUSH_SHARE", "VOLVOX_BREAKPOINTS", "BOUND_SLACK", "ROOM_RTOL"]
+__all__ = ["FitSpec", "SpecError", "volvox_spec", "breakpoint_bounds", "VARIANTS", "LABELS",
+           "BOUNDS", "EDGE_RTOL", "PUSH_SHARE", "VOLVOX_BREAKPOINTS", "BOUND_SLACK", "ROOM_RTOL"]
 
 #: Hypotheses on the posterior intrinsic curvature κ₁ (see the module docstring).
 VARIANTS = ("flat", "undeformed", "unstressed", "free")
+#: The labels of a spec (:attr:`FitSpec.variant`): a hypothesis, or "custom" for any other
+#: spec (a fit's record is read back with one of them, :meth:`FitResult.from_dict`).
+LABELS = (*VARIANTS, "custom")
 #: Bounds of fitted Volvox parameters: stretches, curvatures (1/R).  Breakpoints
 #: are bounded by the shell and kept apart by at least the smoothing width σ.
 BOUNDS = {"f": (0.5, 2.0), "kappa": (-15.0, 15.0)}
@@ -100,7 +103,7 @@ class FitSpec:
     bounds : mapping
         (low, high) for every fitted parameter.
     variant : str
-        A label (the Volvox hypothesis, or ``"custom"``).
+        A label (the Volvox hypothesis, or ``"custom"``): one of :data:`LABELS`.
     ordered : tuple of str
         Breakpoints, in order along the shell, that the bounds keep ordered
         and at least σ apart (:func:`breakpoint_bounds`): boxes around their
@@ -110,9 +113,9 @@ class FitSpec:
     Raises
     ------
     ValueError
-        A fitted name that is not a parameter of the family, or a start
-        value outside its bounds by more than :data:`BOUND_SLACK` (closer
-        ones are moved onto the bound).
+        A fitted name that is not a parameter of the family, a start value
+        outside its bounds by more than :data:`BOUND_SLACK` (closer ones are
+        moved onto the bound), or a variant that is not one of :data:`LABELS`.
     """
 
     base: Problem
@@ -123,6 +126,8 @@ class FitSpec:
     ordered: tuple[str, ...] = ()
 
     def __post_init__(self):
+        if self.variant not in LABELS:
+            raise ValueError(f"variant = {self.variant!r} must be one of {list(LABELS)}")
         unknown = [n for n in self.fitted if n not in self.base.params]
         if unknown:
             raise ValueError(f"cannot fit {unknown}: not parameters of family "

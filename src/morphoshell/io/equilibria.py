@@ -23,6 +23,19 @@ __all__ = ["load_equilibrium", "equilibrium_of_record"]
 
 #: Entries of a saved solver block that are :class:`SolverStats` fields (the rest are details).
 _STATS = ("method", "iterations", "seconds", "status", "nodes", "build_seconds")
+#: Other results' JSON, told by their keys: (keys, what it is, what to use instead).  A sweep's
+#: or a branch's has no fields either, but it is not an equilibrium saved without them.
+_OTHERS = (
+    (("parameters", "E_fit"), "a fit's record",
+     "read it with morphoshell.fitting.load_fit, or its shell with "
+     "morphoshell.workflows.fitted_problem"),
+    (("axes", "rows"), "a sweep's JSON",
+     "its rows hold values at the grid's points, not shapes: save a point's shape with "
+     "morphoshell solve PROBLEM --set KEY=VALUE --json (a sweep keeps none)"),
+    (("parameter", "points"), "a branch's JSON",
+     "its points hold values along the branch, not shapes: in Python a point's shape is "
+     "follow_branch(...).points[i].equilibrium (its to_dict() reads back here)"),
+)
 
 
 def equilibrium_of_record(record: Mapping[str, Any], where: str = "the record") -> Equilibrium:
@@ -44,13 +57,13 @@ def equilibrium_of_record(record: Mapping[str, Any], where: str = "the record") 
     Raises
     ------
     ValueError
-        A fit's record, no problem, a missing or non-numeric field, fields of different
-        lengths, or points s not increasing (the entry named).
+        A fit's record, a sweep's or a branch's JSON, no problem, a missing or non-numeric
+        field, fields of different lengths, or points s not increasing (the entry named).
     """
-    if "parameters" in record and "E_fit" in record:
-        raise ValueError(f"{where} is a fit's record (keys parameters, E_fit), not an "
-                         f"equilibrium's: read it with morphoshell.fitting.load_fit, or its "
-                         f"shell with morphoshell.workflows.fitted_problem")
+    for keys, what, instead in _OTHERS:
+        if all(k in record for k in keys):
+            raise ValueError(f"{where} is {what} (keys {', '.join(keys)}), not an "
+                             f"equilibrium's: {instead}")
     problem = problem_of_record(record, where)
     missing = [k for k in (*FIELDS, "energy") if k not in record]
     if missing:

@@ -226,7 +226,10 @@ def problem_of_record(record: Mapping[str, Any], where: str = "the record") -> P
                          f"morphoshell solve/ablate/fit --json or a campaign")
     # (a result's "problem" is Problem.describe(): the file's keys and the parameters)
     desc = {k: v for k, v in desc.items() if k in _PROBLEM_KEYS | {"params"}}
-    params = dict(desc.get("params") or {})
+    params = desc.get("params") or {}
+    if not isinstance(params, Mapping):
+        raise ValueError(f"{where}: problem.params = {params!r} must map names to numbers")
+    params = dict(params)
     fitted = record.get("parameters")
     if isinstance(fitted, Mapping):
         for name, value in fitted.items():

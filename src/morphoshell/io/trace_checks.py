@@ -132,14 +132,19 @@ def check_positive(name: str, value, prefix: str = "") -> float:
 
 def one_curve(path, points: np.ndarray, where: list[str], unit: str):
     """Points without repeats and their labels; MidlineError unless they make one simple curve."""
-    keep = np.r_[True, np.any(np.diff(points, axis=0) != 0, axis=1)][:len(points)]
+    with np.errstate(over="ignore"):     # (coordinates near 1e308: _refuse_overflow below)
+        keep = np.r_[True, np.any(np.diff(points, axis=0) != 0, axis=1)][:len(points)]
     points, where = points[keep], [w for w, k in zip(where, keep) if k]
     if len(points) < 4:
         count = "1 distinct point" if len(points) == 1 else f"{len(points)} distinct points"
         raise MidlineError(f"{path}: {count}; a midline needs at least 4")
-    steps = np.hypot(*np.diff(points, axis=0).T)
+    with np.errstate(over="ignore"):
+        steps = np.hypot(*np.diff(points, axis=0).T)
+        length = float(steps.sum())
+    if not np.isfinite(length):
+        _refuse_overflow(path, points, where, steps, unit)
     median = float(np.median(steps))
-    gaps = np.flatnonzero(steps > max(_GAP_STEPS * median, _GAP_FRACTION * steps.sum()))
+    gaps = np.flatnonzero(steps > max(_GAP_STEPS * median, _GAP_FRACTION * length))
     if len(gaps):
         i = gaps[0]
         raise MidlineError(f"{path}: {where[i]} to {where[i + 1]}: a step of {steps[i]:.4g} {unit} "
@@ -151,7 +156,7 @@ def one_curve(path, points: np.ndarray, where: list[str], unit: str):
     if turn is not None:
         along = float(np.sum(steps[:turn]))
         raise MidlineError(f"{path}: the trace doubles back on itself at {where[turn]} "
-                           f"(arclength {along:.4g} {unit} of {steps.sum():.4g}): trace the "
+                           f"(arclength {along:.4g} {unit} of {length:.4g}): trace the "
                            f"midline once, from pole to rim (or rim to rim through the pole)")
     with np.errstate(over="ignore", invalid="ignore"):
         crossing = _first_crossing(points, _GAP_STEPS * median, _JITTER * np.nan_to_num(sigma))
@@ -161,6 +166,18 @@ def one_curve(path, points: np.ndarray, where: list[str], unit: str):
                            f"{where[j]} to {where[j + 1]}: the trace intersects itself"
                            f"{noise_hint(sigma, h, unit)}")
     return points, where
+
+
+def _refuse_overflow(path, points: np.ndarray, where: list[str], steps: np.ndarray,
+                     unit: str) -> None:
+    """MidlineError naming the point of the longest step farther from the others: the trace's
+    length overflows (a coordinate near 1e308 left the doubling-back check to say so, with
+    numpy's overflow warnings)."""
+    i = int(np.argmax(steps))
+    k = i + int(np.max(np.abs(points[i + 1])) > np.max(np.abs(points[i])))
+    raise MidlineError(f"{path}: {where[k]}: ({points[k, 0]:.4g}, {points[k, 1]:.4g}) {unit}, a "
+                       f"coordinate so far out that the trace's length overflows: a value out "
+                       f"of place")
 
 
 def noise_hint(sigma: float, spacing: float, unit: str) -> str:
@@ -228,10 +245,12 @@ def _first_crossing(points: np.ndarray, apart: float, loop: float,
 
 
 def check_extent(source: str, points: np.ndarray, where, hint: str) -> None:
-    """MidlineError if a point lies more than _MAX_EXTENT R from the first (wrong units)."""
+    """MidlineError if a point lies more than _MAX_EXTENT R from the first (wrong units); a
+    reach beyond floats (coordinates of opposite signs near 1e308) is inf, refused too."""
     if not len(points):         # (nothing to measure; the count is one_curve's to refuse)
         return
-    reach = np.hypot(*(points - points[0]).T)
+    with np.errstate(over="ignore"):
+        reach = np.hypot(*(points - points[0]).T)
     if reach.max() > _MAX_EXTENT:
         i = int(np.argmax(reach > _MAX_EXTENT))
         raise MidlineError(f"{source}: {where[i]}: {reach[i]:.4g} R from the first point; a "
