@@ -262,12 +262,13 @@ def test_the_max_points_advice_is_the_whole_grids_size():
     from morphoshell.cli.sweep import parse_axes
     from morphoshell.io.problem_files import ProblemFileError
     items = ["k=1:3:100", "h=0.05,0.1,0.2"]
-    with pytest.raises(ProblemFileError, match=r"^--set: the grid has 300 points, more than "
+    with pytest.raises(ProblemFileError, match=r"^--set: the grid k=1:3:100 \(100\) x "
+                                               r"h=0.05,0.1,0.2 \(3\) has 300 points, more than "
                                                r"60: give fewer values, or --max-points 300 "):
         parse_axes(items, max_points=60)
     axes, _ = parse_axes(items, max_points=300)
     assert [len(v) for v in axes.values()] == [100, 3]
-    with pytest.raises(ProblemFileError, match=r"the grid has 3,000,000,000,000,000 points"):
+    with pytest.raises(ProblemFileError, match=r"\(1,000,000,000,000,000\) has 3,000,000,000,000,000 points"):
         parse_axes(["h=0.1,0.2,0.3", "k=0:1:1000000000000000"])
 
 

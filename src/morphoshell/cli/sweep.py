@@ -95,9 +95,11 @@ def parse_axes(items, max_points: int = MAX_GRID) -> tuple[dict, dict]:
     # the whole grid's size before any list is made, so that the advice is the number that
     # works (one long axis had been refused alone, advising a --max-points that the grid
     # then exceeded: audit 17 F2)
-    size = _grid_size(items)
+    counts = _axis_counts(items)
+    size = math.prod(counts.values())
     if size > max_points:
-        raise ProblemFileError(f"--set: the grid has {size:,} points, more than "
+        spans = " x ".join(f"{item} ({n:,})" for item, n in counts.items())
+        raise ProblemFileError(f"--set: the grid {spans} has {size:,} points, more than "
                                f"{max_points:,}: give fewer values, or --max-points {size} to "
                                f"insist")
     axes: dict = {}
@@ -118,10 +120,10 @@ def parse_axes(items, max_points: int = MAX_GRID) -> tuple[dict, dict]:
     return axes, scalars
 
 
-def _grid_size(items) -> int:
-    """The number of points of the grid the ``--set`` items span (:func:`_count` of each axis)."""
+def _axis_counts(items) -> dict[str, int]:
+    """How many values each axis item of ``--set`` gives (:func:`_count`), by item."""
     values = [(item, _split(item)[1]) for item in items]
-    return math.prod(_count(item, value) for item, value in values if _is_axis(value))
+    return {item: _count(item, value) for item, value in values if _is_axis(value)}
 
 
 def _split(item: str) -> tuple[str, str]:
