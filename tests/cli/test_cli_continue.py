@@ -96,6 +96,21 @@ def test_the_path_ends_exactly_at_the_target_with_units(tmp_path):
                             "lambda_error": "1"}
 
 
+@pytest.mark.parametrize("to", ["0.001", "0.5"])
+def test_a_path_to_an_end_of_the_parameters_range_lands_on_it(to, tmp_path, capsys):
+    """sigma's range is [0.001, 0.5], closed: --to at either bound failed after the walk's
+    work, exit 2 as bad input naming sigma = 0.000985 (or 0.504), a value never given (audit
+    17): the step past the end was evaluated there.  It is shortened to land on the end."""
+    out = tmp_path / "s.csv"
+    assert main(["continue", str(FOLD), "--param", "sigma", "--to", to, "--nodes", "40",
+                 "--csv", str(out)]) == 0, capsys.readouterr().err
+    with out.open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert rows[-1]["lambda"] == "1.0" and rows[-1]["sigma"] == to
+    sigmas = [float(r["sigma"]) for r in rows]
+    assert all(0.001 <= v <= 0.5 for v in sigmas) and len(rows) > 10
+
+
 @pytest.mark.parametrize("args, named", [
     (["--param", "h"], "--param and --to go together"),
     (["--to", "0.2"], "--param and --to go together"),

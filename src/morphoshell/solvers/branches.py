@@ -561,7 +561,7 @@ class _Walk:
             if len(self.points) >= self.max_points:
                 raise self._ended(point, f"{self.max_points} points", "the points ran out: "
                                   "raise max_points (--max-points) or max_step (--max-step)")
-            new = self.arc.correct(point, ds)
+            new, step = self._step(point, ds)
             failed = new is None or self.arc.turned(point, new)      # (turned: a jump?)
             if not failed and not self._holds(new):
                 moved = self._remeshed(point)
@@ -570,19 +570,57 @@ class _Walk:
                     point = moved
                     continue
                 failed = True                   # (its mesh does not hold, and stays)
-            rejected = failed or self._folds_within(point, new, ds)
-            self._log_step(point, new, ds, rejected)
+            rejected = failed or self._folds_within(point, new, step)
+            self._log_step(point, new, step, rejected)
             if rejected:
                 ds /= 2
                 if ds < MIN_STEP:
                     raise self._ended(point, "the step fell below its minimum")
                 continue
-            if not -TAU_MARGIN <= new.tau <= 1 + TAU_MARGIN:
-                raise self._ended(new, "it left the path", self._left(new))
-            point, done = self._physical(point, new, ds)
+            self._on_path(point, new)
+            point, done = self._physical(point, new, step)
             if done:
                 return
             ds = min(GROWTH * ds, self.max_step) if new.iterations <= EASY else ds
+
+    def _step(self, point: ArcPoint, ds: float) -> tuple[ArcPoint | None, float]:
+        """(the point at arclength ``ds`` from ``point``, or None where the corrector fails;
+        the step's arclength): a step that passes an end of the walk (:meth:`_end_within`)
+        to parameters out of their ranges is shortened to land on the end (τ fixed there:
+        :meth:`Arclength.at_tau`; None where that fails, and the step is retried at half).
+        A path to an end of a parameter's range leaves it one step past (``--param sigma
+        --to 0.001``, its bound, failed after the walk as bad input naming sigma =
+        0.000985: audit 17).  Within the ranges the step past the end stays as it was, its
+        events located over the whole step (shortened, they move within their tolerance, and
+        a thin blister's switch 1e-4 before the end landed 8e-8 of its energy away)."""
+        new = self.arc.correct(point, ds)
+        end = None if new is None else self._end_within(point, new)
+        if end is None or self.arc.line.invalid(new.tau) is None:
+            return new, ds
+        last = self.arc.at_tau(point, end)
+        return (None, ds) if last is None else (last, self.arc.distance(point, last))
+
+    def _end_within(self, point: ArcPoint, new: ArcPoint) -> float | None:
+        """The end of the walk (:attr:`ends`) that the step from ``point`` to ``new`` passes
+        or reaches going toward it, or None."""
+        for end in self.ends:
+            if min(point.tau, new.tau) < end <= max(point.tau, new.tau) and \
+                    (new.t_tau > 0) == (end > point.tau):
+                return end
+        return None
+
+    def _on_path(self, point: ArcPoint, new: ArcPoint) -> None:
+        """The branch's end (a SolverError, ``"Branch_Ended"``) where the step from ``point``
+        leaves the path: to parameters out of their ranges (a branch that turns back past
+        its start; the last point within them is the last), or beyond :data:`TAU_MARGIN`
+        past an end."""
+        why = self.arc.line.invalid(new.tau)
+        if why is not None:
+            raise self._ended(point, f"it left the parameters' ranges at lambda = "
+                                     f"{new.tau:.6g}", f"{why}: the branch goes on "
+                                     f"beyond them, where the model does not hold")
+        if not -TAU_MARGIN <= new.tau <= 1 + TAU_MARGIN:
+            raise self._ended(new, "it left the path", self._left(new))
 
     def _physical(self, point: ArcPoint, new: ArcPoint, ds: float) -> tuple[ArcPoint, bool]:
         """:meth:`_advance` to ``new``, or where its meridian crosses the axis, which
@@ -697,12 +735,11 @@ class _Walk:
                 if self.follow == "stable" and before.inertia.stable and change.tau < 1:
                     return self._switch(change, ds)
                 before = change
-        for end in self.ends:
-            if min(point.tau, new.tau) < end <= max(point.tau, new.tau) and \
-                    (new.t_tau > 0) == (end > point.tau):
-                last = self.arc.at_tau(point, end) or new
-                self.record(last)
-                return last, True
+        end = self._end_within(point, new)
+        if end is not None:        # (at it: :meth:`_step` shortened the step to land there)
+            last = new if new.tau == end else self.arc.at_tau(point, end) or new
+            self.record(last, eq=eq if last is new else None)
+            return last, True
         self.record(new, eq=eq)
         return new, False
 
