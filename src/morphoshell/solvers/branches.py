@@ -331,8 +331,7 @@ def follow_branch(problem: Problem, param: str | None = None, to: float | None =
         return Branch(line.problem, line, param, follow, tuple(walk.points), tuple(walk.snaps),
                       0.0, switches=tuple(walk.switches), remeshed=tuple(walk.remeshed),
                       ended=ended if ended is not None else walk.ended)
-    _walked(walk, lambda: walk.run(start), branch)
-    return _checked(branch(), max_step, t0)
+    return _walked(walk, lambda: walk.run(start), branch, max_step, t0)
 
 
 def switch_branch(branch: Branch, at: int, direction: float = 1.0, *,
@@ -398,8 +397,7 @@ def switch_branch(branch: Branch, at: int, direction: float = 1.0, *,
                       tuple(walk.points), (), 0.0, origin.tau, float(direction),
                       remeshed=tuple(walk.remeshed),
                       ended=ended if ended is not None else walk.ended)
-    _walked(walk, lambda: walk.switched(origin, direction), switched)
-    return _checked(switched(), max_step, t0)
+    return _walked(walk, lambda: walk.switched(origin, direction), switched, max_step, t0)
 
 
 def _checked(branch: Branch, max_step: float, t0: float) -> Branch:
@@ -445,21 +443,29 @@ def _unresolved_warning(branch: Branch) -> str:
             f"--nodes {2 * (nodes - 1) + 1} or more)")
 
 
-def _walked(walk: "_Walk", run, branch) -> None:
-    """``run()`` the walk; where it stops early, the branch followed so far goes with the
-    exception as its ``branch`` (``branch(ending)``, :attr:`Branch.ended` an :class:`Ending`
-    whose ``why`` is the first line of the SolverError, or "interrupted" / "terminated
-    (SIGTERM)"), so that the command line
-    writes it: an early stop's branch is a result (its folds located), and it had been
-    lost, 2000 points of it (audit 14)."""
+def _walked(walk: "_Walk", run, branch, max_step: float, t0: float) -> Branch:
+    """``run()`` the walk, then :func:`_checked` its branch (``branch()``); where either stops
+    early, the branch followed so far goes with the exception as its ``branch``
+    (``branch(ending)``, :attr:`Branch.ended` an :class:`Ending` whose ``why`` is the first
+    line of the SolverError, or "interrupted" / "terminated (SIGTERM)", during the check
+    said so; its ``seconds`` the time to there), so that the command line writes it: an
+    early stop's branch is a result (its folds located), and it had been lost, 2000 points
+    of it (audit 14); one stopped in the check after a complete walk too (audit 17)."""
+    checking = False
     try:
         run()
+        checking = True
+        return _checked(branch(), max_step, t0)
     except BaseException as exc:
         if walk.points and (isinstance(exc, SolverError) or interrupted(exc)):
             failed = isinstance(exc, SolverError)
-            exc.branch = branch(Ending(exc.status if failed else "Interrupted",
-                                       walk.points[-1].tau,
-                                       str(exc).splitlines()[0] if failed else reason()))
+            why = str(exc).splitlines()[0] if failed else reason()
+            if checking:
+                why += (" during the half-mesh check of the branch's events (its points "
+                        "complete, their lambda_error not estimated)")
+            exc.branch = replace(branch(Ending(exc.status if failed else "Interrupted",
+                                               walk.points[-1].tau, why)),
+                                 seconds=time.perf_counter() - t0)
         raise
 
 
