@@ -96,6 +96,21 @@ def test_the_path_ends_exactly_at_the_target_with_units(tmp_path):
                             "lambda_error": "1"}
 
 
+@pytest.mark.parametrize("to", ["0.001", "0.5"])
+def test_a_path_to_an_end_of_the_parameters_range_lands_on_it(to, tmp_path, capsys):
+    """sigma's range is [0.001, 0.5], closed: --to at either bound failed after the walk's
+    work, exit 2 as bad input naming sigma = 0.000985 (or 0.504), a value never given (audit
+    17): the step past the end was evaluated there.  It is shortened to land on the end."""
+    out = tmp_path / "s.csv"
+    assert main(["continue", str(FOLD), "--param", "sigma", "--to", to, "--nodes", "40",
+                 "--csv", str(out)]) == 0, capsys.readouterr().err
+    with out.open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert rows[-1]["lambda"] == "1.0" and rows[-1]["sigma"] == to
+    sigmas = [float(r["sigma"]) for r in rows]
+    assert all(0.001 <= v <= 0.5 for v in sigmas) and len(rows) > 10
+
+
 @pytest.mark.parametrize("args, named", [
     (["--param", "h"], "--param and --to go together"),
     (["--to", "0.2"], "--param and --to go together"),
@@ -190,6 +205,34 @@ def test_an_interrupted_branch_writes_the_points_followed_marked_partial(
                     out.read_text())
     data = json.loads(doc.read_text())
     assert data["complete"] is False and len(data["points"]["lambda"]) == 6
+    assert data["seconds"] > 0      # (it said 0.0 after ~3 s of work: audit 17)
+
+
+def test_an_interrupt_in_the_half_mesh_check_keeps_the_complete_walk(tmp_path, capsys,
+                                                                     monkeypatch):
+    """Ctrl-C after the walk, in the half-mesh check of its events: the bare "interrupted",
+    nothing written (audit 17).  The walked branch is written, marked partial with what was
+    not done (its events' errors), and its time is the real one."""
+    from morphoshell.solvers import branches
+
+    def cut(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(branches, "event_errors", cut)
+    out, doc = tmp_path / "c.csv", tmp_path / "c.json"
+    assert main(["continue", str(FOLD), "--nodes", "40", "--csv", str(out),
+                 "--json", str(doc)]) == 130
+    err = capsys.readouterr().err
+    what = ("interrupted during the half-mesh check of the branch's events (its points "
+            "complete, their lambda_error not estimated)")
+    assert re.fullmatch(rf"morphoshell: {re.escape(what)} after (\d+) points; the \1 points "
+                        rf"followed to lambda = 1 are kept in {re.escape(str(doc))} and "
+                        rf"{re.escape(str(out))}, marked partial\n", err), err
+    assert out.read_text().startswith(f"# morphoshell continue PARTIAL: the branch stopped "
+                                      f"early: {what}\n")
+    data = json.loads(doc.read_text())
+    assert data["complete"] is False and data["points"]["lambda"][-1] == 1.0
+    assert data["ended"]["status"] == "Interrupted" and data["seconds"] > 0
 
 
 def test_switch_follows_both_halves_of_the_branch_through_a_branch_point(tmp_path, capsys):
@@ -256,6 +299,59 @@ def test_a_failed_switch_exits_3_and_keeps_the_branches_followed(tmp_path, capsy
     with out.open() as fh:
         names = {r["branch"] for r in csv.DictReader(fh)}
     assert names == {"main", "1+"}
+
+
+def test_an_interrupt_in_the_switches_keeps_the_branches_followed(tmp_path, capsys,
+                                                                   monkeypatch):
+    """Ctrl-C in the third branch's half-mesh check (the switch at 1-, its walk complete):
+    the main branch and 1+, complete, had been lost with it (audit 17).  All three are
+    written, 1- marked as stopped, the file marked partial with what was not done; exit
+    status 130."""
+    from morphoshell.solvers import branches
+
+    real, calls = branches.event_errors, []
+
+    def third(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(branches, "event_errors", third)
+    out, doc = tmp_path / "b.csv", tmp_path / "b.json"
+    assert main(["continue", str(example_path("blister")), "--nodes", "40", "--switch", "1",
+                 "--csv", str(out), "--json", str(doc)]) == 130
+    err = capsys.readouterr().err.splitlines(keepends=True)[-1]     # (after the warnings)
+    assert re.fullmatch(r"morphoshell: interrupted during the switch at branch point 1-: its "
+                        r"\d+ points followed kept; the main branch and the switched branches "
+                        rf"followed are kept in {re.escape(str(doc))} and "
+                        rf"{re.escape(str(out))}, marked partial\n", err), err
+    head, *rows = out.read_text().splitlines()
+    assert head.startswith("# morphoshell continue PARTIAL: not all done: interrupted "
+                           "during the switch at branch point 1-")
+    assert {row.split(",")[0] for row in rows[1:]} == {"main", "1+", "1-"}
+    data = json.loads(doc.read_text())
+    assert data["complete"] is False and "1-" in data["not_done"]
+    assert [b.get("complete", True) for b in data["switched"]] == [True, False]
+
+
+def test_an_interrupt_while_drawing_the_plot_writes_the_data(tmp_path, capsys, monkeypatch):
+    """Ctrl-C while the plot is drawn (about a second): nothing had been written (audit 17).
+    The JSON and CSV are, whole (not marked); the message says the plot was not."""
+    import morphoshell.plotting
+
+    def cut(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(morphoshell.plotting, "plot_branch", cut)
+    paths = {k: tmp_path / f"p.{k}" for k in ("csv", "json", "png")}
+    assert main(["continue", str(FOLD), "--nodes", "40", "--csv", str(paths["csv"]),
+                 "--json", str(paths["json"]), "--plot", str(paths["png"])]) == 130
+    err = capsys.readouterr().err.splitlines(keepends=True)[-1]     # (after the warnings)
+    assert err == (f"morphoshell: interrupted while writing: the plot {paths['png']} not "
+                   f"drawn; the main branch is kept in {paths['json']} and {paths['csv']}\n")
+    assert not paths["png"].exists() and paths["csv"].read_text().startswith("lambda,")
+    assert "complete" not in json.loads(paths["json"].read_text())
 
 
 def test_plot_is_a_journal_figure_with_truetype_fonts_and_one_column_without_shapes(tmp_path):

@@ -224,6 +224,27 @@ def test_a_target_just_past_an_event_is_solved_at_itself(volvox, blister, branch
     assert abs(walk.end.energy - eq.energy) < 1e-9 * abs(eq.energy)
 
 
+def test_a_walk_that_leaves_the_parameters_ranges_ends_there_with_its_part(volvox,
+                                                                         monkeypatch):
+    """Beyond the path's ends the parameters are extrapolated and may leave their ranges
+    (sigma below 1e-3 a step past a path to 1e-3: ParameterLine.invalid says so).  A branch
+    that goes there ends at its last point within them with Branch_Ended and its part, not
+    with the problem's ValueError, read as bad input (audit 17).  Forced here: the ranges
+    made to end at lambda = 0.3."""
+    line = ParameterLine.along(volvox, "sigma", 0.001)
+    assert "sigma = " in line.invalid(1.02) and line.invalid(0.5) is None
+    real = ParameterLine.invalid
+    monkeypatch.setattr(ParameterLine, "invalid", lambda self, tau: "out of range (test)"
+                        if tau > 0.3 else real(self, tau))
+    with pytest.raises(SolverError) as err:
+        follow_branch(volvox, nodes=40)
+    assert err.value.status == "Branch_Ended"
+    assert "it left the parameters' ranges at lambda = " in str(err.value)
+    assert "out of range (test)" in str(err.value)
+    taus = [pt.tau for pt in err.value.branch.points]
+    assert 0.2 < taus[-1] <= 0.3 and taus == sorted(taus)
+
+
 def test_no_stable_way_past_the_fold_is_a_named_error(volvox, monkeypatch):
     """When every descent from the fold slides back onto the fold's state (forced:
     ``_moved`` says so), solve() and the quasi-static walk raise Snap_Through_Failed with

@@ -1,6 +1,7 @@
 """``morphoshell continue``: a branch of equilibria with its stability, folds and snap-throughs."""
 from __future__ import annotations
 
+import argparse
 import sys
 
 from ._args import add_outputs, integer, note, problem_and_settings, real
@@ -10,6 +11,8 @@ __all__ = ["register", "PARTIAL"]
 
 #: The first line of the CSV of a branch that stopped early (then its points and why).
 PARTIAL = "morphoshell continue PARTIAL: the branch stopped early"
+#: ... and of one whose switched branches were cut short (the main branch complete).
+NOT_DONE = "morphoshell continue PARTIAL: not all done"
 
 
 def register(sub) -> None:
@@ -27,7 +30,9 @@ def register(sub) -> None:
                     "carries its stability (the number of negative eigenvalues of the reduced "
                     "Hessian); folds and branch points are located to 1e-8 in lambda. Prints "
                     "the events and the end point. Direct method only. z is in solve's gauge "
-                    "(the pole at the origin); lengths in R, energies in C R^2.")
+                    "(the pole at the origin); lengths in R, energies in C R^2. Ctrl-C (or "
+                    "SIGTERM) writes what was followed, the main branch and the switched "
+                    "ones, marked partial where something is missing; exit status 130 (143).")
     p.add_argument("problem", metavar="PROBLEM.toml",
                    help="problem file (`morphoshell example NAME` prints one to start from)")
     p.add_argument("--from", dest="source", choices=("neutral",), default=None,
@@ -121,10 +126,12 @@ def _continue(args) -> int:
             raise
         return _ended_early(args, problem, exc, partial)
     _report(problem, branch)
-    switched, failed = _switched(args, branch)
-    written = _write(args, branch, switched)
+    switched, failed, missing = _switched(args, branch)
+    written, unwritten = _written(args, branch, switched, missing)
     for path in written:
         print(f"  wrote {path}")
+    if missing or unwritten:
+        return _cut_short(missing, unwritten, written, switched)
     if branch.ended is not None:
         print(f"morphoshell: the branch ended at lambda = {branch.ended.tau:.10g}, before the "
               f"path's end ({branch.ended.status}: past it the meridian crosses the axis; see "
@@ -138,16 +145,18 @@ def _continue(args) -> int:
     return 0
 
 
-def _write(args, branch, switched=()) -> list:
+def _write(args, branch, switched=(), missing: str | None = None) -> list:
     """Write the --json, --csv and --plot outputs of ``branch`` (and the switched ones); a
     branch that stopped early (:attr:`Branch.ended`) is marked so in each: the JSON's
-    ``complete``/``ended``, the CSV's first line, the plot's caption."""
+    ``complete``/``ended``, the CSV's first line, the plot's caption; so is one whose
+    switches were cut short (``missing``, what was not done: JSON and CSV)."""
     from ..io.problem_files import write_csv, write_json
 
     stopped = branch.ended is not None and branch.ended.stopped
-    comments = (f"{PARTIAL}: {branch.ended.why}",) if stopped else ()
+    comments = ((f"{PARTIAL}: {branch.ended.why}",) if stopped else
+                (f"{NOT_DONE}: {missing}",) if missing else ())
     out = Outputs()
-    out.add(args.json, lambda path: write_json(path, _document(branch, switched)))
+    out.add(args.json, lambda path: write_json(path, _document(branch, switched, missing)))
     out.add(args.csv, lambda path: write_csv(path, _csv_columns(branch, switched),
                                              comments=comments))
     if args.plot:
@@ -156,6 +165,37 @@ def _write(args, branch, switched=()) -> list:
                           switched=[b for _, b in switched])
         out.add(args.plot, lambda path: save(fig, path))
     return out.commit()
+
+
+def _written(args, branch, switched, missing) -> tuple[list, str | None]:
+    """:func:`_write`, and where Ctrl-C or SIGTERM cuts it (drawing the plot takes a second),
+    the JSON and CSV written again without the plot: (the paths written, what was not
+    (None: all)).  The branch is complete; it had been lost whole (audit 17)."""
+    from .._runtime import interrupts
+
+    try:
+        return _write(args, branch, switched, missing), None
+    except BaseException as exc:
+        if not interrupts.interrupted(exc):
+            raise
+        interrupts.swallowed()      # (claimed: the commit would raise it again)
+    unwritten = f"the plot {args.plot} not drawn" if args.plot else "the files written again"
+    return (_write(argparse.Namespace(**{**vars(args), "plot": None}), branch, switched,
+                   missing), f"{interrupts.reason()} while writing: {unwritten}")
+
+
+def _cut_short(missing, unwritten, written, switched) -> int:
+    """The line of a run cut by Ctrl-C or SIGTERM after the main branch's walk (in the
+    switches, ``missing``; in the writing, ``unwritten``): what was not done and where
+    the rest is; the interruption's exit status (130, 143)."""
+    from .._runtime import interrupts
+
+    kept = " and the switched branches followed are" if switched else " is"
+    where = (f"; the main branch{kept} kept in {' and '.join(map(str, written))}"
+             f"{', marked partial' * bool(missing)}" if written else "")
+    print(f"morphoshell: {'; '.join(filter(None, (missing, unwritten)))}{where}",
+          file=sys.stderr)
+    return interrupts.exit_status()
 
 
 def _ended_early(args, problem, exc, branch) -> int:
@@ -176,7 +216,7 @@ def _ended_early(args, problem, exc, branch) -> int:
              if paths else "")
     if solver_failed:
         raise SolverError(f"{exc}{where}", exc.status, exc.last_iterate) from exc
-    print(f"morphoshell: {interrupts.reason()} after {len(branch.points)} points{where}",
+    print(f"morphoshell: {branch.ended.why} after {len(branch.points)} points{where}",
           file=sys.stderr)
     return interrupts.exit_status()
 
@@ -227,33 +267,48 @@ def _end_line(branch) -> str:
             f"{end.energy:.10g} C R^2")
 
 
-def _switched(args, branch) -> tuple[list[tuple[str, object]], list[str]]:
+def _switched(args, branch) -> tuple[list[tuple[str, object]], list[str], str | None]:
     """(name, branch) of both halves of the branches through the first ``--switch`` branch
-    points, reported as they are followed, and the names of those that failed (after the
-    main branch's work: named and counted, not taken for bad input)."""
+    points, reported as they are followed; the names of those that failed (after the
+    main branch's work: named and counted, not taken for bad input); and, where Ctrl-C or
+    SIGTERM stops them, what was not followed (None: all were), the part of the one cut
+    kept (audit 17: the complete main branch had been lost with it)."""
+    from .._runtime import interrupts
     from ..solvers.branches import switch_branch
     from ..solvers.results import SolverError
 
     count = sum(pt.event == "branch_point" for pt in branch.points)
     if args.switch > count:
         note(f"--switch {args.switch}: the branch has {count} branch point(s)")
+    halves = [f"{k + 1}{sign}" for k in range(min(args.switch, count)) for sign in "+-"]
     out, failed = [], []
-    for k in range(min(args.switch, count)):
-        for direction, sign in ((1, "+"), (-1, "-")):
-            try:
-                other = switch_branch(branch, k, direction, max_step=args.max_step,
-                                      max_points=args.max_points)
-            except (SolverError, ValueError) as exc:     # (ValueError: not a simple point)
-                print(f"  switch at branch point {k + 1}{sign} failed: {exc}")
-                failed.append(f"{k + 1}{sign}")
-                if getattr(exc, "branch", None) is not None:    # (its part: written, marked)
-                    out.append((f"{k + 1}{sign}", exc.branch))
-                continue
-            print(f"  switched at branch point {k + 1}{sign} (lambda = {other.origin:.10g}): "
-                  f"{len(other.points)} points, {len(other.events) - 1} more event(s), "
-                  f"{_end_line(other)}")
-            out.append((f"{k + 1}{sign}", other))
-    return out, failed
+    for i, name in enumerate(halves):
+        try:
+            other = switch_branch(branch, int(name[:-1]) - 1, 1 if name[-1] == "+" else -1,
+                                  max_step=args.max_step, max_points=args.max_points)
+        except (SolverError, ValueError) as exc:     # (ValueError: not a simple point)
+            print(f"  switch at branch point {name} failed: {exc}")
+            failed.append(name)
+            if getattr(exc, "branch", None) is not None:    # (its part: written, marked)
+                out.append((name, exc.branch))
+            continue
+        except BaseException as exc:
+            if not interrupts.interrupted(exc):
+                raise
+            interrupts.swallowed()      # (claimed: the outputs' commit would raise it again)
+            part = getattr(exc, "branch", None)
+            if part is not None:
+                out.append((name, part))
+            rest = halves[i + 1:] if part else halves[i:]
+            done = ([f"its {len(part.points)} points followed kept"] if part else []) + \
+                ([f"{', '.join(rest)} not followed"] if rest else [])
+            return out, failed, (f"{interrupts.reason()} during the switch at branch point "
+                                 f"{name}: {'; '.join(done)}")
+        print(f"  switched at branch point {name} (lambda = {other.origin:.10g}): "
+              f"{len(other.points)} points, {len(other.events) - 1} more event(s), "
+              f"{_end_line(other)}")
+        out.append((name, other))
+    return out, failed, None
 
 
 def _csv_columns(branch, switched) -> dict:
@@ -271,9 +326,10 @@ def _csv_columns(branch, switched) -> dict:
     return columns
 
 
-def _document(branch, switched) -> dict:
+def _document(branch, switched, missing: str | None = None) -> dict:
     from .. import __version__
 
     return {"morphoshell": __version__, **branch.to_dict(),
             **({"switched": [{"name": name, **b.to_dict()} for name, b in switched]}
-               if switched else {})}
+               if switched else {}),
+            **({"complete": False, "not_done": missing} if missing else {})}

@@ -371,6 +371,11 @@ class Arclength:
         c, c_tau = self._border(prev)
         return float(c @ (self.kkt.free(u) - self.kkt.free(prev.u)) + c_tau * (tau - prev.tau))
 
+    def distance(self, prev: ArcPoint, point: ArcPoint) -> float:
+        """The arclength of ``point`` from ``prev`` along ``prev``'s tangent: the ``ds`` of
+        :meth:`correct` that gives ``point`` (one found otherwise: :meth:`at_tau`)."""
+        return self._arclength(prev, point.u, point.tau)
+
     def _corrected(self, prev: ArcPoint, ds: float, guess: tuple | None = None):
         """Newton's (u, τ, iterations) at arclength ``ds`` from ``prev``, or None; from
         ``guess`` = (u, τ) if given (after one step at least: a guess within the

@@ -331,8 +331,7 @@ def follow_branch(problem: Problem, param: str | None = None, to: float | None =
         return Branch(line.problem, line, param, follow, tuple(walk.points), tuple(walk.snaps),
                       0.0, switches=tuple(walk.switches), remeshed=tuple(walk.remeshed),
                       ended=ended if ended is not None else walk.ended)
-    _walked(walk, lambda: walk.run(start), branch)
-    return _checked(branch(), max_step, t0)
+    return _walked(walk, lambda: walk.run(start), branch, max_step, t0)
 
 
 def switch_branch(branch: Branch, at: int, direction: float = 1.0, *,
@@ -398,8 +397,7 @@ def switch_branch(branch: Branch, at: int, direction: float = 1.0, *,
                       tuple(walk.points), (), 0.0, origin.tau, float(direction),
                       remeshed=tuple(walk.remeshed),
                       ended=ended if ended is not None else walk.ended)
-    _walked(walk, lambda: walk.switched(origin, direction), switched)
-    return _checked(switched(), max_step, t0)
+    return _walked(walk, lambda: walk.switched(origin, direction), switched, max_step, t0)
 
 
 def _checked(branch: Branch, max_step: float, t0: float) -> Branch:
@@ -445,21 +443,29 @@ def _unresolved_warning(branch: Branch) -> str:
             f"--nodes {2 * (nodes - 1) + 1} or more)")
 
 
-def _walked(walk: "_Walk", run, branch) -> None:
-    """``run()`` the walk; where it stops early, the branch followed so far goes with the
-    exception as its ``branch`` (``branch(ending)``, :attr:`Branch.ended` an :class:`Ending`
-    whose ``why`` is the first line of the SolverError, or "interrupted" / "terminated
-    (SIGTERM)"), so that the command line
-    writes it: an early stop's branch is a result (its folds located), and it had been
-    lost, 2000 points of it (audit 14)."""
+def _walked(walk: "_Walk", run, branch, max_step: float, t0: float) -> Branch:
+    """``run()`` the walk, then :func:`_checked` its branch (``branch()``); where either stops
+    early, the branch followed so far goes with the exception as its ``branch``
+    (``branch(ending)``, :attr:`Branch.ended` an :class:`Ending` whose ``why`` is the first
+    line of the SolverError, or "interrupted" / "terminated (SIGTERM)", during the check
+    said so; its ``seconds`` the time to there), so that the command line writes it: an
+    early stop's branch is a result (its folds located), and it had been lost, 2000 points
+    of it (audit 14); one stopped in the check after a complete walk too (audit 17)."""
+    checking = False
     try:
         run()
+        checking = True
+        return _checked(branch(), max_step, t0)
     except BaseException as exc:
         if walk.points and (isinstance(exc, SolverError) or interrupted(exc)):
             failed = isinstance(exc, SolverError)
-            exc.branch = branch(Ending(exc.status if failed else "Interrupted",
-                                       walk.points[-1].tau,
-                                       str(exc).splitlines()[0] if failed else reason()))
+            why = str(exc).splitlines()[0] if failed else reason()
+            if checking:
+                why += (" during the half-mesh check of the branch's events (its points "
+                        "complete, their lambda_error not estimated)")
+            exc.branch = replace(branch(Ending(exc.status if failed else "Interrupted",
+                                               walk.points[-1].tau, why)),
+                                 seconds=time.perf_counter() - t0)
         raise
 
 
@@ -561,7 +567,7 @@ class _Walk:
             if len(self.points) >= self.max_points:
                 raise self._ended(point, f"{self.max_points} points", "the points ran out: "
                                   "raise max_points (--max-points) or max_step (--max-step)")
-            new = self.arc.correct(point, ds)
+            new, step = self._step(point, ds)
             failed = new is None or self.arc.turned(point, new)      # (turned: a jump?)
             if not failed and not self._holds(new):
                 moved = self._remeshed(point)
@@ -570,19 +576,57 @@ class _Walk:
                     point = moved
                     continue
                 failed = True                   # (its mesh does not hold, and stays)
-            rejected = failed or self._folds_within(point, new, ds)
-            self._log_step(point, new, ds, rejected)
+            rejected = failed or self._folds_within(point, new, step)
+            self._log_step(point, new, step, rejected)
             if rejected:
                 ds /= 2
                 if ds < MIN_STEP:
                     raise self._ended(point, "the step fell below its minimum")
                 continue
-            if not -TAU_MARGIN <= new.tau <= 1 + TAU_MARGIN:
-                raise self._ended(new, "it left the path", self._left(new))
-            point, done = self._physical(point, new, ds)
+            self._on_path(point, new)
+            point, done = self._physical(point, new, step)
             if done:
                 return
             ds = min(GROWTH * ds, self.max_step) if new.iterations <= EASY else ds
+
+    def _step(self, point: ArcPoint, ds: float) -> tuple[ArcPoint | None, float]:
+        """(the point at arclength ``ds`` from ``point``, or None where the corrector fails;
+        the step's arclength): a step that passes an end of the walk (:meth:`_end_within`)
+        to parameters out of their ranges is shortened to land on the end (τ fixed there:
+        :meth:`Arclength.at_tau`; None where that fails, and the step is retried at half).
+        A path to an end of a parameter's range leaves it one step past (``--param sigma
+        --to 0.001``, its bound, failed after the walk as bad input naming sigma =
+        0.000985: audit 17).  Within the ranges the step past the end stays as it was, its
+        events located over the whole step (shortened, they move within their tolerance, and
+        a thin blister's switch 1e-4 before the end landed 8e-8 of its energy away)."""
+        new = self.arc.correct(point, ds)
+        end = None if new is None else self._end_within(point, new)
+        if end is None or self.arc.line.invalid(new.tau) is None:
+            return new, ds
+        last = self.arc.at_tau(point, end)
+        return (None, ds) if last is None else (last, self.arc.distance(point, last))
+
+    def _end_within(self, point: ArcPoint, new: ArcPoint) -> float | None:
+        """The end of the walk (:attr:`ends`) that the step from ``point`` to ``new`` passes
+        or reaches going toward it, or None."""
+        for end in self.ends:
+            if min(point.tau, new.tau) < end <= max(point.tau, new.tau) and \
+                    (new.t_tau > 0) == (end > point.tau):
+                return end
+        return None
+
+    def _on_path(self, point: ArcPoint, new: ArcPoint) -> None:
+        """The branch's end (a SolverError, ``"Branch_Ended"``) where the step from ``point``
+        leaves the path: to parameters out of their ranges (a branch that turns back past
+        its start; the last point within them is the last), or beyond :data:`TAU_MARGIN`
+        past an end."""
+        why = self.arc.line.invalid(new.tau)
+        if why is not None:
+            raise self._ended(point, f"it left the parameters' ranges at lambda = "
+                                     f"{new.tau:.6g}", f"{why}: the branch goes on "
+                                     f"beyond them, where the model does not hold")
+        if not -TAU_MARGIN <= new.tau <= 1 + TAU_MARGIN:
+            raise self._ended(new, "it left the path", self._left(new))
 
     def _physical(self, point: ArcPoint, new: ArcPoint, ds: float) -> tuple[ArcPoint, bool]:
         """:meth:`_advance` to ``new``, or where its meridian crosses the axis, which
@@ -697,12 +741,11 @@ class _Walk:
                 if self.follow == "stable" and before.inertia.stable and change.tau < 1:
                     return self._switch(change, ds)
                 before = change
-        for end in self.ends:
-            if min(point.tau, new.tau) < end <= max(point.tau, new.tau) and \
-                    (new.t_tau > 0) == (end > point.tau):
-                last = self.arc.at_tau(point, end) or new
-                self.record(last)
-                return last, True
+        end = self._end_within(point, new)
+        if end is not None:        # (at it: :meth:`_step` shortened the step to land there)
+            last = new if new.tau == end else self.arc.at_tau(point, end) or new
+            self.record(last, eq=eq if last is new else None)
+            return last, True
         self.record(new, eq=eq)
         return new, False
 

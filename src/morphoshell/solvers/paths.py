@@ -115,6 +115,18 @@ class ParameterLine:
             return self.source
         return self.problem.with_updates(**dict(zip(self.names, self.a + tau * (self.b - self.a))))
 
+    def invalid(self, tau: float) -> str | None:
+        """Why the parameters at τ make no valid problem (its own check's message), or None.
+
+        Beyond the ends (a step past the path's end, a branch that turns back past its
+        start) the parameters are extrapolated and may leave the family's ranges: σ below
+        its bound 1e-3 a step past the end of a path to σ = 1e-3 (audit 17)."""
+        try:
+            self.at(tau)
+        except ValueError as exc:
+            return str(exc)
+        return None
+
     def values(self, tau: float) -> dict[str, float]:
         """The moving parameters' values at τ: the ends' own at τ = 0 and 1, as :meth:`at`
         (a + 1·(b − a) is not b in floating point: h = 0.010000000000000009 for 0.01)."""
