@@ -204,8 +204,8 @@ def test_the_json_says_when_e_fit_is_far_above_traced_midlines(midline_csv, tmp_
     the JSON saw a converged fit (audit 10, F8).  The JSON's input_check holds it."""
     import json
 
-    import morphoshell.cli._fit_stops as stops
-    monkeypatch.setattr(stops, "IMPLAUSIBLE_E_FIT", 0.0)    # (every fit is far above now)
+    import morphoshell.fitting.midline_checks as checks
+    monkeypatch.setattr(checks, "IMPLAUSIBLE_E_FIT", 0.0)   # (every fit is far above now)
     out = tmp_path / "fit.json"
     _fit(midline_csv, "--max-evaluations", "2", "--json", str(out))
     check = json.loads(out.read_text())["input_check"]

@@ -8,7 +8,8 @@ may help (``--max-evaluations``, ``--start``, ``--set``, ``--method``).
 A fit that fails (the KKT fit raises) ends with the error line instead:
 :func:`failure_hint` is what that line says to try.  A fit that ends far above what
 the model gives any traced midline (:data:`IMPLAUSIBLE_E_FIT`) points at the input
-first: its orientation, scale and axis.
+first: its orientation, scale and axis (the verdict of
+:func:`morphoshell.fitting.midline_checks.input_check`, which the JSON holds).
 """
 from __future__ import annotations
 
@@ -18,35 +19,19 @@ from ..numerics.status import (FIT_CONVERGED, FIT_MOVED_BOXES_FAILED, FIT_NEAR_F
                                FIT_NOT_MINIMUM, FIT_NOT_STATIONARY, FIT_ON_BOX_EDGES, FIT_STALLED,
                                MAXIMUM_EVALUATIONS_EXCEEDED, MAXIMUM_ITERATIONS_EXCEEDED,
                                SOLVE_SUCCEEDED, SOLVED_TO_ACCEPTABLE_LEVEL, explain)
+from ..fitting.midline_checks import (IMPLAUSIBLE_E_FIT, INPUT_CHECK, MISFIT, far_above,
+                                      input_check)
 
 if TYPE_CHECKING:
     from ..fitting import FitResult
 
 __all__ = ["stop_line", "failure_hint", "far_above", "NAMES", "IMPLAUSIBLE_E_FIT",
-           "INPUT_CHECK"]
+           "INPUT_CHECK", "MISFIT"]
 
 #: How the last line names each method, and what its iteration count counts.
 NAMES = {"nelder-mead": ("Nelder-Mead", "evaluations"),
          "gradient": ("Gradient fit", "evaluations"),
          "kkt": ("KKT fit", "iterations")}
-
-#: E_fit (R) above which a fit's last line points at the input before the fit.  E_fit is the
-#: root of the sum of 100 squared distances: 0.1 R is 0.01 R rms a point, 0.4 µm at R = 40 µm,
-#: more than a pixel.  Fits of traced midlines end at 0.005-0.02 R (the synthetic averages
-#: 0.0046-0.012, single noisy image traces 0.012, 24-point sparse traces 0.02), the worst
-#: variant of a late stage at 0.031 (flat, t06); wrong input ends at 0.2-16 R (z flipped 10.2,
-#: a half section tilted by rounding 6.6, the radius 10 % off 0.69, f1 held at 5 16.5).  Stalls
-#: at a fold from far starts on right data reach 0.24-0.67 R too (t06 from the defaults, t08
-#: with t01's held values): above the threshold the line names both, the input first.
-IMPLAUSIBLE_E_FIT = 0.1
-#: What to check of an input whose fit ends above IMPLAUSIBLE_E_FIT.
-INPUT_CHECK = ("check the input: its orientation (pole first? z flipped?), its scale "
-               "(--pixel-size and --radius-um; a CSV's r, z in units of R), its axis "
-               "(--section) and any --set values")
-
-#: What a converged fit far above traced midlines may mean when its input is right.
-MISFIT = ("if it is right, the model may not describe this shape (see the parameters on "
-          "bounds and constraints)")
 
 _START = "--start FIT.json"
 #: Where a stalled fit (near a fold of the branch) may do better.
@@ -82,24 +67,14 @@ def stop_line(result: FitResult, limit: int, refit_of: FitResult | None = None) 
     far = far_above(result.E_fit)
     if result.converged:
         ipopt = result.stop in (SOLVE_SUCCEEDED, SOLVED_TO_ACCEPTABLE_LEVEL)
+        check = input_check(result.E_fit)       # (the JSON's: one verdict)
         return f"{name} converged after {its} {at}" + (f" (Ipopt: {result.stop})" if ipopt
-                                                       else "") + (f"; {far}; {MISFIT}" if far
+                                                       else "") + (f"; {check}" if check
                                                                    else "")
     what, why, remedy = _not_converged(result, its, limit)
     tail = f"{why}; {remedy}" if why else remedy
     return f"{name} {what} {at}, not converged: " + (f"{far} first; if it is right, {tail}"
                                                      if far else tail)
-
-
-def far_above(E_fit: float) -> str:
-    """What the last line (and the JSON's ``input_check``) says of an E_fit above
-    :data:`IMPLAUSIBLE_E_FIT` ("" below it).  Right input can end there too: a stall at a
-    fold, or a shape the model does not describe (:data:`MISFIT`: an audit's hand-made
-    bowl, three stretches on their bounds)."""
-    if not E_fit > IMPLAUSIBLE_E_FIT:
-        return ""
-    return (f"E_fit is far above what the model leaves of a traced midline (0.005-0.03 R): "
-            f"{INPUT_CHECK}")
 
 
 def _not_converged(result: FitResult, its: str, limit: int) -> tuple[str, str, str]:

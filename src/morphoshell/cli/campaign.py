@@ -90,8 +90,9 @@ def register(sub) -> None:
                         "method, nodes): record the new ones and refit its fits as "
                         "they come (default: refused, naming the setting)")
     p.add_argument("--allow-failures", action="store_true",
-                   help="exit 0 even when fits failed or did not converge (default: exit "
-                        "status 3, naming them on the last line)")
+                   help="exit 0 even when fits failed or did not converge, or the best fit "
+                        "of a timepoint is far above what the model leaves of a traced midline "
+                        "(default: exit status 3, naming them on the last line)")
     resume = p.add_mutually_exclusive_group()
     resume.add_argument("--resume", dest="resume", action="store_true", default=True,
                         help="keep results already in DIR made with the same data, method and "
@@ -139,8 +140,9 @@ def _campaign(args) -> int:
         print("E_fit [R]:")
         print(table.to_string(float_format=lambda v: f"{v:.4g}"))
     print(f"  wrote {_written(result)} and {result.out / SUMMARY}")
-    print(_verdict(unfinished, len(result.records), args.allow_failures))
-    return 3 if unfinished and not args.allow_failures else 0
+    far, best = result.far_above(), result.best_far_above()
+    print(_verdict(unfinished, len(result.records), args.allow_failures, far, best))
+    return 3 if (unfinished or best) and not args.allow_failures else 0
 
 
 def _written(result) -> str:
@@ -157,14 +159,24 @@ def _count(n: int, noun: str) -> str:
     return f"{n} {noun}{'s' * (n != 1)}"
 
 
-def _verdict(unfinished: list, fits: int, allowed: bool) -> str:
-    """The last line: all converged, or how many failed and did not converge, by name."""
-    if not unfinished:
-        return f"all {fits} fits converged"
+def _verdict(unfinished: list, fits: int, allowed: bool, far: list | None = None,
+             best: list | None = None) -> str:
+    """The last line: all converged, or how many failed and did not converge, by name; then
+    the fits far above what the model leaves of a traced midline (their ``input_check``), and
+    the timepoints whose best fit is one of them (exit status 3, as a failure)."""
     failed = [f"{t}_{v}" for t, v, why in unfinished if why == "failed"]
     stopped = [f"{t}_{v}" for t, v, why in unfinished if why != "failed"]
     parts = [f"{len(names)} {what}: {', '.join(names)}"
              for names, what in ((failed, "failed"), (stopped, "did not converge")) if names]
+    head = f"of {fits} fits, {'; '.join(parts)}" if parts else f"all {fits} fits converged"
+    if far:
+        head += (f"; {len(far)} fit far above what the model leaves of a traced midline "
+                 f"(check the input or the hypothesis): {', '.join(f'{t}_{v}' for t, v in far)}")
+    if best:
+        head += (f"; {len(best)} of them the best fit of a timepoint (no variant describes "
+                 f"its data: check the input): {', '.join(f'{t}_{v}' for t, v in best)}")
+    if not (parts or best):
+        return head
     tail = ("(--allow-failures: exit status 0)" if allowed else
             "(their JSON files say why; exit status 3, --allow-failures for 0)")
-    return f"of {fits} fits, {'; '.join(parts)} {tail}"
+    return f"{head} {tail}"

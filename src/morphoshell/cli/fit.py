@@ -238,9 +238,10 @@ def csv_columns(result) -> dict:
 
 def _fit(args) -> int:
     from ..fitting import EVALUATION_LIMITS, N_FIT
+    from ..fitting.midline_checks import input_check
     from ..fitting.trace_errors import profile_inflation
     from ..io.problem_files import write_csv, write_json
-    from ._fit_stops import MISFIT, far_above, stop_line
+    from ._fit_stops import stop_line
 
     spec = _start_problem(args)
     names = profile_names(args.profile, spec, args)  # (a bad name: exit 2, before any work)
@@ -268,10 +269,10 @@ def _fit(args) -> int:
             print(refit_lines(before, result))
             limit = EVALUATION_LIMITS["gradient"][1]      # (the refit's: profile_intervals)
         print(profile_table(result, profiles))
-    out, far = Outputs(), far_above(result.E_fit)
+    out = Outputs()
     out.add(args.json, lambda path: write_json(path, {
         **result.to_dict(), **fit_record(args, limit),
-        "input_check": f"{far}; {MISFIT}" if far else None,
+        "input_check": input_check(result.E_fit),
         **(starts.to_dict() if starts is not None else {}),
         **(profile_json(profiles, before, result) if profiles else {})}))
     out.add(args.csv, lambda path: write_csv(path, csv_columns(result)))

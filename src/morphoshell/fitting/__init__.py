@@ -22,7 +22,7 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "results": ["FitResult", "FitError", "load_fit"],
     "midline_checks": ["intrinsic_lengths", "check_midline", "LENGTH_SLACK", "MAX_TURN",
                        "TURN_LENGTH", "POLE_SLACK", "MAX_MEAN_STRETCH", "POLE_ANGLE", "POLE_ARC",
-                       "SCALE_HINT"],
+                       "SCALE_HINT", "input_check", "IMPLAUSIBLE_E_FIT"],
     "bilevel": ["fit", "METHODS", "FIT_NODES", "EVALUATION_LIMITS"],
     "multistart": ["multi_start_fit", "MultiStartFit", "MULTI_STARTS"],
     "profiles": ["Profile", "profile", "profile_intervals", "profiled_fit"],

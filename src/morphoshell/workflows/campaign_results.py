@@ -15,11 +15,12 @@ from pathlib import Path
 from typing import Iterable
 
 from ..fitting import VARIANTS
+from ..fitting.midline_checks import input_check
 from ..io.timepoints import Timepoint, read_timepoints
 from ..model.profiles import get_family
 
 __all__ = ["CampaignResult", "load_campaign", "RESULT_SUFFIX", "SUMMARY", "SETTINGS",
-           "result_path", "read_record", "read_records", "column_unit"]
+           "result_path", "read_record", "read_records", "column_unit", "record_input_check"]
 
 #: Result files are ``<timepoint>_<variant>.json``.
 RESULT_SUFFIX = ".json"
@@ -67,7 +68,8 @@ class CampaignResult:
         -------
         pandas.DataFrame
             Columns ``timepoint``, ``pseudotime``, ``variant``, ``status``,
-            ``E_fit``, ``converged``, ``nodes`` and ``method`` (the fit's
+            ``E_fit``, ``converged``, ``input_check`` (:func:`record_input_check`;
+            empty below it), ``nodes`` and ``method`` (the fit's
             settings: a folder that mixes them shows it), ``held_from`` (the
             variant whose first fit gave the held values; empty where a
             variant fitted its own), ``active_constraints`` (the constraints
@@ -106,13 +108,33 @@ class CampaignResult:
                     out.append((tp.name, v, "not converged"))
         return out
 
+    def far_above(self) -> list[tuple[str, str]]:
+        """The fits with an ``input_check`` verdict (:func:`record_input_check`): (timepoint,
+        variant), in the campaign's order.  A wrong hypothesis may legitimately end there."""
+        return [(tp.name, v) for tp in self.timepoints for v in self.variants
+                if record_input_check(self.records.get((tp.name, v), {}))]
+
+    def best_far_above(self) -> list[tuple[str, str]]:
+        """The timepoints whose best fit (lowest E_fit of the variants' fits that finished)
+        has an ``input_check`` verdict, with that fit's variant: no variant run describes
+        their data, so the input (or every hypothesis) is wrong."""
+        out = []
+        for tp in self.timepoints:
+            done = [(rec["E_fit"], v) for v in self.variants
+                    if (rec := self.records.get((tp.name, v), {})).get("status") == "ok"]
+            best = min(done, default=None)
+            if best is not None and record_input_check(self.records[(tp.name, best[1])]):
+                out.append((tp.name, best[1]))
+        return out
+
 
 def _summary_row(tp: Timepoint, variant: str, rec: dict) -> dict:
     """One row of :meth:`CampaignResult.to_dataframe`: a fit's status, settings, E_fit and
     parameters."""
     row = {"timepoint": tp.name, "pseudotime": tp.pseudotime, "variant": variant,
            "status": rec["status"], "E_fit": rec.get("E_fit", float("nan")),
-           "converged": rec.get("converged", False), "nodes": rec.get("nodes"),
+           "converged": rec.get("converged", False),
+           "input_check": record_input_check(rec) or "", "nodes": rec.get("nodes"),
            "method": rec.get("method", ""),
            "held_from": (rec.get("held_from") or {}).get("variant", ""),
            "active_constraints": "; ".join(rec.get("constrained", []))}
@@ -127,6 +149,13 @@ def _summary_row(tp: Timepoint, variant: str, rec: dict) -> dict:
         row.update({f"se_embryo_{n}": _number(embryo.get(n)) for n in names})
         row["embryo_t95"] = rec.get("embryo_t95", float("nan"))   # (none: no errors)
     return row
+
+
+def record_input_check(rec: dict) -> str | None:
+    """The ``input_check`` of a campaign record: ``morphoshell fit``'s verdict on its E_fit
+    (:func:`morphoshell.fitting.midline_checks.input_check`), None for a failed fit (no
+    E_fit).  From the E_fit, not the stored entry: a record of a version before it has none."""
+    return input_check(rec["E_fit"]) if rec.get("status") == "ok" else None
 
 
 def column_unit(column: str) -> str:

@@ -157,8 +157,10 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
     ``status`` (``ok`` or ``failed`` with ``message``), and for a successful
     fit :meth:`morphoshell.fitting.results.FitResult.to_dict` without its time and
     ``state`` (s, r, ψ, f_s of the fitted equilibrium at its points: the
-    next timepoint's warm start).  A failed fit is recorded and the next timepoint
-    starts from the last successful one.
+    next timepoint's warm start), and ``input_check``: null, or ``morphoshell fit``'s
+    verdict on an E_fit far above what the model leaves of a traced midline
+    (:func:`~morphoshell.workflows.campaign_results.record_input_check`).  A failed fit is
+    recorded and the next timepoint starts from the last successful one.
     """
     selected = timepoints
     timepoints, variants, out = _validate(data_dir, variants, method, nodes, workers, out, start)

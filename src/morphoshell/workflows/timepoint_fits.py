@@ -45,7 +45,7 @@ from ..numerics.mesh import mesh_spec
 from ..solvers.direct import DirectSolver
 from ..solvers.refinement import solve_from
 from ..solvers.results import Equilibrium, SolverError
-from .campaign_results import read_record, result_path
+from .campaign_results import read_record, record_input_check, result_path
 from .fitted_shapes import fitted_state
 from .start_candidates import Candidate, best_start, other_candidates
 
@@ -105,7 +105,9 @@ def _sha256(path: Path) -> str:
 #: Entries of a record that label its fit but do not change it: left out of the digest that
 #: chains a fit to the previous one (``previous``), so that a corrected pseudotime or another
 #: package version updates the labels of stored fits instead of refitting every later one.
-_LABELS = ("pseudotime", "provenance")
+#: ``input_check`` is the verdict on the fit's E_fit (:func:`record_input_check`), added to
+#: the records of folders written before it without refitting them.
+_LABELS = ("pseudotime", "provenance", "input_check")
 
 
 def _digest(record: dict, labels: Sequence[str] = _LABELS) -> str:
@@ -245,6 +247,7 @@ def fit_variant(task: CampaignTask) -> list[dict]:
         else:
             t0 = time.perf_counter()
             rec = _fit_one(task, tp, prev, first, settings)
+            rec["input_check"] = record_input_check(rec)
             # a Ctrl-C that CasADi dropped (_runtime.interrupts) stops the campaign here: the
             # fit it may have cut is not stored
             interrupts.check()
@@ -262,11 +265,12 @@ def fit_variant(task: CampaignTask) -> list[dict]:
 def _relabelled(stored: dict | None, tp: Timepoint, settings: dict, legacy: str | None
                 ) -> dict | None:
     """A stored record with its labels brought up to date: the pseudotime of ``tp`` (an
-    input of no fit: timepoints.csv may correct it), and a ``previous`` digest of the
-    format before :data:`_LABELS` (``legacy``) replaced by the current one."""
+    input of no fit: timepoints.csv may correct it), its ``input_check`` (a folder written
+    before it has none), and a ``previous`` digest of the format before :data:`_LABELS`
+    (``legacy``) replaced by the current one."""
     if stored is None:
         return None
-    rec = dict(stored, pseudotime=tp.pseudotime)
+    rec = dict(stored, pseudotime=tp.pseudotime, input_check=record_input_check(stored))
     if legacy is not None and rec.get("previous") == legacy:
         rec["previous"] = settings["previous"]
     return rec
