@@ -257,3 +257,38 @@ def test_fit_names_outlier_points_and_drops_them_when_asked(fiji_xy, capsys, tmp
     assert "left out (--drop-outlier-points)" in captured.out
     assert main(["fit", str(fiji_xy), "--variant", "flat", *scale]) == 3     # a clean trace
     assert "far off the curve" not in str(capsys.readouterr())
+
+
+def test_retracings_the_reader_refuses_are_left_out_or_the_gauss_newton_errors_stand(
+        monkeypatch, capsys):
+    """A re-tracing that the reader refuses never refuses the trace (audit 15 F7: a valid
+    20-vertex ROI, exit 2, "re-tracing: the halves ... differ"): a few are left out with a
+    note saying how many; more than a tenth and the Gauss–Newton errors stand, said so."""
+    from argparse import Namespace
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from morphoshell.cli.fit import _retracings
+    from morphoshell.fitting import trace_errors
+
+    why = ("the halves of this whole section differ by 0.0519 R rms from their mirror average "
+           "(max_asymmetry = 0.05): the pole is taken at half the trace's length")
+    args = Namespace(section=None, radius_um=RADIUS_UM, pixel_size=PIXEL_UM)
+    result = SimpleNamespace(data=np.zeros((100, 2)), jacobian=np.eye(200, 13))
+    for refused, kept in ((2, True), (11, False)):
+        made = trace_errors.ReaderErrors(np.ones((100 - refused, 200)), 0.002, (why,) * refused)
+        monkeypatch.setattr(trace_errors, "reader_errors", lambda *a, made=made, **k: made)
+        errors = _retracings(result, object(), args)
+        out = capsys.readouterr().out
+        assert out.count("note:") == 1
+        assert "the first: the halves of this whole section differ by 0.0519 R rms from their " \
+               "mirror average (at most 0.05 R))" in out, out
+        if kept:
+            assert errors is made.errors
+            assert "from 98 simulated re-tracings" in out and "2 of 100 refused by the " \
+                   "reader and left out" in out, out
+        else:
+            assert errors is None
+            assert "the ± are the Gauss–Newton errors" in out and "11 of the 100 simulated " \
+                   "re-tracings" in out, out

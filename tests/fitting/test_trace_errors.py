@@ -52,7 +52,8 @@ def test_sandwich_errors_match_the_scatter_of_one_trace_fits_where_gauss_newton_
     sigma2 = np.mean(np.sum(residuals ** 2, axis=1)) / (2 * N - J.shape[1])
     gauss_newton = np.sqrt(sigma2 * np.diag(np.linalg.pinv(J.T @ J)))
     one = _trace(template, rng)
-    samples, sigma = reader_errors(_read(one), one, "whole", replicates=40, seed=1)
+    retraced = reader_errors(_read(one), one, "whole", replicates=40, seed=1)
+    samples, sigma = retraced.errors, retraced.sigma
     sandwich = np.sqrt(np.diag(sandwich_errors(J, samples)))
     # the trace's noise estimate is the pixel noise (fourth differences: within 15 %)
     assert sigma == pytest.approx(SIGMA, rel=0.15)
@@ -61,3 +62,28 @@ def test_sandwich_errors_match_the_scatter_of_one_trace_fits_where_gauss_newton_
     assert np.all((sandwich / scatter > 0.7) & (sandwich / scatter < 1.4)), sandwich / scatter
     # the Gauss–Newton errors are too small (the failure this module exists for)
     assert np.all(gauss_newton / scatter < 0.7), gauss_newton / scatter
+
+
+def test_a_retracing_the_reader_refuses_is_left_out_not_raised():
+    """A valid 20-vertex segmented line (audit 15 F7, its ROI file) was refused, exit 2,
+    because one simulated re-tracing of it failed the asymmetry check (the corners between
+    its vertices read as noise, 3.7 px, so its re-tracings are noisy): the re-tracing is left
+    out, its message kept, and the errors stand on the rest."""
+    from pathlib import Path
+
+    from morphoshell.fitting.trace_errors import ReaderErrors
+    from morphoshell.io import load_midline, read_trace
+
+    roi = Path(__file__).parents[1] / "data" / "seg20.roi"
+    scale = {"pixel_size_um": 0.3, "radius_um": 42.0}
+    midline, trace = load_midline(roi, **scale), read_trace(roi, **scale)
+    # (seed 4: one of the first 20 re-tracings is refused; 100 at seed 0, as the fit, refuse 2)
+    retraced = reader_errors(midline.points, trace, "whole", replicates=20, seed=4)
+    assert len(retraced.errors) == 19 and retraced.errors.shape[1] == 2 * len(midline.r)
+    [why] = retraced.refused
+    assert why.startswith("the halves of this whole section differ by")
+    assert retraced.usable
+    # more than a tenth refused (they are the worst read): the errors would be too narrow
+    rows = np.zeros((91, 4))
+    assert not ReaderErrors(rows[:89], 0.01, ("refused",) * 11).usable
+    assert ReaderErrors(rows, 0.01, ("refused",) * 9).usable

@@ -5,6 +5,7 @@ The reference midline and its trace files: reference_midline.py.
 import logging
 import math
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -483,3 +484,116 @@ def test_an_average_is_not_averaged_again(tmp_path):
     _average_csv(path, 100)
     with pytest.raises(MidlineError, match="already an average of 5 traces"):
         ml.average(ml.load_midlines(path) + ml.load_midlines(path))
+
+
+# ------------------------------------------------------------------ what passes but misleads
+
+def _bowl_lines(tmp_path, noise_px=0.5, n=1500):
+    """The lines of a Fiji XY file of the bowl's whole section (200 px per R, its points
+    2.9/(n − 1) R apart before noise), rim to rim."""
+    path = write(tmp_path, "fiji-xy", "bowl", points=_bowl(n), section="whole", angle_deg=23.0,
+                 offset_px=(900.0, 900.0), noise_px=noise_px, seed=3)
+    return path.read_text().splitlines(keepends=True)
+
+
+def _warnings(caplog, path, **options):
+    caplog.clear()
+    with caplog.at_level(logging.INFO, logger="morphoshell.io"):
+        ml.load_midline(path, **SCALE, **options)
+    return [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
+
+
+def test_a_rim_traced_short_is_named_in_a_warning(tmp_path, caplog):
+    """A whole section with one rim 0.3 R short was read 0.087 R off its midline and fitted
+    without a word (audit 15 F3: the halves 0.047 R from their mirror average, the refusal at
+    0.05).  Halves farther apart than the trace's noise leaves are named in a warning: here a
+    rim 0.1 R short, 0.029 R (dense) and 0.028 R (30 vertices), against limits of 0.01 R (5
+    times the binned noise 0.0011 R, at least 0.01) and 0.019 R (0.5 h², h = 0.2 R); the
+    complete trace's 0.0022 and 0.0019 R do not warn."""
+    lines = _bowl_lines(tmp_path)
+    short = lines[round(0.1 / (2.9 / 1499)):]
+    for name, kept in (("whole", lines), ("short", short)):
+        for vertices in (None, 30):
+            if vertices:
+                kept = [kept[i] for i in np.linspace(0, len(kept) - 1, 30).round().astype(int)]
+            path = tmp_path / f"{name}_{vertices}.txt"
+            path.write_text("".join(kept))
+            warnings = _warnings(caplog, path)
+            if name == "whole":
+                assert warnings == []
+                continue
+            [warning] = warnings
+            assert re.fullmatch(rf"{re.escape(str(path))}: the halves of this whole section "
+                                rf"differ by 0\.0(29|28) R rms from their mirror average, more "
+                                rf"than (its noise|the spline between its vertices) leaves "
+                                rf"\(0\.0\d+ R\): a rim traced short moves the pole along the "
+                                rf"curve and the midline, their average, by 1-2 times that .*",
+                                warning), warning
+
+
+def test_the_asymmetry_warnings_limit_is_the_traces_own():
+    """The limit is 5 times the binned points' noise σ/√k, at least 0.01 R; for a segmented
+    line's vertices (their σ the corners inflate) 0.5 h², h their mean spacing (calibration at
+    trace_checks._ASYMMETRY_SIGMAS)."""
+    from morphoshell.io.trace_checks import asymmetry_warning
+
+    dense = trace_noise.Binning(np.zeros((200, 2)), 800, 0.008, 0.005, 4, 4)   # σ/√k = 0.004
+    assert asymmetry_warning("a.txt", 0.019, dense) is None
+    assert "leaves (0.02 R)" in asymmetry_warning("a.txt", 0.021, dense)
+    quiet = replace(dense, sigma=0.0002)                                        # the floor
+    assert asymmetry_warning("a.txt", 0.0099, quiet) is None
+    assert "more than its noise leaves (0.01 R)" in asymmetry_warning("a.txt", 0.0101, quiet)
+    vertices = np.column_stack([np.linspace(0.0, 5.8, 30), np.zeros(30)])      # h = 0.2 R
+    sparse = trace_noise.Binning(vertices, 30, 0.05, 0.2, 1, 1)
+    assert sparse.sparse
+    assert asymmetry_warning("a.txt", 0.019, sparse) is None
+    assert "the spline between its vertices leaves (0.02 R)" in asymmetry_warning(
+        "a.txt", 0.021, sparse)
+
+
+def test_a_gap_bridged_in_a_dense_trace_is_named_in_a_note(tmp_path, caplog):
+    """A gap of 0.28 R (35 median steps) inside a dense trace was bridged silently (audit 15
+    F5; refused only beyond 10 median steps and 5 % of the trace).  Steps beyond 5 median steps
+    are named in a note (clean traces' reach 2.7-4.0), with the lines, R and px; the steps to
+    and from a kept outlier point are the outlier's warning's, not a gap."""
+    lines = _bowl_lines(tmp_path, n=500)           # points 1.2 px apart, 0.5 px of noise
+    gap = lines[:300] + lines[330:]                # 30 points: 0.17 R
+    for name, kept in (("whole", lines), ("gap", gap)):
+        path = tmp_path / f"{name}.txt"
+        path.write_text("".join(kept))
+        caplog.clear()
+        with caplog.at_level(logging.INFO, logger="morphoshell.io"):
+            ml.load_midline(path, **SCALE)
+        notes = [r.getMessage() for r in caplog.records if "bridged by" in r.getMessage()]
+        if name == "whole":
+            assert notes == []
+            continue
+        [note] = notes
+        assert re.fullmatch(rf"{re.escape(str(path))}: line 300 to line 301: a gap of 0\.1\d R "
+                            rf"\(3\d\.?\d* px, \d\d median steps\) bridged by the spline through "
+                            rf"the points: the midline there is the spline's, not the trace's",
+                            note), note
+    # a mis-click 12 px off: its steps are 10 median steps, and its warning names it
+    xy = np.array([[float(v) for v in ln.split()] for ln in lines])
+    xy[200] += [8.0, -9.0]
+    path = tmp_path / "misclick.txt"
+    path.write_text("".join(f"{x:.4f}\t{y:.4f}\n" for x, y in xy))
+    caplog.clear()
+    with caplog.at_level(logging.INFO, logger="morphoshell.io"):
+        ml.load_midline(path, **SCALE)
+    assert "line 201 (" in caplog.text and "bridged by" not in caplog.text, caplog.text
+
+
+def test_a_half_section_says_which_end_was_taken_as_the_pole(tmp_path, caplog):
+    """A half section whose midline does not cross the axis from its first point is taken
+    from there: listed rim first it is read upside down, which only a note can tell (audit 15
+    F4); the note says that the first point was taken as the pole."""
+    path = write(tmp_path, "fiji-xy", points=half(400), section="half", angle_deg=17.0,
+                 offset_px=(500.0, 700.0))
+    caplog.clear()
+    with caplog.at_level(logging.INFO, logger="morphoshell.io"):
+        ml.load_midline(path, section="half", **SCALE)
+    assert re.search(rf"{re.escape(str(path))}: a half section, its first point taken as the "
+                     rf"pole \(the midline does not cross the axis from it, and the ends cannot "
+                     rf"be told apart by shape: one listed rim first is read upside down\): "
+                     rf"fitted to its \d+ points", caplog.text), caplog.text

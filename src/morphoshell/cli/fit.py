@@ -333,18 +333,30 @@ def _single_trace(args):
 def _retracings(result, trace, args):
     """The data's errors from re-tracings of its one image trace
     (:func:`morphoshell.fitting.trace_errors.reader_errors`), said in a note, or None without
-    a single trace or a Jacobian (the Gauss–Newton errors stand)."""
+    a single trace or a Jacobian, or with too many re-tracings refused by the reader (the
+    Gauss–Newton errors stand; a note says why)."""
     if trace is None or result.jacobian is None:
         return None
     from ..fitting.trace_errors import TRACE_REPLICATES, reader_errors
 
     section = "half" if args.section == "half" else "whole"     # (align's rule for images)
-    errors, sigma = reader_errors(result.data, trace, section)
-    pixels = sigma * args.radius_um / args.pixel_size
+    retraced = reader_errors(result.data, trace, section)
+    pixels = retraced.sigma * args.radius_um / args.pixel_size
+    refused = len(retraced.refused)
+    first = (f"{'the first' if refused > 1 else 'it'}: "
+             f"{reworded(retraced.refused[0], TRACE_OPTIONS).partition(': ')[0]}" if refused else "")
+    if not retraced.usable:
+        note(f"the ± are the Gauss–Newton errors, which take the midline's points as independent "
+             f"(for one trace 1.3-1.8x too small): {refused} of the {TRACE_REPLICATES} simulated "
+             f"re-tracings of the trace's pixel noise (about {pixels:.2g} px) that would give them "
+             f"were refused by the reader ({first})")
+        return None
     note(f"the ± are the errors of the trace's pixel noise (about {pixels:.2g} px) carried through its alignment and resampling, from "
-         f"{TRACE_REPLICATES} simulated re-tracings (not the Gauss–Newton errors, which take the "
-         f"midline's points as independent)")
-    return errors
+         f"{len(retraced.errors)} simulated re-tracings (not the Gauss–Newton errors, which take the "
+         f"midline's points as independent)"
+         + (f"; {refused} of {TRACE_REPLICATES} refused by the reader and left out, which narrows "
+            f"the ± a little ({first})" if refused else ""))
+    return retraced.errors
 
 
 def _trace_errors(result, retraced):

@@ -46,9 +46,10 @@ traced:
              z = z₀ + a s² + b s⁴ of the average within 0.3 R of arclength s
              from it, not that of the one noisy point where the axis crosses
              the trace: that point's error would shift the whole midline
-             along z.  A section whose
-             halves differ by more than ``max_asymmetry`` (rms, units of R)
-             is refused.
+             along z.  A section whose halves lie farther than
+             ``max_asymmetry`` (rms, units of R) from their mirror average is
+             refused; farther than its noise leaves, named in a warning
+             (:func:`~morphoshell.io.trace_checks.asymmetry_warning`).
 ``"half"``   pole to rim, the pole first.  A regular pole of an axisymmetric
              surface has its tangent perpendicular to the axis, and the
              midline is even about it: in the frame of the axis,
@@ -79,7 +80,8 @@ traced:
              told apart by shape (a circular arc reads the same from either
              end; the local shape near an end, its fit's residual or its
              curvature's slope, told a rim from a pole on clean traces only,
-             and not on the bulged reference shape) and it is taken as given.
+             and not on the bulged reference shape) and it is taken as given
+             (its note says that the first point was taken as the pole).
 ``"auto"``   csv → half; image formats → whole.  Shape alone cannot tell: a
              circular arc traced from pole to rim is mirror-symmetric about
              its middle exactly as a whole section of a cup is, so a half
@@ -115,7 +117,8 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from .roi_sets import is_roi_set, read_set_traces
-from .trace_checks import MidlineError, check_axis, check_choice, check_positive, noise_hint
+from .trace_checks import (MidlineError, asymmetry_warning, bridged_gap, check_axis, check_choice,
+                           check_positive, noise_hint)
 from .trace_noise import Binning, bin_noisy
 from .trace_outliers import OUTLIER_SIGMAS, find_outliers
 from .traces import Midline, Trace, read_trace
@@ -316,12 +319,13 @@ def align(trace: Trace, section: str = "auto", *, flip: bool = False,
         return Alignment(trace.points, "half", math.nan, trace.points[0], 0.0)
     kind = "half" if section == "half" else "whole"
     _check_count(trace, kind)
-    binning = bin_noisy(trace.points)
+    binning, outliers = bin_noisy(trace.points), ()
     if not binning.sparse:
-        trace = _outlier_points(trace, drop_outlier_points)
+        trace, outliers = _outlier_points(trace, drop_outlier_points)
         if len(trace.points) < binning.n:
             _check_count(trace, kind)
             binning = bin_noisy(trace.points)
+    warning = None
     if kind == "half":
         pole, e_r, e_z, points, axis_note = _half_section(trace, binning, flip)
         asymmetry = 0.0
@@ -339,17 +343,23 @@ def align(trace: Trace, section: str = "auto", *, flip: bool = False,
         where = [f"{f:.0%} of the way from the pole" for f in np.linspace(0, 1, len(points))]
         axis_note = None
         check_axis(trace.source, points, where)
-    for note in (binning.note(trace.source), axis_note):
+        warning = asymmetry_warning(trace.source, asymmetry, binning)
+    gap = None if binning.sparse else bridged_gap(trace.source, trace.points, trace.where,
+                                                  trace.scale, outliers)
+    for note in (binning.note(trace.source), gap, axis_note):
         if note:
             log.info(note)
+    if warning:
+        log.warning(warning)
     return Alignment(points, kind, math.atan2(-e_z[0], e_z[1]), pole, asymmetry)
 
 
-def _outlier_points(trace: Trace, drop: bool) -> Trace:
-    """The trace, its outlier points named in a warning, or left out (``drop``) with a note."""
+def _outlier_points(trace: Trace, drop: bool) -> tuple[Trace, np.ndarray]:
+    """The trace, its outlier points named in a warning, or left out (``drop``) with a note;
+    and the positions of those kept."""
     found = find_outliers(trace.points)
     if not len(found):
-        return trace
+        return trace, found.index
     listed = ", ".join(f"{trace.where[i]} ({d:.2g} R = {d / trace.scale:.3g} px)"
                        for i, d in zip(found.index, found.distance))
     what = (f"{trace.source}: {len(found)} point{'s' * (len(found) > 1)} far off the curve of "
@@ -358,12 +368,12 @@ def _outlier_points(trace: Trace, drop: bool) -> Trace:
     if not drop:
         log.warning(f"{what}; kept: they lengthen the midline and bias a fit; leave them out "
                     f"with drop_outlier_points=True, or correct the trace")
-        return trace
+        return trace, found.index
     log.info(f"{what}; left out (drop_outlier_points=True)")
     keep = np.ones(len(trace.points), dtype=bool)
     keep[found.index] = False
     return replace(trace, points=trace.points[keep],
-                   where=tuple(w for w, k in zip(trace.where, keep) if k))
+                   where=tuple(w for w, k in zip(trace.where, keep) if k)), found.index[:0]
 
 
 def _check_count(trace: Trace, kind: str) -> None:
@@ -396,8 +406,8 @@ def _check_scale(trace: Trace, binning: Binning, halves: int, also: str) -> None
 
 
 def _half_section(trace: Trace, binning: Binning, flip: bool):
-    """Pole, e_r, e_z, the points in the model gauge and a note of a half section, taken from
-    its last point if it was traced rim first.
+    """Pole, e_r, e_z, the points in the model gauge and a note (the end taken as the pole) of a
+    half section, taken from its last point if it was traced rim first.
 
     A half section runs from the pole, on the axis, to a free rim.  Aligned
     from its first point, a trace that starts at the rim can cross the axis
@@ -409,19 +419,23 @@ def _half_section(trace: Trace, binning: Binning, flip: bool):
     """
     crossing = _half_checked(trace, binning, flip)
     if not isinstance(crossing, MidlineError):
-        return crossing
+        pole, e_r, e_z, points, what = crossing
+        return pole, e_r, e_z, points, (
+            f"{trace.source}: a half section, its first point taken as the pole (the midline "
+            f"does not cross the axis from it, and the ends cannot be told apart by shape: one "
+            f"listed rim first is read upside down): {what}")
     back = replace(trace, points=trace.points[::-1], where=trace.where[::-1])
     other = _half_checked(back, replace(binning, points=binning.points[::-1]), flip)
     if isinstance(other, MidlineError):
         why = str(other).removeprefix(f"{trace.source}: ")
         raise MidlineError(f"{crossing}; traced rim first? reversed, it is refused too: "
                            f"{why}") from None
-    pole, e_r, e_z, points, note = other
+    pole, e_r, e_z, points, what = other
     where = str(crossing).removeprefix(f"{trace.source}: ").partition(": the midline")[0]
     return pole, e_r, e_z, points, (
         f"{trace.source}: traced rim first? from its first point the midline crosses the axis "
-        f"({where}), from its last it does not: the last point taken as the pole; "
-        f"{note.removeprefix(trace.source + ': ')}")
+        f"({where}), from its last it does not: the last point taken as the pole; a half "
+        f"section: {what}")
 
 
 def _half_checked(trace: Trace, binning: Binning, flip: bool):
@@ -442,8 +456,8 @@ def _half_checked(trace: Trace, binning: Binning, flip: bool):
 
 
 def _half(source: str, binning: Binning, flip: bool):
-    """Pole, e_r, e_z, the points in the model gauge and a note of a half section (refused if
-    its axis is uncertain beyond :data:`_MAX_AXIS_ERROR`)."""
+    """Pole, e_r, e_z, the points in the model gauge and its axis's error in words, of a half
+    section (refused if its axis is uncertain beyond :data:`_MAX_AXIS_ERROR`)."""
     points = binning.points
     # the noise of the points fitted is at least the trace's (a median over all its points, a
     # steadier estimate than the residuals of the few near the pole), unless the points are
@@ -461,7 +475,7 @@ def _half(source: str, binning: Binning, flip: bool):
         raise MidlineError(f"{source}: the axis of this half section is uncertain: {what} (more "
                            f"than {_MAX_AXIS_ERROR:g} R): trace the whole section, rim to rim "
                            f"through the pole (section='whole'), whose axis rests on both halves")
-    return pole, e_r, e_z, gauge, f"{source}: a half section: {what}"
+    return pole, e_r, e_z, gauge, what
 
 
 def _half_axis(source: str, points: np.ndarray, floor: float):

@@ -5,7 +5,11 @@ and the alignment (:mod:`morphoshell.io.midlines`) refuse what cannot be a
 midline with :class:`MidlineError`, one line naming the file and the line,
 point or option: an option that is not a choice or not positive, a scale
 missing, points that are not one simple curve, that reach farther than a
-midline can from its pole, or a midline that crosses the axis.
+midline can from its pole, or a midline that crosses the axis.  What passes
+but may mislead a fit gets one line that :func:`morphoshell.io.midlines.align`
+logs: halves of a whole section further apart than its noise leaves
+(:func:`asymmetry_warning`), a gap in a dense trace bridged by the spline
+(:func:`bridged_gap`).
 """
 from __future__ import annotations
 
@@ -14,10 +18,10 @@ from typing import Sequence
 import numpy as np
 
 from .._runtime.validate import real
-from .trace_noise import noise_estimate
+from .trace_noise import Binning, noise_estimate
 
 __all__ = ["MidlineError", "image_scale", "check_choice", "check_positive", "one_curve",
-           "check_extent", "check_axis", "noise_hint"]
+           "check_extent", "check_axis", "noise_hint", "asymmetry_warning", "bridged_gap"]
 
 #: A step longer than _GAP_STEPS median steps and _GAP_FRACTION of the trace joins two curves.
 _GAP_STEPS, _GAP_FRACTION = 10.0, 0.05
@@ -37,6 +41,19 @@ _JITTER = 20.0
 _REVERSAL, _REVERSAL_NOISE, _REVERSAL_SPAN = 0.05, 40.0, 20
 #: How far (units of R) an aligned midline may stray to r < 0: noise near the pole, no more.
 _AXIS_SLACK = 0.05
+#: A whole section's halves are named in a warning when they lie farther from their mirror
+#: average than _ASYMMETRY_SIGMAS times the noise of its binned points (σ/√k) and than
+#: _ASYMMETRY_FLOOR (R); a segmented line's vertices (their σ the corners inflate), farther than
+#: _ASYMMETRY_SPARSE h² (h their mean spacing, R) and the floor.  Clean traces lay within 0.6-2.5
+#: times that noise (the 60 shipped ones; 384 of 6 shapes at 100-300 px per R, 0-1 % R noise,
+#: rounded or not, at most 5.0: 3 px of noise at 300 px per R), 15-40 vertices of the shipped
+#: traces within 0.35 h² (1080 placements); a rim traced 0.05 R short gives 0.012-0.032 R, one
+#: 0.1 R short 0.022-0.05 R (docs/benchmarks.md, "Traced midlines").
+_ASYMMETRY_SIGMAS, _ASYMMETRY_FLOOR, _ASYMMETRY_SPARSE = 5.0, 0.01, 0.5
+#: A step of a dense trace longer than _BRIDGED_STEPS median steps is named in a note: those of
+#: clean traces reach 2.7 (the shipped ones) to 4.0 (pixel-rounded, 0-3 px of noise); the
+#: audit's gaps of 0.1 and 0.28 R, 9 and 26.
+_BRIDGED_STEPS = 5.0
 #: How far (units of R) a trace may reach from its first point: a Volvox midline lies within
 #: about 2 R of its pole; farther is a trace in other units (at 1e300 the spline overflowed).
 _MAX_EXTENT = 20.0
@@ -280,3 +297,74 @@ def check_axis(source: str, points: np.ndarray, where, hint: str = "") -> None:
     if len(bad):
         raise MidlineError(f"{source}: {where[bad[0]]}: r = {points[bad[0], 0]:.4g} < 0: the "
                            f"midline crosses the axis (the model gauge has r >= 0){hint}")
+
+
+def asymmetry_warning(source: str, asymmetry: float, binning: Binning) -> str | None:
+    """One line naming a whole section whose halves lie farther apart than its noise leaves.
+
+    Parameters
+    ----------
+    source : str
+        The file, for the message.
+    asymmetry : float
+        Rms distance of the halves from their mirror average, units of R
+        (:attr:`morphoshell.io.midlines.Alignment.asymmetry`).
+    binning : Binning
+        The points aligned (:func:`morphoshell.io.trace_noise.bin_noisy`), for their noise or,
+        a segmented line's vertices, their spacing.
+
+    Returns
+    -------
+    str or None
+        The warning, or None within the limit (rules at :data:`_ASYMMETRY_SIGMAS`).
+    """
+    if binning.sparse:
+        spacing = float(np.sum(np.hypot(*np.diff(binning.points, axis=0).T))) / (binning.n - 1)
+        limit, what = _ASYMMETRY_SPARSE * spacing ** 2, "the spline between its vertices"
+    else:
+        limit, what = _ASYMMETRY_SIGMAS * binning.sigma / np.sqrt(binning.k), "its noise"
+    limit = max(limit, _ASYMMETRY_FLOOR)
+    if not asymmetry > limit:
+        return None
+    # (audit 15 F3: rims 0.05-0.3 R short gave 0.017-0.047 R here, midlines 0.013-0.087 R off)
+    return (f"{source}: the halves of this whole section differ by {asymmetry:.2g} R rms from "
+            f"their mirror average, more than {what} leaves ({limit:.2g} R): a rim traced short "
+            f"moves the pole along the curve and the midline, their average, by 1-2 times that "
+            f"(a rim 0.1 R short: 0.03 R), which a fit cannot tell; check that both rims are "
+            f"traced to their ends")
+
+
+def bridged_gap(source: str, points: np.ndarray, where, scale: float,
+                skip=()) -> str | None:
+    """One line naming the longest step of a dense trace if it is a gap the spline bridges.
+
+    Parameters
+    ----------
+    source : str
+        The file, for the message.
+    points : ndarray, shape (n, 2)
+        The trace's points, units of R.
+    where : sequence of str, length n
+        Where each point is in the file ("line 7").
+    scale : float
+        Units of R per pixel.
+    skip : sequence of int
+        Points whose steps are not gaps (outliers named already).
+
+    Returns
+    -------
+    str or None
+        The note, or None when no step exceeds :data:`_BRIDGED_STEPS` median steps (a
+        step beyond :func:`one_curve`'s limit was refused when the trace was read).
+    """
+    steps = np.hypot(*np.diff(points, axis=0).T)
+    median = float(np.median(steps))
+    ratio = steps / median
+    for i in skip:                       # (the steps to and from the point)
+        ratio[max(i - 1, 0):i + 1] = 0.0
+    i = int(np.argmax(ratio))
+    if not ratio[i] > _BRIDGED_STEPS:
+        return None
+    return (f"{source}: {where[i]} to {where[i + 1]}: a gap of {steps[i]:.2g} R "
+            f"({steps[i] / scale:.3g} px, {ratio[i]:.0f} median steps) bridged by the spline "
+            f"through the points: the midline there is the spline's, not the trace's")
