@@ -496,11 +496,17 @@ def _bowl_lines(tmp_path, noise_px=0.5, n=1500):
     return path.read_text().splitlines(keepends=True)
 
 
-def _warnings(caplog, path, **options):
+def _logged(caplog, path, **options) -> list:
+    """The log records of reading the trace at ``path``."""
     caplog.clear()
     with caplog.at_level(logging.INFO, logger="morphoshell.io"):
         ml.load_midline(path, **SCALE, **options)
-    return [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
+    return list(caplog.records)
+
+
+def _warnings(caplog, path, **options):
+    return [r.getMessage() for r in _logged(caplog, path, **options)
+            if r.levelno == logging.WARNING]
 
 
 def test_a_rim_traced_short_is_named_in_a_warning(tmp_path, caplog):
@@ -556,32 +562,25 @@ def test_a_gap_bridged_in_a_dense_trace_is_named_in_a_note(tmp_path, caplog):
     F5; refused only beyond 10 median steps and 5 % of the trace).  Steps beyond 5 median steps
     are named in a note (clean traces' reach 2.7-4.0), with the lines, R and px; the steps to
     and from a kept outlier point are the outlier's warning's, not a gap."""
-    lines = _bowl_lines(tmp_path, n=500)           # points 1.2 px apart, 0.5 px of noise
-    gap = lines[:300] + lines[330:]                # 30 points: 0.17 R
-    for name, kept in (("whole", lines), ("gap", gap)):
+    def notes(name: str, kept: list) -> list:
         path = tmp_path / f"{name}.txt"
         path.write_text("".join(kept))
-        caplog.clear()
-        with caplog.at_level(logging.INFO, logger="morphoshell.io"):
-            ml.load_midline(path, **SCALE)
-        notes = [r.getMessage() for r in caplog.records if "bridged by" in r.getMessage()]
-        if name == "whole":
-            assert notes == []
-            continue
-        [note] = notes
-        assert re.fullmatch(rf"{re.escape(str(path))}: line 300 to line 301: a gap of 0\.1\d R "
-                            rf"\(3\d\.?\d* px, \d\d median steps\) bridged by the spline through "
-                            rf"the points: the midline there is the spline's, not the trace's",
-                            note), note
+        return [r.getMessage() for r in _logged(caplog, path) if "bridged by" in r.getMessage()]
+
+    lines = _bowl_lines(tmp_path, n=500)           # points 1.2 px apart, 0.5 px of noise
+    assert notes("whole", lines) == []
+    [note] = notes("gap", lines[:300] + lines[330:])      # 30 points: 0.17 R
+    assert re.fullmatch(rf"{re.escape(str(tmp_path / 'gap.txt'))}: line 300 to line 301: a gap "
+                        rf"of 0\.1\d R \(3\d\.?\d* px, \d\d median steps\) bridged by the spline "
+                        rf"through the points: the midline there is the spline's, not the trace's",
+                        note), note
     # a mis-click 12 px off: its steps are 10 median steps, and its warning names it
     xy = np.array([[float(v) for v in ln.split()] for ln in lines])
     xy[200] += [8.0, -9.0]
     path = tmp_path / "misclick.txt"
     path.write_text("".join(f"{x:.4f}\t{y:.4f}\n" for x, y in xy))
-    caplog.clear()
-    with caplog.at_level(logging.INFO, logger="morphoshell.io"):
-        ml.load_midline(path, **SCALE)
-    assert "line 201 (" in caplog.text and "bridged by" not in caplog.text, caplog.text
+    text = "\n".join(r.getMessage() for r in _logged(caplog, path))
+    assert "line 201 (" in text and "bridged by" not in text, text
 
 
 def test_a_half_section_says_which_end_was_taken_as_the_pole(tmp_path, caplog):
@@ -590,10 +589,8 @@ def test_a_half_section_says_which_end_was_taken_as_the_pole(tmp_path, caplog):
     F4); the note says that the first point was taken as the pole."""
     path = write(tmp_path, "fiji-xy", points=half(400), section="half", angle_deg=17.0,
                  offset_px=(500.0, 700.0))
-    caplog.clear()
-    with caplog.at_level(logging.INFO, logger="morphoshell.io"):
-        ml.load_midline(path, section="half", **SCALE)
+    text = "\n".join(r.getMessage() for r in _logged(caplog, path, section="half"))
     assert re.search(rf"{re.escape(str(path))}: a half section, its first point taken as the "
                      rf"pole \(the midline does not cross the axis from it, and the ends cannot "
                      rf"be told apart by shape: one listed rim first is read upside down\): "
-                     rf"fitted to its \d+ points", caplog.text), caplog.text
+                     rf"fitted to its \d+ points", text), text
