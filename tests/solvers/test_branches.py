@@ -1,6 +1,7 @@
 """Branches of equilibria (issue 38): events located independently of the step, the inertia
 changing exactly at them, agreement with natural-parameter continuation and with cold
 solves, solve() crossing a snap-through, named errors, and the paths refused."""
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -243,6 +244,53 @@ def test_a_walk_that_leaves_the_parameters_ranges_ends_there_with_its_part(volvo
     assert "out of range (test)" in str(err.value)
     taus = [pt.tau for pt in err.value.branch.points]
     assert 0.2 < taus[-1] <= 0.3 and taus == sorted(taus)
+
+
+def _bounded(problem: Problem, name: str, sign: float) -> Problem:
+    """``problem`` with a family whose range of ``name`` ends at its value (above it for
+    ``sign`` = +1, below for −1): a path to it ends at a bound, as a path to sigma = 1e-3."""
+    fam, bound = problem.family_obj, problem.params[name]
+
+    def validate(values, cut, end):
+        fam.validate(values, cut, end)
+        if sign * (values[name] - bound) > 0:
+            raise ValueError(f"parameter {name} = {values[name]!r} beyond its bound (test)")
+    return replace(problem, family=replace(fam, validate=validate))
+
+
+@pytest.mark.parametrize("kind", ["fold", "branch_point"])
+def test_an_event_just_before_a_bound_is_crossed_at_the_paths_end(volvox, blister, branch60,
+                                                                 kind, monkeypatch):
+    """A fold or branch point within the descent's overshoot (1e-3 to 0.064 in lambda)
+    before a path's end at a parameter's bound: the snap's or buckle's descent was solved
+    beyond it, and the walk ended with the family's ValueError, read as bad input, naming
+    a value never given (kappa2 = -6.8585 past -6.85069).  It is solved at the end itself,
+    where an unbounded walk's landing is re-solved: the same state (energy to 1e-9
+    relative past the fold, measured 7e-12; 1e-7 past the branch point, measured 6e-9:
+    1e-4 past it the dome's mode is soft, and two minimisations there, one from a descent
+    at lambda = 1.001, agree to the solver's tolerance over its stiffness)."""
+    if kind == "fold":
+        event = next(pt for pt in branch60.events if pt.event == "fold")
+        target = ParameterLine.between(branch60.line.source, volvox).at(event.tau * (1 + 1e-6))
+        name, sign, tol = "kappa2", -1.0, 1e-9
+    else:
+        monkeypatch.setattr(Arclength, "first_step", lambda self, start, ds: None)
+        event = follow_branch(blister, nodes=60).events[0]
+        target = blister.with_updates(G=blister.params["G"] * event.tau * (1 + 1e-4))
+        name, sign, tol = "G", 1.0, 1e-7
+    free = follow_branch(target, nodes=60, follow="stable")
+    bounded = _bounded(target, name, sign)
+    line = ParameterLine.along(bounded, name, 0.0)
+    assert line.invalid(-1e-6) is not None and line.clipped(-0.01) == 0.0
+    assert line.clipped(0.5) == 0.5 and line.clipped(1.5) == 1.5
+    walk = follow_branch(bounded, nodes=60, follow="stable")
+    crossed = walk.snaps if kind == "fold" else walk.switches
+    assert len(crossed) == 1 and crossed[0].tau_after == 1.0
+    assert walk.end.tau == 1 and walk.end.stable
+    assert all(walk.line.invalid(pt.tau) is None for pt in walk.points)
+    assert abs(walk.end.energy - free.end.energy) < tol * free.end.energy
+    eq = solve(bounded, nodes=60)
+    assert abs(eq.energy - free.end.energy) < tol * free.end.energy
 
 
 def test_no_stable_way_past_the_fold_is_a_named_error(volvox, monkeypatch):

@@ -768,9 +768,10 @@ class _Walk:
         """(the point the walk goes on from, whether done): ``eq`` at ``tau``, recorded; a
         landing past the path's end (a fold or branch point within the overshoot before
         τ = 1) is at extrapolated parameters, so its branch is solved at τ = 1 and ends
-        the walk."""
+        the walk (one at 1 itself, where the parameters past it leave their ranges, is
+        there: :func:`~.crossings._descend`)."""
         done = tau >= 1.0
-        if done:
+        if tau > 1.0:
             eq, tau = self.arc.solver.solve(self.arc.line.at(1.0), warm_start=eq,
                                             anchors=self.arc.q), 1.0
         start = self.arc.start(eq, tau, 1.0)

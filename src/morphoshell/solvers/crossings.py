@@ -108,11 +108,15 @@ def _descend(arc: Arclength, point: ArcPoint, mode: np.ndarray, overshoot: float
 
     ``downhill`` turns ``mode`` to where the energy falls there; ``lower``
     also asks for an energy below ``before``'s at ``point``'s τ (a snap-through's
-    landing, ``landed``: :func:`_landed`; None without ``lower``).
+    landing, ``landed``: :func:`_landed`; None without ``lower``).  Past an end of the
+    path to parameters out of their ranges (an event just before a path's end at a
+    parameter's bound) the descent is solved at the end itself, once
+    (:meth:`ParameterLine.clipped`): the problem beyond is no valid one, and its
+    ValueError ended the walk as bad input, naming a value never given.
     """
     mask = arc.kkt.x_mask
-    for factor in (1, 4, 16, 64):
-        tau = point.tau + overshoot * factor
+    taus = (arc.line.clipped(point.tau + overshoot * factor) for factor in (1, 4, 16, 64))
+    for tau in dict.fromkeys(taus):              # (each once: clipped ones coincide)
         v = mode
         if downhill:
             state = arc.kkt.state(point.u, arc._data(tau))

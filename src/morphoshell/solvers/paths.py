@@ -127,6 +127,15 @@ class ParameterLine:
             return str(exc)
         return None
 
+    def clipped(self, tau: float) -> float:
+        """τ, or where its parameters leave their ranges (:meth:`invalid`) the path's end
+        on its side (0 or 1: the ends are valid problems).
+
+        A state solved a little past an event (a snap's or buckle's descent, up to 0.064 in
+        τ past a fold or branch point) lies beyond a path's end at a parameter's bound
+        (σ = 1e-3) when the event lies that close before it: it is solved at the end."""
+        return tau if self.invalid(tau) is None else min(max(tau, 0.0), 1.0)
+
     def values(self, tau: float) -> dict[str, float]:
         """The moving parameters' values at τ: the ends' own at τ = 0 and 1, as :meth:`at`
         (a + 1·(b − a) is not b in floating point: h = 0.010000000000000009 for 0.01)."""
