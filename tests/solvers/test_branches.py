@@ -293,6 +293,24 @@ def test_an_event_just_before_a_bound_is_crossed_at_the_paths_end(volvox, bliste
     assert abs(eq.energy - free.end.energy) < tol * free.end.energy
 
 
+@pytest.mark.parametrize("bound", [False, True])
+def test_a_fold_just_past_the_paths_end_is_not_reached(volvox, branch60, bound):
+    """A target 1e-4 of the way before a fold: a step passed lambda = 1 and came back, the
+    fold was located beyond the end and recorded there, and the quasi-static walk snapped
+    from it, ending inverted (energy 0.01777) where the shell never gets to the fold and
+    solve() ends unsnapped (0.02260); at a bound, the fold's own parameters are out of
+    range, a ValueError.  The walk ends at lambda = 1 first, where solve() does (energy to
+    1e-9 relative: measured 6e-13)."""
+    event = next(pt for pt in branch60.events if pt.event == "fold")
+    target = ParameterLine.between(branch60.line.source, volvox).at(event.tau * (1 - 1e-4))
+    target = _bounded(target, "kappa2", -1.0) if bound else target
+    eq = solve(target, nodes=60)
+    for follow in ("branch", "stable"):
+        walk = follow_branch(target, nodes=60, follow=follow)
+        assert walk.events == [] and walk.end.tau == 1 and walk.end.stable
+        assert abs(walk.end.energy - eq.energy) < 1e-9 * eq.energy
+
+
 def test_no_stable_way_past_the_fold_is_a_named_error(volvox, monkeypatch):
     """When every descent from the fold slides back onto the fold's state (forced:
     ``_moved`` says so), solve() and the quasi-static walk raise Snap_Through_Failed with

@@ -606,14 +606,29 @@ class _Walk:
         last = self.arc.at_tau(point, end)
         return (None, ds) if last is None else (last, self.arc.distance(point, last))
 
-    def _end_within(self, point: ArcPoint, new: ArcPoint) -> float | None:
+    def _end_within(self, point: ArcPoint, new: ArcPoint,
+                    rising: bool | None = None) -> float | None:
         """The end of the walk (:attr:`ends`) that the step from ``point`` to ``new`` passes
-        or reaches going toward it, or None."""
+        or reaches going toward it (τ growing at ``new``, or as ``rising`` says), or None."""
+        rising = new.t_tau > 0 if rising is None else rising
         for end in self.ends:
             if min(point.tau, new.tau) < end <= max(point.tau, new.tau) and \
-                    (new.t_tau > 0) == (end > point.tau):
+                    rising == (end > point.tau):
                 return end
         return None
+
+    def _end_at(self, point: ArcPoint, end: float) -> tuple[ArcPoint, bool]:
+        """The walk's last point: its branch at the end ``end`` next to ``point``, recorded
+        (a fold just past a path's end, located beyond it, had been recorded there, the
+        quasi-static walk snapping from it although the shell never reaches it; and
+        where the parameters there leave their ranges, its ValueError ended the walk as
+        bad input)."""
+        last = self.arc.at_tau(point, end)
+        if last is None:
+            raise self._ended(point, f"no state found at its end, lambda = {end:g}, "
+                                     f"just before a fold")
+        self.record(last)
+        return last, True
 
     def _on_path(self, point: ArcPoint, new: ArcPoint) -> None:
         """The branch's end (a SolverError, ``"Branch_Ended"``) where the step from ``point``
@@ -725,6 +740,9 @@ class _Walk:
         point to step from, whether done)."""
         if np.sign(new.t_tau) != np.sign(point.t_tau):
             fold = self.arc.locate_fold(point, ds)
+            end = self._end_within(point, fold, point.t_tau > 0)
+            if end is not None:    # (past the end, before the fold: the walk ends first)
+                return self._end_at(point, end)
             self.record(fold, "fold", negative=min(point.inertia.negative, new.inertia.negative))
             if self.follow == "stable" and point.inertia.stable:
                 return self._snap(fold)
