@@ -15,18 +15,19 @@ from morphoshell.solvers.routes import solve
 FOLD = Path(__file__).resolve().parents[1] / "data" / "volvox_fold.toml"
 
 
-def _hairpin(h: float, gap: float, legs: float):
+def _hairpin(h: float, gap: float, legs: float, f_s: float = 1.0):
     """A midline of two straight legs ``gap`` apart (length ``legs``) joined by a half circle,
-    unstretched (f_s = f_φ = 1: the walls are h thick), as the fields wall_contact reads."""
+    as the fields wall_contact reads: stretched f_s along it, f_φ = 1 (the walls are h/f_s
+    thick; unstretched by default)."""
     radius = gap / 2
     t = np.linspace(0, np.pi, 200)
     bend = np.column_stack([radius * np.sin(t), radius * np.cos(t)])
     leg = np.linspace(0, legs, 400)[::-1]
     points = np.vstack([np.column_stack([-leg, np.full_like(leg, radius)]), bend,
                         np.column_stack([-leg[::-1], np.full_like(leg, -radius)])])
-    s = np.r_[0, np.cumsum(np.hypot(*np.diff(points, axis=0).T))]
+    s = np.r_[0, np.cumsum(np.hypot(*np.diff(points, axis=0).T))] / f_s
     ones = np.ones(len(s))
-    return SimpleNamespace(r=points[:, 0] + legs + 1, z=points[:, 1], s=s, f_s=ones,
+    return SimpleNamespace(r=points[:, 0] + legs + 1, z=points[:, 1], s=s, f_s=f_s * ones,
                            f_phi=ones, problem=SimpleNamespace(h=h))
 
 
@@ -41,6 +42,20 @@ def test_walls_closer_than_h_overlap_and_a_bend_alone_does_not():
     assert contact.s[1] - contact.s[0] > FAR * h
     assert wall_contact(_hairpin(h, 1.2 * h, legs=1.0)) is None
     assert wall_contact(_hairpin(h, 0.8 * h, legs=0.0)) is None
+
+
+def test_a_compressed_thickened_bend_alone_is_not_two_walls():
+    """Compressed to f_s = 0.5, the walls are 2 h thick: a half circle of radius 0.4 of that
+    (its ends 0.8 of the thickness apart) spans 5 h of s but 1.3 thicknesses of deformed
+    midline, one bend.  Measured in the undeformed h and s it was taken for two walls, as
+    were the thickened bends of fitted Volvox shells (audit 19: 5 of Fig. 3's 9 panels
+    flagged, walls 0.28 R apart, 0.29 R thick, over 0.32 R of midline)."""
+    h, f_s = 0.1, 0.5
+    thick = h / f_s
+    assert wall_contact(_hairpin(h, 0.8 * thick, legs=0.0, f_s=f_s)) is None
+    # its legs, long enough, are two walls 0.8 of their thickness apart
+    contact = wall_contact(_hairpin(h, 0.8 * thick, legs=1.0, f_s=f_s))
+    assert contact.overlaps and contact.thickness == pytest.approx(thick)
 
 
 def test_the_inverted_volvox_shell_is_flagged(caplog):
