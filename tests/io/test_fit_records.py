@@ -110,6 +110,17 @@ def test_an_unconverged_fit_is_read_with_a_warning(caplog):
     assert "t07_flat.json: the fit did not converge (E_fit = 11.26 R: stopped)" in caplog.text
 
 
+def test_the_warning_of_a_campaigns_fit_names_it(caplog):
+    """A campaign's record read with no file named: the warning says which fit it is about
+    (Fig. 3's driver printed "the fit's record: the fit did not converge", audit 19, F1)."""
+    import logging
+
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        fitted_problem(_record(fitted=["kappa2"], converged=False, E_fit=0.0853, status="ok",
+                               timepoint="t07", variant="flat", message="near a fold"))
+    assert "t07_flat: the fit did not converge (E_fit = 0.0853 R: near a fold)" in caplog.text
+
+
 def test_ablate_of_an_unconverged_fit_warns_and_its_json_names_the_source(tmp_path, capsys):
     path = tmp_path / "short.json"
     path.write_text(json.dumps(_record(fitted=["kappa2"], converged=False, E_fit=0.0134,

@@ -1,0 +1,41 @@
+"""Numerical ablations of fitted shapes (workflows/fitted_shapes.py): both shells are looked
+at for walls that pass through each other, which the continuation in Σ never did (it does
+not go through solve(), whose check it was: audit 19, F1, the unconverged flat t07 fit's
+post-ablation shell, walls 0.003 R apart against a thickness of 0.13 R, unwarned)."""
+import logging
+from pathlib import Path
+
+from morphoshell.io.problem_files import example_path, load_problem
+from morphoshell.workflows import numerical_ablation
+
+FOLD = Path(__file__).resolve().parents[1] / "data" / "volvox_fold.toml"
+NODES = 100
+
+
+def _contact_warnings(caplog) -> list[str]:
+    return [r.getMessage() for r in caplog.records if r.name.endswith("solvers.contact")]
+
+
+def test_an_ablation_whose_walls_pass_through_each_other_is_flagged_naming_it(caplog):
+    """The documented fold shell (tests/test_contact.py: walls 0.06 R apart, 0.17 R thick),
+    ablated: both its shells overlap, each is recorded and warned of by the problem's name
+    and state, after the cut as well as before."""
+    problem, _ = load_problem(FOLD)
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        num = numerical_ablation(problem, 0.15, nodes=NODES)
+    assert num.walls_cross
+    for key in ("pre", "post"):
+        assert num.contacts[key].overlaps, key
+        assert num.contacts[key].distance < 0.1 < num.contacts[key].thickness
+    warned = _contact_warnings(caplog)
+    assert any(w.startswith("volvox_fold, post-ablation (Σ = 0.15) shell: the shell's walls "
+                            "pass through each other") for w in warned), warned
+    assert any(w.startswith("volvox_fold, intact (pre-ablation) shell") for w in warned), warned
+
+
+def test_an_ordinary_ablation_has_no_contact_and_no_warning(caplog):
+    problem, _ = load_problem(example_path("toy2_ablation"))
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        num = numerical_ablation(problem, 0.3, nodes=NODES)
+    assert num.contacts == {"pre": None, "post": None} and not num.walls_cross
+    assert not _contact_warnings(caplog)
