@@ -6,6 +6,12 @@ and below it the distance |model − data| (units of R) at each of the fit's
 points against the arclength s of the data midline — the terms of E_fit,
 showing where along the shell the model misses, which the overlay at print
 size cannot.
+
+A fit that did not converge is drawn as such wherever fits are drawn: in a
+series of fits (:func:`plot_fit_series`, e.g. E_fit or a fitted parameter
+against pseudotime) with an open marker (:data:`NOT_CONVERGED`, legend entry
+:func:`not_converged_handle`), and a panel of its shell hatched
+(:func:`~morphoshell.plotting.style.flag_panel`) with the note in its title.
 """
 from __future__ import annotations
 
@@ -15,7 +21,67 @@ from matplotlib.axes import Axes
 from .shells import finish_shell_axes, plot_cross_section, problem_title
 from .style import SINGLE_COLUMN, add_caption, journal_figure, made_here, own_axes, styled
 
-__all__ = ["plot_fit", "fit_axes", "fit_residuals"]
+__all__ = ["plot_fit", "fit_axes", "fit_residuals", "plot_fit_series", "not_converged_handle",
+           "NOT_CONVERGED"]
+
+#: The label of fits that did not converge (open markers in :func:`plot_fit_series`).
+NOT_CONVERGED = "not converged"
+
+
+def plot_fit_series(ax: Axes, x, y, converged, *, yerr=None, color: str = "k",
+                    marker: str = "o", ls: str = "-", ms: float = 3.0,
+                    label: str | None = None, **line) -> list:
+    """A quantity of several fits (E_fit, a fitted parameter) against e.g. pseudotime:
+    a line through all of them, a filled marker where the fit converged, an open one
+    where it did not.
+
+    Parameters
+    ----------
+    ax : Axes
+    x, y : array_like, shape (n,)
+    converged : array_like of bool, shape (n,)
+        Each fit's ``converged`` (a campaign's records, ``FitResult.converged``).
+    yerr : array_like, shape (n,), optional
+        Error bars, on the converged fits only (an unconverged fit's errors mean
+        nothing).
+    color, marker, ls, ms : str, str, str, float
+        The series' colour, marker, line style ("" or "none": no line) and marker size.
+    label : str, optional
+        The legend's label of the series (its line and filled marker); the open
+        markers are left out of the legend: add :func:`not_converged_handle`.
+    **line
+        Further properties of the line.
+
+    Returns
+    -------
+    list
+        The artists drawn: the series (line and filled markers, or line and error
+        bars), then the open markers.
+    """
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    ok = np.asarray(converged, bool)
+    no_line = ls in ("", "none", "None")
+    if yerr is None:        # one artist: the legend shows the line through a filled marker
+        drawn = ax.plot(x, y, ls="none" if no_line else ls, marker=marker,
+                        markevery=[int(i) for i in np.flatnonzero(ok)], ms=ms, color=color,
+                        label=label, **line)
+    else:
+        drawn = [] if no_line else ax.plot(x, y, ls=ls, color=color, label="_nolegend_",
+                                           **line)
+        drawn.append(ax.errorbar(x[ok], y[ok], yerr=np.asarray(yerr, float)[ok], fmt=marker,
+                                 ms=ms, color=color, capsize=2, label=label))
+    # open (white-filled, over the line), a little larger: visible at print size
+    drawn += ax.plot(x[~ok], y[~ok], ls="none", marker=marker, ms=ms + 1, mfc="white",
+                     mec=color, color=color, label="_nolegend_", zorder=3)
+    return drawn
+
+
+def not_converged_handle(marker: str = "o", color: str = "0.3"):
+    """The legend entry of :func:`plot_fit_series`'s open markers (fits that did not converge)."""
+    from matplotlib.lines import Line2D
+
+    return Line2D([], [], ls="none", marker=marker, mfc="white", mec=color, color=color,
+                  label=NOT_CONVERGED)
 
 
 def fit_residuals(result) -> tuple[np.ndarray, np.ndarray]:

@@ -26,7 +26,7 @@ from matplotlib.transforms import Bbox, ScaledTranslation
 
 __all__ = ["SINGLE_COLUMN", "DOUBLE_COLUMN", "MIN_FONT_SIZE", "PAPER_RC", "paper_style",
            "styled", "journal_figure", "new_axes", "made_here", "own_axes", "add_caption", "get_caption",
-           "label_panel", "save"]
+           "label_panel", "flag_panel", "is_flagged", "save"]
 
 #: Figure widths of journals (inches): one column and the full page width.
 SINGLE_COLUMN = 3.4
@@ -54,6 +54,8 @@ PAPER_RC: dict[str, Any] = {
 _STYLED = "_morphoshell_paper_style"
 #: gid of a caption's text, by which :func:`get_caption` finds it.
 _CAPTION = "morphoshell-caption"
+#: gid of the hatched background of :func:`flag_panel`.
+_FLAG = "morphoshell-flag"
 #: The gid of the axes :func:`new_axes` makes (:func:`made_here`).
 _OWN_AXES = "morphoshell-axes"
 #: Width of a character in ems (DejaVu Sans, mixed text): to break captions into lines.
@@ -223,6 +225,35 @@ def label_panel(ax: Axes, letter: str, *, size: float = 10.0, dx: float = -4.0,
     offset = ScaledTranslation(dx / 72, dy / 72, ax.figure.dpi_scale_trans)
     return ax.text(0.0, 1.0, letter, transform=ax.transAxes + offset, ha="right", va="bottom",
                    fontsize=size, fontweight="bold")
+
+
+#: Look of a panel whose content is no result (:func:`flag_panel`): a light grey
+#: background hatched under the data.
+FLAG_STYLE = {"facecolor": "0.94", "edgecolor": "0.78", "hatch": "////", "linewidth": 0.0}
+
+
+def flag_panel(ax: Axes):
+    """Hatch the background of ``ax`` grey: what it draws is not a result (a fit that did
+    not converge, a shape whose walls pass through each other); say why in its title.
+
+    The hatching lies under every artist of the axes (zorder below the lines and bands),
+    so the data stay readable, and it survives greyscale printing, which a coloured
+    background would not.
+
+    Returns
+    -------
+    matplotlib.patches.Rectangle
+        The hatched background, its gid ``"morphoshell-flag"``.
+    """
+    from matplotlib.patches import Rectangle
+
+    return ax.add_patch(Rectangle((0.0, 0.0), 1.0, 1.0, transform=ax.transAxes, zorder=0.1,
+                                  gid=_FLAG, **FLAG_STYLE))
+
+
+def is_flagged(ax: Axes) -> bool:
+    """Whether :func:`flag_panel` marked ``ax``."""
+    return any(p.get_gid() == _FLAG for p in ax.patches)
 
 
 #: Drawing passes before saving a laid-out figure (see :func:`_settle_layout`).
