@@ -16,6 +16,13 @@ N    E_fit against pseudotime for the four variants;
 O    fitted κ₁ of the free variant (95 % intervals) and 1/f₁ against
      pseudotime, with the generating κ₁(t) of a synthetic data set; inset f₁.
 
+The panels write the paper's symbols: κ⁰_post for κ₁/R (κ₁ = κ⁰_post R) and r_post for
+f₁ R.  A fit that did not converge is drawn as such: open markers in N, O and S2
+(morphoshell.plotting.plot_fit_series), and in D–L a hatched panel whose title says
+"not converged"; a numerical ablation whose shell's walls pass through each other
+(before or after the cut) is hatched with a note in its title, warned of naming the fit,
+and its contact is in fig3_ablations.json (``walls_cross``).
+
 S2   with ``--held DIR`` (repeatable), campaigns run with ``--held-from
      VARIANT`` (paper, Supplementary Fig. S2, the test of the held values):
      E_fit against pseudotime of the fixed-κ₁ variants with their own f₁, κ₃,
@@ -39,13 +46,21 @@ import matplotlib
 import numpy as np
 import scipy.stats
 
+from morphoshell.plotting import MIN_FONT_SIZE, NOT_CONVERGED
+
 ROOT = Path(__file__).resolve().parents[1]
 #: Cut Σ of the numerical ablations (units of R).
 CUT = 0.15
 FIXED = ("flat", "undeformed", "unstressed")
-LABELS = {"flat": "κ₁ = 0", "undeformed": "κ₁ = 1", "unstressed": "κ₁ = 1/f₁",
-          "free": "κ₁ fitted"}
-COLORS = {"flat": "C0", "undeformed": "C1", "unstressed": "C2", "free": "k"}
+#: The paper's symbols (Fig. 3 caption): the package's κ₁ is κ⁰_post R, its f₁ is r_post/R.
+KAPPA, RPOST = r"\kappa^0_\mathrm{post}", r"r_\mathrm{post}"
+LABELS = {"flat": f"${KAPPA} = 0$", "undeformed": f"${KAPPA} = R^{{-1}}$",
+          "unstressed": f"${KAPPA} = {RPOST}^{{-1}}$", "free": f"${KAPPA}$, ${RPOST}$ fitted"}
+E_FIT = r"$E_\mathrm{fit}$"
+#: One colour and marker per hypothesis, the colours of distinct greys (luminance 0.23,
+#: 0.64, 0.44 and 0 in print without colour: tests/workflows/test_fig3.py).
+COLORS = {"flat": "#1b3f8b", "undeformed": "#e69f00", "unstressed": "#2ca02c", "free": "k"}
+MARKERS = {"flat": "o", "undeformed": "s", "unstressed": "^", "free": "D"}
 
 
 def _stages(result) -> list:
@@ -59,39 +74,22 @@ def _stages(result) -> list:
 
 
 def _inset(ax, rec: dict, variant: str) -> None:
-    """The inset of a Fig. 3 D–L panel: the data (grey points) and the fitted midline."""
-    inset = ax.inset_axes(_free_box(ax))
+    """The inset of a Fig. 3 D–L panel, beside its shell: the data (grey points) and the
+    fitted midline."""
+    inset = ax.inset_axes(INSET_BOX)
     d, m = rec["data_midline"], rec["fitted_midline"]
     inset.plot(d["r"], d["z"], ".", ms=1.5, color="0.4")
     inset.plot(m["r"], m["z"], "-", lw=0.8, color=COLORS[variant])
     inset.set_aspect("equal")
+    inset.set_anchor("NW")
     inset.set_xticks([])
     inset.set_yticks([])
 
 
-#: Places of a D-L panel's inset (axes fractions): the four corners and the cavity between
-#: the rims; the one the drawn shell crosses least is taken (one place covered the shell at
-#: early stages, another the cut at late ones).
-INSET_BOXES = ([0.68, 0.02, 0.3, 0.36], [0.02, 0.02, 0.3, 0.36], [0.38, 0.42, 0.24, 0.4],
-               [0.68, 0.62, 0.3, 0.36], [0.02, 0.62, 0.3, 0.36])
-#: A marker (the cut's rims) counts as this many of a line's points: never cover the cut.
-MARKER_WEIGHT = 50
-
-
-def _free_box(ax) -> list:
-    """Of :data:`INSET_BOXES`, the box with the fewest points of ``ax``'s lines in it."""
-    ax.get_xlim()       # (the pending autoscale applied: transLimits maps the drawn limits)
-    parts = [(ax.transLimits.transform(line.get_xydata()),
-              MARKER_WEIGHT if line.get_marker() not in ("None", "", None) else 1)
-             for line in ax.get_lines()]
-
-    def covered(box):
-        x0, y0, w, h = box
-        pad = 0.03
-        return sum(weight * int(np.sum((p[:, 0] > x0 - pad) & (p[:, 0] < x0 + w + pad)
-                                       & (p[:, 1] > y0 - pad) & (p[:, 1] < y0 + h + pad)))
-                   for p, weight in parts)
-    return min(INSET_BOXES, key=covered)
+#: Place of a D–L panel's inset (axes fractions): right of the shell, top-aligned.  Inside
+#: the axes every place covered the shell or the cut at some stage (the late stages fill
+#: them all, and the band, a patch, went uncounted).
+INSET_BOX = [1.03, 0.45, 0.3, 0.55]
 
 
 def _panels_DL(result, stages, nodes: int, out: Path):
@@ -102,9 +100,7 @@ def _panels_DL(result, stages, nodes: int, out: Path):
     """
     import matplotlib.pyplot as plt
 
-    from morphoshell.plotting import DOUBLE_COLUMN, label_panel, plot_ablation, save
-    from morphoshell.workflows import (ablation_errors, fitted_problem, fitted_state,
-                                       numerical_ablation)
+    from morphoshell.plotting import DOUBLE_COLUMN, label_panel, save
 
     rows = len(stages)
     if rows < 3:
@@ -123,31 +119,81 @@ def _panels_DL(result, stages, nodes: int, out: Path):
                 ax.text(0.5, 0.5, "no fit", ha="center", transform=ax.transAxes)
                 ax.set_axis_off()
                 continue
-            try:
-                num = numerical_ablation(fitted_problem(rec), CUT, nodes=nodes,
-                                         pre=fitted_state(rec))
-            except Exception as exc:     # a figure with a gap beats no figure
-                # (synthetic t07, flat: a 0.19 R misfit whose cut's continuation stops
-                # at 18 % of Σ): the intact fit's midline, and the reason in the JSON
-                ablations[f"{tp.name}_{v}"] = {"error": str(exc)}
-                _intact(ax, tp, rec, v)
-                continue
-            if first_flat is None and v == "flat":
+            ablations[f"{tp.name}_{v}"], num = _panel_DL(ax, tp, rec, v, nodes)
+            # (M shows a result: not a fit that stopped short, nor walls that overlap)
+            if (first_flat is None and v == "flat" and num is not None
+                    and rec.get("converged", False) and not num.walls_cross):
                 first_flat = (tp, num)
-            errors = ablation_errors(rec, num.ablation)
-            ablations[f"{tp.name}_{v}"] = {**num.observables(), "steps": num.steps,
-                                           "cold_difference": num.cold_difference,
-                                           **{f"se_{k}": e for k, e in errors.items()}}
-            plot_ablation(num.ablation, ax, title=None, legend=False)
-            ax.set_title(f"{tp.name} (t = {tp.pseudotime:.2f}), {LABELS[v]}\n"
-                         f"E_fit = {rec['E_fit']:.3g} R, o = {num.ablation.opening:.3g} R",
-                         fontsize=7)
-            _inset(ax, rec, v)
+    _fit_rows(fig, axes)
     save(fig, out / "fig3_D-L.png", ("png", "pdf"), close=True)
     return ablations, first_flat
 
 
-def _intact(ax, tp, rec: dict, v: str) -> None:
+def _panel_DL(ax, tp, rec: dict, v: str, nodes: int):
+    """One panel of D–L: the fit, numerically ablated, and its inset; a fit that did not
+    converge or an ablation whose walls pass through each other flagged (hatched, a note
+    in the title).  Returns its entry of fig3_ablations.json and the ablation (None if it
+    failed)."""
+    from morphoshell.plotting import flag_panel, plot_ablation
+    from morphoshell.workflows import (ablation_errors, fitted_problem, fitted_state,
+                                       numerical_ablation)
+
+    notes = [] if rec.get("converged", False) else [NOT_CONVERGED]
+    try:
+        # (fitted_problem and numerical_ablation warn naming the fit: <timepoint>_<variant>)
+        num = numerical_ablation(fitted_problem(rec), CUT, nodes=nodes, pre=fitted_state(rec))
+    except Exception as exc:     # a figure with a gap beats no figure
+        # (synthetic t07, flat, on an earlier code: a misfit whose cut's continuation
+        # stopped part of the way): the intact fit's midline, and the reason in the JSON
+        _intact(ax, rec, v)
+        entry, num, result = {"error": str(exc)}, None, "numerical ablation failed"
+    else:
+        plot_ablation(num.ablation, ax, title=None, legend=False)
+        errors = ablation_errors(rec, num.ablation)
+        entry = {**num.observables(), "steps": num.steps, "cold_difference": num.cold_difference,
+                 "converged": bool(rec.get("converged", False)),
+                 "walls_cross": {k: c.describe() for k, c in num.contacts.items() if c},
+                 **{f"se_{k}": e for k, e in errors.items()}}
+        result = f"o = {num.ablation.opening:.3g} R"
+        notes += [_contact_note(num)] if num.walls_cross else []
+    ax.set_title(f"{tp.name} (t = {tp.pseudotime:.2f}), {LABELS[v]}\n"
+                 f"{E_FIT} = {rec['E_fit']:.3g} R, {result}"
+                 + "".join(f"\n{note}" for note in notes), fontsize=MIN_FONT_SIZE, loc="left")
+    if notes:
+        flag_panel(ax)
+    _inset(ax, rec, v)
+    return entry, num
+
+
+def _contact_note(num) -> str:
+    """The title's note of an ablation whose walls pass through each other, before or after
+    the cut, and their closest approach (against their thickness: in the warning and in
+    fig3_ablations.json)."""
+    when = [w for key, w in (("pre", "before"), ("post", "after")) if num.contacts[key]]
+    closest = min((c for c in num.contacts.values() if c), key=lambda c: c.distance)
+    return f"walls overlap {' and '.join(when)} the cut ({closest.distance:.2g} R apart)"
+
+
+def _fit_rows(fig, axes) -> None:
+    """Rows of D–L as high as their shapes: each row's height ratio the largest height
+    over width of its panels' shells (equal aspect), the figure's height their sum (with
+    room for titles and labels); equal rows left a short row under an empty band."""
+    aspects = []
+    for row in axes:
+        spans = [np.ptp(ax.get_ylim()) / np.ptp(ax.get_xlim()) for ax in row if ax.axison]
+        aspects.append(max(spans, default=0.5))
+    gs = axes[0, 0].get_subplotspec().get_gridspec()
+    gs.set_height_ratios(aspects)
+    width = fig.get_figwidth() / 3 * SHELL_SHARE
+    fig.set_figheight(sum(width * a + ROW_MARGIN for a in aspects))
+
+
+#: Width of a D–L shell panel as a fraction of its column (the rest: inset, labels), and
+#: the height of a row's title (three lines) and x label, inches: the rows' heights.
+SHELL_SHARE, ROW_MARGIN = 0.6, 0.75
+
+
+def _intact(ax, rec: dict, v: str) -> None:
     """A D–L panel whose numerical ablation failed: the intact fit's midline."""
     m = rec["fitted_midline"]
     for sign in (1, -1):
@@ -155,9 +201,6 @@ def _intact(ax, tp, rec: dict, v: str) -> None:
     ax.set_aspect("equal")
     ax.set_xlabel("r/R")
     ax.set_ylabel("z/R")
-    ax.set_title(f"{tp.name} (t = {tp.pseudotime:.2f}), {LABELS[v]}\n"
-                 f"E_fit = {rec['E_fit']:.3g} R, numerical ablation failed", fontsize=7)
-    _inset(ax, rec, v)
 
 
 def _panel_M(first_flat, out: Path) -> None:
@@ -168,14 +211,14 @@ def _panel_M(first_flat, out: Path) -> None:
 
     fig, ax = plt.subplots(figsize=(SINGLE_COLUMN, SINGLE_COLUMN), layout="constrained")
     tp, num = first_flat
-    plot_ablation_overlay(num.ablation, ax, title=f"{tp.name}, κ₁ = 0: pre (red), "
+    plot_ablation_overlay(num.ablation, ax, title=f"{tp.name}, {LABELS['flat']}: pre (red), "
                                                   f"post (cyan), union (white)")
     label_panel(ax, "M")
     save(fig, out / "fig3_M.png", ("png", "pdf"), close=True)
 
 
 def _panel_N(df, variants, out: Path) -> None:
-    """Fig. 3 N: E_fit against pseudotime for every variant."""
+    """Fig. 3 N: E_fit against pseudotime for every variant, the unconverged fits open."""
     import matplotlib.pyplot as plt
 
     from morphoshell.plotting import SINGLE_COLUMN, label_panel, save
@@ -183,17 +226,35 @@ def _panel_N(df, variants, out: Path) -> None:
     fig, ax = plt.subplots(figsize=(SINGLE_COLUMN, 0.75 * SINGLE_COLUMN), layout="constrained")
     for v in variants:
         sub = df[(df.variant == v) & (df.status == "ok")]
-        ax.plot(sub.pseudotime, sub.E_fit, "o-", ms=3, color=COLORS[v], label=LABELS[v])
-    ax.set_xlabel("pseudotime")
-    ax.set_ylabel("E_fit / R")
+        _series(ax, sub, sub.E_fit, v)
+    ax.set_xlabel("pseudotime $t$")
+    ax.set_ylabel(f"{E_FIT}/R")
     ax.set_yscale("log")
-    ax.legend(fontsize=7)
+    handles = ax.get_legend_handles_labels()[0] + _open_handle(df)
+    ax.legend(handles=handles, fontsize=MIN_FONT_SIZE)
     label_panel(ax, "N")
     save(fig, out / "fig3_N.png", ("png", "pdf"), close=True)
 
 
+def _series(ax, sub, y, v: str, **style) -> None:
+    """One variant's fits against pseudotime in its colour and marker, unconverged ones open."""
+    from morphoshell.plotting import plot_fit_series
+
+    plot_fit_series(ax, sub.pseudotime, y, sub.converged.astype(bool),
+                    **{"color": COLORS[v], "marker": MARKERS[v], "label": LABELS[v], **style})
+
+
+def _open_handle(df) -> list:
+    """The legend's entry of the open markers, if any fit drawn did not converge."""
+    from morphoshell.plotting import not_converged_handle
+
+    ok = df[df.status == "ok"]
+    return [not_converged_handle()] if len(ok) and not ok.converged.astype(bool).all() else []
+
+
 def _panel_O(df, truth: dict | None, out: Path) -> None:
-    """Fig. 3 O: the free fit's κ₁ (95 % intervals) and 1/f₁, f₁ inset, the truth if known."""
+    """Fig. 3 O: the free fit's κ₁ (95 % intervals) and 1/f₁, f₁ inset, the truth if known;
+    the unconverged fits open in all three."""
     import matplotlib.pyplot as plt
 
     from morphoshell.plotting import SINGLE_COLUMN, label_panel, save
@@ -207,67 +268,75 @@ def _panel_O(df, truth: dict | None, out: Path) -> None:
         points = [tp for tp in truth["timepoints"] if span[0] <= tp["pseudotime"] <= span[1]]
         ax.plot([tp["pseudotime"] for tp in points],
                 [tp["parameters"]["kappa1"] for tp in points], ":", color="C3",
-                label="generating κ₁ (synthetic)")
-    ax.set_xlabel("pseudotime")
-    ax.set_ylabel("κ₁ · R")
+                label=f"generating ${KAPPA}$ (synthetic)")
+    ax.set_xlabel("pseudotime $t$")
+    ax.set_ylabel(f"${KAPPA}\\,R$")
     # one column below the axes: two columns of these labels are wider than a column of a
     # journal page, and constrained layout then collapses the axes
-    ax.legend(fontsize=6, loc="upper center", bbox_to_anchor=(0.5, -0.22), ncol=1, frameon=False)
+    ax.legend(handles=ax.get_legend_handles_labels()[0] + _open_handle(free),
+              fontsize=MIN_FONT_SIZE, loc="upper center", bbox_to_anchor=(0.5, -0.22), ncol=1,
+              frameon=False)
     if len(free):
         inset = ax.inset_axes([0.62, 0.12, 0.35, 0.35])
-        inset.plot(free.pseudotime, free.f1, "o-", ms=2, color="k")
-        inset.set_title("f₁", fontsize=7)
-        inset.tick_params(labelsize=6)
+        _series(inset, free, free.f1, "free", ms=2, label=None)
+        inset.set_title(f"${RPOST}/R$", fontsize=MIN_FONT_SIZE)
+        inset.tick_params(labelsize=MIN_FONT_SIZE)
     label_panel(ax, "O")
     save(fig, out / "fig3_O.png", ("png", "pdf"), close=True)
 
 
 def _free_kappa1(ax, free) -> None:
-    """The free fits' κ₁ with 95 % intervals, the unconverged ones open, and 1/f₁."""
+    """The free fits' κ₁ with 95 % intervals and R/r_post = 1/f₁, the unconverged ones open."""
+    from morphoshell.plotting import plot_fit_series
+
     # jackknife errors where the campaign computed them (--embryo-errors); the
     # Gauss-Newton ones are up to 4x too small (docs/campaigns.md, Standard errors)
     # bars: 95 % intervals, so that a miss of the generating kappa1 shows as one
     jack = "se_embryo_kappa1" in free and free.se_embryo_kappa1.notna().any()
     half = (free.se_embryo_kappa1 * free.embryo_t95 if jack
             else free.se_kappa1 * scipy.stats.norm.ppf(0.975))
-    ok = free.converged.astype(bool)
-    ax.plot(free.pseudotime, free.kappa1, "-", color="k", lw=0.8)
-    ax.errorbar(free.pseudotime[ok], free.kappa1[ok], yerr=half[ok], fmt="o", ms=3,
-                color="k", capsize=2, label="fitted κ₁ (free), 95 % interval "
-                + ("(jackknife, Student's t)" if jack else "(Gauss–Newton, too narrow)"))
-    if (~ok).any():
-        ax.plot(free.pseudotime[~ok], free.kappa1[~ok], "o", ms=4, mfc="none",
-                color="k", label="not converged")
-    ax.plot(free.pseudotime, 1 / free.f1, "s--", ms=3, color="C2", label="1/f₁ (free)")
+    _series(ax, free, free.kappa1, "free", yerr=half, lw=0.8,
+            label=f"fitted ${KAPPA}$ (free), 95 % interval "
+            + ("(jackknife, Student's t)" if jack else "(Gauss–Newton, too narrow)"))
+    # κ₁ = 1/f₁ is the unstressed hypothesis: its colour and marker
+    plot_fit_series(ax, free.pseudotime, 1 / free.f1, free.converged.astype(bool), ls="--",
+                    color=COLORS["unstressed"], marker=MARKERS["unstressed"],
+                    label=f"$R/{RPOST}$ (free)")
 
 
 def _figure_S2(df, held: list, sources: list, out: Path) -> None:
     """Fig. S2: the fixed variants' E_fit with their own and others' held f₁, κ₃, κ₄."""
     import matplotlib.pyplot as plt
+    import pandas as pd
     from matplotlib.lines import Line2D
 
-    from morphoshell.plotting import SINGLE_COLUMN, save
+    from morphoshell.plotting import SINGLE_COLUMN, plot_fit_series, save
 
     fig, ax = plt.subplots(figsize=(SINGLE_COLUMN, 0.95 * SINGLE_COLUMN), layout="constrained")
     # (data, marker, line style, whose f₁, κ₃, κ₄)
     runs = [(df, "o", "-", "own")] + [
         (h.to_dataframe(), marker, ls, source) for h, (marker, ls), source
         in zip(held, (("s", "--"), ("^", ":"), ("v", "-.")), sources)]
+    shown = []
     for v in FIXED:
         for frame, marker, ls, what in runs:
             sub = frame[(frame.variant == v) & (frame.status == "ok")]
             if len(sub) and (what == "own" or v != what):
-                ax.plot(sub.pseudotime, sub.E_fit, marker=marker, ls=ls, ms=3, color=COLORS[v])
-    ax.set_xlabel("pseudotime")
-    ax.set_ylabel("E_fit / R")
+                plot_fit_series(ax, sub.pseudotime, sub.E_fit, sub.converged.astype(bool),
+                                marker=marker, ls=ls, color=COLORS[v])
+                shown.append(sub)
+    ax.set_xlabel("pseudotime $t$")
+    ax.set_ylabel(f"{E_FIT}/R")
     ax.set_yscale("log")
     # two legends, outside the data: colour = hypothesis, line = whose f₁, κ₃, κ₄
     hypotheses = [Line2D([], [], color=COLORS[v], lw=2, label=LABELS[v]) for v in FIXED]
     held_by = [Line2D([], [], color="k", ls=ls, marker=marker, ms=3,
                       label="its own first fit" if what == "own" else f"{what}'s first fit")
                for _, marker, ls, what in runs]
-    fig.legend(handles=hypotheses + held_by, loc="outside lower center", ncols=2,
-               fontsize=6, title="hypothesis;  f₁, κ₃, κ₄ held from", title_fontsize=6)
+    opened = _open_handle(pd.concat(shown)) if shown else []
+    fig.legend(handles=hypotheses + held_by + opened, loc="outside lower center", ncols=2,
+               fontsize=MIN_FONT_SIZE, title=rf"hypothesis;  ${RPOST}$, $\kappa_3$, $\kappa_4$ "
+               "held from", title_fontsize=MIN_FONT_SIZE)
     save(fig, out / "figS2_held.png", ("png", "pdf"), close=True)
 
 

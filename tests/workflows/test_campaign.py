@@ -250,7 +250,7 @@ def test_fig3_draws_a_fit_whose_ablation_fails(serial, data, tmp_path, monkeypat
     panels, save = {}, plotting.save
 
     def keep(fig, path, *args, **kwargs):
-        panels[Path(path).stem] = [(ax.get_title(), len(ax.lines)) for ax in fig.axes]
+        panels[Path(path).stem] = [(ax.get_title(loc="left"), len(ax.lines)) for ax in fig.axes]
         return save(fig, path, *args, **kwargs)
     monkeypatch.setattr(plotting, "save", keep)
     spec = importlib.util.spec_from_file_location("fig3_fits", ROOT / "scripts" / "fig3_fits.py")
@@ -268,7 +268,7 @@ def test_fig3_draws_a_fit_whose_ablation_fails(serial, data, tmp_path, monkeypat
     assert all("made up" in a["error"] for a in ablations.values())
     failed = [(t, n) for t, n in panels["fig3_D-L"] if "numerical ablation failed" in t]
     assert len(failed) == len(ablations)
-    assert all("E_fit = " in t and n == 2 for t, n in failed)   # both halves of the midline
+    assert all(r"$E_\mathrm{fit}$ = " in t and n == 2 for t, n in failed)  # both halves
 
 
 def test_two_worker_local_cluster_gives_the_same_files(serial, data, tmp_path):

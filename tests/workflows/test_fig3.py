@@ -1,0 +1,145 @@
+"""scripts/fig3_fits.py (paper Fig. 3 D–O): what is not a result is drawn as such.
+
+A fit that did not converge is marked wherever it is drawn (its D–L panel hatched with
+"not converged" in the title; open markers in N, in O's κ₁ series, its 1/f₁ line and its
+f₁ inset: audit 19, F1–F2), an ablation whose walls pass through each other is flagged in
+its panel and in fig3_ablations.json (F1), each hypothesis has its own marker and a
+colour of its own grey (F11), and no text is below the package's 7 pt (F12).  A campaign
+of two SYNTHETIC timepoints (flat and free variants, 60 nodes), one fit of each variant
+then marked unconverged in its record.
+"""
+import importlib.util
+import json
+import shutil
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from matplotlib.colors import to_rgb
+from matplotlib.lines import Line2D
+from matplotlib.text import Text
+
+from morphoshell.plotting import MIN_FONT_SIZE, is_flagged
+from morphoshell.solvers.contact import WallContact
+from morphoshell.workflows import campaign
+
+ROOT = Path(__file__).resolve().parents[2]
+NODES = 60
+#: The fits marked unconverged (their records edited: these converge).
+STALLED = ("t02", ("flat", "free"))
+
+
+def _script():
+    spec = importlib.util.spec_from_file_location("fig3_fits", ROOT / "scripts" / "fig3_fits.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def stalled(data, tmp_path_factory):
+    """A campaign's folder in which t02's flat and free fits did not converge."""
+    out = tmp_path_factory.mktemp("campaign")
+    campaign(data[0], ("flat", "free"), method="gradient", workers=1, out=out, nodes=NODES,
+             timepoints=("t01", "t02"))
+    tp, variants = STALLED
+    for v in variants:
+        path = out / f"{tp}_{v}.json"
+        record = json.loads(path.read_text())
+        assert record["converged"], path                # (so the mark is the edit's)
+        path.write_text(json.dumps({**record, "converged": False}))
+    return out
+
+
+def _draw(stalled, data, tmp_path, monkeypatch):
+    """Run the script; the figures it saved (kept open) by name, and fig3_ablations.json."""
+    import morphoshell.plotting as plotting
+
+    figures, save = {}, plotting.save
+
+    def keep(fig, path, *args, **kwargs):
+        figures[Path(path).stem] = fig
+        return save(fig, path, *args, **{**kwargs, "close": False})
+    monkeypatch.setattr(plotting, "save", keep)
+    fig3 = _script()
+    assert fig3.main(["--campaign", str(stalled), "--data", str(data[0]), "--out",
+                      str(tmp_path), "--nodes", str(NODES)]) == 0
+    return fig3, figures, json.loads((tmp_path / "fig3_ablations.json").read_text())
+
+
+def _panel(fig, name: str):
+    """The D–L axes whose title begins with ``name`` (a timepoint)."""
+    return next(ax for ax in fig.axes if ax.get_title(loc="left").startswith(name))
+
+
+def _open_x(ax) -> set:
+    """Pseudotimes of the open (white-filled) markers drawn in ``ax``."""
+    return {round(float(x), 6) for line in ax.get_lines() if line.get_markerfacecolor() == "white"
+            for x in line.get_xdata()}
+
+
+def test_an_unconverged_fit_is_marked_in_every_panel(stalled, data, tmp_path, monkeypatch):
+    _, figures, ablations = _draw(stalled, data, tmp_path, monkeypatch)
+    t02 = json.loads((stalled / "t02_flat.json").read_text())["pseudotime"]
+    # D–L: the stalled flat fit's panel hatched, "not converged" in its title; t01's not
+    stalled_ax, fine = _panel(figures["fig3_D-L"], "t02"), _panel(figures["fig3_D-L"], "t01")
+    assert "not converged" in stalled_ax.get_title(loc="left") and is_flagged(stalled_ax)
+    assert "not converged" not in fine.get_title(loc="left") and not is_flagged(fine)
+    assert ablations["t02_flat"]["converged"] is False
+    # N: open markers at t02 for both variants (flat and free), and a legend entry
+    (n,) = figures["fig3_N"].axes
+    assert _open_x(n) == {round(t02, 6)}
+    assert sum(line.get_markerfacecolor() == "white" and line.get_xdata().size
+               for line in n.get_lines()) == 2
+    assert "not converged" in [t.get_text() for t in n.get_legend().get_texts()]
+    # O: the free fit's κ₁, its 1/f₁ line and the f₁ inset all mark it
+    (o,) = figures["fig3_O"].axes
+    (inset,) = o.child_axes
+    assert _open_x(o) == _open_x(inset) == {round(t02, 6)}
+    assert sum(line.get_markerfacecolor() == "white" and line.get_xdata().size
+               for line in o.get_lines()) == 2
+
+
+def test_an_ablation_whose_walls_cross_is_flagged(stalled, data, tmp_path, monkeypatch):
+    """numerical_ablation found the t01 flat shell's walls overlapping after the cut (made
+    up: the synthetic shells do not): the panel is hatched and says so, the JSON has it."""
+    import morphoshell.workflows as workflows
+
+    real = workflows.numerical_ablation
+    contact = WallContact((1.647, 2.513), 0.003, 0.129)      # audit 19's t07 flat
+
+    def crossing(problem, *args, **kwargs):
+        num = real(problem, *args, **kwargs)
+        return replace(num, contacts={"pre": None, "post": contact}) \
+            if problem.name == "t01_flat" else num
+    monkeypatch.setattr(workflows, "numerical_ablation", crossing)
+    _, figures, ablations = _draw(stalled, data, tmp_path, monkeypatch)
+    ax = _panel(figures["fig3_D-L"], "t01")
+    assert is_flagged(ax) and "not converged" not in ax.get_title(loc="left")
+    assert "walls overlap after the cut (0.003 R apart)" in ax.get_title(loc="left")
+    assert ablations["t01_flat"]["walls_cross"] == {"post": contact.describe()}
+    assert ablations["t01_flat"]["converged"] is True
+    assert "fig3_M" not in figures          # (M draws the first flat result: none here)
+
+
+def _grey(color) -> float:
+    """Luminance of a colour in print without colour (ITU-R 601, as PIL's "L")."""
+    return float(np.dot(to_rgb(color), (0.299, 0.587, 0.114)))
+
+
+def test_each_hypothesis_has_its_own_marker_and_grey():
+    fig3 = _script()
+    variants = list(fig3.COLORS)
+    assert len({fig3.MARKERS[v] for v in variants}) == len(variants)
+    greys = sorted(_grey(fig3.COLORS[v]) for v in variants)
+    # (audit 19: C0 and C2 printed the same grey, 0.02 apart)
+    assert min(np.diff(greys)) > 0.15, greys
+
+
+def test_no_text_below_the_minimum_font_size(stalled, data, tmp_path, monkeypatch):
+    _, figures, _ = _draw(stalled, data, tmp_path, monkeypatch)
+    for name, fig in figures.items():
+        small = [(t.get_text(), t.get_fontsize()) for t in fig.findobj(Text)
+                 if t.get_visible() and t.get_text().strip() and t.get_fontsize() < MIN_FONT_SIZE]
+        assert not small, (name, small)
