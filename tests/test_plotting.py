@@ -134,6 +134,33 @@ def test_save_writes_300_dpi_png_and_pdf_and_keeps_the_figure(eqs, tmp_path):
     assert not plt.fignum_exists(ax.figure.number)
 
 
+def test_saving_twice_gives_the_same_files_with_the_svg_text_as_text(eqs, tmp_path,
+                                                                     monkeypatch):
+    # audit 19 F8: the PDFs of two runs differed in /CreationDate, the SVGs in dc:date
+    # (and Matplotlib salts the SVG's ids at random); F9: the SVG's text was glyph paths
+    import time
+
+    monkeypatch.delenv("SOURCE_DATE_EPOCH", raising=False)
+
+    def figure():                         # made afresh, as by a second run
+        return plot_cross_section(eqs[0], new_axes((3.0, 2.0)))
+
+    first = save(figure(), tmp_path / "a.pdf", ("pdf", "svg", "png"))
+    time.sleep(1.1)                       # the dates are written to the second
+    ax = figure()
+    second = save(ax, tmp_path / "b.pdf", ("pdf", "svg", "png"))
+    for a, b in zip(first, second):
+        assert a.read_bytes() == b.read_bytes(), a.suffix
+    svg = first[1].read_text()
+    assert "<dc:date>" not in svg and b"CreationDate" not in first[0].read_bytes()
+    assert svg.count("<text") >= 10 and ">direct method, 50 nodes</text>" in svg
+    # a date a caller asks for, or the reproducible-builds one, is written
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1700000000")
+    dated = save(ax, tmp_path / "c.pdf", ("pdf", "svg"))
+    assert b"/CreationDate (D:20231114" in dated[0].read_bytes()
+    assert "<dc:date>2023-11-14" in dated[1].read_text()
+
+
 def test_save_crops_an_empty_band_above_a_flat_shell_but_keeps_the_width(tmp_path):
     # audit 13: a wide, flat shell at equal aspect left an inch of empty figure above it
     ax = new_axes((3.4, 3.4))
