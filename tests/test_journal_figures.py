@@ -343,3 +343,17 @@ def test_fig2J_on_a_small_callers_panel_covers_no_estimate_and_its_labels_do_not
     assert all(label.y1 <= box.y0 for label in labels)                # under the axis
     assert ax.get_yticks().max() <= 1.08 + 1e-9                       # no k ticks over the legend
     plt.close(fig)
+
+
+def test_profile_axes_name_the_parameters_units():
+    # audit 19 F7: the x axes read "κ₁" and "f₁" with no unit, unlike every other axis
+    from morphoshell.plotting import plot_profiles
+    x = np.linspace(-1, 1, 5)
+    names = ("kappa1", "f1", "s3")
+    fig = plot_profiles({n: _profile(n, x, 1 + x ** 2, [True] * 5, (-0.5, 0.5)) for n in names},
+                        pyplot=False)
+    assert [ax.get_xlabel() for ax in fig.axes[:3]] == [
+        r"$\kappa_{1}$ ($1/R$)", "$f_{1}$", "$s_{3}$ ($R$)"]
+    fig = plot_profiles({"k": _profile("k", x, 1 + x ** 2, [True] * 5, (-0.5, 0.5))},
+                        pyplot=False, units={"k": "1/R"})
+    assert fig.axes[0].get_xlabel() == "$k$ ($1/R$)"
