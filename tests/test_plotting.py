@@ -359,3 +359,33 @@ def test_an_event_the_mesh_does_not_resolve_has_an_open_marker():
     assert set(folds) == {"fold", "fold (unresolved)"}
     assert folds["fold (unresolved)"] == "white" != folds["fold"]
     plt.close(fig)
+
+
+def test_traces_figure_gives_the_shape_and_the_distances_the_columns_width():
+    # audit 19 F13: five file names in a legend beside the shape took half the column; the
+    # shape (datalim aspect) was drawn 0.9 in wide and the distances under it as narrow
+    import numpy as np
+
+    from morphoshell.io import Midline, average
+    from morphoshell.plotting import SINGLE_COLUMN, plot_traces
+
+    s = np.linspace(0.0, 2.5, 80)
+    base = np.column_stack([np.sin(s) * 1.1, 1 - np.cos(s)])
+    traces = [Midline(*(base * (1 + e)).T) for e in (0.0, 0.01, -0.01, 0.005, -0.005)]
+    names = [f"synthetic_embryo{k}_midline" for k in range(1, 6)]
+    fig = plot_traces(average(traces), traces, names, pyplot=False)
+    fig.draw_without_rendering()
+    top, bottom = fig.axes
+    legend = top.get_legend()
+    assert [t.get_text() for t in legend.get_texts()][:5] == ["1", "2", "3", "4", "5"]
+    assert legend.get_title().get_text() == "synthetic_embryo…_midline"
+    width = lambda ax: ax.get_window_extent().width / fig.dpi          # inches
+    assert width(bottom) > 0.75 * SINGLE_COLUMN                        # was ~1 in
+    assert legend.get_window_extent().y1 <= top.get_window_extent().y0  # under the shape
+    # the shape at equal scales by its box, not by limits padded past it (the audit's z
+    # axis ran from -0.8 for a shell from 0), so the shape fills the axes
+    box = top.get_window_extent()
+    (x0, x1), (y0, y1) = top.get_xlim(), top.get_ylim()
+    assert box.width / box.height == pytest.approx((x1 - x0) / (y1 - y0), rel=0.02)
+    z = np.concatenate([m.z for m in traces])
+    assert y1 - y0 <= 1.15 * (z.max() - z.min())     # Matplotlib's margins: 5 % a side
