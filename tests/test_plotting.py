@@ -332,6 +332,8 @@ def test_a_branch_diagram_defaults_to_an_observable_that_varies():
     the far end) was one flat line with the folds on it (audit 14).  The default is the
     first of ψ, z, r and the energy that varies: z at the far end there, ψ for the fold
     shell (whose far end turns); the x axis of a family's parameter carries its unit."""
+    import numpy as np
+
     from morphoshell import example_path, load_problem
     from morphoshell.plotting import plot_branch
     from morphoshell.plotting.branches import default_y
@@ -341,7 +343,19 @@ def test_a_branch_diagram_defaults_to_an_observable_that_varies():
     branch = follow_branch(cap, "k", 3.0, nodes=40)
     assert default_y(branch) == "z_end"
     ax = plot_branch(branch, shapes=False).axes[0]
-    assert ax.get_ylabel().startswith(r"$z$ at the far end") and ax.get_xlabel() == "k ($1/R$)"
+    assert ax.get_ylabel().startswith("far end's height above the first point")
+    assert ax.get_xlabel() == "k ($1/R$)"
+    # audit 19 F15: the shapes below the diagram are in its gauge, z = 0 at the first point:
+    # their far ends (the pole, r = 0) stand where the diagram's ends are (they stood
+    # 1 − cos Σ higher, in the solver's gauge)
+    fig = plot_branch(branch)
+    diagram = fig.subfigs[0].axes[0].get_lines()[0].get_ydata()
+    shapes = [a for a in fig.subfigs[1].axes if a.axison]
+    for shape, expected in zip((shapes[0], shapes[-1]), (diagram[0], diagram[-1])):
+        drawn = shape.get_lines()[0]
+        xy = drawn.get_transform().transform(drawn.get_xydata())        # as drawn
+        pole = shape.transData.inverted().transform(xy[np.argmin(np.abs(drawn.get_xdata()))])
+        assert pole[1] == pytest.approx(expected, abs=1e-9)
     fold = load_problem(Path(__file__).parent / "data" / "volvox_fold.toml")[0]
     assert default_y(follow_branch(fold, "kappa2", -7.9, nodes=40)) == "psi_end"
 
