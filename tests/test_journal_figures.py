@@ -316,3 +316,44 @@ def test_each_switched_branch_has_a_marker_of_its_own(blister):
     shown = {h.get_marker() for h, t in zip(legend.legend_handles, legend.get_texts())
              if t.get_text().startswith("branch from")}
     assert shown == set(markers)
+
+
+def test_fig2J_on_a_small_callers_panel_covers_no_estimate_and_its_labels_do_not_overlap():
+    # audit 19 F4/F17: on a 2.3 in panel of a constrained 1 x 3 row the legend lay over the
+    # y label and the estimates, the group labels over one another and (at the top) over
+    # the off-scale arrows
+    from morphoshell.plotting import DOUBLE_COLUMN, paper_style
+
+    ks = [0.1, 0.98, 0.3, 5.0, 0.0, 0.95, 0.2, None, 0.1, 0.98, 0.25, 1.0, -0.3, 0.9]
+    with paper_style():
+        fig, axs = plt.subplots(1, 3, figsize=(DOUBLE_COLUMN, 2.4), layout="constrained")
+        ax = plot_k_estimates(axs[0], _estimates(ks), truth={"e0": 0.0})
+        fig.canvas.draw()
+    box, legend = ax.get_window_extent(), ax.get_legend().get_window_extent()
+    assert box.x0 <= legend.x0 and legend.x1 <= box.x1 and box.y0 <= legend.y0 <= legend.y1 <= box.y1
+    for line in ax.get_lines():                     # estimates, arrows, means, true k
+        xy = ax.transData.transform(line.get_xydata())
+        under = ((xy[:, 0] > legend.x0) & (xy[:, 0] < legend.x1)
+                 & (xy[:, 1] > legend.y0) & (xy[:, 1] < legend.y1))
+        assert not under.any(), line
+    labels = [t.get_window_extent() for t in ax.get_xticklabels() if t.get_text()]
+    assert len(labels) == 3
+    assert all(a.x1 < b.x0 for a, b in zip(labels, labels[1:]))     # no overlap, in order
+    assert box.x0 <= labels[0].x0 and labels[-1].x1 <= box.x1
+    assert all(label.y1 <= box.y0 for label in labels)                # under the axis
+    assert ax.get_yticks().max() <= 1.08 + 1e-9                       # no k ticks over the legend
+    plt.close(fig)
+
+
+def test_profile_axes_name_the_parameters_units():
+    # audit 19 F7: the x axes read "κ₁" and "f₁" with no unit, unlike every other axis
+    from morphoshell.plotting import plot_profiles
+    x = np.linspace(-1, 1, 5)
+    names = ("kappa1", "f1", "s3")
+    fig = plot_profiles({n: _profile(n, x, 1 + x ** 2, [True] * 5, (-0.5, 0.5)) for n in names},
+                        pyplot=False)
+    assert [ax.get_xlabel() for ax in fig.axes[:3]] == [
+        r"$\kappa_{1}$ ($1/R$)", "$f_{1}$", "$s_{3}$ ($R$)"]
+    fig = plot_profiles({"k": _profile("k", x, 1 + x ** 2, [True] * 5, (-0.5, 0.5))},
+                        pyplot=False, units={"k": "1/R"})
+    assert fig.axes[0].get_xlabel() == "$k$ ($1/R$)"

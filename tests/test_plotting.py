@@ -134,6 +134,33 @@ def test_save_writes_300_dpi_png_and_pdf_and_keeps_the_figure(eqs, tmp_path):
     assert not plt.fignum_exists(ax.figure.number)
 
 
+def test_saving_twice_gives_the_same_files_with_the_svg_text_as_text(eqs, tmp_path,
+                                                                     monkeypatch):
+    # audit 19 F8: the PDFs of two runs differed in /CreationDate, the SVGs in dc:date
+    # (and Matplotlib salts the SVG's ids at random); F9: the SVG's text was glyph paths
+    import time
+
+    monkeypatch.delenv("SOURCE_DATE_EPOCH", raising=False)
+
+    def figure():                         # made afresh, as by a second run
+        return plot_cross_section(eqs[0], new_axes((3.0, 2.0)))
+
+    first = save(figure(), tmp_path / "a.pdf", ("pdf", "svg", "png"))
+    time.sleep(1.1)                       # the dates are written to the second
+    ax = figure()
+    second = save(ax, tmp_path / "b.pdf", ("pdf", "svg", "png"))
+    for a, b in zip(first, second):
+        assert a.read_bytes() == b.read_bytes(), a.suffix
+    svg = first[1].read_text()
+    assert "<dc:date>" not in svg and b"CreationDate" not in first[0].read_bytes()
+    assert svg.count("<text") >= 10 and ">direct method, 50 nodes</text>" in svg
+    # a date a caller asks for, or the reproducible-builds one, is written
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1700000000")
+    dated = save(ax, tmp_path / "c.pdf", ("pdf", "svg"))
+    assert b"/CreationDate (D:20231114" in dated[0].read_bytes()
+    assert "<dc:date>2023-11-14" in dated[1].read_text()
+
+
 def test_save_crops_an_empty_band_above_a_flat_shell_but_keeps_the_width(tmp_path):
     # audit 13: a wide, flat shell at equal aspect left an inch of empty figure above it
     ax = new_axes((3.4, 3.4))
@@ -305,6 +332,8 @@ def test_a_branch_diagram_defaults_to_an_observable_that_varies():
     the far end) was one flat line with the folds on it (audit 14).  The default is the
     first of ψ, z, r and the energy that varies: z at the far end there, ψ for the fold
     shell (whose far end turns); the x axis of a family's parameter carries its unit."""
+    import numpy as np
+
     from morphoshell import example_path, load_problem
     from morphoshell.plotting import plot_branch
     from morphoshell.plotting.branches import default_y
@@ -314,7 +343,19 @@ def test_a_branch_diagram_defaults_to_an_observable_that_varies():
     branch = follow_branch(cap, "k", 3.0, nodes=40)
     assert default_y(branch) == "z_end"
     ax = plot_branch(branch, shapes=False).axes[0]
-    assert ax.get_ylabel().startswith(r"$z$ at the far end") and ax.get_xlabel() == "k ($1/R$)"
+    assert ax.get_ylabel().startswith("far end's height above the first point")
+    assert ax.get_xlabel() == "k ($1/R$)"
+    # audit 19 F15: the shapes below the diagram are in its gauge, z = 0 at the first point:
+    # their far ends (the pole, r = 0) stand where the diagram's ends are (they stood
+    # 1 − cos Σ higher, in the solver's gauge)
+    fig = plot_branch(branch)
+    diagram = fig.subfigs[0].axes[0].get_lines()[0].get_ydata()
+    shapes = [a for a in fig.subfigs[1].axes if a.axison]
+    for shape, expected in zip((shapes[0], shapes[-1]), (diagram[0], diagram[-1])):
+        drawn = shape.get_lines()[0]
+        xy = drawn.get_transform().transform(drawn.get_xydata())        # as drawn
+        pole = shape.transData.inverted().transform(xy[np.argmin(np.abs(drawn.get_xdata()))])
+        assert pole[1] == pytest.approx(expected, abs=1e-9)
     fold = load_problem(Path(__file__).parent / "data" / "volvox_fold.toml")[0]
     assert default_y(follow_branch(fold, "kappa2", -7.9, nodes=40)) == "psi_end"
 
@@ -332,3 +373,33 @@ def test_an_event_the_mesh_does_not_resolve_has_an_open_marker():
     assert set(folds) == {"fold", "fold (unresolved)"}
     assert folds["fold (unresolved)"] == "white" != folds["fold"]
     plt.close(fig)
+
+
+def test_traces_figure_gives_the_shape_and_the_distances_the_columns_width():
+    # audit 19 F13: five file names in a legend beside the shape took half the column; the
+    # shape (datalim aspect) was drawn 0.9 in wide and the distances under it as narrow
+    import numpy as np
+
+    from morphoshell.io import Midline, average
+    from morphoshell.plotting import SINGLE_COLUMN, plot_traces
+
+    s = np.linspace(0.0, 2.5, 80)
+    base = np.column_stack([np.sin(s) * 1.1, 1 - np.cos(s)])
+    traces = [Midline(*(base * (1 + e)).T) for e in (0.0, 0.01, -0.01, 0.005, -0.005)]
+    names = [f"synthetic_embryo{k}_midline" for k in range(1, 6)]
+    fig = plot_traces(average(traces), traces, names, pyplot=False)
+    fig.draw_without_rendering()
+    top, bottom = fig.axes
+    legend = top.get_legend()
+    assert [t.get_text() for t in legend.get_texts()][:5] == ["1", "2", "3", "4", "5"]
+    assert legend.get_title().get_text() == "synthetic_embryo…_midline"
+    width = lambda ax: ax.get_window_extent().width / fig.dpi          # inches
+    assert width(bottom) > 0.75 * SINGLE_COLUMN                        # was ~1 in
+    assert legend.get_window_extent().y1 <= top.get_window_extent().y0  # under the shape
+    # the shape at equal scales by its box, not by limits padded past it (the audit's z
+    # axis ran from -0.8 for a shell from 0), so the shape fills the axes
+    box = top.get_window_extent()
+    (x0, x1), (y0, y1) = top.get_xlim(), top.get_ylim()
+    assert box.width / box.height == pytest.approx((x1 - x0) / (y1 - y0), rel=0.02)
+    z = np.concatenate([m.z for m in traces])
+    assert y1 - y0 <= 1.15 * (z.max() - z.min())     # Matplotlib's margins: 5 % a side

@@ -20,6 +20,7 @@ from typing import Sequence
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure, SubFigure
+from matplotlib.transforms import Affine2D
 
 from ..solvers.refinement import COARSE
 from .shells import plot_cross_section, problem_caption, problem_title
@@ -64,7 +65,8 @@ Y_CANDIDATES = ("psi_end", "z_end", "r_end", "energy")
 CONSTANT = 1e-9
 #: Axis labels of the branch table's columns.
 AXIS_LABELS = {"lambda": r"path fraction $\lambda$", "energy": r"energy $E$ ($C R^2$)",
-               "r_end": r"$r$ at the far end ($R$)", "z_end": r"$z$ at the far end ($R$)",
+               "r_end": r"$r$ at the far end ($R$)",
+               "z_end": r"far end's height above the first point ($R$)",
                "psi_end": r"$\psi$ at the far end (rad)",
                "negative_eigenvalues": "negative eigenvalues"}
 
@@ -305,6 +307,7 @@ def _shapes(fig: SubFigure, branch, switched: list) -> None:
         state = ("marginal" if pt.event in ("fold", "branch_point") else
                  "stable" if pt.stable else f"unstable ({pt.negative_eigenvalues})")
         plot_cross_section(pt.equilibrium, ax, title=None, legend=False, color=colour)
+        _from_first_point(ax, pt.equilibrium)
         # two short lines: one long line ran past the figure's edge
         ax.set_title(f"{what}\nλ = {pt.tau:.4g}, {state}", fontsize=MIN_FONT_SIZE)
         ax.set_aspect("equal", adjustable="box")
@@ -313,12 +316,23 @@ def _shapes(fig: SubFigure, branch, switched: list) -> None:
     for ax in axes[len(shown):]:
         ax.set_axis_off()
     fig.supxlabel(r"$r/R$")
-    fig.supylabel(r"$z/R$")
+    fig.supylabel(r"$z/R$ above the first point")
+
+
+def _from_first_point(ax: Axes, eq) -> None:
+    """Move a shape drawn in the solver's gauge (the first point at its undeformed height)
+    so that its first point is at z = 0: the gauge of the diagram's ``z_end``, the far
+    end's height above the first point.  Audit 19: the thumbnail's far pole stood 1 − cos Σ
+    (0.045 R) above the diagram's value for the same shell."""
+    shift = Affine2D().translate(0.0, -float(eq.z[0])) + ax.transData
+    for artist in (*ax.lines, *ax.patches, *ax.collections):
+        artist.set_transform(shift)
 
 
 def _limits(eqs) -> tuple[tuple[float, float], tuple[float, float]]:
-    """Common (r, z) limits of the mirrored shells, with a margin: one scale for all panels."""
+    """Common (r, z) limits of the mirrored shells (z above their first points, as
+    :func:`_from_first_point` draws them), with a margin: one scale for all panels."""
     r = max(float(np.max(eq.r)) for eq in eqs) * 1.08
-    z = np.concatenate([eq.z for eq in eqs])
+    z = np.concatenate([eq.z - eq.z[0] for eq in eqs])
     pad = 0.08 * (float(z.max()) - float(z.min()) + 1e-12)
     return (-r, r), (float(z.min()) - pad, float(z.max()) + pad)

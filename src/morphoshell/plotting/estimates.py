@@ -6,13 +6,19 @@ the off-scale arrows too, which otherwise read as data at the axis' ends.
 """
 from __future__ import annotations
 
+import warnings
+
+import matplotlib as mpl
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from matplotlib.font_manager import FontProperties
 from matplotlib.legend_handler import HandlerTuple
 from matplotlib.lines import Line2D
+from matplotlib.transforms import ScaledTranslation
 
-from .style import DOUBLE_COLUMN, MIN_FONT_SIZE, journal_figure, made_here, styled
+from .style import (DOUBLE_COLUMN, MIN_FONT_SIZE, axes_size, journal_figure, made_here, styled,
+                    text_width)
 
 __all__ = ["plot_k_estimates", "plot_recoil_velocity", "figure_JK", "MEASURE_COLOURS",
            "OFF_SCALE_LABEL"]
@@ -21,12 +27,31 @@ __all__ = ["plot_k_estimates", "plot_recoil_velocity", "figure_JK", "MEASURE_COL
 MEASURE_COLOURS = {"opening": "tab:blue", "rotation": "tab:orange", "displacement": "tab:green"}
 _MEASURE_LABEL = {"opening": r"opening $o$", "rotation": r"rotation $\varrho$",
                   "displacement": r"displacement $d$"}
+#: The measures' symbols: a group's label where the whole name does not fit under it.
+_MEASURE_SYMBOL = {"opening": r"$o$", "rotation": r"$\varrho$", "displacement": r"$d$"}
 #: Legend entry of the arrows at the axis' ends (:func:`plot_k_estimates`).
 OFF_SCALE_LABEL = "off scale or no k in range"
 #: Columns between the groups of embryos (one group per measure).
 _GAP = 2
 #: Marker sizes (points): one embryo's estimate, a group's mean.
 _MS, _MS_MEAN = 4.5, 7.0
+#: Columns of empty axis right of the last group's means: their markers (7 pt) were cut
+#: in half at the axes' edge (a column is 3 pt wide on a 2.3 in panel).
+_RIGHT_PAD = 2.0
+#: Headroom above the estimates for a legend inside a caller's panel, as a multiple of the
+#: legend's estimated height: the estimate uses the axes' size before constrained layout,
+#: which shrinks it by up to ~15 % on a 2.4 in high row (audit 19's grids).
+_HEADROOM_SAFETY = 1.1
+#: Most of a caller's panel the legend's headroom takes (the rest: the estimates).
+_MAX_HEADROOM = 0.45
+#: The sizes of the legend inside a caller's panel in ems of its font: a handle and the gap
+#: to its text (handlelength 1.2 + handletextpad 0.5, shorter than the package's 1.6 + 0.8
+#: to fit two columns in a 2.3 in panel), the space between columns, a row
+#: (1 + labelspacing 0.5) and the border pads above and below (2 × 0.4 + borderaxespad 0.5).
+_HANDLE_EMS, _COLUMN_EMS, _ROW_EMS, _PAD_EMS = 1.7, 0.8, 1.5, 1.3
+#: The legend under the axes: its top this many ems of MIN_FONT_SIZE below the axes, under
+#: the group labels (tick pad + a line) and the x label (label pad + a line).
+_BELOW_AXIS = 4.0
 
 
 def plot_k_estimates(ax: Axes, result, truth=None, ylim=None, *, legend: str = "auto") -> Axes:
@@ -37,7 +62,9 @@ def plot_k_estimates(ax: Axes, result, truth=None, ylim=None, *, legend: str = "
     the mean ± standard deviation of each.  Estimates off the axis (or with
     no k in the range, beyond it) are arrows at the axis.  ``truth``, a
     mapping embryo → k, adds grey ticks (synthetic data).  The legend names
-    every kind of marker drawn.
+    every kind of marker drawn.  The measures' names are the x axis' labels,
+    under their groups (their symbols alone where a name is wider than its
+    group, on a small panel).
 
     Parameters
     ----------
@@ -72,9 +99,9 @@ def plot_k_estimates(ax: Axes, result, truth=None, ylim=None, *, legend: str = "
             off_scale |= _group(ax, result, measure, g * (n + _GAP), truth, ylim)
         _reference_lines(ax, result)
         ax.set_ylim(*ylim)
-        ax.set_xlim(-1, 3 * (n + _GAP) - _GAP + 1)
-        ax.set_xticks([])
-        ax.set_xlabel(f"embryos (N = {n}), grouped by measure")
+        ax.set_xlim(-1, 3 * (n + _GAP) - _GAP + _RIGHT_PAD)
+        _group_labels(ax, MEASURES, n)
+        ax.set_xlabel(f"embryos (N = {n}) by measure")
         ax.set_ylabel(r"intrinsic curvature $k$ (units of $1/R$)")
         _k_legend(ax, result, truth is not None, off_scale, legend)
     return ax
@@ -97,9 +124,25 @@ def _group(ax: Axes, result, measure: str, x0: float, truth, ylim) -> bool:
             ax.errorbar(x0 + n + 0.2 + dx, s.mean, yerr=s.std or 0, color=colour, capsize=2.5,
                         marker="o", ms=_MS_MEAN, mfc=colour if filled else "white", mew=1.2,
                         lw=1.2, zorder=3)
-    ax.text(x0 + (n - 1) / 2, ylim[1] - 0.01 * (ylim[1] - ylim[0]), _MEASURE_LABEL[measure],
-            ha="center", va="top", fontsize=MIN_FONT_SIZE + 1, color=colour)
     return off_scale
+
+
+def _group_labels(ax: Axes, measures, n: int) -> None:
+    """The measures' names as the x axis' tick labels, one under each group, in its colour.
+
+    Under the axis, not at its top: there they were printed over the off-scale arrows
+    (audit 19: "openÅing o"), and on a 2.3 in panel over one another and past the axes'
+    edge.  The whole name where it fits in a group's width, else the symbol alone.
+    """
+    width = axes_size(ax)[0] * (n + _GAP) / (3 * (n + _GAP) - _GAP + 1 + _RIGHT_PAD)
+    size = FontProperties(size=mpl.rcParams["xtick.labelsize"]).get_size_in_points()
+    fits = all(text_width(_MEASURE_LABEL[m], size) <= 0.9 * width for m in measures)
+    names = _MEASURE_LABEL if fits else _MEASURE_SYMBOL
+    ax.set_xticks([g * (n + _GAP) + n / 2 for g in range(len(measures))],
+                  [names[m] for m in measures])
+    ax.tick_params(axis="x", length=0)
+    for label, m in zip(ax.get_xticklabels(), measures):
+        label.set_color(MEASURE_COLOURS[m])
 
 
 def _marker(ax, x, est, colour, filled, ylim) -> bool:
@@ -126,37 +169,82 @@ def _reference_lines(ax: Axes, result) -> None:
 
 
 def _k_legend(ax: Axes, result, truth: bool, off_scale: bool, where: str) -> None:
-    """Every marker kind, in grey (the colours are the measures, named above the groups)."""
+    """Every marker kind, in grey (the colours are the measures, named under the groups)."""
+    if where == "auto":
+        where = "below" if made_here(ax) else "inside"
+    entries = _legend_entries(ax, result, truth, off_scale, short=where == "inside")
+    options = dict(ncol=3, handler_map={tuple: HandlerTuple(ndivide=None, pad=0.3)},
+                   frameon=False, fontsize=MIN_FONT_SIZE, columnspacing=1.2)
+    if where == "figure":
+        ax.figure.legend(*zip(*entries), loc="outside lower center", **options)
+    elif where == "inside":
+        _legend_inside(ax, entries, options)
+    else:
+        # under the group labels and the x label (points: they do not scale with the axes)
+        below = ScaledTranslation(0, -_BELOW_AXIS * MIN_FONT_SIZE / 72, ax.figure.dpi_scale_trans)
+        ax.legend(*zip(*entries), loc="upper center", bbox_to_anchor=(0.5, 0.0),
+                  bbox_transform=ax.transAxes + below, borderaxespad=0.0, **options)
+
+
+def _legend_entries(ax: Axes, result, truth: bool, off_scale: bool, *, short: bool) -> list:
+    """(handle, label) of every marker kind drawn; ``short``: labels of a word or two, for a
+    legend inside a small panel."""
     from ..inverse.result import methods_ran
 
     grey = dict(color="0.3", ls="none", mew=1.0)
     entries = []
     if methods_ran(result.settings, "asymptotic"):
         entries.append((Line2D([], [], marker="o", mfc="white", ms=_MS, **grey),
-                        "asymptotic (paper's formulas)"))
+                        "asymptotic" if short else "asymptotic (paper's formulas)"))
     if methods_ran(result.settings, "numerical"):   # (an entry of a method not run misled)
         entries.append((Line2D([], [], marker="o", ms=_MS, **grey),
+                        "numerical" if short else
                         f"numerical (toy problem 2, "
                         f"{result.settings['theory'].replace('_', '-')})"))
     entries.append((Line2D([], [], marker="o", ms=_MS_MEAN, **grey), "mean ± std"))
     if off_scale:
         entries.append(((Line2D([], [], marker="^", ms=_MS, **grey),
-                         Line2D([], [], marker="v", ms=_MS, **grey)), OFF_SCALE_LABEL))
+                         Line2D([], [], marker="v", ms=_MS, **grey)),
+                        "off scale" if short else OFF_SCALE_LABEL))
     if truth:
-        entries.append((Line2D([], [], color="0.5", lw=1.2), "true k (synthetic)"))
-    handles, labels = ax.get_legend_handles_labels()     # the ⟨k⟩ line
-    entries += list(zip(handles, labels))
-    options = dict(ncol=3, handler_map={tuple: HandlerTuple(ndivide=None, pad=0.3)},
-                   frameon=False, fontsize=MIN_FONT_SIZE, columnspacing=1.2)
-    if where == "auto":
-        where = "below" if made_here(ax) else "inside"
-    if where == "figure":
-        ax.figure.legend(*zip(*entries), loc="outside lower center", **options)
-    elif where == "inside":
-        ax.legend(*zip(*entries), loc="best", **{**options, "ncol": 1})
-    else:
-        ax.legend(*zip(*entries), loc="upper center", bbox_to_anchor=(0.5, -0.09),
-                  borderaxespad=0.0, **options)
+        entries.append((Line2D([], [], color="0.5", lw=1.2),
+                        "true k" if short else "true k (synthetic)"))
+    c = result.summary["combined"]
+    if c.n:   # the ⟨k⟩ line
+        mean = rf"$\langle k\rangle = {c.mean:.3f}$"
+        entries.append((Line2D([], [], color="k", lw=1.0, ls="--"),
+                        mean if short else rf"{mean} ($\varrho$ and $d$, numerical)"))
+    return entries
+
+
+def _legend_inside(ax: Axes, entries: list, options: dict) -> None:
+    """The legend across the top of a caller's panel, in as many columns as its width takes,
+    over headroom added above the estimates (and their off-scale arrows), so that it covers
+    none of them; the k axis' ticks stay within the estimates' range.
+
+    Audit 19: on a 2.3 in panel one column of the long labels, placed "best", lay over the y
+    label and the opening group's estimates.
+    """
+    size = options["fontsize"]
+    width, height = axes_size(ax)
+    spacing = _COLUMN_EMS * size
+    column = max(text_width(label, size) for _, label in entries) + _HANDLE_EMS * size
+    ncol = int(max(1, min(len(entries), (0.95 * width + spacing) // (column + spacing))))
+    rows = -(-len(entries) // ncol)
+    needed = _HEADROOM_SAFETY * (rows * _ROW_EMS + _PAD_EMS) * size
+    share = min(needed / height, _MAX_HEADROOM)
+    if needed / height > _MAX_HEADROOM:
+        warnings.warn(f"plot_k_estimates: a panel of {width / 72:.1f} × {height / 72:.1f} in "
+                      f"(axes) is too small for the legend inside it, which covers estimates; "
+                      f"use legend='figure' (under the whole figure) or a panel of about "
+                      f"2.3 × 1.8 in or more", UserWarning, stacklevel=4)
+    low, high = ax.get_ylim()
+    ticks = [t for t in ax.get_yticks() if low <= t <= high]
+    ax.set_ylim(low, low + (high - low) / (1.0 - share))
+    ax.set_yticks(ticks)
+    ax.legend(*zip(*entries), loc="upper center", **{**options, "ncol": ncol,
+                                                     "columnspacing": _COLUMN_EMS,
+                                                     "handlelength": 1.2, "handletextpad": 0.5})
 
 
 def plot_recoil_velocity(ax: Axes, result) -> Axes:

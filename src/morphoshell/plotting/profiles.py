@@ -18,7 +18,7 @@ from matplotlib.figure import Figure
 
 from .style import DOUBLE_COLUMN, SINGLE_COLUMN, journal_figure, styled
 
-__all__ = ["plot_profiles", "plot_profile", "parameter_label"]
+__all__ = ["plot_profiles", "plot_profile", "parameter_label", "parameter_axis_label"]
 
 #: Panels side by side in :func:`plot_profiles` (three fit a double column).
 COLUMNS = 3
@@ -34,7 +34,28 @@ def parameter_label(name: str) -> str:
     return f"${symbol}_{{{index}}}$" if index else f"${symbol}$"
 
 
-def plot_profile(profile, ax: Axes, *, legend: bool = True) -> Axes:
+def parameter_axis_label(name: str, units: Mapping[str, str] | None = None) -> str:
+    """An axis label of a fitted parameter with its unit: ``κ₁ (1/R)``, ``s₃ (R)``, ``f₁``
+    (dimensionless: none), as every other axis of the package has one.
+
+    Parameters
+    ----------
+    name : str
+    units : mapping of str to str, optional
+        Parameter → unit as a family declares them (``"R"``, ``"1/R"``, ``"1"``); default:
+        the Volvox family's, whose parameters the package fits, with h and the opening
+        (lengths).
+    """
+    if units is None:
+        from ..model.profiles import get_family
+
+        units = {"h": "R", "opening": "R", "cut": "R", **get_family("volvox").units}
+    unit = units.get(name, "1")
+    return parameter_label(name) if unit in ("1", "") else f"{parameter_label(name)} (${unit}$)"
+
+
+def plot_profile(profile, ax: Axes, *, legend: bool = True,
+                 units: Mapping[str, str] | None = None) -> Axes:
     """One profile on ``ax``: E_fit² (R²) against the parameter.
 
     The refits as dots (open red circles where they did not converge), the
@@ -48,6 +69,9 @@ def plot_profile(profile, ax: Axes, *, legend: bool = True) -> Axes:
     ax : matplotlib Axes
     legend : bool
         Draw the legend.
+    units : mapping of str to str, optional
+        The parameters' units, for the x axis (:func:`parameter_axis_label`; default: the
+        Volvox family's).
     """
     p = profile
     ok = np.asarray(p.converged, bool) & np.isfinite(p.objective)
@@ -64,7 +88,7 @@ def plot_profile(profile, ax: Axes, *, legend: bool = True) -> Axes:
                    color="C1", alpha=0.2, lw=0, label=f"{100 * p.confidence:g} % interval")
         ax.set_xlim(left, right)
         ax.plot([p.fitted_value], [p.S_min], "o", color="k", ms=4, label="fit")
-        ax.set_xlabel(parameter_label(p.name))
+        ax.set_xlabel(parameter_axis_label(p.name, units))
         ax.set_ylabel(r"$E_\mathrm{fit}^2$ ($R^2$)")
         ax.set_title(parameter_label(p.name) + _short_verdict(p))
         if legend:
@@ -72,7 +96,8 @@ def plot_profile(profile, ax: Axes, *, legend: bool = True) -> Axes:
     return ax
 
 
-def plot_profiles(profiles: Mapping, *, pyplot: bool = True) -> Figure:
+def plot_profiles(profiles: Mapping, *, pyplot: bool = True,
+                  units: Mapping[str, str] | None = None) -> Figure:
     """A panel per profile (:func:`plot_profile`), :data:`COLUMNS` a row, one legend below.
 
     Parameters
@@ -81,6 +106,8 @@ def plot_profiles(profiles: Mapping, *, pyplot: bool = True) -> Figure:
         As :func:`morphoshell.fitting.profile_intervals` returns them.
     pyplot : bool
         See :func:`~morphoshell.plotting.journal_figure` (``False`` for the command line).
+    units : mapping of str to str, optional
+        The parameters' units (:func:`plot_profile`).
 
     Returns
     -------
@@ -97,7 +124,7 @@ def plot_profiles(profiles: Mapping, *, pyplot: bool = True) -> Figure:
     with styled(fig):
         axes = fig.subplots(rows, cols, squeeze=False).ravel()
     for ax, p in zip(axes, profiles.values()):
-        plot_profile(p, ax, legend=False)
+        plot_profile(p, ax, legend=False, units=units)
     for ax in axes[n:]:
         ax.set_visible(False)
     # one legend below the panels, of every kind drawn in any (not over a curve)

@@ -14,13 +14,17 @@ or runs past the figure's edge.
 from __future__ import annotations
 
 import contextlib
+import os
+import re
 from pathlib import Path
 from typing import Any, Sequence
 
 import matplotlib as mpl
 import matplotlib.pyplot as plt
+import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from matplotlib.layout_engine import ConstrainedLayoutEngine
 from matplotlib.text import Text
 from matplotlib.transforms import Bbox, ScaledTranslation
 
@@ -37,7 +41,9 @@ MIN_FONT_SIZE = 7.0
 #: rcParams of :func:`paper_style`.  Named font sizes are relative to
 #: ``font.size`` ("small" = 0.83×), so figures drawn in this style should use
 #: the rc defaults or absolute sizes; TrueType fonts (type 42) keep the text
-#: of the PDF editable, as journals ask.
+#: of the PDF editable, as journals ask, and ``svg.fonttype: none`` that of
+#: the SVG (``<text>`` elements in the font's name, not glyphs as paths: the
+#: reader's fonts draw it, DejaVu Sans where installed, else a sans-serif).
 PAPER_RC: dict[str, Any] = {
     "font.size": 8, "axes.titlesize": 8, "axes.labelsize": 8, "figure.titlesize": 8,
     "figure.labelsize": 8, "xtick.labelsize": MIN_FONT_SIZE, "ytick.labelsize": MIN_FONT_SIZE,
@@ -47,7 +53,7 @@ PAPER_RC: dict[str, Any] = {
     "ytick.minor.width": 0.4, "xtick.major.size": 3.0, "ytick.major.size": 3.0,
     "xtick.minor.size": 1.8, "ytick.minor.size": 1.8,
     "lines.linewidth": 1.0, "lines.markersize": 4.0, "lines.markeredgewidth": 0.8,
-    "savefig.dpi": 300, "pdf.fonttype": 42, "ps.fonttype": 42,
+    "savefig.dpi": 300, "pdf.fonttype": 42, "ps.fonttype": 42, "svg.fonttype": "none",
 }
 
 #: Attribute that marks a figure made in the paper style (see :func:`styled`).
@@ -206,6 +212,39 @@ def get_caption(ax: Axes) -> str:
     return " ".join(" ".join(texts).split("\n"))
 
 
+def text_width(text: str, size: float) -> float:
+    """Estimated width (points) of one line of ``text`` set in ``size`` points (DejaVu Sans,
+    :data:`_EM_PER_CHAR`): a mathtext command (``\\varrho``) counts as one character, ``$``
+    as none.  For choosing a layout before anything is drawn."""
+    visible = re.sub(r"\\[A-Za-z]+", "x", text).replace("$", "")
+    return len(visible) * _EM_PER_CHAR * size
+
+
+#: Room (points) constrained layout leaves around a panel's axes inside its grid cell for
+#: tick labels and an axis label on each of two sides (measured on audit 19's grids: the
+#: axes of a 7 in × 2.4 in row of three, 168 × 173 pt cells, were 137 × 135 pt).
+_DECORATION = 33.0
+
+
+def axes_size(ax: Axes) -> tuple[float, float]:
+    """Width and height (points) the axes ``ax`` will have when drawn, for choosing a layout
+    before anything is drawn: its grid cell's less :data:`_DECORATION` under constrained
+    layout (which has not run yet: the axes' place now is the grid's default, up to 20 %
+    narrower), else its place now."""
+    fig, dpi = ax.figure, ax.figure.dpi
+    spec = ax.get_subplotspec()
+    if spec is None or not isinstance(_figure_of(ax).get_layout_engine(),
+                                      ConstrainedLayoutEngine):
+        box = ax.get_window_extent()
+        return box.width * 72 / dpi, box.height * 72 / dpi
+    grid = spec.get_gridspec()
+    widths = np.asarray(grid.get_width_ratios() or [1] * grid.ncols, float)
+    heights = np.asarray(grid.get_height_ratios() or [1] * grid.nrows, float)
+    width = fig.bbox.width * widths[spec.colspan].sum() / widths.sum()
+    height = fig.bbox.height * heights[spec.rowspan].sum() / heights.sum()
+    return width * 72 / dpi - _DECORATION, height * 72 / dpi - _DECORATION
+
+
 def label_panel(ax: Axes, letter: str, *, size: float = 10.0, dx: float = -4.0,
                 dy: float = 4.0):
     """Bold panel letter above the top-left corner of ``ax``, outside its title.
@@ -256,6 +295,22 @@ def is_flagged(ax: Axes) -> bool:
     return any(p.get_gid() == _FLAG for p in ax.patches)
 
 
+#: Metadata :func:`save` gives each vector format by default: no creation date, so that a
+#: figure saved twice is the same file (audit 19: the PDFs of two runs differed in their
+#: /CreationDate alone, the SVGs in their dc:date).  PostScript has no way to leave it out.
+_NO_DATE = {"pdf": {"CreationDate": None}, "svg": {"Date": None}}
+#: Salt of the SVG's ids (clip paths, glyphs): Matplotlib's default is random per file.
+_SVG_SALT = "morphoshell"
+
+
+def _metadata(fmt: str, metadata: dict | None) -> dict | None:
+    """The ``savefig`` metadata of format ``fmt``: the caller's over :data:`_NO_DATE`'s;
+    with ``SOURCE_DATE_EPOCH`` set, that date (Matplotlib reads it) instead of none."""
+    default = {} if os.environ.get("SOURCE_DATE_EPOCH") else _NO_DATE.get(fmt, {})
+    merged = {**default, **(metadata or {})}
+    return merged or None
+
+
 #: Drawing passes before saving a laid-out figure (see :func:`_settle_layout`).
 _LAYOUT_PASSES = 2
 
@@ -289,8 +344,16 @@ def _height_cropped(fig: Figure, pad: float = 0.04, band: float = 0.2) -> Bbox |
 
 
 def save(fig_or_ax, path: str | Path, formats: Sequence[str] | None = None, *,
-         dpi: float = 300, close: bool = False, tight: bool | None = None) -> list[Path]:
+         dpi: float = 300, close: bool = False, tight: bool | None = None,
+         metadata: dict | None = None) -> list[Path]:
     """Save a figure; returns the paths written.
+
+    The same figure saved twice gives the same files, byte for byte: PNG as
+    Matplotlib writes it, PDF and SVG without their creation date and the
+    SVG's ids from a fixed salt.  With the environment variable
+    ``SOURCE_DATE_EPOCH`` set (seconds since 1970, the reproducible-builds
+    convention), PDF, SVG and PostScript carry that date instead; PostScript
+    otherwise has the time of writing.
 
     Parameters
     ----------
@@ -307,6 +370,10 @@ def save(fig_or_ax, path: str | Path, formats: Sequence[str] | None = None, *,
     tight : bool, optional
         Crop to the drawn content.  Default: only figures without a layout
         engine, so that a figure laid out at a journal's width keeps its size.
+    metadata : dict, optional
+        Matplotlib's ``savefig`` metadata, over the default (no date), e.g.
+        ``{"CreationDate": datetime.now()}`` for a PDF that has one; applied
+        to every format saved.
 
     Returns
     -------
@@ -320,13 +387,13 @@ def save(fig_or_ax, path: str | Path, formats: Sequence[str] | None = None, *,
     path.parent.mkdir(parents=True, exist_ok=True)
     out = []
     # a figure of the paper style keeps its text editable in the PDF (read on saving)
-    with styled(fig):
+    with styled(fig), mpl.rc_context({"svg.hashsalt": _SVG_SALT}):
         if not tight:
             _settle_layout(fig)
         box = "tight" if tight else _height_cropped(fig)
         for fmt in formats or [path.suffix.lstrip(".") or "png"]:
             target = path.with_suffix("." + fmt)
-            fig.savefig(target, dpi=dpi, bbox_inches=box)
+            fig.savefig(target, dpi=dpi, bbox_inches=box, metadata=_metadata(fmt, metadata))
             out.append(target)
     if close:
         plt.close(fig)

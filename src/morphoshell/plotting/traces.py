@@ -8,14 +8,42 @@ scale, flipped or traced along another path stands out in both.
 """
 from __future__ import annotations
 
+import os
 from typing import Sequence
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.transforms import ScaledTranslation
 
-from .style import SINGLE_COLUMN, add_caption, journal_figure, styled
+from .style import MIN_FONT_SIZE, SINGLE_COLUMN, add_caption, journal_figure, styled, text_width
 
 __all__ = ["plot_traces"]
+
+#: The legend's top under the shape's axes, in ems of MIN_FONT_SIZE: under its tick labels
+#: (pad + a line) and the r label (pad + a line).
+_BELOW_AXIS = 4.0
+
+
+def _short_names(names: Sequence[str]) -> tuple[list[str], str | None]:
+    """The part of each name that differs from the others, and what they share as a title
+    ("synthetic_embryo…_midline" over "1" … "5"), or the names and None where nothing is
+    shared: five file names took half a column beside the shape (audit 19).  A shared
+    end stops at digits, so that embryo10 and embryo11 keep their numbers whole."""
+    if len(names) < 2:
+        return list(names), None
+    head = os.path.commonprefix(list(names)).rstrip("0123456789")
+    tail = os.path.commonprefix([n[::-1] for n in names])[::-1].lstrip("0123456789")
+    if len(head) + len(tail) == 0 or any(len(n) <= len(head) + len(tail) for n in names):
+        return list(names), None
+    return [n[len(head):len(n) - len(tail)] for n in names], f"{head}…{tail}"
+
+
+def _legend_columns(names: Sequence[str]) -> int:
+    """Columns of the traces' legend (their names, "± spread", "average") that fit in the
+    column's width at MIN_FONT_SIZE: a handle and its gap (2.4 ems), a gap between columns."""
+    width = max(text_width(name, MIN_FONT_SIZE) for name in [*names, "± spread"])
+    column = width + 2.4 * MIN_FONT_SIZE + 2.0 * MIN_FONT_SIZE
+    return max(1, min(len(names) + 2, int(0.95 * SINGLE_COLUMN * 72 // column)))
 
 
 def plot_traces(mean, midlines: Sequence, names: Sequence[str] | None = None, *,
@@ -29,7 +57,9 @@ def plot_traces(mean, midlines: Sequence, names: Sequence[str] | None = None, *,
     midlines : sequence of morphoshell.io.Midline
         The single-trace midlines, at least two.
     names : sequence of str, optional
-        The traces' labels (default: "trace 1", "trace 2", ...).
+        The traces' labels (default: "trace 1", "trace 2", ...).  The legend, under the
+        shape, shows the part that differs between them, and what they share as its
+        title ("synthetic_embryo…_midline" over 1 … 5); the caption names a trace in full.
     caption : str or None
         Under the lower panel; "auto": how many traces, the mean spread and
         the largest rms distance.
@@ -41,6 +71,7 @@ def plot_traces(mean, midlines: Sequence, names: Sequence[str] | None = None, *,
     Figure
     """
     names = list(names or (f"trace {k}" for k in range(1, len(midlines) + 1)))
+    labels, shared = _short_names(names)
     fig = journal_figure(SINGLE_COLUMN, 1.25 * SINGLE_COLUMN, pyplot=pyplot)
     from ..io.midlines import trace_distances
 
@@ -48,19 +79,25 @@ def plot_traces(mean, midlines: Sequence, names: Sequence[str] | None = None, *,
     s = np.r_[0.0, np.cumsum(np.hypot(*np.diff(mean.points, axis=0).T))]
     with styled(fig):
         top, bottom = fig.subplots(2, 1, height_ratios=(2.2, 1))
-        for m, name, d in zip(midlines, names, distances):
-            line, = top.plot(m.r, m.z, lw=0.8, label=name)
+        for m, label, d in zip(midlines, labels, distances):
+            line, = top.plot(m.r, m.z, lw=0.8, label=label)
             bottom.plot(s, d, lw=0.7, color=line.get_color())
         if mean.spread is not None:
             top.fill_between(mean.r, mean.z - mean.spread, mean.z + mean.spread, color="0.8",
                              lw=0, label="± spread", zorder=0)
         # thin and dashed: the traces differ by a few 1e-3 R and would vanish under it
         top.plot(mean.r, mean.z, color="k", lw=0.6, ls="--", label="average", zorder=3)
-        top.set_aspect("equal", adjustable="datalim")
+        # the shape at its own aspect in the whole width left by nothing beside it (audit 19:
+        # the file names' legend beside it took half the column, and datalim padded z, so
+        # the shell was drawn 0.9 in wide and the distances below as narrow)
+        top.set_aspect("equal", adjustable="box")
         top.set_xlabel(r"$r/R$")
         top.set_ylabel(r"$z/R$")
-        top.legend(loc="center left", bbox_to_anchor=(1.0, 0.5), fontsize="x-small",
-                   frameon=False)
+        below = ScaledTranslation(0, -_BELOW_AXIS * MIN_FONT_SIZE / 72, fig.dpi_scale_trans)
+        top.legend(loc="upper center", bbox_to_anchor=(0.5, 0.0),
+                   bbox_transform=top.transAxes + below, borderaxespad=0.0,
+                   ncol=_legend_columns(labels), fontsize=MIN_FONT_SIZE, frameon=False,
+                   title=shared, title_fontsize=MIN_FONT_SIZE)
         bottom.set_xlim(0.0, float(s[-1]))
         bottom.set_ylim(0.0, None)
         bottom.set_xlabel(r"arclength $s/R$ of the average, from the pole")
