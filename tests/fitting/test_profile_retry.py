@@ -340,8 +340,20 @@ def test_a_neighbour_lowered_is_a_new_start_and_the_refits_are_bounded():
         return (f"e{len(count)}", None, None, side[1][side[0].index(value)] - 0.05, True), ""
     side = ([0.1 * i for i in range(1, 9)], [3.0, 2.9, 2.8, 2.7, 2.6, 2.5, 2.4, 5.0],
             [True] * 8, [f"e{i}" for i in range(8)])
-    settle_side(side, (0.0, 1.0, "optimum"), 10.0, 2, creeping, "x")
+    # (threshold 3: the tolerance 0.02, each refit lower by more; the crossing the last step)
+    settle_side(side, (0.0, 1.0, "optimum"), 3.0, 2, creeping, "x")
     assert len(count) == NEIGHBOUR_REFITS
+
+
+def test_the_farther_neighbour_is_tried_first():
+    """Of a bump's two neighbours, neither tried yet, the farther one's end comes first (it
+    lies lower than the bump; the nearer was, for the walk, the bump's own start)."""
+    from morphoshell.fitting.profile_retry import _untried
+
+    side = _audit_side()
+    version = {k: 0 for k in range(-1, len(side[0]))}
+    assert _untried(side, AUDIT_THRESHOLD, 0.003, set(), version) == (1, 2, ABOVE_FARTHER)
+    assert _untried(side, AUDIT_THRESHOLD, 0.003, {(1, 2, 0)}, version) == (1, 0, ABOVE_FARTHER)
 
 
 def test_differences_below_the_tolerance_are_monotone_and_not_kept():
@@ -380,3 +392,29 @@ def test_the_audit_f1_profile_is_monotone_and_its_lower_end_reaches_past_the_bum
     assert 0.775 < p.interval[0] < 0.7785
     bumps = [r for r in p.retries if r.reason == ABOVE_FARTHER and r.winner]
     assert len(bumps) == 2 and "above a refit farther out" in p.note
+
+
+def test_a_bump_no_refit_removes_is_in_the_profiles_note_and_log(three, monkeypatch, caplog):
+    """The walk's refits faked (a parabola crossing at 4.5 steps, with a bump at the third
+    step above that every start finds, a third of the threshold's height over the step
+    beyond): the profile keeps it and says so, naming the parameter and the value."""
+    import morphoshell.fitting.profiles as profiles
+
+    spec, data, result = three
+    sigma2, step = 1e-8, 0.01
+    height = sigma2 * 3.841458820694124
+    j = spec.fitted.index("f1")
+
+    def refit_checked(opt, name, walked, value, method, tol, jump):
+        theta = np.array(walked[1], dtype=float)
+        theta[j] = value
+        x = (value - opt.theta[j]) / step
+        S = opt.S + height * ((x / 4.5) ** 2 + (0.6 if np.isclose(x, 3) else 0.0))
+        return (walked[0], theta, walked[2], S, True), ""
+
+    monkeypatch.setattr(profiles, "_refit_checked", refit_checked)
+    with caplog.at_level("WARNING"):
+        p = profile(spec, data, "f1", result=result, points=20, span=10 * step, noise=sigma2)
+    at = f"f1 = {p.fitted_value + 3 * step:.6g} above"
+    assert "the profile of f1 is not monotone above the fit" in p.note and at in p.note
+    assert at in caplog.text and "not monotone below" not in p.note
