@@ -4,10 +4,11 @@ A fit's Gauss–Newton errors (:mod:`morphoshell.fitting.results`) are those of
 the linearised problem at the optimum.  A *profile* (Venzon & Moolgavkar 1988;
 Raue et al. 2009) asks the nonlinear question instead: step one parameter θⱼ
 over a grid around its fitted value, fit all the others again at each step
-(warm-started from the neighbouring step's result; a refit far above the
-profile, or failed, again from the optimum; one that decides a crossing without
-having converged from other starts, :mod:`morphoshell.fitting.profile_retry`,
-which also refines a crossing within a side's first steps), and record the least-squares
+(warm-started from the neighbouring step's result; a refit far above the profile, or
+failed, again from the optimum; one that decides a crossing without having converged from
+other starts, :mod:`morphoshell.fitting.profile_retry`, which also fits one above a refit
+farther out, and a crossing's, again from its neighbours' ends and refines a crossing
+within a side's first steps), and record the least-squares
 objective S(θⱼ) = E_fit²(θⱼ) (units of R²; the fit energy of the paper,
 Supplementary, "Fitting of the morphoelastic theory to the average cell sheet
 midlines of Volvox inversion").  With Gaussian residuals of variance σ² the
