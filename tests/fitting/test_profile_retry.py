@@ -13,8 +13,10 @@ import pytest
 
 from morphoshell.fitting import fit, profile, synthetic_midline, volvox_spec
 from morphoshell.fitting import profile_retry
-from morphoshell.fitting.profile_retry import (REFINE_PLANNED, crossing, needs_retry,
-                                               refine_crossing, retried)
+from morphoshell.fitting.profile_retry import (ABOVE_FARTHER, CROSSING, NEIGHBOUR_REFITS,
+                                               REFINE_PLANNED, crossing, needs_retry,
+                                               non_monotone, not_monotone_note,
+                                               refine_crossing, retried, settle_side)
 from morphoshell.solvers.results import SolverError
 
 from fitting_cases import NODES, TRUE, three_parameter_spec
@@ -178,11 +180,13 @@ def test_a_retry_below_the_threshold_lets_the_profile_go_on_outward(three, monke
     above = p.values > p.fitted_value
     assert p.values[above][2] == pytest.approx(p.fitted_value + 3 * step)
     assert p.converged.all() and p.verdict() == ""
-    [r] = p.retries
+    [r] = [r for r in p.retries if not r.reason]        # (and each crossing's, from beyond)
+    assert all(r.reason == CROSSING and not r.winner for r in p.retries if r.reason)
     assert r.winner == "family defaults" and r.S_before > r.S
-    d = p.to_dict()["retries"][0]
+    [d] = [d for d in p.to_dict()["retries"] if d["reason"] is None]
     assert d["kept"] == "family defaults" and d["converged"]
-    assert "fitted again from 1 other starts: lowest" in p.note and "from the family defaults (converged)" in p.note
+    assert "fitted again from 1 other start: lowest" in p.note
+    assert "from the family defaults (converged)" in p.note
 
 
 def test_a_crossing_about_a_refit_below_the_fit_is_a_number():
@@ -232,4 +236,185 @@ def test_a_profile_narrower_than_its_grid_refines_its_crossings(three, monkeypat
     for half in (hi - p.fitted_value, p.fitted_value - lo):
         assert half == pytest.approx(1.5 * step, abs=0.01 * step)
     # (the walk's two steps per side, one to the crossing and one beyond, and two refinements)
-    assert len(p.values) == 1 + 2 * (2 + 2) and not p.retries
+    assert len(p.values) == 1 + 2 * (2 + 2)
+    # (the refined crossings tried from the step beyond them too: no lower, nothing noted)
+    assert all(r.reason == CROSSING and not r.winner for r in p.retries) and not p.note
+
+
+# The audit's f₁ lower side (the synthetic t05, free, 200 nodes), outward from the optimum
+# (S_min 2.5976e-5, threshold 2.9196e-5; units of 1e-5 R²): the refit at the second step
+# converged in a worse minimum, above the one farther out.
+AUDIT_S = [2.8823, 2.9654, 2.9418, 2.9734, 3.0118]
+AUDIT_S_MIN, AUDIT_THRESHOLD = 2.5976, 2.9196
+
+
+def _neighbour_refit(lower, calls):
+    """A stand-in for the walk's refit: from the end named ``"end i"`` at value ``v`` it gives
+    ``lower[(i, v)]`` where given, else the side's own objective at v (the same minimum)."""
+    def refit(end, value):
+        calls.append((end, value))
+        i = AUDIT_VALUES.index(value)
+        S = lower.get((end, value), AUDIT_S[i])
+        return (f"new end {value}", None, None, S, True), ""
+    return refit
+
+
+AUDIT_VALUES = [0.7812, 0.7785, 0.7758, 0.7731, 0.7703]
+
+
+def _audit_side():
+    n = len(AUDIT_S)
+    return (list(AUDIT_VALUES), list(AUDIT_S), [True] * n, [f"end {i}" for i in range(n)])
+
+
+def test_a_refit_above_one_farther_out_is_fitted_again_from_its_neighbours():
+    """The audit's bump at 0.7785 (2.9654, above 2.9418 at 0.7758 and above the threshold:
+    the interval ended at 0.77997): fitted again from the end of the refit farther out it
+    lands at 2.9134, below the threshold, and the crossing, now the refit at 0.7758, is also
+    tried from its outer neighbour (no lower).  The lower end moves out beyond 0.7785."""
+    side, calls = _audit_side(), []
+    start = (0.7976, AUDIT_S_MIN, "optimum")
+    before = crossing(side[0], side[1], start[:2], -1.0, AUDIT_THRESHOLD, AUDIT_S_MIN)
+    assert before > 0.7785
+    refit = _neighbour_refit({("end 2", 0.7785): 2.9134}, calls)
+    retries = settle_side(side, start, AUDIT_THRESHOLD, 2, refit, "f1")
+    # (the farther neighbour first; then the new crossing from beyond it; then monotone)
+    assert calls == [("end 2", 0.7785), ("end 3", 0.7758)]
+    assert side[1][1] == 2.9134 and side[3][1] == ("new end 0.7785", None, None)
+    assert side[3][2] == "end 2" and not non_monotone(side[1], 0.01 * 0.322)
+    after = crossing(side[0], side[1], start[:2], -1.0, AUDIT_THRESHOLD, AUDIT_S_MIN)
+    assert after < 0.7785
+    bump, cross = retries
+    assert (bump.value, bump.reason, bump.winner) == (0.7785, ABOVE_FARTHER, "refit at f1 = 0.7758")
+    assert bump.S_before == 2.9654 and bump.S == 2.9134 and bump.converged
+    assert (cross.value, cross.reason, cross.winner) == (0.7758, CROSSING, "")
+    assert "0.7785 (E_fit 1.72203 R, above a refit farther out) fitted again from 1 other " \
+        "start: lowest 1.70687 R, from the refit at f1 = 0.7758" in bump.note("f1")
+    assert cross.note("f1") == "" and cross.to_dict()["reason"] == CROSSING
+    assert bump.to_dict()["kept"] == "refit at f1 = 0.7758"
+
+
+def test_a_bump_no_neighbour_lowers_is_tried_once_from_each_and_warned_of(caplog):
+    """The outer neighbour's end does not lower the bump: nothing is left to try (the inner
+    neighbour's end is the walk's own start for it, unchanged; the bump is the crossing, and
+    was just tried from beyond it), the side stays as it was, and the warning (log and note)
+    names the parameter and the values."""
+    side, calls = _audit_side(), []
+    retries = settle_side(side, (0.7976, AUDIT_S_MIN, "optimum"), AUDIT_THRESHOLD, 2,
+                          _neighbour_refit({}, calls), "f1")
+    assert calls == [("end 2", 0.7785)]
+    assert side[1] == AUDIT_S and [r.winner for r in retries] == [""]
+    with caplog.at_level("WARNING"):
+        note = not_monotone_note("f1", side[:2], AUDIT_THRESHOLD, AUDIT_S_MIN, "below")
+    assert "profile of f1 is not monotone below" in note and note in caplog.text
+    assert "2.9654 R^2 at f1 = 0.7785 above 2.9418 at 0.7758" in note
+    assert not_monotone_note("f1", ([0.1, 0.2], [1.0, 2.0]), 3.0, 0.0, "above") == ""
+
+
+def test_a_neighbour_lowered_is_a_new_start_and_the_refits_are_bounded():
+    """Two refits above the one farther out: the outer one is lowered from its outer
+    neighbour's end, but not enough; the inner one is then lowered from that new end, and the
+    outer one again from the inner one's new end (a start not tried before), until the side
+    is monotone.  A side whose every refit from a neighbour lowers it a little stops after
+    NEIGHBOUR_REFITS refits."""
+    side, calls = ([0.1, 0.2, 0.3, 0.4], [3.0, 3.2, 2.0, 4.0], [True] * 4,
+                   ["e0", "e1", "e2", "e3"]), []
+    lower = {("e2", 0.2): 2.5, ("new 0.2", 0.1): 1.5, ("new 0.1", 0.2): 1.8}
+
+    def refit(end, value):
+        end = end[0] if isinstance(end, tuple) else end       # (a refit's end: its spec)
+        calls.append((end, value))
+        return (f"new {value}", None, None, lower[(end, value)], True), ""
+    retries = settle_side(side, (0.0, 1.0, "optimum"), 10.0, 2, refit, "x")
+    assert calls == [("e2", 0.2), ("new 0.2", 0.1), ("new 0.1", 0.2)]
+    assert side[1] == [1.5, 1.8, 2.0, 4.0]
+    assert [(r.value, r.S_before, r.S, r.winner) for r in retries] == [
+        (0.2, 3.2, 1.8, "refit at x = 0.1"), (0.1, 3.0, 1.5, "refit at x = 0.2")]
+    assert [row["from"] for row in retries[0].starts] == ["refit at x = 0.3",
+                                                          "refit at x = 0.1"]
+
+    count = []
+
+    def creeping(end, value):
+        count.append(value)
+        return (f"e{len(count)}", None, None, side[1][side[0].index(value)] - 0.05, True), ""
+    side = ([0.1 * i for i in range(1, 9)], [3.0, 2.9, 2.8, 2.7, 2.6, 2.5, 2.4, 5.0],
+            [True] * 8, [f"e{i}" for i in range(8)])
+    # (threshold 3: the tolerance 0.02, each refit lower by more; the crossing the last step)
+    settle_side(side, (0.0, 1.0, "optimum"), 3.0, 2, creeping, "x")
+    assert len(count) == NEIGHBOUR_REFITS
+
+
+def test_the_farther_neighbour_is_tried_first():
+    """Of a bump's two neighbours, neither tried yet, the farther one's end comes first (it
+    lies lower than the bump; the nearer was, for the walk, the bump's own start)."""
+    from morphoshell.fitting.profile_retry import _untried
+
+    side = _audit_side()
+    version = {k: 0 for k in range(-1, len(side[0]))}
+    assert _untried(side, AUDIT_THRESHOLD, 0.003, set(), version) == (1, 2, ABOVE_FARTHER)
+    assert _untried(side, AUDIT_THRESHOLD, 0.003, {(1, 2, 0)}, version) == (1, 0, ABOVE_FARTHER)
+
+
+def test_differences_below_the_tolerance_are_monotone_and_not_kept():
+    """A bump or a lowering by less than MONOTONE_TOL of the threshold's height (round-off of
+    one minimum's ends) asks for no refit and changes nothing: a profile whose refits agree
+    so stays the same to the bit."""
+    height = 1.0
+    assert non_monotone([1.0, 1.005, 1.0, 2.0], 0.01 * height) == []
+    assert non_monotone([1.0, 1.02, 1.0, 2.0, float("nan")], 0.01 * height) == [1]
+    side = ([0.1, 0.2, 0.3], [1.2, 2.5, 2.9], [True] * 3, ["e0", "e1", "e2"])
+    retries = settle_side(side, (0.0, 1.0, "optimum"), 2.0, 2,
+                          lambda end, value: (("e", None, None, 2.495, False), ""), "x")
+    assert side[1] == [1.2, 2.5, 2.9] and side[2] == [True] * 3 and side[3][1] == "e1"
+    assert [(r.value, r.reason, r.winner) for r in retries] == [(0.2, CROSSING, "")]
+
+
+def test_the_audit_f1_profile_is_monotone_and_its_lower_end_reaches_past_the_bump():
+    """The audit's case (the synthetic t05 average, free, σ² from its traces; 100 nodes here,
+    10 s, where the walk left two bumps on the lower side, at 0.77596 and 0.77866, and the
+    interval's lower end at 0.77999): refitted from their outer neighbours' ends both lie on
+    the profile, which is monotone on either side, and the lower end lies beyond 0.7785
+    (the audit's refit there from the next step's end: 2.913e-5 R², below the threshold)."""
+    from pathlib import Path
+
+    from morphoshell.io import Midline
+
+    data = Midline.from_csv(Path(__file__).parents[2] / "data" / "synthetic_inversion" / "t05"
+                            / "synthetic_average.csv")
+    spec = volvox_spec("free")
+    p = profile(spec, data, "f1", result=fit(spec, data, "gradient", nodes=100), points=20,
+                nodes=100)
+    j = int(np.searchsorted(p.values, p.fitted_value))
+    tol = 0.01 * (p.threshold - p.S_min)
+    assert non_monotone(list(p.objective[j::-1]), tol) == []       # (each side outward)
+    assert non_monotone(list(p.objective[j:]), tol) == []
+    assert 0.775 < p.interval[0] < 0.7785
+    bumps = [r for r in p.retries if r.reason == ABOVE_FARTHER and r.winner]
+    assert len(bumps) == 2 and "above a refit farther out" in p.note
+
+
+def test_a_bump_no_refit_removes_is_in_the_profiles_note_and_log(three, monkeypatch, caplog):
+    """The walk's refits faked (a parabola crossing at 4.5 steps, with a bump at the third
+    step above that every start finds, a third of the threshold's height over the step
+    beyond): the profile keeps it and says so, naming the parameter and the value."""
+    import morphoshell.fitting.profiles as profiles
+
+    spec, data, result = three
+    sigma2, step = 1e-8, 0.01
+    height = sigma2 * 3.841458820694124
+    j = spec.fitted.index("f1")
+
+    def refit_checked(opt, name, walked, value, method, tol, jump):
+        theta = np.array(walked[1], dtype=float)
+        theta[j] = value
+        x = (value - opt.theta[j]) / step
+        S = opt.S + height * ((x / 4.5) ** 2 + (0.6 if np.isclose(x, 3) else 0.0))
+        return (walked[0], theta, walked[2], S, True), ""
+
+    monkeypatch.setattr(profiles, "_refit_checked", refit_checked)
+    with caplog.at_level("WARNING"):
+        p = profile(spec, data, "f1", result=result, points=20, span=10 * step, noise=sigma2)
+    at = f"f1 = {p.fitted_value + 3 * step:.6g} above"
+    assert "the profile of f1 is not monotone above the fit" in p.note and at in p.note
+    assert at in caplog.text and "not monotone below" not in p.note

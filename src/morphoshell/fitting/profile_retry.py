@@ -25,11 +25,22 @@ and its crossing lies several steps out: its numbers stay the same to the bit):
   far narrower than the Gauss–Newton error that set the step, and the crossing
   interpolated across one step rests on two refits; one or two refits at the
   interpolated crossing (false position) bracket it within a fraction of a step.
+* **Neighbours' ends** (:func:`settle_side`): a profile rises outward on either side of its
+  minimum, so a converged refit above one farther out (by :data:`MONOTONE_TOL`) ended in a
+  worse local minimum.  It is fitted again from its outer neighbour's end, then its inner
+  one's, keeping the lower, until the side is monotone or no untried start is left; and the
+  refit that decides the crossing is always tried from its outer neighbour's end too.  An
+  audit's f₁ (the synthetic t05, ``free``): the refit at 0.77851 converged at 2.965e-5 R²,
+  above the threshold 2.9196e-5 and above the refit at 0.77579 (2.942e-5); from that one's
+  end it gives 2.913e-5, and the lower end moved from 0.77997 to 0.7779.  A side still not
+  monotone after them is named in a warning and the profile's note
+  (:func:`not_monotone_note`).
 
 Lengths in units of R.
 """
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import dataclass, replace
 from typing import Callable
@@ -42,8 +53,12 @@ from .multistart import other_starts
 from .results import FitError
 from .spec import VARIANTS, FitSpec
 
-__all__ = ["Retry", "RETRY_METHOD", "REFINEMENTS", "REFINE_PLANNED", "crossing", "retried",
-           "needs_retry", "refine_crossing", "started_at"]
+__all__ = ["Retry", "RETRY_METHOD", "REFINEMENTS", "REFINE_PLANNED", "MONOTONE_TOL",
+           "NEIGHBOUR_REFITS", "ABOVE_FARTHER", "CROSSING", "crossing", "retried",
+           "needs_retry", "refine_crossing", "started_at", "non_monotone", "settle_side",
+           "not_monotone_note"]
+
+log = logging.getLogger(__name__)
 
 #: The retries' method whatever the profile's: a KKT fit from a far start fails or falls back
 #: to the gradient fit (as a campaign's fits from its other starts, which run by it too).
@@ -55,14 +70,30 @@ REFINEMENTS = 2
 #: 20-point grid's side (10 steps, reaching twice the linear half-width) crosses near its
 #: fifth step where the profile is about as wide as the Gauss–Newton error says.
 REFINE_PLANNED = 4
+#: A side (outward) is monotone where no refit lies above one farther out by more than this
+#: fraction of the threshold's height (threshold − S_min).  Near its crossing a 20-point
+#: grid's profile rises by about 0.4 heights a step (a parabola reaching the threshold at the
+#: fifth step), so a bump this small moves the interpolated crossing by 2.5 % of a step at
+#: most; and it is thousands of times what two ends of one minimum differ by (the refits stop
+#: at 10⁻⁸ of S, the height is ≥ 0.2 % of S_min for up to 1000 points), so the round-off of a
+#: flat side asks for no refits.  The audit's f₁ bump was 7 % of a height.
+MONOTONE_TOL = 0.01
+#: At most this many refits from neighbours' ends on a side (:func:`settle_side`): the audit's
+#: f₁ took two (the bump, then the new crossing from beyond it), an ordinary side one.
+NEIGHBOUR_REFITS = 6
+#: :attr:`Retry.reason` of a refit above one farther out, and of the crossing's refit.
+ABOVE_FARTHER = "above a refit farther out"
+CROSSING = "the crossing"
 #: What a retry's fit that fails with one of these leaves in its table (the others go on).
 _FAILURES = (FitError, SolverError, ValueError)
 
 
 @dataclass(frozen=True)
 class Retry:
-    """A profile's refit that did not converge beyond the threshold, fitted again from other
-    starts.
+    """A profile's refit fitted again from other starts: one beyond the threshold that did not
+    converge (from the starts of a fit from several starts, :func:`retried`), or one that lies
+    above a refit farther out or decides a crossing (from its neighbours' ends,
+    :func:`settle_side`).
 
     Attributes
     ----------
@@ -82,6 +113,9 @@ class Retry:
         ``{"from", "E_fit": None, "failed": message}``.
     seconds : float
         Wall-clock time of the retry's fits.
+    reason : str
+        Why a refit was fitted again from its neighbours' ends (:data:`ABOVE_FARTHER`,
+        :data:`CROSSING`); "" for a stalled refit's retry from other starts.
     """
 
     value: float
@@ -91,11 +125,17 @@ class Retry:
     converged: bool
     starts: tuple[dict, ...]
     seconds: float = 0.0
+    reason: str = ""
 
     def note(self, name: str) -> str:
-        """One clause for the profile's note: where, from which start, what it gave."""
+        """One clause for the profile's note: where, from which start, what it gave ("" for a
+        refit from a neighbour's end that lay no lower: the JSON keeps it)."""
+        if self.reason and not self.winner:
+            return ""
+        why = f", {self.reason}" if self.reason else ""
         head = (f"the refit at {name} = {self.value:.6g} (E_fit {np.sqrt(self.S_before):.6g} "
-                f"R) fitted again from {len(self.starts)} other starts")
+                f"R{why}) fitted again from {len(self.starts)} other "
+                f"start{'s' * (len(self.starts) != 1)}")
         if not self.winner:
             return f"{head}: none lay lower"
         state = "converged" if self.converged else "not converged"
@@ -106,7 +146,7 @@ class Retry:
         return {"value": self.value, "E_fit_before": float(np.sqrt(self.S_before)),
                 "kept": self.winner or None, "E_fit": float(np.sqrt(self.S)),
                 "converged": self.converged, "starts": [dict(row) for row in self.starts],
-                "seconds": self.seconds}
+                "seconds": self.seconds, "reason": self.reason or None}
 
 
 def started_at(spec: FitSpec, theta) -> FitSpec:
@@ -251,3 +291,126 @@ def refine_crossing(side: tuple[list, list, list, list], start: tuple, threshold
         for items, item in zip(side, (v, out[3], out[4], out[:3])):
             items.insert(i, item)
     return made
+
+
+def non_monotone(objective: list, tol: float) -> list[int]:
+    """The refits of a side (``objective`` outward) that lie above one farther out by more
+    than ``tol``, outermost first (a failed refit's NaN compares with none)."""
+    out, low = [], np.inf
+    for i in range(len(objective) - 1, -1, -1):
+        if np.isfinite(objective[i]):
+            if objective[i] > low + tol:
+                out.append(i)
+            low = min(low, objective[i])
+    return out
+
+
+def _untried(side: tuple, threshold: float, tol: float, tried: set, version: dict
+             ) -> tuple[int, int, str] | None:
+    """The next refit of :func:`settle_side` and its neighbour (−1: the optimum) not tried from
+    that neighbour's present end: a refit above one farther out from its outer neighbour,
+    then its inner one; then the crossing's refit from its outer neighbour."""
+    _, objective, _, ends = side
+    pairs = [(i, k, ABOVE_FARTHER) for i in non_monotone(objective, tol) for k in (i + 1, i - 1)]
+    first = _first_above(objective, threshold)
+    pairs += [] if first is None else [(first, first + 1, CROSSING)]
+    for i, k, why in pairs:
+        if k < len(ends) and (k < 0 or ends[k] is not None) and (i, k, version[k]) not in tried:
+            return i, k, why
+    return None
+
+
+def _from_neighbours(side: tuple, start: tuple, threshold: float, refit: Callable, name: str,
+                     records: dict, budget: int) -> int:
+    """Refits of a side from its neighbours' ends (:func:`settle_side`) until none is left
+    untried or ``budget`` are made; each written into ``side`` where it lies lower, and into
+    ``records`` (by value: the objective before, why, the table of starts, the winner, the
+    time).  Returns the refits made."""
+    values, objective, converged, ends = side
+    tol = MONOTONE_TOL * (threshold - start[1])
+    version = {k: 0 for k in range(-1, len(values))}  # (a neighbour refitted lower: a new start)
+    tried = {(i, i - 1, 0) for i in range(len(values))}          # (the walk's own starts)
+    for made in range(budget):
+        pair = _untried(side, threshold, tol, tried, version)
+        if pair is None:
+            return made
+        i, k, why = pair
+        tried.add((i, k, version[k]))
+        t0 = time.perf_counter()
+        out, failure = refit(start[2] if k < 0 else ends[k], values[i])
+        label = "optimum" if k < 0 else f"refit at {name} = {values[k]:.6g}"
+        rec = records.setdefault(values[i], {"S_before": objective[i], "reason": why,
+                                             "starts": [], "winner": "", "seconds": 0.0})
+        rec["starts"].append({"from": label, "E_fit": None, "failed": failure} if out is None
+                             else {"from": label, "E_fit": float(np.sqrt(out[3])),
+                                   "converged": bool(out[4])})
+        # (lower by the tolerance, as for monotonicity: less moves a crossing by < 2.5 % of
+        # a step, and a profile whose refits agree so stays the same to the bit)
+        if out is not None and out[3] < objective[i] - tol:
+            objective[i], converged[i], ends[i], rec["winner"] = out[3], out[4], out[:3], label
+            version[i] += 1
+        rec["seconds"] += time.perf_counter() - t0
+    return budget
+
+
+def settle_side(side: tuple[list, list, list, list], start: tuple, threshold: float,
+                planned: int, refit: Callable, name: str) -> list[Retry]:
+    """A side's walk made monotone from its neighbours' ends and its crossing refined.
+
+    A profile is a minimum over the other parameters and rises outward from its minimum, so a
+    refit above one farther out (by :data:`MONOTONE_TOL` of the threshold's height) ended in
+    a worse local minimum than the profile's, although it may have converged.  Such refits
+    are fitted again from the end of their outer neighbour (the farther one first), then
+    their inner one (the optimum for the first step), outermost first, the lower kept, until
+    the side is monotone or none is left untried from its neighbours' present ends; the
+    refit that first exceeds the threshold (it decides the interval's end) is also tried
+    from its outer neighbour's end, where there is one.  A refit from a neighbour is kept
+    where it lies lower by more than that tolerance.  At most :data:`NEIGHBOUR_REFITS`
+    refits; then the crossing is refined (:func:`refine_crossing`), and its refinements
+    are tried the same way.  On a monotone side this costs one refit (the crossing's).
+
+    Parameters
+    ----------
+    side, start, threshold, planned
+        As :func:`refine_crossing`.
+    refit : callable
+        ``refit(end, value)``: the profile's refit at ``value`` from the state ``end``, its
+        tuple (spec, θ, state, objective, converged) or None if it failed, and the failure's
+        message.
+    name : str
+        θⱼ's name (the records' labels).
+
+    Returns
+    -------
+    list of Retry
+        One per value refitted from a neighbour (:attr:`Retry.reason` says why; ``winner``
+        "" where none lay lower).
+    """
+    records: dict = {}
+    made = _from_neighbours(side, start, threshold, refit, name, records, NEIGHBOUR_REFITS)
+    if refine_crossing(side, start, threshold, planned, lambda end, value: refit(end, value)[0]):
+        _from_neighbours(side, start, threshold, refit, name, records, NEIGHBOUR_REFITS - made)
+    return [Retry(float(v), r["S_before"], r["winner"],
+                  float(side[1][side[0].index(v)]), bool(side[2][side[0].index(v)]),
+                  tuple(r["starts"]), r["seconds"], r["reason"]) for v, r in records.items()]
+
+
+def not_monotone_note(name: str, side: tuple[list, list], threshold: float, S_min: float,
+                      where: str) -> str:
+    """A warning (logged, and returned for the profile's note) where a side (values and
+    objectives, outward; ``where``: "below" or "above") is still not monotone after
+    :func:`settle_side`: its interval's end may lie further out.  "" where it is."""
+    values, objective = side
+    bad = non_monotone(objective, MONOTONE_TOL * (threshold - S_min))
+    if not bad:
+        return ""
+    pairs = []
+    for i in sorted(bad):
+        k = i + 1 + int(np.nanargmin(objective[i + 1:]))
+        pairs.append(f"E_fit^2 {objective[i]:.6g} R^2 at {name} = {values[i]:.6g} above "
+                     f"{objective[k]:.6g} at {values[k]:.6g}")
+    text = (f"the profile of {name} is not monotone {where} the fit after refits from the "
+            f"neighbours' ends ({'; '.join(pairs)}): the interval's end there may lie "
+            f"further out")
+    log.warning("profiles: %s", text)
+    return text

@@ -4,10 +4,11 @@ A fit's Gauss–Newton errors (:mod:`morphoshell.fitting.results`) are those of
 the linearised problem at the optimum.  A *profile* (Venzon & Moolgavkar 1988;
 Raue et al. 2009) asks the nonlinear question instead: step one parameter θⱼ
 over a grid around its fitted value, fit all the others again at each step
-(warm-started from the neighbouring step's result; a refit far above the
-profile, or failed, again from the optimum; one that decides a crossing without
-having converged from other starts, :mod:`morphoshell.fitting.profile_retry`,
-which also refines a crossing within a side's first steps), and record the least-squares
+(warm-started from the neighbouring step's result; a refit far above the profile, or
+failed, again from the optimum; one that decides a crossing without having converged from
+other starts, :mod:`morphoshell.fitting.profile_retry`, which also fits one above a refit
+farther out, and a crossing's, again from its neighbours' ends and refines a crossing
+within a side's first steps), and record the least-squares
 objective S(θⱼ) = E_fit²(θⱼ) (units of R²; the fit energy of the paper,
 Supplementary, "Fitting of the morphoelastic theory to the average cell sheet
 midlines of Volvox inversion").  With Gaussian residuals of variance σ² the
@@ -73,7 +74,8 @@ from .inner import InnerProblem
 from .midline_checks import as_points, check_midline
 from .profile_noise import (NOISE_SOURCES, check_inflation, log_noise, noise_dof,
                             noise_variance, parameter_noise, threshold_quantile, traces_missing)
-from .profile_retry import Retry, crossing, needs_retry, refine_crossing, retried, started_at
+from .profile_retry import (Retry, crossing, needs_retry, not_monotone_note, retried,
+                            settle_side, started_at)
 from .results import FitResult, fit_result
 from .spec import FitSpec
 
@@ -165,8 +167,9 @@ class Profile:
         the data do not determine it), ``"bound"`` (the parameter's bound) or
         ``"grid"`` (the grid's end, or the threshold crossed).
     retries : tuple of Retry
-        The refits beyond the threshold that did not converge, fitted again from other
-        starts (:mod:`morphoshell.fitting.profile_retry`: which start won).
+        The refits fitted again (:mod:`morphoshell.fitting.profile_retry`: which start won):
+        from other starts where one beyond the threshold did not converge, from their
+        neighbours' ends where one lay above a refit farther out or decided a crossing.
     """
 
     name: str
@@ -490,10 +493,11 @@ def _walk(opt: _Optimum, name: str, steps: list[float], direction: float, step: 
     Goes on beyond the planned steps (each twice the last, at most
     :data:`EXTEND_STEPS`) while the objective stays below ``threshold`` and
     the bound is not reached; stops at a refit that fails (its objective
-    NaN) or lies beyond :data:`STOP_MARGIN` times the threshold's height; then
-    refines a crossing within the first two steps
-    (:func:`~morphoshell.fitting.profile_retry.refine_crossing`).  Each refit counts
-    one on the progress bar ``bar``; retries from other starts are added to ``retries``.
+    NaN) or lies beyond :data:`STOP_MARGIN` times the threshold's height; then refits
+    from neighbours' ends where the side is not monotone and at its crossing, and refines
+    a crossing within the first two steps
+    (:func:`~morphoshell.fitting.profile_retry.settle_side`).  Each refit counts one on
+    the progress bar ``bar``; the retries are added to ``retries``.
     Returns values, objectives, converged flags, a note and the lowest refit
     (objective, spec, θ, state; None without one), where a lower optimum may lie.
     """
@@ -526,10 +530,10 @@ def _walk(opt: _Optimum, name: str, steps: list[float], direction: float, step: 
             extra += 1
             nxt = value + direction * step * 2 ** extra
             plan.append(max(nxt, lo) if direction < 0 else min(nxt, hi))
-    refine_crossing((values, objective, converged, ends),
-                    (float(opt.theta[opt.spec.fitted.index(name)]), opt.S,
-                     (opt.spec, opt.theta.copy(), opt.eq)),
-                    threshold, len(steps), lambda end, value: refit(end, value)[0])
+    retries.extend(settle_side((values, objective, converged, ends),
+                               (float(opt.theta[opt.spec.fitted.index(name)]), opt.S,
+                                (opt.spec, opt.theta.copy(), opt.eq)),
+                               threshold, len(steps), refit, name))
     lowest = min(((S, *end) for S, end in zip(objective, ends) if end is not None),
                  key=lambda low: low[0], default=None)
     return values, objective, converged, note, lowest
@@ -554,7 +558,9 @@ def _profile(opt: _Optimum, data, name: str, points: int, span, method: str, tol
     values = np.array([*vb[::-1], value, *va])
     objective = np.array([*sb[::-1], opt.S, *sa])
     # (an unconverged crossing is the verdict's: Profile.uncertain_sides)
-    notes = [n for n in (note_b, note_a, *(r.note(name) for r in retries)) if n]
+    notes = [n for n in (note_b, note_a, *(r.note(name) for r in retries), *(
+        not_monotone_note(name, (v, s), threshold, opt.S, w)
+        for v, s, w in ((vb, sb, "below"), (va, sa, "above")))) if n]
     S_min = float(np.nanmin(objective))
     if S_min < opt.S * (1 - LOWER):
         # (the fit was not at the minimum: the threshold from the profile's own)
