@@ -43,7 +43,8 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "solvers.branches": ["follow_branch", "switch_branch", "continuation_path"],
     "mechanics.ablation": ["Ablation", "ablate"],
     "inverse": ["estimate"],
-    "io.problem_files": ["load_problem", "examples", "example_path"],
+    "io.problem_files": ["load_problem"],
+    "io.example_problems": ["examples", "example_path"],
     "workflows.sweeps": ["sweep"],
     "_runtime.allocator": ["keep_large_blocks"],
 })

@@ -51,3 +51,40 @@ def test_point_evaluator_is_the_map_at_any_number_of_points(n):
     if n:
         want = [np.array(v) for v in f.map(n)(s.reshape(1, -1), p)]
         assert all(np.array_equal(g, w) for g, w in zip(got, want))
+
+
+def test_a_compile_is_noted_once_by_default_and_a_cached_library_not(tmp_path, monkeypatch):
+    """The first run on a machine compiled kernels for up to 11 s without a word (audit 18
+    F6): the first compile of a process says so at NOTE, which the command line shows
+    unless --quiet (``morphoshell: note: ...``, naming the cache); a second compile in the
+    same process, and a library found in the cache, say nothing."""
+    import io
+    import shutil
+
+    from morphoshell._runtime import compiled
+    from morphoshell._runtime.console import configure
+
+    compiler = shutil.which("cc")
+    if compiler is None:
+        pytest.skip("no C compiler")
+    monkeypatch.setenv("MORPHOSHELL_CACHE_DIR", str(tmp_path / "cache"))
+    x = ca.SX.sym("x")
+    first, second = (ca.Function(name, [x], [x * x + c]) for name, c in (("f1", 1), ("f2", 2)))
+
+    def said(verbosity: int, *functions) -> str:
+        stream = io.StringIO()
+        restore = configure(verbosity, stream)
+        try:
+            for f in functions:
+                compiled.compiled_library(f.name(), [f], compiler)
+        finally:
+            restore()
+        return stream.getvalue()
+
+    compiled._note_compiling.cache_clear()      # (as in a new process)
+    text = said(0, first, second)
+    assert text == (f"morphoshell: note: compiling C kernels for this machine, once (a few "
+                    f"seconds; about 10 s more for a KKT fit); cached in {tmp_path / 'cache'}\n")
+    compiled._note_compiling.cache_clear()
+    assert said(0, first, second) == ""          # both cached
+    assert said(-1, ca.Function("f3", [x], [x + 3])) == ""    # --quiet

@@ -206,3 +206,46 @@ def test_missing_hsl_solver_is_explained(capfd):
     assert out == ""
     assert main(["solve", str(TOY2), "--linear-solver", "ma27x"]) == 2
     assert "'ma27x': choose one of ['mumps'" in capfd.readouterr().err
+
+
+def test_the_command_listing_is_the_full_parsers():
+    """``morphoshell --help`` (and a missing or mistyped command) is answered by a parser
+    holding each command's name and one-line help only: the same text as the parser with
+    every command registered, in the same order."""
+    from morphoshell.cli import build_parser, listing_parser
+    assert listing_parser().format_help() == build_parser().format_help()
+
+
+def _imported(args: list[str]) -> set[str]:
+    """The top-level packages and morphoshell's subpackages a fresh ``morphoshell ARGS``
+    imports (after it returned)."""
+    code = ("import sys; from morphoshell.cli import main; main(sys.argv[1:]); "
+            "print(' '.join(sorted({m if m.startswith('morphoshell') else m.split('.')[0] "
+            "for m in sys.modules})))")
+    out = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True,
+                         check=True)
+    return set(out.stdout.split("\n")[-2].split())
+
+
+@pytest.mark.parametrize("args", [["--version"], ["--help"], ["example", "--list"],
+                                  ["example", "toy1_sphere"], ["bogus"]])
+def test_help_version_and_example_import_no_numpy(args):
+    # they imported NumPy, CasADi and the solvers before reading the arguments (0.2-0.35 s,
+    # 90 % of `--version`: audit 18 F1)
+    assert not _imported(args) & {"numpy", "casadi", "scipy", "morphoshell.solvers"}
+
+
+@pytest.mark.parametrize("args", [["asymptotics", "--h", "0.01", "--k", "0", "--cut", "0.5"],
+                                  ["sphere", "--h", "0.1", "--k", "2"]])
+def test_closed_forms_import_no_solver(args):
+    # the closed forms need scipy.special only: not scipy.integrate's solve_bvp nor
+    # scipy.optimize, nor the solvers (io.problem_files) before the arguments (F1, F5)
+    imported = _imported(args)
+    assert "scipy" in imported
+    assert not {m for m in imported if m.startswith("morphoshell.solvers")}
+    code = (f"import sys; from morphoshell.cli import main; main({args!r}); "
+            f"print([m for m in sys.modules if m.startswith(('scipy.integrate', "
+            f"'scipy.optimize'))])")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.strip().splitlines()[-1] == "[]"

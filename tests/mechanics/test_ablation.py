@@ -193,3 +193,17 @@ def test_a_cut_at_or_next_to_a_breakpoint_ablates_continuously(family, breakpoin
         assert abs(above - below) <= 1e-5 + 1e-12 * abs(v[0.0]) / 1e-6, (k, below, above)
         assert abs(across - above) <= 1e-2 * max(map(abs, (below, above, across))), \
             (k, across, above)
+
+
+def test_an_ablation_of_direct_solutions_imports_no_scipy():
+    # scipy.interpolate (0.3-0.5 s, with scipy.special/optimize/linalg) was imported by
+    # energy_between for every ablation, though only BVP solutions integrate a spline:
+    # 40 % of `morphoshell ablate` (audit 18, F2). A fresh process: this one has scipy.
+    import subprocess
+    import sys
+    run = ("from morphoshell import Problem, ablate; "
+           "ablate(Problem('uniform', {'k': 0.5}, h=0.3, cut=0.3), nodes=40)")
+    code = f"import sys; {run}; print(sorted(m for m in sys.modules if m.startswith('scipy')))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.strip().splitlines()[-1] == "[]"

@@ -21,6 +21,7 @@ import casadi as ca
 import numpy as np
 
 from .buffered import Buffered
+from .console import NOTE
 
 
 _log = logging.getLogger("morphoshell")
@@ -69,6 +70,8 @@ def compiled_library(tag: str, functions: list[ca.Function], compiler: str,
         import subprocess   # here only: imports that a cached library does not need
         import tempfile
 
+        _note_compiling(path.parent)
+        _log.debug("compiling %s (%s)", tag, optimisation)
         path.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory() as tmp:
             gen = ca.CodeGenerator(f"{tag}.c", {"with_header": False})
@@ -82,6 +85,15 @@ def compiled_library(tag: str, functions: list[ca.Function], compiler: str,
             shutil.copyfile(out, part)
             os.replace(part, path)
     return path
+
+
+@lru_cache(maxsize=1)
+def _note_compiling(cache: Path) -> None:
+    """Say once per process that kernels are being compiled: the first run on a machine
+    (or after an upgrade: the cache is keyed on the package's sources) waits for gcc,
+    up to 10 s and more for a KKT fit, and had said nothing."""
+    _log.log(NOTE, "compiling C kernels for this machine, once (a few seconds; about 10 s "
+             "more for a KKT fit); cached in %s", cache)
 
 
 def compiled_point_function(f: ca.Function, optimisation: str = "-O2",

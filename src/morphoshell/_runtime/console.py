@@ -2,7 +2,9 @@
 
 Library modules log through ``logging.getLogger(__name__)`` (loggers under
 ``"morphoshell"``) and never print: progress and notes at INFO or DEBUG,
-deprecations and silently-made choices at WARNING.  The command line and the
+deprecations and silently-made choices at WARNING, and at :data:`NOTE` (between the
+two: shown by the command line unless ``--quiet``, not a warning) a long wait that is
+no error, such as compiling the kernels on a machine's first run.  The command line and the
 scripts call :func:`configure` (``--verbose``/``--quiet``); in your own
 programs the standard ``logging`` configuration applies, e.g.
 ``logging.getLogger("morphoshell").setLevel(logging.INFO)``.
@@ -20,21 +22,25 @@ import sys
 from contextlib import contextmanager
 from typing import Any, Callable, Iterable, Iterator, TypeVar
 
-__all__ = ["configure", "progress", "counter", "LOGGER", "verbosity_level", "run_script",
-           "reader_may_leave"]
+__all__ = ["configure", "progress", "counter", "LOGGER", "NOTE", "verbosity_level",
+           "run_script", "reader_may_leave"]
 
 #: The package's root logger name.
 LOGGER = "morphoshell"
+#: Logging level of a note the command line shows by default (``morphoshell: note: ...``):
+#: above INFO (progress, shown with ``-v``), below WARNING (nothing is wrong).
+NOTE = 25
+logging.addLevelName(NOTE, "NOTE")
 
 T = TypeVar("T")
 
 
 def verbosity_level(verbosity: int) -> int:
-    """Logging level of a verbosity: −1 (``--quiet``) errors only, 0 warnings,
-    1 (``-v``) progress and notes, 2 or more (``-vv``) debugging detail."""
+    """Logging level of a verbosity: −1 (``--quiet``) errors only, 0 warnings and
+    :data:`NOTE`, 1 (``-v``) progress and notes, 2 or more (``-vv``) debugging detail."""
     if verbosity < 0:
         return logging.ERROR
-    return (logging.WARNING, logging.INFO)[verbosity] if verbosity < 2 else logging.DEBUG
+    return (NOTE, logging.INFO)[verbosity] if verbosity < 2 else logging.DEBUG
 
 
 class _Formatter(logging.Formatter):
@@ -46,7 +52,7 @@ class _Formatter(logging.Formatter):
 
     def format(self, record: logging.LogRecord) -> str:
         message = record.getMessage()
-        if record.levelno >= logging.WARNING:
+        if record.levelno >= NOTE:
             return f"morphoshell: {record.levelname.lower()}: {message}"
         if record.levelno <= logging.DEBUG:
             return f"morphoshell [{record.name.rpartition('.')[2]}]: {message}"

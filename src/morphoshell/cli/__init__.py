@@ -23,8 +23,9 @@ import sys
 from typing import Sequence
 
 from .. import __version__
+from ._commands import COMMANDS
 
-__all__ = ["main", "build_parser", "ISSUES_URL"]
+__all__ = ["main", "build_parser", "listing_parser", "ISSUES_URL"]
 
 #: A negative number, exponent form and -inf included: a value on the command line, not an
 #: option (so that a bad one is refused as a number, not as "expected one argument").
@@ -60,15 +61,23 @@ def _add_verbosity(p: argparse.ArgumentParser, top: bool) -> None:
                        "only: no warnings, notes or progress bars", **default)
 
 
-#: The module registering each command.
-_COMMANDS = {"solve": "solve", "ablate": "solve", "asymptotics": "analytic", "sphere": "analytic",
-             "estimate": "estimate", "fit": "fit", "sweep": "sweep", "campaign": "campaign",
-             "example": "example", "continue": "branches", "average": "average"}
-
-
 def _command(argv: Sequence[str]) -> str | None:
     """The command of ``argv``: its first word not an option (-v/-q take no value)."""
     return next((a for a in argv if not a.startswith("-")), None)
+
+
+def _top_level() -> tuple[argparse.ArgumentParser, argparse._SubParsersAction]:
+    """The parser of ``morphoshell`` and its (still empty) subcommands."""
+    parser = _Parser(
+        prog="morphoshell",
+        description="Equilibria of axisymmetric morphoelastic shells by direct energy "
+                    "minimisation (CasADi + Ipopt), with a boundary-value reference. Lengths "
+                    "are in units of the undeformed radius R, energies in units of C R^2.")
+    parser.add_argument("--version", action="version", version=f"morphoshell {__version__}")
+    _add_verbosity(parser, top=True)
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND",
+                                parser_class=_Parser)
+    return parser, sub
 
 
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
@@ -80,25 +89,27 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     """
     import importlib
 
-    names = ("solve", "branches", "analytic", "estimate", "fit", "average", "sweep", "campaign",
-             "example")
-    if command in _COMMANDS:
-        names = (_COMMANDS[command],)
+    names = dict.fromkeys(module for module, _ in COMMANDS.values())
+    if command in COMMANDS:
+        names = (COMMANDS[command][0],)
     modules = [importlib.import_module(f".{n}", __name__) for n in names]
-
-    parser = _Parser(
-        prog="morphoshell",
-        description="Equilibria of axisymmetric morphoelastic shells by direct energy "
-                    "minimisation (CasADi + Ipopt), with a boundary-value reference. Lengths "
-                    "are in units of the undeformed radius R, energies in units of C R^2.")
-    parser.add_argument("--version", action="version", version=f"morphoshell {__version__}")
-    _add_verbosity(parser, top=True)
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND",
-                                parser_class=_Parser)
+    parser, sub = _top_level()
     for module in modules:
         module.register(sub)
     for command in sub.choices.values():
         _add_verbosity(command, top=False)
+    return parser
+
+
+def listing_parser() -> argparse.ArgumentParser:
+    """The parser of ``morphoshell`` with each command's name and one-line help only.
+
+    Enough for ``morphoshell --help``, ``--version`` and a missing or unknown command
+    (the same texts as :func:`build_parser`'s), without importing any command module.
+    """
+    parser, sub = _top_level()
+    for command, (_, text) in COMMANDS.items():
+        sub.add_parser(command, help=text)
     return parser
 
 
@@ -127,12 +138,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     from .._runtime.console import configure, reader_may_leave
     from .._runtime.interrupts import check, exit_status, interrupted, noted, reason
-    from ..io.problem_files import ProblemFileError
-    from ..solvers.results import SolverError
+    # (from its light home: solvers.results would import NumPy and CasADi before a --help)
+    from ..numerics.status import SolverError
 
     try:
         argv = sys.argv[1:] if argv is None else list(argv)
-        args = build_parser(_command(argv)).parse_args(argv)
+        command = _command(argv)
+        parser = build_parser(command) if command in COMMANDS else listing_parser()
+        args = parser.parse_args(argv)
     except SystemExit as exc:   # argparse: --help, --version, or a bad argument (2)
         return int(exc.code or 0)
     restore = configure(-1 if args.quiet else args.verbose)
@@ -144,7 +157,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             if status == 0:     # (a Ctrl-C CasADi dropped in a command that writes nothing;
                 check()         # one that reported its interruption returned 130)
             return status
-    except (ProblemFileError, ValueError) as exc:
+    except ValueError as exc:     # (a ProblemFileError too)
         print(f"morphoshell: error: {exc}", file=sys.stderr)
         return 2
     except SolverError as exc:

@@ -5,6 +5,7 @@ import logging
 import math
 
 from ._args import add_outputs, real
+from ._commands import help_of
 from ._outputs import Outputs
 
 __all__ = ["register"]
@@ -17,7 +18,7 @@ _K = real(-1e3, 1e3, unit=" (intrinsic curvature in units of 1/R)")
 
 def register(sub) -> None:
     """Add ``morphoshell asymptotics`` and ``morphoshell sphere`` to the subcommands ``sub``."""
-    p = sub.add_parser("asymptotics", help="the paper's asymptotic predictions for toy problem 2",
+    p = sub.add_parser("asymptotics", help=help_of("asymptotics"),
                        description="Leading-order and small-cut (Kelvin function) predictions "
                                    "of the Supplementary for the cut SIGMA (half-angle of the "
                                    "ablation) in a sphere of relative thickness h = H/R and "
@@ -34,7 +35,7 @@ def register(sub) -> None:
     add_outputs(p, json="write the predictions as JSON", csv="write the predictions as a one-row CSV")
     p.set_defaults(run=_asymptotics)
 
-    p = sub.add_parser("sphere", help="toy problem 1: radius of a sphere with intrinsic curvature",
+    p = sub.add_parser("sphere", help=help_of("sphere"),
                        description="Toy problem 1: deformed radius f (units of R) of a complete "
                                    "sphere with intrinsic curvature k: the minimiser of the main "
                                    "text's shell energy, the exact bulk-elasticity minimiser "
@@ -61,12 +62,18 @@ def _thickness_and_curvature(p) -> None:
 
 def _write(args, data: dict, units: dict) -> None:
     """The JSON (with a ``units`` table, as ``solve --json`` has) and the one-row CSV."""
-    from ..io.problem_files import write_csv, write_json
+    def json_file(path):
+        # (the writers' module imports NumPy, CasADi and the solvers: only for a file)
+        from ..io.problem_files import write_json
+        write_json(path, {**data, "units": units})
+
+    def csv_file(path):
+        from ..io.problem_files import write_csv
+        write_csv(path, {k: (math.nan if v is None else v) for k, v in data.items()})
 
     out = Outputs()
-    out.add(args.json, lambda path: write_json(path, {**data, "units": units}))
-    out.add(args.csv, lambda path: write_csv(
-        path, {k: (math.nan if v is None else v) for k, v in data.items()}))
+    out.add(args.json, json_file)
+    out.add(args.csv, csv_file)
     for path in out.commit():
         print(f"  wrote {path}")
 

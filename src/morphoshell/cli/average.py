@@ -14,6 +14,7 @@ from pathlib import Path
 
 from ._args import (FORMAT_HELP, OUTLIER_POINTS_HELP, SECTION_HELP, TRACE_OPTIONS, add_outputs,
                     micrometres, note, reader_notes, reworded)
+from ._commands import help_of
 from ._outputs import Outputs
 
 __all__ = ["register", "OUTLIER_RATIO"]
@@ -36,7 +37,7 @@ def register(sub) -> None:
     from ..io.traces import FORMATS
 
     p = sub.add_parser(
-        "average", help="average the traces of one stage into the midline a campaign fits",
+        "average", help=help_of("average"),
         description="Read, align and resample each trace (the same steps as `fit`), check "
                     "it, and write their average midline (units of R, 100 points equally "
                     "spaced in arclength, with the pointwise spread and the number of traces) "

@@ -5,6 +5,7 @@ import argparse
 import sys
 
 from ._args import add_outputs, integer, note, problem_and_settings, real
+from ._commands import help_of
 from ._outputs import Outputs
 
 __all__ = ["register", "PARTIAL"]
@@ -22,7 +23,7 @@ def register(sub) -> None:
     from ..solvers.direct import MAX_NODES
 
     p = sub.add_parser(
-        "continue", help="follow a branch of equilibria: stability, folds, snap-throughs",
+        "continue", help=help_of("continue"),
         description="Follow the equilibria of PROBLEM.toml by pseudo-arclength continuation "
                     "through folds, along the straight path lambda in [0, 1] from the "
                     "family's stress-free parameters to the file's (--from neutral, the "

@@ -5,6 +5,7 @@ import argparse
 from pathlib import Path
 
 from ._args import add_executor, integer, reworded
+from ._commands import help_of
 
 __all__ = ["register"]
 
@@ -43,8 +44,7 @@ def register(sub) -> None:
     from ..fitting import METHODS, VARIANTS
 
     p = sub.add_parser(
-        "campaign", help="fit every timepoint of an inversion sequence for each variant "
-                         "(parallel, resumable)",
+        "campaign", help=help_of("campaign"),
         description="Fit the Volvox model to the average midline of every timepoint listed in "
                     "DATA_DIR/timepoints.csv (columns timepoint, pseudotime, midline; units of "
                     "R), in order, each fit warm-started from the previous timepoint's, for "

@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 
 from ._args import add_outputs, integer, real
+from ._commands import help_of
 from ._outputs import Outputs
 
 __all__ = ["register"]
@@ -69,7 +70,7 @@ def _resamples(text: str) -> int:
 
 def register(sub) -> None:
     """Add ``morphoshell estimate`` to the subcommands ``sub``."""
-    p = sub.add_parser("estimate", help="intrinsic curvature k and E/mu from ablation recoils",
+    p = sub.add_parser("estimate", help=help_of("estimate"),
                        description=_DESCRIPTION,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("measurements", metavar="MEASUREMENTS.csv", help="the measurement table")

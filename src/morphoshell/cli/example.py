@@ -3,16 +3,18 @@ from __future__ import annotations
 
 import sys
 
+from ._commands import help_of
+
 __all__ = ["register"]
 
 
 def register(sub) -> None:
     """Add ``morphoshell example`` to the subcommands ``sub``."""
-    from ..io.problem_files import examples
+    from ..io.example_problems import examples
 
     names = ", ".join(examples())
     p = sub.add_parser(
-        "example", help="print an example problem file (start your own from it)",
+        "example", help=help_of("example"),
         description="Print the packaged example problem NAME to standard output, e.g. "
                     "`morphoshell example toy2_ablation > my.toml && morphoshell solve my.toml`. "
                     f"Examples: {names}. --list describes them.")
@@ -24,7 +26,7 @@ def register(sub) -> None:
 def _example(args) -> int:
     import textwrap
 
-    from ..io.problem_files import example_text, examples
+    from ..io.example_problems import example_text, examples
 
     if args.list or args.name is None:
         if args.name is not None:

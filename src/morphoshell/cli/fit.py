@@ -5,6 +5,7 @@ from pathlib import Path
 
 from ._args import (FORMAT_HELP, OUTLIER_POINTS_HELP, SECTION_HELP, TRACE_OPTIONS, add_outputs,
                     integer, micrometres, note, reader_notes, reworded)
+from ._commands import help_of
 from ._outputs import Outputs
 from ._profiles import (add_profile_options, profile_data, profile_json, profile_names,
                         profile_plot_path, profile_table, refit_lines, run_profiles)
@@ -18,7 +19,7 @@ def register(sub) -> None:
     from ..io import FORMATS, SECTIONS
 
     p = sub.add_parser(
-        "fit", help="fit the 13-parameter Volvox model to a traced midline",
+        "fit", help=help_of("fit"),
         description="Fit the morphoelastic Volvox model (volvox_model; Haas & Hohn, Cut it out, "
                     "Supplementary, 'Fitting of the morphoelastic theory') to the midline in "
                     "MIDLINE by minimising E_fit = (sum_i |model_i - data_i|^2)^(1/2) over "

@@ -5,6 +5,7 @@ import argparse
 
 from ..io.problem_files import METHODS
 from ._args import add_outputs, family_keys, integer, linear_solver, problem_and_settings, real
+from ._commands import help_of
 from ._outputs import Outputs
 
 __all__ = ["register"]
@@ -53,7 +54,7 @@ def _common(p: argparse.ArgumentParser) -> None:
 
 def register(sub) -> None:
     """Add ``morphoshell solve`` and ``morphoshell ablate`` to the subcommands ``sub``."""
-    p = sub.add_parser("solve", help="equilibrium of a problem file",
+    p = sub.add_parser("solve", help=help_of("solve"),
                        description="Solve for the equilibrium shape of PROBLEM.toml and print a "
                                    "summary (energy, edge values, solver statistics). z is in "
                                    "the solver's gauge: z(first point) = its undeformed height.")
@@ -63,7 +64,7 @@ def register(sub) -> None:
                 plot="write a cross-section plot")
     p.set_defaults(run=_solve)
 
-    p = sub.add_parser("ablate", help="laser ablation: pre- and post-ablation equilibria",
+    p = sub.add_parser("ablate", help=help_of("ablate"),
                        description="Solve PROBLEM.toml before (cut = 0) and after the cut "
                                    "Sigma = cut > 0 and report the recoil observables opening, "
                                    "rotation, displacement and energy_released (Supplementary, "

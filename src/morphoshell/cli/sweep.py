@@ -4,6 +4,7 @@ from __future__ import annotations
 import math
 
 from ._args import add_executor, add_outputs, family_keys, integer, linear_solver
+from ._commands import help_of
 from ._outputs import Outputs
 
 __all__ = ["register", "parse_axes"]
@@ -16,7 +17,7 @@ def register(sub) -> None:
     from ..workflows.sweeps import ERRORS
 
     p = sub.add_parser(
-        "sweep", help="equilibria or ablations on a grid of parameters (parallel)",
+        "sweep", help=help_of("sweep"),
         description="Solve PROBLEM.toml (or, with --ablate, ablate it) at every point of the "
                     "Cartesian product of the --set axes and write one row per point: the "
                     "axis values, then the energy (C R^2) and edge values (R, rad), or with "

@@ -75,9 +75,11 @@ def check_bootstrap(bootstrap) -> int:
 
 def t_quantile(n: int) -> float:
     """t₀.₉₇₅(n − 1): Student's 97.5 % quantile of n − 1 degrees of freedom (n ≥ 2)."""
-    from scipy.stats import t
+    # scipy.special's inverse of Student's distribution function, which scipy.stats' t.ppf
+    # calls: the same number without importing scipy.stats (a third of a second and more)
+    from scipy.special import stdtrit
 
-    return float(t.ppf(0.975, n - 1))
+    return float(stdtrit(n - 1, 0.975))
 
 
 @dataclass(frozen=True)

@@ -1,8 +1,9 @@
 """Files in and out: problem files, traced midlines, and JSON/CSV output.
 
-Problem files (TOML) and their overrides, the packaged examples and the writers
-of results (:mod:`.problem_files`); trace files of midlines from Fiji/ImageJ and
-CSV (:mod:`.traces`; their text forms, :mod:`.trace_text`; their checks,
+Problem files (TOML) and their overrides and the writers of results
+(:mod:`.problem_files`), the packaged example problems (:mod:`.example_problems`);
+trace files of midlines from Fiji/ImageJ and CSV (:mod:`.traces`; their text forms,
+:mod:`.trace_text`; their checks,
 :mod:`.trace_checks`) and ImageJ's ROI Manager sets (:mod:`.roi_sets`), and
 their geometry: noise and binning (:mod:`.trace_noise`), alignment to the
 model gauge, resampling and averaging (:mod:`.midlines`); the tables of ablation
@@ -17,8 +18,8 @@ import lazy_loader
 __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "problem_files": ["ProblemFileError", "Settings", "load_problem", "parse_overrides",
         "apply_overrides", "split_overrides", "settings_from", "to_jsonable", "write_json",
-        "write_csv", "METHODS", "SOLVER_KEYS", "ALIASES", "examples", "example_path",
-        "example_text", "EXAMPLES_DIR", "problem_of_record"],
+        "write_csv", "METHODS", "SOLVER_KEYS", "ALIASES", "problem_of_record"],
+    "example_problems": ["examples", "example_path", "example_text", "EXAMPLES_DIR"],
     "traces": ["FORMATS", "Trace", "Midline", "read_trace", "to_image", "write_trace"],
     "trace_checks": ["MidlineError"],
     "midlines": ["SECTIONS", "Alignment", "align", "resample", "resample_spread", "load_midline", "load_midlines",

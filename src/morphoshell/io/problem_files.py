@@ -28,8 +28,9 @@ table is missing, an info message otherwise), never silently.
 The cut Σ is called ``cut`` everywhere (problem files, ``--set``, the API);
 ``Sigma`` is still accepted as a deprecated alias, with a warning.
 
-The example problems ship inside the package (:func:`examples`,
-:func:`example_path`; ``morphoshell example NAME`` prints one).
+The example problems ship inside the package (:mod:`.example_problems`, whose
+``examples``, ``example_path``, ``example_text`` and ``EXAMPLES_DIR`` are importable from
+here too; ``morphoshell example NAME`` prints one).
 """
 from __future__ import annotations
 
@@ -46,6 +47,7 @@ import numpy as np
 from ..model.problem import BASE_KEYS, Problem
 from ..solvers.direct import check_nodes
 from ..solvers.routes import METHODS
+from .example_problems import EXAMPLES_DIR, example_path, example_text, examples  # noqa: F401
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -54,16 +56,13 @@ else:  # pragma: no cover - exercised on Python 3.10 only
 
 __all__ = ["ProblemFileError", "Settings", "load_problem", "parse_overrides", "apply_overrides",
            "split_overrides", "settings_from", "to_jsonable", "write_json", "write_csv", "METHODS",
-           "SOLVER_KEYS", "ALIASES", "examples", "example_path", "example_text", "EXAMPLES_DIR",
-           "problem_of_record", "fit_source"]
+           "SOLVER_KEYS", "ALIASES", "problem_of_record", "fit_source"]
 
 log = logging.getLogger(__name__)
 
 #: Deprecated names of keys (problem files and ``--set``) and their one name.
 ALIASES = {"Sigma": "cut"}
 
-#: The packaged example problem files (``morphoshell example NAME``).
-EXAMPLES_DIR = Path(__file__).resolve().parent.parent / "examples"
 
 _PROBLEM_KEYS = {"family", "theory", "h", "cut", "opening", "geometry", "name"}
 #: Keys of the [solver] table (also accepted by ``--set``).
@@ -421,38 +420,6 @@ def apply_overrides(problem: Problem, overrides: Mapping[str, Any],
         given = " ".join(f"{k}={v}" for k, v in overrides.items())
         raise ProblemFileError(f"{where} with --set {given}: {exc}" if where else
                                f"--set: {exc}") from None
-
-
-def examples() -> dict[str, str]:
-    """The packaged example problems: name → description (the file's leading comment)."""
-    out = {}
-    for path in sorted(EXAMPLES_DIR.glob("*.toml")):
-        lines = []
-        for line in path.read_text(encoding="utf-8").splitlines():
-            if not line.startswith("#"):
-                break
-            lines.append(line.lstrip("#").strip())
-        out[path.stem] = " ".join(lines)
-    return out
-
-
-def example_path(name: str) -> Path:
-    """Path of the packaged example problem ``name`` (e.g. ``"toy2_ablation"``).
-
-    Raises
-    ------
-    ValueError
-        No such example (the message lists them).
-    """
-    names = examples()
-    if name not in names:
-        raise ValueError(f"unknown example {name!r}; choose one of {sorted(names)}")
-    return EXAMPLES_DIR / f"{name}.toml"
-
-
-def example_text(name: str) -> str:
-    """The text of the packaged example problem ``name``: a problem file to start from."""
-    return example_path(name).read_text(encoding="utf-8")
 
 
 def to_jsonable(obj: Any) -> Any:

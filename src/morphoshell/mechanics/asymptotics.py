@@ -27,10 +27,9 @@ from typing import Any
 
 import numpy as np
 from scipy import special
-from scipy.integrate import solve_bvp
-from scipy.optimize import brentq
 
 from ..model.energy import boundary_layer_width
+from ..numerics.roots import brentq
 
 __all__ = [
     "f_shell_exact", "f_shell_asymptotic", "f_bulk_asymptotic", "k_star",
@@ -577,6 +576,10 @@ def inner_solution(sigma, k, guess: InnerSolution | None = None, derivatives: bo
     RuntimeError
         ``solve_bvp`` did not converge (its message attached).
     """
+    # on use: scipy.integrate (with scipy.optimize and linalg) is a third of a second that the
+    # closed forms (`morphoshell asymptotics`, `sphere`) need not wait for
+    from scipy.integrate import solve_bvp
+
     sigma = float(_positive("sigma", sigma))
     k = float(_finite("k", k))
     if guess is None:

@@ -72,9 +72,9 @@ from functools import lru_cache
 from typing import Any, Mapping
 
 import numpy as np
-from scipy.optimize import brentq
 
 from .._runtime.validate import real
+from ..numerics.roots import brentq
 
 __all__ = [
     "UndeformedGeometry", "DeformedGeometry", "undeformed_geometry",

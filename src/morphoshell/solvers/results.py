@@ -468,11 +468,12 @@ class Equilibrium:
         float
             The energy (units of C R²).
         """
-        from scipy.interpolate import CubicSpline
-
         if not self.s[0] <= a <= b <= self.s[-1]:
             raise ValueError(f"[{a}, {b}] is not a part of the shell [{self.s[0]}, {self.s[-1]}]")
         if self.quadrature is None:
+            # on use: a direct solution's ablation (the common case) need not import scipy
+            from scipy.interpolate import CubicSpline
+
             rho = self.problem.geometry_obj.numeric(self.s)[0]
             return float(CubicSpline(self.s, 2 * np.pi * rho * self.e).integrate(a, b))
         sk, wk, Lk, stages = self.quadrature[:4]   # the cell's Gauss points, weights, L

@@ -38,6 +38,7 @@ from .._runtime import interrupts, lifeline
 from .._runtime.files import as_new_file, replace_named
 from ..fitting import FitError, FitResult, fit, volvox_spec
 from ..fitting.multistart import FOLD_GAIN, continue_once, start_from
+from ..inverse.summaries import t_quantile
 from ..io import Midline, average
 from ..io.timepoints import Timepoint
 from ..model.problem import Problem
@@ -511,7 +512,7 @@ def _embryo_errors(task: CampaignTask, tp: Timepoint, hold: dict, parameters: di
     n = len(good)
     se = dict(zip(spec.fitted, np.sqrt((n - 1) / n * np.sum((theta - theta.mean(axis=0)) ** 2,
                                                            axis=0)).tolist()))
-    out = {"embryo_fits": fits, "embryo_standard_errors": se, "embryo_t95": _t95(n - 1)}
+    out = {"embryo_fits": fits, "embryo_standard_errors": se, "embryo_t95": t_quantile(n)}
     # Refits that end on a constraint (s3 - s2 = sigma, ...) are pinned there alike: their
     # spread is not the estimator's (on replicate data it is far smaller than the misses),
     # so those parameters get none.
@@ -544,14 +545,3 @@ def _left_out_fits(task: CampaignTask, tp: Timepoint, hold: dict, spec,
                      "parameters": {n: r.parameters[n] for n in spec.fitted},
                      "constrained": list(r.constrained), "pinned": list(r.pinned)})
     return fits
-
-
-def _t95(dof: int) -> float:
-    """Half-width, in standard errors, of a 95 % interval when they have ``dof`` degrees of freedom.
-
-    Student's t quantile t₀.₉₇₅(dof): 2.78 for five traces, against 1.96
-    for a known error.
-    """
-    from scipy.stats import t
-
-    return float(t.ppf(0.975, dof))
