@@ -262,18 +262,3 @@ def test_a_weakly_singular_pole_does_not_stall_the_continuation(nodes):
     ref = solve(problem.with_updates(f0=-0.62), nodes=nodes)
     assert branch.end.tau == 1 and len(branch.points) < 400
     assert abs(branch.end.energy - ref.energy) < 1e-10 * abs(ref.energy)
-
-
-def test_a_solve_through_a_fold_imports_no_scipy():
-    # locate_fold's brentq came from scipy.optimize: 0.3 s, a fifth of `morphoshell solve
-    # volvox_fold.toml` (audit 18 F3); numerics.roots takes the same steps without it
-    import subprocess
-    import sys
-    from pathlib import Path
-    fold = Path(__file__).resolve().parents[2] / "problems" / "volvox_fold.toml"
-    run = f"from morphoshell.cli import main; assert main(['solve', {str(fold)!r}]) == 0"
-    code = f"import sys; {run}; print([m for m in sys.modules if m.startswith('scipy')])"
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=True)
-    assert "snapped through a fold" in out.stdout
-    assert out.stdout.strip().splitlines()[-1] == "[]"

@@ -29,7 +29,6 @@ import numpy as np
 from scipy import special
 
 from ..model.energy import boundary_layer_width
-from ..numerics.roots import brentq
 
 __all__ = [
     "f_shell_exact", "f_shell_asymptotic", "f_bulk_asymptotic", "k_star",
@@ -139,6 +138,8 @@ def _f_shell_exact_scalar(h: float, k: float) -> float:
         width *= 2
     else:  # pragma: no cover - g(−1) < 0 < g(∞) always brackets
         raise ValueError(f"no stationary radius for h = {h!r}, k = {k!r}")
+    from scipy.optimize import brentq  # (on use: 0.3 s to import)
+
     F = brentq(g, lo, hi, xtol=1e-20 * c, rtol=4 * np.finfo(float).eps, maxiter=500) \
         if g(lo) != 0 and g(hi) != 0 else (lo if g(lo) == 0 else hi)
     f = 1 + F

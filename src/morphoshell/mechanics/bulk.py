@@ -74,7 +74,6 @@ from typing import Any, Mapping
 import numpy as np
 
 from .._runtime.validate import real
-from ..numerics.roots import brentq
 
 __all__ = [
     "UndeformedGeometry", "DeformedGeometry", "undeformed_geometry",
@@ -192,6 +191,8 @@ def undeformed_geometry(h: float, k: float) -> UndeformedGeometry:
         raise ValueError(
             f"no intrinsic thickness near h for h = {h!r}, k = {k!r}; "
             "the shell is too thick for this intrinsic curvature")
+    from scipy.optimize import brentq  # (on use: 0.3 s to import)
+
     h0 = brentq(residual, lo, hi, xtol=1e-300, rtol=4 * np.finfo(float).eps, maxiter=200)
     if abs(k) * h0 / 2 >= 1:
         raise ValueError(
@@ -474,5 +475,7 @@ def f_bulk(h: float, k: float, c10: float, c01: float, c20: float = 0.0,
     elif s_hi == 0:
         F = hi
     else:
+        from scipy.optimize import brentq  # (on use: 0.3 s to import)
+
         F = brentq(S, lo, hi, xtol=1e-24, rtol=4 * np.finfo(float).eps, maxiter=500)
     return F if return_deviation else 1 + F

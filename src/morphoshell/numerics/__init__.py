@@ -9,8 +9,7 @@ index gathers (:mod:`.gathers`); it builds the KKT (Newton) system in cell order
 (:mod:`.kkt_derivatives`) and the shape as expressions (:mod:`.shape`);
 :mod:`.ipopt` and :mod:`.newton` solve it (:mod:`.ipopt_options` checks Ipopt's
 options before a build), and :mod:`.status` is the table of
-how a solve can end, with the error every route raises.  :mod:`.roots` finds a
-bracketed root (a fold, a closed form's radius) without importing scipy.optimize.
+how a solve can end, with the error every route raises.
 """
 
 import lazy_loader

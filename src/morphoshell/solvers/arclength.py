@@ -43,7 +43,6 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 
 from ..numerics.bordered import BorderedKKT, Inertia
-from ..numerics.roots import brentq
 from .direct import DirectSolver
 from .paths import ParameterLine
 from .results import Equilibrium, SolverStats
@@ -490,6 +489,8 @@ class Arclength:
     def locate_fold(self, prev: ArcPoint, ds: float) -> ArcPoint:
         """The fold between ``prev`` and the point at arclength ``ds`` from it (where t_τ
         changes sign): the root of t_τ(s) by Brent's method."""
+        from scipy.optimize import brentq
+
         found: dict[float, ArcPoint] = {}
 
         def t_tau(s: float) -> float:
