@@ -211,26 +211,31 @@ def test_a_crossing_about_a_refit_below_the_fit_is_a_number():
 
 
 
+def _fake_f1_refits(monkeypatch, spec, S_of) -> None:
+    """The profile walk's refits of f1 faked: at f1 = value the refit's θ is the walked one
+    with f1 set, its objective ``S_of(opt, Δ)``, Δ = value − the fit's f1."""
+    import morphoshell.fitting.profiles as profiles
+
+    j = spec.fitted.index("f1")
+
+    def refit_checked(opt, name, walked, value, method, tol, jump):
+        theta = np.array(walked[1], dtype=float)
+        theta[j] = value
+        return (walked[0], theta, walked[2], S_of(opt, value - opt.theta[j]), True), ""
+
+    monkeypatch.setattr(profiles, "_refit_checked", refit_checked)
+
+
 def test_a_profile_narrower_than_its_grid_refines_its_crossings(three, monkeypatch):
     """A profile four times narrower than the Gauss–Newton step planned for (the walk's
     refits faked: S − S_min quartic in θ − θ̂, crossing at 1.5 steps on either side): each
     side gets two refits at its interpolated crossing, and the interval ends within a
     hundredth of a step of the profile's crossing, where across the step it missed by
     eight hundredths."""
-    import morphoshell.fitting.profiles as profiles
-
     spec, data, result = three
     sigma2, step = 1e-8, 0.01
     height = sigma2 * 3.841458820694124
-    j = spec.fitted.index("f1")
-
-    def refit_checked(opt, name, walked, value, method, tol, jump):
-        theta = np.array(walked[1], dtype=float)
-        theta[j] = value
-        S = opt.S + height * ((value - opt.theta[j]) / (1.5 * step)) ** 4
-        return (walked[0], theta, walked[2], S, True), ""
-
-    monkeypatch.setattr(profiles, "_refit_checked", refit_checked)
+    _fake_f1_refits(monkeypatch, spec, lambda opt, d: opt.S + height * (d / (1.5 * step)) ** 4)
     p = profile(spec, data, "f1", result=result, points=20, span=10 * step, noise=sigma2)
     lo, hi = p.interval
     for half in (hi - p.fitted_value, p.fitted_value - lo):
@@ -398,21 +403,11 @@ def test_a_bump_no_refit_removes_is_in_the_profiles_note_and_log(three, monkeypa
     """The walk's refits faked (a parabola crossing at 4.5 steps, with a bump at the third
     step above that every start finds, a third of the threshold's height over the step
     beyond): the profile keeps it and says so, naming the parameter and the value."""
-    import morphoshell.fitting.profiles as profiles
-
     spec, data, result = three
     sigma2, step = 1e-8, 0.01
     height = sigma2 * 3.841458820694124
-    j = spec.fitted.index("f1")
-
-    def refit_checked(opt, name, walked, value, method, tol, jump):
-        theta = np.array(walked[1], dtype=float)
-        theta[j] = value
-        x = (value - opt.theta[j]) / step
-        S = opt.S + height * ((x / 4.5) ** 2 + (0.6 if np.isclose(x, 3) else 0.0))
-        return (walked[0], theta, walked[2], S, True), ""
-
-    monkeypatch.setattr(profiles, "_refit_checked", refit_checked)
+    _fake_f1_refits(monkeypatch, spec, lambda opt, d: opt.S + height * (
+        (d / step / 4.5) ** 2 + (0.6 if np.isclose(d / step, 3) else 0.0)))
     with caplog.at_level("WARNING"):
         p = profile(spec, data, "f1", result=result, points=20, span=10 * step, noise=sigma2)
     at = f"f1 = {p.fitted_value + 3 * step:.6g} above"
