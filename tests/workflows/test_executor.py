@@ -62,6 +62,17 @@ def _allocator_state(probe, names):
     return probe(), {k: os.environ.get(k) for k in names}
 
 
+def test_no_free_core_compares_the_load_with_the_cores(monkeypatch):
+    from morphoshell.workflows import executor
+
+    monkeypatch.setattr(executor.os, "cpu_count", lambda: 2)
+    for load, busy in ((1.99, False), (2.0, True), (5.3, True)):
+        monkeypatch.setattr(executor.os, "getloadavg", lambda: (load, 0.0, 0.0))
+        assert executor.no_free_core() is busy
+    monkeypatch.delattr(executor.os, "getloadavg")      # (no load average: not busy)
+    assert executor.no_free_core() is False
+
+
 def test_errors_in_tasks_reach_the_caller():
     with open_executor(workers=1) as ex, pytest.raises(ZeroDivisionError):
         list(run(lambda x: 1 / x, [1, 0], ex))

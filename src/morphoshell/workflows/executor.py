@@ -36,7 +36,8 @@ from .._runtime import interrupts
 from .._runtime.console import counter
 from .._runtime.workers import worker_environment, worker_start
 
-__all__ = ["open_executor", "run", "SerialExecutor", "backend_name"]
+__all__ = ["open_executor", "run", "SerialExecutor", "backend_name", "check_workers",
+           "no_free_core"]
 
 log = logging.getLogger(__name__)
 
@@ -103,10 +104,7 @@ def open_executor(workers: int | None = None, scheduler: str | None = None) -> I
         at ``scheduler`` (or Dask is not installed).
     """
     scheduler = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
-    if workers is not None and (isinstance(workers, bool) or int(workers) != workers
-                                or workers < 1):
-        raise ValueError(f"workers = {workers!r} must be a positive integer")
-    workers = int(workers) if workers else (os.cpu_count() or 1)
+    workers = check_workers(workers) or (os.cpu_count() or 1)
     if scheduler is None and workers == 1:
         yield SerialExecutor()
         return
@@ -130,6 +128,24 @@ def open_executor(workers: int | None = None, scheduler: str | None = None) -> I
         _check_main_guard(dask_start_method())
         with _local_cluster(workers) as executor:
             yield executor
+
+
+def check_workers(workers) -> int | None:
+    """``workers`` as an int (None stays None); ValueError naming it unless a positive integer."""
+    if workers is not None and (isinstance(workers, bool) or int(workers) != workers
+                                or workers < 1):
+        raise ValueError(f"workers = {workers!r} must be a positive integer")
+    return None if workers is None else int(workers)
+
+
+def no_free_core() -> bool:
+    """Whether the 1-minute load average is at least the CPU count (False where the system
+    gives no load average): a second worker would then share a core with other work, and
+    parallel routes pay only for far more work (docs/benchmarks.md, "when workers pay")."""
+    try:
+        return os.getloadavg()[0] >= (os.cpu_count() or 1)
+    except (AttributeError, OSError):
+        return False
 
 
 def dask_start_method() -> str:
