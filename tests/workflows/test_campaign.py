@@ -271,6 +271,25 @@ def test_fig3_draws_a_fit_whose_ablation_fails(serial, data, tmp_path, monkeypat
     assert all(r"$E_\mathrm{fit}$ = " in t and n == 2 for t, n in failed)  # both halves
 
 
+def test_the_default_workers_follow_the_measured_crossover(monkeypatch):
+    from morphoshell.workflows import campaigns
+
+    monkeypatch.setattr(campaigns.os, "cpu_count", lambda: 2)
+    four = ("flat", "undeformed", "unstressed", "free")
+    stages = [Timepoint(f"t{i:02d}", i, f"t{i:02d}.csv", ("a.csv", "b.csv")) for i in range(9)]
+    # docs/benchmarks.md, "when workers pay": on 2 cores two Dask workers lost 4 fits
+    # (4 variants x 1 timepoint) and won 8 in 3 runs of 4 (load 2.6-3.7)
+    assert campaigns.SERIAL_BELOW_FITS == 8
+    assert campaigns._local_workers(None, stages[:1], four, frozenset()) == 1
+    assert campaigns._local_workers(None, stages[:2], four, frozenset()) == 2
+    # the jackknife's fits count: 1 x 2 fits + 2 traces x 2 variants = 6; 2 timepoints: 12
+    assert campaigns._local_workers(None, stages[:1], four[:2], frozenset(four[:2])) == 1
+    assert campaigns._local_workers(None, stages[:2], four[:2], frozenset(four[:2])) == 2
+    # one task per variant: no more workers than variants, asked for or not
+    assert campaigns._local_workers(None, stages, four[:1], frozenset()) == 1
+    assert campaigns._local_workers(4, stages[:1], four[:3], frozenset()) == 3
+
+
 def test_two_worker_local_cluster_gives_the_same_files(serial, data, tmp_path):
     pytest.importorskip("distributed")
     out = tmp_path / "cluster"

@@ -119,6 +119,40 @@ def test_chunks_cover_every_point_once_in_order_along_the_longest_axis():
     assert [len(c) for c in chunk_plan({"k": list(range(10))}, chunk_size=4)[1]] == [3, 4, 3]
 
 
+def test_the_default_workers_follow_the_measured_crossover(monkeypatch):
+    from morphoshell.workflows import sweeps
+
+    monkeypatch.setattr(sweeps.os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(sweeps, "no_free_core", lambda: False)
+    # docs/benchmarks.md, "when workers pay": on 2 cores two Dask workers break even with
+    # one process at about 200 ablations (400 solves) with a core free, 600-700 at load 3-6
+    assert (sweeps.SERIAL_BELOW, sweeps.SERIAL_BELOW_BUSY) == (400, 1400)
+    assert sweeps._local_workers(None, 399, chunks=12) == 1
+    assert sweeps._local_workers(None, 400, chunks=12) == 2
+    monkeypatch.setattr(sweeps, "no_free_core", lambda: True)
+    assert sweeps._local_workers(None, 1399, chunks=12) == 1
+    assert sweeps._local_workers(None, 1400, chunks=12) == 2
+    # never more workers than chunks, asked for or not: a worker without a chunk only
+    # costs its start
+    assert sweeps._local_workers(None, 5000, chunks=1) == 1
+    assert sweeps._local_workers(4, 10, chunks=3) == 3
+    with pytest.raises(ValueError, match=r"workers = 0 must be a positive integer"):
+        sweeps._local_workers(0, 10, chunks=3)
+
+
+def test_an_ablation_counts_two_solves_and_one_chunk_runs_in_this_process(monkeypatch):
+    from morphoshell.workflows import sweeps
+
+    seen = []
+    choose = sweeps._local_workers
+    monkeypatch.setattr(sweeps, "_local_workers",
+                        lambda *a: seen.append(a) or choose(*a))
+    # the audit's 21-point sweep on 2 workers: one chunk, the second worker had idled
+    res = sweep(TOY2, {"cut": np.linspace(0.2, 1.0, 21)}, ablate=True, nodes=40, workers=2)
+    assert seen == [(2, 42, 1)]
+    assert res.timing["backend"] == "serial" and res.timing["workers"] == 1
+
+
 def test_two_dask_workers_give_the_same_numbers_as_one_process():
     pytest.importorskip("distributed")
     axes = {"k": [0.0, 2.0], "cut": np.linspace(0.2, 1.0, 8)}
@@ -177,8 +211,9 @@ def test_bad_options_and_session_families_are_named():
 
     from morphoshell.model.profiles import FAMILIES
     mine = replace(FAMILIES["uniform"], name="mine", _function={})
+    # (two chunks: a sweep of one chunk runs in this process whatever its workers)
     with pytest.raises(ValueError, match=r"family 'mine' is registered only in this session"):
-        sweep(Problem(mine, h=0.3, cut=0.3), {"k": [0.0, 1.0]}, workers=2)
+        sweep(Problem(mine, h=0.3, cut=0.3), {"k": [0.0, 1.0], "h": [0.2, 0.3]}, workers=2)
     # in this process it works (the family object travels with the task)
     res = sweep(Problem(mine, h=0.3, cut=0.3), {"k": [0.0, 0.5]}, nodes=30, workers=1)
     assert res.failed == 0

@@ -82,7 +82,8 @@ def register(sub) -> None:
                         "(the paper's test of the held values, SI Fig. S2: the variants then "
                         "differ in kappa1 alone; free's fit assumes no hypothesis); default: "
                         "each variant fits its own at the first timepoint")
-    add_executor(p, "one per variant, at most one per CPU core")
+    add_executor(p, "this process for a short campaign, else one per variant, at most one "
+                    "per CPU core")
     p.add_argument("--out", type=_out_dir, default=Path("campaign"), metavar="DIR",
                    help="output folder (default: ./campaign)")
     p.add_argument("--force", action="store_true",

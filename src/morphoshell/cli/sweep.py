@@ -58,7 +58,8 @@ def register(sub) -> None:
                    help="where to estimate discretisation errors (two coarser meshes per "
                         "estimate): at both ends of the chunk axis for every value of the "
                         "others (default), at every point, or nowhere")
-    add_executor(p, "this process for small sweeps, else one per CPU core")
+    add_executor(p, "this process for small sweeps, else one per CPU core; at most one per "
+                    "chunk")
     p.add_argument("--chunk-size", dest="chunk_size", type=integer(1, 10**9), default=None,
                    metavar="N", help="most points per task (default: automatic, at least 12 "
                                      "tasks where the grid allows)")

@@ -24,7 +24,7 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from .._runtime import interrupts
+from .._runtime.workers import worker_start
 from .._runtime.console import progress as _progress_bar
 from ..io.measurements import MEASURES, Measurement, read_measurements
 from .embryo import EmbryoEstimate, estimate_embryo
@@ -125,7 +125,7 @@ def _estimate_embryos(data: tuple[Measurement, ...], model: RecoilModel | None, 
     _WORKER.update(model=model, k_range=k_range, methods=tuple(methods))
     try:
         with multiprocessing.get_context("fork").Pool(
-                workers, initializer=interrupts.worker_start) as pool:
+                workers, initializer=worker_start) as pool:
             return tuple(_progress_bar(pool.imap(_estimate_in_worker, data, chunksize=1),
                                        **bar))
     finally:

@@ -26,5 +26,5 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "sweeps": ["sweep", "ERRORS", "MAX_SPLITS", "SOLVE_COLUMNS", "ABLATE_COLUMNS",
         "ESTIMATED_ABLATION", "UNITS", "chunk_plan"],
     "sweep_results": ["SweepResult"],
-    "executor": ["open_executor", "run", "SerialExecutor", "backend_name"],
+    "executor": ["open_executor", "run", "SerialExecutor", "backend_name", "check_workers"],
 })

@@ -34,11 +34,11 @@ from ..io import Midline
 from ..io.timepoints import Timepoint, read_timepoints
 from .campaign_results import (SETTINGS, SUMMARY, CampaignResult, load_campaign, read_record,
                                read_records, result_path)
-from .executor import SerialExecutor, backend_name, open_executor
+from .executor import SerialExecutor, backend_name, check_workers, open_executor
 from .timepoint_fits import (CampaignTask, first_start, fit_variant, record_provenance,
                              write_atomic)
 
-__all__ = ["campaign", "CampaignInterrupted", "CAMPAIGN_NODES", "SETTINGS"]
+__all__ = ["campaign", "CampaignInterrupted", "CAMPAIGN_NODES", "SETTINGS", "SERIAL_BELOW_FITS"]
 
 log = logging.getLogger(__name__)
 
@@ -46,6 +46,11 @@ log = logging.getLogger(__name__)
 #: are fits.  It was capped at 2000 for the cost, which the user chooses with the timepoints
 #: and variants as much as with the nodes; the commands' ranges differed for no other reason.
 CAMPAIGN_NODES = FIT_NODES
+#: Below this many fits (timepoints x variants, jackknife fits included) ``workers=None``
+#: fits in this process: a Dask cluster and each worker's imports and solver builds cost
+#: more than a second core saves (docs/benchmarks.md, "Sweeps and campaigns: when workers
+#: pay": 4 fits of 200 nodes lost on 2 workers, 8 won in 3 runs of 4 at load 2.6-3.7).
+SERIAL_BELOW_FITS = 8
 
 
 class CampaignInterrupted(KeyboardInterrupt):
@@ -87,9 +92,10 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
     method : {"gradient", "kkt", "nelder-mead"}
         The fit method (:func:`morphoshell.fitting.bilevel.fit`).
     workers : int, optional
-        Worker processes (one variant per task, so more than ``len(variants)``
-        do not help; default: one per variant, at most the CPU count);
-        ignored with a scheduler.
+        Worker processes (one variant per task: at most ``len(variants)`` are
+        started); default: this process for fewer than :data:`SERIAL_BELOW_FITS`
+        fits (timepoints × variants, jackknife fits included), else one per
+        variant, at most the CPU count; ignored with a scheduler.
     scheduler : str, optional
         Address of a running Dask scheduler (default ``DASK_SCHEDULER_ADDRESS``).
     out : str or Path
@@ -169,8 +175,7 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
     jackknifed = _jackknifed(embryo_errors, variants)
     if selected is not None:
         timepoints = _selected(timepoints, selected, data_dir)
-    if workers is None:
-        workers = min(len(variants), os.cpu_count() or 1)
+    workers = _local_workers(workers, timepoints, variants, jackknifed)
     recorded = _check_settings(out, _folder_settings(data_dir, method, nodes, start),
                                force)
     # (recorded, not checked: a folder holds runs of other variants, timepoints and held values)
@@ -297,9 +302,7 @@ def _validate(data_dir, variants, method, nodes, workers, out, start) -> tuple:
     lo, hi = CAMPAIGN_NODES
     if isinstance(nodes, bool) or int(nodes) != nodes or not lo <= nodes <= hi:
         raise ValueError(f"nodes = {nodes!r} must be an integer from {lo} to {hi}")
-    if workers is not None and (isinstance(workers, bool) or int(workers) != workers
-                                or workers < 1):
-        raise ValueError(f"workers = {workers!r} must be a positive integer")
+    check_workers(workers)
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise ValueError(f"out = {str(out)!r} is a file, not a folder")
@@ -309,6 +312,18 @@ def _validate(data_dir, variants, method, nodes, workers, out, start) -> tuple:
 def _names(value: str | Sequence[str]) -> list[str]:
     """A list of names from a sequence or a comma-separated string."""
     return [v.strip() for v in value.split(",")] if isinstance(value, str) else list(value)
+
+
+def _local_workers(workers: int | None, timepoints: tuple[Timepoint, ...],
+                   variants: tuple[str, ...], jackknifed: frozenset) -> int:
+    """A campaign's workers: ``workers``, by default this process below
+    :data:`SERIAL_BELOW_FITS` fits and else one per CPU core; at most one per variant (a
+    variant is one task).  Ignored with a scheduler."""
+    if workers is None:
+        fits = len(timepoints) * len(variants) + \
+            sum(len(tp.traces) for tp in timepoints) * len(jackknifed)
+        workers = 1 if fits < SERIAL_BELOW_FITS else os.cpu_count() or 1
+    return max(1, min(workers, len(variants)))
 
 
 def _jackknifed(embryo_errors, variants: tuple[str, ...]) -> frozenset:

@@ -15,6 +15,9 @@ and robust, and MUMPS is not thread-safe (one thread per worker process).
 * ``workers=1`` and no scheduler: the tasks run in this process, in order
   (no start-up cost, and errors keep their tracebacks).
 
+The local workers are set up as :mod:`morphoshell._runtime.workers` says (one
+thread each, large blocks kept in the heap).
+
 :func:`run` submits tasks and yields their results as they complete, with a
 progress bar on a terminal.
 """
@@ -31,8 +34,10 @@ from typing import Any, Callable, Iterable, Iterator, Sequence
 
 from .._runtime import interrupts
 from .._runtime.console import counter
+from .._runtime.workers import worker_environment, worker_start
 
-__all__ = ["open_executor", "run", "SerialExecutor", "backend_name"]
+__all__ = ["open_executor", "run", "SerialExecutor", "backend_name", "check_workers",
+           "no_free_core"]
 
 log = logging.getLogger(__name__)
 
@@ -40,9 +45,6 @@ log = logging.getLogger(__name__)
 #: reachable host answers in well under a second; Dask's default, 30 s, made a mistyped
 #: address look like a hang.
 CONNECT_SECONDS = 5
-
-#: Thread counts forced to 1 in workers: MUMPS and BLAS must not share a process's threads.
-_SINGLE_THREADED = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 
 class SerialExecutor(cf.Executor):
@@ -102,16 +104,12 @@ def open_executor(workers: int | None = None, scheduler: str | None = None) -> I
         at ``scheduler`` (or Dask is not installed).
     """
     scheduler = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
-    if workers is not None and (isinstance(workers, bool) or int(workers) != workers
-                                or workers < 1):
-        raise ValueError(f"workers = {workers!r} must be a positive integer")
-    workers = int(workers) if workers else (os.cpu_count() or 1)
+    workers = check_workers(workers) or (os.cpu_count() or 1)
     if scheduler is None and workers == 1:
         yield SerialExecutor()
         return
-    saved = {k: os.environ.get(k) for k in _SINGLE_THREADED}
-    os.environ.update(_SINGLE_THREADED)          # inherited by the worker processes
-    try:
+    # (threads and allocator: inherited by the worker processes, _runtime/workers.py)
+    with worker_environment():
         try:
             import distributed  # noqa: F401
         except ImportError:
@@ -130,12 +128,24 @@ def open_executor(workers: int | None = None, scheduler: str | None = None) -> I
         _check_main_guard(dask_start_method())
         with _local_cluster(workers) as executor:
             yield executor
-    finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
+
+
+def check_workers(workers) -> int | None:
+    """``workers`` as an int (None stays None); ValueError naming it unless a positive integer."""
+    if workers is not None and (isinstance(workers, bool) or int(workers) != workers
+                                or workers < 1):
+        raise ValueError(f"workers = {workers!r} must be a positive integer")
+    return None if workers is None else int(workers)
+
+
+def no_free_core() -> bool:
+    """Whether the 1-minute load average is at least the CPU count (False where the system
+    gives no load average): a second worker would then share a core with other work, and
+    parallel routes pay only for far more work (docs/benchmarks.md, "when workers pay")."""
+    try:
+        return os.getloadavg()[0] >= (os.cpu_count() or 1)
+    except (AttributeError, OSError):
+        return False
 
 
 def dask_start_method() -> str:
@@ -196,7 +206,7 @@ def _guarded(script: str, line: int) -> bool:
 @contextmanager
 def _process_pool(workers: int) -> Iterator[cf.Executor]:
     """A ``ProcessPoolExecutor``; left by an exception, its workers are killed at once."""
-    pool = cf.ProcessPoolExecutor(max_workers=workers, initializer=interrupts.worker_start)
+    pool = cf.ProcessPoolExecutor(max_workers=workers, initializer=worker_start)
     try:
         yield pool
     except BaseException:

@@ -109,6 +109,7 @@ from ..solvers.refinement import (COARSE, coarse_level, error_estimate, half_mes
                                   too_coarse)
 from ..solvers.results import ESTIMATED, Equilibrium, SolverError
 from ..solvers.routes import DIRECT_OPTIONS
+from .executor import check_workers, no_free_core
 from .sweep_notes import log_summary
 from .sweep_results import SweepResult, point_label, result_columns
 from .sweep_steps import MAX_SPLITS, Shell, point_events
@@ -131,9 +132,14 @@ MIN_CHUNK = 16
 #: ... or longer than this (progress and load balance on many workers).
 MAX_CHUNK = 256
 #: Below this many solves (two per ablation) ``workers=None`` runs in this
-#: process: starting worker processes would cost more than it saves (tuned by
-#: scripts/bench_sweep.py: worker start-up against warm solves).
-SERIAL_BELOW = 200
+#: process: a Dask cluster's start and each worker's imports and solver builds cost
+#: more than a second core saves (on 2 cores the routes break even at about 400 solves
+#: when the second core is free; docs/benchmarks.md, "Sweeps and campaigns: when
+#: workers pay") ...
+SERIAL_BELOW = 400
+#: ... and below this many when no core is free (:func:`~morphoshell.workflows.executor.no_free_core`:
+#: at load 3-6 on 2 cores two workers lost up to 600 ablations and won at 999).
+SERIAL_BELOW_BUSY = 1400
 
 #: Value columns of a solve sweep (energy in C R², edge values in R and rad).
 SOLVE_COLUMNS = ESTIMATED
@@ -518,7 +524,9 @@ def sweep(problem: Problem, axes: Mapping[str, Sequence], *, ablate: bool = Fals
     workers : int, optional
         Worker processes (see :func:`morphoshell.workflows.executor.open_executor`).
         Default: this process for fewer than :data:`SERIAL_BELOW` solves
-        (two per ablation), else one per CPU core (at most one per chunk).  Families registered
+        (two per ablation; :data:`SERIAL_BELOW_BUSY` when the load average leaves no
+        core free), else one per CPU core.  Never more than one per chunk
+        (a sweep of one chunk runs in this process).  Families registered
         only in this session (not packaged, not a plugin) need ``workers=1``.
     scheduler : str, optional
         Address of a running Dask scheduler (or ``DASK_SCHEDULER_ADDRESS``).
@@ -571,8 +579,8 @@ def sweep(problem: Problem, axes: Mapping[str, Sequence], *, ablate: bool = Fals
     results = whole_chunks(kept, chunks, n)
     chunks = [c for c in chunks if results[c[0]] is None]     # (the others restored)
     todo = sum(map(len, chunks))
-    if workers is None and scheduler is None and not os.environ.get("DASK_SCHEDULER_ADDRESS"):
-        workers = _default_workers(todo * (2 if ablate else 1), len(chunks))
+    if scheduler is None and not os.environ.get("DASK_SCHEDULER_ADDRESS"):
+        workers = _local_workers(workers, todo * (2 if ablate else 1), len(chunks))
     parallel = scheduler is not None or os.environ.get("DASK_SCHEDULER_ADDRESS") or workers != 1
     if parallel and not _portable(problem):
         raise ValueError(f"family {problem.family!r} is registered only in this session: worker "
@@ -635,10 +643,17 @@ def _check_arguments(problem: Problem, nodes: int, errors: str, options: Mapping
     return nodes, options.get("stages", 2)
 
 
-def _default_workers(solves: int, chunks: int) -> int:
+def _local_workers(workers: int | None, solves: int, chunks: int) -> int:
     """Workers of a sweep of ``solves`` solves in ``chunks`` chunks without a scheduler:
-    this process below :data:`SERIAL_BELOW`, else one per CPU core, at most one per chunk."""
-    return 1 if solves < SERIAL_BELOW else max(1, min(os.cpu_count() or 1, chunks))
+    ``workers``, by default this process below :data:`SERIAL_BELOW` solves
+    (:data:`SERIAL_BELOW_BUSY` when no core is free) and else one per CPU core; at most one
+    per chunk (a worker without a chunk only costs its start: a 21-point
+    sweep on 2 workers had taken 2.6 s against 1.2 s in one process, audit 18)."""
+    workers = check_workers(workers)
+    if workers is None:
+        serial_below = SERIAL_BELOW_BUSY if no_free_core() else SERIAL_BELOW
+        workers = 1 if solves < serial_below else os.cpu_count() or 1
+    return max(1, min(workers, chunks))
 
 
 def _tasks(base: Mapping[str, Any], axes: Mapping[str, tuple], chunk_axis: str,
