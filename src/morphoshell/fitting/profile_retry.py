@@ -29,7 +29,8 @@ and its crossing lies several steps out: its numbers stay the same to the bit):
   minimum, so a converged refit above one farther out (by :data:`MONOTONE_TOL`) ended in a
   worse local minimum.  It is fitted again from its outer neighbour's end, then its inner
   one's, keeping the lower, until the side is monotone or no untried start is left; and the
-  refit that decides the crossing is always tried from its outer neighbour's end too.  An
+  refit that decides the crossing is tried from its outer neighbour's end too where it lies
+  above their chord in √(S − S_min), where the profile bends the wrong way.  An
   audit's f₁ (the synthetic t05, ``free``): the refit at 0.77851 converged at 2.965e-5 R²,
   above the threshold 2.9196e-5 and above the refit at 0.77579 (2.942e-5); from that one's
   end it gives 2.913e-5, and the lower end moved from 0.77997 to 0.7779.  A side still not
@@ -305,15 +306,33 @@ def non_monotone(objective: list, tol: float) -> list[int]:
     return out
 
 
-def _untried(side: tuple, threshold: float, tol: float, tried: set, version: dict
-             ) -> tuple[int, int, str] | None:
+def _above_chord(side: tuple, start: tuple, i: int, tol: float) -> bool:
+    """Whether refit ``i`` lies above the chord of its neighbours (the optimum inside the
+    first) in √(S − S_min) by more than ``tol`` in S: near its optimum a profile's
+    √(S − S_min) is linear in θⱼ, and where it rises less further out it bends down, so a
+    refit above the chord may have ended in a worse local minimum (an interval's end that
+    a monotone side leaves unchecked).  False without an outer neighbour."""
+    values, objective = side[:2]
+    if i + 1 >= len(values) or not np.isfinite(objective[i + 1]):
+        return False
+    root = [np.sqrt(max(S - start[1], 0.0)) for S in (objective[i - 1] if i else start[1],
+                                                       objective[i + 1])]
+    inner = values[i - 1] if i else start[0]
+    chord = root[0] + (root[1] - root[0]) * (values[i] - inner) / (values[i + 1] - inner)
+    return objective[i] > start[1] + chord ** 2 + tol
+
+
+def _untried(side: tuple, start: tuple, threshold: float, tol: float, tried: set,
+             version: dict) -> tuple[int, int, str] | None:
     """The next refit of :func:`settle_side` and its neighbour (−1: the optimum) not tried from
     that neighbour's present end: a refit above one farther out from its outer neighbour,
-    then its inner one; then the crossing's refit from its outer neighbour."""
+    then its inner one; then the crossing's refit from its outer neighbour, where it lies
+    above their chord (:func:`_above_chord`)."""
     _, objective, _, ends = side
     pairs = [(i, k, ABOVE_FARTHER) for i in non_monotone(objective, tol) for k in (i + 1, i - 1)]
     first = _first_above(objective, threshold)
-    pairs += [] if first is None else [(first, first + 1, CROSSING)]
+    if first is not None and _above_chord(side, start, first, tol):
+        pairs.append((first, first + 1, CROSSING))
     for i, k, why in pairs:
         if k < len(ends) and (k < 0 or ends[k] is not None) and (i, k, version[k]) not in tried:
             return i, k, why
@@ -331,7 +350,7 @@ def _from_neighbours(side: tuple, start: tuple, threshold: float, refit: Callabl
     version = {k: 0 for k in range(-1, len(values))}  # (a neighbour refitted lower: a new start)
     tried = {(i, i - 1, 0) for i in range(len(values))}          # (the walk's own starts)
     for made in range(budget):
-        pair = _untried(side, threshold, tol, tried, version)
+        pair = _untried(side, start, threshold, tol, tried, version)
         if pair is None:
             return made
         i, k, why = pair
@@ -364,10 +383,11 @@ def settle_side(side: tuple[list, list, list, list], start: tuple, threshold: fl
     their inner one (the optimum for the first step), outermost first, the lower kept, until
     the side is monotone or none is left untried from its neighbours' present ends; the
     refit that first exceeds the threshold (it decides the interval's end) is also tried
-    from its outer neighbour's end, where there is one.  A refit from a neighbour is kept
+    from its outer neighbour's end where it lies above their chord in √(S − S_min)
+    (:func:`_above_chord`: a profile there bends the wrong way).  A refit from a neighbour is kept
     where it lies lower by more than that tolerance.  At most :data:`NEIGHBOUR_REFITS`
     refits; then the crossing is refined (:func:`refine_crossing`), and its refinements
-    are tried the same way.  On a monotone side this costs one refit (the crossing's).
+    are tried the same way.  A monotone side that bends upward costs nothing.
 
     Parameters
     ----------
