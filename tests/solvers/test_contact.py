@@ -73,6 +73,20 @@ def test_the_inverted_volvox_shell_is_flagged(caplog):
     assert len(warnings) == 1 and "no self-contact" in warnings[0]
 
 
+def test_an_ablations_two_shells_are_told_apart_in_their_warnings(caplog):
+    """An ablation solves one problem intact and cut: both warnings began with the same name
+    and read as one line twice (audit 20); the cut shell's names its cut."""
+    from morphoshell.mechanics.ablation import ablate
+
+    problem, _ = load_problem(FOLD)
+    with caplog.at_level(logging.WARNING, logger="morphoshell.solvers.contact"):
+        ablate(problem.with_updates(cut=0.15), nodes=100)
+    warnings = [r.getMessage() for r in caplog.records if r.name.endswith("contact")]
+    name = problem.name
+    assert len(warnings) == 2 and warnings[0].startswith(f"{name}: the shell's walls")
+    assert warnings[1].startswith(f"{name} (cut at Sigma = 0.15): the shell's walls")
+
+
 @pytest.mark.parametrize("name", ["toy2_ablation", "volvox_inversion", "blister"])
 def test_ordinary_examples_are_not_flagged(name, caplog):
     """Packaged examples whose walls stay apart (100 nodes): no contact, no warning."""

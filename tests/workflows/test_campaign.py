@@ -288,6 +288,14 @@ def test_the_default_workers_follow_the_measured_crossover(monkeypatch):
     # one task per variant: no more workers than variants, asked for or not
     assert campaigns._local_workers(None, stages, four[:1], frozenset()) == 1
     assert campaigns._local_workers(4, stages[:1], four[:3], frozenset()) == 3
+    # the fits stored in the folder of a resumed run do not count (audit 20: a rerun with
+    # nothing to do started a 2-worker cluster for 1.1 s)
+    stored = frozenset((tp.name, v) for tp in stages[:2] for v in four)
+    assert campaigns._local_workers(None, stages[:2], four, frozenset(), stored) == 1
+    assert campaigns._local_workers(None, stages[:2], four, frozenset(),
+                                    frozenset(list(stored)[:1])) == 1      # (7 to make)
+    assert campaigns._local_workers(None, stages[:3], four, frozenset(), stored) == 1
+    assert campaigns._local_workers(None, stages[:4], four, frozenset(), stored) == 2
 
 
 def test_two_worker_local_cluster_gives_the_same_files(serial, data, tmp_path):

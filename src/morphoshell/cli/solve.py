@@ -76,7 +76,9 @@ def register(sub) -> None:
                                    "releases energy (the paper's Delta E); both states' "
                                    "energies are printed beside it. Each observable comes "
                                    "with its estimated error (+-, and relative: the lengths "
-                                   "to the displacement d, the others to themselves), made "
+                                   "to the displacement d, the others to themselves, none "
+                                   "to less than round-off or, for an energy, the shell's "
+                                   "energy scale), made "
                                    "from the half and quarter meshes of solve's own "
                                    "estimate; one above 0.1 relative is a warning, and "
                                    "--rtol refines until the observables meet it too.")
@@ -182,8 +184,9 @@ def _ablation_lines(ab) -> list[str]:
     pre, post = ab.pre.error.reference_nodes, ab.post.error.reference_nodes
     levels = (f"both states on {pre} nodes and on half that" if pre == post else
               f"the states on {pre} (before the cut) and {post} nodes (after) and on half that")
-    head = (f"  observables +- their estimated errors (from {levels}; relative: lengths to d, "
-            f"others to themselves):" if errors and not ab.error_note else
+    head = (f"  observables +- their estimated errors (from {levels}; relative: lengths to "
+            f"d, the opening to 2d, the others to themselves or, near 0, to their scale):"
+            if errors and not ab.error_note else
             f"  observables (error estimates unavailable: {ab.error_note or 'none made'}):")
     return [head, *(line(k, v, UNITS[k]) for k, v in recoil.items()),
             line("energy_pre", ab.pre.energy, "C R^2", "the intact shell, before the cut"),

@@ -151,12 +151,15 @@ def warn_if_walls_overlap(eq: Equilibrium, what: str = "") -> WallContact | None
     eq : Equilibrium
     what : str
         Which shell, to begin the warning with (default: the problem's name, if it has
-        one): a script that checks many (a campaign's fits and their ablations) must
-        say which of them passes through itself.
+        one, and its cut, if it has one: an ablation's two shells are one problem's): a
+        script that checks many (a campaign's fits and their ablations) must say which of
+        them passes through itself.
     """
     contact = wall_contact(eq)
     if contact is not None:
-        who = what or eq.problem.name
+        cut = float(getattr(eq.problem, "cut", 0.0) or 0.0)
+        who = what or " ".join(filter(None, [eq.problem.name,
+                                              f"(cut at Sigma = {cut:g})" if cut else ""]))
         log.warning("%sthe shell's walls pass through each other: %s; the model has no "
                     "self-contact, so this shape is a minimum of the model but not a physical "
                     "one", f"{who}: " if who else "", contact.describe())

@@ -175,7 +175,8 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
     jackknifed = _jackknifed(embryo_errors, variants)
     if selected is not None:
         timepoints = _selected(timepoints, selected, data_dir)
-    workers = _local_workers(workers, timepoints, variants, jackknifed)
+    workers = _local_workers(workers, timepoints, variants, jackknifed,
+                             _stored(out, timepoints, variants) if resume else frozenset())
     recorded = _check_settings(out, _folder_settings(data_dir, method, nodes, start),
                                force)
     # (recorded, not checked: a folder holds runs of other variants, timepoints and held values)
@@ -314,14 +315,25 @@ def _names(value: str | Sequence[str]) -> list[str]:
     return [v.strip() for v in value.split(",")] if isinstance(value, str) else list(value)
 
 
+def _stored(out: Path, timepoints: tuple[Timepoint, ...], variants: tuple[str, ...]
+            ) -> frozenset:
+    """The (timepoint, variant) pairs with a result in ``out`` (a resumed run's likely reuse)."""
+    return frozenset((tp.name, v) for tp in timepoints for v in variants
+                     if result_path(out, tp.name, v).exists())
+
+
 def _local_workers(workers: int | None, timepoints: tuple[Timepoint, ...],
-                   variants: tuple[str, ...], jackknifed: frozenset) -> int:
+                   variants: tuple[str, ...], jackknifed: frozenset,
+                   stored: frozenset = frozenset()) -> int:
     """A campaign's workers: ``workers``, by default this process below
-    :data:`SERIAL_BELOW_FITS` fits and else one per CPU core; at most one per variant (a
-    variant is one task).  Ignored with a scheduler."""
+    :data:`SERIAL_BELOW_FITS` fits to make and else one per CPU core; at most one per
+    variant (a variant is one task).  The fits with a result in the folder (``stored``, when
+    resuming) do not count: a rerun with nothing to do started a cluster for 1.1 s (audit
+    20); one whose stored results turn out stale is fitted here, as it would be started.
+    Ignored with a scheduler."""
     if workers is None:
-        fits = len(timepoints) * len(variants) + \
-            sum(len(tp.traces) for tp in timepoints) * len(jackknifed)
+        todo = [(tp, v) for tp in timepoints for v in variants if (tp.name, v) not in stored]
+        fits = len(todo) + sum(len(tp.traces) for tp, v in todo if v in jackknifed)
         workers = 1 if fits < SERIAL_BELOW_FITS else os.cpu_count() or 1
     return max(1, min(workers, len(variants)))
 
