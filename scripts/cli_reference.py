@@ -37,9 +37,13 @@ Conventions shared by all commands:
   the option is refused; all outputs are checked before any work and written
   all or nothing ([Results as tables](tables.md)).
 * **Messages** go through Python's `logging` (logger `morphoshell`) to standard
-  error: `-v`/`--verbose` shows progress notes (twice: debugging detail, e.g.
-  every continuation step), `-q`/`--quiet` only errors and results (the tables a
-  command prints): no warnings, `note:` lines or progress bars.
+  error (`morphoshell: warning: …`, `morphoshell: note: …` for notes on the run,
+  such as a first compile): `-v`/`--verbose` shows progress notes (twice:
+  debugging detail, e.g. every continuation step), `-q`/`--quiet` only errors and
+  results (the tables a command prints): no warnings, notes or progress bars.
+  A note on a result (what was done to a trace, where σ² came from) is a
+  `note:` line printed with the result on standard output, so that it stays with
+  the table when standard output goes to a file.
   Long jobs show a progress bar when standard error is a terminal.
 * **Exit status**: 0 success, 2 bad input (one line, nothing written),
   3 a solver failed (nothing written) or fits did not converge (`fit` writes its
