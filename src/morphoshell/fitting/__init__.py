@@ -9,7 +9,7 @@ KKT-constrained NLP (paper, Supplementary, "Fitting of the morphoelastic theory"
 :mod:`.results` what it returns, :mod:`.multistart` a fit from several starts (the
 lowest of its local minima), :mod:`.midline_checks` what it refuses and
 :mod:`.profiles` what the data determine (profile-likelihood intervals, their noise
-from :mod:`.profile_noise`).
+from :mod:`.profile_noise`, read back from a fit's JSON by :mod:`.profile_records`).
 """
 
 import lazy_loader
@@ -26,5 +26,6 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "bilevel": ["fit", "METHODS", "FIT_NODES", "EVALUATION_LIMITS"],
     "multistart": ["multi_start_fit", "MultiStartFit", "MULTI_STARTS"],
     "profiles": ["Profile", "profile", "profile_intervals", "profiled_fit"],
+    "profile_records": ["load_profiles", "profile_from_dict"],
     "profile_noise": ["noise_variance", "traces_missing", "noise_dof", "threshold_quantile"],
 })
