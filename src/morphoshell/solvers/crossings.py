@@ -99,6 +99,26 @@ def _onward(arc: Arclength, point: ArcPoint, ds: float, target: float,
     return point
 
 
+def _settled(arc: Arclength, point: ArcPoint) -> tuple[Equilibrium, float] | None:
+    """(equilibrium, τ) of the stable ``point``; where it lies past an end of the path at
+    parameters out of their ranges, the state minimised from its shape at the end itself
+    (:meth:`ParameterLine.clipped`, as :func:`_descend`'s), None if that fails.
+
+    The other branch's first point past a branch point just before a path's end at a
+    parameter's bound (a step of it, 3e-4 of the way past the end) is no valid problem:
+    its ValueError ended the solve and the walk as bad input, naming a value never given
+    (the blister 1e-4 past its first branch point, G's range ending there: G = 0.00305017
+    for 0.00304921).  Minimised at the end, as both re-solve a landing past it."""
+    end = arc.line.clipped(point.tau)
+    if end == point.tau:
+        return arc.equilibrium(point), float(point.tau)
+    x0, _ = arc.kkt.unpack(point.u)
+    try:
+        return arc.solver.solve(arc.line.at(end), x0=x0, anchors=arc.q), end
+    except SolverError:
+        return None
+
+
 def _descend(arc: Arclength, point: ArcPoint, mode: np.ndarray, overshoot: float,
              before: Equilibrium, *, downhill: bool,
              lower: bool) -> tuple[Equilibrium, float, Equilibrium | None] | None:
@@ -266,11 +286,13 @@ def switch_stable(arc: Arclength, bp: ArcPoint, ds: float, reach: float = 0.0) -
             break
         first = arc.first_step(other, ds)
         if first is not None and first.inertia.stable and first.t_tau > 0:
-            last = _onward(arc, first, ds, bp.tau + reach)
-            eq = arc.equilibrium(last)
+            settled = _settled(arc, _onward(arc, first, ds, bp.tau + reach))
+            if settled is None:
+                continue
+            eq, tau = settled
             log.debug("switched branches at tau = %.6g (direction %+g)", bp.tau, direction)
-            return eq, float(last.tau), Switch(float(bp.tau), float(last.tau), direction,
-                                               float(before.energy), float(eq.energy))
+            return eq, tau, Switch(float(bp.tau), tau, direction, float(before.energy),
+                                   float(eq.energy))
     phi = arc.null_vector(bp)[0]      # (converged or not: any part along it descends)
     phi *= arc._rising(bp, phi)
     # φ is a unit vector: its entries shrink like 1/√n, and on fine meshes a move along it
