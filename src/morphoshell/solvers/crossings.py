@@ -99,6 +99,26 @@ def _onward(arc: Arclength, point: ArcPoint, ds: float, target: float,
     return point
 
 
+def _settled(arc: Arclength, point: ArcPoint) -> tuple[Equilibrium, float] | None:
+    """(equilibrium, τ) of the stable ``point``; where it lies past an end of the path at
+    parameters out of their ranges, the state minimised from its shape at the end itself
+    (:meth:`ParameterLine.clipped`, as :func:`_descend`'s), None if that fails.
+
+    The other branch's first point past a branch point just before a path's end at a
+    parameter's bound (a step of it, 3e-4 of the way past the end) is no valid problem:
+    its ValueError ended the solve and the walk as bad input, naming a value never given
+    (the blister 1e-4 past its first branch point, G's range ending there: G = 0.00305017
+    for 0.00304921).  Minimised at the end, as both re-solve a landing past it."""
+    end = arc.line.clipped(point.tau)
+    if end == point.tau:
+        return arc.equilibrium(point), float(point.tau)
+    x0, _ = arc.kkt.unpack(point.u)
+    try:
+        return arc.solver.solve(arc.line.at(end), x0=x0, anchors=arc.q), end
+    except SolverError:
+        return None
+
+
 def _descend(arc: Arclength, point: ArcPoint, mode: np.ndarray, overshoot: float,
              before: Equilibrium, *, downhill: bool,
              lower: bool) -> tuple[Equilibrium, float, Equilibrium | None] | None:
@@ -192,13 +212,18 @@ def cross_fold(solver: DirectSolver, eq: Equilibrium, line: ParameterLine, tau: 
     (:func:`snap_through`).  With ``switch``, a branch point where the branch
     loses its stability is a third way: the branch point is located and the
     stable half of the other branch through it taken (:func:`switch_stable`).
+    A fold or branch point located beyond τ = 1 is not crossed: the shell
+    reaches the target before it, on the branch followed (:func:`_at_target`).
 
     Returns
     -------
     Equilibrium
         Stable, at the returned τ.
     float
-        Its τ.
+        Its τ: past 1 only for a landing within a snap's or switch's overshoot
+        past an event just before τ = 1, or a step past 1 where the branch was
+        not found at 1, the parameters there within their ranges (continuation
+        re-solves it at 1: :func:`~.continuation.continue_to`).
     Snap, Switch or None
         The snap-through or the switch of branches, if there was one.
 
@@ -206,8 +231,9 @@ def cross_fold(solver: DirectSolver, eq: Equilibrium, line: ParameterLine, tau: 
     ------
     SolverError
         ``"Branch_Ended"`` when the steps fail before either (or, with
-        ``switch``, no branch through the branch point goes on stable), or
-        ``"Snap_Through_Failed"`` (:func:`snap_through`).
+        ``switch``, no branch through the branch point goes on stable; or the
+        branch reaches the target unstable), or ``"Snap_Through_Failed"``
+        (:func:`snap_through`).
     """
     arc = Arclength(solver, line, anchors)
     point = arc.start(eq, tau, 1.0)
@@ -220,22 +246,44 @@ def cross_fold(solver: DirectSolver, eq: Equilibrium, line: ParameterLine, tau: 
                 break
             continue
         if new.t_tau < 0:
-            eq_s, snap = snap_through(arc, arc.locate_fold(point, ds), 1.0)
+            fold = arc.locate_fold(point, ds)
+            if fold.tau > 1:          # (the target comes first: :func:`_at_target`)
+                return _at_target(arc, point)
+            eq_s, snap = snap_through(arc, fold, 1.0)
             return eq_s, snap.tau_after, snap
         if switch and point.inertia.stable and not new.inertia.stable:
-            return switch_stable(arc, arc.locate_change(point, ds, new), ds, reach)
+            bp = arc.locate_change(point, ds, new)
+            return _at_target(arc, point) if bp.tau > 1 else switch_stable(arc, bp, ds, reach)
         if new.tau >= min(1.0, tau + reach) and new.inertia.stable:
             if new.tau > 1:
                 new = arc.at_tau(point, 1.0) or new
             return arc.equilibrium(new), float(new.tau), None
         if new.tau > 1:       # beyond, p leaves the segment (extrapolated: the family's ranges)
-            raise branch_ended(point.tau, "it reaches the target unstable",
-                               arc.equilibrium(point))
+            return _at_target(arc, point)     # (stable there if it lost that past τ = 1)
         point = new
         if new.iterations <= EASY:
             ds = min(GROWTH * ds, MAX_STEP)
     raise branch_ended(point.tau, "no fold and no stable way on past the stall",
                        arc.equilibrium(point))
+
+
+def _at_target(arc: Arclength, point: ArcPoint) -> tuple[Equilibrium, float, None]:
+    """(equilibrium, 1.0, None): the branch at τ = 1 next to ``point`` (below it), where a
+    step from ``point`` passed the target, before an event or not; ``"Branch_Ended"`` where
+    it is not found or not stable there (it reaches the target unstable).
+
+    A fold or branch point located past τ = 1 is one the shell never gets to: the snap
+    from it landed on a state the target does not reach (the volvox_fold path to 1e-5
+    before its fold, from 1.2e-4 before the end: snapped at λ = 1.00001, inverted, 0.017777
+    C R² at λ = 1.00101, where the target's state is 0.022599), and where the parameters
+    beyond leave their ranges the event's own problem's ValueError ended the solve as bad
+    input.  A branch point past it is not where the shell lost its stability either: the
+    branch reached the target stable.
+    """
+    end = arc.at_tau(point, 1.0)
+    if end is None or not end.inertia.stable:
+        raise branch_ended(point.tau, "it reaches the target unstable", arc.equilibrium(point))
+    return arc.equilibrium(end), 1.0, None
 
 
 def switch_stable(arc: Arclength, bp: ArcPoint, ds: float, reach: float = 0.0) -> tuple:
@@ -266,11 +314,13 @@ def switch_stable(arc: Arclength, bp: ArcPoint, ds: float, reach: float = 0.0) -
             break
         first = arc.first_step(other, ds)
         if first is not None and first.inertia.stable and first.t_tau > 0:
-            last = _onward(arc, first, ds, bp.tau + reach)
-            eq = arc.equilibrium(last)
+            settled = _settled(arc, _onward(arc, first, ds, bp.tau + reach))
+            if settled is None:
+                continue
+            eq, tau = settled
             log.debug("switched branches at tau = %.6g (direction %+g)", bp.tau, direction)
-            return eq, float(last.tau), Switch(float(bp.tau), float(last.tau), direction,
-                                               float(before.energy), float(eq.energy))
+            return eq, tau, Switch(float(bp.tau), tau, direction, float(before.energy),
+                                   float(eq.energy))
     phi = arc.null_vector(bp)[0]      # (converged or not: any part along it descends)
     phi *= arc._rising(bp, phi)
     # φ is a unit vector: its entries shrink like 1/√n, and on fine meshes a move along it
