@@ -25,8 +25,10 @@ and its contact is in fig3_ablations.json (``walls_cross``).
 
 S2   with ``--held DIR`` (repeatable), campaigns run with ``--held-from
      VARIANT`` (paper, Supplementary Fig. S2, the test of the held values):
-     E_fit against pseudotime of the fixed-κ₁ variants with their own f₁, κ₃,
-     κ₄ (solid) and with each VARIANT's (dashed, dotted).
+     E_fit against pseudotime of the fixed-κ₁ variants, one panel each (A–C, in
+     its colour and N's marker), with their own f₁, κ₃, κ₄ (solid) and with each
+     VARIANT's first fit's (dashed, dotted); the stages of D–L marked on the
+     pseudotime axis.
 
 Writes fig3_D-L, fig3_M, fig3_N, fig3_O (and figS2_held) (PNG at 300 dpi and
 PDF) and fig3_ablations.json (the observables of the numerical ablations) to
@@ -57,6 +59,8 @@ KAPPA, RPOST = r"\kappa^0_\mathrm{post}", r"r_\mathrm{post}"
 LABELS = {"flat": f"${KAPPA} = 0$", "undeformed": f"${KAPPA} = R^{{-1}}$",
           "unstressed": f"${KAPPA} = {RPOST}^{{-1}}$", "free": f"${KAPPA}$, ${RPOST}$ fitted"}
 E_FIT = r"$E_\mathrm{fit}$"
+#: The E_fit axes' label (N, S2): units of R, in the symbols' italics.
+E_FIT_AXIS = r"$E_\mathrm{fit}/R$"
 #: One colour and marker per hypothesis, the colours of distinct greys (luminance 0.23,
 #: 0.64, 0.44 and 0 in print without colour: tests/workflows/test_fig3.py).
 COLORS = {"flat": "#1b3f8b", "undeformed": "#e69f00", "unstressed": "#2ca02c", "free": "k"}
@@ -228,7 +232,7 @@ def _panel_N(df, variants, out: Path) -> None:
         sub = df[(df.variant == v) & (df.status == "ok")]
         _series(ax, sub, sub.E_fit, v)
     ax.set_xlabel("pseudotime $t$")
-    ax.set_ylabel(f"{E_FIT}/R")
+    ax.set_ylabel(E_FIT_AXIS)
     ax.set_yscale("log")
     handles = ax.get_legend_handles_labels()[0] + _open_handle(df)
     ax.legend(handles=handles, fontsize=MIN_FONT_SIZE)
@@ -304,40 +308,70 @@ def _free_kappa1(ax, free) -> None:
                     label=f"$R/{RPOST}$ (free)")
 
 
-def _figure_S2(df, held: list, sources: list, out: Path) -> None:
-    """Fig. S2: the fixed variants' E_fit with their own and others' held f₁, κ₃, κ₄."""
+#: Line style of Fig. S2's series by whose first fit gave f₁, κ₃, κ₄: the variant's own
+#: (solid, as in N), or the held campaigns' (``--held``, in order).
+HELD_LINES = ("-", "--", ":", "-.")
+
+
+def _figure_S2(df, held: list, sources: list, stages: list, out: Path) -> None:
+    """Fig. S2: the fixed variants' E_fit with their own and others' held f₁, κ₃, κ₄.
+
+    One panel per hypothesis (as the columns of D–L, in its colour and N's marker: a square
+    is κ⁰_post = R⁻¹ in every panel of Fig. 3 and S2), the line style saying whose first
+    fit's values were held; the unconverged fits open, as in N; the stages of D–L marked on
+    the pseudotime axis (the paper's S2 marks them with shape insets)."""
     import matplotlib.pyplot as plt
+
+    from morphoshell.plotting import DOUBLE_COLUMN, label_panel, save
+
+    fig, axes = plt.subplots(1, len(FIXED), figsize=(DOUBLE_COLUMN, 0.4 * DOUBLE_COLUMN),
+                             layout="constrained", sharey=True)
+    runs = [(df, "own")] + [(h.to_dataframe(), source) for h, source in zip(held, sources)]
+    shown = []
+    for ax, v, letter in zip(axes, FIXED, "ABC"):
+        for (frame, whose), ls in zip(runs, HELD_LINES):
+            sub = frame[(frame.variant == v) & (frame.status == "ok")]
+            if len(sub) and whose != v:         # (held from itself: its own fit again)
+                _series(ax, sub, sub.E_fit, v, ls=ls, label=None)
+                shown.append(sub)
+        ax.set_title(LABELS[v], loc="left")
+        ax.set_xlabel("pseudotime $t$")
+        _mark_stages(ax, stages)
+        label_panel(ax, letter)
+    axes[0].set_ylabel(E_FIT_AXIS)
+    axes[0].set_yscale("log")
+    fig.legend(handles=_held_handles(runs) + _open_handle(_concat(shown)),
+               loc="outside lower center", ncols=2, fontsize=MIN_FONT_SIZE)
+    save(fig, out / "figS2_held.png", ("png", "pdf"), close=True)
+
+
+def _concat(frames: list):
+    """The frames drawn, as one (empty if none)."""
     import pandas as pd
+
+    return pd.concat(frames) if frames else pd.DataFrame({"status": [], "converged": []})
+
+
+def _held_handles(runs: list) -> list:
+    """Fig. S2's legend: whose first fit's f₁, κ₃, κ₄ each line style holds, in the
+    paper's symbols (the hypotheses are the panels' titles)."""
     from matplotlib.lines import Line2D
 
-    from morphoshell.plotting import SINGLE_COLUMN, plot_fit_series, save
+    held = f"${RPOST}$, $\\kappa_3$, $\\kappa_4$"
+    return [Line2D([], [], color="k", ls=ls, label=f"{held} held from its own first fit"
+                   if whose == "own" else f"{held} held from the first fit with {LABELS[whose]}")
+            for (_, whose), ls in zip(runs, HELD_LINES)] + [
+        Line2D([], [], ls="none", marker="^", ms=4, color="0.6",
+               label="stages of Fig. 3 D–L")]
 
-    fig, ax = plt.subplots(figsize=(SINGLE_COLUMN, 0.95 * SINGLE_COLUMN), layout="constrained")
-    # (data, marker, line style, whose f₁, κ₃, κ₄)
-    runs = [(df, "o", "-", "own")] + [
-        (h.to_dataframe(), marker, ls, source) for h, (marker, ls), source
-        in zip(held, (("s", "--"), ("^", ":"), ("v", "-.")), sources)]
-    shown = []
-    for v in FIXED:
-        for frame, marker, ls, what in runs:
-            sub = frame[(frame.variant == v) & (frame.status == "ok")]
-            if len(sub) and (what == "own" or v != what):
-                plot_fit_series(ax, sub.pseudotime, sub.E_fit, sub.converged.astype(bool),
-                                marker=marker, ls=ls, color=COLORS[v])
-                shown.append(sub)
-    ax.set_xlabel("pseudotime $t$")
-    ax.set_ylabel(f"{E_FIT}/R")
-    ax.set_yscale("log")
-    # two legends, outside the data: colour = hypothesis, line = whose f₁, κ₃, κ₄
-    hypotheses = [Line2D([], [], color=COLORS[v], lw=2, label=LABELS[v]) for v in FIXED]
-    held_by = [Line2D([], [], color="k", ls=ls, marker=marker, ms=3,
-                      label="its own first fit" if what == "own" else f"{what}'s first fit")
-               for _, marker, ls, what in runs]
-    opened = _open_handle(pd.concat(shown)) if shown else []
-    fig.legend(handles=hypotheses + held_by + opened, loc="outside lower center", ncols=2,
-               fontsize=MIN_FONT_SIZE, title=rf"hypothesis;  ${RPOST}$, $\kappa_3$, $\kappa_4$ "
-               "held from", title_fontsize=MIN_FONT_SIZE)
-    save(fig, out / "figS2_held.png", ("png", "pdf"), close=True)
+
+def _mark_stages(ax, stages: list) -> None:
+    """The pseudotimes of D–L's rows: ticks inside the bottom axis (grey triangles)."""
+    from matplotlib.transforms import blended_transform_factory
+
+    along = blended_transform_factory(ax.transData, ax.transAxes)
+    ax.plot([tp.pseudotime for tp in stages], [0.0] * len(stages), ls="none", marker="^",
+            ms=4, color="0.6", transform=along, clip_on=False, zorder=1)
 
 
 def _campaigns(args):
@@ -389,7 +423,7 @@ def main(argv=None) -> int:
         _panel_N(df, result.variants, args.out)
         _panel_O(df, truth, args.out)
         if held:
-            _figure_S2(df, held, sources, args.out)
+            _figure_S2(df, held, sources, _stages(result), args.out)
     (args.out / "fig3_ablations.json").write_text(json.dumps(ablations, indent=1) + "\n")
     print(f"wrote fig3_D-L, fig3_M, fig3_N, fig3_O{', figS2_held' if held else ''} (.png, "
           f".pdf) and fig3_ablations.json to {args.out}")

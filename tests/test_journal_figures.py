@@ -357,3 +357,74 @@ def test_profile_axes_name_the_parameters_units():
     fig = plot_profiles({"k": _profile("k", x, 1 + x ** 2, [True] * 5, (-0.5, 0.5))},
                         pyplot=False, units={"k": "1/R"})
     assert fig.axes[0].get_xlabel() == "$k$ ($1/R$)"
+
+
+def _velocity_result():
+    """An InverseResult's ``velocity``, as plot_recoil_velocity reads it: the SYNTHETIC
+    table's fit (data/synthetic_ablations.csv, rounded)."""
+    X = (1.196, 1.032, 1.463, 1.641, 1.611, 1.275, 2.537, 1.862, 1.483, 2.379, 1.896, 1.157,
+         1.802, 1.232)
+    V = (0.75, 0.628, 1.026, 1.03, 0.869, 0.534, 1.296, 1.38, 0.937, 1.679, 0.933, 0.562,
+         0.804, 0.521)
+    return SimpleNamespace(velocity=SimpleNamespace(
+        E_over_mu=0.5785, standard_error=0.0295, X_um=X, V_um_per_s=V, mu_min_Pa_s=8e-4,
+        H_mean_um=11.115, E_lower_bound_Pa=4.628e-4, bending_modulus_lower_bound_J=6.355e-19))
+
+
+def _overlaps(boxes: list) -> list:
+    """The pairs of boxes (name, Bbox) that overlap by more than a pixel."""
+    return [(a, b) for i, (a, p) in enumerate(boxes) for b, q in boxes[i + 1:]
+            if min(p.x1, q.x1) - max(p.x0, q.x0) > 1 and min(p.y1, q.y1) - max(p.y0, q.y0) > 1]
+
+
+def _fig2K_clashes(ax) -> tuple[list, list]:
+    """After an Agg draw: the overlapping pairs of Fig. 2 K's texts (labels, ticks, the
+    legend, the slope-and-bounds note), and the data (points, and the line sampled) under
+    any text inside the axes."""
+    fig = ax.figure
+    fig.canvas.draw()
+    box = ax.get_window_extent()
+    legend = ax.get_legend()
+    texts = [(t.get_text(), t.get_window_extent()) for t in _texts(fig)
+             if t.axes is ax and t not in legend.get_texts() and t is not legend.get_title()]
+    boxes = texts + [("legend", legend.get_window_extent())]
+    points = np.vstack([ax.transData.transform(np.column_stack(
+        [np.linspace(*line.get_xdata()[[0, -1]], 200), np.linspace(*line.get_ydata()[[0, -1]],
+                                                                     200)]))
+                        if line.get_linestyle() == "-" else
+                        ax.transData.transform(line.get_xydata()) for line in ax.get_lines()])
+    covered = [name for name, b in boxes if b.overlaps(box) and
+               ((points[:, 0] > b.x0) & (points[:, 0] < b.x1)
+                & (points[:, 1] > b.y0) & (points[:, 1] < b.y1)).any()]
+    return _overlaps(boxes), covered
+
+
+@pytest.mark.parametrize("size", ["1.75 in panel of a row", "1.75 in square", "default",
+                                  "figure_JK"])
+def test_fig2K_texts_do_not_overlap_each_other_or_the_data(size, tmp_path):
+    # audit 20: on a 1.75 in panel (a column of a journal's four-column grid) the slope and
+    # bounds lay over the y label, the points and the line, the legend over the line and
+    # past the axes' edge, the y label ran past the figure
+    from morphoshell.plotting import journal_figure, paper_style, plot_recoil_velocity, styled
+    from morphoshell.plotting.estimates import figure_JK
+
+    result = _velocity_result()
+    if size == "default":                      # fig2jk_estimates.py's fig2_K
+        ax = plot_recoil_velocity(new_axes((SINGLE_COLUMN, 3.0), pyplot=False), result)
+    elif size == "figure_JK":
+        ax = figure_JK(SimpleNamespace(**vars(_estimates([0.1, 0.2])), **vars(result)),
+                       pyplot=False).axes[1]
+    else:
+        fig = journal_figure(*((7.0, 2.0) if "row" in size else (1.75, 1.75)), pyplot=False)
+        with styled(fig):
+            axs = fig.subplots(1, 4 if "row" in size else 1, squeeze=False)[0]
+        for other in axs[:-1]:
+            other.plot([0, 1], [0, 1])
+        ax = plot_recoil_velocity(axs[-1], result)
+    with paper_style():
+        assert not _outside_figure(ax.figure, tmp_path)
+        overlapping, covered = _fig2K_clashes(ax)
+    assert not overlapping and not covered, (overlapping, covered)
+    notes = " ".join(t.get_text() for t in _texts(ax.figure))
+    for number in ("0.58", "0.03", "0.46 mPa", "0.8 mPa s", "6.4e-19 J", "11.1 µm"):
+        assert number in notes, number                  # the numbers are all still there

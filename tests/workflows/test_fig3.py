@@ -12,6 +12,7 @@ import importlib.util
 import json
 import shutil
 from dataclasses import replace
+from types import SimpleNamespace
 from pathlib import Path
 
 import numpy as np
@@ -143,3 +144,67 @@ def test_no_text_below_the_minimum_font_size(stalled, data, tmp_path, monkeypatc
         small = [(t.get_text(), t.get_fontsize()) for t in fig.findobj(Text)
                  if t.get_visible() and t.get_text().strip() and t.get_fontsize() < MIN_FONT_SIZE]
         assert not small, (name, small)
+
+
+def _held_runs(converged_t07: bool):
+    """Campaign tables as Fig. S2 reads them (to_dataframe()): the fixed variants at three
+    pseudotimes, E_fit made up; own, and held from flat's and free's first fits; flat's
+    t07 fit (own) unconverged unless ``converged_t07``."""
+    import pandas as pd
+
+    def table(scale, stalled=()):
+        rows = [{"timepoint": tp, "pseudotime": t, "variant": v, "status": "ok",
+                 "converged": (tp, v) not in stalled, "E_fit": scale * (1 + i + t)}
+                for tp, t in (("t01", 0.0), ("t07", 0.55), ("t12", 1.0))
+                for i, v in enumerate(("flat", "undeformed", "unstressed"))]
+        return pd.DataFrame(rows)
+    own = table(0.01, () if converged_t07 else (("t07", "flat"),))
+    held = [SimpleNamespace(to_dataframe=lambda s=s: table(s)) for s in (0.02, 0.03)]
+    return own, held
+
+
+def test_figure_S2_has_a_panel_per_hypothesis_in_Fig3s_conventions(tmp_path, monkeypatch):
+    # session 55's look at S2: one axes of eight series, a square there meaning "held from
+    # flat" where N's square is kappa0_post = 1/R, variant names ("flat's first fit") in the
+    # legend, the unconverged flat fit's open circle under another series' marker
+    import morphoshell.plotting as plotting
+    from matplotlib.colors import to_hex
+
+    from morphoshell.plotting import paper_style
+
+    fig3, figures, save = _script(), {}, plotting.save
+    monkeypatch.setattr(plotting, "save", lambda fig, path, *a, **k: figures.setdefault(
+        Path(path).stem, fig) and save(fig, path, *a, **{**k, "close": False}))
+    own, held = _held_runs(converged_t07=False)
+    stages = [SimpleNamespace(pseudotime=t) for t in (0.0, 0.55, 1.0)]
+    with paper_style():
+        fig3._figure_S2(own, held, ["flat", "free"], stages, tmp_path)
+        fig = figures["figS2_held"]
+        fig.canvas.draw()
+    assert [ax.get_title(loc="left") for ax in fig.axes] == [fig3.LABELS[v] for v in fig3.FIXED]
+    for ax, v in zip(fig.axes, fig3.FIXED):
+        series = [line for line in ax.get_lines() if line.get_xdata().size
+                  and line.get_color() != "0.6"]            # (not the stages' marks)
+        # own, flat's (not in flat's panel: its own fit again) and free's held values
+        # (the open markers: no line)
+        assert len({line.get_linestyle() for line in series} - {"None"}) == (2 if v == "flat"
+                                                                               else 3)
+        assert {line.get_marker() for line in series} == {fig3.MARKERS[v]}
+        assert {to_hex(line.get_color()) for line in series} == {to_hex(fig3.COLORS[v])}
+        # the unconverged fit open, in its panel only
+        assert _open_x(ax) == ({0.55} if v == "flat" else set())
+    labels = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert "not converged" in labels
+    assert not any(name in label for label in labels for name in ("flat", "free", "undeformed"))
+    texts = [t for t in fig.findobj(Text) if t.get_visible() and t.get_text().strip()]
+    assert min(t.get_fontsize() for t in texts) >= MIN_FONT_SIZE
+    boxes = [t.get_window_extent() for t in texts if t not in fig.legends[0].get_texts()]
+    boxes.append(fig.legends[0].get_window_extent())
+    assert not [(a, b) for i, a in enumerate(boxes) for b in boxes[i + 1:]
+                if min(a.x1, b.x1) - max(a.x0, b.x0) > 1 and min(a.y1, b.y1) - max(a.y0, b.y0) > 1]
+    # all converged: no open marker, no legend entry for them
+    figures.clear()
+    with paper_style():
+        fig3._figure_S2(*_held_runs(converged_t07=True), ["flat", "free"], stages, tmp_path)
+    assert not any(_open_x(ax) for ax in figures["figS2_held"].axes)
+    assert "not converged" not in [t.get_text() for t in figures["figS2_held"].legends[0].get_texts()]

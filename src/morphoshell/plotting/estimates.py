@@ -180,10 +180,15 @@ def _k_legend(ax: Axes, result, truth: bool, off_scale: bool, where: str) -> Non
     elif where == "inside":
         _legend_inside(ax, entries, options)
     else:
-        # under the group labels and the x label (points: they do not scale with the axes)
-        below = ScaledTranslation(0, -_BELOW_AXIS * MIN_FONT_SIZE / 72, ax.figure.dpi_scale_trans)
-        ax.legend(*zip(*entries), loc="upper center", bbox_to_anchor=(0.5, 0.0),
-                  bbox_transform=ax.transAxes + below, borderaxespad=0.0, **options)
+        _legend_below(ax, entries, options)
+
+
+def _legend_below(ax: Axes, entries: list, options: dict):
+    """The legend under the axes' tick labels and x label (offset in points: they do not
+    scale with the axes), which constrained layout makes room for."""
+    below = ScaledTranslation(0, -_BELOW_AXIS * MIN_FONT_SIZE / 72, ax.figure.dpi_scale_trans)
+    return ax.legend(*zip(*entries), loc="upper center", bbox_to_anchor=(0.5, 0.0),
+                     bbox_transform=ax.transAxes + below, borderaxespad=0.0, **options)
 
 
 def _legend_entries(ax: Axes, result, truth: bool, off_scale: bool, *, short: bool) -> list:
@@ -251,7 +256,12 @@ def plot_recoil_velocity(ax: Axes, result) -> Axes:
     """Initial recoil velocity V against its scaling H^{5/2}R^{−3/2}|1 − k| (paper Fig. 2 K).
 
     Main text and Supplementary, "Recoil velocity: scaling argument": the
-    straight-line fit through the origin estimates ⟨E/μ⟩.
+    straight-line fit through the origin estimates ⟨E/μ⟩.  Its slope and the bounds it
+    gives are written in the corner the line leaves free where they fit there; on a
+    small panel (a 1.75 in column of a journal's grid, figure_JK's 2.3 in) they and the
+    legend, its labels short, go under the axes (constrained layout makes room; in a
+    figure without it they may fall on a panel below), and the y label is the symbol
+    alone where the whole name is longer than the axes.
 
     Returns
     -------
@@ -265,24 +275,77 @@ def plot_recoil_velocity(ax: Axes, result) -> Axes:
             ax.set_axis_off()
             return ax
         X, V = np.array(fit.X_um), np.array(fit.V_um_per_s)
-        ax.plot(X, V, "o", color="tab:purple", ms=_MS, label="embryos")
+        ax.plot(X, V, "o", color="tab:purple", ms=_MS)
         x = np.linspace(0, 1.1 * X.max(), 50)
-        se = "" if fit.standard_error is None else rf" \pm {fit.standard_error:.2f}"
-        ax.plot(x, fit.E_over_mu * x, "k-", lw=1.0,
-                label=r"$V = \langle E/\mu\rangle\,X$ (least squares)")
+        ax.plot(x, fit.E_over_mu * x, "k-", lw=1.0)
         ax.set_xlim(0, None)
         ax.set_ylim(0, None)
         ax.set_xlabel(r"$X = H^{5/2}R^{-3/2}|1-k|$ (µm)")
-        ax.set_ylabel(r"initial recoil velocity $V$ (µm/s)")
-        ax.legend(loc="upper left", fontsize=MIN_FONT_SIZE, frameon=False)
-        # the slope with the bounds it gives, in the corner the line leaves free
-        ax.text(0.97, 0.03, rf"$\langle E/\mu\rangle = {fit.E_over_mu:.2f}{se}\,"
-                            rf"\mathrm{{s^{{-1}}}}$" "\n"
-                            f"E ≥ {fit.E_lower_bound_Pa * 1e3:.2g} mPa (μ ≥ "
-                            f"{fit.mu_min_Pa_s * 1e3:g} mPa s)\nE H³ ≥ "
-                            f"{fit.bending_modulus_lower_bound_J:.2g} J (H = {fit.H_mean_um:.3g} µm)",
-                transform=ax.transAxes, ha="right", va="bottom", fontsize=MIN_FONT_SIZE)
+        lines = _velocity_lines(fit)
+        roomy = _fits_in_corners(ax, lines)
+        _velocity_ylabel(ax, roomy)
+        handles = [Line2D([], [], ls="none", marker="o", color="tab:purple", ms=_MS),
+                   Line2D([], [], color="k", lw=1.0)]
+        if roomy:
+            ax.legend(handles, ["embryos", _FIT_LABEL], loc="upper left",
+                      fontsize=MIN_FONT_SIZE, frameon=False)
+            ax.text(0.97, 0.03, "\n".join(lines), transform=ax.transAxes, ha="right",
+                    va="bottom", fontsize=MIN_FONT_SIZE)
+        else:
+            _legend_below(ax, list(zip(handles, ["embryos", "least squares"])),
+                          _small_legend(ax, lines))
     return ax
+
+
+def _small_legend(ax: Axes, lines: list[str]) -> dict:
+    """Options of the legend under a small panel: the slope and bounds its title (over its
+    entries), its two entries side by side where that is no wider than the axes or the
+    title."""
+    size = MIN_FONT_SIZE
+    entries = (text_width("embryos", size) + text_width("least squares", size)
+               + 2 * _HANDLE_EMS * size + _COLUMN_EMS * size)
+    room = max(axes_size(ax)[0], *(text_width(line, size) for line in lines))
+    return dict(ncol=2 if entries <= room else 1, frameon=False, fontsize=size,
+                title="\n".join(lines), title_fontsize=size, columnspacing=_COLUMN_EMS,
+                handlelength=1.2, handletextpad=0.5)
+
+
+#: The legend's label of the least-squares line where the panel has room for it.
+_FIT_LABEL = r"$V = \langle E/\mu\rangle\,X$ (least squares)"
+#: Most of the axes' width the slope-and-bounds text (lower right, under the line) and the
+#: legend (upper left, over it) may take each; the data lie along the diagonal between.
+_CORNER_SHARE = 0.6
+#: Most of the axes' height the two may take together (legend rows and text lines).
+_CORNERS_HEIGHT = 0.5
+
+
+def _velocity_lines(fit) -> list[str]:
+    """The slope ⟨E/μ⟩ (± its standard error) and the bounds on E and E H³ it gives."""
+    se = "" if fit.standard_error is None else rf" \pm {fit.standard_error:.2f}"
+    return [rf"$\langle E/\mu\rangle = {fit.E_over_mu:.2f}{se}\,\mathrm{{s^{{-1}}}}$",
+            f"E ≥ {fit.E_lower_bound_Pa * 1e3:.2g} mPa (μ ≥ {fit.mu_min_Pa_s * 1e3:g} mPa s)",
+            f"E H³ ≥ {fit.bending_modulus_lower_bound_J:.2g} J (H = {fit.H_mean_um:.3g} µm)"]
+
+
+def _fits_in_corners(ax: Axes, lines: list[str]) -> bool:
+    """Whether the legend (upper left) and the slope and bounds (lower right) fit in the
+    corners the data leave free (estimated, before anything is drawn).  Audit: on a
+    1.75 in panel they covered the data, the line and the y label."""
+    width, height = axes_size(ax)
+    size = MIN_FONT_SIZE
+    widest = max(*(text_width(t, size) for t in lines),
+                 text_width(_FIT_LABEL, size) + _HANDLE_EMS * size)
+    tall = (len(lines) + 2) * _ROW_EMS * size
+    return widest <= _CORNER_SHARE * width and tall <= _CORNERS_HEIGHT * height
+
+
+def _velocity_ylabel(ax: Axes, roomy: bool) -> None:
+    """The y label: its whole name, or the symbol alone where the name is longer than a
+    small panel's axes (it ran past the figure's edge at 1.75 in)."""
+    name = r"initial recoil velocity $V$ (µm/s)"
+    size = FontProperties(size=mpl.rcParams["axes.labelsize"]).get_size_in_points()
+    fits = roomy or text_width(name, size) <= axes_size(ax)[1]
+    ax.set_ylabel(name if fits else r"$V$ (µm/s)")
 
 
 def figure_JK(result, truth=None, *, pyplot: bool = True) -> Figure:
