@@ -455,7 +455,9 @@ class Equilibrium:
 
         Direct solutions use their own Gauss rule (exact integration of the
         cell's interpolant of L = 2πρe where a or b cuts a cell), so that
-        ``energy_between(s[0], s[-1]) == energy``; BVP solutions integrate the
+        ``energy_between(s[0], s[-1])`` is ``energy`` to rounding (the cells
+        are summed in another order: test with ``np.isclose``, not ``==``);
+        BVP solutions integrate the
         cubic spline of L through their collocation mesh.
 
         Parameters
