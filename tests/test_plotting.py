@@ -317,7 +317,9 @@ def test_plot_fit_of_a_fit_read_back_says_what_it_lacks():
     from morphoshell.plotting import plot_fit
 
     spec = volvox_spec("free")
-    eq = SimpleNamespace(problem=spec.base)
+    # (one point of a shell: no walls to cross, fit_result checks them)
+    eq = SimpleNamespace(problem=spec.base, **dict.fromkeys(("s", "r", "z", "f_s", "f_phi"),
+                                                            np.ones(1)))
     inner = SimpleNamespace(solve=lambda theta: eq, residuals=lambda eq: np.full(200, 1e-3),
                             jacobian=lambda eq, theta: np.eye(200, len(spec.fitted)),
                             data=np.ones((100, 2)), n=100, solves=1)

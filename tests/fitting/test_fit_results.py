@@ -1,5 +1,6 @@
 """What a fit returns (fitting.results): standard errors, constraints and folds."""
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -25,7 +26,9 @@ def test_a_fit_near_a_fold_of_the_branch_is_not_converged(blowup, converged):
     k = len(spec.fitted)
     rng = np.random.default_rng(1)
     J = rng.normal(size=(200, k)) + blowup * np.outer(rng.normal(size=200), rng.normal(size=k))
-    eq = SimpleNamespace(problem=spec.base)
+    # (one point of a shell: no walls to cross, fit_result checks them)
+    eq = SimpleNamespace(problem=spec.base, **dict.fromkeys(("s", "r", "z", "f_s", "f_phi"),
+                                                            np.ones(1)))
     inner = SimpleNamespace(solve=lambda theta: eq, residuals=lambda eq: np.full(200, 1e-3),
                             jacobian=lambda eq, theta: J, data=np.zeros((100, 2)), n=100,
                             solves=1)
@@ -54,7 +57,9 @@ def test_the_summary_gives_every_parameter_its_unit_and_directions_as_sums():
     sv[-1] = 1e-5 * sv[0]                       # one direction the data hardly see
     theta = spec.theta0                         # (off every constraint)
     J = u @ np.diag(sv) @ vt / np.maximum(np.abs(theta), 1e-2)   # (fit_result scales by θ)
-    eq = SimpleNamespace(problem=spec.base)
+    # (one point of a shell: no walls to cross, fit_result checks them)
+    eq = SimpleNamespace(problem=spec.base, **dict.fromkeys(("s", "r", "z", "f_s", "f_phi"),
+                                                            np.ones(1)))
     inner = SimpleNamespace(solve=lambda theta: eq, residuals=lambda eq: np.full(200, 1e-3),
                             jacobian=lambda eq, theta: J, data=np.zeros((100, 2)), n=100,
                             solves=1)
@@ -317,3 +322,74 @@ def test_a_spec_has_a_label_its_record_reads_back_with():
     assert dataclasses.replace(spec, variant="custom").variant == "custom"
     with pytest.raises(ValueError, match=r"variant = 'bogus' must be one of \['flat'"):
         dataclasses.replace(spec, variant="bogus")
+
+
+FOLD = Path(__file__).resolve().parents[1] / "data" / "volvox_fold.toml"
+
+
+@pytest.fixture(scope="module")
+def fold_fit(tmp_path_factory):
+    """(midline CSV, fit) of the documented fold shell's midline (tests/data/volvox_fold.toml:
+    a folded Volvox whose walls pass through each other, tests/solvers/test_contact.py),
+    fitted by its own variant (unstressed, κ₁ = 1/f₁) from its parameters, 60 nodes: a fit
+    that converges onto a shape whose walls cross (E_fit 0)."""
+    from morphoshell.fitting import synthetic_midline
+    from morphoshell.io import Midline
+    from morphoshell.io.problem_files import load_problem
+
+    problem, _ = load_problem(FOLD)
+    points = synthetic_midline(problem, nodes=60)
+    path = tmp_path_factory.mktemp("fold") / "fold.csv"
+    Midline(points[:, 0], points[:, 1], None, 1, ("synthetic",)).to_csv(path)
+    return path, fit(volvox_spec("unstressed", start=problem), points, "gradient", nodes=60)
+
+
+def test_a_fit_whose_walls_cross_says_where_and_its_record_keeps_it(fold_fit, pinned_fit):
+    """No fit was looked at for crossing walls (audit 20: only solve(), sweeps, branches and
+    ablations were): the fold shell's fit has them 0.065 R apart against a thickness of
+    0.166 R, at material points near s = 0.94 and 2.58 (as its solve,
+    tests/solvers/test_contact.py); its record keeps the contact and reads back with it; a
+    record without the entry (written before it) reads back without one, and one of a fit
+    whose walls stay apart has null."""
+    import json
+
+    from morphoshell.fitting import FitResult
+    from morphoshell.io.problem_files import to_jsonable
+
+    res = fold_fit[1]
+    assert res.converged and res.walls_cross and res.contact.overlaps
+    assert res.contact.distance < 0.1 < res.contact.thickness
+    # (the mesh moves the closest points by about a cell: 0.05 R at 60 nodes)
+    assert res.contact.s == pytest.approx((0.94, 2.58), abs=0.05)
+    record = json.loads(json.dumps(to_jsonable(res.to_dict())))
+    assert record["walls_cross"] == {"s": list(res.contact.s), "distance": res.contact.distance,
+                                     "thickness": res.contact.thickness}
+    assert FitResult.from_dict(record).contact == res.contact
+    del record["walls_cross"]
+    assert not FitResult.from_dict(record).walls_cross
+    assert pinned_fit[2].to_dict()["walls_cross"] is None and not pinned_fit[2].walls_cross
+    with pytest.raises(ValueError, match=r"^x.json: walls_cross = \{'s': \[1.0\]\} must be null"):
+        FitResult.from_dict({**record, "walls_cross": {"s": [1.0]}}, "x.json")
+
+
+def test_morphoshell_fit_warns_of_a_fitted_shape_whose_walls_cross(fold_fit, tmp_path, caplog):
+    """One warning line naming the midline and the variant, in solve()'s words; the JSON's
+    walls_cross and the CSV's column say it; the fit converged, so exit status 0."""
+    import json
+    import logging
+
+    import pandas as pd
+
+    from morphoshell.cli import main
+
+    j, c = tmp_path / "fit.json", tmp_path / "fit.csv"
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        assert main(["fit", str(midline := fold_fit[0]), "--variant", "unstressed", "--start",
+                     str(FOLD), "--nodes", "60", "--json", str(j), "--csv", str(c)]) == 0
+    warned = [r.getMessage() for r in caplog.records if "walls pass through" in r.getMessage()]
+    assert len(warned) == 1 and warned[0].startswith(
+        f"{midline.name}, fitted unstressed shell: the shell's walls pass through each other: "
+        f"material points s = "), warned
+    assert "no self-contact" in warned[0]
+    assert json.loads(j.read_text())["walls_cross"]["distance"] < 0.1
+    assert pd.read_csv(c)["walls_cross"].tolist() == [True] * len(fold_fit[1].fitted)

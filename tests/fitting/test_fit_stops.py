@@ -187,10 +187,12 @@ def test_the_outputs_say_how_the_fit_was_made_and_how_it_ended(midline_csv, tmp_
                                if n not in THREE and n not in ("kappa1", "sigma")}
     assert settings["midline_file"] == str(midline_csv) and settings["method"] == "gradient"
     assert record["input_check"] is None               # (E_fit below IMPLAUSIBLE_E_FIT)
+    assert record["walls_cross"] is None
     df = pd.read_csv(table)
     assert list(df.columns) == ["parameter", "value", "standard_error", "E_fit", "converged",
-                                "stop"]
+                                "stop", "walls_cross"]
     assert sorted(df.parameter) == sorted(THREE) and df.converged.dtype == bool
+    assert df.walls_cross.dtype == bool and not df.walls_cross.any()
     assert not df.converged.any() and set(df.stop) == {"Maximum_Evaluations_Exceeded"}
     assert (df.E_fit == record["E_fit"]).all()
     capsys.readouterr()

@@ -142,7 +142,8 @@ def _campaign(args) -> int:
         print(table.to_string(float_format=lambda v: f"{v:.4g}"))
     print(f"  wrote {_written(result)} and {result.out / SUMMARY}")
     far, best = result.far_above(), result.best_far_above()
-    print(_verdict(unfinished, len(result.records), args.allow_failures, far, best))
+    print(_verdict(unfinished, len(result.records), args.allow_failures, far, best,
+                   result.walls_cross()))
     return 3 if (unfinished or best) and not args.allow_failures else 0
 
 
@@ -161,10 +162,13 @@ def _count(n: int, noun: str) -> str:
 
 
 def _verdict(unfinished: list, fits: int, allowed: bool, far: list | None = None,
-             best: list | None = None) -> str:
+             best: list | None = None, walls: list | None = None) -> str:
     """The last line: all converged, or how many failed and did not converge, by name; then
     the fits far above what the model leaves of a traced midline (their ``input_check``), and
-    the timepoints whose best fit is one of them (exit status 3, as a failure)."""
+    the timepoints whose best fit is one of them (exit status 3, as a failure); then the fits
+    whose walls pass through each other (``walls_cross``: a note, not exit status 3: such a
+    fit is a true minimum of the model, which has no self-contact, so the fit did its job
+    and the shape, not the fit, is in doubt; a hypothesis that needs it is itself a result)."""
     failed = [f"{t}_{v}" for t, v, why in unfinished if why == "failed"]
     stopped = [f"{t}_{v}" for t, v, why in unfinished if why != "failed"]
     parts = [f"{len(names)} {what}: {', '.join(names)}"
@@ -176,6 +180,12 @@ def _verdict(unfinished: list, fits: int, allowed: bool, far: list | None = None
     if best:
         head += (f"; {len(best)} of them the best fit of a timepoint (no variant describes "
                  f"its data: check the input): {', '.join(f'{t}_{v}' for t, v in best)}")
+    if walls:
+        one = len(walls) == 1
+        head += (f"; {len(walls)} fitted shape{'' if one else 's'} whose walls pass through each "
+                 f"other (the model has no self-contact: "
+                 f"{'not a physical shape' if one else 'not physical shapes'}): "
+                 f"{', '.join(f'{t}_{v}' for t, v in walls)}")
     if not (parts or best):
         return head
     tail = ("(--allow-failures: exit status 0)" if allowed else

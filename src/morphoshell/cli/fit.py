@@ -87,8 +87,9 @@ def register(sub) -> None:
                         "midlines, the options that made it under 'settings') as JSON; usable "
                         "as a problem file, solved at the fit's --nodes",
                 csv="write the fitted parameters with their standard errors as CSV, every row "
-                    "with the fit's E_fit (R), converged (True/False) and stop (how it ended); "
-                    "units: docs, 'Results as tables'",
+                    "with the fit's E_fit (R), converged (True/False), stop (how it ended) and "
+                    "walls_cross (True/False: the fitted shape's walls pass through each "
+                    "other); units: docs, 'Results as tables'",
                 plot="write the fitted shell over the data")
     add_profile_options(p)
     p.set_defaults(run=_fit)
@@ -229,12 +230,14 @@ def fit_record(args, limit: int) -> dict:
 
 def csv_columns(result) -> dict:
     """The fit CSV: a row per fitted parameter, and on every row how the fit ended (E_fit in
-    R, converged, stop), so that ``pandas.read_csv`` reads it as it is and an unconverged
-    fit's table does not pass for a converged one's."""
+    R, converged, stop, walls_cross), so that ``pandas.read_csv`` reads it as it is and an
+    unconverged fit's table (or one of a shape whose walls pass through each other) does not
+    pass for a converged one's."""
     return {"parameter": list(result.fitted),
             "value": [result.parameters[n] for n in result.fitted],
             "standard_error": [result.standard_errors[n] for n in result.fitted],
-            "E_fit": result.E_fit, "converged": result.converged, "stop": result.stop}
+            "E_fit": result.E_fit, "converged": result.converged, "stop": result.stop,
+            "walls_cross": result.walls_cross}
 
 
 def _fit(args) -> int:
@@ -242,6 +245,7 @@ def _fit(args) -> int:
     from ..fitting.midline_checks import input_check
     from ..fitting.trace_errors import profile_inflation
     from ..io.problem_files import write_csv, write_json
+    from ..solvers.contact import warn_of_contact
     from ._fit_stops import stop_line
 
     spec = _start_problem(args)
@@ -292,6 +296,8 @@ def _fit(args) -> int:
         print(f"  wrote {path}")
     if starts is None:
         _local_minimum_note(result)
+    if result.contact is not None:      # (the fitted shell, as solve() warns of a solved one)
+        warn_of_contact(result.contact, f"{Path(args.midline).name}, fitted {result.variant} shell")
     print(stop_line(result, limit, before if result is not before else None))
     return 0 if result.converged else 3
 

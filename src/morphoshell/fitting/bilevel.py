@@ -111,7 +111,13 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
         The fitted parameters with their Gauss–Newton standard errors, E_fit,
         the fitted equilibrium and midline, and whether and how the fit
         converged (a fit near a fold of the inner branch is not converged;
-        :attr:`FitResult.stop` names how it ended).
+        :attr:`FitResult.stop` names how it ended), and where the fitted shape's
+        walls pass through each other (:attr:`FitResult.contact`, checked by
+        :func:`~morphoshell.solvers.contact.wall_contact`; the model has no
+        self-contact).  Not warned of here (multi-starts, campaigns and profiles
+        fit many times on the way to their result; ``morphoshell fit`` and
+        campaigns warn of their result's, naming it:
+        :func:`~morphoshell.solvers.contact.warn_of_contact`).
 
     Raises
     ------

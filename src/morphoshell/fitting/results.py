@@ -31,6 +31,7 @@ import numpy as np
 from .._runtime.validate import flag, integer, lookup, real, within
 from ..io.problem_files import problem_of_record, read_json
 from ..numerics.status import FIT_CONVERGED, FIT_NEAR_FOLD, IPOPT_UNKNOWN, STATUSES
+from ..solvers.contact import WallContact, wall_contact
 from ..solvers.results import Equilibrium, SolverError
 from .spec import LABELS
 
@@ -121,6 +122,12 @@ class FitResult:
         The residuals' exact Jacobian at the fit (None for a record read back): the
         sandwich errors of a fit to one image trace need it
         (:mod:`morphoshell.fitting.trace_errors`).  Not in :meth:`to_dict`.
+    contact : WallContact or None
+        Where the fitted shape's walls pass through each other
+        (:func:`~morphoshell.solvers.contact.wall_contact`), or None.  The model has no
+        self-contact: such a fit is a minimum of the model but not a physical shape.  The
+        record's ``walls_cross`` (null where they do not cross, and in a record written
+        before it, which reads back as None).
     """
 
     method: str
@@ -144,6 +151,7 @@ class FitResult:
     stop: str = FIT_CONVERGED
     problem: Problem | None = None
     jacobian: np.ndarray | None = None
+    contact: WallContact | None = None
 
     def __post_init__(self):
         if self.problem is None:    # (None too where a test's stand-in has no problem)
@@ -224,6 +232,11 @@ class FitResult:
                          f"{d['singular_value']:.2g} of the largest)")
         return "\n".join(lines)
 
+    @property
+    def walls_cross(self) -> bool:
+        """Whether the fitted shape's walls pass through each other (:attr:`contact`)."""
+        return self.contact is not None
+
     def unit(self, name: str) -> str:
         """How the unit of parameter ``name`` is printed: ``"1/R"``, ``"R"``,
         ``"(dimensionless)"`` (the family's :attr:`~morphoshell.model.profiles.ProfileFamily.units`;
@@ -267,6 +280,7 @@ class FitResult:
                 "outer_iterations": self.outer_iterations, "inner_solves": self.inner_solves,
                 "data_midline": {"r": self.data[:, 0].tolist(), "z": self.data[:, 1].tolist()},
                 "fitted_midline": {"r": self.model[:, 0].tolist(), "z": self.model[:, 1].tolist()},
+                "walls_cross": None if self.contact is None else self.contact.to_dict(),
                 "note": "standard errors are Gauss-Newton lower bounds: the residuals of a "
                         "traced midline are correlated"}
 
@@ -313,7 +327,8 @@ def _record_fields(record: Mapping[str, Any], where: str) -> dict[str, Any]:
             "seconds": get("seconds", _optional, default=math.nan),
             "message": get("message", _text, default=""),
             "constrained": get("constrained", _names, None, default=()),
-            "stop": get("stop", _status, default=FIT_CONVERGED if converged else IPOPT_UNKNOWN)}
+            "stop": get("stop", _status, default=FIT_CONVERGED if converged else IPOPT_UNKNOWN),
+            "contact": get("walls_cross", _contact)}
 
 
 def _entry(record: Mapping[str, Any], key: str, where: str, check, *args) -> Any:
@@ -423,6 +438,12 @@ def _midline(key: str, value: Any) -> np.ndarray:
                             for c in "rz"])
 
 
+def _contact(key: str, value: Any) -> WallContact | None:
+    """``value`` as the :class:`~morphoshell.solvers.contact.WallContact` it was written
+    from, or None for null."""
+    return None if value is None else WallContact.from_dict(value, key)
+
+
 def _combination(direction: dict, k: int) -> str:
     """A direction {name: component} written as a sum, ``0.864 kappa3 - 0.471 kappa4 ...``
     (``+ ...`` where it lists fewer than all ``k`` fitted parameters)."""
@@ -499,7 +520,8 @@ def fit_result(method: str, spec: FitSpec, inner: InnerProblem, theta: np.ndarra
                        float(np.sqrt(res @ res)), res, eq, inner.data,
                        inner.data + np.column_stack([res[:inner.n], res[inner.n:]]),
                        iterations, inner.solves, seconds, converged, message,
-                       tuple(d for d, _ in active), stop, jacobian=J)
+                       tuple(d for d, _ in active), stop, jacobian=J,
+                       contact=wall_contact(eq))   # (the CLI and campaigns warn of it)
     if not result.near_fold:
         return result
     return replace(result, converged=False, stop=FIT_NEAR_FOLD, message=(

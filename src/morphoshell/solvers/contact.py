@@ -17,12 +17,15 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
+from .._runtime.validate import real, within
 from .results import Equilibrium
 
-__all__ = ["WallContact", "wall_contact", "warn_if_walls_overlap", "half_thickness", "FAR"]
+__all__ = ["WallContact", "wall_contact", "warn_if_walls_overlap", "warn_of_contact",
+           "half_thickness", "FAR"]
 
 log = logging.getLogger(__name__)
 
@@ -69,6 +72,22 @@ class WallContact:
         return (f"material points s = {a:.4g} and {b:.4g} ({b - a:.3g} R apart along s) are "
                 f"{self.distance:.3g} R apart, less than the walls' thickness there "
                 f"({self.thickness:.3g} R)")
+
+    def to_dict(self) -> dict:
+        """JSON-ready: ``s`` (the two material points), ``distance`` and ``thickness`` (R)."""
+        return {"s": list(self.s), "distance": self.distance, "thickness": self.thickness}
+
+    @classmethod
+    def from_dict(cls, value: Any, key: str = "walls_cross") -> "WallContact":
+        """The contact :meth:`to_dict` wrote (a fit's record's ``walls_cross``); ValueError
+        naming ``key`` and what it must be."""
+        if not (isinstance(value, dict) and isinstance(value.get("s"), list)
+                and len(value["s"]) == 2 and {"distance", "thickness"} <= set(value)):
+            raise ValueError(f"{key} = {value!r} must be null or {{'s': [s1, s2], "
+                             f"'distance': number, 'thickness': number}}")
+        return cls(tuple(real(f"{key}.s[{i}]", v) for i, v in enumerate(value["s"])),
+                   within(f"{key}.distance", value["distance"], 0.0, np.inf),
+                   within(f"{key}.thickness", value["thickness"], 0.0, np.inf))
 
 
 def wall_contact(eq: Equilibrium) -> WallContact | None:
@@ -158,9 +177,15 @@ def warn_if_walls_overlap(eq: Equilibrium, what: str = "") -> WallContact | None
     contact = wall_contact(eq)
     if contact is not None:
         cut = float(getattr(eq.problem, "cut", 0.0) or 0.0)
-        who = what or " ".join(filter(None, [eq.problem.name,
-                                              f"(cut at Sigma = {cut:g})" if cut else ""]))
-        log.warning("%sthe shell's walls pass through each other: %s; the model has no "
-                    "self-contact, so this shape is a minimum of the model but not a physical "
-                    "one", f"{who}: " if who else "", contact.describe())
+        warn_of_contact(contact, what or " ".join(filter(None, [
+            eq.problem.name, f"(cut at Sigma = {cut:g})" if cut else ""])))
     return contact
+
+
+def warn_of_contact(contact: WallContact, who: str = "") -> None:
+    """The warning of :func:`warn_if_walls_overlap` for a contact already found (a fit's,
+    which its record keeps: :attr:`morphoshell.fitting.results.FitResult.contact`), the
+    line beginning with ``who``."""
+    log.warning("%sthe shell's walls pass through each other: %s; the model has no "
+                "self-contact, so this shape is a minimum of the model but not a physical "
+                "one", f"{who}: " if who else "", contact.describe())

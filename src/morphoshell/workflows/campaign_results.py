@@ -18,9 +18,11 @@ from ..fitting import VARIANTS
 from ..fitting.midline_checks import input_check
 from ..io.timepoints import Timepoint, read_timepoints
 from ..model.profiles import get_family
+from ..solvers.contact import WallContact
 
 __all__ = ["CampaignResult", "load_campaign", "RESULT_SUFFIX", "SUMMARY", "SETTINGS",
-           "result_path", "read_record", "read_records", "column_unit", "record_input_check"]
+           "result_path", "read_record", "read_records", "column_unit", "record_input_check",
+           "record_contact"]
 
 #: Result files are ``<timepoint>_<variant>.json``.
 RESULT_SUFFIX = ".json"
@@ -69,7 +71,9 @@ class CampaignResult:
         pandas.DataFrame
             Columns ``timepoint``, ``pseudotime``, ``variant``, ``status``,
             ``E_fit``, ``converged``, ``input_check`` (:func:`record_input_check`;
-            empty below it), ``nodes`` and ``method`` (the fit's
+            empty below it), ``walls_cross`` (True where the fitted shape's walls pass
+            through each other, :func:`record_contact`; empty where no shape was checked:
+            a failed fit, or a record written before the check), ``nodes`` and ``method`` (the fit's
             settings: a folder that mixes them shows it), ``held_from`` (the
             variant whose first fit gave the held values; empty where a
             variant fitted its own), ``active_constraints`` (the constraints
@@ -114,6 +118,13 @@ class CampaignResult:
         return [(tp.name, v) for tp in self.timepoints for v in self.variants
                 if record_input_check(self.records.get((tp.name, v), {}))]
 
+    def walls_cross(self) -> list[tuple[str, str]]:
+        """The fits whose fitted shape's walls pass through each other (:func:`record_contact`):
+        (timepoint, variant), in the campaign's order.  Minima of the model, not physical
+        shapes (it has no self-contact)."""
+        return [(tp.name, v) for tp in self.timepoints for v in self.variants
+                if record_contact(self.records.get((tp.name, v), {})) is not None]
+
     def best_far_above(self) -> list[tuple[str, str]]:
         """The timepoints whose best fit (lowest E_fit of the variants' fits that finished)
         has an ``input_check`` verdict, with that fit's variant: no variant run describes
@@ -134,7 +145,10 @@ def _summary_row(tp: Timepoint, variant: str, rec: dict) -> dict:
     row = {"timepoint": tp.name, "pseudotime": tp.pseudotime, "variant": variant,
            "status": rec["status"], "E_fit": rec.get("E_fit", float("nan")),
            "converged": rec.get("converged", False),
-           "input_check": record_input_check(rec) or "", "nodes": rec.get("nodes"),
+           "input_check": record_input_check(rec) or "",
+           # (None, an empty cell, where no fitted shape was checked)
+           "walls_cross": record_contact(rec) is not None if "walls_cross" in rec else None,
+           "nodes": rec.get("nodes"),
            "method": rec.get("method", ""),
            "held_from": (rec.get("held_from") or {}).get("variant", ""),
            "active_constraints": "; ".join(rec.get("constrained", []))}
@@ -221,3 +235,11 @@ def load_campaign(out: str | Path, data_dir: str | Path) -> CampaignResult:
     records = read_records(out, [(tp.name, v) for v in VARIANTS for tp in timepoints])
     variants = tuple(dict.fromkeys(v for _, v in records))
     return CampaignResult(out, timepoints, variants, records)
+
+
+def record_contact(rec: dict) -> WallContact | None:
+    """Where the fitted shape of a campaign record passes through itself (its ``walls_cross``,
+    :attr:`morphoshell.fitting.results.FitResult.contact`), or None: walls apart, a failed fit,
+    or a record written before the check (which has no ``walls_cross``)."""
+    stored = rec.get("walls_cross")     # (a failed fit's record has none)
+    return None if stored is None else WallContact.from_dict(stored)

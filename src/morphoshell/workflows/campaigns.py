@@ -32,8 +32,9 @@ from .._runtime.console import progress
 from ..fitting import FIT_NODES, METHODS, VARIANTS, check_midline, volvox_spec
 from ..io import Midline
 from ..io.timepoints import Timepoint, read_timepoints
+from ..solvers.contact import warn_of_contact
 from .campaign_results import (SETTINGS, SUMMARY, CampaignResult, load_campaign, read_record,
-                               read_records, result_path)
+                               read_records, record_contact, result_path)
 from .executor import SerialExecutor, backend_name, check_workers, open_executor
 from .timepoint_fits import (CampaignTask, first_start, fit_variant, record_provenance,
                              write_atomic)
@@ -165,7 +166,10 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
     ``state`` (s, r, ψ, f_s of the fitted equilibrium at its points: the
     next timepoint's warm start), and ``input_check``: null, or ``morphoshell fit``'s
     verdict on an E_fit far above what the model leaves of a traced midline
-    (:func:`~morphoshell.workflows.campaign_results.record_input_check`).  A failed fit is
+    (:func:`~morphoshell.workflows.campaign_results.record_input_check`), and
+    ``walls_cross`` (in the fit's record): null, or where the fitted shape's walls pass
+    through each other (a minimum of the model, which has no self-contact, but not a
+    physical shape), each warned of by the fit's name.  A failed fit is
     recorded and the next timepoint starts from the last successful one.
     """
     selected = timepoints
@@ -202,6 +206,9 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
         "seconds": seconds, "workers": 1 if backend == "serial" else workers,
         "backend": backend, "computed": len(done),
         "fit_seconds": float(sum(r["seconds"] for r in done)), "fits": fits})
+    # (here, not in the workers, whose logs Dask silences: one line per fit, by its name)
+    for t, v in result.walls_cross():
+        warn_of_contact(record_contact(records[(t, v)]), f"{t}_{v}, fitted shell")
     # every fit in the folder, not only this run's: a run on a subset had replaced the
     # summary of the whole campaign by its own rows (the folder's settings are one run's)
     write_atomic(out / SUMMARY, load_campaign(out, data_dir).to_dataframe().to_csv(index=False))

@@ -107,8 +107,10 @@ def _sha256(path: Path) -> str:
 #: chains a fit to the previous one (``previous``), so that a corrected pseudotime or another
 #: package version updates the labels of stored fits instead of refitting every later one.
 #: ``input_check`` is the verdict on the fit's E_fit (:func:`record_input_check`), added to
-#: the records of folders written before it without refitting them.
-_LABELS = ("pseudotime", "provenance", "input_check")
+#: the records of folders written before it without refitting them.  ``walls_cross``, the
+#: check of the fitted shape (:attr:`morphoshell.fitting.results.FitResult.contact`), is a
+#: verdict on the fit as well, not an input of the next (and absent from older folders).
+_LABELS = ("pseudotime", "provenance", "input_check", "walls_cross")
 
 
 def _digest(record: dict, labels: Sequence[str] = _LABELS) -> str:
