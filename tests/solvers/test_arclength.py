@@ -262,3 +262,32 @@ def test_a_weakly_singular_pole_does_not_stall_the_continuation(nodes):
     ref = solve(problem.with_updates(f0=-0.62), nodes=nodes)
     assert branch.end.tau == 1 and len(branch.points) < 400
     assert abs(branch.end.energy - ref.energy) < 1e-10 * abs(ref.energy)
+
+
+def test_a_soft_corrector_is_taken_at_tol_not_after_one_slow_step(blister):
+    """A corrector's Newton step that cuts the KKT error only a few-fold is no round-off
+    floor: the blister 1e-3 past its first branch point (60 nodes), where the dome's mode is
+    soft, had its stable walk end after one step from 1.5e-6 to 2.0e-7 (7.7-fold), 1.1e-4 of
+    x from the dome: energy 8.08853e-9 C R^2, above both the dome solve() finds (8.08663e-9)
+    and the unstable flat state at the same G and mesh (8.086635e-9, one negative
+    eigenvalue), z_end 0.001416 for 0.001325.  Now it is an equilibrium of the target to the
+    solver's tol, below the flat state (the dome's depth below it is 6.7e-15), and solve()'s
+    dome to 1e-7 relative (measured 2.4e-8: both within tol, the mode soft; 1e-3 was
+    2.3e-4 off)."""
+    from morphoshell.solvers.branches import follow_branch
+    from morphoshell.solvers.direct import solver_of
+
+    bp = follow_branch(blister, nodes=60).events[0]
+    target = blister.with_updates(G=blister.params["G"] * bp.tau * (1 + 1e-3))
+    walk = follow_branch(target, nodes=60, follow="stable")
+    flat = follow_branch(target, nodes=60).end
+    assert len(walk.switches) == 1 and walk.end.stable and not flat.stable
+    end = walk.end.equilibrium
+    assert end.problem == target == flat.equilibrium.problem
+    solver = solver_of(end)
+    kkt = arclength.bordered_kkt(solver)
+    state = kkt.state(kkt.pack(end.x, end.lam_g),
+                      solver.disc.pre_numeric(target.parameter_vector(), np.asarray(end.anchors)))
+    assert state.error <= solver.tol
+    assert walk.end.energy < flat.energy
+    assert abs(walk.end.energy - solve(target, nodes=60).energy) < 1e-7 * walk.end.energy

@@ -52,6 +52,13 @@ __all__ = ["Arclength", "ArcPoint", "Snap", "Switch", "bordered_kkt", "MAX_STEP"
 
 #: Newton iterations of a corrector before the step is retried smaller.
 MAX_CORRECTOR = 8
+#: Steps in a row that no longer cut the KKT error tenfold (within ``acceptable_tol``) that
+#: make a round-off floor, where one that did not cut it at all does alone
+#: (:meth:`Arclength._converged`).  One that cut it a few-fold is no floor: a corrector's
+#: first step from a predictor next to a branch point, where the state is soft, cut it
+#: 7.7-fold (the blister 1e-3 past its first branch point: 1.5e-6 to 2.0e-7, taken at
+#: λ = 1, 1.1e-4 of x from the dome, its energy 1.9e-12 C R² above it and the flat state's).
+FLOOR_STALLS = 2
 #: A step corrected in at most this many iterations lets the next one grow by GROWTH.
 EASY = 3
 GROWTH = 1.5
@@ -436,7 +443,7 @@ class Arclength:
         only after at least ``steps`` steps."""
         # the bordering column at the predictor, kept through the iterations (a chord in it:
         # the solution does not depend on it)
-        last, column = np.inf, None
+        last, column, stalls = np.inf, None, 0
         for it in range(MAX_CORRECTOR + 1):
             if it:
                 Z, _, error = self.kkt.iterate(u, self.parameters(tau), self.q, column)
@@ -444,7 +451,8 @@ class Arclength:
                 Z, _, error, column = self.kkt.iterate_around(
                     u, self.parameters(tau), self.q, self.around_parameters(tau))
             residual = row(u, tau)
-            if it >= steps and self._converged(error, last) and abs(residual) <= 1e-12:
+            stalls = stalls + 1 if self._stalled(error, last) else 0
+            if it >= steps and self._converged(error, last, stalls) and abs(residual) <= 1e-12:
                 return u, tau, it
             if not np.isfinite(error) or (it >= 2 and error > last) or it == MAX_CORRECTOR:
                 return None
@@ -454,10 +462,19 @@ class Arclength:
             u, tau, last = self.kkt.moved(u, du), tau + dtau, error
         return None
 
-    def _converged(self, error: float, last: float) -> bool:
-        """Within ``tol``, or within ``acceptable_tol`` once a step no longer cut the error
-        tenfold (the round-off floor of thin shells, as the Newton back end)."""
-        return error <= self.tol or error <= self.acceptable_tol and error > 0.1 * last
+    def _stalled(self, error: float, last: float) -> bool:
+        """Whether the step from the error ``last`` to ``error`` no longer cut it tenfold,
+        within ``acceptable_tol``."""
+        return error <= self.acceptable_tol and error > 0.1 * last
+
+    def _converged(self, error: float, last: float, stalls: int) -> bool:
+        """Within ``tol``, or within ``acceptable_tol`` at the round-off floor of thin shells:
+        a step that no longer cut the error at all (round-off alone moved it), or
+        :data:`FLOOR_STALLS` steps in a row that no longer cut it tenfold.  One step that
+        cut it a few-fold is no floor: a corrector's first steps from a predictor next to a
+        branch point, where the state is soft, do that, and the point taken there was no
+        equilibrium to ``tol`` (the Newton back end's test, which takes one, is another)."""
+        return error <= self.tol or stalls >= FLOOR_STALLS or stalls > 0 and error >= last
 
     # -- results ------------------------------------------------------------------------
     def equilibrium(self, point: ArcPoint, stats: SolverStats | None = None) -> Equilibrium:
