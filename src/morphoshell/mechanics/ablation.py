@@ -420,8 +420,8 @@ def _warn_if_coarse(ab: Ablation) -> None:
     first, and the next finer mesh.  It says "may": the estimates bound the errors, about
     30 times them on a resolved mesh but up to 800 times where the half and quarter meshes
     are not yet in the asymptotic range (a fitted shell's energy_released on 100 nodes,
-    0.1 % off, estimated at 0.88 of its value: docs/observables.md), and no estimate made
-    from those levels is tighter and still a bound."""
+    0.1 % off, estimated at 0.88 of its value: docs/observables.md); extrapolating with
+    the order the levels show, the tighter estimate tried, fell short of the error."""
     if ab.error_note:
         return
     rel = ab.relative_errors()
