@@ -118,18 +118,39 @@ THIN = Problem("uniform", {"k": 0.0}, h=1e-5, cut=0.5)
 
 @pytest.mark.parametrize("problem", [THIN, Problem("uniform", {"k": 0.0}, h=1e-5)],
                          ids=["cut", "closed"])
-def test_a_direct_failure_on_a_shell_too_thin_for_it_names_h_and_bvp(problem):
+def test_a_direct_failure_on_a_shell_too_thin_for_it_names_h_and_bvp(problem, caplog):
     """h = 1e-5 is a valid Problem (MIN_THICKNESS = 1e-6; the BVP route solves it) but the
     direct route failed on it with Restoration_Failed, Continuation_Failed or
     Error_In_Step_Computation on every mesh and option, naming only the mesh (user
     audit).  The failure keeps its status and now names h, the thinnest shell the route
-    solves from its default start and the route that solves it.  (Not refused up front:
-    100 nodes refined by rtol solve a classical h = 1e-6 shell, test_right_minimum.)"""
+    solves from its default start and the route that solves it: first, once, before the
+    continuation's advice that does not apply (audit 21: it came last, after 800
+    characters), and solve() warns of it before it starts.  (Not refused up front: 100
+    nodes refined by rtol solve a classical h = 1e-6 shell, test_right_minimum.)"""
+    import logging
+
     from morphoshell import SolverError
-    with pytest.raises(SolverError) as exc:
+    with caplog.at_level(logging.WARNING, logger="morphoshell.solvers.routes"), \
+            pytest.raises(SolverError) as exc:
         solve(problem)
     assert exc.value.status in ("Restoration_Failed", "Continuation_Failed")
-    assert "(h = 1e-05) than 2e-05" in str(exc.value) and 'method="bvp"' in str(exc.value)
+    message = str(exc.value)
+    assert message.startswith("the shell is thinner (h = 1e-05) than 2e-05")
+    assert message.count('method="bvp"') == 1
+    [warned] = [r.getMessage() for r in caplog.records]
+    assert warned.startswith("solve of uniform: the shell is thinner (h = 1e-05) than 2e-05")
+
+
+def test_the_thin_shell_note_leads_a_message_once_and_leaves_others_alone():
+    """A direct solve's failure, already led by the note, quoted inside a continuation's:
+    the note is moved to the front, not repeated; a thick shell's message is unchanged."""
+    from morphoshell.solvers.options import thin_shell_first, thin_shell_note
+
+    inner = thin_shell_first(THIN, "Ipopt stopped")
+    outer = thin_shell_first(THIN, f"continuation stopped ({inner}); try a finer mesh")
+    assert outer.startswith(thin_shell_note(THIN)) and outer.count(thin_shell_note(THIN)) == 1
+    assert outer.endswith("continuation stopped (Ipopt stopped); try a finer mesh")
+    assert thin_shell_first(THIN.with_updates(h=2e-5), "Ipopt stopped") == "Ipopt stopped"
 
 
 def test_the_direct_solver_itself_names_it():
@@ -138,7 +159,8 @@ def test_the_direct_solver_itself_names_it():
     from morphoshell import SolverError
     from morphoshell.numerics.mesh import mesh_spec
     solver = DirectSolver(THIN.structure, mesh=mesh_spec(THIN, 200, 2))
-    with pytest.raises(SolverError, match=r'\(h = 1e-05\) than 2e-05.*method="bvp"'):
+    with pytest.raises(SolverError, match=r'^the shell is thinner \(h = 1e-05\) than 2e-05.*'
+                                          r'method="bvp"'):
         solver.solve(THIN)
 
 

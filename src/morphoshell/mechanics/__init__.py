@@ -9,7 +9,7 @@ import lazy_loader
 
 # Every public name of the subpackage, imported from its module on first use.
 __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
-    "ablation": ["Ablation", "ablate", "edge_state", "intact_problem", "recoil_jacobian",
+    "ablation": ["Ablation", "ablate", "ablation_of", "edge_state", "intact_problem", "recoil_jacobian",
                  "RecoilJacobian", "UNITS"],
     "asymptotics": ["f_shell_exact", "f_shell_asymptotic", "f_bulk_asymptotic", "k_star", "delta",
         "opening", "rotation", "displacement", "b_inner", "kelvin_k", "rotation_small_cut",

@@ -34,7 +34,8 @@ __all__ = ["Problem", "Params", "Structure", "BASE_KEYS", "MIN_SHELL_LENGTH", "M
 #: solvers' round-off relative to the stretching energy, and Ipopt fails (h = 1e-12:
 #: Restoration_Failed) or meets NaN (1e-40) instead of saying so.  The BVP route solves
 #: down to here; the direct route from its default start down to
-#: 2e-5 (:data:`morphoshell.solvers.options.MIN_DIRECT_THICKNESS`; a failure below says so).
+#: 2e-5 (:data:`morphoshell.solvers.options.MIN_DIRECT_THICKNESS`; below it solve() warns, and
+#: a failure says so first).
 MIN_THICKNESS = 1e-6
 
 #: Shortest shell L − P − Σ accepted (units of R): shorter shells bring the
@@ -134,7 +135,8 @@ class Problem:
         Relative thickness, in [:data:`MIN_THICKNESS`, 1) = [1e-6, 1), which
         ``method="bvp"`` solves.  The direct route (the default) solves h ≥ 2e-5
         (:data:`~morphoshell.solvers.options.MIN_DIRECT_THICKNESS`) from its default
-        start; its failures on thinner shells name h and ``method="bvp"``.
+        start; on thinner shells ``solve()`` warns before it starts, and its failures
+        begin with h and ``method="bvp"``.
     cut : float
         Σ, arclength of the ablation around the pole s = 0: 0 (a pole) or at
         least :data:`MIN_CUT` = 1e-4 (smaller cuts fail in the solvers).

@@ -26,7 +26,7 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "options": ["check_problem", "check_guess", "check_direct_options", "check_bvp_options",
         "check_shooting_options", "MAX_DIRECT_TOL", "REFERENCE_TOL", "ATOL", "RTOL",
         "POLE_OFFSET", "STABILITY", "INTEGRATORS", "MIN_DIRECT_THICKNESS",
-        "thin_shell_note"],
+        "thin_shell_note", "thin_shell_first"],
     "parametric": ["Parametric", "Sensitivities", "SolutionDerivative", "parametric"],
     "refinement": ["solve_from", "estimate", "level_errors", "derived_errors", "refine",
         "refine_once", "half_mesh", "SAFETY", "COARSE"],

@@ -29,7 +29,7 @@ from ..numerics.ipopt import IpoptBackend
 from ..numerics.mesh import MeshSpec, pole_exponent
 from ..numerics.newton import NewtonBackend
 from ..numerics.status import MERIDIAN_CROSSES_AXIS, NOT_A_MINIMUM, explain
-from .options import DIRECT_TOL, check_direct_options, thin_shell_note
+from .options import DIRECT_TOL, check_direct_options, thin_shell_first
 from .poles import weakly_singular
 from .results import (FIELDS, Equilibrium, NotAMinimumError, Quadrature, SolverError, SolverStats,
                       unconverged)
@@ -313,8 +313,8 @@ class DirectSolver:
                             self.build_seconds, res.details)
         eq = self.equilibrium(problem, res.x, res.lam_g, p, q, D, stats, converged=res.converged)
         if not res.converged:
-            raise SolverError(self.backend.failure_message(problem.name or problem.family, res)
-                              + thin_shell_note(problem), res.status, eq)
+            raise SolverError(thin_shell_first(problem, self.backend.failure_message(
+                problem.name or problem.family, res)), res.status, eq)
         crossing = self._axis_crossing(eq)
         if crossing is not None:
             raise SolverError(

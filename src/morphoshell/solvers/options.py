@@ -28,7 +28,7 @@ from .results import Equilibrium
 __all__ = ["check_problem", "check_guess", "check_anchors", "check_direct_options", "check_bvp_options",
            "check_shooting_options", "MAX_DIRECT_TOL", "REFERENCE_TOL", "ATOL", "RTOL",
            "POLE_OFFSET", "STABILITY", "INTEGRATORS", "MIN_DIRECT_THICKNESS", "DIRECT_TOL",
-           "thin_shell_note", "BVP_ADVICE"]
+           "thin_shell_note", "thin_shell_first", "BVP_ADVICE"]
 
 #: Default ``tol`` of the direct route (Ipopt's and Newton's, at 800 points).
 DIRECT_TOL = 1e-10
@@ -48,8 +48,8 @@ POLE_OFFSET = (1e-6, 0.1)
 #: meshes of 200 nodes and up, from continuation and cold (uniform k = 0, cut 0.5 and
 #: closed: 2e-5 solved at 200, 800 and 1600 nodes, with rtol and cold; 1.5e-5 failed
 #: closed at 800 nodes; 1e-5 on every mesh), while 100 nodes refined by warm starts
-#: (rtol) still solve a classical shell at 1e-6.  A failure below it says so
-#: (:func:`thin_shell_note`).  The BVP route solves down to
+#: (rtol) still solve a classical shell at 1e-6.  ``solve()`` warns before it starts, and
+#: a failure below it says so first (:func:`thin_shell_note`, :func:`thin_shell_first`).  The BVP route solves down to
 #: :data:`~morphoshell.model.problem.MIN_THICKNESS`.
 MIN_DIRECT_THICKNESS = 2e-5
 #: How the direct route certifies a minimum (:class:`morphoshell.numerics.ipopt.IpoptBackend`).
@@ -71,15 +71,29 @@ BVP_ADVICE = 'method="bvp" (--method bvp)'
 
 
 def thin_shell_note(problem: Problem) -> str:
-    """What to add to a direct failure on a shell thinner than :data:`MIN_DIRECT_THICKNESS`
-    ("" otherwise): the route's limit and the route that solves it.  Not a refusal: a
+    """Why a direct solve of a shell thinner than :data:`MIN_DIRECT_THICKNESS` is likely
+    to fail, and the route that solves it ("" for thicker shells).  Not a refusal: a
     coarse mesh refined by warm starts (``nodes=100, rtol=1e-3``) solves a classical
     shell at h = 1e-6 (tests/solvers/test_right_minimum.py)."""
     if problem.h >= MIN_DIRECT_THICKNESS:
         return ""
-    return (f"; the shell is thinner (h = {problem.h:g}) than {MIN_DIRECT_THICKNESS:g}, below "
+    return (f"the shell is thinner (h = {problem.h:g}) than {MIN_DIRECT_THICKNESS:g}, below "
             f"which the direct route fails on most meshes (stretching outweighs bending by "
             f"1/h^2): {BVP_ADVICE} solves shells down to h = 1e-6")
+
+
+def thin_shell_first(problem: Problem, message: str) -> str:
+    """A direct failure's ``message`` led by :func:`thin_shell_note` (once), for a shell
+    thinner than :data:`MIN_DIRECT_THICKNESS`; ``message`` itself otherwise.  The note,
+    known before any work, is the advice that applies: it came last, after 800
+    characters of a continuation's advice (finer mesh, smaller steps) that does not
+    (audit 21).  A note already inside ``message`` (a direct solve's failure that a
+    continuation quotes) is moved, not repeated."""
+    note = thin_shell_note(problem)
+    if not note:
+        return message
+    lead = f"{note}. The direct route's failure: "
+    return lead + message.replace(lead, "")
 
 
 def check_guess(guess: Any, name: str = "warm_start") -> None:

@@ -30,7 +30,8 @@ from .arclength import Arclength
 from .contact import warn_if_walls_overlap
 from .continuation import continue_to, left_branch
 from .direct import BUILDS, MAX_NODES, DirectSolver, check_nodes
-from .options import DIRECT_TOL, check_anchors, check_guess, check_problem, thin_shell_note
+from .options import (DIRECT_TOL, check_anchors, check_guess, check_problem, thin_shell_first,
+                      thin_shell_note)
 from .paths import ParameterLine
 from .refinement import half_mesh, refine, solve_from
 from .results import Equilibrium, NotAMinimumError, SolverError, SolverStats, unconverged
@@ -234,14 +235,18 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
                          f"estimate compares solutions converged to the solver's own "
                          f"tolerance, 1e-10")
     max_nodes = check_nodes(options.pop("max_nodes", MAX_NODES))
+    if thin_shell_note(problem):
+        # (known before any work, which can take 20 s of retries before it fails)
+        log.warning("solve of %s: %s; trying the direct route all the same", problem.name
+                    or problem.family, thin_shell_note(problem))
     try:
         return _direct(problem, nodes, warm_start, anchors, continuation, rtol, max_nodes,
                        options)
     except SolverError as exc:
-        note = thin_shell_note(problem)
-        if not note or note in str(exc) or isinstance(exc, NotAMinimumError):
+        first = thin_shell_first(problem, str(exc))
+        if first == str(exc) or isinstance(exc, NotAMinimumError):
             raise
-        raise SolverError(f"{exc}{note}", exc.status, exc.last_iterate) from exc
+        raise SolverError(first, exc.status, exc.last_iterate) from exc
 
 
 def _direct(problem, nodes, warm_start, anchors, continuation, rtol, max_nodes,
