@@ -12,9 +12,12 @@ verdict: ``morphoshell fit``'s last line and JSON, and every campaign record, ho
 """
 from __future__ import annotations
 
+from pathlib import PurePath
+
 import numpy as np
 
-from .spec import FitSpec
+from .._runtime.validate import short
+from .spec import FitSpec, check_spec
 
 __all__ = ["check_midline", "intrinsic_lengths", "as_points", "LENGTH_SLACK", "MAX_TURN",
            "TURN_LENGTH", "POLE_SLACK", "MAX_MEAN_STRETCH", "POLE_ANGLE", "POLE_ARC",
@@ -142,11 +145,11 @@ def check_midline(spec: FitSpec, data, name: str = "the data midline", *,
     ------
     ValueError
         Naming what is wrong and what to check.
+    TypeError
+        ``spec`` is not a :class:`FitSpec`, or ``data`` not points (:func:`as_points`).
     """
-    try:
-        points = as_points(data)
-    except ValueError as exc:
-        raise ValueError(f"{name}: {exc}") from None
+    check_spec(spec)
+    points = as_points(data, name)
     off = float(np.hypot(*points[0]))
     if spec.base.cut == 0 and off > POLE_SLACK:
         raise ValueError(
@@ -218,7 +221,7 @@ def _check_pole_tangent(spec: FitSpec, pole: np.ndarray, step: np.ndarray, seg: 
             f"swapped?")
 
 
-def as_points(data) -> np.ndarray:
+def as_points(data, name: str = "data") -> np.ndarray:
     """The points (r, z) of a midline, checked.
 
     Parameters
@@ -226,6 +229,8 @@ def as_points(data) -> np.ndarray:
     data : array_like, shape (N, 2), or Midline
         Points (r, z), or anything with arrays ``r`` and ``z`` (a
         :class:`morphoshell.io.traces.Midline`).
+    name : str
+        What the messages call ``data``.
 
     Returns
     -------
@@ -234,15 +239,31 @@ def as_points(data) -> np.ndarray:
 
     Raises
     ------
+    TypeError
+        ``data`` is a file's path (read it with
+        :func:`morphoshell.io.midlines.load_midline`) or not numbers.
     ValueError
-        Unless N >= 3 and every coordinate is finite.
+        Unless N >= 3 and every coordinate is finite (the first point that
+        is not is named, counting from 0).
     """
+    if isinstance(data, (str, bytes, PurePath)):
+        raise TypeError(f"{name} = {short(data)} must be a Midline or (N, 2) points (r, z), not a "
+                        f"path: read a file with morphoshell.io.load_midline")
     if hasattr(data, "r") and hasattr(data, "z"):
         data = np.column_stack([data.r, data.z])
-    data = np.asarray(data, dtype=float)
-    if data.ndim != 2 or data.shape[1] != 2 or len(data) < 3 or not np.all(np.isfinite(data)):
-        raise ValueError(f"the data must be N >= 3 finite points (r, z), got shape {data.shape}")
-    return data
+    try:
+        points = np.asarray(data, dtype=float)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} = {short(data)} must be a Midline or (N, 2) points (r, z)") \
+            from None
+    if points.ndim != 2 or points.shape[1] != 2 or len(points) < 3:
+        raise ValueError(f"{name} must be N >= 3 points (r, z), got shape {points.shape}")
+    bad = np.flatnonzero(~np.all(np.isfinite(points), axis=1))
+    if len(bad):
+        i = int(bad[0])
+        raise ValueError(f"{name}: point {i} (r, z) = ({points[i, 0]:.6g}, {points[i, 1]:.6g}) "
+                         f"is not finite" + (f" ({len(bad)} points are not)" * (len(bad) > 1)))
+    return points
 
 
 def far_above(E_fit: float) -> str:
