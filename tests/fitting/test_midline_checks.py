@@ -133,3 +133,16 @@ def test_a_point_that_is_not_finite_is_named():
                                          r"\(2, 2\)$"):
         fit(spec, data[:2], nodes=NODES)
 
+
+def test_a_midline_far_too_short_is_refused_for_its_scale_before_its_shape():
+    """A trace read at a tenth of its scale (an audit: radius_um 10 times too large) is 0.26 R
+    long and its pixel noise turns it back on itself: the fit named that, not the scale.  Too
+    short comes first; too long after the turns (a retraced line is long too: above)."""
+    spec = volvox_spec("free", START)
+    short = 0.25 * synthetic_midline(TRUE, spec.base, nodes=NODES)
+    hairpin = np.vstack([short, short[::-1][1:6] + [0.0, 0.002]])    # (back along itself)
+    with pytest.raises(ValueError, match=r"^the data midline is 0\.7\d+ R long, 4× shorter than "
+                                         r"the undeformed shell"):
+        check_midline(spec, hairpin)
+    with pytest.raises(ValueError, match="turns back on itself"):
+        check_midline(spec, 4 * hairpin)         # (at the right scale it is the shape)

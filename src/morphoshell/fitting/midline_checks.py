@@ -120,14 +120,15 @@ def check_midline(spec: FitSpec, data, name: str = "the data midline", *,
 
     In this order: it does not start at the posterior pole of an intact shell
     (further than :data:`POLE_SLACK` from the origin of the model gauge:
-    listed rim first?); it turns back on itself (more than :data:`MAX_TURN`
-    within :data:`TURN_LENGTH`: a retraced line); its polygon length lies
-    outside :func:`intrinsic_lengths` by more than :data:`LENGTH_SLACK`
-    either way, or its mean stretch (length over the undeformed shell's)
-    beyond :data:`MAX_MEAN_STRETCH` either way (the wrong units or scale:
-    the message gives the factor); it leaves the pole of an intact shell
-    along the axis rather than across it (:data:`POLE_ANGLE`: columns r and
-    z swapped?).
+    listed rim first?); it is too short (below); it turns back on itself
+    (more than :data:`MAX_TURN` within :data:`TURN_LENGTH`: a retraced line,
+    or the noise of a trace far too short); it is too long: its polygon
+    length lies outside :func:`intrinsic_lengths` by more than
+    :data:`LENGTH_SLACK`, or its mean stretch (length over the undeformed
+    shell's) beyond :data:`MAX_MEAN_STRETCH` (the wrong units or scale: the
+    message gives the factor); it leaves the pole of an intact shell along
+    the axis rather than across it (:data:`POLE_ANGLE`: columns r and z
+    swapped?).
 
     Parameters
     ----------
@@ -159,6 +160,10 @@ def check_midline(spec: FitSpec, data, name: str = "the data midline", *,
     step = np.diff(points, axis=0)
     step = step[np.any(step != 0, axis=1)]       # (a repeated point has no direction)
     seg = np.hypot(*step.T)
+    # a midline too short is refused for its scale before its shape: the noise of a trace
+    # read at a tenth of its scale turns it back on itself (an audit's 0.26 R trace, by 200
+    # degrees); one too long after it, since retracing a line lengthens it
+    _check_length(spec, float(seg.sum()), name, scale_hint, longer=False)
     _check_turns(step, seg, name)
     _check_length(spec, float(seg.sum()), name, scale_hint)
     if spec.base.cut == 0:
@@ -180,8 +185,10 @@ def _check_turns(step: np.ndarray, seg: np.ndarray, name: str) -> None:
                 f"line that retraces its way?")
 
 
-def _check_length(spec: FitSpec, length: float, name: str, hint: str) -> None:
-    """Refuse a Volvox midline too long or short for the stretches and scale (module constants).
+def _check_length(spec: FitSpec, length: float, name: str, hint: str, longer: bool = True
+                  ) -> None:
+    """Refuse a Volvox midline too long or short for the stretches and scale (module constants;
+    only too short without ``longer``).
 
     The factor named is the length over the undeformed shell's, the mean
     stretch: about 1 at the right scale, so about the factor the scale is off.
@@ -193,7 +200,7 @@ def _check_length(spec: FitSpec, length: float, name: str, hint: str) -> None:
     undeformed = spec.base.end - spec.base.cut
     lo = max(shortest / LENGTH_SLACK, undeformed / MAX_MEAN_STRETCH)
     hi = min(longest * LENGTH_SLACK, undeformed * MAX_MEAN_STRETCH)
-    if lo <= length <= hi:
+    if lo <= length and (length <= hi or not longer):
         return
     factor = length / undeformed
     ratio = f"{factor:.2g}× longer" if factor > 1 else f"{1 / factor:.2g}× shorter"
