@@ -609,3 +609,19 @@ def test_a_trace_far_too_short_for_its_scale_is_refused_whatever_its_shape():
     four = ml.load_midline(EMBRYO, **{**wrong, "radius_um": 4 * EMBRYO_SCALE["radius_um"]})
     assert np.hypot(*np.diff(four.points, axis=0).T).sum() == pytest.approx(0.65, abs=0.03)
 
+
+@pytest.mark.parametrize("call", [ml.average, ml.trace_distances])
+def test_what_is_not_a_list_of_midlines_is_refused_naming_it(call, tmp_path):
+    """A user audit: arrays or paths raised "'numpy.ndarray' object has no attribute 'r'"."""
+    m = ml.load_midline(EMBRYO, **EMBRYO_SCALE)
+    what = call.__name__
+    with pytest.raises(TypeError, match=rf"^{what}: midlines\[1\] = array\(\[\[ ?0\..* must be "
+                                        rf"a Midline, not ndarray \(load_midline\(path\)"):
+        call([m, m.points])
+    with pytest.raises(TypeError, match=rf"^{what}: midlines\[0\] = 'a\.csv' must be a Midline, "
+                                        rf"not str"):
+        call(["a.csv", "b.csv"])
+    for one in (m, "a.csv", tmp_path):
+        with pytest.raises(TypeError, match=rf"^{what}: midlines = .* must be a sequence of "
+                                            rf"Midline objects, not one"):
+            call(one)

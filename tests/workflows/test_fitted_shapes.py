@@ -5,6 +5,8 @@ post-ablation shell, walls 0.003 R apart against a thickness of 0.13 R, unwarned
 import logging
 from pathlib import Path
 
+import pytest
+
 from morphoshell.io.problem_files import example_path, load_problem
 from morphoshell.workflows import numerical_ablation
 
@@ -39,3 +41,9 @@ def test_an_ordinary_ablation_has_no_contact_and_no_warning(caplog):
         num = numerical_ablation(problem, 0.3, nodes=NODES)
     assert num.contacts == {"pre": None, "post": None} and not num.walls_cross
     assert not _contact_warnings(caplog)
+
+
+def test_what_is_not_a_problem_is_refused_naming_it():
+    """A user audit: numerical_ablation("x") raised "'str' object has no attribute 'end'"."""
+    with pytest.raises(TypeError, match=r"^problem = 'x' must be a morphoshell Problem"):
+        numerical_ablation("x", cut=0.1)

@@ -116,6 +116,7 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
+from .._runtime.validate import short
 from .roi_sets import is_roi_set, read_set_traces
 from .trace_checks import (MidlineError, asymmetry_warning, bridged_gap, check_axis, check_choice,
                            check_not_short, check_positive, check_scale)
@@ -731,8 +732,10 @@ def average(midlines: Sequence[Midline]) -> Midline:
     MidlineError
         No midlines, different numbers of points, or an input that is
         itself an average.
+    TypeError
+        ``midlines`` is not a sequence of Midline objects (of arrays, of paths).
     """
-    midlines = list(midlines)
+    midlines = _midlines("average", midlines)
     if not midlines:
         raise MidlineError("average: no midlines given")
     sizes = sorted({len(m.r) for m in midlines})
@@ -774,7 +777,22 @@ def trace_distances(midlines: Sequence[Midline]) -> np.ndarray:
         |p_k,i − median_j p_j,i| for trace k at point i; their rms over i
         (the square root of the mean of the squares) is the trace's summary.
     """
-    points = np.stack([m.points for m in midlines])            # (traces, N, 2)
+    points = np.stack([m.points for m in _midlines("trace_distances", midlines)])
     if len(points) < 2:
         raise MidlineError(f"trace_distances: {len(points)} midline; it needs at least 2")
     return np.hypot(*np.moveaxis(points - np.median(points, axis=0), 2, 0))
+
+
+def _midlines(what: str, midlines) -> list[Midline]:
+    """``midlines`` as a list, or TypeError naming the first that is not a Midline (arrays and
+    paths raised "no attribute 'r'")."""
+    if isinstance(midlines, (Midline, str, Path)):
+        raise TypeError(f"{what}: midlines = {short(midlines)} must be a sequence of Midline "
+                        f"objects, not one {type(midlines).__name__} (load_midlines(path) reads "
+                        f"a file's)")
+    listed = list(midlines)
+    for i, m in enumerate(listed):
+        if not isinstance(m, Midline):
+            raise TypeError(f"{what}: midlines[{i}] = {short(m)} must be a Midline, not "
+                            f"{type(m).__name__} (load_midline(path) reads a file's)")
+    return listed
