@@ -1,9 +1,11 @@
 """Midlines that cannot be the model's are refused before any work (fitting.midline_checks)."""
+import re
+
 import numpy as np
 import pytest
 
-from morphoshell.fitting import (check_midline, fit, intrinsic_lengths, synthetic_midline,
-                                 volvox_spec)
+from morphoshell.fitting import (check_midline, fit, intrinsic_lengths, multi_start_fit,
+                                 profiled_fit, synthetic_midline, volvox_spec)
 
 from fitting_cases import NODES, START, TRUE
 
@@ -93,3 +95,54 @@ def test_a_midline_with_its_columns_swapped_is_refused_before_any_work():
     for m in midlines[::6]:
         with pytest.raises(ValueError, match="swapped"):
             check_midline(spec, m.points[:, ::-1])
+
+
+def test_what_is_not_a_spec_a_start_or_points_is_refused_naming_the_argument(tmp_path):
+    """A user audit: a Problem for the spec, start=3 and a file's path for the data raised
+    "'Problem' object has no attribute 'base'", "'int' object has no attribute 'x'" and
+    "could not convert string to float"."""
+    spec = volvox_spec("free", START)
+    data = synthetic_midline(TRUE, spec.base, nodes=NODES)
+    with pytest.raises(TypeError, match=r"^spec = Problem\(family='volvox'.* must be a FitSpec, "
+                                        r"e\.g\. volvox_spec\('free', problem\), not Problem$"):
+        fit(START, data, nodes=NODES)
+    with pytest.raises(TypeError, match=r"^start = 3 must be an Equilibrium"):
+        fit(spec, data, nodes=NODES, start=3)
+    path = str(tmp_path / "trace.csv")
+    with pytest.raises(TypeError, match=rf"^data = '{re.escape(path)}' must be a Midline or "
+                                        r"\(N, 2\) points \(r, z\), not a path: read a file "
+                                        r"with morphoshell\.io\.load_midline$"):
+        fit(spec, path, nodes=NODES)
+    with pytest.raises(TypeError, match=r"^data = \[\['a', 'b'\]\] must be a Midline or"):
+        fit(spec, [["a", "b"]], nodes=NODES)
+    for call in (multi_start_fit, profiled_fit):
+        with pytest.raises(TypeError, match=r"^spec = Problem\(.* must be a FitSpec"):
+            call(START, data, nodes=NODES)
+
+
+def test_a_point_that_is_not_finite_is_named():
+    """It said "got shape (100, 2)", a shape that was right."""
+    spec = volvox_spec("free", START)
+    data = synthetic_midline(TRUE, spec.base, nodes=NODES).copy()
+    data[3, 0], data[7, 1] = np.nan, np.inf
+    with pytest.raises(ValueError, match=rf"^data: point 3 \(r, z\) = \(nan, "
+                                         rf"{data[3, 1]:.6g}\) is not finite \(2 points are "
+                                         rf"not\)$"):
+        fit(spec, data, nodes=NODES)
+    with pytest.raises(ValueError, match=r"^data must be N >= 3 points \(r, z\), got shape "
+                                         r"\(2, 2\)$"):
+        fit(spec, data[:2], nodes=NODES)
+
+
+def test_a_midline_far_too_short_is_refused_for_its_scale_before_its_shape():
+    """A trace read at a tenth of its scale (an audit: radius_um 10 times too large) is 0.26 R
+    long and its pixel noise turns it back on itself: the fit named that, not the scale.  Too
+    short comes first; too long after the turns (a retraced line is long too: above)."""
+    spec = volvox_spec("free", START)
+    short = 0.25 * synthetic_midline(TRUE, spec.base, nodes=NODES)
+    hairpin = np.vstack([short, short[::-1][1:6] + [0.0, 0.002]])    # (back along itself)
+    with pytest.raises(ValueError, match=r"^the data midline is 0\.7\d+ R long, 4× shorter than "
+                                         r"the undeformed shell"):
+        check_midline(spec, hairpin)
+    with pytest.raises(ValueError, match="turns back on itself"):
+        check_midline(spec, 4 * hairpin)         # (at the right scale it is the shape)

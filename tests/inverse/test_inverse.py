@@ -380,3 +380,18 @@ def test_a_run_without_numerical_estimates_shows_only_the_methods_run():
     assert next(line for line in text.splitlines() if "S01" in line).split()[3:] == [
         "null", "-0.119", "+0.041"]                      # (no k_combined column of nulls)
     assert "k_combined" not in text
+
+
+def test_methods_may_be_one_string_of_names():
+    """A user audit: methods="kelvin" was split into letters ("unknown method(s) ['e', 'i',
+    ..."); one name, or names separated by commas, as campaign's embryo_errors takes them."""
+    rows = [_measurement({"opening": A.opening(H, 0.3, SIGMA)})]
+    for methods, ran in (("kelvin", ["kelvin"]), ("kelvin, inner", ["kelvin", "inner"])):
+        result = I.estimate(rows, methods=methods, bootstrap=0, workers=1)
+        assert result.settings["methods"] == ran
+        assert "k_opening_kelvin" in result.embryos[0].to_dict()
+        assert ("k_opening_inner" in result.embryos[0].to_dict()) == ("inner" in ran)
+    with pytest.raises(ValueError, match=r"^methods = 'kelvn': unknown method\(s\) \['kelvn'\]; "
+                                         r"valid: \['leading_order', 'kelvin', 'inner', "
+                                         r"'numerical'\]$"):
+        I.estimate(rows, methods="kelvn")

@@ -594,3 +594,34 @@ def test_a_half_section_says_which_end_was_taken_as_the_pole(tmp_path, caplog):
                      rf"pole \(the midline does not cross the axis from it, and the ends cannot "
                      rf"be told apart by shape: one listed rim first is read upside down\): "
                      rf"fitted to its \d+ points", text), text
+
+
+def test_a_trace_far_too_short_for_its_scale_is_refused_whatever_its_shape():
+    """A user audit: the radius R 10 times too large gave a 0.26 R midline that passed the
+    shape's tests (the 10 times too long one was refused for its scale), and a fit then said
+    it turned back on itself.  4 times too short loads: the fit names its factor."""
+    wrong = {**EMBRYO_SCALE, "radius_um": 10 * EMBRYO_SCALE["radius_um"]}
+    with pytest.raises(MidlineError, match=rf"^{re.escape(str(EMBRYO))}: its halves are 0\.25\d "
+                                           r"R long, where a midline's half is about 2-4 R \(too "
+                                           r"short for any shell of the model\): check the pixel "
+                                           r"size and the radius R$"):
+        ml.load_midline(EMBRYO, **wrong)
+    four = ml.load_midline(EMBRYO, **{**wrong, "radius_um": 4 * EMBRYO_SCALE["radius_um"]})
+    assert np.hypot(*np.diff(four.points, axis=0).T).sum() == pytest.approx(0.65, abs=0.03)
+
+
+@pytest.mark.parametrize("call", [ml.average, ml.trace_distances])
+def test_what_is_not_a_list_of_midlines_is_refused_naming_it(call, tmp_path):
+    """A user audit: arrays or paths raised "'numpy.ndarray' object has no attribute 'r'"."""
+    m = ml.load_midline(EMBRYO, **EMBRYO_SCALE)
+    what = call.__name__
+    with pytest.raises(TypeError, match=rf"^{what}: midlines\[1\] = array\(\[\[ ?0\..* must be "
+                                        rf"a Midline, not ndarray \(load_midline\(path\)"):
+        call([m, m.points])
+    with pytest.raises(TypeError, match=rf"^{what}: midlines\[0\] = 'a\.csv' must be a Midline, "
+                                        rf"not str"):
+        call(["a.csv", "b.csv"])
+    for one in (m, "a.csv", tmp_path):
+        with pytest.raises(TypeError, match=rf"^{what}: midlines = .* must be a sequence of "
+                                            rf"Midline objects, not one"):
+            call(one)

@@ -84,3 +84,9 @@ def test_a_numerical_ablation_from_a_carried_start_is_estimated_too(caplog):
     assert [eq.solver.nodes for eq in num.ablation.pre.error.levels] == [50, 25]
     assert max(num.ablation.relative_errors().values()) < 1e-4
     assert not _ablation_warnings(caplog)
+
+
+def test_what_is_not_a_problem_is_refused_naming_it():
+    """A user audit: numerical_ablation("x") raised "'str' object has no attribute 'end'"."""
+    with pytest.raises(TypeError, match=r"^problem = 'x' must be a morphoshell Problem"):
+        numerical_ablation("x", cut=0.1)

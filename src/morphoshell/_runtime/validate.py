@@ -2,11 +2,11 @@
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping, TypeVar
+from typing import Any, Mapping, Sequence, TypeVar
 
 import numpy as np
 
-__all__ = ["real", "lookup", "within", "integer", "flag"]
+__all__ = ["real", "lookup", "within", "integer", "flag", "short", "instance", "name_list"]
 
 T = TypeVar("T")
 
@@ -56,3 +56,27 @@ def lookup(registry: Mapping[str, T], name: str, what: str) -> T:
         return registry[name]
     except (KeyError, TypeError):
         raise ValueError(f"unknown {what} {name!r}; choose one of {sorted(registry)}") from None
+
+
+def short(value: Any) -> str:
+    """``repr(value)`` on one line, cut to 80 characters (a message names the value, not a
+    screenful of it: an array's repr spans lines)."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def instance(name: str, value: Any, kind: type | tuple[type, ...], what: str) -> Any:
+    """``value``, or TypeError naming it unless it is a ``kind``; ``what`` says what it must be
+    and where one comes from (an audit: ``fit(Problem(...), data)`` raised "'Problem' object
+    has no attribute 'base'" three calls deep)."""
+    if not isinstance(value, kind):
+        raise TypeError(f"{name} = {short(value)} must be {what}, not {type(value).__name__}")
+    return value
+
+
+def name_list(value: str | Sequence[str]) -> list[str]:
+    """A list of names from a sequence or a comma-separated string (as the command line's
+    options take them): a single string is not split into its letters."""
+    if isinstance(value, str):
+        return [v.strip() for v in value.split(",") if v.strip()]
+    return list(value)

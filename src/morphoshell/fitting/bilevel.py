@@ -121,6 +121,10 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
 
     Raises
     ------
+    TypeError
+        ``spec`` not a FitSpec, ``start`` not an Equilibrium, ``data`` not
+        points (a file's path: read it with
+        :func:`morphoshell.io.midlines.load_midline`), before any work.
     ValueError
         An option out of range, data that are not N >= 3 finite points, or
         a midline that does not start at the pole, turns back on itself or,

@@ -26,6 +26,7 @@ from ..numerics.mesh import mesh_spec
 from ..solvers.continuation import continue_between, continue_to
 from ..solvers.direct import DirectSolver, solver_of
 from ..solvers.observables import midline
+from ..solvers.options import check_guess
 from ..solvers.parametric import parametric
 from ..solvers.refinement import solve_from
 from ..solvers.results import Equilibrium, SolverError
@@ -158,6 +159,7 @@ class InnerProblem:
 
     def __init__(self, spec: FitSpec, data: np.ndarray, nodes: int,
                  start: Equilibrium | None = None, solver: DirectSolver | None = None):
+        check_guess(start, "start")     # (before the mesh is built; 3 raised "no attribute 'x'")
         self.spec, self.data, self.nodes = spec, np.asarray(data, dtype=float), nodes
         self.n = len(self.data)
         self.solves = 0

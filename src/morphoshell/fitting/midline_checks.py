@@ -12,9 +12,12 @@ verdict: ``morphoshell fit``'s last line and JSON, and every campaign record, ho
 """
 from __future__ import annotations
 
+from pathlib import PurePath
+
 import numpy as np
 
-from .spec import FitSpec
+from .._runtime.validate import short
+from .spec import FitSpec, check_spec
 
 __all__ = ["check_midline", "intrinsic_lengths", "as_points", "LENGTH_SLACK", "MAX_TURN",
            "TURN_LENGTH", "POLE_SLACK", "MAX_MEAN_STRETCH", "POLE_ANGLE", "POLE_ARC",
@@ -117,14 +120,15 @@ def check_midline(spec: FitSpec, data, name: str = "the data midline", *,
 
     In this order: it does not start at the posterior pole of an intact shell
     (further than :data:`POLE_SLACK` from the origin of the model gauge:
-    listed rim first?); it turns back on itself (more than :data:`MAX_TURN`
-    within :data:`TURN_LENGTH`: a retraced line); its polygon length lies
-    outside :func:`intrinsic_lengths` by more than :data:`LENGTH_SLACK`
-    either way, or its mean stretch (length over the undeformed shell's)
-    beyond :data:`MAX_MEAN_STRETCH` either way (the wrong units or scale:
-    the message gives the factor); it leaves the pole of an intact shell
-    along the axis rather than across it (:data:`POLE_ANGLE`: columns r and
-    z swapped?).
+    listed rim first?); it is too short (below); it turns back on itself
+    (more than :data:`MAX_TURN` within :data:`TURN_LENGTH`: a retraced line,
+    or the noise of a trace far too short); it is too long: its polygon
+    length lies outside :func:`intrinsic_lengths` by more than
+    :data:`LENGTH_SLACK`, or its mean stretch (length over the undeformed
+    shell's) beyond :data:`MAX_MEAN_STRETCH` (the wrong units or scale: the
+    message gives the factor); it leaves the pole of an intact shell along
+    the axis rather than across it (:data:`POLE_ANGLE`: columns r and z
+    swapped?).
 
     Parameters
     ----------
@@ -142,11 +146,11 @@ def check_midline(spec: FitSpec, data, name: str = "the data midline", *,
     ------
     ValueError
         Naming what is wrong and what to check.
+    TypeError
+        ``spec`` is not a :class:`FitSpec`, or ``data`` not points (:func:`as_points`).
     """
-    try:
-        points = as_points(data)
-    except ValueError as exc:
-        raise ValueError(f"{name}: {exc}") from None
+    check_spec(spec)
+    points = as_points(data, name)
     off = float(np.hypot(*points[0]))
     if spec.base.cut == 0 and off > POLE_SLACK:
         raise ValueError(
@@ -156,6 +160,10 @@ def check_midline(spec: FitSpec, data, name: str = "the data midline", *,
     step = np.diff(points, axis=0)
     step = step[np.any(step != 0, axis=1)]       # (a repeated point has no direction)
     seg = np.hypot(*step.T)
+    # a midline too short is refused for its scale before its shape: the noise of a trace
+    # read at a tenth of its scale turns it back on itself (an audit's 0.26 R trace, by 200
+    # degrees); one too long after it, since retracing a line lengthens it
+    _check_length(spec, float(seg.sum()), name, scale_hint, longer=False)
     _check_turns(step, seg, name)
     _check_length(spec, float(seg.sum()), name, scale_hint)
     if spec.base.cut == 0:
@@ -177,8 +185,10 @@ def _check_turns(step: np.ndarray, seg: np.ndarray, name: str) -> None:
                 f"line that retraces its way?")
 
 
-def _check_length(spec: FitSpec, length: float, name: str, hint: str) -> None:
-    """Refuse a Volvox midline too long or short for the stretches and scale (module constants).
+def _check_length(spec: FitSpec, length: float, name: str, hint: str, longer: bool = True
+                  ) -> None:
+    """Refuse a Volvox midline too long or short for the stretches and scale (module constants;
+    only too short without ``longer``).
 
     The factor named is the length over the undeformed shell's, the mean
     stretch: about 1 at the right scale, so about the factor the scale is off.
@@ -190,7 +200,7 @@ def _check_length(spec: FitSpec, length: float, name: str, hint: str) -> None:
     undeformed = spec.base.end - spec.base.cut
     lo = max(shortest / LENGTH_SLACK, undeformed / MAX_MEAN_STRETCH)
     hi = min(longest * LENGTH_SLACK, undeformed * MAX_MEAN_STRETCH)
-    if lo <= length <= hi:
+    if lo <= length and (length <= hi or not longer):
         return
     factor = length / undeformed
     ratio = f"{factor:.2g}× longer" if factor > 1 else f"{1 / factor:.2g}× shorter"
@@ -218,7 +228,7 @@ def _check_pole_tangent(spec: FitSpec, pole: np.ndarray, step: np.ndarray, seg: 
             f"swapped?")
 
 
-def as_points(data) -> np.ndarray:
+def as_points(data, name: str = "data") -> np.ndarray:
     """The points (r, z) of a midline, checked.
 
     Parameters
@@ -226,6 +236,8 @@ def as_points(data) -> np.ndarray:
     data : array_like, shape (N, 2), or Midline
         Points (r, z), or anything with arrays ``r`` and ``z`` (a
         :class:`morphoshell.io.traces.Midline`).
+    name : str
+        What the messages call ``data``.
 
     Returns
     -------
@@ -234,15 +246,31 @@ def as_points(data) -> np.ndarray:
 
     Raises
     ------
+    TypeError
+        ``data`` is a file's path (read it with
+        :func:`morphoshell.io.midlines.load_midline`) or not numbers.
     ValueError
-        Unless N >= 3 and every coordinate is finite.
+        Unless N >= 3 and every coordinate is finite (the first point that
+        is not is named, counting from 0).
     """
+    if isinstance(data, (str, bytes, PurePath)):
+        raise TypeError(f"{name} = {short(data)} must be a Midline or (N, 2) points (r, z), not a "
+                        f"path: read a file with morphoshell.io.load_midline")
     if hasattr(data, "r") and hasattr(data, "z"):
         data = np.column_stack([data.r, data.z])
-    data = np.asarray(data, dtype=float)
-    if data.ndim != 2 or data.shape[1] != 2 or len(data) < 3 or not np.all(np.isfinite(data)):
-        raise ValueError(f"the data must be N >= 3 finite points (r, z), got shape {data.shape}")
-    return data
+    try:
+        points = np.asarray(data, dtype=float)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} = {short(data)} must be a Midline or (N, 2) points (r, z)") \
+            from None
+    if points.ndim != 2 or points.shape[1] != 2 or len(points) < 3:
+        raise ValueError(f"{name} must be N >= 3 points (r, z), got shape {points.shape}")
+    bad = np.flatnonzero(~np.all(np.isfinite(points), axis=1))
+    if len(bad):
+        i = int(bad[0])
+        raise ValueError(f"{name}: point {i} (r, z) = ({points[i, 0]:.6g}, {points[i, 1]:.6g}) "
+                         f"is not finite" + (f" ({len(bad)} points are not)" * (len(bad) > 1)))
+    return points
 
 
 def far_above(E_fit: float) -> str:

@@ -23,7 +23,7 @@ from ..solvers.results import SolverError
 from .bilevel import METHODS, check_options, fit
 from .midline_checks import as_points, check_midline
 from .results import FitError, FitResult
-from .spec import BOUNDS, VARIANTS, VOLVOX_BREAKPOINTS, FitSpec, volvox_spec
+from .spec import BOUNDS, VARIANTS, VOLVOX_BREAKPOINTS, FitSpec, check_spec, volvox_spec
 
 __all__ = ["MULTI_STARTS", "FOLD_GAIN", "SAME_MINIMUM", "MultiStartFit", "multi_start_fit",
            "start_specs", "other_starts", "start_from", "continue_once",
@@ -194,7 +194,7 @@ def multi_start_fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int
     SolverError
         Every start's fit failed (the last one's error).
     """
-    if spec.variant not in VARIANTS or spec.base.family != "volvox":
+    if check_spec(spec).variant not in VARIANTS or spec.base.family != "volvox":
         raise ValueError(f"multi_start_fit needs a Volvox variant's spec (volvox_spec), "
                          f"got variant {spec.variant!r}")
     if method not in METHODS:

@@ -77,7 +77,7 @@ from .profile_noise import (NOISE_SOURCES, check_inflation, log_noise, noise_dof
 from .profile_retry import (Retry, crossing, needs_retry, not_monotone_note, retried,
                             settle_side, started_at)
 from .results import FitResult, fit_result
-from .spec import FitSpec
+from .spec import FitSpec, check_spec
 
 __all__ = ["Profile", "profile", "profile_intervals", "profiled_fit", "noise_variance",
            "traces_missing", "noise_dof", "threshold_quantile", "STOP_MARGIN", "JUMP_MARGIN",
@@ -648,7 +648,7 @@ def profiled_fit(spec: FitSpec, data, names: Sequence[str] | None = None, *,
     profiles : dict
         :class:`Profile` by name, in the order of ``names``.
     """
-    names = list(spec.fitted if names is None else names)
+    names = list(check_spec(spec).fitted if names is None else names)
     if nodes is None:
         nodes = (_nodes_of(result.equilibrium) if result is not None else None) or 200
     _check(spec, names, points, method, confidence, nodes, tol)

@@ -30,10 +30,12 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
+from .._runtime.validate import instance
 from ..model.problem import Problem
 
-__all__ = ["FitSpec", "SpecError", "volvox_spec", "breakpoint_bounds", "VARIANTS", "LABELS",
-           "BOUNDS", "EDGE_RTOL", "PUSH_SHARE", "VOLVOX_BREAKPOINTS", "BOUND_SLACK", "ROOM_RTOL"]
+__all__ = ["FitSpec", "SpecError", "volvox_spec", "check_spec", "breakpoint_bounds", "VARIANTS",
+           "LABELS", "BOUNDS", "EDGE_RTOL", "PUSH_SHARE", "VOLVOX_BREAKPOINTS", "BOUND_SLACK",
+           "ROOM_RTOL"]
 
 #: Hypotheses on the posterior intrinsic curvature κ₁ (see the module docstring).
 VARIANTS = ("flat", "undeformed", "unstressed", "free")
@@ -302,6 +304,13 @@ class FitSpec:
         return replace(self, base=self.problem(theta),
                        bounds={**self.bounds, **{n: b for n, b in zip(self.ordered, boxes)
                                                  if n in self.fitted}})
+
+
+def check_spec(spec) -> FitSpec:
+    """``spec``, or TypeError unless it is a :class:`FitSpec` (a Problem is what one is made
+    from, not one: ``fit(Problem(...), data)`` raised "'Problem' object has no attribute
+    'base'")."""
+    return instance("spec", spec, FitSpec, "a FitSpec, e.g. volvox_spec('free', problem)")
 
 
 def breakpoint_bounds(s: Sequence[float], sigma: float, end: float,

@@ -24,6 +24,7 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
+from .._runtime.validate import name_list
 from .._runtime.workers import worker_start
 from .._runtime.console import progress as _progress_bar
 from ..io.measurements import MEASURES, Measurement, read_measurements
@@ -55,11 +56,19 @@ def _load(measurements) -> tuple[Measurement, ...]:
     return data
 
 
-def _check_settings(methods, k_range, mu_min, bootstrap) -> tuple[float, float]:
-    """ValueError for an unknown method or a bad k-range, μ_min or bootstrap; the k-range."""
-    unknown = sorted(set(methods) - set(METHODS))
+def _check_methods(methods) -> tuple[str, ...]:
+    """The methods asked for (names, or one comma-separated string: "kelvin" is one method, not
+    six letters), or ValueError naming the unknown ones."""
+    asked = tuple(name_list(methods))
+    unknown = [m for m in asked if m not in METHODS]
     if unknown:
-        raise ValueError(f"unknown method(s) {unknown}; valid: {list(METHODS)}")
+        raise ValueError(f"methods = {methods!r}: unknown method(s) {unknown}; valid: "
+                         f"{list(METHODS)}")
+    return asked
+
+
+def _check_settings(k_range, mu_min, bootstrap) -> tuple[float, float]:
+    """ValueError for a bad k-range, μ_min or bootstrap; the k-range."""
     k_range = check_k_range(k_range)
     if not (isinstance(mu_min, (int, float)) and math.isfinite(mu_min) and mu_min > 0):
         raise ValueError(f"mu_min = {mu_min!r} must be a positive number (Pa s)")
@@ -179,7 +188,7 @@ def _velocity_fit(embryos: tuple[EmbryoEstimate, ...], data: tuple[Measurement, 
 def estimate(measurements: str | Path | Iterable[Measurement], *,
              theory: str = "large_bending", k_range: tuple[float, float] = DEFAULT_K_RANGE,
              mu_min: float = MU_MIN, bootstrap: int = BOOTSTRAP, seed: int = SEED,
-             nodes: int = NODES, methods: Sequence[str] = METHODS,
+             nodes: int = NODES, methods: Sequence[str] | str = METHODS,
              workers: int | None = None, progress: bool | None = None) -> InverseResult:
     """Estimate k for every embryo and measure, summarise, and fit E/μ.
 
@@ -200,9 +209,10 @@ def estimate(measurements: str | Path | Iterable[Measurement], *,
         Seed of the bootstrap.
     nodes : int
         Mesh nodes of the numerical model.
-    methods : sequence of str
+    methods : sequence of str, or str
         Subset of :data:`~morphoshell.inverse.inversion.METHODS` to compute
-        (the others are null).
+        (the others are null): names, or one string of comma-separated names
+        (``"kelvin"``, ``"kelvin,inner"``).
     workers : int, optional
         Processes sharing the embryos (default: one per core; 1: this one).
         The estimates do not depend on it.
@@ -228,7 +238,8 @@ def estimate(measurements: str | Path | Iterable[Measurement], *,
     """
     t0 = time.perf_counter()
     data = _load(measurements)
-    k_range = _check_settings(methods, k_range, mu_min, bootstrap)
+    methods = _check_methods(methods)
+    k_range = _check_settings(k_range, mu_min, bootstrap)
     check_shells(data, k_range)
     model = None
     if "numerical" in methods:

@@ -116,9 +116,10 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
+from .._runtime.validate import short
 from .roi_sets import is_roi_set, read_set_traces
 from .trace_checks import (MidlineError, asymmetry_warning, bridged_gap, check_axis, check_choice,
-                           check_positive, noise_hint)
+                           check_not_short, check_positive, check_scale)
 from .trace_noise import Binning, bin_noisy
 from .trace_outliers import OUTLIER_SIGMAS, find_outliers
 from .traces import Midline, Trace, read_trace
@@ -145,9 +146,6 @@ MIN_POINTS = {"whole": 15, "half": 8}
 #: refused when one standard error of the axis's direction moves the midline by more than
 #: _MAX_AXIS_ERROR rms (module docstring).
 _HALF_WINDOW, _HALF_POINTS, _MAX_AXIS_ERROR = 0.4, 6, 0.01
-#: Lengths (units of R) of a half midline beyond which a trace refused for its shape is refused
-#: for its scale instead: a Volvox midline's half is about 2-4 R (fitting.intrinsic_lengths).
-_HALF_LENGTHS = (1.0, 6.0)
 _GAUSS_X, _GAUSS_W = np.polynomial.legendre.leggauss(8)
 
 log = logging.getLogger(__name__)
@@ -305,7 +303,9 @@ def align(trace: Trace, section: str = "auto", *, flip: bool = False,
         differ by more than ``max_asymmetry``; a half section whose axis is
         uncertain (or with fewer than 6 points within 0.4 R of its pole);
         either named for its scale instead when its halves are far from a
-        midline's 2-4 R; a midline that crosses the axis (a half section:
+        midline's 2-4 R, and a midline far shorter refused for its scale
+        whatever its shape (:func:`~morphoshell.io.trace_checks.check_not_short`);
+        a midline that crosses the axis (a half section:
         from either end; from its first only, it is taken from its last,
         traced rim first).
     """
@@ -325,6 +325,7 @@ def align(trace: Trace, section: str = "auto", *, flip: bool = False,
         if len(trace.points) < binning.n:
             _check_count(trace, kind)
             binning = bin_noisy(trace.points)
+    check_not_short(trace.source, binning, 1 if kind == "half" else 2)
     warning = None
     if kind == "half":
         pole, e_r, e_z, points, axis_note = _half_section(trace, binning, flip)
@@ -333,7 +334,7 @@ def align(trace: Trace, section: str = "auto", *, flip: bool = False,
         pole, e_r, e_z, points, asymmetry = _whole(_Curve.through(binning.points),
                                                    len(binning.points), flip)
         if asymmetry > max_asymmetry:
-            _check_scale(trace, binning, 2, f"its halves differ by {asymmetry:.3g} R rms")
+            check_scale(trace.source, binning, 2, f"its halves differ by {asymmetry:.3g} R rms")
             raise MidlineError(f"{trace.source}: the halves of this whole section differ by "
                                f"{asymmetry:.3g} R rms from their mirror average (max_asymmetry = "
                                f"{max_asymmetry:g}): the pole is taken at half the trace's "
@@ -385,26 +386,6 @@ def _check_count(trace: Trace, kind: str) -> None:
                            f"{MIN_POINTS['whole']}): trace it with more points, one at every fold")
 
 
-def _check_scale(trace: Trace, binning: Binning, halves: int, also: str) -> None:
-    """Before refusing a trace for its shape: MidlineError naming the scale instead if its
-    halves are far longer or shorter than a Volvox midline's (about 2-4 R).
-
-    At a wrong scale the shape's tests mislead (points of a trace 10 times too large lie
-    0.1 R apart, too sparse to bin, and their noise makes the halves differ); a fit names a
-    scale 1.5-2 times off precisely (``fitting.check_midline``), after alignment.  The length
-    is that of the binned points: noise larger than the point spacing lengthens the raw
-    polyline (0.3 px of noise at 0.19 px spacing tripled a 2.9 R half to 8.3 R), and where
-    the bins leave such noise the message names it rather than the scale.
-    """
-    half = float(np.sum(np.hypot(*np.diff(binning.points, axis=0).T))) / halves
-    if not _HALF_LENGTHS[0] <= half <= _HALF_LENGTHS[1]:
-        k = binning.k
-        noise = noise_hint(binning.sigma / math.sqrt(k), k * binning.spacing, "R")
-        raise MidlineError(f"{trace.source}: {'its halves are' if halves == 2 else 'it is'} "
-                           f"{half:.3g} R long, where a midline's half is about 2-4 R ({also})"
-                           + (noise or ": check the pixel size and the radius R"))
-
-
 def _half_section(trace: Trace, binning: Binning, flip: bool):
     """Pole, e_r, e_z, the points in the model gauge and a note (the end taken as the pole) of a
     half section, taken from its last point if it was traced rim first.
@@ -444,7 +425,7 @@ def _half_checked(trace: Trace, binning: Binning, flip: bool):
     try:
         pole, e_r, e_z, points, axis_note = _half(trace.source, binning, flip)
     except MidlineError as exc:
-        _check_scale(trace, binning, 1, "its axis is uncertain")
+        check_scale(trace.source, binning, 1, "its axis is uncertain")
         raise exc from None
     where = trace.where if binning.k == 1 else [
         f"point {k + 1} after binning" for k in range(len(points))]
@@ -751,8 +732,10 @@ def average(midlines: Sequence[Midline]) -> Midline:
     MidlineError
         No midlines, different numbers of points, or an input that is
         itself an average.
+    TypeError
+        ``midlines`` is not a sequence of Midline objects (of arrays, of paths).
     """
-    midlines = list(midlines)
+    midlines = _midlines("average", midlines)
     if not midlines:
         raise MidlineError("average: no midlines given")
     sizes = sorted({len(m.r) for m in midlines})
@@ -794,7 +777,22 @@ def trace_distances(midlines: Sequence[Midline]) -> np.ndarray:
         |p_k,i − median_j p_j,i| for trace k at point i; their rms over i
         (the square root of the mean of the squares) is the trace's summary.
     """
-    points = np.stack([m.points for m in midlines])            # (traces, N, 2)
+    points = np.stack([m.points for m in _midlines("trace_distances", midlines)])
     if len(points) < 2:
         raise MidlineError(f"trace_distances: {len(points)} midline; it needs at least 2")
     return np.hypot(*np.moveaxis(points - np.median(points, axis=0), 2, 0))
+
+
+def _midlines(what: str, midlines) -> list[Midline]:
+    """``midlines`` as a list, or TypeError naming the first that is not a Midline (arrays and
+    paths raised "no attribute 'r'")."""
+    if isinstance(midlines, (Midline, str, Path)):
+        raise TypeError(f"{what}: midlines = {short(midlines)} must be a sequence of Midline "
+                        f"objects, not one {type(midlines).__name__} (load_midlines(path) reads "
+                        f"a file's)")
+    listed = list(midlines)
+    for i, m in enumerate(listed):
+        if not isinstance(m, Midline):
+            raise TypeError(f"{what}: midlines[{i}] = {short(m)} must be a Midline, not "
+                            f"{type(m).__name__} (load_midline(path) reads a file's)")
+    return listed

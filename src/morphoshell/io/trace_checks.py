@@ -21,7 +21,21 @@ from .._runtime.validate import real
 from .trace_noise import Binning, noise_estimate
 
 __all__ = ["MidlineError", "image_scale", "check_choice", "check_positive", "one_curve",
-           "check_extent", "check_axis", "noise_hint", "asymmetry_warning", "bridged_gap"]
+           "check_extent", "check_axis", "noise_hint", "asymmetry_warning", "bridged_gap",
+           "check_scale", "check_not_short", "HALF_LENGTHS", "MIN_HALF_LENGTH"]
+
+#: Lengths (units of R) of a half midline beyond which a trace refused for its shape is refused
+#: for its scale instead (:func:`check_scale`): a Volvox midline's half is about 2-4 R
+#: (fitting.intrinsic_lengths).
+HALF_LENGTHS = (1.0, 6.0)
+#: A half midline shorter than this (units of R) is refused for its scale whatever its shape
+#: (:func:`check_not_short`): noise only lengthens a polyline, so a trace this short is at the
+#: wrong scale (an audit's radius R 10 times too large gave 0.26 R, which passed the shape's
+#: tests and which a fit then refused as turning back on itself, by its noise).  A quarter of
+#: a midline's 2 R at least: a trace 2-4 times too short is left to the fit's check, whose
+#: message gives the factor (``fitting.check_midline``; 4 times: 0.64 R, "4.5× shorter").
+#: Not for long traces: noise larger than the point spacing lengthens a right trace too.
+MIN_HALF_LENGTH = 0.5
 
 #: A step longer than _GAP_STEPS median steps and _GAP_FRACTION of the trace joins two curves.
 _GAP_STEPS, _GAP_FRACTION = 10.0, 0.05
@@ -204,6 +218,41 @@ def noise_hint(sigma: float, spacing: float, unit: str) -> str:
         return ""
     return (f" (noise larger than the point spacing: ≈ {sigma:.2g} {unit} at {spacing:.2g} "
             f"{unit}: subsample or smooth the trace)")
+
+
+def check_scale(source: str, binning: Binning, halves: int, also: str = "") -> None:
+    """Before refusing a trace for its shape: MidlineError naming the scale instead if its
+    halves are far longer or shorter than a Volvox midline's (:data:`HALF_LENGTHS`).
+
+    At a wrong scale the shape's tests mislead (points of a trace 10 times too large lie
+    0.1 R apart, too sparse to bin, and their noise makes the halves differ); a fit names a
+    scale 1.5-2 times off precisely (``fitting.check_midline``), after alignment.  The length
+    is that of the binned points: noise larger than the point spacing lengthens the raw
+    polyline (0.3 px of noise at 0.19 px spacing tripled a 2.9 R half to 8.3 R), and where
+    the bins leave such noise the message of a long trace names it rather than the scale.
+    ``also`` names the refusal of its shape.
+    """
+    half = _half_length(binning, halves)
+    if HALF_LENGTHS[0] <= half <= HALF_LENGTHS[1]:
+        return
+    k = binning.k
+    noise = half > HALF_LENGTHS[1] and noise_hint(binning.sigma / np.sqrt(k), k * binning.spacing,
+                                                  "R")
+    raise MidlineError(f"{source}: {'its halves are' if halves == 2 else 'it is'} {half:.3g} R "
+                       f"long, where a midline's half is about 2-4 R" + f" ({also})" * bool(also)
+                       + (noise or ": check the pixel size and the radius R"))
+
+
+def check_not_short(source: str, binning: Binning, halves: int) -> None:
+    """MidlineError naming the scale if the trace's halves are shorter than
+    :data:`MIN_HALF_LENGTH`, whatever its shape."""
+    if _half_length(binning, halves) < MIN_HALF_LENGTH:
+        check_scale(source, binning, halves, "too short for any shell of the model")
+
+
+def _half_length(binning: Binning, halves: int) -> float:
+    """The length (units of R) of the binned points' polyline over the number of its halves."""
+    return float(np.sum(np.hypot(*np.diff(binning.points, axis=0).T))) / halves
 
 
 def _first_reversal(points: np.ndarray, sigma: float, h: float) -> int | None:

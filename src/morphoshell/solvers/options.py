@@ -21,6 +21,7 @@ from numbers import Real
 from typing import Any
 
 from .._runtime.validate import integer, real, within
+from .._runtime.validate import short as _short
 from ..model.problem import Problem
 from ..numerics.ipopt_options import check_ipopt_options
 from .results import Equilibrium
@@ -197,9 +198,3 @@ def _pole_offset(problem: Problem, value: Any) -> None:
     if "pole" in (st.start, st.end) and eps > 0.1 * length:
         raise ValueError(f"pole_offset = {value!r} must be at most a tenth of the shell's "
                          f"length {length:.6g} (units of R)")
-
-
-def _short(value: Any) -> str:
-    """``repr(value)``, cut to a line."""
-    text = repr(value)
-    return text if len(text) <= 80 else text[:77] + "..."

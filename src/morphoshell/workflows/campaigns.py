@@ -29,6 +29,7 @@ from typing import Iterator, Sequence
 from .._runtime import interrupts, lifeline
 from .._runtime.interrupts import interrupted
 from .._runtime.console import progress
+from .._runtime.validate import name_list
 from ..fitting import FIT_NODES, METHODS, VARIANTS, check_midline, volvox_spec
 from ..io import Midline
 from ..io.timepoints import Timepoint, read_timepoints
@@ -317,11 +318,6 @@ def _validate(data_dir, variants, method, nodes, workers, out, start) -> tuple:
     return timepoints, variants, out
 
 
-def _names(value: str | Sequence[str]) -> list[str]:
-    """A list of names from a sequence or a comma-separated string."""
-    return [v.strip() for v in value.split(",")] if isinstance(value, str) else list(value)
-
-
 def _stored(out: Path, timepoints: tuple[Timepoint, ...], variants: tuple[str, ...]
             ) -> frozenset:
     """The (timepoint, variant) pairs with a result in ``out`` (a resumed run's likely reuse)."""
@@ -349,7 +345,7 @@ def _jackknifed(embryo_errors, variants: tuple[str, ...]) -> frozenset:
     """The variants that get jackknife errors (``campaign``'s ``embryo_errors``), validated."""
     if isinstance(embryo_errors, bool):
         return frozenset(variants if embryo_errors else ())
-    names = _names(embryo_errors)
+    names = name_list(embryo_errors)
     unknown = [v for v in names if v not in variants]
     if unknown or not names:
         raise ValueError(f"embryo_errors {','.join(names)}: {unknown or '(none)'} not among "
@@ -360,7 +356,7 @@ def _jackknifed(embryo_errors, variants: tuple[str, ...]) -> frozenset:
 def _selected(timepoints: tuple[Timepoint, ...], selected: str | Sequence[str], data_dir
               ) -> tuple[Timepoint, ...]:
     """The timepoints named in ``selected`` (``campaign``'s ``timepoints``), in the data set's order."""
-    asked = _names(selected)
+    asked = name_list(selected)
     names = [tp.name for tp in timepoints]
     unknown = [n for n in asked if n not in names]
     if unknown or not asked:

@@ -31,6 +31,7 @@ from ..solvers.contact import WallContact, warn_if_walls_overlap
 from ..solvers.continuation import continue_between
 from ..solvers.direct import DirectSolver
 from ..solvers.observables import RECOIL
+from ..solvers.options import check_problem
 from ..solvers.refinement import refine, solve_from
 from ..solvers.results import Equilibrium, SolverError
 from ..solvers.routes import direct_solver, solve
@@ -192,6 +193,13 @@ def numerical_ablation(problem: Problem, cut: float = CUT, *, nodes: int = 200,
         and its warning where they exceed 0.1 of their values
         (:func:`~morphoshell.mechanics.ablation.ablation_of`: one rule for both routes).
 
+    Raises
+    ------
+    TypeError
+        ``problem`` is not a :class:`~morphoshell.model.problem.Problem`.
+    ValueError
+        ``cut`` outside the shell.
+
     Notes
     -----
     Both shells are looked at for walls that pass through each other, with a
@@ -201,6 +209,7 @@ def numerical_ablation(problem: Problem, cut: float = CUT, *, nodes: int = 200,
     200 nodes, jumped to a shape whose walls are 0.003 R apart against a
     thickness of 0.13 R, unwarned).
     """
+    check_problem(problem)      # (a string raised "'str' object has no attribute 'end'")
     if not 0 < cut < problem.end:
         raise ValueError(f"cut = {cut!r} must lie inside the shell (0, {problem.end:.6g})")
     target = problem.with_updates(cut=float(cut))
