@@ -120,3 +120,27 @@ def test_casadis_own_line_of_a_ctrl_c_is_dropped_from_stderr(default_handler, ca
     assert capsys.readouterr().err == ("morphoshell: interrupted\n"
                                        "CasADi - 2026 WARNING(\"other\")\n50%\r")
     assert "Quiet" not in type(sys.stderr).__name__       # (restored)
+
+
+def test_sigterm_is_handled_when_ctrl_c_is_ignored():
+    """A job started in a script's background (`cmd &`) has Ctrl-C ignored; noted() then
+    installed no handler at all, and a SIGTERM killed it at once, exit 143, no word and
+    nothing written (audit 22, F1).  SIGTERM is handled; the ignored Ctrl-C stays ignored."""
+    from morphoshell._runtime.interrupts import Terminated, exit_status
+
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    term = signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    try:
+        with noted():
+            assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+            # (checked before the signal: at its default it would kill the tests' process)
+            assert signal.getsignal(signal.SIGTERM) != signal.SIG_DFL
+            with pytest.raises(Terminated):
+                os.kill(os.getpid(), signal.SIGTERM)
+                time.sleep(5)
+        assert exit_status() == 143
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+        assert signal.getsignal(signal.SIGTERM) == signal.SIG_DFL
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        signal.signal(signal.SIGTERM, term)

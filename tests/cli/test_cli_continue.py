@@ -407,3 +407,49 @@ def test_folds_the_mesh_does_not_resolve_are_flagged(tmp_path, capsys, caplog):
         rows = list(csv.DictReader(fh))
     assert [r["lambda_error"] for r in rows if r["event"] == "fold"] == ["inf", "inf"]
     assert all(r["lambda_error"] == "" for r in rows if not r["event"])
+
+
+#: A `continue` that waits after its 6th point (for the SIGTERM of the test that starts it).
+_WAITING = """
+import sys, time
+from morphoshell.cli import main
+from morphoshell.solvers import branches
+real, calls = branches._Walk.record, []
+def record(walk, *args, **kwargs):
+    real(walk, *args, **kwargs)
+    calls.append(1)
+    if len(calls) == 6:
+        print("ready", flush=True)
+        time.sleep(60)
+branches._Walk.record = record
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_sigterm_to_a_background_job_writes_its_points_marked_partial(tmp_path):
+    """A `continue` started in a script's background (`cmd &`: Ctrl-C ignored) and sent
+    SIGTERM died at once, exit 143, no message and no file (audit 22, F1): the SIGTERM
+    handler was installed only where Ctrl-C had Python's own.  A real process, started with
+    Ctrl-C ignored as such a shell starts it."""
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    out, doc = tmp_path / "b.csv", tmp_path / "b.json"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    child = subprocess.Popen(
+        [sys.executable, "-c", _WAITING, "continue", str(FOLD), "--nodes", "40", "--csv",
+         str(out), "--json", str(doc)], env=env, text=True, stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    try:
+        assert child.stdout.readline() == "ready\n"
+        child.send_signal(signal.SIGTERM)
+        _, err = child.communicate(timeout=120)
+    finally:
+        child.kill()
+    assert child.returncode == 143, err
+    assert re.fullmatch(r"morphoshell: terminated \(SIGTERM\) after 6 points; the 6 points "
+                        rf"followed to lambda = \S+ are kept in {re.escape(str(doc))} and "
+                        rf"{re.escape(str(out))}, marked partial\n", err), err
+    assert json.loads(doc.read_text())["complete"] is False

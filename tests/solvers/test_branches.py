@@ -760,3 +760,22 @@ def test_a_branch_that_stops_early_goes_with_its_error(volvox):
     assert part.to_dict()["ended"] == part.ended.to_dict()
     whole = follow_branch(volvox, "kappa2", -7.9, nodes=40)
     assert whole.ended is None and "complete" not in whole.to_dict()
+
+
+def test_a_branch_on_meshes_that_miss_the_steps_warns(caplog):
+    """Continued to sigma = 0.001 R (the low end of its range), the points of a 200-node
+    mesh were 5e-4 R off at the edges and its events' estimates made on two meshes that both
+    miss the steps, without a word (audit 22, F8): it warns at the start, naming the
+    nodes needed, for the narrower end of the path; the default 0.05 R does not."""
+    import logging
+
+    problem = load_problem(FIXTURE)[0]
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        with pytest.raises(SolverError):        # (two points: the warning comes first)
+            follow_branch(problem, "sigma", 0.001, nodes=40, max_points=2)
+    assert "smoothed steps of width 0.001 R" in caplog.text and "use 1249 nodes" in caplog.text
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        with pytest.raises(SolverError):
+            follow_branch(problem, "sigma", 0.1, nodes=40, max_points=2)
+    assert "smoothed steps" not in caplog.text

@@ -1,5 +1,6 @@
 """The error estimate's coarse levels (solvers/refinement.py)."""
 import math
+from pathlib import Path
 
 import pytest
 
@@ -111,3 +112,38 @@ def test_a_loose_tols_stopping_error_reaches_an_ablations_observables():
     assert loose.errors and not loose.error_note
     for key, err in loose.errors.items():
         assert err >= abs(getattr(loose, key) - getattr(tight, key)), key
+
+
+#: The issue's fold shell with steps of width 0.001 R, the low end of sigma's range.
+NARROW = Path(__file__).resolve().parents[1] / "data" / "volvox_fold.toml"
+#: Its end edge's z on 3200 nodes (estimate 6.4e-6 there; 1600 nodes: 0.4571091).
+Z_END = 0.4571114
+
+
+def test_meshes_that_miss_the_steps_warn_and_rtol_refines_past_them(caplog):
+    """sigma = 0.001 R: cells of 10-55 widths across the steps on 200 nodes and its half
+    mesh, so both solve a sharp step and agree, and the estimate (1.1e-5 R at the edges)
+    was 48x short of the error (5.3e-4 R), without a word (audit 22, F8).  It warns, naming
+    the nodes whose half mesh resolves the steps; with rtol the refinement goes on to them,
+    where the estimate bounds the error; the default sigma = 0.05 R does not warn."""
+    import logging
+
+    from morphoshell.io.problem_files import load_problem
+
+    problem = load_problem(NARROW)[0].with_updates(sigma=0.001)
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        eq = solve(problem, nodes=200)
+    assert "smoothed steps of width 0.001 R" in caplog.text
+    assert "the estimates may fall far short of the error; use 1593 nodes or more" in caplog.text
+    # (what it warns of: the error is 10x the estimate, or more)
+    assert abs(eq.estimated_values()["z_end"] - Z_END) > 10 * eq.error.errors["z_end"]
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        fine = solve(problem, nodes=200, rtol=1e-3)
+    assert fine.solver.nodes == 1593 and "smoothed steps" not in caplog.text
+    # (the reference's own error, 6.4e-6 estimated, is below a tenth of the estimate 8e-5)
+    assert abs(fine.estimated_values()["z_end"] - Z_END) < fine.error.errors["z_end"]
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        solve(load_problem(NARROW)[0], nodes=100)
+    assert "smoothed steps" not in caplog.text

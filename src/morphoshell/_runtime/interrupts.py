@@ -139,18 +139,28 @@ def reason() -> str:
 def noted() -> Iterator[None]:
     """Count the Ctrl-Cs in the block (for :func:`swallowed`); they still raise
     ``KeyboardInterrupt``, and a SIGTERM raises :class:`Terminated`; CasADi's own line of
-    a Ctrl-C is dropped from ``sys.stderr`` (:class:`_QuietStderr`).  Only where Python's
-    default handler is in force, in the main thread (a notebook's kernel, or a program's
-    own handler, keeps its own)."""
-    if (threading.current_thread() is not threading.main_thread()
-            or signal.getsignal(signal.SIGINT) is not signal.default_int_handler):
+    a Ctrl-C is dropped from ``sys.stderr`` (:class:`_QuietStderr`).  Only in the main
+    thread, and each signal only where it has its default: Python's handler for Ctrl-C (a
+    notebook's kernel, or a program's own handler, keeps its own; an ignored Ctrl-C stays
+    ignored), the default action for SIGTERM.
+
+    The two are decided apart: a job started in a script's background (``cmd &``) or by
+    a ``nohup``-style launcher has Ctrl-C ignored, and a SIGTERM to it must still stop the
+    work and keep what was done (it died at once, exit 143 and no word, nothing written).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    sigint = signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    # (only where SIGTERM kills at once: a program's own handler stays)
+    sigterm = hasattr(signal, "SIGTERM") and signal.getsignal(signal.SIGTERM) == signal.SIG_DFL
+    if not (sigint or sigterm):
         yield
         return
     _terminated[0] = False
-    signal.signal(signal.SIGINT, _count_and_raise)
-    # (only where SIGTERM kills at once: a program's own handler stays)
-    term = signal.getsignal(signal.SIGTERM) if hasattr(signal, "SIGTERM") else None
-    if term == signal.SIG_DFL:
+    if sigint:
+        signal.signal(signal.SIGINT, _count_and_raise)
+    if sigterm:
         signal.signal(signal.SIGTERM, _count_and_raise)
     quiet = sys.stderr = _QuietStderr(sys.stderr)
     try:
@@ -158,8 +168,9 @@ def noted() -> Iterator[None]:
     finally:
         if sys.stderr is quiet:     # (else replaced in the block: left as it is)
             sys.stderr = quiet.release()
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-        if term == signal.SIG_DFL:
+        if sigint:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+        if sigterm:
             signal.signal(signal.SIGTERM, signal.SIG_DFL)
         _received[0] = 0
 

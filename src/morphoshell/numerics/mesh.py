@@ -35,7 +35,8 @@ log = logging.getLogger(__name__)
 
 __all__ = ["boundary_layer_width", "pole_exponent", "graded_mesh", "shell_points",
            "knot_shapes", "mapped_points", "MeshSpec",
-           "mesh_spec", "knot_for", "Knot", "breakpoints", "lower_gamma", "MeshTooCoarse"]
+           "mesh_spec", "knot_for", "Knot", "breakpoints", "lower_gamma", "MeshTooCoarse",
+           "step_cells"]
 
 
 class MeshTooCoarse(ValueError):
@@ -728,3 +729,37 @@ def breakpoints(problem) -> list[tuple[float, float | None]]:
         return []
     return [(float(s), None if w is None else float(w))
             for s, w in fam.breakpoints(dict(problem.params), problem.cut, problem.end)]
+
+
+#: Widths either side of a smoothed step within which :func:`step_cells` measures the cells:
+#: tanh((s − s_i)/σ) is within 0.25 % of its limits beyond 3σ.
+STEP_SPAN = 3.0
+
+
+def step_cells(problem, nodes: int, stages: int, anchors: tuple[float, ...] = ()
+               ) -> tuple[float, float] | None:
+    """(the widest cell within :data:`STEP_SPAN` widths of the family's smoothed steps, in
+    units of the step's width; that width) on the mesh :func:`mesh_spec` builds, or None
+    for a family without them (or a mesh that cannot hold its knots).
+
+    A step narrower than the cells at its node is a jump at a node to the scheme: its
+    solutions converge, at the scheme's order, to those of the sharp step, and two such
+    meshes agree while both miss the smoothing (audit 22: σ = 0.001 R at 100 and 200
+    nodes, z_end 4e-6 apart and 5.3e-4 off).
+    """
+    steps = [(s, w) for s, w in breakpoints(problem) if w is not None]
+    if not steps:
+        return None
+    spec = mesh_spec(problem, nodes, stages, tuple(anchors))
+    try:
+        t = spec.nodes_t()
+    except MeshTooCoarse:
+        return None
+    places = {"anchor": list(anchors), "breakpoint": [s for s, _ in breakpoints(problem)]}
+    s = shell_points(t, problem.cut, problem.end, tuple(k.t for k in spec.knots),
+                     [places[k.source][k.index] for k in spec.knots])
+    cells, worst = np.diff(s), (0.0, 0.0)
+    for at, width in steps:
+        near = (s[1:] > at - STEP_SPAN * width) & (s[:-1] < at + STEP_SPAN * width)
+        worst = max(worst, (float(np.max(cells[near], initial=0.0)) / width, width))
+    return worst

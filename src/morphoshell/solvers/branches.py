@@ -41,7 +41,7 @@ from .contact import wall_contact
 from .continuation import continue_to
 from .crossings import branch_ended, snap_through, switch_stable
 from .options import check_direct_options, check_problem
-from .refinement import COARSE, SAFETY
+from .refinement import COARSE, SAFETY, warn_unresolved_steps
 from .paths import ParameterLine, neutral_problem
 from .results import Equilibrium, SolverError
 from .routes import direct_solver
@@ -325,6 +325,7 @@ def follow_branch(problem: Problem, param: str | None = None, to: float | None =
     t0 = time.perf_counter()
     solver = direct_solver(problem, nodes, anchors, stages=stages)
     line, start = _path(solver, problem, param, to, anchors)
+    warn_unresolved_steps((line.source, line.problem), nodes, stages, anchors)
     walk = _Walk(Arclength(solver, line, anchors), follow, max_step, max_points)
 
     def branch(ended: Ending | None = None) -> Branch:
@@ -750,8 +751,7 @@ class _Walk:
             before = point
             for change in self.arc.locate_changes(point, new, ds):
                 # one past the path's end (the last step overshoots τ = 1) is not on the
-                # branch returned, which ends at τ = 1: recording it would put it before the
-                # end point
+                # branch returned, which ends at τ = 1: recorded, it would precede the end
                 if change.tau > 1 and point.tau < 1:
                     break
                 self.record(change, "branch_point",

@@ -19,7 +19,7 @@ from typing import Callable, Mapping
 import numpy as np
 
 from ..model.problem import Problem
-from ..numerics.mesh import MeshTooCoarse
+from ..numerics.mesh import MeshTooCoarse, step_cells
 from ..numerics.status import TOLERANCE_NOT_MET, explain
 from .continuation import continue_to
 from .direct import MAX_NODES, DirectSolver
@@ -28,7 +28,8 @@ from .results import ESTIMATED, Equilibrium, ErrorEstimate, SolverError, energy_
 
 __all__ = ["solve_from", "estimate", "error_estimate", "level_errors", "derived_errors",
            "refine", "refine_once",
-           "half_mesh", "too_coarse", "coarse_level", "SAFETY", "COARSE"]
+           "half_mesh", "too_coarse", "coarse_level", "unresolved_steps", "warn_unresolved_steps",
+           "SAFETY", "COARSE", "STEP_CELLS"]
 
 log = logging.getLogger(__name__)
 
@@ -45,6 +46,13 @@ SAFETY = 2.0
 #: is a warning: the mesh does not resolve the shell (a thin shell's energy off by 80 %
 #: on 100 nodes at h = 1e-6).
 COARSE = 0.1
+#: Widest cell (in units of the step's width) within 3 widths of a smoothed step (the
+#: Volvox profiles' steps of width σ) on the estimate's half mesh for the estimate to be
+#: trusted (:func:`unresolved_steps`).  Measured (audit 22, volvox_fold, σ = 0.001-0.05 at
+#: 100-400 nodes against 3200): estimates fell short of the error (by 1x to 48x) where
+#: that cell was 25-112 widths, and bounded it (by 5x or more) where it was 17.7 or
+#: less; 8 leaves a factor 3 below the first failure.
+STEP_CELLS = 8.0
 
 
 def half_mesh(nodes: int) -> int:
@@ -225,6 +233,43 @@ def _warn_if_coarse(est: ErrorEstimate, nodes: int) -> None:
                     "relative" if key == "energy" else "R or rad", nodes)
 
 
+def unresolved_steps(problem: Problem, nodes: int, stages: int, anchors=()) -> str | None:
+    """Why the error estimate on ``nodes`` nodes is not to be trusted: its half mesh does not
+    resolve the family's smoothed steps (:data:`STEP_CELLS`), naming the nodes that do; or
+    None.
+
+    Both levels then solve what is, to the scheme, a sharp step at a node: they agree with
+    each other and miss the smoothing (audit 22: σ = 0.001 R on 200 nodes, estimate 1.1e-5
+    R at the edges, error 5.3e-4).
+    """
+    cells = step_cells(problem, half_mesh(nodes), stages, anchors)
+    if cells is None or cells[0] <= STEP_CELLS:
+        return None
+    need = nodes
+    while need < MAX_NODES and _step_cells(problem, half_mesh(need), stages,
+                                           anchors) > STEP_CELLS:
+        need = min(2 * (need - 1) + 1, MAX_NODES)
+    return (f"the mesh does not resolve the profiles' smoothed steps of width {cells[1]:.3g} R "
+            f"(cells up to {cells[0]:.3g} widths wide across them on the {half_mesh(nodes)}-node "
+            f"half mesh of the error estimates): solutions on such meshes converge to those of a "
+            f"sharp step, and the estimates may fall far short of the error; use {need} nodes "
+            f"or more")
+
+
+def _step_cells(problem: Problem, nodes: int, stages: int, anchors) -> float:
+    """:func:`~morphoshell.numerics.mesh.step_cells`' widest cell (in widths), 0 without."""
+    return (step_cells(problem, nodes, stages, anchors) or (0.0,))[0]
+
+
+def warn_unresolved_steps(problems, nodes: int, stages: int, anchors=()) -> None:
+    """A warning (:func:`unresolved_steps`) for the worst of ``problems`` (the ends of a
+    path: the steps' width σ is linear along it, narrowest at an end) on ``nodes`` nodes."""
+    worst = max(problems, key=lambda p: _step_cells(p, half_mesh(nodes), stages, anchors))
+    why = unresolved_steps(worst, nodes, stages, anchors)
+    if why:
+        log.warning("%s", why)
+
+
 def coarse_level(solver_for: Callable[[int], DirectSolver], nodes: int, problem: Problem,
                   eq: Equilibrium, anchors) -> tuple[Equilibrium | None, str]:
     """(``problem`` on ``nodes`` nodes from ``eq``, "") for the estimate, or (None, why not).
@@ -286,23 +331,29 @@ def refine(eq: Equilibrium, solver_for: Callable[[int], DirectSolver], rtol: flo
                                    reference, anchors)
     polished, why = _polished(polish, eq)
     est = estimate(eq, None if why else reference, order, why or note, coarser, polished)
+    steps = unresolved_steps(problem, nodes, order // 2, anchors)
     if rtol is None and not est.note:
         _warn_if_coarse(est, nodes)
+        if steps:
+            log.warning("%s", steps)
     eq = replace(eq, error=est)
     path, notes = eq.solver.details.get("path", ""), ""
     first = nodes
-    while rtol is not None and not eq.error.meets(rtol):
+    # (an estimate that meets rtol on meshes that miss the steps is no sign of it)
+    while rtol is not None and (not eq.error.meets(rtol) or steps):
         if 2 * (nodes - 1) + 1 > min(max_nodes, MAX_NODES):
             key, err = eq.error.worst()
+            short = (f"the error estimate {err:.3g} of {key} (at {nodes} nodes) does not meet "
+                     f"rtol = {rtol:g}" if not eq.error.meets(rtol) else steps)
             raise SolverError(
-                f"the error estimate {err:.3g} of {key} (at {nodes} nodes) does not meet "
-                f"rtol = {rtol:g} within {min(max_nodes, MAX_NODES)} nodes: "
+                f"{short} within {min(max_nodes, MAX_NODES)} nodes: "
                 f"{explain(TOLERANCE_NOT_MET)}; the finest solution is the error's "
                 f"last_iterate",
                 TOLERANCE_NOT_MET, eq)
         eq, how = refine_once(eq, solver_for, anchors, polish)
         notes += how
         nodes = eq.solver.nodes
+        steps = unresolved_steps(problem, nodes, order // 2, anchors)
     if nodes != first:
         details = {**eq.solver.details, "path": f"{path}, then refined from {first} to {nodes} "
                                                f"nodes for rtol = {rtol:g}{notes}"}
