@@ -146,12 +146,13 @@ def test_a_saved_fit_reads_back_as_the_fit(pinned_fit, tmp_path):
 
 def test_a_campaigns_record_and_an_unconverged_fits_read_back(pinned_fit):
     """A campaign's record names the fit's method fitted_by (its method is the campaign's
-    setting) and drops seconds; a fit that did not converge has no stop to read back."""
+    setting) and drops seconds; one written before records kept ``stop``, of a fit that did
+    not converge, reads back with stop 'Unknown'."""
     from morphoshell.fitting import FitResult
 
     record = {**pinned_fit[2].to_dict(), "method": "kkt", "fitted_by": "gradient",
               "converged": False, "status": "ok"}
-    del record["seconds"]
+    del record["seconds"], record["stop"]
     back = FitResult.from_dict(record)
     assert back.method == "gradient" and math.isnan(back.seconds)     # (not recorded)
     assert "time not recorded" in repr(back)
@@ -393,3 +394,25 @@ def test_morphoshell_fit_warns_of_a_fitted_shape_whose_walls_cross(fold_fit, tmp
     assert "no self-contact" in warned[0]
     assert json.loads(j.read_text())["walls_cross"]["distance"] < 0.1
     assert pd.read_csv(c)["walls_cross"].tolist() == [True] * len(fold_fit[1].fitted)
+
+
+def test_a_fit_that_stopped_short_reads_back_with_how_it_ended(pinned_fit, tmp_path):
+    """Audit 21 F15: load_fit of a fit that ran out of evaluations gave stop 'Unknown' (the
+    record did not keep it), so a script reading a campaign's records back could not branch
+    on it; the record keeps it now.  A record written before (no ``stop``) still loads:
+    ``Unknown`` if it did not converge, ``Fit_Converged`` if it did."""
+    import json
+
+    from morphoshell.fitting import load_fit
+    from morphoshell.io.problem_files import write_json
+
+    spec = pinned_fit[0]
+    short = fit(spec, pinned_fit[2].data, "gradient", nodes=60, max_iterations=2)
+    assert not short.converged and short.stop == "Maximum_Evaluations_Exceeded"
+    for result in (short, pinned_fit[2]):
+        write_json(path := tmp_path / "fit.json", result.to_dict())
+        assert load_fit(path).stop == result.stop
+        record = json.loads(path.read_text())
+        del record["stop"]
+        path.write_text(json.dumps(record))
+        assert load_fit(path).stop == ("Fit_Converged" if result.converged else "Unknown")

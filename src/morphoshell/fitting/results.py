@@ -114,8 +114,9 @@ class FitResult:
         ``"Fit_Converged"`` or, of the KKT fit, Ipopt's status;
         ``"Maximum_Evaluations_Exceeded"``, ``"Fit_Stalled"``,
         ``"Fit_Not_Stationary"``, ``"Fit_Near_Fold"``, ``"Fit_On_Box_Edges"``
-        or ``"Fit_Moved_Boxes_Failed"``.  Not in :meth:`to_dict` (its
-        ``converged`` and ``message`` say it).
+        or ``"Fit_Moved_Boxes_Failed"``.  In :meth:`to_dict` (a record written
+        before it reads back with ``"Fit_Converged"``, or ``"Unknown"`` if it did
+        not converge).
     problem : Problem
         The fitted shell (the equilibrium's problem, if not given).
     jacobian : ndarray, shape (2N, k), or None
@@ -165,9 +166,9 @@ class FitResult:
         that JSON writes as null, on constraints, as NaN), so that ``to_dict()`` gives
         the record again.  What it does not write: the ``equilibrium`` (None: solve
         ``problem`` for one), the ``residuals`` (the fitted minus the data midline, to
-        round-off) and ``stop`` (as written, if the record has it; else
-        ``"Fit_Converged"``, or ``"Unknown"`` for a fit that did not converge: its
-        ``message`` says how it ended).
+        round-off).  A record without ``stop`` (written before records kept it) reads
+        back with ``"Fit_Converged"``, or ``"Unknown"`` for a fit that did not converge
+        (its ``message`` says how it ended).
 
         Parameters
         ----------
@@ -275,7 +276,8 @@ class FitResult:
                 "correlation": self.correlation.tolist(),
                 "poorly_identified": self.poorly_identified, "E_fit": self.E_fit,
                 "E_fit_units": "R", "method": self.method, "variant": self.variant,
-                "converged": self.converged, "message": self.message, "seconds": self.seconds,
+                "converged": self.converged, "stop": self.stop, "message": self.message,
+                "seconds": self.seconds,
                 "constrained": list(self.constrained),
                 "outer_iterations": self.outer_iterations, "inner_solves": self.inner_solves,
                 "data_midline": {"r": self.data[:, 0].tolist(), "z": self.data[:, 1].tolist()},
