@@ -216,9 +216,10 @@ def test_the_outputs_say_how_the_fit_was_made_and_how_it_ended(midline_csv, tmp_
     assert record["input_check"] is None               # (E_fit below IMPLAUSIBLE_E_FIT)
     assert record["walls_cross"] is None
     df = pd.read_csv(table)
-    assert list(df.columns) == ["parameter", "value", "standard_error", "E_fit", "converged",
-                                "stop", "walls_cross"]
-    assert sorted(df.parameter) == sorted(THREE) and df.converged.dtype == bool
+    assert list(df.columns) == ["parameter", "value", "standard_error", "unit", "fitted",
+                                "on_constraint", "E_fit", "converged", "stop", "walls_cross"]
+    assert sorted(df.parameter[:3]) == sorted(THREE) and df.converged.dtype == bool
+    assert df.fitted.tolist() == [True] * 3 + [False] * (len(df) - 3)
     assert df.walls_cross.dtype == bool and not df.walls_cross.any()
     assert not df.converged.any() and set(df.stop) == {"Maximum_Evaluations_Exceeded"}
     assert (df.E_fit == record["E_fit"]).all()
