@@ -146,12 +146,13 @@ def test_a_saved_fit_reads_back_as_the_fit(pinned_fit, tmp_path):
 
 def test_a_campaigns_record_and_an_unconverged_fits_read_back(pinned_fit):
     """A campaign's record names the fit's method fitted_by (its method is the campaign's
-    setting) and drops seconds; a fit that did not converge has no stop to read back."""
+    setting) and drops seconds; one written before records kept ``stop``, of a fit that did
+    not converge, reads back with stop 'Unknown'."""
     from morphoshell.fitting import FitResult
 
     record = {**pinned_fit[2].to_dict(), "method": "kkt", "fitted_by": "gradient",
               "converged": False, "status": "ok"}
-    del record["seconds"]
+    del record["seconds"], record["stop"]
     back = FitResult.from_dict(record)
     assert back.method == "gradient" and math.isnan(back.seconds)     # (not recorded)
     assert "time not recorded" in repr(back)
@@ -392,4 +393,70 @@ def test_morphoshell_fit_warns_of_a_fitted_shape_whose_walls_cross(fold_fit, tmp
         f"material points s = "), warned
     assert "no self-contact" in warned[0]
     assert json.loads(j.read_text())["walls_cross"]["distance"] < 0.1
-    assert pd.read_csv(c)["walls_cross"].tolist() == [True] * len(fold_fit[1].fitted)
+    assert pd.read_csv(c)["walls_cross"].tolist() == [True] * len(fold_fit[1].parameters)
+
+
+def test_a_fit_that_stopped_short_reads_back_with_how_it_ended(pinned_fit, tmp_path):
+    """Audit 21 F15: load_fit of a fit that ran out of evaluations gave stop 'Unknown' (the
+    record did not keep it), so a script reading a campaign's records back could not branch
+    on it; the record keeps it now.  A record written before (no ``stop``) still loads:
+    ``Unknown`` if it did not converge, ``Fit_Converged`` if it did."""
+    import json
+
+    from morphoshell.fitting import load_fit
+    from morphoshell.io.problem_files import write_json
+
+    spec = pinned_fit[0]
+    short = fit(spec, pinned_fit[2].data, "gradient", nodes=60, max_iterations=2)
+    assert not short.converged and short.stop == "Maximum_Evaluations_Exceeded"
+    for result in (short, pinned_fit[2]):
+        write_json(path := tmp_path / "fit.json", result.to_dict())
+        assert load_fit(path).stop == result.stop
+        record = json.loads(path.read_text())
+        del record["stop"]
+        path.write_text(json.dumps(record))
+        assert load_fit(path).stop == ("Fit_Converged" if result.converged else "Unknown")
+
+
+def test_a_fit_is_a_table_of_its_parameters_as_fit_csv_writes_it(pinned_fit, tmp_path):
+    """Audit 21 F14: the docs said every result converts to a DataFrame and an xarray
+    Dataset; a fit had neither.  to_dataframe() is the table of fit --csv (one function,
+    FitResult.table): a row per parameter, the fitted first; its unit; fitted or not; on a
+    constraint (s2, s3 of this fit: no error); how the fit ended on every row.  to_xarray()
+    holds it along `parameter`, with the correlations and both midlines, and survives
+    netCDF; the record read back gives the same table."""
+    import pandas as pd
+    import xarray as xr
+
+    from morphoshell.fitting import load_fit
+    from morphoshell.io.problem_files import write_csv, write_json
+
+    res = pinned_fit[2]
+    df = res.to_dataframe()
+    assert df.parameter.tolist() == [*res.fitted, *(n for n in res.parameters
+                                                    if n not in res.fitted)]
+    assert df.value.tolist() == [res.parameters[n] for n in df.parameter]
+    assert df.fitted.tolist() == [n in res.fitted for n in df.parameter]
+    assert df.on_constraint.tolist() == [n in ("s2", "s3") for n in df.parameter]
+    assert df.standard_error.isna().tolist() == [n not in res.fitted or n in ("s2", "s3")
+                                                 for n in df.parameter]
+    units = dict(zip(df.parameter, df.unit))
+    assert units["kappa2"] == "1/R" and units["f1"] == "1" and units["s2"] == units["h"] == "R"
+    assert (df.E_fit == res.E_fit).all() and df.stop.eq("Fit_Converged").all()
+    assert df.converged.all() and not df.walls_cross.any()
+    assert df.attrs["units"]["E_fit"] == "R" and df.attrs["variant"] == "free"
+    # what fit --csv writes, read back
+    written = pd.read_csv(write_csv(tmp_path / "fit.csv", res.table()), keep_default_na=False,
+                          na_values=[""])
+    pd.testing.assert_frame_equal(written, df, check_dtype=False)
+    back = load_fit(write_json(tmp_path / "fit.json", res.to_dict()))
+    assert back.to_dataframe().equals(df)
+    ds = res.to_xarray()
+    assert ds.value.sel(parameter="kappa2") == res.parameters["kappa2"]
+    assert ds.unit.sel(parameter="kappa2") == "1/R" and bool(ds.on_constraint.sel(parameter="s3"))
+    assert np.array_equal(ds.correlation.values, res.correlation, equal_nan=True)
+    assert list(ds.fitted_i.values) == list(res.fitted)
+    assert np.array_equal(ds.r_fit.values, res.model[:, 0]) and ds.z_data.attrs["units"] == "R"
+    assert ds.attrs["E_fit"] == res.E_fit and ds.attrs["stop"] == "Fit_Converged"
+    ds.to_netcdf(tmp_path / "fit.nc")
+    assert xr.load_dataset(tmp_path / "fit.nc").identical(ds)

@@ -51,6 +51,33 @@ def test_a_fit_stopped_by_max_evaluations_says_so_on_its_last_line(midline_csv, 
     assert out.exists()
 
 
+@pytest.mark.parametrize("method", ["nelder-mead", "gradient"])
+def test_a_fit_out_of_evaluations_says_in_its_message_how_to_go_on(method):
+    """Audit 21 F12: the message of a fit that ran out of evaluations was SciPy's alone;
+    it names max_iterations with its value and what to try, as the command line's last line
+    does (one source, fitting.bilevel.more_evaluations), and its fit call, run as written,
+    goes on from where the fit stopped: started there, it ends no higher."""
+    from morphoshell.fitting import fit, volvox_spec
+
+    data = synthetic_midline(TRUE, three_parameter_spec().base, nodes=NODES, noise=5e-4,
+                             seed=2)
+    result = fit(three_parameter_spec(), data, method, nodes=NODES, max_iterations=3)
+    assert not result.converged and result.stop == "Maximum_Evaluations_Exceeded"
+    unit = "function" if method == "nelder-mead" else "residual"
+    then = "start from a gradient fit" if method == "nelder-mead" else "go on from this fit"
+    head, _, call = result.message.partition(f"): raise max_iterations above 3, or {then} with ")
+    assert head.endswith(f" (max_iterations = 3 {unit} evaluations"), result.message
+    held = tuple(n for n in TRUE.family_obj.parameters if n not in THREE + ("kappa1", "sigma"))
+    assert call == (f"fit(volvox_spec('flat', result.problem, hold={{n: result.parameters[n] "
+                    f"for n in {held!r}}}), data, "
+                    f"{'gradient' if unit == 'function' else method!r}, "
+                    f"nodes={NODES}, start=result.equilibrium)"), call
+    # (one namespace: the call's comprehension does not see eval's locals)
+    again = eval(call, {"fit": fit, "volvox_spec": volvox_spec, "result": result, "data": data})
+    assert sorted(again.fitted) == sorted(THREE) and again.E_fit <= result.E_fit
+    assert again.converged and again.stop == "Fit_Converged"
+
+
 def test_a_converged_fit_says_so_on_its_last_line(midline_csv, capsys):
     assert _fit(midline_csv, "--method", "gradient") == 0
     last = capsys.readouterr().out.splitlines()[-1]
@@ -189,9 +216,10 @@ def test_the_outputs_say_how_the_fit_was_made_and_how_it_ended(midline_csv, tmp_
     assert record["input_check"] is None               # (E_fit below IMPLAUSIBLE_E_FIT)
     assert record["walls_cross"] is None
     df = pd.read_csv(table)
-    assert list(df.columns) == ["parameter", "value", "standard_error", "E_fit", "converged",
-                                "stop", "walls_cross"]
-    assert sorted(df.parameter) == sorted(THREE) and df.converged.dtype == bool
+    assert list(df.columns) == ["parameter", "value", "standard_error", "unit", "fitted",
+                                "on_constraint", "E_fit", "converged", "stop", "walls_cross"]
+    assert sorted(df.parameter[:3]) == sorted(THREE) and df.converged.dtype == bool
+    assert df.fitted.tolist() == [True] * 3 + [False] * (len(df) - 3)
     assert df.walls_cross.dtype == bool and not df.walls_cross.any()
     assert not df.converged.any() and set(df.stop) == {"Maximum_Evaluations_Exceeded"}
     assert (df.E_fit == record["E_fit"]).all()

@@ -215,6 +215,35 @@ def test_a_folder_from_before_the_labels_left_the_digest_is_reused(data, tmp_pat
     assert campaign(data[0], ["flat"], workers=1, out=out, nodes=NODES).timing["computed"] == 0
 
 
+def test_a_folder_written_before_records_kept_stop_is_reused(data, tmp_path):
+    """Records keep how the fit ended (``stop``, audit 21 F15); a folder written before
+    (records without it, each chained to the previous by the digest of such a record) is
+    reused on resume, not refitted, and its records read back as fits."""
+    import json
+
+    from morphoshell.fitting import FitResult
+    from morphoshell.workflows import campaign
+    from morphoshell.workflows.timepoint_fits import _digest
+
+    out = tmp_path / "out"
+    first = campaign(data[0], ["flat"], workers=1, out=out, nodes=NODES,
+                     timepoints=["t01", "t02"])
+    assert {rec["stop"] for rec in first.records.values()} == {"Fit_Converged"}
+    prev = None
+    for name in ("t01", "t02"):                 # rewritten as the format before stop
+        path = out / f"{name}_flat.json"
+        rec = json.loads(path.read_text())
+        del rec["stop"]
+        rec["previous"] = None if prev is None else _digest(prev)
+        path.write_text(json.dumps(rec, indent=1, sort_keys=True) + "\n")
+        prev = rec
+    again = campaign(data[0], ["flat"], workers=1, out=out, nodes=NODES,
+                     timepoints=["t01", "t02"])
+    assert again.timing["computed"] == 0
+    assert [FitResult.from_dict(rec).stop for rec in again.records.values()] == \
+        ["Fit_Converged"] * 2
+
+
 def test_a_folder_that_becomes_unwritable_ends_with_a_named_error(data, tmp_path, monkeypatch,
                                                                    capsys):
     """(Simulated: tests may run as root, whom a read-only folder does not stop.)"""

@@ -45,6 +45,29 @@ def test_an_ordinary_ablation_has_no_contact_and_no_warning(caplog):
     assert not _contact_warnings(caplog)
 
 
+def test_a_numerical_ablation_is_its_ablations_table_with_its_checks(tmp_path):
+    """Audit 21 F14: a NumericalAblation had no table.  Its DataFrame is its ablation's row
+    (the problem, the observables and their errors, as ablate --csv writes them) with steps,
+    rejected, cold_difference and walls_cross; its Dataset the ablation's with them among
+    its attributes, netCDF-ready."""
+    import xarray as xr
+
+    problem, _ = load_problem(example_path("toy2_ablation"))
+    num = numerical_ablation(problem, 0.3, nodes=NODES)
+    df, row = num.to_dataframe(), num.ablation.to_dataframe()
+    assert list(df.columns) == [*row.columns, "steps", "rejected", "cold_difference",
+                                "walls_cross"]
+    assert df[row.columns].equals(row) and df.attrs["units"] == row.attrs["units"]
+    assert df.steps[0] == num.steps and df.cold_difference[0] == num.cold_difference
+    assert "energy_released_error" in df and not df.walls_cross[0]
+    ds = num.to_xarray()
+    assert ds.attrs["steps"] == num.steps and ds.attrs["walls_cross"] == 0
+    assert ds.attrs["cold_difference"] == num.cold_difference
+    assert ds.rotation.item() == num.ablation.rotation and ds.rotation.attrs["units"] == "rad"
+    ds.to_netcdf(tmp_path / "ablation.nc")
+    assert xr.load_dataset(tmp_path / "ablation.nc").identical(ds)
+
+
 def _ablation_warnings(caplog) -> list[str]:
     return [r.getMessage() for r in caplog.records if r.name.endswith("mechanics.ablation")]
 

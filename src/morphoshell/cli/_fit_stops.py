@@ -19,6 +19,7 @@ from ..numerics.status import (FIT_CONVERGED, FIT_MOVED_BOXES_FAILED, FIT_NEAR_F
                                FIT_NOT_MINIMUM, FIT_NOT_STATIONARY, FIT_ON_BOX_EDGES, FIT_STALLED,
                                MAXIMUM_EVALUATIONS_EXCEEDED, MAXIMUM_ITERATIONS_EXCEEDED,
                                SOLVE_SUCCEEDED, SOLVED_TO_ACCEPTABLE_LEVEL, explain)
+from ..fitting.bilevel import more_evaluations
 from ..fitting.midline_checks import (IMPLAUSIBLE_E_FIT, INPUT_CHECK, MISFIT, far_above,
                                       input_check)
 
@@ -84,10 +85,8 @@ def _not_converged(result: FitResult, its: str, limit: int) -> tuple[str, str, s
         # (a fit that moved its boxes ran several times, each with the limit)
         which = ("the limit" if result.outer_iterations == limit
                  else f"the limit of {limit} in its last run")
-        after = (f"start from a gradient fit with {_START}" if result.method == "nelder-mead"
-                 else f"go on from this fit with {_START} (its --json output)")
-        return f"stopped after {its} ({which})", "", \
-            f"raise --max-evaluations above {limit}, or {after}"
+        return f"stopped after {its} ({which})", "", more_evaluations(
+            result.method, limit, "--max-evaluations", _START, f"{_START} (its --json output)")
     table = {
         FIT_STALLED: (f"stopped at its best point after {its}",
                       "trial points in a row failed their inner solve (a fold of the branch?)",

@@ -86,8 +86,9 @@ def register(sub) -> None:
     add_outputs(p, json="write the fit (parameters by name, standard errors, E_fit, both "
                         "midlines, the options that made it under 'settings') as JSON; usable "
                         "as a problem file, solved at the fit's --nodes",
-                csv="write the fitted parameters with their standard errors as CSV, every row "
-                    "with the fit's E_fit (R), converged (True/False), stop (how it ended) and "
+                csv="write the parameters as CSV, the fitted ones first, with their standard "
+                    "errors, units, fitted and on_constraint (True/False), every row with the "
+                    "fit's E_fit (R), converged (True/False), stop (how it ended) and "
                     "walls_cross (True/False: the fitted shape's walls pass through each "
                     "other); units: docs, 'Results as tables'",
                 plot="write the fitted shell over the data")
@@ -228,18 +229,6 @@ def fit_record(args, limit: int) -> dict:
                          **({"drop_outlier_points": True} if args.drop_outlier_points else {})}}
 
 
-def csv_columns(result) -> dict:
-    """The fit CSV: a row per fitted parameter, and on every row how the fit ended (E_fit in
-    R, converged, stop, walls_cross), so that ``pandas.read_csv`` reads it as it is and an
-    unconverged fit's table (or one of a shape whose walls pass through each other) does not
-    pass for a converged one's."""
-    return {"parameter": list(result.fitted),
-            "value": [result.parameters[n] for n in result.fitted],
-            "standard_error": [result.standard_errors[n] for n in result.fitted],
-            "E_fit": result.E_fit, "converged": result.converged, "stop": result.stop,
-            "walls_cross": result.walls_cross}
-
-
 def _fit(args) -> int:
     from ..fitting import EVALUATION_LIMITS, N_FIT
     from ..fitting.midline_checks import input_check
@@ -280,7 +269,7 @@ def _fit(args) -> int:
         "input_check": input_check(result.E_fit),
         **(starts.to_dict() if starts is not None else {}),
         **(profile_json(profiles, before, result) if profiles else {})}))
-    out.add(args.csv, lambda path: write_csv(path, csv_columns(result)))
+    out.add(args.csv, lambda path: write_csv(path, result.table()))
     if args.plot:
         from ..plotting import fit_axes, plot_fit, save
 

@@ -29,7 +29,8 @@ from typing import Callable
 import numpy as np
 
 from .._runtime.validate import real
-from ..numerics.status import FIT_MOVED_BOXES_FAILED, FIT_ON_BOX_EDGES
+from ..numerics.status import (FIT_MOVED_BOXES_FAILED, FIT_ON_BOX_EDGES,
+                               MAXIMUM_EVALUATIONS_EXCEEDED)
 from ..solvers.results import Equilibrium, SolverError
 from .inner import InnerProblem
 from .kkt import kkt_fit
@@ -37,10 +38,10 @@ from .kkt_problem import KKT_ITERATIONS
 from .midline_checks import as_points, check_midline
 from .nested import GRADIENT_EVALUATIONS, NM_EVALUATIONS, gradient_fit, nelder_mead_fit
 from .results import FitError, FitResult, fit_result
-from .spec import FitSpec
+from .spec import VARIANTS, FitSpec
 
 __all__ = ["fit", "fit_moving_boxes", "check_options", "METHODS", "method_run", "FIT_NODES",
-           "MAX_RECENTRES", "EVALUATION_LIMITS"]
+           "MAX_RECENTRES", "EVALUATION_LIMITS", "more_evaluations"]
 
 #: Fit methods (see the module docstring).
 METHODS = ("nelder-mead", "gradient", "kkt")
@@ -59,6 +60,53 @@ MAX_RECENTRES = 12
 EVALUATION_LIMITS = {"nelder-mead": ("function evaluations", NM_EVALUATIONS),
                      "gradient": ("residual evaluations", GRADIENT_EVALUATIONS),
                      "kkt": ("Ipopt iterations per NLP", KKT_ITERATIONS)}
+
+
+def more_evaluations(method: str, limit: int, option: str, start: str, go_on: str) -> str:
+    """What to try when a fit ran out of evaluations (``"Maximum_Evaluations_Exceeded"``):
+    the words of a :class:`FitResult`'s message and of ``morphoshell fit``'s last line.
+
+    Parameters
+    ----------
+    method : str
+        The fit's method: a Nelder–Mead fit is better started from a gradient fit.
+    limit : int
+        The limit it ran with.
+    option : str
+        What sets the limit: ``"max_iterations"`` (:func:`fit`), ``"--max-evaluations"``.
+    start, go_on : str
+        How to start a gradient fit from this one's end (after a Nelder–Mead fit), and how
+        to go on from it by the same method (after the others).
+
+    Returns
+    -------
+    str
+        E.g. "raise max_iterations above 200, or go on from this fit with ...".
+    """
+    after = (f"start from a gradient fit with {start}" if method == "nelder-mead"
+             else f"go on from this fit with {go_on}")
+    return f"raise {option} above {limit}, or {after}"
+
+
+def _out_of_evaluations(message: str, method: str, spec: FitSpec, limit: int,
+                        nodes: int) -> str:
+    """``message`` of a fit that ran out of evaluations, with the limit (``max_iterations``)
+    and what to try (:func:`more_evaluations`, in the Python words: ``start=`` the fit's
+    equilibrium, on its ``nodes``, of a spec started at its parameters, ``result.problem``)."""
+    if spec.variant in VARIANTS and spec.base.family == "volvox":
+        held = [n for n, v in spec.base.params.items()      # (beyond the variant's own κ₁)
+                if n not in spec.fitted and n not in spec.tied and n != "sigma"
+                and not (n == "kappa1" and spec.variant in ("flat", "undeformed"))]
+        again = (f"volvox_spec({spec.variant!r}, result.problem"
+                 + (f", hold={{n: result.parameters[n] for n in {tuple(held)!r}}}" if held
+                    else "") + ")")
+    else:
+        again = "<the spec started at result.problem>"
+    unit = EVALUATION_LIMITS[method][0]
+    return (f"{message.rstrip('. ')} (max_iterations = {limit} {unit}): " + more_evaluations(
+        method, limit, "max_iterations",
+        f"fit({again}, data, 'gradient', nodes={nodes}, start=result.equilibrium)",
+        f"fit({again}, data, {method!r}, nodes={nodes}, start=result.equilibrium)"))
 
 
 def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
@@ -99,7 +147,8 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
         each NLP for KKT (default
         :data:`morphoshell.fitting.kkt_problem.KKT_ITERATIONS`).  A fit
         that reaches it returns ``converged=False``, ``stop =
-        "Maximum_Evaluations_Exceeded"`` (KKT: raises FitError).
+        "Maximum_Evaluations_Exceeded"`` and a message that names the limit and
+        how to go on from the fit (``start=result.equilibrium``) (KKT: raises FitError).
     start : Equilibrium, optional
         The inner state to start from (a direct solution of ``spec.base`` on
         the fit's mesh, e.g. a previous fit's); by default the physical branch
@@ -150,6 +199,9 @@ def fit(spec: FitSpec, data, method: str = "gradient", *, nodes: int = 200,
     # simplex, thousands of evaluations; the golden set's fit, 5 s, ran for over 20 minutes)
     spec, theta, iterations, ok, msg, stop = fit_moving_boxes(
         method_run(method), spec, inner, tol, max_iterations, own_mesh=method != "nelder-mead")
+    if stop == MAXIMUM_EVALUATIONS_EXCEEDED:
+        msg = _out_of_evaluations(msg, method, spec,
+                                  max_iterations or EVALUATION_LIMITS[method][1], nodes)
     return fit_result(method, spec, inner, theta, iterations, time.perf_counter() - t0, ok, msg,
                       stop)
 

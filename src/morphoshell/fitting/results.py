@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import numpy as np
 
+from .._runtime.tables import problem_attrs, xarray_module
 from .._runtime.validate import flag, integer, lookup, real, within
 from ..io.problem_files import problem_of_record, read_json
 from ..numerics.status import FIT_CONVERGED, FIT_NEAR_FOLD, IPOPT_UNKNOWN, STATUSES
@@ -51,6 +52,9 @@ _RECORD_KEYS = ("problem", "parameters", "fitted", "standard_errors", "correlati
 #: first sits near a fold of the inner branch (module docstring) and is not converged
 #: (tuned between the synthetic inversion fits on their branch and one on a fold).
 FOLD_RATIO = 1e-4
+#: What a fit's record and tables say of its standard errors.
+_NOTE = ("standard errors are Gauss-Newton lower bounds: the residuals of a traced midline "
+         "are correlated")
 
 
 class FitError(SolverError):
@@ -114,8 +118,9 @@ class FitResult:
         ``"Fit_Converged"`` or, of the KKT fit, Ipopt's status;
         ``"Maximum_Evaluations_Exceeded"``, ``"Fit_Stalled"``,
         ``"Fit_Not_Stationary"``, ``"Fit_Near_Fold"``, ``"Fit_On_Box_Edges"``
-        or ``"Fit_Moved_Boxes_Failed"``.  Not in :meth:`to_dict` (its
-        ``converged`` and ``message`` say it).
+        or ``"Fit_Moved_Boxes_Failed"``.  In :meth:`to_dict` (a record written
+        before it reads back with ``"Fit_Converged"``, or ``"Unknown"`` if it did
+        not converge).
     problem : Problem
         The fitted shell (the equilibrium's problem, if not given).
     jacobian : ndarray, shape (2N, k), or None
@@ -165,9 +170,9 @@ class FitResult:
         that JSON writes as null, on constraints, as NaN), so that ``to_dict()`` gives
         the record again.  What it does not write: the ``equilibrium`` (None: solve
         ``problem`` for one), the ``residuals`` (the fitted minus the data midline, to
-        round-off) and ``stop`` (as written, if the record has it; else
-        ``"Fit_Converged"``, or ``"Unknown"`` for a fit that did not converge: its
-        ``message`` says how it ended).
+        round-off).  A record without ``stop`` (written before records kept it) reads
+        back with ``"Fit_Converged"``, or ``"Unknown"`` for a fit that did not converge
+        (its ``message`` says how it ended).
 
         Parameters
         ----------
@@ -241,10 +246,103 @@ class FitResult:
         """How the unit of parameter ``name`` is printed: ``"1/R"``, ``"R"``,
         ``"(dimensionless)"`` (the family's :attr:`~morphoshell.model.profiles.ProfileFamily.units`;
         h and the opening are lengths), or ``""`` where the family gives none."""
-        units = {"h": "R", "opening": "R", "cut": "R",
-                 **self.problem.family_obj.units}
-        unit = units.get(name, "")
+        unit = self._unit(name)
         return "(dimensionless)" if unit == "1" else unit
+
+    def _unit(self, name: str) -> str:
+        """The unit of parameter ``name`` as tables write it: ``"1"``, ``"1/R"``, ``"R"``
+        (:meth:`unit`), or ``""``."""
+        return {"h": "R", "opening": "R", "cut": "R",
+                **self.problem.family_obj.units}.get(name, "")
+
+    def table(self) -> dict[str, list]:
+        """The fit as columns, one row per parameter: what ``morphoshell fit --csv`` writes
+        and :meth:`to_dataframe` holds.
+
+        Returns
+        -------
+        dict of str to list
+            The fitted parameters first (in the order of θ), then the others of
+            :attr:`parameters` (held, tied to others, or the shell's h, cut and opening):
+            ``parameter``, ``value``, ``standard_error`` (Gauss–Newton, a lower bound;
+            NaN for a parameter not fitted or on a constraint), ``unit`` (the value's:
+            ``"1"``, ``"1/R"``, ``"R"``), ``fitted``, ``on_constraint``
+            (:attr:`pinned`); and on every row how the fit ended, so that an unconverged
+            fit's table does not pass for a converged one's: ``E_fit`` (R),
+            ``converged``, ``stop``, ``walls_cross``.
+        """
+        names = [*self.fitted, *(n for n in self.parameters if n not in self.fitted)]
+        rows = len(names)
+        return {"parameter": names, "value": [float(self.parameters[n]) for n in names],
+                "standard_error": [float(self.standard_errors.get(n, math.nan))
+                                   for n in names],
+                "unit": [self._unit(n) for n in names],
+                "fitted": [n in self.fitted for n in names],
+                "on_constraint": [n in self.pinned for n in names],
+                "E_fit": [self.E_fit] * rows, "converged": [self.converged] * rows,
+                "stop": [self.stop] * rows, "walls_cross": [self.walls_cross] * rows}
+
+    def to_dataframe(self):
+        """The fit as a table, one row per parameter (:meth:`table`).
+
+        Returns
+        -------
+        pandas.DataFrame
+            The columns of :meth:`table`.  ``df.attrs`` holds ``units`` (column → unit:
+            ``value`` and ``standard_error`` in each row's ``unit``, ``E_fit`` in R),
+            ``problem`` (:meth:`Problem.describe`), ``method``, ``variant``, ``message``,
+            ``constrained`` and ``note`` (the standard errors are lower bounds).
+            The midlines: :meth:`to_xarray`, or :attr:`data` and :attr:`model`.
+        """
+        import pandas as pd
+
+        df = pd.DataFrame(self.table())
+        df.attrs.update(units={"value": "the row's unit", "standard_error": "the row's unit",
+                               "E_fit": "R"},
+                        problem=self.problem.describe(), method=self.method,
+                        variant=self.variant, message=self.message,
+                        constrained=list(self.constrained), note=_NOTE)
+        return df
+
+    def to_xarray(self):
+        """The fit as an xarray Dataset: its parameters, their correlations and the midlines.
+
+        Needs the optional extra ``xarray`` (``pip install 'morphoshell[xarray]'``).
+
+        Returns
+        -------
+        xarray.Dataset
+            Along ``parameter`` (with the coordinate ``unit``, each value's), the
+            variables ``value``, ``standard_error``, ``fitted`` and ``on_constraint`` of
+            :meth:`table`; ``correlation`` along (``fitted_i``, ``fitted_j``), the fitted
+            parameters; ``r_data``, ``z_data``, ``r_fit``, ``z_fit`` along ``point`` (units
+            of R).  Attributes: the problem (flat, as :meth:`Equilibrium.to_xarray`),
+            ``E_fit`` (R), ``method``, ``variant``, ``converged``, ``stop``,
+            ``walls_cross``, ``message``, ``constrained`` (``; ``-separated),
+            ``outer_iterations``, ``inner_solves``, ``seconds``: strings and numbers
+            only, so that the Dataset can be written to netCDF.
+        """
+        xr = xarray_module()
+        table = self.table()
+        names, fitted = table["parameter"], list(self.fitted)
+        data = {k: ("parameter", np.asarray(table[k])) for k in
+                ("value", "standard_error", "fitted", "on_constraint")}
+        data["correlation"] = (("fitted_i", "fitted_j"), np.asarray(self.correlation, float),
+                               {"units": "1"})
+        for label, points in (("data", self.data), ("fit", self.model)):
+            data.update({f"{c}_{label}": ("point", np.asarray(points[:, j], float),
+                                          {"units": "R"}) for j, c in enumerate("rz")})
+        coords = {"parameter": names, "unit": ("parameter", table["unit"]),
+                  "fitted_i": fitted, "fitted_j": fitted}
+        attrs = {**problem_attrs(self.problem), "E_fit": float(self.E_fit), "E_fit_units": "R",
+                 "method": self.method, "variant": self.variant,
+                 "converged": int(self.converged), "stop": self.stop,
+                 "walls_cross": int(self.walls_cross), "message": self.message,
+                 "constrained": "; ".join(self.constrained),
+                 "outer_iterations": int(self.outer_iterations),
+                 "inner_solves": int(self.inner_solves), "seconds": float(self.seconds),
+                 "note": _NOTE}
+        return xr.Dataset(data, coords=coords, attrs=attrs)
 
     @property
     def pinned(self) -> tuple[str, ...]:
@@ -275,14 +373,14 @@ class FitResult:
                 "correlation": self.correlation.tolist(),
                 "poorly_identified": self.poorly_identified, "E_fit": self.E_fit,
                 "E_fit_units": "R", "method": self.method, "variant": self.variant,
-                "converged": self.converged, "message": self.message, "seconds": self.seconds,
+                "converged": self.converged, "stop": self.stop, "message": self.message,
+                "seconds": self.seconds,
                 "constrained": list(self.constrained),
                 "outer_iterations": self.outer_iterations, "inner_solves": self.inner_solves,
                 "data_midline": {"r": self.data[:, 0].tolist(), "z": self.data[:, 1].tolist()},
                 "fitted_midline": {"r": self.model[:, 0].tolist(), "z": self.model[:, 1].tolist()},
                 "walls_cross": None if self.contact is None else self.contact.to_dict(),
-                "note": "standard errors are Gauss-Newton lower bounds: the residuals of a "
-                        "traced midline are correlated"}
+                "note": _NOTE}
 
 
 def load_fit(path: str | Path) -> FitResult:

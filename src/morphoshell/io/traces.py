@@ -163,6 +163,16 @@ class Midline:
             object.__setattr__(self, "spread", spread)
         object.__setattr__(self, "source", tuple(str(s) for s in self.source))
 
+    def __repr__(self) -> str:
+        """One line: points, traces, length (units of R) and source (the default repr held
+        every point: 62 lines)."""
+        length = float(np.sum(np.hypot(np.diff(self.r), np.diff(self.z))))
+        traces = f"{self.n_traces} trace{'' if self.n_traces == 1 else 's'}"
+        more = f" and {len(self.source) - 1} more" if len(self.source) > 1 else ""
+        source = f", source={self.source[0]!r}{more}" if self.source else ""
+        return (f"Midline({len(self.r)} points, {traces}, length {length:.3g} R"
+                f"{', with spread' if self.spread is not None else ''}{source})")
+
     @property
     def points(self) -> np.ndarray:
         """(r, z) as an array of shape (N, 2)."""

@@ -10,10 +10,14 @@ back without fitting, for figures and reports.
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable
 
+import numpy as np
+
+from .._runtime.tables import xarray_module
 from ..fitting import VARIANTS
 from ..fitting.midline_checks import input_check
 from ..io.timepoints import Timepoint, read_timepoints
@@ -59,6 +63,17 @@ class CampaignResult:
     records: dict
     timing: dict = field(default_factory=dict)
 
+    def __repr__(self) -> str:
+        """One line: the folder, the grid, how many fits, failed and not converged (the
+        default repr held every record: 135 000 characters for 3 fits)."""
+        ends = [why for *_, why in self.unfinished()]
+
+        def count(n: int, what: str) -> str:
+            return f"{n} {what}{'' if n == 1 else 's'}"
+        return (f"CampaignResult({self.out}, {count(len(self.timepoints), 'timepoint')} x "
+                f"{count(len(self.variants), 'variant')}, {count(len(self.records), 'fit')}, "
+                f"{ends.count('failed')} failed, {ends.count('not converged')} not converged)")
+
     def record(self, timepoint: str, variant: str) -> dict:
         """The record of one fit (KeyError if it is missing)."""
         return self.records[(timepoint, variant)]
@@ -96,6 +111,42 @@ class CampaignResult:
         df.attrs.update(units={str(c): column_unit(str(c)) for c in df.columns},
                         settings=read_record(self.out / SETTINGS) or {})
         return df
+
+    def to_xarray(self):
+        """E_fit and the parameters as an xarray Dataset along (``timepoint``, ``variant``).
+
+        Needs the optional extra ``xarray`` (``pip install 'morphoshell[xarray]'``).
+
+        Returns
+        -------
+        xarray.Dataset
+            Coordinates ``timepoint`` (the campaign's, in order, with ``pseudotime``
+            along it) and ``variant``; a variable for every other column of
+            :meth:`to_dataframe`, with its ``units`` (:func:`column_unit`) where it has
+            one: numbers as floats, flags (``converged``, ``walls_cross``) as bools, or as
+            1.0/0.0 where some fit has none, the rest as strings; NaN, or ``""``, where a
+            fit has no value (no record, a failed fit, a record written before the entry).
+            Attributes: ``out`` and ``settings`` (JSON), so that the Dataset can be
+            written to netCDF.  E.g. ``ds.E_fit.sel(variant="free")`` against
+            ``ds.pseudotime``.
+        """
+        import pandas as pd
+
+        xr = xarray_module()
+        names, variants = [tp.name for tp in self.timepoints], list(self.variants)
+        grid = pd.MultiIndex.from_product([names, variants], names=["timepoint", "variant"])
+        table = self.to_dataframe()
+        wide = table.set_index(["timepoint", "variant"]).drop(columns="pseudotime")
+        wide = wide.reindex(grid)
+        shape = (len(names), len(variants))
+        data = {str(c): (("timepoint", "variant"), _grid(wide[c].tolist()).reshape(shape),
+                         {"units": column_unit(str(c))} if column_unit(str(c)) else {})
+                for c in wide.columns}
+        coords = {"timepoint": names, "variant": variants,
+                  "pseudotime": ("timepoint", [float(tp.pseudotime) for tp in self.timepoints],
+                                 {"units": column_unit("pseudotime")})}
+        return xr.Dataset(data, coords=coords, attrs={
+            "out": str(self.out), "settings": json.dumps(table.attrs["settings"])})
 
     def unfinished(self) -> list[tuple[str, str, str]]:
         """The fits that failed or did not converge: (timepoint, variant, "failed" or
@@ -163,6 +214,21 @@ def _summary_row(tp: Timepoint, variant: str, rec: dict) -> dict:
         row.update({f"se_embryo_{n}": _number(embryo.get(n)) for n in names})
         row["embryo_t95"] = rec.get("embryo_t95", float("nan"))   # (none: no errors)
     return row
+
+
+def _grid(values: list) -> np.ndarray:
+    """A column of the summary on the (timepoint, variant) grid as one array: numbers as
+    floats, flags as bools (1.0/0.0 where some have none), the rest as strings; NaN, or
+    ``""``, where a fit has no value (None or NaN: :meth:`CampaignResult.to_xarray`)."""
+    none = [v is None or isinstance(v, float) and math.isnan(v) for v in values]
+    given = [v for v, n in zip(values, none) if not n]
+    if given and all(isinstance(v, (bool, np.bool_)) for v in given):
+        if not any(none):
+            return np.array(values, dtype=bool)
+        return np.array([math.nan if n else float(v) for v, n in zip(values, none)])
+    if all(isinstance(v, (int, float, np.number)) for v in given):
+        return np.array([math.nan if n else v for v, n in zip(values, none)], dtype=float)
+    return np.array(["" if n else str(v) for v, n in zip(values, none)], dtype=str)
 
 
 def record_input_check(rec: dict) -> str | None:

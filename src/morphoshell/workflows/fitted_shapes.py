@@ -156,6 +156,35 @@ class NumericalAblation:
         """The recoil observables (units: :data:`morphoshell.mechanics.ablation.UNITS`)."""
         return self.ablation.observables()
 
+    def checks(self) -> dict[str, float | int | bool]:
+        """How it was reached and checked: ``steps``, ``rejected``, ``cold_difference`` and
+        ``walls_cross`` (the attributes of the same names)."""
+        return {"steps": int(self.steps), "rejected": int(self.rejected),
+                "cold_difference": float(self.cold_difference), "walls_cross": self.walls_cross}
+
+    def to_dataframe(self):
+        """The ablation as a one-row table
+        (:meth:`~morphoshell.mechanics.ablation.Ablation.to_dataframe`: the problem, the
+        observables and their ``<observable>_error``, as ``morphoshell ablate --csv``
+        writes them), then the columns of :meth:`checks`; units in ``df.attrs["units"]``."""
+        df = self.ablation.to_dataframe()
+        for k, v in self.checks().items():
+            df[k] = [v]
+        return df
+
+    def to_xarray(self):
+        """The ablation as an xarray Dataset
+        (:meth:`~morphoshell.mechanics.ablation.Ablation.to_xarray`: the observables, their
+        errors and both equilibria), :meth:`checks` among its attributes (``walls_cross`` 0
+        or 1).
+
+        Needs the optional extra ``xarray`` (``pip install 'morphoshell[xarray]'``).
+        """
+        ds = self.ablation.to_xarray()
+        ds.attrs.update({k: int(v) if isinstance(v, bool) else v
+                         for k, v in self.checks().items()})
+        return ds
+
 
 def numerical_ablation(problem: Problem, cut: float = CUT, *, nodes: int = 200,
                        pre: Equilibrium | None = None, cold: bool = True) -> NumericalAblation:

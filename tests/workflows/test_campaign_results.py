@@ -1,0 +1,61 @@
+"""A campaign's results (workflows/campaign_results.py) at a glance and as a grid: records made
+by hand (no fitting), one fit of each kind: converged, stopped short, failed, missing."""
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from morphoshell.workflows import CampaignResult, Timepoint
+
+TIMEPOINTS = (Timepoint("t01", 0.0, "a.csv"), Timepoint("t02", 0.5, "b.csv"),
+              Timepoint("t10", 1.0, "c.csv"))
+
+
+def _record(E_fit: float, converged: bool, **extra) -> dict:
+    return {"status": "ok", "E_fit": E_fit, "converged": converged, "nodes": 60,
+            "method": "gradient", "constrained": [], "standard_errors": {"f1": 0.01, "s2": None},
+            "parameters": {"f1": 0.9, "kappa2": -8.0, "s2": 1.6, "h": 0.15}, **extra}
+
+
+@pytest.fixture
+def result() -> CampaignResult:
+    records = {("t01", "flat"): _record(0.01, True, walls_cross=None),
+               ("t02", "flat"): _record(0.02, False, walls_cross=None),
+               ("t01", "free"): {"status": "failed", "message": "no start solved"},
+               ("t10", "free"): _record(0.03, True)}        # (written before walls_cross)
+    return CampaignResult(Path("out/fits"), TIMEPOINTS, ("flat", "free"), records)
+
+
+def test_a_campaign_is_one_line_when_echoed(result):
+    """Audit 21 F11: the repr held every record (135 000 characters for 3 fits)."""
+    assert repr(result) == ("CampaignResult(out/fits, 3 timepoints x 2 variants, 4 fits, "
+                            "1 failed, 1 not converged)")
+
+
+def test_a_campaign_is_a_grid_of_timepoints_and_variants(result, tmp_path):
+    """Audit 21 F14: the docs said every result converts to an xarray Dataset; a campaign
+    did not.  It is the summary on (timepoint, variant), in the campaign's order (t10 after
+    t02, not sorted as text), pseudotime along timepoint, units attached; NaN or "" where a
+    fit has no value; flags bool where every fit has one, else 1/0/NaN.  It survives netCDF."""
+    import xarray as xr
+
+    ds = result.to_xarray()
+    assert list(ds.timepoint.values) == ["t01", "t02", "t10"]
+    assert list(ds.variant.values) == ["flat", "free"]
+    assert ds.pseudotime.values.tolist() == [0.0, 0.5, 1.0]
+    assert np.array_equal(ds.E_fit.values, [[0.01, np.nan], [0.02, np.nan], [np.nan, 0.03]],
+                          equal_nan=True)
+    assert ds.E_fit.attrs["units"] == "R" and ds.kappa2.attrs["units"] == "1/R"
+    assert ds.se_f1.attrs["units"] == "1" and "units" not in ds.status.attrs
+    assert ds.status.values.tolist() == [["ok", "failed"], ["ok", ""], ["", "ok"]]
+    # converged: the failed fit's row says False, the missing ones have none
+    assert np.array_equal(ds.converged.values, [[1, 0], [0, np.nan], [np.nan, 1]],
+                          equal_nan=True)
+    assert np.isnan(ds.se_s2.values).all()          # (null: on a constraint)
+    assert json.loads(ds.attrs["settings"]) == {} and ds.attrs["out"] == "out/fits"
+    complete = CampaignResult(result.out, TIMEPOINTS[:1], ("flat",),
+                              {("t01", "flat"): result.records[("t01", "flat")]}).to_xarray()
+    assert complete.converged.dtype == bool and complete.walls_cross.dtype == bool
+    ds.to_netcdf(tmp_path / "campaign.nc")
+    assert xr.load_dataset(tmp_path / "campaign.nc").identical(ds)
