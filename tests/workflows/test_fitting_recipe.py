@@ -52,8 +52,11 @@ def test_the_recipes_fit_and_the_json_example_run_as_written(tmp_path):
     run = subprocess.run([sys.executable, "-c", example], cwd=tmp_path, env=_env(),
                          capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stdout + run.stderr
-    observables, cold_difference = run.stdout.strip().splitlines()
-    observables = ast.literal_eval(observables)
+    observables, errors, cold_difference = run.stdout.strip().splitlines()
+    observables, errors = ast.literal_eval(observables), ast.literal_eval(errors)
+    # (an estimate for every observable, each a bound well below the value on 200 nodes)
+    assert set(errors) == set(observables), errors
+    assert all(0 <= errors[k] < 0.03 * abs(v) for k, v in observables.items() if v), errors
     assert {"opening", "rotation", "displacement", "energy_released"} <= set(observables)
     assert observables["opening"] > 0
     assert float(cold_difference) < 1e-6            # the continuation and a cold solve agree
