@@ -395,3 +395,14 @@ def test_methods_may_be_one_string_of_names():
                                          r"valid: \['leading_order', 'kelvin', 'inner', "
                                          r"'numerical'\]$"):
         I.estimate(rows, methods="kelvn")
+
+
+def test_one_embryos_methods_are_checked_as_a_tables():
+    """estimate_embryo took methods by membership: "kelvn" (a typo) ran no method at all,
+    every estimate 'missing' without a word, and "kelvin,inner" ran them by substring."""
+    m = _measurement({"opening": A.opening(H, 0.3, SIGMA)})
+    with pytest.raises(ValueError, match=r"^methods = 'kelvn': unknown method\(s\) \['kelvn'\]"):
+        I.estimate_embryo(m, methods="kelvn")
+    d = I.estimate_embryo(m, methods="kelvin, inner").to_dict()
+    assert d["k_opening_inner"] is not None and "k_opening_kelvin" in d
+    assert "k_opening_leading_order" not in d       # (not requested: no column)

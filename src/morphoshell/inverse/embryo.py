@@ -17,13 +17,14 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
+from .._runtime.validate import name_list
 from ..io.measurements import ERROR_COLUMN, MEASURES, UNITS, Measurement, to_physical
 from ..mechanics import asymptotics
 from .inversion import (ASYMPTOTIC, DEFAULT_K_RANGE, METHODS, SYMBOL, Curve, Estimate,
                         check_curvature, check_k_range, forward_map, invert)
 from .recoil_model import RecoilModel
 
-__all__ = ["EmbryoEstimate", "estimate_embryo", "format_k", "NOT_REQUESTED"]
+__all__ = ["EmbryoEstimate", "estimate_embryo", "check_methods", "format_k", "NOT_REQUESTED"]
 
 #: The note of the estimates of a method left out of ``methods`` (and of the combined k
 #: without ``numerical``): no entry in the JSON or the table, and no note.
@@ -150,6 +151,17 @@ def _by_method(m: Measurement, method: str, curve: Curve,
     return out
 
 
+def check_methods(methods) -> tuple[str, ...]:
+    """The methods asked for (names, or one comma-separated string: "kelvin" is one method, not
+    six letters), or ValueError naming the unknown ones."""
+    asked = tuple(name_list(methods))
+    unknown = [m for m in asked if m not in METHODS]
+    if unknown:
+        raise ValueError(f"methods = {methods!r}: unknown method(s) {unknown}; valid: "
+                         f"{list(METHODS)}")
+    return asked
+
+
 def estimate_embryo(m: Measurement, model: RecoilModel | None = None,
                     k_range: tuple[float, float] = DEFAULT_K_RANGE,
                     methods: Sequence[str] = METHODS) -> EmbryoEstimate:
@@ -163,8 +175,9 @@ def estimate_embryo(m: Measurement, model: RecoilModel | None = None,
         The numerical model (default: a new one, if ``"numerical"`` is requested).
     k_range : (float, float)
         Range of k searched.
-    methods : sequence of str
-        Subset of :data:`morphoshell.inverse.inversion.METHODS`; the others
+    methods : sequence of str, or str
+        Subset of :data:`morphoshell.inverse.inversion.METHODS` (or one comma-separated
+        string of them, :func:`check_methods`); the others
         get the status ``missing`` (note :data:`NOT_REQUESTED`), and so does the
         combined k without ``"numerical"``.
 
@@ -177,13 +190,14 @@ def estimate_embryo(m: Measurement, model: RecoilModel | None = None,
     Raises
     ------
     ValueError
-        For a bad k-range, or one reaching |k| ≥ 2/h, a curvature the shell
+        An unknown method; a bad k-range, or one reaching |k| ≥ 2/h, a curvature the shell
         cannot have (:func:`morphoshell.inverse.inversion.check_curvature`).
 
     See Also
     --------
     morphoshell.inverse.pipeline.estimate : a whole table.
     """
+    methods = check_methods(methods)
     if model is None and "numerical" in methods:
         model = RecoilModel()
     k_range = check_k_range(k_range)

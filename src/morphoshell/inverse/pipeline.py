@@ -24,11 +24,10 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from .._runtime.validate import name_list
 from .._runtime.workers import worker_start
 from .._runtime.console import progress as _progress_bar
 from ..io.measurements import MEASURES, Measurement, read_measurements
-from .embryo import EmbryoEstimate, estimate_embryo
+from .embryo import EmbryoEstimate, check_methods, estimate_embryo
 from .inversion import (ASYMPTOTIC, DEFAULT_K_RANGE, GRID_STEP, K_TOL, METHODS, check_curvature,
                         check_k_range)
 from .recoil_model import NODES, RecoilModel
@@ -54,17 +53,6 @@ def _load(measurements) -> tuple[Measurement, ...]:
     if not all(isinstance(m, Measurement) for m in data):
         raise ValueError("measurements must be Measurement objects or a table's path")
     return data
-
-
-def _check_methods(methods) -> tuple[str, ...]:
-    """The methods asked for (names, or one comma-separated string: "kelvin" is one method, not
-    six letters), or ValueError naming the unknown ones."""
-    asked = tuple(name_list(methods))
-    unknown = [m for m in asked if m not in METHODS]
-    if unknown:
-        raise ValueError(f"methods = {methods!r}: unknown method(s) {unknown}; valid: "
-                         f"{list(METHODS)}")
-    return asked
 
 
 def _check_settings(k_range, mu_min, bootstrap) -> tuple[float, float]:
@@ -238,7 +226,7 @@ def estimate(measurements: str | Path | Iterable[Measurement], *,
     """
     t0 = time.perf_counter()
     data = _load(measurements)
-    methods = _check_methods(methods)
+    methods = check_methods(methods)
     k_range = _check_settings(k_range, mu_min, bootstrap)
     check_shells(data, k_range)
     model = None
