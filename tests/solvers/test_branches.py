@@ -56,14 +56,14 @@ def test_a_pair_of_folds_within_one_large_step_is_found(volvox, branch60, max_st
     audit: four folds of six, no word). Steps that go back in τ against both tangents or
     turn by more than 26° are retried at half: the six folds at every largest step, to 1e-8
     of the default step's. Without the turn test, 0.05 finds four again."""
-    from morphoshell.solvers import branches
+    from morphoshell.solvers import arclength
 
     a = [pt.tau for pt in branch60.events]
     coarse = follow_branch(volvox, nodes=60, max_step=max_step)
     assert [pt.event for pt in coarse.events] == ["fold"] * 6
     assert np.max(np.abs(np.subtract(a, [pt.tau for pt in coarse.events]))) < 1e-8
     if max_step == 0.05:
-        monkeypatch.setattr(branches, "SMOOTH_COS", -1.0)
+        monkeypatch.setattr(arclength, "SMOOTH_COS", -1.0)
         assert len(follow_branch(volvox, nodes=60, max_step=max_step).events) == 4
 
 

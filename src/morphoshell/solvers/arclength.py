@@ -83,6 +83,13 @@ BRANCH_TOL, BRANCH_SCALE = 1e-11, 1e-3
 #: direction at which it has converged: a located branch point's zero eigenvalue is many
 #: orders below the others (on the blister disc three iterations change it by 1e-13).
 NULL_ITERATIONS, NULL_TOL = 10, 1e-8
+#: A step whose tangent turns by more than this angle (its cosine below) is retried at
+#: half, down to a SMOOTH_SHRINK-th of the largest step (:meth:`Arclength.folds_within`):
+#: a pair of folds within one step leaves t_τ's sign as it was, and was missed at
+#: --max-step 0.05 (a user audit: the fold shell's folds at λ = 0.54653 and 0.54596,
+#: where the steps turned by 30-43°).
+SMOOTH_COS = 0.9
+SMOOTH_SHRINK = 16
 #: At a fold the null vector is the branch's own tangent: a null vector whose part
 #: orthogonal to the tangent is smaller than this is no branch point's.
 MIN_ORTHOGONAL = 1e-3
@@ -501,6 +508,17 @@ class Arclength:
         dpsi = layout.split(self.kkt.unpack(new.u)[0])[1] - \
             layout.split(self.kkt.unpack(prev.u)[0])[1]
         return bool(np.max(np.abs(dpsi)) > MAX_TURN)
+
+    def folds_within(self, prev: ArcPoint, new: ArcPoint, ds: float, max_step: float) -> bool:
+        """Whether the step ``ds`` from ``prev`` to ``new`` may hide a pair of folds, and is
+        retried at half (by a walk whose largest step is ``max_step``): it moved τ against
+        both its ends' tangents, or turned by more than :data:`SMOOTH_COS`'s angle while it
+        may still shrink to a :data:`SMOOTH_SHRINK`-th of the largest (two folds within one
+        step cancel in the sign of t_τ, and the step goes back in τ between them, or
+        turns)."""
+        moved = new.tau - prev.tau
+        back = moved * prev.t_tau < 0 and moved * new.t_tau < 0
+        return back or self.cos(prev, new) < SMOOTH_COS and ds > max_step / SMOOTH_SHRINK
 
     # -- events --------------------------------------------------------------------------
     def locate_fold(self, prev: ArcPoint, ds: float) -> ArcPoint:
