@@ -546,7 +546,10 @@ class _Walk:
         component near 0 at a pitchfork: no fold is looked for between the
         two); its step is halved until the corrector converges.
         """
-        at = self.arc.switch(self.arc.start(origin.equilibrium, origin.tau), direction)
+        at = self.arc.start(origin.equilibrium, origin.tau)
+        # (origin holds the fewer negative eigenvalues of its two sides)
+        sign = -1.0 if at.inertia.negative > origin.negative_eigenvalues else 1.0
+        at = self.arc.switch(at, direction, sign)
         self.record(at, "branch_point", origin.equilibrium, origin.negative_eigenvalues)
         first = self.arc.first_step(at, self.max_step / 4)
         if first is None:
