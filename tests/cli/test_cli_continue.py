@@ -235,6 +235,45 @@ def test_an_interrupt_in_the_half_mesh_check_keeps_the_complete_walk(tmp_path, c
     assert data["ended"]["status"] == "Interrupted" and data["seconds"] > 0
 
 
+def test_a_switch_run_interrupted_in_the_main_branchs_check_keeps_its_layout(tmp_path, capsys,
+                                                                             monkeypatch):
+    """`--switch` cut in the main branch's half-mesh check: the CSV had no ``branch`` column
+    and the JSON no ``switched`` nor ``not_done``, and the message did not say the switches
+    were not followed, where a cut in the switches does both (audit 22 F3): a reader keyed
+    on ``branch`` failed. Now the layout is the switches' whenever the run stops."""
+    from morphoshell.solvers import branches
+
+    def cut(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(branches, "event_errors", cut)
+    out, doc = tmp_path / "s.csv", tmp_path / "s.json"
+    assert main(["continue", str(example_path("blister")), "--nodes", "40", "--switch", "2",
+                 "--csv", str(out), "--json", str(doc)]) == 130
+    err = capsys.readouterr().err.splitlines()[-1]
+    assert err.startswith("morphoshell: interrupted during the half-mesh check") and \
+        err.endswith("marked partial; 1+, 1-, 2+, 2- not followed"), err
+    comment, head, *rows = out.read_text().splitlines()
+    assert comment.startswith("# morphoshell continue PARTIAL: the branch stopped early")
+    assert head.startswith("branch,lambda,") and {r.split(",")[0] for r in rows} == {"main"}
+    data = json.loads(doc.read_text())
+    assert data["switched"] == [] and data["not_done"] == "1+, 1-, 2+, 2- not followed"
+    assert data["complete"] is False
+
+
+def test_a_snaps_line_has_no_error_clause(capsys):
+    """Error estimates are a fold's or branch point's; a snap's landing line said "no error
+    estimate (the half mesh holds no point before it)", as if a check had failed (audit 22
+    F4). Its line has none; the fold it snaps from keeps its estimate."""
+    assert main(["continue", str(FOLD), "--nodes", "40", "--follow", "stable"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    snaps = [line for line in lines if line.lstrip().startswith("snap ")]
+    folds = [line for line in lines if line.lstrip().startswith("fold ")]
+    assert snaps and folds
+    assert not any("error" in line for line in snaps), snaps
+    assert all("error in lambda" in line for line in folds), folds
+
+
 def test_switch_follows_both_halves_of_the_branch_through_a_branch_point(tmp_path, capsys):
     """`continue --switch 1` on the packaged example blister: the flat branch, then both
     halves of the dome branch through its first branch point, stable at lambda = 1 and

@@ -1,6 +1,7 @@
 """A branch held to solve()'s checks (audit 14, F2 and F3): its events' λ against the half
 mesh, and its end where the meridian starts to cross the axis."""
 import logging
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,7 +12,7 @@ from morphoshell.numerics.status import MERIDIAN_CROSSES_AXIS
 from morphoshell.plotting.branches import branch_caption
 from morphoshell.solvers.branches import follow_branch
 from morphoshell.solvers.direct import axis_crossing
-from morphoshell.solvers.refinement import COARSE, SAFETY
+from morphoshell.solvers.refinement import COARSE, SAFETY, half_mesh
 from morphoshell.solvers.routes import direct_solver
 
 
@@ -55,6 +56,43 @@ def test_an_event_estimate_is_twice_its_distance_to_the_half_mesh_walks_event(ca
         assert 0 < a.lambda_error < 1e-4
     assert not cap.unresolved
     assert all(np.isnan(pt.lambda_error) for pt in cap.points if not pt.event)
+
+
+@pytest.fixture(scope="module")
+def fold_shell():
+    """The fold shell of docs/branches.md (the Volvox family, six folds by lambda = 1)."""
+    return load_problem(Path(__file__).resolve().parents[1] / "data" / "volvox_fold.toml")[0]
+
+
+@pytest.mark.parametrize("nodes", [60, 100])
+@pytest.mark.parametrize("max_step", [0.2, 0.5])
+def test_an_event_estimate_does_not_depend_on_the_largest_step(fold_shell, nodes, max_step):
+    """The fold shell's folds at lambda = 0.5465 and 0.5460 bound a loop 5.8e-4 wide: at
+    --max-step 0.2-0.5 the half mesh's walk, starting afresh at a quarter of the largest
+    step, crossed all of it in its first step, and (60 nodes) walked from a point before
+    both folds toward the second's lambda, away from the first: those folds were "not
+    resolved", lambda_error inf, 400 nodes asking for 799 (audit 22 F7). Held to the fine
+    walk's way and direction, each fold's estimate is SAFETY times its distance to the
+    same fold of the half mesh's own walk (both located to 1e-9 in arclength: 1e-8 here
+    against estimates of 3e-5 to 2e-3)."""
+    branch = follow_branch(fold_shell, nodes=nodes, max_step=max_step)
+    half = follow_branch(fold_shell, nodes=half_mesh(nodes))
+    assert [pt.event for pt in branch.events] == [pt.event for pt in half.events] == ["fold"] * 6
+    for a, b in zip(branch.events, half.events):
+        assert a.lambda_error == pytest.approx(SAFETY * abs(a.tau - b.tau), abs=1e-8)
+    assert not branch.unresolved
+
+
+def test_the_half_mesh_walk_retries_a_step_that_may_hide_two_folds(fold_shell, monkeypatch):
+    """Its steps are accepted as the walk's are (Arclength.folds_within): unheld by the fine
+    walk's way, at --max-step 0.3 on 400 nodes a step that turned by more than 26 degrees
+    across the loop is retried at half and the fold at 0.54653 found (3.5e-7); accepted,
+    it was reported not resolved (audit 22 F7)."""
+    from morphoshell.solvers import branch_checks
+
+    monkeypatch.setattr(branch_checks, "_way", lambda arc, points: np.inf)
+    branch = follow_branch(fold_shell, nodes=400, max_step=0.3)
+    assert not branch.unresolved and max(pt.lambda_error for pt in branch.events) < 1e-6
 
 
 def test_a_branch_ends_where_its_meridian_crosses_the_axis(cap):

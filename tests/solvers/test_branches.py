@@ -56,14 +56,14 @@ def test_a_pair_of_folds_within_one_large_step_is_found(volvox, branch60, max_st
     audit: four folds of six, no word). Steps that go back in τ against both tangents or
     turn by more than 26° are retried at half: the six folds at every largest step, to 1e-8
     of the default step's. Without the turn test, 0.05 finds four again."""
-    from morphoshell.solvers import branches
+    from morphoshell.solvers import arclength
 
     a = [pt.tau for pt in branch60.events]
     coarse = follow_branch(volvox, nodes=60, max_step=max_step)
     assert [pt.event for pt in coarse.events] == ["fold"] * 6
     assert np.max(np.abs(np.subtract(a, [pt.tau for pt in coarse.events]))) < 1e-8
     if max_step == 0.05:
-        monkeypatch.setattr(branches, "SMOOTH_COS", -1.0)
+        monkeypatch.setattr(arclength, "SMOOTH_COS", -1.0)
         assert len(follow_branch(volvox, nodes=60, max_step=max_step).events) == 4
 
 
@@ -655,27 +655,46 @@ def test_a_parameter_that_moves_the_knots_is_followed_on_rebuilt_meshes(volvox, 
     assert not kept.remeshed and _events(kept, "branch_point")
 
 
-def test_the_blister_buckles_on_a_fine_mesh_too(blister):
+def test_the_blister_buckles_on_a_fine_mesh_too(blister, monkeypatch):
     """The packaged blister solved at 200-400 nodes and failed from 600 (a user audit:
     "try a finer mesh" where finer failed): past its branch point the disc is moved down
     the unstable mode and minimised, and a move of unit Euclidean length, whose entries
     shrink like 1/sqrt(n), ended back at the flat saddle. A move of unit root mean square
-    leaves it: the 600-node dome is the 400-node one to 1e-8 (their estimates: ~1e-8)."""
-    fine, coarse = solve(blister, nodes=600), solve(blister, nodes=400)
+    leaves it: the 600-node dome is the 400-node one to 1e-8 (their estimates: ~1e-8).
+    That descent is the fall-back where no half of the other branch is followed: since
+    the null vector is found among the soft modes (audit 22 F2) the switch itself works
+    there, so it is made to fail."""
+    coarse = solve(blister, nodes=400)
+    assert "switched branches" in coarse.solver.details["path"]
+    monkeypatch.setattr(Arclength, "switch", _no_switch)
+    fine = solve(blister, nodes=600)
     assert "buckled" in fine.solver.details["path"]
     assert fine.energy == pytest.approx(coarse.energy, rel=1e-7)
     assert fine.z[-1] - fine.z[0] == pytest.approx(coarse.z[-1] - coarse.z[0], rel=1e-6)
 
 
+def _no_switch(arc, point, direction=1.0, sign=-1.0):
+    raise ValueError("no switch (test)")
+
+
 def test_a_continuation_that_fails_on_a_fine_mesh_is_solved_from_a_coarser_one(blister,
                                                                               monkeypatch):
-    """The blister's crossing of its branch point fails from 800 nodes (its modes crowd),
-    where a solve refined for rtol reaches 3185: solve() continues on a coarser mesh and
-    solves on its own from there, saying so. The 800-node dome is the 400-node one to 1e-8
-    (both estimates ~1e-9 relative; 1600 and 3200 nodes: 7.9262731748e-7 C R^2, the same
-    rising half). Without the coarser mesh the solve fails."""
+    """The blister's crossing of its branch point failed from 800 nodes (its modes crowded:
+    audit 22 F2, since fixed, so the crossing is made to fail there), where a solve refined
+    for rtol reaches 3185: solve() continues on a coarser mesh and solves on its own from
+    there, saying so. The 800-node dome is the 400-node one to 1e-8 (both estimates ~1e-9
+    relative; 1600 and 3200 nodes: 7.9262731748e-7 C R^2, the same rising half). Without
+    the coarser mesh the solve fails."""
     from morphoshell.solvers import routes
 
+    real = crossings.switch_stable
+
+    def fails_when_fine(arc, bp, ds, *args, **kwargs):
+        if arc.solver.nodes >= 800:
+            raise crossings.branch_ended(bp.tau, "no crossing (test)", None)
+        return real(arc, bp, ds, *args, **kwargs)
+
+    monkeypatch.setattr(crossings, "switch_stable", fails_when_fine)
     fine, coarse = solve(blister, nodes=800), solve(blister, nodes=400)
     assert "(on 800 it failed), then solved on 800 nodes from there" in \
         fine.solver.details["path"]
@@ -684,6 +703,29 @@ def test_a_continuation_that_fails_on_a_fine_mesh_is_solved_from_a_coarser_one(b
     monkeypatch.setattr(routes, "COARSEST", 10**6)
     with pytest.raises(SolverError):
         solve(blister, nodes=800)
+
+
+def test_the_blister_switches_where_soft_modes_crowd_near_zero(blister):
+    """On 400-800 nodes the flat disc's KKT matrix has two soft positive eigenvalues near
+    the branch point's (1.7e-12 and 4.6e-12 at 800 nodes, N^-7, against its -4.6e-11):
+    ten inverse iterations of one vector did not converge there and switching failed at
+    every branch point ("not a located branch point", audit 22 F2). The mode that changed
+    sign is the negative one nearest zero (the located point is past the loss of
+    stability): found among six by subspace iteration, converged and told apart at the
+    first three, where the switch works (at the third: a branch with 2 negative
+    eigenvalues; solve() on 400 nodes: test_the_blister_buckles_on_a_fine_mesh_too)."""
+    flat = follow_branch(blister, nodes=800)
+    other = switch_branch(flat, 2, +1)
+    assert other.end.tau == 1 and other.end.z_end > 0.01       # off the flat disc
+    assert other.points[1].negative_eigenvalues == 2
+    for bp in flat.events[:3]:
+        arc = Arclength(solver_of(bp.equilibrium), flat.line, bp.equilibrium.anchors,
+                        at=bp.tau)
+        mode = arc.null_vector(arc.start(bp.equilibrium, bp.tau))
+        # located to 1e-11 in lambda, its eigenvalue is -3e-11 to -6e-11 (the soft ones'
+        # +1.7e-12, +4.6e-12, the next 4e-10): -1e-9 bounds it with room; crowding is
+        # SEPARATION's bound, here ~5e-3 (over the farthest of the six)
+        assert -1e-9 < mode.value < 0 and mode.change < 1e-8 and mode.crowding < 0.1
 
 
 def test_a_branch_whose_shown_shapes_overlap_says_so(volvox, caplog):

@@ -157,8 +157,10 @@ def _write(args, branch, switched=(), missing: str | None = None) -> list:
     comments = ((f"{PARTIAL}: {branch.ended.why}",) if stopped else
                 (f"{NOT_DONE}: {missing}",) if missing else ())
     out = Outputs()
-    out.add(args.json, lambda path: write_json(path, _document(branch, switched, missing)))
-    out.add(args.csv, lambda path: write_csv(path, _csv_columns(branch, switched),
+    named = args.switch > 0
+    out.add(args.json, lambda path: write_json(path, _document(branch, switched, missing,
+                                                                 named)))
+    out.add(args.csv, lambda path: write_csv(path, _csv_columns(branch, switched, named),
                                              comments=comments))
     if args.plot:
         from ..plotting import plot_branch, save
@@ -211,10 +213,13 @@ def _ended_early(args, problem, exc, branch) -> int:
         interrupts.swallowed()      # (claimed: the outputs' commit would raise it again)
     else:
         _report(problem, branch)
-    paths = _write(args, branch)
+    # (with --switch: the switches' layout, a branch column and not_done, whenever it stops)
+    missing = f"{', '.join(_halves(args, branch)) or 'no switch'} not followed" \
+        if args.switch else None
+    paths = _write(args, branch, missing=missing)
     where = (f"; the {len(branch.points)} points followed to lambda = {branch.end.tau:.6g} "
              f"are kept in {' and '.join(map(str, paths))}, marked partial"
-             if paths else "")
+             if paths else "") + f"{'; ' * bool(missing)}{missing or ''}"
     if solver_failed:
         raise SolverError(f"{exc}{where}", exc.status, exc.last_iterate) from exc
     print(f"morphoshell: {branch.ended.why} after {len(branch.points)} points{where}",
@@ -243,9 +248,12 @@ def _report(problem, branch) -> None:
 
 
 def _error(pt) -> str:
-    """An event's λ error estimate from the half mesh, for its line ("" if none)."""
+    """A fold's or branch point's λ error estimate from the half mesh, for its line ("" for a
+    snap's landing, which has none: it is no located event of the branch)."""
     from ..solvers.refinement import COARSE
 
+    if pt.event not in ("fold", "branch_point"):
+        return ""
     if pt.lambda_error == float("inf"):
         return "; not resolved (not on the half mesh)"
     if pt.lambda_error > COARSE:
@@ -281,7 +289,7 @@ def _switched(args, branch) -> tuple[list[tuple[str, object]], list[str], str | 
     count = sum(pt.event == "branch_point" for pt in branch.points)
     if args.switch > count:
         note(f"--switch {args.switch}: the branch has {count} branch point(s)")
-    halves = [f"{k + 1}{sign}" for k in range(min(args.switch, count)) for sign in "+-"]
+    halves = _halves(args, branch)
     out, failed = [], []
     for i, name in enumerate(halves):
         try:
@@ -312,9 +320,17 @@ def _switched(args, branch) -> tuple[list[tuple[str, object]], list[str], str | 
     return out, failed, None
 
 
-def _csv_columns(branch, switched) -> dict:
+def _halves(args, branch) -> list[str]:
+    """The names of the branches ``--switch`` follows from ``branch``: both halves (+, −) of
+    each of its first N branch points, numbered from 1."""
+    count = sum(pt.event == "branch_point" for pt in branch.points)
+    return [f"{k + 1}{sign}" for k in range(min(args.switch, count)) for sign in "+-"]
+
+
+def _csv_columns(branch, switched, named: bool = False) -> dict:
     """The table with ``stable`` as true/false (not Python's True/False); after a switch, the
-    switched branches' rows follow, and a first column ``branch`` names each row's."""
+    switched branches' rows follow, and a first column ``branch`` names each row's (also
+    where none was followed, if ``named``: a --switch run's layout)."""
     tables = [("main", branch.columns())] + [(name, b.columns()) for name, b in switched]
     columns = {k: [v for _, t in tables for v in t[k]] for k in tables[0][1]}
     columns["stable"] = ["true" if s else "false" for s in columns["stable"]]
@@ -322,15 +338,15 @@ def _csv_columns(branch, switched) -> dict:
     # (one type in the column: strings, as write_csv writes floats)
     columns["lambda_error"] = ["inf" if e == float("inf") else repr(e) if e >= 0 else ""
                                for e in columns["lambda_error"]]
-    if switched:
+    if switched or named:
         columns = {"branch": [name for name, t in tables for _ in t["lambda"]], **columns}
     return columns
 
 
-def _document(branch, switched, missing: str | None = None) -> dict:
+def _document(branch, switched, missing: str | None = None, named: bool = False) -> dict:
     from .. import __version__
 
     return {"morphoshell": __version__, **branch.to_dict(),
             **({"switched": [{"name": name, **b.to_dict()} for name, b in switched]}
-               if switched else {}),
+               if switched or named else {}),
             **({"complete": False, "not_done": missing} if missing else {})}

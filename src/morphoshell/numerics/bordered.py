@@ -187,6 +187,15 @@ class BorderedKKT:
                        ).reshape(len(b), 2)
         return self.eliminate(Z, c, c_tau, beta)
 
+    def solve_columns(self, state: KKTState, B: np.ndarray) -> np.ndarray:
+        """K⁻¹ B for a block of right-hand sides B, shape (k, c)."""
+        return np.asarray(self._linsol.solve(state.K, ca.DM(B))).reshape(B.shape)
+
+    @staticmethod
+    def times(state: KKTState, B: np.ndarray) -> np.ndarray:
+        """K B for a block B, shape (k, c)."""
+        return np.asarray(ca.mtimes(state.K, ca.DM(B))).reshape(B.shape)
+
     @staticmethod
     def eliminate(Z: np.ndarray, c: np.ndarray, c_tau: float,
                   beta: float) -> tuple[np.ndarray, float]:

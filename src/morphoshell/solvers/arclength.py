@@ -27,8 +27,9 @@ two points are located, not just noticed:
 
 At a simple branch point another branch crosses.  :meth:`Arclength.switch`
 starts on it: the tangents of both branches there span the null space of
-[K F_τ], the KKT matrix K being singular with one null vector φ (found by
-inverse iteration); the direction in that null space orthogonal to the
+[K F_τ], the KKT matrix K being singular with one null vector φ (the
+eigenvector of the eigenvalue that changed sign there, by subspace iteration
+among those nearest zero); the direction in that null space orthogonal to the
 branch's own tangent is the predictor onto the other one, and the corrector's
 border row, that direction, keeps Newton's iterations off the branch it left
 (Keller 1977, §5; AUTO-07p's and BifurcationKit's branch switching).
@@ -47,8 +48,8 @@ from .direct import DirectSolver
 from .paths import ParameterLine
 from .results import Equilibrium, SolverStats
 
-__all__ = ["Arclength", "ArcPoint", "Snap", "Switch", "bordered_kkt", "MAX_STEP", "MIN_STEP",
-           "EVENT_TOL", "BRANCH_TOL"]
+__all__ = ["Arclength", "ArcPoint", "NullMode", "Snap", "Switch", "bordered_kkt", "MAX_STEP",
+           "MIN_STEP", "EVENT_TOL", "BRANCH_TOL"]
 
 #: Newton iterations of a corrector before the step is retried smaller.
 MAX_CORRECTOR = 8
@@ -79,10 +80,31 @@ EVENT_TOL = 1e-9
 #: below the others, which crowd near zero in thin shells (located to 1e-9, a disc at
 #: h = 1e-2 did not switch at its first, at τ = 0.0038; at h = 3e-4 not at its second).
 BRANCH_TOL, BRANCH_SCALE = 1e-11, 1e-3
-#: Inverse iterations for the null vector of K at a branch point, and the change of its
-#: direction at which it has converged: a located branch point's zero eigenvalue is many
-#: orders below the others (on the blister disc three iterations change it by 1e-13).
-NULL_ITERATIONS, NULL_TOL = 10, 1e-8
+#: Subspace iterations for the null vector of K at a branch point, and the change of its
+#: direction at which it has converged: on the blister disc at 800 nodes 5 to 9 iterations
+#: bring it below 1e-8 (three brought the 60-node disc's to 1e-13).
+NULL_ITERATIONS, NULL_TOL = 20, 1e-8
+#: Eigenpairs of K nearest zero iterated together (:meth:`Arclength.null_vector`): a
+#: located branch point's eigenvalue is not always the nearest, nor alone there.  The
+#: blister disc and the Volvox shell have two soft positive ones that fall like N⁻⁷ with
+#: the mesh (blister: 2.9e-8 and 7.6e-8 at 200 nodes, 1.7e-12 and 4.5e-12 at 800, below
+#: the located branch point's -5e-11); the next ones are 1e2-1e3 times theirs, so
+#: six converge the branch point's at ~1e-3 an iteration.  Ten inverse iterations of one
+#: vector, pulled between them, did not converge from 400 nodes and found the soft
+#: mode at 800.
+MODES = 6
+#: The eigenvalue that changed sign at a branch point, over the nearest other of its sign
+#: (:attr:`NullMode.crowding`), above which it is not told apart from them: located to
+#: :data:`BRANCH_TOL` it is 1e-11..1e-10 of K's scale, the next ones of its sign (a mode
+#: that changed sign at an earlier branch point) orders farther.
+SEPARATION = 0.1
+#: A step whose tangent turns by more than this angle (its cosine below) is retried at
+#: half, down to a SMOOTH_SHRINK-th of the largest step (:meth:`Arclength.folds_within`):
+#: a pair of folds within one step leaves t_τ's sign as it was, and was missed at
+#: --max-step 0.05 (a user audit: the fold shell's folds at λ = 0.54653 and 0.54596,
+#: where the steps turned by 30-43°).
+SMOOTH_COS = 0.9
+SMOOTH_SHRINK = 16
 #: At a fold the null vector is the branch's own tangent: a null vector whose part
 #: orthogonal to the tangent is smaller than this is no branch point's.
 MIN_ORTHOGONAL = 1e-3
@@ -118,6 +140,32 @@ class ArcPoint:
     t_tau: float
     inertia: Inertia
     iterations: int = 0
+
+
+@dataclass(frozen=True)
+class NullMode:
+    """The eigenpair of the KKT matrix that changed sign at a branch point
+    (:meth:`Arclength.null_vector`).
+
+    Attributes
+    ----------
+    vector : ndarray, shape (k,)
+        Its unit eigenvector φ over the system's unknowns.
+    value : float
+        Its eigenvalue (the Ritz value).
+    change : float
+        How much φ's direction changed in the last iteration (converged below
+        :data:`NULL_TOL`).
+    crowding : float
+        |value| over the nearest other eigenvalue of its sign among the
+        :data:`MODES` nearest zero (or, with none, the farthest of them): simple and
+        told apart below :data:`SEPARATION`.
+    """
+
+    vector: np.ndarray
+    value: float
+    change: float
+    crowding: float
 
 
 @dataclass(frozen=True)
@@ -230,6 +278,23 @@ def norm_weights(kkt: BorderedKKT, points) -> np.ndarray:
     return w / w.sum()
 
 
+def _nearest(mu: np.ndarray, sign: float) -> int:
+    """The index of the eigenvalue of sign ``sign`` nearest zero in ``mu`` (of any sign if
+    none has it)."""
+    ours = np.flatnonzero(sign * mu > 0)
+    ours = ours if ours.size else np.arange(mu.size)
+    return int(ours[np.argmin(np.abs(mu[ours]))])
+
+
+def _crowding(mu: np.ndarray, j: int) -> float:
+    """|μ_j| over the nearest other of its sign in ``mu``, or over the farthest of ``mu``
+    if none (those not iterated lie farther still): :attr:`NullMode.crowding`."""
+    others = np.delete(mu, j)
+    same = others[np.sign(others) == np.sign(mu[j])]
+    return float(abs(mu[j]) / np.min(np.abs(same)) if same.size
+                 else abs(mu[j]) / np.max(np.abs(mu)))
+
+
 class Arclength:
     """Pseudo-arclength continuation of one solver's equilibria along a parameter line.
 
@@ -289,10 +354,10 @@ class Arclength:
         scale = np.copysign(self.norm(t, t_tau), direction * t_tau)
         return ArcPoint(tau, u, t / scale, t_tau / scale, self.kkt.inertia(state))
 
-    def switch(self, point: ArcPoint, direction: float = 1.0) -> ArcPoint:
+    def switch(self, point: ArcPoint, direction: float = 1.0, sign: float = -1.0) -> ArcPoint:
         """``point``, a located branch point, with the tangent of the other branch through it.
 
-        The null vector φ of the KKT matrix there (inverse iteration), less
+        The null vector φ of the KKT matrix there (:meth:`null_vector`), less
         its part along the point's own tangent (the continuation's norm), as
         the tangent (module docstring): :meth:`correct` from the returned
         point steps onto the other branch.
@@ -307,6 +372,11 @@ class Arclength:
             shell's end grows: the same half whatever the parameters, so that
             a sweep's rows and solve() agree), or where that does not change,
             the half where the largest entry of φ's shape part grows.
+        sign : float
+            The sign at ``point`` of the eigenvalue that changed sign there: −1
+            where ``point`` has one negative eigenvalue more than the other side
+            (the first point past a loss of stability, as :meth:`locate_change`
+            gives one), +1 where it has one fewer.
 
         Returns
         -------
@@ -317,15 +387,22 @@ class Arclength:
         Raises
         ------
         ValueError
-            The inverse iteration did not converge (no simple zero
-            eigenvalue: not a located branch point), or the null vector is the
-            branch's own tangent (a fold).
+            The null vector did not converge (no simple zero eigenvalue: not a
+            located branch point), other eigenvalues of its sign crowd near it
+            (:data:`SEPARATION`), or it is the branch's own tangent (a fold).
         """
-        v, change = self.null_vector(point)
-        if change > NULL_TOL:
+        mode = self.null_vector(point, sign)
+        if mode.change > NULL_TOL:
             raise ValueError(f"no simple zero eigenvalue at {point.tau:.6g} of the way (the "
-                             f"null vector changed by {change:.1e} after {NULL_ITERATIONS} "
-                             f"inverse iterations): not a located branch point")
+                             f"null vector changed by {mode.change:.1e} after "
+                             f"{NULL_ITERATIONS} subspace iterations): not a located branch "
+                             f"point")
+        if mode.crowding > SEPARATION:
+            raise ValueError(f"the eigenvalue that changed sign at {point.tau:.6g} of the way "
+                             f"({mode.value:.1e}) is not told apart from others of its sign "
+                             f"near zero ({abs(mode.value) / mode.crowding:.1e}): eigenvalues "
+                             f"crowd near zero on this mesh (fewer nodes may help)")
+        v = mode.vector
         along = self._weight @ (v * point.t)
         phi, phi_tau = v - along * point.t, -along * point.t_tau
         size = self.norm(phi, phi_tau)
@@ -346,22 +423,28 @@ class Arclength:
         shape = np.where(self.kkt.x_mask, phi, 0.0)
         return float(np.copysign(1.0, shape[np.argmax(np.abs(shape))]))
 
-    def null_vector(self, point: ArcPoint) -> tuple[np.ndarray, float]:
-        """(φ, change): the unit eigenvector of the KKT matrix at ``point`` whose eigenvalue
-        is nearest zero, by at most :data:`NULL_ITERATIONS` inverse iterations, and how much
-        its direction changed in the last (converged when below :data:`NULL_TOL`)."""
+    def null_vector(self, point: ArcPoint, sign: float = -1.0) -> NullMode:
+        """The eigenpair of the KKT matrix at ``point`` that changed sign there: of the
+        :data:`MODES` nearest zero (subspace iteration with the LDLᵀ's solves and a
+        Rayleigh–Ritz step, at most :data:`NULL_ITERATIONS`; Saad 2011, §5.2), the nearest
+        of sign ``sign`` (:meth:`switch`).  The inertia says which: a soft mode of the
+        other sign may lie nearer zero (:data:`MODES`)."""
         state = self.kkt.state(point.u, self._data(point.tau))
         k = len(point.t)
-        zero = np.zeros(k)
-        v = np.sin(np.arange(1.0, k + 1.0))        # (any start with a part along φ)
+        # (any start with a part along each mode)
+        Q = np.linalg.qr(np.sin(np.outer(np.arange(1.0, k + 1.0), np.arange(1.0, MODES + 1.0))))[0]
+        v, change = Q[:, 0], np.inf
         for _ in range(NULL_ITERATIONS):
-            w, _ = self.kkt.solve(state, v, zero, 1.0, 0.0, zero)      # K⁻¹ v
-            w /= np.linalg.norm(w)
-            change = min(np.linalg.norm(w - v), np.linalg.norm(w + v))
-            v = w
+            Q = np.linalg.qr(self.kkt.solve_columns(state, Q))[0]
+            T = Q.T @ self.kkt.times(state, Q)
+            mu, Y = np.linalg.eigh(0.5 * (T + T.T))
+            Q = Q @ Y
+            j = _nearest(mu, sign)
+            change = min(np.linalg.norm(Q[:, j] - v), np.linalg.norm(Q[:, j] + v))
+            v = Q[:, j]
             if change <= NULL_TOL:
                 break
-        return v, change
+        return NullMode(v, float(mu[j]), float(change), _crowding(mu, j))
 
     def correct(self, prev: ArcPoint, ds: float) -> ArcPoint | None:
         """The point at arclength ``ds`` from ``prev`` along its tangent, or None (no
@@ -501,6 +584,17 @@ class Arclength:
         dpsi = layout.split(self.kkt.unpack(new.u)[0])[1] - \
             layout.split(self.kkt.unpack(prev.u)[0])[1]
         return bool(np.max(np.abs(dpsi)) > MAX_TURN)
+
+    def folds_within(self, prev: ArcPoint, new: ArcPoint, ds: float, max_step: float) -> bool:
+        """Whether the step ``ds`` from ``prev`` to ``new`` may hide a pair of folds, and is
+        retried at half (by a walk whose largest step is ``max_step``): it moved τ against
+        both its ends' tangents, or turned by more than :data:`SMOOTH_COS`'s angle while it
+        may still shrink to a :data:`SMOOTH_SHRINK`-th of the largest (two folds within one
+        step cancel in the sign of t_τ, and the step goes back in τ between them, or
+        turns)."""
+        moved = new.tau - prev.tau
+        back = moved * prev.t_tau < 0 and moved * new.t_tau < 0
+        return back or self.cos(prev, new) < SMOOTH_COS and ds > max_step / SMOOTH_SHRINK
 
     # -- events --------------------------------------------------------------------------
     def locate_fold(self, prev: ArcPoint, ds: float) -> ArcPoint:

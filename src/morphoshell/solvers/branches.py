@@ -69,12 +69,6 @@ TAU_MARGIN = 0.5
 #: audit: s1 continued from 0.65 to 1 reported three branch points and an end with 12
 #: negative eigenvalues, a strict minimum on its own mesh).
 REMESH = 2.0
-#: A step whose tangent turns by more than this angle (its cosine below) is retried at
-#: half, down to a SMOOTH_SHRINK-th of the largest step: a pair of folds within one step
-#: leaves t_τ's sign as it was, and was missed at --max-step 0.05 (a user audit: the fold
-#: shell's folds at λ = 0.54653 and 0.54596, where the steps turned by 30-43°).
-SMOOTH_COS = 0.9
-SMOOTH_SHRINK = 16
 #: Most points a branch may be given (``max_points``; the command line's --max-points).
 MAX_POINTS = 100_000
 #: Units of a branch's columns (its table's ``attrs`` and its JSON), the parameter's aside.
@@ -553,7 +547,10 @@ class _Walk:
         component near 0 at a pitchfork: no fold is looked for between the
         two); its step is halved until the corrector converges.
         """
-        at = self.arc.switch(self.arc.start(origin.equilibrium, origin.tau), direction)
+        at = self.arc.start(origin.equilibrium, origin.tau)
+        # (origin holds the fewer negative eigenvalues of its two sides)
+        sign = -1.0 if at.inertia.negative > origin.negative_eigenvalues else 1.0
+        at = self.arc.switch(at, direction, sign)
         self.record(at, "branch_point", origin.equilibrium, origin.negative_eigenvalues)
         first = self.arc.first_step(at, self.max_step / 4)
         if first is None:
@@ -577,7 +574,7 @@ class _Walk:
                     point = moved
                     continue
                 failed = True                   # (its mesh does not hold, and stays)
-            rejected = failed or self._folds_within(point, new, step)
+            rejected = failed or self.arc.folds_within(point, new, step, self.max_step)
             self._log_step(point, new, step, rejected)
             if rejected:
                 ds /= 2
@@ -673,15 +670,6 @@ class _Walk:
                 f"within {TAU_MARGIN:g} of the path's ends (a smaller step or a finer mesh does "
                 f"not change that); follow='stable' (--follow stable) snaps through at its "
                 f"folds, or continue to a value the branch reaches (beyond its turning points)")
-
-    def _folds_within(self, point: ArcPoint, new: ArcPoint, ds: float) -> bool:
-        """Whether the step from ``point`` to ``new`` may hide a pair of folds, and is retried
-        at half: it moved τ against both its ends' tangents, or turned by more than
-        :data:`SMOOTH_COS`'s angle while it may still shrink to a :data:`SMOOTH_SHRINK`-th
-        of the largest (two folds within one step cancel in the sign of t_τ, and the step
-        goes back in τ between them, or turns)."""
-        back = (new.tau - point.tau) * point.t_tau < 0 and (new.tau - point.tau) * new.t_tau < 0
-        return back or self.arc.cos(point, new) < SMOOTH_COS and ds > self.max_step / SMOOTH_SHRINK
 
     def _widths(self, tau: float) -> np.ndarray:
         """The cells' widths in s of the walk's mesh at ``tau``."""

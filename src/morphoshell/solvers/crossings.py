@@ -321,7 +321,7 @@ def switch_stable(arc: Arclength, bp: ArcPoint, ds: float, reach: float = 0.0) -
             log.debug("switched branches at tau = %.6g (direction %+g)", bp.tau, direction)
             return eq, tau, Switch(float(bp.tau), tau, direction, float(before.energy),
                                    float(eq.energy))
-    phi = arc.null_vector(bp)[0]      # (converged or not: any part along it descends)
+    phi = arc.null_vector(bp).vector      # (converged or not: any part along it descends)
     phi *= arc._rising(bp, phi)
     # φ is a unit vector: its entries shrink like 1/√n, and on fine meshes a move along it
     # ends back at the branch point's saddle (the blister at 600 nodes); then one of unit
