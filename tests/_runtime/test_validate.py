@@ -12,6 +12,16 @@ def test_short_is_one_line_of_at_most_80_characters():
     assert short([1, 2]) == "[1, 2]"
 
 
+def test_short_names_a_path_whole():
+    """A path cut to 80 characters did not name the file (a test's temporary path on CI was
+    longer than the one it was written on); a string or path stays whole up to 300."""
+    from pathlib import Path
+
+    path = "/tmp/" + "d" * 120 + "/trace.csv"
+    assert short(path) == repr(path) and short(Path(path)) == repr(Path(path))
+    assert short("x" * 400).endswith("...") and len(short("x" * 400)) == 300
+
+
 def test_instance_names_the_argument_what_it_must_be_and_what_it_is():
     assert instance("spec", 3, int, "an int") == 3
     with pytest.raises(TypeError, match=r"^spec = 'x' must be a FitSpec, not str$"):

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import os
 from typing import Any, Mapping, Sequence, TypeVar
 
 import numpy as np
@@ -60,9 +61,13 @@ def lookup(registry: Mapping[str, T], name: str, what: str) -> T:
 
 def short(value: Any) -> str:
     """``repr(value)`` on one line, cut to 80 characters (a message names the value, not a
-    screenful of it: an array's repr spans lines)."""
-    text = " ".join(repr(value).split())
-    return text if len(text) <= 80 else text[:77] + "..."
+    screenful of it: an array's repr spans lines); a string or path whole up to 300 (its
+    repr is one line, and a path cut short does not name the file)."""
+    if isinstance(value, (str, os.PathLike)):
+        text, limit = repr(value), 300
+    else:
+        text, limit = " ".join(repr(value).split()), 80
+    return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
 def instance(name: str, value: Any, kind: type | tuple[type, ...], what: str) -> Any:
