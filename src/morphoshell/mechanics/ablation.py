@@ -418,7 +418,7 @@ def _warn_if_coarse(ab: Ablation) -> None:
     """One warning where observables' relative errors exceed :data:`COARSE`, as ``solve()``
     warns of its own estimate: the mesh may not resolve the cut.  It names them, worst
     first, and the next finer mesh.  It says "may": the estimates bound the errors, about
-    30 times them on a resolved mesh but some 800 times where the half and quarter meshes
+    25-40 times them on a resolved mesh but some 800 times where the half and quarter meshes
     are not yet in the asymptotic range (a fitted shell's energy_released on 100 nodes,
     0.1 % off, estimated at 0.88 of its value: docs/observables.md); extrapolating with
     the order the levels show, the tighter estimate tried, fell short of the error."""
@@ -430,8 +430,8 @@ def _warn_if_coarse(ab: Ablation) -> None:
         nodes = max(ab.pre.solver.nodes, ab.post.solver.nodes)
         finer = 2 * (nodes - 1) + 1
         log.warning("the error estimates of the ablation's %s exceed %g of their values on %d "
-                    "nodes: the mesh may not resolve the cut (the estimates are bounds, 30 "
-                    "to 800 times the error); give it more nodes (nodes=%d, --nodes %d, or "
+                    "nodes: the mesh may not resolve the cut (the estimates are bounds, tens "
+                    "to hundreds of times the error); give it more nodes (nodes=%d, --nodes %d, or "
                     "more) or refine to a tolerance (rtol, --rtol)",
                     ", ".join(f"{k} ({rel[k]:.2g})" for k in over), COARSE, nodes, finer, finer)
 
