@@ -13,7 +13,7 @@ from morphoshell.io.problem_files import example_path
 FOLD = Path(__file__).resolve().parents[1] / "data" / "volvox_fold.toml"
 RIM = (0.3903, 0.4629)          # the cold solve's rim at lambda = 1 (issue 38)
 COLUMNS = ["lambda", "energy", "r_end", "z_end", "psi_end", "stable", "negative_eigenvalues",
-           "event", "lambda_error"]
+           "event", "lambda_error", "energy_error", "r_end_error", "z_end_error", "psi_end_error"]
 
 
 @pytest.fixture(scope="module")
@@ -52,6 +52,11 @@ def test_the_issue_shell_folds_goes_unstable_and_ends_stable_at_the_cold_solve(n
     assert {r["event"] for r in rows} <= {"", "fold", "branch_point", "snap"}
     assert f"fold          at lambda = {first:.10g}" in stdout and "end at lambda = 1: stable" \
         in stdout
+    # the end's error estimate, as solve()'s (audit 22 F5): its line, its row only
+    assert re.search(r"end at lambda = 1: stable, .* C R\^2; error estimate .* \(vs 200 nodes, "
+                     r"order 4\)", stdout)
+    assert 0 < float(end["z_end_error"]) < 1e-5 and 0 < float(end["energy_error"]) < 1e-7
+    assert all(r[k] == "" for r in rows[:-1] for k in COLUMNS[-4:])
 
 
 def test_json_and_plot(neutral):
@@ -93,7 +98,8 @@ def test_the_path_ends_exactly_at_the_target_with_units(tmp_path):
     assert doc["points"]["h"][-1] == 0.01
     assert doc["units"] == {"lambda": "1", "h": "R", "energy": "C R^2", "r_end": "R",
                             "z_end": "R", "psi_end": "rad", "negative_eigenvalues": "1",
-                            "lambda_error": "1"}
+                            "lambda_error": "1", "energy_error": "C R^2", "r_end_error": "R",
+                            "z_end_error": "R", "psi_end_error": "rad"}
 
 
 @pytest.mark.parametrize("to", ["0.001", "0.5"])
@@ -442,8 +448,15 @@ def test_folds_the_mesh_does_not_resolve_are_flagged(tmp_path, capsys, caplog):
     assert status == 0
     assert out.count("not resolved (not on the half mesh)") == 2
     assert "does not resolve" in caplog.text and "--nodes 199" in caplog.text
+    # nor its end, printed to 10 digits and 0.78 R off in z_end: solve()'s warning and
+    # estimate (audit 22 F5)
+    assert "at the branch's end, lambda = 1 (f0 = 4.5), the error estimate of z_end is 0.42" \
+        in caplog.text
+    assert re.search(r"end at lambda = 1: stable, .*; error estimate 0.027 of the energy, "
+                     r"0.42 R or rad at the edges \(vs 50 nodes, order 4\)", out)
     with csv_path.open() as fh:
         rows = list(csv.DictReader(fh))
+    assert float(rows[-1]["z_end_error"]) == pytest.approx(0.42, abs=0.005)
     assert [r["lambda_error"] for r in rows if r["event"] == "fold"] == ["inf", "inf"]
     assert all(r["lambda_error"] == "" for r in rows if not r["event"])
 

@@ -1,18 +1,20 @@
 """A branch held to solve()'s checks (audit 14, F2 and F3): its events' λ against the half
-mesh, and its end where the meridian starts to cross the axis."""
+mesh, its end where the meridian starts to cross the axis, and its end's values estimated
+as solve() estimates its result (audit 22 F5)."""
 import logging
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from morphoshell import Problem, SolverError
+from morphoshell import Problem, SolverError, solve
 from morphoshell.io.problem_files import example_path, load_problem
 from morphoshell.numerics.status import MERIDIAN_CROSSES_AXIS
 from morphoshell.plotting.branches import branch_caption
 from morphoshell.solvers.branches import follow_branch
 from morphoshell.solvers.direct import axis_crossing
-from morphoshell.solvers.refinement import COARSE, SAFETY, half_mesh
+from morphoshell.solvers.branch_checks import end_error
+from morphoshell.solvers.refinement import COARSE, SAFETY, half_mesh, too_coarse
 from morphoshell.solvers.routes import direct_solver
 
 
@@ -112,3 +114,59 @@ def test_a_branch_ends_where_its_meridian_crosses_the_axis(cap):
     assert beyond.value.status == MERIDIAN_CROSSES_AXIS
     assert "Meridian_Crosses_Axis" in cap.to_dict()["ended"]["status"]
     assert f"ends at λ = {cap.end.tau:.6g}" in branch_caption(cap)     # (the plot says so)
+
+
+def _same_estimate(branch, solved) -> None:
+    """``branch``'s end estimate is ``solve()``'s of the same point: both solve the end's
+    problem on the half and quarter meshes from states that agree to the solvers' tolerance
+    (1e-10), and land on the same discrete solutions (1e-6 of an estimate: that agreement,
+    not the arithmetic's round-off)."""
+    est = branch.end_error
+    assert est.note == "" and (est.nodes, est.reference_nodes) == (solved.error.nodes,
+                                                                   solved.error.reference_nodes)
+    for key, err in solved.error.errors.items():
+        assert est.errors[key] == pytest.approx(err, rel=1e-6, abs=1e-12), key
+
+
+def test_a_branch_end_the_mesh_does_not_resolve_is_estimated_and_warned_as_solve_does(caplog):
+    """The anisotropic toy shell in f0 to 4.5 on 100 nodes ends 0.78 R off in z_end (12.31878
+    on 1600 nodes): solve() at f0 = 4.5 warns of an estimate of 0.42, and the branch said
+    nothing of its end, printed to 10 digits (audit 22 F5).  Its end now carries solve()'s
+    estimate (Branch.end_error, the table's last row, the JSON) and its warning."""
+    problem = load_problem(example_path("toy3_anisotropic"))[0]
+    with caplog.at_level(logging.WARNING, logger="morphoshell.solvers.branches"):
+        branch = follow_branch(problem, "f0", 4.5, nodes=100)
+    _same_estimate(branch, solve(branch.problem, nodes=100))
+    est = branch.end_error
+    assert too_coarse(est)[0] == "z_end" and est.errors["z_end"] > 0.4
+    warning = " ".join(r.getMessage() for r in caplog.records)
+    assert "at the branch's end, lambda = 1 (f0 = 4.5), the error estimate of z_end is 0.42" \
+        in warning and "--nodes 199" in warning
+    columns = branch.columns()
+    assert columns["z_end_error"][-1] == est.errors["z_end"]
+    assert columns["energy_error"][-1] == est.errors["energy"]
+    assert all(np.isnan(v) for v in columns["z_end_error"][:-1])
+    assert branch.to_dict()["end_error"] == est.to_dict()
+    assert branch.to_dataframe().attrs["end_error"] == est.to_dict()
+
+
+def test_a_resolved_branch_end_is_estimated_as_solve_does_without_a_warning(fold_shell, caplog):
+    """The fold shell on 400 nodes (the file's mesh): the end's estimate is solve()'s
+    (6.2e-7 at the edges), and no warning of it."""
+    with caplog.at_level(logging.WARNING, logger="morphoshell.solvers.branches"):
+        branch = follow_branch(fold_shell, nodes=400)
+    _same_estimate(branch, solve(fold_shell, nodes=400))
+    assert too_coarse(branch.end_error) is None and branch.end_error.errors["z_end"] < 1e-5
+    assert "branch's end" not in caplog.text
+
+
+def test_an_unstable_end_is_estimated_on_its_own_branch(cap):
+    """An unstable point of the cap's branch (between its folds, 100 nodes) as an end: on the
+    half and quarter meshes Newton's iterations keep the saddle a saddle.  Minimised there,
+    as a stable end is, it slid off to another state: an estimate of 0.28 rad in psi at the
+    start edge, a false warning; kept, 1.6e-4 (the stable ends' size on this mesh)."""
+    point = next(pt for pt in cap.points[len(cap.points) // 3:]
+                 if not pt.stable and not pt.event)
+    est = end_error(point, cap.line)
+    assert est.note == "" and est.reference_nodes == 50
+    assert max(v for k, v in est.relative().items()) < 1e-3

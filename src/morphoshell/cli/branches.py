@@ -73,11 +73,13 @@ def register(sub) -> None:
     p.add_argument("--no-plot-shapes", dest="plot_shapes", action="store_false",
                    help="draw the diagram alone, one journal column wide (default: with the "
                         "shapes at the start, the events and the end below it, two columns)")
-    add_outputs(p, json="write the branch (problem, path, points, snaps; with --switch the "
-                        "switched branches) as JSON",
+    add_outputs(p, json="write the branch (problem, path, points, snaps, the end's error "
+                        "estimate; with --switch the switched branches) as JSON",
                 csv="write one row per point: lambda, the parameter, energy, r_end, z_end, "
                     "psi_end, stable, negative_eigenvalues, event, lambda_error (an event's "
-                    "error estimate from the half mesh; inf: not resolved)",
+                    "error estimate from the half mesh; inf: not resolved), energy_error, "
+                    "r_end_error, z_end_error, psi_end_error (the end's error estimate, as "
+                    "solve's: last row only)",
                 plot="write the bifurcation diagram with the shapes at the events")
     p.set_defaults(run=_continue)
 
@@ -264,8 +266,9 @@ def _error(pt) -> str:
 
 
 def _end_line(branch) -> str:
-    """Where a branch ends: λ (and why, before the path's end), stability and the far
-    end's values."""
+    """Where a branch ends: λ (and why, before the path's end), stability, the far end's
+    values and their error estimate (as ``solve``'s summary; none where the walk stopped
+    before its check)."""
     end = branch.end
     k = end.negative_eigenvalues
     state = "stable" if end.stable else f"unstable ({k} negative eigenvalue{'s' * (k != 1)})"
@@ -273,7 +276,16 @@ def _end_line(branch) -> str:
              if branch.ended.stopped else f" ({branch.ended.status}: the last physical state)")
     return (f"end at lambda = {end.tau:.10g}{early}: {state}, r_end = {end.r_end:.10g} R, "
             f"z_end = {end.z_end:.10g} R, psi_end = {end.psi_end:.10g} rad, energy = "
-            f"{end.energy:.10g} C R^2")
+            f"{end.energy:.10g} C R^2{_end_error(branch.end_error)}")
+
+
+def _end_error(error) -> str:
+    """The end's error estimate for its line: ``solve``'s summary, or why there is none."""
+    if error is None:
+        return ""
+    if error.note:
+        return f"; no error estimate: {error.note}"
+    return f"; error estimate {error.summary('C R^2')}"
 
 
 def _switched(args, branch) -> tuple[list[tuple[str, object]], list[str], str | None]:

@@ -14,7 +14,14 @@ both:
   estimates the event's λ error as ``solve()`` estimates its values (:data:`SAFETY` times
   the difference); an event the half mesh does not reproduce within :data:`COARSE` in λ
   is not resolved, and a warning names it (the anisotropic toy shell continued in f0
-  showed three pairs of folds on 200 nodes, one on 100 and none on 400 or 800).
+  showed three pairs of folds on 200 nodes, one on 100 and none on 400 or 800); and
+  :func:`end_error` estimates the error of the branch's end (its energy and edge values,
+  the state asked for) as ``solve()`` estimates its result, from the end's problem on the
+  half and quarter meshes solved from it (:func:`~.refinement.level_estimate`), with
+  ``solve()``'s warning where it exceeds :data:`COARSE` (:func:`end_warning`; the toy
+  shell continued in f0 to 4.5 on 100 nodes ended 0.78 R off in z_end without a word,
+  where ``solve()`` warned of 0.42).  The points between are not estimated (two solves
+  each): a branch's values are resolved where its end and events are, on the same mesh.
 """
 from __future__ import annotations
 
@@ -25,13 +32,16 @@ import numpy as np
 
 from ..numerics.mesh import MeshTooCoarse
 from ..numerics.status import MERIDIAN_CROSSES_AXIS
+from ..numerics.status import MAXIMUM_ITERATIONS_EXCEEDED
 from .arclength import EVENT_TOL, GROWTH, MIN_STEP, ArcPoint, Arclength
 from .direct import DirectSolver, axis_crossing, crossing_why, solver_of
-from .refinement import COARSE, SAFETY, half_mesh, solve_from
-from .results import SolverError
+from .refinement import COARSE, SAFETY, coarse_why, half_mesh, level_estimate, solve_from
+from .results import Equilibrium, ErrorEstimate, SolverError
 from .routes import direct_solver
 
-__all__ = ["Ending", "crossing_end", "event_errors", "unresolved", "REACH", "MAX_CHECK_STEPS"]
+__all__ = ["Ending", "crossing_end", "event_errors", "unresolved", "unresolved_warning",
+           "end_error", "end_warning", "end_columns", "where", "END_ERRORS", "REACH",
+           "MAX_CHECK_STEPS"]
 
 log = logging.getLogger(__name__)
 
@@ -40,6 +50,9 @@ log = logging.getLogger(__name__)
 REACH = COARSE / SAFETY
 #: Most pseudo-arclength steps of the half mesh's walk to an event.
 MAX_CHECK_STEPS = 60
+#: The values of a branch's table whose error :func:`end_error` estimates at its end: a
+#: column ``<value>_error`` each (:func:`end_columns`).
+END_ERRORS = ("energy", "r_end", "z_end", "psi_end")
 
 
 @dataclass(frozen=True)
@@ -147,6 +160,90 @@ def unresolved(points: list) -> list:
     """The events of ``points`` whose λ error estimate exceeds :data:`COARSE` (or that the
     half mesh does not have)."""
     return [pt for pt in points if pt.event and pt.lambda_error > COARSE]
+
+
+def where(line, tau: float) -> str:
+    """``lambda = τ``, with the parameter's value where one moves."""
+    values = line.values(tau)
+    return f"lambda = {tau:.6g}" + "".join(f" ({k} = {v:.6g})" for k, v in values.items()
+                                           if len(values) == 1)
+
+
+def unresolved_warning(points: list, line) -> str:
+    """What the mesh does not resolve (:func:`unresolved` of a branch's ``points``), and
+    what helps."""
+    nodes = points[0].equilibrium.solver.nodes
+    events = "; ".join(f"{pt.event.replace('_', ' ')} at {where(line, pt.tau)}"
+                       for pt in unresolved(points))
+    return (f"the mesh ({nodes} nodes) does not resolve the branch's {events}: on the mesh "
+            f"with half the cells each lies more than {COARSE / SAFETY:g} away in lambda or is "
+            f"not there, so it (and the unstable parts and snap-throughs it bounds) may be an "
+            f"artefact of the discretisation; follow the branch on a finer mesh (nodes, "
+            f"--nodes {2 * (nodes - 1) + 1} or more)")
+
+
+def end_error(end, line) -> ErrorEstimate:
+    """The error estimate of a branch's ``end`` (a BranchPoint) as ``solve()`` makes that of
+    its result (:func:`~.refinement.level_estimate`): its problem on the half and quarter
+    meshes of the end's own mesh, solved from the end's state.
+
+    A stable end is minimised there, as ``solve()`` does (:func:`~.refinement.solve_from`);
+    an unstable one (or an event) is found by Newton's iterations, which leave a saddle a
+    saddle (:meth:`Arclength.stationary`), where a minimisation would slide off it.
+
+    Returns
+    -------
+    ErrorEstimate
+        With NaN errors and a note where a level is unavailable.
+    """
+    eq = end.equilibrium
+    fine = solver_of(eq)
+
+    def solver_for(nodes: int) -> DirectSolver:
+        return fine if nodes == fine.nodes else _coarser(fine, nodes, eq)
+
+    def stationary_from(solver, problem, start: Equilibrium, anchors) -> Equilibrium:
+        arc = Arclength(solver, line, anchors, at=end.tau)
+        point = arc.stationary(solver.carried(start, arc.parameters(end.tau), arc.q), end.tau)
+        if point is None:
+            raise SolverError(f"Newton's iterations on {solver.nodes} nodes from the "
+                              f"{start.solver.nodes}-node state did not converge",
+                              MAXIMUM_ITERATIONS_EXCEEDED)
+        return arc.equilibrium(point)
+    return level_estimate(eq, solver_for, 2 * fine.stages, eq.anchors,
+                          solve=solve_from if end.stable else stationary_from)
+
+
+def _coarser(fine: DirectSolver, nodes: int, eq: Equilibrium) -> DirectSolver:
+    """``fine``'s mesh with ``nodes`` nodes, or where ``eq``'s knots have moved too far for it
+    (a walk kept on its first mesh: ``REMESH`` in :mod:`.branches`), the mesh built for
+    ``eq``'s problem (as :func:`_coarse_arc`; MeshTooCoarse where that cannot hold them)."""
+    solver = DirectSolver(fine.structure, mesh=replace(fine.mesh, nodes=nodes),
+                          stages=fine.stages)
+    try:
+        solver.disc.check_anchors(eq.problem.parameter_vector(), eq.anchors)
+        return solver
+    except ValueError:
+        return direct_solver(eq.problem, nodes, eq.anchors, stages=fine.stages)
+
+
+def end_columns(rows: int, error: ErrorEstimate | None) -> dict[str, list]:
+    """A branch's table's columns ``<value>_error`` (:data:`END_ERRORS`): the estimated
+    absolute error of its end's ``error`` in the last of ``rows`` rows, NaN in the others
+    (not estimated) and throughout without an estimate."""
+    return {f"{k}_error": [float("nan")] * (rows - 1) +
+            [float("nan") if error is None else float(error.errors[k])] for k in END_ERRORS}
+
+
+def end_warning(end, error: ErrorEstimate, line) -> str | None:
+    """``solve()``'s warning of a mesh too coarse (:func:`~.refinement.coarse_why`) for a
+    branch's ``end`` with its estimate ``error``, and what helps; None where it holds."""
+    why = None if error.note else coarse_why(error)
+    if why is None:
+        return None
+    return (f"at the branch's end, {where(line, end.tau)}, {why}, and likely for the branch's "
+            f"other values; follow the branch on a finer mesh (nodes, --nodes "
+            f"{2 * (error.nodes - 1) + 1} or more)")
 
 
 def _coarse_solver(fine: DirectSolver, cache: dict) -> DirectSolver | None:

@@ -36,14 +36,15 @@ from .._runtime.interrupts import interrupted, reason
 from .._runtime.validate import integer, within
 from ..model.problem import Problem
 from .arclength import EASY, GROWTH, MAX_STEP, MIN_STEP, ArcPoint, Arclength, Snap, Switch
-from .branch_checks import Ending, crossing_end, event_errors, unresolved
+from .branch_checks import (Ending, crossing_end, end_columns, end_error, end_warning,
+                            event_errors, unresolved, unresolved_warning, where)
 from .contact import wall_contact
 from .continuation import continue_to
 from .crossings import branch_ended, snap_through, switch_stable
 from .options import check_direct_options, check_problem
-from .refinement import COARSE, SAFETY, warn_unresolved_steps
+from .refinement import warn_unresolved_steps
 from .paths import ParameterLine, neutral_problem
-from .results import Equilibrium, SolverError
+from .results import Equilibrium, ErrorEstimate, SolverError
 from .routes import direct_solver
 
 log = logging.getLogger(__name__)
@@ -73,7 +74,8 @@ REMESH = 2.0
 MAX_POINTS = 100_000
 #: Units of a branch's columns (its table's ``attrs`` and its JSON), the parameter's aside.
 UNITS = {"lambda": "1", "energy": "C R^2", "r_end": "R", "z_end": "R", "psi_end": "rad",
-         "negative_eigenvalues": "1", "lambda_error": "1"}
+         "negative_eigenvalues": "1", "lambda_error": "1", "energy_error": "C R^2",
+         "r_end_error": "R", "z_end_error": "R", "psi_end_error": "rad"}
 #: Units of the parameters continued in whose unit is known (as a sweep's columns).
 PARAMETER_UNITS = {"h": "R", "cut": "R", "opening": "R", "k": "1/R"}
 
@@ -154,6 +156,10 @@ class Branch:
         axis (its last point the last physical state, which ``solve()`` refuses past), or
         where the walk stopped early (the branch ended, ``max_points``, Ctrl-C or SIGTERM:
         the part followed, the exception's ``branch``); None where it reaches the end.
+    end_error : ErrorEstimate or None
+        The estimated error of the end's energy and edge values, as ``solve()``'s of its
+        result (:func:`~morphoshell.solvers.branch_checks.end_error`; a warning where it
+        exceeds ``solve()``'s threshold); None where the walk stopped before its check.
     """
 
     problem: Problem
@@ -168,6 +174,7 @@ class Branch:
     switches: tuple = ()
     remeshed: tuple = ()
     ended: Ending | None = None
+    end_error: ErrorEstimate | None = None
 
     def __repr__(self) -> str:
         """One line: the problem, the path, how many points over which λ (and parameter) range,
@@ -219,13 +226,14 @@ class Branch:
         return self.points[-1]
 
     def columns(self) -> dict[str, list]:
-        """The table's columns: ``lambda``, the parameter's own (if one), then :data:`COLUMNS`."""
+        """The table's columns: ``lambda``, the parameter's own (if one), :data:`COLUMNS`, then
+        the end's error estimate (:func:`~.branch_checks.end_columns`: its last row)."""
         out: dict[str, list] = {"lambda": [pt.tau for pt in self.points]}
         if self.parameter is not None:
             out[self.parameter] = [pt.values[self.parameter] for pt in self.points]
         for name in COLUMNS:
             out[name] = [getattr(pt, name) for pt in self.points]
-        return out
+        return {**out, **end_columns(len(self.points), self.end_error)}
 
     def to_dataframe(self, equilibria: bool = False):
         """The branch as a pandas DataFrame, one row per point (units in ``df.attrs``).
@@ -245,6 +253,7 @@ class Branch:
         if equilibria:
             df["equilibrium"] = [pt.equilibrium for pt in self.points]
         df.attrs.update(units=self.units(), problem=self.problem.describe(), follow=self.follow,
+                        end_error=None if self.end_error is None else self.end_error.to_dict(),
                         path=dict(zip(self.line.names, zip(self.line.a.tolist(),
                                                            self.line.b.tolist()))))
         return df
@@ -265,7 +274,8 @@ class Branch:
                 **({"complete": False} if self.ended is not None and self.ended.stopped
                    else {}),
                 **({"unresolved": [pt.tau for pt in self.unresolved]}
-                   if self.unresolved else {})}
+                   if self.unresolved else {}),
+                **({"end_error": self.end_error.to_dict()} if self.end_error else {})}
 
 
 def follow_branch(problem: Problem, param: str | None = None, to: float | None = None, *,
@@ -397,8 +407,10 @@ def switch_branch(branch: Branch, at: int, direction: float = 1.0, *,
 
 def _checked(branch: Branch, max_step: float, t0: float) -> Branch:
     """``branch`` with its events' λ errors from the half mesh
-    (:func:`~.branch_checks.event_errors`) and its time since ``t0``; a warning names the
-    events the mesh does not resolve, one where it ended early (:class:`Ending`), and one
+    (:func:`~.branch_checks.event_errors`), its end's error estimate
+    (:func:`~.branch_checks.end_error`) and its time since ``t0``; a warning names the
+    events the mesh does not resolve, one an end it does not (``solve()``'s), one where it
+    ended early (:class:`Ending`), and one
     where the shapes it shows (its start, its events and its end: the plot's panels) have
     walls that pass through each other (:mod:`.contact`; checking every point would cost a
     third of the walk: docs/benchmarks.md, "solvers/branches.py").  The start too: the plot
@@ -406,36 +418,21 @@ def _checked(branch: Branch, max_step: float, t0: float) -> Branch:
     word (audit 14)."""
     branch = replace(branch, points=tuple(event_errors(list(branch.points), branch.line,
                                                        max_step)))
+    branch = replace(branch, end_error=end_error(branch.end, branch.line))
     shown = [branch.points[0]] + [pt for pt in branch.points if pt.event] + [branch.end]
-    where = sorted({pt.tau for pt in shown if wall_contact(pt.equilibrium) is not None})
-    if where:
+    crossed = sorted({pt.tau for pt in shown if wall_contact(pt.equilibrium) is not None})
+    if crossed:
         log.warning("the shapes of the branch at lambda = %s have walls that pass through "
                     "each other: the model has no self-contact, so they are equilibria of the "
-                    "model but not physical shapes", ", ".join(f"{t:.6g}" for t in where))
+                    "model but not physical shapes", ", ".join(f"{t:.6g}" for t in crossed))
     if branch.unresolved:
-        log.warning("%s", _unresolved_warning(branch))
+        log.warning("%s", unresolved_warning(list(branch.points), branch.line))
+    coarse = end_warning(branch.end, branch.end_error, branch.line)
+    if coarse:
+        log.warning("%s", coarse)
     if branch.ended is not None:
         log.warning("%s", branch.ended.describe())
     return replace(branch, seconds=time.perf_counter() - t0)
-
-
-def _where(line: ParameterLine, tau: float) -> str:
-    """``lambda = τ``, with the parameter's value where one moves."""
-    values = line.values(tau)
-    return f"lambda = {tau:.6g}" + "".join(f" ({k} = {v:.6g})" for k, v in values.items()
-                                           if len(values) == 1)
-
-
-def _unresolved_warning(branch: Branch) -> str:
-    """What the mesh does not resolve (:attr:`Branch.unresolved`), and what helps."""
-    nodes = branch.points[0].equilibrium.solver.nodes
-    events = "; ".join(f"{pt.event.replace('_', ' ')} at {_where(branch.line, pt.tau)}"
-                       for pt in branch.unresolved)
-    return (f"the mesh ({nodes} nodes) does not resolve the branch's {events}: on the mesh "
-            f"with half the cells each lies more than {COARSE / SAFETY:g} away in lambda or is "
-            f"not there, so it (and the unstable parts and snap-throughs it bounds) may be an "
-            f"artefact of the discretisation; follow the branch on a finer mesh (nodes, "
-            f"--nodes {2 * (nodes - 1) + 1} or more)")
 
 
 def _walked(walk: "_Walk", run, branch, max_step: float, t0: float) -> Branch:
@@ -663,7 +660,7 @@ class _Walk:
         end), and what helps: neither a smaller step nor a finer mesh."""
         folds = [pt.tau for pt in self.points if pt.event == "fold"]
         turned = (f"it turned back at the fold{'s' * (len(folds) > 1)} at "
-                  f"{', '.join(_where(self.arc.line, t) for t in folds)} and " if folds else "")
+                  f"{', '.join(where(self.arc.line, t) for t in folds)} and " if folds else "")
         side = -TAU_MARGIN if new.tau < 0 else 1 + TAU_MARGIN
         return (f"{turned}went on beyond lambda = {side:g}"
                 f" without reaching the path's end (lambda = 1): the branch does not reach it "

@@ -27,8 +27,8 @@ from .paths import stress_free
 from .results import ESTIMATED, Equilibrium, ErrorEstimate, SolverError, energy_floor
 
 __all__ = ["solve_from", "estimate", "error_estimate", "level_errors", "derived_errors",
-           "refine", "refine_once",
-           "half_mesh", "too_coarse", "coarse_level", "unresolved_steps", "warn_unresolved_steps",
+           "refine", "refine_once", "level_estimate", "half_mesh", "too_coarse", "coarse_why",
+           "coarse_level", "unresolved_steps", "warn_unresolved_steps",
            "SAFETY", "COARSE", "STEP_CELLS"]
 
 log = logging.getLogger(__name__)
@@ -223,14 +223,23 @@ def too_coarse(est: ErrorEstimate) -> tuple[str, float] | None:
     return None if rel[key] <= COARSE else (key, rel[key])
 
 
-def _warn_if_coarse(est: ErrorEstimate, nodes: int) -> None:
-    """A warning where an estimate exceeds :data:`COARSE` (:func:`too_coarse`)."""
+def coarse_why(est: ErrorEstimate) -> str | None:
+    """Where an estimate exceeds :data:`COARSE` (:func:`too_coarse`), what that says: the
+    quantity, its relative error and the nodes, the mesh too coarse; else None."""
     worst = too_coarse(est)
-    if worst is not None:
-        key, rel = worst
-        log.warning("the error estimate of %s is %.2g (%s) on %d nodes: the mesh is too "
-                    "coarse for this shell; refine it (rtol, --rtol)", key, rel,
-                    "relative" if key == "energy" else "R or rad", nodes)
+    if worst is None:
+        return None
+    key, rel = worst
+    return (f"the error estimate of {key} is {rel:.2g} "
+            f"({'relative' if key == 'energy' else 'R or rad'}) on {est.nodes} nodes: the mesh "
+            f"is too coarse for this shell")
+
+
+def _warn_if_coarse(est: ErrorEstimate) -> None:
+    """A warning where an estimate exceeds :data:`COARSE` (:func:`coarse_why`)."""
+    why = coarse_why(est)
+    if why is not None:
+        log.warning("%s; refine it (rtol, --rtol)", why)
 
 
 def unresolved_steps(problem: Problem, nodes: int, stages: int, anchors=()) -> str | None:
@@ -271,21 +280,59 @@ def warn_unresolved_steps(problems, nodes: int, stages: int, anchors=()) -> None
 
 
 def coarse_level(solver_for: Callable[[int], DirectSolver], nodes: int, problem: Problem,
-                  eq: Equilibrium, anchors) -> tuple[Equilibrium | None, str]:
+                 eq: Equilibrium, anchors, solve: Callable = solve_from
+                 ) -> tuple[Equilibrium | None, str]:
     """(``problem`` on ``nodes`` nodes from ``eq``, "") for the estimate, or (None, why not).
 
     A level is unavailable where it has too few nodes, does not converge, or cannot hold
     the mesh's knots: a Volvox shell's 4 knots fit 20 nodes but not their quarter mesh of
     5, and the 20-node solve stands with the estimate of the levels there are (user audit).
+    ``solve``: how the level is solved from ``eq``, ``(solver, problem, eq, anchors) ->
+    Equilibrium`` raising SolverError (:func:`solve_from`, a minimisation, by default).
     """
     if nodes < 5:
         return None, "too few nodes to halve"
     try:
-        return solve_from(solver_for(nodes), problem, eq, anchors), ""
+        return solve(solver_for(nodes), problem, eq, anchors), ""
     except SolverError as exc:
         return None, f"the half mesh ({nodes} nodes) did not converge ({exc.status})"
     except MeshTooCoarse:
         return None, f"the half mesh ({nodes} nodes) cannot hold the mesh's knots"
+
+
+def level_estimate(eq: Equilibrium, solver_for: Callable[[int], DirectSolver], order: int,
+                   anchors=(), polish: Callable[[Equilibrium], Equilibrium] | None = None,
+                   solve: Callable = solve_from) -> ErrorEstimate:
+    """The estimate of :func:`refine` (``solve()``'s) of ``eq``: from its problem on the
+    half mesh, solved from ``eq``, and on the quarter mesh, solved from that
+    (:func:`coarse_level`, ``solve`` as its), with no warning.
+
+    Parameters
+    ----------
+    eq : Equilibrium
+        A direct solution.
+    solver_for : callable
+        ``nodes -> DirectSolver`` of ``eq``'s structure and options.
+    order : int
+        The scheme's order (2 × stages).
+    polish : callable, optional
+        As :func:`refine`'s.
+    solve : callable, optional
+        As :func:`coarse_level`'s.
+
+    Returns
+    -------
+    ErrorEstimate
+        With a note (and NaN errors) where the half mesh is unavailable.
+    """
+    nodes = eq.solver.nodes
+    reference, note = coarse_level(solver_for, half_mesh(nodes), eq.problem, eq, anchors, solve)
+    coarser = None        # (two levels only where the quarter mesh is unavailable)
+    if reference is not None:
+        coarser, _ = coarse_level(solver_for, half_mesh(half_mesh(nodes)), eq.problem,
+                                  reference, anchors, solve)
+    polished, why = _polished(polish, eq)
+    return estimate(eq, None if why else reference, order, why or note, coarser, polished)
 
 
 def refine(eq: Equilibrium, solver_for: Callable[[int], DirectSolver], rtol: float | None,
@@ -324,16 +371,10 @@ def refine(eq: Equilibrium, solver_for: Callable[[int], DirectSolver], rtol: flo
     """
     problem, nodes = eq.problem, eq.solver.nodes
     order = 2 * solver_for(nodes).stages
-    reference, note = coarse_level(solver_for, half_mesh(nodes), problem, eq, anchors)
-    coarser = None        # (two levels only where the quarter mesh is unavailable)
-    if reference is not None:
-        coarser, _ = coarse_level(solver_for, half_mesh(half_mesh(nodes)), problem,
-                                   reference, anchors)
-    polished, why = _polished(polish, eq)
-    est = estimate(eq, None if why else reference, order, why or note, coarser, polished)
+    est = level_estimate(eq, solver_for, order, anchors, polish)
     steps = unresolved_steps(problem, nodes, order // 2, anchors)
     if rtol is None and not est.note:
-        _warn_if_coarse(est, nodes)
+        _warn_if_coarse(est)
         if steps:
             log.warning("%s", steps)
     eq = replace(eq, error=est)
