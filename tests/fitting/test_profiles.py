@@ -465,3 +465,102 @@ def test_a_fit_read_back_from_its_json_profiles_as_the_fit(three, tmp_path):
     found, again = profiled_fit(spec, data, [name], result=back, points=6, nodes=NODES)
     assert found is back
     assert again[name].interval == pytest.approx(profiles[name].interval, rel=1e-6)
+
+
+def _cut_line(word: str, json_path, csv_path) -> str:
+    """The one line of a ``fit --profile f1,s2`` cut at the start of s2's profile."""
+    return (rf"morphoshell: {word} during the profiles \(s2 not profiled\); the fit and the "
+            rf"profiles of f1 kept in {re.escape(str(json_path))} and "
+            rf"{re.escape(str(csv_path))}, the JSON marked partial\n")
+
+
+def _check_partial(json_path, csv_path) -> None:
+    """The fit and f1's profile written, the JSON marked partial, both read back."""
+    from morphoshell.fitting import load_fit
+    from morphoshell.fitting.profile_records import load_profiles
+
+    data = json.loads(json_path.read_text())
+    assert data["complete"] is False and data["not_done"] == "s2 not profiled"
+    assert list(data["profile_intervals"]) == ["f1"]
+    assert list(load_profiles(json_path)) == ["f1"]
+    assert load_fit(json_path).E_fit == data["E_fit"]
+    assert "f1" in csv_path.read_text()
+
+
+@pytest.mark.parametrize("sig, status, word", [
+    ("SIGINT", 130, "interrupted"), ("SIGTERM", 143, r"terminated \(SIGTERM\)")])
+def test_an_interrupted_fit_profile_keeps_the_fit_and_the_profiles_finished(
+        midline_csv, tmp_path, capsys, monkeypatch, sig, status, word):
+    """Audit 23 F6: Ctrl-C or SIGTERM (the real signal) during ``fit --profile`` wrote
+    nothing, though the fit had finished (a profile of all the parameters takes minutes
+    to an hour).  Cut at the start of the second profile: the fit and the first profile
+    are written, the JSON marked partial (complete, not_done) as continue's, one line says
+    so, the exit status is the interruption's."""
+    import os
+    import signal
+
+    from morphoshell.fitting import profiles
+
+    real, calls = profiles._profile, []
+
+    def cut_second(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            os.kill(os.getpid(), getattr(signal, sig))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(profiles, "_profile", cut_second)
+    doc, table = tmp_path / "p.json", tmp_path / "p.csv"
+    assert main(["fit", str(midline_csv), "--variant", "flat", "--nodes", str(NODES), *HELD,
+                 "--profile", "f1,s2", "--profile-points", "4", "--json", str(doc),
+                 "--csv", str(table)]) == status
+    err = capsys.readouterr().err
+    assert re.fullmatch(_cut_line(word, doc, table), err), err
+    _check_partial(doc, table)
+
+
+#: A `fit --profile` that waits at the start of its second profile (for the SIGTERM of the
+#: test that starts it).
+_WAITING = """
+import sys, time
+from morphoshell.cli import main
+from morphoshell.fitting import profiles
+real, calls = profiles._profile, []
+def waiting(*args, **kwargs):
+    calls.append(1)
+    if len(calls) == 2:
+        print("ready", flush=True)
+        time.sleep(60)
+    return real(*args, **kwargs)
+profiles._profile = waiting
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_sigterm_to_a_background_fit_profile_keeps_what_was_done(midline_csv, tmp_path):
+    """The same in a real process started with Ctrl-C ignored (a script's `cmd &`), sent
+    SIGTERM during its second profile."""
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    doc, table = tmp_path / "b.json", tmp_path / "b.csv"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    child = subprocess.Popen(
+        [sys.executable, "-c", _WAITING, "fit", str(midline_csv), "--variant", "flat",
+         "--nodes", str(NODES), *HELD, "--profile", "f1,s2", "--profile-points", "4",
+         "--json", str(doc), "--csv", str(table)], env=env, text=True,
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    try:
+        while (line := child.stdout.readline()) not in ("ready\n", ""):
+            pass        # (the fit's summary first)
+        assert line == "ready\n"
+        child.send_signal(signal.SIGTERM)
+        _, err = child.communicate(timeout=120)
+    finally:
+        child.kill()
+    assert child.returncode == 143, err
+    assert re.fullmatch(_cut_line(r"terminated \(SIGTERM\)", doc, table), err), err
+    _check_partial(doc, table)

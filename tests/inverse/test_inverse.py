@@ -14,6 +14,7 @@ import pytest
 
 from morphoshell import Problem
 import morphoshell.inverse as I
+from morphoshell.inverse.embryo import check_methods
 from morphoshell.io.measurements import MEASURE_COLUMN
 from morphoshell.mechanics import asymptotics as A
 from morphoshell.mechanics.ablation import ablate, recoil_jacobian
@@ -395,6 +396,24 @@ def test_methods_may_be_one_string_of_names():
                                          r"valid: \['leading_order', 'kelvin', 'inner', "
                                          r"'numerical'\]$"):
         I.estimate(rows, methods="kelvn")
+
+
+def test_methods_name_at_least_one_method_each_once():
+    """Audit 23 F10: methods='' or [] returned a result without a single estimate and no
+    error, 'kelvin,kelvin' listed (and ran) kelvin twice, and methods=3 raised "'int'
+    object is not iterable"."""
+    rows = [_measurement({"opening": A.opening(H, 0.3, SIGMA)})]
+    for methods in ("", " , ", []):
+        with pytest.raises(ValueError, match=r"^methods = .* names no method; choose from "
+                                             r"\['leading_order', 'kelvin', 'inner', "
+                                             r"'numerical'\]$"):
+            I.estimate(rows, methods=methods)
+    with pytest.raises(TypeError, match=r"^methods = 3 must be a name, names separated by "
+                                        r"commas or a sequence of names, not int$"):
+        I.estimate(rows, methods=3)
+    result = I.estimate(rows, methods="inner, kelvin,inner", bootstrap=0, workers=1)
+    assert result.settings["methods"] == ["inner", "kelvin"]        # (the order asked)
+    assert check_methods(("kelvin", "kelvin")) == ("kelvin",)
 
 
 def test_one_embryos_methods_are_checked_as_a_tables():

@@ -113,3 +113,28 @@ def test_what_is_not_a_problem_is_refused_naming_it():
     """A user audit: numerical_ablation("x") raised "'str' object has no attribute 'end'"."""
     with pytest.raises(TypeError, match=r"^problem = 'x' must be a morphoshell Problem"):
         numerical_ablation("x", cut=0.1)
+
+
+@pytest.mark.parametrize("change, error, message", [
+    ({"cut": "0.1"}, ValueError, r"^cut = '0\.1' must be a real number$"),
+    ({"pre": "x"}, TypeError, r"^pre = 'x' must be an Equilibrium or fitted_state\(record\) "
+                              r"\(fields s, r, psi, f_s\), not str$"),
+    ({"cold": "no"}, TypeError, r"^cold = 'no' must be True or False$"),
+    ({"nodes": 99999}, ValueError, r"^nodes = 99999 must be an integer in \[20, 3200\]$"),
+    ({"nodes": 10}, ValueError, r"^nodes = 10 must be an integer in \[20, 3200\]$"),
+])
+def test_each_argument_is_refused_naming_it_before_any_work(monkeypatch, change, error,
+                                                             message):
+    """Audit 23 F9: cut='0.1' raised "'<' not supported", pre='x' "'str' object has no
+    attribute 's'", cold='no' solved cold (a string is true), and nodes=99999 (within
+    solve()'s [5, 102400]) died of std::bad_alloc after 89 s.  Each is refused before any
+    solve (which here would fail the test), nodes in the fits' range (FIT_NODES)."""
+    import morphoshell.workflows.fitted_shapes as module
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("solved before the arguments were checked")
+    monkeypatch.setattr(module, "solve", no_work)
+    monkeypatch.setattr(module, "solve_from", no_work)
+    problem, _ = load_problem(example_path("toy2_ablation"))
+    with pytest.raises(error, match=message):
+        numerical_ablation(problem, **{"cut": 0.3, "nodes": NODES, "pre": None, **change})

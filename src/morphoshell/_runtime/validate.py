@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import math
 import os
-from typing import Any, Mapping, Sequence, TypeVar
+from typing import Any, Iterable, Mapping, Sequence, TypeVar
 
 import numpy as np
 
@@ -79,9 +79,14 @@ def instance(name: str, value: Any, kind: type | tuple[type, ...], what: str) ->
     return value
 
 
-def name_list(value: str | Sequence[str]) -> list[str]:
+def name_list(value: str | Sequence[str], name: str = "names") -> list[str]:
     """A list of names from a sequence or a comma-separated string (as the command line's
-    options take them): a single string is not split into its letters."""
+    options take them): a single string is not split into its letters; TypeError naming
+    ``name`` for anything else (an audit: ``methods=3`` raised "'int' object is not
+    iterable")."""
     if isinstance(value, str):
         return [v.strip() for v in value.split(",") if v.strip()]
+    if isinstance(value, (bytes, Mapping)) or not isinstance(value, Iterable):
+        raise TypeError(f"{name} = {short(value)} must be a name, names separated by commas "
+                        f"or a sequence of names, not {type(value).__name__}")
     return list(value)

@@ -34,7 +34,9 @@ def add_profile_options(p) -> None:
                         "that does not close is null (not determined by the data, or open "
                         "where a refit failed). A refit "
                         "lower than the fit means the fit was not at its minimum: the lower "
-                        "refit becomes the fit, as the terminal and the JSON (replaced_fit) say")
+                        "refit becomes the fit, as the terminal and the JSON (replaced_fit) say. "
+                        "Ctrl-C (SIGTERM) during the profiles writes the fit and the profiles "
+                        "finished, the JSON marked partial; exit status 130 (143)")
     p.add_argument("--profile-points", dest="profile_points", type=integer(2, 1000), default=None,
                    metavar="N", help="refits per profile, 2 to 1000 (default 20); with --profile")
     p.add_argument("--profile-noise", dest="profile_noise", default=None,

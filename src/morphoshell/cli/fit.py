@@ -253,23 +253,27 @@ def _fit(args) -> int:
     if starts is not None:
         print(f"  starts (--multi-start, {len(starts.starts)} fits in {starts.seconds:.1f} s; * the "
               f"lowest E_fit, the fit above):\n{starts.table()}")
-    before, profiles = result, {}
+    before, profiles, not_done = result, {}, None
     if names:
         inflation = (profile_inflation(gauss_newton, result.standard_errors)
                      if retraced is not None else None)
-        result, profiles = run_profiles(args, spec, data, result, names, inflation)
+        result, profiles, not_done = _profiled(args, spec, data, result, names, inflation)
         if result is not before:        # (the fit was not its minimum: the refit is the fit)
             result = _trace_errors(result, retraced)    # (the same data: the same re-tracings)
             print(refit_lines(before, result))
             limit = EVALUATION_LIMITS["gradient"][1]      # (the refit's: profile_intervals)
-        print(profile_table(result, profiles))
+        if not_done is None:
+            print(profile_table(result, profiles))
     out = Outputs()
     out.add(args.json, lambda path: write_json(path, {
         **result.to_dict(), **fit_record(args, limit),
         "input_check": input_check(result.E_fit),
         **(starts.to_dict() if starts is not None else {}),
-        **(profile_json(profiles, before, result) if profiles else {})}))
+        **(profile_json(profiles, before, result) if names else {}),
+        **({"complete": False, "not_done": not_done} if not_done else {})}))
     out.add(args.csv, lambda path: write_csv(path, result.table()))
+    if not_done:
+        return _cut_short(out, not_done, list(profiles), args)
     if args.plot:
         from ..plotting import fit_axes, plot_fit, save
 
@@ -289,6 +293,46 @@ def _fit(args) -> int:
         warn_of_contact(result.contact, f"{Path(args.midline).name}, fitted {result.variant} shell")
     print(stop_line(result, limit, before if result is not before else None))
     return 0 if result.converged else 3
+
+
+def _profiled(args, spec, data, result, names: list[str], inflation) -> tuple:
+    """(the fit, its profiles, what was not done: None when all were): :func:`run_profiles`,
+    or where Ctrl-C or SIGTERM cuts it short, the fit and the profiles finished, and the
+    names not profiled (audit 23: an interrupted ``fit --profile`` lost the fit, done in
+    the first second, and every profile finished)."""
+    from .._runtime import interrupts
+    from ..fitting.profile_runs import ProfilesInterrupted
+
+    try:
+        return (*run_profiles(args, spec, data, result, names, inflation), None)
+    except BaseException as exc:
+        if not interrupts.interrupted(exc):
+            raise
+        interrupts.swallowed()      # (claimed: the outputs' commit would raise it again)
+        if isinstance(exc, ProfilesInterrupted):    # (else cut before the first profile)
+            result, profiles = exc.fit, exc.profiles
+        else:
+            profiles = {}
+    return result, profiles, f"{', '.join(n for n in names if n not in profiles)} not profiled"
+
+
+def _cut_short(out, not_done: str, done: list[str], args) -> int:
+    """Write the fit and its finished profiles (``out``: the JSON, marked partial, and the
+    CSV; no plot) and say so on one line, as ``continue`` and ``sweep`` do; the
+    interruption's exit status (130, 143 after SIGTERM)."""
+    import sys
+
+    from .._runtime import interrupts
+
+    paths = out.commit()
+    what = f"the fit and the profiles of {', '.join(done)}" if done else "the fit"
+    where = (f"; {what} kept in {' and '.join(map(str, paths))}"
+             f"{', the JSON marked partial' if args.json else ''}" if paths else
+             "; not kept: no --json or --csv")
+    unplotted = "; no plot drawn" if args.plot or profile_plot_path(args) else ""
+    print(f"morphoshell: {interrupts.reason()} during the profiles ({not_done}){where}"
+          f"{unplotted}", file=sys.stderr)
+    return interrupts.exit_status()
 
 
 def _run_fit(args, spec, midline, limit: int, unit: str):

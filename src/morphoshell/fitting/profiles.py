@@ -1,28 +1,26 @@
 """What the data determine: profile-likelihood intervals of fitted parameters.
 
-A fit's Gauss–Newton errors (:mod:`morphoshell.fitting.results`) are those of
-the linearised problem at the optimum.  A *profile* (Venzon & Moolgavkar 1988;
-Raue et al. 2009) asks the nonlinear question instead: step one parameter θⱼ
-over a grid around its fitted value, fit all the others again at each step
-(warm-started from the neighbouring step's result; a refit far above the profile, or
-failed, again from the optimum; one that decides a crossing without having converged from
-other starts, :mod:`morphoshell.fitting.profile_retry`, which also fits one above a refit
-farther out, and a crossing's, again from its neighbours' ends and refines a crossing
-within a side's first steps), and record the least-squares
-objective S(θⱼ) = E_fit²(θⱼ) (units of R²; the fit energy of the paper,
-Supplementary, "Fitting of the morphoelastic theory to the average cell sheet
-midlines of Volvox inversion").  With Gaussian residuals of variance σ² the
-likelihood-ratio statistic [S(θⱼ) − S_min]/σ² is χ²₁-distributed at the true
-θⱼ, so the interval at confidence c is
+A fit's Gauss–Newton errors (:mod:`morphoshell.fitting.results`) are those of the linearised
+problem at the optimum.  A *profile* (Venzon & Moolgavkar 1988; Raue et al. 2009) asks the
+nonlinear question instead: step one parameter θⱼ over a grid around its fitted value, fit
+all the others again at each step (warm-started from the neighbouring step's result; a refit
+far above the profile, or failed, again from the optimum; one that decides a crossing
+without having converged from other starts, :mod:`morphoshell.fitting.profile_retry`, which
+also fits one above a refit farther out, and a crossing's, again from its neighbours' ends
+and refines a crossing within a side's first steps), and record the least-squares objective
+S(θⱼ) = E_fit²(θⱼ) (units of R²; the fit energy of the paper, Supplementary, "Fitting of the
+morphoelastic theory to the average cell sheet midlines of Volvox inversion").  With
+Gaussian residuals of variance σ² the likelihood-ratio statistic [S(θⱼ) − S_min]/σ² is
+χ²₁-distributed at the true θⱼ, so the interval at confidence c is
 
     { θⱼ : S(θⱼ) − S_min ≤ σ² χ²₁(c) }          (χ²₁(0.95) = 3.841).
 
-For a problem linear in θ it is the Gauss–Newton interval ±√χ²₁(c) SE; where
-the midline depends nonlinearly on θⱼ (folds of the branch, curvatures near
-the pole) it is asymmetric, and where the data do not determine θⱼ at all it
-does not close: the objective stays below the threshold up to the grid's end
-or the parameter's bound, and that side is reported unbounded (±inf; ``None``
-in JSON) and the parameter *not determined by the data* (:attr:`Profile.flat`).
+For a problem linear in θ it is the Gauss–Newton interval ±√χ²₁(c) SE; where the midline
+depends nonlinearly on θⱼ (folds of the branch, curvatures near the pole) it is asymmetric,
+and where the data do not determine θⱼ at all it does not close: the objective stays below
+the threshold up to the grid's end or the parameter's bound, and that side is reported
+unbounded (±inf; ``None`` in JSON) and the parameter *not determined by the data*
+(:attr:`Profile.flat`).
 
 σ², the noise variance of one coordinate of one point of the data, comes from
 (:func:`noise_variance`)
@@ -41,18 +39,16 @@ logs which (a warning for the residual: data that lost an average's spread on th
 back to it); each :class:`Profile` records it (``sigma2_source``, ``dof``).  The noise is
 :mod:`morphoshell.fitting.profile_noise`'s.
 
-The errors of a traced midline are correlated along it: each trace is
-aligned, scaled and drawn as a whole, so most of its error moves many points
-at once.  The 2N residuals are then far from 2N independent pieces of
-information.  With σ² from the traces, the threshold counts what the spread
-of n traces does hold, n − 1 degrees of freedom (one per trace beyond the
-mean), and takes the quantile of F(1, n − 1) (Student's t²ₙ₋₁, as the
-jackknife errors do) instead of χ²₁: 7.71 instead of 3.84 for five traces
-(:func:`threshold_quantile`).  On 40 synthetic replicates of five traces it
-covers the generating κ₁ in 95 % and f₁ in 90 % of them, where χ²₁ covered
-90 % and 75 % (documentation: "Fitting", "Profile intervals").  σ² from the
-residual keeps χ²₁ and covers far less (55 %, 50 %): the 13-parameter model
-absorbs part of the correlated noise, so the residual underestimates it.
+The errors of a traced midline are correlated along it: each trace is aligned, scaled and
+drawn as a whole, so most of its error moves many points at once.  The 2N residuals are then
+far from 2N independent pieces of information.  With σ² from the traces, the threshold
+counts what the spread of n traces does hold, n − 1 degrees of freedom (one per trace beyond
+the mean), and takes the quantile of F(1, n − 1) (Student's t²ₙ₋₁, as the jackknife errors
+do) instead of χ²₁: 7.71 instead of 3.84 for five traces (:func:`threshold_quantile`).  On
+40 synthetic replicates of five traces it covers the generating κ₁ in 95 % and f₁ in 90 % of
+them, where χ²₁ covered 90 % and 75 % (documentation: "Fitting", "Profile intervals").  σ²
+from the residual keeps χ²₁ and covers far less (55 %, 50 %): the 13-parameter model absorbs
+part of the correlated noise, so the residual underestimates it.
 
 Lengths in units of R.
 """
@@ -76,6 +72,7 @@ from .profile_noise import (NOISE_SOURCES, check_inflation, log_noise, noise_dof
                             noise_variance, parameter_noise, threshold_quantile, traces_missing)
 from .profile_retry import (Retry, crossing, needs_retry, not_monotone_note, retried,
                             settle_side, started_at)
+from .profile_runs import each_profile
 from .results import FitResult, fit_result
 from .spec import FitSpec, check_spec
 
@@ -275,14 +272,12 @@ class Profile:
         def number(v):
             return float(v) if np.isfinite(v) else None
         return {"name": self.name, "fitted_value": self.fitted_value,
-                "values": self.values.tolist(),
-                "objective": [number(v) for v in self.objective],
+                "values": self.values.tolist(), "objective": [number(v) for v in self.objective],
                 "converged": [bool(c) for c in self.converged],
                 "interval": [number(v) for v in self.interval], "threshold": self.threshold,
                 "S_min": self.S_min, "sigma2": self.sigma2, "sigma2_source": self.sigma2_source,
-                "sigma2_dof": number(self.dof),
-                "confidence": self.confidence, "flat": self.flat, "method": self.method,
-                "open_sides": [end or None for end in self.open_sides()],
+                "sigma2_dof": number(self.dof), "confidence": self.confidence, "flat": self.flat,
+                "method": self.method, "open_sides": [end or None for end in self.open_sides()],
                 "note": self.note, "retries": [r.to_dict() for r in self.retries],
                 "objective_units": "R^2"}
 
@@ -647,6 +642,11 @@ def profiled_fit(spec: FitSpec, data, names: Sequence[str] | None = None, *,
         the profiles found: ``fit is result`` tells which.
     profiles : dict
         :class:`Profile` by name, in the order of ``names``.
+
+    Raises
+    ------
+    ProfilesInterrupted
+        Ctrl-C or SIGTERM in the profiles: the fit and those finished (its attributes).
     """
     names = list(check_spec(spec).fitted if names is None else names)
     if nodes is None:
@@ -665,9 +665,9 @@ def profiled_fit(spec: FitSpec, data, names: Sequence[str] | None = None, *,
     # minutes, and its refits are many small gradient fits that show nothing)
     with counter(len(names) * points, desc="profiles: the fit refitted", unit="refit") as bar:
         opt = _optimum(spec, points_, result, method, nodes, tol)
-        return _about_minimum(opt, method, tol, bar, lambda opt: {
-            n: _profile(opt, data, n, points, spans.get(n), method, tol, confidence, noise, bar,
-                        inflation) for n in names})
+        return _about_minimum(opt, method, tol, bar, lambda opt: each_profile(names, opt.fit, (
+            lambda n: _profile(opt, data, n, points, spans.get(n), method, tol, confidence,
+                               noise, bar, inflation))))
 
 
 def _about_minimum(opt: _Optimum, method: str, tol: float, bar, run) -> tuple:

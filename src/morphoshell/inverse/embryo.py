@@ -17,7 +17,7 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from .._runtime.validate import name_list
+from .._runtime.validate import name_list, short
 from ..io.measurements import ERROR_COLUMN, MEASURES, UNITS, Measurement, to_physical
 from ..mechanics import asymptotics
 from .inversion import (ASYMPTOTIC, DEFAULT_K_RANGE, METHODS, SYMBOL, Curve, Estimate,
@@ -153,13 +153,18 @@ def _by_method(m: Measurement, method: str, curve: Curve,
 
 def check_methods(methods) -> tuple[str, ...]:
     """The methods asked for (names, or one comma-separated string: "kelvin" is one method, not
-    six letters), or ValueError naming the unknown ones."""
-    asked = tuple(name_list(methods))
+    six letters), each once in the order asked (a method asked twice was listed, and run,
+    twice); ValueError naming the unknown ones, or none at all (``''`` or ``[]`` returned a
+    result without a single estimate); TypeError for what is not names (``3``)."""
+    asked = name_list(methods, "methods")
     unknown = [m for m in asked if m not in METHODS]
     if unknown:
-        raise ValueError(f"methods = {methods!r}: unknown method(s) {unknown}; valid: "
+        raise ValueError(f"methods = {short(methods)}: unknown method(s) {short(unknown)}; "
+                         f"valid: {list(METHODS)}")
+    if not asked:
+        raise ValueError(f"methods = {short(methods)} names no method; choose from "
                          f"{list(METHODS)}")
-    return asked
+    return tuple(dict.fromkeys(asked))
 
 
 def estimate_embryo(m: Measurement, model: RecoilModel | None = None,

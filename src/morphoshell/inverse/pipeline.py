@@ -200,7 +200,7 @@ def estimate(measurements: str | Path | Iterable[Measurement], *,
     methods : sequence of str, or str
         Subset of :data:`~morphoshell.inverse.inversion.METHODS` to compute
         (the others are null): names, or one string of comma-separated names
-        (``"kelvin"``, ``"kelvin,inner"``).
+        (``"kelvin"``, ``"kelvin,inner"``); at least one, each once (repeats are dropped).
     workers : int, optional
         Processes sharing the embryos (default: one per core; 1: this one).
         The estimates do not depend on it.
@@ -220,9 +220,11 @@ def estimate(measurements: str | Path | Iterable[Measurement], *,
     MeasurementError
         For a bad table (:func:`morphoshell.io.measurements.read_measurements`).
     ValueError
-        For no measurements, an unknown method or a bad k-range (one that a
+        For no measurements, an unknown method or none at all, or a bad k-range (one that a
         shell cannot have included: |k| ≥ 2/h, :func:`check_shells`), ``mu_min``,
         ``bootstrap`` or ``workers``.
+    TypeError
+        ``methods`` neither a string nor a sequence (:func:`~morphoshell.inverse.embryo.check_methods`).
     """
     t0 = time.perf_counter()
     data = _load(measurements)
