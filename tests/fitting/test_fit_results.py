@@ -299,6 +299,31 @@ def test_several_edits_of_a_fit_json_load_or_are_refused_naming_the_file(saved_f
     ([(("fitted_midline", "r"), [0.0])], "fitted_midline must hold lists of numbers r and z"),
     ([(("data_midline", "r"), "short"), (("data_midline", "z"), "short")],
      f"fitted_midline has {N_FIT} points, data_midline {N_FIT - 1}: expected one fitted point"),
+    # a stop that contradicts converged (audit 23 F2): both entries named
+    ([(("stop",), "Maximum_Evaluations_Exceeded")],
+     "stop = 'Maximum_Evaluations_Exceeded' disagrees with converged = true: a converged "
+     "fit's stop is one of Fit_Converged, Solve_Succeeded, Solved_To_Acceptable_Level"),
+    ([(("stop",), "Infeasible_Problem_Detected")], "stop = 'Infeasible_Problem_Detected' "
+                                                    "disagrees with converged = true"),
+    ([(("converged",), False)], "stop = 'Fit_Converged' disagrees with converged = false"),
+    # a walls_cross that is not a crossing of this shell, s in [0, pi - 0.3] (audit 23 F3)
+    ([(("walls_cross",), {"s": [1.0, 2.0], "distance": 0.5, "thickness": 0.1})],
+     "walls_cross.distance = 0.5 must be less than walls_cross.thickness = 0.1"),
+    ([(("walls_cross",), {"s": [1.0, 2.0], "distance": 0.1, "thickness": 0.1})],
+     "walls_cross.distance = 0.1 must be less than"),
+    ([(("walls_cross",), {"s": [2.0, 1.0], "distance": 0.05, "thickness": 0.1})],
+     "walls_cross.s = [2.0, 1.0] must be two increasing material points of the shell, in "
+     "[0, 2.84159]"),
+    ([(("walls_cross",), {"s": [1.0, 1.0], "distance": 0.05, "thickness": 0.1})],
+     "walls_cross.s = [1.0, 1.0] must be two increasing"),
+    ([(("walls_cross",), {"s": [-5.0, 1.0], "distance": 0.05, "thickness": 0.1})],
+     "walls_cross.s = [-5.0, 1.0] must be two increasing"),
+    ([(("walls_cross",), {"s": [1.0, 2.85], "distance": 0.05, "thickness": 0.1})],
+     "walls_cross.s = [1.0, 2.85] must be two increasing"),
+    ([(("walls_cross",), {"s": [1.0, 2.0], "distance": 0.0, "thickness": 0.0})],
+     "walls_cross.thickness = 0.0 must lie in (0, inf]"),
+    ([(("walls_cross",), {"s": [1.0, 2.0], "distance": 0.05, "thickness": 0.1, "x": 1})],
+     "walls_cross = {'s': [1.0, 2.0], 'distance': 0.05, 'thickness': 0.1, 'x': 1} must be"),
 ])
 def test_an_edited_fit_json_is_refused_naming_the_file_and_entry(saved_fit, edits, said):
     """The messages of the audit's edits (and a few more): the file, the entry, what it must
@@ -313,6 +338,43 @@ def test_an_edited_fit_json_is_refused_naming_the_file_and_entry(saved_fit, edit
     with pytest.raises(ValueError) as exc:
         load_fit(file)
     assert str(exc.value).startswith(f"{file}: {said}"), str(exc.value)
+
+
+def test_a_fit_json_loads_with_the_kkt_fits_stops_and_a_crossing_at_the_shells_ends(
+        saved_fit):
+    """What the checks of stop and walls_cross let pass: converged with Ipopt's successes
+    (the KKT fit's stop), a contact at the shell's ends, s = 0 and L - P."""
+    import json
+
+    from morphoshell.fitting import load_fit
+
+    record, _, folder = saved_fit
+    file = folder / "fit.json"
+    contact = {"s": [0.0, np.pi - 0.3], "distance": 0.0, "thickness": 0.1}
+    for stop in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
+        file.write_text(json.dumps({**record, "stop": stop, "converged": True,
+                                    "walls_cross": contact}))
+        back = load_fit(file)
+        assert back.stop == stop and back.contact.to_dict() == contact
+
+
+@pytest.mark.parametrize("entry", ["E_fit", "parameters", "fitted", "method", "stop",
+                                   "converged", "walls_cross", "message", "constrained"])
+def test_a_long_value_is_cut_in_the_message(saved_fit, entry):
+    """Audit 23 F4: an entry replaced by a 3000-item list gave a message of 17 000
+    characters; one line, the value cut to 80 characters (validate.short)."""
+    import json
+
+    from morphoshell.fitting import load_fit
+
+    record, _, folder = saved_fit
+    file = folder / "fit.json"
+    file.write_text(json.dumps({**record, entry: list(range(3000))}))
+    with pytest.raises(ValueError) as exc:
+        load_fit(file)
+    message = str(exc.value)
+    assert message.startswith(f"{file}: ") and "[0, 1, 2, 3," in message, message
+    assert len(message) < len(str(file)) + 300 and "\n" not in message, message
 
 
 def test_a_spec_has_a_label_its_record_reads_back_with():

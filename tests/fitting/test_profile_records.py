@@ -8,7 +8,9 @@ import pytest
 
 from morphoshell.fitting import (fit, load_profiles, profile_from_dict, profiled_fit,
                                  synthetic_midline)
-from morphoshell.fitting.profile_retry import Retry
+from morphoshell.fitting.profile_noise import threshold_quantile
+from morphoshell.fitting.profile_retry import Retry, crossings
+from morphoshell.fitting.profiles import LOWER
 from morphoshell.io.problem_files import write_json
 
 from fitting_cases import NODES, THREE, TRUE, three_parameter_spec
@@ -20,13 +22,20 @@ def saved(tmp_path_factory):
     data = synthetic_midline(TRUE, spec.base, nodes=NODES, noise=1e-3, seed=3)
     result = fit(spec, data, "gradient", nodes=NODES)
     _, profiles = profiled_fit(spec, data, THREE[:2], result=result, points=4)
-    # an open side and a retry, which this fit's profiles do not have, on a copy
+    # an open side and a retry, which this fit's profiles do not have, on a copy: a σ²
+    # whose threshold lies between the two sides' highest objectives opens the lower one
+    # (a record's interval must be its threshold's crossings: _check_derived)
     name = THREE[0]
     retry = Retry(0.5, 2e-5, "optimum", 1.5e-5, True,
                   ({"from": "optimum", "E_fit": 0.0039, "converged": True},), 0.25, "")
-    profiles[name] = profiles[name].__class__(**{
-        **profiles[name].__dict__, "interval": (-math.inf, profiles[name].interval[1]),
-        "side_ends": ("bound", "grid"), "retries": (retry,)})
+    p = profiles[name]
+    j = int(np.searchsorted(p.values, p.fitted_value))
+    lower, upper = np.max(p.objective[:j]), np.max(p.objective[j + 1:])
+    assert lower < upper     # (this fit's: else open the upper side)
+    sigma2 = ((lower + upper) / 2 - p.S_min) / threshold_quantile(p.confidence, p.dof)
+    profiles[name] = p.__class__(**{**p.__dict__, "side_ends": ("bound", "grid"),
+                                    "retries": (retry,)}).rethreshold(sigma2, "given", p.dof)
+    assert profiles[name].open_sides() == ("bound", "")
     # and a failed refit (objective NaN, written null) at the other's end
     other = profiles[THREE[1]]
     profiles[THREE[1]] = other.__class__(**{
@@ -69,7 +78,9 @@ def test_a_fit_without_profiles_has_none(tmp_path):
 @pytest.mark.parametrize("edit, said", [
     (lambda d: d.pop("threshold"), "the entry 'threshold' is missing"),
     (lambda d: d.update(values=d["values"][::-1]), "values must be a non-empty list of increasing"),
-    (lambda d: d.update(objective=d["objective"][1:]), "objective = "),
+    # (either list may be the one edited: both named, with their lengths)
+    (lambda d: d.update(objective=d["objective"][1:]), "objective has 4 items, values 5"),
+    (lambda d: d.update(values=d["values"][1:]), "objective has 5 items, values 4"),
     (lambda d: d["objective"].__setitem__(0, -1.0), "objective[0] = -1.0 must lie in"),
     (lambda d: d["converged"].__setitem__(1, "yes"), "converged[1] = 'yes' must be True or"),
     (lambda d: d.update(interval=[0.1]), "interval = [0.1] must be a list of 2 items"),
@@ -80,6 +91,22 @@ def test_a_fit_without_profiles_has_none(tmp_path):
     (lambda d: d.update(confidence=95), "confidence = 95 must lie in (0, 1]"),
     (lambda d: d.update(name="kappa9"), "name = 'kappa9' must be"),
     (lambda d: d["retries"][0].update(E_fit="x"), "retries[0].E_fit = 'x' must be a real"),
+    # entries derived from others that disagree with them (audit 23 F1)
+    (lambda d: d.update(interval=d["interval"][::-1]), "must be where the objective cross"),
+    (lambda d: d.update(interval=[d["values"][0], d["values"][1]]), "must be where the "
+                                                                    "objective crosses"),
+    (lambda d: d.update(threshold=1.0), "threshold = 1.0 must be S_min + sigma2 * q = "),
+    (lambda d: d.update(threshold=d["threshold"] * (1 + 1e-6)), "must be S_min + sigma2 * q"),
+    (lambda d: d.update(S_min=1.0), "S_min = 1.0 must be the least objective of the profile"),
+    (lambda d: d.update(S_min=d["S_min"] * (1 - 1e-15)), "must be the least objective"),
+    (lambda d: d.update(sigma2=0), "sigma2 = 0 must lie in (0, inf]"),
+    (lambda d: d.update(sigma2=d["sigma2"] * 2), "threshold = "),
+    (lambda d: d.update(confidence=1.0), "confidence = 1.0 must lie in (0, 1): at 1"),
+    (lambda d: d.update(flat=not d["flat"]), "flat = False disagrees with the interval"),
+    # a value too long to print is cut (audit 23 F4: 17 000 characters)
+    (lambda d: d["values"].__setitem__(0, list(range(3000))), "values[0] = [0, 1, 2,"),
+    (lambda d: d.update(method=list(range(3000))), "method = [0, 1, 2,"),
+    (lambda d: d.update(interval=list(range(3000))), "interval = [0, 1, 2,"),
 ])
 def test_a_bad_entry_is_named_with_its_file(saved, tmp_path, edit, said):
     path, profiles = saved
@@ -91,7 +118,31 @@ def test_a_bad_entry_is_named_with_its_file(saved, tmp_path, edit, said):
         load_profiles(bad)
     message = str(err.value)
     assert message.startswith(f"{bad}: profiles.{name}: ") and said in message, message
-    assert "\n" not in message
+    assert "\n" not in message and len(message) < len(str(bad)) + 300, message
+
+
+def test_a_rethresholded_profile_and_a_threshold_from_the_fit_load(saved, tmp_path):
+    """What the checks of derived entries must let pass: a profile rethresholded (S_min +
+    σ² q) and one whose least refit lies below the fit by less than LOWER (its threshold
+    the fit's objective + σ² q, as fitting.profiles sets it), each to the bit; and a
+    threshold off by round-off only."""
+    path, profiles = saved
+    p = profiles[THREE[1]].rethreshold(3 * profiles[THREE[1]].sigma2, "given")
+    j = int(np.searchsorted(p.values, p.fitted_value))
+    S_fit = p.objective[j]
+    objective = p.objective.copy()
+    objective[j + 1] = S_fit * (1 - LOWER / 2)      # (a refit lower, by less than LOWER)
+    threshold = S_fit + p.sigma2 * threshold_quantile(p.confidence, p.dof)
+    S_min = float(np.nanmin(objective))
+    lower = p.__class__(**{**p.__dict__, "objective": objective, "S_min": S_min,
+                           "threshold": threshold, "interval": crossings(
+                               p.values, objective, p.fitted_value, threshold, S_min)})
+    for q in (p, lower):
+        back = profile_from_dict(json.loads(json.dumps(q.to_dict())), "here", q.name)
+        assert back.to_dict() == q.to_dict()
+    record = p.to_dict()
+    record["threshold"] *= 1 + 1e-12         # (another SciPy's quantile: DERIVED_RTOL)
+    assert profile_from_dict(record, "here").threshold == record["threshold"]
 
 
 def test_a_record_that_is_not_an_object_is_refused():

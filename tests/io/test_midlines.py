@@ -445,8 +445,9 @@ def _average_csv(path, rows: int) -> np.ndarray:
     fraction t of its arclength, 0 at the pole) written as morphoshell average does; the
     spread as a function of t."""
     t = np.linspace(0.0, 1.0, rows)
+    # (a source per trace, as morphoshell average writes them: trace_checks.check_average)
     Midline(np.sin(t * np.pi / 2), 1 - np.cos(t * np.pi / 2), 1e-3 * np.sin(t * np.pi / 2), 5,
-            ("a.csv", "b.csv")).to_csv(path)
+            tuple(f"{c}.csv" for c in "abcde")).to_csv(path)
     return lambda t: 1e-3 * np.sin(t * np.pi / 2)
 
 

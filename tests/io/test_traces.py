@@ -98,6 +98,55 @@ def test_midline_csv_round_trip(tmp_path):
         Midline.from_csv(tmp_path / "empty.csv")
 
 
+def _average_csv(tmp_path, n_traces="3", spread=None, sources=3):
+    """A csv average of 3 noisy copies of the reference midline as Midline.to_csv writes it,
+    its n_traces comment and one spread (its third point's, line 8 of the file) edited."""
+    rng = np.random.default_rng(1)
+    mean = ml.average([Midline(*(TRUTH + rng.normal(0, 0.01, TRUTH.shape)).T,
+                               source=(f"embryo {i}.roi",)) for i in range(sources)])
+    mean.to_csv(tmp_path / "avg.csv")
+    lines = (tmp_path / "avg.csv").read_text().splitlines()
+    lines[0] = f"# n_traces = {n_traces}"
+    if spread is not None:
+        r, z, _ = lines[4 + sources].split(",")
+        lines[4 + sources] = f"{r},{z},{spread}"
+    (tmp_path / "avg.csv").write_text("\n".join(lines) + "\n")
+    return tmp_path / "avg.csv"
+
+
+@pytest.mark.parametrize("edit, message", [
+    # (audit 23 F11: n_traces 1e9 shrank a fit's profile interval to zero width, a spread of
+    # 1e6 made it (-inf, inf), 0 and negative ones were taken)
+    ({"n_traces": "0"}, "comment 'n_traces = 0' must be at least 1 (the traces averaged)"),
+    ({"n_traces": "-2"}, "comment 'n_traces = -2' must be at least 1"),
+    ({"n_traces": "1000000000"}, "comment 'n_traces = 1000000000' disagrees with its 3 'source' "
+                                 "comments, one per trace averaged"),
+    ({"n_traces": "2"}, "comment 'n_traces = 2' disagrees with its 3 'source' comments"),
+    ({"n_traces": "2.5"}, "comment 'n_traces = 2.5' is not an integer"),
+    ({"spread": "-0.001"}, "line 8 (spread): -0.001 must lie in [0, 20] R"),
+    ({"spread": "1e6"}, "line 8 (spread): 1000000.0 must lie in [0, 20] R"),
+])
+def test_an_averages_n_traces_and_spread_are_checked(tmp_path, edit, message):
+    path = _average_csv(tmp_path, **edit)
+    for read in (Midline.from_csv, tr.read_trace, ml.load_midline):
+        with pytest.raises(MidlineError) as err:
+            read(path)
+        assert str(err.value) == f"{path}: {message}" or str(err.value).startswith(
+            f"{path}: {message}"), (read, str(err.value))
+
+
+def test_an_average_that_can_be_one_is_read(tmp_path):
+    """What the checks let pass: n_traces as many as the sources, a spread of 0 (the pole's)
+    and up to 20 R, and one source with several traces (a loaded average written again:
+    load_midline names the file it read)."""
+    assert ml.load_midline(_average_csv(tmp_path, spread="0")).n_traces == 3
+    assert tr.read_trace(_average_csv(tmp_path, spread="20")).spread.max() == 20
+    once = ml.load_midline(_average_csv(tmp_path))
+    assert once.source == (str(tmp_path / "avg.csv"),) and once.n_traces == 3
+    once.to_csv(tmp_path / "again.csv")
+    assert ml.load_midline(tmp_path / "again.csv").n_traces == 3
+
+
 # ------------------------------------------------------------------ bad input
 
 def _file(tmp_path, name, content):

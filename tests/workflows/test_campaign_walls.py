@@ -7,12 +7,13 @@ import json
 import logging
 
 import pandas as pd
+import pytest
 
 import morphoshell.fitting.results as results
 from morphoshell.cli import main
-from morphoshell.io.timepoints import Timepoint
+from morphoshell.io.timepoints import Timepoint, read_timepoints
 from morphoshell.solvers.contact import WallContact
-from morphoshell.workflows.campaign_results import CampaignResult
+from morphoshell.workflows.campaign_results import CampaignResult, load_campaign, read_records
 
 NODES = 60
 #: A contact as wall_contact gives one (the fold shell's, tests/solvers/test_contact.py).
@@ -57,3 +58,34 @@ def test_a_campaign_warns_of_its_fits_whose_walls_cross_and_exits_0(data, tmp_pa
     for name in ("t01", "t02"):
         rec = json.loads((out / f"{name}_flat.json").read_text())
         assert rec["walls_cross"] == CONTACT.to_dict()
+
+
+def test_a_record_whose_walls_cross_is_not_a_crossing_is_named_by_its_file(data, tmp_path,
+                                                                          capsys):
+    """Audit 23 F7: a campaign record with a broken walls_cross stopped resume and the summary
+    with a message naming none of the folder's files; and one with walls farther apart than
+    their thickness, or s outside the shell (of the record's problem), read as a crossing.
+    Now the file is named when the folder is read (load_campaign, and a resume before any
+    fit: exit status 2), as load_fit names its file."""
+    name, other = (tp.name for tp in read_timepoints(data[0])[:2])
+    problem = {"family": "volvox", "h": 0.15, "cut": 0.0, "opening": 0.3}
+    good = {"status": "ok", "E_fit": 0.01, "problem": problem, "walls_cross": CONTACT.to_dict()}
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / f"{name}_free.json").write_text(json.dumps(good))
+    assert read_records(out, [(name, "free")])[(name, "free")] == good
+    path = out / f"{name}_flat.json"
+    for broken, said in [({"s": [1.0], "distance": 0.1, "thickness": 0.2}, "walls_cross = "),
+                         ({**CONTACT.to_dict(), "distance": 0.2}, "walls_cross.distance = 0.2"),
+                         ({**CONTACT.to_dict(), "s": [0.96, 2.9]}, "in [0, 2.84159]")]:
+        path.write_text(json.dumps({**good, "walls_cross": broken}))
+        with pytest.raises(ValueError) as exc:
+            load_campaign(out, data[0])
+        assert str(exc.value).startswith(f"{path}: ") and said in str(exc.value), str(exc.value)
+        capsys.readouterr()
+        assert main(["campaign", str(data[0]), "--variants", "flat", "--timepoints",
+                     f"{name},{other}", "--nodes", str(NODES), "--workers", "1", "--out",
+                     str(out)]) == 2
+        err = capsys.readouterr().err
+        assert f"{path}: " in err and said in err and len(err.strip().splitlines()) == 1, err
+        assert not (out / f"{other}_flat.json").exists()       # (before any fit)

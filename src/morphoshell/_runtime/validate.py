@@ -15,7 +15,7 @@ T = TypeVar("T")
 def real(name: str, value: Any) -> float:
     """``value`` as a finite float, or ValueError naming it (bools are not numbers)."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ValueError(f"{name} = {value!r} must be a real number")
+        raise ValueError(f"{name} = {short(value)} must be a real number")
     value = float(value)
     if not math.isfinite(value):
         raise ValueError(f"{name} = {value!r} must be finite")
@@ -29,7 +29,8 @@ def within(name: str, value: Any, lo: float, hi: float, *, open_lo: bool = False
     number = real(name, value)
     if not (lo < number if open_lo else lo <= number) or not number <= hi:
         interval = f"{'(' if open_lo else '['}{lo:g}, {hi:g}]"
-        raise ValueError(f"{name} = {value!r} must lie in {interval}" + (f": {why}" if why else ""))
+        raise ValueError(f"{name} = {short(value)} must lie in {interval}"
+                         + (f": {why}" if why else ""))
     return number
 
 
@@ -39,7 +40,7 @@ def integer(name: str, value: Any, lo: int, hi: int | None = None) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo \
             or hi is not None and value > hi:
         bound = f"in [{lo}, {hi}]" if hi is not None else f">= {lo}"
-        raise ValueError(f"{name} = {value!r} must be an integer {bound}")
+        raise ValueError(f"{name} = {short(value)} must be an integer {bound}")
     return int(value)
 
 
@@ -47,7 +48,7 @@ def flag(name: str, value: Any) -> bool:
     """``value`` as a bool, or TypeError naming it: a string such as "no" is true and
     would silently mean the opposite (a user audit: ``continuation="no"`` continued)."""
     if not isinstance(value, (bool, np.bool_)):
-        raise TypeError(f"{name} = {value!r} must be True or False")
+        raise TypeError(f"{name} = {short(value)} must be True or False")
     return bool(value)
 
 
@@ -56,7 +57,8 @@ def lookup(registry: Mapping[str, T], name: str, what: str) -> T:
     try:
         return registry[name]
     except (KeyError, TypeError):
-        raise ValueError(f"unknown {what} {name!r}; choose one of {sorted(registry)}") from None
+        raise ValueError(f"unknown {what} {short(name)}; choose one of {sorted(registry)}"
+                         ) from None
 
 
 def short(value: Any) -> str:

@@ -10,7 +10,9 @@ The grid, objective, interval, threshold and σ² come back to the bit.  Two thi
 are not stored and come back as what they stand for: how a side whose interval
 closes was walked (read as ``"grid"``; only an open side's reason is kept, and
 only it enters :meth:`Profile.open_sides` and :meth:`Profile.verdict`), and a
-retry's objectives, stored as E_fit (R) and read as E_fit² (to round-off).
+retry's objectives, stored as E_fit (R) and read as E_fit² (to round-off).  The entries
+derived from others (S_min, threshold, interval, flat) must agree with the objective, σ²
+and confidence they come from: an edit of one is refused, by name.
 """
 from __future__ import annotations
 
@@ -20,17 +22,25 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .._runtime.validate import flag, real, within
+from .._runtime.validate import flag, real, short, within
 from ..io.problem_files import read_json
 from .bilevel import METHODS
-from .profile_noise import NOISE_SOURCES
-from .profile_retry import Retry
-from .profiles import Profile
+from .profile_noise import NOISE_SOURCES, threshold_quantile
+from .profile_retry import Retry, crossings
+from .profiles import LOWER, Profile, _flat
 
 __all__ = ["load_profiles", "profile_from_dict"]
 
 #: How an open side of a profile ended (:attr:`Profile.side_ends`).
 SIDE_ENDS = ("grid", "bound", "failed")
+#: How far (relative) a record's threshold and interval may lie from those recomputed from
+#: its objective, S_min, σ² and confidence (:func:`_check_derived`).  They are the same
+#: formulas on the same numbers (JSON gives floats back to the bit): an unedited record's
+#: agree exactly (47 profiles of recent fits' JSON, and audit 23's).  The slack is for another SciPy's χ²/F quantile
+#: (accurate to ~1e-14 relative), which the interval's interpolation in √(S − S_min)
+#: amplifies by threshold/(threshold − S_min) (~20 for a 95 % profile of a fit to traces):
+#: 1e-9 leaves five orders of magnitude and still refuses any edit a reader would notice.
+DERIVED_RTOL = 1e-9
 
 
 def load_profiles(path: str | Path) -> dict[str, Profile]:
@@ -104,21 +114,21 @@ def _profile(r: Mapping, name: str | None) -> Profile:
     if m < 1 or np.any(np.diff(values) <= 0):
         raise ValueError("values must be a non-empty list of increasing numbers")
     objective = np.array([math.nan if v is None else within(f"objective[{i}]", v, 0, math.inf)
-                          for i, v in enumerate(_list(r, "objective", m))])
+                          for i, v in enumerate(_list(r, "objective", m, "values"))])
     converged = np.array([flag(f"converged[{i}]", c)
-                          for i, c in enumerate(_list(r, "converged", m))], dtype=bool)
+                          for i, c in enumerate(_list(r, "converged", m, "values"))], dtype=bool)
     interval = tuple(bound if v is None else real(f"interval[{i}]", v)
                      for i, (v, bound) in enumerate(zip(_list(r, "interval", 2),
                                                         (-math.inf, math.inf))))
     fitted = real("fitted_value", r["fitted_value"])
     if fitted not in values:
         raise ValueError(f"fitted_value = {fitted!r} must be one of the grid's values")
-    return Profile(
+    return _check_derived(Profile(
         name=r["name"], fitted_value=fitted, values=values, objective=objective,
         converged=converged, interval=interval,
         threshold=within("threshold", r["threshold"], 0, math.inf),
         S_min=within("S_min", r["S_min"], 0, math.inf),
-        sigma2=within("sigma2", r["sigma2"], 0, math.inf),
+        sigma2=within("sigma2", r["sigma2"], 0, math.inf, open_lo=True),
         sigma2_source=_choice("sigma2_source", r["sigma2_source"],
                               (*NOISE_SOURCES[1:], "given")),
         confidence=within("confidence", r["confidence"], 0, 1, open_lo=True),
@@ -129,7 +139,47 @@ def _profile(r: Mapping, name: str | None) -> Profile:
         side_ends=tuple(_choice(f"open_sides[{i}]", end, SIDE_ENDS, nullable=True) or "grid"
                         for i, end in enumerate(_list(r, "open_sides", 2))),
         retries=tuple(_retry(row, f"retries[{i}]")
-                      for i, row in enumerate(_list(r, "retries") if "retries" in r else [])))
+                      for i, row in enumerate(_list(r, "retries") if "retries" in r else []))))
+
+
+def _check_derived(p: Profile) -> Profile:
+    """``p``, or ValueError naming the entry that disagrees with what it is derived from:
+    ``S_min`` the least objective, ``threshold`` S_min + σ² q (or, as the profile sets it
+    where no refit lies lower than the fit by :data:`LOWER`, the fit's objective + σ² q),
+    ``interval`` the crossings of the threshold (:func:`crossings`), ``flat`` whether a side
+    is open up to the grid's end or a bound.  An edit of one of them (an audit: a reversed
+    interval, one without the fitted value, S_min 1, which rethreshold then made
+    (-inf, inf)) would otherwise be printed and replotted as the profile's."""
+    if not p.confidence < 1:
+        raise ValueError(f"confidence = {p.confidence!r} must lie in (0, 1): at 1 the "
+                         f"threshold's quantile is infinite")
+    least = float(np.nanmin(p.objective)) if np.any(np.isfinite(p.objective)) else math.nan
+    if p.S_min != least:       # (the least of the stored numbers is one of them: exact)
+        raise ValueError(f"S_min = {p.S_min!r} must be the least objective of the profile "
+                         f"({least!r})")
+    q = threshold_quantile(p.confidence, p.dof)
+    at_fit = float(p.objective[int(np.searchsorted(p.values, p.fitted_value))])
+    bases = (p.S_min,) + ((at_fit,) if p.S_min >= (1 - LOWER) * at_fit else ())
+    if not any(math.isclose(p.threshold, base + p.sigma2 * q, rel_tol=DERIVED_RTOL)
+               for base in bases):
+        raise ValueError(f"threshold = {p.threshold!r} must be S_min + sigma2 * q = "
+                         f"{p.S_min + p.sigma2 * q!r} (q = {q:.6g}: confidence "
+                         f"{p.confidence:g}, sigma2_dof {p.dof:g})")
+    interval = crossings(p.values, p.objective, p.fitted_value, p.threshold, p.S_min)
+    slack = DERIVED_RTOL * (p.values[-1] - p.values[0])
+    if not all(a == b or math.isclose(a, b, rel_tol=DERIVED_RTOL, abs_tol=slack)
+               for a, b in zip(p.interval, interval)):
+        raise ValueError(f"interval = {_bounds(p.interval)} must be where the objective "
+                         f"crosses the threshold, {_bounds(interval)}")
+    if p.flat != _flat(p.interval, p.side_ends):
+        raise ValueError(f"flat = {p.flat} disagrees with the interval {_bounds(p.interval)} "
+                         f"and open_sides")
+    return p
+
+
+def _bounds(interval: tuple[float, float]) -> str:
+    """An interval as the record writes it (null for an open side)."""
+    return "[" + ", ".join("null" if math.isinf(v) else repr(v) for v in interval) + "]"
 
 
 def _retry(r: Any, key: str) -> Retry:
@@ -149,19 +199,23 @@ def _retry(r: Any, key: str) -> Retry:
                  reason=_text(f"{key}.reason", r.get("reason"), nullable=True))
 
 
-def _list(r: Mapping, key: str, length: int | None = None) -> list:
-    """``r[key]``, a list (of ``length`` items if given)."""
+def _list(r: Mapping, key: str, length: int | None = None, like: str = "") -> list:
+    """``r[key]``, a list (of ``length`` items if given: as many as ``like`` has, if given,
+    whose length the message names too, since either may be the one edited)."""
     value = r[key]
-    if not isinstance(value, list) or length is not None and len(value) != length:
-        size = "" if length is None else f" of {length} items"
-        raise ValueError(f"{key} = {value!r} must be a list{size}")
+    if not isinstance(value, list):
+        raise ValueError(f"{key} = {short(value)} must be a list")
+    if length is not None and len(value) != length:
+        raise ValueError(f"{key} has {len(value)} items, {like} {length}: one for each of "
+                         f"{like}" if like else f"{key} = {short(value)} must be a list of "
+                         f"{length} items")
     return value
 
 
 def _choice(key: str, value: Any, choices, nullable: bool = False) -> str | None:
     """``value``, one of ``choices`` (or None when ``nullable``)."""
     if not (nullable and value is None or isinstance(value, str) and value in choices):
-        raise ValueError(f"{key} = {value!r} must be one of {list(choices)}"
+        raise ValueError(f"{key} = {short(value)} must be one of {list(choices)}"
                          + (" or null" if nullable else ""))
     return value
 
@@ -171,5 +225,6 @@ def _text(key: str, value: Any, nullable: bool = False) -> str:
     if nullable and value is None:
         return ""
     if not isinstance(value, str):
-        raise ValueError(f"{key} = {value!r} must be a string" + (" or null" if nullable else ""))
+        raise ValueError(f"{key} = {short(value)} must be a string"
+                         + (" or null" if nullable else ""))
     return value

@@ -55,7 +55,8 @@ from .results import FitError
 from .spec import VARIANTS, FitSpec
 
 __all__ = ["Retry", "RETRY_METHOD", "REFINEMENTS", "REFINE_PLANNED", "MONOTONE_TOL",
-           "NEIGHBOUR_REFITS", "ABOVE_FARTHER", "CROSSING", "crossing", "retried",
+           "NEIGHBOUR_REFITS", "ABOVE_FARTHER", "CROSSING", "crossing", "crossings",
+           "retried",
            "needs_retry", "refine_crossing", "started_at", "non_monotone", "settle_side",
            "not_monotone_note"]
 
@@ -228,6 +229,21 @@ def crossing(values: list, objective: list, start: tuple[float, float], directio
         below = below or s <= threshold
         last_v, last_r = v, r
     return direction * np.inf if below else float(start[0])
+
+
+def crossings(values, objective, fitted_value: float, threshold: float,
+              S_min: float) -> tuple[float, float]:
+    """The interval of a profile (its grid ``values``, increasing, ``fitted_value`` among
+    them, and ``objective``) at ``threshold``: :func:`crossing` below and above the fitted
+    value (:meth:`~morphoshell.fitting.profiles.Profile.rethreshold`, and the check of a
+    record's interval, :mod:`morphoshell.fitting.profile_records`)."""
+    values, objective = np.asarray(values, dtype=float), np.asarray(objective, dtype=float)
+    j = int(np.searchsorted(values, fitted_value))
+    below = (values[:j][::-1].tolist(), objective[:j][::-1].tolist())
+    above = (values[j + 1:].tolist(), objective[j + 1:].tolist())
+    start = (fitted_value, float(objective[j]))
+    return (crossing(*below, start, -1.0, threshold, S_min),
+            crossing(*above, start, 1.0, threshold, S_min))
 
 
 def _first_above(objective: list, threshold: float) -> int | None:

@@ -70,7 +70,7 @@ from .inner import InnerProblem
 from .midline_checks import as_points, check_midline
 from .profile_noise import (NOISE_SOURCES, check_inflation, log_noise, noise_dof,
                             noise_variance, parameter_noise, threshold_quantile, traces_missing)
-from .profile_retry import (Retry, crossing, needs_retry, not_monotone_note, retried,
+from .profile_retry import (Retry, crossing, crossings, needs_retry, not_monotone_note, retried,
                             settle_side, started_at)
 from .profile_runs import each_profile
 from .results import FitResult, fit_result
@@ -258,12 +258,8 @@ class Profile:
         sources on one profile (scripts/check_profile_coverage.py).
         """
         threshold = self.S_min + sigma2 * threshold_quantile(self.confidence, dof)
-        j = int(np.searchsorted(self.values, self.fitted_value))
-        below = (self.values[:j][::-1].tolist(), self.objective[:j][::-1].tolist())
-        above = (self.values[j + 1:].tolist(), self.objective[j + 1:].tolist())
-        start = (self.fitted_value, float(self.objective[j]))
-        interval = (crossing(*below, start, -1.0, threshold, self.S_min),
-                    crossing(*above, start, 1.0, threshold, self.S_min))
+        interval = crossings(self.values, self.objective, self.fitted_value, threshold,
+                             self.S_min)
         return replace(self, interval=interval, threshold=float(threshold), sigma2=float(sigma2),
                        sigma2_source=source, flat=_flat(interval, self.side_ends), dof=dof)
 

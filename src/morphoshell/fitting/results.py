@@ -29,9 +29,10 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 import numpy as np
 
 from .._runtime.tables import problem_attrs, xarray_module
-from .._runtime.validate import flag, integer, lookup, real, within
+from .._runtime.validate import flag, integer, lookup, real, short, within
 from ..io.problem_files import problem_of_record, read_json
-from ..numerics.status import FIT_CONVERGED, FIT_NEAR_FOLD, IPOPT_UNKNOWN, STATUSES
+from ..numerics.status import (FIT_CONVERGED, FIT_CONVERGED_STOPS, FIT_NEAR_FOLD,
+                               IPOPT_UNKNOWN, STATUSES)
 from ..solvers.contact import WallContact, wall_contact
 from ..solvers.results import Equilibrium, SolverError
 from .spec import LABELS
@@ -203,6 +204,9 @@ class FitResult:
                              f"of morphoshell fit --json or FitResult.to_dict())")
         fields = _record_fields(record, where)
         problem = problem_of_record(record, where)
+        if record.get("walls_cross") is not None:     # (its s within the problem's shell)
+            fields["contact"] = _entry(record, "walls_cross", where, _contact,
+                                       (problem.cut, problem.end))
         data, model = (_entry(record, key, where, _midline)
                        for key in ("data_midline", "fitted_midline"))
         if len(data) != len(model):
@@ -425,8 +429,9 @@ def _record_fields(record: Mapping[str, Any], where: str) -> dict[str, Any]:
             "seconds": get("seconds", _optional, default=math.nan),
             "message": get("message", _text, default=""),
             "constrained": get("constrained", _names, None, default=()),
-            "stop": get("stop", _status, default=FIT_CONVERGED if converged else IPOPT_UNKNOWN),
-            "contact": get("walls_cross", _contact)}
+            "stop": get("stop", _status, converged,
+                        default=FIT_CONVERGED if converged else IPOPT_UNKNOWN),
+            "contact": None}    # (FitResult.from_dict: its check needs the problem)
 
 
 def _entry(record: Mapping[str, Any], key: str, where: str, check, *args) -> Any:
@@ -442,7 +447,7 @@ def _entry(record: Mapping[str, Any], key: str, where: str, check, *args) -> Any
 def _numbers(key: str, value: Any, names: Sequence[str] | None = None) -> dict[str, float]:
     """``value`` as {name: finite number}, its names among ``names`` if given."""
     if not isinstance(value, Mapping) or names is not None and not set(value) <= set(names):
-        raise ValueError(f"{key} = {value!r} must map "
+        raise ValueError(f"{key} = {short(value)} must map "
                          f"{'names' if names is None else f'some of {list(names)}'} to numbers")
     return {n: real(f"{key}.{n}", v) for n, v in value.items()}
 
@@ -454,7 +459,7 @@ def _names(key: str, value: Any, known: Mapping | None) -> tuple[str, ...]:
             and len(set(value)) == len(value)
             and (known is None or value and set(value) <= set(known))):
         of = "strings" if known is None else "names of 'parameters', at least one"
-        raise ValueError(f"{key} = {value!r} must be a list of distinct {of}")
+        raise ValueError(f"{key} = {short(value)} must be a list of distinct {of}")
     return tuple(value)
 
 
@@ -465,19 +470,27 @@ def _one_of(key: str, value: Any, choices: Sequence[str]) -> str:
     return value
 
 
-def _status(key: str, value: Any) -> str:
+def _status(key: str, value: Any, converged: bool | None = None) -> str:
     """``value``, a status of :data:`~morphoshell.numerics.status.STATUSES` (too many to
-    list in a message)."""
+    list in a message), one of :data:`~morphoshell.numerics.status.FIT_CONVERGED_STOPS`
+    exactly where ``converged`` (if known): a fit never ends with a pair that disagrees, and
+    its tables would print both (an audit: converged true beside
+    Maximum_Evaluations_Exceeded)."""
     if not (isinstance(value, str) and value in STATUSES):
-        raise ValueError(f"{key} = {value!r} is not a status of morphoshell.numerics.status."
-                         f"STATUSES (e.g. {FIT_CONVERGED!r})")
+        raise ValueError(f"{key} = {short(value)} is not a status of morphoshell.numerics."
+                         f"status.STATUSES (e.g. {FIT_CONVERGED!r})")
+    if converged is not None and (value in FIT_CONVERGED_STOPS) != converged:
+        stops = ", ".join(FIT_CONVERGED_STOPS)
+        raise ValueError(f"{key} = {value!r} disagrees with converged = "
+                         f"{str(converged).lower()}: a converged fit's stop is one of {stops}, "
+                         f"an unconverged fit's another")
     return value
 
 
 def _text(key: str, value: Any) -> str:
     """``value``, a string."""
     if not isinstance(value, str):
-        raise ValueError(f"{key} = {value!r} must be a string")
+        raise ValueError(f"{key} = {short(value)} must be a string")
     return value
 
 
@@ -536,10 +549,10 @@ def _midline(key: str, value: Any) -> np.ndarray:
                             for c in "rz"])
 
 
-def _contact(key: str, value: Any) -> WallContact | None:
+def _contact(key: str, value: Any, shell: tuple[float, float]) -> WallContact | None:
     """``value`` as the :class:`~morphoshell.solvers.contact.WallContact` it was written
-    from, or None for null."""
-    return None if value is None else WallContact.from_dict(value, key)
+    from (its s within ``shell``, the problem's [cut, L - opening]), or None for null."""
+    return None if value is None else WallContact.from_dict(value, key, shell)
 
 
 def _combination(direction: dict, k: int) -> str:

@@ -22,7 +22,8 @@ from .trace_noise import Binning, noise_estimate
 
 __all__ = ["MidlineError", "image_scale", "check_choice", "check_positive", "one_curve",
            "check_extent", "check_axis", "noise_hint", "asymmetry_warning", "bridged_gap",
-           "check_scale", "check_not_short", "HALF_LENGTHS", "MIN_HALF_LENGTH"]
+           "check_scale", "check_not_short", "check_average", "HALF_LENGTHS",
+           "MIN_HALF_LENGTH"]
 
 #: Lengths (units of R) of a half midline beyond which a trace refused for its shape is refused
 #: for its scale instead (:func:`check_scale`): a Volvox midline's half is about 2-4 R
@@ -321,6 +322,33 @@ def check_extent(source: str, points: np.ndarray, where, hint: str) -> None:
         i = int(np.argmax(reach > _MAX_EXTENT))
         raise MidlineError(f"{source}: {where[i]}: {reach[i]:.4g} R from the first point; a "
                            f"midline lies within {_MAX_EXTENT:g} R of its pole ({hint})")
+
+
+def check_average(source: str, n_traces: int, sources: Sequence[str], spread, where) -> None:
+    """MidlineError unless a csv average's ``# n_traces`` (an integer) and ``spread`` column
+    can be those of an average (:meth:`morphoshell.io.traces.Midline.to_csv`).
+
+    n_traces at least 1 and, where the file lists more than one ``# source``, their number
+    (to_csv writes one per trace averaged; one source with more traces is a loaded average
+    written again, which names its own file); each spread (an rms distance of the traces'
+    points from their mean, R) in [0, _MAX_EXTENT], as far as a midline reaches.  The profile
+    intervals of a fit take σ² = mean(spread²)/n_traces: an audit's n_traces = 1e9 shrank
+    them to zero width, a spread of 1e6 made them (-inf, inf), silently.
+    """
+    if n_traces < 1:
+        raise MidlineError(f"{source}: comment 'n_traces = {n_traces}' must be at least 1 "
+                           f"(the traces averaged)")
+    if len(sources) > 1 and n_traces != len(sources):
+        raise MidlineError(f"{source}: comment 'n_traces = {n_traces}' disagrees with its "
+                           f"{len(sources)} 'source' comments, one per trace averaged")
+    if spread is None:
+        return
+    bad = np.flatnonzero(~((spread >= 0) & (spread <= _MAX_EXTENT)))
+    if len(bad):
+        i = int(bad[0])
+        raise MidlineError(f"{source}: {where[i]} (spread): {float(spread[i])!r} must lie in "
+                           f"[0, {_MAX_EXTENT:g}] R: the traces' rms distance from their mean "
+                           f"is not negative, nor farther than a midline reaches")
 
 
 def check_axis(source: str, points: np.ndarray, where, hint: str = "") -> None:

@@ -75,8 +75,8 @@ from typing import Sequence
 import numpy as np
 
 from .._runtime.validate import real
-from .trace_checks import (MidlineError, check_axis, check_choice, check_extent, check_positive,
-                           image_scale, one_curve)
+from .trace_checks import (MidlineError, check_average, check_axis, check_choice, check_extent,
+                           check_positive, image_scale, one_curve)
 from .trace_text import ZIP_MAGIC, read_bytes, read_table, text_format
 
 __all__ = ["FORMATS", "MidlineError", "Trace", "Midline", "read_trace", "to_image", "write_trace",
@@ -196,15 +196,17 @@ class Midline:
             raise MidlineError(f"{path}: {len(values)} points; a midline needs at least 4")
         check_extent(str(path), values[:, :2], where, _IN_PIXELS)
         check_axis(str(path), values[:, :2], where, _SWAPPED)
-        spread, n_traces, sources = _csv_average(path, header, values, comments)
+        spread, n_traces, sources = _csv_average(path, header, values, where, comments)
         return cls(values[:, 0], values[:, 1], spread, n_traces, sources or (str(path),))
 
 
-def _csv_average(path: Path, header, values: np.ndarray,
+def _csv_average(path: Path, header, values: np.ndarray, where,
                  comments) -> tuple[np.ndarray | None, int, tuple[str, ...]]:
     """What a csv midline holds beside its points: the spread column (None without one), the
     ``# n_traces`` comment (1 without one) and the ``# source`` comments, as
-    :meth:`Midline.to_csv` writes them (MidlineError: an n_traces that is not an integer)."""
+    :meth:`Midline.to_csv` writes them (MidlineError: an n_traces that is not an integer, or
+    that or a spread an average cannot have, :func:`check_average`; ``where`` names the
+    rows)."""
     meta = [tuple(part.strip() for part in c.partition("=")[::2]) for c in comments]
     sources = tuple(value for key, value in meta if key == "source")
     counts = [value for key, value in meta if key == "n_traces"] or ["1"]
@@ -213,7 +215,9 @@ def _csv_average(path: Path, header, values: np.ndarray,
     except ValueError:
         raise MidlineError(f"{path}: comment 'n_traces = {counts[-1]}' is not an "
                            f"integer") from None
-    return (values[:, 2] if len(header) == 3 else None), n_traces, sources
+    spread = values[:, 2] if len(header) == 3 else None
+    check_average(str(path), n_traces, sources, spread, where)
+    return spread, n_traces, sources
 
 
 # --------------------------------------------------------------------------- reading
@@ -258,7 +262,7 @@ def read_trace(path: str | Path, format: str | None = None, *, pixel_size_um: fl
         check_extent(str(path), values[:, :2], where, _IN_PIXELS)
         # (an average's spread and n_traces are read here, so that every loader keeps them:
         # a loader that dropped them took a fit's noise from its residual, silently)
-        spread, n_traces, _ = _csv_average(path, header, values, comments)
+        spread, n_traces, _ = _csv_average(path, header, values, where, comments)
         points, where = one_curve(path, values[:, :2], where, "R")
         check_axis(str(path), points, where, _SWAPPED)
         return Trace(points, str(path), fmt, tuple(where), spread, n_traces)

@@ -41,6 +41,7 @@ __all__ = ["STATUSES", "BVP_STATUSES", "SolverError", "NotAMinimumError", "expla
            "BVP_SINGULAR_JACOBIAN", "BVP_BOUNDARY_CONDITIONS", "SHOOTING_SUCCEEDED",
            "SHOOTING_ILL_CONDITIONED", "SHOOTING_NOT_CONVERGED", "SHOOTING_INTEGRATION_FAILED",
            "FIT_SADDLE", "FIT_NOT_REPRODUCED", "GAUSS_NEWTON_STOPPED", "FIT_CONVERGED",
+           "FIT_CONVERGED_STOPS",
            "MAXIMUM_EVALUATIONS_EXCEEDED", "FIT_STALLED", "NOT_COMPUTED", "FIT_NOT_STATIONARY", "FIT_NEAR_FOLD",
            "FIT_ON_BOX_EDGES", "FIT_MOVED_BOXES_FAILED", "FIT_NOT_MINIMUM", "STEP_NOT_SPLITTABLE",
            "RETRY_FINER"]
@@ -92,6 +93,10 @@ FIT_NOT_MINIMUM = "Fit_Not_Minimum"
 STEP_NOT_SPLITTABLE = "Step_Not_Splittable"
 # a sweep's row that an interrupt left out (a partial file)
 NOT_COMPUTED = "Not_Computed"
+#: The stops of a converged fit (FitResult.converged true): the outer iteration's own, and the
+#: KKT fit's Ipopt successes (any other Ipopt status raises FitError; every stop that makes a
+#: fit unconverged is another: morphoshell.fitting.bilevel, .nested, .results).
+FIT_CONVERGED_STOPS = (FIT_CONVERGED, SOLVE_SUCCEEDED, SOLVED_TO_ACCEPTABLE_LEVEL)
 
 #: The advice of a finer mesh in solve()'s terms (a sweep words it its way).
 RETRY_FINER = "rtol, --rtol: retried on finer ones"

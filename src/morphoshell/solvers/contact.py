@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from .._runtime.validate import real, within
+from .._runtime.validate import real, short, within
 from .results import Equilibrium
 
 __all__ = ["WallContact", "wall_contact", "warn_if_walls_overlap", "warn_of_contact",
@@ -78,16 +78,35 @@ class WallContact:
         return {"s": list(self.s), "distance": self.distance, "thickness": self.thickness}
 
     @classmethod
-    def from_dict(cls, value: Any, key: str = "walls_cross") -> "WallContact":
+    def from_dict(cls, value: Any, key: str = "walls_cross",
+                  shell: tuple[float, float] | None = None) -> "WallContact":
         """The contact :meth:`to_dict` wrote (a fit's record's ``walls_cross``); ValueError
-        naming ``key`` and what it must be."""
-        if not (isinstance(value, dict) and isinstance(value.get("s"), list)
-                and len(value["s"]) == 2 and {"distance", "thickness"} <= set(value)):
-            raise ValueError(f"{key} = {value!r} must be null or {{'s': [s1, s2], "
+        naming ``key``'s entry and what it must be.
+
+        What :func:`wall_contact` returns and nothing else: two material points, ``s``
+        increasing (it sorts them; equal ones are one point, not two walls), within
+        ``shell`` (the problem's s range [cut, L − P], where known; else s >= 0), closer
+        than a positive ``thickness`` (it returns None for walls that do not overlap), and
+        no other keys.  A record that says otherwise is not a crossing (an audit: distance 5
+        times the thickness was read, and reported, as walls that cross).
+        """
+        keys = {"s", "distance", "thickness"}
+        if not (isinstance(value, dict) and set(value) == keys and isinstance(value["s"], list)
+                and len(value["s"]) == 2):
+            raise ValueError(f"{key} = {short(value)} must be null or {{'s': [s1, s2], "
                              f"'distance': number, 'thickness': number}}")
-        return cls(tuple(real(f"{key}.s[{i}]", v) for i, v in enumerate(value["s"])),
-                   within(f"{key}.distance", value["distance"], 0.0, np.inf),
-                   within(f"{key}.thickness", value["thickness"], 0.0, np.inf))
+        a, b = (real(f"{key}.s[{i}]", v) for i, v in enumerate(value["s"]))
+        lo, hi = (0.0, np.inf) if shell is None else shell
+        if not lo <= a < b <= hi:
+            raise ValueError(f"{key}.s = {short(value['s'])} must be two increasing material "
+                             f"points of the shell, in [{lo:.6g}, {hi:.6g}]")
+        thickness = within(f"{key}.thickness", value["thickness"], 0.0, np.inf, open_lo=True)
+        distance = within(f"{key}.distance", value["distance"], 0.0, np.inf)
+        if not distance < thickness:
+            raise ValueError(f"{key}.distance = {distance!r} must be less than "
+                             f"{key}.thickness = {thickness!r}: walls that far apart do not "
+                             f"cross")
+        return cls((a, b), distance, thickness)
 
 
 def wall_contact(eq: Equilibrium) -> WallContact | None:

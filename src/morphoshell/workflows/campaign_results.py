@@ -20,6 +20,7 @@ import numpy as np
 from .._runtime.tables import xarray_module
 from ..fitting import VARIANTS
 from ..fitting.midline_checks import input_check
+from ..io.problem_files import problem_of_record
 from ..io.timepoints import Timepoint, read_timepoints
 from ..model.profiles import get_family
 from ..solvers.contact import WallContact
@@ -271,11 +272,21 @@ def read_record(path: Path) -> dict | None:
 
 
 def read_records(out: Path, keys: Iterable[tuple[str, str]]) -> dict:
-    """``{(timepoint, variant): record}`` of the stored ones among ``keys``, in their order."""
+    """``{(timepoint, variant): record}`` of the stored ones among ``keys``, in their order.
+
+    Raises
+    ------
+    ValueError
+        A record whose ``walls_cross`` is not a crossing (:func:`record_contact`), the file
+        named: the summary, the campaign's last line and its resume read it (an audit: a
+        resume stopped on one of 8 files without saying which).
+    """
     records = {}
     for name, variant in keys:
-        rec = read_record(result_path(out, name, variant))
+        path = result_path(out, name, variant)
+        rec = read_record(path)
         if rec is not None:
+            record_contact(rec, str(path))
             records[(name, variant)] = rec
     return records
 
@@ -303,9 +314,18 @@ def load_campaign(out: str | Path, data_dir: str | Path) -> CampaignResult:
     return CampaignResult(out, timepoints, variants, records)
 
 
-def record_contact(rec: dict) -> WallContact | None:
+def record_contact(rec: dict, where: str = "the record") -> WallContact | None:
     """Where the fitted shape of a campaign record passes through itself (its ``walls_cross``,
     :attr:`morphoshell.fitting.results.FitResult.contact`), or None: walls apart, a failed fit,
-    or a record written before the check (which has no ``walls_cross``)."""
+    or a record written before the check (which has no ``walls_cross``).  ValueError naming
+    ``where`` (the file) for one that is not a crossing of the record's shell
+    (:meth:`~morphoshell.solvers.contact.WallContact.from_dict`)."""
     stored = rec.get("walls_cross")     # (a failed fit's record has none)
-    return None if stored is None else WallContact.from_dict(stored)
+    if stored is None:
+        return None
+    # (a record a campaign wrote has its problem; one made by hand may not: s >= 0 then)
+    problem = problem_of_record(rec, where) if "problem" in rec else None
+    try:
+        return WallContact.from_dict(stored, shell=problem and (problem.cut, problem.end))
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{where}: {exc}") from None

@@ -320,7 +320,10 @@ def _validate(data_dir, variants, method, nodes, workers, out, start) -> tuple:
 
 def _stored(out: Path, timepoints: tuple[Timepoint, ...], variants: tuple[str, ...]
             ) -> frozenset:
-    """The (timepoint, variant) pairs with a result in ``out`` (a resumed run's likely reuse)."""
+    """The (timepoint, variant) pairs with a result in ``out`` (a resumed run's likely reuse);
+    ValueError naming a record it would reuse that is broken, before any fit
+    (:func:`~morphoshell.workflows.campaign_results.read_records`)."""
+    read_records(out, [(tp.name, v) for tp in timepoints for v in variants])
     return frozenset((tp.name, v) for tp in timepoints for v in variants
                      if result_path(out, tp.name, v).exists())
 
