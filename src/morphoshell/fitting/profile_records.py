@@ -27,7 +27,7 @@ from ..io.problem_files import read_json
 from .bilevel import METHODS
 from .profile_noise import NOISE_SOURCES, threshold_quantile
 from .profile_retry import Retry, crossings
-from .profiles import LOWER, Profile, _flat
+from .profiles import LOWER, Profile, is_flat
 
 __all__ = ["load_profiles", "profile_from_dict"]
 
@@ -171,7 +171,7 @@ def _check_derived(p: Profile) -> Profile:
                for a, b in zip(p.interval, interval)):
         raise ValueError(f"interval = {_bounds(p.interval)} must be where the objective "
                          f"crosses the threshold, {_bounds(interval)}")
-    if p.flat != _flat(p.interval, p.side_ends):
+    if p.flat != is_flat(p.interval, p.side_ends):
         raise ValueError(f"flat = {p.flat} disagrees with the interval {_bounds(p.interval)} "
                          f"and open_sides")
     return p

@@ -261,7 +261,7 @@ class Profile:
         interval = crossings(self.values, self.objective, self.fitted_value, threshold,
                              self.S_min)
         return replace(self, interval=interval, threshold=float(threshold), sigma2=float(sigma2),
-                       sigma2_source=source, flat=_flat(interval, self.side_ends), dof=dof)
+                       sigma2_source=source, flat=is_flat(interval, self.side_ends), dof=dof)
 
     def to_dict(self) -> dict:
         """JSON-ready (an open side of the interval is ``None``: JSON has no infinity)."""
@@ -568,7 +568,7 @@ def _profile(opt: _Optimum, data, name: str, points: int, span, method: str, tol
                  for v, note, d in ((vb, note_b, -1.0), (va, note_a, 1.0)))
     return Profile(name, value, values, objective, np.array([*cb[::-1], True, *ca]),
                    interval, float(threshold), S_min, sigma2, source, confidence,
-                   _flat(interval, ends), method, "; ".join(notes), dof, ends,
+                   is_flat(interval, ends), method, "; ".join(notes), dof, ends,
                    tuple(retries)), lowest
 
 
@@ -580,7 +580,7 @@ def _side_end(opt: _Optimum, name: str, values: list, failure: str, direction: f
     return "bound" if values and values[-1] == (lo if direction < 0 else hi) else "grid"
 
 
-def _flat(interval: tuple[float, float], ends: tuple[str, str]) -> bool:
+def is_flat(interval: tuple[float, float], ends: tuple[str, str]) -> bool:
     """Whether a side is open where the profile ran to a bound or the grid's end below the
     threshold: the data do not determine the parameter (a side open at a failed refit
     says nothing either way, :meth:`Profile.verdict`)."""
