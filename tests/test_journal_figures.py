@@ -5,6 +5,8 @@ single-column sizes and fonts >= 7 pt.
 
 Equilibria on coarse meshes (40-50 nodes): the drawing is under test, not the solution.
 """
+import re
+import warnings
 from types import SimpleNamespace
 
 import matplotlib.pyplot as plt
@@ -16,9 +18,10 @@ from matplotlib.text import Text
 
 from morphoshell.mechanics.ablation import ablate
 from morphoshell.model.problem import Problem
-from morphoshell.plotting import (ABLATION_STYLE, MIN_FONT_SIZE, OFF_SCALE_LABEL, SINGLE_COLUMN,
-                                  fit_axes, fit_residuals, get_caption, new_axes, plot_ablation,
-                                  plot_cross_section, plot_fit, plot_k_estimates, save)
+from morphoshell.plotting import (ABLATION_STYLE, DOUBLE_COLUMN, MIN_FONT_SIZE, OFF_SCALE_LABEL,
+                                  SINGLE_COLUMN, fit_axes, fit_residuals, get_caption, new_axes,
+                                  plot_ablation, plot_cross_section, plot_fit, plot_k_estimates,
+                                  save)
 from morphoshell.solvers.routes import solve
 
 
@@ -428,3 +431,73 @@ def test_fig2K_texts_do_not_overlap_each_other_or_the_data(size, tmp_path):
     notes = " ".join(t.get_text() for t in _texts(ax.figure))
     for number in ("0.58", "0.03", "0.46 mPa", "0.8 mPa s", "6.4e-19 J", "11.1 µm"):
         assert number in notes, number                  # the numbers are all still there
+
+
+def _fig2K_panel(width: float, height: float, panels: int = 1):
+    """Fig. 2 K of _velocity_result() in the last of a row of ``panels`` panels, each
+    ``width`` × ``height`` in (the others drawn first, as a caller's grid would be)."""
+    from morphoshell.plotting import journal_figure, plot_recoil_velocity, styled
+
+    fig = journal_figure(panels * width, height, pyplot=False)
+    with styled(fig):
+        axs = fig.subplots(1, panels, squeeze=False)[0]
+    for other in axs[:-1]:
+        other.plot([0, 1], [0, 1])
+    return plot_recoil_velocity(axs[-1], _velocity_result())
+
+
+def _fig2K_faults(ax, tmp_path) -> list:
+    """What is wrong with a drawn Fig. 2 K: texts past the figure, over one another or the
+    data, tick labels over one another ("0.02.5" when the axes collapsed), axes of less than
+    half an inch either way, a number missing."""
+    from morphoshell.plotting import paper_style
+
+    with paper_style():
+        faults = [("outside", a) for a in _outside_figure(ax.figure, tmp_path)]
+        overlapping, covered = _fig2K_clashes(ax)
+    ticks = [(t.get_text(), t.get_window_extent()) for t in
+             ax.get_xticklabels() + ax.get_yticklabels() if t.get_text()]
+    box = ax.get_window_extent()
+    size = (float(box.width) * 72 / ax.figure.dpi, float(box.height) * 72 / ax.figure.dpi)
+    notes = " ".join(t.get_text() for t in _texts(ax.figure))
+    return (faults + overlapping + [("covers data", c) for c in covered] + _overlaps(ticks)
+            + ([("axes of (pt)", size)] if min(size) < 36 else [])
+            + [("missing", n) for n in ("0.58", "0.03", "0.46 mPa", "0.8 mPa s", "6.4e-19 J",
+                                        "11.1 µm") if n not in notes])
+
+
+@pytest.mark.parametrize("side", [1.75, 2.0, 2.3, 2.5, 3.0, 3.4])
+@pytest.mark.parametrize("row", [False, True], ids=["square", "in a row"])
+def test_fig2K_is_whole_and_unwarned_on_every_panel_from_1_75_in(side, row, tmp_path):
+    # audit 23: on a 2.5 in square (and a 1.9 × 2.5 in panel) the whole y label, chosen for
+    # the axes' height before the legend went under them, ran 5 pt past the figure's top.
+    # In a row: as many square panels as a page's width takes (up to four, K the last)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")               # no warning of ours or Matplotlib's
+        ax = _fig2K_panel(side, side, min(4, int(DOUBLE_COLUMN // side)) if row else 1)
+        assert _fig2K_faults(ax, tmp_path) == []
+
+
+@pytest.mark.parametrize("width, height", [(1.5, 1.5), (1.6, 1.6), (3.4, 1.4), (1.5, 3.0)])
+def test_fig2K_on_a_panel_too_small_says_so_and_names_one_that_holds_it(width, height,
+                                                                         tmp_path):
+    # audit 23: at 1.5 in the axes shrank to nothing ("0.02.5" for x ticks), without a word
+    with pytest.warns(UserWarning, match=rf"a panel of {width:.2f} × {height:.2f} in is too "
+                                         rf"small .* use a panel of about") as caught:
+        _fig2K_panel(width, height)
+    ours = [w for w in caught if "plot_recoil_velocity" in str(w.message)]
+    assert len(ours) == 1 and "\n" not in str(ours[0].message)
+    assert ours[0].filename == __file__              # points at the caller's line
+    named = re.search(r"about ([\d.]+) × ([\d.]+) in", str(ours[0].message)).groups()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")               # the size named holds it, unwarned
+        assert _fig2K_faults(_fig2K_panel(*map(float, named)), tmp_path) == []
+
+
+def test_fig2K_in_a_row_takes_room_from_its_neighbours_unwarned(tmp_path):
+    # a row of 1.65 in panels: the legend under K, wider than its cell, narrows all four
+    # panels a little (constrained layout), which hold it: no warning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        ax = _fig2K_panel(1.65, 1.75, 4)
+        assert _fig2K_faults(ax, tmp_path) == []

@@ -17,8 +17,8 @@ from matplotlib.legend_handler import HandlerTuple
 from matplotlib.lines import Line2D
 from matplotlib.transforms import ScaledTranslation
 
-from .style import (DOUBLE_COLUMN, MIN_FONT_SIZE, axes_size, journal_figure, made_here, styled,
-                    text_width)
+from .style import (DECORATION, DOUBLE_COLUMN, MIN_FONT_SIZE, axes_size, journal_figure,
+                    made_here, panel_room, styled, text_width)
 
 __all__ = ["plot_k_estimates", "plot_recoil_velocity", "figure_JK", "MEASURE_COLOURS",
            "OFF_SCALE_LABEL"]
@@ -261,7 +261,9 @@ def plot_recoil_velocity(ax: Axes, result) -> Axes:
     small panel (a 1.75 in column of a journal's grid, figure_JK's 2.3 in) they and the
     legend, its labels short, go under the axes (constrained layout makes room; in a
     figure without it they may fall on a panel below), and the y label is the symbol
-    alone where the whole name is longer than the axes.
+    alone where the whole name is longer than the axes.  A panel too small for them
+    (about 1.75 × 1.6 in; smaller, the axes shrink to nothing) gives a warning naming
+    the size that holds them.
 
     Returns
     -------
@@ -282,18 +284,19 @@ def plot_recoil_velocity(ax: Axes, result) -> Axes:
         ax.set_ylim(0, None)
         ax.set_xlabel(r"$X = H^{5/2}R^{-3/2}|1-k|$ (µm)")
         lines = _velocity_lines(fit)
-        roomy = _fits_in_corners(ax, lines)
-        _velocity_ylabel(ax, roomy)
         handles = [Line2D([], [], ls="none", marker="o", color="tab:purple", ms=_MS),
                    Line2D([], [], color="k", lw=1.0)]
-        if roomy:
+        below = 0.0
+        if _fits_in_corners(ax, lines):
             ax.legend(handles, ["embryos", _FIT_LABEL], loc="upper left",
                       fontsize=MIN_FONT_SIZE, frameon=False)
             ax.text(0.97, 0.03, "\n".join(lines), transform=ax.transAxes, ha="right",
                     va="bottom", fontsize=MIN_FONT_SIZE)
         else:
-            _legend_below(ax, list(zip(handles, ["embryos", "least squares"])),
-                          _small_legend(ax, lines))
+            options = _small_legend(ax, lines)
+            _legend_below(ax, list(zip(handles, ["embryos", "least squares"])), options)
+            below = _room_below(ax, lines, options["ncol"])
+        _velocity_ylabel(ax, axes_size(ax)[1] - below)
     return ax
 
 
@@ -302,12 +305,45 @@ def _small_legend(ax: Axes, lines: list[str]) -> dict:
     entries), its two entries side by side where that is no wider than the axes or the
     title."""
     size = MIN_FONT_SIZE
-    entries = (text_width("embryos", size) + text_width("least squares", size)
-               + 2 * _HANDLE_EMS * size + _COLUMN_EMS * size)
     room = max(axes_size(ax)[0], *(text_width(line, size) for line in lines))
-    return dict(ncol=2 if entries <= room else 1, frameon=False, fontsize=size,
+    return dict(ncol=2 if _entries_width(2) <= room else 1, frameon=False, fontsize=size,
                 title="\n".join(lines), title_fontsize=size, columnspacing=_COLUMN_EMS,
                 handlelength=1.2, handletextpad=0.5)
+
+
+def _entries_width(ncol: int) -> float:
+    """Width (points) of the entries of the legend under a small panel, in ``ncol`` columns."""
+    size = MIN_FONT_SIZE
+    widths = [text_width(label, size) + _HANDLE_EMS * size
+              for label in ("embryos", "least squares")]
+    return sum(widths) + _COLUMN_EMS * size if ncol == 2 else max(widths)
+
+
+def _room_below(ax: Axes, lines: list[str], ncol: int) -> float:
+    """The height (points) the legend under a small panel's axes takes from them, beyond the
+    x tick labels and label (:data:`DECORATION`) it replaces; warns where the panel is too
+    small for it (:data:`_MIN_AXES`).
+
+    Audit 23: on a 2.5 in square the whole y label, chosen for the axes' height before the
+    legend was put under them, ran 5 pt past the figure's top; at 1.6 in and less the axes
+    shrank to nothing, the legend being wider than the panel.
+    """
+    size = MIN_FONT_SIZE
+    rows = len(lines) + (1 if ncol == 2 else 2)    # the title's lines and the entries' rows
+    height = (_BELOW_AXIS + rows * _ROW_EMS + _PAD_EMS) * size
+    width = max(_entries_width(ncol), *(text_width(line, size) for line in lines)) + \
+        _BORDER_EMS * size
+    need = (max(width, _MIN_AXES + DECORATION), height + _MIN_AXES)
+    room = panel_room(ax, _MIN_AXES)
+    if room[0] < need[0] or room[1] < need[1]:
+        cell = [(s + DECORATION) / 72 for s in axes_size(ax)]
+        smallest = [np.ceil(s / 72 * 20) / 20 for s in need]    # to 0.05 in
+        warnings.warn(f"plot_recoil_velocity: a panel of {cell[0]:.2f} × {cell[1]:.2f} in "
+                      f"is too small for the slope, bounds and legend under its axes, which "
+                      f"shrink to less than {_MIN_AXES / 72:g} in; use a panel of about "
+                      f"{smallest[0]:.2f} × {smallest[1]:.2f} in or more", UserWarning,
+                      stacklevel=4)
+    return height - DECORATION
 
 
 #: The legend's label of the least-squares line where the panel has room for it.
@@ -317,6 +353,11 @@ _FIT_LABEL = r"$V = \langle E/\mu\rangle\,X$ (least squares)"
 _CORNER_SHARE = 0.6
 #: Most of the axes' height the two may take together (legend rows and text lines).
 _CORNERS_HEIGHT = 0.5
+#: Least width and height (points) of the axes of a small panel, its slope, bounds and
+#: legend under them (half an inch: on a 1.75 in square they are 83 × 48 pt).
+_MIN_AXES = 36.0
+#: The legend's border pads left and right of its widest line (2 × 0.4), in ems.
+_BORDER_EMS = 0.8
 
 
 def _velocity_lines(fit) -> list[str]:
@@ -339,13 +380,12 @@ def _fits_in_corners(ax: Axes, lines: list[str]) -> bool:
     return widest <= _CORNER_SHARE * width and tall <= _CORNERS_HEIGHT * height
 
 
-def _velocity_ylabel(ax: Axes, roomy: bool) -> None:
-    """The y label: its whole name, or the symbol alone where the name is longer than a
-    small panel's axes (it ran past the figure's edge at 1.75 in)."""
+def _velocity_ylabel(ax: Axes, height: float) -> None:
+    """The y label: its whole name, or the symbol alone where the name is longer than the
+    axes' ``height`` (points) (it ran past the figure's edge at 1.75 in)."""
     name = r"initial recoil velocity $V$ (µm/s)"
     size = FontProperties(size=mpl.rcParams["axes.labelsize"]).get_size_in_points()
-    fits = roomy or text_width(name, size) <= axes_size(ax)[1]
-    ax.set_ylabel(name if fits else r"$V$ (µm/s)")
+    ax.set_ylabel(name if text_width(name, size) <= height else r"$V$ (µm/s)")
 
 
 def figure_JK(result, truth=None, *, pyplot: bool = True) -> Figure:

@@ -223,26 +223,57 @@ def text_width(text: str, size: float) -> float:
 #: Room (points) constrained layout leaves around a panel's axes inside its grid cell for
 #: tick labels and an axis label on each of two sides (measured on audit 19's grids: the
 #: axes of a 7 in × 2.4 in row of three, 168 × 173 pt cells, were 137 × 135 pt).
-_DECORATION = 33.0
+DECORATION = 33.0
+
+
+def _grid_of(ax: Axes):
+    """The grid cell of ``ax`` and the grid's width and height ratios where constrained layout
+    will place it, else None."""
+    spec = ax.get_subplotspec()
+    if spec is None or not isinstance(_figure_of(ax).get_layout_engine(),
+                                      ConstrainedLayoutEngine):
+        return None
+    grid = spec.get_gridspec()
+    return spec, (np.asarray(grid.get_width_ratios() or [1] * grid.ncols, float),
+                  np.asarray(grid.get_height_ratios() or [1] * grid.nrows, float))
 
 
 def axes_size(ax: Axes) -> tuple[float, float]:
     """Width and height (points) the axes ``ax`` will have when drawn, for choosing a layout
-    before anything is drawn: its grid cell's less :data:`_DECORATION` under constrained
+    before anything is drawn: its grid cell's less :data:`DECORATION` under constrained
     layout (which has not run yet: the axes' place now is the grid's default, up to 20 %
     narrower), else its place now."""
     fig, dpi = ax.figure, ax.figure.dpi
-    spec = ax.get_subplotspec()
-    if spec is None or not isinstance(_figure_of(ax).get_layout_engine(),
-                                      ConstrainedLayoutEngine):
+    found = _grid_of(ax)
+    if found is None:
         box = ax.get_window_extent()
         return box.width * 72 / dpi, box.height * 72 / dpi
-    grid = spec.get_gridspec()
-    widths = np.asarray(grid.get_width_ratios() or [1] * grid.ncols, float)
-    heights = np.asarray(grid.get_height_ratios() or [1] * grid.nrows, float)
+    spec, (widths, heights) = found
     width = fig.bbox.width * widths[spec.colspan].sum() / widths.sum()
     height = fig.bbox.height * heights[spec.rowspan].sum() / heights.sum()
-    return width * 72 / dpi - _DECORATION, height * 72 / dpi - _DECORATION
+    return width * 72 / dpi - DECORATION, height * 72 / dpi - DECORATION
+
+
+def panel_room(ax: Axes, least: float) -> tuple[float, float]:
+    """Width and height (points) the panel of ``ax`` (its axes and all drawn around them) can
+    take at most while every other panel of its grid keeps axes of ``least`` points.
+
+    Constrained layout makes room for one panel's wide or tall decoration (a legend under
+    its axes) by narrowing or lowering every panel of the grid alike (the ratios hold
+    between the axes): the panel can take its figure's width less, for each other column,
+    its decoration (:data:`DECORATION`) and its share of ``least``; its height likewise.
+    Without constrained layout: the axes' place now and their decoration.
+    """
+    found = _grid_of(ax)
+    if found is None:
+        return tuple(s + DECORATION for s in axes_size(ax))
+    spec, ratios = found
+    figure = np.array(ax.figure.bbox.size) * 72 / ax.figure.dpi
+    room = []
+    for total, r, span in zip(figure, ratios, (spec.colspan, spec.rowspan)):
+        own = r[span].sum()
+        room.append(total - (r.sum() - own) / own * least - (len(r) - len(span)) * DECORATION)
+    return room[0], room[1]
 
 
 def label_panel(ax: Axes, letter: str, *, size: float = 10.0, dx: float = -4.0,
