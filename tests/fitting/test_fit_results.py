@@ -428,9 +428,14 @@ def test_a_fit_whose_walls_cross_says_where_and_its_record_keeps_it(fold_fit, pi
     assert record["walls_cross"] == {"s": list(res.contact.s), "distance": res.contact.distance,
                                      "thickness": res.contact.thickness}
     assert FitResult.from_dict(record).contact == res.contact
+    # a record written before the check (audit 24 F1: it read back as "checked, clean"):
+    # not known, in the table too, and saved again without the entry
     del record["walls_cross"]
-    assert not FitResult.from_dict(record).walls_cross
-    assert pinned_fit[2].to_dict()["walls_cross"] is None and not pinned_fit[2].walls_cross
+    old = FitResult.from_dict(record)
+    assert old.walls_cross is None and not old.contact_checked
+    assert old.to_dataframe()["walls_cross"].isna().all()
+    assert "walls_cross" not in old.to_dict()
+    assert pinned_fit[2].to_dict()["walls_cross"] is None and pinned_fit[2].walls_cross is False
     with pytest.raises(ValueError, match=r"^x.json: walls_cross = \{'s': \[1.0\]\} must be null"):
         FitResult.from_dict({**record, "walls_cross": {"s": [1.0]}}, "x.json")
 

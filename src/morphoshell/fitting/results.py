@@ -132,8 +132,12 @@ class FitResult:
         Where the fitted shape's walls pass through each other
         (:func:`~morphoshell.solvers.contact.wall_contact`), or None.  The model has no
         self-contact: such a fit is a minimum of the model but not a physical shape.  The
-        record's ``walls_cross`` (null where they do not cross, and in a record written
-        before it, which reads back as None).
+        record's ``walls_cross`` (null where they do not cross).
+    contact_checked : bool
+        Whether the fitted shape was checked for it: False for a record written before
+        the check (no ``walls_cross`` entry), whose :attr:`walls_cross` is None (unknown,
+        as the campaign summary's empty cell) and whose :meth:`to_dict` leaves the entry
+        out again.
     """
 
     method: str
@@ -158,6 +162,7 @@ class FitResult:
     problem: Problem | None = None
     jacobian: np.ndarray | None = None
     contact: WallContact | None = None
+    contact_checked: bool = True
 
     def __post_init__(self):
         if self.problem is None:    # (None too where a test's stand-in has no problem)
@@ -204,6 +209,7 @@ class FitResult:
                              f"of morphoshell fit --json or FitResult.to_dict())")
         fields = _record_fields(record, where)
         problem = problem_of_record(record, where)
+        fields["contact_checked"] = "walls_cross" in record
         if record.get("walls_cross") is not None:     # (its s within the problem's shell)
             fields["contact"] = _entry(record, "walls_cross", where, _contact,
                                        (problem.cut, problem.end))
@@ -242,9 +248,10 @@ class FitResult:
         return "\n".join(lines)
 
     @property
-    def walls_cross(self) -> bool:
-        """Whether the fitted shape's walls pass through each other (:attr:`contact`)."""
-        return self.contact is not None
+    def walls_cross(self) -> bool | None:
+        """Whether the fitted shape's walls pass through each other (:attr:`contact`); None
+        for a record written before the check (:attr:`contact_checked`): not known."""
+        return self.contact is not None if self.contact_checked else None
 
     def unit(self, name: str) -> str:
         """How the unit of parameter ``name`` is printed: ``"1/R"``, ``"R"``,
@@ -322,8 +329,8 @@ class FitResult:
             parameters; ``r_data``, ``z_data``, ``r_fit``, ``z_fit`` along ``point`` (units
             of R).  Attributes: the problem (flat, as :meth:`Equilibrium.to_xarray`),
             ``E_fit`` (R), ``method``, ``variant``, ``converged``, ``stop``,
-            ``walls_cross``, ``message``, ``constrained`` (``; ``-separated),
-            ``outer_iterations``, ``inner_solves``, ``seconds``: strings and numbers
+            ``walls_cross`` (0 or 1; absent where not checked), ``message``,
+            ``constrained`` (``; ``-separated), ``outer_iterations``, ``inner_solves``, ``seconds``: strings and numbers
             only, so that the Dataset can be written to netCDF.
         """
         xr = xarray_module()
@@ -341,7 +348,8 @@ class FitResult:
         attrs = {**problem_attrs(self.problem), "E_fit": float(self.E_fit), "E_fit_units": "R",
                  "method": self.method, "variant": self.variant,
                  "converged": int(self.converged), "stop": self.stop,
-                 "walls_cross": int(self.walls_cross), "message": self.message,
+                 **({} if self.walls_cross is None else {"walls_cross": int(self.walls_cross)}),
+                 "message": self.message,
                  "constrained": "; ".join(self.constrained),
                  "outer_iterations": int(self.outer_iterations),
                  "inner_solves": int(self.inner_solves), "seconds": float(self.seconds),
@@ -383,7 +391,8 @@ class FitResult:
                 "outer_iterations": self.outer_iterations, "inner_solves": self.inner_solves,
                 "data_midline": {"r": self.data[:, 0].tolist(), "z": self.data[:, 1].tolist()},
                 "fitted_midline": {"r": self.model[:, 0].tolist(), "z": self.model[:, 1].tolist()},
-                "walls_cross": None if self.contact is None else self.contact.to_dict(),
+                **({"walls_cross": None if self.contact is None else self.contact.to_dict()}
+                   if self.contact_checked else {}),
                 "note": _NOTE}
 
 
