@@ -34,6 +34,29 @@ def test_the_summary_and_the_list_take_walls_cross_from_the_records(tmp_path):
     result = CampaignResult(tmp_path, tps, variants, records)
     assert result.walls_cross() == [("t01", "flat")]
     assert result.to_dataframe().walls_cross.tolist() == [True, False, None, None]
+    assert result.walls_unchecked() == [("t01", "unstressed")]
+
+
+def test_a_resumed_campaign_names_its_reused_fits_that_were_never_checked(data, tmp_path,
+                                                                          caplog):
+    """Audit 24 F2: a folder written before the check, resumed, reused its fits and its last
+    line named no crossing, so an upgrading user read its fits as clean (the same fits made
+    afresh crossed).  A note names those reused fits and says how to check them."""
+    out = tmp_path / "out"
+    args = ["campaign", str(data[0]), "--variants", "flat", "--timepoints", "t01,t02",
+            "--nodes", str(NODES), "--workers", "1", "--out", str(out)]
+    assert main(args) == 0
+    for name in ("t01", "t02"):                   # (as last week's code wrote them)
+        path = out / f"{name}_flat.json"
+        rec = json.loads(path.read_text())
+        del rec["walls_cross"]
+        path.write_text(json.dumps(rec))
+    with caplog.at_level(logging.INFO, logger="morphoshell"):
+        assert main(args) == 0
+    notes = [r.getMessage() for r in caplog.records if "before fitted shapes were checked"
+             in r.getMessage()]
+    assert len(notes) == 1 and notes[0].startswith("2 reused fit(s) ") and \
+        "t01_flat, t02_flat; resume=False (--no-resume) refits" in notes[0], notes
 
 
 def test_a_campaign_warns_of_its_fits_whose_walls_cross_and_exits_0(data, tmp_path, capsys,

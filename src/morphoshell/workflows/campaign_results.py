@@ -177,6 +177,14 @@ class CampaignResult:
         return [(tp.name, v) for tp in self.timepoints for v in self.variants
                 if record_contact(self.records.get((tp.name, v), {})) is not None]
 
+    def walls_unchecked(self) -> list[tuple[str, str]]:
+        """The finished fits whose records were written before the walls check (no
+        ``walls_cross`` entry): (timepoint, variant), in the campaign's order.  Whether their
+        walls cross is not known; ``resume=False`` refits and checks them."""
+        return [(tp.name, v) for tp in self.timepoints for v in self.variants
+                if (rec := self.records.get((tp.name, v), {})).get("status") == "ok"
+                and "walls_cross" not in rec]
+
     def best_far_above(self) -> list[tuple[str, str]]:
         """The timepoints whose best fit (lowest E_fit of the variants' fits that finished)
         has an ``input_check`` verdict, with that fit's variant: no variant run describes

@@ -28,7 +28,7 @@ from typing import Iterator, Sequence
 
 from .._runtime import interrupts, lifeline
 from .._runtime.interrupts import interrupted
-from .._runtime.console import progress
+from .._runtime.console import NOTE, progress
 from .._runtime.validate import name_list
 from ..fitting import FIT_NODES, METHODS, VARIANTS, check_midline, volvox_spec
 from ..io import Midline
@@ -210,6 +210,11 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
     # (here, not in the workers, whose logs Dask silences: one line per fit, by its name)
     for t, v in result.walls_cross():
         warn_of_contact(record_contact(records[(t, v)]), f"{t}_{v}, fitted shell")
+    unchecked = [f"{t}_{v}" for t, v in result.walls_unchecked()]
+    if unchecked:       # (reused from a folder written before the check: say so, audit 24)
+        log.log(NOTE, "%d reused fit(s) were written before fitted shapes were checked for walls "
+                "that pass through each other (walls_cross empty): %s; resume=False "
+                "(--no-resume) refits and checks them", len(unchecked), ", ".join(unchecked))
     # every fit in the folder, not only this run's: a run on a subset had replaced the
     # summary of the whole campaign by its own rows (the folder's settings are one run's)
     write_atomic(out / SUMMARY, load_campaign(out, data_dir).to_dataframe().to_csv(index=False))
