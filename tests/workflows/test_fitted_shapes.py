@@ -138,3 +138,28 @@ def test_each_argument_is_refused_naming_it_before_any_work(monkeypatch, change,
     problem, _ = load_problem(example_path("toy2_ablation"))
     with pytest.raises(error, match=message):
         numerical_ablation(problem, **{"cut": 0.3, "nodes": NODES, "pre": None, **change})
+
+
+def test_a_fit_solved_again_onto_another_shape_is_warned_of(caplog):
+    """Audit 24 F4: `solve FIT.json` and `ablate FIT.json` solve the fitted parameters from
+    the stress-free shell, which for a campaign's t08 free fit ended on another equilibrium
+    1.02 R from the fitted midline, without a word.  off_the_fit measures the distance of
+    the re-solved fit points from the record's and warns above OFF_THE_FIT (0.01 R; the same
+    branch agreed to 7e-5 R at 100 and 200 nodes)."""
+    from morphoshell.fitting.inner import model_midline
+    from morphoshell.workflows.fitted_shapes import OFF_THE_FIT, off_the_fit
+
+    problem = load_problem(example_path("volvox_inversion"))[0]
+    eq = solve(problem.with_updates(cut=0.0), nodes=NODES)
+    points = model_midline(eq, 100)
+    same = {"fitted_midline": {"r": points[:, 0].tolist(), "z": points[:, 1].tolist()}}
+    moved = {"fitted_midline": {"r": points[:, 0].tolist(),
+                                "z": (points[:, 1] + 2 * OFF_THE_FIT).tolist()}, "state": {}}
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        assert off_the_fit(eq, same, "same.json") < 1e-12
+        assert not caplog.records
+        assert off_the_fit(eq, moved, "moved.json") == pytest.approx(2 * OFF_THE_FIT)
+    [warning] = [r.getMessage() for r in caplog.records]
+    assert warning.startswith("moved.json: the shell solved from the fitted parameters is not "
+                              "the fitted one: its midline lies up to 0.02 R") and \
+        "pre=fitted_state(record)" in warning

@@ -136,6 +136,8 @@ def _solve(args) -> int:
 
     problem, method, nodes, options = _load(args)
     eq = solve(problem, nodes=nodes, method=method, **options)
+    if problem.cut == 0:            # (the fitted shell is intact; --set cut=... is another)
+        _check_fitted(eq, _record_of(args.problem), method, args.problem)
     edge = "start" if problem.structure.start == "free" else "end"
     e = eq.edge(edge)
     it = eq.solver.iterations
@@ -197,18 +199,32 @@ def _ablation_lines(ab) -> list[str]:
                  f"energy_post - (energy_pre - energy_removed), {sign}")]
 
 
-def _fit_of(path) -> dict | None:
+def _fit_of(path) -> tuple[dict | None, dict]:
     """The source of a fit's JSON (:func:`morphoshell.io.problem_files.fit_source`: a warning
-    if it did not converge), or None for a problem file or another result."""
+    if it did not converge) and the record, or None and {} for a problem file or another
+    result."""
+    from ..io.problem_files import fit_source
+
+    record = _record_of(path)
+    return (fit_source(record, str(path)) if record else None), record
+
+
+def _record_of(path) -> dict:
+    """The JSON result read as a problem (load_problem has read and checked it), or {}."""
     import json
     from pathlib import Path
 
-    from ..io.problem_files import fit_source
-
     if Path(path).suffix.lower() != ".json":
-        return None
-    # (load_problem has read and checked it)
-    return fit_source(json.loads(Path(path).read_text(encoding="utf-8-sig")), str(path))
+        return {}
+    return json.loads(Path(path).read_text(encoding="utf-8-sig"))
+
+
+def _check_fitted(eq, record: dict, method: str, path) -> None:
+    """Warn where ``eq``, the fitted parameters solved again, is not the fitted shell
+    (:func:`morphoshell.workflows.fitted_shapes.off_the_fit`: a direct solution only)."""
+    if method == "direct" and "fitted_midline" in record:
+        from ..workflows.fitted_shapes import off_the_fit
+        off_the_fit(eq, record, str(path))
 
 
 def _ablate(args) -> int:
@@ -219,8 +235,9 @@ def _ablate(args) -> int:
     if not problem.cut > 0:
         raise ValueError(f"{args.problem}: cut (Sigma) = {problem.cut!r}: an ablation needs a "
                          f"cut > 0 (set it in the file's [problem] table or with --set cut=0.15)")
-    source = _fit_of(args.problem)
+    source, record = _fit_of(args.problem)
     ab = ablate(problem, nodes=nodes, method=method, **options)
+    _check_fitted(ab.pre, record, method, args.problem)
     mesh = (f"{ab.post.solver.nodes} nodes, " if method == "direct" else "")
     print(f"{_label(problem)}: ablation of cut Sigma = {problem.cut:g} R (arclength) "
           f"({method}, {mesh}{len(ab.post.s)} points)")

@@ -18,6 +18,7 @@ observables.  Lengths in units of R, energies in C R².
 """
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, replace
 from types import SimpleNamespace
 
@@ -39,7 +40,10 @@ from ..solvers.results import Equilibrium, SolverError
 from ..solvers.routes import direct_solver, solve
 
 __all__ = ["NumericalAblation", "numerical_ablation", "ablation_errors", "fitted_problem",
+           "off_the_fit", "OFF_THE_FIT",
            "fitted_state", "CUT"]
+
+log = logging.getLogger(__name__)
 
 #: Default cut Σ of numerical ablations (units of R): the experiments removed cells
 #: within 3–6 µm of the pole of embryos of posterior radius ≈ 40 µm (Materials and Methods).
@@ -96,6 +100,45 @@ def fitted_problem(record: dict, where: str | None = None) -> Problem:
     if named:
         problem = replace(problem, name=f"{record['timepoint']}_{record['variant']}")
     return problem
+
+
+#: A re-solved fit whose fit points lie farther than this (units of R) from the record's
+#: fitted midline is another equilibrium of the fitted parameters: the continuation from the
+#: stress-free shell took another branch than the fit's (audit 24: a campaign's t08 free fit
+#: re-solved 1.02 R away; re-solves on the fit's branch agreed to 7e-5 R at 100 and 200 nodes).
+OFF_THE_FIT = 0.01
+
+
+def off_the_fit(eq: Equilibrium, record: dict, where: str) -> float:
+    """How far (units of R) the fit points of ``eq``, the fitted shell solved again, lie from
+    the record's ``fitted_midline``; a warning above :data:`OFF_THE_FIT`.
+
+    ``morphoshell solve FIT.json`` and ``ablate FIT.json`` solve the fitted parameters from
+    the stress-free shell, which can end on another branch than the fit's; a campaign's
+    record keeps the fitted state to stay on it (``numerical_ablation(...,
+    pre=fitted_state(record))``).
+
+    Parameters
+    ----------
+    eq : Equilibrium
+        A direct solution of the record's problem (intact: no cut).
+    record : dict
+        The fit's record, with its ``fitted_midline``.
+    where : str
+        The record's file, for the warning.
+    """
+    from ..fitting.inner import model_midline
+
+    fitted = np.column_stack([record["fitted_midline"][c] for c in "rz"]).astype(float)
+    distance = float(np.max(np.hypot(*(model_midline(eq, len(fitted)) - fitted).T)))
+    if distance > OFF_THE_FIT:
+        log.warning("%s: the shell solved from the fitted parameters is not the fitted one: its "
+                    "midline lies up to %.3g R from the fit's (another equilibrium of the same "
+                    "parameters, reached from the stress-free shell); its numbers are not the "
+                    "fit's%s", where, distance,
+                    "; start from the record's state: numerical_ablation(..., "
+                    "pre=fitted_state(record))" if "state" in record else "")
+    return distance
 
 
 def fitted_state(record: dict) -> SimpleNamespace:
