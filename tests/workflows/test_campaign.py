@@ -296,6 +296,10 @@ def test_the_default_workers_follow_the_measured_crossover(monkeypatch):
                                     frozenset(list(stored)[:1])) == 1      # (7 to make)
     assert campaigns._local_workers(None, stages[:3], four, frozenset(), stored) == 1
     assert campaigns._local_workers(None, stages[:4], four, frozenset(), stored) == 2
+    # nothing to fit: no cluster even when workers are asked for (audit 24: make run's rerun
+    # with --workers 2 started one for 1.2 s); something to fit: the workers asked for
+    assert campaigns._local_workers(2, stages[:2], four, frozenset(), stored) == 1
+    assert campaigns._local_workers(2, stages[:3], four, frozenset(), stored) == 2
 
 
 def test_two_worker_local_cluster_gives_the_same_files(serial, data, tmp_path):

@@ -341,9 +341,12 @@ def _local_workers(workers: int | None, timepoints: tuple[Timepoint, ...],
     variant (a variant is one task).  The fits with a result in the folder (``stored``, when
     resuming) do not count: a rerun with nothing to do started a cluster for 1.1 s (audit
     20); one whose stored results turn out stale is fitted here, as it would be started.
-    Ignored with a scheduler."""
+    With every fit stored there are no workers, whatever ``workers`` (``make run`` asks for
+    2: its rerun started a cluster for 1.2 s, audit 24).  Ignored with a scheduler."""
+    todo = [(tp, v) for tp in timepoints for v in variants if (tp.name, v) not in stored]
+    if not todo:
+        return 1
     if workers is None:
-        todo = [(tp, v) for tp in timepoints for v in variants if (tp.name, v) not in stored]
         fits = len(todo) + sum(len(tp.traces) for tp, v in todo if v in jackknifed)
         workers = 1 if fits < SERIAL_BELOW_FITS else os.cpu_count() or 1
     return max(1, min(workers, len(variants)))
