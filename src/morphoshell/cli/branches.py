@@ -236,9 +236,7 @@ def _report(problem, branch) -> None:
     print(f"{problem.name or problem.family}: {len(branch.points)} points along {path} "
           f"({branch.follow}, {branch.seconds:.2f} s)")
     for pt in branch.events:
-        where = f"lambda = {pt.tau:.10g}" + (f", {branch.parameter} = "
-                                             f"{pt.values[branch.parameter]:.10g}"
-                                             if branch.parameter else "")
+        where = _where(branch, pt)
         print(f"  {pt.event.replace('_', ' '):13s} at {where}: r_end = {pt.r_end:.6g} R, "
               f"z_end = {pt.z_end:.6g} R, energy = {pt.energy:.6g} C R^2{_error(pt)}")
     for event in (*branch.snaps, *branch.switches):
@@ -265,6 +263,13 @@ def _error(pt) -> str:
     return "; no error estimate (the half mesh holds no point before it)"
 
 
+def _where(branch, pt) -> str:
+    """A point's λ, and the continued parameter's value there (``--param``)."""
+    return f"lambda = {pt.tau:.10g}" + (f", {branch.parameter} = "
+                                        f"{pt.values[branch.parameter]:.10g}"
+                                        if branch.parameter else "")
+
+
 def _end_line(branch) -> str:
     """Where a branch ends: λ (and why, before the path's end), stability, the far end's
     values and their error estimate (as ``solve``'s summary; none where the walk stopped
@@ -274,7 +279,7 @@ def _end_line(branch) -> str:
     state = "stable" if end.stable else f"unstable ({k} negative eigenvalue{'s' * (k != 1)})"
     early = ("" if branch.ended is None else f" (stopped early: {branch.ended.status})"
              if branch.ended.stopped else f" ({branch.ended.status}: the last physical state)")
-    return (f"end at lambda = {end.tau:.10g}{early}: {state}, r_end = {end.r_end:.10g} R, "
+    return (f"end at {_where(branch, end)}{early}: {state}, r_end = {end.r_end:.10g} R, "
             f"z_end = {end.z_end:.10g} R, psi_end = {end.psi_end:.10g} rad, energy = "
             f"{end.energy:.10g} C R^2{_end_error(branch.end_error)}")
 
