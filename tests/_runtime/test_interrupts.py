@@ -25,6 +25,17 @@ def test_an_exception_caused_by_ctrl_c_is_an_interrupt():
     assert interrupted(KeyboardInterrupt())
 
 
+@pytest.fixture(autouse=True)
+def _sigterm_flag_kept():
+    """The "a SIGTERM arrived" flag (kept after noted() for the command line's message)
+    as it was: a test's SIGTERM made a later test's sweep say "terminated (SIGTERM)"."""
+    from morphoshell._runtime import interrupts
+
+    kept = interrupts._terminated[0]
+    yield
+    interrupts._terminated[0] = kept
+
+
 @pytest.fixture
 def default_handler():
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
@@ -144,3 +155,50 @@ def test_sigterm_is_handled_when_ctrl_c_is_ignored():
     finally:
         signal.signal(signal.SIGINT, previous)
         signal.signal(signal.SIGTERM, term)
+
+
+def test_a_deferred_signal_is_raised_when_delivered_and_a_second_one_at_once(default_handler):
+    """deferred(): held within the block (a Dask cluster's start, which an exception
+    stopped half way: audit 23 F5), raised by the handler in force when delivered; a
+    second one is raised at once (a start that hangs can still be stopped)."""
+    from morphoshell._runtime.interrupts import Terminated, deferred, exit_status
+
+    term = signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    try:
+        with noted():
+            with deferred() as deliver:
+                os.kill(os.getpid(), signal.SIGTERM)
+                time.sleep(0.2)                 # (no exception: held)
+                with pytest.raises(Terminated):
+                    deliver()
+            assert exit_status() == 143
+            reached = []
+            with pytest.raises(KeyboardInterrupt):
+                with deferred():
+                    os.kill(os.getpid(), signal.SIGINT)
+                    time.sleep(0.2)
+                    reached.append("end")       # (held until the block's end)
+            assert reached == ["end"]
+            start = time.monotonic()
+            with pytest.raises(KeyboardInterrupt), deferred():
+                os.kill(os.getpid(), signal.SIGINT)
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(5)
+            assert time.monotonic() - start < 4     # (raised at once, not after the sleep)
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        assert signal.getsignal(signal.SIGTERM) == signal.SIG_DFL
+    finally:
+        signal.signal(signal.SIGTERM, term)
+
+
+def test_an_ignored_ctrl_c_stays_ignored_under_deferred():
+    from morphoshell._runtime.interrupts import deferred
+
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        with deferred():
+            assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+            os.kill(os.getpid(), signal.SIGINT)
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, previous)

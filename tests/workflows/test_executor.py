@@ -62,6 +62,29 @@ def _allocator_state(probe, names):
     return probe(), {k: os.environ.get(k) for k in names}
 
 
+def test_dask_workers_do_not_take_the_terminals_ctrl_c():
+    """A Ctrl-C to the terminal's process group reached the Dask workers too: one that was
+    starting printed "Fatal Python error: init_import_site ... KeyboardInterrupt" (audit
+    23 F5).  They start with SIGINT blocked, as the main process kills them anyway."""
+    pytest.importorskip("distributed")
+    import signal
+    import sys
+
+    import cloudpickle
+    if not hasattr(signal, "pthread_sigmask"):
+        pytest.skip("no signal masks")
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    with open_executor(workers=2) as ex:
+        blocked = {ex.submit(_sigint_blocked, i).result() for i in range(4)}
+    assert blocked == {True}
+    assert signal.SIGINT not in signal.pthread_sigmask(signal.SIG_BLOCK, [])    # (not here)
+
+
+def _sigint_blocked(_):
+    import signal
+    return signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, [])
+
+
 def test_no_free_core_compares_the_load_with_the_cores(monkeypatch):
     from morphoshell.workflows import executor
 

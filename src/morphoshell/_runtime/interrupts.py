@@ -31,10 +31,10 @@ import signal
 import sys
 import threading
 from contextlib import contextmanager
-from typing import Iterator
+from typing import Callable, Iterator
 
-__all__ = ["interrupted", "noted", "swallowed", "check", "Terminated", "exit_status", "reason",
-           "worker_start"]
+__all__ = ["interrupted", "noted", "deferred", "swallowed", "check", "Terminated", "exit_status",
+           "reason", "worker_start"]
 
 #: Ctrl-Cs (and SIGTERMs) received under :func:`noted` and not yet claimed by :func:`swallowed`.
 _received = [0]
@@ -173,6 +173,47 @@ def noted() -> Iterator[None]:
         if sigterm:
             signal.signal(signal.SIGTERM, signal.SIG_DFL)
         _received[0] = 0
+
+
+@contextmanager
+def deferred() -> Iterator[Callable[[], None]]:
+    """Ctrl-C and SIGTERM held back within the block, for work that an exception would
+    leave half done and that ends soon (the start of a Dask cluster, whose own code
+    cancels what it waits for).
+
+    Yields ``deliver``: it ends the holding and delivers the first signal held, as if it
+    arrived then (the handler in force raises it: under :func:`noted`, a
+    ``KeyboardInterrupt`` or :class:`Terminated`, counted); leaving the block calls it.
+    A second signal while one is held is raised at once: a start that hangs can still
+    be stopped.  Only in the main thread, and only signals with a Python handler (an
+    ignored Ctrl-C stays ignored; a SIGTERM with its default action ends the process at
+    once, and nothing is printed).
+    """
+    handlers = {}
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, getattr(signal, "SIGTERM", None)):
+            if sig is not None and callable(signal.getsignal(sig)):
+                handlers[sig] = signal.getsignal(sig)
+    held: list[int] = []
+
+    def hold(signum, frame):
+        if held:
+            held.clear()
+            handlers[signum](signum, frame)
+        held.append(signum)
+
+    def deliver():
+        while handlers:
+            signal.signal(*handlers.popitem())
+        if held:
+            signal.raise_signal(held.pop())
+
+    for sig in handlers:
+        signal.signal(sig, hold)
+    try:
+        yield deliver
+    finally:
+        deliver()
 
 
 def worker_start() -> None:

@@ -28,6 +28,7 @@ import concurrent.futures as cf
 import logging
 import multiprocessing
 import os
+import signal
 import sys
 from contextlib import contextmanager
 from typing import Any, Callable, Iterable, Iterator, Sequence
@@ -225,17 +226,29 @@ def _local_cluster(workers: int) -> Iterator[cf.Executor]:
     Its scheduler and workers log nothing below CRITICAL: a task's error reaches the
     campaign through its future, and what else they logged were tracebacks of their own
     recovery (a worker's heartbeat that timed out while the scheduler's thread waited on
-    the GIL, in a campaign that then finished with every fit done).
+    the GIL, in a campaign that then finished with every fit done).  Its workers do not
+    take Ctrl-C (:func:`_loop_without_ctrl_c`).
+
+    A Ctrl-C or SIGTERM while it starts (a second or more) is held back until it has
+    started, then raised (:func:`morphoshell._runtime.interrupts.deferred`) and handled
+    as during the work.  Raised within the start, it stopped Dask half way (its ``sync``
+    cancels what it waits for): Dask's exit hook then closed the half-built cluster and
+    failed on nannies still starting ("Exception ignored in atexit callback ...
+    AssertionError: Status.init"), and a worker's spawn left half done printed
+    "EOFError: Ran out of input" once this process had gone (audit 23 F5).
     """
     from distributed import Client, LocalCluster
 
     log.info("starting a Dask LocalCluster of %d single-threaded workers", workers)
-    with _level_kept("distributed") as dask_log, \
+    with _level_kept("distributed") as dask_log, _loop_without_ctrl_c() as loop, \
+            interrupts.deferred() as deliver, \
             LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                         dashboard_address=":0", silence_logs=logging.CRITICAL) as cluster, \
+                         dashboard_address=":0", silence_logs=logging.CRITICAL,
+                         loop=loop) as cluster, \
             Client(cluster) as client:
         executor = client.get_executor()
         try:
+            deliver()       # a Ctrl-C or SIGTERM held back while the cluster started
             yield executor
         except BaseException:
             # A graceful close asks each busy worker to stop, waits 4 s, kills it, and
@@ -245,6 +258,51 @@ def _local_cluster(workers: int) -> Iterator[cf.Executor]:
             _kill(_worker_pids(cluster))
             executor.shutdown(wait=False)
             raise
+
+
+@contextmanager
+def _loop_without_ctrl_c() -> Iterator[Any]:
+    """Dask's event loop, run in a thread started with Ctrl-C (SIGINT) blocked; stopped on
+    leaving the block.
+
+    The loop's thread starts the threads that spawn the worker processes, and a blocked
+    signal stays blocked through thread creation, fork and exec (Python's own
+    ``multiprocessing.resource_tracker`` is started so): a Ctrl-C to the terminal's
+    process group no longer reaches the workers, as in a process pool (their
+    ``worker_start``).  A Dask worker took it while it started and printed its
+    traceback ("Fatal Python error: init_import_site ... KeyboardInterrupt", audit 23
+    F5); a running one is killed by this process anyway.  This thread still takes it.
+
+    Python's resource tracker is started first, here: its start unblocks the signals in
+    the thread that starts it (``SIG_UNBLOCK``, not the mask it found), and Dask started
+    it from the loop's thread, whose threads then spawned workers that took Ctrl-C.
+    """
+    from distributed.utils import LoopRunner
+
+    runner = LoopRunner()
+    try:
+        if hasattr(signal, "pthread_sigmask"):
+            from multiprocessing import resource_tracker
+            resource_tracker.ensure_running()
+        with _ctrl_c_blocked():
+            runner.start()
+        yield runner.loop
+    finally:
+        runner.stop()
+
+
+@contextmanager
+def _ctrl_c_blocked() -> Iterator[None]:
+    """SIGINT blocked in this thread within the block (where the system has signal masks);
+    one that arrives meanwhile is delivered on leaving it."""
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 @contextmanager
@@ -301,8 +359,6 @@ def _worker_pids(cluster) -> list[int]:
 
 def _kill(pids: Iterable[int]) -> None:
     """Kill the processes ``pids`` (this process's workers); those already gone are skipped."""
-    import signal
-
     for pid in pids:
         try:
             os.kill(pid, getattr(signal, "SIGKILL", signal.SIGTERM))
