@@ -7,7 +7,7 @@ from typing import Any, Iterable, Mapping, Sequence, TypeVar
 
 import numpy as np
 
-__all__ = ["real", "lookup", "within", "integer", "flag", "short", "instance", "name_list"]
+__all__ = ["real", "lookup", "within", "integer", "flag", "text", "short", "instance", "name_list"]
 
 T = TypeVar("T")
 
@@ -92,3 +92,14 @@ def name_list(value: str | Sequence[str], name: str = "names") -> list[str]:
         raise TypeError(f"{name} = {short(value)} must be a name, names separated by commas "
                         f"or a sequence of names, not {type(value).__name__}")
     return list(value)
+
+
+def text(name: str, value: Any, nullable: bool = False) -> str:
+    """``value``, a string ("" for None when ``nullable``), or ValueError naming it (a
+    record's entry read back: a note, a message)."""
+    if nullable and value is None:
+        return ""
+    if not isinstance(value, str):
+        raise ValueError(f"{name} = {short(value)} must be a string"
+                         + (" or null" if nullable else ""))
+    return value

@@ -22,7 +22,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .._runtime.validate import flag, real, short, within
+from .._runtime.validate import flag, real, short, text, within
 from ..io.problem_files import read_json
 from .bilevel import METHODS
 from .profile_noise import NOISE_SOURCES, threshold_quantile
@@ -133,7 +133,7 @@ def _profile(r: Mapping, name: str | None) -> Profile:
                               (*NOISE_SOURCES[1:], "given")),
         confidence=within("confidence", r["confidence"], 0, 1, open_lo=True),
         flat=flag("flat", r["flat"]), method=_choice("method", r["method"], METHODS),
-        note=_text("note", r["note"]),
+        note=text("note", r["note"]),
         dof=math.inf if r.get("sigma2_dof") is None else within(
             "sigma2_dof", r["sigma2_dof"], 1, math.inf),
         side_ends=tuple(_choice(f"open_sides[{i}]", end, SIDE_ENDS, nullable=True) or "grid"
@@ -191,12 +191,12 @@ def _retry(r: Any, key: str) -> Retry:
         raise ValueError(f"{key}.starts must be a list of objects")
     return Retry(value=real(f"{key}.value", r["value"]),
                  S_before=within(f"{key}.E_fit_before", r["E_fit_before"], 0, math.inf) ** 2,
-                 winner=_text(f"{key}.kept", r["kept"], nullable=True),
+                 winner=text(f"{key}.kept", r["kept"], nullable=True),
                  S=within(f"{key}.E_fit", r["E_fit"], 0, math.inf) ** 2,
                  converged=flag(f"{key}.converged", r["converged"]),
                  starts=tuple(dict(row) for row in starts),
                  seconds=within(f"{key}.seconds", r.get("seconds", 0.0), 0, math.inf),
-                 reason=_text(f"{key}.reason", r.get("reason"), nullable=True))
+                 reason=text(f"{key}.reason", r.get("reason"), nullable=True))
 
 
 def _list(r: Mapping, key: str, length: int | None = None, like: str = "") -> list:
@@ -220,11 +220,3 @@ def _choice(key: str, value: Any, choices, nullable: bool = False) -> str | None
     return value
 
 
-def _text(key: str, value: Any, nullable: bool = False) -> str:
-    """``value``, a string ("" for None when ``nullable``)."""
-    if nullable and value is None:
-        return ""
-    if not isinstance(value, str):
-        raise ValueError(f"{key} = {short(value)} must be a string"
-                         + (" or null" if nullable else ""))
-    return value

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 import numpy as np
 
 from .._runtime.tables import problem_attrs, xarray_module
-from .._runtime.validate import flag, integer, lookup, real, short, within
+from .._runtime.validate import flag, integer, lookup, real, short, text, within
 from ..io.problem_files import problem_of_record, read_json
 from ..numerics.status import (FIT_CONVERGED, FIT_CONVERGED_STOPS, FIT_NEAR_FOLD,
                                IPOPT_UNKNOWN, STATUSES)
@@ -436,7 +436,7 @@ def _record_fields(record: Mapping[str, Any], where: str) -> dict[str, Any]:
             "outer_iterations": get("outer_iterations", integer, 0, default=0),
             "inner_solves": get("inner_solves", integer, 0, default=0),
             "seconds": get("seconds", _optional, default=math.nan),
-            "message": get("message", _text, default=""),
+            "message": get("message", text, default=""),
             "constrained": get("constrained", _names, None, default=()),
             "stop": get("stop", _status, converged,
                         default=FIT_CONVERGED if converged else IPOPT_UNKNOWN),
@@ -495,12 +495,6 @@ def _status(key: str, value: Any, converged: bool | None = None) -> str:
                          f"an unconverged fit's another")
     return value
 
-
-def _text(key: str, value: Any) -> str:
-    """``value``, a string."""
-    if not isinstance(value, str):
-        raise ValueError(f"{key} = {short(value)} must be a string")
-    return value
 
 
 def _null(value: Any) -> bool:
@@ -567,9 +561,9 @@ def _contact(key: str, value: Any, shell: tuple[float, float]) -> WallContact | 
 def _combination(direction: dict, k: int) -> str:
     """A direction {name: component} written as a sum, ``0.864 kappa3 - 0.471 kappa4 ...``
     (``+ ...`` where it lists fewer than all ``k`` fitted parameters)."""
-    text = " ".join(f"{'-' if v < 0 else '+'} {abs(v):g} {n}" for n, v in direction.items())
-    text = text[2:] if text.startswith("+ ") else "-" + text[2:]      # (no sign before the first)
-    return text + (" + ..." if len(direction) < k else "")
+    written = " ".join(f"{'-' if v < 0 else '+'} {abs(v):g} {n}" for n, v in direction.items())
+    written = written[2:] if written.startswith("+ ") else "-" + written[2:]      # (no sign before the first)
+    return written + (" + ..." if len(direction) < k else "")
 
 
 def fit_result(method: str, spec: FitSpec, inner: InnerProblem, theta: np.ndarray,
