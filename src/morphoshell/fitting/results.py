@@ -562,7 +562,7 @@ def _combination(direction: dict, k: int) -> str:
     """A direction {name: component} written as a sum, ``0.864 kappa3 - 0.471 kappa4 ...``
     (``+ ...`` where it lists fewer than all ``k`` fitted parameters)."""
     written = " ".join(f"{'-' if v < 0 else '+'} {abs(v):g} {n}" for n, v in direction.items())
-    written = written[2:] if written.startswith("+ ") else "-" + written[2:]      # (no sign before the first)
+    written = written[2:] if written.startswith("+ ") else "-" + written[2:]  # (no sign before the first)
     return written + (" + ..." if len(direction) < k else "")
 
 
