@@ -673,7 +673,7 @@ def test_the_blister_buckles_on_a_fine_mesh_too(blister, monkeypatch):
     assert fine.z[-1] - fine.z[0] == pytest.approx(coarse.z[-1] - coarse.z[0], rel=1e-6)
 
 
-def _no_switch(arc, point, direction=1.0, sign=-1.0):
+def _no_switch(arc, point, direction=1.0, sign=-1.0, mode=None):
     raise ValueError("no switch (test)")
 
 

@@ -136,8 +136,8 @@ def _solve(args) -> int:
 
     problem, method, nodes, options = _load(args)
     eq = solve(problem, nodes=nodes, method=method, **options)
-    if problem.cut == 0:            # (the fitted shell is intact; --set cut=... is another)
-        _check_fitted(eq, _record_of(args.problem), method, args.problem)
+    if method == "direct":
+        _check_fitted(eq, _record_of(args.problem), args.problem)
     edge = "start" if problem.structure.start == "free" else "end"
     e = eq.edge(edge)
     it = eq.solver.iterations
@@ -211,18 +211,23 @@ def _fit_of(path) -> tuple[dict | None, dict]:
 
 def _record_of(path) -> dict:
     """The JSON result read as a problem (load_problem has read and checked it), or {}."""
-    import json
     from pathlib import Path
 
-    if Path(path).suffix.lower() != ".json":
-        return {}
-    return json.loads(Path(path).read_text(encoding="utf-8-sig"))
+    from ..io.problem_files import read_json
+
+    return read_json(Path(path)) if Path(path).suffix.lower() == ".json" else {}
 
 
-def _check_fitted(eq, record: dict, method: str, path) -> None:
-    """Warn where ``eq``, the fitted parameters solved again, is not the fitted shell
-    (:func:`morphoshell.workflows.fitted_shapes.off_the_fit`: a direct solution only)."""
-    if method == "direct" and "fitted_midline" in record:
+def _check_fitted(eq, record: dict, path) -> None:
+    """Warn where ``eq``, a direct solution of a fit's shell, is not the fitted shell
+    (:func:`morphoshell.workflows.fitted_shapes.off_the_fit`); nothing where it is another
+    problem (``--set`` changed a parameter, or a cut)."""
+    from ..io.problem_files import problem_of_record
+
+    if "fitted_midline" not in record:
+        return
+    fitted, p = problem_of_record(record, str(path)), eq.problem
+    if p.cut == 0 and (p.params, p.h, p.opening) == (fitted.params, fitted.h, fitted.opening):
         from ..workflows.fitted_shapes import off_the_fit
         off_the_fit(eq, record, str(path))
 
@@ -237,7 +242,8 @@ def _ablate(args) -> int:
                          f"cut > 0 (set it in the file's [problem] table or with --set cut=0.15)")
     source, record = _fit_of(args.problem)
     ab = ablate(problem, nodes=nodes, method=method, **options)
-    _check_fitted(ab.pre, record, method, args.problem)
+    if method == "direct":
+        _check_fitted(ab.pre, record, args.problem)
     mesh = (f"{ab.post.solver.nodes} nodes, " if method == "direct" else "")
     print(f"{_label(problem)}: ablation of cut Sigma = {problem.cut:g} R (arclength) "
           f"({method}, {mesh}{len(ab.post.s)} points)")

@@ -70,7 +70,7 @@ from .inner import InnerProblem
 from .midline_checks import as_points, check_midline
 from .profile_noise import (NOISE_SOURCES, check_inflation, log_noise, noise_dof,
                             noise_variance, parameter_noise, threshold_quantile, traces_missing)
-from .profile_retry import (Retry, crossing, crossings, needs_retry, not_monotone_note, retried,
+from .profile_retry import (Retry, crossings, needs_retry, not_monotone_note, retried,
                             settle_side, started_at)
 from .profile_runs import each_profile
 from .results import FitResult, fit_result
@@ -560,8 +560,7 @@ def _profile(opt: _Optimum, data, name: str, points: int, span, method: str, tol
                      f"{np.sqrt(S_min):.6g} R) than the fit's ({np.sqrt(opt.S):.6g} R): the fit "
                      f"is not the minimum")
         threshold = S_min + sigma2 * q
-    interval = (crossing(vb, sb, (value, opt.S), -1.0, threshold, S_min),
-                crossing(va, sa, (value, opt.S), 1.0, threshold, S_min))
+    interval = crossings(values, objective, value, threshold, S_min)
     lowest = min((low for low in (low_b, low_a) if low is not None), key=lambda low: low[0],
                  default=None)
     ends = tuple(_side_end(opt, name, v, note, d)

@@ -354,7 +354,8 @@ class Arclength:
         scale = np.copysign(self.norm(t, t_tau), direction * t_tau)
         return ArcPoint(tau, u, t / scale, t_tau / scale, self.kkt.inertia(state))
 
-    def switch(self, point: ArcPoint, direction: float = 1.0, sign: float = -1.0) -> ArcPoint:
+    def switch(self, point: ArcPoint, direction: float = 1.0, sign: float = -1.0,
+               mode: NullMode | None = None) -> ArcPoint:
         """``point``, a located branch point, with the tangent of the other branch through it.
 
         The null vector φ of the KKT matrix there (:meth:`null_vector`), less
@@ -377,6 +378,9 @@ class Arclength:
             where ``point`` has one negative eigenvalue more than the other side
             (the first point past a loss of stability, as :meth:`locate_change`
             gives one), +1 where it has one fewer.
+        mode : NullMode, optional
+            :meth:`null_vector` at ``point`` of that ``sign``, if already computed (both
+            halves of one branch point take the same).
 
         Returns
         -------
@@ -391,7 +395,7 @@ class Arclength:
             located branch point), other eigenvalues of its sign crowd near it
             (:data:`SEPARATION`), or it is the branch's own tangent (a fold).
         """
-        mode = self.null_vector(point, sign)
+        mode = mode or self.null_vector(point, sign)
         if mode.change > NULL_TOL:
             raise ValueError(f"no simple zero eigenvalue at {point.tau:.6g} of the way (the "
                              f"null vector changed by {mode.change:.1e} after "

@@ -307,9 +307,10 @@ def switch_stable(arc: Arclength, bp: ArcPoint, ds: float, reach: float = 0.0) -
         point's state attached).
     """
     before = arc.equilibrium(bp)
+    mode = arc.null_vector(bp)      # (one subspace iteration for both halves and the descent)
     for direction in (1.0, -1.0):
         try:
-            other = arc.switch(bp, direction)
+            other = arc.switch(bp, direction, mode=mode)
         except ValueError:
             break
         first = arc.first_step(other, ds)
@@ -321,7 +322,7 @@ def switch_stable(arc: Arclength, bp: ArcPoint, ds: float, reach: float = 0.0) -
             log.debug("switched branches at tau = %.6g (direction %+g)", bp.tau, direction)
             return eq, tau, Switch(float(bp.tau), tau, direction, float(before.energy),
                                    float(eq.energy))
-    phi = arc.null_vector(bp).vector      # (converged or not: any part along it descends)
+    phi = mode.vector.copy()      # (converged or not: any part along it descends)
     phi *= arc._rising(bp, phi)
     # φ is a unit vector: its entries shrink like 1/√n, and on fine meshes a move along it
     # ends back at the branch point's saddle (the blister at 600 nodes); then one of unit

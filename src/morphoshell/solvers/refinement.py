@@ -254,7 +254,7 @@ def unresolved_steps(problem: Problem, nodes: int, stages: int, anchors=()) -> s
     cells = step_cells(problem, half_mesh(nodes), stages, anchors)
     if cells is None or cells[0] <= STEP_CELLS:
         return None
-    need = nodes
+    need = min(2 * (nodes - 1) + 1, MAX_NODES)      # (nodes itself: just found short)
     while need < MAX_NODES and _step_cells(problem, half_mesh(need), stages,
                                            anchors) > STEP_CELLS:
         need = min(2 * (need - 1) + 1, MAX_NODES)

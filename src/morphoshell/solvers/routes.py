@@ -235,10 +235,11 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
                          f"estimate compares solutions converged to the solver's own "
                          f"tolerance, 1e-10")
     max_nodes = check_nodes(options.pop("max_nodes", MAX_NODES))
-    if thin_shell_note(problem):
+    thin = thin_shell_note(problem)
+    if thin:
         # (known before any work, which can take 20 s of retries before it fails)
         log.warning("solve of %s: %s; trying the direct route all the same", problem.name
-                    or problem.family, thin_shell_note(problem))
+                    or problem.family, thin)
     try:
         return _direct(problem, nodes, warm_start, anchors, continuation, rtol, max_nodes,
                        options)
