@@ -5,8 +5,9 @@ Problem files (TOML) and their overrides and the writers of results
 trace files of midlines from Fiji/ImageJ and CSV (:mod:`.traces`; their text forms,
 :mod:`.trace_text`; their checks,
 :mod:`.trace_checks`) and ImageJ's ROI Manager sets (:mod:`.roi_sets`), and
-their geometry: noise and binning (:mod:`.trace_noise`), alignment to the
-model gauge, resampling and averaging (:mod:`.midlines`); the tables of ablation
+their geometry: noise and binning (:mod:`.trace_noise`), points equally spaced in
+arclength (:mod:`.arclength`), alignment to the model gauge, resampling and averaging
+(:mod:`.midlines`); the tables of ablation
 measurements (:mod:`.measurements`) and of an inversion sequence's timepoints
 (:mod:`.timepoints`); saved equilibria read back (:mod:`.equilibria`).  Every reader
 names the file and the offending entry.

@@ -11,19 +11,25 @@ N_fit = 100 such points (SI Appendix, "Fitting methods and details").  Three
 functions get there:
 
 ``align``         a trace → :class:`Alignment` (half midline in the model gauge);
-``resample``      points → N points equally spaced in arclength, ends included;
+``resample``      points → N points equally spaced in arclength, ends included
+                  (:mod:`morphoshell.io.arclength`);
 ``average``       midlines of one stage → a
                   :class:`~morphoshell.io.traces.Midline` with a pointwise spread.
 
 :func:`load_midline` chains :func:`morphoshell.io.traces.read_trace`,
-:func:`align` and :func:`resample`.  This module lives in ``io``, not with the
+:func:`align` and :func:`resample`, except for a midline the package wrote
+(:meth:`~morphoshell.io.traces.Midline.to_csv`, recognised by its
+``# n_traces`` comment): its rows are already equally spaced in arclength and
+are read at their fractions of it (:func:`~morphoshell.io.arclength.at_fractions`),
+so that it reads back as written.  This module lives in ``io``, not with the
 fits, because :func:`load_midline` reads a file; it imports the file side
 (:mod:`morphoshell.io.traces`), never the reverse.  Bad traces and options raise
 :class:`~morphoshell.io.traces.MidlineError`, as the file side does.
 
 Alignment
 ---------
-*csv* traces are already in the model gauge and are taken as they are.
+*csv* traces are already in the model gauge and are taken as they are (not
+re-aligned; a midline's rows not resampled either, :func:`load_midline`).
 Image traces have an arbitrary rotation and offset; ``section`` says what was
 traced:
 
@@ -112,20 +118,18 @@ import logging
 import math
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Sequence
+from typing import Sequence
 
 import numpy as np
 
 from .._runtime.validate import short
+from .arclength import Curve, at_fractions, resample
 from .roi_sets import is_roi_set, read_set_traces
 from .trace_checks import (MidlineError, asymmetry_warning, bridged_gap, check_axis, check_choice,
-                           check_not_short, check_positive, check_scale)
+                           check_count, check_not_short, check_positive, check_scale)
 from .trace_noise import Binning, bin_noisy
 from .trace_outliers import OUTLIER_SIGMAS, find_outliers
 from .traces import Midline, Trace, read_trace
-
-if TYPE_CHECKING:       # scipy is imported on use (CLI start-up)
-    from scipy.interpolate import CubicSpline
 
 __all__ = ["SECTIONS", "MIN_POINTS", "Alignment", "align", "resample", "load_midline",
            "load_midlines", "resample_spread", "average", "trace_distances"]
@@ -146,7 +150,6 @@ MIN_POINTS = {"whole": 15, "half": 8}
 #: refused when one standard error of the axis's direction moves the midline by more than
 #: _MAX_AXIS_ERROR rms (module docstring).
 _HALF_WINDOW, _HALF_POINTS, _MAX_AXIS_ERROR = 0.4, 6, 0.01
-_GAUSS_X, _GAUSS_W = np.polynomial.legendre.leggauss(8)
 
 log = logging.getLogger(__name__)
 
@@ -178,94 +181,6 @@ class Alignment:
     pole: np.ndarray
     asymmetry: float
 
-
-
-# --------------------------------------------------------------------------- arclength
-
-def _speed_integral(spline, a, b):
-    """∫ₐᵇ |C′(u)| du for arrays a, b within one knot interval each (8-point Gauss–Legendre)."""
-    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    u = ((a + b) / 2)[..., None] + ((b - a) / 2)[..., None] * _GAUSS_X
-    return (b - a) / 2 * (np.linalg.norm(spline(u, 1), axis=-1) @ _GAUSS_W)
-
-
-@dataclass(frozen=True, eq=False)
-class _Curve:
-    """The cubic spline through a trace's points, addressed by arclength.
-
-    The spline is not-a-knot in the chord-length parameter u (error O(h⁴)
-    for points of a smooth curve at spacing h); ``knots`` holds the arclength
-    at each knot u_j.
-    """
-
-    spline: "CubicSpline"
-    knots: np.ndarray
-
-    @classmethod
-    def through(cls, points: np.ndarray) -> "_Curve":
-        u = np.r_[0.0, np.cumsum(np.hypot(*np.diff(points, axis=0).T))]
-        from scipy.interpolate import CubicSpline
-        spline = CubicSpline(u, points)
-        return cls(spline, np.r_[0.0, np.cumsum(_speed_integral(spline, u[:-1], u[1:]))])
-
-    @property
-    def length(self) -> float:
-        return float(self.knots[-1])
-
-    def __call__(self, s, tangent: bool = False) -> np.ndarray:
-        """Points, or unit tangents, at arclengths s; shape s.shape + (2,)."""
-        s = np.clip(np.asarray(s, dtype=float), 0.0, self.length)
-        u_knots = self.spline.x
-        j = np.clip(np.searchsorted(self.knots, s, side="right") - 1, 0, len(u_knots) - 2)
-        lo, hi, s_lo = u_knots[j], u_knots[j + 1], self.knots[j]
-        u = lo + (s - s_lo) / (self.knots[j + 1] - s_lo) * (hi - lo)
-        for _ in range(10):     # Newton on s(u) = s within the interval; converges in 2–3
-            excess = s_lo + _speed_integral(self.spline, lo, u) - s
-            u = np.clip(u - excess / np.linalg.norm(self.spline(u, 1), axis=-1), lo, hi)
-            if np.all(np.abs(excess) <= 1e-14 * self.length):
-                break
-        if not tangent:
-            return self.spline(u)
-        d = self.spline(u, 1)
-        return d / np.linalg.norm(d, axis=-1, keepdims=True)
-
-
-def resample(points, n: int = 100) -> np.ndarray:
-    """n points equally spaced in arclength along a curve, both ends included.
-
-    Parameters
-    ----------
-    points : array_like, shape (m, 2)
-        At least 4 finite points, consecutive ones distinct.
-    n : int
-        At least 2.
-
-    Returns
-    -------
-    ndarray, shape (n, 2)
-        On the not-a-knot cubic spline through ``points`` (chord-length
-        parameter), at arclengths k L/(n − 1) computed by Gauss–Legendre
-        quadrature and Newton's method: error O(h⁴) for a smooth curve
-        sampled at spacing h (below 1e-8 R at h = 0.01 R for curvatures of
-        order 1/R).
-    """
-    n = _count("n", n, 2)
-    points = np.asarray(points, dtype=float)
-    if points.ndim != 2 or points.shape[1] != 2 or len(points) < 4:
-        raise MidlineError(f"resample: points must have shape (m >= 4, 2), not {points.shape}")
-    if not np.all(np.isfinite(points)):     # (scipy said "`x` must contain only finite values")
-        i = int(np.flatnonzero(~np.all(np.isfinite(points), axis=1))[0])
-        raise MidlineError(f"resample: point {i} is {points[i].tolist()}, not finite")
-    if np.any(np.all(np.diff(points, axis=0) == 0, axis=1)):
-        raise MidlineError("resample: two consecutive points coincide")
-    curve = _Curve.through(points)
-    return curve(np.linspace(0.0, curve.length, n))
-
-
-def _count(name: str, value, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise MidlineError(f"{name} = {value!r} must be an integer >= {minimum}")
-    return int(value)
 
 
 # --------------------------------------------------------------------------- alignment
@@ -331,7 +246,7 @@ def align(trace: Trace, section: str = "auto", *, flip: bool = False,
         pole, e_r, e_z, points, axis_note = _half_section(trace, binning, flip)
         asymmetry = 0.0
     else:
-        pole, e_r, e_z, points, asymmetry = _whole(_Curve.through(binning.points),
+        pole, e_r, e_z, points, asymmetry = _whole(Curve.through(binning.points),
                                                    len(binning.points), flip)
         if asymmetry > max_asymmetry:
             check_scale(trace.source, binning, 2, f"its halves differ by {asymmetry:.3g} R rms")
@@ -506,7 +421,7 @@ def _anterior(e_z, pole, rims, flip: bool) -> np.ndarray:
     return -sign * e_z if flip else sign * e_z
 
 
-def _whole(curve: _Curve, n_points: int, flip: bool):
+def _whole(curve: Curve, n_points: int, flip: bool):
     """Pole, e_r, e_z, mirror-averaged half (m, 2) and asymmetry of a whole section."""
     length = curve.length
     sigma = length / 2 * np.arange(1, _MIRROR_SAMPLES + 1) / _MIRROR_SAMPLES
@@ -566,7 +481,7 @@ def _pole_height(half: np.ndarray) -> float:
     return float(np.linalg.lstsq(A, half[near, 1], rcond=None)[0][0])
 
 
-def _crossing(curve: _Curve, normal: np.ndarray, c: float) -> float:
+def _crossing(curve: Curve, normal: np.ndarray, c: float) -> float:
     """Arclength, nearest mid-length, where the curve crosses the line normal·X = c."""
     s = np.linspace(0.0, curve.length, 4 * len(curve.knots) + 1)
     side = curve(s) @ normal - c
@@ -590,6 +505,22 @@ def load_midline(path: str | Path, format: str | None = None, *, n: int = 100,
 
     :func:`load_midlines`; several traces of a set are averaged
     (:func:`average`).  The options are checked before the file is read.
+
+    What is done to the points depends on what the file is, never on its
+    numbers.  A *midline* the package wrote (:meth:`Midline.to_csv`,
+    ``morphoshell average --csv``, the shipped ``*_midline.csv`` and
+    ``synthetic_average.csv``: a csv with a ``# n_traces`` comment, no row
+    repeated) holds rows already aligned and equally spaced in arclength,
+    row i at the fraction i/(N − 1): they are read at those fractions
+    (:func:`~morphoshell.io.arclength.at_fractions`), so ``n = N`` returns
+    the rows bit for bit and another n the spline through them at the
+    fractions j/(n − 1), as the spread is moved (:func:`resample_spread`).
+    Any other trace (an image trace, a csv of ``r,z`` without that comment,
+    as :func:`~morphoshell.io.traces.write_trace` writes an array) is aligned
+    (:func:`align`; a csv as it is) and resampled along the spline through
+    its points (:func:`resample`).  Resampling a midline's rows so had
+    moved them on every reading (by up to 2.3e-3 R along the curve on the
+    shipped single-trace midlines).
 
     Parameters
     ----------
@@ -646,7 +577,9 @@ def load_midlines(path: str | Path, format: str | None = None, *, n: int = 100,
 
     :func:`morphoshell.io.traces.read_trace` (or, for an ImageJ ROI Manager
     set, :func:`morphoshell.io.roi_sets.read_set_traces`), then :func:`align`,
-    then :func:`resample`.  Parameters as :func:`load_midline`'s.
+    then :func:`resample`, or for a midline's rows
+    :func:`~morphoshell.io.arclength.at_fractions` (the rule:
+    :func:`load_midline`).  Parameters as :func:`load_midline`'s.
 
     Returns
     -------
@@ -656,7 +589,7 @@ def load_midlines(path: str | Path, format: str | None = None, *, n: int = 100,
         trace's (for a set's ROI ``"PATH, ROI 'NAME'"``); a csv average keeps
         its n_traces and its spread (:func:`load_midline`).
     """
-    n = _count("n", n, 2)
+    n = check_count("n", n, 2)
     check_choice(section, SECTIONS, "section")
     check_positive("max_asymmetry", max_asymmetry)
     if format in (None, "roi") and is_roi_set(path):
@@ -670,10 +603,18 @@ def load_midlines(path: str | Path, format: str | None = None, *, n: int = 100,
     for trace in traces:
         half = align(trace, section, flip=flip, max_asymmetry=max_asymmetry,
                      drop_outlier_points=drop_outlier_points).points
-        r, z = resample(half, n).T
+        r, z = _at_n(trace, half, n).T
         midlines.append(Midline(r, z, resample_spread(trace.spread, n), trace.n_traces,
                                 (trace.source,)))
     return midlines
+
+
+def _at_n(trace: Trace, half: np.ndarray, n: int) -> np.ndarray:
+    """n points of an aligned trace equally spaced in arclength: a midline's rows
+    (:attr:`Trace.written`) at their fractions of arclength (:func:`at_fractions`; the rows
+    themselves at n = rows), any other trace's along the spline through its points
+    (:func:`resample`)."""
+    return at_fractions(half, n) if trace.written else resample(half, n)
 
 
 def resample_spread(spread, n: int) -> np.ndarray | None:

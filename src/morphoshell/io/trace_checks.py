@@ -21,7 +21,7 @@ from .._runtime.validate import real
 from .trace_noise import Binning, noise_estimate
 
 __all__ = ["MidlineError", "image_scale", "check_choice", "check_positive", "one_curve",
-           "check_extent", "check_axis", "noise_hint", "asymmetry_warning", "bridged_gap",
+           "check_count", "check_extent", "check_axis", "noise_hint", "asymmetry_warning", "bridged_gap",
            "check_scale", "check_not_short", "check_average", "HALF_LENGTHS",
            "MIN_HALF_LENGTH"]
 
@@ -160,6 +160,19 @@ def check_positive(name: str, value, prefix: str = "") -> float:
     if value <= 0:
         raise MidlineError(f"{prefix}{name} = {value!r} must be positive")
     return value
+
+
+def check_count(name: str, value, minimum: int) -> int:
+    """``value`` as an int if it is an integer (not a bool) of at least ``minimum``.
+
+    Raises
+    ------
+    MidlineError
+        "{name} = {value!r} must be an integer >= {minimum}".
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise MidlineError(f"{name} = {value!r} must be an integer >= {minimum}")
+    return int(value)
 
 
 def one_curve(path, points: np.ndarray, where: list[str], unit: str):

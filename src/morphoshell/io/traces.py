@@ -23,7 +23,10 @@ Formats
 ``csv``      header ``r,z`` (or ``r,z,spread``; in any order, read by name),
              units of R, model gauge,
              posterior pole first; lines starting with ``#`` are comments.
-             :meth:`Midline.to_csv` writes it.
+             :meth:`Midline.to_csv` writes it, with a ``# n_traces``
+             comment that marks its rows as a midline's, equally spaced in
+             arclength (:attr:`Trace.written`: read back as they are, not
+             resampled, :func:`morphoshell.io.midlines.load_midline`).
 ``xy``       image pixels x, y, y pointing down: a header ``x,y`` (any case
              and order;
              after a row-number column, as Fiji's Results table and pandas
@@ -111,6 +114,12 @@ class Trace:
         The ``# n_traces`` comment of a csv (1 without one): traces averaged.
     scale : float
         Image formats: units of R per pixel (for messages in pixels); nan for csv.
+    written : bool
+        A csv with a ``# n_traces`` comment, which :meth:`Midline.to_csv`
+        writes in every midline, and no row repeated: the rows of a
+        :class:`Midline`, equally spaced in arclength, row i at the fraction
+        i/(rows − 1) (:func:`morphoshell.io.midlines.load_midline` reads them
+        so).  False for any other trace.
     """
 
     points: np.ndarray
@@ -120,6 +129,7 @@ class Trace:
     spread: np.ndarray | None = None
     n_traces: int = 1
     scale: float = math.nan
+    written: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -182,10 +192,10 @@ class Midline:
         """Write the ``csv`` format, with n_traces, sources and ``comments`` (``key = value``
         lines that :meth:`from_csv` skips: how the midline was made) as ``#`` comments."""
         columns = [self.r, self.z] + ([self.spread] if self.spread is not None else [])
-        lines = [f"# n_traces = {self.n_traces}", *(f"# source = {s}" for s in self.source),
-                 *(f"# {c}" for c in comments), ",".join(("r", "z", "spread")[:len(columns)])]
-        lines += [",".join(f"{v:.17g}" for v in row) for row in zip(*columns)]
-        Path(path).write_text("\n".join(lines) + "\n", encoding="utf-8")
+        # (the n_traces comment marks the rows as a midline's, equally spaced in arclength:
+        # Trace.written)
+        _write_csv(path, [f"n_traces = {self.n_traces}", *(f"source = {s}" for s in self.source),
+                          *comments], ("r", "z", "spread")[:len(columns)], columns)
 
     @classmethod
     def from_csv(cls, path: str | Path) -> "Midline":
@@ -196,28 +206,35 @@ class Midline:
             raise MidlineError(f"{path}: {len(values)} points; a midline needs at least 4")
         check_extent(str(path), values[:, :2], where, _IN_PIXELS)
         check_axis(str(path), values[:, :2], where, _SWAPPED)
-        spread, n_traces, sources = _csv_average(path, header, values, where, comments)
+        spread, n_traces, sources, _ = _csv_average(path, header, values, where, comments)
         return cls(values[:, 0], values[:, 1], spread, n_traces, sources or (str(path),))
 
 
+def _write_csv(path, comments: Sequence[str], names: Sequence[str], columns) -> None:
+    """``comments`` as ``#`` lines, a header of ``names`` and the ``columns`` in 17 digits."""
+    lines = [*(f"# {c}" for c in comments), ",".join(names)]
+    lines += [",".join(f"{v:.17g}" for v in row) for row in zip(*columns)]
+    Path(path).write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+
 def _csv_average(path: Path, header, values: np.ndarray, where,
-                 comments) -> tuple[np.ndarray | None, int, tuple[str, ...]]:
+                 comments) -> tuple[np.ndarray | None, int, tuple[str, ...], bool]:
     """What a csv midline holds beside its points: the spread column (None without one), the
-    ``# n_traces`` comment (1 without one) and the ``# source`` comments, as
-    :meth:`Midline.to_csv` writes them (MidlineError: an n_traces that is not an integer, or
-    that or a spread an average cannot have, :func:`check_average`; ``where`` names the
-    rows)."""
+    ``# n_traces`` comment (1 without one), the ``# source`` comments, as
+    :meth:`Midline.to_csv` writes them, and whether it has an n_traces comment (MidlineError:
+    an n_traces that is not an integer, or that or a spread an average cannot have,
+    :func:`check_average`; ``where`` names the rows)."""
     meta = [tuple(part.strip() for part in c.partition("=")[::2]) for c in comments]
     sources = tuple(value for key, value in meta if key == "source")
-    counts = [value for key, value in meta if key == "n_traces"] or ["1"]
+    counts = [value for key, value in meta if key == "n_traces"]
     try:
-        n_traces = int(counts[-1])
+        n_traces = int((counts or ["1"])[-1])
     except ValueError:
         raise MidlineError(f"{path}: comment 'n_traces = {counts[-1]}' is not an "
                            f"integer") from None
     spread = values[:, 2] if len(header) == 3 else None
     check_average(str(path), n_traces, sources, spread, where)
-    return spread, n_traces, sources
+    return spread, n_traces, sources, bool(counts)
 
 
 # --------------------------------------------------------------------------- reading
@@ -262,10 +279,12 @@ def read_trace(path: str | Path, format: str | None = None, *, pixel_size_um: fl
         check_extent(str(path), values[:, :2], where, _IN_PIXELS)
         # (an average's spread and n_traces are read here, so that every loader keeps them:
         # a loader that dropped them took a fit's noise from its residual, silently)
-        spread, n_traces, _ = _csv_average(path, header, values, where, comments)
+        spread, n_traces, _, written = _csv_average(path, header, values, where, comments)
         points, where = one_curve(path, values[:, :2], where, "R")
         check_axis(str(path), points, where, _SWAPPED)
-        return Trace(points, str(path), fmt, tuple(where), spread, n_traces)
+        # (a repeated row, dropped, would shift the fractions of arclength of the rows after it)
+        return Trace(points, str(path), fmt, tuple(where), spread, n_traces,
+                     written=written and len(points) == len(values))
     scale = image_scale(path, fmt, pixel_size_um, radius_um)
     spline = False
     if fmt == "roi":
@@ -438,7 +457,10 @@ def write_trace(path: str | Path, midline, format: str, *, pixel_size_um: float 
     midline : array_like, shape (n, 2), or Midline
         (r, z) in units of R, pole first.
     format : str
-        One of :data:`FORMATS`.  csv writes the points as they are.
+        One of :data:`FORMATS`.  csv writes the points as they are: a
+        :class:`Midline` by :meth:`Midline.to_csv` (read back as a midline's
+        rows, :attr:`Trace.written`), an array as a trace (header ``r,z``
+        only, resampled when read).
     pixel_size_um, radius_um : float
         Scale of the image formats (R = radius_um/pixel_size_um pixels).
     angle_deg, offset_px, section
@@ -459,7 +481,11 @@ def write_trace(path: str | Path, midline, format: str, *, pixel_size_um: float 
         if section not in (None, "half"):
             raise MidlineError(f"{path}: csv holds half midlines in the model gauge: section "
                                f"{section!r} does not apply")
-        (midline if isinstance(midline, Midline) else Midline(*points.T)).to_csv(path)
+        if isinstance(midline, Midline):
+            midline.to_csv(path)
+        else:       # a trace, not a midline's rows: no n_traces comment (Trace.written)
+            trace = Midline(*points.T)      # (its checks of the shape)
+            _write_csv(path, (), ("r", "z"), (trace.r, trace.z))
         return
     scale = image_scale(path, fmt, pixel_size_um, radius_um)
     pixels = to_image(points, radius_px=1.0 / scale, angle_deg=angle_deg, offset_px=offset_px,
