@@ -487,6 +487,79 @@ def test_an_average_is_not_averaged_again(tmp_path):
         ml.average(ml.load_midlines(path) + ml.load_midlines(path))
 
 
+# ------------------------------------------------------------------ midlines read back as written
+
+#: A midline read back at its own number of points is the one written: to_csv writes 17
+#: digits, which read back to the bit; 1e-12 R leaves room for round-off only (resampled along
+#: the spline through its rows, the embryo below moved by 9.1e-4 R, the average by 2.6e-4 R).
+AS_WRITTEN = 1e-12
+
+
+def _embryo(n=100):
+    """The single-trace midline of the shipped t02 embryo 1 (½ px of noise), as the reader
+    makes it: its rows equally spaced along the spline through the binned trace."""
+    return ml.load_midline(EMBRYO, "xy", section="whole", n=n, **EMBRYO_SCALE)
+
+
+def test_a_written_midline_reads_back_as_written(tmp_path):
+    """(audit: written and read back with the same n, single-trace midlines moved by up to
+    2.2e-3 R along the curve, resampled along the spline through their own rows, which cuts the
+    noise's wiggles between them; each reading moved them again, 100 times less.)"""
+    written = _embryo()
+    assert tr.read_trace(EMBRYO, **EMBRYO_SCALE).written is False
+    path = tmp_path / "once.csv"
+    for _ in range(2):
+        written.to_csv(path)
+        assert tr.read_trace(path).written is True
+        read = ml.load_midline(path, n=100)
+        assert np.abs(read.points - written.points).max() <= AS_WRITTEN
+        assert read.spread is None and read.n_traces == 1
+
+
+def test_a_written_average_reads_back_as_written(tmp_path):
+    """An average (rows resampled along the mean's own spline, average) with its spread and
+    n_traces, written as morphoshell average --csv does, twice."""
+    rng = np.random.default_rng(3)
+    written = ml.average([Midline(*(TRUTH + rng.normal(0, 0.005, TRUTH.shape)).T,
+                                  source=(f"embryo {i}.roi",)) for i in range(4)])
+    path = tmp_path / "average.csv"
+    for _ in range(2):
+        written.to_csv(path, ["made = by a test"])
+        read = ml.load_midline(path, n=100)
+        assert np.abs(read.points - written.points).max() <= AS_WRITTEN
+        assert np.array_equal(read.spread, written.spread) and read.n_traces == 4
+        written = read
+
+
+def test_a_written_midline_at_another_n_is_read_at_its_rows_fractions(tmp_path):
+    """At n = 60 the rows are read at the fractions j/59 of the arclength along which they were
+    written: 6.6e-5 R from the trace's own midline at 60 points (3.5e-5 R along the curve, the
+    rest the noise between rows, across it); resampled along the spline through the rows they
+    lay 9.0e-4 R from it, along the curve: atol 2e-4 R.  The pole and the rim stay the written
+    ones (nothing re-aligned; the spline passes through its end rows to round-off)."""
+    written = _embryo()
+    written.to_csv(tmp_path / "midline.csv")
+    read = ml.load_midline(tmp_path / "midline.csv", n=60)
+    assert np.abs(read.points - _embryo(60).points).max() < 2e-4
+    assert np.abs(read.points[[0, -1]] - written.points[[0, -1]]).max() <= AS_WRITTEN
+
+
+def test_a_trace_is_aligned_and_resampled_as_before(tmp_path):
+    """What is not a midline the package wrote goes through align and resample: an image trace
+    (rotated, offset), and a csv of r,z without the n_traces comment (write_trace of an array:
+    801 points equally spaced in the shape's parameter, not in arclength)."""
+    image = write(tmp_path, "xy", angle_deg=37.0, offset_px=(612.5, 433.25))
+    trace = tr.read_trace(image, **SCALE)
+    assert not trace.written
+    assert np.array_equal(ml.load_midline(image, **SCALE, n=70).points,
+                          ml.resample(ml.align(trace).points, 70))
+    table = write(tmp_path, "csv")
+    trace = tr.read_trace(table)
+    assert not trace.written and "n_traces" not in table.read_text()
+    assert np.array_equal(ml.load_midline(table).points, ml.resample(trace.points, 100))
+    assert np.abs(ml.load_midline(table).points - TRUTH).max() < 1e-6   # (test_round_trip)
+
+
 # ------------------------------------------------------------------ what passes but misleads
 
 def _bowl_lines(tmp_path, noise_px=0.5, n=1500):

@@ -98,6 +98,20 @@ def test_midline_csv_round_trip(tmp_path):
         Midline.from_csv(tmp_path / "empty.csv")
 
 
+def test_a_midline_csv_is_marked_as_a_midlines_rows(tmp_path):
+    """Trace.written: the n_traces comment of Midline.to_csv marks rows equally spaced in
+    arclength; an r,z table without it, or a midline with a row repeated (dropped, it would
+    shift the fractions of arclength of the rows after it), is a trace."""
+    Midline(*TRUTH.T).to_csv(tmp_path / "midline.csv")
+    assert tr.read_trace(tmp_path / "midline.csv").written
+    text = (tmp_path / "midline.csv").read_text().splitlines()
+    (tmp_path / "table.csv").write_text("\n".join(text[1:]) + "\n")
+    assert not tr.read_trace(tmp_path / "table.csv").written
+    (tmp_path / "repeated.csv").write_text("\n".join(text[:5] + text[4:]) + "\n")
+    repeated = tr.read_trace(tmp_path / "repeated.csv")
+    assert len(repeated.points) == len(TRUTH) and not repeated.written
+
+
 def _average_csv(tmp_path, n_traces="3", spread=None, sources=3):
     """A csv average of 3 noisy copies of the reference midline as Midline.to_csv writes it,
     its n_traces comment and one spread (its third point's, line 8 of the file) edited."""
