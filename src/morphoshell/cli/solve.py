@@ -4,7 +4,8 @@ from __future__ import annotations
 import argparse
 
 from ..io.problem_files import METHODS
-from ._args import add_outputs, family_keys, integer, linear_solver, problem_and_settings, real
+from ._args import (add_outputs, family_keys, integer, linear_solver, note,
+                    problem_and_settings, real)
 from ._commands import help_of
 from ._outputs import Outputs
 
@@ -81,11 +82,18 @@ def register(sub) -> None:
                                    "energy scale), made "
                                    "from the half and quarter meshes of solve's own "
                                    "estimate; one above 0.1 relative is a warning, and "
-                                   "--rtol refines until the observables meet it too.")
+                                   "--rtol refines until the observables meet it too. "
+                                   "Of a fit's JSON (morphoshell fit --json), the recoil "
+                                   "observables also get the fit's uncertainty, +- (fit): its "
+                                   "standard errors and correlations carried linearly through "
+                                   "the ablation (lower bounds, as they are), or a note says "
+                                   "why not.")
     _common(p)
     add_outputs(p, json="write both equilibria, the observables and their estimated errors "
-                         "(errors, relative_errors) as JSON",
-                csv="write the observables and their errors (<name>_error) as a one-row CSV",
+                         "(errors, relative_errors) as JSON; of a fit's JSON also the fit's "
+                         "errors (se_<name>) and what they are (fit_error_note)",
+                csv="write the observables and their errors (<name>_error; of a fit's JSON "
+                    "also the fit's, se_<name>) as a one-row CSV",
                 plot="write the pre/post cross-section plot")
     p.set_defaults(run=_ablate)
 
@@ -164,18 +172,24 @@ def _solve(args) -> int:
     return 0
 
 
-def _ablation_lines(ab) -> list[str]:
+def _ablation_lines(ab, fit=None) -> list[str]:
     """The observables of ``ab``, one a line, the energies with both states' and the sign
     convention of energy_released spelled out (a negative "released" energy beside a positive
-    removed one, with neither state's energy, read as a bug)."""
+    removed one, with neither state's energy, read as a bug); with ``fit``, a
+    :class:`~morphoshell.workflows.fitted_shapes.FitUncertainty` with errors, each recoil
+    observable's error from the fit beside its numerical one, and what they are."""
     from ..mechanics.ablation import UNITS
 
     errors, rel = ab.errors or {}, ab.relative_errors()
+    carried = fit.errors if fit is not None else {}
 
     def line(key, value, unit, note=""):
         # (the estimate beside the value where there is one: a state's energy has its own)
-        err = (f" +- {errors[key]:.2g} {unit} ({rel[key]:.2g} relative)"
+        err = (f" +- {errors[key]:.2g} {unit} (numerical, {rel[key]:.2g} relative)"
                if key in errors and not ab.error_note else "")
+        # (audit 25: the numerical +- alone, 1.8e-6 rad, read as the fitted recoil's
+        # uncertainty, 0.019 rad from the fit's parameters)
+        err += f" +- {carried[key]:.2g} {unit} (fit)" if key in carried else ""
         return f"  {key:20s} = {value:.10g} {unit}{err}" + (f"   ({note})" if note else "")
 
     recoil = {k: v for k, v in ab.observables().items() if not k.startswith("energy")}
@@ -190,13 +204,35 @@ def _ablation_lines(ab) -> list[str]:
             f"d, the opening to 2d, the others to themselves or, near 0, to their scale):"
             if errors and not ab.error_note else
             f"  observables (error estimates unavailable: {ab.error_note or 'none made'}):")
-    return [head, *(line(k, v, UNITS[k]) for k, v in recoil.items()),
+    return [head, *_fit_lines(fit), *(line(k, v, UNITS[k]) for k, v in recoil.items()),
             line("energy_pre", ab.pre.energy, "C R^2", "the intact shell, before the cut"),
             line("energy_removed", ab.energy_removed, "C R^2",
                  "of energy_pre, the cap s < Sigma that the cut removes"),
             line("energy_post", ab.post.energy, "C R^2", "the shell after the cut"),
             line("energy_released", delta, "C R^2",
                  f"energy_post - (energy_pre - energy_removed), {sign}")]
+
+
+def _fit_lines(fit) -> list[str]:
+    """What the errors ``(fit)`` are, and the profiled parameters whose intervals they miss."""
+    return [f"  +- (fit): {text}" for text in _fit_texts(fit)]
+
+
+def _fit_texts(fit) -> list[str]:
+    """:attr:`~morphoshell.workflows.fitted_shapes.FitUncertainty.note`, and where the fit's
+    profile intervals are far wider than its standard errors' ± (the free fits of averages in
+    audit 25 and of the shipped t02: kappa1's 13 and 4.9 times, the profiles' sigma^2 from the
+    traces' spread), that they are."""
+    if fit is None or not fit.errors:
+        return []
+    texts = [fit.note]
+    if fit.wider:
+        ratios = sorted(fit.wider.values())
+        times = f"{ratios[0]:.2g}" if len(ratios) == 1 else f"{ratios[0]:.2g} to {ratios[-1]:.2g}"
+        texts.append(f"these miss the profile intervals of {', '.join(fit.wider)}, {times} "
+                     f"times as wide as the +- of the standard errors carried, at the "
+                     f"profiles' confidence: the recoil is less determined than they say")
+    return texts
 
 
 def _fit_of(path) -> tuple[dict | None, dict]:
@@ -232,6 +268,22 @@ def _check_fitted(eq, record: dict, path) -> None:
         off_the_fit(eq, record, str(path))
 
 
+def _ablation_json(ab, source, fit) -> dict:
+    """``ablate --json``: the ablation, and of a fit's shell its ``source`` (a reader of the
+    JSON alone could not tell a fit that stopped short), its errors from the fit beside the
+    numerical ones (``se_<observable>``, their units in ``units``) and ``fit_error_note``,
+    what they are or why there are none."""
+    from ..mechanics.ablation import UNITS
+
+    data = ab.to_dict()
+    if source is None:
+        return data
+    columns = fit.columns()
+    data["units"].update({k: UNITS[k.removeprefix("se_")] for k in columns})
+    note = "; ".join(_fit_texts(fit)) or fit.note
+    return {**data, "source": source, **columns, "fit_error_note": note}
+
+
 def _ablate(args) -> int:
     from ..mechanics.ablation import ablate
     from ..io.problem_files import write_csv, write_json
@@ -253,17 +305,22 @@ def _ablate(args) -> int:
     for label, eq in (("pre-ablation", ab.pre), ("post-ablation", ab.post)):
         print(f"  {label}:")
         _report_quality(eq)
-    print("\n".join(_ablation_lines(ab)))
+    fit = None
+    if source is not None:          # (a fit's shell: its errors carried, or why not)
+        from ..workflows.fitted_shapes import fit_uncertainty
+        fit = fit_uncertainty(record, ab)
+    print("\n".join(_ablation_lines(ab, fit)))
+    if fit is not None and not fit.errors:
+        note(f"{args.problem}: {fit.note}")
+    columns = fit.columns() if fit is not None else {}
     out = Outputs()
-    # (the shape's source: a reader of the JSON alone could not tell a fit that stopped short)
-    out.add(args.json, lambda path: write_json(
-        path, {**ab.to_dict(), **({"source": source} if source is not None else {})}))
+    out.add(args.json, lambda path: write_json(path, _ablation_json(ab, source, fit)))
     out.add(args.csv, lambda path: write_csv(path, {**problem.describe()["params"],
                                                     "h": problem.h, "cut": problem.cut,
                                                     # "opening" is the observable o below
                                                     "opening_P": problem.opening,
                                                     **ab.observables(),
-                                                    **ab.error_columns()}))
+                                                    **ab.error_columns(), **columns}))
     if args.plot:
         from ..plotting import new_axes, plot_ablation, save
         ax = plot_ablation(ab, new_axes(legend=True, pyplot=False))

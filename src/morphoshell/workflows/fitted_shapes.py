@@ -40,7 +40,7 @@ from ..solvers.results import Equilibrium, SolverError
 from ..solvers.routes import direct_solver, solve
 
 __all__ = ["NumericalAblation", "numerical_ablation", "ablation_errors", "fitted_problem",
-           "off_the_fit", "OFF_THE_FIT",
+           "off_the_fit", "OFF_THE_FIT", "FitUncertainty", "fit_uncertainty", "PROFILE_WIDER",
            "fitted_state", "CUT"]
 
 log = logging.getLogger(__name__)
@@ -378,8 +378,10 @@ def _rejected(eq: Equilibrium) -> int:
 def ablation_errors(record: dict, ablation: Ablation) -> dict[str, float]:
     """Standard errors of the recoil observables of a fitted shape's ablation.
 
-    The fit's Gauss–Newton covariance C of the fitted parameters θ (a lower
-    bound: the residuals of a traced midline are correlated) propagated
+    The fit's covariance C of the fitted parameters θ (its standard errors and
+    correlations: Gauss–Newton, or for a fit of one image trace those of its
+    re-tracings; lower bounds either way, the first as the residuals of a traced
+    midline are correlated, the second as they hold the pixel noise only) propagated
     linearly, σ_y² = (J C Jᵀ)_yy, with J = dy/dθ the exact derivatives of the
     observables (:func:`~morphoshell.mechanics.ablation.recoil_jacobian`, through both
     equilibria) and the ``unstressed`` tie κ₁ = 1/f₁ (dκ₁/df₁ = −1/f₁²).
@@ -391,17 +393,27 @@ def ablation_errors(record: dict, ablation: Ablation) -> dict[str, float]:
     Parameters
     ----------
     record : dict
-        A successful campaign record (``fitted``, ``standard_errors``,
-        ``correlation``, ``parameters``, ``variant``).
+        A successful fit's record, of a campaign or of ``morphoshell fit --json``
+        (``fitted``, ``standard_errors``, ``correlation``, ``parameters``, ``variant``).
     ablation : Ablation
-        Its numerical ablation (direct method, e.g. :func:`numerical_ablation`).
+        The numerical ablation of its fitted shell (direct method, e.g.
+        :func:`numerical_ablation` of :func:`fitted_problem`, or
+        :func:`~morphoshell.mechanics.ablation.ablate`).
 
     Returns
     -------
     dict
         Observable name (:data:`morphoshell.solvers.observables.RECOIL`) → standard
         error (units of :data:`morphoshell.mechanics.ablation.UNITS`).
+
+    Raises
+    ------
+    ValueError
+        The record lacks an entry above or has no standard error at all; the ablated
+        shell is not the record's (a parameter, h or the opening changed: the fit's
+        covariance is that of its own shell); an ablation not solved by the direct method.
     """
+    _check_error_inputs(record, ablation)
     names = list(record["fitted"])
     se = np.array([record["standard_errors"][n] for n in names], dtype=float)
     se = np.nan_to_num(se)                  # (None/NaN: pinned, held on its constraint)
@@ -416,3 +428,120 @@ def ablation_errors(record: dict, ablation: Ablation) -> dict[str, float]:
         J = J[:, :-1] + np.outer(J[:, -1], [(-1 / f1 ** 2) if n == "f1" else 0.0 for n in names])
     var = np.einsum("ij,jk,ik->i", J, cov, J)
     return {k: float(np.sqrt(max(v, 0.0))) for k, v in zip(RECOIL, var)}
+
+
+#: Entries of a fit's record that :func:`ablation_errors` needs.
+_ERROR_ENTRIES = ("fitted", "standard_errors", "correlation", "parameters", "variant")
+
+
+def _check_error_inputs(record: dict, ablation: Ablation) -> None:
+    """:func:`ablation_errors`' record and ablation, refused in one line where they cannot give
+    the fit's errors (a problem's JSON or an old record lacked them: KeyError 'standard_errors';
+    an ablation of another shell gave errors of the wrong one)."""
+    missing = [k for k in _ERROR_ENTRIES if record.get(k) is None]
+    if missing:
+        raise ValueError(f"the record has no {', '.join(missing)}: the fit's errors need its "
+                         f"standard errors and correlations (a record of `morphoshell fit "
+                         f"--json` or of a campaign)")
+    se = [record["standard_errors"].get(n) for n in record["fitted"]]
+    if not any(v is not None and np.isfinite(v) for v in se):
+        raise ValueError("the record has no standard error of a fitted parameter (all on "
+                         "constraints, or none given)")
+    p = ablation.problem
+    values = {"h": p.h, "opening": p.opening, **p.params}
+    for name, fitted in record["parameters"].items():
+        # (the cut is the ablation's own; the record's floats are those of its shell, bit
+        # for bit, so a relative 1e-12 only forgives a rewritten number's round-off)
+        if name in values and not np.isclose(values[name], fitted, rtol=1e-12, atol=0):
+            raise ValueError(f"the ablated shell is not the fitted one ({name} = "
+                             f"{values[name]:.6g}, fitted {fitted:.6g}): the fit's errors are "
+                             f"those of its own shell")
+
+
+#: A profiled parameter whose interval is more than this many times as wide as its standard
+#: error's (± z SE at the profile's confidence) is named beside the fit's errors of an
+#: ablation: they are linear in those standard errors and miss that spread (audit 25: a free
+#: fit's κ₁ interval [−0.95, 2.03] against ±0.11, 13 times as wide).  Up to 2 is the slack of
+#: lower bounds (one trace's re-tracing errors were 1.3–1.8 times the Gauss–Newton ones).
+PROFILE_WIDER = 2.0
+
+#: What :func:`fit_uncertainty`'s errors are.  Not the record's own ``note``: a fit of one
+#: image trace records "Gauss-Newton lower bounds" beside the errors of its re-tracings.
+_CARRIED = ("the fit's standard errors and correlations carried linearly into the recoil "
+            "(sigma^2 = J C J^T, J the exact derivatives through both equilibria, the "
+            "parameters on a constraint held there; none for the energies): lower bounds, as "
+            "the fit's errors of a traced midline are")
+
+
+@dataclass(frozen=True, eq=False)
+class FitUncertainty:
+    """A fit's uncertainty carried into its shell's ablation (:func:`fit_uncertainty`).
+
+    Attributes
+    ----------
+    errors : dict
+        Recoil observable → standard error (:func:`ablation_errors`; units
+        :data:`~morphoshell.mechanics.ablation.UNITS`), {} where none could be carried.
+    note : str
+        What they are (linearised, from the record's standard errors and correlations: lower
+        bounds, as these are), or why there are none.
+    wider : dict
+        Profiled parameter (the record's ``profile_intervals``) → its interval's width over
+        that of ± z SE at the profile's confidence (inf where the interval is open), for those
+        wider than :data:`PROFILE_WIDER`: where the recoil depends on them it is less
+        determined than ``errors`` say.
+    """
+
+    errors: dict[str, float]
+    note: str
+    wider: dict[str, float]
+
+    def columns(self) -> dict[str, float]:
+        """``se_<observable>`` → :attr:`errors`: the names of ``ablate --csv``/``--json`` and of
+        ``scripts/fig3_fits.py``'s ``fig3_ablations.json`` (as ``se_<parameter>`` of a
+        campaign's summary); {} without errors."""
+        return {f"se_{k}": float(v) for k, v in self.errors.items()}
+
+
+def fit_uncertainty(record: dict, ablation: Ablation) -> FitUncertainty:
+    """The fit's uncertainty in the observables of its shell's ablation, with what it is.
+
+    :func:`ablation_errors`, or where it cannot give them (a record without standard errors,
+    another shell than the fitted one, not the direct method, a singular derivative) no
+    errors and a note saying why; never raises for those: the ablation stands without them.
+    ``morphoshell ablate FIT.json`` prints and writes it.
+
+    Parameters
+    ----------
+    record : dict
+        A fit's record (``morphoshell fit --json``, a campaign's).
+    ablation : Ablation
+        The ablation of its fitted shell.
+
+    Returns
+    -------
+    FitUncertainty
+    """
+    try:
+        errors = ablation_errors(record, ablation)
+    except (ValueError, RuntimeError) as exc:   # (RuntimeError: SuperLU's singular KKT matrix)
+        return FitUncertainty({}, f"no errors of the fit carried into the observables: {exc}", {})
+    return FitUncertainty(errors, _CARRIED, _wider(record))
+
+
+def _wider(record: dict) -> dict[str, float]:
+    """:attr:`FitUncertainty.wider` of a record."""
+    from scipy.stats import norm
+
+    out = {}
+    for name, interval in (record.get("profile_intervals") or {}).items():
+        se = record["standard_errors"].get(name)
+        if se is None or not np.isfinite(se) or se <= 0:
+            continue
+        confidence = (record.get("profiles") or {}).get(name, {}).get("confidence", 0.95)
+        lo, hi = interval
+        width = np.inf if lo is None or hi is None else hi - lo
+        ratio = float(width / (2 * norm.ppf(0.5 + confidence / 2) * se))
+        if ratio > PROFILE_WIDER:
+            out[name] = ratio
+    return out
