@@ -39,8 +39,10 @@ __all__ = ["DirectSolver", "default_mesh", "solver_of", "check_nodes", "MAX_NODE
 
 log = logging.getLogger(__name__)
 
-#: Most mesh nodes a direct solver accepts: 102 400 nodes at order 4 take a
-#: couple of GB and about a minute to build and solve on one core.
+#: Most mesh nodes a direct solver accepts.  ``solve()``'s peak memory and time grow about
+#: linearly with the nodes, so this many fit in memory for the toy problems and the Volvox
+#: shells alike; a Volvox shell's continuation takes minutes (docs/benchmarks.md,
+#: "solvers/direct.py").
 MAX_NODES = 102400
 
 #: Largest tolerance of Ipopt's iterative refinement (``residual_ratio_max``;
