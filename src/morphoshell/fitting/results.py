@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 import numpy as np
 
 from .._runtime.tables import problem_attrs, xarray_module
-from .._runtime.validate import flag, integer, lookup, real, short, text, within
+from .._runtime.validate import choice, flag, integer, real, short, text, within
 from ..io.problem_files import problem_of_record, read_json
 from ..numerics.status import (FIT_CONVERGED, FIT_CONVERGED_STOPS, FIT_NEAR_FOLD,
                                IPOPT_UNKNOWN, STATUSES)
@@ -427,8 +427,8 @@ def _record_fields(record: Mapping[str, Any], where: str) -> dict[str, Any]:
     parameters = get("parameters", _numbers)
     fitted = get("fitted", _names, parameters)
     converged = get("converged", flag)
-    return {"method": get("fitted_by" if "fitted_by" in record else "method", _one_of, METHODS),
-            "variant": get("variant", _one_of, LABELS), "fitted": fitted,
+    return {"method": get("fitted_by" if "fitted_by" in record else "method", choice, METHODS),
+            "variant": get("variant", choice, LABELS), "fitted": fitted,
             "parameters": parameters, "standard_errors": get("standard_errors", _errors, fitted),
             "correlation": get("correlation", _matrix, len(fitted)),
             "poorly_identified": get("poorly_identified", _directions, fitted),
@@ -470,13 +470,6 @@ def _names(key: str, value: Any, known: Mapping | None) -> tuple[str, ...]:
         of = "strings" if known is None else "names of 'parameters', at least one"
         raise ValueError(f"{key} = {short(value)} must be a list of distinct {of}")
     return tuple(value)
-
-
-def _one_of(key: str, value: Any, choices: Sequence[str]) -> str:
-    """``value``, one of ``choices`` (:func:`~morphoshell._runtime.validate.lookup`'s
-    message)."""
-    lookup(dict.fromkeys(choices), value, key)
-    return value
 
 
 def _status(key: str, value: Any, converged: bool | None = None) -> str:
