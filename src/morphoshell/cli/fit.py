@@ -6,7 +6,7 @@ from pathlib import Path
 from ._args import (FORMAT_HELP, OUTLIER_POINTS_HELP, SECTION_HELP, TRACE_OPTIONS, add_outputs,
                     integer, micrometres, note, reader_notes, reworded)
 from ._commands import help_of
-from ._outputs import Outputs
+from ._outputs import Outputs, kept_in
 from ._profiles import (add_profile_options, profile_data, profile_json, profile_names,
                         profile_plot_path, profile_table, refit_lines, run_profiles)
 
@@ -326,9 +326,8 @@ def _cut_short(out, not_done: str, done: list[str], args) -> int:
 
     paths = out.commit()
     what = f"the fit and the profiles of {', '.join(done)}" if done else "the fit"
-    where = (f"; {what} kept in {' and '.join(map(str, paths))}"
-             f"{', the JSON marked partial' if args.json else ''}" if paths else
-             "; not kept: no --json or --csv")
+    where = kept_in(paths, what, ", the JSON marked partial" if args.json else "",
+                    "; not kept: no --json or --csv")
     unplotted = "; no plot drawn" if args.plot or profile_plot_path(args) else ""
     print(f"morphoshell: {interrupts.reason()} during the profiles ({not_done}){where}"
           f"{unplotted}", file=sys.stderr)
