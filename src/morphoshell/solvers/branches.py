@@ -416,9 +416,10 @@ def _checked(branch: Branch, max_step: float, t0: float) -> Branch:
     third of the walk: docs/benchmarks.md, "solvers/branches.py").  The start too: the plot
     draws it, and a file's own state (the fold shell at κ₂ = −8) was drawn crossed without a
     word (audit 14)."""
+    coarse: dict = {}       # (the half-mesh solvers, built once for both)
     branch = replace(branch, points=tuple(event_errors(list(branch.points), branch.line,
-                                                       max_step)))
-    branch = replace(branch, end_error=end_error(branch.end, branch.line))
+                                                       max_step, coarse)))
+    branch = replace(branch, end_error=end_error(branch.end, branch.line, coarse))
     shown = [branch.points[0]] + [pt for pt in branch.points if pt.event] + [branch.end]
     crossed = sorted({pt.tau for pt in shown if wall_contact(pt.equilibrium) is not None})
     if crossed:
