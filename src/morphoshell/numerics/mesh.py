@@ -755,9 +755,11 @@ def step_cells(problem, nodes: int, stages: int, anchors: tuple[float, ...] = ()
         t = spec.nodes_t()
     except MeshTooCoarse:
         return None
-    places = {"anchor": list(anchors), "breakpoint": [s for s, _ in breakpoints(problem)]}
-    s = shell_points(t, problem.cut, problem.end, tuple(k.t for k in spec.knots),
-                     [places[k.source][k.index] for k in spec.knots])
+    from .parameter_data import knot_positions     # (it imports this module)
+
+    s = shell_points(t, problem.cut, problem.end, tuple(k.t for k in spec.knots), knot_positions(
+        problem.structure, tuple((k.source, k.index) for k in spec.knots),
+        problem.parameter_vector(), list(anchors)))
     cells, worst = np.diff(s), (0.0, 0.0)
     for at, width in steps:
         near = (s[1:] > at - STEP_SPAN * width) & (s[:-1] < at + STEP_SPAN * width)
