@@ -38,7 +38,8 @@ def output_path(kind: str) -> Callable[[str], Path]:
             what = "is a file" if parent.exists() else "does not exist"
             raise argparse.ArgumentTypeError(f"{text!r}: the folder {str(parent)!r} {what}")
         if not os.access(parent, os.W_OK | os.X_OK):
-            raise argparse.ArgumentTypeError(f"{text!r}: the folder {str(parent)!r} is not writable")
+            raise argparse.ArgumentTypeError(
+                f"{text!r}: the folder {str(parent)!r} is not writable")
         if path.exists() and not os.access(path, os.W_OK):
             raise argparse.ArgumentTypeError(f"{text!r} exists and is not writable")
         return path

@@ -36,10 +36,10 @@ SIDE_ENDS = ("grid", "bound", "failed")
 #: How far (relative) a record's threshold and interval may lie from those recomputed from
 #: its objective, S_min, σ² and confidence (:func:`_check_derived`).  They are the same
 #: formulas on the same numbers (JSON gives floats back to the bit): an unedited record's
-#: agree exactly (47 profiles of recent fits' JSON, and audit 23's).  The slack is for another SciPy's χ²/F quantile
-#: (accurate to ~1e-14 relative), which the interval's interpolation in √(S − S_min)
-#: amplifies by threshold/(threshold − S_min) (~20 for a 95 % profile of a fit to traces):
-#: 1e-9 leaves five orders of magnitude and still refuses any edit a reader would notice.
+#: agree exactly (47 profiles of recent fits' JSON, and audit 23's).  The slack is for another
+#: SciPy's χ²/F quantile (accurate to ~1e-14 relative), which the interval's interpolation in
+#: √(S − S_min) amplifies by threshold/(threshold − S_min) (~20 for a 95 % profile of a fit to
+#: traces): 1e-9 leaves five orders of magnitude and still refuses any edit a reader would notice.
 DERIVED_RTOL = 1e-9
 
 

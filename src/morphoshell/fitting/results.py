@@ -226,7 +226,8 @@ class FitResult:
         return (f"FitResult({self.method}, {self.variant}, E_fit={self.E_fit:.6g} R, "
                 f"{len(self.fitted)} parameters, {self.outer_iterations} iterations, "
                 f"{self.inner_solves} inner solves, "
-                f"{f'{self.seconds:.2f} s' if math.isfinite(self.seconds) else 'time not recorded'}, "
+                f"{f'{self.seconds:.2f} s' if math.isfinite(self.seconds) else 'time not recorded'}"
+                f", "
                 f"converged={self.converged})")
 
     def summary(self) -> str:
@@ -330,8 +331,8 @@ class FitResult:
             of R).  Attributes: the problem (flat, as :meth:`Equilibrium.to_xarray`),
             ``E_fit`` (R), ``method``, ``variant``, ``converged``, ``stop``,
             ``walls_cross`` (0 or 1; absent where not checked), ``message``,
-            ``constrained`` (``; ``-separated), ``outer_iterations``, ``inner_solves``, ``seconds``: strings and numbers
-            only, so that the Dataset can be written to netCDF.
+            ``constrained`` (``; ``-separated), ``outer_iterations``, ``inner_solves``, ``seconds``:
+            strings and numbers only, so that the Dataset can be written to netCDF.
         """
         xr = xarray_module()
         table = self.table()
@@ -555,7 +556,8 @@ def _combination(direction: dict, k: int) -> str:
     """A direction {name: component} written as a sum, ``0.864 kappa3 - 0.471 kappa4 ...``
     (``+ ...`` where it lists fewer than all ``k`` fitted parameters)."""
     written = " ".join(f"{'-' if v < 0 else '+'} {abs(v):g} {n}" for n, v in direction.items())
-    written = written[2:] if written.startswith("+ ") else "-" + written[2:]  # (no sign before the first)
+    # (no sign before the first)
+    written = written[2:] if written.startswith("+ ") else "-" + written[2:]
     return written + (" + ..." if len(direction) < k else "")
 
 
@@ -611,7 +613,8 @@ def fit_result(method: str, spec: FitSpec, inner: InnerProblem, theta: np.ndarra
     scale = np.maximum(np.abs(theta), 1e-2)
     _, sv, vt = np.linalg.svd(J * scale, full_matrices=False)
     poor = [{"singular_value": float(s / sv[0]),
-             "direction": {spec.fitted[j]: round(float(v[j]), 3) for j in np.argsort(-np.abs(v))[:3]}}
+             "direction": {spec.fitted[j]: round(float(v[j]), 3)
+                           for j in np.argsort(-np.abs(v))[:3]}}
             for s, v in zip(sv, vt) if s < 1e-3 * sv[0]]
     params = {**eq.problem.params, "h": eq.problem.h, "cut": eq.problem.cut,
               "opening": eq.problem.opening}

@@ -128,7 +128,8 @@ class Ablation:
         errors = self.errors or {}
         rows = problem_rows(self.problem) + [
             (names[k][0], f"{v:.6g} {names[k][1]}"
-             + (f" ± {errors[k]:.2g}" if k in errors else "")) for k, v in self.observables().items()]
+             + (f" ± {errors[k]:.2g}" if k in errors else ""))
+            for k, v in self.observables().items()]
         for label, eq in (("pre-ablation", self.pre), ("post-ablation", self.post)):
             rows += [(f"{label} {k}", v) for k, v in eq._repr_rows(edges=False)]
         return html_table(rows, "Ablation")

@@ -381,7 +381,8 @@ def switch_branch(branch: Branch, at: int, direction: float = 1.0, *,
     from .direct import solver_of
 
     if not isinstance(branch, Branch):
-        raise TypeError(f"branch must be a Branch (from follow_branch), got {type(branch).__name__}")
+        raise TypeError(f"branch must be a Branch (from follow_branch), "
+                        f"got {type(branch).__name__}")
     if isinstance(at, (bool, np.bool_)) or not isinstance(at, (int, np.integer)):
         raise TypeError(f"at = {at!r} must be an integer: which branch point (0 for the first)")
     points = [pt for pt in branch.points if pt.event == "branch_point"]

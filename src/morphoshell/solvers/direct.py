@@ -428,9 +428,9 @@ class DirectSolver:
         Methods, Eqs. 5-7) at the nodes follow pointwise from the nodal state and
         costates (:meth:`~morphoshell.numerics.discretisation.Discretisation.node_fields`:
         order 2S, as r, ψ), at a cell's interior points from the polynomial through its
-        nodal and Gauss-point values (:meth:`~morphoshell.numerics.discretisation.Discretisation.to_points`:
-        order 2S − 1), f_φ and κ_φ exactly from r, ψ off the axis; the energy is the
-        Gauss rule of 2π ∫ e ρ ds.
+        nodal and Gauss-point values
+        (:meth:`~morphoshell.numerics.discretisation.Discretisation.to_points`: order 2S − 1), f_φ
+        and κ_φ exactly from r, ψ off the axis; the energy is the Gauss rule of 2π ∫ e ρ ds.
 
         Parameters
         ----------
@@ -475,7 +475,8 @@ class DirectSolver:
                            solver=stats, converged=converged, x=x, lam_g=lam,
                            quadrature=Quadrature(gf["s"], gf["weight"] * gf["ds"], gf["L"],
                                                  d.stages, gf["r"]),
-                           anchors=tuple(float(v) for v in q), source=(weakref.ref(self), self.mesh, self.stages))
+                           anchors=tuple(float(v) for v in q),
+                           source=(weakref.ref(self), self.mesh, self.stages))
 
 
 def solver_of(eq: Equilibrium) -> DirectSolver | None:

@@ -245,7 +245,8 @@ def _grid(values: list) -> np.ndarray:
 def record_input_check(rec: dict) -> str | None:
     """The ``input_check`` of a campaign record: ``morphoshell fit``'s verdict on its E_fit
     (:func:`morphoshell.fitting.midline_checks.input_check`), None for a failed fit (or
-    any without an E_fit).  From the E_fit, not the stored entry: a record of a version before it has none."""
+    any without an E_fit).  From the E_fit, not the stored entry: a record of a version before it
+    has none."""
     E_fit = rec.get("E_fit")
     return input_check(E_fit) if rec.get("status") == "ok" and E_fit is not None else None
 

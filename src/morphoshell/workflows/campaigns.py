@@ -306,7 +306,8 @@ def _read_data(data_dir, start) -> tuple[Timepoint, ...]:
 
 
 def _validate(data_dir, variants, method, nodes, workers, out, start) -> tuple:
-    """(timepoints, variants, out) of :func:`campaign`'s arguments, checked (ValueError naming one)."""
+    """(timepoints, variants, out) of :func:`campaign`'s arguments, checked (ValueError naming
+    one)."""
     timepoints = _read_data(data_dir, start)
     if isinstance(variants, str):
         variants = (variants,)
@@ -371,7 +372,8 @@ def _jackknifed(embryo_errors, variants: tuple[str, ...]) -> frozenset:
 
 def _selected(timepoints: tuple[Timepoint, ...], selected: str | Sequence[str], data_dir
               ) -> tuple[Timepoint, ...]:
-    """The timepoints named in ``selected`` (``campaign``'s ``timepoints``), in the data set's order."""
+    """The timepoints named in ``selected`` (``campaign``'s ``timepoints``), in the data set's
+    order."""
     asked = name_list(selected)
     names = [tp.name for tp in timepoints]
     unknown = [n for n in asked if n not in names]
