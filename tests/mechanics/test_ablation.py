@@ -207,3 +207,19 @@ def test_an_ablation_of_direct_solutions_imports_no_scipy():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True)
     assert out.stdout.strip().splitlines()[-1] == "[]"
+
+
+def test_a_thin_shells_note_is_logged_once_for_both_states(caplog):
+    """Both states are one shell, of one thickness: its thin-shell note once (ablate, and
+    `morphoshell ablate`, logged the same line twice); a solve after the ablation still says
+    it (the note is kept once only within the ablation)."""
+    thin = CUT.with_updates(h=1.5e-5)   # (below MIN_DIRECT_THICKNESS, 2e-5)
+
+    def notes():
+        return [r for r in caplog.records if "thinner" in r.getMessage()]
+
+    with caplog.at_level(logging.WARNING, logger="morphoshell.solvers.routes"):
+        ablate(thin, nodes=100)
+        assert len(notes()) == 1
+        solve(thin, nodes=100)
+    assert len(notes()) == 2

@@ -170,3 +170,21 @@ def test_an_unstable_end_is_estimated_on_its_own_branch(cap):
     est = end_error(point, cap.line)
     assert est.note == "" and est.reference_nodes == 50
     assert max(v for k, v in est.relative().items()) < 1e-3
+
+
+def test_the_ends_estimate_takes_the_half_mesh_solver_of_the_events_check(cap):
+    """The end's estimate solves on the half mesh that the events' check built (one
+    DirectSolver for both; it built its own, the half mesh twice per branch): with their
+    solvers shared, the estimate builds only the quarter mesh, and estimates the same."""
+    from morphoshell.solvers.branch_checks import event_errors
+    from morphoshell.solvers.direct import BUILDS
+
+    end = cap.points[5]     # (stable; the cap's own end crosses the axis on the half mesh)
+    coarse: dict = {}
+    event_errors(list(cap.points), cap.line, 0.1, coarse)
+    assert len(coarse) == 1
+    builds = BUILDS["count"]
+    shared = end_error(end, cap.line, coarse)
+    assert shared.note == "" and shared.reference_nodes == 50
+    assert BUILDS["count"] - builds == 1 and len(coarse) == 1
+    assert shared.errors == end_error(end, cap.line).errors

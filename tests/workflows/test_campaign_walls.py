@@ -112,3 +112,30 @@ def test_a_record_whose_walls_cross_is_not_a_crossing_is_named_by_its_file(data,
         err = capsys.readouterr().err
         assert f"{path}: " in err and said in err and len(err.strip().splitlines()) == 1, err
         assert not (out / f"{other}_flat.json").exists()       # (before any fit)
+
+
+def test_a_campaign_reads_each_record_and_builds_its_problem_once_after_its_fits(
+        data, tmp_path, monkeypatch):
+    """After the fits, the campaign's result and its summary come from one reading of the
+    folder, each record's shell built once (its walls_cross checked, read_records): it read
+    every record twice there (its result's, then the summary's) and built a Problem at each
+    record_contact (the reading before any work, the two after, the list of crossings, the
+    warning and the summary's column: 6 a record).  Counted on a resumed run of 2 stored
+    fits whose walls cross (wall_contact stubbed), with the reading before any work (one of
+    each a record)."""
+    import morphoshell.workflows.campaign_results as campaign_results
+
+    monkeypatch.setattr(results, "wall_contact", lambda eq: CONTACT)
+    out = tmp_path / "out"
+    args = ["campaign", str(data[0]), "--variants", "flat", "--timepoints", "t01,t02",
+            "--nodes", str(NODES), "--workers", "1", "--out", str(out)]
+    assert main(args) == 0
+    reads, builds = [], []
+    read, build = campaign_results.read_record, campaign_results.problem_of_record
+    monkeypatch.setattr(campaign_results, "read_record", lambda path: reads.append(path) or
+                        read(path))
+    monkeypatch.setattr(campaign_results, "problem_of_record", lambda *a: builds.append(a) or
+                        build(*a))
+    assert main(args) == 0
+    fits = [path for path in reads if path.name.endswith("_flat.json") and path.exists()]
+    assert len(fits) == 2 * 2 and len(builds) == 2 * 2

@@ -32,7 +32,8 @@ class Buffered:
 
     def __call__(self, *args) -> list[np.ndarray]:
         if len(args) != len(self.args):
-            raise TypeError(f"{self.function.name()} takes {len(self.args)} inputs, got {len(args)}")
+            raise TypeError(f"{self.function.name()} takes {len(self.args)} inputs, "
+                            f"got {len(args)}")
         for dst, v in zip(self.args, args):
             dst[:] = np.ravel(v, order="F")
         self.run()

@@ -7,7 +7,8 @@ from typing import Any, Iterable, Mapping, Sequence, TypeVar
 
 import numpy as np
 
-__all__ = ["real", "lookup", "within", "integer", "flag", "text", "short", "instance", "name_list"]
+__all__ = ["real", "lookup", "within", "integer", "flag", "text", "choice", "short", "instance",
+           "name_list"]
 
 T = TypeVar("T")
 
@@ -101,5 +102,14 @@ def text(name: str, value: Any, nullable: bool = False) -> str:
         return ""
     if not isinstance(value, str):
         raise ValueError(f"{name} = {short(value)} must be a string"
+                         + (" or null" if nullable else ""))
+    return value
+
+
+def choice(name: str, value: Any, choices: Iterable[str], nullable: bool = False) -> str | None:
+    """``value``, one of ``choices`` (or None when ``nullable``), or ValueError naming it and
+    listing them (a record's entry read back: a method, a variant)."""
+    if not (nullable and value is None or isinstance(value, str) and value in choices):
+        raise ValueError(f"{name} = {short(value)} must be one of {list(choices)}"
                          + (" or null" if nullable else ""))
     return value

@@ -11,8 +11,8 @@ from typing import Callable, Iterator, Mapping
 from ._outputs import output_path
 
 __all__ = ["integer", "real", "micrometres", "add_outputs", "TRACE_OPTIONS", "FORMAT_HELP",
-           "SECTION_HELP", "OUTLIER_POINTS_HELP", "problem_and_settings", "reworded", "reader_notes", "linear_solver",
-           "family_keys"]
+           "SECTION_HELP", "OUTLIER_POINTS_HELP", "problem_and_settings", "reworded",
+           "reader_notes", "linear_solver", "family_keys"]
 
 
 #: The Python arguments that the messages of morphoshell.io name, as the command line spells
@@ -192,7 +192,8 @@ micrometres.__name__ = "number"
 
 def add_executor(p: argparse.ArgumentParser, default_workers: str) -> None:
     """``--workers`` and ``--scheduler``: where the tasks of a sweep or campaign run
-    (:mod:`morphoshell.workflows.executor`); ``default_workers`` says what no ``--workers`` means."""
+    (:mod:`morphoshell.workflows.executor`); ``default_workers`` says what no ``--workers``
+    means."""
     p.add_argument("--workers", type=integer(1, 4096), default=None, metavar="N",
                    help=f"worker processes (default: {default_workers}); ignored with "
                         f"--scheduler")

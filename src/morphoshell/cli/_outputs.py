@@ -14,7 +14,7 @@ import os
 from pathlib import Path
 from typing import Callable
 
-__all__ = ["output_path", "Outputs", "FORMATS"]
+__all__ = ["output_path", "Outputs", "FORMATS", "kept_in"]
 
 #: Output kinds and the extensions each accepts.
 FORMATS = {"json": (".json",), "csv": (".csv",), "plot": (".png", ".pdf", ".svg")}
@@ -38,7 +38,8 @@ def output_path(kind: str) -> Callable[[str], Path]:
             what = "is a file" if parent.exists() else "does not exist"
             raise argparse.ArgumentTypeError(f"{text!r}: the folder {str(parent)!r} {what}")
         if not os.access(parent, os.W_OK | os.X_OK):
-            raise argparse.ArgumentTypeError(f"{text!r}: the folder {str(parent)!r} is not writable")
+            raise argparse.ArgumentTypeError(
+                f"{text!r}: the folder {str(parent)!r} is not writable")
         if path.exists() and not os.access(path, os.W_OK):
             raise argparse.ArgumentTypeError(f"{text!r} exists and is not writable")
         return path
@@ -92,3 +93,12 @@ class Outputs:
                 tmp.unlink(missing_ok=True)
             raise
         return [path for _, path in temps]
+
+
+def kept_in(paths: list[Path], what: str = "", mark: str = ", marked partial",
+            unkept: str = "") -> str:
+    """The part of a stopped run's line that says where its results are: "; ``what`` kept in
+    A and B``mark``" where ``paths`` were written, ``unkept`` where none was."""
+    if not paths:
+        return unkept
+    return f"; {what + ' ' if what else ''}kept in {' and '.join(map(str, paths))}{mark}"

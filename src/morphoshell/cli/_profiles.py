@@ -142,8 +142,8 @@ def refit_lines(before, after) -> str:
     ``after``: why, and the new fit (:meth:`FitResult.summary`)."""
     return (f"  the profiles' refit went on from the fit's end to a lower E_fit, "
             f"{after.E_fit:.6g} R (the fit: {before.E_fit:.6g} R), so the fit had not reached "
-            f"its minimum; the fit is that refit, the intervals are about it:\n{after.summary()}\n  E_fit = "
-            f"{after.E_fit:.6g} R over {len(after.data)} points")
+            f"its minimum; the fit is that refit, the intervals are about it:\n"
+            f"{after.summary()}\n  E_fit = {after.E_fit:.6g} R over {len(after.data)} points")
 
 
 def _dof(p) -> str:

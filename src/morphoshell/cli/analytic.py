@@ -32,7 +32,8 @@ def register(sub) -> None:
                           "in units of R), 0 < Sigma < pi; `cut` in problem files and the API")
     cut.add_argument("--cut-angle", type=angle, metavar="SIGMA", dest="cut_angle",
                      help="deprecated alias of --cut")
-    add_outputs(p, json="write the predictions as JSON", csv="write the predictions as a one-row CSV")
+    add_outputs(p, json="write the predictions as JSON",
+                csv="write the predictions as a one-row CSV")
     p.set_defaults(run=_asymptotics)
 
     p = sub.add_parser("sphere", help=help_of("sphere"),

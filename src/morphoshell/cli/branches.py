@@ -6,7 +6,7 @@ import sys
 
 from ._args import add_outputs, integer, note, problem_and_settings, real
 from ._commands import help_of
-from ._outputs import Outputs
+from ._outputs import Outputs, kept_in
 
 __all__ = ["register", "PARTIAL"]
 
@@ -196,8 +196,7 @@ def _cut_short(missing, unwritten, written, switched) -> int:
     from .._runtime import interrupts
 
     kept = " and the switched branches followed are" if switched else " is"
-    where = (f"; the main branch{kept} kept in {' and '.join(map(str, written))}"
-             f"{', marked partial' * bool(missing)}" if written else "")
+    where = kept_in(written, f"the main branch{kept}", ", marked partial" * bool(missing))
     print(f"morphoshell: {'; '.join(filter(None, (missing, unwritten)))}{where}",
           file=sys.stderr)
     return interrupts.exit_status()
@@ -219,9 +218,8 @@ def _ended_early(args, problem, exc, branch) -> int:
     missing = f"{', '.join(_halves(args, branch)) or 'no switch'} not followed" \
         if args.switch else None
     paths = _write(args, branch, missing=missing)
-    where = (f"; the {len(branch.points)} points followed to lambda = {branch.end.tau:.6g} "
-             f"are kept in {' and '.join(map(str, paths))}, marked partial"
-             if paths else "") + f"{'; ' * bool(missing)}{missing or ''}"
+    where = kept_in(paths, f"the {len(branch.points)} points followed to lambda = "
+                           f"{branch.end.tau:.6g} are") + f"{'; ' * bool(missing)}{missing or ''}"
     if solver_failed:
         raise SolverError(f"{exc}{where}", exc.status, exc.last_iterate) from exc
     print(f"morphoshell: {branch.ended.why} after {len(branch.points)} points{where}",

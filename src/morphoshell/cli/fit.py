@@ -6,7 +6,7 @@ from pathlib import Path
 from ._args import (FORMAT_HELP, OUTLIER_POINTS_HELP, SECTION_HELP, TRACE_OPTIONS, add_outputs,
                     integer, micrometres, note, reader_notes, reworded)
 from ._commands import help_of
-from ._outputs import Outputs
+from ._outputs import Outputs, kept_in
 from ._profiles import (add_profile_options, profile_data, profile_json, profile_names,
                         profile_plot_path, profile_table, refit_lines, run_profiles)
 
@@ -251,8 +251,8 @@ def _fit(args) -> int:
     print(f"  E_fit = {result.E_fit:.6g} R over {N_FIT} points; {result.inner_solves} inner "
           f"solves, {result.seconds:.2f} s")
     if starts is not None:
-        print(f"  starts (--multi-start, {len(starts.starts)} fits in {starts.seconds:.1f} s; * the "
-              f"lowest E_fit, the fit above):\n{starts.table()}")
+        print(f"  starts (--multi-start, {len(starts.starts)} fits in {starts.seconds:.1f} s; "
+              f"* the lowest E_fit, the fit above):\n{starts.table()}")
     before, profiles, not_done = result, {}, None
     if names:
         inflation = (profile_inflation(gauss_newton, result.standard_errors)
@@ -326,9 +326,8 @@ def _cut_short(out, not_done: str, done: list[str], args) -> int:
 
     paths = out.commit()
     what = f"the fit and the profiles of {', '.join(done)}" if done else "the fit"
-    where = (f"; {what} kept in {' and '.join(map(str, paths))}"
-             f"{', the JSON marked partial' if args.json else ''}" if paths else
-             "; not kept: no --json or --csv")
+    where = kept_in(paths, what, ", the JSON marked partial" if args.json else "",
+                    "; not kept: no --json or --csv")
     unplotted = "; no plot drawn" if args.plot or profile_plot_path(args) else ""
     print(f"morphoshell: {interrupts.reason()} during the profiles ({not_done}){where}"
           f"{unplotted}", file=sys.stderr)
@@ -384,16 +383,18 @@ def _retracings(result, trace, args):
     pixels = retraced.sigma * args.radius_um / args.pixel_size
     refused = len(retraced.refused)
     first = (f"{'the first' if refused > 1 else 'it'}: "
-             f"{reworded(retraced.refused[0], TRACE_OPTIONS).partition(': ')[0]}" if refused else "")
+             f"{reworded(retraced.refused[0], TRACE_OPTIONS).partition(': ')[0]}"
+             if refused else "")
     if not retraced.usable:
         note(f"the ± are the Gauss–Newton errors, which take the midline's points as independent "
              f"(for one trace 1.3-1.8x too small): {refused} of the {TRACE_REPLICATES} simulated "
              f"re-tracings of the trace's pixel noise (about {pixels:.2g} px) that would give them "
              f"were refused by the reader ({first})")
         return None
-    note(f"the ± are the errors of the trace's pixel noise (about {pixels:.2g} px) carried through its alignment and resampling, from "
-         f"{len(retraced.errors)} simulated re-tracings (not the Gauss–Newton errors, which take the "
-         f"midline's points as independent)"
+    note(f"the ± are the errors of the trace's pixel noise (about {pixels:.2g} px) carried "
+         f"through its alignment and resampling, from {len(retraced.errors)} simulated "
+         f"re-tracings (not the Gauss–Newton errors, which take the midline's points as "
+         f"independent)"
          + (f"; {refused} of {TRACE_REPLICATES} refused by the reader and left out, which narrows "
             f"the ± a little ({first})" if refused else ""))
     return retraced.errors

@@ -5,7 +5,7 @@ import math
 
 from ._args import add_executor, add_outputs, family_keys, integer, linear_solver
 from ._commands import help_of
-from ._outputs import Outputs
+from ._outputs import Outputs, kept_in
 
 __all__ = ["register", "parse_axes"]
 
@@ -263,10 +263,9 @@ def _interrupted(exc, args) -> int:
         out.add(args.csv, exc.write)
         out.add(args.json, exc.write)
     paths = out.commit()
-    where = (f"; kept in {' and '.join(map(str, paths))}, marked partial: the same command "
-             f"with --resume computes the rest" if paths else
-             "; not kept: no --csv or --json" if exc.done else
-             "; no chunk finished: no file written")
+    where = kept_in(paths, mark=", marked partial: the same command with --resume computes "
+                    "the rest", unkept="; not kept: no --csv or --json" if exc.done else
+                    "; no chunk finished: no file written")
     print(f"morphoshell: {exc}{where}", file=sys.stderr)
     return interrupts.exit_status()
 

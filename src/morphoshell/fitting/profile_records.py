@@ -22,7 +22,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .._runtime.validate import flag, real, short, text, within
+from .._runtime.validate import choice, flag, real, short, text, within
 from ..io.problem_files import read_json
 from .bilevel import METHODS
 from .profile_noise import NOISE_SOURCES, threshold_quantile
@@ -36,10 +36,10 @@ SIDE_ENDS = ("grid", "bound", "failed")
 #: How far (relative) a record's threshold and interval may lie from those recomputed from
 #: its objective, S_min, σ² and confidence (:func:`_check_derived`).  They are the same
 #: formulas on the same numbers (JSON gives floats back to the bit): an unedited record's
-#: agree exactly (47 profiles of recent fits' JSON, and audit 23's).  The slack is for another SciPy's χ²/F quantile
-#: (accurate to ~1e-14 relative), which the interval's interpolation in √(S − S_min)
-#: amplifies by threshold/(threshold − S_min) (~20 for a 95 % profile of a fit to traces):
-#: 1e-9 leaves five orders of magnitude and still refuses any edit a reader would notice.
+#: agree exactly (47 profiles of recent fits' JSON, and audit 23's).  The slack is for another
+#: SciPy's χ²/F quantile (accurate to ~1e-14 relative), which the interval's interpolation in
+#: √(S − S_min) amplifies by threshold/(threshold − S_min) (~20 for a 95 % profile of a fit to
+#: traces): 1e-9 leaves five orders of magnitude and still refuses any edit a reader would notice.
 DERIVED_RTOL = 1e-9
 
 
@@ -129,15 +129,15 @@ def _profile(r: Mapping, name: str | None) -> Profile:
         threshold=within("threshold", r["threshold"], 0, math.inf),
         S_min=within("S_min", r["S_min"], 0, math.inf),
         sigma2=within("sigma2", r["sigma2"], 0, math.inf, open_lo=True),
-        sigma2_source=_choice("sigma2_source", r["sigma2_source"],
-                              (*NOISE_SOURCES[1:], "given")),
+        sigma2_source=choice("sigma2_source", r["sigma2_source"],
+                             (*NOISE_SOURCES[1:], "given")),
         confidence=within("confidence", r["confidence"], 0, 1, open_lo=True),
-        flat=flag("flat", r["flat"]), method=_choice("method", r["method"], METHODS),
+        flat=flag("flat", r["flat"]), method=choice("method", r["method"], METHODS),
         note=text("note", r["note"]),
         dof=math.inf if r.get("sigma2_dof") is None else within(
             "sigma2_dof", r["sigma2_dof"], 1, math.inf),
-        side_ends=tuple(_choice(f"open_sides[{i}]", end, SIDE_ENDS, nullable=True) or "grid"
-                        for i, end in enumerate(_list(r, "open_sides", 2))),
+        side_ends=tuple(choice(f"open_sides[{i}]", end, SIDE_ENDS, nullable=True) or "grid"
+                       for i, end in enumerate(_list(r, "open_sides", 2))),
         retries=tuple(_retry(row, f"retries[{i}]")
                       for i, row in enumerate(_list(r, "retries") if "retries" in r else []))))
 
@@ -210,13 +210,3 @@ def _list(r: Mapping, key: str, length: int | None = None, like: str = "") -> li
                          f"{like}" if like else f"{key} = {short(value)} must be a list of "
                          f"{length} items")
     return value
-
-
-def _choice(key: str, value: Any, choices, nullable: bool = False) -> str | None:
-    """``value``, one of ``choices`` (or None when ``nullable``)."""
-    if not (nullable and value is None or isinstance(value, str) and value in choices):
-        raise ValueError(f"{key} = {short(value)} must be one of {list(choices)}"
-                         + (" or null" if nullable else ""))
-    return value
-
-

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 import numpy as np
 
 from .._runtime.tables import problem_attrs, xarray_module
-from .._runtime.validate import flag, integer, lookup, real, short, text, within
+from .._runtime.validate import choice, flag, integer, real, short, text, within
 from ..io.problem_files import problem_of_record, read_json
 from ..numerics.status import (FIT_CONVERGED, FIT_CONVERGED_STOPS, FIT_NEAR_FOLD,
                                IPOPT_UNKNOWN, STATUSES)
@@ -226,7 +226,8 @@ class FitResult:
         return (f"FitResult({self.method}, {self.variant}, E_fit={self.E_fit:.6g} R, "
                 f"{len(self.fitted)} parameters, {self.outer_iterations} iterations, "
                 f"{self.inner_solves} inner solves, "
-                f"{f'{self.seconds:.2f} s' if math.isfinite(self.seconds) else 'time not recorded'}, "
+                f"{f'{self.seconds:.2f} s' if math.isfinite(self.seconds) else 'time not recorded'}"
+                f", "
                 f"converged={self.converged})")
 
     def summary(self) -> str:
@@ -330,8 +331,8 @@ class FitResult:
             of R).  Attributes: the problem (flat, as :meth:`Equilibrium.to_xarray`),
             ``E_fit`` (R), ``method``, ``variant``, ``converged``, ``stop``,
             ``walls_cross`` (0 or 1; absent where not checked), ``message``,
-            ``constrained`` (``; ``-separated), ``outer_iterations``, ``inner_solves``, ``seconds``: strings and numbers
-            only, so that the Dataset can be written to netCDF.
+            ``constrained`` (``; ``-separated), ``outer_iterations``, ``inner_solves``, ``seconds``:
+            strings and numbers only, so that the Dataset can be written to netCDF.
         """
         xr = xarray_module()
         table = self.table()
@@ -427,8 +428,8 @@ def _record_fields(record: Mapping[str, Any], where: str) -> dict[str, Any]:
     parameters = get("parameters", _numbers)
     fitted = get("fitted", _names, parameters)
     converged = get("converged", flag)
-    return {"method": get("fitted_by" if "fitted_by" in record else "method", _one_of, METHODS),
-            "variant": get("variant", _one_of, LABELS), "fitted": fitted,
+    return {"method": get("fitted_by" if "fitted_by" in record else "method", choice, METHODS),
+            "variant": get("variant", choice, LABELS), "fitted": fitted,
             "parameters": parameters, "standard_errors": get("standard_errors", _errors, fitted),
             "correlation": get("correlation", _matrix, len(fitted)),
             "poorly_identified": get("poorly_identified", _directions, fitted),
@@ -470,13 +471,6 @@ def _names(key: str, value: Any, known: Mapping | None) -> tuple[str, ...]:
         of = "strings" if known is None else "names of 'parameters', at least one"
         raise ValueError(f"{key} = {short(value)} must be a list of distinct {of}")
     return tuple(value)
-
-
-def _one_of(key: str, value: Any, choices: Sequence[str]) -> str:
-    """``value``, one of ``choices`` (:func:`~morphoshell._runtime.validate.lookup`'s
-    message)."""
-    lookup(dict.fromkeys(choices), value, key)
-    return value
 
 
 def _status(key: str, value: Any, converged: bool | None = None) -> str:
@@ -562,7 +556,8 @@ def _combination(direction: dict, k: int) -> str:
     """A direction {name: component} written as a sum, ``0.864 kappa3 - 0.471 kappa4 ...``
     (``+ ...`` where it lists fewer than all ``k`` fitted parameters)."""
     written = " ".join(f"{'-' if v < 0 else '+'} {abs(v):g} {n}" for n, v in direction.items())
-    written = written[2:] if written.startswith("+ ") else "-" + written[2:]  # (no sign before the first)
+    # (no sign before the first)
+    written = written[2:] if written.startswith("+ ") else "-" + written[2:]
     return written + (" + ..." if len(direction) < k else "")
 
 
@@ -618,7 +613,8 @@ def fit_result(method: str, spec: FitSpec, inner: InnerProblem, theta: np.ndarra
     scale = np.maximum(np.abs(theta), 1e-2)
     _, sv, vt = np.linalg.svd(J * scale, full_matrices=False)
     poor = [{"singular_value": float(s / sv[0]),
-             "direction": {spec.fitted[j]: round(float(v[j]), 3) for j in np.argsort(-np.abs(v))[:3]}}
+             "direction": {spec.fitted[j]: round(float(v[j]), 3)
+                           for j in np.argsort(-np.abs(v))[:3]}}
             for s, v in zip(sv, vt) if s < 1e-3 * sv[0]]
     params = {**eq.problem.params, "h": eq.problem.h, "cut": eq.problem.cut,
               "opening": eq.problem.opening}

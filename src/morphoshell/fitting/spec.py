@@ -402,8 +402,8 @@ def volvox_spec(variant: str, start: Problem | None = None, hold: Mapping[str, f
         Bound each breakpoint to a disjoint interval around its start
         (:func:`breakpoint_bounds`), so that methods without constraints keep
         them ordered; :func:`morphoshell.fitting.bilevel.fit` moves the
-        intervals when a fit ends on one of their edges.  Without them each breakpoint lies within σ of the
-        shell only: the ``kkt`` method imposes the ordering as constraints
+        intervals when a fit ends on one of their edges.  Without them each breakpoint lies within σ
+        of the shell only: the ``kkt`` method imposes the ordering as constraints
         and does not need them.
 
     Returns

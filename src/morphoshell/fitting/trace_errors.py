@@ -47,8 +47,8 @@ from ..io.trace_checks import MidlineError
 from ..io.trace_noise import noise_estimate
 from ..io.traces import Trace, to_image
 
-__all__ = ["TRACE_REPLICATES", "MAX_REFUSED", "ReaderErrors", "reader_errors", "sandwich_errors", "with_trace_errors",
-           "profile_inflation"]
+__all__ = ["TRACE_REPLICATES", "MAX_REFUSED", "ReaderErrors", "reader_errors", "sandwich_errors",
+           "with_trace_errors", "profile_inflation"]
 
 #: Synthetic re-tracings per fit: the standard errors' own relative error is about 1/√(2B),
 #: 7 % (about 1.5 s on the 470 points of a whole section at 133 px per R).

@@ -58,7 +58,8 @@ class EmbryoEstimate:
                 f"combined={format_k(self.combined.k)})")
 
     def k(self, measure: str, method: str = "numerical") -> float | None:
-        """The estimate of k (units of 1/R) from ``measure`` by ``method``; None if there is none."""
+        """The estimate of k (units of 1/R) from ``measure`` by ``method``; None if there is
+        none."""
         return self.estimates[(measure, method)].k
 
     @property

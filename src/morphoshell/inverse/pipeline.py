@@ -224,7 +224,8 @@ def estimate(measurements: str | Path | Iterable[Measurement], *,
         shell cannot have included: |k| ≥ 2/h, :func:`check_shells`), ``mu_min``,
         ``bootstrap`` or ``workers``.
     TypeError
-        ``methods`` neither a string nor a sequence (:func:`~morphoshell.inverse.embryo.check_methods`).
+        ``methods`` neither a string nor a sequence
+        (:func:`~morphoshell.inverse.embryo.check_methods`).
     """
     t0 = time.perf_counter()
     data = _load(measurements)

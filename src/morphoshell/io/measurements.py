@@ -33,7 +33,8 @@ log = logging.getLogger(__name__)
 
 __all__ = [
     "MEASURES", "REQUIRED_COLUMNS", "OPTIONAL_COLUMNS", "MEASURE_COLUMN", "ERROR_COLUMN", "UNITS",
-    "MISSING", "MeasurementError", "Measurement", "read_measurements", "to_dimensionless", "to_physical",
+    "MISSING", "MeasurementError", "Measurement", "read_measurements", "to_dimensionless",
+    "to_physical",
 ]
 
 #: The recoil measures, in the order of every vector of the inverse estimates.
@@ -191,9 +192,9 @@ class Measurement:
             self._fail("H_um", f"the thickness H = {self.H_um!r} um must be smaller than the "
                                f"radius R = {self.R_um!r} um")
         if self.H_um < MIN_THICKNESS * self.R_um:
-            self._fail("H_um", f"the thickness H = {self.H_um!r} um is below {MIN_THICKNESS:g} of the "
-                               f"radius R = {self.R_um!r} um: thinner than the model resolves "
-                               f"(check the units: um)")
+            self._fail("H_um", f"the thickness H = {self.H_um!r} um is below {MIN_THICKNESS:g} "
+                               f"of the radius R = {self.R_um!r} um: thinner than the model "
+                               f"resolves (check the units: um)")
         for column in ("opening_um", "displacement_um"):
             value = getattr(self, column)
             if value is not None and abs(value) > MAX_RECOIL * self.R_um:

@@ -462,7 +462,8 @@ def _whole(curve: Curve, n_points: int, flip: bool):
 
 
 def _pole_height(half: np.ndarray) -> float:
-    """Height z₀ of the pole of a mirror-averaged half (m, 2): least squares of z = z₀ + a s² + b s⁴.
+    """Height z₀ of the pole of a mirror-averaged half (m, 2): least squares of
+    z = z₀ + a s² + b s⁴.
 
     Over the points within :data:`_POLE_WINDOW` of arclength s from the pole
     (z is even in s through a regular pole).  The crossing of the axis with

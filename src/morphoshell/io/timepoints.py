@@ -127,7 +127,8 @@ def _timepoint(data_dir: Path, table: Path, i: int, row: dict) -> Timepoint:
     t = _pseudotime(table, i, row["pseudotime"])
     path = (row["midline"] or "").strip()
     if not (data_dir / path).is_file():
-        raise ValueError(f"{table}, line {i}: midline file {path!r} {_why_not_a_file(data_dir / path)}")
+        raise ValueError(f"{table}, line {i}: midline file {path!r} "
+                         f"{_why_not_a_file(data_dir / path)}")
     traces = tuple(v.strip() for v in (row.get("traces") or "").split(";") if v.strip())
     missing = [v for v in traces if not (data_dir / v).is_file()]
     if missing:

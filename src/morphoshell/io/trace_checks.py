@@ -313,7 +313,8 @@ def _first_crossing(points: np.ndarray, apart: float, loop: float,
     for p, q in np.argwhere(np.triu(boxes_meet)):
         i = np.arange(starts[p], min(starts[p] + chunk, len(a)))[:, None]
         j = np.arange(starts[q], min(starts[q] + chunk, len(a)))[None, :]
-        # ends of segment j on opposite sides of segment i, and vice versa (touching is not crossing)
+        # ends of segment j on opposite sides of segment i, and vice versa (touching is not
+        # crossing)
         hit = ((cross(d[i], a[j] - a[i]) * cross(d[i], a[j] + d[j] - a[i]) < 0)
                & (cross(d[j], a[i] - a[j]) * cross(d[j], a[i] + d[i] - a[j]) < 0)
                & (along[j] - along[i + 1] >= apart))

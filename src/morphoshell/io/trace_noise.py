@@ -75,7 +75,8 @@ class Binning:
 
     @property
     def sparse(self) -> bool:
-        """Points too far apart to bin (more than MAX_BIN/2): the curve is the spline through them."""
+        """Points too far apart to bin (more than MAX_BIN/2): the curve is the spline through
+        them."""
         return 2 * self.spacing > MAX_BIN
 
     def note(self, source: str) -> str | None:
@@ -163,7 +164,8 @@ def noise_estimate(points: np.ndarray) -> tuple[float, float]:
 
 
 def _second_derivative(points: np.ndarray) -> np.ndarray:
-    """c'' with respect to arclength at the interior points (m − 2, 2), from chords to their neighbours."""
+    """c'' with respect to arclength at the interior points (m − 2, 2), from chords to their
+    neighbours."""
     a, b = points[1:-1] - points[:-2], points[2:] - points[1:-1]
     d1, d2 = np.linalg.norm(a, axis=1)[:, None], np.linalg.norm(b, axis=1)[:, None]
     return 2 * (b / d2 - a / d1) / (d1 + d2)

@@ -17,7 +17,8 @@ Refused with a message naming the file, the line and the forms above: cells
 separated by semicolons (a spreadsheet with decimal commas), a pixel list
 (x, y, value), another header, a header without points, a ragged or
 non-numeric row; and files that are not text: an image or a PDF (by their
-first bytes), UTF-16 text (save as UTF-8), a zip (an ImageJ ROI Manager set, read by :mod:`morphoshell.io.roi_sets`).
+first bytes), UTF-16 text (save as UTF-8), a zip (an ImageJ ROI Manager set, read by
+:mod:`morphoshell.io.roi_sets`).
 """
 from __future__ import annotations
 
@@ -227,7 +228,8 @@ def _header(path: Path, body: list[tuple[int, str]], fmt: str):
     names = tuple(c.lower() for c in cells)
     # a row-number column under an empty header cell, or none (whitespace between cells
     # swallows an empty one): the data lines have a cell more than the names
-    index = names[:1] == ("",) or (bool(rows) and len(_cells(rows[0][1], delimiter)) == len(names) + 1)
+    index = names[:1] == ("",) or (bool(rows) and
+                                   len(_cells(rows[0][1], delimiter)) == len(names) + 1)
     names = names[1:] if names[:1] == ("",) else names
     expected = _CSV_HEADERS if fmt == "csv" else (_XY_HEADER,)
     if not _named(names, expected):
@@ -255,7 +257,8 @@ def _row(path: Path, line: int, cells: list[str], header: tuple[str, ...]) -> li
         try:
             value = float(cell)
         except ValueError:
-            hint = ": a decimal comma? save numbers with '.'" if _DECIMAL_COMMA.fullmatch(cell) else ""
+            hint = (": a decimal comma? save numbers with '.'" if _DECIMAL_COMMA.fullmatch(cell)
+                    else "")
             raise MidlineError(f"{where}: {cell!r} is not a number{hint}") from None
         if not math.isfinite(value):
             raise MidlineError(f"{where}: {cell} is not finite")

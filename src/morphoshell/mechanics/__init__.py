@@ -9,8 +9,8 @@ import lazy_loader
 
 # Every public name of the subpackage, imported from its module on first use.
 __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
-    "ablation": ["Ablation", "ablate", "ablation_of", "edge_state", "intact_problem", "recoil_jacobian",
-                 "RecoilJacobian", "UNITS"],
+    "ablation": ["Ablation", "ablate", "ablation_of", "edge_state", "intact_problem",
+                 "recoil_jacobian", "RecoilJacobian", "UNITS"],
     "asymptotics": ["f_shell_exact", "f_shell_asymptotic", "f_bulk_asymptotic", "k_star", "delta",
         "opening", "rotation", "displacement", "b_inner", "kelvin_k", "rotation_small_cut",
         "displacement_small_cut", "energy_released", "recoil_velocity", "predictions",

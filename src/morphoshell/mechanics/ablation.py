@@ -47,7 +47,7 @@ from ..solvers.paths import stress_free
 from ..solvers.refinement import COARSE, derived_errors, refine_once
 from ..solvers.results import (FIELD_NAMES, FIELD_UNITS, FIELDS, Equilibrium, SolverError,
                                energy_floor)
-from ..solvers.routes import direct_solver, solve
+from ..solvers.routes import direct_solver, solve, thin_note_once
 
 __all__ = ["Ablation", "ablate", "ablation_of", "edge_state", "intact_problem", "measure",
            "recoil_jacobian", "RecoilJacobian", "UNITS", "OBSERVABLES", "SCALE_FLOOR"]
@@ -128,7 +128,8 @@ class Ablation:
         errors = self.errors or {}
         rows = problem_rows(self.problem) + [
             (names[k][0], f"{v:.6g} {names[k][1]}"
-             + (f" ± {errors[k]:.2g}" if k in errors else "")) for k, v in self.observables().items()]
+             + (f" ± {errors[k]:.2g}" if k in errors else ""))
+            for k, v in self.observables().items()]
         for label, eq in (("pre-ablation", self.pre), ("post-ablation", self.post)):
             rows += [(f"{label} {k}", v) for k, v in eq._repr_rows(edges=False)]
         return html_table(rows, "Ablation")
@@ -307,13 +308,15 @@ def ablate(problem: Problem, nodes: int = 200, method: str = "direct",
         raise ValueError(f"cut (Sigma) = {problem.cut!r}: an ablation needs a cut > 0")
     intact = intact_problem(problem)
     sigma = problem.cut
-    if pre is None:
-        # a node at the rim's material point, where the intact shell is compared
-        anchors = {"anchors": (sigma,)} if method == "direct" else {}
-        pre = solve(intact, nodes=nodes, method=method, **anchors, **options)
-    elif pre.problem.describe() | {"name": ""} != intact.describe() | {"name": ""}:
+    if pre is not None and \
+            pre.problem.describe() | {"name": ""} != intact.describe() | {"name": ""}:
         raise ValueError("pre must be the equilibrium of the same problem with cut = 0")
-    post = solve(problem, nodes=nodes, method=method, **options)
+    with thin_note_once():      # (both states are one shell, of one thickness)
+        if pre is None:
+            # a node at the rim's material point, where the intact shell is compared
+            anchors = {"anchors": (sigma,)} if method == "direct" else {}
+            pre = solve(intact, nodes=nodes, method=method, **anchors, **options)
+        post = solve(problem, nodes=nodes, method=method, **options)
     if options.get("rtol") is not None:
         return _refined(_measured(problem, pre, post), options)
     return ablation_of(problem, pre, post)

@@ -162,7 +162,8 @@ def normal_coordinate(zeta, f_s0: float, f_phi0: float, kappa_s0: float, d: Defo
         if np.all(np.abs(step) <= tol * np.abs(z)):
             break
     g = z + (ks + kp) * z**2 / 2 + ks * kp * z**3 / 3 - R
-    if not (np.all(admissible(z)) and np.all(np.abs(g) <= 1e3 * tol * (np.abs(R) + 1e-300) + 1e-300)):
+    if not (np.all(admissible(z)) and
+            np.all(np.abs(g) <= 1e3 * tol * (np.abs(R) + 1e-300) + 1e-300)):
         raise ValueError("no admissible z(zeta): the deformation closes the thin end of the wedge")
     return z
 

@@ -97,7 +97,8 @@ BASE_PARAMETERS = ("h", "cut", "opening")
 
 def parameter_layout(family: ProfileFamily) -> VectorLayout:
     """p = [h, Σ, P, the family's parameters in declaration order]."""
-    return VectorLayout(f"parameters of {family.name!r}", BASE_PARAMETERS + tuple(family.parameters))
+    return VectorLayout(f"parameters of {family.name!r}",
+                        BASE_PARAMETERS + tuple(family.parameters))
 
 
 #: Parameter-only quantities at a point (see :func:`morphoshell.model.energy.intrinsic_function`).

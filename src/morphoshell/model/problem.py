@@ -28,7 +28,8 @@ from .geometry import GEOMETRIES, Geometry, get_geometry
 from .layouts import VectorLayout, parameter_layout
 from .profiles import FAMILIES, ProfileFamily, Profiles, get_family
 
-__all__ = ["Problem", "Params", "Structure", "BASE_KEYS", "MIN_SHELL_LENGTH", "MIN_THICKNESS", "MIN_CUT"]
+__all__ = ["Problem", "Params", "Structure", "BASE_KEYS", "MIN_SHELL_LENGTH", "MIN_THICKNESS",
+           "MIN_CUT"]
 
 #: Thinnest shell accepted, h = H/R: below it the bending energy (∝ h³) falls under the
 #: solvers' round-off relative to the stretching energy, and Ipopt fails (h = 1e-12:

@@ -256,7 +256,8 @@ def _volvox(s, p, cut, end):
     def step(si):  # the smoothed step H(s − s_i) (documentation: "Problems and families")
         return (1 + ca.tanh((s - si) / sig)) / 2
 
-    ramp = sig * (_softplus((s - p["s3"]) / sig) - _softplus((s - p["s4"]) / sig)) / (p["s4"] - p["s3"])
+    ramp = sig * (_softplus((s - p["s3"]) / sig) - _softplus((s - p["s4"]) / sig)) / (
+        p["s4"] - p["s3"])
     k1, k2, k3, k4 = (p[f"kappa{i}"] for i in range(1, 5))
     f1, f2, f3, f4, f5 = (p[f"f{i}"] for i in range(1, 6))
     return Profiles(

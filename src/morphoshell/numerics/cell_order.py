@@ -1,9 +1,9 @@
 """The KKT unknowns in cell order, where every cell's share is one contiguous stretch.
 
-The certified Newton system K (:meth:`morphoshell.numerics.discretisation.Discretisation.newton_system`)
-is assembled from one dense block per cell.  In the NLP's order,
-x = [r_free, ψ_free, f_s] and then λ, a cell's unknowns lie in four separate
-stretches.  Every nonzero of K was then placed by an index list built in NumPy
+The certified Newton system K
+(:meth:`morphoshell.numerics.discretisation.Discretisation.newton_system`) is assembled from one
+dense block per cell.  In the NLP's order, x = [r_free, ψ_free, f_s] and then λ, a cell's unknowns
+lie in four separate stretches.  Every nonzero of K was then placed by an index list built in NumPy
 and handed to CasADi, whose cost per entry and per list made the sparsity
 pattern and the gathers a large part of a small mesh's cold solve.  In cell order
 
@@ -150,8 +150,8 @@ def assembly(order: CellOrder) -> Assembly:
     poles' fixed entries are u's first or last two.  So a build cuts them from one
     table per power of two of cells (:func:`_table`) by a few slices in
     CasADi, instead of handing it lists of every nonzero (on small meshes the
-    pattern and index lists cost more than the rest of the system's build).  Above :data:`LARGEST_TABLE` cells the indices are
-    made for the mesh alone, as such lists.
+    pattern and index lists cost more than the rest of the system's build).  Above
+    :data:`LARGEST_TABLE` cells the indices are made for the mesh alone, as such lists.
     """
     S, cells = order.stages, order.cells
     if cells > LARGEST_TABLE:

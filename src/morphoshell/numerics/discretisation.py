@@ -354,7 +354,8 @@ class Discretisation:
 
     # -- the mesh and the parameter data ---------------------------------------
     def nodes(self, p, q, ends: tuple | None = None):
-        """Material points s of the mesh nodes (the parametric map of :mod:`morphoshell.numerics.mesh`).
+        """Material points s of the mesh nodes (the parametric map of
+        :mod:`morphoshell.numerics.mesh`).
 
         Each cell is affine in s between its nodes: Gauss and interpolation
         points sit at fixed fractions of it.  ``ends``: :meth:`shell_ends` of p,
@@ -596,7 +597,8 @@ class Discretisation:
 
     @property
     def cell_assembly(self) -> Assembly:
-        """Where the Newton system's entries come from (:func:`morphoshell.numerics.cell_order.assembly`)."""
+        """Where the Newton system's entries come from
+        (:func:`morphoshell.numerics.cell_order.assembly`)."""
         return self._built("cell assembly", lambda: assembly(self.cell_order))
 
     def kkt_pack(self, x: np.ndarray, lam: np.ndarray) -> np.ndarray:
@@ -635,8 +637,8 @@ class Discretisation:
     @cached_property
     def _kkt(self) -> KKTDerivatives:
         """The KKT residual's curvature and θ-derivatives, set up on first use."""
-        return KKTDerivatives(self.layout, self.cell_index, self._cell["kkt_data"], self.cell_unknowns,
-                              lambda: self._local, self.x, self.D)
+        return KKTDerivatives(self.layout, self.cell_index, self._cell["kkt_data"],
+                              self.cell_unknowns, lambda: self._local, self.x, self.D)
 
     def kkt_curvature(self, x, lam, D, mu_F, mu_dz, mu_dS, ds) -> ca.MX:
         """Upper triangle of ∂²/∂(x, λ)² [μ_F·F(x, λ) − Σ_c (μ_dz,c Δz_c + μ_dS,c ΔS_c)].

@@ -178,8 +178,8 @@ def graded_mesh(cells: int, length: float, start: str, end: str, width: float,
     e^(−x/(√2 δ)) with equidistributed error, |y^(2S+1)|^(1/(2S+1)), on the
     scale (2S + 1)√2 δ ≈ 7–10 δ (``LAYER_DECAY`` = 8).  On thin shells this
     cuts the edge-value error by orders of magnitude at a given number of
-    nodes (tests/numerics/test_mesh.py checks it at h = 1e-4).  A free edge closer to the axis than the boundary-layer width
-    (a cut Σ smaller than δ: ``edge_scale`` ℓ_c = Σ/length) also varies on
+    nodes (tests/numerics/test_mesh.py checks it at h = 1e-4).  A free edge closer to the axis than
+    the boundary-layer width (a cut Σ smaller than δ: ``edge_scale`` ℓ_c = Σ/length) also varies on
     the scale Σ, like log s between Σ and δ (the (σ + ξ) terms of the
     Supplementary's small-cut equations): the second term spends B ℓ_c = 5 %
     of the density per e-fold of d there.  The map t ↦ s is fixed and smooth,
@@ -493,7 +493,8 @@ def _shrink(a, x, f, d, lo, hi, f_lo, f_hi, d_lo, d_hi) -> None:
 
 
 def _reached(f, x, d, tol) -> np.ndarray:
-    """|W(x) − target| = |f| is within W's round-off ``tol`` or within what one ulp of x changes W by.
+    """|W(x) − target| = |f| is within W's round-off ``tol`` or within what one ulp of x
+    changes W by.
 
     Next to a pole dW ~ d^(1/q − 1) exceeds 1e3 and the root is not
     representable to ``tol``: bisection then spent ~30 evaluations of W closing
@@ -755,9 +756,11 @@ def step_cells(problem, nodes: int, stages: int, anchors: tuple[float, ...] = ()
         t = spec.nodes_t()
     except MeshTooCoarse:
         return None
-    places = {"anchor": list(anchors), "breakpoint": [s for s, _ in breakpoints(problem)]}
-    s = shell_points(t, problem.cut, problem.end, tuple(k.t for k in spec.knots),
-                     [places[k.source][k.index] for k in spec.knots])
+    from .parameter_data import knot_positions     # (it imports this module)
+
+    s = shell_points(t, problem.cut, problem.end, tuple(k.t for k in spec.knots), knot_positions(
+        problem.structure, tuple((k.source, k.index) for k in spec.knots),
+        problem.parameter_vector(), list(anchors)))
     cells, worst = np.diff(s), (0.0, 0.0)
     for at, width in steps:
         near = (s[1:] > at - STEP_SPAN * width) & (s[:-1] < at + STEP_SPAN * width)

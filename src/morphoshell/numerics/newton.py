@@ -7,8 +7,8 @@ Newton's method on the KKT conditions ∇f + Jᵀλ = 0, g = 0 converges in two 
 three full steps, and Ipopt's fixed cost per call (set-up, MUMPS' analysis, a
 separate factorisation for the minimum certificate) was most of a warm solve.
 This back end takes those steps itself with one sparse LDLᵀ per iterate
-(CasADi's ``ldl``, symbolic analysis once), and reads the minimum certificate off the factorisation *at the returned
-point*.  It returns None whenever it cannot certify a converged minimum (no
+(CasADi's ``ldl``, symbolic analysis once), and reads the minimum certificate off the factorisation
+*at the returned point*.  It returns None whenever it cannot certify a converged minimum (no
 convergence within a few steps, a growing residual, the wrong inertia), and
 the caller falls back to Ipopt: it can only make a warm solve faster, never
 change what is accepted.
@@ -22,9 +22,9 @@ M = ∇²ℒ + Jᵀ W J, the Newton step (dx, dλ) solves
 
 (assembled per cell by the transcription), which for Δ = 0 is exactly
 Newton's KKT system (J dx = −g turns Jᵀ W J dx into −Jᵀ W g); ε = 1e-8
-perturbs the step by a relative 1e-8, invisible in Newton's convergence.  The matrix is quasi-definite when M is positive
-definite, so an LDLᵀ factorisation without pivoting exists in any ordering
-and is stable (Vanderbei 1995).  By Sylvester's law its inertia is that of
+perturbs the step by a relative 1e-8, invisible in Newton's convergence.  The matrix is
+quasi-definite when M is positive definite, so an LDLᵀ factorisation without pivoting exists in any
+ordering and is stable (Vanderbei 1995).  By Sylvester's law its inertia is that of
 M + Jᵀ Δ⁻¹ J plus m negative pivots: exactly m negative pivots and full rank
 mean vᵀ ∇²ℒ v > 0 for every v ≠ 0 with Jv = 0, a strict local minimum
 (Nocedal & Wright, Thm 12.6).  A saddle can never pass this test.
@@ -70,9 +70,9 @@ tests/test_fuzz.py asks that Newton's steps never end at a higher one).
 The round-off floor.  Thin shells cannot reach ``tol``: the dual residual
 stops at a floor set by round-off (of order 1e-8 for h = 1e-4), and a solve
 used to end, as Ipopt's "acceptable" exit does, only after a step that no
-longer cut the error tenfold, a step that showed nothing but the floor.  A step in Newton's quadratic phase, one that cut
-the error a thousandfold (:data:`FLOOR_GAIN`), lands far below the floor,
-so what is left is round-off; if Newton's correction there is negligible
+longer cut the error tenfold, a step that showed nothing but the floor.  A step in Newton's
+quadratic phase, one that cut the error a thousandfold (:data:`FLOOR_GAIN`), lands far below the
+floor, so what is left is round-off; if Newton's correction there is negligible
 too (below :data:`STEP_TOL` of x), the iterate is converged.  The correction
 is the next step's solve, which is needed anyway if it is not negligible.  The residual of a start
 alone is never taken for the floor: at h = 1e-4 a parameter change may move

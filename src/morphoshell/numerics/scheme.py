@@ -94,7 +94,8 @@ class Layout:
         return np.concatenate(parts)
 
     def pack(self, r, psi, f) -> np.ndarray:
-        """The unknown vector x from r, ψ at every point (units of R, rad) and f_s at the Gauss points."""
+        """The unknown vector x from r, ψ at every point (units of R, rad) and f_s at the Gauss
+        points."""
         sl = slice(1 if self.start_pole else 0, -1 if self.end_pole else None)
         return np.concatenate([np.asarray(r)[sl], np.asarray(psi)[sl], np.asarray(f)])
 

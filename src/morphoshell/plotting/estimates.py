@@ -233,10 +233,10 @@ def _legend_inside(ax: Axes, entries: list, options: dict) -> None:
     size = options["fontsize"]
     width, height = axes_size(ax)
     spacing = _COLUMN_EMS * size
-    column = max(text_width(label, size) for _, label in entries) + _HANDLE_EMS * size
+    column = max(_entry_width(label, size) for _, label in entries)
     ncol = int(max(1, min(len(entries), (0.95 * width + spacing) // (column + spacing))))
     rows = -(-len(entries) // ncol)
-    needed = _HEADROOM_SAFETY * (rows * _ROW_EMS + _PAD_EMS) * size
+    needed = _HEADROOM_SAFETY * _legend_height(rows, size)
     share = min(needed / height, _MAX_HEADROOM)
     if needed / height > _MAX_HEADROOM:
         warnings.warn(f"plot_k_estimates: a panel of {width / 72:.1f} × {height / 72:.1f} in "
@@ -250,6 +250,18 @@ def _legend_inside(ax: Axes, entries: list, options: dict) -> None:
     ax.legend(*zip(*entries), loc="upper center", **{**options, "ncol": ncol,
                                                      "columnspacing": _COLUMN_EMS,
                                                      "handlelength": 1.2, "handletextpad": 0.5})
+
+
+def _entry_width(label: str, size: float) -> float:
+    """Width (points) of a legend entry of ``label`` in a font of ``size``: its handle, the
+    gap and its text (:data:`_HANDLE_EMS`); Fig. 2 J's legend and K's small one."""
+    return text_width(label, size) + _HANDLE_EMS * size
+
+
+def _legend_height(rows: int, size: float) -> float:
+    """Height (points) of a legend of ``rows`` rows (its title's lines included) in a font
+    of ``size``, its border pads included; Fig. 2 J's legend and K's small one."""
+    return (rows * _ROW_EMS + _PAD_EMS) * size
 
 
 def plot_recoil_velocity(ax: Axes, result) -> Axes:
@@ -314,8 +326,7 @@ def _small_legend(ax: Axes, lines: list[str]) -> dict:
 def _entries_width(ncol: int) -> float:
     """Width (points) of the entries of the legend under a small panel, in ``ncol`` columns."""
     size = MIN_FONT_SIZE
-    widths = [text_width(label, size) + _HANDLE_EMS * size
-              for label in ("embryos", "least squares")]
+    widths = [_entry_width(label, size) for label in ("embryos", "least squares")]
     return sum(widths) + _COLUMN_EMS * size if ncol == 2 else max(widths)
 
 
@@ -330,7 +341,7 @@ def _room_below(ax: Axes, lines: list[str], ncol: int) -> float:
     """
     size = MIN_FONT_SIZE
     rows = len(lines) + (1 if ncol == 2 else 2)    # the title's lines and the entries' rows
-    height = (_BELOW_AXIS + rows * _ROW_EMS + _PAD_EMS) * size
+    height = _BELOW_AXIS * size + _legend_height(rows, size)
     width = max(_entries_width(ncol), *(text_width(line, size) for line in lines)) + \
         _BORDER_EMS * size
     need = (max(width, _MIN_AXES + DECORATION), height + _MIN_AXES)
@@ -374,8 +385,7 @@ def _fits_in_corners(ax: Axes, lines: list[str]) -> bool:
     1.75 in panel they covered the data, the line and the y label."""
     width, height = axes_size(ax)
     size = MIN_FONT_SIZE
-    widest = max(*(text_width(t, size) for t in lines),
-                 text_width(_FIT_LABEL, size) + _HANDLE_EMS * size)
+    widest = max(*(text_width(t, size) for t in lines), _entry_width(_FIT_LABEL, size))
     tall = (len(lines) + 2) * _ROW_EMS * size
     return widest <= _CORNER_SHARE * width and tall <= _CORNERS_HEIGHT * height
 

@@ -29,8 +29,8 @@ from matplotlib.text import Text
 from matplotlib.transforms import Bbox, ScaledTranslation
 
 __all__ = ["SINGLE_COLUMN", "DOUBLE_COLUMN", "MIN_FONT_SIZE", "PAPER_RC", "paper_style",
-           "styled", "journal_figure", "new_axes", "made_here", "own_axes", "add_caption", "get_caption",
-           "label_panel", "flag_panel", "is_flagged", "save"]
+           "styled", "journal_figure", "new_axes", "made_here", "own_axes", "add_caption",
+           "get_caption", "label_panel", "flag_panel", "is_flagged", "save"]
 
 #: Figure widths of journals (inches): one column and the full page width.
 SINGLE_COLUMN = 3.4

@@ -127,7 +127,7 @@ def crossing_end(arc: Arclength, prev: ArcPoint, new: ArcPoint, ds: float,
     return last, lo, Ending(MERIDIAN_CROSSES_AXIS, float(last.tau), why)
 
 
-def event_errors(points: list, line, max_step: float) -> list:
+def event_errors(points: list, line, max_step: float, coarse: dict | None = None) -> list:
     """``points`` with each fold's and branch point's λ error estimated on the half mesh.
 
     Parameters
@@ -137,6 +137,9 @@ def event_errors(points: list, line, max_step: float) -> list:
     line : ParameterLine
     max_step : float
         The walk's largest step (the half mesh's walk takes the same).
+    coarse : dict, optional
+        The half-mesh solvers built so far, by fine mesh, used and added to (for
+        :func:`end_error`, which solves the end there too).
 
     Returns
     -------
@@ -146,7 +149,7 @@ def event_errors(points: list, line, max_step: float) -> list:
         none within :data:`REACH`, NaN where it could not be checked (a point before the
         event that the half mesh cannot hold, or its walk failing).
     """
-    coarse: dict = {}
+    coarse = {} if coarse is None else coarse
     out = list(points)
     for i, pt in enumerate(points):
         if pt.event not in ("fold", "branch_point") or i == 0:
@@ -182,10 +185,11 @@ def unresolved_warning(points: list, line) -> str:
             f"--nodes {2 * (nodes - 1) + 1} or more)")
 
 
-def end_error(end, line) -> ErrorEstimate:
+def end_error(end, line, coarse: dict | None = None) -> ErrorEstimate:
     """The error estimate of a branch's ``end`` (a BranchPoint) as ``solve()`` makes that of
     its result (:func:`~.refinement.level_estimate`): its problem on the half and quarter
-    meshes of the end's own mesh, solved from the end's state.
+    meshes of the end's own mesh, solved from the end's state.  ``coarse``: the half-mesh
+    solvers built so far, by fine mesh (:func:`event_errors`'), used and added to.
 
     A stable end is minimised there, as ``solve()`` does (:func:`~.refinement.solve_from`);
     an unstable one (or an event) is found by Newton's iterations, which leave a saddle a
@@ -198,9 +202,10 @@ def end_error(end, line) -> ErrorEstimate:
     """
     eq = end.equilibrium
     fine = solver_of(eq)
+    coarse = {} if coarse is None else coarse
 
     def solver_for(nodes: int) -> DirectSolver:
-        return fine if nodes == fine.nodes else _coarser(fine, nodes, eq)
+        return fine if nodes == fine.nodes else _coarser(fine, nodes, eq, coarse)
 
     def stationary_from(solver, problem, start: Equilibrium, anchors) -> Equilibrium:
         arc = Arclength(solver, line, anchors, at=end.tau)
@@ -214,12 +219,13 @@ def end_error(end, line) -> ErrorEstimate:
                           solve=solve_from if end.stable else stationary_from)
 
 
-def _coarser(fine: DirectSolver, nodes: int, eq: Equilibrium) -> DirectSolver:
-    """``fine``'s mesh with ``nodes`` nodes, or where ``eq``'s knots have moved too far for it
-    (a walk kept on its first mesh: ``REMESH`` in :mod:`.branches`), the mesh built for
-    ``eq``'s problem (as :func:`_coarse_arc`; MeshTooCoarse where that cannot hold them)."""
-    solver = DirectSolver(fine.structure, mesh=replace(fine.mesh, nodes=nodes),
-                          stages=fine.stages)
+def _coarser(fine: DirectSolver, nodes: int, eq: Equilibrium, coarse: dict) -> DirectSolver:
+    """``fine``'s mesh with ``nodes`` nodes (the half mesh from ``coarse``, as
+    :func:`_coarse_solver`), or where ``eq``'s knots have moved too far for it (a walk kept
+    on its first mesh: ``REMESH`` in :mod:`.branches`), the mesh built for ``eq``'s problem
+    (as :func:`_coarse_arc`; MeshTooCoarse where that cannot hold them)."""
+    solver = _coarse_solver(fine, coarse) if nodes == half_mesh(fine.nodes) else \
+        DirectSolver(fine.structure, mesh=replace(fine.mesh, nodes=nodes), stages=fine.stages)
     try:
         solver.disc.check_anchors(eq.problem.parameter_vector(), eq.anchors)
         return solver

@@ -381,7 +381,8 @@ def switch_branch(branch: Branch, at: int, direction: float = 1.0, *,
     from .direct import solver_of
 
     if not isinstance(branch, Branch):
-        raise TypeError(f"branch must be a Branch (from follow_branch), got {type(branch).__name__}")
+        raise TypeError(f"branch must be a Branch (from follow_branch), "
+                        f"got {type(branch).__name__}")
     if isinstance(at, (bool, np.bool_)) or not isinstance(at, (int, np.integer)):
         raise TypeError(f"at = {at!r} must be an integer: which branch point (0 for the first)")
     points = [pt for pt in branch.points if pt.event == "branch_point"]
@@ -416,9 +417,10 @@ def _checked(branch: Branch, max_step: float, t0: float) -> Branch:
     third of the walk: docs/benchmarks.md, "solvers/branches.py").  The start too: the plot
     draws it, and a file's own state (the fold shell at κ₂ = −8) was drawn crossed without a
     word (audit 14)."""
+    coarse: dict = {}       # (the half-mesh solvers, built once for both)
     branch = replace(branch, points=tuple(event_errors(list(branch.points), branch.line,
-                                                       max_step)))
-    branch = replace(branch, end_error=end_error(branch.end, branch.line))
+                                                       max_step, coarse)))
+    branch = replace(branch, end_error=end_error(branch.end, branch.line, coarse))
     shown = [branch.points[0]] + [pt for pt in branch.points if pt.event] + [branch.end]
     crossed = sorted({pt.tau for pt in shown if wall_contact(pt.equilibrium) is not None})
     if crossed:

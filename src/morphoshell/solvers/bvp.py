@@ -313,7 +313,8 @@ def _solve_one(problem: Problem, nodes: int, tol: float, bc_tol: float,
         inner = inner[::max(1, len(inner) // 2000)]
         s = np.unique(np.concatenate([[a], inner, [b]]))
     else:
-        t = graded_mesh(max(nodes, 10) - 1, b - a, st.start, st.end, boundary_layer_width(problem.h))
+        t = graded_mesh(max(nodes, 10) - 1, b - a, st.start, st.end,
+                        boundary_layer_width(problem.h))
         s = a + (b - a) * t
     s = _refine_near_poles(s, problem.cut if start_pole else None,
                            problem.end if end_pole else None, eps)

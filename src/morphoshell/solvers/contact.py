@@ -38,8 +38,11 @@ log = logging.getLogger(__name__)
 #: 90° turn over 0.32 R of midline, 0.45 R of s) were taken for two walls.
 FAR = 3.0
 
-#: Up to this many points the close pairs are found from all distances, above by a k-d tree.
+#: Up to this many points the close pairs are found from all distances, above window by
+#: window (:func:`_closest_by_windows`).
 BRUTE_POINTS = 8000
+#: Consecutive points (along the midline) of a window of :func:`_closest_by_windows`.
+WINDOW = 128
 
 @dataclass(frozen=True)
 class WallContact:
@@ -129,22 +132,20 @@ def wall_contact(eq: Equilibrium) -> WallContact | None:
     half = half_thickness(eq)
     if not (np.all(np.isfinite(points)) and np.all(np.isfinite(half))):
         return None
-    pairs = _close_pairs(points, 2 * float(np.max(half)))
-    if not len(pairs):
-        return None
-    i, j = pairs.T
     arc = _deformed_arclength(eq)
-    pairs = pairs[np.abs(arc[i] - arc[j]) > FAR * (half[i] + half[j])]
-    if not len(pairs):
+    if len(points) > BRUTE_POINTS:
+        pair = _closest_by_windows(points, arc, half)
+    else:
+        pairs = _far_apart(_close_pairs(points, 2 * float(np.max(half))), arc, half)
+        pair = _closest(pairs, points, half)[1:] if len(pairs) else None
+    if pair is None:
         return None
-    i, j = pairs.T
-    distance = np.hypot(*(points[i] - points[j]).T)
-    thickness = half[i] + half[j]
-    k = int(np.argmin(distance / thickness))
-    if distance[k] >= thickness[k]:
+    i, j = pair
+    distance, thickness = float(np.hypot(*(points[i] - points[j]))), float(half[i] + half[j])
+    if distance >= thickness:
         return None
-    a, b = sorted((float(eq.s[i[k]]), float(eq.s[j[k]])))
-    return WallContact((a, b), float(distance[k]), float(thickness[k]))
+    a, b = sorted((float(eq.s[i]), float(eq.s[j])))
+    return WallContact((a, b), distance, thickness)
 
 
 def _deformed_arclength(eq: Equilibrium) -> np.ndarray:
@@ -164,14 +165,16 @@ def half_thickness(eq: Equilibrium) -> np.ndarray:
     return eq.problem.h / (eq.f_s * eq.f_phi) / 2
 
 
+def _far_apart(pairs: np.ndarray, arc: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """The ``pairs`` (shape (k, 2)) more than :data:`FAR` of their walls' thickness apart
+    along the deformed midline ``arc``: on two walls, not one."""
+    i, j = pairs.T
+    return pairs[np.abs(arc[i] - arc[j]) > FAR * (half[i] + half[j])]
+
+
 def _close_pairs(points: np.ndarray, radius: float) -> np.ndarray:
     """The pairs (i, j), i < j, of ``points`` (shape (n, 2)) closer than ``radius``, shape
-    (k, 2): all distances in blocks of rows up to :data:`BRUTE_POINTS` points (no scipy
-    import in a solve: a fresh process's start-up time), a k-d tree above (O(n log n))."""
-    if len(points) > BRUTE_POINTS:
-        from scipy.spatial import cKDTree
-
-        return cKDTree(points).query_pairs(radius, output_type="ndarray")
+    (k, 2): all distances in blocks of 512 rows."""
     found = []
     for lo in range(0, len(points), 512):
         block = np.hypot(*(points[lo:lo + 512, None, :] - points[None, :, :]).transpose(2, 0, 1))
@@ -179,6 +182,54 @@ def _close_pairs(points: np.ndarray, radius: float) -> np.ndarray:
         keep = j > i + lo
         found.append(np.column_stack([i[keep] + lo, j[keep]]))
     return np.concatenate(found) if found else np.zeros((0, 2), dtype=int)
+
+
+def _closest(pairs: np.ndarray, points: np.ndarray, half: np.ndarray) -> tuple[float, int, int]:
+    """(distance / thickness, i, j) of the pair of ``pairs`` (shape (k, 2), k > 0) whose
+    distance is the smallest fraction of their walls' thickness."""
+    i, j = pairs.T
+    ratio = np.hypot(*(points[i] - points[j]).T) / (half[i] + half[j])
+    k = int(np.argmin(ratio))
+    return float(ratio[k]), int(i[k]), int(j[k])
+
+
+def _closest_by_windows(points: np.ndarray, arc: np.ndarray,
+                        half: np.ndarray) -> tuple[int, int] | None:
+    """The pair (i, j) of :func:`_closest` among the pairs :func:`_far_apart` that overlap,
+    None if none does, found between windows of :data:`WINDOW` points consecutive along the
+    midline: window pairs in the order of the least fraction of their walls' thickness
+    their bounding circles allow, up to the best pair found, and only those whose farthest
+    points along the midline are more than :data:`FAR` of their thinnest walls apart.
+
+    A search by distance alone lists every pair closer than the thickest walls, whose number
+    grows as the square of the points (the thickness is fixed in R while the points grow
+    denser), along each wall and where two walls run close: a k-d tree's list ran a Volvox
+    shell out of memory long before :data:`~morphoshell.solvers.direct.MAX_NODES`
+    (docs/benchmarks.md, "solvers/contact.py").  Here the memory is that of one window
+    pair and the work that of the window pairs near the closest approach.
+    """
+    order = np.argsort(arc, kind="stable")
+    windows = [order[lo:lo + WINDOW] for lo in range(0, len(order), WINDOW)]
+    centre = np.array([points[w].mean(axis=0) for w in windows])
+    reach = np.array([np.hypot(*(points[w] - c).T).max() for w, c in zip(windows, centre)])
+    first, last, thin, thick = (np.array([f(v[w]) for w in windows]) for f, v in
+                                ((np.min, arc), (np.max, arc), (np.min, half), (np.max, half)))
+    a, b = np.triu_indices(len(windows))
+    bound = np.maximum(np.hypot(*(centre[a] - centre[b]).T) - reach[a] - reach[b], 0) / (
+        thick[a] + thick[b])
+    apart = np.maximum(last[b] - first[a], last[a] - first[b]) > FAR * (thin[a] + thin[b])
+    best: tuple[float, int, int] = (1.0, -1, -1)        # (only overlaps count)
+    candidates = np.flatnonzero(apart & (bound < 1))
+    for k in candidates[np.argsort(bound[candidates], kind="stable")]:
+        if bound[k] >= best[0]:
+            break
+        i, j = np.meshgrid(windows[a[k]], windows[b[k]], indexing="ij")
+        pairs = np.column_stack([i.ravel(), j.ravel()])
+        pairs = _far_apart(pairs[pairs[:, 0] < pairs[:, 1]] if a[k] == b[k] else pairs, arc,
+                           half)
+        if len(pairs):
+            best = min(best, _closest(pairs, points, half))
+    return None if best[1] < 0 else best[1:]
 
 
 def warn_if_walls_overlap(eq: Equilibrium, what: str = "") -> WallContact | None:

@@ -302,8 +302,9 @@ def left_branch(solver: DirectSolver, start: Equilibrium, new: Equilibrium) -> b
     ``new``; one branch's solve returns to ``start``, a jump stays on the other branch
     (farther than :data:`NOT_BACK` of the change; a solve back that fails counts as not
     returning).  A change below :data:`SAME_STATE`, a step of at most :data:`QUICK_STEP`
-    Newton iterations, or states of another mesh, are not judged (False).  Costs one linear solve, and a warm solve where the change strays,
-    which leaves ``solver`` as it was (:meth:`DirectSolver.aside`).
+    Newton iterations, or states of another mesh, are not judged (False).  Costs one linear solve,
+    and a warm solve where the change strays, which leaves ``solver`` as it was
+    (:meth:`DirectSolver.aside`).
     """
     if not (solver.made(start) and solver.made(new)):
         return False

@@ -39,8 +39,10 @@ __all__ = ["DirectSolver", "default_mesh", "solver_of", "check_nodes", "MAX_NODE
 
 log = logging.getLogger(__name__)
 
-#: Most mesh nodes a direct solver accepts: 102 400 nodes at order 4 take a
-#: couple of GB and about a minute to build and solve on one core.
+#: Most mesh nodes a direct solver accepts.  ``solve()``'s peak memory and time grow about
+#: linearly with the nodes, so this many fit in memory for the toy problems and the Volvox
+#: shells alike; a Volvox shell's continuation takes minutes (docs/benchmarks.md,
+#: "solvers/direct.py").
 MAX_NODES = 102400
 
 #: Largest tolerance of Ipopt's iterative refinement (``residual_ratio_max``;
@@ -426,9 +428,9 @@ class DirectSolver:
         Methods, Eqs. 5-7) at the nodes follow pointwise from the nodal state and
         costates (:meth:`~morphoshell.numerics.discretisation.Discretisation.node_fields`:
         order 2S, as r, ψ), at a cell's interior points from the polynomial through its
-        nodal and Gauss-point values (:meth:`~morphoshell.numerics.discretisation.Discretisation.to_points`:
-        order 2S − 1), f_φ and κ_φ exactly from r, ψ off the axis; the energy is the
-        Gauss rule of 2π ∫ e ρ ds.
+        nodal and Gauss-point values
+        (:meth:`~morphoshell.numerics.discretisation.Discretisation.to_points`: order 2S − 1), f_φ
+        and κ_φ exactly from r, ψ off the axis; the energy is the Gauss rule of 2π ∫ e ρ ds.
 
         Parameters
         ----------
@@ -473,7 +475,8 @@ class DirectSolver:
                            solver=stats, converged=converged, x=x, lam_g=lam,
                            quadrature=Quadrature(gf["s"], gf["weight"] * gf["ds"], gf["L"],
                                                  d.stages, gf["r"]),
-                           anchors=tuple(float(v) for v in q), source=(weakref.ref(self), self.mesh, self.stages))
+                           anchors=tuple(float(v) for v in q),
+                           source=(weakref.ref(self), self.mesh, self.stages))
 
 
 def solver_of(eq: Equilibrium) -> DirectSolver | None:

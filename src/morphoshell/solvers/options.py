@@ -26,10 +26,10 @@ from ..model.problem import Problem
 from ..numerics.ipopt_options import check_ipopt_options
 from .results import Equilibrium
 
-__all__ = ["check_problem", "check_guess", "check_anchors", "check_direct_options", "check_bvp_options",
-           "check_shooting_options", "MAX_DIRECT_TOL", "REFERENCE_TOL", "ATOL", "RTOL",
-           "POLE_OFFSET", "STABILITY", "INTEGRATORS", "MIN_DIRECT_THICKNESS", "DIRECT_TOL",
-           "thin_shell_note", "thin_shell_first", "BVP_ADVICE"]
+__all__ = ["check_problem", "check_guess", "check_anchors", "check_direct_options",
+           "check_bvp_options", "check_shooting_options", "MAX_DIRECT_TOL", "REFERENCE_TOL",
+           "ATOL", "RTOL", "POLE_OFFSET", "STABILITY", "INTEGRATORS", "MIN_DIRECT_THICKNESS",
+           "DIRECT_TOL", "thin_shell_note", "thin_shell_first", "BVP_ADVICE"]
 
 #: Default ``tol`` of the direct route (Ipopt's and Newton's, at 800 points).
 DIRECT_TOL = 1e-10
@@ -50,8 +50,8 @@ POLE_OFFSET = (1e-6, 0.1)
 #: closed: 2e-5 solved at 200, 800 and 1600 nodes, with rtol and cold; 1.5e-5 failed
 #: closed at 800 nodes; 1e-5 on every mesh), while 100 nodes refined by warm starts
 #: (rtol) still solve a classical shell at 1e-6.  ``solve()`` warns before it starts, and
-#: a failure below it says so first (:func:`thin_shell_note`, :func:`thin_shell_first`).  The BVP route solves down to
-#: :data:`~morphoshell.model.problem.MIN_THICKNESS`.
+#: a failure below it says so first (:func:`thin_shell_note`, :func:`thin_shell_first`).  The BVP
+#: route solves down to :data:`~morphoshell.model.problem.MIN_THICKNESS`.
 MIN_DIRECT_THICKNESS = 2e-5
 #: How the direct route certifies a minimum (:class:`morphoshell.numerics.ipopt.IpoptBackend`).
 STABILITY = ("auto", "exact", "off")
@@ -191,8 +191,8 @@ def _positive(name: str, value: Any) -> None:
 def _pole_offset(problem: Problem, value: Any) -> None:
     """ε in :data:`POLE_OFFSET`, and next to a pole within a tenth of the shell's length."""
     eps = within("pole_offset", value, *POLE_OFFSET,
-                 why="the leading-order series at the pole covers its first pole_offset (0.1: 3e-5 of the "
-                     "energy off; 1e-8: solve_bvp runs out of time)")
+                 why="the leading-order series at the pole covers its first pole_offset (0.1: "
+                     "3e-5 of the energy off; 1e-8: solve_bvp runs out of time)")
     st = problem.structure
     length = problem.end - problem.cut
     if "pole" in (st.start, st.end) and eps > 0.1 * length:

@@ -19,8 +19,8 @@ from ..numerics.mesh import breakpoints
 from ..numerics.status import NotAMinimumError, SolverError
 
 __all__ = ["Equilibrium", "SolverStats", "SolverError", "NotAMinimumError", "FIELDS", "unconverged",
-           "Quadrature", "ErrorEstimate", "ESTIMATED", "ENERGY_FLOOR", "energy_floor", "FIELD_UNITS",
-           "FIELD_NAMES", "JSON_UNITS"]
+           "Quadrature", "ErrorEstimate", "ESTIMATED", "ENERGY_FLOOR", "energy_floor",
+           "FIELD_UNITS", "FIELD_NAMES", "JSON_UNITS"]
 
 
 #: Nodal arrays of an :class:`Equilibrium`, in order.
@@ -224,7 +224,8 @@ class SolverStats:
     details: Mapping[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict:
-        """JSON-ready: method, iterations, seconds (wall time, s), status, nodes and scalar details."""
+        """JSON-ready: method, iterations, seconds (wall time, s), status, nodes and scalar
+        details."""
         return {"method": self.method, "iterations": self.iterations, "seconds": self.seconds,
                 "status": self.status, "nodes": self.nodes, "build_seconds": self.build_seconds,
                 **{k: v for k, v in self.details.items() if np.isscalar(v)}}

@@ -17,7 +17,9 @@ from __future__ import annotations
 
 import logging
 from collections import OrderedDict
-from typing import Any, Mapping
+from contextlib import contextmanager
+from contextvars import ContextVar
+from typing import Any, Iterator, Mapping
 
 from dataclasses import replace
 
@@ -37,6 +39,7 @@ from .refinement import half_mesh, refine, solve_from
 from .results import Equilibrium, NotAMinimumError, SolverError, SolverStats, unconverged
 
 __all__ = ["solve", "direct_solver", "cache_info", "clear_cache", "SOLVER_CACHE_SIZE",
+           "thin_note_once",
            "METHODS", "DIRECT_OPTIONS", "BVP_OPTIONS", "SHOOTING_OPTIONS", "MIN_RTOL",
            # re-exported for convenience
            "DirectSolver", "Equilibrium", "SolverError", "NotAMinimumError", "SolverStats"]
@@ -75,6 +78,21 @@ COARSE_AGREEMENT = 1e-4
 SOLVER_CACHE_SIZE = 16
 
 _SOLVERS: "OrderedDict[tuple, DirectSolver]" = OrderedDict()
+
+#: The thin-shell notes :func:`solve` logged within :func:`thin_note_once` (None outside).
+_NOTED: ContextVar[set | None] = ContextVar("thin_notes_logged", default=None)
+
+
+@contextmanager
+def thin_note_once() -> Iterator[None]:
+    """Within the block, :func:`solve` logs its thin-shell note (``thin_shell_note``) once
+    for each shell thickness: for a run that solves one shell more than once, as an
+    ablation solves it intact and cut (``morphoshell ablate`` logged the same line twice)."""
+    token = _NOTED.set(set())
+    try:
+        yield
+    finally:
+        _NOTED.reset(token)
 
 
 def _frozen(value: Any):
@@ -235,11 +253,13 @@ def solve(problem: Problem, nodes: int = 200, method: str = "direct",
                          f"estimate compares solutions converged to the solver's own "
                          f"tolerance, 1e-10")
     max_nodes = check_nodes(options.pop("max_nodes", MAX_NODES))
-    thin = thin_shell_note(problem)
-    if thin:
+    thin, noted = thin_shell_note(problem), _NOTED.get()
+    if thin and not (noted is not None and thin in noted):
         # (known before any work, which can take 20 s of retries before it fails)
         log.warning("solve of %s: %s; trying the direct route all the same", problem.name
                     or problem.family, thin)
+        if noted is not None:
+            noted.add(thin)
     try:
         return _direct(problem, nodes, warm_start, anchors, continuation, rtol, max_nodes,
                        options)

@@ -52,7 +52,8 @@ class CampaignResult:
     variants : tuple of str
     records : dict
         ``{(timepoint, variant): record}``, each record the content of its JSON
-        file (see :func:`morphoshell.workflows.campaigns.campaign`).
+        file (see :func:`morphoshell.workflows.campaigns.campaign`), as
+        :func:`read_records` read and checked it.
     timing : dict
         ``seconds`` (wall clock), ``workers``, ``backend``, ``computed`` (fits
         done in this run), ``fit_seconds`` (their summed time).
@@ -175,7 +176,7 @@ class CampaignResult:
         (timepoint, variant), in the campaign's order.  Minima of the model, not physical
         shapes (it has no self-contact)."""
         return [(tp.name, v) for tp in self.timepoints for v in self.variants
-                if record_contact(self.records.get((tp.name, v), {})) is not None]
+                if self.records.get((tp.name, v), {}).get("walls_cross") is not None]
 
     def walls_unchecked(self) -> list[tuple[str, str]]:
         """The finished fits whose records were written before the walls check (no
@@ -206,8 +207,9 @@ def _summary_row(tp: Timepoint, variant: str, rec: dict) -> dict:
            "status": rec["status"], "E_fit": rec.get("E_fit", float("nan")),
            "converged": rec.get("converged", False),
            "input_check": record_input_check(rec) or "",
-           # (None, an empty cell, where no fitted shape was checked)
-           "walls_cross": record_contact(rec) is not None if "walls_cross" in rec else None,
+           # (None, an empty cell, where no fitted shape was checked; a crossing that is
+           # there is one: read_records checked it)
+           "walls_cross": rec["walls_cross"] is not None if "walls_cross" in rec else None,
            "nodes": rec.get("nodes"),
            "method": rec.get("method", ""),
            "held_from": (rec.get("held_from") or {}).get("variant", ""),
@@ -243,7 +245,8 @@ def _grid(values: list) -> np.ndarray:
 def record_input_check(rec: dict) -> str | None:
     """The ``input_check`` of a campaign record: ``morphoshell fit``'s verdict on its E_fit
     (:func:`morphoshell.fitting.midline_checks.input_check`), None for a failed fit (or
-    any without an E_fit).  From the E_fit, not the stored entry: a record of a version before it has none."""
+    any without an E_fit).  From the E_fit, not the stored entry: a record of a version before it
+    has none."""
     E_fit = rec.get("E_fit")
     return input_check(E_fit) if rec.get("status") == "ok" and E_fit is not None else None
 

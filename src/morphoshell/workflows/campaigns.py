@@ -33,9 +33,9 @@ from .._runtime.validate import name_list
 from ..fitting import FIT_NODES, METHODS, VARIANTS, check_midline, volvox_spec
 from ..io import Midline
 from ..io.timepoints import Timepoint, read_timepoints
-from ..solvers.contact import warn_of_contact
+from ..solvers.contact import WallContact, warn_of_contact
 from .campaign_results import (SETTINGS, SUMMARY, CampaignResult, load_campaign, read_record,
-                               read_records, record_contact, result_path)
+                               read_records, result_path)
 from .executor import SerialExecutor, backend_name, check_workers, open_executor
 from .timepoint_fits import (CampaignTask, first_start, fit_variant, record_provenance,
                              write_atomic)
@@ -200,7 +200,12 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
         tasks, reports, first_report = _run(executor, tasks, source, out, timepoints, variants,
                                             resume, recorded)
     seconds = time.perf_counter() - t0
-    records = read_records(out, [(tp.name, v) for tp in timepoints for v in variants])
+    # every fit in the folder, not only this run's: a run on a subset had replaced the
+    # summary of the whole campaign by its own rows (the folder's settings are one run's);
+    # read once, for the summary and this run's result
+    stored = load_campaign(out, data_dir)
+    records = {key: stored.records[key] for tp in timepoints for v in variants
+               if (key := (tp.name, v)) in stored.records}
     fits = _fit_reports(tasks, reports, first_report, held_from)
     done = [r for r in fits if r["computed"]]
     result = CampaignResult(out, timepoints, variants, records, {
@@ -209,15 +214,15 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
         "fit_seconds": float(sum(r["seconds"] for r in done)), "fits": fits})
     # (here, not in the workers, whose logs Dask silences: one line per fit, by its name)
     for t, v in result.walls_cross():
-        warn_of_contact(record_contact(records[(t, v)]), f"{t}_{v}, fitted shell")
+        # (read_records checked it against its shell)
+        warn_of_contact(WallContact.from_dict(records[(t, v)]["walls_cross"]),
+                        f"{t}_{v}, fitted shell")
     unchecked = [f"{t}_{v}" for t, v in result.walls_unchecked()]
     if unchecked:       # (reused from a folder written before the check: say so, audit 24)
         log.log(NOTE, "%d reused fit(s) were written before fitted shapes were checked for walls "
                 "that pass through each other (walls_cross empty): %s; resume=False "
                 "(--no-resume) refits and checks them", len(unchecked), ", ".join(unchecked))
-    # every fit in the folder, not only this run's: a run on a subset had replaced the
-    # summary of the whole campaign by its own rows (the folder's settings are one run's)
-    write_atomic(out / SUMMARY, load_campaign(out, data_dir).to_dataframe().to_csv(index=False))
+    write_atomic(out / SUMMARY, stored.to_dataframe().to_csv(index=False))
     return result
 
 
@@ -301,7 +306,8 @@ def _read_data(data_dir, start) -> tuple[Timepoint, ...]:
 
 
 def _validate(data_dir, variants, method, nodes, workers, out, start) -> tuple:
-    """(timepoints, variants, out) of :func:`campaign`'s arguments, checked (ValueError naming one)."""
+    """(timepoints, variants, out) of :func:`campaign`'s arguments, checked (ValueError naming
+    one)."""
     timepoints = _read_data(data_dir, start)
     if isinstance(variants, str):
         variants = (variants,)
@@ -366,7 +372,8 @@ def _jackknifed(embryo_errors, variants: tuple[str, ...]) -> frozenset:
 
 def _selected(timepoints: tuple[Timepoint, ...], selected: str | Sequence[str], data_dir
               ) -> tuple[Timepoint, ...]:
-    """The timepoints named in ``selected`` (``campaign``'s ``timepoints``), in the data set's order."""
+    """The timepoints named in ``selected`` (``campaign``'s ``timepoints``), in the data set's
+    order."""
     asked = name_list(selected)
     names = [tp.name for tp in timepoints]
     unknown = [n for n in asked if n not in names]

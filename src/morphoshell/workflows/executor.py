@@ -77,7 +77,8 @@ def backend_name(executor: cf.Executor) -> str:
 
 
 @contextmanager
-def open_executor(workers: int | None = None, scheduler: str | None = None) -> Iterator[cf.Executor]:
+def open_executor(workers: int | None = None,
+                  scheduler: str | None = None) -> Iterator[cf.Executor]:
     """A ``concurrent.futures.Executor`` for ``workers`` processes (see the module docstring).
 
     Parameters
@@ -175,7 +176,8 @@ def _check_main_guard(method: str) -> None:
     frame = sys._getframe(1)
     while frame is not None:
         if (frame.f_code.co_name == "<module>" and frame.f_globals.get("__name__") == "__main__"
-                and script and os.path.abspath(frame.f_code.co_filename) == os.path.abspath(script)):
+                and script
+                and os.path.abspath(frame.f_code.co_filename) == os.path.abspath(script)):
             break
         frame = frame.f_back
     if frame is None or _guarded(script, frame.f_lineno):

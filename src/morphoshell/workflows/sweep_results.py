@@ -81,7 +81,8 @@ class SweepResult:
         return tuple(len(v) for v in self.axes.values())
 
     def dims(self) -> tuple[str, ...]:
-        """The axes' names as columns and dimensions (``opening_P`` for ``opening`` in ablations)."""
+        """The axes' names as columns and dimensions (``opening_P`` for ``opening`` in
+        ablations)."""
         return tuple(axis_column(k, self.ablate) for k in self.axes)
 
     def points(self, rows) -> str:

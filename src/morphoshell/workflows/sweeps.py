@@ -71,10 +71,10 @@ family declares its parameters), then
   ``axial_displacement``, ``energy_released``, ``energy_removed``) and the
   errors of the first four and of ``energy_released``;
 * ``status`` (the back end's: Ipopt's, ``Newton_Converged`` for a warm start
-  certified by :mod:`morphoshell.numerics.newton`, or a :class:`~morphoshell.solvers.results.SolverError`'s for a
-  failed point, whose values are NaN: failed points are never dropped),
-  ``iterations`` (Newton iterations spent on the point, the intact and the cut
-  shell together), ``path`` (``continuation``, ``warm``, ``split`` or
+  certified by :mod:`morphoshell.numerics.newton`, or a
+  :class:`~morphoshell.solvers.results.SolverError`'s for a failed point, whose values are NaN:
+  failed points are never dropped), ``iterations`` (Newton iterations spent on the point, the intact
+  and the cut shell together), ``path`` (``continuation``, ``warm``, ``split`` or
   ``remesh``), ``event`` (what the point's continuation crossed: ``snapped``,
   ``switched``), ``walls_cross`` (the walls pass through each other:
   :func:`~morphoshell.solvers.contact.wall_contact`), ``seconds`` (wall time of
@@ -137,13 +137,15 @@ MAX_CHUNK = 256
 #: when the second core is free; docs/benchmarks.md, "Sweeps and campaigns: when
 #: workers pay") ...
 SERIAL_BELOW = 400
-#: ... and below this many when no core is free (:func:`~morphoshell.workflows.executor.no_free_core`:
-#: at load 3-6 on 2 cores two workers lost up to 600 ablations and won at 999).
+#: ... and below this many when no core is free
+#: (:func:`~morphoshell.workflows.executor.no_free_core`: at load 3-6 on 2 cores two workers lost up
+#: to 600 ablations and won at 999).
 SERIAL_BELOW_BUSY = 1400
 
 #: Value columns of a solve sweep (energy in C R², edge values in R and rad).
 SOLVE_COLUMNS = ESTIMATED
-#: Value columns of an ablation sweep (:class:`~morphoshell.mechanics.ablation.Ablation`'s observables).
+#: Value columns of an ablation sweep (:class:`~morphoshell.mechanics.ablation.Ablation`'s
+#: observables).
 ABLATE_COLUMNS = (*RECOIL, "energy_released", "energy_removed")
 #: The ablation observables that get an error estimate.
 ESTIMATED_ABLATION = ("opening", "rotation", "displacement", "energy_released")
