@@ -316,8 +316,8 @@ def _checked(problem, cut, nodes, pre, cold) -> tuple[float, int, bool]:
     raised "'<' not supported", a string pre "'str' object has no attribute 's'", cold='no'
     solved cold, and nodes=99999, which solve()'s [5, 102400] let through, died of
     std::bad_alloc after 89 s).  ``nodes`` is held to the fits' range: the shells ablated
-    are fits' (a campaign's, on at most 3200 nodes), and 3200 nodes take 5 s and 0.5 GB
-    (12 800: 17 s and 3.1 GB, where one solve() takes 2.7 GB)."""
+    are fits' (a campaign's, on at most 3200 nodes; memory and time by nodes in
+    docs/benchmarks.md)."""
     check_problem(problem)      # (a string raised "'str' object has no attribute 'end'")
     cut = real("cut", cut)
     if not 0 < cut < problem.end:
