@@ -48,7 +48,7 @@ def register(sub) -> None:
     p.add_argument("fits", nargs="+", metavar="FIT.json",
                    help="fits of one midline (morphoshell fit --json), each variant once, "
                         "free included for the test")
-    p.add_argument("--midline", default=None, metavar="MIDLINE",
+    p.add_argument("--midline", default=None, metavar="AVERAGE.csv",
                    help="the averaged midline the fits were made to, for sigma^2 from its "
                         "traces' spread (default: the fits' midline_file, relative to the "
                         "current folder), read with the fits' reading options")
