@@ -18,6 +18,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "sphere": ("analytic", "toy problem 1: radius of a sphere with intrinsic curvature"),
     "estimate": ("estimate", "intrinsic curvature k and E/mu from ablation recoils"),
     "fit": ("fit", "fit the 13-parameter Volvox model to a traced midline"),
+    "compare": ("compare", "test the hypotheses on kappa1 of fits of one midline against "
+                           "the free fit"),
     "average": ("average", "average the traces of one stage into the midline a campaign fits"),
     "sweep": ("sweep", "equilibria or ablations on a grid of parameters (parallel)"),
     "campaign": ("campaign", "fit every timepoint of an inversion sequence for each variant "

@@ -140,11 +140,37 @@ def _campaign(args) -> int:
         table = df.pivot(index=["timepoint", "pseudotime"], columns="variant", values="E_fit")
         print("E_fit [R]:")
         print(table.to_string(float_format=lambda v: f"{v:.4g}"))
+    for line in _hypothesis_lines(result):
+        print(line)
     print(f"  wrote {_written(result)} and {result.out / SUMMARY}")
     far, best = result.far_above(), result.best_far_above()
     print(_verdict(unfinished, len(result.records), args.allow_failures, far, best,
                    result.walls_cross()))
     return 3 if (unfinished or best) and not args.allow_failures else 0
+
+
+def _hypothesis_lines(result) -> list[str]:
+    """Per timepoint, which hypotheses its free fit rejects and which the data cannot tell
+    apart (:meth:`~morphoshell.workflows.CampaignResult.hypothesis_tests`), with each
+    Delta S/sigma^2 and threshold: the lowest E_fit alone does not decide (audit 25 F1)."""
+    if "free" not in result.variants:
+        if len(result.variants) < 2:
+            return []
+        return ["hypotheses: not tested (the test of each against the data needs the free "
+                "fit, which nests them: add free to --variants); the lowest E_fit alone does "
+                "not decide"]
+    lines = ["hypotheses against free (Delta S/sigma^2 against the 95% threshold; "
+             "campaign_summary.csv: hypothesis_test):"]
+    for name, (test, why) in result.hypothesis_tests().items():
+        if test is None:
+            if any(key[0] == name for key in result.records):
+                lines.append(f"  {name}: not tested ({why})")
+            continue
+        ratios = ", ".join(f"{h.variant} {h.ratio:.3g}/{h.threshold:.3g}"
+                           for h in test.hypotheses if h.verdict in ("consistent", "rejected"))
+        lines.append(f"  {name}: {test.summary()} [{ratios}; sigma^2 from the "
+                     f"{test.sigma2_source}]")
+    return lines if len(lines) > 1 else []
 
 
 def _written(result) -> str:

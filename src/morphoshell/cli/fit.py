@@ -74,7 +74,8 @@ def register(sub) -> None:
                         "is continued once from its end. Prints (and the JSON records under "
                         "'starts') every start's E_fit, converged and constraints. A "
                         "variant's fit ends in a local minimum that depends on its start: "
-                        "compare variants' E_fit after --multi-start")
+                        "compare variants after --multi-start, with morphoshell compare "
+                        "(their E_fit ranking alone does not decide)")
     p.add_argument("--nodes", type=integer(*FIT_NODES), default=200, metavar="N",
                    help=f"mesh nodes of the inner solves, {FIT_NODES[0]} to {FIT_NODES[1]} "
                         f"(default 200)")

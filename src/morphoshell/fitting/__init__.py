@@ -9,7 +9,8 @@ KKT-constrained NLP (paper, Supplementary, "Fitting of the morphoelastic theory"
 :mod:`.results` what it returns, :mod:`.multistart` a fit from several starts (the
 lowest of its local minima), :mod:`.midline_checks` what it refuses and
 :mod:`.profiles` what the data determine (profile-likelihood intervals, their noise
-from :mod:`.profile_noise`, read back from a fit's JSON by :mod:`.profile_records`).
+from :mod:`.profile_noise`, read back from a fit's JSON by :mod:`.profile_records`), and
+:mod:`.hypotheses` which hypotheses on κ₁ the data tell apart (each against the free fit).
 """
 
 import lazy_loader
@@ -28,4 +29,5 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "profiles": ["Profile", "profile", "profile_intervals", "profiled_fit"],
     "profile_records": ["load_profiles", "profile_from_dict"],
     "profile_noise": ["noise_variance", "traces_missing", "noise_dof", "threshold_quantile"],
+    "hypotheses": ["compare_hypotheses", "HypothesisTest", "Hypothesis"],
 })

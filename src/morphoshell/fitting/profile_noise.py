@@ -27,18 +27,22 @@ log = logging.getLogger(__name__)
 NOISE_SOURCES = ("auto", "residual", "traces")
 
 
-def threshold_quantile(confidence: float, dof: float = math.inf) -> float:
+def threshold_quantile(confidence: float, dof: float = math.inf, restrictions: int = 1
+                       ) -> float:
     """q of the threshold S_min + σ² q: χ²₁(confidence), or F(1, dof) for an estimated σ².
 
     F(1, ν) is the square of Student's t with ν degrees of freedom: the
     likelihood-ratio statistic with σ² replaced by an estimate of ν degrees
     of freedom (:mod:`morphoshell.fitting.profiles`).  It tends to χ²₁ as ν grows.
+    With d ``restrictions`` (a hypothesis that holds d parameters of a fit,
+    :mod:`morphoshell.fitting.hypotheses`) χ²_d, or d·F(d, ν): ΔS/σ² is then the sum of d
+    such squares.  A profile holds one (d = 1).
     """
     from scipy.stats import chi2, f
 
     if math.isfinite(dof):
-        return float(f.ppf(confidence, 1, dof))
-    return float(chi2.ppf(confidence, 1))
+        return float(restrictions * f.ppf(confidence, restrictions, dof))
+    return float(chi2.ppf(confidence, restrictions))
 
 
 def noise_dof(data, source: str) -> float:

@@ -57,6 +57,9 @@ class CampaignResult:
     timing : dict
         ``seconds`` (wall clock), ``workers``, ``backend``, ``computed`` (fits
         done in this run), ``fit_seconds`` (their summed time).
+    data_dir : Path or None
+        The data set, whose averaged midlines give the noise of :meth:`hypothesis_tests`
+        (None: the fits' residuals).
     """
 
     out: Path
@@ -64,6 +67,7 @@ class CampaignResult:
     variants: tuple[str, ...]
     records: dict
     timing: dict = field(default_factory=dict)
+    data_dir: Path | None = None
 
     def __repr__(self) -> str:
         """One line: the folder, the grid, how many fits, failed and not converged (the
@@ -98,7 +102,12 @@ class CampaignResult:
             curvatures in 1/R), then ``se_<name>`` (Gauss–Newton standard
             errors; NaN for parameters not fitted at that timepoint), and
             with ``embryo_errors`` ``se_embryo_<name>`` (the jackknife over
-            the traces) and ``embryo_t95`` (their 95 % interval is ± this many).
+            the traces) and ``embryo_t95`` (their 95 % interval is ± this many); last,
+            the test of the fit's hypothesis against the timepoint's free fit
+            (:meth:`hypothesis_tests`): ``delta_S_over_sigma2``, ``hypothesis_threshold``,
+            ``hypothesis_test`` (``consistent``, ``rejected``, ``reference`` for free; empty
+            without a test) and ``hypothesis_noise`` (where σ² came from: ``traces`` or
+            ``residual``).
             ``df.attrs`` holds ``units`` (column → unit, :func:`column_unit`;
             the summary CSV has none, so that ``pandas.read_csv`` reads it as
             it is) and ``settings`` (the folder's :data:`SETTINGS`; empty
@@ -106,7 +115,9 @@ class CampaignResult:
         """
         import pandas as pd
 
-        rows = [_summary_row(tp, v, self.records[(tp.name, v)])
+        tests = self.hypothesis_tests()
+        rows = [{**_summary_row(tp, v, self.records[(tp.name, v)]),
+                 **_test_cells(tests[tp.name][0], v)}
                 for tp in self.timepoints for v in self.variants
                 if (tp.name, v) in self.records]
         df = pd.DataFrame(rows)
@@ -149,6 +160,45 @@ class CampaignResult:
                                  {"units": column_unit("pseudotime")})}
         return xr.Dataset(data, coords=coords, attrs={
             "out": str(self.out), "settings": json.dumps(table.attrs["settings"])})
+
+    def hypothesis_tests(self) -> dict[str, tuple]:
+        """Each timepoint's hypotheses tested against its free fit
+        (:func:`morphoshell.fitting.hypotheses.compare_hypotheses` of its finished fits; σ²
+        from the spread of the traces of its averaged midline when :attr:`data_dir` has
+        them, else from the free fit's residual).
+
+        Returns
+        -------
+        dict
+            ``{timepoint: (HypothesisTest or None, why none)}``: None with fewer than two
+            finished fits, or fits the test refuses (of other meshes: its one line).
+        """
+        from ..fitting.hypotheses import compare_hypotheses
+
+        out = {}
+        for tp in self.timepoints:
+            fits = {f"{tp.name}_{v}": rec for v in self.variants
+                    if (rec := self.records.get((tp.name, v), {})).get("status") == "ok"}
+            if len(fits) < 2:
+                out[tp.name] = (None, f"{len(fits)} finished fit(s)")
+                continue
+            try:
+                out[tp.name] = (compare_hypotheses(fits, self._midline(tp)), "")
+            except ValueError as exc:
+                out[tp.name] = (None, str(exc))
+        return out
+
+    def _midline(self, tp: Timepoint):
+        """The averaged midline of ``tp`` as its fits read it (None: no data folder, or
+        the file is gone or unreadable; then σ² comes from the residual)."""
+        from ..io import Midline
+
+        if self.data_dir is None:
+            return None
+        try:
+            return Midline.from_csv(Path(self.data_dir) / tp.midline)
+        except (OSError, ValueError):
+            return None
 
     def unfinished(self) -> list[tuple[str, str, str]]:
         """The fits that failed or did not converge: (timepoint, variant, "failed" or
@@ -227,6 +277,17 @@ def _summary_row(tp: Timepoint, variant: str, rec: dict) -> dict:
     return row
 
 
+def _test_cells(test, variant: str) -> dict:
+    """The summary's cells of the test of ``variant``'s hypothesis in ``test`` (None: no
+    test at its timepoint: empty cells)."""
+    row = next((h for h in test.hypotheses if h.variant == variant), None) if test else None
+    if row is None or not row.verdict:
+        return {"delta_S_over_sigma2": float("nan"), "hypothesis_threshold": float("nan"),
+                "hypothesis_test": "", "hypothesis_noise": ""}
+    return {"delta_S_over_sigma2": row.ratio, "hypothesis_threshold": row.threshold,
+            "hypothesis_test": row.verdict, "hypothesis_noise": test.sigma2_source}
+
+
 def _grid(values: list) -> np.ndarray:
     """A column of the summary on the (timepoint, variant) grid as one array: numbers as
     floats, flags as bools (1.0/0.0 where some have none), the rest as strings; NaN, or
@@ -253,15 +314,16 @@ def record_input_check(rec: dict) -> str | None:
 
 def column_unit(column: str) -> str:
     """The unit of a column of the campaign summary: ``R`` (E_fit, breakpoints s and the
-    smoothing width), ``1/R`` (curvatures κ), ``1`` (stretches f, ``embryo_t95``); a
+    smoothing width), ``1/R`` (curvatures κ), ``1`` (stretches f, ``embryo_t95``, the
+    hypothesis test's ``delta_S_over_sigma2`` and ``hypothesis_threshold``); a
     standard error's is its parameter's; ``""`` for labels, flags and settings.  The
     pseudotime is in the unit of ``timepoints.csv``: ``"as timepoints.csv"``."""
     params = get_family("volvox").units
     for prefix in ("se_embryo_", "se_"):
         if column.startswith(prefix) and column[len(prefix):] in params:
             return params[column[len(prefix):]]
-    return {**params, "E_fit": "R", "embryo_t95": "1",
-            "pseudotime": "as timepoints.csv"}.get(column, "")
+    return {**params, "E_fit": "R", "embryo_t95": "1", "delta_S_over_sigma2": "1",
+            "hypothesis_threshold": "1", "pseudotime": "as timepoints.csv"}.get(column, "")
 
 
 def _number(value) -> float:
@@ -322,7 +384,7 @@ def load_campaign(out: str | Path, data_dir: str | Path) -> CampaignResult:
     out = Path(out)
     records = read_records(out, [(tp.name, v) for v in VARIANTS for tp in timepoints])
     variants = tuple(dict.fromkeys(v for _, v in records))
-    return CampaignResult(out, timepoints, variants, records)
+    return CampaignResult(out, timepoints, variants, records, data_dir=Path(data_dir))
 
 
 def record_contact(rec: dict, where: str = "the record") -> WallContact | None:

@@ -211,7 +211,8 @@ def campaign(data_dir: str | Path, variants: Sequence[str] = VARIANTS, *,
     result = CampaignResult(out, timepoints, variants, records, {
         "seconds": seconds, "workers": 1 if backend == "serial" else workers,
         "backend": backend, "computed": len(done),
-        "fit_seconds": float(sum(r["seconds"] for r in done)), "fits": fits})
+        "fit_seconds": float(sum(r["seconds"] for r in done)), "fits": fits},
+        data_dir=Path(data_dir))
     # (here, not in the workers, whose logs Dask silences: one line per fit, by its name)
     for t, v in result.walls_cross():
         # (read_records checked it against its shell)

@@ -1,0 +1,73 @@
+"""``morphoshell compare``: the hypotheses on κ₁ of fits of one midline tested against the free
+fit, σ² from the traces of the midline file the fits name (audit 25 F1); bad input exit 2."""
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "fitting"))
+from hypothesis_cases import AUDIT_SIGMA2, audit_fits, points, spread_for  # noqa: E402
+
+from morphoshell.cli import main  # noqa: E402
+from morphoshell.io import Midline  # noqa: E402
+
+
+@pytest.fixture
+def fits(tmp_path, monkeypatch) -> list[str]:
+    """The audit's four fit JSONs in tmp_path, naming average.csv (five traces) as the fits'
+    midline, run from tmp_path (the records' paths are relative to where fit ran)."""
+    monkeypatch.chdir(tmp_path)
+    p = points()
+    Midline(p[:, 0], p[:, 1], spread_for(AUDIT_SIGMA2), 5).to_csv(tmp_path / "average.csv")
+    settings = {"midline_file": "average.csv", "format": None, "section": "auto",
+                "pixel_size_um": None, "radius_um": None, "roi": None}
+    names = []
+    for variant, fit in audit_fits().items():
+        record = {**fit.to_dict(), "midline_file": "average.csv", "settings": settings,
+                  "solver": {"nodes": 200, "stages": 2, "method": "direct"}}
+        names.append(f"fit_{variant}.json")
+        (tmp_path / names[-1]).write_text(json.dumps(record))
+    return names
+
+
+def test_compare_prints_the_verdict_and_writes_json_and_csv(fits, tmp_path, capsys):
+    assert main(["compare", *fits, "--json", "c.json", "--csv", "c.csv"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("sigma^2 = 6.48e-06 R^2 from the spread of 5 traces")
+    assert "F(1, 4)" in out[0]
+    assert out[3].split() == ["flat", "0.00349052", "12", "1.92e-07", "0.0296", "7.71",
+                              "consistent"]
+    assert out[6].startswith("the data do not tell flat, undeformed, unstressed apart")
+    data = json.loads((tmp_path / "c.json").read_text())
+    assert data["sigma2_source"] == "traces" and data["dof"] == 4
+    assert [h["verdict"] for h in data["hypotheses"]] == ["reference"] + ["consistent"] * 3
+    assert (tmp_path / "c.csv").read_text().splitlines()[0] == (
+        "name,variant,E_fit,fitted,restrictions,delta_S,delta_S_over_sigma2,threshold,verdict")
+
+
+def test_compare_without_the_midline_file_takes_the_residual(fits, tmp_path, capsys):
+    """The file gone: a note, σ² from the residual (χ²₁): undeformed and unstressed rejected,
+    with the caveat that this noise is too small for a traced midline."""
+    (tmp_path / "average.csv").unlink()
+    assert main(["compare", *fits]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("note: average.csv (the fits' midline_file) is not a file here")
+    assert "only flat is consistent with the data; rejected: undeformed, unstressed" in out
+    assert "a rejection may be that noise" in out
+
+
+@pytest.mark.parametrize("edit, args, message", [
+    (None, ["--noise", "traces", "--midline", "nope.csv"], "--midline nope.csv: not a file"),
+    ("flat", [], "fit_flat.json was fitted on 100 nodes, fit_free.json on 200"),
+    (None, ["fit_free.json"], "fit_free.json is named twice"),
+])
+def test_compare_refuses_mixed_fits_in_one_line(fits, tmp_path, capsys, edit, args, message):
+    if edit:
+        path = tmp_path / f"fit_{edit}.json"
+        record = json.loads(path.read_text())
+        record["solver"]["nodes"] = 100
+        path.write_text(json.dumps(record))
+    assert main(["compare", *fits, *args]) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1, err
