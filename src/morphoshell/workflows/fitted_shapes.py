@@ -378,8 +378,10 @@ def _rejected(eq: Equilibrium) -> int:
 def ablation_errors(record: dict, ablation: Ablation) -> dict[str, float]:
     """Standard errors of the recoil observables of a fitted shape's ablation.
 
-    The fit's Gauss–Newton covariance C of the fitted parameters θ (a lower
-    bound: the residuals of a traced midline are correlated) propagated
+    The record's covariance C of the fitted parameters θ (its standard errors and
+    correlations: Gauss–Newton's, a lower bound as the residuals of a traced midline are
+    correlated, or for a fit of one image trace its re-tracings', as its
+    ``standard_errors_source`` says) propagated
     linearly, σ_y² = (J C Jᵀ)_yy, with J = dy/dθ the exact derivatives of the
     observables (:func:`~morphoshell.mechanics.ablation.recoil_jacobian`, through both
     equilibria) and the ``unstressed`` tie κ₁ = 1/f₁ (dκ₁/df₁ = −1/f₁²).
