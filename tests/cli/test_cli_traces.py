@@ -263,32 +263,82 @@ def test_retracings_the_reader_refuses_are_left_out_or_the_gauss_newton_errors_s
         monkeypatch, capsys):
     """A re-tracing that the reader refuses never refuses the trace (audit 15 F7: a valid
     20-vertex ROI, exit 2, "re-tracing: the halves ... differ"): a few are left out with a
-    note saying how many; more than a tenth and the Gauss–Newton errors stand, said so."""
+    note saying how many; more than a tenth and the Gauss–Newton errors stand, said so (and
+    in the result: audit 27 F1, its record said nothing of which errors it held)."""
     from argparse import Namespace
-    from types import SimpleNamespace
 
     import numpy as np
 
-    from morphoshell.cli.fit import _retracings
+    from morphoshell.cli.fit import _retracings, _trace_errors
     from morphoshell.fitting import trace_errors
 
     why = ("the halves of this whole section differ by 0.0519 R rms from their mirror average "
            "(max_asymmetry = 0.05): the pole is taken at half the trace's length")
-    args = Namespace(section=None, radius_um=RADIUS_UM, pixel_size=PIXEL_UM)
-    result = SimpleNamespace(data=np.zeros((100, 2)), jacobian=np.eye(200, 13))
+    args = Namespace(section=None, radius_um=RADIUS_UM, pixel_size=PIXEL_UM, midline="x.csv",
+                     format=None, roi=None)
+    result = _stand_in(np.zeros((100, 2)), np.eye(200, 2))
+    monkeypatch.setattr(trace_errors, "single_trace", lambda *a, **k: object())
     for refused, kept in ((2, True), (11, False)):
-        made = trace_errors.ReaderErrors(np.ones((100 - refused, 200)), 0.002, (why,) * refused)
+        made = trace_errors.ReaderErrors(np.ones((100 - refused, 200)), 0.002, (why,) * refused,
+                                         0, 0.5)
         monkeypatch.setattr(trace_errors, "reader_errors", lambda *a, made=made, **k: made)
-        errors = _retracings(result, object(), args)
+        retraced = _retracings(result, args)
         out = capsys.readouterr().out
-        assert out.count("note:") == 1
+        assert out.count("note:") == 1 and "about 0.5 px" in out, out
         assert "the first: the halves of this whole section differ by 0.0519 R rms from their " \
                "mirror average (at most 0.05 R))" in out, out
+        assert retraced is made
+        source = _trace_errors(result, retraced).standard_errors_source
         if kept:
-            assert errors is made.errors
             assert "from 98 simulated re-tracings" in out and "2 of 100 refused by the " \
                    "reader and left out" in out, out
+            assert source == "re-tracings"
         else:
-            assert errors is None
             assert "the ± are the Gauss–Newton errors" in out and "11 of the 100 simulated " \
                    "re-tracings" in out, out
+            assert source == "gauss-newton"
+
+
+def _stand_in(data, jacobian):
+    """A fit's stand-in with what the re-tracings need: its data, Jacobian, two fitted
+    parameters and their Gauss–Newton errors."""
+    import numpy as np
+
+    from morphoshell.fitting.results import FitResult
+
+    return FitResult("gradient", "free", ("f1", "kappa1"), {"f1": 0.8, "kappa1": 0.1},
+                     {"f1": 0.01, "kappa1": 0.1}, np.eye(2), [], 0.01, np.zeros(200), None,
+                     data, data, 1, 1, 1.0, True, problem=object(), jacobian=jacobian)
+
+
+def test_fit_json_and_csv_say_which_standard_errors_they_hold(fiji_xy, tmp_path, capsys):
+    """Audit 27 F1: fit --json of one image trace wrote the re-tracings' errors (κ₁ 0.24)
+    under the note "standard errors are Gauss-Newton lower bounds", with neither their count
+    nor seed, and the CSV said nothing: both say which now, the JSON how they were made (and
+    F7: each parameter's unit); a csv midline's are Gauss–Newton's, said so too."""
+    import csv
+    import json
+
+    scale = ["--pixel-size", str(PIXEL_UM), "--radius-um", str(RADIUS_UM)]
+    short = ["--variant", "flat", "--nodes", "60", "--max-evaluations", "2"]   # (quick: exit 3)
+    for midline, extra, source in ((fiji_xy, scale, "re-tracings"),
+                                   (T01 / "synthetic_average.csv", [], "gauss-newton")):
+        out_json, out_csv = tmp_path / f"{source}.json", tmp_path / f"{source}.csv"
+        assert main(["fit", str(midline), *extra, *short, "--json", str(out_json),
+                     "--csv", str(out_csv)]) == 3
+        printed = capsys.readouterr().out
+        record = json.loads(out_json.read_text())
+        assert record["standard_errors_source"] == source
+        assert record["units"]["kappa2"] == "1/R" and record["units"]["f1"] == "1"
+        with open(out_csv, newline="") as f:
+            assert {row["standard_errors_source"] for row in csv.DictReader(f)} == {source}
+        if source == "re-tracings":
+            made = record["re_tracings"]
+            assert (made["replicates"], made["seed"], made["sigma_units"]) == (100, 0, "R")
+            assert made["refused"] == 0 and 0.2 < made["sigma_px"] < 2, made
+            assert "sandwich of 100 re-tracings" in record["note"], record["note"]
+            assert "± from 100 re-tracings" in printed, printed
+        else:
+            assert "re_tracings" not in record
+            assert record["note"].startswith("standard errors are Gauss-Newton lower bounds")
+            assert "± Gauss–Newton (lower bounds" in printed, printed

@@ -527,3 +527,119 @@ def test_a_fit_is_a_table_of_its_parameters_as_fit_csv_writes_it(pinned_fit, tmp
     assert ds.attrs["E_fit"] == res.E_fit and ds.attrs["stop"] == "Fit_Converged"
     ds.to_netcdf(tmp_path / "fit.nc")
     assert xr.load_dataset(tmp_path / "fit.nc").identical(ds)
+
+
+@pytest.fixture(scope="module")
+def two_fit():
+    """A fit of f1 and kappa1 alone (the rest held) to a synthetic midline, 60 nodes: free
+    standard errors, unlike :func:`pinned_fit`'s."""
+    from morphoshell.fitting import synthetic_midline
+
+    base = Problem("volvox", h=0.15, opening=0.3)
+    hold = {k: v for k, v in base.params.items() if k not in ("f1", "kappa1")}
+    data = synthetic_midline(base.with_updates(f1=base.params["f1"] + 0.02), nodes=60)
+    return fit(volvox_spec("free", start=base, hold=hold), data, "gradient", nodes=60)
+
+
+@pytest.fixture(scope="module")
+def retraced_fit(two_fit):
+    """:func:`two_fit` with the errors of 30 stand-in re-tracings (white noise of 1e-3 R on
+    the data midline; one more refused), as morphoshell fit gives a fit of one image trace."""
+    from morphoshell.fitting.trace_errors import ReaderErrors, with_trace_errors
+
+    rows = np.random.default_rng(3).normal(0.0, 1e-3, (30, 2 * len(two_fit.data)))
+    return with_trace_errors(two_fit, ReaderErrors(rows, 1e-3, ("halves differ",), 3, 0.4))
+
+
+def test_a_fits_record_says_which_standard_errors_it_holds(two_fit, retraced_fit, tmp_path):
+    """Audit 27 F1: morphoshell fit of one image trace wrote its re-tracings' standard errors
+    (kappa1 0.24) under the note "standard errors are Gauss-Newton lower bounds", as the API
+    fit of the same file wrote its Gauss–Newton ones (0.10): the record, the table, the
+    summary and the note now say which (with the re-tracings' count, refused, σ, seed and the
+    Gauss–Newton errors they replaced), and read back so."""
+    from morphoshell.fitting import load_fit
+    from morphoshell.io.problem_files import to_jsonable, write_json
+
+    res = two_fit
+    plain, traced = res.to_dict(), retraced_fit.to_dict()
+    assert plain["standard_errors_source"] == "gauss-newton" and "re_tracings" not in plain
+    assert plain["note"].startswith("standard errors are Gauss-Newton lower bounds")
+    assert traced["standard_errors_source"] == "re-tracings"
+    assert traced["re_tracings"] == {
+        "replicates": 31, "refused": 1, "sigma": 1e-3, "sigma_units": "R", "sigma_px": 0.4,
+        "seed": 3, "gauss_newton_errors": plain["standard_errors"]}
+    assert "sandwich of 31 re-tracings" in traced["note"] and "seed 3" in traced["note"]
+    assert "Gauss-Newton lower bounds" not in traced["note"]
+    # (the noiseless data's Gauss–Newton errors are tiny; 1e-3 R of noise gives more)
+    assert all(traced["standard_errors"][n] > 10 * plain["standard_errors"][n]
+               for n in ("f1", "kappa1")), (traced["standard_errors"], plain["standard_errors"])
+    for fit_, source in ((res, "gauss-newton"), (retraced_fit, "re-tracings")):
+        assert set(fit_.table()["standard_errors_source"]) == {source}
+        assert fit_.to_dataframe().attrs["note"] == fit_.to_dict()["note"]
+        assert fit_.to_xarray().attrs["standard_errors_source"] == source
+    assert res.summary().splitlines()[1].startswith("  ± Gauss–Newton (lower bounds")
+    assert "± from 31 re-tracings (pixel noise 0.001 R = 0.4 px per coordinate, seed 3; 1 " \
+           "refused by the reader) of the image trace" in retraced_fit.summary()
+    back = load_fit(write_json(tmp_path / "fit.json", traced))
+    assert to_jsonable(back.to_dict()) == to_jsonable(traced)
+    assert back.standard_errors_source == "re-tracings" and back.summary() == retraced_fit.summary()
+
+
+def test_a_record_from_before_says_its_standard_errors_source_is_not_known(pinned_fit,
+                                                                            retraced_fit):
+    """A record without standard_errors_source (written before records said) reads back with
+    the source not known (None, empty in the table, a summary line saying so) and writes
+    the entry out again, as walls_cross; one whose source disagrees with its re_tracings
+    (too many refused for their errors, or none made) is refused naming the entry."""
+    from morphoshell.fitting import FitResult
+
+    record = pinned_fit[2].to_dict()
+    del record["standard_errors_source"]
+    back = FitResult.from_dict(record)
+    assert back.standard_errors_source is None and "standard_errors_source" not in back.to_dict()
+    assert back.table()["standard_errors_source"][0] is None
+    assert "not known to be Gauss–Newton's or the re-tracings'" in back.summary()
+    assert back.to_dict()["note"] == record["note"]         # (as the record said)
+    with pytest.raises(ValueError, match=r"x.json: standard_errors_source = 're-tracings' "
+                                         r"disagrees with no re_tracings entry"):
+        FitResult.from_dict({**pinned_fit[2].to_dict(), "standard_errors_source": "re-tracings"},
+                            "x.json")
+    traced = retraced_fit.to_dict()
+    traced["re_tracings"]["refused"] = 20
+    with pytest.raises(ValueError, match=r"x.json: standard_errors_source = 're-tracings' "
+                                         r"disagrees with re_tracings has 20 of 31 refused"):
+        FitResult.from_dict(traced, "x.json")
+
+
+def test_every_single_edit_of_a_retraced_fit_json_loads_or_is_refused_naming_the_file(
+        retraced_fit, tmp_path):
+    """The re_tracings entry and standard_errors_source, edited as
+    :func:`test_every_single_edit_of_a_fit_json_loads_or_is_refused_naming_the_file` edits
+    every entry: the fit loads, or a ValueError of one line names the file."""
+    from morphoshell.io.problem_files import to_jsonable
+
+    record = to_jsonable(retraced_fit.to_dict())
+    paths = [p for p in _paths(record) if p[:1] in (("re_tracings",), ("standard_errors_source",))]
+    assert len(paths) > 10
+    for path in paths:
+        for edit in _EDITS:
+            _loads_or_names_the_file(tmp_path / "edited fit.json", _edited(record, [(path, edit)]))
+
+
+def test_a_fits_json_has_each_parameters_unit_and_no_nan(pinned_fit):
+    """Audit 27 F7: a fit's JSON had no unit per parameter (its CSV had them): ``units`` is
+    the table's ``unit`` column (one source).  F11: a campaign's record (no seconds) read back
+    wrote ``"seconds": NaN``, which strict JSON readers refuse: null."""
+    import json
+
+    from morphoshell.fitting import FitResult
+
+    res = pinned_fit[2]
+    table = res.table()
+    assert res.to_dict()["units"] == dict(zip(table["parameter"], table["unit"]))
+    assert res.to_dict()["units"]["kappa1"] == "1/R" and res.to_dict()["units"]["f1"] == "1"
+    record = res.to_dict()
+    del record["seconds"]
+    back = FitResult.from_dict(record).to_dict()
+    assert back["seconds"] is None
+    json.dumps(back["seconds"], allow_nan=False)

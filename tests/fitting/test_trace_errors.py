@@ -87,3 +87,91 @@ def test_a_retracing_the_reader_refuses_is_left_out_not_raised():
     rows = np.zeros((91, 4))
     assert not ReaderErrors(rows[:89], 0.01, ("refused",) * 11).usable
     assert ReaderErrors(rows, 0.01, ("refused",) * 9).usable
+
+
+def _stand_in(errors: dict):
+    """A fit's stand-in with ``errors`` (Gauss–Newton; NaN on a constraint) and a Jacobian of
+    the linear model (:func:`_jacobian`, its 4 parameters named f1, f2, kappa1, s1)."""
+    from morphoshell.fitting.results import FitResult
+
+    names, J, data = ("f1", "f2", "kappa1", "s1"), _jacobian(), _template()
+    return FitResult("gradient", "free", names, dict.fromkeys(names, 0.5), errors, np.eye(4), [],
+                     0.01, np.zeros(2 * N), None, data, data, 1, 1, 1.0, True, problem=object(),
+                     jacobian=J)
+
+
+def test_a_fit_with_its_retracings_errors_records_them_and_which_errors_it_holds():
+    """Audit 27 F1: nothing in a fit said whether its errors were the re-tracings' or
+    Gauss–Newton's, nor the re-tracings' seed.  with_trace_errors records them (count,
+    refused, σ, seed, the Gauss–Newton errors replaced: re_tracings) and the result says
+    which it holds; too many refused and the Gauss–Newton errors stand, said so; a
+    constraint's NaN stays NaN; a fit read back (no Jacobian) or already re-traced is refused."""
+    from dataclasses import replace
+
+    from morphoshell.fitting.trace_errors import ReaderErrors, Retracings, with_trace_errors
+
+    gauss_newton = {"f1": 1e-4, "f2": 2e-4, "kappa1": float("nan"), "s1": 3e-4}
+    fit = _stand_in(gauss_newton)
+    rows = np.random.default_rng(2).normal(0.0, SIGMA, (40, 2 * N))
+    traced = with_trace_errors(fit, ReaderErrors(rows, SIGMA, ("refused",) * 2, 5, 0.5))
+    assert fit.standard_errors_source == "gauss-newton" and fit.re_tracings is None
+    assert traced.standard_errors_source == "re-tracings"
+    assert (traced.re_tracings.replicates, traced.re_tracings.refused, traced.re_tracings.seed,
+            traced.re_tracings.sigma) == (42, 2, 5, SIGMA)
+    assert traced.re_tracings.gauss_newton["f1"] == 1e-4 and traced.re_tracings.sigma_px == 0.5
+    assert np.isnan(traced.re_tracings.gauss_newton["kappa1"])
+    assert np.isnan(traced.standard_errors["kappa1"])
+    assert traced.standard_errors["f1"] != 1e-4
+    assert Retracings.from_dict("r", traced.re_tracings.to_dict(), fit.fitted).to_dict() == \
+        traced.re_tracings.to_dict()
+    refused = with_trace_errors(fit, ReaderErrors(rows[:30], SIGMA, ("refused",) * 4))
+    assert refused.standard_errors_source == "gauss-newton"
+    assert refused.standard_errors == gauss_newton and refused.re_tracings.refused == 4
+    assert "the reader refused 4 of the 34 re-tracings" in refused.note
+    with pytest.raises(ValueError, match="already come from re-tracings"):
+        with_trace_errors(traced, ReaderErrors(rows, SIGMA))
+    with pytest.raises(ValueError, match="no Jacobian"):
+        with_trace_errors(replace(fit, jacobian=None), ReaderErrors(rows, SIGMA))
+
+
+def test_the_errors_of_a_trace_file_in_one_call_are_those_of_morphoshell_fit(tmp_path):
+    """Audit 27 F1: the API fit of a trace file gave the Gauss–Newton errors (κ₁ 0.10) where
+    morphoshell fit gave the re-tracings' (0.24), and the way to the latter took three
+    calls.  with_trace_file_errors(fit, path, pixel_size_um=..., radius_um=...) is the
+    command line's route (single_trace, trace_retracings, with_trace_errors), to the bit; a
+    ROI set's average of several traces is refused."""
+    from pathlib import Path
+
+    import roifile
+
+    from morphoshell.fitting.trace_errors import (reader_errors, single_trace,
+                                                  with_trace_errors, with_trace_file_errors)
+    from morphoshell.io import load_midline, read_trace
+
+    roi = Path(__file__).parents[1] / "data" / "seg20.roi"
+    scale = {"pixel_size_um": 0.3, "radius_um": 42.0}
+    midline = load_midline(roi, **scale)
+    fit = _with_data(_stand_in(dict.fromkeys(("f1", "f2", "kappa1", "s1"), 1e-4)),
+                       midline.points)
+    one = with_trace_file_errors(fit, roi, **scale, replicates=20, seed=4)
+    trace = read_trace(roi, **scale)
+    by_hand = with_trace_errors(fit, reader_errors(midline.points, trace, "whole", 20, 4))
+    assert one.standard_errors == by_hand.standard_errors
+    assert one.re_tracings == by_hand.re_tracings and one.re_tracings.refused == 1
+    # σ in pixels: the trace's σ over its scale (R per pixel: 0.3 / 42)
+    assert one.re_tracings.sigma_px == pytest.approx(one.re_tracings.sigma * 42.0 / 0.3,
+                                                     rel=1e-12)
+    roi_set = tmp_path / "RoiSet.zip"
+    for name in ("a", "b"):
+        roifile.ImagejRoi.fromfile(roi).tofile(roi_set, name=name)
+    assert single_trace(roi_set, roi="all", **scale) is None
+    assert single_trace(roi_set, roi="a", **scale) is not None
+    with pytest.raises(ValueError, match="RoiSet.zip: roi='all' reads several traces"):
+        with_trace_file_errors(fit, roi_set, roi="all", **scale)
+
+
+def _with_data(fit, points):
+    """``fit`` with the data midline ``points`` (N of them, as the Jacobian's rows)."""
+    from dataclasses import replace
+
+    return replace(fit, data=points, model=points)

@@ -83,7 +83,9 @@ _UNITS = {"opening": "R", "rotation": "rad", "displacement": "R", "rotation_smal
           "displacement_small_cut": "R", "energy_released": "C R^2", "delta": "R",
           "sigma": "(dimensionless: Sigma/delta)"}
 #: The inputs' units in the JSON ("1": dimensionless, as in ``solve --json``; the moduli:
-#: only their ratio matters).
+#: only their ratio matters).  The cut in rad, the cap's half-angle the sphere's formulas
+#: take, where solve and ablate write R, the model's arclength: one number on the unit
+#: sphere (docs/tables.md says why the labels differ).
 _INPUT_UNITS = {"h": "R", "k": "1/R", "cut": "rad", "c10": "1", "c01": "1"}
 
 

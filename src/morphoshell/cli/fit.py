@@ -29,7 +29,9 @@ def register(sub) -> None:
                     "of symmetry and scaled to units of R. A trace too long or short for the "
                     "model (a wrong scale) or leaving its pole along the axis (r and z "
                     "swapped) is refused before any work. Standard errors are Gauss-Newton "
-                    "lower bounds (the residuals of a traced midline are correlated).")
+                    "lower bounds (the residuals of a traced midline are correlated), or for "
+                    "one image trace those of 100 simulated re-tracings of its pixel noise; "
+                    "the JSON's and CSV's standard_errors_source says which.")
     p.add_argument("midline", metavar="MIDLINE", help="traced midline: CSV of r,z (units of "
                    "R, pole first), or an image trace: CSV of x,y, Fiji XY coordinates, an "
                    "ImageJ .roi or a ROI Manager set RoiSet.zip (with --roi)")
@@ -233,7 +235,6 @@ def fit_record(args, limit: int) -> dict:
 def _fit(args) -> int:
     from ..fitting import EVALUATION_LIMITS, N_FIT
     from ..fitting.midline_checks import input_check
-    from ..fitting.trace_errors import profile_inflation
     from ..io.problem_files import write_csv, write_json
     from ..solvers.contact import warn_of_contact
     from ._fit_stops import stop_line
@@ -245,8 +246,7 @@ def _fit(args) -> int:
     unit, default = EVALUATION_LIMITS[args.method]
     limit = args.max_evaluations or default
     result, starts = _run_fit(args, spec, midline, limit, unit)
-    retraced = _retracings(result, _single_trace(args), args)
-    gauss_newton = result.standard_errors
+    retraced = _retracings(result, args)
     result = _trace_errors(result, retraced)
     print(result.summary())
     print(f"  E_fit = {result.E_fit:.6g} R over {N_FIT} points; {result.inner_solves} inner "
@@ -256,8 +256,7 @@ def _fit(args) -> int:
               f"* the lowest E_fit, the fit above):\n{starts.table()}")
     before, profiles, not_done = result, {}, None
     if names:
-        inflation = (profile_inflation(gauss_newton, result.standard_errors)
-                     if retraced is not None else None)
+        inflation = _inflation(result)
         result, profiles, not_done = _profiled(args, spec, data, result, names, inflation)
         if result is not before:        # (the fit was not its minimum: the refit is the fit)
             result = _trace_errors(result, retraced)    # (the same data: the same re-tracings)
@@ -354,60 +353,58 @@ def _run_fit(args, spec, midline, limit: int, unit: str):
         raise type(exc)(f"{str(exc).rstrip('.')}. {hint}", exc.status, exc.last_iterate) from None
 
 
-def _single_trace(args):
-    """The image trace that the fitted midline was read from; None for a csv midline or an
-    average of several traces (whose errors the Gauss–Newton ones or the traces' spread give)."""
-    if args.pixel_size is None:
-        return None
-    from ..io.roi_sets import is_roi_set, read_set_traces
-    from ..io.traces import read_trace
-
-    scale = {"pixel_size_um": args.pixel_size, "radius_um": args.radius_um}
-    if args.format in (None, "roi") and is_roi_set(args.midline):
-        traces = read_set_traces(args.midline, args.roi, **scale)
-    else:
-        traces = [read_trace(args.midline, args.format, **scale)]
-    return traces[0] if len(traces) == 1 else None
-
-
-def _retracings(result, trace, args):
+def _retracings(result, args):
     """The data's errors from re-tracings of its one image trace
-    (:func:`morphoshell.fitting.trace_errors.reader_errors`), said in a note, or None without
-    a single trace or a Jacobian, or with too many re-tracings refused by the reader (the
-    Gauss–Newton errors stand; a note says why)."""
-    if trace is None or result.jacobian is None:
+    (:func:`morphoshell.fitting.trace_errors.trace_retracings`), said in a note, or None
+    without a single trace (a csv midline, an average of several traces: their errors are
+    the Gauss–Newton ones or the traces' spread) or a Jacobian.  With too many re-tracings
+    refused by the reader the Gauss–Newton errors stand (:func:`_trace_errors`); the note
+    says why."""
+    if args.pixel_size is None or result.jacobian is None:
         return None
-    from ..fitting.trace_errors import TRACE_REPLICATES, reader_errors
+    from ..fitting.trace_errors import single_trace, trace_retracings
 
-    section = "half" if args.section == "half" else "whole"     # (align's rule for images)
-    retraced = reader_errors(result.data, trace, section)
-    pixels = retraced.sigma * args.radius_um / args.pixel_size
-    refused = len(retraced.refused)
+    trace = single_trace(args.midline, args.format, pixel_size_um=args.pixel_size,
+                         radius_um=args.radius_um, roi=args.roi)
+    if trace is None:
+        return None
+    retraced = trace_retracings(result, trace, args.section)
+    made, refused = len(retraced.errors) + len(retraced.refused), len(retraced.refused)
     first = (f"{'the first' if refused > 1 else 'it'}: "
              f"{reworded(retraced.refused[0], TRACE_OPTIONS).partition(': ')[0]}"
              if refused else "")
     if not retraced.usable:
         note(f"the ± are the Gauss–Newton errors, which take the midline's points as independent "
-             f"(for one trace 1.3-1.8x too small): {refused} of the {TRACE_REPLICATES} simulated "
-             f"re-tracings of the trace's pixel noise (about {pixels:.2g} px) that would give them "
-             f"were refused by the reader ({first})")
-        return None
-    note(f"the ± are the errors of the trace's pixel noise (about {pixels:.2g} px) carried "
-         f"through its alignment and resampling, from {len(retraced.errors)} simulated "
-         f"re-tracings (not the Gauss–Newton errors, which take the midline's points as "
-         f"independent)"
-         + (f"; {refused} of {TRACE_REPLICATES} refused by the reader and left out, which narrows "
-            f"the ± a little ({first})" if refused else ""))
-    return retraced.errors
+             f"(for one trace 1.3-1.8x too small): {refused} of the {made} simulated "
+             f"re-tracings of the trace's pixel noise (about {retraced.sigma_px:.2g} px) that "
+             f"would give them were refused by the reader ({first})")
+    else:
+        note(f"the ± are the errors of the trace's pixel noise (about {retraced.sigma_px:.2g} "
+             f"px) carried through its alignment and resampling, from "
+             f"{len(retraced.errors)} simulated re-tracings (not the Gauss–Newton errors, which "
+             f"take the midline's points as independent)"
+             + (f"; {refused} of {made} refused by the reader and left out, which narrows "
+                f"the ± a little ({first})" if refused else ""))
+    return retraced
 
 
 def _trace_errors(result, retraced):
     """``result`` with the sandwich errors of its trace's re-tracings (the Gauss–Newton ones
-    assume independent residuals and were 1.3–1.8x too small), or as it is without them."""
-    if retraced is None or result.jacobian is None:
+    assume independent residuals and were 1.3–1.8x too small) and their record
+    (:func:`morphoshell.fitting.trace_errors.with_trace_errors`), or as it is without them."""
+    if retraced is None:
         return result
     from ..fitting.trace_errors import with_trace_errors
     return with_trace_errors(result, retraced)
+
+
+def _inflation(result):
+    """The factors on a single trace's profile σ² (:func:`morphoshell.fitting.trace_errors.
+    profile_inflation`), or None where its errors are not the re-tracings'."""
+    if result.standard_errors_source != "re-tracings":
+        return None
+    from ..fitting.trace_errors import profile_inflation
+    return profile_inflation(result.re_tracings.gauss_newton, result.standard_errors)
 
 
 def _local_minimum_note(result) -> None:

@@ -36,6 +36,7 @@ from ..numerics.status import (FIT_CONVERGED, FIT_CONVERGED_STOPS, FIT_NEAR_FOLD
 from ..solvers.contact import WallContact, wall_contact
 from ..solvers.results import Equilibrium, SolverError
 from .spec import LABELS
+from .trace_errors import MAX_REFUSED, Retracings
 
 if TYPE_CHECKING:
     from ..model.problem import Problem
@@ -53,9 +54,12 @@ _RECORD_KEYS = ("problem", "parameters", "fitted", "standard_errors", "correlati
 #: first sits near a fold of the inner branch (module docstring) and is not converged
 #: (tuned between the synthetic inversion fits on their branch and one on a fold).
 FOLD_RATIO = 1e-4
-#: What a fit's record and tables say of its standard errors.
+#: What a fit's record and tables say of Gauss–Newton standard errors (and of a record
+#: written before records said which errors they hold: :attr:`FitResult.standard_errors_source`).
 _NOTE = ("standard errors are Gauss-Newton lower bounds: the residuals of a traced midline "
          "are correlated")
+#: The values of :attr:`FitResult.standard_errors_source`, in records and tables.
+GAUSS_NEWTON, RE_TRACINGS = "gauss-newton", "re-tracings"
 
 
 class FitError(SolverError):
@@ -83,8 +87,10 @@ class FitResult:
     parameters : dict
         Every family parameter by name, plus ``h``, ``cut``, ``opening``.
     standard_errors : dict
-        Gauss–Newton standard errors of the fitted parameters (lower bounds:
-        the residuals of a traced midline are correlated).
+        Standard errors of the fitted parameters: Gauss–Newton's (lower bounds: the
+        residuals of a traced midline are correlated), or for a fit of one image trace
+        those of its re-tracings (:func:`~morphoshell.fitting.trace_errors.with_trace_errors`);
+        :attr:`standard_errors_source` says which.
     correlation : ndarray, shape (k, k)
         Their correlation matrix, in the order of ``fitted``.
     poorly_identified : list of dict
@@ -133,6 +139,15 @@ class FitResult:
         (:func:`~morphoshell.solvers.contact.wall_contact`), or None.  The model has no
         self-contact: such a fit is a minimum of the model but not a physical shape.  The
         record's ``walls_cross`` (null where they do not cross).
+    re_tracings : Retracings or None
+        The re-tracings of the fit's image trace, where they were made
+        (:func:`~morphoshell.fitting.trace_errors.with_trace_errors`: their count, how many
+        the reader refused, the noise σ, the seed and the Gauss–Newton errors they replaced);
+        None for a fit without them.  The record's ``re_tracings``.
+    source_recorded : bool
+        False for a record written before records said which standard errors they hold (no
+        ``standard_errors_source`` entry): :attr:`standard_errors_source` is None (not
+        known) and :meth:`to_dict` leaves the entry out again.
     contact_checked : bool
         Whether the fitted shape was checked for it: False for a record written before
         the check (no ``walls_cross`` entry), whose :attr:`walls_cross` is None (unknown,
@@ -163,6 +178,8 @@ class FitResult:
     jacobian: np.ndarray | None = None
     contact: WallContact | None = None
     contact_checked: bool = True
+    re_tracings: Retracings | None = None
+    source_recorded: bool = True
 
     def __post_init__(self):
         if self.problem is None:    # (None too where a test's stand-in has no problem)
@@ -178,7 +195,8 @@ class FitResult:
         ``problem`` for one), the ``residuals`` (the fitted minus the data midline, to
         round-off).  A record without ``stop`` (written before records kept it) reads
         back with ``"Fit_Converged"``, or ``"Unknown"`` for a fit that did not converge
-        (its ``message`` says how it ended).
+        (its ``message`` says how it ended); one without ``standard_errors_source`` with
+        that not known (:attr:`source_recorded`).
 
         Parameters
         ----------
@@ -218,9 +236,11 @@ class FitResult:
         if len(data) != len(model):
             raise ValueError(f"{where}: fitted_midline has {len(model)} points, data_midline "
                              f"{len(data)}: expected one fitted point for each data point")
-        return cls(**fields, residuals=np.concatenate([model[:, 0] - data[:, 0],
-                                                       model[:, 1] - data[:, 1]]),
-                   equilibrium=None, data=data, model=model, problem=problem)
+        result = cls(**fields, residuals=np.concatenate([model[:, 0] - data[:, 0],
+                                                         model[:, 1] - data[:, 1]]),
+                     equilibrium=None, data=data, model=model, problem=problem)
+        _check_source(record, result, where)
+        return result
 
     def __repr__(self) -> str:
         return (f"FitResult({self.method}, {self.variant}, E_fit={self.E_fit:.6g} R, "
@@ -231,10 +251,11 @@ class FitResult:
                 f"converged={self.converged})")
 
     def summary(self) -> str:
-        """A few lines: the result, every fitted parameter with its standard error and unit,
+        """A few lines: the result, which standard errors (:attr:`standard_errors_source`),
+        every fitted parameter with its standard error and unit,
         the constraints it ends on and the poorly identified directions (as sums of the
         parameters, e.g. ``0.718 kappa1 + 0.585 f2 + 0.195 f4``)."""
-        lines = [repr(self)]
+        lines = [repr(self), self._errors_line()]
         for n in self.fitted:
             e, unit = self.standard_errors[n], self.unit(n)
             value = f"{self.parameters[n]: .6g}"
@@ -253,6 +274,45 @@ class FitResult:
         """Whether the fitted shape's walls pass through each other (:attr:`contact`); None
         for a record written before the check (:attr:`contact_checked`): not known."""
         return self.contact is not None if self.contact_checked else None
+
+    @property
+    def standard_errors_source(self) -> str | None:
+        """Which standard errors the fit holds: ``"gauss-newton"`` (σ²(JᵀJ)⁻¹, lower bounds),
+        ``"re-tracings"`` (the sandwich of its image trace's re-tracings: :attr:`re_tracings`),
+        or None for a record that does not say (:attr:`source_recorded`: written before
+        records said; its note says Gauss–Newton, but ``morphoshell fit`` of one image trace
+        wrote the re-tracings' errors under it)."""
+        if not self.source_recorded:
+            return None
+        return RE_TRACINGS if self.re_tracings is not None and self.re_tracings.used \
+            else GAUSS_NEWTON
+
+    @property
+    def note(self) -> str:
+        """What the record and the tables say of the standard errors (their ``note``)."""
+        if self.standard_errors_source != RE_TRACINGS:
+            refused = self.re_tracings
+            return _NOTE + ("" if refused is None else
+                            f" (the reader refused {refused.refused} of the "
+                            f"{refused.replicates} re-tracings of the image trace that would "
+                            f"have given its errors: re_tracings)")
+        return (f"standard errors are the sandwich of {self.re_tracings.describe()} of the "
+                f"image trace carried through the reader, not the Gauss-Newton ones "
+                f"(re_tracings.gauss_newton_errors), which take the midline's points as "
+                f"independent")
+
+    def _errors_line(self) -> str:
+        """The summary's line on the standard errors."""
+        source = self.standard_errors_source
+        if source is None:
+            return ("  ± not known to be Gauss–Newton's or the re-tracings' (a record written "
+                    "before records said: standard_errors_source)")
+        if source == GAUSS_NEWTON:
+            return "  ± Gauss–Newton (lower bounds: the midline's residuals are correlated)" + (
+                "" if self.re_tracings is None else
+                f"; the re-tracings of its trace: {self.re_tracings.refused} of "
+                f"{self.re_tracings.replicates} refused by the reader")
+        return f"  ± from {self.re_tracings.describe()} of the image trace, not Gauss–Newton"
 
     def unit(self, name: str) -> str:
         """How the unit of parameter ``name`` is printed: ``"1/R"``, ``"R"``,
@@ -276,12 +336,13 @@ class FitResult:
         dict of str to list
             The fitted parameters first (in the order of θ), then the others of
             :attr:`parameters` (held, tied to others, or the shell's h, cut and opening):
-            ``parameter``, ``value``, ``standard_error`` (Gauss–Newton, a lower bound;
-            NaN for a parameter not fitted or on a constraint), ``unit`` (the value's:
+            ``parameter``, ``value``, ``standard_error`` (NaN for a parameter not fitted or
+            on a constraint), ``unit`` (the value's:
             ``"1"``, ``"1/R"``, ``"R"``), ``fitted``, ``on_constraint``
             (:attr:`pinned`); and on every row how the fit ended, so that an unconverged
             fit's table does not pass for a converged one's: ``E_fit`` (R),
-            ``converged``, ``stop``, ``walls_cross``.
+            ``converged``, ``stop``, ``walls_cross``, and which standard errors these are,
+            ``standard_errors_source`` (:attr:`standard_errors_source`: empty where not known).
         """
         names = [*self.fitted, *(n for n in self.parameters if n not in self.fitted)]
         rows = len(names)
@@ -292,7 +353,8 @@ class FitResult:
                 "fitted": [n in self.fitted for n in names],
                 "on_constraint": [n in self.pinned for n in names],
                 "E_fit": [self.E_fit] * rows, "converged": [self.converged] * rows,
-                "stop": [self.stop] * rows, "walls_cross": [self.walls_cross] * rows}
+                "stop": [self.stop] * rows, "walls_cross": [self.walls_cross] * rows,
+                "standard_errors_source": [self.standard_errors_source] * rows}
 
     def to_dataframe(self):
         """The fit as a table, one row per parameter (:meth:`table`).
@@ -303,7 +365,7 @@ class FitResult:
             The columns of :meth:`table`.  ``df.attrs`` holds ``units`` (column → unit:
             ``value`` and ``standard_error`` in each row's ``unit``, ``E_fit`` in R),
             ``problem`` (:meth:`Problem.describe`), ``method``, ``variant``, ``message``,
-            ``constrained`` and ``note`` (the standard errors are lower bounds).
+            ``constrained`` and ``note`` (:attr:`note`: which standard errors these are).
             The midlines: :meth:`to_xarray`, or :attr:`data` and :attr:`model`.
         """
         import pandas as pd
@@ -313,7 +375,7 @@ class FitResult:
                                "E_fit": "R"},
                         problem=self.problem.describe(), method=self.method,
                         variant=self.variant, message=self.message,
-                        constrained=list(self.constrained), note=_NOTE)
+                        constrained=list(self.constrained), note=self.note)
         return df
 
     def to_xarray(self):
@@ -330,9 +392,10 @@ class FitResult:
             parameters; ``r_data``, ``z_data``, ``r_fit``, ``z_fit`` along ``point`` (units
             of R).  Attributes: the problem (flat, as :meth:`Equilibrium.to_xarray`),
             ``E_fit`` (R), ``method``, ``variant``, ``converged``, ``stop``,
-            ``walls_cross`` (0 or 1; absent where not checked), ``message``,
-            ``constrained`` (``; ``-separated), ``outer_iterations``, ``inner_solves``, ``seconds``:
-            strings and numbers only, so that the Dataset can be written to netCDF.
+            ``walls_cross`` (0 or 1; absent where not checked), ``standard_errors_source``
+            (absent where not known), ``note``, ``message``, ``constrained``
+            (``; ``-separated), ``outer_iterations``, ``inner_solves``, ``seconds``: strings
+            and numbers only, so that the Dataset can be written to netCDF.
         """
         xr = xarray_module()
         table = self.table()
@@ -354,7 +417,9 @@ class FitResult:
                  "constrained": "; ".join(self.constrained),
                  "outer_iterations": int(self.outer_iterations),
                  "inner_solves": int(self.inner_solves), "seconds": float(self.seconds),
-                 "note": _NOTE}
+                 **({} if self.standard_errors_source is None else
+                    {"standard_errors_source": self.standard_errors_source}),
+                 "note": self.note}
         return xr.Dataset(data, coords=coords, attrs=attrs)
 
     @property
@@ -376,25 +441,34 @@ class FitResult:
             d["singular_value"] < FOLD_RATIO for d in self.poorly_identified)
 
     def to_dict(self) -> dict:
-        """JSON-ready: the problem, the fitted parameters with standard errors and
-        correlations, the fit energy E_fit (units of R) and the solver's report."""
+        """JSON-ready: the problem, the fitted parameters with their ``units`` (each
+        parameter's, as :meth:`table`'s ``unit``; its standard error's too), standard errors
+        (``standard_errors_source`` says which, ``re_tracings`` how they were made, ``note``
+        in words) and correlations, the fit energy E_fit (units of R) and the solver's
+        report.  Numbers JSON has not (NaN) are written null."""
         return {"problem": self.problem.describe(), "parameters": dict(self.parameters),
+                "units": {n: self._unit(n) for n in self.parameters},
                 "fitted": list(self.fitted),
                 # (none on a constraint: JSON has no NaN)
                 "standard_errors": {n: (float(e) if np.isfinite(e) else None)
                                     for n, e in self.standard_errors.items()},
+                **({} if self.standard_errors_source is None else
+                   {"standard_errors_source": self.standard_errors_source}),
+                **({} if self.re_tracings is None else
+                   {"re_tracings": self.re_tracings.to_dict()}),
                 "correlation": self.correlation.tolist(),
                 "poorly_identified": self.poorly_identified, "E_fit": self.E_fit,
                 "E_fit_units": "R", "method": self.method, "variant": self.variant,
                 "converged": self.converged, "stop": self.stop, "message": self.message,
-                "seconds": self.seconds,
+                # (a campaign's record has no time: null, not NaN, which JSON has not)
+                "seconds": self.seconds if math.isfinite(self.seconds) else None,
                 "constrained": list(self.constrained),
                 "outer_iterations": self.outer_iterations, "inner_solves": self.inner_solves,
                 "data_midline": {"r": self.data[:, 0].tolist(), "z": self.data[:, 1].tolist()},
                 "fitted_midline": {"r": self.model[:, 0].tolist(), "z": self.model[:, 1].tolist()},
                 **({"walls_cross": None if self.contact is None else self.contact.to_dict()}
                    if self.contact_checked else {}),
-                "note": _NOTE}
+                "note": self.note}
 
 
 def load_fit(path: str | Path) -> FitResult:
@@ -441,7 +515,25 @@ def _record_fields(record: Mapping[str, Any], where: str) -> dict[str, Any]:
             "constrained": get("constrained", _names, None, default=()),
             "stop": get("stop", _status, converged,
                         default=FIT_CONVERGED if converged else IPOPT_UNKNOWN),
-            "contact": None}    # (FitResult.from_dict: its check needs the problem)
+            "contact": None,    # (FitResult.from_dict: its check needs the problem)
+            "re_tracings": get("re_tracings", Retracings.from_dict, fitted),
+            "source_recorded": "standard_errors_source" in record}
+
+
+def _check_source(record: Mapping[str, Any], result: FitResult, where: str) -> None:
+    """ValueError naming ``where`` unless the record's ``standard_errors_source`` (if it has
+    one) is the one its ``re_tracings`` give ("re-tracings" exactly where they were used)."""
+    if "standard_errors_source" not in record:
+        return
+    source = _entry(record, "standard_errors_source", where, _one_of,
+                    (GAUSS_NEWTON, RE_TRACINGS))
+    if source != result.standard_errors_source:
+        why = ("no re_tracings entry" if result.re_tracings is None else
+               f"re_tracings has {result.re_tracings.refused} of "
+               f"{result.re_tracings.replicates} refused")
+        raise ValueError(f"{where}: standard_errors_source = {source!r} disagrees with "
+                         f"{why}: {RE_TRACINGS!r} is written exactly where at most "
+                         f"{MAX_REFUSED:g} of the re-tracings were refused")
 
 
 def _entry(record: Mapping[str, Any], key: str, where: str, check, *args) -> Any:

@@ -378,10 +378,10 @@ def _rejected(eq: Equilibrium) -> int:
 def ablation_errors(record: dict, ablation: Ablation) -> dict[str, float]:
     """Standard errors of the recoil observables of a fitted shape's ablation.
 
-    The fit's covariance C of the fitted parameters θ (its standard errors and
-    correlations: Gauss–Newton, or for a fit of one image trace those of its
-    re-tracings; lower bounds either way, the first as the residuals of a traced
-    midline are correlated, the second as they hold the pixel noise only) propagated
+    The record's covariance C of the fitted parameters θ (its standard errors and
+    correlations: Gauss–Newton's, or for a fit of one image trace its re-tracings', as its
+    ``standard_errors_source`` says; lower bounds either way, the first as the residuals of
+    a traced midline are correlated, the second as they hold the pixel noise only) propagated
     linearly, σ_y² = (J C Jᵀ)_yy, with J = dy/dθ the exact derivatives of the
     observables (:func:`~morphoshell.mechanics.ablation.recoil_jacobian`, through both
     equilibria) and the ``unstressed`` tie κ₁ = 1/f₁ (dκ₁/df₁ = −1/f₁²).
