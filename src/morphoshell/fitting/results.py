@@ -525,7 +525,7 @@ def _check_source(record: Mapping[str, Any], result: FitResult, where: str) -> N
     one) is the one its ``re_tracings`` give ("re-tracings" exactly where they were used)."""
     if "standard_errors_source" not in record:
         return
-    source = _entry(record, "standard_errors_source", where, _one_of,
+    source = _entry(record, "standard_errors_source", where, choice,
                     (GAUSS_NEWTON, RE_TRACINGS))
     if source != result.standard_errors_source:
         why = ("no re_tracings entry" if result.re_tracings is None else
