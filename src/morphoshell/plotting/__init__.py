@@ -21,7 +21,7 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
                "problem_caption", "plot_cross_section"],
     "ablation": ["plot_ablation", "plot_ablation_overlay", "ABLATION_STYLE", "recoil_caption"],
     "fits": ["plot_fit", "fit_axes", "fit_residuals", "plot_fit_series", "not_converged_handle",
-             "NOT_CONVERGED"],
+             "NOT_CONVERGED", "DATA_STYLE", "FIT_ZORDER"],
     "estimates": ["plot_k_estimates", "plot_recoil_velocity", "figure_JK", "MEASURE_COLOURS",
                   "OFF_SCALE_LABEL"],
     "branches": ["plot_branch", "BRANCH_STYLE"],
