@@ -15,8 +15,8 @@ import lazy_loader
 # Every public name of the subpackage, imported from its module on first use.
 __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "style": ["new_axes", "journal_figure", "save", "paper_style", "styled", "label_panel",
-              "add_caption", "get_caption", "flag_panel", "is_flagged", "SINGLE_COLUMN", "DOUBLE_COLUMN", "MIN_FONT_SIZE",
-              "PAPER_RC"],
+              "add_caption", "get_caption", "flag_panel", "is_flagged",
+              "SINGLE_COLUMN", "DOUBLE_COLUMN", "MIN_FONT_SIZE", "OKABE_ITO", "PAPER_RC"],
     "shells": ["sheet_outline", "far_end_shift", "problem_label", "problem_title",
                "problem_caption", "plot_cross_section"],
     "ablation": ["plot_ablation", "plot_ablation_overlay", "ABLATION_STYLE", "recoil_caption"],
@@ -26,5 +26,5 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
                   "OFF_SCALE_LABEL"],
     "branches": ["plot_branch", "BRANCH_STYLE"],
     "profiles": ["plot_profiles", "plot_profile"],
-    "traces": ["plot_traces"],
+    "traces": ["plot_traces", "trace_styles"],
 })

@@ -28,15 +28,20 @@ from matplotlib.layout_engine import ConstrainedLayoutEngine
 from matplotlib.text import Text
 from matplotlib.transforms import Bbox, ScaledTranslation
 
-__all__ = ["SINGLE_COLUMN", "DOUBLE_COLUMN", "MIN_FONT_SIZE", "PAPER_RC", "paper_style",
-           "styled", "journal_figure", "new_axes", "made_here", "own_axes", "add_caption", "get_caption",
-           "label_panel", "flag_panel", "is_flagged", "save"]
+__all__ = ["SINGLE_COLUMN", "DOUBLE_COLUMN", "MIN_FONT_SIZE", "OKABE_ITO", "PAPER_RC",
+           "paper_style", "styled", "journal_figure", "new_axes", "made_here", "own_axes",
+           "add_caption", "get_caption", "label_panel", "flag_panel", "is_flagged", "save"]
 
 #: Figure widths of journals (inches): one column and the full page width.
 SINGLE_COLUMN = 3.4
 DOUBLE_COLUMN = 7.0
 #: Smallest font size (points) of :data:`PAPER_RC`: legible in print at these widths.
 MIN_FONT_SIZE = 7.0
+#: The Okabe–Ito colours (Okabe & Ito 2008, without its black and its yellow, too light
+#: on white): distinct with protanopia and deuteranopia as well as with normal vision.
+#: The colours of every plot that tells lines apart by colour (branches, traces).
+OKABE_ITO = {"orange": "#E69F00", "sky blue": "#56B4E9", "bluish green": "#009E73",
+             "blue": "#0072B2", "vermillion": "#D55E00", "reddish purple": "#CC79A7"}
 
 #: rcParams of :func:`paper_style`.  Named font sizes are relative to
 #: ``font.size`` ("small" = 0.83×), so figures drawn in this style should use
