@@ -16,7 +16,8 @@ import lazy_loader
 __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "style": ["new_axes", "journal_figure", "save", "paper_style", "styled", "label_panel",
               "add_caption", "get_caption", "panel_title", "flag_panel", "is_flagged",
-              "SINGLE_COLUMN", "DOUBLE_COLUMN", "MIN_FONT_SIZE", "OKABE_ITO", "PAPER_RC"],
+              "SINGLE_COLUMN", "DOUBLE_COLUMN", "MIN_FONT_SIZE", "SCRIPT_SCALE", "MIN_SCRIPT_SIZE",
+              "OKABE_ITO", "PAPER_RC"],
     "shells": ["sheet_outline", "far_end_shift", "problem_label", "problem_title",
                "problem_caption", "plot_cross_section"],
     "ablation": ["plot_ablation", "plot_ablation_overlay", "ABLATION_STYLE", "recoil_caption"],

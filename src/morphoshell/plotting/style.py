@@ -29,16 +29,23 @@ from matplotlib.layout_engine import ConstrainedLayoutEngine
 from matplotlib.text import Text
 from matplotlib.transforms import Bbox
 
-__all__ = ["SINGLE_COLUMN", "DOUBLE_COLUMN", "MIN_FONT_SIZE", "OKABE_ITO", "PAPER_RC",
-           "paper_style", "styled", "journal_figure", "new_axes", "made_here", "own_axes",
-           "add_caption", "get_caption", "panel_title", "label_panel", "flag_panel",
-           "is_flagged", "save"]
+__all__ = ["SINGLE_COLUMN", "DOUBLE_COLUMN", "MIN_FONT_SIZE", "SCRIPT_SCALE", "MIN_SCRIPT_SIZE",
+           "OKABE_ITO", "PAPER_RC", "paper_style", "styled", "journal_figure", "new_axes",
+           "made_here", "own_axes", "add_caption", "get_caption", "panel_title", "label_panel",
+           "flag_panel", "is_flagged", "save"]
 
 #: Figure widths of journals (inches): one column and the full page width.
 SINGLE_COLUMN = 3.4
 DOUBLE_COLUMN = 7.0
 #: Smallest font size (points) of :data:`PAPER_RC`: legible in print at these widths.
 MIN_FONT_SIZE = 7.0
+#: Size of mathtext's sub- and superscripts relative to their text: Matplotlib's fixed
+#: ratio (``SHRINK_FACTOR`` of its mathtext layout, not a setting), so E_fit² and κ₁ in
+#: the 8 pt axis labels have scripts of 5.6 pt, and 10⁻³ in 7 pt tick labels of 4.9 pt.
+SCRIPT_SCALE = 0.7
+#: Smallest size (points) of a sub- or superscript in the paper style: one in text of
+#: :data:`MIN_FONT_SIZE`.
+MIN_SCRIPT_SIZE = SCRIPT_SCALE * MIN_FONT_SIZE
 #: The Okabe–Ito colours (Okabe & Ito 2008, without its black and its yellow, too light
 #: on white): distinct with protanopia and deuteranopia as well as with normal vision.
 #: The colours of every plot that tells lines apart by colour (branches, traces).
@@ -76,7 +83,8 @@ _EM_PER_CHAR = 0.55
 
 
 def paper_style():
-    """Context manager of the paper style (:data:`PAPER_RC`): fonts ≥ 7 pt, 300 dpi.
+    """Context manager of the paper style (:data:`PAPER_RC`): text ≥ 7 pt (its sub- and
+    superscripts at :data:`SCRIPT_SCALE` of it), 300 dpi.
 
     Create *and* save the figures inside it: fonts are set when artists are
     made, the PDF font type when the file is written.
