@@ -21,7 +21,7 @@ from matplotlib.patches import Patch
 
 from .shells import (band_edges, band_path, draw_shell, far_end_shift, mirrored,
                      finish_shell_axes, problem_caption, problem_title)
-from .style import made_here, new_axes, styled
+from .style import made_here, new_axes, panel_title, styled
 
 __all__ = ["plot_ablation", "plot_ablation_overlay", "ABLATION_STYLE", "recoil_caption"]
 
@@ -185,6 +185,8 @@ def plot_ablation_overlay(ablation, ax: Axes | None = None, *, pixels: int = 500
     pixels : int
         Raster width (the height follows the aspect ratio).
     title : str, optional
+        Broken to the width of a caller's ``ax``
+        (:func:`~morphoshell.plotting.style.panel_title`).
 
     Returns
     -------
@@ -211,6 +213,5 @@ def plot_ablation_overlay(ablation, ax: Axes | None = None, *, pixels: int = 500
         ax.set_aspect("equal")
         ax.set_xlabel(r"$r/R$")
         ax.set_ylabel(r"$z/R$")
-        if title:
-            ax.set_title(title)
+        panel_title(ax, title)
     return ax

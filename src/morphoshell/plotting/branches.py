@@ -24,8 +24,8 @@ from matplotlib.transforms import Affine2D
 
 from ..solvers.refinement import COARSE
 from .shells import plot_cross_section, problem_caption, problem_title
-from .style import (DOUBLE_COLUMN, MIN_FONT_SIZE, SINGLE_COLUMN, add_caption, journal_figure,
-                    styled)
+from .style import (DOUBLE_COLUMN, MIN_FONT_SIZE, OKABE_ITO, SINGLE_COLUMN, add_caption,
+                    journal_figure, styled)
 
 __all__ = ["plot_branch", "BRANCH_STYLE", "EVENT_MARKERS", "AXIS_LABELS", "MAX_SHAPES",
            "SWITCHED_COLOURS", "SWITCHED_MARKERS", "OKABE_ITO", "branch_caption", "axis_label",
@@ -34,10 +34,6 @@ __all__ = ["plot_branch", "BRANCH_STYLE", "EVENT_MARKERS", "AXIS_LABELS", "MAX_S
 #: Most shells drawn beside a diagram (start, events, end): more would be too small to read.
 MAX_SHAPES = 8
 
-#: The Okabe–Ito colours (Okabe & Ito 2008, without its black and its yellow, too light
-#: on white): distinct with protanopia and deuteranopia as well as with normal vision.
-OKABE_ITO = {"orange": "#E69F00", "sky blue": "#56B4E9", "bluish green": "#009E73",
-             "blue": "#0072B2", "vermillion": "#D55E00", "reddish purple": "#CC79A7"}
 #: Lines of the diagram: stable and unstable parts (a grey dark enough to stay apart from
 #: the bluish green of a switched branch with red–green colour blindness).
 BRANCH_STYLE = {"stable": {"color": "k", "ls": "-", "lw": 1.2},

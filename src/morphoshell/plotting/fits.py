@@ -17,15 +17,25 @@ from __future__ import annotations
 
 import numpy as np
 from matplotlib.axes import Axes
+from matplotlib.cbook import normalize_kwargs
+from matplotlib.lines import Line2D
 
 from .shells import finish_shell_axes, plot_cross_section, problem_title
 from .style import SINGLE_COLUMN, add_caption, journal_figure, made_here, own_axes, styled
 
 __all__ = ["plot_fit", "fit_axes", "fit_residuals", "plot_fit_series", "not_converged_handle",
-           "NOT_CONVERGED"]
+           "NOT_CONVERGED", "DATA_STYLE", "FIT_ZORDER"]
 
 #: The label of fits that did not converge (open markers in :func:`plot_fit_series`).
 NOT_CONVERGED = "not converged"
+#: The data points of :func:`plot_fit`: small open grey circles, under the fitted midline
+#: (:data:`FIT_ZORDER`).  Drawn over it in black, the 200 circles of a traced midline hid
+#: the fit wholly (audit 25); under it, each circle shows beside the line where the two
+#: agree and apart from it where they do not.
+DATA_STYLE = {"ls": "none", "marker": "o", "ms": 2.4, "mfc": "none", "mew": 0.5,
+              "color": "0.4", "zorder": 3.0}
+#: zorder of the fitted midline: over the data points and the thickness band.
+FIT_ZORDER = 4.0
 
 
 def plot_fit_series(ax: Axes, x, y, converged, *, yerr=None, color: str = "k",
@@ -135,13 +145,15 @@ def plot_fit(result, ax: Axes | None = None, *, residual_ax: Axes | None = None,
     name : str, optional
         What was fitted (e.g. the trace's file name), named in the title.
     title : str or None
-        One line; "auto": ``name`` (or the problem's), family and theory.
+        One line (on a caller's ``ax`` broken to its width:
+        :func:`~morphoshell.plotting.style.panel_title`); "auto": ``name`` (or the
+        problem's), family and theory.
     caption : str or None
         Under the lowest panel; "auto": with an automatic title, the variant,
         method, fitted parameters and E_fit; none on a caller's axes (it would fall
         on the panels below).
     **style
-        Line properties of the fitted midline.
+        Line properties of the fitted midline (drawn over the data: :data:`FIT_ZORDER`).
 
     Returns
     -------
@@ -166,10 +178,10 @@ def plot_fit(result, ax: Axes | None = None, *, residual_ax: Axes | None = None,
         title = problem_title(problem, name)
     with styled(ax):
         plot_cross_section(result.equilibrium, ax, title=None, legend=False, label="fit",
-                           **style)
+                           **{"zorder": FIT_ZORDER, **normalize_kwargs(style, Line2D)})
         r, z = result.data[:, 0], result.data[:, 1]
-        ax.plot(np.concatenate([-r[::-1], r]), np.concatenate([z[::-1], z]), ls="none",
-                marker="o", ms=2.0, mfc="none", mew=0.5, color="k", label="data", zorder=3)
+        ax.plot(np.concatenate([-r[::-1], r]), np.concatenate([z[::-1], z]), label="data",
+                **DATA_STYLE)
         # the legend inside: beside, it would narrow the shell in a one-column figure
         finish_shell_axes(ax, title, "inside", None if residual_ax is not None else caption)
         if residual_ax is not None:

@@ -16,7 +16,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from .style import DOUBLE_COLUMN, SINGLE_COLUMN, journal_figure, styled
+from .style import DOUBLE_COLUMN, SINGLE_COLUMN, journal_figure, panel_title, styled
 
 __all__ = ["plot_profiles", "plot_profile", "parameter_label", "parameter_axis_label"]
 
@@ -61,7 +61,8 @@ def plot_profile(profile, ax: Axes, *, legend: bool = True,
     The refits as dots (open red circles where they did not converge), the
     threshold dashed, the interval shaded (to the panel's edge on an open
     side), the fit a black dot; the title names the parameter and says when
-    the data do not determine it.
+    the data do not determine it (broken to the width of a caller's ``ax``:
+    :func:`~morphoshell.plotting.style.panel_title`).
 
     Parameters
     ----------
@@ -90,7 +91,7 @@ def plot_profile(profile, ax: Axes, *, legend: bool = True,
         ax.plot([p.fitted_value], [p.S_min], "o", color="k", ms=4, label="fit")
         ax.set_xlabel(parameter_axis_label(p.name, units))
         ax.set_ylabel(r"$E_\mathrm{fit}^2$ ($R^2$)")
-        ax.set_title(parameter_label(p.name) + _short_verdict(p))
+        panel_title(ax, parameter_label(p.name) + _short_verdict(p))
         if legend:
             ax.legend(frameon=False)
     return ax

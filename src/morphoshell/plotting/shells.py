@@ -36,7 +36,7 @@ from matplotlib.path import Path as MplPath
 from ..model.problem import Problem
 from ..solvers.contact import half_thickness
 from ..solvers.results import Equilibrium
-from .style import add_caption, made_here, new_axes, styled
+from .style import add_caption, made_here, new_axes, panel_title, styled
 
 __all__ = ["sheet_outline", "far_end_shift", "problem_label", "problem_title",
            "problem_caption", "plot_cross_section", "finish_shell_axes", "draw_shell",
@@ -246,17 +246,17 @@ def _describe(eqs: Sequence[Equilibrium]) -> tuple[str, str, list[str]]:
 
 def finish_shell_axes(ax: Axes, title: str | None, legend: bool | str,
                       caption: str | None = None) -> Axes:
-    """Cross-section axes: equal aspect, lengths in units of R, a one-line title,
-    the caption under the axes, the legend beside them (or ``"inside"``; inside on a
-    caller's axes, :func:`~morphoshell.plotting.style.made_here`)."""
+    """Cross-section axes: equal aspect, lengths in units of R, a one-line title (broken to
+    the width of a caller's axes: :func:`~morphoshell.plotting.style.panel_title`), the
+    caption under the axes, the legend beside them (or ``"inside"``; inside on a caller's
+    axes, :func:`~morphoshell.plotting.style.made_here`)."""
     # equal scales by shrinking the box, not by widening the data limits: limits
     # set at drawing time, after the layout, give new tick labels the layout
     # made no room for, and the z label was pushed off the figure
     ax.set_aspect("equal", adjustable="box")
     ax.set_xlabel(r"$r/R$")
     ax.set_ylabel(r"$z/R$")
-    if title:
-        ax.set_title(title)
+    panel_title(ax, title)
     if caption:
         add_caption(ax, caption)
     if legend == "inside" or (legend and not made_here(ax)):  # the fewest points covered
@@ -296,8 +296,9 @@ def plot_cross_section(eqs: Equilibrium | Sequence[Equilibrium], ax: Axes | None
         "auto": "fill" for one result, none for several (overlaid
         translucent bands blend into a smear).
     title : str or None
-        One line; "auto": the problem the results share (:func:`problem_title`:
-        name, family, theory); None: no title.
+        One line (on a caller's ``ax`` broken to its width:
+        :func:`~morphoshell.plotting.style.panel_title`); "auto": the problem the results
+        share (:func:`problem_title`: name, family, theory); None: no title.
     caption : str or None
         Under the axes; "auto": with an automatic title, what it leaves out
         that the results share (h, cut, parameters; method and mesh), else

@@ -24,19 +24,33 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from matplotlib.font_manager import FontProperties
 from matplotlib.layout_engine import ConstrainedLayoutEngine
 from matplotlib.text import Text
-from matplotlib.transforms import Bbox, ScaledTranslation
+from matplotlib.transforms import Bbox
 
-__all__ = ["SINGLE_COLUMN", "DOUBLE_COLUMN", "MIN_FONT_SIZE", "PAPER_RC", "paper_style",
-           "styled", "journal_figure", "new_axes", "made_here", "own_axes", "add_caption",
-           "get_caption", "label_panel", "flag_panel", "is_flagged", "save"]
+__all__ = ["SINGLE_COLUMN", "DOUBLE_COLUMN", "MIN_FONT_SIZE", "SCRIPT_SCALE", "MIN_SCRIPT_SIZE",
+           "OKABE_ITO", "PAPER_RC", "paper_style", "styled", "journal_figure", "new_axes",
+           "made_here", "own_axes", "add_caption", "get_caption", "panel_title", "label_panel",
+           "flag_panel", "is_flagged", "save"]
 
 #: Figure widths of journals (inches): one column and the full page width.
 SINGLE_COLUMN = 3.4
 DOUBLE_COLUMN = 7.0
 #: Smallest font size (points) of :data:`PAPER_RC`: legible in print at these widths.
 MIN_FONT_SIZE = 7.0
+#: Size of mathtext's sub- and superscripts relative to their text: Matplotlib's fixed
+#: ratio (``SHRINK_FACTOR`` of its mathtext layout, not a setting), so E_fit² and κ₁ in
+#: the 8 pt axis labels have scripts of 5.6 pt, and 10⁻³ in 7 pt tick labels of 4.9 pt.
+SCRIPT_SCALE = 0.7
+#: Smallest size (points) of a sub- or superscript in the paper style: one in text of
+#: :data:`MIN_FONT_SIZE`.
+MIN_SCRIPT_SIZE = SCRIPT_SCALE * MIN_FONT_SIZE
+#: The Okabe–Ito colours (Okabe & Ito 2008, without its black and its yellow, too light
+#: on white): distinct with protanopia and deuteranopia as well as with normal vision.
+#: The colours of every plot that tells lines apart by colour (branches, traces).
+OKABE_ITO = {"orange": "#E69F00", "sky blue": "#56B4E9", "bluish green": "#009E73",
+             "blue": "#0072B2", "vermillion": "#D55E00", "reddish purple": "#CC79A7"}
 
 #: rcParams of :func:`paper_style`.  Named font sizes are relative to
 #: ``font.size`` ("small" = 0.83×), so figures drawn in this style should use
@@ -69,7 +83,8 @@ _EM_PER_CHAR = 0.55
 
 
 def paper_style():
-    """Context manager of the paper style (:data:`PAPER_RC`): fonts ≥ 7 pt, 300 dpi.
+    """Context manager of the paper style (:data:`PAPER_RC`): text ≥ 7 pt (its sub- and
+    superscripts at :data:`SCRIPT_SCALE` of it), 300 dpi.
 
     Create *and* save the figures inside it: fonts are set when artists are
     made, the PDF font type when the file is written.
@@ -276,9 +291,36 @@ def panel_room(ax: Axes, least: float) -> tuple[float, float]:
     return room[0], room[1]
 
 
+def panel_title(ax: Axes, title: str | None) -> None:
+    """Title ``ax`` with ``title`` (one line; None or "": leave the title as it is).
+
+    On a caller's axes (a panel of their grid, :func:`made_here`), whose width the plot
+    does not choose, the title is broken to the axes' width: after its name (": "), then
+    between its items (", "), as :func:`add_caption` breaks a caption.  A one-line title
+    wider than its panel ran past the panel's edges, into its neighbours and under the
+    panel's letter (:func:`label_panel`; audit 25: "average of 5 traces: volvox,
+    large-bending" over a 1.7 in wide shell).  Call it in the figure's style
+    (:func:`styled`): the title's size is read from the rcParams.
+    """
+    if not title:
+        return
+    if not made_here(ax):
+        size = FontProperties(size=mpl.rcParams["axes.titlesize"]).get_size_in_points()
+        width = axes_size(ax)[0]
+        if text_width(title, size) > width:
+            chars = max(1, int(width / (_EM_PER_CHAR * size)))
+            title = ":\n".join(wrap_items(part, chars) for part in title.split(": "))
+    ax.set_title(title)
+
+
 def label_panel(ax: Axes, letter: str, *, size: float = 10.0, dx: float = -4.0,
                 dy: float = 4.0):
-    """Bold panel letter above the top-left corner of ``ax``, outside its title.
+    """Bold panel letter above the top-left corner of ``ax``, clear of its title.
+
+    The letter ends left of the axes' left edge, where a title no wider than the axes
+    (:func:`panel_title`) does not reach; where a wider title (centred over the axes)
+    begins further left, the letter stands left of the title's start instead, placed
+    when the figure is drawn (after the layout has placed the title).
 
     Parameters
     ----------
@@ -286,15 +328,25 @@ def label_panel(ax: Axes, letter: str, *, size: float = 10.0, dx: float = -4.0,
     size : float
         Font size (points).
     dx, dy : float
-        Offset of the letter's right/bottom edge from the axes' corner (points).
+        Offset of the letter's right/bottom edge from the axes' corner, or from the
+        title's left edge if that lies further left (points).
 
     Returns
     -------
-    matplotlib.text.Text
+    matplotlib.text.Annotation
     """
-    offset = ScaledTranslation(dx / 72, dy / 72, ax.figure.dpi_scale_trans)
-    return ax.text(0.0, 1.0, letter, transform=ax.transAxes + offset, ha="right", va="bottom",
-                   fontsize=size, fontweight="bold")
+    def corner(renderer) -> Bbox:
+        """The axes' box, widened to the left edge of a centred title that overhangs it."""
+        box = ax.get_window_extent(renderer)
+        title = ax.title
+        if title.get_visible() and title.get_text().strip():
+            return Bbox.from_extents(min(box.x0, title.get_window_extent(renderer).x0),
+                                     box.y0, box.x1, box.y1)
+        return box
+
+    return ax.annotate(letter, xy=(0.0, 1.0), xycoords=corner, xytext=(dx, dy),
+                       textcoords="offset points", ha="right", va="bottom", fontsize=size,
+                       fontweight="bold")
 
 
 #: Look of a panel whose content is no result (:func:`flag_panel`): a light grey

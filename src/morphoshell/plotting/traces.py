@@ -15,9 +15,14 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.transforms import ScaledTranslation
 
-from .style import MIN_FONT_SIZE, SINGLE_COLUMN, add_caption, journal_figure, styled, text_width
+from .style import (MIN_FONT_SIZE, OKABE_ITO, SINGLE_COLUMN, add_caption, journal_figure,
+                    styled, text_width)
 
-__all__ = ["plot_traces"]
+__all__ = ["plot_traces", "trace_styles", "TRACE_DASHES"]
+
+#: Line styles of the traces, one per round of the colours (:func:`trace_styles`): solid,
+#: dotted, dash-dotted; the dashes are the average's.
+TRACE_DASHES = ("-", ":", "-.")
 
 #: The legend's top under the shape's axes, in ems of MIN_FONT_SIZE: under its tick labels
 #: (pad + a line) and the r label (pad + a line).
@@ -36,6 +41,17 @@ def _short_names(names: Sequence[str]) -> tuple[list[str], str | None]:
     if len(head) + len(tail) == 0 or any(len(n) <= len(head) + len(tail) for n in names):
         return list(names), None
     return [n[len(head):len(n) - len(tail)] for n in names], f"{head}…{tail}"
+
+
+def trace_styles(n: int) -> list[dict]:
+    """Colour and line style of each of ``n`` traces: the Okabe–Ito colours
+    (:data:`~morphoshell.plotting.style.OKABE_ITO`, told apart with red–green colour
+    blindness, which Matplotlib's default cycle is not: its green, orange and red were
+    three of five traces, audit 25), then the same colours again in the next of
+    :data:`TRACE_DASHES`, so that no two of the first 18 traces look alike."""
+    colours = list(OKABE_ITO.values())
+    return [{"color": colours[k % len(colours)],
+             "ls": TRACE_DASHES[(k // len(colours)) % len(TRACE_DASHES)]} for k in range(n)]
 
 
 def _legend_columns(names: Sequence[str]) -> int:
@@ -79,9 +95,9 @@ def plot_traces(mean, midlines: Sequence, names: Sequence[str] | None = None, *,
     s = np.r_[0.0, np.cumsum(np.hypot(*np.diff(mean.points, axis=0).T))]
     with styled(fig):
         top, bottom = fig.subplots(2, 1, height_ratios=(2.2, 1))
-        for m, label, d in zip(midlines, labels, distances):
-            line, = top.plot(m.r, m.z, lw=0.8, label=label)
-            bottom.plot(s, d, lw=0.7, color=line.get_color())
+        for m, label, d, look in zip(midlines, labels, distances, trace_styles(len(midlines))):
+            top.plot(m.r, m.z, lw=0.8, label=label, **look)
+            bottom.plot(s, d, lw=0.7, **look)
         if mean.spread is not None:
             top.fill_between(mean.r, mean.z - mean.spread, mean.z + mean.spread, color="0.8",
                              lw=0, label="± spread", zorder=0)
