@@ -146,6 +146,27 @@ def test_ablate_prints_and_writes_each_observables_error(tmp_path, capsys):
     assert all(float(row[f"{k}_error"]) == data["errors"][k] for k in OBSERVABLES)
 
 
+@pytest.mark.parametrize("method", ["bvp", "shooting"])
+def test_ablate_by_a_reference_route_prints_the_observables_without_errors(method, tmp_path,
+                                                                           capsys):
+    """Audit 26, F4: ``ablate --method bvp`` (or shooting) crashed with an internal error
+    after its first lines: the reference routes' states carry no error estimate.  Their
+    observables are printed without +-, one note saying why, and the files written."""
+    out = tmp_path / "a.json"
+    assert main(["ablate", str(TOY2), "--method", method, "--json", str(out)]) == 0
+    printed, err = capsys.readouterr()
+    assert err == ""
+    assert "+-" not in printed and "pre-ablation" not in printed
+    assert printed.count(f"error estimates unavailable: the {method} route makes no error "
+                         f"estimate") == 1
+    data = json.loads(out.read_text())
+    values = dict(re.findall(r"^  (\w+) += (\S+) ", printed, re.M))
+    assert float(values["opening"]) == pytest.approx(data["opening"], rel=1e-9)
+    # the direct route's opening on 200 nodes, 0.0824373563 +- 4.5e-8 R: the routes agree
+    # to its error and the reference routes' tolerances (~1e-8 R)
+    assert data["opening"] == pytest.approx(0.0824373563, abs=1e-7)
+
+
 def test_ablate_needs_a_cut(capsys):
     assert main(["ablate", str(TOY2), "--set", "cut=0"]) == 2
     err = capsys.readouterr().err
