@@ -218,6 +218,16 @@ def test_sphere_command(tmp_path):
                              "k_star": "1/R"}
 
 
+def test_sphere_of_a_thick_shell(capfd):
+    """Audit 26, F1: ``sphere --h 0.9 --k 0`` printed a raw RuntimeWarning and "no stationary
+    radius found" (exit 2); f_bulk is printed, nothing on standard error."""
+    assert main(["sphere", "--h", "0.9", "--k", "0"]) == 0
+    out, err = capfd.readouterr()
+    assert err == ""
+    # the audit's independent Brent solve of the stationarity: 1.23520 (6 digits)
+    assert float(re.search(r"f_bulk += (\S+) R", out)[1]) == pytest.approx(1.23520, abs=5e-6)
+
+
 def test_missing_hsl_solver_is_explained(capfd):
     # the PyPI wheel has no HSL library: refused when parsed (bad input, exit 2), saying why,
     # with nothing of Ipopt's on standard output (its option table was dumped there)
