@@ -228,3 +228,13 @@ def problem_and_settings(path, overrides):
     except ValueError as exc:
         raise ProblemFileError(f"--set: {exc}") from None
     return problem, settings
+
+
+def direct_only(path, settings, command: str) -> None:
+    """``ProblemFileError`` where the file or ``--set`` asks a command that has only the direct
+    method (``sweep``, ``continue``; plural) for a reference route: ``continue`` ran the direct
+    one with a note where ``sweep`` refused (audit 26, F5)."""
+    if settings.method != "direct":
+        from ..io.problem_files import ProblemFileError
+        raise ProblemFileError(f"{path}: method = {settings.method!r}: {command} use the "
+                               f"direct method")
