@@ -127,6 +127,8 @@ def test_a_path_to_an_end_of_the_parameters_range_lands_on_it(to, tmp_path, caps
     (["--nodes", "2"], "--nodes"),
     (["--follow", "sideways"], "--follow"),
     (["--max-step", "0"], "--max-step"),
+    # audit 26, F7: it said "must be a finite number in [-inf, inf]"
+    (["--param", "h", "--to", "nan"], "argument --to: nan must be a finite number (see "),
     # a user audit: --from was ignored with --param, exit 0
     (["--from", "neutral", "--param", "h", "--to", "0.2"], "--from neutral and --param h are "
                                                            "two paths"),
