@@ -146,6 +146,27 @@ def test_ablate_prints_and_writes_each_observables_error(tmp_path, capsys):
     assert all(float(row[f"{k}_error"]) == data["errors"][k] for k in OBSERVABLES)
 
 
+@pytest.mark.parametrize("method", ["bvp", "shooting"])
+def test_ablate_by_a_reference_route_prints_the_observables_without_errors(method, tmp_path,
+                                                                           capsys):
+    """Audit 26, F4: ``ablate --method bvp`` (or shooting) crashed with an internal error
+    after its first lines: the reference routes' states carry no error estimate.  Their
+    observables are printed without +-, one note saying why, and the files written."""
+    out = tmp_path / "a.json"
+    assert main(["ablate", str(TOY2), "--method", method, "--json", str(out)]) == 0
+    printed, err = capsys.readouterr()
+    assert err == ""
+    assert "+-" not in printed and "pre-ablation" not in printed
+    assert printed.count(f"error estimates unavailable: the {method} route makes no error "
+                         f"estimate") == 1
+    data = json.loads(out.read_text())
+    values = dict(re.findall(r"^  (\w+) += (\S+) ", printed, re.M))
+    assert float(values["opening"]) == pytest.approx(data["opening"], rel=1e-9)
+    # the direct route's opening on 200 nodes, 0.0824373563 +- 4.5e-8 R: the routes agree
+    # to its error and the reference routes' tolerances (~1e-8 R)
+    assert data["opening"] == pytest.approx(0.0824373563, abs=1e-7)
+
+
 def test_ablate_needs_a_cut(capsys):
     assert main(["ablate", str(TOY2), "--set", "cut=0"]) == 2
     err = capsys.readouterr().err
@@ -183,6 +204,18 @@ def test_asymptotics_rejects_bad_values(capsys):
     assert "argument --cut-angle: 4 must be a finite number in (0, 3.14159) rad" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("k", ["1000", "20", "-1000"])
+def test_asymptotics_refuses_a_curvature_beyond_the_thickness(k, capsys):
+    """Audit 26, F2: |k| >= 2/h (the intrinsic wedge closes) gave rotation = -387 rad and
+    exit 0.  Refused in one line as estimate --k-range refuses it (the same check)."""
+    assert main(["asymptotics", "--h", "0.1", "--k", k, "--cut", "0.3"]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and len(err.strip().splitlines()) == 1
+    assert (f"--k: k = {k} is beyond the curvature of the shell of --h 0.1 (h = H/R = 0.1): "
+            f"|k| must stay below 2/h = 20") in err
+    assert err.rstrip().endswith("give a --k within (-20, 20)")
+
+
 def test_sphere_command(tmp_path):
     out = tmp_path / "s.json"
     assert main(["sphere", "--h", "0.01", "--k", "0", "--c10", "1", "--c01", "0.5",
@@ -195,6 +228,16 @@ def test_sphere_command(tmp_path):
     assert data["units"] == {"h": "R", "k": "1/R", "c10": "1", "c01": "1", "f_shell": "R",
                              "f_shell_asymptotic": "R", "f_bulk": "R", "f_asymptotic": "R",
                              "k_star": "1/R"}
+
+
+def test_sphere_of_a_thick_shell(capfd):
+    """Audit 26, F1: ``sphere --h 0.9 --k 0`` printed a raw RuntimeWarning and "no stationary
+    radius found" (exit 2); f_bulk is printed, nothing on standard error."""
+    assert main(["sphere", "--h", "0.9", "--k", "0"]) == 0
+    out, err = capfd.readouterr()
+    assert err == ""
+    # the audit's independent Brent solve of the stationarity: 1.23520 (6 digits)
+    assert float(re.search(r"f_bulk += (\S+) R", out)[1]) == pytest.approx(1.23520, abs=5e-6)
 
 
 def test_missing_hsl_solver_is_explained(capfd):

@@ -127,9 +127,15 @@ def test_a_path_to_an_end_of_the_parameters_range_lands_on_it(to, tmp_path, caps
     (["--nodes", "2"], "--nodes"),
     (["--follow", "sideways"], "--follow"),
     (["--max-step", "0"], "--max-step"),
+    # audit 26, F7: it said "must be a finite number in [-inf, inf]"
+    (["--param", "h", "--to", "nan"], "argument --to: nan must be a finite number (see "),
     # a user audit: --from was ignored with --param, exit 0
     (["--from", "neutral", "--param", "h", "--to", "0.2"], "--from neutral and --param h are "
                                                            "two paths"),
+    # audit 26, F5: a reference route was run as the direct one (a note), sweep refused it
+    (["--set", "method=bvp"], f"{FOLD}: method = 'bvp': continuations use the direct method"),
+    (["--set", "method=shooting", "--param", "h", "--to", "0.2"],
+     "method = 'shooting': continuations use the direct method"),
 ])
 def test_bad_input_exits_2_with_one_line_and_no_output(args, named, tmp_path, capsys):
     out = tmp_path / "x.csv"

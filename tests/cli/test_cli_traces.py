@@ -3,6 +3,7 @@ refused before any solve, naming the options to check; image traces without a sc
 the command line's options, not the library's arguments."""
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from morphoshell.cli import main
@@ -70,6 +71,20 @@ def test_a_csv_of_the_wrong_scale_names_its_units(capsys, tmp_path):
     Midline(3 * m.r, 3 * m.z).to_csv(path)
     _refused(["fit", str(path), "--variant", "flat"], capsys, tmp_path,
              "2.7× longer", "are its r and z in units of R")
+
+
+@pytest.mark.parametrize("scale", [1e-100, 1e-200, 1e-300])
+def test_a_csv_of_tiny_coordinates_is_refused_for_its_length(scale, capsys, tmp_path):
+    """Audit 26, F3: r, z scaled by 1e-200 overflowed the spline of the resampling (a raw
+    SciPy warning, then "point 0 (r, z) = (nan, nan) is not finite"); refused for its length
+    as at 1e-100, in one line."""
+    m = Midline.from_csv(T01 / "synthetic_average.csv")
+    path = tmp_path / "tiny.csv"          # a plain r,z table (no '# n_traces'): resampled
+    np.savetxt(path, np.column_stack([m.r, m.z]) * scale, delimiter=",", header="r,z",
+               comments="")
+    _refused(["fit", str(path), "--variant", "flat", "--nodes", "40"], capsys, tmp_path,
+             f"the midline is 2.53e{round(np.log10(scale))} R long",
+             "shorter than the undeformed shell", "are its r and z in units of R")
 
 
 def test_messages_name_the_command_line_options(fiji_xy, capsys, tmp_path):

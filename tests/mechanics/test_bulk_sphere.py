@@ -191,6 +191,37 @@ def test_f_bulk_is_minimum(mat):
         assert bulk.energy(f + step, h, k, *mat) > E
 
 
+@pytest.mark.parametrize("h, k, mat, bracket, f_audit", [
+    (0.9, 0.0, (1.0, 0.0), (-0.25, 1.0), 1.23520),
+    (0.9, -0.5, (1.0, 0.0), (-0.25, 1.0), 1.34449),
+    (0.95, 0.0, (1.0, 0.0), (-0.25, 1.0), None),
+    (0.99, 0.5, (1.0, 0.0), (-0.25, 1.0), 1.14086),
+    # C01 < 0: S falls again above the root (the energy falls without bound as the sphere
+    # grows: a second sign change at f - 1 = 0.43); the interval's ends both had S < 0
+    (0.3, -1.0, (1.0, -0.5), (-0.4, 0.3), None),
+])
+def test_f_bulk_of_thick_shells_is_the_root_of_the_stationarity(h, k, mat, bracket, f_audit):
+    """Audit 26, F1: for h >= 0.6 or so the bracket reached f = 1/2, inside a sphere whose
+    inner face has closed (S is NaN there), and f_bulk gave up with a raw RuntimeWarning and
+    "no stationary radius found" though one exists.  Now the bracket starts where the energy
+    is defined; f is the root of S that an independent Brent solve on a bracket chosen by
+    hand finds, a minimum of the energy, with no warning."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        F = bulk.f_bulk(h, k, *mat, return_deviation=True)
+    root = brentq(lambda F: bulk.stationarity(F, h, k, *mat), *bracket, xtol=1e-16,
+                  rtol=1e-15)
+    # both Brent solves of one function, to 4 eps and 1e-15 relative: equal to a few eps
+    assert F == pytest.approx(root, rel=1e-13, abs=1e-15)
+    if f_audit is not None:                    # the audit's independent check, 6 digits
+        assert 1 + F == pytest.approx(f_audit, abs=5e-6)
+    E = bulk.energy(1 + F, h, k, *mat)
+    # (a rise of ~0.006 at h = 0.9 (E'' ~ 100): far above rounding)
+    assert bulk.energy(1 + F - 0.01, h, k, *mat) > E < bulk.energy(1 + F + 0.01, h, k, *mat)
+
+
 @pytest.mark.parametrize("mat", MATERIALS)
 @pytest.mark.parametrize("k", [0.0, 2.0])
 def test_f_bulk_converges_to_eq_f(mat, k):

@@ -264,6 +264,8 @@ def test_cli_sweep_writes_the_rows_of_the_api(tmp_path, capsys, ablations):
     (["k=0,1", "k=2"], r"k is set more than once"),
     (["h=0.1,1.5"], r"sweep point h = 1\.5: thickness h = 1\.5 must lie in \[1e-06, 1\)"),
     (["h=0.1"], r"no axis to sweep"),
+    # the check continue makes too (audit 26, F5)
+    (["k=0,0.5", "method=bvp"], r"\.toml: method = 'bvp': sweeps use the direct method$"),
 ])
 def test_cli_bad_axes_exit_2_with_one_line_and_no_file(tmp_path, capsys, items, match):
     path = _problem_file(tmp_path)

@@ -160,9 +160,12 @@ def real(lo: float = -math.inf, hi: float = math.inf, *, open_lo: bool = False,
         low_ok = value > lo if open_lo else value >= lo
         high_ok = value < hi if open_hi else value <= hi
         if not math.isfinite(value) or not (low_ok and high_ok):
-            interval = f"{'(' if open_lo else '['}{lo:g}, {hi:g}{')' if open_hi else ']'}"
-            raise argparse.ArgumentTypeError(f"{text} must be a finite number in {interval}{unit}")
+            raise argparse.ArgumentTypeError(f"{text} must be a finite number{bounds}{unit}")
         return value
+
+    # (no bound is none to name: "--to nan must be a finite number in [-inf, inf]", audit 26 F7)
+    bounds = ("" if math.isinf(lo) and math.isinf(hi) else
+              f" in {'(' if open_lo else '['}{lo:g}, {hi:g}{')' if open_hi else ']'}")
     parse.__name__ = "number"
     return parse
 
@@ -229,3 +232,13 @@ def problem_and_settings(path, overrides):
     except ValueError as exc:
         raise ProblemFileError(f"--set: {exc}") from None
     return problem, settings
+
+
+def direct_only(path, settings, command: str) -> None:
+    """``ProblemFileError`` where the file or ``--set`` asks a command that has only the direct
+    method (``sweep``, ``continue``; plural) for a reference route: ``continue`` ran the direct
+    one with a note where ``sweep`` refused (audit 26, F5)."""
+    if settings.method != "direct":
+        from ..io.problem_files import ProblemFileError
+        raise ProblemFileError(f"{path}: method = {settings.method!r}: {command} use the "
+                               f"direct method")

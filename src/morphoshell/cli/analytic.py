@@ -90,8 +90,11 @@ _INPUT_UNITS = {"h": "R", "k": "1/R", "cut": "rad", "c10": "1", "c01": "1"}
 
 
 def _asymptotics(args) -> int:
+    from ..inverse.inversion import check_curvature
     from ..mechanics.asymptotics import predictions
 
+    # (the wedge closes: the predictions were printed, rotation -387 rad, audit 26 F2)
+    check_curvature((args.k,), args.h, "--k", f"the shell of --h {args.h:g}", "give a --k")
     cut = args.cut
     if cut is None:
         log.warning("--cut-angle is deprecated, use --cut (the same cut Sigma, radians)")

@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ._args import add_outputs, integer, note, problem_and_settings, real
+from ._args import add_outputs, direct_only, integer, note, problem_and_settings, real
 from ._commands import help_of
 from ._outputs import Outputs, kept_in
 
@@ -96,6 +96,7 @@ def _load(args):
                          f"one from the stress-free parameters, or the one parameter's; "
                          f"give one")
     problem, settings = problem_and_settings(args.problem, args.overrides)
+    direct_only(args.problem, settings, "continuations")
     if args.param is not None:
         try:
             ParameterLine.along(problem, args.param, args.to)
@@ -106,8 +107,6 @@ def _load(args):
                          f"parameters already: continue one parameter (--param, --to)")
     else:
         ParameterLine.between(source, problem)      # (refuses another structure)
-    if settings.method != "direct":
-        note(f"continuation uses the direct method (the file asks for {settings.method!r})")
     nodes = settings.nodes if args.nodes is None else args.nodes
     stages = settings.stages if args.stages is None else args.stages
     return problem, nodes, stages

@@ -197,13 +197,17 @@ def _ablation_lines(ab, fit=None) -> list[str]:
     sign = (f"negative: the cut released {-delta:.4g} C R^2" if delta < 0 else
             "positive: the remaining shell gained energy, not a release (an active response?)"
             if delta > 0 else "zero")
-    pre, post = ab.pre.error.reference_nodes, ab.post.error.reference_nodes
-    levels = (f"both states on {pre} nodes and on half that" if pre == post else
-              f"the states on {pre} (before the cut) and {post} nodes (after) and on half that")
-    head = (f"  observables +- their estimated errors (from {levels}; relative: lengths to "
-            f"d, the opening to 2d, the others to themselves or, near 0, to their scale):"
-            if errors and not ab.error_note else
-            f"  observables (error estimates unavailable: {ab.error_note or 'none made'}):")
+    if errors and not ab.error_note:
+        pre, post = ab.pre.error.reference_nodes, ab.post.error.reference_nodes
+        levels = (f"both states on {pre} nodes and on half that" if pre == post else
+                  f"the states on {pre} (before the cut) and {post} nodes (after) and on "
+                  f"half that")
+        head = (f"  observables +- their estimated errors (from {levels}; relative: lengths "
+                f"to d, the opening to 2d, the others to themselves or, near 0, to their "
+                f"scale):")
+    else:
+        # (a reference route's states carry no estimate, hence no levels: audit 26 F4)
+        head = f"  observables (error estimates unavailable: {ab.error_note or 'none made'}):"
     return [head, *_fit_lines(fit), *(line(k, v, UNITS[k]) for k, v in recoil.items()),
             line("energy_pre", ab.pre.energy, "C R^2", "the intact shell, before the cut"),
             line("energy_removed", ab.energy_removed, "C R^2",
@@ -302,7 +306,9 @@ def _ablate(args) -> int:
     if source is not None:
         print(f"  shape of the fit in {source['file']}: E_fit = {source['E_fit']:.6g} R, "
               f"{'converged' if source['converged'] else 'NOT converged'}")
-    for label, eq in (("pre-ablation", ab.pre), ("post-ablation", ab.post)):
+    # (a reference route reports neither a path nor an estimate: no empty headings)
+    states = (("pre-ablation", ab.pre), ("post-ablation", ab.post)) if method == "direct" else ()
+    for label, eq in states:
         print(f"  {label}:")
         _report_quality(eq)
     fit = None

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import math
 
-from ._args import add_executor, add_outputs, family_keys, integer, linear_solver
+from ._args import add_executor, add_outputs, direct_only, family_keys, integer, linear_solver
 from ._commands import help_of
 from ._outputs import Outputs, kept_in
 
@@ -215,9 +215,7 @@ def _sweep(args) -> int:
         settings = settings_from(solver_over, settings)
     except ValueError as exc:
         raise ProblemFileError(f"--set: {exc}") from None
-    if settings.method != "direct":
-        raise ProblemFileError(f"{args.problem}: method = {settings.method!r}: sweeps use the "
-                               f"direct method")
+    direct_only(args.problem, settings, "sweeps")
     nodes = settings.nodes if args.nodes is None else args.nodes
     stages = settings.stages if args.stages is None else args.stages
     # every point is validated before any work (ValueError naming it: exit status 2)

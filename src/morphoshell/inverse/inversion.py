@@ -264,19 +264,23 @@ def curvature_limit(h: float) -> float:
     return 2.0 / h
 
 
-def check_curvature(k_range: tuple[float, float], h: float, label: str, shell: str) -> None:
+def check_curvature(k_range: tuple[float, ...], h: float, label: str, shell: str,
+                    remedy: str = "search a range") -> None:
     """ValueError, naming ``label`` and ``shell``, when the k-range reaches |k| ≥ 2/h.
 
     Parameters
     ----------
-    k_range : (float, float)
-        A checked k-range (:func:`check_k_range`).
+    k_range : tuple of float
+        A checked k-range (:func:`check_k_range`), or one k, ``(k,)`` (``morphoshell
+        asymptotics --k``: its predictions there are no shell's).
     h : float
         Relative thickness H/R of the shell.
     label : str
         How the message names the range (``"--k-range -100 100"``, ``"k_range = ..."``).
     shell : str
         Which shell h is, for the message (e.g. "embryo 'S05'").
+    remedy : str
+        What to do, completed by "within (-2/h, 2/h)" (e.g. "give --k").
     """
     limit = curvature_limit(h)
     worst = max(k_range, key=abs)
@@ -285,7 +289,7 @@ def check_curvature(k_range: tuple[float, float], h: float, label: str, shell: s
             f"{label}: k = {worst:g} is beyond the curvature of {shell} (h = H/R = {h:.4g}): "
             f"|k| must stay below 2/h = {limit:.4g}, since a sheet of thickness h cannot curve "
             f"with a radius 1/|k| below h/2 (its inner face would pass its centre of "
-            f"curvature); search a range within (-{limit:.4g}, {limit:.4g})")
+            f"curvature); {remedy} within (-{limit:.4g}, {limit:.4g})")
 
 
 def _hermite_roots(p: _Point, q: _Point, i: int, target: float) -> list[float]:

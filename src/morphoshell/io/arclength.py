@@ -50,28 +50,37 @@ class Curve:
 
     The spline is not-a-knot in the chord-length parameter u (error O(h⁴)
     for points of a smooth curve at spacing h); ``knots`` holds the arclength
-    at each knot u_j.
+    at each knot u_j.  Both are of the points divided by ``scale``, a power of
+    two that brings the chord length to [1/2, 1): exact, so the curve is the
+    same to the bit at any scale, but a trace 1e-200 R long had overflowed the
+    spline's 1/du² and underflowed the norms of its tangents (a raw warning and
+    NaN points, "not finite", before its length was refused: audit 26 F3).
     """
 
     spline: "CubicSpline"
     knots: np.ndarray
+    scale: float = 1.0
 
     @classmethod
     def through(cls, points: np.ndarray) -> "Curve":
         """The curve through ``points`` (m, 2), consecutive ones distinct, in their order."""
+        chords = np.hypot(*np.diff(points, axis=0).T)
+        exponent = int(np.frexp(np.sum(chords))[1])
+        points = np.ldexp(points, -exponent)
         u = np.r_[0.0, np.cumsum(np.hypot(*np.diff(points, axis=0).T))]
         from scipy.interpolate import CubicSpline
         spline = CubicSpline(u, points)
-        return cls(spline, np.r_[0.0, np.cumsum(_speed_integral(spline, u[:-1], u[1:]))])
+        return cls(spline, np.r_[0.0, np.cumsum(_speed_integral(spline, u[:-1], u[1:]))],
+                   float(np.ldexp(1.0, exponent)))
 
     @property
     def length(self) -> float:
-        """Arclength from the first point to the last."""
-        return float(self.knots[-1])
+        """Arclength from the first point to the last (units of the points)."""
+        return float(self.knots[-1] * self.scale)
 
     def __call__(self, s, tangent: bool = False) -> np.ndarray:
         """Points, or unit tangents, at arclengths s; shape s.shape + (2,)."""
-        s = np.clip(np.asarray(s, dtype=float), 0.0, self.length)
+        s = np.clip(np.asarray(s, dtype=float) / self.scale, 0.0, self.knots[-1])
         u_knots = self.spline.x
         j = np.clip(np.searchsorted(self.knots, s, side="right") - 1, 0, len(u_knots) - 2)
         lo, hi, s_lo = u_knots[j], u_knots[j + 1], self.knots[j]
@@ -79,10 +88,10 @@ class Curve:
         for _ in range(10):     # Newton on s(u) = s within the interval; converges in 2–3
             excess = s_lo + _speed_integral(self.spline, lo, u) - s
             u = np.clip(u - excess / np.linalg.norm(self.spline(u, 1), axis=-1), lo, hi)
-            if np.all(np.abs(excess) <= 1e-14 * self.length):
+            if np.all(np.abs(excess) <= 1e-14 * self.knots[-1]):
                 break
         if not tangent:
-            return self.spline(u)
+            return self.spline(u) * self.scale
         d = self.spline(u, 1)
         return d / np.linalg.norm(d, axis=-1, keepdims=True)
 

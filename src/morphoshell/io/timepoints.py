@@ -2,6 +2,9 @@
 
 A data set is a folder with ``timepoints.csv``, one row per inversion stage
 (paper, main text, Fig. 3 D–O: the sequence a campaign fits), with columns
+named in lower case and cells separated by commas (``;`` separates the
+traces within a cell; a header of other separators or case is refused,
+saying so)
 
 ``timepoint``
     A name (``t01``) of letters, digits, ``-``, ``_`` or ``.``, used in file
@@ -113,9 +116,31 @@ def _rows(table: Path) -> tuple[list[tuple[int, str]], list[dict]]:
                 if ln.strip() and not ln.lstrip().startswith("#")]
     rows = list(csv.DictReader(io.StringIO("\n".join(ln for _, ln in numbered))))
     if not rows or not set(_COLUMNS) <= set(rows[0]):
-        raise ValueError(f"{table}: expected a header timepoint,pseudotime,midline and at "
-                         f"least one row")
+        raise ValueError(f"{table}: {_header_problem(numbered, rows)}; expected a header "
+                         f"timepoint,pseudotime,midline (cells separated by ',') and at least "
+                         f"one row")
     return numbered, rows
+
+
+def _header_problem(numbered: list[tuple[int, str]], rows: list[dict]) -> str:
+    """What is wrong with the header (line, text) of a table that has not the columns or no
+    row: its cells' separator, the case of its names, the columns missing, or no row.  (The
+    message had been the same for all: audit 26, F6.)"""
+    if not numbered:
+        return "no header (the file is empty or all comments)"
+    k, header = numbered[0]
+    read = f"line {k}, the header, reads {header.strip()!r}"
+    if "," not in header:
+        for sep, name in ((";", "';'"), ("\t", "tabs")):
+            if sep in header:
+                return f"{read}: cells separated by {name}, not ','"
+    names = [c.strip() for c in next(csv.reader([header]))]
+    missing = [c for c in _COLUMNS if c not in names]
+    if not missing:
+        return f"{read} but no row follows it"
+    if all(c in [n.lower() for n in names] for c in missing):
+        return f"{read}: column names are lower case"
+    return f"{read}: no column {', '.join(missing)}"
 
 
 def _timepoint(data_dir: Path, table: Path, i: int, row: dict) -> Timepoint:

@@ -418,6 +418,50 @@ def energy_derivative(f: float, h: float, k: float, c10: float, c01: float,
     return 4 * math.pi * geom.a * (f_ + t / 2) ** 2 * drt * S
 
 
+def _closed(geom: UndeformedGeometry) -> float:
+    """f − 1 at which the deformed inner face reaches the centre, r̃₋ = f − t/2 = 0.
+
+    The faces keep the volume, r̃₊³ − r̃₋³ = 3h + h³/4, so there f = (3h + h³/4)^(1/3)/2.
+    Below it the deformed radii of the inner Gauss nodes turn negative and the energy is
+    not defined (NaN from the cube roots); for h ≳ 0.33 it lies above f = 1/2, where the
+    bracket of :func:`f_bulk` once stopped and found no sign change (audit 26, F1).
+    """
+    h = geom.h
+    return (3 * h + h**3 / 4) ** (1 / 3) / 2 - 1
+
+
+def _bracket(S, centre: float, width: float, floor: float):
+    """(lo, hi, S(lo), S(hi)) with S(lo) ≤ 0 ≤ S(hi): a rising sign change of ``S``, the
+    minimum of the energy, found by doubling ``width`` about ``centre`` down to ``floor``.
+
+    The whole interval is taken first, as it always was.  Where S falls again above its
+    root (C01 < 0: the energy falls without bound as the sphere grows), or is finite only
+    above ``floor``, the interval's ends alone miss it; then the pair of adjacent points
+    evaluated so far whose S rises through 0 nearest ``centre`` is taken.
+
+    Raises
+    ------
+    ValueError
+        Where 60 doublings find none (one line saying where S was looked at).
+    """
+    seen = {centre: S(centre)}
+    for _ in range(60):
+        lo, hi = max(centre - width, floor), centre + width
+        seen.update({lo: S(lo), hi: S(hi)})
+        if seen[lo] <= 0 <= seen[hi]:
+            return lo, hi, seen[lo], seen[hi]
+        xs = sorted(seen)
+        rising = [(a, b) for a, b in zip(xs, xs[1:]) if seen[a] <= 0 <= seen[b]]
+        if rising:
+            a, b = min(rising, key=lambda ab: min(abs(ab[0] - centre), abs(ab[1] - centre)))
+            return a, b, seen[a], seen[b]
+        width *= 2
+    raise ValueError(f"dE/df has no rising sign change at {len(seen)} radii from "
+                     f"f - 1 = {floor:.3g} (where the inner face nears the centre, or -0.5) "
+                     f"to {hi:.3g} (does the energy fall without bound as the sphere grows, "
+                     f"C01 < 0?)")
+
+
 def f_bulk(h: float, k: float, c10: float, c01: float, c20: float = 0.0,
            c11: float = 0.0, c02: float = 0.0, *, nodes: int = DEFAULT_NODES,
            return_deviation: bool = False) -> float:
@@ -460,16 +504,11 @@ def f_bulk(h: float, k: float, c10: float, c01: float, c20: float = 0.0,
         return _stationarity(geom, material, Z, w, F)[0]
 
     width = abs(F0) + geom.h**2 * (1 + abs(k - 1)) / 4
-    lo, hi = F0 - width, F0 + width
-    for _ in range(60):
-        lo = max(lo, -0.5)
-        s_lo, s_hi = S(lo), S(hi)
-        if s_lo <= 0 <= s_hi:
-            break
-        width *= 2
-        lo, hi = F0 - width, F0 + width
-    else:
-        raise ValueError(f"no stationary radius found for h = {h!r}, k = {k!r}")
+    try:
+        lo, hi, s_lo, s_hi = _bracket(S, F0, width, max(-0.5, _closed(geom) + 1e-6))
+    except ValueError as exc:
+        raise ValueError(f"no stationary radius found for h = {h!r}, k = {k!r}: {exc}") \
+            from None
     if s_lo == 0:
         F = lo
     elif s_hi == 0:
