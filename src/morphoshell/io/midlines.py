@@ -126,7 +126,7 @@ from .._runtime.validate import short
 from .arclength import Curve, at_fractions, resample
 from .roi_sets import is_roi_set, read_set_traces
 from .trace_checks import (MidlineError, asymmetry_warning, bridged_gap, check_axis, check_choice,
-                           check_count, check_not_short, check_positive, check_scale)
+                           check_count, check_not_short, check_open, check_positive, check_scale)
 from .trace_noise import Binning, bin_noisy
 from .trace_outliers import OUTLIER_SIGMAS, find_outliers
 from .traces import Midline, Trace, read_trace
@@ -249,6 +249,7 @@ def align(trace: Trace, section: str = "auto", *, flip: bool = False,
         pole, e_r, e_z, points, asymmetry = _whole(Curve.through(binning.points),
                                                    len(binning.points), flip)
         if asymmetry > max_asymmetry:
+            check_open(trace.source, binning.points)
             check_scale(trace.source, binning, 2, f"its halves differ by {asymmetry:.3g} R rms")
             raise MidlineError(f"{trace.source}: the halves of this whole section differ by "
                                f"{asymmetry:.3g} R rms from their mirror average (max_asymmetry = "
