@@ -1,5 +1,7 @@
-"""Checks of traced curves: what names a closed trace (io/trace_checks.py; the other checks
-are tested through the readers, test_traces.py and test_midlines.py)."""
+"""Checks of traced curves: what names a closed trace, and the warning of traces that differ
+far more than their noise (io/trace_checks.py; the other checks are tested through the
+readers, test_traces.py and test_midlines.py)."""
+import math
 import re
 from pathlib import Path
 
@@ -7,11 +9,25 @@ import numpy as np
 import pytest
 
 from morphoshell.io import MidlineError
-from morphoshell.io.trace_checks import check_open
+from morphoshell.io.trace_checks import SPREAD_RATIO, check_open, spread_warning
 from morphoshell.io.trace_noise import bin_noisy
 from morphoshell.io.traces import read_trace
 
 DATA = Path(__file__).resolve().parents[2] / "data" / "synthetic_inversion"
+
+
+def test_the_spread_warning_names_the_ratio_above_its_limit():
+    noises = [0.003, 0.002, math.nan, 0.004]            # (nan: a csv or segmented line)
+    assert spread_warning(SPREAD_RATIO * 0.003, noises) is None
+    said = spread_warning(0.0542, noises, "the 4 traces of a.zip")
+    assert said == ("the 4 traces of a.zip differ by more than tracing does: their mean spread "
+                    "0.054 R is 18 times their noise (0.003 R, the median of their estimates); "
+                    "check each trace's radius_um and pixel_size_um (radii 5 % off by turns "
+                    "gave 12 times, one radius for embryos of R = 35-42 µm 19) and that they "
+                    "are of one stage")
+    # without two estimates (csv midlines, segmented lines) nothing is compared
+    assert spread_warning(1.0, [0.003, math.nan, math.nan]) is None
+    assert spread_warning(1.0, []) is None
 
 
 def test_the_shipped_traces_are_not_taken_for_closed_ones():

@@ -151,6 +151,12 @@ class Midline:
         Number of traces averaged.
     source : tuple of str
         Their files.
+    noise : float
+        A single image trace's noise per coordinate, units of R, as alignment
+        estimated it (:attr:`morphoshell.io.midlines.Alignment.noise`): what
+        the spread of an average of traces is compared with
+        (:func:`~morphoshell.io.trace_checks.spread_warning`); nan if unknown
+        (csv, averages, segmented lines).  Not written by :meth:`to_csv`.
     """
 
     r: np.ndarray
@@ -158,6 +164,7 @@ class Midline:
     spread: np.ndarray | None = None
     n_traces: int = 1
     source: tuple[str, ...] = ()
+    noise: float = math.nan
 
     def __post_init__(self):
         r, z = np.asarray(self.r, dtype=float), np.asarray(self.z, dtype=float)
