@@ -184,3 +184,65 @@ def test_outlier_points_of_a_trace_are_named_and_left_out_when_asked(tmp_path, c
     captured = capsys.readouterr()
     assert "warning" not in captured.err and "left out (--drop-outlier-points)" in captured.out
     assert "# drop_outlier_points = true" in out.read_text()
+
+
+def test_a_sets_line_rois_take_one_radius_each(tmp_path, capsys):
+    """--radius-um lists one radius per trace, a set's line ROIs in its order, beside one per
+    TRACE file (audit 25: a RoiSet.zip of 5 embryos could only take one radius); the average's
+    comments record them."""
+    import sys
+
+    sys.path.insert(0, str(ROOT / "tests" / "io"))
+    from test_roi_sets import RADII, _set_of_radii
+
+    from morphoshell.io import average, load_midline, load_midlines
+
+    path = _set_of_radii(tmp_path)
+    single = tmp_path / "single1.roi"
+    radii = [*RADII, RADII[0]]
+    out = tmp_path / "t01" / "average.csv"
+    out.parent.mkdir()
+    assert main(["average", str(path), str(single), "--pixel-size", "0.25",
+                 "--radius-um", ",".join(map(str, radii)), "--csv", str(out)]) == 0
+    expected = [*load_midlines(path, roi="all", pixel_size_um=0.25, radius_um=list(RADII)),
+                load_midline(single, pixel_size_um=0.25, radius_um=RADII[0])]
+    mine = Midline.from_csv(out)
+    assert mine.n_traces == 4
+    assert np.array_equal(mine.points, average(expected).points)
+    comments = out.read_text().splitlines()
+    assert f"# radius_um = {path}: 45, 50, 56" in comments
+    assert f"# radius_um = {single}: 45" in comments
+    assert main(["average", str(path), str(single), "--pixel-size", "0.25",
+                 "--radius-um", "45,50"]) == 0                 # (one per file: shared by a set)
+    capsys.readouterr()
+    assert main(["average", str(path), "--pixel-size", "0.25", "--radius-um", "45,50"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and ("--radius-um has 2 radii for 1 TRACE files holding 3 "
+                                     "traces: give one for all, one per TRACE (the line ROIs "
+                                     "of a set share its file's), or one per trace, a set's "
+                                     "line ROIs in its order") in err, err
+
+
+def test_traces_that_differ_far_more_than_their_noise_are_warned_of(tmp_path, capsys):
+    """All traces off alike make no outlier (the rule is relative): embryos of R = 45-56 µm
+    read at one radius, 50, give a mean spread 58 times their noise (0.3 px on a clean
+    shape), which was silent (audit 25: 19 times at R = 35-42 µm); at their own radii 0.35
+    times, the shipped t02 0.47 times: no warning."""
+    import sys
+
+    sys.path.insert(0, str(ROOT / "tests" / "io"))
+    from test_roi_sets import RADII, _set_of_radii
+
+    path = _set_of_radii(tmp_path)
+    assert main(["average", str(path), "--pixel-size", "0.25", "--radius-um", "50"]) == 0
+    err = capsys.readouterr().err
+    said = re.search(rf"warning: the 3 traces of {re.escape(str(path))} differ by more than "
+                     rf"tracing does: their mean spread (\S+) R is (\d+) times their noise "
+                     rf"\((\S+) R, the median of their estimates\); check each trace's "
+                     rf"--radius-um and --pixel-size .* and that they are of one stage\n", err)
+    assert said and float(said[2]) > 10 and err.count("\n") == 1, err
+    assert main(["average", str(path), "--pixel-size", "0.25",
+                 "--radius-um", ",".join(map(str, RADII))]) == 0
+    assert capsys.readouterr().err == ""
+    assert main(["average", *TRACES, *_scale(_radii())]) == 0
+    assert capsys.readouterr().err == ""

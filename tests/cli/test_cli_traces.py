@@ -53,6 +53,50 @@ def test_a_wrong_pixel_size_is_refused_naming_the_factor_and_the_options(
              f"--radius-um {RADIUS_UM:g} the embryo's radius R in µm?")
 
 
+@pytest.mark.parametrize("decimals, named", [
+    (3, "the coordinates look like µm already (non-integer, and the midline is 1/0.3 = 3.33× "
+        "too short: 2."),
+    (0, "the coordinates may be in µm already (the midline is 1/0.3 = 3.33× too short: 2."),
+])
+def test_a_fiji_export_in_micrometres_is_told_to_pass_pixel_size_1(
+        fiji_xy, decimals, named, capsys, tmp_path):
+    """Fiji writes a calibrated image's XY coordinates in µm; read with the pixel size, the
+    message asked "is --pixel-size 0.25 the size of a pixel in µm?", which it is (audit 25).
+    Where the length at --pixel-size 1 is one the check allows, the message names the mistake;
+    decimals make it likely (a trace in pixels from Fiji's line tools has none)."""
+    rows = np.loadtxt(fiji_xy) * PIXEL_UM
+    um = tmp_path / "trace_um.txt"
+    np.savetxt(um, rows.round(decimals), fmt=f"%.{decimals}f", delimiter="\t")
+    err = _refused(["fit", str(um), "--variant", "free", "--pixel-size", f"{PIXEL_UM:g}",
+                    "--radius-um", str(RADIUS_UM)], capsys, tmp_path, named,
+                   "× shorter than the undeformed shell", "R long at --pixel-size 1)")
+    if decimals:
+        assert err.endswith("): pass --pixel-size 1 (Fiji writes the XY coordinates of a "
+                            "calibrated image in µm)\n"), err
+    else:
+        assert err.endswith("pass --pixel-size 1; else is --pixel-size 0.3 the size of a pixel "
+                            "in µm (Fiji: Image › Properties), and --radius-um 43.9927 the "
+                            "embryo's radius R in µm?\n"), err
+
+
+def test_a_roi_or_a_length_wrong_at_pixel_size_1_too_is_not_taken_for_micrometres(
+        fiji_xy, capsys, tmp_path):
+    """A .roi is in pixels whatever the image's calibration (here one with the µm values of
+    the export above); a trace whose length at --pixel-size 1 the check refuses too is asked
+    about its options, as before."""
+    import roifile
+
+    roi = roifile.ImagejRoi.frompoints(np.loadtxt(fiji_xy) * PIXEL_UM)
+    roi.roitype = roifile.ROI_TYPE.POLYLINE
+    roi.tofile(tmp_path / "trace.roi")
+    for path, size in ((tmp_path / "trace.roi", PIXEL_UM), (fiji_xy, 0.1)):
+        err = _refused(["fit", str(path), "--variant", "free", "--pixel-size", f"{size:g}",
+                        "--radius-um", str(RADIUS_UM)], capsys, tmp_path,
+                       "× shorter than the undeformed shell",
+                       f"is --pixel-size {size:g} the size of a pixel in µm")
+        assert "µm already" not in err, err
+
+
 def test_swapped_columns_are_refused_naming_the_likely_cause(capsys, tmp_path):
     """An r,z CSV with r and z swapped (header still r,z) used to "converge" to E_fit 3.7 R
     (t01) and write its JSON; a later stage's swapped r goes negative."""

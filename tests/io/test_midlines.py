@@ -699,3 +699,41 @@ def test_what_is_not_a_list_of_midlines_is_refused_naming_it(call, tmp_path):
         with pytest.raises(TypeError, match=rf"^{what}: midlines = .* must be a sequence of "
                                             rf"Midline objects, not one"):
             call(one)
+
+
+def _outline(tmp_path, name, closed=False, start=0):
+    """The reference shell's wall (thickness 0.15 R) traced as its outline, Fiji XY: the outer
+    wall from one rim to the other, then the inner wall back (its ends the wall's thickness
+    apart at the first rim); ``closed``: its first point again at the end, the loop started
+    ``start`` points along it."""
+    p = half()
+    tangent = np.gradient(p, axis=0)
+    normal = tangent[:, ::-1] * [1.0, -1.0] / np.hypot(*tangent.T)[:, None]     # outward
+    whole = [np.vstack([q[:0:-1] * [-1.0, 1.0], q]) for q in (p + 0.075 * normal,
+                                                              p - 0.075 * normal)]
+    loop = np.vstack([whole[0], whole[1][::-1]])
+    loop = np.roll(loop, -start, axis=0)
+    if closed:
+        loop = np.vstack([loop, loop[:1]])
+    pixels = tr.to_image(loop, radius_px=200.0, offset_px=(400.0, 300.0), section="half")
+    path = tmp_path / f"{name}.txt"
+    path.write_text("".join(f"{x:.3f}\t{y:.3f}\n" for x, y in pixels))
+    return path
+
+
+@pytest.mark.parametrize("closed, start, said", [
+    (False, 0, r"its first and last points lie 0\.15 R apart and it comes back along itself, "
+               r"within 0\.\d+ R"),
+    (True, 0, "its first and last points coincide"),
+    (True, 400, "its first and last points coincide"),      # (a loop from mid-wall)
+])
+def test_an_outline_of_the_wall_is_named_a_closed_trace(tmp_path, closed, start, said):
+    """The outline of an embryo's wall (outer and inner) was refused as "the halves ... differ
+    by 0.612 R rms ... both rims must be traced to their ends" (audit 25 F5).  (A closed loop
+    started at a pole has mirror halves: it passes alignment, and a fit refuses it as 1.8
+    times too long.)"""
+    path = _outline(tmp_path, "outline", closed, start)
+    with pytest.raises(MidlineError, match=rf"outline\.txt: the trace is closed \({said}\): trace "
+                                           rf"the midline of the wall, from rim to rim, not the "
+                                           rf"outline$"):
+        ml.load_midline(path, **SCALE)

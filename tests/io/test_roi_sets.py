@@ -112,3 +112,66 @@ def test_load_midlines_gives_a_sets_traces_one_by_one(tmp_path):
     for k, m in enumerate(singles, start=1):
         assert np.array_equal(m.points, load_midline(tmp_path / f"single{k}.roi", **SCALE).points)
     assert np.array_equal(average(singles).points, load_midline(path, roi="all", **SCALE).points)
+
+
+#: Radii (µm) of the embryos of a set of several embryos in one image (audit 25: R = 35-42 µm).
+RADII = (45.0, 50.0, 56.0)
+
+
+def _set_of_radii(tmp_path, radii=RADII):
+    """A set of the reference midline traced in embryos of `radii` (µm) at SCALE's pixel size,
+    each also written as its own .roi (single1...)."""
+    from morphoshell.io import write_trace
+
+    from reference_midline import half
+
+    path = tmp_path / "RoiSet.zip"
+    for k, radius in enumerate(radii):
+        single = tmp_path / f"single{k + 1}.roi"
+        write_trace(single, half(), "roi", pixel_size_um=SCALE["pixel_size_um"], radius_um=radius,
+                    angle_deg=20.0 * k, offset_px=(300.0, 300.0), noise_px=0.3, seed=k)
+        roifile.ImagejRoi.fromfile(single).tofile(path, name=f"embryo{k + 1}")
+    return path
+
+
+def test_each_line_roi_of_a_set_takes_its_own_radius(tmp_path):
+    """Several embryos in one image: one radius per line ROI, in the set's order, reads each
+    ROI as its own file at its radius (audit 25: one radius for all put the traces' mean
+    spread at 10 times that of the right radii)."""
+    from morphoshell.io import load_midlines
+
+    path = _set_of_radii(tmp_path)
+    pixel = {"pixel_size_um": SCALE["pixel_size_um"]}
+    each = load_midlines(path, roi="all", radius_um=list(RADII), **pixel)
+    for k, (m, radius) in enumerate(zip(each, RADII), start=1):
+        single = load_midline(tmp_path / f"single{k}.roi", radius_um=radius, **pixel)
+        assert np.array_equal(m.points, single.points)
+    shared = load_midlines(path, roi="all", radius_um=RADII[1], **pixel)
+    assert not np.allclose(shared[0].points, each[0].points, atol=1e-3)
+    assert np.array_equal(shared[1].points, each[1].points)        # (its own radius)
+
+
+def test_radii_that_do_not_match_the_line_rois_are_refused(tmp_path):
+    path = _set_of_radii(tmp_path)
+    with pytest.raises(MidlineError) as exc:
+        load_midline(path, roi="all", pixel_size_um=0.25, radius_um=[45.0, 50.0])
+    assert str(exc.value) == (f"{path}: radius_um has 2 radii for the 3 line ROIs chosen "
+                              f"('embryo1', 'embryo2', 'embryo3'): give one for all or one per "
+                              f"line ROI, in the set's order")
+    with pytest.raises(MidlineError, match="radius_um = -1.0 must be positive"):
+        load_midline(path, roi="all", pixel_size_um=0.25, radius_um=[45.0, -1.0, 50.0])
+    with pytest.raises(MidlineError, match="radius_um is empty"):
+        load_midline(path, roi="all", pixel_size_um=0.25, radius_um=[])
+    with pytest.raises(MidlineError, match=r"single1\.roi: radius_um lists radii, one per line "
+                                           r"ROI of a ROI Manager set: this file holds one"):
+        load_midline(tmp_path / "single1.roi", pixel_size_um=0.25, radius_um=[45.0])
+
+
+def test_line_roi_names_counts_the_chosen_without_a_warning(tmp_path, caplog):
+    from morphoshell.io.roi_sets import line_roi_names
+
+    path = _roi_set(tmp_path)
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        assert line_roi_names(path, "all") == ["embryo1", "embryo2", "embryo3"]
+        assert line_roi_names(path, 2) == ["embryo2"]
+    assert caplog.text == ""

@@ -479,3 +479,18 @@ def test_a_midline_is_one_line_when_echoed():
     assert repr(arc) == ("Midline(100 points, 5 traces, length 1.57 R, with spread, "
                          "source='a.csv' and 2 more)")
     assert repr(Midline(arc.r[:3], arc.z[:3])) == "Midline(3 points, 1 trace, length 0.0317 R)"
+
+
+def test_an_rz_csv_in_micrometres_is_told_its_units(tmp_path):
+    """An r,z CSV in µm (R = 37.5 µm) was told "a trace in pixels is read with format 'xy'
+    ...", not that r,z CSVs are in units of R (audit 25 F5); a midline file so too."""
+    path = tmp_path / "um.csv"
+    np.savetxt(path, TRUTH * 37.5, delimiter=",", header="r,z", comments="")
+    said = ("R from the first point; a midline lies within 20 R of its pole (r,z csv traces are "
+            "in units of R, the embryo's radius: divide r and z in µm by the radius in µm; a "
+            "trace in pixels is read with format 'xy', 'fiji-xy' or 'roi' and a scale)")
+    for read in (tr.read_trace, Midline.from_csv):
+        with pytest.raises(MidlineError) as exc:
+            read(path)
+        message = str(exc.value)
+        assert message.startswith(f"{path}: line ") and message.endswith(said), message

@@ -12,7 +12,7 @@ from ._outputs import output_path
 
 __all__ = ["integer", "real", "micrometres", "add_outputs", "TRACE_OPTIONS", "FORMAT_HELP",
            "SECTION_HELP", "OUTLIER_POINTS_HELP", "problem_and_settings", "reworded",
-           "reader_notes", "linear_solver", "family_keys"]
+           "reader_notes", "linear_solver", "family_keys", "scale_hint"]
 
 
 #: The Python arguments that the messages of morphoshell.io name, as the command line spells
@@ -126,6 +126,56 @@ def reader_notes() -> Iterator[list[str]]:
         logger.removeHandler(handler)
         logger.setLevel(saved[0])
         logger.propagate = saved[1]
+
+
+def scale_hint(path, fmt: str | None, pixel_size: float, radius: float,
+               whose: str = "the embryo's") -> Callable[[float, tuple[float, float]], str]:
+    """What the message of a midline too long or short for the model asks of an image trace
+    (``fitting.check_midline``'s ``scale_hint``): the options that set its scale, or the
+    likely mistake where the length names it.
+
+    A Fiji XY export of a spatially calibrated image is in µm, with decimals (docs/fitting.md:
+    pass ``--pixel-size 1``); read with the pixel size it is that factor off, and the user,
+    asked whether the pixel size is right, answers yes (audit 25: 0.676 R long, "4.2×
+    shorter", at --pixel-size 0.25).  So where the length at ``--pixel-size 1`` lies within
+    the lengths the check allows, the message says so, and whether the file's coordinates
+    have decimals (a trace in pixels from Fiji's line tools has none; a ROI is in pixels
+    whatever the calibration, and is not asked about).
+
+    Parameters
+    ----------
+    path : str or Path
+        The trace file.
+    fmt : str or None
+        ``--format``.
+    pixel_size, radius : float
+        ``--pixel-size`` and ``--radius-um`` (of this trace).
+    whose : str
+        Whose radius, for the question.
+    """
+    question = (f"is --pixel-size {pixel_size:g} the size of a pixel in µm (Fiji: Image › "
+                f"Properties), and --radius-um {radius:g} {whose} radius R in µm?")
+
+    def hint(length: float, allowed: tuple[float, float]) -> str:
+        at_one = length / pixel_size                # (the length scales with the pixel size)
+        if pixel_size == 1 or not allowed[0] <= at_one <= allowed[1]:
+            return question
+        import numpy as np
+
+        from ..io.traces import text_coordinates
+        values = text_coordinates(path, fmt)
+        if values is None:
+            return question
+        off = (f"1/{pixel_size:g} = {1 / pixel_size:.3g}× too short" if pixel_size < 1
+               else f"{pixel_size:g}× too long")
+        how = f"{off}: {at_one:.3g} R long at --pixel-size 1"
+        if np.any(values != np.round(values)):
+            return (f"the coordinates look like µm already (non-integer, and the midline is "
+                    f"{how}): pass --pixel-size 1 (Fiji writes the XY coordinates of a "
+                    f"calibrated image in µm)")
+        return (f"the coordinates may be in µm already (the midline is {how}): if Fiji "
+                f"exported them from a calibrated image, pass --pixel-size 1; else {question}")
+    return hint
 
 
 def note(text: str) -> None:

@@ -13,7 +13,7 @@ import re
 from pathlib import Path
 
 from ._args import (FORMAT_HELP, OUTLIER_POINTS_HELP, SECTION_HELP, TRACE_OPTIONS, add_outputs,
-                    micrometres, note, reader_notes, reworded)
+                    micrometres, note, reader_notes, reworded, scale_hint)
 from ._commands import help_of
 from ._outputs import Outputs
 
@@ -57,8 +57,9 @@ def register(sub) -> None:
                    "(Fiji: Image > Properties > Pixel width); required with --radius-um")
     p.add_argument("--radius-um", dest="radius_um", type=_radii, default=None, metavar="R[,R...]",
                    help="image traces: the embryo's radius R in micrometres, the unit of "
-                        "lengths: one for every TRACE, or one per TRACE in their order "
-                        "(comma-separated); the ROIs of one set share its file's")
+                        "lengths: one for every TRACE, one per TRACE in their order (the "
+                        "ROIs of a set share its file's), or one per trace, each line ROI of "
+                        "a set in the set's order (comma-separated)")
     p.add_argument("--roi", default=None, metavar="NAME|INDEX|all",
                    help="in a ROI Manager set: the line ROI to take, by name or position "
                         "(from 1), or all (default): every line ROI is a trace")
@@ -81,17 +82,55 @@ def register(sub) -> None:
     p.set_defaults(run=_average)
 
 
-def _check_options(args) -> list[float | None]:
-    """The radius of each TRACE (None: not an image trace); one line naming a bad option."""
+def _check_options(args) -> list:
+    """The radius of each TRACE: a float, a list of one per line ROI of a set, or None (not an
+    image trace); one line naming a bad option."""
     if (args.pixel_size is None) != (args.radius_um is None):
         raise ValueError("--pixel-size and --radius-um go together: image traces need both")
     if args.write_traces and args.csv is None:
         raise ValueError("--traces writes the traces' midlines beside the --csv file: give --csv")
     radii = args.radius_um or [None]
-    if len(radii) not in (1, len(args.traces)):
-        raise ValueError(f"--radius-um has {len(radii)} radii for {len(args.traces)} TRACE "
-                         f"files: give one for all or one per TRACE")
-    return radii * len(args.traces) if len(radii) == 1 else radii
+    if len(radii) in (1, len(args.traces)):
+        return radii * len(args.traces) if len(radii) == 1 else radii
+    sizes = _set_sizes(args)
+    counts = [k or 1 for k in sizes]
+    if len(radii) != sum(counts):
+        raise ValueError(f"--radius-um has {len(radii)} radii for {len(args.traces)} TRACE files "
+                         f"holding {sum(counts)} traces: give one for all, one per TRACE (the "
+                         f"line ROIs of a set share its file's), or one per trace, a set's line "
+                         f"ROIs in its order")
+    per_file, at = [], 0
+    for size, k in zip(sizes, counts):
+        per_file.append(radii[at] if size is None else radii[at:at + k])
+        at += k
+    return per_file
+
+
+def _roi_choice(args, path):
+    """--roi for the file ``path``: as given, or for a set without it every line ROI."""
+    from ..io.roi_sets import is_roi_set
+
+    if args.roi is None and args.format in (None, "roi") and is_roi_set(path):
+        return "all"
+    return args.roi
+
+
+def _set_sizes(args) -> list[int | None]:
+    """How many traces each TRACE holds: a set's line ROIs chosen, None for another file (read
+    before any work, to match one radius to each trace)."""
+    from ..io import MidlineError
+    from ..io.roi_sets import is_roi_set, line_roi_names
+
+    sizes = []
+    for path in args.traces:
+        if args.format not in (None, "roi") or not is_roi_set(path):
+            sizes.append(None)
+            continue
+        try:
+            sizes.append(len(line_roi_names(path, _roi_choice(args, path))))
+        except MidlineError as exc:
+            raise MidlineError(reworded(str(exc), TRACE_OPTIONS)) from None
+    return sizes
 
 
 def _load(args, radii) -> list:
@@ -99,26 +138,23 @@ def _load(args, radii) -> list:
     notes printed once all are accepted."""
     from ..fitting import N_FIT, check_midline, volvox_spec
     from ..io import MidlineError, load_midlines
-    from ..io.roi_sets import is_roi_set
 
     spec, midlines, notes = volvox_spec("free"), [], []
     for path, radius in zip(args.traces, radii):
         try:
-            roi = args.roi
-            if roi is None and args.format in (None, "roi") and is_roi_set(path):
-                roi = "all"
             with reader_notes() as found_notes:
                 found = load_midlines(path, args.format, n=N_FIT, section=args.section,
-                                      pixel_size_um=args.pixel_size, radius_um=radius, roi=roi,
+                                      pixel_size_um=args.pixel_size, radius_um=radius,
+                                      roi=_roi_choice(args, path),
                                       drop_outlier_points=args.drop_outlier_points)
         except MidlineError as exc:
             raise MidlineError(reworded(str(exc), TRACE_OPTIONS)) from None
         notes += found_notes
-        hint = (f"is --pixel-size {args.pixel_size:g} the size of a pixel in µm, and "
-                f"--radius-um {radius:g} this embryo's radius R in µm?" if radius is not None
-                else "are its r and z in units of R (a trace in pixels needs --pixel-size and "
-                     "--radius-um)?")
-        for m in found:
+        for m, r in zip(found, radius if isinstance(radius, list) else [radius] * len(found)):
+            hint = (scale_hint(path, args.format, args.pixel_size, r, "this embryo's")
+                    if r is not None else
+                    "are its r and z in units of R (µm divided by the embryo's radius in µm; a "
+                    "trace in pixels needs --pixel-size and --radius-um)?")
             check_midline(spec, m, f"{m.source[0]}: the midline", scale_hint=hint)
         midlines += found
     if len(midlines) < 2:
@@ -154,8 +190,14 @@ def _how_made(args, radii: list) -> list[str]:
         lines.append("drop_outlier_points = true")
     if args.pixel_size is not None:
         lines.append(f"pixel_size_um = {args.pixel_size:.10g}")
-        lines += [f"radius_um = {path}: {radius:.10g}" for path, radius in zip(args.traces, radii)]
+        lines += [f"radius_um = {path}: {_micrometres(radius)}"
+                  for path, radius in zip(args.traces, radii)]
     return lines
+
+
+def _micrometres(radius) -> str:
+    """A radius, or a set's radii (one per line ROI) separated by commas, as written."""
+    return ", ".join(f"{r:.10g}" for r in (radius if isinstance(radius, list) else [radius]))
 
 
 def _average(args) -> int:
@@ -176,12 +218,14 @@ def _average(args) -> int:
     for name, d in zip(names, rms):
         flag = "  <- an outlier: check its scale and path" if name in outliers else ""
         print(f"  {name:30s} {d:.3g}{flag}")
-    made = _how_made(args, radii)
+    made, kept = _how_made(args, radii), midlines
     if outliers and args.drop_outliers:
         kept = [m for m, n in zip(midlines, names) if n not in outliers]
         mean = average(kept)
         made.append(f"dropped_outliers = {', '.join(outliers)}")
         print(f"  left out of the average: {', '.join(outliers)} ({len(kept)} traces kept)")
+    if not outliers or args.drop_outliers:      # (outliers averaged in are named below)
+        _warn_of_spread(mean, kept, args.traces)
     out = Outputs()
     out.add(args.csv, lambda path: mean.to_csv(path, made))
     written = {}
@@ -204,6 +248,21 @@ def _average(args) -> int:
               f"--pixel-size) and path, then rerun, leaving out a trace that does not belong "
               f"(--drop-outliers)")
     return 0
+
+
+def _warn_of_spread(mean, midlines, files) -> None:
+    """Warn where the traces differ far more than their noise and no outlier says why: all
+    scaled wrong alike (one radius for several embryos) is no outlier (audit 25)."""
+    import logging
+
+    import numpy as np
+
+    from ..io.trace_checks import spread_warning
+
+    warning = spread_warning(float(np.mean(mean.spread)), [m.noise for m in midlines],
+                             f"the {len(midlines)} traces of {', '.join(map(str, files))}")
+    if warning:
+        logging.getLogger("morphoshell").warning(reworded(warning, TRACE_OPTIONS))
 
 
 def _row_hint(csv: Path, traces: list[Path]) -> None:

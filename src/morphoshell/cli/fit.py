@@ -4,7 +4,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ._args import (FORMAT_HELP, OUTLIER_POINTS_HELP, SECTION_HELP, TRACE_OPTIONS, add_outputs,
-                    integer, micrometres, note, reader_notes, reworded)
+                    integer, micrometres, note, reader_notes, reworded, scale_hint)
 from ._commands import help_of
 from ._outputs import Outputs, kept_in
 from ._profiles import (add_profile_options, profile_data, profile_json, profile_names,
@@ -190,12 +190,10 @@ def load_checked(args, spec, n: int):
     except MidlineError as exc:
         raise MidlineError(reworded(str(exc), TRACE_OPTIONS)) from None
     if args.pixel_size is not None:          # (an image trace: the loader required both)
-        hint = (f"is --pixel-size {args.pixel_size:g} the size of a pixel in µm (Fiji: "
-                f"Image › Properties), and --radius-um {args.radius_um:g} the embryo's radius "
-                f"R in µm?")
+        hint = scale_hint(args.midline, args.format, args.pixel_size, args.radius_um)
     else:
-        hint = ("are its r and z in units of R, the embryo's radius (a trace in pixels needs "
-                "--format xy with --pixel-size and --radius-um)?")
+        hint = ("are its r and z in units of R, the embryo's radius (µm divided by the radius "
+                "in µm; a trace in pixels needs --format xy with --pixel-size and --radius-um)?")
     check_midline(spec, midline, f"{args.midline}: the midline", scale_hint=hint)
     for text in notes:
         note(text)

@@ -13,6 +13,7 @@ verdict: ``morphoshell fit``'s last line and JSON, and every campaign record, ho
 from __future__ import annotations
 
 from pathlib import PurePath
+from typing import Callable
 
 import numpy as np
 
@@ -115,7 +116,8 @@ SCALE_HINT = ("are its units R (divided by the embryo's radius), and for an imag
 
 
 def check_midline(spec: FitSpec, data, name: str = "the data midline", *,
-                  scale_hint: str = SCALE_HINT) -> None:
+                  scale_hint: str | Callable[[float, tuple[float, float]], str] = SCALE_HINT
+                  ) -> None:
     """ValueError if the midline ``data`` (N, 2) cannot be a midline of ``spec``'s shell.
 
     In this order: it does not start at the posterior pole of an intact shell
@@ -138,9 +140,13 @@ def check_midline(spec: FitSpec, data, name: str = "the data midline", *,
         The midline (r, z) in the model gauge (:func:`as_points`).
     name : str
         What the messages call the midline.
-    scale_hint : str
+    scale_hint : str or callable
         What the message of a wrong length asks the user to check (the
-        command line names its options --pixel-size and --radius-um).
+        command line names its options --pixel-size and --radius-um), or a
+        function ``hint(length, (lo, hi))`` of the midline's length and the
+        lengths the check allows (units of R) that says it: the command line
+        names the likely mistake where the length says which (a Fiji export
+        already in µm read with the pixel size, :func:`morphoshell.cli._args.scale_hint`).
 
     Raises
     ------
@@ -185,7 +191,7 @@ def _check_turns(step: np.ndarray, seg: np.ndarray, name: str) -> None:
                 f"line that retraces its way?")
 
 
-def _check_length(spec: FitSpec, length: float, name: str, hint: str, longer: bool = True
+def _check_length(spec: FitSpec, length: float, name: str, hint, longer: bool = True
                   ) -> None:
     """Refuse a Volvox midline too long or short for the stretches and scale (module constants;
     only too short without ``longer``).
@@ -206,7 +212,8 @@ def _check_length(spec: FitSpec, length: float, name: str, hint: str, longer: bo
     ratio = f"{factor:.2g}× longer" if factor > 1 else f"{1 / factor:.2g}× shorter"
     raise ValueError(
         f"{name} is {length:.3g} R long, {ratio} than the undeformed shell ({undeformed:.3g} "
-        f"R); the model's midlines are about {lo:.3g}-{hi:.3g} R long: {hint}")
+        f"R); the model's midlines are about {lo:.3g}-{hi:.3g} R long: "
+        f"{hint(length, (lo, hi)) if callable(hint) else hint}")
 
 
 def _check_pole_tangent(spec: FitSpec, pole: np.ndarray, step: np.ndarray, seg: np.ndarray,

@@ -126,7 +126,7 @@ from .._runtime.validate import short
 from .arclength import Curve, at_fractions, resample
 from .roi_sets import is_roi_set, read_set_traces
 from .trace_checks import (MidlineError, asymmetry_warning, bridged_gap, check_axis, check_choice,
-                           check_count, check_not_short, check_positive, check_scale)
+                           check_count, check_not_short, check_open, check_positive, check_scale)
 from .trace_noise import Binning, bin_noisy
 from .trace_outliers import OUTLIER_SIGMAS, find_outliers
 from .traces import Midline, Trace, read_trace
@@ -173,6 +173,11 @@ class Alignment:
     asymmetry : float
         Rms distance of each half from the mirror average (units of R); 0
         for a half section.
+    noise : float
+        An image trace's noise per coordinate (units of R,
+        :func:`~morphoshell.io.trace_noise.noise_estimate`); nan for csv, for
+        fewer than 12 points, and for the vertices of a segmented line, whose
+        corners the estimate reads as noise.
     """
 
     points: np.ndarray
@@ -180,6 +185,7 @@ class Alignment:
     axis_angle: float
     pole: np.ndarray
     asymmetry: float
+    noise: float = math.nan
 
 
 
@@ -249,6 +255,7 @@ def align(trace: Trace, section: str = "auto", *, flip: bool = False,
         pole, e_r, e_z, points, asymmetry = _whole(Curve.through(binning.points),
                                                    len(binning.points), flip)
         if asymmetry > max_asymmetry:
+            check_open(trace.source, binning.points)
             check_scale(trace.source, binning, 2, f"its halves differ by {asymmetry:.3g} R rms")
             raise MidlineError(f"{trace.source}: the halves of this whole section differ by "
                                f"{asymmetry:.3g} R rms from their mirror average (max_asymmetry = "
@@ -267,7 +274,8 @@ def align(trace: Trace, section: str = "auto", *, flip: bool = False,
             log.info(note)
     if warning:
         log.warning(warning)
-    return Alignment(points, kind, math.atan2(-e_z[0], e_z[1]), pole, asymmetry)
+    return Alignment(points, kind, math.atan2(-e_z[0], e_z[1]), pole, asymmetry,
+                     math.nan if binning.sparse else binning.sigma)
 
 
 def _outlier_points(trace: Trace, drop: bool) -> tuple[Trace, np.ndarray]:
@@ -535,7 +543,8 @@ def load_midline(path: str | Path, format: str | None = None, *, n: int = 100,
     flip : bool
         Point +z the other way (when the rims are posterior of the pole).
     pixel_size_um, radius_um : float
-        µm per pixel and the embryo radius R in µm (image formats).
+        µm per pixel and the embryo radius R in µm (image formats); for a ROI
+        Manager set radius_um may list one per line ROI chosen, in its order.
     max_asymmetry : float
         Largest rms distance (units of R) of the halves of a whole section
         from their mirror average.
@@ -598,15 +607,18 @@ def load_midlines(path: str | Path, format: str | None = None, *, n: int = 100,
     elif roi is not None:
         raise MidlineError(f"{path}: roi={roi!r} applies to an ImageJ ROI Manager set (zip), "
                            f"not to this file")
+    elif radius_um is not None and np.ndim(radius_um) > 0:
+        raise MidlineError(f"{path}: radius_um lists radii, one per line ROI of a ROI Manager "
+                           f"set: this file holds one trace")
     else:
         traces = [read_trace(path, format, pixel_size_um=pixel_size_um, radius_um=radius_um)]
     midlines = []
     for trace in traces:
-        half = align(trace, section, flip=flip, max_asymmetry=max_asymmetry,
-                     drop_outlier_points=drop_outlier_points).points
-        r, z = _at_n(trace, half, n).T
+        aligned = align(trace, section, flip=flip, max_asymmetry=max_asymmetry,
+                        drop_outlier_points=drop_outlier_points)
+        r, z = _at_n(trace, aligned.points, n).T
         midlines.append(Midline(r, z, resample_spread(trace.spread, n), trace.n_traces,
-                                (trace.source,)))
+                                (trace.source,), aligned.noise))
     return midlines
 
 

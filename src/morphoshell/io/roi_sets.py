@@ -15,7 +15,9 @@ traces is chosen by ``roi``:
              :func:`morphoshell.io.midlines.load_midline` averages.
 
 Line ROIs are segmented (polyline), freehand and straight lines, as for a
-single ``.roi`` file (:mod:`morphoshell.io.traces`).  Other ROIs (areas,
+single ``.roi`` file (:mod:`morphoshell.io.traces`), each scaled by the
+set's radius or by its own, the radii listed in the set's order
+(:func:`read_set_traces`; :func:`line_roi_names` counts them before).  Other ROIs (areas,
 points) are skipped with a warning on the ``morphoshell`` logger; a set
 without a line ROI, or a chosen ROI that is not one, is refused with a message
 naming the file and the ROIs.  The entries are read with ``zipfile`` and
@@ -26,10 +28,13 @@ from __future__ import annotations
 import logging
 import zipfile
 from pathlib import Path
+from typing import Sequence
+
+import numpy as np
 
 from .traces import MidlineError, Trace, ZIP_MAGIC, image_scale, pixel_trace, roi_kind, roi_points
 
-__all__ = ["ALL", "is_roi_set", "read_roi_set", "choose_rois", "read_set_traces"]
+__all__ = ["ALL", "is_roi_set", "read_roi_set", "choose_rois", "line_roi_names", "read_set_traces"]
 
 #: The choice of every line ROI of a set.
 ALL = "all"
@@ -108,6 +113,21 @@ def choose_rois(path: str | Path, rois: list[tuple[str, object]],
         No line ROI in the set, a choice that names none of its ROIs or one
         that is not a line, or several line ROIs and no choice.
     """
+    chosen = _chosen(path, rois, roi)
+    if roi is None or roi == ALL:
+        _note_skipped(path, rois)
+    return chosen
+
+
+def line_roi_names(path: str | Path, roi: str | int | None = None) -> list[str]:
+    """The names of the line ROIs of the set ``path`` that ``roi`` chooses, in its order, the
+    others skipped silently: how many traces it holds, to match radii to them before reading
+    (``morphoshell average --radius-um``).  MidlineError as :func:`choose_rois`."""
+    return [name for name, _ in _chosen(path, read_roi_set(path), roi)]
+
+
+def _chosen(path, rois: list[tuple[str, object]], roi) -> list[tuple[str, object]]:
+    """:func:`choose_rois` without its warning of the ROIs skipped."""
     lines = [(name, r) for name, r in rois if roi_kind(r) is None]
     if not lines:
         raise MidlineError(f"{path}: no line ROI among its {len(rois)} ROIs ({_listing(rois)}): "
@@ -117,7 +137,6 @@ def choose_rois(path: str | Path, rois: list[tuple[str, object]],
             raise MidlineError(f"{path}: {len(lines)} line ROIs ({_listing(rois, True)}): "
                                f"choose one with roi=NAME or INDEX (from 1), or roi='all' to "
                                f"average them")
-        _note_skipped(path, rois)
         return lines
     name, chosen = _lookup(path, rois, roi)
     kind = roi_kind(chosen)
@@ -160,7 +179,7 @@ def _note_skipped(path, rois: list[tuple[str, object]]) -> None:
 
 def read_set_traces(path: str | Path, roi: str | int | None = None, *,
                     pixel_size_um: float | None = None,
-                    radius_um: float | None = None) -> list[Trace]:
+                    radius_um: float | Sequence[float] | None = None) -> list[Trace]:
     """The traces of the line ROIs of a set that ``roi`` chooses, in units of R.
 
     Parameters
@@ -168,8 +187,13 @@ def read_set_traces(path: str | Path, roi: str | int | None = None, *,
     path : str or Path
     roi : str, int or None
         See :func:`choose_rois`.
-    pixel_size_um, radius_um : float
-        µm per pixel and the embryo radius R in µm (required: ROIs are in pixels).
+    pixel_size_um : float
+        µm per pixel (required: ROIs are in pixels).
+    radius_um : float or sequence of float
+        The embryo radius R in µm (required): one for every ROI chosen, or one
+        per ROI chosen, in the set's order (several embryos in one image; one
+        radius for embryos of R = 35-42 µm put the traces' mean spread at 10
+        times that of the right radii, audit 25).
 
     Returns
     -------
@@ -183,9 +207,18 @@ def read_set_traces(path: str | Path, roi: str | int | None = None, *,
         (:func:`read_roi_set`, :func:`choose_rois`), a ROI that is not one
         simple curve (:func:`morphoshell.io.traces.pixel_trace`).
     """
-    scale = image_scale(path, "roi", pixel_size_um, radius_um)
+    radii = [radius_um] if radius_um is None or np.ndim(radius_um) == 0 else list(radius_um)
+    if not radii:
+        raise MidlineError(f"{path}: radius_um is empty: give one radius R in µm for all its "
+                           f"line ROIs, or one per line ROI")
+    scales = [image_scale(path, "roi", pixel_size_um, radius) for radius in radii]
+    chosen = choose_rois(path, read_roi_set(path), roi)
+    if len(scales) not in (1, len(chosen)):
+        raise MidlineError(f"{path}: radius_um has {len(radii)} radii for the {len(chosen)} line "
+                           f"ROIs chosen ({', '.join(repr(name) for name, _ in chosen)}): give "
+                           f"one for all or one per line ROI, in the set's order")
     traces = []
-    for name, r in choose_rois(path, read_roi_set(path), roi):
+    for (name, r), scale in zip(chosen, scales * len(chosen) if len(scales) == 1 else scales):
         source = f"{path}, ROI {name!r}"
         pixels, where, spline = roi_points(source, r)
         traces.append(pixel_trace(source, "roi", pixels, where, scale, spline))

@@ -22,7 +22,8 @@ from .trace_noise import Binning, noise_estimate
 
 __all__ = ["MidlineError", "image_scale", "check_choice", "check_positive", "one_curve",
            "check_count", "check_extent", "check_axis", "noise_hint", "asymmetry_warning", "bridged_gap",
-           "check_scale", "check_not_short", "check_average", "HALF_LENGTHS",
+           "check_scale", "check_not_short", "check_average", "check_open", "spread_warning",
+           "SPREAD_RATIO", "HALF_LENGTHS",
            "MIN_HALF_LENGTH"]
 
 #: Lengths (units of R) of a half midline beyond which a trace refused for its shape is refused
@@ -72,6 +73,25 @@ _BRIDGED_STEPS = 5.0
 #: How far (units of R) a trace may reach from its first point: a Volvox midline lies within
 #: about 2 R of its pole; farther is a trace in other units (at 1e300 the spline overflowed).
 _MAX_EXTENT = 20.0
+
+#: A whole section refused for its halves is named a closed trace (an outline) when its ends
+#: lie within _CLOSED_STEPS median steps (a closed selection's XY coordinates), or when its
+#: point at each arclength s < _FOLD_SPAN·L from one end lies within _FOLD_FRACTION·L of the
+#: point at s from the other (L its length): an outline of the wall, outer and inner, comes
+#: back along itself about a wall's thickness away (audit 25's, h = 0.15 R: at most 0.06·L,
+#: the inner wall being shorter), the halves of a midline are mirror images, 2r apart (the 60
+#: shipped traces and the audit's 5: at least 0.40·L); their ends lie 14 median steps apart
+#: or more (of the binned points), a closed polygon's one step.
+_CLOSED_STEPS, _FOLD_SPAN, _FOLD_FRACTION = 2.0, 0.4, 0.2
+
+#: An average of image traces whose mean spread exceeds SPREAD_RATIO times its traces' noise
+#: (the median of their estimates) is named in a warning (:func:`spread_warning`).  The spread
+#: over the noise was 0.29-0.51 on the 12 shipped synthetic stages (white noise), 1.8 on
+#: audit 25's 5 hand-like traces (1 px of slow wiggle besides), 4.7 and 12 with their radii
+#: 2 % and 5 % off by turns, 19 with one radius for embryos of R = 35-42 µm, which no outlier
+#: rule names (all traces are off).  Embryos of one stage differ, which the synthetic traces
+#: do not: the warning asks, it does not refuse.
+SPREAD_RATIO = 10.0
 
 
 class MidlineError(ValueError):
@@ -255,6 +275,37 @@ def check_scale(source: str, binning: Binning, halves: int, also: str = "") -> N
     raise MidlineError(f"{source}: {'its halves are' if halves == 2 else 'it is'} {half:.3g} R "
                        f"long, where a midline's half is about 2-4 R" + f" ({also})" * bool(also)
                        + (noise or ": check the pixel size and the radius R"))
+
+
+def check_open(source: str, points: np.ndarray) -> None:
+    """Before refusing a whole section for its halves: MidlineError naming a closed trace
+    (rules at :data:`_CLOSED_STEPS`), whose halves are not those of a midline.
+
+    Parameters
+    ----------
+    source : str
+        The file, for the message.
+    points : ndarray, shape (n, 2)
+        The trace's points (binned, :func:`morphoshell.io.trace_noise.bin_noisy`), units of R.
+    """
+    steps = np.hypot(*np.diff(points, axis=0).T)
+    along = np.r_[0.0, np.cumsum(steps)]
+    length = along[-1]
+    gap = float(np.hypot(*(points[-1] - points[0])))
+    if gap <= _CLOSED_STEPS * np.median(steps):
+        how = "its first and last points coincide"
+    else:
+        s = np.linspace(0.0, _FOLD_SPAN, 41) * length
+
+        def at(arclength):
+            return np.column_stack([np.interp(arclength, along, p) for p in points.T])
+        fold = float(np.max(np.hypot(*(at(s) - at(length - s)).T)))
+        if fold > _FOLD_FRACTION * length:
+            return
+        how = (f"its first and last points lie {gap:.2g} R apart and it comes back along "
+               f"itself, within {fold:.2g} R")
+    raise MidlineError(f"{source}: the trace is closed ({how}): trace the midline of the wall, "
+                       f"from rim to rim, not the outline")
 
 
 def check_not_short(source: str, binning: Binning, halves: int) -> None:
@@ -459,3 +510,35 @@ def bridged_gap(source: str, points: np.ndarray, where, scale: float,
     return (f"{source}: {where[i]} to {where[i + 1]}: a gap of {steps[i]:.2g} R "
             f"({steps[i] / scale:.3g} px, {ratio[i]:.0f} median steps) bridged by the spline "
             f"through the points: the midline there is the spline's, not the trace's")
+
+
+def spread_warning(spread: float, noises, what: str = "the traces") -> str | None:
+    """One line naming an average whose traces differ far more than their noise
+    (:data:`SPREAD_RATIO`): radii or pixel sizes off, or traces of different stages.
+
+    Parameters
+    ----------
+    spread : float
+        The average's mean spread, units of R (:attr:`morphoshell.io.traces.Midline.spread`).
+    noises : sequence of float
+        Each trace's noise, units of R (:attr:`morphoshell.io.traces.Midline.noise`); nan
+        where unknown.
+    what : str
+        The traces, for the message.
+
+    Returns
+    -------
+    str or None
+        The warning, or None within the limit or without two noise estimates.
+    """
+    known = [float(s) for s in noises if np.isfinite(s) and s > 0]
+    if len(known) < 2:
+        return None
+    noise = float(np.median(known))
+    ratio = spread / noise
+    if not ratio > SPREAD_RATIO:
+        return None
+    return (f"{what} differ by more than tracing does: their mean spread {spread:.2g} R is "
+            f"{ratio:.0f} times their noise ({noise:.2g} R, the median of their estimates); "
+            f"check each trace's radius_um and pixel_size_um (radii 5 % off by turns gave 12 "
+            f"times, one radius for embryos of R = 35-42 µm 19) and that they are of one stage")

@@ -83,7 +83,7 @@ from .trace_checks import (MidlineError, check_average, check_axis, check_choice
 from .trace_text import ZIP_MAGIC, read_bytes, read_table, text_format
 
 __all__ = ["FORMATS", "MidlineError", "Trace", "Midline", "read_trace", "to_image", "write_trace",
-           "pixel_trace", "roi_kind", "roi_points", "image_scale", "ZIP_MAGIC"]
+           "pixel_trace", "roi_kind", "roi_points", "image_scale", "text_coordinates", "ZIP_MAGIC"]
 
 #: Trace file formats (see the module docstring).
 FORMATS = ("csv", "xy", "fiji-xy", "roi")
@@ -151,6 +151,12 @@ class Midline:
         Number of traces averaged.
     source : tuple of str
         Their files.
+    noise : float
+        A single image trace's noise per coordinate, units of R, as alignment
+        estimated it (:attr:`morphoshell.io.midlines.Alignment.noise`): what
+        the spread of an average of traces is compared with
+        (:func:`~morphoshell.io.trace_checks.spread_warning`); nan if unknown
+        (csv, averages, segmented lines).  Not written by :meth:`to_csv`.
     """
 
     r: np.ndarray
@@ -158,6 +164,7 @@ class Midline:
     spread: np.ndarray | None = None
     n_traces: int = 1
     source: tuple[str, ...] = ()
+    noise: float = math.nan
 
     def __post_init__(self):
         r, z = np.asarray(self.r, dtype=float), np.asarray(self.z, dtype=float)
@@ -204,7 +211,7 @@ class Midline:
         header, values, where, comments = read_table(path, read_bytes(path), "csv")
         if len(values) < 4:         # (as a trace: read_trace)
             raise MidlineError(f"{path}: {len(values)} points; a midline needs at least 4")
-        check_extent(str(path), values[:, :2], where, _IN_PIXELS)
+        check_extent(str(path), values[:, :2], where, _OTHER_UNITS)
         check_axis(str(path), values[:, :2], where, _SWAPPED)
         spread, n_traces, sources, _ = _csv_average(path, header, values, where, comments)
         return cls(values[:, 0], values[:, 1], spread, n_traces, sources or (str(path),))
@@ -269,14 +276,13 @@ def read_trace(path: str | Path, format: str | None = None, *, pixel_size_um: fl
     path = Path(path)
     fmt = None if format is None else check_choice(format, FORMATS, "format")
     data = read_bytes(path)
-    if fmt is None:
-        fmt = "roi" if data[:4] in (b"Iout", ZIP_MAGIC) else text_format(path, data)
+    fmt = _format_of(path, data, fmt)
     if fmt == "csv":
         for name, value in (("pixel_size_um", pixel_size_um), ("radius_um", radius_um)):
             if value is not None:
                 raise MidlineError(f"{path}: csv traces are in units of R: {name} does not apply")
         header, values, where, comments = read_table(path, data, fmt)
-        check_extent(str(path), values[:, :2], where, _IN_PIXELS)
+        check_extent(str(path), values[:, :2], where, _OTHER_UNITS)
         # (an average's spread and n_traces are read here, so that every loader keeps them:
         # a loader that dropped them took a fit's noise from its residual, silently)
         spread, n_traces, _, written = _csv_average(path, header, values, where, comments)
@@ -292,6 +298,43 @@ def read_trace(path: str | Path, format: str | None = None, *, pixel_size_um: fl
     else:
         _, pixels, where, _ = read_table(path, data, fmt)
     return pixel_trace(str(path), fmt, pixels, where, scale, spline)
+
+
+def _format_of(path: Path, data: bytes, fmt: str | None) -> str:
+    """``fmt``, or when None the format of the file's bytes ``data`` (module docstring)."""
+    if fmt is not None:
+        return fmt
+    return "roi" if data[:4] in (b"Iout", ZIP_MAGIC) else text_format(path, data)
+
+
+def text_coordinates(path: str | Path, format: str | None = None) -> np.ndarray | None:
+    """The coordinates of an image trace in a text file as written, unscaled.
+
+    Pixels, or µm where Fiji exported the XY coordinates of a spatially
+    calibrated image: a command's message of a wrong scale reads them to tell
+    (their decimals).  A ROI is in pixels whatever the image's calibration.
+
+    Parameters
+    ----------
+    path : str or Path
+    format : str, optional
+        One of :data:`FORMATS`; inferred from the content when None.
+
+    Returns
+    -------
+    ndarray, shape (n, 2), or None
+        The rows of an ``xy`` or ``fiji-xy`` file; None for csv and roi.
+
+    Raises
+    ------
+    MidlineError
+        As :func:`read_trace`.
+    """
+    path = Path(path)
+    fmt = None if format is None else check_choice(format, FORMATS, "format")
+    data = read_bytes(path)
+    fmt = _format_of(path, data, fmt)
+    return read_table(path, data, fmt)[1] if fmt in ("xy", "fiji-xy") else None
 
 
 def pixel_trace(source: str, fmt: str, pixels: np.ndarray, where: Sequence[str], scale: float,
@@ -406,9 +449,12 @@ def _imagej_spline(control: np.ndarray) -> np.ndarray:
 
 
 #: The likely cause of a csv midline that crosses the axis: a column z from the pole runs
-#: along the axis, where a column r may not.
+#: along the axis, where a column r may not.  Of one that reaches too far: other units (an
+#: audit's r,z in µm was told only of pixels).
 _SWAPPED = ": are its columns r and z swapped?"
-_IN_PIXELS = "a trace in pixels is read with format 'xy', 'fiji-xy' or 'roi' and a scale"
+_OTHER_UNITS = ("r,z csv traces are in units of R, the embryo's radius: divide r and z in µm by "
+              "the radius in µm; a trace in pixels is read with format 'xy', 'fiji-xy' or "
+              "'roi' and a scale")
 
 
 # --------------------------------------------------------------------------- writing
