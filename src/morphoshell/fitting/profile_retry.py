@@ -60,8 +60,8 @@ from .results import FitError
 from .spec import VARIANTS, FitSpec
 
 __all__ = ["Retry", "RETRY_METHOD", "REFINEMENTS", "REFINE_PLANNED", "MONOTONE_TOL",
-           "NEIGHBOUR_REFITS", "ABOVE_FARTHER", "CROSSING", "BEFORE_CROSSING", "crossing", "crossings",
-           "retried",
+           "NEIGHBOUR_REFITS", "ABOVE_FARTHER", "CROSSING", "BEFORE_CROSSING", "crossing",
+           "crossings", "retried",
            "needs_retry", "refine_crossing", "started_at", "non_monotone", "settle_side",
            "not_monotone_note"]
 
