@@ -13,7 +13,8 @@ import pytest
 
 from morphoshell.fitting import fit, profile, synthetic_midline, volvox_spec
 from morphoshell.fitting import profile_retry
-from morphoshell.fitting.profile_retry import (ABOVE_FARTHER, CROSSING, NEIGHBOUR_REFITS,
+from morphoshell.fitting.profile_retry import (ABOVE_FARTHER, BEFORE_CROSSING, CROSSING,
+                                               NEIGHBOUR_REFITS,
                                                REFINE_PLANNED, crossing, needs_retry,
                                                non_monotone, not_monotone_note,
                                                refine_crossing, retried, settle_side)
@@ -321,16 +322,80 @@ def test_a_crossing_above_its_neighbours_chord_is_tried_from_beyond():
         assert calls == tried
 
 
+# Audit 27 F10: the κ₁ profile of the synthetic t02 average (free, 60 nodes, σ² from the
+# traces) on 6 points, its lower side outward (units of 1e-5 R²): the first step converged in
+# a worse local minimum (0.656 threshold heights; the 20-point profile lies at 0.27 there), the
+# side is monotone and the crossing's refit is the walk's last, so no rule looked at it.
+F10_VALUES = [-0.0219203, -0.2926639]
+F10_S = [2.4496528, 3.2748352]
+F10_S_MIN, F10_THRESHOLD = 2.1043032, 2.6305135
+F10_LOWER = 2.2427         # (the refit at -0.0219 from the crossing's end: 0.263 heights)
+
+
+def test_the_step_before_a_crossing_above_its_neighbours_chord_is_tried_from_beyond():
+    """The audit's 6-point κ₁ (F10): the last refit below the threshold lies above the chord
+    of the optimum and the crossing's refit in √(S − S_min), so it is tried from the crossing
+    refit's end, lands lower, and the interval's lower end moves from −0.097 to −0.157 (the
+    20-point profile's: −0.172; the rest is the interpolation across a step of 0.27).  A side
+    whose step before the crossing lies on its chord costs no refit."""
+    side = (list(F10_VALUES), list(F10_S), [True, True], ["end 0", "end 1"])
+    start = (0.2488233, F10_S_MIN, "optimum")
+    assert crossing(side[0], side[1], start[:2], -1.0, F10_THRESHOLD, F10_S_MIN) == \
+        pytest.approx(-0.0974, abs=1e-4)
+    calls = []
+
+    def refit(end, value):
+        calls.append((end, value))
+        S = F10_LOWER if (end, value) == ("end 1", F10_VALUES[0]) else \
+            side[1][side[0].index(value)]
+        return (f"new end {value}", None, None, S, True), ""
+    [retry] = settle_side(side, start, F10_THRESHOLD, 3, refit, "kappa1")
+    assert calls == [("end 1", F10_VALUES[0])]
+    assert side[1] == [F10_LOWER, F10_S[1]] and side[3][0] == ("new end -0.0219203", None, None)
+    assert (retry.reason, retry.winner) == (BEFORE_CROSSING, "refit at kappa1 = -0.292664")
+    assert crossing(side[0], side[1], start[:2], -1.0, F10_THRESHOLD, F10_S_MIN) == \
+        pytest.approx(-0.1567, abs=1e-4)
+    # (√(S − S_min) linear in θ: the step before the crossing on its chord, no refit)
+    calls.clear()
+    straight = ([0.1, 0.2], [1.01, 1.04], [True, True], ["e0", "e1"])
+    assert settle_side(straight, (0.0, 1.0, "optimum"), 1.03, 3, refit, "x") == []
+    assert calls == []
+
+
+def test_the_audit_6_point_kappa1_profile_reaches_the_20_point_ends():
+    """Audit 27 F10 on the data (the synthetic t02 average, free, 60 nodes, σ² from the
+    traces; about 5 s): on 6 points the refits before both crossings lay in worse local
+    minima and the interval read [−0.097, 0.932] with no note, where the 20-point profile
+    gives [−0.172, 0.960].  Each is now tried from its crossing refit's end and the interval
+    is [−0.157, 0.954]: within 0.015 of the 20-point ends, the interpolation across a step
+    of 0.27 (the bounds below sit halfway between the broken and the fixed ends)."""
+    from pathlib import Path
+
+    from morphoshell.io import Midline
+
+    data = Midline.from_csv(Path(__file__).parents[2] / "data" / "synthetic_inversion" / "t02"
+                            / "synthetic_average.csv")
+    spec = volvox_spec("free")
+    p = profile(spec, data, "kappa1", result=fit(spec, data, "gradient", nodes=60), points=6,
+                nodes=60)
+    lo, hi = p.interval
+    assert lo < -0.125 and hi > 0.94
+    kept = [r for r in p.retries if r.reason == BEFORE_CROSSING and r.winner]
+    assert len(kept) == 2 and "the step before the crossing" in p.note
+
+
 def test_a_bump_no_neighbour_lowers_is_tried_once_from_each_and_warned_of(caplog):
-    """The outer neighbour's end does not lower the bump: nothing is left to try (the inner
-    neighbour's end is the walk's own start for it, unchanged; the bump is the crossing, and
-    was just tried from beyond it), the side stays as it was, and the warning (log and note)
-    names the parameter and the values."""
+    """The outer neighbour's end does not lower the bump: nothing is left to try for it (the
+    inner neighbour's end is the walk's own start for it, unchanged; the bump is the crossing,
+    and was just tried from beyond it); the step before it, 4 % of a threshold height above
+    their chord, is tried from the bump's end once (no lower either).  The side stays as it
+    was, and the warning (log and note) names the parameter and the values."""
     side, calls = _audit_side(), []
     retries = settle_side(side, (0.7976, AUDIT_S_MIN, "optimum"), AUDIT_THRESHOLD, 2,
                           _neighbour_refit({}, calls), "f1")
-    assert calls == [("end 2", 0.7785)]
-    assert side[1] == AUDIT_S and [r.winner for r in retries] == [""]
+    assert calls == [("end 2", 0.7785), ("end 1", 0.7812)]
+    assert side[1] == AUDIT_S and [r.winner for r in retries] == ["", ""]
+    assert [r.reason for r in retries] == [ABOVE_FARTHER, BEFORE_CROSSING]
     with caplog.at_level("WARNING"):
         note = not_monotone_note("f1", side[:2], AUDIT_THRESHOLD, AUDIT_S_MIN, "below")
     assert "profile of f1 is not monotone below" in note and note in caplog.text

@@ -29,11 +29,16 @@ and its crossing lies several steps out: its numbers stay the same to the bit):
   minimum, so a converged refit above one farther out (by :data:`MONOTONE_TOL`) ended in a
   worse local minimum.  It is fitted again from its outer neighbour's end, then its inner
   one's, keeping the lower, until the side is monotone or no untried start is left; and the
-  refit that decides the crossing is tried from its outer neighbour's end too where it lies
-  above their chord in √(S − S_min), where the profile bends the wrong way.  An
+  two refits the crossing is interpolated between (the first above the threshold and the last
+  below) are tried from their outer neighbour's end too where they lie above their
+  neighbours' chord in √(S − S_min), where the profile bends the wrong way.  An
   audit's f₁ (the synthetic t05, ``free``): the refit at 0.77851 converged at 2.965e-5 R²,
   above the threshold 2.9196e-5 and above the refit at 0.77579 (2.942e-5); from that one's
-  end it gives 2.913e-5, and the lower end moved from 0.77997 to 0.7779.  A side still not
+  end it gives 2.913e-5, and the lower end moved from 0.77997 to 0.7779.  Audit 27's κ₁
+  (the synthetic t02, 6 points, 60 nodes): the first step on either side converged in a worse
+  minimum (−0.0219: 0.66 threshold heights, 0.26 from the crossing refit's end), both sides
+  monotone, the crossing's refit the walk's last; the interval [−0.097, 0.932] became
+  [−0.157, 0.954] (20 points: [−0.172, 0.960]).  A side still not
   monotone after them is named in a warning and the profile's note
   (:func:`not_monotone_note`).
 
@@ -55,8 +60,8 @@ from .results import FitError
 from .spec import VARIANTS, FitSpec
 
 __all__ = ["Retry", "RETRY_METHOD", "REFINEMENTS", "REFINE_PLANNED", "MONOTONE_TOL",
-           "NEIGHBOUR_REFITS", "ABOVE_FARTHER", "CROSSING", "crossing", "crossings",
-           "retried",
+           "NEIGHBOUR_REFITS", "ABOVE_FARTHER", "CROSSING", "BEFORE_CROSSING", "crossing",
+           "crossings", "retried",
            "needs_retry", "refine_crossing", "started_at", "non_monotone", "settle_side",
            "not_monotone_note"]
 
@@ -83,9 +88,11 @@ MONOTONE_TOL = 0.01
 #: At most this many refits from neighbours' ends on a side (:func:`settle_side`): the audit's
 #: f₁ took two (the bump, then the new crossing from beyond it), an ordinary side one.
 NEIGHBOUR_REFITS = 6
-#: :attr:`Retry.reason` of a refit above one farther out, and of the crossing's refit.
+#: :attr:`Retry.reason` of a refit above one farther out, of the crossing's refit (the first
+#: above the threshold), and of the refit before it (the last below).
 ABOVE_FARTHER = "above a refit farther out"
 CROSSING = "the crossing"
+BEFORE_CROSSING = "the step before the crossing"
 #: What a retry's fit that fails with one of these leaves in its table (the others go on).
 _FAILURES = (FitError, SolverError, ValueError)
 
@@ -117,7 +124,8 @@ class Retry:
         Wall-clock time of the retry's fits.
     reason : str
         Why a refit was fitted again from its neighbours' ends (:data:`ABOVE_FARTHER`,
-        :data:`CROSSING`); "" for a stalled refit's retry from other starts.
+        :data:`CROSSING`, :data:`BEFORE_CROSSING`); "" for a stalled refit's retry from other
+        starts.
     """
 
     value: float
@@ -342,13 +350,16 @@ def _untried(side: tuple, start: tuple, threshold: float, tol: float, tried: set
              version: dict) -> tuple[int, int, str] | None:
     """The next refit of :func:`settle_side` and its neighbour (−1: the optimum) not tried from
     that neighbour's present end: a refit above one farther out from its outer neighbour,
-    then its inner one; then the crossing's refit from its outer neighbour, where it lies
-    above their chord (:func:`_above_chord`)."""
+    then its inner one; then the crossing's refit, and the one before it, from its outer
+    neighbour, where it lies above their chord (:func:`_above_chord`)."""
     _, objective, _, ends = side
     pairs = [(i, k, ABOVE_FARTHER) for i in non_monotone(objective, tol) for k in (i + 1, i - 1)]
     first = _first_above(objective, threshold)
-    if first is not None and _above_chord(side, start, first, tol):
-        pairs.append((first, first + 1, CROSSING))
+    if first is not None:
+        # (the two refits the interpolated end rests on: the crossing's, then the last one
+        # below the threshold, whose outer neighbour is the crossing's refit)
+        pairs += [(i, i + 1, why) for i, why in ((first, CROSSING), (first - 1, BEFORE_CROSSING))
+                  if i >= 0 and _above_chord(side, start, i, tol)]
     for i, k, why in pairs:
         if k < len(ends) and (k < 0 or ends[k] is not None) and (i, k, version[k]) not in tried:
             return i, k, why
@@ -398,9 +409,10 @@ def settle_side(side: tuple[list, list, list, list], start: tuple, threshold: fl
     are fitted again from the end of their outer neighbour (the farther one first), then
     their inner one (the optimum for the first step), outermost first, the lower kept, until
     the side is monotone or none is left untried from its neighbours' present ends; the
-    refit that first exceeds the threshold (it decides the interval's end) is also tried
-    from its outer neighbour's end where it lies above their chord in √(S − S_min)
-    (:func:`_above_chord`: a profile there bends the wrong way).  A refit from a neighbour is kept
+    refit that first exceeds the threshold and the one before it (the interval's end is
+    interpolated between them) are also tried from their outer neighbour's end where they
+    lie above their neighbours' chord in √(S − S_min) (:func:`_above_chord`: a profile
+    there bends the wrong way).  A refit from a neighbour is kept
     where it lies lower by more than that tolerance.  At most :data:`NEIGHBOUR_REFITS`
     refits; then the crossing is refined (:func:`refine_crossing`), and its refinements
     are tried the same way.  A monotone side that bends upward costs nothing.
