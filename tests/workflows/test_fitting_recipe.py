@@ -52,8 +52,12 @@ def test_the_recipes_fit_and_the_json_example_run_as_written(tmp_path):
     run = subprocess.run([sys.executable, "-c", example], cwd=tmp_path, env=_env(),
                          capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stdout + run.stderr
-    observables, errors, cold_difference = run.stdout.strip().splitlines()
+    observables, errors, cold_difference, fit_errors, _ = run.stdout.strip().splitlines()
     observables, errors = ast.literal_eval(observables), ast.literal_eval(errors)
+    # (the fit's errors carried into the recoil: the lengths and the angle, each positive)
+    fit_errors = ast.literal_eval(fit_errors)
+    assert {"opening", "rotation", "displacement"} <= set(fit_errors) <= set(observables)
+    assert all(0 < v < float("inf") for v in fit_errors.values()), fit_errors
     # (an estimate for every observable, each a bound well below the value on 200 nodes)
     assert set(errors) == set(observables), errors
     assert all(0 <= errors[k] < 0.03 * abs(v) for k, v in observables.items() if v), errors

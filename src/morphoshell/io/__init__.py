@@ -6,7 +6,7 @@ trace files of midlines from Fiji/ImageJ and CSV (:mod:`.traces`; their text for
 :mod:`.trace_text`; their checks,
 :mod:`.trace_checks`) and ImageJ's ROI Manager sets (:mod:`.roi_sets`), and
 their geometry: noise and binning (:mod:`.trace_noise`), points equally spaced in
-arclength (:mod:`.arclength`), alignment to the model gauge, resampling and averaging
+arclength (:mod:`.resampling`), alignment to the model gauge, resampling and averaging
 (:mod:`.midlines`); the tables of ablation
 measurements (:mod:`.measurements`) and of an inversion sequence's timepoints
 (:mod:`.timepoints`); saved equilibria read back (:mod:`.equilibria`).  Every reader

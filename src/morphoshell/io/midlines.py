@@ -12,7 +12,7 @@ functions get there:
 
 ``align``         a trace → :class:`Alignment` (half midline in the model gauge);
 ``resample``      points → N points equally spaced in arclength, ends included
-                  (:mod:`morphoshell.io.arclength`);
+                  (:mod:`morphoshell.io.resampling`);
 ``average``       midlines of one stage → a
                   :class:`~morphoshell.io.traces.Midline` with a pointwise spread.
 
@@ -20,7 +20,7 @@ functions get there:
 :func:`align` and :func:`resample`, except for a midline the package wrote
 (:meth:`~morphoshell.io.traces.Midline.to_csv`, recognised by its
 ``# n_traces`` comment): its rows are already equally spaced in arclength and
-are read at their fractions of it (:func:`~morphoshell.io.arclength.at_fractions`),
+are read at their fractions of it (:func:`~morphoshell.io.resampling.at_fractions`),
 so that it reads back as written.  This module lives in ``io``, not with the
 fits, because :func:`load_midline` reads a file; it imports the file side
 (:mod:`morphoshell.io.traces`), never the reverse.  Bad traces and options raise
@@ -123,7 +123,7 @@ from typing import Sequence
 import numpy as np
 
 from .._runtime.validate import short
-from .arclength import Curve, at_fractions, resample
+from .resampling import Curve, at_fractions, resample
 from .roi_sets import is_roi_set, read_set_traces
 from .trace_checks import (MidlineError, asymmetry_warning, bridged_gap, check_axis, check_choice,
                            check_count, check_not_short, check_open, check_positive, check_scale)
@@ -521,7 +521,7 @@ def load_midline(path: str | Path, format: str | None = None, *, n: int = 100,
     ``synthetic_average.csv``: a csv with a ``# n_traces`` comment, no row
     repeated) holds rows already aligned and equally spaced in arclength,
     row i at the fraction i/(N − 1): they are read at those fractions
-    (:func:`~morphoshell.io.arclength.at_fractions`), so ``n = N`` returns
+    (:func:`~morphoshell.io.resampling.at_fractions`), so ``n = N`` returns
     the rows bit for bit and another n the spline through them at the
     fractions j/(n − 1), as the spread is moved (:func:`resample_spread`).
     Any other trace (an image trace, a csv of ``r,z`` without that comment,
@@ -588,7 +588,7 @@ def load_midlines(path: str | Path, format: str | None = None, *, n: int = 100,
     :func:`morphoshell.io.traces.read_trace` (or, for an ImageJ ROI Manager
     set, :func:`morphoshell.io.roi_sets.read_set_traces`), then :func:`align`,
     then :func:`resample`, or for a midline's rows
-    :func:`~morphoshell.io.arclength.at_fractions` (the rule:
+    :func:`~morphoshell.io.resampling.at_fractions` (the rule:
     :func:`load_midline`).  Parameters as :func:`load_midline`'s.
 
     Returns

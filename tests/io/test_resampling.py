@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from morphoshell.io import MidlineError
-from morphoshell.io.arclength import at_fractions, resample
+from morphoshell.io.resampling import at_fractions, resample
 from reference_midline import truth
 
 #: The not-a-knot spline through 100 rows h ≈ 0.027 R apart errs by O(h⁴) ≈ 5e-7 R (times the
