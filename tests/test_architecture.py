@@ -143,3 +143,15 @@ def test_every_ipopt_solver_is_created_after_load_ipopt():
             if "nlpsol" in names:
                 assert "load_ipopt" in names, f"{path.name}:{fn.name} creates an nlpsol " \
                                               f"without calling load_ipopt() first"
+
+
+def test_test_files_have_distinct_names():
+    """The tests mirror the package without ``__init__.py`` files, so pytest imports each
+    test file under its bare name: two of one name in different folders fail the whole
+    run ("import file mismatch"; io/ and solvers/ each had a test_arclength.py)."""
+    tests = Path(__file__).parent
+    seen: dict[str, Path] = {}
+    for path in sorted(tests.rglob("*.py")):
+        if path.name in seen and path.name != "conftest.py":
+            raise AssertionError(f"{path} and {seen[path.name]} share a name")
+        seen[path.name] = path
