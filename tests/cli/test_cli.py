@@ -204,11 +204,15 @@ def test_asymptotics_rejects_bad_values(capsys):
     assert "argument --cut-angle: 4 must be a finite number in (0, 3.14159) rad" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("k", ["1000", "20", "-1000"])
-def test_asymptotics_refuses_a_curvature_beyond_the_thickness(k, capsys):
+@pytest.mark.parametrize("command, k", [(["asymptotics", "--cut", "0.3"], "1000"),
+                                        (["asymptotics", "--cut", "0.3"], "20"),
+                                        (["asymptotics", "--cut", "0.3"], "-1000"),
+                                        (["sphere"], "1000")])
+def test_asymptotics_refuses_a_curvature_beyond_the_thickness(command, k, capsys):
     """Audit 26, F2: |k| >= 2/h (the intrinsic wedge closes) gave rotation = -387 rad and
-    exit 0.  Refused in one line as estimate --k-range refuses it (the same check)."""
-    assert main(["asymptotics", "--h", "0.1", "--k", k, "--cut", "0.3"]) == 2
+    exit 0.  Refused in one line as estimate --k-range refuses it (the same check); sphere
+    too, before its work (it had been refused by the bulk's own geometry, after f_shell)."""
+    assert main([*command, "--h", "0.1", "--k", k]) == 2
     out, err = capsys.readouterr()
     assert out == "" and len(err.strip().splitlines()) == 1
     assert (f"--k: k = {k} is beyond the curvature of the shell of --h 0.1 (h = H/R = 0.1): "
