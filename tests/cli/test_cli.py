@@ -242,6 +242,15 @@ def test_sphere_of_a_thick_shell(capfd):
     assert err == ""
     # the audit's independent Brent solve of the stationarity: 1.23520 (6 digits)
     assert float(re.search(r"f_bulk += (\S+) R", out)[1]) == pytest.approx(1.23520, abs=5e-6)
+    # C01 < 0: a minimum the search missed ("no stationary radius", exit 2), f - 1 in
+    # (0.4873, 0.5261) by the audit's scan of S; and where there is none, a solver failure
+    assert main(["sphere", "--c01", "-0.5", "--h", "0.9", "--k", "-0.5"]) == 0
+    out, err = capfd.readouterr()
+    assert err == "" and 1.4873 < float(re.search(r"f_bulk += (\S+) R", out)[1]) < 1.5261
+    assert main(["sphere", "--c01", "-0.7", "--h", "0.9", "--k", "0"]) == 3
+    out, err = capfd.readouterr()
+    assert out == "" and err.startswith("morphoshell: solver failed (status "
+                                        "No_Stationary_Radius): no stationary radius found")
 
 
 def test_missing_hsl_solver_is_explained(capfd):

@@ -45,7 +45,7 @@ __all__ = ["STATUSES", "BVP_STATUSES", "SolverError", "NotAMinimumError", "expla
            "MAXIMUM_EVALUATIONS_EXCEEDED", "FIT_STALLED", "NOT_COMPUTED", "FIT_NOT_STATIONARY",
            "FIT_NEAR_FOLD",
            "FIT_ON_BOX_EDGES", "FIT_MOVED_BOXES_FAILED", "FIT_NOT_MINIMUM", "STEP_NOT_SPLITTABLE",
-           "RETRY_FINER"]
+           "RETRY_FINER", "NO_STATIONARY_RADIUS"]
 
 # -- Ipopt (morphoshell.numerics.ipopt; the KKT fit's NLP) ------------------------------
 SOLVE_SUCCEEDED = "Solve_Succeeded"
@@ -79,6 +79,8 @@ SHOOTING_SUCCEEDED = "Shooting_Succeeded"
 SHOOTING_ILL_CONDITIONED = "Shooting_Ill_Conditioned"
 SHOOTING_NOT_CONVERGED = "Shooting_Not_Converged"
 SHOOTING_INTEGRATION_FAILED = "Shooting_Integration_Failed"
+# -- toy problem 1 in bulk elasticity (morphoshell.mechanics.bulk.f_bulk) ----------------
+NO_STATIONARY_RADIUS = "No_Stationary_Radius"
 # -- fits (morphoshell.fitting) and sweeps (morphoshell.workflows.sweeps) ----------------
 FIT_SADDLE = "Fit_Saddle"
 FIT_NOT_REPRODUCED = "Fit_Not_Reproduced"
@@ -209,6 +211,11 @@ STATUSES: Mapping[str, str] = MappingProxyType({
     SHOOTING_INTEGRATION_FAILED:
         "an initial-value integration failed: start closer (a guess from another route) or "
         "use the direct method",
+    # the bulk sphere of toy problem 1
+    NO_STATIONARY_RADIUS:
+        "the energy has no local minimum over those radii (with C01 < 0 it falls without "
+        "bound as the sphere grows): check the moduli, or take a thinner shell, whose "
+        "minimum lies near f = 1",
     # fits (morphoshell.fitting)
     FIT_SADDLE:
         "the KKT fit ended on a state that is not a minimum of the inner energy: start from "
