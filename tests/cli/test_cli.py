@@ -204,11 +204,15 @@ def test_asymptotics_rejects_bad_values(capsys):
     assert "argument --cut-angle: 4 must be a finite number in (0, 3.14159) rad" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("k", ["1000", "20", "-1000"])
-def test_asymptotics_refuses_a_curvature_beyond_the_thickness(k, capsys):
+@pytest.mark.parametrize("command, k", [(["asymptotics", "--cut", "0.3"], "1000"),
+                                        (["asymptotics", "--cut", "0.3"], "20"),
+                                        (["asymptotics", "--cut", "0.3"], "-1000"),
+                                        (["sphere"], "1000")])
+def test_asymptotics_refuses_a_curvature_beyond_the_thickness(command, k, capsys):
     """Audit 26, F2: |k| >= 2/h (the intrinsic wedge closes) gave rotation = -387 rad and
-    exit 0.  Refused in one line as estimate --k-range refuses it (the same check)."""
-    assert main(["asymptotics", "--h", "0.1", "--k", k, "--cut", "0.3"]) == 2
+    exit 0.  Refused in one line as estimate --k-range refuses it (the same check); sphere
+    too, before its work (it had been refused by the bulk's own geometry, after f_shell)."""
+    assert main([*command, "--h", "0.1", "--k", k]) == 2
     out, err = capsys.readouterr()
     assert out == "" and len(err.strip().splitlines()) == 1
     assert (f"--k: k = {k} is beyond the curvature of the shell of --h 0.1 (h = H/R = 0.1): "
@@ -238,6 +242,15 @@ def test_sphere_of_a_thick_shell(capfd):
     assert err == ""
     # the audit's independent Brent solve of the stationarity: 1.23520 (6 digits)
     assert float(re.search(r"f_bulk += (\S+) R", out)[1]) == pytest.approx(1.23520, abs=5e-6)
+    # C01 < 0: a minimum the search missed ("no stationary radius", exit 2), f - 1 in
+    # (0.4873, 0.5261) by the audit's scan of S; and where there is none, a solver failure
+    assert main(["sphere", "--c01", "-0.5", "--h", "0.9", "--k", "-0.5"]) == 0
+    out, err = capfd.readouterr()
+    assert err == "" and 1.4873 < float(re.search(r"f_bulk += (\S+) R", out)[1]) < 1.5261
+    assert main(["sphere", "--c01", "-0.7", "--h", "0.9", "--k", "0"]) == 3
+    out, err = capfd.readouterr()
+    assert out == "" and err.startswith("morphoshell: solver failed (status "
+                                        "No_Stationary_Radius): no stationary radius found")
 
 
 def test_missing_hsl_solver_is_explained(capfd):

@@ -155,3 +155,37 @@ def test_campaign_names_the_files_it_wrote(tmp_path):
         f"2 fit files in {tmp_path} (t01_flat.json, t01_free.json)")
     assert _written(result(["t01", "t05"], ["flat", "free", "unstressed"])) == (
         f"6 fit files in {tmp_path} (t01_flat.json, ..., t05_unstressed.json)")
+
+
+def test_solver_failures_lead_with_their_status_in_the_command_lines_terms(tmp_path, monkeypatch,
+                                                                          capsys):
+    """Audit 26 F7: `solve --method bvp` failed with "... The maximum number of mesh nodes is
+    exceeded. (status 1): ... raise max_nodes ...; the last iterate is attached (.last_iterate)":
+    scipy's message and integer for a status, and advice naming an argument and an object the
+    command line has not; a thin shell's direct failure had its status 300 characters in."""
+    import functools
+    import re
+
+    from morphoshell.solvers import bvp
+
+    toy = str(ROOT / "problems" / "toy2_ablation.toml")
+    # (solve_bvp's mesh runs out at once, 0.8 s, where the audit's thin shell took 27 s)
+    monkeypatch.setattr(bvp, "solve_bvp", functools.partial(bvp.solve_bvp, max_nodes=50))
+    for command in ("solve", "ablate"):
+        assert main([command, toy, "--method", "bvp", "-q"]) == 3
+        err = capsys.readouterr().err
+        assert err.startswith("morphoshell: solver failed (status Bvp_Max_Nodes_Exceeded): "), err
+        assert "raise max_nodes (Python's solve() only), or use the direct method (--method " \
+               "direct)" in err and "attached" not in err and ".last_iterate" not in err, err
+    assert main(["solve", toy, "--method", "shooting", "--set", "h=1e-4"]) == 3
+    err = capsys.readouterr().err
+    assert err.startswith("morphoshell: solver failed (status Shooting_Ill_Conditioned): "), err
+    assert "use the direct or bvp route (--method direct or bvp), or raise max_segments " \
+           "(Python's solve() only)" in err, err
+    thin = tmp_path / "thin.toml"        # (fails in 1 s: audit 26's fuzz)
+    thin.write_text('[problem]\nfamily = "central_growth"\ntheory = "classical"\n'
+                    'geometry = "disc"\nh = 9.022674264261379e-06\n[parameters]\n'
+                    'G = 7.567263866436642\nw = 0.001\n')
+    assert main(["solve", str(thin), "--nodes", "40", "-q"]) == 3
+    err = capsys.readouterr().err
+    assert re.match(r"morphoshell: solver failed \(status \w+\): the shell is thinner", err), err

@@ -357,6 +357,18 @@ def test_predictions_keys_and_values():
     assert arr["rotation_small_cut"].shape == (2,)
 
 
+@pytest.mark.parametrize("h, k, worst", [(0.1, 1000, "1000"), (0.1, -20, "-20"),
+                                         (np.array([0.1, 0.2]), np.array([15, -10]), "-10")])
+def test_predictions_refuse_a_curvature_beyond_the_thickness(h, k, worst):
+    """Audit 26 F2: |k| >= 2/h (the intrinsic wedge closes) returned a rotation of -387 rad
+    (h = 0.1, k = 1000); only the command line refused it.  Of arrays, the k nearest its
+    bound is named (-10 at h = 0.2, where 15 at h = 0.1 is within its 20)."""
+    with pytest.raises(ValueError, match=rf"predictions\(\): k = {worst} is beyond the curvature "
+                                         rf"of the shell .*2/h = "):
+        A.predictions(h, k, 0.3)
+    assert np.isfinite(A.predictions(0.1, 19.9, 0.3)["rotation"])     # (just within)
+
+
 # --------------------------------------------------------------------------
 # bad input
 # --------------------------------------------------------------------------

@@ -199,6 +199,9 @@ def test_f_bulk_is_minimum(mat):
     # C01 < 0: S falls again above the root (the energy falls without bound as the sphere
     # grows: a second sign change at f - 1 = 0.43); the interval's ends both had S < 0
     (0.3, -1.0, (1.0, -0.5), (-0.4, 0.3), None),
+    # C01 < 0 and thick: a minimum in a window S > 0 of f - 1 = 0.50 to 0.58 only, which
+    # the bracket's doublings about the asymptotic f - 1 = 0.99 stepped over (audit 26, F1)
+    (0.9, -0.5, (1.0, -0.5), (0.45, 0.53), None),
 ])
 def test_f_bulk_of_thick_shells_is_the_root_of_the_stationarity(h, k, mat, bracket, f_audit):
     """Audit 26, F1: for h >= 0.6 or so the bracket reached f = 1/2, inside a sphere whose
@@ -220,6 +223,33 @@ def test_f_bulk_of_thick_shells_is_the_root_of_the_stationarity(h, k, mat, brack
     E = bulk.energy(1 + F, h, k, *mat)
     # (a rise of ~0.006 at h = 0.9 (E'' ~ 100): far above rounding)
     assert bulk.energy(1 + F - 0.01, h, k, *mat) > E < bulk.energy(1 + F + 0.01, h, k, *mat)
+
+
+def test_f_bulk_finds_a_minimum_narrower_than_its_scan():
+    """At C01 = -0.5044 the window of S > 0 around the minimum is 0.7 % of f wide, narrower
+    than the scan's steps (1.8 % at h = 0.9): S's local maximum between them, found, rises
+    through 0 (audit 26, F1: "no stationary radius" where there is one)."""
+    h, k, mat = 0.9, -0.5, (1.0, -0.5044)
+    F = bulk.f_bulk(h, k, *mat, return_deviation=True)
+    slope = (bulk.stationarity(F + 1e-9, h, k, *mat) - bulk.stationarity(F, h, k, *mat)) / 1e-9
+    # a rising root of S (S' ~ 0.01 here; |S| at the root ~1e-17: located to ~1e-15)
+    assert slope > 0 and abs(bulk.stationarity(F, h, k, *mat) / slope) < 1e-13
+    assert 0.53 < F < 0.55
+    E = bulk.energy(1 + F, h, k, *mat)
+    # (rises of ~4e-7 at +-1e-3, far above the rounding of E ~ 0.7, ~1e-16)
+    assert bulk.energy(1 + F - 1e-3, h, k, *mat) > E < bulk.energy(1 + F + 1e-3, h, k, *mat)
+
+
+@pytest.mark.parametrize("h, k, c01", [(0.9, 0.0, -0.7), (0.1, 0.0, -0.9)])
+def test_f_bulk_without_a_minimum_is_a_solver_failure(h, k, c01):
+    """No rising sign change of S anywhere (its maximum, by a scan of 32 000 radii: -0.045
+    and -1.1e-6): a SolverError with its status, not a ValueError as for bad input (the CLI
+    exited 2 for it)."""
+    from morphoshell.numerics.status import SolverError
+
+    with pytest.raises(SolverError, match="no stationary radius found") as exc:
+        bulk.f_bulk(h, k, 1.0, c01)
+    assert exc.value.status == "No_Stationary_Radius"
 
 
 @pytest.mark.parametrize("mat", MATERIALS)

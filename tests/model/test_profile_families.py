@@ -5,7 +5,8 @@ import pytest
 from morphoshell import Problem
 from morphoshell.cli import main
 from morphoshell.io.problem_files import example_path
-from morphoshell.model.profiles import get_family
+from morphoshell.model.profiles import (Profiles, check_curvature, curvature_limit,
+                                       get_family)
 
 
 def test_central_growth_is_a_gaussian_growth_of_a_flat_disc():
@@ -50,3 +51,20 @@ def test_every_packaged_family_gives_each_parameter_a_unit():
         register_family(ProfileFamily("stray_units", ("k",), {"k": 0.0}, uniform.build,
                                       units={"kk": "1/R"}))
     assert "stray_units" not in FAMILIES
+
+
+def test_the_curvature_limit_is_where_an_unstretched_sheets_wedge_closes():
+    """|k| < 2/h, checked here, in the lowest layer, for the inversions, the asymptotics and the
+    command line alike (audit 26 F2: mechanics could not import it from inverse): the k at
+    which eta of a uniform, unstretched sheet reaches 1, which a Problem refuses."""
+    h = 0.1
+    assert Profiles(1.0, 1.0, curvature_limit(h), curvature_limit(h)).eta(h) == 1.0
+    check_curvature((-19.999, 19.999), h, "k_range", "the shell")
+    for k in (20.0, -20.0):
+        with pytest.raises(ValueError, match=rf"k_range: k = {k:g} is beyond the curvature of "
+                                             rf"the shell \(h = H/R = 0.1\): \|k\| must stay "
+                                             rf"below 2/h = 20.*search a range within \(-20, 20\)"):
+            check_curvature((0.0, k), h, "k_range", "the shell")
+    with pytest.raises(ValueError, match="abs.eta. = 1 >= 1.*wedge closes"):   # the same bound
+        Problem("uniform", {"k": 20.0}, h=h)
+    Problem("uniform", {"k": 19.999}, h=h)

@@ -27,10 +27,14 @@ def test_every_status_says_what_it_means_in_one_line():
     assert set(BVP_STATUSES.values()) <= set(STATUSES)
 
 
-def test_solve_bvp_statuses_are_scipys_messages():
+def test_solve_bvp_statuses_are_named_as_the_others():
+    """scipy's messages were the statuses ("The maximum number of mesh nodes is exceeded.",
+    beside the others' Continuation_Failed): a name for each of its four outcomes (audit 26)."""
     from scipy.integrate._bvp import TERMINATION_MESSAGES
 
-    assert dict(BVP_STATUSES) == TERMINATION_MESSAGES
+    assert set(BVP_STATUSES) == set(TERMINATION_MESSAGES)
+    assert all(LITERAL.fullmatch(repr(name)) for name in BVP_STATUSES.values()), BVP_STATUSES
+    assert BVP_STATUSES[1] == "Bvp_Max_Nodes_Exceeded"
 
 
 def test_solver_error_takes_only_statuses_of_the_table():

@@ -60,7 +60,9 @@ def test_bvp_failure_raises_with_message():
     problem = Problem("uniform", {"k": 0.0}, h=0.3, cut=0.3)
     with pytest.raises(SolverError) as exc:
         solve(problem, method="bvp", max_nodes=50)
-    assert "maximum number of mesh nodes" in exc.value.status
+    assert exc.value.status == "Bvp_Max_Nodes_Exceeded"
+    assert "with status 'Bvp_Max_Nodes_Exceeded' (The maximum number of mesh nodes is exceeded)" \
+        in str(exc.value)                               # the name, and scipy's own words
     assert exc.value.last_iterate.converged is False
 
 

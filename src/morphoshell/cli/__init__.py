@@ -3,7 +3,8 @@
 Exit status: 0 on success; 2 for bad input (one line naming the option, key,
 value or file, before any work starts, and no output written) or a file that
 cannot be written (named); 3 when a
-solver fails (Ipopt's or the BVP solver's status in the message); 1 only for
+solver fails (``solver failed (status NAME): ...``, its advice in the command
+line's terms: :data:`~morphoshell.cli._args.SOLVER_OPTIONS`); 1 only for
 a bug in morphoshell (the message says where to report it); 130 when
 interrupted (Ctrl-C), 143 when terminated (SIGTERM, handled as Ctrl-C: one line,
 workers stopped).  Every output is validated before any work and written all or
@@ -140,6 +141,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from .._runtime.interrupts import check, exit_status, interrupted, noted, reason
     # (from its light home: solvers.results would import NumPy and CasADi before a --help)
     from ..numerics.status import SolverError
+    from ._args import SOLVER_OPTIONS, reworded
 
     try:
         argv = sys.argv[1:] if argv is None else list(argv)
@@ -161,8 +163,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"morphoshell: error: {exc}", file=sys.stderr)
         return 2
     except SolverError as exc:
-        status = f" (status {exc.status})" if exc.status and exc.status not in str(exc) else ""
-        print(f"morphoshell: solver failed{status}: {exc}", file=sys.stderr)
+        # the status first, always: one inside the message came after 300 characters of a
+        # thin shell's advice (audit 26); the advice in the command line's terms
+        print(f"morphoshell: solver failed (status {exc.status}): "
+              f"{reworded(str(exc), SOLVER_OPTIONS)}", file=sys.stderr)
         return 3
     except KeyboardInterrupt:
         print(f"morphoshell: {reason()}", file=sys.stderr)

@@ -10,7 +10,8 @@ from typing import Callable, Iterator, Mapping
 
 from ._outputs import output_path
 
-__all__ = ["integer", "real", "micrometres", "add_outputs", "TRACE_OPTIONS", "FORMAT_HELP",
+__all__ = ["integer", "real", "micrometres", "add_outputs", "TRACE_OPTIONS", "SOLVER_OPTIONS",
+           "FORMAT_HELP",
            "SECTION_HELP", "OUTLIER_POINTS_HELP", "problem_and_settings", "reworded",
            "reader_notes", "linear_solver", "family_keys", "scale_hint"]
 
@@ -25,6 +26,21 @@ TRACE_OPTIONS = {r"\bpixel_size_um\b": "--pixel-size", r"\bradius_um\b": "--radi
                  r"\bthe pixel size and the radius R\b": "--pixel-size and --radius-um",
                  # (the command line has no option for it)
                  r"\(max_asymmetry = ([0-9.e+-]+)\)": r"(at most \1 R)"}
+
+#: The Python arguments and objects that the solvers' failures name (their advice in
+#: morphoshell.numerics.status.STATUSES), as the command line spells them, or marked as
+#: Python's where it has none: after `solve --method bvp`, "raise max_nodes ... the last
+#: iterate is attached (.last_iterate)" named neither an option nor an object it has (audit 26).
+SOLVER_OPTIONS = {r"[;.] (?:the|The) [\w' ]+ is attached \(\.last_iterate\)": "",
+                  r"\bmax_nodes \(--max-nodes on the command line\)": "--max-nodes",
+                  r"\bloosen rtol\b": "loosen --rtol", r"\bmore stages\b": "more --stages",
+                  r"(\buse|\bor|;) the direct method\b": r"\1 the direct method (--method direct)",
+                  r"\bthe direct or bvp route\b":
+                      "the direct or bvp route (--method direct or bvp)",
+                  # (the reference routes' options, and Ipopt's iterations: Python's only)
+                  r"(\b(?:raise|more|loosen) )(max_nodes|max_iter|max_segments|max_seconds|"
+                  r"homotopy_steps|bc_tol|segments)\b(?! \(solve\()":
+                      r"\1\2 (Python's solve() only)"}
 
 
 #: What --section means, and its caveats (io.midlines), for the help of fit and average.

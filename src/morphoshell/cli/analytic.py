@@ -89,12 +89,18 @@ _UNITS = {"opening": "R", "rotation": "rad", "displacement": "R", "rotation_smal
 _INPUT_UNITS = {"h": "R", "k": "1/R", "cut": "rad", "c10": "1", "c01": "1"}
 
 
+def _check_curvature(args) -> None:
+    """ValueError naming --k and the bound 2/h (the API's own check names its arguments)."""
+    from ..model.profiles import check_curvature
+
+    check_curvature((args.k,), args.h, "--k", f"the shell of --h {args.h:g}", "give a --k")
+
+
 def _asymptotics(args) -> int:
-    from ..inverse.inversion import check_curvature
     from ..mechanics.asymptotics import predictions
 
     # (the wedge closes: the predictions were printed, rotation -387 rad, audit 26 F2)
-    check_curvature((args.k,), args.h, "--k", f"the shell of --h {args.h:g}", "give a --k")
+    _check_curvature(args)
     cut = args.cut
     if cut is None:
         log.warning("--cut-angle is deprecated, use --cut (the same cut Sigma, radians)")
@@ -114,6 +120,7 @@ def _sphere(args) -> int:
     from ..mechanics.asymptotics import f_bulk_asymptotic, f_shell_asymptotic, f_shell_exact, k_star
     from ..mechanics.bulk import f_bulk
 
+    _check_curvature(args)
     if not args.c10 + args.c01 > 0:
         raise ValueError(f"--c10 + --c01 = {args.c10 + args.c01:g} must be positive "
                          f"(a positive bulk modulus)")

@@ -20,8 +20,9 @@ import numpy as np
 from .._runtime.validate import name_list, short
 from ..io.measurements import ERROR_COLUMN, MEASURES, UNITS, Measurement, to_physical
 from ..mechanics import asymptotics
+from ..model.profiles import check_curvature
 from .inversion import (ASYMPTOTIC, DEFAULT_K_RANGE, METHODS, SYMBOL, Curve, Estimate,
-                        check_curvature, check_k_range, forward_map, invert)
+                        check_k_range, forward_map, invert)
 from .recoil_model import RecoilModel
 
 __all__ = ["EmbryoEstimate", "estimate_embryo", "check_methods", "format_k", "NOT_REQUESTED"]
@@ -197,7 +198,7 @@ def estimate_embryo(m: Measurement, model: RecoilModel | None = None,
     ------
     ValueError
         An unknown method; a bad k-range, or one reaching |k| ≥ 2/h, a curvature the shell
-        cannot have (:func:`morphoshell.inverse.inversion.check_curvature`).
+        cannot have (:func:`morphoshell.model.profiles.check_curvature`).
 
     See Also
     --------

@@ -64,7 +64,7 @@ if TYPE_CHECKING:
 
 __all__ = ["METHODS", "ASYMPTOTIC", "DEFAULT_K_RANGE", "GRID_STEP", "K_TOL", "MAX_STEPS",
            "K_STRESS_FREE", "SYMBOL", "Estimate", "Curve", "forward_map", "invert",
-           "check_k_range", "curvature_limit", "check_curvature"]
+           "check_k_range"]
 
 #: Estimation methods (see the module docstring); ``asymptotic`` is an alias.
 METHODS = ("leading_order", "kelvin", "inner", "numerical")
@@ -250,46 +250,6 @@ def check_k_range(k_range) -> tuple[float, float]:
     if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
         raise ValueError(f"k_range = ({lo!r}, {hi!r}) must be finite with lo < hi")
     return lo, hi
-
-
-def curvature_limit(h: float) -> float:
-    """The largest |k| a shell of relative thickness h can have: 2/h.
-
-    A sheet of thickness h curved with radius 1/|k| below h/2 would have its
-    inner face at or past its centre of curvature (the intrinsic configuration
-    degenerates: |k| h/2 ≥ 1, :func:`morphoshell.mechanics.bulk.undeformed_geometry`).
-    It also bounds the work of an inversion: the grid of a k-range has at most
-    2·(2/h)/:data:`GRID_STEP` nodes.
-    """
-    return 2.0 / h
-
-
-def check_curvature(k_range: tuple[float, ...], h: float, label: str, shell: str,
-                    remedy: str = "search a range") -> None:
-    """ValueError, naming ``label`` and ``shell``, when the k-range reaches |k| ≥ 2/h.
-
-    Parameters
-    ----------
-    k_range : tuple of float
-        A checked k-range (:func:`check_k_range`), or one k, ``(k,)`` (``morphoshell
-        asymptotics --k``: its predictions there are no shell's).
-    h : float
-        Relative thickness H/R of the shell.
-    label : str
-        How the message names the range (``"--k-range -100 100"``, ``"k_range = ..."``).
-    shell : str
-        Which shell h is, for the message (e.g. "embryo 'S05'").
-    remedy : str
-        What to do, completed by "within (-2/h, 2/h)" (e.g. "give --k").
-    """
-    limit = curvature_limit(h)
-    worst = max(k_range, key=abs)
-    if abs(worst) >= limit:
-        raise ValueError(
-            f"{label}: k = {worst:g} is beyond the curvature of {shell} (h = H/R = {h:.4g}): "
-            f"|k| must stay below 2/h = {limit:.4g}, since a sheet of thickness h cannot curve "
-            f"with a radius 1/|k| below h/2 (its inner face would pass its centre of "
-            f"curvature); {remedy} within (-{limit:.4g}, {limit:.4g})")
 
 
 def _hermite_roots(p: _Point, q: _Point, i: int, target: float) -> list[float]:

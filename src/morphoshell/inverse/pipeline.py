@@ -27,9 +27,9 @@ import numpy as np
 from .._runtime.workers import worker_start
 from .._runtime.console import progress as _progress_bar
 from ..io.measurements import MEASURES, Measurement, read_measurements
+from ..model.profiles import check_curvature
 from .embryo import EmbryoEstimate, check_methods, estimate_embryo
-from .inversion import (ASYMPTOTIC, DEFAULT_K_RANGE, GRID_STEP, K_TOL, METHODS, check_curvature,
-                        check_k_range)
+from .inversion import ASYMPTOTIC, DEFAULT_K_RANGE, GRID_STEP, K_TOL, METHODS, check_k_range
 from .recoil_model import NODES, RecoilModel
 from .recoil_velocity import MU_MIN, VelocityFit, fit_velocity, velocity_scale
 from .result import InverseResult
@@ -69,7 +69,7 @@ def check_shells(data: Sequence[Measurement], k_range: tuple[float, float],
     """ValueError when a shell of ``data`` cannot have every k of ``k_range`` (before any work).
 
     The thickest shell bounds the range: |k| < 2/h
-    (:func:`~morphoshell.inverse.inversion.curvature_limit`).
+    (:func:`~morphoshell.model.profiles.curvature_limit`).
 
     Parameters
     ----------

@@ -29,6 +29,7 @@ import numpy as np
 from scipy import special
 
 from ..model.energy import boundary_layer_width
+from ..model.profiles import check_curvature
 
 __all__ = [
     "f_shell_exact", "f_shell_asymptotic", "f_bulk_asymptotic", "k_star",
@@ -714,9 +715,19 @@ def predictions(h, k, cut) -> dict:
         ``rotation_small_cut``, ``displacement_small_cut`` (Kelvin forms),
         ``energy_released`` (morphoshell units), ``delta`` = δ and
         ``sigma`` = Σ/δ.
+
+    Raises
+    ------
+    ValueError
+        h ≤ 0, k not finite, the cut outside (0, π), or |k| ≥ 2/h: a curvature the
+        shell cannot have (:func:`morphoshell.model.profiles.check_curvature`), where
+        the formulas gave a rotation of −387 rad (h = 0.1, k = 1000).
     """
     h_arr = _positive("h", h)
-    _finite("k", k)
+    hb, kb = np.broadcast_arrays(h_arr, _finite("k", k))
+    worst = int(np.argmax(np.abs(kb) * hb))      # (of arrays, the k nearest its bound 2/h)
+    check_curvature((float(kb.flat[worst]),), float(hb.flat[worst]), "predictions()",
+                    "the shell", "give a k")
     cut_arr = _angle("cut Sigma", cut)
     d = delta(h)
     return {

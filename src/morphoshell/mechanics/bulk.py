@@ -74,6 +74,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from .._runtime.validate import real
+from ..numerics.status import NO_STATIONARY_RADIUS, SolverError, explain
 
 __all__ = [
     "UndeformedGeometry", "DeformedGeometry", "undeformed_geometry",
@@ -432,17 +433,13 @@ def _closed(geom: UndeformedGeometry) -> float:
 
 def _bracket(S, centre: float, width: float, floor: float):
     """(lo, hi, S(lo), S(hi)) with S(lo) ≤ 0 ≤ S(hi): a rising sign change of ``S``, the
-    minimum of the energy, found by doubling ``width`` about ``centre`` down to ``floor``.
+    minimum of the energy, found by doubling ``width`` about ``centre`` down to ``floor``;
+    None where 60 doublings find none.
 
     The whole interval is taken first, as it always was.  Where S falls again above its
     root (C01 < 0: the energy falls without bound as the sphere grows), or is finite only
     above ``floor``, the interval's ends alone miss it; then the pair of adjacent points
     evaluated so far whose S rises through 0 nearest ``centre`` is taken.
-
-    Raises
-    ------
-    ValueError
-        Where 60 doublings find none (one line saying where S was looked at).
     """
     seen = {centre: S(centre)}
     for _ in range(60):
@@ -450,16 +447,53 @@ def _bracket(S, centre: float, width: float, floor: float):
         seen.update({lo: S(lo), hi: S(hi)})
         if seen[lo] <= 0 <= seen[hi]:
             return lo, hi, seen[lo], seen[hi]
-        xs = sorted(seen)
-        rising = [(a, b) for a, b in zip(xs, xs[1:]) if seen[a] <= 0 <= seen[b]]
-        if rising:
-            a, b = min(rising, key=lambda ab: min(abs(ab[0] - centre), abs(ab[1] - centre)))
-            return a, b, seen[a], seen[b]
+        found = _rising(seen, centre)
+        if found is not None:
+            return found
         width *= 2
-    raise ValueError(f"dE/df has no rising sign change at {len(seen)} radii from "
-                     f"f - 1 = {floor:.3g} (where the inner face nears the centre, or -0.5) "
-                     f"to {hi:.3g} (does the energy fall without bound as the sphere grows, "
-                     f"C01 < 0?)")
+    return None
+
+
+def _rising(seen: dict, centre: float):
+    """Of the points ``seen`` (F -> S(F)), the adjacent pair whose S rises through 0
+    nearest ``centre``, as (lo, hi, S(lo), S(hi)); None if there is none."""
+    xs = sorted(seen)
+    rising = [(a, b) for a, b in zip(xs, xs[1:]) if seen[a] <= 0 <= seen[b]]
+    if not rising:
+        return None
+    a, b = min(rising, key=lambda ab: min(abs(ab[0] - centre), abs(ab[1] - centre)))
+    return a, b, seen[a], seen[b]
+
+
+#: The scan of :func:`_scan`: radii f from where the energy is defined up to this, points
+#: equally spaced in log f.
+SCAN_F_MAX, SCAN_POINTS = 1e3, 400
+
+
+def _scan(S, centre: float, floor: float):
+    """A rising sign change of ``S`` (as :func:`_bracket`'s) that the doublings missed: S on
+    :data:`SCAN_POINTS` radii equally spaced in log f from ``floor`` to f =
+    :data:`SCAN_F_MAX`, and where S rises to a local maximum below 0 between them, that
+    maximum found (a rise through 0 narrower than the grid's 2.2 % in f); None if neither
+    finds one.
+
+    With C01 < 0 a local minimum of the energy can lie in a window of S > 0 a few per cent
+    of f wide, between a rise and a fall of S, both missed by the doublings' coarse points:
+    f - 1 = 0.50 to 0.58 at h = 0.9, k = -0.5, C10 : C01 = 1 : -0.5 (audit 26, F1).
+    """
+    from scipy.optimize import minimize_scalar  # (on use: 0.3 s to import)
+
+    F = np.geomspace(1 + floor, SCAN_F_MAX, SCAN_POINTS) - 1
+    seen = {float(x): S(float(x)) for x in F}
+    found = _rising(seen, centre)
+    if found is not None:
+        return found
+    values = np.array(list(seen.values()))
+    for i in np.flatnonzero((values[1:-1] >= values[:-2]) & (values[1:-1] >= values[2:])) + 1:
+        top = minimize_scalar(lambda x: -S(x), bounds=(F[i - 1], F[i + 1]), method="bounded",
+                              options={"xatol": 1e-12 * (1 + abs(F[i]))})
+        seen[float(top.x)] = -float(top.fun)
+    return _rising(seen, centre)
 
 
 def f_bulk(h: float, k: float, c10: float, c01: float, c20: float = 0.0,
@@ -470,7 +504,8 @@ def f_bulk(h: float, k: float, c10: float, c01: float, c20: float = 0.0,
     Root-finds the stationarity condition S(f) = 0 (:func:`stationarity`) in
     f − 1 with Brent's method to relative precision 4·eps, bracketing around
     the asymptotic prediction for f (Supplementary, "Next-order
-    calculation").  S increases with f near the root
+    calculation"), or where that finds no rising sign change of S, from a scan
+    of the radii where the energy is defined (:func:`_scan`).  S increases with f near the root
     (𝓔'' ≈ 24π(C₁₀ + C₀₁)h > 0), so the root is the minimum.
 
     Parameters
@@ -492,6 +527,16 @@ def f_bulk(h: float, k: float, c10: float, c01: float, c20: float = 0.0,
     -------
     float
         f, or f − 1 if ``return_deviation``.
+
+    Raises
+    ------
+    ValueError
+        A bad argument, or a k whose intrinsic configuration degenerates
+        (:func:`undeformed_geometry`), before any work.
+    SolverError
+        ``"No_Stationary_Radius"``: dE/df rises through 0 nowhere the bracket
+        and the scan looked (:func:`_scan`), from where the inner face reaches
+        the centre to f = 1000: no local minimum of the energy there.
     """
     geom, material = _setup(h, k, c10, c01, c20, c11, c02)
     Z, w = _nodes(geom, nodes)
@@ -504,11 +549,16 @@ def f_bulk(h: float, k: float, c10: float, c01: float, c20: float = 0.0,
         return _stationarity(geom, material, Z, w, F)[0]
 
     width = abs(F0) + geom.h**2 * (1 + abs(k - 1)) / 4
-    try:
-        lo, hi, s_lo, s_hi = _bracket(S, F0, width, max(-0.5, _closed(geom) + 1e-6))
-    except ValueError as exc:
-        raise ValueError(f"no stationary radius found for h = {h!r}, k = {k!r}: {exc}") \
-            from None
+    floor = max(-0.5, _closed(geom) + 1e-6)
+    found = _bracket(S, F0, width, floor) or _scan(S, F0, floor)
+    if found is None:
+        raise SolverError(
+            f"no stationary radius found for h = {h!r}, k = {k!r}: dE/df has no rising sign "
+            f"change from f - 1 = {floor:.3g} (where the inner face nears the centre, or "
+            f"-0.5) to f = {SCAN_F_MAX:g}, nor in 60 doublings of a bracket about the "
+            f"asymptotic f - 1 = {F0:.3g}: {explain(NO_STATIONARY_RADIUS)}",
+            NO_STATIONARY_RADIUS)
+    lo, hi, s_lo, s_hi = found
     if s_lo == 0:
         F = lo
     elif s_hi == 0:

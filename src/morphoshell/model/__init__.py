@@ -21,5 +21,5 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "problem": ["Problem", "Structure", "BASE_KEYS", "MIN_SHELL_LENGTH", "MIN_THICKNESS",
         "MIN_CUT"],
     "profiles": ["Profiles", "ProfileFamily", "FAMILIES", "register_family", "get_family",
-        "available_families", "ENTRY_POINT_GROUP"],
+        "available_families", "ENTRY_POINT_GROUP", "curvature_limit", "check_curvature"],
 })

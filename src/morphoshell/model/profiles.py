@@ -39,7 +39,8 @@ from .._runtime.compiled import PointEvaluator
 from .._runtime.validate import lookup
 
 __all__ = ["Profiles", "ProfileFamily", "FAMILIES", "register_family", "get_family",
-           "available_families", "ENTRY_POINT_GROUP", "family_entry_points"]
+           "available_families", "ENTRY_POINT_GROUP", "family_entry_points", "curvature_limit",
+           "check_curvature"]
 
 log = logging.getLogger(__name__)
 
@@ -63,6 +64,52 @@ class Profiles(NamedTuple):
         """Large-bending parameter η = κ_s⁰ h / (2 f_s⁰ f_φ⁰) (paper, Materials and
         Methods; the intrinsic thickness is h⁰ = h/(f_s⁰ f_φ⁰), so η = κ_s⁰ h⁰/2)."""
         return self.kappa_s0 * h / (2 * self.f_s0 * self.f_phi0)
+
+
+def curvature_limit(h: float) -> float:
+    """The largest |k| a shell of relative thickness h can have: 2/h.
+
+    A sheet of thickness h curved with radius 1/|k| below h/2 would have its
+    inner face at or past its centre of curvature: |η| = |k| h/2 ≥ 1 for an
+    unstretched sheet (:meth:`Profiles.eta`, which a :class:`~morphoshell.model.problem.
+    Problem` keeps below 1; the bulk's intrinsic configuration degenerates there too,
+    :func:`morphoshell.mechanics.bulk.undeformed_geometry`).  It also bounds the work
+    of an inversion: the grid of a k-range has at most 2·(2/h)/
+    :data:`~morphoshell.inverse.inversion.GRID_STEP` nodes.
+    """
+    return 2.0 / h
+
+
+def check_curvature(k_range: tuple[float, ...], h: float, label: str, shell: str,
+                    remedy: str = "search a range") -> None:
+    """ValueError, naming ``label`` and ``shell``, when the k-range reaches |k| ≥ 2/h.
+
+    Here, in the lowest layer, so that the asymptotics (:mod:`morphoshell.mechanics`)
+    refuse such k as the inversions and the command line do (audit 26 F2:
+    ``predictions(0.1, 1000, 0.3)`` returned a rotation of −387 rad).
+
+    Parameters
+    ----------
+    k_range : tuple of float
+        A checked k-range (:func:`~morphoshell.inverse.inversion.check_k_range`), or one
+        k, ``(k,)`` (``morphoshell asymptotics --k``: its predictions there are no shell's).
+    h : float
+        Relative thickness H/R of the shell.
+    label : str
+        How the message names the range (``"--k-range -100 100"``, ``"k_range = ..."``).
+    shell : str
+        Which shell h is, for the message (e.g. "embryo 'S05'").
+    remedy : str
+        What to do, completed by "within (-2/h, 2/h)" (e.g. "give --k").
+    """
+    limit = curvature_limit(h)
+    worst = max(k_range, key=abs)
+    if abs(worst) >= limit:
+        raise ValueError(
+            f"{label}: k = {worst:g} is beyond the curvature of {shell} (h = H/R = {h:.4g}): "
+            f"|k| must stay below 2/h = {limit:.4g}, since a sheet of thickness h cannot curve "
+            f"with a radius 1/|k| below h/2 (its inner face would pass its centre of "
+            f"curvature); {remedy} within (-{limit:.4g}, {limit:.4g})")
 
 
 @dataclass(frozen=True, eq=False)

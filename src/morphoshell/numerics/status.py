@@ -15,9 +15,9 @@ A status is one of
   them), from the direct route and the KKT fit;
 * the Newton back end's and the routes' own (``Newton_Converged``,
   ``Not_A_Minimum``, ``Meridian_Crosses_Axis``, ``Continuation_Failed``, ...);
-* ``solve_bvp``'s four outcomes, keyed by the messages scipy gives them
-  (:data:`BVP_STATUSES` maps its integer status to them; so the statuses of
-  the boundary-value route read as they always have);
+* ``solve_bvp``'s four outcomes, named as the others (:data:`BVP_STATUSES`
+  maps its integer status to them; scipy's own message goes into the error's
+  text);
 * the shooting route's, the fits' and the sweeps'.
 
 :class:`SolverError` carries a status of the table (any other is a bug:
@@ -45,7 +45,7 @@ __all__ = ["STATUSES", "BVP_STATUSES", "SolverError", "NotAMinimumError", "expla
            "MAXIMUM_EVALUATIONS_EXCEEDED", "FIT_STALLED", "NOT_COMPUTED", "FIT_NOT_STATIONARY",
            "FIT_NEAR_FOLD",
            "FIT_ON_BOX_EDGES", "FIT_MOVED_BOXES_FAILED", "FIT_NOT_MINIMUM", "STEP_NOT_SPLITTABLE",
-           "RETRY_FINER"]
+           "RETRY_FINER", "NO_STATIONARY_RADIUS"]
 
 # -- Ipopt (morphoshell.numerics.ipopt; the KKT fit's NLP) ------------------------------
 SOLVE_SUCCEEDED = "Solve_Succeeded"
@@ -68,16 +68,19 @@ BRANCH_ENDED = "Branch_Ended"
 # -- the boundary-value reference (morphoshell.solvers.bvp): scipy's solve_bvp ----------
 POLE_ANALYSIS_FAILED = "Pole_Analysis_Failed"
 TIME_LIMIT_EXCEEDED = "Time_Limit_Exceeded"
-BVP_CONVERGED = "The algorithm converged to the desired accuracy."
-BVP_MAX_NODES = "The maximum number of mesh nodes is exceeded."
-BVP_SINGULAR_JACOBIAN = "A singular Jacobian encountered when solving the collocation system."
-BVP_BOUNDARY_CONDITIONS = ("The solver was unable to satisfy boundary conditions tolerance on "
-                           "iteration 10.")
+# (scipy's messages were the keys until audit 26: a status shown as "The maximum number of
+# mesh nodes is exceeded." beside the direct route's Continuation_Failed, and scipy's integer)
+BVP_CONVERGED = "Bvp_Converged"
+BVP_MAX_NODES = "Bvp_Max_Nodes_Exceeded"
+BVP_SINGULAR_JACOBIAN = "Bvp_Singular_Jacobian"
+BVP_BOUNDARY_CONDITIONS = "Bvp_Boundary_Tolerance_Not_Met"
 # -- multiple shooting (morphoshell.solvers.shooting) ------------------------------------
 SHOOTING_SUCCEEDED = "Shooting_Succeeded"
 SHOOTING_ILL_CONDITIONED = "Shooting_Ill_Conditioned"
 SHOOTING_NOT_CONVERGED = "Shooting_Not_Converged"
 SHOOTING_INTEGRATION_FAILED = "Shooting_Integration_Failed"
+# -- toy problem 1 in bulk elasticity (morphoshell.mechanics.bulk.f_bulk) ----------------
+NO_STATIONARY_RADIUS = "No_Stationary_Radius"
 # -- fits (morphoshell.fitting) and sweeps (morphoshell.workflows.sweeps) ----------------
 FIT_SADDLE = "Fit_Saddle"
 FIT_NOT_REPRODUCED = "Fit_Not_Reproduced"
@@ -179,14 +182,15 @@ STATUSES: Mapping[str, str] = MappingProxyType({
         "the pseudo-arclength step fell below its minimum or the points ran out before the end "
         "of the path: a cusp or a branch point? try a smaller --max-step or a finer mesh (a "
         "solve: rtol, --rtol, retries on finer ones)",
-    # the boundary-value reference: solve_bvp's four outcomes, then the route's own
+    # the boundary-value reference: solve_bvp's four outcomes (its status 0 to 3), then the
+    # route's own
     BVP_CONVERGED: "solve_bvp met tol on the collocation residuals and bc_tol at the ends",
     BVP_MAX_NODES:
-        "solve_bvp refined its mesh up to max_nodes without meeting tol: raise max_nodes, or "
-        "use the direct method (thin boundary layers, kinked profiles)",
+        "solve_bvp refined its mesh up to max_nodes without meeting tol (a thin boundary layer, "
+        "a kinked profile?): raise max_nodes, or use the direct method",
     BVP_SINGULAR_JACOBIAN:
-        "solve_bvp met a singular collocation Jacobian: start closer (homotopy_steps, or a "
-        "guess from the direct method)",
+        "solve_bvp met a singular collocation Jacobian: start closer (more homotopy_steps, or "
+        "a guess from the direct method)",
     BVP_BOUNDARY_CONDITIONS:
         "solve_bvp could not meet bc_tol at the ends: start closer or loosen bc_tol",
     POLE_ANALYSIS_FAILED:
@@ -207,6 +211,11 @@ STATUSES: Mapping[str, str] = MappingProxyType({
     SHOOTING_INTEGRATION_FAILED:
         "an initial-value integration failed: start closer (a guess from another route) or "
         "use the direct method",
+    # the bulk sphere of toy problem 1
+    NO_STATIONARY_RADIUS:
+        "the energy has no local minimum over those radii (with C01 < 0 it falls without "
+        "bound as the sphere grows): check the moduli, or take a thinner shell, whose "
+        "minimum lies near f = 1",
     # fits (morphoshell.fitting)
     FIT_SADDLE:
         "the KKT fit ended on a state that is not a minimum of the inner energy: start from "
@@ -296,8 +305,8 @@ class SolverError(RuntimeError):
     Attributes
     ----------
     status : str
-        Ipopt's return status, the Newton back end's, ``solve_bvp``'s (its
-        message, :data:`BVP_STATUSES`) or a route's own: a key of
+        Ipopt's return status, the Newton back end's, ``solve_bvp``'s
+        (:data:`BVP_STATUSES`) or a route's own: a key of
         :data:`STATUSES`, whose line :func:`explain` gives.
     last_iterate : Equilibrium or None
         The last iterate, with ``converged=False``, for inspection

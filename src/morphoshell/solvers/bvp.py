@@ -256,7 +256,7 @@ def solve_bvp(problem: Problem, nodes: int = 400, *, tol: float = 1e-8, bc_tol: 
     Raises
     ------
     SolverError
-        ``solve_bvp`` did not converge (``.status`` is its message, a key of
+        ``solve_bvp`` did not converge (``.status`` names its outcome, a key of
         :data:`morphoshell.numerics.status.STATUSES`), ran out of time
         (``"Time_Limit_Exceeded"``; ``.last_iterate`` is the last iterate
         on a whole mesh, or the previous homotopy step's solution), or a
@@ -387,13 +387,13 @@ def _solve_one(problem: Problem, nodes: int, tol: float, bc_tol: float,
     t0 = time.perf_counter()
     sol = scipy.integrate.solve_bvp(fun, bc, s, y0, p=np.array(q0) if q0 else None,
                                     fun_jac=fun_jac, tol=tol, bc_tol=bc_tol, max_nodes=max_nodes)
-    status = BVP_STATUSES[sol.status]     # scipy's message for it, as a key of the table
+    status = BVP_STATUSES[sol.status]     # its name in the table (scipy's is an integer)
     eq = equilibrium(sol.x, sol.y, sol.p if sol.p is not None else np.zeros(0), status,
                      int(sol.niter), sol.rms_residuals, sol.status == 0)
     if sol.status != 0:
-        raise SolverError(f"solve_bvp failed on {problem.name or problem.family!r}: {sol.message} "
-                          f"(status {sol.status}): {explain(status)}; the last iterate is attached "
-                          f"(.last_iterate)", status, eq)
+        raise SolverError(f"solve_bvp failed on {problem.name or problem.family!r} with status "
+                          f"{status!r} ({sol.message.rstrip('.')}): {explain(status)}; the last "
+                          f"iterate is attached (.last_iterate)", status, eq)
     return eq, int(sol.niter)
 
 

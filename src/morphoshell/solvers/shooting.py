@@ -264,7 +264,7 @@ def solve_shooting(problem: Problem, *, segments: int | None = None, integrator:
                 f"(h = {problem.h:g}) needs {segments} segments to keep the growth exp(Δs/δ) "
                 f"per segment below max_growth = {max_growth:g}, more than max_segments = "
                 f"{max_segments}; the shooting matrix would be ill-conditioned and Newton's "
-                f"basin tiny: use the direct or bvp route (or raise max_segments)",
+                f"basin tiny: use the direct or bvp route, or raise max_segments",
                 ILL_CONDITIONED)
     elif isinstance(segments, bool) or int(segments) != segments or segments < 1 + end_pole:
         raise ValueError(f"segments = {segments!r} must be an integer >= {1 + end_pole}"
@@ -578,7 +578,7 @@ def _time_up(problem: Problem, sh: "_Shooting", opts: _Settings, cache: dict, u0
         f"shooting on {name!r} stopped at its time limit (max_seconds = {opts.seconds:g} s) "
         f"after {evaluations} evaluations of its {opts.segments} segments: a thin shell's "
         f"stiff boundary layer makes every integration slow, and a loaded machine too; use "
-        f"the direct or bvp route (or raise max_seconds: solve(..., method='shooting', "
+        f"the direct or bvp route, or raise max_seconds (solve(..., method='shooting', "
         f"max_seconds=...))", TIME_LIMIT_EXCEEDED, last)
 
 
