@@ -159,7 +159,7 @@ def _solve(args) -> int:
     print(f"  max |eta|       = {abs(eq.eta).max():.4g} (dimensionless)")
     _report_quality(eq)
     out = Outputs()
-    out.add(args.json, lambda path: write_json(path, eq.to_dict()))
+    out.add(args.json, lambda path: write_json(path, eq.to_dict(), [args.problem]))
     out.add(args.csv, lambda path: write_csv(path, {k: getattr(eq, k) for k in FIELDS}))
     if args.plot:
         from ..plotting import new_axes, plot_cross_section, save
@@ -314,7 +314,8 @@ def _ablate(args) -> int:
         note(f"{args.problem}: {fit.note}")
     columns = fit.columns() if fit is not None else {}
     out = Outputs()
-    out.add(args.json, lambda path: write_json(path, _ablation_json(ab, source, fit)))
+    out.add(args.json, lambda path: write_json(path, _ablation_json(ab, source, fit),
+                                                    [args.problem]))
     out.add(args.csv, lambda path: write_csv(path, {**problem.describe()["params"],
                                                     "h": problem.h, "cut": problem.cut,
                                                     # "opening" is the observable o below

@@ -34,7 +34,6 @@ here too; ``morphoshell example NAME`` prints one).
 """
 from __future__ import annotations
 
-import datetime as _dt
 import logging
 import math
 import sys
@@ -48,6 +47,7 @@ from ..model.problem import BASE_KEYS, Problem
 from ..solvers.direct import check_nodes
 from ..solvers.routes import METHODS
 from .example_problems import EXAMPLES_DIR, example_path, example_text, examples  # noqa: F401
+from .provenance import provenance
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -439,24 +439,16 @@ def to_jsonable(obj: Any) -> Any:
     return obj
 
 
-def provenance() -> dict[str, str]:
-    """Versions and time, for reproducibility of written results."""
-    import casadi
-    import scipy
-
-    from .. import __version__
-    return {"morphoshell": __version__, "casadi": casadi.__version__, "numpy": np.__version__,
-            "scipy": scipy.__version__, "python": sys.version.split()[0],
-            "written": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")}
-
-
-def write_json(path: str | Path, data: Mapping[str, Any]) -> Path:
-    """Write ``data`` (plus ``provenance``) as JSON, creating parent folders."""
+def write_json(path: str | Path, data: Mapping[str, Any], inputs: Sequence[str | Path] = ()
+               ) -> Path:
+    """Write ``data`` (plus ``provenance``, naming the ``inputs`` files read with their
+    SHA-256: :func:`morphoshell.io.provenance.provenance`) as JSON, creating parent
+    folders."""
     import json
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    payload = {**to_jsonable(data), "provenance": provenance()}
+    payload = {**to_jsonable(data), "provenance": provenance(inputs)}
     path.write_text(json.dumps(payload, indent=1) + "\n")
     return path
 
