@@ -56,6 +56,7 @@ else:  # pragma: no cover - exercised on Python 3.10 only
 
 __all__ = ["ProblemFileError", "Settings", "load_problem", "parse_overrides", "apply_overrides",
            "split_overrides", "settings_from", "to_jsonable", "write_json", "write_csv", "METHODS",
+           "write_problem", "problem_toml",
            "SOLVER_KEYS", "ALIASES", "problem_of_record", "fit_source"]
 
 log = logging.getLogger(__name__)
@@ -437,6 +438,56 @@ def to_jsonable(obj: Any) -> Any:
     if isinstance(obj, np.bool_):
         return bool(obj)
     return obj
+
+
+def problem_toml(problem: Problem, settings: Settings | None = None) -> str:
+    """The text of a problem file of ``problem`` and its [solver] ``settings`` (defaults if
+    None), which :func:`load_problem` reads back to an equal problem and settings.
+
+    Every parameter of the family is written (none left to its default), floats as their
+    shortest repr (the same double read back), strings as TOML basic strings: the grammar
+    of a problem file is three flat tables of numbers and words, written by hand rather
+    than with a TOML library.
+    """
+    from .. import __version__
+
+    settings = Settings() if settings is None else settings
+    head = {k: v for k, v in problem.describe().items() if k != "params"}
+    lines = [f"# written by morphoshell {__version__} (morphoshell.io.write_problem)",
+             "[problem]", *(f"{k} = {_toml_value(v)}" for k, v in head.items()),
+             "", "[parameters]",
+             *(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in problem.params.items()),
+             "", "[solver]", f"nodes = {int(settings.nodes)}",
+             f"method = {_toml_value(settings.method)}", f"stages = {int(settings.stages)}"]
+    return "\n".join(lines) + "\n"
+
+
+def write_problem(path: str | Path, problem: Problem, settings: Settings | None = None
+                  ) -> Path:
+    """Write ``problem`` (and ``settings``) as a problem file (:func:`problem_toml`),
+    creating parent folders; ``load_problem(path)`` gives them back."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(problem_toml(problem, settings), encoding="utf-8")
+    return path
+
+
+def _toml_key(key: str) -> str:
+    """A bare TOML key, or a quoted one where it has other characters."""
+    return key if key and all(c.isascii() and (c.isalnum() or c in "_-") for c in key) \
+        else _toml_value(key)
+
+
+def _toml_value(value: Any) -> str:
+    """A number or word as TOML: floats by repr (inf and nan as TOML spells them), strings
+    with JSON's escapes (TOML's basic strings share them)."""
+    import json
+
+    if isinstance(value, str):
+        return json.dumps(value)        # (ASCII: control characters and DEL escaped)
+    value = float(value)
+    return repr(value) if math.isfinite(value) else ("nan" if value != value else
+                                                      "inf" if value > 0 else "-inf")
 
 
 def write_json(path: str | Path, data: Mapping[str, Any], inputs: Sequence[str | Path] = ()
