@@ -157,7 +157,7 @@ def read_json(path: Path) -> Any:
 
 def _problem_from_json(path: Path) -> tuple[Problem, Settings]:
     """The problem of a result JSON (``solve --json``, ``fit --json``): its "problem" entry,
-    and the settings of a fit's (:func:`_fit_settings`)."""
+    and the solver settings it records (:func:`_recorded_settings`)."""
     try:
         data = read_json(path)
     except ValueError as exc:
@@ -166,21 +166,32 @@ def _problem_from_json(path: Path) -> tuple[Problem, Settings]:
         raise ProblemFileError(f"{path}: no 'problem' entry: expected the JSON written by "
                                f"morphoshell solve/ablate/fit --json")
     try:
-        return problem_of_record(data, str(path)), _fit_settings(path, data)
+        return problem_of_record(data, str(path)), _recorded_settings(path, data)
     except ValueError as exc:
         raise ProblemFileError(str(exc)) from None
 
 
-def _fit_settings(path: Path, data: Mapping[str, Any]) -> Settings:
-    """The [solver] table a fit's JSON records of its inner solves (``solver``: nodes, stages,
-    method), so that re-solving the fit solves it as it was fitted (it was solved at 200
-    nodes whatever the fit's), or a campaign's record its ``nodes``; defaults for other
-    results, whose ``solver`` reports a solve, and for fits written before it was recorded."""
-    table = data.get("solver")
-    if "fitted" not in data:
-        return Settings()
-    if not isinstance(table, Mapping):
-        table = {"nodes": data["nodes"]} if "nodes" in data else {}
+def recorded_solver(data: Mapping[str, Any]) -> dict[str, Any]:
+    """The [solver] entries (:data:`SOLVER_KEYS`) a result's JSON records of how it was solved:
+    a fit's ``solver`` table of its inner solves (nodes, stages, method) or a campaign
+    record's ``nodes``; a solve's or an ablation's ``settings`` (``solve``/``ablate --json``;
+    its other entries, rtol and the linear solver, are not a problem file's); ``{}`` for
+    other results, whose ``solver`` reports a solve, and for files written before these
+    were recorded."""
+    if "fitted" in data:
+        table = data.get("solver")
+        if not isinstance(table, Mapping):
+            table = {"nodes": data["nodes"]} if "nodes" in data else {}
+        return dict(table)
+    table = data.get("settings")
+    return {k: table[k] for k in SOLVER_KEYS if k in table} if isinstance(table, Mapping) else {}
+
+
+def _recorded_settings(path: Path, data: Mapping[str, Any]) -> Settings:
+    """The [solver] settings a result records (:func:`recorded_solver`), so that re-solving
+    it solves it as it was solved or fitted (it was solved at 200 nodes whatever the
+    record's), defaults where it records none."""
+    table = recorded_solver(data)
     unknown = sorted(set(table) - set(SOLVER_KEYS))
     if unknown:
         raise ValueError(f"{path}: unknown key(s) {unknown} in 'solver'; valid: "
