@@ -150,7 +150,9 @@ def _how_made(args, radii: list) -> list[str]:
     from .. import __version__
     from ..io.provenance import code_commit
 
-    lines = [f"morphoshell = {__version__}",
+    # (audit 27 F11: the columns' unit was said nowhere in the file, as the shipped averages say)
+    lines = ["units = R (r, z and spread in units of R, the embryo's radius)",
+             f"morphoshell = {__version__}",
              *(f"{k} = {str(v).lower()}" for k, v in code_commit().items()),
              f"section = {args.section}"]
     if args.drop_outlier_points:        # (only when given: the shipped averages stay as they are)

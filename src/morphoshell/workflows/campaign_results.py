@@ -299,15 +299,22 @@ def read_records(out: Path, keys: Iterable[tuple[str, str]]) -> dict:
     return records
 
 
-def load_campaign(out: str | Path, data_dir: str | Path) -> CampaignResult:
+def load_campaign(out: str | Path, data_dir: str | Path | None = None) -> CampaignResult:
     """The stored results of a campaign (no fitting): for figures and reports.
 
     Parameters
     ----------
     out : str or Path
         The campaign's output folder.
-    data_dir : str or Path
-        Its data set (:func:`morphoshell.io.timepoints.read_timepoints`).
+    data_dir : str or Path, optional
+        Its data set (:func:`morphoshell.io.timepoints.read_timepoints`); by default the
+        one the folder records (``campaign_settings.json``'s ``data``).
+
+    Raises
+    ------
+    ValueError
+        No ``data_dir`` and a folder that records none, or records one that is not there
+        (moved: give ``data_dir``).
 
     Returns
     -------
@@ -315,11 +322,25 @@ def load_campaign(out: str | Path, data_dir: str | Path) -> CampaignResult:
         The records found, the variants that have any (in the order of
         :data:`morphoshell.fitting.spec.VARIANTS`); no timing.
     """
-    timepoints = read_timepoints(data_dir)
     out = Path(out)
+    timepoints = read_timepoints(recorded_data(out) if data_dir is None else data_dir)
     records = read_records(out, [(tp.name, v) for v in VARIANTS for tp in timepoints])
     variants = tuple(dict.fromkeys(v for _, v in records))
     return CampaignResult(out, timepoints, variants, records)
+
+
+def recorded_data(out: Path) -> Path:
+    """The data folder a campaign's output folder ``out`` records (ValueError naming the
+    settings file when it records none or one that is not a folder)."""
+    path = out / SETTINGS
+    data = (read_record(path) or {}).get("data")
+    if not isinstance(data, str):
+        raise ValueError(f"{path}: no data folder recorded (not a campaign's output folder?): "
+                         f"give the data folder, load_campaign(out, data_dir)")
+    if not Path(data).is_dir():
+        raise ValueError(f"{path}: the recorded data folder {data} is not there (moved?): give "
+                         f"it, load_campaign(out, data_dir)")
+    return Path(data)
 
 
 def record_contact(rec: dict, where: str = "the record") -> WallContact | None:
