@@ -162,3 +162,28 @@ def test_which_is_refused_for_a_file_of_one_equilibrium(saved, tmp_path):
     with pytest.raises(ValueError, match=r"one.json: which='pre' reads a state of an "
                                          r"ablation's JSON .*leave which out"):
         load_equilibrium(path, "pre")
+
+
+def test_an_entry_the_reader_does_not_know_is_warned_of(tmp_path, ablation_file, caplog):
+    """Audit 27 F5: an entry added by hand (or by a newer version) was ignored silently;
+    the files solve and ablate write have none."""
+    import logging
+
+    from morphoshell.cli import main
+    from morphoshell.io.problem_files import example_path
+
+    solved = tmp_path / "s.json"
+    assert main(["solve", str(example_path("toy2_ablation")), "--nodes", "20", "--json",
+                 str(solved), "-q"]) == 0
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        load_equilibrium(solved)
+        load_equilibrium(ablation_file, "pre")
+        load_equilibrium(ablation_file, "post")
+    assert "not read by" not in caplog.text
+    record = json.loads(solved.read_text())
+    edited = tmp_path / "edited.json"
+    edited.write_text(json.dumps({**record, "zz_energy_note": "doubled"}))
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        load_equilibrium(edited)
+    assert "edited.json: entries 'zz_energy_note' are not read by load_equilibrium" in \
+        caplog.text

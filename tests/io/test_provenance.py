@@ -132,3 +132,78 @@ def test_each_command_records_the_files_it_read(argv, inputs, tmp_path, capsys):
     assert main([*argv, "--json", str(out), "-q"]) == 0, capsys.readouterr()
     got = json.loads(out.read_text())["provenance"]["inputs"]
     assert got == [prov.input_record(problem if p == "P" else p) for p in inputs]
+
+
+def _future(tmp_path, record: dict, fmt=prov.FORMAT + 1) -> Path:
+    path = tmp_path / "future.json"
+    path.write_text(json.dumps({**record, "provenance": {**record.get("provenance", {}),
+                                                         "format": fmt}}))
+    return path
+
+
+def test_written_files_carry_the_format():
+    assert prov.provenance()["format"] == prov.FORMAT
+
+
+@pytest.mark.parametrize("fmt, said", [
+    (prov.FORMAT + 1, rf"future.json: written in file format {prov.FORMAT + 1} \(by "
+                      rf"morphoshell .*\); this morphoshell reads format {prov.FORMAT} and "
+                      rf"older: update it"),
+    ("1", r"future.json: provenance.format = '1' is not a format number"),
+    (True, r"future.json: provenance.format = True is not a format number"),
+])
+def test_a_file_of_a_newer_format_is_refused_by_every_json_reader(tmp_path, fmt, said):
+    """Audit 27 F5: a file from a newer morphoshell loaded without a word."""
+    from morphoshell.io.problem_files import read_json
+
+    path = _future(tmp_path, {"a": 1}, fmt)
+    with pytest.raises(ValueError, match=said):
+        read_json(path)
+
+
+def test_older_files_and_this_format_are_read(tmp_path):
+    from morphoshell.io.problem_files import read_json
+
+    for record in ({"a": 1}, {"provenance": {"morphoshell": "0.1.0"}}, [1, 2]):
+        (tmp_path / "old.json").write_text(json.dumps(record))
+        assert read_json(tmp_path / "old.json") == record
+    assert read_json(_future(tmp_path, {"a": 1}, prov.FORMAT))["a"] == 1
+
+
+def test_solve_refuses_a_newer_result_in_one_line(tmp_path, capsys):
+    from morphoshell.io.problem_files import read_json
+
+    solved = tmp_path / "s.json"
+    assert main(["solve", str(example_path("toy2_ablation")), "--nodes", "20", "--json",
+                 str(solved), "-q"]) == 0
+    assert read_json(solved)["provenance"]["format"] == prov.FORMAT
+    future = _future(tmp_path, json.loads(solved.read_text()))
+    assert main(["solve", str(future)]) == 2
+    err = capsys.readouterr().err
+    assert "future.json: written in file format" in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_campaign_record_of_a_newer_format_is_refused(tmp_path):
+    from morphoshell.workflows.campaign_results import read_record
+
+    with pytest.raises(ValueError, match="future.json: written in file format"):
+        read_record(_future(tmp_path, {"status": "ok"}))
+
+
+def test_unknown_entries_are_warned_of_once_per_reader(caplog):
+    import logging
+
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        prov.note_unknown({"a": 1, "zz_test_new": 2}, ["a"], "x.json", "test reader")
+        prov.note_unknown({"a": 1, "zz_test_new": 2}, ["a"], "y.json", "test reader")
+        prov.note_unknown({"a": 1}, ["a"], "z.json", "test reader")
+    assert caplog.text.count("zz_test_new") == 1
+    assert ("x.json: entries 'zz_test_new' are not read by test reader (edited by hand, or "
+            "written by a newer morphoshell?)") in caplog.text
+
+
+def test_a_partial_sweep_of_a_newer_format_is_refused(tmp_path):
+    from morphoshell.workflows.sweep_runs import _read_json
+
+    with pytest.raises(ValueError, match="future.json: written in file format"):
+        _read_json(_future(tmp_path, {"complete": False}))

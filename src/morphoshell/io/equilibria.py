@@ -19,9 +19,14 @@ import numpy as np
 from ..solvers.refinement import error_estimate
 from ..solvers.results import FIELDS, Equilibrium, ErrorEstimate, SolverStats
 from .problem_files import problem_of_record, read_json
+from .provenance import note_unknown
 
 __all__ = ["load_equilibrium", "equilibrium_of_record"]
 
+#: The entries of a saved equilibrium (:meth:`Equilibrium.to_dict`, and what ``solve
+#: --json`` adds): others are not read, and :func:`load_equilibrium` warns of them.
+KNOWN = ("problem", "converged", "energy", "units", "solver", "error_estimate", "edge_start",
+         "edge_end", *FIELDS, "settings", "provenance")
 #: Entries of a saved solver block that are :class:`SolverStats` fields (the rest are details).
 _STATS = ("method", "iterations", "seconds", "status", "nodes", "build_seconds")
 #: Other results' JSON, told by their keys: (keys, what it is, what to use instead).  A sweep's
@@ -141,11 +146,15 @@ def load_equilibrium(path: str | Path, which: str | None = None) -> Equilibrium:
     if not isinstance(data, dict):
         raise ValueError(f"{path}: expected the JSON object written by morphoshell solve --json")
     if which is None:
-        return equilibrium_of_record(data, str(path))
+        eq = equilibrium_of_record(data, str(path))
+        note_unknown(data, KNOWN, str(path), "load_equilibrium")
+        return eq
     if which not in _STATES:
         raise ValueError(f"which={which!r}: the state of an ablation's JSON is one of "
                          f"{', '.join(map(repr, _STATES))}")
     if not all(isinstance(data.get(k), dict) for k in _STATES):
         raise ValueError(f"{path}: which={which!r} reads a state of an ablation's JSON (keys "
                          f"pre and post, ablate --json); this file has none: leave which out")
-    return equilibrium_of_record(data[which], f"{path} ({which})")
+    eq = equilibrium_of_record(data[which], f"{path} ({which})")
+    note_unknown(data[which], KNOWN, f"{path} ({which})", "load_equilibrium")
+    return eq

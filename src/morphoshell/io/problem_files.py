@@ -47,7 +47,7 @@ from ..model.problem import BASE_KEYS, Problem
 from ..solvers.direct import check_nodes
 from ..solvers.routes import METHODS
 from .example_problems import EXAMPLES_DIR, example_path, example_text, examples  # noqa: F401
-from .provenance import provenance
+from .provenance import check_format, provenance
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -144,15 +144,18 @@ def load_problem(path: str | Path) -> tuple[Problem, Settings]:
 
 def read_json(path: Path) -> Any:
     """The content of the JSON file ``path`` (a BOM allowed); ValueError naming the file
-    when it cannot be read or is not JSON."""
+    when it cannot be read, is not JSON or is of a newer format than this package reads
+    (:func:`morphoshell.io.provenance.check_format`)."""
     import json
 
     try:
-        return json.loads(Path(path).read_text(encoding="utf-8-sig"))
+        data = json.loads(Path(path).read_text(encoding="utf-8-sig"))
     except OSError as exc:
         raise ValueError(f"{path}: cannot read the file ({exc.strerror})") from None
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise ValueError(f"{path}: not valid JSON ({exc})") from None
+    check_format(data, str(path))
+    return data
 
 
 def _problem_from_json(path: Path) -> tuple[Problem, Settings]:

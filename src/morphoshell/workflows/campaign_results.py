@@ -21,6 +21,7 @@ from .._runtime.tables import xarray_module
 from ..fitting import VARIANTS
 from ..fitting.midline_checks import input_check
 from ..io.problem_files import problem_of_record
+from ..io.provenance import check_format
 from ..io.timepoints import Timepoint, read_timepoints
 from ..model.profiles import get_family
 from ..solvers.contact import WallContact
@@ -272,11 +273,15 @@ def result_path(out: Path, timepoint: str, variant: str) -> Path:
 
 
 def read_record(path: Path) -> dict | None:
-    """The record stored at ``path``, or None if there is none (missing, or not JSON)."""
+    """The record stored at ``path``, or None if there is none (missing, or not JSON).
+    ValueError naming it for a record of a newer format (:func:`~morphoshell.io.provenance.
+    check_format`): refitting it would overwrite what a newer version wrote."""
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
+        record = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
+    check_format(record, str(path))
+    return record
 
 
 def read_records(out: Path, keys: Iterable[tuple[str, str]]) -> dict:
