@@ -113,6 +113,7 @@ def test_solve_json_names_its_problem_file_and_commit(tmp_path, monkeypatch):
 
 T01 = ROOT / "data" / "synthetic_inversion" / "t01" / "synthetic_average.csv"
 T02 = ROOT / "data" / "synthetic_inversion" / "t02"
+ABLATIONS = ROOT / "data" / "synthetic_ablations.csv"
 
 
 @pytest.mark.parametrize("argv, inputs", [
@@ -123,7 +124,9 @@ T02 = ROOT / "data" / "synthetic_inversion" / "t02"
       str(T02 / "synthetic_embryo2_midline.csv")],
      [T02 / "synthetic_embryo1_midline.csv", T02 / "synthetic_embryo2_midline.csv"]),
     (["fit", str(T01), "--variant", "flat", "--nodes", "20"], [T01]),
-], ids=["ablate", "sweep", "continue", "average", "fit"])
+    (["estimate", str(ABLATIONS), "--bootstrap", "0", "--nodes", "40", "--workers", "1"],
+     [ABLATIONS]),
+], ids=["ablate", "sweep", "continue", "average", "fit", "estimate"])
 def test_each_command_records_the_files_it_read(argv, inputs, tmp_path, capsys):
     problem = tmp_path / "toy2.toml"
     shutil.copy(example_path("toy2_ablation"), problem)
