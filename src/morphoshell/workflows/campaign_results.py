@@ -327,8 +327,10 @@ def load_campaign(out: str | Path, data_dir: str | Path | None = None) -> Campai
         The records found, the variants that have any (in the order of
         :data:`morphoshell.fitting.spec.VARIANTS`); no timing.
     """
+    if data_dir is None:
+        data_dir = recorded_data(Path(out))
+    timepoints = read_timepoints(data_dir)
     out = Path(out)
-    timepoints = read_timepoints(recorded_data(out) if data_dir is None else data_dir)
     records = read_records(out, [(tp.name, v) for v in VARIANTS for tp in timepoints])
     variants = tuple(dict.fromkeys(v for _, v in records))
     return CampaignResult(out, timepoints, variants, records)
