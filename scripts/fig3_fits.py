@@ -31,8 +31,11 @@ S2   with ``--held DIR`` (repeatable), campaigns run with ``--held-from
      pseudotime axis.
 
 Writes fig3_D-L, fig3_M, fig3_N, fig3_O (and figS2_held) (PNG at 300 dpi and
-PDF) and fig3_ablations.json (the observables of the numerical ablations) to
---out.
+PDF) and fig3_ablations.json to --out: under ``ablations`` the observables of the
+numerical ablations by ``<timepoint>_<variant>``, their numerical error estimates
+(``<observable>_error``) and the fit's errors carried into them (``se_<observable>``);
+beside it the ``units``, the ``cut`` and ``nodes`` of the ablations, the ``campaign``
+and ``data`` folders (absolute) and the ``provenance`` of every package JSON.
 
 Usage: python scripts/fig3_fits.py --campaign out/campaign [--data data/synthetic_inversion]
        [--out out/figures] [--nodes 200] [--held out/campaign_held_flat ...]
@@ -154,7 +157,8 @@ def _panel_DL(ax, tp, rec: dict, v: str, nodes: int):
     else:
         plot_ablation(num.ablation, ax, title=None, legend=False)
         errors = ablation_errors(rec, num.ablation)
-        entry = {**num.observables(), "steps": num.steps, "cold_difference": num.cold_difference,
+        entry = {**num.observables(), **num.ablation.error_columns(), "steps": num.steps,
+                 "cold_difference": num.cold_difference,
                  "converged": bool(rec.get("converged", False)),
                  "walls_cross": {k: c.describe() for k, c in num.contacts.items() if c},
                  **{f"se_{k}": e for k, e in errors.items()}}
@@ -374,6 +378,18 @@ def _mark_stages(ax, stages: list) -> None:
             ms=4, color="0.6", transform=along, clip_on=False, zorder=1)
 
 
+def _ablations_json(ablations: dict, args) -> dict:
+    """fig3_ablations.json: the entries by fit and what they were made with and are in
+    (audit 27 F9: the file behind Fig. 3's numbers had no units, cut, mesh or source)."""
+    from morphoshell.mechanics.ablation import UNITS
+
+    units = {**UNITS, **{f"{k}_error": u for k, u in UNITS.items()},
+             **{f"se_{k}": u for k, u in UNITS.items()}, "steps": "1",
+             "cold_difference": "R or rad (the unknowns' largest difference)", "cut": "R"}
+    return {"ablations": ablations, "cut": CUT, "nodes": args.nodes, "units": units,
+            "campaign": str(args.campaign.resolve()), "data": str(args.data.resolve())}
+
+
 def _campaigns(args):
     """The campaign, the held campaigns and whose first fit each held from (None: exit 2)."""
     from morphoshell.workflows import load_campaign
@@ -406,6 +422,7 @@ def main(argv=None) -> int:
                         "repeat for several")
     args = p.parse_args(argv)
     matplotlib.use("Agg")
+    from morphoshell.io.problem_files import write_json
     from morphoshell.plotting import paper_style
 
     loaded = _campaigns(args)
@@ -424,7 +441,7 @@ def main(argv=None) -> int:
         _panel_O(df, truth, args.out)
         if held:
             _figure_S2(df, held, sources, _stages(result), args.out)
-    (args.out / "fig3_ablations.json").write_text(json.dumps(ablations, indent=1) + "\n")
+    write_json(args.out / "fig3_ablations.json", _ablations_json(ablations, args))
     print(f"wrote fig3_D-L, fig3_M, fig3_N, fig3_O{', figS2_held' if held else ''} (.png, "
           f".pdf) and fig3_ablations.json to {args.out}")
     return 0

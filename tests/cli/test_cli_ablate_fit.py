@@ -22,6 +22,7 @@ def _record(**changes) -> dict:
     rec = {"problem": p.describe(), "variant": "free", "converged": True, "E_fit": 0.004,
            "parameters": {**p.params, "h": p.h, "cut": p.cut, "opening": p.opening},
            "fitted": ["kappa2", "s1"], "standard_errors": {"kappa2": 0.05, "s1": 0.01},
+           "solver": {"nodes": 100, "stages": 3, "method": "direct"},
            "correlation": [[1.0, -0.4], [-0.4, 1.0]],
            "note": "standard errors are Gauss-Newton lower bounds: the residuals of a traced "
                    "midline are correlated"}
@@ -45,11 +46,11 @@ def test_each_recoil_observable_carries_the_fits_error(tmp_path, capsys):
     names of a campaign's fig3_ablations.json): equal to ablation_errors of the same
     ablation."""
     record = _record()
-    status, _, data, row = _ablate(tmp_path, record)
+    status, path, data, row = _ablate(tmp_path, record)
     assert status == 0
     printed = capsys.readouterr().out
     want = ablation_errors(record, ablate(fitted_problem(record).with_updates(cut=0.15),
-                                          nodes=NODES))
+                                          nodes=NODES, stages=3))    # (the record's solver)
     for k in RECOIL:
         # (the same ablation solved again: equal to round-off of the solves, 1e-9)
         assert data[f"se_{k}"] == pytest.approx(want[k], rel=1e-9), k
@@ -60,7 +61,9 @@ def test_each_recoil_observable_carries_the_fits_error(tmp_path, capsys):
     assert not {"se_energy_released", "se_energy_removed"} & set(data)
     assert "  +- (fit): the fit's standard errors and correlations carried linearly" in printed
     assert "carried linearly" in data["fit_error_note"]
-    assert "note:" not in printed
+    # (the one note: the mesh the fit's JSON is solved on, audit 27 F2)
+    notes = [line for line in printed.splitlines() if line.startswith("note:")]
+    assert notes == [f"note: {path}: solved on {NODES} nodes (--nodes), stages 3 (as recorded)"]
 
 
 def test_wide_profile_intervals_are_said_to_escape_the_fits_errors(tmp_path, capsys):
@@ -80,6 +83,9 @@ def test_without_the_fits_errors_one_note_says_why(tmp_path, capsys, record, mor
     status, path, data, row = _ablate(tmp_path, record, *more)
     assert status == 0
     notes = [n for n in capsys.readouterr().out.splitlines() if n.startswith("note:")]
+    # (beside the note of the mesh the fit's JSON is solved on, audit 27 F2)
+    assert notes[0] == f"note: {path}: solved on {NODES} nodes (--nodes), stages 3 (as recorded)"
+    notes = notes[1:]
     assert len(notes) == 1 and notes[0].startswith(
         f"note: {path}: no errors of the fit carried into the observables: {why}")
     assert not any(k.startswith("se_") for k in (*data, *row))

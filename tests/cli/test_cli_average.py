@@ -148,6 +148,7 @@ def test_the_average_records_the_scale_it_was_made_with(tmp_path, capsys):
     """The average's file named its traces but not the --pixel-size and --radius-um that
     scaled them: it could not be reproduced from its file (user audit 5)."""
     import morphoshell
+    from morphoshell.io.provenance import code_commit
 
     radii = _radii()[:3]
     out = tmp_path / "t02" / "average.csv"
@@ -159,6 +160,9 @@ def test_the_average_records_the_scale_it_was_made_with(tmp_path, capsys):
         assert [f"# radius_um = {t}: {float(r):.10g}" for t, r in zip(TRACES, radii)] == \
             [c for c in comments if c.startswith("# radius_um")]
         assert f"# morphoshell = {morphoshell.__version__}" in comments
+        # (audit 27 F11: and the unit of its columns, and the commit that made it)
+        assert "# units = R (r, z and spread in units of R, the embryo's radius)" in comments
+        assert set(code_commit()) <= {c.split(" = ")[0][2:] for c in comments}
     assert Midline.from_csv(out).n_traces == 3           # (the reader skips them)
 
 

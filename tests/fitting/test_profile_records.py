@@ -148,3 +148,26 @@ def test_a_rethresholded_profile_and_a_threshold_from_the_fit_load(saved, tmp_pa
 def test_a_record_that_is_not_an_object_is_refused():
     with pytest.raises(ValueError, match="here: expected an object"):
         profile_from_dict([1, 2], "here")
+
+
+def test_a_partial_files_profiles_load_with_a_warning_naming_those_not_done(saved, tmp_path,
+                                                                            caplog):
+    """Audit 27 F11: the profiles of a run cut short (``complete: false``) loaded silently,
+    as if they were all that was asked for."""
+    import logging
+
+    path, profiles = saved
+    record = json.loads(path.read_text())
+    kept = THREE[0]
+    record["profiles"] = {kept: record["profiles"][kept]}
+    partial = tmp_path / "partial.json"
+    partial.write_text(json.dumps({**record, "complete": False,
+                                   "not_done": f"{THREE[1]}, {THREE[2]} not profiled"}))
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        assert list(load_profiles(partial)) == [kept]
+    assert (f"partial.json: a run cut short (complete: false): {THREE[1]}, {THREE[2]} not "
+            f"profiled; read the profiles it finished: {kept}") in caplog.text
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        load_profiles(path)
+    assert "cut short" not in caplog.text

@@ -122,3 +122,68 @@ def test_a_sweeps_or_a_branchs_json_is_named_as_one(tmp_path, command, said):
           "--json", str(path)])
     with pytest.raises(ValueError, match=said):
         load_equilibrium(path)
+
+
+@pytest.fixture(scope="module")
+def ablation_file(tmp_path_factory):
+    """``ablate --json`` of SHELL: both states (the Ablation's to_dict, as the CLI writes)."""
+    from morphoshell.cli import main
+    from morphoshell.io.problem_files import example_path
+
+    path = tmp_path_factory.mktemp("abl") / "abl.json"
+    assert main(["ablate", str(example_path("toy2_ablation")), "--nodes", "40", "--json",
+                 str(path), "-q"]) == 0
+    return path
+
+
+@pytest.mark.parametrize("which", ["pre", "post"])
+def test_either_state_of_an_ablations_json_reads_back(ablation_file, which):
+    """Audit 27 F8: an ablation's JSON holds both equilibria with their arrays, but was
+    refused as "saved without its arrays"; ``which`` reads either back as written."""
+    record = json.loads(ablation_file.read_text())[which]
+    back = load_equilibrium(ablation_file, which)
+    assert back.to_dict() == record
+    assert back.energy == record["energy"] and len(back.s) == len(record["s"])
+
+
+@pytest.mark.parametrize("which, said", [
+    (None, r"abl.json is an ablation's JSON \(keys pre, post\), not an equilibrium's: .*"
+           r"which='pre'.*which='post'"),
+    ("intact", r"which='intact': the state of an ablation's JSON is one of 'pre', 'post'"),
+])
+def test_an_ablations_json_needs_which_state(ablation_file, which, said):
+    with pytest.raises(ValueError, match=said):
+        load_equilibrium(ablation_file, which)
+
+
+def test_which_is_refused_for_a_file_of_one_equilibrium(saved, tmp_path):
+    path = tmp_path / "one.json"
+    path.write_text(json.dumps(saved[1]))
+    with pytest.raises(ValueError, match=r"one.json: which='pre' reads a state of an "
+                                         r"ablation's JSON .*leave which out"):
+        load_equilibrium(path, "pre")
+
+
+def test_an_entry_the_reader_does_not_know_is_warned_of(tmp_path, ablation_file, caplog):
+    """Audit 27 F5: an entry added by hand (or by a newer version) was ignored silently;
+    the files solve and ablate write have none."""
+    import logging
+
+    from morphoshell.cli import main
+    from morphoshell.io.problem_files import example_path
+
+    solved = tmp_path / "s.json"
+    assert main(["solve", str(example_path("toy2_ablation")), "--nodes", "20", "--json",
+                 str(solved), "-q"]) == 0
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        load_equilibrium(solved)
+        load_equilibrium(ablation_file, "pre")
+        load_equilibrium(ablation_file, "post")
+    assert "not read by" not in caplog.text
+    record = json.loads(solved.read_text())
+    edited = tmp_path / "edited.json"
+    edited.write_text(json.dumps({**record, "zz_energy_note": "doubled"}))
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        load_equilibrium(edited)
+    assert "edited.json: entries 'zz_energy_note' are not read by load_equilibrium" in \
+        caplog.text

@@ -260,7 +260,7 @@ def test_fig3_draws_a_fit_whose_ablation_fails(serial, data, tmp_path, monkeypat
                       "--out", str(tmp_path), "--nodes", str(NODES)]) == 0
     for name in ("fig3_D-L", "fig3_N", "fig3_O"):
         assert (tmp_path / f"{name}.png").stat().st_size > 10_000, name
-    ablations = json.loads((tmp_path / "fig3_ablations.json").read_text())
+    ablations = json.loads((tmp_path / "fig3_ablations.json").read_text())["ablations"]
     fitted = {f"{tp}_{v}" for (tp, v), r in serial.records.items()
               if r["status"] == "ok" and v in ("flat", "undeformed", "unstressed")}
     shown = {f"{tp.name}_{v}" for tp in fig3._stages(serial) for v in fig3.FIXED}

@@ -59,3 +59,36 @@ def test_a_campaign_is_a_grid_of_timepoints_and_variants(result, tmp_path):
     assert complete.converged.dtype == bool and complete.walls_cross.dtype == bool
     ds.to_netcdf(tmp_path / "campaign.nc")
     assert xr.load_dataset(tmp_path / "campaign.nc").identical(ds)
+
+
+def _folder(tmp_path, data) -> Path:
+    """An output folder recording the data folder ``data``, with t01's flat record."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "campaign_settings.json").write_text(json.dumps({"data": str(data), "nodes": 60}))
+    (out / "t01_flat.json").write_text(json.dumps(_record(0.01, True, walls_cross=None)))
+    return out
+
+
+def test_load_campaign_reads_the_data_folder_the_campaign_recorded(tmp_path):
+    """Audit 27 F11: load_campaign(out) needed the data folder that out records."""
+    from morphoshell.workflows.campaign_results import load_campaign
+
+    data = Path(__file__).resolve().parents[2] / "data" / "synthetic_inversion"
+    loaded = load_campaign(_folder(tmp_path, data))
+    assert [tp.name for tp in loaded.timepoints][:2] == ["t01", "t02"]
+    assert set(loaded.records) == {("t01", "flat")}
+
+
+@pytest.mark.parametrize("settings, said", [
+    ({"data": "/no/such/folder"}, r"the recorded data folder /no/such/folder is not there"),
+    ({"nodes": 60}, r"no data folder recorded"),
+])
+def test_load_campaign_without_its_data_folder_says_so(tmp_path, settings, said):
+    from morphoshell.workflows.campaign_results import load_campaign
+
+    out = _folder(tmp_path, "/x")
+    (out / "campaign_settings.json").write_text(json.dumps(settings))
+    with pytest.raises(ValueError, match=r"campaign_settings.json: " + said +
+                       r".*load_campaign\(out, data_dir\)"):
+        load_campaign(out)

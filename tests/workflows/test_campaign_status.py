@@ -2,6 +2,7 @@
 (``--allow-failures``: 0), and a summary whose columns show each fit's settings and the
 constraints it ends on."""
 import dataclasses
+from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -354,3 +355,21 @@ def test_the_settings_file_records_the_run_and_the_summary_its_units(data, tmp_p
         == "flat"
     header = (out / "campaign_summary.csv").read_text().splitlines()[0]
     assert header.startswith("timepoint,pseudotime,variant")     # (no unit lines: read_csv)
+
+
+def test_a_folder_from_another_commit_is_said_to_be(caplog, monkeypatch):
+    """Audit 27 F4: the version stayed 0.1.0 while commits changed the numbers, so a folder
+    fitted by other code was reused without a word."""
+    import logging
+
+    from morphoshell.workflows import campaigns
+
+    now = {"morphoshell": "0.1.0", "git_commit": "b" * 40, "casadi": "3", "numpy": "2"}
+    monkeypatch.setattr(campaigns, "record_provenance", lambda: now)
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        campaigns._note_versions(Path("settings.json"), {**now, "git_commit": "a" * 40})
+    assert f"git_commit {'a' * 40} -> {'b' * 40}" in caplog.text
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        campaigns._note_versions(Path("settings.json"), now)
+    assert "other versions" not in caplog.text

@@ -66,7 +66,7 @@ def _draw(stalled, data, tmp_path, monkeypatch):
     fig3 = _script()
     assert fig3.main(["--campaign", str(stalled), "--data", str(data[0]), "--out",
                       str(tmp_path), "--nodes", str(NODES)]) == 0
-    return fig3, figures, json.loads((tmp_path / "fig3_ablations.json").read_text())
+    return fig3, figures, json.loads((tmp_path / "fig3_ablations.json").read_text())["ablations"]
 
 
 def _panel(fig, name: str):
@@ -88,6 +88,14 @@ def test_an_unconverged_fit_is_marked_in_every_panel(stalled, data, tmp_path, mo
     assert "not converged" in stalled_ax.get_title(loc="left") and is_flagged(stalled_ax)
     assert "not converged" not in fine.get_title(loc="left") and not is_flagged(fine)
     assert ablations["t02_flat"]["converged"] is False
+    # (audit 27 F9: what the numbers are in and were made with, beside them)
+    meta = json.loads((tmp_path / "fig3_ablations.json").read_text())
+    assert (meta["cut"], meta["nodes"]) == (_script().CUT, NODES)
+    assert meta["campaign"] == str(stalled.resolve()) and meta["data"] == str(data[0].resolve())
+    assert meta["units"]["rotation"] == meta["units"]["se_rotation"] == "rad"
+    assert set(ablations["t01_flat"]) - {"walls_cross", "converged"} <= set(meta["units"])
+    assert ablations["t01_flat"]["rotation_error"] >= 0
+    assert {"morphoshell", "numpy", "written"} <= set(meta["provenance"])
     # N: open markers at t02 for both variants (flat and free), and a legend entry
     (n,) = figures["fig3_N"].axes
     assert _open_x(n) == {round(t02, 6)}

@@ -182,10 +182,15 @@ def _trace_names(midlines) -> list[str]:
 def _how_made(args, radii: list) -> list[str]:
     """The ``key = value`` comments of the written midlines that say how they were made: the
     scale of each TRACE file (an average could not be reproduced from its file) and the
-    package version."""
+    package version (and git commit, from a checkout)."""
     from .. import __version__
+    from ..io.provenance import code_commit
 
-    lines = [f"morphoshell = {__version__}", f"section = {args.section}"]
+    # (audit 27 F11: the columns' unit was said nowhere in the file, as the shipped averages say)
+    lines = ["units = R (r, z and spread in units of R, the embryo's radius)",
+             f"morphoshell = {__version__}",
+             *(f"{k} = {str(v).lower()}" for k, v in code_commit().items()),
+             f"section = {args.section}"]
     if args.drop_outlier_points:        # (only when given: the shipped averages stay as they are)
         lines.append("drop_outlier_points = true")
     if args.pixel_size is not None:
@@ -234,7 +239,8 @@ def _average(args) -> int:
             path = args.csv.with_name(f"{args.csv.stem}_{name}.csv")
             written[name] = path
             out.add(path, lambda path, m=m: m.to_csv(path, made))
-    out.add(args.json, lambda path: _write_json(path, mean, midlines, names, rms, written))
+    out.add(args.json, lambda path: _write_json(path, mean, midlines, names, rms, written,
+                                                      args.traces))
     out.add(args.plot, lambda path: _plot(path, mean, midlines, names))
     for path in out.commit():
         print(f"  wrote {path}")
@@ -276,7 +282,7 @@ def _row_hint(csv: Path, traces: list[Path]) -> None:
           + (f", traces {';'.join(rel(p) for p in traces)}" if traces else ""))
 
 
-def _write_json(path, mean, midlines, names, rms, written) -> None:
+def _write_json(path, mean, midlines, names, rms, written, files) -> None:
     from ..io.problem_files import write_json
 
     write_json(path, {"average": {"r": mean.r, "z": mean.z, "spread": mean.spread,
@@ -284,7 +290,7 @@ def _write_json(path, mean, midlines, names, rms, written) -> None:
                       "traces": [{"name": n, "source": m.source[0], "r": m.r, "z": m.z,
                                   "rms_distance": float(d), "file": str(written.get(n, ""))
                                   or None} for n, m, d in zip(names, midlines, rms)],
-                      "units": "R"})
+                      "units": "R"}, files)
 
 
 def _plot(path, mean, midlines, names) -> None:

@@ -160,7 +160,7 @@ def _write(args, branch, switched=(), missing: str | None = None) -> list:
     out = Outputs()
     named = args.switch > 0
     out.add(args.json, lambda path: write_json(path, _document(branch, switched, missing,
-                                                                 named)))
+                                                                 named), [args.problem]))
     out.add(args.csv, lambda path: write_csv(path, _csv_columns(branch, switched, named),
                                              comments=comments))
     if args.plot:

@@ -120,7 +120,8 @@ def _estimate(args) -> int:
           f"{result.timing['numerical_seconds']:.1f} s)")
     out = Outputs()
     out.add(args.json, lambda path: write_json(path, {"input": str(args.measurements),
-                                                      **result.to_dict()}))
+                                                      **result.to_dict()},
+                                                     [args.measurements]))
     out.add(args.csv, lambda path: write_csv(path, result.table()))
     if args.plot:
         from ..plotting import figure_JK, save

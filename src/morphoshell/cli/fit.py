@@ -230,6 +230,12 @@ def fit_record(args, limit: int) -> dict:
                          **({"drop_outlier_points": True} if args.drop_outlier_points else {})}}
 
 
+def _inputs(args) -> list:
+    """The files the fit read, for the JSON's ``provenance.inputs``: the midline, and the
+    start's file with --start."""
+    return [args.midline, *([args.start] if args.start is not None else [])]
+
+
 def _fit(args) -> int:
     from ..fitting import EVALUATION_LIMITS, N_FIT
     from ..fitting.midline_checks import input_check
@@ -268,7 +274,8 @@ def _fit(args) -> int:
         "input_check": input_check(result.E_fit),
         **(starts.to_dict() if starts is not None else {}),
         **(profile_json(profiles, before, result) if names else {}),
-        **({"complete": False, "not_done": not_done} if not_done else {})}))
+        **({"complete": False, "not_done": not_done} if not_done else {})},
+        _inputs(args)))
     out.add(args.csv, lambda path: write_csv(path, result.table()))
     if not_done:
         return _cut_short(out, not_done, list(profiles), args)

@@ -29,11 +29,11 @@ def _common(p: argparse.ArgumentParser) -> None:
                         "shooting of the same equations; refuses thin shells)")
     p.add_argument("--nodes", type=integer(5, MAX_NODES), default=None, metavar="N",
                    help=f"mesh nodes, 5..{MAX_NODES} (default: the file's [solver] nodes, "
-                        f"else 200); the direct solver's points are the nodes and S - 1 "
-                        f"interior points per cell")
+                        f"or those a result's JSON records, else 200); the direct solver's "
+                        f"points are the nodes and S - 1 interior points per cell")
     p.add_argument("--stages", type=int, choices=(1, 2, 3), default=None, metavar="S",
                    help="Gauss points per cell of the direct solver: order 2S (default: the "
-                        "file's [solver] stages, else 2)")
+                        "file's [solver] stages, or those a result's JSON records, else 2)")
     p.add_argument("--linear-solver", default="mumps", type=linear_solver, metavar="NAME",
                    help="Ipopt's linear solver for the direct method: mumps (default, bundled) "
                         "or an HSL solver such as ma27/ma57 if libhsl.so is installed")
@@ -60,7 +60,10 @@ def register(sub) -> None:
                                    "summary (energy, edge values, solver statistics). z is in "
                                    "the solver's gauge: z(first point) = its undeformed height.")
     _common(p)
-    add_outputs(p, json="write the equilibrium as JSON",
+    add_outputs(p, json="write the equilibrium and the solver settings that made it (settings: "
+                         "nodes, stages, method, rtol, max_nodes, linear_solver, continuation) "
+                         "as JSON; solve OUT.json solves it again on the nodes and stages it "
+                         "records",
                 csv="write the nodal arrays (s, r, z, psi, strains, ...) as CSV",
                 plot="write a cross-section plot")
     p.set_defaults(run=_solve)
@@ -89,8 +92,9 @@ def register(sub) -> None:
                                    "the ablation (lower bounds, as they are), or a note says "
                                    "why not.")
     _common(p)
-    add_outputs(p, json="write both equilibria, the observables and their estimated errors "
-                         "(errors, relative_errors) as JSON; of a fit's JSON also the fit's "
+    add_outputs(p, json="write both equilibria (pre, post), the observables, their estimated "
+                         "errors (errors, relative_errors) and the solver settings (settings, "
+                         "as solve's) as JSON; of a fit's JSON also the fit's "
                          "errors (se_<name>) and what they are (fit_error_note)",
                 csv="write the observables and their errors (<name>_error; of a fit's JSON "
                     "also the fit's, se_<name>) as a one-row CSV",
@@ -99,11 +103,13 @@ def register(sub) -> None:
 
 
 def _load(args):
-    """Problem, method and solver options from the file, --set and the options; all checked."""
+    """Problem, method and solver options from the file, --set and the options; all checked.
+    A result's JSON is solved with the settings it records (a note says which)."""
     problem, settings = problem_and_settings(args.problem, args.overrides)
     nodes = settings.nodes if args.nodes is None else args.nodes
     stages = settings.stages if args.stages is None else args.stages
     method = args.method or settings.method
+    _note_recorded(args, nodes, stages)
     if method == "direct":
         options = {"stages": stages, "linear_solver": args.linear_solver, "rtol": args.rtol,
                    "continuation": args.continuation}
@@ -120,6 +126,36 @@ def _load(args):
                              "direct method")
         options = {}
     return problem, method, nodes, options
+
+
+def _note_recorded(args, nodes: int, stages: int) -> None:
+    """Say on which mesh a result's JSON is solved: as it records, by the options, or (a
+    file that records none, or other results) by the defaults, which may not reproduce it."""
+    from ..io.problem_files import recorded_solver
+
+    record = _record_of(args.problem)
+    if not record:
+        return
+    recorded = recorded_solver(record)
+
+    def said(name, given):
+        return (f"--{name}" if given is not None else "as recorded" if name in recorded
+                else "the default")
+    text = (f"{args.problem}: solved on {nodes} nodes ({said('nodes', args.nodes)}), stages "
+            f"{stages} ({said('stages', args.stages)})")
+    if not recorded:
+        text += ("; the file records no solver settings (a result written before they were "
+                 "recorded, or not by solve, ablate or fit): it may have been solved otherwise")
+    note(text)
+
+
+def solve_settings(method: str, nodes: int, options: dict) -> dict:
+    """What ``solve``/``ablate --json`` record of the options that change the numbers:
+    ``nodes`` (of the first mesh), ``method`` and, direct, ``stages``, ``rtol``,
+    ``max_nodes``, ``linear_solver`` and ``continuation``. ``morphoshell solve`` of the JSON
+    reuses nodes, stages and method (:func:`~morphoshell.io.problem_files.recorded_solver`)."""
+    return {"nodes": nodes, "method": method, "stages": None, "rtol": None, "max_nodes": None,
+            **options}
 
 
 def _label(problem) -> str:
@@ -143,6 +179,7 @@ def _solve(args) -> int:
     from ..solvers.results import FIELDS
 
     problem, method, nodes, options = _load(args)
+    settings = solve_settings(method, nodes, options)
     eq = solve(problem, nodes=nodes, method=method, **options)
     if method == "direct":
         _check_fitted(eq, _record_of(args.problem), args.problem)
@@ -159,7 +196,8 @@ def _solve(args) -> int:
     print(f"  max |eta|       = {abs(eq.eta).max():.4g} (dimensionless)")
     _report_quality(eq)
     out = Outputs()
-    out.add(args.json, lambda path: write_json(path, eq.to_dict()))
+    out.add(args.json, lambda path: write_json(path, {**eq.to_dict(), "settings": settings},
+                                                [args.problem]))
     out.add(args.csv, lambda path: write_csv(path, {k: getattr(eq, k) for k in FIELDS}))
     if args.plot:
         from ..plotting import new_axes, plot_cross_section, save
@@ -320,7 +358,9 @@ def _ablate(args) -> int:
         note(f"{args.problem}: {fit.note}")
     columns = fit.columns() if fit is not None else {}
     out = Outputs()
-    out.add(args.json, lambda path: write_json(path, _ablation_json(ab, source, fit)))
+    settings = solve_settings(method, nodes, options)
+    out.add(args.json, lambda path: write_json(path, {**_ablation_json(ab, source, fit),
+                                                      "settings": settings}, [args.problem]))
     out.add(args.csv, lambda path: write_csv(path, {**problem.describe()["params"],
                                                     "h": problem.h, "cut": problem.cut,
                                                     # "opening" is the observable o below

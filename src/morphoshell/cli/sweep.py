@@ -229,7 +229,7 @@ def _sweep(args) -> int:
     _print_table(result, problem, nodes, args)
     out = Outputs()
     out.add(args.csv, lambda path: write_csv(path, result.columns))
-    out.add(args.json, lambda path: write_json(path, result.to_dict()))
+    out.add(args.json, lambda path: write_json(path, result.to_dict(), [args.problem]))
     for path in out.commit():
         print(f"  wrote {path}")
     if result.failed:

@@ -16,6 +16,7 @@ and confidence they come from: an edit of one is refused, by name.
 """
 from __future__ import annotations
 
+import logging
 import math
 from pathlib import Path
 from typing import Any, Mapping
@@ -28,6 +29,8 @@ from .bilevel import METHODS
 from .profile_noise import NOISE_SOURCES, threshold_quantile
 from .profile_retry import Retry, crossings
 from .profiles import LOWER, Profile, is_flat
+
+log = logging.getLogger(__name__)
 
 __all__ = ["load_profiles", "profile_from_dict"]
 
@@ -55,6 +58,8 @@ def load_profiles(path: str | Path) -> dict[str, Profile]:
     -------
     dict of str to Profile
         By parameter name, in the file's order (empty when the fit was not profiled).
+        Of a run cut short (``"complete": false``) the finished ones, with a warning
+        naming those not done.
 
     Raises
     ------
@@ -74,6 +79,11 @@ def load_profiles(path: str | Path) -> dict[str, Profile]:
     if not isinstance(profiles, dict):
         raise ValueError(f"{path}: expected the JSON object of morphoshell fit --json, its "
                          f"'profiles' an object of profiles by parameter name")
+    if record.get("complete") is False:
+        # (audit 27 F11: a partial file read back as if its profiles were all asked for)
+        log.warning("%s: a run cut short (complete: false): %s; read the profiles it "
+                    "finished: %s", path, record.get("not_done") or "some not done",
+                    ", ".join(profiles) or "none")
     return {name: profile_from_dict(entry, f"{path}: profiles.{name}", name)
             for name, entry in profiles.items()}
 

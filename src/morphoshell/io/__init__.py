@@ -19,7 +19,8 @@ import lazy_loader
 __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "problem_files": ["ProblemFileError", "Settings", "load_problem", "parse_overrides",
         "apply_overrides", "split_overrides", "settings_from", "to_jsonable", "write_json",
-        "write_csv", "METHODS", "SOLVER_KEYS", "ALIASES", "problem_of_record"],
+        "write_csv", "METHODS", "SOLVER_KEYS", "ALIASES", "problem_of_record", "write_problem",
+        "problem_toml"],
     "example_problems": ["examples", "example_path", "example_text", "EXAMPLES_DIR"],
     "traces": ["FORMATS", "Trace", "Midline", "read_trace", "to_image", "write_trace"],
     "trace_checks": ["MidlineError"],

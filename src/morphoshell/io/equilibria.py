@@ -1,4 +1,5 @@
-"""Saved equilibria read back: the JSON of ``solve --json`` (:meth:`Equilibrium.to_dict`).
+"""Saved equilibria read back: the JSON of ``solve --json`` (:meth:`Equilibrium.to_dict`),
+and either state of ``ablate --json`` (``which="pre"`` or ``"post"``).
 
 A saved result holds its problem, its energy, how it was solved and every field at
 its points, but not the unknowns and multipliers of its mesh: read back, it is like
@@ -18,9 +19,14 @@ import numpy as np
 from ..solvers.refinement import error_estimate
 from ..solvers.results import FIELDS, Equilibrium, ErrorEstimate, SolverStats
 from .problem_files import problem_of_record, read_json
+from .provenance import note_unknown
 
 __all__ = ["load_equilibrium", "equilibrium_of_record"]
 
+#: The entries of a saved equilibrium (:meth:`Equilibrium.to_dict`, and what ``solve
+#: --json`` adds): others are not read, and :func:`load_equilibrium` warns of them.
+KNOWN = ("problem", "converged", "energy", "units", "solver", "error_estimate", "edge_start",
+         "edge_end", *FIELDS, "settings", "provenance")
 #: Entries of a saved solver block that are :class:`SolverStats` fields (the rest are details).
 _STATS = ("method", "iterations", "seconds", "status", "nodes", "build_seconds")
 #: Other results' JSON, told by their keys: (keys, what it is, what to use instead).  A sweep's
@@ -32,6 +38,9 @@ _OTHERS = (
     (("axes", "rows"), "a sweep's JSON",
      "its rows hold values at the grid's points, not shapes: save a point's shape with "
      "morphoshell solve PROBLEM --set KEY=VALUE --json (a sweep keeps none)"),
+    (("pre", "post"), "an ablation's JSON",
+     "it holds two equilibria: read one with load_equilibrium(path, which='pre') (the intact "
+     "shell) or which='post' (after the cut), or equilibrium_of_record(record['pre'])"),
     (("parameter", "points"), "a branch's JSON",
      "its points hold values along the branch, not shapes: in Python a point's shape is "
      "follow_branch(...).points[i].equilibrium (its to_dict() reads back here)"),
@@ -57,7 +66,8 @@ def equilibrium_of_record(record: Mapping[str, Any], where: str = "the record") 
     Raises
     ------
     ValueError
-        A fit's record, a sweep's or a branch's JSON, no problem, a missing or non-numeric
+        A fit's record, a sweep's, an ablation's or a branch's JSON, no problem, a missing
+        or non-numeric
         field, fields of different lengths, or points s not increasing (the entry named).
     """
     for keys, what, instead in _OTHERS:
@@ -108,16 +118,43 @@ def _error_estimate(record: Mapping[str, Any], eq: Equilibrium, where: str) -> E
                          f"(errors, nodes, reference_nodes, order)") from None
 
 
-def load_equilibrium(path: str | Path) -> Equilibrium:
-    """The equilibrium saved by ``solve --json`` (or :meth:`Equilibrium.to_dict`) at ``path``.
+#: The states of an ablation's JSON (``ablate --json``, :meth:`Ablation.to_dict`).
+_STATES = ("pre", "post")
+
+
+def load_equilibrium(path: str | Path, which: str | None = None) -> Equilibrium:
+    """The equilibrium saved by ``solve --json`` (or :meth:`Equilibrium.to_dict`) at ``path``,
+    or one state of an ablation saved by ``ablate --json``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The JSON file.
+    which : {"pre", "post"}, optional
+        For an ablation's JSON (keys ``pre`` and ``post``), which state: the intact shell
+        (``"pre"``) or the shell after the cut (``"post"``); required there, refused for
+        a file of one equilibrium.
 
     Raises
     ------
     ValueError
-        An unreadable file, not JSON, or a record :func:`equilibrium_of_record` refuses
-        (the file named).
+        An unreadable file, not JSON, an ablation's JSON without ``which`` (or ``which``
+        for another file), or a record :func:`equilibrium_of_record` refuses (the file
+        named).
     """
     data = read_json(path)
     if not isinstance(data, dict):
         raise ValueError(f"{path}: expected the JSON object written by morphoshell solve --json")
-    return equilibrium_of_record(data, str(path))
+    if which is None:
+        eq = equilibrium_of_record(data, str(path))
+        note_unknown(data, KNOWN, str(path), "load_equilibrium")
+        return eq
+    if which not in _STATES:
+        raise ValueError(f"which={which!r}: the state of an ablation's JSON is one of "
+                         f"{', '.join(map(repr, _STATES))}")
+    if not all(isinstance(data.get(k), dict) for k in _STATES):
+        raise ValueError(f"{path}: which={which!r} reads a state of an ablation's JSON (keys "
+                         f"pre and post, ablate --json); this file has none: leave which out")
+    eq = equilibrium_of_record(data[which], f"{path} ({which})")
+    note_unknown(data[which], KNOWN, f"{path} ({which})", "load_equilibrium")
+    return eq

@@ -34,7 +34,6 @@ here too; ``morphoshell example NAME`` prints one).
 """
 from __future__ import annotations
 
-import datetime as _dt
 import logging
 import math
 import sys
@@ -48,6 +47,7 @@ from ..model.problem import BASE_KEYS, Problem
 from ..solvers.direct import check_nodes
 from ..solvers.routes import METHODS
 from .example_problems import EXAMPLES_DIR, example_path, example_text, examples  # noqa: F401
+from .provenance import check_format, provenance
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -56,6 +56,7 @@ else:  # pragma: no cover - exercised on Python 3.10 only
 
 __all__ = ["ProblemFileError", "Settings", "load_problem", "parse_overrides", "apply_overrides",
            "split_overrides", "settings_from", "to_jsonable", "write_json", "write_csv", "METHODS",
+           "write_problem", "problem_toml",
            "SOLVER_KEYS", "ALIASES", "problem_of_record", "fit_source"]
 
 log = logging.getLogger(__name__)
@@ -143,20 +144,23 @@ def load_problem(path: str | Path) -> tuple[Problem, Settings]:
 
 def read_json(path: Path) -> Any:
     """The content of the JSON file ``path`` (a BOM allowed); ValueError naming the file
-    when it cannot be read or is not JSON."""
+    when it cannot be read, is not JSON or is of a newer format than this package reads
+    (:func:`morphoshell.io.provenance.check_format`)."""
     import json
 
     try:
-        return json.loads(Path(path).read_text(encoding="utf-8-sig"))
+        data = json.loads(Path(path).read_text(encoding="utf-8-sig"))
     except OSError as exc:
         raise ValueError(f"{path}: cannot read the file ({exc.strerror})") from None
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise ValueError(f"{path}: not valid JSON ({exc})") from None
+    check_format(data, str(path))
+    return data
 
 
 def _problem_from_json(path: Path) -> tuple[Problem, Settings]:
     """The problem of a result JSON (``solve --json``, ``fit --json``): its "problem" entry,
-    and the settings of a fit's (:func:`_fit_settings`)."""
+    and the solver settings it records (:func:`_recorded_settings`)."""
     try:
         data = read_json(path)
     except ValueError as exc:
@@ -165,21 +169,32 @@ def _problem_from_json(path: Path) -> tuple[Problem, Settings]:
         raise ProblemFileError(f"{path}: no 'problem' entry: expected the JSON written by "
                                f"morphoshell solve/ablate/fit --json")
     try:
-        return problem_of_record(data, str(path)), _fit_settings(path, data)
+        return problem_of_record(data, str(path)), _recorded_settings(path, data)
     except ValueError as exc:
         raise ProblemFileError(str(exc)) from None
 
 
-def _fit_settings(path: Path, data: Mapping[str, Any]) -> Settings:
-    """The [solver] table a fit's JSON records of its inner solves (``solver``: nodes, stages,
-    method), so that re-solving the fit solves it as it was fitted (it was solved at 200
-    nodes whatever the fit's), or a campaign's record its ``nodes``; defaults for other
-    results, whose ``solver`` reports a solve, and for fits written before it was recorded."""
-    table = data.get("solver")
-    if "fitted" not in data:
-        return Settings()
-    if not isinstance(table, Mapping):
-        table = {"nodes": data["nodes"]} if "nodes" in data else {}
+def recorded_solver(data: Mapping[str, Any]) -> dict[str, Any]:
+    """The [solver] entries (:data:`SOLVER_KEYS`) a result's JSON records of how it was solved:
+    a fit's ``solver`` table of its inner solves (nodes, stages, method) or a campaign
+    record's ``nodes``; a solve's or an ablation's ``settings`` (``solve``/``ablate --json``;
+    its other entries, rtol and the linear solver, are not a problem file's); ``{}`` for
+    other results, whose ``solver`` reports a solve, and for files written before these
+    were recorded."""
+    if "fitted" in data:
+        table = data.get("solver")
+        if not isinstance(table, Mapping):
+            table = {"nodes": data["nodes"]} if "nodes" in data else {}
+        return dict(table)
+    table = data.get("settings")
+    return {k: table[k] for k in SOLVER_KEYS if k in table} if isinstance(table, Mapping) else {}
+
+
+def _recorded_settings(path: Path, data: Mapping[str, Any]) -> Settings:
+    """The [solver] settings a result records (:func:`recorded_solver`), so that re-solving
+    it solves it as it was solved or fitted (it was solved at 200 nodes whatever the
+    record's), defaults where it records none."""
+    table = recorded_solver(data)
     unknown = sorted(set(table) - set(SOLVER_KEYS))
     if unknown:
         raise ValueError(f"{path}: unknown key(s) {unknown} in 'solver'; valid: "
@@ -439,24 +454,66 @@ def to_jsonable(obj: Any) -> Any:
     return obj
 
 
-def provenance() -> dict[str, str]:
-    """Versions and time, for reproducibility of written results."""
-    import casadi
-    import scipy
+def problem_toml(problem: Problem, settings: Settings | None = None) -> str:
+    """The text of a problem file of ``problem`` and its [solver] ``settings`` (defaults if
+    None), which :func:`load_problem` reads back to an equal problem and settings.
 
+    Every parameter of the family is written (none left to its default), floats as their
+    shortest repr (the same double read back), strings as TOML basic strings: the grammar
+    of a problem file is three flat tables of numbers and words, written by hand rather
+    than with a TOML library.
+    """
     from .. import __version__
-    return {"morphoshell": __version__, "casadi": casadi.__version__, "numpy": np.__version__,
-            "scipy": scipy.__version__, "python": sys.version.split()[0],
-            "written": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")}
+
+    settings = Settings() if settings is None else settings
+    head = {k: v for k, v in problem.describe().items() if k != "params"}
+    lines = [f"# written by morphoshell {__version__} (morphoshell.io.write_problem)",
+             "[problem]", *(f"{k} = {_toml_value(v)}" for k, v in head.items()),
+             "", "[parameters]",
+             *(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in problem.params.items()),
+             "", "[solver]", f"nodes = {int(settings.nodes)}",
+             f"method = {_toml_value(settings.method)}", f"stages = {int(settings.stages)}"]
+    return "\n".join(lines) + "\n"
 
 
-def write_json(path: str | Path, data: Mapping[str, Any]) -> Path:
-    """Write ``data`` (plus ``provenance``) as JSON, creating parent folders."""
+def write_problem(path: str | Path, problem: Problem, settings: Settings | None = None
+                  ) -> Path:
+    """Write ``problem`` (and ``settings``) as a problem file (:func:`problem_toml`),
+    creating parent folders; ``load_problem(path)`` gives them back."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(problem_toml(problem, settings), encoding="utf-8")
+    return path
+
+
+def _toml_key(key: str) -> str:
+    """A bare TOML key, or a quoted one where it has other characters."""
+    return key if key and all(c.isascii() and (c.isalnum() or c in "_-") for c in key) \
+        else _toml_value(key)
+
+
+def _toml_value(value: Any) -> str:
+    """A number or word as TOML: floats by repr (inf and nan as TOML spells them), strings
+    with JSON's escapes (TOML's basic strings share them)."""
+    import json
+
+    if isinstance(value, str):
+        return json.dumps(value)        # (ASCII: control characters and DEL escaped)
+    value = float(value)
+    return repr(value) if math.isfinite(value) else ("nan" if value != value else
+                                                      "inf" if value > 0 else "-inf")
+
+
+def write_json(path: str | Path, data: Mapping[str, Any], inputs: Sequence[str | Path] = ()
+               ) -> Path:
+    """Write ``data`` (plus ``provenance``, naming the ``inputs`` files read with their
+    SHA-256: :func:`morphoshell.io.provenance.provenance`) as JSON, creating parent
+    folders."""
     import json
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    payload = {**to_jsonable(data), "provenance": provenance()}
+    payload = {**to_jsonable(data), "provenance": provenance(inputs)}
     path.write_text(json.dumps(payload, indent=1) + "\n")
     return path
 

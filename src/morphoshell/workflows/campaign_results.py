@@ -21,6 +21,7 @@ from .._runtime.tables import xarray_module
 from ..fitting import VARIANTS
 from ..fitting.midline_checks import input_check
 from ..io.problem_files import problem_of_record
+from ..io.provenance import check_format
 from ..io.timepoints import Timepoint, read_timepoints
 from ..model.profiles import get_family
 from ..solvers.contact import WallContact
@@ -337,11 +338,15 @@ def result_path(out: Path, timepoint: str, variant: str) -> Path:
 
 
 def read_record(path: Path) -> dict | None:
-    """The record stored at ``path``, or None if there is none (missing, or not JSON)."""
+    """The record stored at ``path``, or None if there is none (missing, or not JSON).
+    ValueError naming it for a record of a newer format (:func:`~morphoshell.io.provenance.
+    check_format`): refitting it would overwrite what a newer version wrote."""
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
+        record = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
+    check_format(record, str(path))
+    return record
 
 
 def read_records(out: Path, keys: Iterable[tuple[str, str]]) -> dict:
@@ -364,15 +369,22 @@ def read_records(out: Path, keys: Iterable[tuple[str, str]]) -> dict:
     return records
 
 
-def load_campaign(out: str | Path, data_dir: str | Path) -> CampaignResult:
+def load_campaign(out: str | Path, data_dir: str | Path | None = None) -> CampaignResult:
     """The stored results of a campaign (no fitting): for figures and reports.
 
     Parameters
     ----------
     out : str or Path
         The campaign's output folder.
-    data_dir : str or Path
-        Its data set (:func:`morphoshell.io.timepoints.read_timepoints`).
+    data_dir : str or Path, optional
+        Its data set (:func:`morphoshell.io.timepoints.read_timepoints`); by default the
+        one the folder records (``campaign_settings.json``'s ``data``).
+
+    Raises
+    ------
+    ValueError
+        No ``data_dir`` and a folder that records none, or records one that is not there
+        (moved: give ``data_dir``).
 
     Returns
     -------
@@ -380,11 +392,27 @@ def load_campaign(out: str | Path, data_dir: str | Path) -> CampaignResult:
         The records found, the variants that have any (in the order of
         :data:`morphoshell.fitting.spec.VARIANTS`); no timing.
     """
+    if data_dir is None:
+        data_dir = recorded_data(Path(out))
     timepoints = read_timepoints(data_dir)
     out = Path(out)
     records = read_records(out, [(tp.name, v) for v in VARIANTS for tp in timepoints])
     variants = tuple(dict.fromkeys(v for _, v in records))
     return CampaignResult(out, timepoints, variants, records, data_dir=Path(data_dir))
+
+
+def recorded_data(out: Path) -> Path:
+    """The data folder a campaign's output folder ``out`` records (ValueError naming the
+    settings file when it records none or one that is not a folder)."""
+    path = out / SETTINGS
+    data = (read_record(path) or {}).get("data")
+    if not isinstance(data, str):
+        raise ValueError(f"{path}: no data folder recorded (not a campaign's output folder?): "
+                         f"give the data folder, load_campaign(out, data_dir)")
+    if not Path(data).is_dir():
+        raise ValueError(f"{path}: the recorded data folder {data} is not there (moved?): give "
+                         f"it, load_campaign(out, data_dir)")
+    return Path(data)
 
 
 def record_contact(rec: dict, where: str = "the record") -> WallContact | None:

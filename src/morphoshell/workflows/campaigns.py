@@ -280,11 +280,13 @@ def _check_settings(out: Path, settings: dict, force: bool) -> dict:
 
 
 def _note_versions(path: Path, recorded: dict | None) -> None:
-    """Warn when the folder's campaign was run with other package versions: its stored fits
-    are reused (their records say which versions made them), which may not be wanted."""
+    """Warn when the folder's campaign was run with other package versions or another git
+    commit (the version string stays while commits change numbers): its stored fits are
+    reused (their records say which versions made them), which may not be wanted."""
     now = record_provenance()
     changed = [f"{k} {(recorded or {}).get(k, 'unknown')} -> {v}" for k, v in now.items()
-               if k in ("morphoshell", "casadi", "numpy") and (recorded or {}).get(k) != v]
+               if k in ("morphoshell", "git_commit", "casadi", "numpy")
+               and (recorded or {}).get(k) != v]
     if changed:
         log.warning("%s: the folder's fits were made with other versions (%s); they are "
                     "reused as they are (resume=False, --no-resume, refits them)",

@@ -35,6 +35,7 @@ from typing import Any, Callable, Iterator, Mapping, Sequence
 
 from .._runtime import interrupts
 from .._runtime.console import counter
+from ..io.provenance import check_format
 from ..numerics.status import STATUSES
 from .executor import backend_name, open_executor, run
 from .sweep_results import NOT_COMPUTED, SweepResult, axis_column, point_label
@@ -336,6 +337,7 @@ def _read_json(path: Path) -> tuple[dict, list[dict]]:
         raise _not_utf8(path, exc) from None
     except ValueError:
         raise ValueError(f"{path}: not JSON") from None
+    check_format(data, str(path))
     if not isinstance(data, dict):
         raise ValueError(f"{path}: not a sweep's JSON (a {type(data).__name__} at the top, "
                          f"not an object): nothing to resume")

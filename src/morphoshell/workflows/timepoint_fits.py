@@ -40,6 +40,7 @@ from ..fitting import FitError, FitResult, fit, volvox_spec
 from ..fitting.multistart import FOLD_GAIN, continue_once, start_from
 from ..inverse.summaries import t_quantile
 from ..io import Midline, average
+from ..io.provenance import sha256_of
 from ..io.timepoints import Timepoint
 from ..model.problem import Problem
 from ..numerics.mesh import mesh_spec
@@ -99,10 +100,6 @@ class CampaignTask:
     owner: tuple | None = None
 
 
-def _sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
-
-
 #: Entries of a record that label its fit but do not change it: left out of the digest that
 #: chains a fit to the previous one (``previous``), so that a corrected pseudotime or another
 #: package version updates the labels of stored fits instead of refitting every later one.
@@ -120,10 +117,10 @@ def _digest(record: dict, labels: Sequence[str] = _LABELS) -> str:
     return hashlib.sha256(json.dumps(kept, sort_keys=True).encode()).hexdigest()
 
 
-def record_provenance() -> dict[str, str]:
-    """The versions a campaign's fit was made with (no date: a resumed campaign writes the
-    same bytes as an uninterrupted one)."""
-    from ..io.problem_files import provenance
+def record_provenance() -> dict[str, object]:
+    """The versions and git commit a campaign's fit was made with (no date: a resumed
+    campaign writes the same bytes as an uninterrupted one)."""
+    from ..io.provenance import provenance
 
     return {k: v for k, v in provenance().items() if k != "written"}
 
@@ -157,13 +154,13 @@ def _settings(task: CampaignTask, tp: Timepoint, prev: dict | None) -> dict:
     """
     settings = {"method": task.method, "nodes": task.nodes,
                 "data": {"file": tp.midline,
-                         "sha256": _sha256(Path(task.data_dir) / tp.midline)},
+                         "sha256": sha256_of(Path(task.data_dir) / tp.midline)},
                 "first_start": task.start,
                 "previous": None if prev is None else _digest(prev)}
     if task.held_from is not None and task.variant != "free":
         settings["held_from"] = task.held_from
     if task.embryo_errors:
-        settings["traces"] = [{"file": v, "sha256": _sha256(Path(task.data_dir) / v)}
+        settings["traces"] = [{"file": v, "sha256": sha256_of(Path(task.data_dir) / v)}
                               for v in tp.traces]
     return settings
 
