@@ -268,8 +268,10 @@ def _fit(args) -> int:
               f"* the lowest E_fit, the fit above):\n{starts.table()}")
     before, profiles, not_done = result, {}, None
     if names:
-        inflation = _inflation(result)
-        result, profiles, not_done = _profiled(args, spec, data, result, names, inflation)
+        from ..fitting.trace_errors import fit_inflation
+
+        result, profiles, not_done = _profiled(args, spec, data, result, names,
+                                               fit_inflation(result))
         if result is not before:        # (the fit was not its minimum: the refit is the fit)
             result = _trace_errors(result, retraced)    # (the same data: the same re-tracings)
             print(refit_lines(before, result))
@@ -408,15 +410,6 @@ def _trace_errors(result, retraced):
         return result
     from ..fitting.trace_errors import with_trace_errors
     return with_trace_errors(result, retraced)
-
-
-def _inflation(result):
-    """The factors on a single trace's profile σ² (:func:`morphoshell.fitting.trace_errors.
-    profile_inflation`), or None where its errors are not the re-tracings'."""
-    if result.standard_errors_source != "re-tracings":
-        return None
-    from ..fitting.trace_errors import profile_inflation
-    return profile_inflation(result.re_tracings.gauss_newton, result.standard_errors)
 
 
 def _local_minimum_note(result) -> None:
