@@ -83,6 +83,11 @@ def test_one_traces_sigma2_is_scaled_as_kappa1s_profile():
     assert "times 9, kappa1's (SE of its trace's re-tracings / Gauss-Newton SE)^2" in \
         test.noise_line()
     assert test.to_dict()["sigma2_inflation"] == {"parameter": "kappa1", "factor": 9.0}
+    # a rejection on the scaled σ² names what that σ² leaves out
+    strong = {**fits, "free": retraced(audit_fits()["free"], {"kappa1": 2.0})}
+    summary = compare_hypotheses(strong).summary()
+    assert summary.endswith("unstressed; sigma^2 holds the trace's pixel noise only, "
+                            "not a hand's slow wiggles (compare fits of an average of traces)")
     assert plain.to_dict()["sigma2_inflation"] is None
 
 
