@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "fitting"))
-from hypothesis_cases import AUDIT_SIGMA2, audit_fits, points, spread_for  # noqa: E402
+from hypothesis_cases import AUDIT_SIGMA2, audit_fits, points, retraced, spread_for  # noqa: E402
 
 from morphoshell.cli import main  # noqa: E402
 from morphoshell.io import Midline  # noqa: E402
@@ -55,6 +55,24 @@ def test_compare_without_the_midline_file_takes_the_residual(fits, tmp_path, cap
     assert out.startswith("note: average.csv (the fits' midline_file) is not a file here")
     assert "only flat is consistent with the data; rejected: undeformed, unstressed" in out
     assert "a rejection may be that noise" in out
+
+
+def test_compare_of_one_image_traces_fits_scales_the_residual(fits, tmp_path, capsys):
+    """The fits of one image trace (fit --pixel-size: the free fit's record carries its
+    re-tracings): σ² is the residual's times κ₁'s factor, as its profile, and the line and
+    the JSON say so; at a factor of 9 none of the three is rejected (the residual alone
+    rejected undeformed and unstressed)."""
+    (tmp_path / "average.csv").unlink()
+    record = json.loads((tmp_path / "fit_free.json").read_text())
+    free = retraced(audit_fits()["free"], {"kappa1": 9.0})
+    (tmp_path / "fit_free.json").write_text(json.dumps({**record, **free.to_dict()}))
+    assert main(["compare", *fits, "--json", "c.json"]) == 0
+    out = capsys.readouterr().out
+    assert "from the free fit's residual times 9, kappa1's (SE of its trace's re-tracings" in out
+    assert "a rejection may be" not in out and "rejected" not in out
+    data = json.loads((tmp_path / "c.json").read_text())
+    assert data["sigma2_source"] == "residual, scaled by the trace's re-tracings"
+    assert data["sigma2_inflation"] == {"parameter": "kappa1", "factor": 9.0}
 
 
 @pytest.mark.parametrize("edit, args, message", [

@@ -271,6 +271,46 @@ def test_fit_reads_a_roi_manager_set(tmp_path, capsys, monkeypatch):
     assert seen[-1].source == (f"{path}, ROI 'embryo3'",)
 
 
+def test_fit_of_a_roi_set_takes_a_radius_per_line_roi(tmp_path, capsys, monkeypatch, fiji_xy):
+    """fit --roi all took one --radius-um for every embryo of a set, where average takes one
+    per line ROI: now fit does too (average's parsing), each ROI scaled by its own; several
+    radii for one trace, or a count other than the set's line ROIs, are refused naming the
+    option, before any work."""
+    import sys
+
+    import morphoshell.fitting as fitting
+    from morphoshell.fitting import FitError
+    from morphoshell.io import load_midline
+
+    sys.path.insert(0, str(ROOT / "tests" / "io"))
+    from test_roi_sets import _roi_set
+    from reference_midline import SCALE
+
+    path, radii = _roi_set(tmp_path, others=False), [SCALE["radius_um"] * f for f in (1.0, 1.03, 0.97)]
+    seen = []
+
+    def fake_fit(spec, midline, *args, **kwargs):
+        seen.append(midline)
+        raise FitError("stopped here", "Maximum_Iterations_Exceeded")
+
+    monkeypatch.setattr(fitting, "fit", fake_fit)
+    assert main(["fit", str(path), "--variant", "flat", "--roi", "all", "--pixel-size",
+                 str(SCALE["pixel_size_um"]), "--radius-um", ",".join(map(str, radii))]) == 3
+    expected = load_midline(path, roi="all", pixel_size_um=SCALE["pixel_size_um"],
+                            radius_um=radii)
+    one = load_midline(path, roi="all", **SCALE)
+    # (the same reader on the same radii: to the bit; one radius for all differs by 1e-3 R)
+    assert np.array_equal(seen[-1].points, expected.points)
+    assert not np.allclose(seen[-1].points, one.points, atol=1e-4)
+    capsys.readouterr()
+    scale = ["--pixel-size", str(SCALE["pixel_size_um"])]
+    _refused(["fit", str(path), "--variant", "flat", "--roi", "all", *scale,
+              "--radius-um", "50,52"], capsys, tmp_path, "--radius-um has 2 radii for the 3 line")
+    _refused(["fit", str(fiji_xy), "--variant", "flat", "--pixel-size", str(PIXEL_UM),
+              "--radius-um", "43,44"], capsys, tmp_path,
+             "--radius-um lists radii, one per line ROI of a ROI Manager set")
+
+
 def test_a_trace_drawn_out_and_back_is_refused_in_one_line(fiji_xy, capsys, tmp_path):
     """The trace followed by its reverse (audit 13, F5) failed with "cannot convert float NaN
     to integer"; now one line names the file and where it turns, before any work."""

@@ -52,3 +52,18 @@ def spread_for(sigma2: float, n_traces: int = 5, n: int = N) -> np.ndarray:
     spread = np.full(n, np.sqrt(sigma2 * n_traces))
     spread[0] = 0.0         # (the pole: the gauge's origin, no spread)
     return spread
+
+
+def retraced(fit: FitResult, factors: dict) -> FitResult:
+    """``fit`` as ``morphoshell fit --pixel-size`` leaves a fit of one image trace: its
+    standard errors its re-tracings' (Gauss–Newton ones × √factor per parameter, 1 for the
+    others), the Gauss–Newton ones recorded (:class:`~morphoshell.fitting.trace_errors.
+    Retracings`)."""
+    from dataclasses import replace
+
+    from morphoshell.fitting.trace_errors import Retracings
+
+    gauss_newton = dict(fit.standard_errors)
+    sandwich = {n: e * np.sqrt(factors.get(n, 1.0)) for n, e in gauss_newton.items()}
+    return replace(fit, standard_errors=sandwich,
+                   re_tracings=Retracings(100, 0, 0.004, 0.5, 0, gauss_newton))

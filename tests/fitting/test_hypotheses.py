@@ -5,9 +5,10 @@ import math
 import numpy as np
 import pytest
 
-from hypothesis_cases import AUDIT_E_FIT, AUDIT_SIGMA2, audit_fits, fit_of, points, spread_for
+from hypothesis_cases import (AUDIT_E_FIT, AUDIT_SIGMA2, audit_fits, fit_of, points, retraced,
+                              spread_for)
 from morphoshell.fitting.hypotheses import compare_hypotheses
-from morphoshell.fitting.profile_noise import threshold_quantile
+from morphoshell.fitting.profile_noise import RETRACED, parameter_noise, threshold_quantile
 from morphoshell.io import Midline
 
 
@@ -57,6 +58,54 @@ def test_without_traces_the_residual_and_chi2():
     assert test.sigma2 == AUDIT_E_FIT["free"] ** 2 / (200 - 13)
     assert test.hypotheses[1].threshold == pytest.approx(3.8415, abs=1e-4)
     assert "residual" in test.noise_line() and "chi2_1" in test.noise_line()
+
+
+def test_one_traces_sigma2_is_scaled_as_kappa1s_profile():
+    """A free fit of one image trace with its re-tracings' errors (κ₁'s 3× the Gauss–Newton
+    one, f₁'s 2×): σ² is the residual's × 9, κ₁'s factor, the σ² of κ₁'s profile
+    (parameter_noise), for fits and for their records alike; ΔS/σ² is 9× smaller, so that
+    undeformed and unstressed, rejected on the residual's σ², are consistent (the docs'
+    embryo 1: flat rejected at 32.8 on the residual)."""
+    fits = {**audit_fits(), "free": retraced(audit_fits()["free"], {"kappa1": 9.0, "f1": 4.0})}
+    plain = compare_hypotheses(audit_fits())
+    for given in (fits, {v: f.to_dict() for v, f in fits.items()}):
+        test = compare_hypotheses(given)
+        assert test.sigma2_source == RETRACED and test.inflation == ("kappa1", 9.0)
+        # (the same product of the same numbers: to round-off)
+        assert test.sigma2 == pytest.approx(9.0 * plain.sigma2, rel=1e-12)
+        profile = parameter_noise(points(), AUDIT_E_FIT["free"] ** 2, 13, "auto",
+                                  {"kappa1": 9.0, "f1": 4.0}, "kappa1")
+        assert (test.sigma2, test.sigma2_source, test.dof) == pytest.approx(profile)
+        assert [h.ratio for h in test.hypotheses] == pytest.approx(
+            [h.ratio / 9.0 for h in plain.hypotheses], rel=1e-12)
+    assert plain.of("rejected") == ["undeformed", "unstressed"]
+    assert test.of("rejected") == [] and "a rejection may be" not in test.summary()
+    assert "times 9, kappa1's (SE of its trace's re-tracings / Gauss-Newton SE)^2" in \
+        test.noise_line()
+    assert test.to_dict()["sigma2_inflation"] == {"parameter": "kappa1", "factor": 9.0}
+    # a rejection on the scaled σ² names what that σ² leaves out
+    strong = {**fits, "free": retraced(audit_fits()["free"], {"kappa1": 2.0})}
+    summary = compare_hypotheses(strong).summary()
+    assert summary.endswith("unstressed; sigma^2 holds the trace's pixel noise only, "
+                            "not a hand's slow wiggles (compare fits of an average of traces)")
+    assert plain.to_dict()["sigma2_inflation"] is None
+
+
+def test_re_tracings_do_not_scale_the_traces_sigma2_or_four_restrictions():
+    """σ² from an average's traces needs no factor; hypotheses that restrict κ₁, f₁, κ₃ and
+    κ₄ (a campaign's later timepoints) have no single factor: σ² stays the residual's (not
+    calibrated: the summary's caveat)."""
+    free = retraced(audit_fits()["free"], {"kappa1": 9.0})
+    test = compare_hypotheses({**audit_fits(), "free": free}, _average())
+    assert test.sigma2_source == "traces" and test.inflation is None
+    fits = {"free": free, "flat": fit_of("flat", 0.0053, held=("f1", "kappa3", "kappa4"))}
+    test = compare_hypotheses(fits)
+    assert test.sigma2_source == "residual" and test.inflation is None
+    assert test.sigma2 == AUDIT_E_FIT["free"] ** 2 / (200 - 13)
+    assert "a rejection may be that noise" in test.summary()
+    # (one hypothesis of each kind: no one factor either)
+    mixed = {**fits, "undeformed": fit_of("undeformed", 0.0050)}
+    assert compare_hypotheses(mixed).inflation is None
 
 
 def test_held_values_count_as_restrictions():

@@ -13,7 +13,7 @@ from ._outputs import output_path
 __all__ = ["integer", "real", "micrometres", "add_outputs", "TRACE_OPTIONS", "SOLVER_OPTIONS",
            "FORMAT_HELP",
            "SECTION_HELP", "OUTLIER_POINTS_HELP", "problem_and_settings", "reworded",
-           "reader_notes", "linear_solver", "family_keys", "scale_hint"]
+           "reader_notes", "linear_solver", "family_keys", "scale_hint", "micrometre_list"]
 
 
 #: The Python arguments that the messages of morphoshell.io name, as the command line spells
@@ -144,7 +144,7 @@ def reader_notes() -> Iterator[list[str]]:
         logger.propagate = saved[1]
 
 
-def scale_hint(path, fmt: str | None, pixel_size: float, radius: float,
+def scale_hint(path, fmt: str | None, pixel_size: float, radius: float | list[float],
                whose: str = "the embryo's") -> Callable[[float, tuple[float, float]], str]:
     """What the message of a midline too long or short for the model asks of an image trace
     (``fitting.check_midline``'s ``scale_hint``): the options that set its scale, or the
@@ -164,13 +164,15 @@ def scale_hint(path, fmt: str | None, pixel_size: float, radius: float,
         The trace file.
     fmt : str or None
         ``--format``.
-    pixel_size, radius : float
-        ``--pixel-size`` and ``--radius-um`` (of this trace).
+    pixel_size : float
+        ``--pixel-size``.
+    radius : float or list of float
+        ``--radius-um`` of this trace, or the radii of a set's line ROIs averaged into it.
     whose : str
         Whose radius, for the question.
     """
     question = (f"is --pixel-size {pixel_size:g} the size of a pixel in µm (Fiji: Image › "
-                f"Properties), and --radius-um {radius:g} {whose} radius R in µm?")
+                f"Properties), and --radius-um {_radii_text(radius)} {whose} radius R in µm?")
 
     def hint(length: float, allowed: tuple[float, float]) -> str:
         at_one = length / pixel_size                # (the length scales with the pixel size)
@@ -251,12 +253,26 @@ def linear_solver(text: str) -> str:
 linear_solver.__name__ = "linear solver"
 
 
+def _radii_text(radius: float | list[float]) -> str:
+    """A radius, or a set's radii, as ``--radius-um`` takes them (comma-separated)."""
+    return ",".join(f"{r:g}" for r in (radius if isinstance(radius, list) else [radius]))
+
+
 def micrometres(text: str) -> float:
     """A length in µm of an image's scale (a pixel's size, an embryo's radius): in (0, 10⁶]."""
     return real(0, 1e6, open_lo=True, unit=" um")(text)
 
 
 micrometres.__name__ = "number"
+
+
+def micrometre_list(text: str) -> list[float]:
+    """``--radius-um`` of the commands that read several traces (average; fit of a ROI set's
+    ``--roi all``): one radius in µm, or several separated by commas."""
+    return [micrometres(part.strip()) for part in text.split(",")]
+
+
+micrometre_list.__name__ = "number"
 
 
 def add_executor(p: argparse.ArgumentParser, default_workers: str) -> None:

@@ -13,7 +13,7 @@ import re
 from pathlib import Path
 
 from ._args import (FORMAT_HELP, OUTLIER_POINTS_HELP, SECTION_HELP, TRACE_OPTIONS, add_outputs,
-                    micrometres, note, reader_notes, reworded, scale_hint)
+                    micrometre_list, micrometres, note, reader_notes, reworded, scale_hint)
 from ._commands import help_of
 from ._outputs import Outputs
 
@@ -24,11 +24,6 @@ __all__ = ["register", "OUTLIER_RATIO"]
 #: on the shipped synthetic stages (12 × 5 traces) every trace lies within 2.4 times the
 #: median, and one read 5 % off in scale at 13-37 times (io.midlines.trace_distances).
 OUTLIER_RATIO = 5.0
-
-
-def _radii(text: str) -> list[float]:
-    """``--radius-um``: one radius in µm, or one per TRACE separated by commas."""
-    return [micrometres(part.strip()) for part in text.split(",")]
 
 
 def register(sub) -> None:
@@ -55,7 +50,8 @@ def register(sub) -> None:
     p.add_argument("--pixel-size", dest="pixel_size", type=micrometres, default=None,
                    metavar="UM", help="image traces: micrometres per pixel "
                    "(Fiji: Image > Properties > Pixel width); required with --radius-um")
-    p.add_argument("--radius-um", dest="radius_um", type=_radii, default=None, metavar="R[,R...]",
+    p.add_argument("--radius-um", dest="radius_um", type=micrometre_list, default=None,
+                   metavar="R[,R...]",
                    help="image traces: the embryo's radius R in micrometres, the unit of "
                         "lengths: one for every TRACE, one per TRACE in their order (the "
                         "ROIs of a set share its file's), or one per trace, each line ROI of "

@@ -3,7 +3,8 @@
 The fits' JSON files (``morphoshell fit --json``) of one midline, tested against the
 free fit by :func:`morphoshell.fitting.hypotheses.compare_hypotheses`; σ² from the spread
 of the traces of the averaged midline they were fitted to, read again from their
-``midline_file`` with the options that read it for the fits.
+``midline_file`` with the options that read it for the fits, or from the free fit's residual
+(for one image trace scaled by its re-tracings, as κ₁'s profile).
 """
 from __future__ import annotations
 
@@ -22,9 +23,12 @@ undeformed, unstressed: free with kappa1 tied) to one midline. Each is tested ag
 free fit, which nests it: Delta S = E_fit^2 - E_free^2 (units of R^2) over the noise
 variance sigma^2 is chi2_d at a true hypothesis of d restrictions, or d*F(d, n - 1) with
 sigma^2 from the spread of n traces (the threshold of the profile intervals, fit --profile).
-A hypothesis above its threshold is rejected, else consistent with the data; the E_fit
-ranking of consistent ones is noise. Without a free fit the others are compared with the
-best, without a test. The fits must be of the same midline points, shell and mesh."""
+On one image trace (fit --pixel-size) sigma^2 is the free fit's residual's times kappa1's
+(SE of the re-tracings / Gauss-Newton SE)^2, as kappa1's profile takes it (the residuals of
+a trace are correlated). A hypothesis above its threshold is rejected, else consistent with
+the data; the E_fit ranking of consistent ones is noise. Without a free fit the others are
+compared with the best, without a test. The fits must be of the same midline points, shell
+and mesh."""
 
 
 def _noise(text: str) -> str | float:
@@ -55,7 +59,8 @@ def register(sub) -> None:
     p.add_argument("--noise", type=_noise, default="auto", metavar="SOURCE",
                    help="where sigma^2 comes from: traces (the averaged midline's spread of n "
                         "traces; threshold d*F(d, n-1)), residual (the free fit's; chi2_d; "
-                        "smaller than a traced midline's noise: rejects too readily), or a "
+                        "on one image trace times kappa1's re-tracing factor, as its profile; "
+                        "else smaller than a traced midline's noise: rejects too readily), or a "
                         "number (sigma^2 in R^2); auto (default): traces when the midline "
                         "has them, else residual")
     add_outputs(p, json="write the comparison as JSON (sigma^2, each fit's Delta S, "

@@ -4,7 +4,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from ._args import (FORMAT_HELP, OUTLIER_POINTS_HELP, SECTION_HELP, TRACE_OPTIONS, add_outputs,
-                    integer, micrometres, note, reader_notes, reworded, scale_hint)
+                    integer, micrometre_list, micrometres, note, reader_notes, reworded,
+                    scale_hint)
 from ._commands import help_of
 from ._outputs import Outputs, kept_in
 from ._profiles import (add_profile_options, profile_data, profile_json, profile_names,
@@ -41,9 +42,11 @@ def register(sub) -> None:
                    default=None, metavar="UM", help="image traces: micrometres per pixel "
                    "(Fiji: Image > Properties > Pixel width; 1 if the trace was exported in "
                    "calibrated um); required with --radius-um")
-    p.add_argument("--radius-um", dest="radius_um", type=micrometres,
-                   default=None, metavar="R", help="image traces: the embryo's radius R in "
-                   "micrometres, the unit of lengths; required with --pixel-size")
+    p.add_argument("--radius-um", dest="radius_um", type=_radius, default=None,
+                   metavar="R[,R...]", help="image traces: the embryo's radius R in "
+                   "micrometres, the unit of lengths; required with --pixel-size. A ROI "
+                   "set's --roi all takes one for every line ROI or one per line ROI in the "
+                   "set's order, comma-separated (as morphoshell average)")
     p.add_argument("--roi", default=None, metavar="NAME|INDEX|all",
                    help="a ROI Manager set (RoiSet.zip, from ROI Manager > More > Save): the "
                         "line ROI to fit, by its name in the ROI Manager's list or its position "
@@ -171,6 +174,16 @@ def _options(names, given: dict, start: Path | None) -> str:
     return ", ".join(named) or "--set/--start"
 
 
+def _radius(text: str) -> float | list[float]:
+    """``--radius-um``: one radius in µm, or one per line ROI of a set's ``--roi all``
+    (average's parsing; the reader refuses several for one trace, naming the option)."""
+    values = micrometre_list(text)
+    return values[0] if len(values) == 1 else values
+
+
+_radius.__name__ = "number"
+
+
 def load_checked(args, spec, n: int):
     """The midline of ``args.midline`` (n points), refused unless ``spec``'s shell can fit it.
 
@@ -190,7 +203,8 @@ def load_checked(args, spec, n: int):
     except MidlineError as exc:
         raise MidlineError(reworded(str(exc), TRACE_OPTIONS)) from None
     if args.pixel_size is not None:          # (an image trace: the loader required both)
-        hint = scale_hint(args.midline, args.format, args.pixel_size, args.radius_um)
+        hint = scale_hint(args.midline, args.format, args.pixel_size, args.radius_um,
+                          "each embryo's" if isinstance(args.radius_um, list) else "the embryo's")
     else:
         hint = ("are its r and z in units of R, the embryo's radius (µm divided by the radius "
                 "in µm; a trace in pixels needs --format xy with --pixel-size and --radius-um)?")
@@ -260,8 +274,10 @@ def _fit(args) -> int:
               f"* the lowest E_fit, the fit above):\n{starts.table()}")
     before, profiles, not_done = result, {}, None
     if names:
-        inflation = _inflation(result)
-        result, profiles, not_done = _profiled(args, spec, data, result, names, inflation)
+        from ..fitting.trace_errors import fit_inflation
+
+        result, profiles, not_done = _profiled(args, spec, data, result, names,
+                                               fit_inflation(result))
         if result is not before:        # (the fit was not its minimum: the refit is the fit)
             result = _trace_errors(result, retraced)    # (the same data: the same re-tracings)
             print(refit_lines(before, result))
@@ -401,15 +417,6 @@ def _trace_errors(result, retraced):
         return result
     from ..fitting.trace_errors import with_trace_errors
     return with_trace_errors(result, retraced)
-
-
-def _inflation(result):
-    """The factors on a single trace's profile σ² (:func:`morphoshell.fitting.trace_errors.
-    profile_inflation`), or None where its errors are not the re-tracings'."""
-    if result.standard_errors_source != "re-tracings":
-        return None
-    from ..fitting.trace_errors import profile_inflation
-    return profile_inflation(result.re_tracings.gauss_newton, result.standard_errors)
 
 
 def _local_minimum_note(result) -> None:

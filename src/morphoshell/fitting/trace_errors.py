@@ -60,7 +60,7 @@ from ..io.traces import Trace, to_image
 
 __all__ = ["TRACE_REPLICATES", "MAX_REFUSED", "ReaderErrors", "Retracings", "reader_errors",
            "sandwich_errors", "with_trace_errors", "single_trace", "trace_retracings",
-           "with_trace_file_errors", "profile_inflation"]
+           "with_trace_file_errors", "profile_inflation", "fit_inflation"]
 
 #: Synthetic re-tracings per fit: the standard errors' own relative error is about 1/√(2B),
 #: 7 % (about 1.5 s on the 470 points of a whole section at 133 px per R).
@@ -369,3 +369,14 @@ def profile_inflation(gauss_newton: Mapping[str, float],
     return {name: (se / gauss_newton[name]) ** 2 for name, se in sandwich.items()
             if np.isfinite(se) and np.isfinite(gauss_newton.get(name, np.nan))
             and gauss_newton[name] > 0}
+
+
+def fit_inflation(result) -> dict[str, float] | None:
+    """:func:`profile_inflation` of a fit (a result or one read from its record) whose
+    standard errors are its trace's re-tracings' (``standard_errors_source``
+    ``"re-tracings"``); None for any other (its σ² needs no factor: an average's, or the
+    Gauss–Newton errors stand).  The factors of its profiles and of the test of hypotheses
+    against it (:mod:`morphoshell.fitting.hypotheses`)."""
+    if result.standard_errors_source != "re-tracings":
+        return None
+    return profile_inflation(result.re_tracings.gauss_newton, result.standard_errors)

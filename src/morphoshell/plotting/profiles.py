@@ -16,12 +16,18 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from .style import DOUBLE_COLUMN, SINGLE_COLUMN, journal_figure, panel_title, styled
+from .style import (DOUBLE_COLUMN, OKABE_ITO, SINGLE_COLUMN, journal_figure, panel_title,
+                    styled)
 
 __all__ = ["plot_profiles", "plot_profile", "parameter_label", "parameter_axis_label"]
 
 #: Panels side by side in :func:`plot_profiles` (three fit a double column).
 COLUMNS = 3
+#: The refits, those that did not converge and the interval, in the package's colours
+#: (:data:`~morphoshell.plotting.style.OKABE_ITO`: the tab10 blue, red and orange they were
+#: drawn in are not told apart by every reader).
+REFIT, NOT_CONVERGED, INTERVAL = (OKABE_ITO["blue"], OKABE_ITO["vermillion"],
+                                  OKABE_ITO["orange"])
 
 
 def parameter_label(name: str) -> str:
@@ -58,8 +64,8 @@ def plot_profile(profile, ax: Axes, *, legend: bool = True,
                  units: Mapping[str, str] | None = None) -> Axes:
     """One profile on ``ax``: E_fit² (R²) against the parameter.
 
-    The refits as dots (open red circles where they did not converge), the
-    threshold dashed, the interval shaded (to the panel's edge on an open
+    The refits as blue dots (open vermillion circles where they did not converge), the
+    threshold dashed, the interval shaded orange (to the panel's edge on an open
     side), the fit a black dot; the title names the parameter and says when
     the data do not determine it (broken to the width of a caller's ``ax``:
     :func:`~morphoshell.plotting.style.panel_title`).
@@ -77,16 +83,16 @@ def plot_profile(profile, ax: Axes, *, legend: bool = True,
     p = profile
     ok = np.asarray(p.converged, bool) & np.isfinite(p.objective)
     with styled(ax):
-        ax.plot(p.values, p.objective, color="C0", lw=1.0)
-        ax.plot(p.values[ok], p.objective[ok], "o", color="C0", ms=3, label="refit")
+        ax.plot(p.values, p.objective, color=REFIT, lw=1.0)
+        ax.plot(p.values[ok], p.objective[ok], "o", color=REFIT, ms=3, label="refit")
         if not ok.all():
-            ax.plot(p.values[~ok], p.objective[~ok], "o", mfc="none", color="C3", ms=4,
+            ax.plot(p.values[~ok], p.objective[~ok], "o", mfc="none", color=NOT_CONVERGED, ms=4,
                     label="not converged")
         ax.axhline(p.threshold, color="k", ls="--", lw=0.8, label="threshold")
         lo, hi = p.interval
         left, right = ax.get_xlim()
         ax.axvspan(lo if math.isfinite(lo) else left, hi if math.isfinite(hi) else right,
-                   color="C1", alpha=0.2, lw=0, label=f"{100 * p.confidence:g} % interval")
+                   color=INTERVAL, alpha=0.2, lw=0, label=f"{100 * p.confidence:g} % interval")
         ax.set_xlim(left, right)
         ax.plot([p.fitted_value], [p.S_min], "o", color="k", ms=4, label="fit")
         ax.set_xlabel(parameter_axis_label(p.name, units))

@@ -108,7 +108,8 @@ class CampaignResult:
             (:meth:`hypothesis_tests`): ``delta_S_over_sigma2``, ``hypothesis_threshold``,
             ``hypothesis_test`` (``consistent``, ``rejected``, ``reference`` for free; empty
             without a test) and ``hypothesis_noise`` (where σ² came from: ``traces`` or
-            ``residual``).
+            ``residual``; a campaign's fits carry no re-tracings, so never ``morphoshell
+            compare``'s scaled residual of one image trace).
             ``df.attrs`` holds ``units`` (column → unit, :func:`column_unit`;
             the summary CSV has none, so that ``pandas.read_csv`` reads it as
             it is) and ``settings`` (the folder's :data:`SETTINGS`; empty
