@@ -220,7 +220,7 @@ def _panel_M(first_flat, out: Path) -> None:
     fig, ax = plt.subplots(figsize=(SINGLE_COLUMN, SINGLE_COLUMN), layout="constrained")
     tp, num = first_flat
     plot_ablation_overlay(num.ablation, ax, title=f"{tp.name}, {LABELS['flat']}: pre (red), "
-                                                  f"post (cyan), union (white)")
+                                                  f"post (cyan), overlap (white)")
     label_panel(ax, "M")
     save(fig, out / "fig3_M.png", ("png", "pdf"), close=True)
 
