@@ -14,25 +14,13 @@ import pytest
 from matplotlib.colors import to_hex, to_rgb
 
 from morphoshell.io import Midline, average
-from morphoshell.model.problem import Problem
 from morphoshell.plotting import (DOUBLE_COLUMN, MIN_FONT_SIZE, MIN_SCRIPT_SIZE, OKABE_ITO,
                                   SCRIPT_SCALE, label_panel, paper_style, plot_cross_section,
                                   plot_fit, plot_traces, save)
-from morphoshell.solvers.routes import solve
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"
 
 
-@pytest.fixture(scope="module")
-def volvox():
-    return solve(Problem("volvox", {"kappa1": 1.1}, h=0.15, opening=0.3, name="volvox_demo"),
-                 nodes=50)
-
-
-@pytest.fixture(autouse=True)
-def _close_figures():
-    yield
-    plt.close("all")
 
 
 def _dense_fit(eq, points: int = 100):

@@ -22,7 +22,6 @@ from morphoshell.plotting import (ABLATION_STYLE, DOUBLE_COLUMN, MIN_FONT_SIZE, 
                                   SINGLE_COLUMN, fit_axes, fit_residuals, get_caption, new_axes,
                                   plot_ablation, plot_cross_section, plot_fit, plot_k_estimates,
                                   save)
-from morphoshell.solvers.routes import solve
 
 
 @pytest.fixture(scope="module")
@@ -30,17 +29,6 @@ def ablation():
     return ablate(Problem("uniform", {"k": 0.0}, h=0.3, cut=0.3, name="toy2"), nodes=40)
 
 
-@pytest.fixture(scope="module")
-def volvox():
-    """A large family with a long description: the title once wrapped to three lines."""
-    return solve(Problem("volvox", {"kappa1": 1.1}, h=0.15, opening=0.3, name="volvox_demo"),
-                 nodes=50)
-
-
-@pytest.fixture(autouse=True)
-def _close_figures():
-    yield
-    plt.close("all")
 
 
 def _texts(fig):
