@@ -217,7 +217,8 @@ def test_the_outputs_say_how_the_fit_was_made_and_how_it_ended(midline_csv, tmp_
     assert record["walls_cross"] is None
     df = pd.read_csv(table)
     assert list(df.columns) == ["parameter", "value", "standard_error", "unit", "fitted",
-                                "on_constraint", "E_fit", "converged", "stop", "walls_cross"]
+                                "on_constraint", "E_fit", "converged", "stop", "walls_cross",
+                                "standard_errors_source"]
     assert sorted(df.parameter[:3]) == sorted(THREE) and df.converged.dtype == bool
     assert df.fitted.tolist() == [True] * 3 + [False] * (len(df) - 3)
     assert df.walls_cross.dtype == bool and not df.walls_cross.any()
