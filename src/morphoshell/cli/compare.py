@@ -28,7 +28,9 @@ On one image trace (fit --pixel-size) sigma^2 is the free fit's residual's times
 a trace are correlated). A hypothesis above its threshold is rejected, else consistent with
 the data; the E_fit ranking of consistent ones is noise. Without a free fit the others are
 compared with the best, without a test. The fits must be of the same midline points, shell
-and mesh."""
+and mesh. A fit that did not converge leaves a verdict open ("not established": a stopped
+hypothesis fit cannot be rejected, a stopped free fit cannot call one consistent); the exit
+status is then 3, as fit's for an unconverged fit."""
 
 
 def _noise(text: str) -> str | float:
@@ -114,7 +116,7 @@ def _midline(args, records: dict[str, dict]):
 
 
 def _compare(args) -> int:
-    from ..fitting.hypotheses import compare_hypotheses
+    from ..fitting.hypotheses import NOT_ESTABLISHED, compare_hypotheses
     from ..io.problem_files import write_csv, write_json
 
     records = _records(args.fits)
@@ -128,4 +130,6 @@ def _compare(args) -> int:
     out.add(args.csv, lambda path: write_csv(path, test.columns()))
     for path in out.commit():
         print(f"  wrote {path}")
-    return 0
+    # a verdict that a fit which stopped short leaves open is a fit not converged: exit 3, as
+    # fit's and campaign's (the comparison is still written, its rows marked)
+    return 3 if test.of(NOT_ESTABLISHED) else 0
