@@ -89,16 +89,16 @@ def _records(paths: list[str]) -> dict[str, dict]:
 def _midline(args, records: dict[str, dict]):
     """The midline for σ² from its traces, or None (σ² from the residual: no file to read,
     or --noise that needs none).  Read as the first record's settings read it."""
-    from ..io import load_midline
+    from ..io.problem_files import record_midline
 
     if args.noise not in ("auto", "traces"):
         return None
     first = next(iter(records.values()))
-    settings = first.get("settings") or {}
     path = args.midline or first.get("midline_file")
     if args.midline and not Path(path).is_file():
         raise ValueError(f"--midline {path}: not a file")
-    if path is None or not Path(path).is_file():
+    data = record_midline(first, args.midline)
+    if data is None:
         missing = ("the fits' records name no midline file" if path is None else
                    f"{path} (the fits' midline_file) is not a file here")
         if args.noise == "traces":
@@ -106,13 +106,7 @@ def _midline(args, records: dict[str, dict]):
                              f"--midline AVERAGE.csv")
         note(f"{missing}: sigma^2 from the free fit's residual (--midline AVERAGE.csv for the "
              f"traces' spread)")
-        return None
-    n = len((first.get("data_midline") or {}).get("r", [])) or None
-    return load_midline(path, settings.get("format"), n=n,
-                        section=settings.get("section", "auto"),
-                        pixel_size_um=settings.get("pixel_size_um"),
-                        radius_um=settings.get("radius_um"), roi=settings.get("roi"),
-                        drop_outlier_points=bool(settings.get("drop_outlier_points")))
+    return data
 
 
 def _compare(args) -> int:
