@@ -48,7 +48,9 @@ Conventions shared by all commands:
 * **Exit status**: 0 success, 2 bad input (one line, nothing written),
   3 a solver failed (nothing written) or fits did not converge (`fit` writes its
   result, marked `"converged": false`; `campaign` writes every fit's record and
-  the summary, and names the fits on its last line) or sweep points failed
+  the summary, and names the fits on its last line; `compare` writes its
+  comparison, the verdicts a fit that stopped leaves open marked `not established`)
+  or sweep points failed
   (`sweep` writes every row and names them on its last line; `--allow-failures`
   gives 0 for both), 1 a bug (with where to
   report it), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM, handled as Ctrl-C)

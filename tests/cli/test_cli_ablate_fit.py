@@ -5,6 +5,7 @@ import csv
 import json
 import re
 
+import numpy as np
 import pytest
 
 from morphoshell import Problem, ablate
@@ -102,3 +103,39 @@ def test_a_problem_file_has_neither(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "(fit)" not in printed and "note:" not in printed
     assert not {"fit_error_note", "se_rotation"} & set(json.loads(out.read_text()))
+
+
+def test_a_fit_of_an_average_also_carries_its_traces_sigma2(tmp_path, capsys, monkeypatch):
+    """Audit 28 F2: on an average of 5 traces ± (fit) (the residual's σ²) was 2–3.7 times
+    too small.  The fit's midline_file read again: each recoil line adds ± (traces), √(σ²
+    ratio) times ± (fit); a line says which σ² and the t factor (2.776); the JSON keeps both
+    σ², the dof and t95, the CSV se_traces_<observable>; ± (fit) and its note unchanged."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "fitting"))
+    from hypothesis_cases import points, spread_for
+
+    from morphoshell.io import Midline
+
+    monkeypatch.chdir(tmp_path)
+    p = points()
+    Midline(p[:, 0], p[:, 1], spread_for(4e-5), 5).to_csv(tmp_path / "average.csv")
+    record = _record(midline_file="average.csv",
+                     data_midline={"r": p[:, 0].tolist(), "z": p[:, 1].tolist()},
+                     settings={"midline_file": "average.csv", "format": None})
+    status, _, data, row = _ablate(tmp_path, record)
+    printed = capsys.readouterr().out
+    assert status == 0
+    scale = np.sqrt(4e-5 / (0.004 ** 2 / (200 - 2)))
+    traces = data["fit_error_traces"]
+    assert traces["dof"] == 4 and traces["t95"] == pytest.approx(2.7764, abs=1e-4)
+    for k in RECOIL:
+        # (the same product of the same numbers, through JSON: to round-off)
+        assert data[f"se_traces_{k}"] == pytest.approx(data[f"se_{k}"] * scale, rel=1e-12), k
+        assert float(row[f"se_traces_{k}"]) == data[f"se_traces_{k}"]
+        assert data["units"][f"se_traces_{k}"] == data["units"][k]
+        assert re.search(rf"^  {k} +=.*\(fit\) \+- \S+ \S+ \(traces\)$", printed, re.M), k
+    assert "  +- (traces): the (fit) errors at sigma^2 from the spread of 5 traces" in printed
+    assert "t(0.975, 4) = 2.776" in printed
+    assert "traces" not in data["fit_error_note"]

@@ -43,7 +43,8 @@ def test_compare_prints_the_verdict_and_writes_json_and_csv(fits, tmp_path, caps
     assert data["sigma2_source"] == "traces" and data["dof"] == 4
     assert [h["verdict"] for h in data["hypotheses"]] == ["reference"] + ["consistent"] * 3
     assert (tmp_path / "c.csv").read_text().splitlines()[0] == (
-        "name,variant,E_fit,fitted,restrictions,delta_S,delta_S_over_sigma2,threshold,verdict")
+        "name,variant,E_fit,fitted,restrictions,delta_S,delta_S_over_sigma2,threshold,verdict,"
+        "converged,stop")
 
 
 def test_compare_without_the_midline_file_takes_the_residual(fits, tmp_path, capsys):
@@ -89,3 +90,20 @@ def test_compare_refuses_mixed_fits_in_one_line(fits, tmp_path, capsys, edit, ar
     assert main(["compare", *fits, *args]) == 2
     err = capsys.readouterr().err
     assert message in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_compare_of_a_fit_that_stopped_gives_no_verdict_and_exit_3(fits, tmp_path, capsys):
+    """Audit 28 F1: a hypothesis fit that stopped short (fit --max-evaluations 3) was
+    "rejected", exit 0.  Now its row and the summary say not established and why, the JSON
+    keeps converged and stop, and the exit status is 3 (a fit not converged)."""
+    path = tmp_path / "fit_undeformed.json"
+    record = json.loads(path.read_text())
+    record.update(converged=False, stop="Maximum_Evaluations_Exceeded", E_fit=0.08)
+    path.write_text(json.dumps(record))
+    assert main(["compare", *fits, "--json", "c.json"]) == 3
+    out = capsys.readouterr().out
+    assert "not established (fit not converged: Maximum_Evaluations_Exceeded)" in out
+    assert "not established: undeformed (undeformed's fit did not converge" in out
+    assert "rejected" not in out
+    row = json.loads((tmp_path / "c.json").read_text())["hypotheses"][2]
+    assert (row["verdict"], row["converged"]) == ("not established", False)

@@ -175,3 +175,54 @@ def test_fits_on_other_meshes_and_data_not_theirs_are_refused():
     other = Midline(np.linspace(0, 1, 100), np.zeros(100), spread_for(1e-6), 5)
     with pytest.raises(ValueError, match="the data given are not those the fits were made to"):
         compare_hypotheses(records, other)
+
+
+def _stopped(fit, stop: str = "Maximum_Evaluations_Exceeded"):
+    """``fit`` as a fit that stopped short (its E_fit only bounds its minimum from above)."""
+    from dataclasses import replace
+
+    return replace(fit, converged=False, stop=stop)
+
+
+def test_a_hypothesis_whose_fit_stopped_is_not_rejected():
+    """Audit 28 F1: undeformed stopped after 3 evaluations far above its minimum was
+    "rejected".  At σ²/100 undeformed and unstressed lie above 7.71: unstressed's fit stopped,
+    so its rejection is not established (its ΔS is an upper bound), and the line says why;
+    flat's fit stopped below the threshold: consistent stands (its minimum lies lower still);
+    as records (a campaign's) alike."""
+    fits = audit_fits()
+    fits["unstressed"] = _stopped(fits["unstressed"])
+    fits["flat"] = _stopped(fits["flat"], "Fit_Stalled")
+    for given in (fits, {v: f.to_dict() for v, f in fits.items()}):
+        test = compare_hypotheses(given, _average(AUDIT_SIGMA2 / 100))
+        assert [test.verdict(v) for v in ("flat", "undeformed", "unstressed")] == [
+            "consistent", "rejected", "not established"]
+        row = test.hypotheses[3].to_dict()
+        assert (row["converged"], row["stop"]) == (False, "Maximum_Evaluations_Exceeded")
+        summary = test.summary()
+        assert summary.startswith("flat is consistent with the data; rejected: undeformed; "
+                                  "not established: unstressed (unstressed's fit did not "
+                                  "converge (stop Maximum_Evaluations_Exceeded)")
+        assert "flat did not converge (stop Fit_Stalled); the verdicts shown stand" in summary
+        assert "not established (fit not converged: Maximum_Evaluations_Exceeded)" in \
+            test.table()
+
+
+def test_a_free_fit_that_stopped_calls_none_consistent():
+    """A stopped free fit: every ΔS is a lower bound, so consistent is not established while a
+    rejection (of a converged hypothesis, σ² from the traces) stands; with σ² scaled by the
+    stopped fit's own re-tracings no verdict stands."""
+    fits = {**audit_fits(), "free": _stopped(audit_fits()["free"])}
+    test = compare_hypotheses(fits, _average(AUDIT_SIGMA2 / 30))
+    assert [test.verdict(v) for v in ("flat", "undeformed", "unstressed")] == [
+        "not established", "not established", "rejected"]
+    assert test.summary().startswith(
+        "no hypothesis is established as consistent with the data; rejected: unstressed; not "
+        "established: flat, undeformed (free's fit did not converge")
+    fits["free"] = _stopped(retraced(audit_fits()["free"], {"kappa1": 1.0}))
+    test = compare_hypotheses(fits)
+    assert test.sigma2_source == RETRACED and test.of("rejected") == []
+    assert test.of("not established") == ["flat", "undeformed", "unstressed"]
+    # converged, the same fits give verdicts (the residual's σ² rejects two)
+    fits["free"] = retraced(audit_fits()["free"], {"kappa1": 1.0})
+    assert compare_hypotheses(fits).of("rejected") == ["undeformed", "unstressed"]

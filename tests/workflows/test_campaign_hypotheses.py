@@ -77,3 +77,17 @@ def test_the_last_lines_say_which_hypotheses_the_data_tell_apart(result):
                              data_dir=result.data_dir)
     assert _hypothesis_lines(no_free)[0].startswith("hypotheses: not tested (the test of each "
                                                     "against the data needs the free fit")
+
+
+def test_a_fit_kept_ok_but_not_converged_is_not_rejected(result):
+    """Audit 28 F1: a campaign keeps an unconverged fit with status "ok"; t02's unstressed
+    (rejected when converged) stopped short: its summary cell and its timepoint's line say
+    not established, and why."""
+    rec = result.records[("t02", "unstressed")]
+    rec.update(converged=False, stop="Maximum_Evaluations_Exceeded")
+    cell = {(r.timepoint, r.variant): r for r in result.to_dataframe().itertuples()}
+    assert [cell[("t02", v)].hypothesis_test for v in VARIANTS] == [
+        "reference", "consistent", "rejected", "not established"]
+    line = next(x for x in _hypothesis_lines(result) if x.startswith("  t02:"))
+    assert "not established: unstressed (unstressed's fit did not converge" in line
+    assert "unstressed 33.4/7.71" in line

@@ -80,3 +80,58 @@ def test_not_the_direct_method_has_no_errors_of_the_fit():
     fit = fit_uncertainty(_record(), bvp)
     assert fit.errors == {} and "direct method" in fit.note
     assert np.isfinite(bvp.rotation)
+
+
+def _on_average(sigma2: float = 4e-5, **changes):
+    """The record fitted to 100 points of an average of 5 traces whose σ² is ``sigma2``,
+    and that average (hypothesis_cases' half circle and spread)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "fitting"))
+    from hypothesis_cases import points, spread_for
+
+    from morphoshell.io import Midline
+
+    p = points()
+    record = _record(data_midline={"r": p[:, 0].tolist(), "z": p[:, 1].tolist()}, **changes)
+    return record, Midline(p[:, 0], p[:, 1], spread_for(sigma2), 5)
+
+
+def test_on_an_average_the_errors_are_also_given_at_the_traces_sigma2(ablation):
+    """Audit 28 F2: ± (fit) takes σ² from the residual, E_fit²/(2N − k) = 0.004²/198, and
+    covered the true recoil 0.45–0.81 of the time on 5-trace averages.  With the average
+    the errors are also given at σ² from its traces (4e-5: ×495 here), i.e. times √495,
+    with t₀.₉₇₅(4) = 2.776; the fit's own errors stay as they were."""
+    record, average = _on_average()
+    fit = fit_uncertainty(record, ablation, average)
+    plain = ablation_errors(record, ablation)
+    assert fit.errors == plain
+    tr = fit.traces
+    residual = 0.004 ** 2 / (200 - 2)
+    # (σ² from the spread: the mean of equal squares, exact but for round-off)
+    assert tr.sigma2_traces == pytest.approx(4e-5, rel=1e-12)
+    assert tr.sigma2_residual == pytest.approx(residual, rel=1e-12)
+    assert tr.dof == 4 and tr.t95 == pytest.approx(2.7764, abs=1e-4)
+    assert tr.errors == pytest.approx({k: v * np.sqrt(4e-5 / residual)
+                                       for k, v in plain.items()}, rel=1e-12)
+    assert fit.columns()["t95_traces"] == tr.t95
+    assert fit.columns()["se_traces_rotation"] == tr.errors["rotation"]
+    assert "t(0.975, 4) = 2.776" in tr.text() and "spread of 5 traces" in tr.text()
+
+
+@pytest.mark.parametrize("how", ["no data", "re-tracings", "other points", "one trace"])
+def test_without_the_averages_own_traces_no_traces_errors(ablation, how):
+    """Only the traces of the fit's own points, and only for Gauss–Newton errors (a single
+    trace's re-tracings' errors are not the residual's σ²)."""
+    from morphoshell.io import Midline
+
+    record, average = _on_average(
+        **({"standard_errors_source": "re-tracings"} if how == "re-tracings" else {}))
+    if how == "other points":
+        average = Midline(average.r + 1e-6, average.z, average.spread, 5)
+    if how == "one trace":
+        average = Midline(average.r, average.z, None, 1)
+    fit = fit_uncertainty(record, ablation, None if how == "no data" else average)
+    assert fit.errors and fit.traces is None
+    assert "t95_traces" not in fit.columns()

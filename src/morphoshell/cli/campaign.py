@@ -167,7 +167,8 @@ def _hypothesis_lines(result) -> list[str]:
                 lines.append(f"  {name}: not tested ({why})")
             continue
         ratios = ", ".join(f"{h.variant} {h.ratio:.3g}/{h.threshold:.3g}"
-                           for h in test.hypotheses if h.verdict in ("consistent", "rejected"))
+                           for h in test.hypotheses
+                           if h.verdict in ("consistent", "rejected", "not established"))
         lines.append(f"  {name}: {test.summary()} [{ratios}; sigma^2 from the "
                      f"{test.sigma2_source}]")
     return lines if len(lines) > 1 else []

@@ -28,7 +28,9 @@ On one image trace (fit --pixel-size) sigma^2 is the free fit's residual's times
 a trace are correlated). A hypothesis above its threshold is rejected, else consistent with
 the data; the E_fit ranking of consistent ones is noise. Without a free fit the others are
 compared with the best, without a test. The fits must be of the same midline points, shell
-and mesh."""
+and mesh. A fit that did not converge leaves a verdict open ("not established": a stopped
+hypothesis fit cannot be rejected, a stopped free fit cannot call one consistent); the exit
+status is then 3, as fit's for an unconverged fit."""
 
 
 def _noise(text: str) -> str | float:
@@ -87,16 +89,16 @@ def _records(paths: list[str]) -> dict[str, dict]:
 def _midline(args, records: dict[str, dict]):
     """The midline for σ² from its traces, or None (σ² from the residual: no file to read,
     or --noise that needs none).  Read as the first record's settings read it."""
-    from ..io import load_midline
+    from ..io.problem_files import record_midline
 
     if args.noise not in ("auto", "traces"):
         return None
     first = next(iter(records.values()))
-    settings = first.get("settings") or {}
     path = args.midline or first.get("midline_file")
     if args.midline and not Path(path).is_file():
         raise ValueError(f"--midline {path}: not a file")
-    if path is None or not Path(path).is_file():
+    data = record_midline(first, args.midline)
+    if data is None:
         missing = ("the fits' records name no midline file" if path is None else
                    f"{path} (the fits' midline_file) is not a file here")
         if args.noise == "traces":
@@ -104,17 +106,11 @@ def _midline(args, records: dict[str, dict]):
                              f"--midline AVERAGE.csv")
         note(f"{missing}: sigma^2 from the free fit's residual (--midline AVERAGE.csv for the "
              f"traces' spread)")
-        return None
-    n = len((first.get("data_midline") or {}).get("r", [])) or None
-    return load_midline(path, settings.get("format"), n=n,
-                        section=settings.get("section", "auto"),
-                        pixel_size_um=settings.get("pixel_size_um"),
-                        radius_um=settings.get("radius_um"), roi=settings.get("roi"),
-                        drop_outlier_points=bool(settings.get("drop_outlier_points")))
+    return data
 
 
 def _compare(args) -> int:
-    from ..fitting.hypotheses import compare_hypotheses
+    from ..fitting.hypotheses import NOT_ESTABLISHED, compare_hypotheses
     from ..io.problem_files import write_csv, write_json
 
     records = _records(args.fits)
@@ -128,4 +124,6 @@ def _compare(args) -> int:
     out.add(args.csv, lambda path: write_csv(path, test.columns()))
     for path in out.commit():
         print(f"  wrote {path}")
-    return 0
+    # a verdict that a fit which stopped short leaves open is a fit not converged: exit 3, as
+    # fit's and campaign's (the comparison is still written, its rows marked)
+    return 3 if test.of(NOT_ESTABLISHED) else 0

@@ -220,6 +220,7 @@ def _ablation_lines(ab, fit=None) -> list[str]:
 
     errors, rel = ab.errors or {}, ab.relative_errors()
     carried = fit.errors if fit is not None else {}
+    traces = fit.traces.errors if fit is not None and fit.traces is not None else {}
 
     def line(key, value, unit, note=""):
         # (the estimate beside the value where there is one: a state's energy has its own)
@@ -228,6 +229,8 @@ def _ablation_lines(ab, fit=None) -> list[str]:
         # (audit 25: the numerical +- alone, 1.8e-6 rad, read as the fitted recoil's
         # uncertainty, 0.019 rad from the fit's parameters)
         err += f" +- {carried[key]:.2g} {unit} (fit)" if key in carried else ""
+        # (audit 28: the residual's sigma^2 made (fit) 2-3.7 times too small on averages)
+        err += f" +- {traces[key]:.2g} {unit} (traces)" if key in traces else ""
         return f"  {key:20s} = {value:.10g} {unit}{err}" + (f"   ({note})" if note else "")
 
     recoil = {k: v for k, v in ab.observables().items() if not k.startswith("energy")}
@@ -257,7 +260,8 @@ def _ablation_lines(ab, fit=None) -> list[str]:
 
 def _fit_lines(fit) -> list[str]:
     """What the errors ``(fit)`` are, and the profiled parameters whose intervals they miss."""
-    return [f"  +- (fit): {text}" for text in _fit_texts(fit)]
+    traces = [f"  {fit.traces.text()}"] if fit is not None and fit.traces is not None else []
+    return [f"  +- (fit): {text}" for text in _fit_texts(fit)] + traces
 
 
 def _fit_texts(fit) -> list[str]:
@@ -321,9 +325,11 @@ def _ablation_json(ab, source, fit) -> dict:
     if source is None:
         return data
     columns = fit.columns()
-    data["units"].update({k: UNITS[k.removeprefix("se_")] for k in columns})
+    data["units"].update({k: UNITS[k.removeprefix("se_").removeprefix("traces_")]
+                          for k in columns if k.startswith("se_")})
     note = "; ".join(_fit_texts(fit)) or fit.note
-    return {**data, "source": source, **columns, "fit_error_note": note}
+    traces = {} if fit.traces is None else {"fit_error_traces": fit.traces.to_dict()}
+    return {**data, "source": source, **columns, "fit_error_note": note, **traces}
 
 
 def _ablate(args) -> int:
@@ -351,8 +357,10 @@ def _ablate(args) -> int:
         _report_quality(eq)
     fit = None
     if source is not None:          # (a fit's shell: its errors carried, or why not)
+        from ..io.problem_files import record_midline
         from ..workflows.fitted_shapes import fit_uncertainty
-        fit = fit_uncertainty(record, ab)
+        # (σ² from the traces' spread of the average it was fitted to, where it is here)
+        fit = fit_uncertainty(record, ab, record_midline(record))
     print("\n".join(_ablation_lines(ab, fit)))
     if fit is not None and not fit.errors:
         note(f"{args.problem}: {fit.note}")

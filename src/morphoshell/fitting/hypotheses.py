@@ -40,6 +40,17 @@ values: the profile's refit at κ₁ = 0 is the ``flat`` fit, so ``flat`` is con
 exactly when 0 lies within the profile interval (both at their minima); ``unstressed``
 ties κ₁ to 1/f₁, a restriction the profile does not step along.
 
+A verdict needs the E_fit of both fits at their minima.  An E_fit that did not converge
+only bounds its minimum from above (as a profile's refit that stops short): a hypothesis
+whose own fit stopped has a ΔS that is an upper bound, so it may be called *consistent*
+(its minimum lies lower still) but not *rejected*; a free fit that stopped has a ΔS that
+is a lower bound on every hypothesis's (and with σ² from its residual a σ² that is an
+upper bound), so a hypothesis may be *rejected* but not called *consistent*, nor rejected
+where σ² is the residual's scaled by the stopped fit's own re-tracings.  The verdict that
+the stop leaves open is *not established* (:data:`NOT_ESTABLISHED`), and the summary names
+the fit and how it stopped (audit 28 F1: an undeformed fit stopped after 3 evaluations at
+E_fit 0.082 R, against 0.0051 R converged, was "rejected" at ΔS/σ² = 9.8·10³).
+
 Without a free fit nothing nests the hypotheses: each is compared with the best (lowest
 E_fit) by ΔS/σ², without a threshold (no χ² law holds between non-nested fits).
 
@@ -53,18 +64,23 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from ..numerics.status import FIT_CONVERGED
 from .midline_checks import as_points
 from .profile_noise import RETRACED, parameter_noise, threshold_quantile
 from .results import FitResult
 from .trace_errors import fit_inflation
 
 __all__ = ["Hypothesis", "HypothesisTest", "compare_hypotheses", "REFERENCE",
-           "CONSISTENT", "REJECTED"]
+           "CONSISTENT", "REJECTED", "NOT_ESTABLISHED"]
 
 #: The variant that nests the others: the test's reference.
 REFERENCE = "free"
 #: The verdicts of a tested hypothesis.
 CONSISTENT, REJECTED = "consistent", "rejected"
+#: The verdict a fit that did not converge leaves open (module docstring).
+NOT_ESTABLISHED = "not established"
+#: The verdicts of a test (with a threshold), established or not.
+_TESTED = (CONSISTENT, REJECTED, NOT_ESTABLISHED)
 #: A hypothesis that is not ``free`` under restrictions (fitted or held otherwise).
 NOT_NESTED = "not nested"
 #: What the problem of every fit compared must share (beside the data and the mesh).
@@ -94,8 +110,14 @@ class Hypothesis:
     threshold : float
         q of the test (d·F(d, ν) or χ²_d); NaN without a test.
     verdict : str
-        ``"reference"`` (the free fit), ``"consistent"``, ``"rejected"``, ``"not nested"``;
-        without a free fit ``"best"`` (the lowest E_fit) or ``""`` (no test).
+        ``"reference"`` (the free fit), ``"consistent"``, ``"rejected"``, ``"not
+        established"`` (a fit that did not converge leaves the verdict open: module
+        docstring), ``"not nested"``; without a free fit ``"best"`` (the lowest E_fit) or
+        ``""`` (no test).
+    converged : bool
+        Whether its fit converged (:attr:`FitResult.converged`).
+    stop : str
+        How its fit ended (:attr:`FitResult.stop`).
     """
 
     name: str
@@ -107,6 +129,8 @@ class Hypothesis:
     ratio: float
     threshold: float
     verdict: str
+    converged: bool = True
+    stop: str = FIT_CONVERGED
 
     def to_dict(self) -> dict:
         """JSON-ready (NaN as None)."""
@@ -114,7 +138,7 @@ class Hypothesis:
                 "fitted": self.fitted, "restrictions": self.restrictions,
                 "delta_S": self.delta_S, "delta_S_over_sigma2": self.ratio,
                 "threshold": None if math.isnan(self.threshold) else self.threshold,
-                "verdict": self.verdict}
+                "verdict": self.verdict, "converged": self.converged, "stop": self.stop}
 
 
 @dataclass(frozen=True)
@@ -171,7 +195,7 @@ class HypothesisTest:
                      f"trace's re-tracings / Gauss-Newton SE)^2, as {name}'s profile")
         line = f"sigma^2 = {self.sigma2:.3g} R^2 {where}"
         laws = sorted({_law(h.restrictions, self.dof) for h in self.hypotheses
-                       if h.verdict in (CONSISTENT, REJECTED)})
+                       if h.verdict in _TESTED})
         if laws:
             line += f"; threshold: the {self.confidence:.0%} quantile of {' or '.join(laws)}"
         if self.sigma2_source == "residual":
@@ -186,18 +210,46 @@ class HypothesisTest:
             return (f"no test: no free fit to test the hypotheses against (each is free with "
                     f"kappa1 tied); Delta S/sigma^2 against the best, {self.reference}, is "
                     f"only a guide: fit --variant free to the same midline and compare again")
-        ok, out = self.of(CONSISTENT), self.of(REJECTED)
+        ok, out, left = self.of(CONSISTENT), self.of(REJECTED), self.of(NOT_ESTABLISHED)
         rejected = f"; rejected: {', '.join(out)}" if out else ""
         if len(ok) > 1:
             head = (f"the data do not tell {', '.join(ok)} apart (each within its threshold "
                     f"of free): their E_fit ranking is noise")
         elif ok:
-            head = f"{'only ' if out else ''}{ok[0]} is consistent with the data"
-        elif out:
+            head = f"{'only ' if out and not left else ''}{ok[0]} is consistent with the data"
+        elif out and not left:
             head = "every hypothesis is rejected: kappa1 is none of them (read free's)"
+        elif out or left:
+            head = "no hypothesis is established as consistent with the data"
         else:
             head = "no hypothesis tested: none is free under restrictions (not nested)"
-        lower = [h.variant for h in self.hypotheses if h.verdict in (CONSISTENT, REJECTED)
+        return head + rejected + self._unconverged() + self._caveats(out)
+
+    def _unconverged(self) -> str:
+        """The verdicts a fit that did not converge leaves open, and the fits that did not
+        converge whose verdicts stand (module docstring), with how each stopped."""
+        ref = next(h for h in self.hypotheses if h.name == self.reference)
+        left = [h for h in self.hypotheses if h.verdict == NOT_ESTABLISHED]
+        why = []
+        if not ref.converged and self.nested:
+            why.append(f"free's fit did not converge (stop {ref.stop}): its E_fit lies above "
+                       f"its minimum, so each Delta S/sigma^2 may be larger")
+        why += [f"{h.variant}'s fit did not converge (stop {h.stop}): its Delta S/sigma^2 "
+                f"may be smaller" for h in left if not h.converged]
+        text = (f"; not established: {', '.join(h.variant for h in left)} "
+                f"({'; '.join(why)}; refit to convergence, --start FIT.json)" if left else "")
+        stand = [h for h in self.hypotheses if not h.converged and h not in left
+                 and (h is not ref or not left)]
+        if stand:
+            text += (f"; {', '.join(h.variant for h in stand)} did not converge "
+                     f"({', '.join(f'stop {h.stop}' for h in stand)})"
+                     + ("; the verdicts shown stand: a stop only moves Delta S/sigma^2 "
+                        "away from them" if self.nested else ""))
+        return text
+
+    def _caveats(self, out: list[str]) -> str:
+        """A free fit above a hypothesis, and the residual's σ² of a traced midline."""
+        lower = [h.variant for h in self.hypotheses if h.verdict in _TESTED
                  and h.delta_S < 0]
         note = (f"; free's E_fit lies above {', '.join(lower)}'s: the free fit is not at its "
                 f"minimum (refit free from there, --start FIT.json)" if lower else "")
@@ -208,11 +260,12 @@ class HypothesisTest:
                   "; sigma^2 holds the trace's pixel noise only, not a hand's slow wiggles "
                   "(compare fits of an average of traces)"
                   if self.sigma2_source == RETRACED and out else "")
-        return head + rejected + note + caveat
+        return note + caveat
 
     def columns(self) -> dict[str, list]:
         """The comparison as columns: name, variant, E_fit (R), fitted, restrictions,
-        delta_S (R²), delta_S_over_sigma2, threshold, verdict (:meth:`to_dict`'s rows)."""
+        delta_S (R²), delta_S_over_sigma2, threshold, verdict, converged, stop
+        (:meth:`to_dict`'s rows)."""
         rows = [h.to_dict() for h in self.hypotheses]
         return {key: [row[key] for row in rows] for key in rows[0]}
 
@@ -222,8 +275,9 @@ class HypothesisTest:
                  f"{'dS/sigma^2':>12}{'threshold':>11}  verdict"]
         for h in self.hypotheses:
             q = "" if math.isnan(h.threshold) else f"{h.threshold:.3g}"
+            stopped = "" if h.converged else f" (fit not converged: {h.stop})"
             lines.append(f"  {h.variant:<11}{h.E_fit:>12.6g}{h.fitted:>4}{h.delta_S:>12.3g}"
-                         f"{h.ratio:>12.3g}{q:>11}  {h.verdict}")
+                         f"{h.ratio:>12.3g}{q:>11}  {h.verdict}{stopped}")
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
@@ -280,8 +334,8 @@ def compare_hypotheses(fits: Mapping[str, Any], data=None, *, noise: str | float
     inflation = fit_inflation(ref) if restricted else None
     sigma2, where, dof = parameter_noise(source, ref.E_fit ** 2, len(ref.fitted), noise,
                                          inflation, restricted or "")
-    rows = tuple(_row(name, r, ref, ref_name == name, nested, sigma2, confidence, dof)
-                 for name, r in results.items())
+    rows = tuple(_row(name, r, ref, ref_name == name, nested, (sigma2, where), confidence,
+                      dof) for name, r in results.items())
     factor = (restricted, inflation[restricted]) if where == RETRACED else None
     return HypothesisTest(rows, ref_name, nested, sigma2, where, dof, confidence, factor)
 
@@ -298,9 +352,11 @@ def _restricted(results: Mapping[str, FitResult], free: FitResult) -> str | None
     return next(iter(names)) if len(names) == 1 else None
 
 
-def _row(name: str, fit: FitResult, ref: FitResult, is_ref: bool, nested: bool, sigma2: float,
-         confidence: float, dof: float) -> Hypothesis:
-    """One fit's ΔS, ΔS/σ², threshold and verdict against ``ref``."""
+def _row(name: str, fit: FitResult, ref: FitResult, is_ref: bool, nested: bool,
+         noise: tuple[float, str], confidence: float, dof: float) -> Hypothesis:
+    """One fit's ΔS, ΔS/σ², threshold and verdict against ``ref`` (``noise``: σ² and
+    where it comes from)."""
+    sigma2, where = noise
     delta = float(fit.E_fit) ** 2 - float(ref.E_fit) ** 2
     d = _restrictions(fit, ref) if nested and not is_ref else None
     q = threshold_quantile(confidence, dof, d) if d else math.nan
@@ -311,9 +367,23 @@ def _row(name: str, fit: FitResult, ref: FitResult, is_ref: bool, nested: bool, 
     elif d is None:
         verdict = NOT_NESTED
     else:
-        verdict = REJECTED if delta / sigma2 > q else CONSISTENT
+        verdict = _established(REJECTED if delta / sigma2 > q else CONSISTENT, fit, ref,
+                               where == RETRACED)
     return Hypothesis(name, fit.variant, float(fit.E_fit), len(fit.fitted), d, delta,
-                      delta / sigma2, q, verdict)
+                      delta / sigma2, q, verdict, bool(fit.converged), fit.stop)
+
+
+def _established(verdict: str, fit: FitResult, free: FitResult, retraced: bool) -> str:
+    """``verdict``, or :data:`NOT_ESTABLISHED` where a fit that did not converge leaves it
+    open (module docstring): a rejection needs ``fit``'s E_fit at its minimum (a stop
+    leaves ΔS an upper bound) and σ² no larger than a stopped free fit leaves it (its
+    residual's is larger still; a re-traced factor of its own may be either); consistency
+    needs ``free``'s (a stop leaves every ΔS a lower bound)."""
+    if verdict == REJECTED:
+        settled = fit.converged and (free.converged or not retraced)
+    else:
+        settled = free.converged
+    return verdict if settled else NOT_ESTABLISHED
 
 
 def _law(d: int, dof: float) -> str:

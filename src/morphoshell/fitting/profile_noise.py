@@ -16,7 +16,8 @@ import numpy as np
 from .midline_checks import as_points
 
 __all__ = ["NOISE_SOURCES", "threshold_quantile", "noise_dof", "traces_missing",
-           "noise_variance", "log_noise", "parameter_noise", "check_inflation", "RETRACED"]
+           "noise_variance", "log_noise", "parameter_noise", "check_inflation", "RETRACED",
+           "traces_and_residual"]
 
 #: The σ² source of a profile whose residual σ² a single trace's re-tracings scaled.
 RETRACED = "residual, scaled by the trace's re-tracings"
@@ -114,6 +115,18 @@ def noise_variance(data, S_min: float, k: int, source: str | float = "auto") -> 
         return float(np.mean(spread[spread > 0] ** 2) / data.n_traces), "traces"
     n = len(as_points(data))
     return float(S_min) / max(2 * n - k, 1), "residual"
+
+
+def traces_and_residual(data, S_min: float, k: int) -> tuple[float, float, float]:
+    """σ² from the traces of ``data``, σ² of the residual of a fit of ``k`` parameters at
+    ``S_min`` (the σ² of its Gauss–Newton covariance, S_min/(2N − k)) and the traces'
+    degrees of freedom: :func:`noise_variance` both ways, so that a fit's covariance can be
+    carried at the σ² its profiles and :mod:`~morphoshell.fitting.hypotheses` take (times
+    the first over the second; ValueError where ``data`` hold no traces' spread).
+    """
+    traces, _ = noise_variance(data, S_min, k, "traces")
+    residual, _ = noise_variance(data, S_min, k, "residual")
+    return traces, residual, noise_dof(data, "traces")
 
 
 def log_noise(data, noise) -> None:

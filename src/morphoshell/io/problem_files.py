@@ -57,7 +57,8 @@ else:  # pragma: no cover - exercised on Python 3.10 only
 __all__ = ["ProblemFileError", "Settings", "load_problem", "parse_overrides", "apply_overrides",
            "split_overrides", "settings_from", "to_jsonable", "write_json", "write_csv", "METHODS",
            "write_problem", "problem_toml",
-           "SOLVER_KEYS", "ALIASES", "problem_of_record", "fit_source"]
+           "SOLVER_KEYS", "ALIASES", "problem_of_record", "fit_source",
+           "record_midline"]
 
 log = logging.getLogger(__name__)
 
@@ -298,6 +299,40 @@ def fit_source(record: Mapping[str, Any], where: str = "the fit's record"
                     f"{e_fit:.4g}" if isinstance(e_fit, (int, float)) else e_fit,
                     source["message"] or "no message")
     return source
+
+
+def record_midline(record: Mapping[str, Any], path: str | Path | None = None):
+    """The midline a fit's record was fitted to, read again as its settings read it.
+
+    For σ² from the spread of its traces (``compare``, ``ablate FIT.json``): a record keeps
+    the points, not the spread, so the file they came from is read with the options that
+    read it for the fit (format, section, pixel size, radius, ROI, outlier points).
+
+    Parameters
+    ----------
+    record : mapping
+        A fit's record (``morphoshell fit --json``): ``midline_file``, ``settings``,
+        ``data_midline``.
+    path : str or Path, optional
+        The file instead of the record's ``midline_file`` (relative to the current folder).
+
+    Returns
+    -------
+    Midline or None
+        None where the record names no file or it is not a file here.
+    """
+    from .midlines import load_midline
+
+    settings = record.get("settings") or {}
+    path = path or record.get("midline_file")
+    if path is None or not Path(path).is_file():
+        return None
+    n = len((record.get("data_midline") or {}).get("r", [])) or None
+    return load_midline(path, settings.get("format"), n=n,
+                        section=settings.get("section", "auto"),
+                        pixel_size_um=settings.get("pixel_size_um"),
+                        radius_um=settings.get("radius_um"), roi=settings.get("roi"),
+                        drop_outlier_points=bool(settings.get("drop_outlier_points")))
 
 
 def _dealias(table: dict, where: str) -> dict:

@@ -20,7 +20,7 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
                   "read_timepoints"],
     "campaign_results": ["CampaignResult", "load_campaign", "RESULT_SUFFIX", "SUMMARY"],
     "fitted_shapes": ["NumericalAblation", "numerical_ablation", "ablation_errors",
-        "FitUncertainty", "fit_uncertainty", "PROFILE_WIDER", "fitted_problem", "fitted_state",
+        "FitUncertainty", "TracesNoise", "fit_uncertainty", "PROFILE_WIDER", "fitted_problem", "fitted_state",
         "CUT"],
     "timepoint_fits": ["HELD"],
     "start_candidates": ["MULTI_STARTS", "RANK_NODES"],

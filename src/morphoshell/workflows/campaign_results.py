@@ -106,7 +106,8 @@ class CampaignResult:
             the traces) and ``embryo_t95`` (their 95 % interval is ± this many); last,
             the test of the fit's hypothesis against the timepoint's free fit
             (:meth:`hypothesis_tests`): ``delta_S_over_sigma2``, ``hypothesis_threshold``,
-            ``hypothesis_test`` (``consistent``, ``rejected``, ``reference`` for free; empty
+            ``hypothesis_test`` (``consistent``, ``rejected``, ``reference`` for free;
+            ``not established`` where a fit that did not converge leaves it open; empty
             without a test) and ``hypothesis_noise`` (where σ² came from: ``traces`` or
             ``residual``; a campaign's fits carry no re-tracings, so never ``morphoshell
             compare``'s scaled residual of one image trace).

@@ -40,6 +40,7 @@ from ..solvers.results import Equilibrium, SolverError
 from ..solvers.routes import direct_solver, solve
 
 __all__ = ["NumericalAblation", "numerical_ablation", "ablation_errors", "fitted_problem",
+           "TracesNoise",
            "off_the_fit", "OFF_THE_FIT", "FitUncertainty", "fit_uncertainty", "PROFILE_WIDER",
            "fitted_state", "CUT"]
 
@@ -462,7 +463,9 @@ def _check_error_inputs(record: dict, ablation: Ablation) -> None:
 #: error's (± z SE at the profile's confidence) is named beside the fit's errors of an
 #: ablation: they are linear in those standard errors and miss that spread (audit 25: a free
 #: fit's κ₁ interval [−0.95, 2.03] against ±0.11, 13 times as wide).  Up to 2 is the slack of
-#: lower bounds (one trace's re-tracing errors were 1.3–1.8 times the Gauss–Newton ones).
+#: lower bounds (one trace's re-tracing errors were 1.3–1.8 times the Gauss–Newton ones; on
+#: five-trace averages the recoil's spread was 1.9–3.7 times ± (fit), audit 28, most of it
+#: the residual's σ²: :class:`TracesNoise`).
 PROFILE_WIDER = 2.0
 
 #: What :func:`fit_uncertainty`'s errors are.  Not the record's own ``note``: a fit of one
@@ -490,20 +493,80 @@ class FitUncertainty:
         that of ± z SE at the profile's confidence (inf where the interval is open), for those
         wider than :data:`PROFILE_WIDER`: where the recoil depends on them it is less
         determined than ``errors`` say.
+    traces : TracesNoise or None
+        ``errors`` at σ² from the spread of the traces of the averaged midline the fit was
+        made to (:func:`fit_uncertainty` with ``data``), or None (no such data, or the
+        record's errors are a single trace's re-tracings').
     """
 
     errors: dict[str, float]
     note: str
     wider: dict[str, float]
+    traces: "TracesNoise | None" = None
 
     def columns(self) -> dict[str, float]:
         """``se_<observable>`` → :attr:`errors`: the names of ``ablate --csv``/``--json`` and of
         ``scripts/fig3_fits.py``'s ``fig3_ablations.json`` (as ``se_<parameter>`` of a
         campaign's summary); {} without errors."""
-        return {f"se_{k}": float(v) for k, v in self.errors.items()}
+        out = {f"se_{k}": float(v) for k, v in self.errors.items()}
+        if self.traces is not None:
+            out.update({f"se_traces_{k}": v for k, v in self.traces.errors.items()},
+                       t95_traces=self.traces.t95)
+        return out
 
 
-def fit_uncertainty(record: dict, ablation: Ablation) -> FitUncertainty:
+@dataclass(frozen=True)
+class TracesNoise:
+    """A fit's errors carried into an ablation at σ² from the traces' spread.
+
+    The Gauss–Newton covariance takes σ² from the residual, E_fit²/(2N − k); on an average
+    of n traces the profiles and the hypothesis test take it from the traces' spread
+    (:func:`~morphoshell.fitting.profile_noise.traces_and_residual`), typically 3 times as
+    large, with n − 1 degrees of freedom.  On 40 + 26 synthetic five-trace averages (audit
+    28) ± 1.96 (fit) covered the true recoil 0.45–0.81 of the time; these errors with
+    ± t₀.₉₇₅(n − 1) covered it 0.88–1.00.
+
+    Attributes
+    ----------
+    sigma2_traces, sigma2_residual : float
+        The two σ² (units of R²).
+    dof : float
+        n − 1, the traces' degrees of freedom.
+    errors : dict
+        Recoil observable → standard error: the record's carried errors times
+        √(σ²_traces/σ²_residual).
+    """
+
+    sigma2_traces: float
+    sigma2_residual: float
+    dof: float
+    errors: dict[str, float]
+
+    @property
+    def t95(self) -> float:
+        """t₀.₉₇₅(dof): a 95 % interval is ± this many of :attr:`errors`."""
+        from scipy.stats import t
+
+        return float(t.ppf(0.975, self.dof))
+
+    def text(self) -> str:
+        """What the errors are, in one line."""
+        ratio = self.sigma2_traces / self.sigma2_residual
+        return (f"+- (traces): the (fit) errors at sigma^2 from the spread of {self.dof + 1:g} "
+                f"traces, as the profiles and compare take it: {ratio:.3g} times the "
+                f"residual's sigma^2 of the Gauss-Newton errors, so {np.sqrt(ratio):.3g} times "
+                f"(fit); a 95% interval is +- t(0.975, {self.dof:g}) = {self.t95:.4g} of "
+                f"these (on synthetic averages of 5 traces they covered the truth 0.88-1.00 "
+                f"of the time, +- 1.96 (fit) 0.45-0.81)")
+
+    def to_dict(self) -> dict:
+        """JSON-ready: both σ², the dof, the t factor and the errors."""
+        return {"sigma2_traces": self.sigma2_traces, "sigma2_residual": self.sigma2_residual,
+                "sigma2_units": "R^2", "dof": self.dof, "t95": self.t95,
+                "errors": dict(self.errors), "note": self.text()}
+
+
+def fit_uncertainty(record: dict, ablation: Ablation, data=None) -> FitUncertainty:
     """The fit's uncertainty in the observables of its shell's ablation, with what it is.
 
     :func:`ablation_errors`, or where it cannot give them (a record without standard errors,
@@ -517,6 +580,10 @@ def fit_uncertainty(record: dict, ablation: Ablation) -> FitUncertainty:
         A fit's record (``morphoshell fit --json``, a campaign's).
     ablation : Ablation
         The ablation of its fitted shell.
+    data : Midline, optional
+        The averaged midline the fit was made to
+        (:func:`~morphoshell.io.problem_files.record_midline`): with its traces' spread the
+        errors are also given at their σ² (:attr:`FitUncertainty.traces`).
 
     Returns
     -------
@@ -526,7 +593,28 @@ def fit_uncertainty(record: dict, ablation: Ablation) -> FitUncertainty:
         errors = ablation_errors(record, ablation)
     except (ValueError, RuntimeError) as exc:   # (RuntimeError: SuperLU's singular KKT matrix)
         return FitUncertainty({}, f"no errors of the fit carried into the observables: {exc}", {})
-    return FitUncertainty(errors, _CARRIED, _wider(record))
+    return FitUncertainty(errors, _CARRIED, _wider(record), _traces(record, errors, data))
+
+
+def _traces(record: dict, errors: dict[str, float], data) -> TracesNoise | None:
+    """:attr:`FitUncertainty.traces`: None without the traces' spread of the record's own
+    points, or where its errors are a single trace's re-tracings' (not the residual's σ²)."""
+    from ..fitting.hypotheses import SAME_POINTS
+    from ..fitting.midline_checks import as_points
+    from ..fitting.profile_noise import traces_and_residual, traces_missing
+
+    if data is None or traces_missing(data) or \
+            record.get("standard_errors_source", "gauss-newton") != "gauss-newton":
+        return None
+    fitted = record.get("data_midline") or {}
+    points = np.column_stack([fitted.get("r", []), fitted.get("z", [])])
+    mine = as_points(data)
+    if points.shape != mine.shape or not np.max(np.abs(points - mine)) <= SAME_POINTS:
+        return None                 # (not the midline the fit was made to)
+    traces, residual, dof = traces_and_residual(data, record["E_fit"] ** 2,
+                                                len(record["fitted"]))
+    scale = np.sqrt(traces / residual)
+    return TracesNoise(traces, residual, dof, {k: float(v * scale) for k, v in errors.items()})
 
 
 def _wider(record: dict) -> dict[str, float]:
