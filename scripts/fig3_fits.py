@@ -33,7 +33,9 @@ S2   with ``--held DIR`` (repeatable), campaigns run with ``--held-from
 Writes fig3_D-L, fig3_M, fig3_N, fig3_O (and figS2_held) (PNG at 300 dpi and
 PDF) and fig3_ablations.json to --out: under ``ablations`` the observables of the
 numerical ablations by ``<timepoint>_<variant>``, their numerical error estimates
-(``<observable>_error``) and the fit's errors carried into them (``se_<observable>``);
+(``<observable>_error``) and the fit's errors carried into them (``se_<observable>``,
+and where the data folder's average has its traces' spread ``se_traces_<observable>`` at
+their σ² with ``t95_traces``, t₀.₉₇₅(n − 1): a 95 % interval is ± t95_traces of them);
 beside it the ``units``, the ``cut`` and ``nodes`` of the ablations, the ``campaign``
 and ``data`` folders (absolute) and the ``provenance`` of every package JSON.
 
@@ -126,7 +128,8 @@ def _panels_DL(result, stages, nodes: int, out: Path):
                 ax.text(0.5, 0.5, "no fit", ha="center", transform=ax.transAxes)
                 ax.set_axis_off()
                 continue
-            ablations[f"{tp.name}_{v}"], num = _panel_DL(ax, tp, rec, v, nodes)
+            ablations[f"{tp.name}_{v}"], num = _panel_DL(ax, tp, rec, v, nodes,
+                                                         result.midline(tp))
             # (M shows a result: not a fit that stopped short, nor walls that overlap)
             if (first_flat is None and v == "flat" and num is not None
                     and rec.get("converged", False) and not num.walls_cross):
@@ -136,13 +139,14 @@ def _panels_DL(result, stages, nodes: int, out: Path):
     return ablations, first_flat
 
 
-def _panel_DL(ax, tp, rec: dict, v: str, nodes: int):
+def _panel_DL(ax, tp, rec: dict, v: str, nodes: int, midline=None):
     """One panel of D–L: the fit, numerically ablated, and its inset; a fit that did not
     converge or an ablation whose walls pass through each other flagged (hatched, a note
-    in the title).  Returns its entry of fig3_ablations.json and the ablation (None if it
-    failed)."""
+    in the title).  ``midline``: the timepoint's average (the fit's errors also at its
+    traces' σ², as ``ablate FIT.json`` gives them).  Returns its entry of
+    fig3_ablations.json and the ablation (None if it failed)."""
     from morphoshell.plotting import flag_panel, plot_ablation
-    from morphoshell.workflows import (ablation_errors, fitted_problem, fitted_state,
+    from morphoshell.workflows import (fit_uncertainty, fitted_problem, fitted_state,
                                        numerical_ablation)
 
     notes = [] if rec.get("converged", False) else [NOT_CONVERGED]
@@ -156,12 +160,16 @@ def _panel_DL(ax, tp, rec: dict, v: str, nodes: int):
         entry, num, result = {"error": str(exc)}, None, "numerical ablation failed"
     else:
         plot_ablation(num.ablation, ax, title=None, legend=False)
-        errors = ablation_errors(rec, num.ablation)
+        # (audit 28 F2: se_<obs> take σ² from the residual, 2-3.7 times too small on
+        # averages; se_traces_<obs> and t95_traces from the traces' spread, ablate's keys)
+        errors = fit_uncertainty(rec, num.ablation, midline)
         entry = {**num.observables(), **num.ablation.error_columns(), "steps": num.steps,
                  "cold_difference": num.cold_difference,
                  "converged": bool(rec.get("converged", False)),
                  "walls_cross": {k: c.describe() for k, c in num.contacts.items() if c},
-                 **{f"se_{k}": e for k, e in errors.items()}}
+                 **errors.columns(),
+                 # (none carried: why, as ablate's fit_error_note says it)
+                 **({} if errors.errors else {"fit_error_note": errors.note})}
         result = f"o = {num.ablation.opening:.3g} R"
         notes += [_contact_note(num)] if num.walls_cross else []
     ax.set_title(f"{tp.name} (t = {tp.pseudotime:.2f}), {LABELS[v]}\n"
@@ -384,7 +392,8 @@ def _ablations_json(ablations: dict, args) -> dict:
     from morphoshell.mechanics.ablation import UNITS
 
     units = {**UNITS, **{f"{k}_error": u for k, u in UNITS.items()},
-             **{f"se_{k}": u for k, u in UNITS.items()}, "steps": "1",
+             **{f"se_{k}": u for k, u in UNITS.items()},
+             **{f"se_traces_{k}": u for k, u in UNITS.items()}, "t95_traces": "1", "steps": "1",
              "cold_difference": "R or rad (the unknowns' largest difference)", "cut": "R"}
     return {"ablations": ablations, "cut": CUT, "nodes": args.nodes, "units": units,
             "campaign": str(args.campaign.resolve()), "data": str(args.data.resolve())}

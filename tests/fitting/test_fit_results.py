@@ -643,3 +643,26 @@ def test_a_fits_json_has_each_parameters_unit_and_no_nan(pinned_fit):
     back = FitResult.from_dict(record).to_dict()
     assert back["seconds"] is None
     json.dumps(back["seconds"], allow_nan=False)
+
+
+def test_load_fit_warns_once_of_entries_it_does_not_read(pinned_fit, tmp_path, caplog):
+    """As load_equilibrium does (io.provenance.note_unknown, one helper): an entry not in
+    results.KNOWN (a hand edit, a newer version's) is named once; every entry to_dict and
+    a campaign's record write is known (no warning)."""
+    import logging
+
+    from morphoshell.fitting import load_fit
+    from morphoshell.fitting.results import KNOWN
+    from morphoshell.io.problem_files import write_json
+
+    record = pinned_fit[2].to_dict()
+    campaign = {**record, "status": "ok", "fitted_by": "gradient", "timepoint": "t01",
+                "state": {}, "held": {}, "previous": None, "embryo_t95": 2.78}
+    assert set(campaign) <= set(KNOWN)
+    with caplog.at_level(logging.WARNING, logger="morphoshell"):
+        load_fit(write_json(tmp_path / "plain.json", campaign))
+        assert "not read" not in caplog.text
+        for name in ("a.json", "b.json"):
+            load_fit(write_json(tmp_path / name, {**record, "zz_load_fit_entry": 1}))
+    assert caplog.text.count("zz_load_fit_entry") == 1
+    assert "a.json: entries 'zz_load_fit_entry' are not read by load_fit" in caplog.text

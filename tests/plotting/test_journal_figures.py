@@ -489,3 +489,30 @@ def test_fig2K_in_a_row_takes_room_from_its_neighbours_unwarned(tmp_path):
         warnings.simplefilter("error")
         ax = _fig2K_panel(1.65, 1.75, 4)
         assert _fig2K_faults(ax, tmp_path) == []
+
+
+def test_fig2JKs_series_are_drawn_in_okabe_ito_colours_that_stay_apart():
+    """Fig. 2 J's three measures (markers and group labels) and K's embryos in the
+    Okabe–Ito colours (style.OKABE_ITO, one definition), as drawn; J's three measures
+    >= 0.2 apart as seen with protanopia and deuteranopia (the threshold of the diagrams'
+    test above: tab10's orange and green, J's colours before, came to 0.097 with
+    protanopia)."""
+    from itertools import combinations
+
+    from matplotlib.colors import to_hex
+
+    from morphoshell.plotting import OKABE_ITO
+    from morphoshell.plotting.estimates import MEASURE_COLOURS, figure_JK
+    okabe = {c.lower() for c in OKABE_ITO.values()}
+    result = SimpleNamespace(**vars(_estimates([0.1, 0.2])), **vars(_velocity_result()))
+    fig = figure_JK(result, pyplot=False)
+    j, k = fig.axes[:2]
+    drawn = {to_hex(line.get_color()) for line in j.get_lines()
+             if line.get_marker() not in ("None", "", None)}
+    labels = {to_hex(t.get_color()) for t in j.get_xticklabels()}    # (each measure's group)
+    assert len(drawn) == 3 and drawn == labels and drawn <= okabe, (drawn, labels)
+    (points,) = [line for line in k.get_lines() if line.get_marker() == "o"]
+    assert to_hex(points.get_color()) in okabe
+    for name, matrix in MACHADO.items():
+        for a, b in combinations(MEASURE_COLOURS.values(), 2):
+            assert np.linalg.norm(_seen(a, matrix) - _seen(b, matrix)) >= 0.2, (name, a, b)

@@ -92,3 +92,17 @@ def test_load_campaign_without_its_data_folder_says_so(tmp_path, settings, said)
     with pytest.raises(ValueError, match=r"campaign_settings.json: " + said +
                        r".*load_campaign\(out, data_dir\)"):
         load_campaign(out)
+
+
+def test_a_timepoints_average_by_name_for_the_fits_errors(tmp_path):
+    """Audit 28 F2: the average a campaign's fits were made to (for fit_uncertainty's σ² of
+    the traces), by timepoint or name; an unknown name refused naming the campaign's."""
+    from morphoshell.workflows.campaign_results import load_campaign
+
+    data = Path(__file__).resolve().parents[2] / "data" / "synthetic_inversion"
+    loaded = load_campaign(_folder(tmp_path, data))
+    by_name, by_tp = loaded.midline("t01"), loaded.midline(loaded.timepoints[0])
+    assert by_name.n_traces == 5 and by_name.spread is not None
+    assert np.array_equal(by_name.r, by_tp.r)
+    with pytest.raises(ValueError, match=r"timepoint t99: not one of the campaign's \(t01, t02"):
+        loaded.midline("t99")

@@ -95,6 +95,13 @@ def test_an_unconverged_fit_is_marked_in_every_panel(stalled, data, tmp_path, mo
     assert meta["units"]["rotation"] == meta["units"]["se_rotation"] == "rad"
     assert set(ablations["t01_flat"]) - {"walls_cross", "converged"} <= set(meta["units"])
     assert ablations["t01_flat"]["rotation_error"] >= 0
+    # (audit 28 F2: the fit's errors also at the average's traces' σ², ablate's keys; the
+    # synthetic averages are of 2 embryos' traces, so t₀.₉₇₅(1) = 12.71; σ² of the traces
+    # above the residual's here, as on every average the audit drew: larger errors)
+    entry = ablations["t01_flat"]
+    assert entry["t95_traces"] == pytest.approx(12.706, abs=1e-3)
+    assert entry["se_traces_rotation"] > entry["se_rotation"] > 0
+    assert meta["units"]["se_traces_opening"] == "R" and meta["units"]["t95_traces"] == "1"
     assert {"morphoshell", "numpy", "written"} <= set(meta["provenance"])
     # N: open markers at t02 for both variants (flat and free), and a legend entry
     (n,) = figures["fig3_N"].axes

@@ -31,6 +31,7 @@ import numpy as np
 from .._runtime.tables import problem_attrs, xarray_module
 from .._runtime.validate import choice, flag, integer, real, short, text, within
 from ..io.problem_files import problem_of_record, read_json
+from ..io.provenance import note_unknown
 from ..numerics.status import (FIT_CONVERGED, FIT_CONVERGED_STOPS, FIT_NEAR_FOLD,
                                IPOPT_UNKNOWN, STATUSES)
 from ..solvers.contact import WallContact, wall_contact
@@ -43,12 +44,27 @@ if TYPE_CHECKING:
     from .inner import InnerProblem
     from .spec import FitSpec
 
-__all__ = ["FitResult", "FitError", "fit_result", "load_fit", "FOLD_RATIO"]
+__all__ = ["FitResult", "FitError", "fit_result", "load_fit", "FOLD_RATIO", "KNOWN"]
 
 #: Entries of a fit's record (:meth:`FitResult.to_dict`) that :meth:`FitResult.from_dict` needs.
 _RECORD_KEYS = ("problem", "parameters", "fitted", "standard_errors", "correlation",
                 "poorly_identified", "E_fit", "method", "variant", "converged",
                 "data_midline", "fitted_midline")
+
+#: Every entry of a fit's record, in one place: others are not read, and :func:`load_fit`
+#: warns of them (:func:`~morphoshell.io.provenance.note_unknown`, as ``load_equilibrium``).
+KNOWN = (*_RECORD_KEYS,
+         # the rest of FitResult.to_dict (units and note are rewritten from the fields)
+         "units", "standard_errors_source", "re_tracings", "E_fit_units", "stop", "message",
+         "seconds", "constrained", "outer_iterations", "inner_solves", "walls_cross", "note",
+         # morphoshell fit --json (cli/fit.py: fit_record, multi-start, profiles, input_check)
+         "midline_file", "solver", "settings", "input_check", "started_from", "starts",
+         "profile_intervals", "profiles", "replaced_fit", "complete", "not_done", "provenance",
+         # a campaign's record (workflows/timepoint_fits.py)
+         "status", "label", "timepoint", "pseudotime", "data", "first_start", "previous",
+         "held_from", "traces", "held", "start_candidates", "other_starts", "continued", "state",
+         "fitted_by", "embryo_standard_errors", "embryo_t95", "embryo_errors_message",
+         "embryo_fits", "nodes")
 
 #: A fit whose scaled Jacobian has its second singular value below this fraction of the
 #: first sits near a fold of the inner branch (module docstring) and is not converged
@@ -477,7 +493,8 @@ def load_fit(path: str | Path) -> FitResult:
     Returns
     -------
     FitResult
-        Without its equilibrium (:meth:`FitResult.from_dict`).
+        Without its equilibrium (:meth:`FitResult.from_dict`).  Entries not in
+        :data:`KNOWN` are not read: a warning names them, once per entry and process.
 
     Raises
     ------
@@ -488,7 +505,9 @@ def load_fit(path: str | Path) -> FitResult:
     record = read_json(path)
     if not isinstance(record, dict):
         raise ValueError(f"{path}: expected the JSON object written by morphoshell fit --json")
-    return FitResult.from_dict(record, str(path))
+    result = FitResult.from_dict(record, str(path))
+    note_unknown(record, KNOWN, str(path), "load_fit")     # (after the refusals: a fit)
+    return result
 
 
 def _record_fields(record: Mapping[str, Any], where: str) -> dict[str, Any]:

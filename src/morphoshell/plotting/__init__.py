@@ -24,7 +24,7 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
     "fits": ["plot_fit", "fit_axes", "fit_residuals", "plot_fit_series", "not_converged_handle",
              "NOT_CONVERGED", "DATA_STYLE", "FIT_ZORDER"],
     "estimates": ["plot_k_estimates", "plot_recoil_velocity", "figure_JK", "MEASURE_COLOURS",
-                  "OFF_SCALE_LABEL"],
+                  "VELOCITY_COLOUR", "OFF_SCALE_LABEL"],
     "branches": ["plot_branch", "BRANCH_STYLE"],
     "profiles": ["plot_profiles", "plot_profile"],
     "traces": ["plot_traces", "trace_styles"],

@@ -29,7 +29,10 @@ __all__ = ["plot_ablation", "plot_ablation_overlay", "ABLATION_STYLE", "recoil_c
 #: pre-ablation light red, dashed; post-ablation dark cyan, solid.  ``fill``
 #: is the band's opacity blended with white (opaque: the post-ablation band
 #: covers the pre-ablation one, whose outline and midline are then drawn on
-#: top); ``zorder`` is the midline's.
+#: top); ``zorder`` is the midline's.  Not the Okabe–Ito colours of the plots that tell
+#: series apart (:data:`~morphoshell.plotting.style.OKABE_ITO`): red before and cyan after
+#: the cut is the paper's convention (Fig. 1's micrographs, Fig. 2 G–I, Fig. 3 D–M;
+#: docs/gallery.md), and the two differ in hue, lightness and line style alike.
 ABLATION_STYLE = {"pre": {"color": "tab:red", "fill": 0.3, "ls": "--", "zorder": 4.0,
                           "label": "pre-ablation"},
                   "post": {"color": "darkcyan", "fill": 0.6, "ls": "-", "zorder": 3.0,

@@ -17,14 +17,20 @@ from matplotlib.legend_handler import HandlerTuple
 from matplotlib.lines import Line2D
 from matplotlib.transforms import ScaledTranslation
 
-from .style import (DECORATION, DOUBLE_COLUMN, MIN_FONT_SIZE, axes_size, journal_figure,
-                    made_here, panel_room, styled, text_width)
+from .style import (DECORATION, DOUBLE_COLUMN, MIN_FONT_SIZE, OKABE_ITO, axes_size,
+                    journal_figure, made_here, panel_room, styled, text_width)
 
 __all__ = ["plot_k_estimates", "plot_recoil_velocity", "figure_JK", "MEASURE_COLOURS",
+           "VELOCITY_COLOUR",
            "OFF_SCALE_LABEL"]
 
-#: Colours of the measures in Fig. 2 J.
-MEASURE_COLOURS = {"opening": "tab:blue", "rotation": "tab:orange", "displacement": "tab:green"}
+#: Colours of the measures in Fig. 2 J: Okabe–Ito's (were tab10's blue, orange and green,
+#: whose orange and green are 0.097 apart in sRGB as seen with protanopia, one colour:
+#: tests/plotting/test_journal_figures.py).
+MEASURE_COLOURS = {"opening": OKABE_ITO["blue"], "rotation": OKABE_ITO["orange"],
+                   "displacement": OKABE_ITO["bluish green"]}
+#: Colour of the embryos' recoil velocities in Fig. 2 K (was tab10's purple).
+VELOCITY_COLOUR = OKABE_ITO["reddish purple"]
 _MEASURE_LABEL = {"opening": r"opening $o$", "rotation": r"rotation $\varrho$",
                   "displacement": r"displacement $d$"}
 #: The measures' symbols: a group's label where the whole name does not fit under it.
@@ -289,14 +295,14 @@ def plot_recoil_velocity(ax: Axes, result) -> Axes:
             ax.set_axis_off()
             return ax
         X, V = np.array(fit.X_um), np.array(fit.V_um_per_s)
-        ax.plot(X, V, "o", color="tab:purple", ms=_MS)
+        ax.plot(X, V, "o", color=VELOCITY_COLOUR, ms=_MS)
         x = np.linspace(0, 1.1 * X.max(), 50)
         ax.plot(x, fit.E_over_mu * x, "k-", lw=1.0)
         ax.set_xlim(0, None)
         ax.set_ylim(0, None)
         ax.set_xlabel(r"$X = H^{5/2}R^{-3/2}|1-k|$ (µm)")
         lines = _velocity_lines(fit)
-        handles = [Line2D([], [], ls="none", marker="o", color="tab:purple", ms=_MS),
+        handles = [Line2D([], [], ls="none", marker="o", color=VELOCITY_COLOUR, ms=_MS),
                    Line2D([], [], color="k", lw=1.0)]
         below = 0.0
         if _fits_in_corners(ax, lines):

@@ -186,16 +186,41 @@ class CampaignResult:
                 out[tp.name] = (None, f"{len(fits)} finished fit(s)")
                 continue
             try:
-                out[tp.name] = (compare_hypotheses(fits, self._midline(tp)), "")
+                out[tp.name] = (compare_hypotheses(fits, self.midline(tp)), "")
             except ValueError as exc:
                 out[tp.name] = (None, str(exc))
         return out
 
-    def _midline(self, tp: Timepoint):
-        """The averaged midline of ``tp`` as its fits read it (None: no data folder, or
-        the file is gone or unreadable; then σ² comes from the residual)."""
+    def midline(self, tp: Timepoint | str):
+        """The averaged midline of a timepoint as its fits read it: the ``data`` of
+        :func:`~morphoshell.fitting.hypotheses.compare_hypotheses` (:meth:`hypothesis_tests`)
+        and of :func:`~morphoshell.workflows.fitted_shapes.fit_uncertainty` (its fits' errors
+        carried into an ablation also at the traces' σ²).
+
+        Parameters
+        ----------
+        tp : Timepoint or str
+            The timepoint or its name.
+
+        Returns
+        -------
+        Midline or None
+            None: no data folder, or the file is gone or unreadable (then σ² comes from
+            the residual).
+
+        Raises
+        ------
+        ValueError
+            A name none of the campaign's timepoints has.
+        """
         from ..io import Midline
 
+        if isinstance(tp, str):
+            names = {t.name: t for t in self.timepoints}
+            if tp not in names:
+                raise ValueError(f"timepoint {tp}: not one of the campaign's "
+                                 f"({', '.join(names)})")
+            tp = names[tp]
         if self.data_dir is None:
             return None
         try:
