@@ -78,9 +78,10 @@ def test_a_fit_without_profiles_has_none(tmp_path):
 @pytest.mark.parametrize("edit, said", [
     (lambda d: d.pop("threshold"), "the entry 'threshold' is missing"),
     (lambda d: d.update(values=d["values"][::-1]), "values must be a non-empty list of increasing"),
-    # (either list may be the one edited: both named, with their lengths)
-    (lambda d: d.update(objective=d["objective"][1:]), "objective has 4 items, values 5"),
-    (lambda d: d.update(values=d["values"][1:]), "objective has 5 items, values 4"),
+    # (either list may be the one edited: both named, with their lengths; 9 values: the
+    # 4-point grid, the fit, and two refinements of each side's crossing at its first step)
+    (lambda d: d.update(objective=d["objective"][1:]), "objective has 8 items, values 9"),
+    (lambda d: d.update(values=d["values"][1:]), "objective has 9 items, values 8"),
     (lambda d: d["objective"].__setitem__(0, -1.0), "objective[0] = -1.0 must lie in"),
     (lambda d: d["converged"].__setitem__(1, "yes"), "converged[1] = 'yes' must be True or"),
     (lambda d: d.update(interval=[0.1]), "interval = [0.1] must be a list of 2 items"),

@@ -15,7 +15,7 @@ from morphoshell.fitting import fit, profile, synthetic_midline, volvox_spec
 from morphoshell.fitting import profile_retry
 from morphoshell.fitting.profile_retry import (ABOVE_FARTHER, BEFORE_CROSSING, CROSSING,
                                                NEIGHBOUR_REFITS,
-                                               REFINE_PLANNED, crossing, needs_retry,
+                                               crossing, needs_retry,
                                                non_monotone, not_monotone_note,
                                                refine_crossing, retried, settle_side)
 from morphoshell.solvers.results import SolverError
@@ -104,17 +104,16 @@ def test_a_crossing_within_the_first_steps_is_refined():
     threshold = 2.0                    # (S_min 1 + height 1: crossing at 0.15)
     coarse = crossing(side[0], side[1], (0.0, 1.0), 1.0, threshold, 1.0)
     assert abs(coarse - 0.15) > 5e-3   # (the interpolation across the step misses it)
-    made = refine_crossing(side, (0.0, 1.0, "optimum"), threshold, 10, refit)
+    made = refine_crossing(side, (0.0, 1.0, "optimum"), threshold, refit)
     assert made == 2 and len(side[0]) == 4 and np.all(np.diff(side[0]) > 0)
     assert calls[0][0] == "end 0.1"    # (from the step below the crossing)
     fine = crossing(side[0], side[1], (0.0, 1.0), 1.0, threshold, 1.0)
     # (two false-position steps of a quartic: within 1e-3 of the step's 0.1)
     assert fine == pytest.approx(0.15, abs=1e-3)
-    # a grid asked for with few points is coarse by choice; a crossing at the third step
-    # is resolved already
-    for planned, values in ((REFINE_PLANNED - 1, [0.1, 0.2]), (10, [0.04, 0.08, 0.16])):
-        side = (list(values), [S(v) for v in values], [True] * len(values), list(values))
-        assert refine_crossing(side, (0.0, 1.0, "optimum"), threshold, planned, refit) == 0
+    # a crossing at the third step is resolved already
+    values = [0.04, 0.08, 0.16]
+    side = (list(values), [S(v) for v in values], [True] * len(values), list(values))
+    assert refine_crossing(side, (0.0, 1.0, "optimum"), threshold, refit) == 0
 
 
 def test_a_refinement_that_stalls_above_the_step_beyond_is_left_out():
@@ -122,10 +121,10 @@ def test_a_refinement_that_stalls_above_the_step_beyond_is_left_out():
     lies above the first above is above the profile (it rises to its crossing): left out
     (the audit's κ₁ at 1.62 would have moved the end from 1.620 to 1.599)."""
     side = ([0.1, 0.2], [1.2, 3.0], [True, True], ["end 0.1", "end 0.2"])
-    made = refine_crossing(side, (0.0, 1.0, "optimum"), 2.0, 10,
+    made = refine_crossing(side, (0.0, 1.0, "optimum"), 2.0,
                            lambda end, value: ("e", None, None, 3.5, False))
     assert made == 1 and side[0] == [0.1, 0.2]
-    made = refine_crossing(side, (0.0, 1.0, "optimum"), 2.0, 10,
+    made = refine_crossing(side, (0.0, 1.0, "optimum"), 2.0,
                            lambda end, value: ("e", None, None, 2.5, False))
     assert made == 2 and len(side[0]) == 4        # (below the step beyond: kept)
 
@@ -273,6 +272,14 @@ def _audit_side():
     return (list(AUDIT_VALUES), list(AUDIT_S), [True] * n, [f"end {i}" for i in range(n)])
 
 
+@pytest.fixture
+def no_refinement(monkeypatch):
+    """The refinement of a crossing within a side's first two steps left out (tested above,
+    on any grid since audit 27's t05): the tests using this are about the refits from the
+    neighbours' ends, and their fakes know the side's own values only."""
+    monkeypatch.setattr(profile_retry, "REFINEMENTS", 0)
+
+
 def test_a_refit_above_one_farther_out_is_fitted_again_from_its_neighbours():
     """The audit's bump at 0.7785 (2.9654, above 2.9418 at 0.7758 and above the threshold:
     the interval ended at 0.77997): fitted again from the end of the refit farther out it
@@ -284,7 +291,7 @@ def test_a_refit_above_one_farther_out_is_fitted_again_from_its_neighbours():
     before = crossing(side[0], side[1], start[:2], -1.0, AUDIT_THRESHOLD, AUDIT_S_MIN)
     assert before > 0.7785
     refit = _neighbour_refit({("end 2", 0.7785): 2.9134}, calls)
-    retries = settle_side(side, start, AUDIT_THRESHOLD, 2, refit, "f1")
+    retries = settle_side(side, start, AUDIT_THRESHOLD, refit, "f1")
     # (the farther neighbour first; then monotone, the new crossing below its chord)
     assert calls == [("end 2", 0.7785)]
     assert side[1][1] == 2.9134 and side[3][1] == ("new end 0.7785", None, None)
@@ -299,7 +306,7 @@ def test_a_refit_above_one_farther_out_is_fitted_again_from_its_neighbours():
     assert bump.to_dict()["kept"] == "refit at f1 = 0.7758"
 
 
-def test_a_crossing_above_its_neighbours_chord_is_tried_from_beyond():
+def test_a_crossing_above_its_neighbours_chord_is_tried_from_beyond(no_refinement):
     """A monotone side whose crossing refit lies above the chord of its neighbours in
     √(S − S_min) (the profile bends the wrong way there: a worse local minimum, which a
     monotone side leaves unseen) is tried from its outer neighbour's end; one on or below
@@ -318,7 +325,7 @@ def test_a_crossing_above_its_neighbours_chord_is_tried_from_beyond():
         def refit(end, value, side=side):       # (the same minimum from every start)
             calls.append((end, value))
             return (end, None, None, side[1][side[0].index(value)], True), ""
-        settle_side(side, start, 1.03, 2, refit, "x")
+        settle_side(side, start, 1.03, refit, "x")
         assert calls == tried
 
 
@@ -332,7 +339,8 @@ F10_S_MIN, F10_THRESHOLD = 2.1043032, 2.6305135
 F10_LOWER = 2.2427         # (the refit at -0.0219 from the crossing's end: 0.263 heights)
 
 
-def test_the_step_before_a_crossing_above_its_neighbours_chord_is_tried_from_beyond():
+def test_the_step_before_a_crossing_above_its_neighbours_chord_is_tried_from_beyond(
+        no_refinement):
     """The audit's 6-point κ₁ (F10): the last refit below the threshold lies above the chord
     of the optimum and the crossing's refit in √(S − S_min), so it is tried from the crossing
     refit's end, lands lower, and the interval's lower end moves from −0.097 to −0.157 (the
@@ -349,7 +357,7 @@ def test_the_step_before_a_crossing_above_its_neighbours_chord_is_tried_from_bey
         S = F10_LOWER if (end, value) == ("end 1", F10_VALUES[0]) else \
             side[1][side[0].index(value)]
         return (f"new end {value}", None, None, S, True), ""
-    [retry] = settle_side(side, start, F10_THRESHOLD, 3, refit, "kappa1")
+    [retry] = settle_side(side, start, F10_THRESHOLD, refit, "kappa1")
     assert calls == [("end 1", F10_VALUES[0])]
     assert side[1] == [F10_LOWER, F10_S[1]] and side[3][0] == ("new end -0.0219203", None, None)
     assert (retry.reason, retry.winner) == (BEFORE_CROSSING, "refit at kappa1 = -0.292664")
@@ -358,7 +366,7 @@ def test_the_step_before_a_crossing_above_its_neighbours_chord_is_tried_from_bey
     # (√(S − S_min) linear in θ: the step before the crossing on its chord, no refit)
     calls.clear()
     straight = ([0.1, 0.2], [1.01, 1.04], [True, True], ["e0", "e1"])
-    assert settle_side(straight, (0.0, 1.0, "optimum"), 1.03, 3, refit, "x") == []
+    assert settle_side(straight, (0.0, 1.0, "optimum"), 1.03, refit, "x") == []
     assert calls == []
 
 
@@ -368,7 +376,8 @@ def test_the_audit_6_point_kappa1_profile_reaches_the_20_point_ends():
     minima and the interval read [−0.097, 0.932] with no note, where the 20-point profile
     gives [−0.172, 0.960].  Each is now tried from its crossing refit's end and the interval
     is [−0.157, 0.954]: within 0.015 of the 20-point ends, the interpolation across a step
-    of 0.27 (the bounds below sit halfway between the broken and the fixed ends)."""
+    of 0.27 (the bounds below sit halfway between the broken and the fixed ends); with the
+    lower crossing, at the first step, refined too: [−0.1725, 0.954]."""
     from pathlib import Path
 
     from morphoshell.io import Midline
@@ -384,14 +393,35 @@ def test_the_audit_6_point_kappa1_profile_reaches_the_20_point_ends():
     assert len(kept) == 2 and "the step before the crossing" in p.note
 
 
-def test_a_bump_no_neighbour_lowers_is_tried_once_from_each_and_warned_of(caplog):
+def test_a_coarse_grids_crossing_in_a_worse_minimum_is_refined():
+    """Audit 27 on the synthetic t05 average (free, 60 nodes, σ² from the traces; about 5 s):
+    on 6 points κ₁'s upper crossing refit, at 1.2447, is the walk's last and lay in a worse
+    local minimum (2.15 threshold heights from the walk, the optimum and the step before;
+    1.69 from the family's defaults), no rule looked at it, and the end read 0.974 where 20
+    points give 1.069.  The crossing within the side's first two steps is now refined on
+    any grid: 1.002 (the bound sits halfway between the broken and the fixed ends)."""
+    from pathlib import Path
+
+    from morphoshell.io import Midline
+
+    data = Midline.from_csv(Path(__file__).parents[2] / "data" / "synthetic_inversion" / "t05"
+                            / "synthetic_average.csv")
+    spec = volvox_spec("free")
+    p = profile(spec, data, "kappa1", result=fit(spec, data, "gradient", nodes=60), points=6,
+                nodes=60)
+    assert p.interval[1] > 0.988
+    assert len(p.values) > 7        # (refits at the interpolated crossings, not the grid's)
+
+
+def test_a_bump_no_neighbour_lowers_is_tried_once_from_each_and_warned_of(caplog,
+                                                                         no_refinement):
     """The outer neighbour's end does not lower the bump: nothing is left to try for it (the
     inner neighbour's end is the walk's own start for it, unchanged; the bump is the crossing,
     and was just tried from beyond it); the step before it, 4 % of a threshold height above
     their chord, is tried from the bump's end once (no lower either).  The side stays as it
     was, and the warning (log and note) names the parameter and the values."""
     side, calls = _audit_side(), []
-    retries = settle_side(side, (0.7976, AUDIT_S_MIN, "optimum"), AUDIT_THRESHOLD, 2,
+    retries = settle_side(side, (0.7976, AUDIT_S_MIN, "optimum"), AUDIT_THRESHOLD,
                           _neighbour_refit({}, calls), "f1")
     assert calls == [("end 2", 0.7785), ("end 1", 0.7812)]
     assert side[1] == AUDIT_S and [r.winner for r in retries] == ["", ""]
@@ -417,7 +447,7 @@ def test_a_neighbour_lowered_is_a_new_start_and_the_refits_are_bounded():
         end = end[0] if isinstance(end, tuple) else end       # (a refit's end: its spec)
         calls.append((end, value))
         return (f"new {value}", None, None, lower[(end, value)], True), ""
-    retries = settle_side(side, (0.0, 1.0, "optimum"), 10.0, 2, refit, "x")
+    retries = settle_side(side, (0.0, 1.0, "optimum"), 10.0, refit, "x")
     assert calls == [("e2", 0.2), ("new 0.2", 0.1), ("new 0.1", 0.2)]
     assert side[1] == [1.5, 1.8, 2.0, 4.0]
     assert [(r.value, r.S_before, r.S, r.winner) for r in retries] == [
@@ -433,7 +463,7 @@ def test_a_neighbour_lowered_is_a_new_start_and_the_refits_are_bounded():
     side = ([0.1 * i for i in range(1, 9)], [3.0, 2.9, 2.8, 2.7, 2.6, 2.5, 2.4, 5.0],
             [True] * 8, [f"e{i}" for i in range(8)])
     # (threshold 3: the tolerance 0.02, each refit lower by more; the crossing the last step)
-    settle_side(side, (0.0, 1.0, "optimum"), 3.0, 2, creeping, "x")
+    settle_side(side, (0.0, 1.0, "optimum"), 3.0, creeping, "x")
     assert len(count) == NEIGHBOUR_REFITS
 
 
@@ -448,7 +478,7 @@ def test_the_farther_neighbour_is_tried_first():
     assert _untried(side, (0.7976, AUDIT_S_MIN, "optimum"), AUDIT_THRESHOLD, 0.003, {(1, 2, 0)}, version) == (1, 0, ABOVE_FARTHER)
 
 
-def test_differences_below_the_tolerance_are_monotone_and_not_kept():
+def test_differences_below_the_tolerance_are_monotone_and_not_kept(no_refinement):
     """A bump or a lowering by less than MONOTONE_TOL of the threshold's height (round-off of
     one minimum's ends) asks for no refit and changes nothing: a profile whose refits agree
     so stays the same to the bit."""
@@ -456,7 +486,7 @@ def test_differences_below_the_tolerance_are_monotone_and_not_kept():
     assert non_monotone([1.0, 1.005, 1.0, 2.0], 0.01 * height) == []
     assert non_monotone([1.0, 1.02, 1.0, 2.0, float("nan")], 0.01 * height) == [1]
     side = ([0.1, 0.2, 0.3], [1.2, 2.5, 2.9], [True] * 3, ["e0", "e1", "e2"])
-    retries = settle_side(side, (0.0, 1.0, "optimum"), 2.0, 2,
+    retries = settle_side(side, (0.0, 1.0, "optimum"), 2.0,
                           lambda end, value: (("e", None, None, 2.495, False), ""), "x")
     assert side[1] == [1.2, 2.5, 2.9] and side[2] == [True] * 3 and side[3][1] == "e1"
     assert [(r.value, r.reason, r.winner) for r in retries] == [(0.2, CROSSING, "")]

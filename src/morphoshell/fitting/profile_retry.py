@@ -21,10 +21,11 @@ and its crossing lies several steps out: its numbers stay the same to the bit):
   lets the walk go on outward from there, so the interval widens.  Each retry is recorded
   (:class:`Retry`: which start won) in the profile's note and JSON.
 * **A coarse crossing refined** (:func:`refine_crossing`): where a side crosses the
-  threshold within its first two steps although its grid planned more, the profile is
-  far narrower than the Gauss–Newton error that set the step, and the crossing
-  interpolated across one step rests on two refits; one or two refits at the
-  interpolated crossing (false position) bracket it within a fraction of a step.
+  threshold within its first two steps (a profile far narrower than the Gauss–Newton error
+  that set the step, or a grid asked for with few points), the crossing interpolated
+  across one step rests on two refits; one or two refits at the interpolated crossing
+  (false position) bracket it within a fraction of a step, and a coarse grid's crossing
+  refit in a worse minimum, the walk's last, no longer decides the end alone.
 * **Neighbours' ends** (:func:`settle_side`): a profile rises outward on either side of its
   minimum, so a converged refit above one farther out (by :data:`MONOTONE_TOL`) ended in a
   worse local minimum.  It is fitted again from its outer neighbour's end, then its inner
@@ -38,7 +39,8 @@ and its crossing lies several steps out: its numbers stay the same to the bit):
   (the synthetic t02, 6 points, 60 nodes): the first step on either side converged in a worse
   minimum (−0.0219: 0.66 threshold heights, 0.26 from the crossing refit's end), both sides
   monotone, the crossing's refit the walk's last; the interval [−0.097, 0.932] became
-  [−0.157, 0.954] (20 points: [−0.172, 0.960]).  A side still not
+  [−0.157, 0.954], and [−0.1725, 0.954] with the lower crossing, at the first step, refined
+  (20 points: [−0.172, 0.960]).  A side still not
   monotone after them is named in a warning and the profile's note
   (:func:`not_monotone_note`).
 
@@ -59,7 +61,7 @@ from .multistart import other_starts
 from .results import FitError
 from .spec import VARIANTS, FitSpec
 
-__all__ = ["Retry", "RETRY_METHOD", "REFINEMENTS", "REFINE_PLANNED", "MONOTONE_TOL",
+__all__ = ["Retry", "RETRY_METHOD", "REFINEMENTS", "MONOTONE_TOL",
            "NEIGHBOUR_REFITS", "ABOVE_FARTHER", "CROSSING", "BEFORE_CROSSING", "crossing",
            "crossings", "retried",
            "needs_retry", "refine_crossing", "started_at", "non_monotone", "settle_side",
@@ -72,11 +74,6 @@ log = logging.getLogger(__name__)
 RETRY_METHOD = "gradient"
 #: At most this many refits at the interpolated crossing on a side (:func:`refine_crossing`).
 REFINEMENTS = 2
-#: A side's crossing is refined only when its grid planned at least this many steps: a
-#: profile asked for with few points (the tests' 4 or 6) is coarse by choice, and a
-#: 20-point grid's side (10 steps, reaching twice the linear half-width) crosses near its
-#: fifth step where the profile is about as wide as the Gauss–Newton error says.
-REFINE_PLANNED = 4
 #: A side (outward) is monotone where no refit lies above one farther out by more than this
 #: fraction of the threshold's height (threshold − S_min).  Near its crossing a 20-point
 #: grid's profile rises by about 0.4 heights a step (a parabola reaching the threshold at the
@@ -266,11 +263,18 @@ def _first_above(objective: list, threshold: float) -> int | None:
 
 
 def refine_crossing(side: tuple[list, list, list, list], start: tuple, threshold: float,
-                    planned: int, refit: Callable) -> int:
+                    refit: Callable) -> int:
     """Refits at the interpolated crossing of a side that crosses within its first two
-    steps although its grid planned :data:`REFINE_PLANNED` or more: at most
-    :data:`REFINEMENTS`, each inserted into ``side`` where it belongs, each in the bracket
-    the last left (false position: for a smooth profile closer than the midpoint).
+    steps: at most :data:`REFINEMENTS`, each inserted into ``side`` where it belongs, each
+    in the bracket the last left (false position: for a smooth profile closer than the
+    midpoint).
+
+    Whatever the steps the grid planned: a 20-point grid's side (10 steps, reaching twice
+    the linear half-width) crosses near its fifth step and is not refined, but a grid asked
+    for with few points (4 to 7: two or three steps a side) crosses within two, and there
+    the crossing's refit is often the walk's last, in a worse minimum no neighbour's end
+    reaches (audit: the synthetic t05's κ₁ on 6 points, its upper end 0.974 against the
+    20-point 1.069; refined, 1.002).
 
     They are not retried from other starts (:func:`retried`: seconds each, for a fraction
     of a step); a refit that fails, or did not converge and lies above the step beyond it,
@@ -284,8 +288,6 @@ def refine_crossing(side: tuple[list, list, list, list], start: tuple, threshold
     start : (float, float, tuple)
         θ̂, S_min and the optimum's state (spec, θ, state).
     threshold : float
-    planned : int
-        The steps the grid planned on this side.
     refit : callable
         ``refit(end, value)``: the profile's refit at ``value`` from the state ``end``,
         its tuple (spec, θ, state, objective, converged) or None if it failed.
@@ -297,7 +299,7 @@ def refine_crossing(side: tuple[list, list, list, list], start: tuple, threshold
     """
     values, objective, converged, ends = side
     i = _first_above(objective, threshold)
-    if i is None or i > 1 or planned < REFINE_PLANNED:
+    if i is None or i > 1:
         return 0
     made = 0
     while made < REFINEMENTS:
@@ -400,7 +402,7 @@ def _from_neighbours(side: tuple, start: tuple, threshold: float, refit: Callabl
 
 
 def settle_side(side: tuple[list, list, list, list], start: tuple, threshold: float,
-                planned: int, refit: Callable, name: str) -> list[Retry]:
+                refit: Callable, name: str) -> list[Retry]:
     """A side's walk made monotone from its neighbours' ends and its crossing refined.
 
     A profile is a minimum over the other parameters and rises outward from its minimum, so a
@@ -419,7 +421,7 @@ def settle_side(side: tuple[list, list, list, list], start: tuple, threshold: fl
 
     Parameters
     ----------
-    side, start, threshold, planned
+    side, start, threshold
         As :func:`refine_crossing`.
     refit : callable
         ``refit(end, value)``: the profile's refit at ``value`` from the state ``end``, its
@@ -436,7 +438,7 @@ def settle_side(side: tuple[list, list, list, list], start: tuple, threshold: fl
     """
     records: dict = {}
     made = _from_neighbours(side, start, threshold, refit, name, records, NEIGHBOUR_REFITS)
-    if refine_crossing(side, start, threshold, planned, lambda end, value: refit(end, value)[0]):
+    if refine_crossing(side, start, threshold, lambda end, value: refit(end, value)[0]):
         _from_neighbours(side, start, threshold, refit, name, records, NEIGHBOUR_REFITS - made)
     return [Retry(float(v), r["S_before"], r["winner"],
                   float(side[1][side[0].index(v)]), bool(side[2][side[0].index(v)]),

@@ -524,7 +524,7 @@ def _walk(opt: _Optimum, name: str, steps: list[float], direction: float, step: 
     retries.extend(settle_side((values, objective, converged, ends),
                                (float(opt.theta[opt.spec.fitted.index(name)]), opt.S,
                                 (opt.spec, opt.theta.copy(), opt.eq)),
-                               threshold, len(steps), refit, name))
+                               threshold, refit, name))
     lowest = min(((S, *end) for S, end in zip(objective, ends) if end is not None),
                  key=lambda low: low[0], default=None)
     return values, objective, converged, note, lowest
