@@ -21,10 +21,9 @@ from .._runtime.validate import real
 from .trace_noise import Binning, noise_estimate
 
 __all__ = ["MidlineError", "image_scale", "check_choice", "check_positive", "one_curve",
-           "check_count", "check_extent", "check_axis", "noise_hint", "asymmetry_warning", "bridged_gap",
-           "check_scale", "check_not_short", "check_average", "check_open", "spread_warning",
-           "SPREAD_RATIO", "HALF_LENGTHS",
-           "MIN_HALF_LENGTH"]
+           "check_count", "check_extent", "check_axis", "noise_hint", "asymmetry_warning",
+           "bridged_gap", "check_scale", "check_not_short", "check_average", "check_open",
+           "spread_warning", "SPREAD_RATIO", "HALF_LENGTHS", "MIN_HALF_LENGTH"]
 
 #: Lengths (units of R) of a half midline beyond which a trace refused for its shape is refused
 #: for its scale instead (:func:`check_scale`): a Volvox midline's half is about 2-4 R
