@@ -441,3 +441,15 @@ def test_fit_json_and_csv_say_which_standard_errors_they_hold(fiji_xy, tmp_path,
             assert "re_tracings" not in record
             assert record["note"].startswith("standard errors are Gauss-Newton lower bounds")
             assert "± Gauss–Newton (lower bounds" in printed, printed
+
+
+def test_a_fit_that_carries_its_re_tracings_errors_keeps_them_after_its_profiles():
+    """Review of stop 56: after ``fit --profile``, a re-centring that kept a copy of the fit
+    (``re_tracings`` already set) had the re-tracings applied again, which
+    ``with_trace_errors`` refuses: the run ended with exit 2 after all its profiles."""
+    from types import SimpleNamespace
+
+    from morphoshell.cli.fit import _trace_errors
+
+    carried = SimpleNamespace(re_tracings=object())
+    assert _trace_errors(carried, object()) is carried

@@ -146,7 +146,8 @@ def _load(args, radii) -> list:
         except MidlineError as exc:
             raise MidlineError(reworded(str(exc), TRACE_OPTIONS)) from None
         notes += found_notes
-        for m, r in zip(found, radius if isinstance(radius, list) else [radius] * len(found)):
+        for m, r in zip(found, radius if isinstance(radius, list) else [radius] * len(found),
+                        strict=True):
             hint = (scale_hint(path, args.format, args.pixel_size, r, "this embryo's")
                     if r is not None else
                     "are its r and z in units of R (µm divided by the embryo's radius in µm; a "

@@ -412,8 +412,9 @@ def _retracings(result, args):
 def _trace_errors(result, retraced):
     """``result`` with the sandwich errors of its trace's re-tracings (the Gauss–Newton ones
     assume independent residuals and were 1.3–1.8x too small) and their record
-    (:func:`morphoshell.fitting.trace_errors.with_trace_errors`), or as it is without them."""
-    if retraced is None:
+    (:func:`morphoshell.fitting.trace_errors.with_trace_errors`), or as it is without them
+    or when it carries them already (a profile's re-centring that kept a copy of the fit)."""
+    if retraced is None or result.re_tracings is not None:
         return result
     from ..fitting.trace_errors import with_trace_errors
     return with_trace_errors(result, retraced)

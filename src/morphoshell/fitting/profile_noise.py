@@ -30,7 +30,8 @@ NOISE_SOURCES = ("auto", "residual", "traces")
 
 def threshold_quantile(confidence: float, dof: float = math.inf, restrictions: int = 1
                        ) -> float:
-    """q of the threshold S_min + σ² q: χ²₁(confidence), or F(1, dof) for an estimated σ².
+    """q of the threshold S_min + σ² q: χ²_d(confidence), or d·F(d, dof) for an estimated σ²
+    (d = ``restrictions``; 1 for a profile).
 
     F(1, ν) is the square of Student's t with ν degrees of freedom: the
     likelihood-ratio statistic with σ² replaced by an estimate of ν degrees

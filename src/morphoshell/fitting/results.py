@@ -552,7 +552,7 @@ def _check_source(record: Mapping[str, Any], result: FitResult, where: str) -> N
                f"{result.re_tracings.replicates} refused")
         raise ValueError(f"{where}: standard_errors_source = {source!r} disagrees with "
                          f"{why}: {RE_TRACINGS!r} is written exactly where at most "
-                         f"{MAX_REFUSED:g} of the re-tracings were refused")
+                         f"{MAX_REFUSED:.0%} of the re-tracings were refused")
 
 
 def _entry(record: Mapping[str, Any], key: str, where: str, check, *args) -> Any:
