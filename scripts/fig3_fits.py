@@ -39,7 +39,7 @@ their σ² with ``t95_traces``, t₀.₉₇₅(n − 1): a 95 % interval is ± t
 beside it the ``units``, the ``cut`` and ``nodes`` of the ablations, the ``campaign``
 and ``data`` folders (absolute) and the ``provenance`` of every package JSON.
 
-Usage: python scripts/fig3_fits.py --campaign out/campaign [--data data/synthetic_inversion]
+Usage: python scripts/fig3_fits.py --campaign out/campaign [--data DATA_DIR]
        [--out out/figures] [--nodes 200] [--held out/campaign_held_flat ...]
 """
 from __future__ import annotations
@@ -422,8 +422,8 @@ def main(argv=None) -> int:
     """Draw the panels (see the module docstring); returns the exit status."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--campaign", type=Path, required=True, help="output folder of a campaign")
-    p.add_argument("--data", type=Path, default=ROOT / "data" / "synthetic_inversion",
-                   help="its data folder (default: data/synthetic_inversion)")
+    p.add_argument("--data", type=Path, default=None,
+                   help="its data folder (default: the one the campaign folder records)")
     p.add_argument("--out", type=Path, default=Path("out/figures"), help="output folder")
     p.add_argument("--nodes", type=int, default=200, help="mesh nodes of the ablations")
     p.add_argument("--held", type=Path, action="append", default=[],
@@ -438,6 +438,7 @@ def main(argv=None) -> int:
     if loaded is None:
         return 2
     result, held, sources = loaded
+    args.data = Path(result.data_dir or args.data)     # (the recorded one without --data)
     truth_file = args.data / "synthetic_inversion.json"
     truth = json.loads(truth_file.read_text()) if truth_file.exists() else None
     args.out.mkdir(parents=True, exist_ok=True)

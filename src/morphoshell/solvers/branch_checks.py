@@ -226,6 +226,8 @@ def _coarser(fine: DirectSolver, nodes: int, eq: Equilibrium, coarse: dict) -> D
     (as :func:`_coarse_arc`; MeshTooCoarse where that cannot hold them)."""
     solver = _coarse_solver(fine, coarse) if nodes == half_mesh(fine.nodes) else \
         DirectSolver(fine.structure, mesh=replace(fine.mesh, nodes=nodes), stages=fine.stages)
+    if solver is None:          # (a half mesh below 5 nodes: callers check, this says so)
+        raise MeshTooCoarse(f"the half mesh of {fine.nodes} nodes is below 5 nodes")
     try:
         solver.disc.check_anchors(eq.problem.parameter_vector(), eq.anchors)
         return solver

@@ -284,9 +284,11 @@ def _note_versions(path: Path, recorded: dict | None) -> None:
     commit (the version string stays while commits change numbers): its stored fits are
     reused (their records say which versions made them), which may not be wanted."""
     now = record_provenance()
+    # (a folder written before commits were recorded has none: not a change to warn of)
     changed = [f"{k} {(recorded or {}).get(k, 'unknown')} -> {v}" for k, v in now.items()
                if k in ("morphoshell", "git_commit", "casadi", "numpy")
-               and (recorded or {}).get(k) != v]
+               and (recorded or {}).get(k) != v
+               and not (k == "git_commit" and (recorded or {}).get(k) is None)]
     if changed:
         log.warning("%s: the folder's fits were made with other versions (%s); they are "
                     "reused as they are (resume=False, --no-resume, refits them)",

@@ -119,7 +119,7 @@ def _digest(record: dict, labels: Sequence[str] = _LABELS) -> str:
 
 def record_provenance() -> dict[str, object]:
     """The versions and git commit a campaign's fit was made with (no date: a resumed
-    campaign writes the same bytes as an uninterrupted one)."""
+    campaign writes the same bytes as an uninterrupted one of the same code)."""
     from ..io.provenance import provenance
 
     return {k: v for k, v in provenance().items() if k != "written"}
