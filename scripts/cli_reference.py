@@ -81,7 +81,8 @@ def render() -> str:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--check", action="store_true", help="only check that docs/cli.md is current")
+    parser.add_argument("--check", action="store_true",
+                        help="only check that docs/cli.md is current")
     args = parser.parse_args(argv)
     text = render()
     if args.check:

@@ -473,9 +473,9 @@ SCAN_F_MAX, SCAN_POINTS = 1e3, 400
 def _scan(S, centre: float, floor: float):
     """A rising sign change of ``S`` (as :func:`_bracket`'s) that the doublings missed: S on
     :data:`SCAN_POINTS` radii equally spaced in log f from ``floor`` to f =
-    :data:`SCAN_F_MAX`, and where S rises to a local maximum below 0 between them, that
-    maximum found (a rise through 0 narrower than the grid's 2.2 % in f); None if neither
-    finds one.
+    :data:`SCAN_F_MAX`, and at every local maximum of S on them, that maximum found between
+    its neighbours (a rise through 0 narrower than the grid's steps, under 2 % in f); None
+    if neither finds one.
 
     With C01 < 0 a local minimum of the energy can lie in a window of S > 0 a few per cent
     of f wide, between a rise and a fall of S, both missed by the doublings' coarse points:

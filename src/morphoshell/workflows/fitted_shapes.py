@@ -545,9 +545,9 @@ class TracesNoise:
     @property
     def t95(self) -> float:
         """t₀.₉₇₅(dof): a 95 % interval is ± this many of :attr:`errors`."""
-        from scipy.stats import t
+        from ..inverse.summaries import t_quantile
 
-        return float(t.ppf(0.975, self.dof))
+        return t_quantile(self.dof + 1)
 
     def text(self) -> str:
         """What the errors are, in one line."""
@@ -602,9 +602,10 @@ def _traces(record: dict, errors: dict[str, float], data) -> TracesNoise | None:
     from ..fitting.hypotheses import SAME_POINTS
     from ..fitting.midline_checks import as_points
     from ..fitting.profile_noise import traces_and_residual, traces_missing
+    from ..fitting.results import GAUSS_NEWTON
 
     if data is None or traces_missing(data) or \
-            record.get("standard_errors_source", "gauss-newton") != "gauss-newton":
+            record.get("standard_errors_source", GAUSS_NEWTON) != GAUSS_NEWTON:
         return None
     fitted = record.get("data_midline") or {}
     points = np.column_stack([fitted.get("r", []), fitted.get("z", [])])
