@@ -80,6 +80,7 @@ def test_compare_of_one_image_traces_fits_scales_the_residual(fits, tmp_path, ca
     (None, ["--noise", "traces", "--midline", "nope.csv"], "--midline nope.csv: not a file"),
     ("flat", [], "fit_flat.json was fitted on 100 nodes, fit_free.json on 200"),
     (None, ["fit_free.json"], "fit_free.json is named twice"),
+    (None, ["./fit_free.json"], "./fit_free.json is named twice (as fit_free.json)"),
 ])
 def test_compare_refuses_mixed_fits_in_one_line(fits, tmp_path, capsys, edit, args, message):
     if edit:

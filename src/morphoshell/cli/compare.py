@@ -75,10 +75,12 @@ def _records(paths: list[str]) -> dict[str, dict]:
     """Each file's record, by its path (ValueError naming a file that is not one)."""
     from ..io.problem_files import read_json
 
-    records = {}
+    records, seen = {}, {}
     for path in paths:
-        if path in records:
-            raise ValueError(f"{path} is named twice: compare one fit of each hypothesis")
+        same = seen.setdefault(Path(path).resolve(), path)      # (a.json and ./a.json: one)
+        if path in records or same != path:
+            raise ValueError(f"{path} is named twice{'' if same == path else f' (as {same})'}: "
+                             f"compare one fit of each hypothesis")
         record = read_json(path)
         if not isinstance(record, dict):
             raise ValueError(f"{path}: expected the JSON object written by morphoshell fit --json")
