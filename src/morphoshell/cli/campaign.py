@@ -153,6 +153,8 @@ def _hypothesis_lines(result) -> list[str]:
     """Per timepoint, which hypotheses its free fit rejects and which the data cannot tell
     apart (:meth:`~morphoshell.workflows.CampaignResult.hypothesis_tests`), with each
     Delta S/sigma^2 and threshold: the lowest E_fit alone does not decide (audit 25 F1)."""
+    from ..fitting.hypotheses import TESTED
+
     if "free" not in result.variants:
         if len(result.variants) < 2:
             return []
@@ -168,7 +170,7 @@ def _hypothesis_lines(result) -> list[str]:
             continue
         ratios = ", ".join(f"{h.variant} {h.ratio:.3g}/{h.threshold:.3g}"
                            for h in test.hypotheses
-                           if h.verdict in ("consistent", "rejected", "not established"))
+                           if h.verdict in TESTED)
         lines.append(f"  {name}: {test.summary()} [{ratios}; sigma^2 from the "
                      f"{test.sigma2_source}]")
     return lines if len(lines) > 1 else []

@@ -71,7 +71,7 @@ from .results import FitResult
 from .trace_errors import fit_inflation
 
 __all__ = ["Hypothesis", "HypothesisTest", "compare_hypotheses", "REFERENCE",
-           "CONSISTENT", "REJECTED", "NOT_ESTABLISHED"]
+           "CONSISTENT", "REJECTED", "NOT_ESTABLISHED", "TESTED"]
 
 #: The variant that nests the others: the test's reference.
 REFERENCE = "free"
@@ -80,7 +80,7 @@ CONSISTENT, REJECTED = "consistent", "rejected"
 #: The verdict a fit that did not converge leaves open (module docstring).
 NOT_ESTABLISHED = "not established"
 #: The verdicts of a test (with a threshold), established or not.
-_TESTED = (CONSISTENT, REJECTED, NOT_ESTABLISHED)
+TESTED = (CONSISTENT, REJECTED, NOT_ESTABLISHED)
 #: A hypothesis that is not ``free`` under restrictions (fitted or held otherwise).
 NOT_NESTED = "not nested"
 #: What the problem of every fit compared must share (beside the data and the mesh).
@@ -195,7 +195,7 @@ class HypothesisTest:
                      f"trace's re-tracings / Gauss-Newton SE)^2, as {name}'s profile")
         line = f"sigma^2 = {self.sigma2:.3g} R^2 {where}"
         laws = sorted({_law(h.restrictions, self.dof) for h in self.hypotheses
-                       if h.verdict in _TESTED})
+                       if h.verdict in TESTED})
         if laws:
             line += f"; threshold: the {self.confidence:.0%} quantile of {' or '.join(laws)}"
         if self.sigma2_source == "residual":
@@ -249,7 +249,7 @@ class HypothesisTest:
 
     def _caveats(self, out: list[str]) -> str:
         """A free fit above a hypothesis, and the residual's σ² of a traced midline."""
-        lower = [h.variant for h in self.hypotheses if h.verdict in _TESTED
+        lower = [h.variant for h in self.hypotheses if h.verdict in TESTED
                  and h.delta_S < 0]
         note = (f"; free's E_fit lies above {', '.join(lower)}'s: the free fit is not at its "
                 f"minimum (refit free from there, --start FIT.json)" if lower else "")
